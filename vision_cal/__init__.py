@@ -1,0 +1,13 @@
+"""vision-cal: camera-based calibration of SCARA robots programmed off-line.
+
+The package reads as the pipeline::
+
+    dataset -> render | measure -> calibrate -> diagnose -> plan -> simulate -> report
+
+See ``docs/conventions.md`` for frames, units and signs.
+"""
+
+from vision_cal.errors import VisionCalError
+
+__version__ = "0.1.0"
+__all__ = ["VisionCalError", "__version__"]

@@ -1,0 +1,1 @@
+"""Calibration of the base model: circle fits (the paper), closed-form init, least squares."""

@@ -1,0 +1,94 @@
+"""``vision-cal``: calibrate a SCARA robot from photographs of the sheet it drew on.
+
+Exit codes: 0 done (skipped photos are warnings); 1 could not calibrate (too few usable
+marks, an unidentifiable plan); 2 bad arguments or dataset.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+
+SUBCOMMANDS = ("calibrate", "render", "plan", "loop", "export")
+EXIT_OK, EXIT_CALIBRATION, EXIT_INPUT = 0, 1, 2
+
+EPILOG = """\
+exit codes:
+  0  done (skipped photos are warnings)
+  1  could not calibrate (too few usable marks, unidentifiable plan)
+  2  bad arguments or dataset
+
+examples:
+  vision-cal images/ --report              calibrate a folder (calibrate is the default)
+  vision-cal fixtures/paper_sm5 --method paper --out /tmp/x
+  vision-cal render renders/default.yaml --out /tmp/d
+"""
+
+
+def _module(name: str):
+    return importlib.import_module(f"vision_cal.commands.{name}")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from vision_cal import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="vision-cal", description=__doc__.splitlines()[0].split(": ", 1)[1],
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"vision-cal {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in SUBCOMMANDS:
+        try:
+            mod = _module(name)
+        except ModuleNotFoundError:
+            continue
+        p = sub.add_parser(name, help=mod.HELP, description=mod.HELP,
+                           epilog=getattr(mod, "EXAMPLES", None),
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        add_common(p)
+        mod.add_arguments(p)
+        p.set_defaults(_run=mod.run)
+    return parser
+
+
+def add_common(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("output")
+    g.add_argument("-q", "--quiet", action="store_true", help="no progress bars or summary")
+    g.add_argument("-v", "--verbose", action="store_true", help="log details; tracebacks on error")
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # `calibrate` is the default when the first argument is not a subcommand or option
+    if argv and argv[0] not in SUBCOMMANDS and not argv[0].startswith("-"):
+        argv.insert(0, "calibrate")
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "_run", None):
+        parser.print_help()
+        return EXIT_INPUT
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
+                        format="vision-cal: %(levelname)s: %(message)s")
+    from vision_cal.errors import CalibrationError, VisionCalError
+
+    try:
+        return int(args._run(args) or 0)
+    except CalibrationError as e:
+        if args.verbose:
+            raise
+        print(f"vision-cal: error: {e}", file=sys.stderr)
+        return EXIT_CALIBRATION
+    except VisionCalError as e:
+        if args.verbose:
+            raise
+        print(f"vision-cal: error: {e}", file=sys.stderr)
+        return EXIT_INPUT
+    except KeyboardInterrupt:
+        print("vision-cal: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Diagnosis: residuals traced to the effects the base model lacks."""

@@ -1,0 +1,1 @@
+"""Off-line programming: calibration plans, joint trajectories and the compensated planner."""

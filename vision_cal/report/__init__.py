@@ -1,0 +1,1 @@
+"""Reports: summaries on stdout, report.json and the HTML report rendered from it."""

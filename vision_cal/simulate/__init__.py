@@ -1,0 +1,1 @@
+"""Simulated controller: SCARA dynamics, gear backlash, sliding-mode and PD tracking."""
