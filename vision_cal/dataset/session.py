@@ -31,6 +31,19 @@ class Sheet:
     aruco_dictionary: str
     markers: tuple[SheetMarker, ...]
     size_mm: tuple[float, float]
+    bottom_left_mm: tuple[float, float] = (0.0, 0.0)  # added field: paper corner in frame S
+
+    @property
+    def extent_mm(self) -> tuple[float, float, float, float]:
+        """(x_min, y_min, x_max, y_max) of the paper in the sheet frame."""
+        x0, y0 = self.bottom_left_mm
+        return (x0, y0, x0 + self.size_mm[0], y0 + self.size_mm[1])
+
+    def to_json(self) -> dict:
+        return {"aruco_dictionary": self.aruco_dictionary,
+                "markers": [{"id": m.id, "corners_mm": np.asarray(m.corners_mm).tolist()}
+                            for m in self.markers],
+                "size_mm": list(self.size_mm), "bottom_left_mm": list(self.bottom_left_mm)}
 
     def corners_by_id(self) -> dict[int, np.ndarray]:
         return {m.id: m.corners_mm for m in self.markers}
@@ -281,7 +294,9 @@ def load_session(folder) -> Session:
                 r.fail(f"{w}.corners_mm", f"expected 4 corners, got {len(cs)}")
             c = np.array([r.vector(p, f"{w}.corners_mm[{j}]", 2) for j, p in enumerate(cs)])
             mks.append(SheetMarker(int(mid), c))
-        sheet = Sheet(d, tuple(mks), size)
+        bl_raw = sheet_raw.get("bottom_left_mm")
+        bl = r.vector(bl_raw, "sheet.bottom_left_mm", 2) if bl_raw is not None else (0.0, 0.0)
+        sheet = Sheet(d, tuple(mks), size, bl)
 
     # camera
     camera = None
