@@ -1,0 +1,61 @@
+import json
+import subprocess
+import sys
+
+import pytest
+
+from vision_cal.commands.main import main
+
+
+def test_paper_method_writes_table2(paper_folder, tmp_path, capsys):
+    rc = main([str(paper_folder), "--method", "paper", "--out", str(tmp_path)])
+    assert rc == 0
+    doc = json.loads((tmp_path / "calibration.json").read_text())
+    p = doc["params"]
+    assert round(p["L1_mm"], 1) == 344.1 and round(p["L2_mm"], 1) == 259.9
+    assert [round(z, 1) for z in p["joint_zero_deg"]] == [-2.6, -8.1]
+    assert doc["format"] == "vision-cal/calibration/1"
+    assert set(doc["marks"]) == {"c00", "j1p", "j1n", "j2p", "j2n"}
+    assert all(v is not None for v in doc["std"]["joint_zero_deg"])
+    out = capsys.readouterr().out
+    assert "paper Table 2" in out and "344.052" in out
+
+
+def test_lsq_default_has_std_and_residuals(paper_folder, tmp_path):
+    assert main(["calibrate", str(paper_folder), "-o", str(tmp_path), "-q"]) == 0
+    doc = json.loads((tmp_path / "calibration.json").read_text())
+    assert doc["method"] == "lsq" and doc["std"]["L1_mm"] > 0
+    assert doc["residual_rms_mm"]["final_model"] < 1.0
+    r = doc["marks"]["c00"]["residual_mm"]
+    assert len(r) == 2
+
+
+def test_bad_dataset_exits_2_with_one_line(tmp_path, capsys):
+    (tmp_path / "session.json").write_text('{"format": "vision-cal/1"}')
+    assert main([str(tmp_path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "robot: missing required field" in err
+    assert not (tmp_path / "o" / "calibration.json").exists()
+
+
+def test_uncalibratable_exits_1(tmp_path, capsys):
+    d = json.loads((__import__("pathlib").Path(__file__).parents[2] / "fixtures" / "paper_sm5"
+                    / "session.json").read_text())
+    d["marks"] = d["marks"][:2]
+    (tmp_path / "session.json").write_text(json.dumps(d))
+    assert main([str(tmp_path), "--out", str(tmp_path / "o")]) == 1
+    assert "at least 3" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["calibrate", "--help"]])
+def test_help_shows_examples(argv, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    assert e.value.code == 0
+    assert "vision-cal" in capsys.readouterr().out
+
+
+def test_console_script_version():
+    out = subprocess.run([sys.executable, "-m", "vision_cal.commands.main", "--version"],
+                         capture_output=True, text=True, check=True).stdout
+    assert out.startswith("vision-cal ")

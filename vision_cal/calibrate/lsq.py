@@ -1,0 +1,201 @@
+"""General least-squares calibration of the model (base parameters plus effects).
+
+``Fit.from_estimate(q_deg, xy_mm, approach=..., model=...)`` fits every free parameter of
+``model`` (the base model when ``model`` has no effects) to marks anywhere:
+
+- the start comes from the closed-form linear solve (:mod:`vision_cal.calibrate.linear`),
+  so the solve never depends on the nominal model being close; effects start at zero;
+- scipy ``least_squares`` with the analytic Jacobian of :class:`vision_cal.model.RobotModel`;
+- a robust pass (soft-L1 loss scaled to the residual spread) names outliers (normalised
+  residual above ``outlier_sigma``), which are left out of the final solve;
+- identifiability is checked on the column-scaled Jacobian (rank and condition number)
+  *before* any number is reported: a rank-deficient fit raises
+  :class:`vision_cal.errors.CalibrationError` naming the confounded parameters;
+- standard deviations from the covariance scaled by the residual variance
+  ``s^2 = SSR / (2N - P)``, and correlations (pairs above 0.9 are flagged).
+
+Weights: ``sigma_mm`` (N,) per-mark measurement standard deviations, if known.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from vision_cal.calibrate.linear import explain_degeneracy, linear_init
+from vision_cal.errors import CalibrationError
+from vision_cal.kinematics import ScaraParams
+from vision_cal.model import RobotModel
+
+COND_LIMIT = 1e8
+
+
+@dataclass(frozen=True)
+class Fit:
+    """A calibrated model with its uncertainty. Arrays are over the fitted marks."""
+
+    model: RobotModel
+    cov: np.ndarray              # (P, P) in internal units (mm, rad, scale)
+    labels: tuple[str, ...]      # (P,)
+    residuals_mm: np.ndarray     # (N, 2) measured minus predicted, all marks given
+    inliers: np.ndarray          # (N,) bool: used in the final solve
+    ids: tuple[str, ...]         # (N,)
+    cond: float                  # condition number of the column-scaled Jacobian
+    rank: int
+    sigma_mm: float              # residual standard deviation per axis (sqrt(SSR/dof))
+    dof: int
+    initial: ScaraParams
+    n_params: int = 0
+    notes: tuple[str, ...] = field(default=())
+
+    # -- construction -------------------------------------------------------------------
+    @classmethod
+    def from_estimate(cls, q_deg, xy_mm, *, approach=None, model: RobotModel | None = None,
+                      sigma_mm=None, ids=None, robust: bool = True,
+                      outlier_sigma: float = 5.0) -> "Fit":
+        q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
+        xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
+        n = len(q)
+        if len(xy) != n:
+            raise CalibrationError(f"{n} poses but {len(xy)} measured marks")
+        if not np.all(np.isfinite(xy)) or not np.all(np.isfinite(q)):
+            raise CalibrationError("non-finite joint angles or mark positions")
+        s_app = np.ones((n, 2)) if approach is None else np.asarray(approach, float).reshape(-1, 2)
+        ids = tuple(ids) if ids is not None else tuple(f"#{i}" for i in range(n))
+        w = np.ones(n) if sigma_mm is None else 1.0 / np.asarray(sigma_mm, dtype=float)
+        why = explain_degeneracy(q)
+        if why:
+            raise CalibrationError(why)
+        init = linear_init(q, xy)
+        base = model if model is not None else RobotModel(init)
+        start = RobotModel(init, tuple(e.with_theta(np.zeros_like(e.theta))
+                                       for e in base.effects))
+        P = len(start.vector)
+        if 2 * n <= P:
+            raise CalibrationError(f"{n} marks give {2 * n} equations for {P} unknowns "
+                                   f"({', '.join(start.param_labels())}): more marks are needed")
+        _check_identifiable(start, q, s_app, w)
+
+        def fun(v, keep):
+            m = start.with_vector(v)
+            r = (m.predict(q[keep], s_app[keep]) - xy[keep]) * w[keep, None]
+            return r.ravel()
+
+        def jac(v, keep):
+            m = start.with_vector(v)
+            return (m.jacobian(q[keep], s_app[keep]) * w[keep, None, None]).reshape(-1, P)
+
+        keep = np.ones(n, dtype=bool)
+        v0 = start.vector
+        sol = least_squares(fun, v0, jac=jac, args=(keep,), method="lm", xtol=1e-14, ftol=1e-14)
+        notes = []
+        if robust and n * 2 - P >= 4:
+            r = fun(sol.x, keep).reshape(-1, 2)
+            scale = 1.4826 * np.median(np.abs(r)) + 1e-12
+            if np.any(np.abs(r) > outlier_sigma * scale):
+                rob = least_squares(fun, sol.x, jac=jac, args=(keep,), loss="soft_l1",
+                                    f_scale=2.0 * scale, method="trf", xtol=1e-14, ftol=1e-14)
+                r = fun(rob.x, keep).reshape(-1, 2)
+                scale = 1.4826 * np.median(np.abs(r)) + 1e-12
+                bad = np.hypot(r[:, 0], r[:, 1]) > outlier_sigma * scale * np.sqrt(2)
+                if bad.any() and (n - bad.sum()) * 2 > P + 2:
+                    keep = ~bad
+                    notes.append("outliers left out: " + ", ".join(
+                        ids[i] for i in np.flatnonzero(bad)))
+                    sol = least_squares(fun, rob.x, jac=jac, args=(keep,), method="lm",
+                                        xtol=1e-14, ftol=1e-14)
+        v = sol.x
+        fitted = start.with_vector(v)
+        J = jac(v, keep)
+        res_w = fun(v, keep)
+        dof = int(J.shape[0] - P)
+        ssr = float(res_w @ res_w)
+        s2 = ssr / dof if dof > 0 else float("nan")
+        cond, rank = _conditioning(J)
+        if rank < P:
+            raise CalibrationError(_confounded(J, start.param_labels()))
+        cov = np.linalg.pinv(J.T @ J) * (s2 if np.isfinite(s2) else np.nan)
+        residuals = xy - fitted.predict(q, s_app)
+        return cls(fitted, cov, tuple(start.param_labels()), residuals, keep, ids, cond, rank,
+                   float(np.sqrt(s2)) if np.isfinite(s2) else float("nan"), dof, init, P,
+                   tuple(notes))
+
+    # -- results --------------------------------------------------------------------------
+    @property
+    def params(self) -> ScaraParams:
+        return self.model.params
+
+    @property
+    def std(self) -> np.ndarray:
+        """(P,) one standard deviation of each parameter, internal units."""
+        return np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
+
+    @property
+    def base_std_json(self) -> dict:
+        """The ``std`` block of calibration.json (mm and degrees)."""
+        s = self.std
+        return {"L1_mm": s[0], "L2_mm": s[1], "joint_zero_deg": [np.degrees(s[2]),
+                                                                  np.degrees(s[3])],
+                "base_mm": [s[4], s[5]]}
+
+    @property
+    def correlation(self) -> np.ndarray:
+        s = self.std
+        with np.errstate(invalid="ignore", divide="ignore"):
+            c = self.cov / np.outer(s, s)
+        return c
+
+    def high_correlations(self, limit: float = 0.9) -> list[tuple[str, str, float]]:
+        c = self.correlation
+        out = []
+        for i in range(len(c)):
+            for j in range(i + 1, len(c)):
+                if np.isfinite(c[i, j]) and abs(c[i, j]) > limit:
+                    out.append((self.labels[i], self.labels[j], float(c[i, j])))
+        return out
+
+    @property
+    def rms_mm(self) -> float:
+        """RMS of the 2-D residual over the inlier marks (mm)."""
+        r = self.residuals_mm[self.inliers]
+        return float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+
+    def predict(self, q_deg, approach=None) -> np.ndarray:
+        return self.model.predict(q_deg, approach)
+
+    def residuals(self, q_deg, xy_mm, approach=None) -> np.ndarray:
+        """Measured minus predicted (N, 2) for other marks (e.g. held-out)."""
+        return np.asarray(xy_mm, dtype=float) - self.predict(q_deg, approach)
+
+
+def _scaled(J):
+    norms = np.linalg.norm(J, axis=0)
+    norms = np.where(norms > 0, norms, 1.0)
+    return J / norms
+
+
+def _conditioning(J) -> tuple[float, int]:
+    s = np.linalg.svd(_scaled(J), compute_uv=False)
+    if s[0] == 0:
+        return float("inf"), 0
+    rank = int(np.sum(s > s[0] / COND_LIMIT))
+    cond = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+    return cond, rank
+
+
+def _confounded(J, labels) -> str:
+    Js = _scaled(J)
+    _, s, vt = np.linalg.svd(Js, full_matrices=False)
+    v = vt[-1]
+    big = [labels[i] for i in np.argsort(-np.abs(v)) if abs(v[i]) > 0.2][:4]
+    return ("the plan cannot tell these parameters apart (condition number "
+            f"{s[0] / max(s[-1], 1e-300):.3g}): {' ~ '.join(big)}")
+
+
+def _check_identifiable(model: RobotModel, q, s_app, w) -> None:
+    J = (model.jacobian(q, s_app) * w[:, None, None]).reshape(-1, len(model.vector))
+    cond, rank = _conditioning(J)
+    if rank < J.shape[1]:
+        raise CalibrationError(_confounded(J, model.param_labels()))

@@ -1,0 +1,259 @@
+"""Residuals traced to effects: forward selection with held-out evidence.
+
+Start from the base model. Each round fits the current model plus each candidate
+(:mod:`vision_cal.diagnose.candidates`) that the plan can identify, and keeps the one
+that most lowers the held-out error (validation marks when there are at least three,
+else k-fold cross-validation over the calibration marks), provided
+
+- the gain is significant: an F-test of the drop in the residual sum of squares at level
+  ``alpha / n_candidates`` (Bonferroni, so clean data claims nothing), and BIC drops; and
+- the held-out error goes down.
+
+It repeats until nothing helps. Candidates the plan cannot tell apart from the base
+model (backlash with one approach direction) are reported as not identifiable with the
+plan change that would fix it. Structure left in the residual (joint-angle residuals that
+depend on angle or approach beyond chance) with no candidate to explain it is reported
+as ``unexplained``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from vision_cal.calibrate.lsq import Fit
+from vision_cal.diagnose.candidates import Candidate, default_candidates, joint_residuals_deg
+from vision_cal.errors import CalibrationError
+from vision_cal.model import RobotModel, SheetAffine
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """What one candidate did to the fit, in one round."""
+
+    label: str
+    heldout_before_mm: float
+    heldout_after_mm: float
+    rss_before: float
+    rss_after: float
+    F: float
+    p_value: float
+    delta_bic: float
+    accepted: bool
+    reason: str
+    effect: dict | None = None
+
+    def to_json(self) -> dict:
+        return {k: getattr(self, k) for k in self.__dataclass_fields__}
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    base_fit: Fit
+    final_fit: Fit
+    accepted: tuple[Evidence, ...]
+    rejected: tuple[Evidence, ...]
+    not_identifiable: tuple[dict, ...]
+    unexplained: dict | None
+    heldout_kind: str
+    heldout_base_mm: float
+    heldout_final_mm: float
+    analysis: dict = field(default_factory=dict)
+
+    def effects_json(self) -> list[dict]:
+        """calibration.json ``effects`` entries of the final model (with std)."""
+        fit = self.final_fit
+        out, k = [], 6
+        for e in fit.model.effects:
+            n = len(e.theta)
+            d = e.to_json(fit.std[k:k + n])
+            ev = next((a for a in self.accepted if a.label == e.label), None)
+            if ev is not None:
+                d["evidence"] = {"heldout_rms_mm": [ev.heldout_before_mm, ev.heldout_after_mm],
+                                 "F": ev.F, "p_value": ev.p_value, "delta_bic": ev.delta_bic}
+            out.append(d)
+            k += n
+        if self.unexplained:
+            out.append({"name": "unexplained", **self.unexplained})
+        return out
+
+
+def _rss(fit: Fit) -> float:
+    r = fit.residuals_mm[fit.inliers]
+    return float(np.sum(r**2))
+
+
+def _fit(model, q, xy, app, sigma, ids):
+    return Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, ids=ids)
+
+
+def heldout_rms(model: RobotModel, q, xy, app, *, sigma=None, q_val=None, xy_val=None,
+                app_val=None, k_folds: int = 5, rng=None) -> float:
+    """Held-out RMS (mm, 2-D): on validation marks if given, else k-fold CV."""
+    if q_val is not None and len(q_val) >= 3:
+        f = Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, robust=False)
+        r = xy_val - f.predict(q_val, app_val)
+        return float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+    n = len(q)
+    rng = np.random.default_rng(0 if rng is None else rng)
+    folds = np.array_split(rng.permutation(n), min(k_folds, n))
+    err = []
+    for idx in folds:
+        keep = np.ones(n, dtype=bool)
+        keep[idx] = False
+        try:
+            f = Fit.from_estimate(q[keep], xy[keep], approach=app[keep], model=model,
+                                  sigma_mm=None if sigma is None else sigma[keep], robust=False)
+        except CalibrationError:
+            return float("nan")
+        err.append(xy[idx] - f.predict(q[idx], app[idx]))
+    r = np.concatenate(err)
+    return float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+
+
+def residual_analysis(fit: Fit, q, app, *, n_bins: int = 6) -> dict:
+    """Joint-angle residuals split by approach and binned against each joint angle."""
+    keep = fit.inliers
+    dq = joint_residuals_deg(fit.model, q, app, fit.residuals_mm)
+    out = {}
+    for j in range(2):
+        d, a, qq = dq[keep, j], app[keep, j], q[keep, j]
+        ok = np.isfinite(d)
+        d, a, qq = d[ok], a[ok], qq[ok]
+        res = {"rms_deg": float(np.sqrt(np.mean(d**2))) if len(d) else float("nan")}
+        if (a > 0).sum() >= 2 and (a < 0).sum() >= 2:
+            t = stats.ttest_ind(d[a > 0], d[a < 0], equal_var=False)
+            res["by_approach_deg"] = {"+1": float(d[a > 0].mean()), "-1": float(d[a < 0].mean()),
+                                      "t": float(t.statistic), "p_value": float(t.pvalue)}
+        if len(d) >= 2 * n_bins:
+            edges = np.quantile(qq, np.linspace(0, 1, n_bins + 1))
+            b = np.clip(np.searchsorted(edges, qq, side="right") - 1, 0, n_bins - 1)
+            means = np.array([d[b == i].mean() for i in range(n_bins)])
+            counts = np.array([(b == i).sum() for i in range(n_bins)])
+            s2 = np.var(d, ddof=1) if len(d) > 1 else np.nan
+            chi2 = float(np.sum(counts * (means - d.mean()) ** 2) / s2) if s2 > 0 else 0.0
+            res["by_angle"] = {"bin_center_deg": ((edges[:-1] + edges[1:]) / 2).tolist(),
+                               "mean_deg": means.tolist(), "chi2": chi2,
+                               "p_value": float(stats.chi2.sf(chi2, n_bins - 1))}
+        out[f"joint{j + 1}"] = res
+    return out
+
+
+def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None, xy_val=None,
+             approach_val=None, candidates: list[Candidate] | None = None, alpha: float = 0.01,
+             k_folds: int = 5, max_effects: int = 4, rng=None) -> Diagnosis:
+    """Calibrate the base model, then add the effects the residual asks for."""
+    q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
+    xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
+    app = np.ones_like(q) if approach is None else np.asarray(approach, float).reshape(-1, 2)
+    sigma = None if sigma_mm is None else np.asarray(sigma_mm, dtype=float)
+    if q_val is not None:
+        q_val = np.asarray(q_val, float).reshape(-1, 2)
+        xy_val = np.asarray(xy_val, float).reshape(-1, 2)
+        approach_val = (np.ones_like(q_val) if approach_val is None
+                        else np.asarray(approach_val, float).reshape(-1, 2))
+    has_val = q_val is not None and len(q_val) >= 3
+    kind = "validation marks" if has_val else f"{min(k_folds, len(q))}-fold cross-validation"
+    cands = list(candidates if candidates is not None else default_candidates())
+    alpha_each = alpha / max(len(cands), 1)
+
+    def held(model):
+        return heldout_rms(model, q, xy, app, sigma=sigma, q_val=q_val if has_val else None,
+                           xy_val=xy_val, app_val=approach_val, k_folds=k_folds, rng=rng)
+
+    base = _fit(None, q, xy, app, sigma, ids)
+    current, current_held = base, held(RobotModel(base.params))
+    base_held = current_held
+    accepted, rejected, not_ident = [], [], []
+    used_keys: set[str] = set()
+    n_obs = 2 * int(base.inliers.sum())
+    while len(accepted) < max_effects:
+        trials = []
+        for c in cands:
+            if c.key in used_keys:
+                continue
+            model = current.model.with_effect(c.effect)
+            try:
+                f = _fit(model, q, xy, app, sigma, ids)
+            except CalibrationError as e:
+                if not any(d["label"] == c.label for d in not_ident):
+                    not_ident.append({"label": c.label, "reason": str(e), "fix": c.fix})
+                continue
+            rss0, rss1 = _rss_w(current, sigma), _rss_w(f, sigma)
+            k = f.n_params - current.n_params
+            dof1 = max(n_obs - f.n_params, 1)
+            F = ((rss0 - rss1) / k) / (rss1 / dof1) if rss1 > 0 else float("inf")
+            p = float(stats.f.sf(F, k, dof1)) if np.isfinite(F) else 0.0
+            dbic = n_obs * np.log(max(rss1, 1e-300) / max(rss0, 1e-300)) + k * np.log(n_obs)
+            trials.append((c, f, rss0, rss1, F, p, dbic))
+        if not trials:
+            break
+        # sheet scale along x or y: the same fit (one is the other with the lengths scaled);
+        # the sheet shrinks, so keep the alternative whose printed scale is above one.
+        trials = _prefer_shrink(trials)
+        sig = [t for t in trials if t[5] < alpha_each and t[6] < 0]
+        scored = []
+        for t in sig:
+            scored.append((held(t[1].model), t))
+        best = min(scored, key=lambda s: s[0]) if scored else None
+        round_rejected = []
+        for c, f, rss0, rss1, F, p, dbic in trials:
+            h = next((s[0] for s in scored if s[1][0] is c), float("nan"))
+            if best is not None and c is best[1][0] and h < current_held:
+                continue
+            why = ("not significant" if p >= alpha_each or dbic >= 0 else
+                   "held-out error not lowered" if not (h < current_held) else
+                   "another candidate explains more")
+            round_rejected.append(Evidence(c.label, current_held, h, rss0, rss1, float(F), p,
+                                           float(dbic), False, why))
+        if best is None or not (best[0] < current_held):
+            rejected.extend(round_rejected)
+            break
+        c, f, rss0, rss1, F, p, dbic = best[1]
+        eff = f.model.effects[-1]
+        accepted.append(Evidence(c.label, current_held, best[0], rss0, rss1, float(F), p,
+                                 float(dbic), True, "significant and lowers the held-out error",
+                                 eff.to_json()))
+        used_keys.add(c.key)
+        current, current_held = f, best[0]
+    # keep only the last round's rejections per label (the final word on each candidate)
+    last = {}
+    for ev in rejected:
+        last[ev.label] = ev
+    analysis = residual_analysis(current, q, app)
+    unexplained = _unexplained(analysis, alpha)
+    return Diagnosis(base, current, tuple(accepted), tuple(last.values()), tuple(not_ident),
+                     unexplained, kind, base_held, current_held, analysis)
+
+
+def _rss_w(fit: Fit, sigma) -> float:
+    r = fit.residuals_mm[fit.inliers]
+    if sigma is not None:
+        r = r / np.asarray(sigma)[fit.inliers, None]
+    return float(np.sum(r**2))
+
+
+def _prefer_shrink(trials):
+    sheet = [t for t in trials if isinstance(t[0].effect, SheetAffine) and t[0].effect.dof in "xy"]
+    if len(sheet) == 2:
+        a, b = sheet
+        if abs(a[3] - b[3]) <= 0.05 * max(a[3], b[3]):
+            drop = a if a[1].model.effects[-1].theta[0] < 0 else b
+            trials = [t for t in trials if t is not drop]
+    return trials
+
+
+def _unexplained(analysis: dict, alpha: float) -> dict | None:
+    seen = []
+    for j, res in analysis.items():
+        ba = res.get("by_approach_deg")
+        if ba and ba["p_value"] < alpha / 10:
+            seen.append(f"{j} residual depends on the approach direction "
+                        f"({ba['+1']:+.4f} vs {ba['-1']:+.4f} deg, p = {ba['p_value']:.2g})")
+        bn = res.get("by_angle")
+        if bn and bn["p_value"] < alpha / 10:
+            seen.append(f"{j} residual varies with the joint angle (chi2 = {bn['chi2']:.1f}, "
+                        f"p = {bn['p_value']:.2g})")
+    return {"seen": seen} if seen else None

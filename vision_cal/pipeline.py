@@ -1,0 +1,244 @@
+"""The calibration pipeline: dataset -> measure -> calibrate -> diagnose -> calibration.json.
+
+:func:`calibrate_dataset` is what ``vision-cal DIR --out OUT`` runs. Statistics go to the
+calibration document (a dict written as ``OUT/calibration.json``); summaries and reports
+are rendered from that document.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from vision_cal.calibrate.lsq import Fit
+from vision_cal.calibrate.paper import paper_method
+from vision_cal.dataset.io import atomic_write_json, read_json
+from vision_cal.dataset.session import Session, load_session
+from vision_cal.errors import CalibrationError, VisionCalError
+
+log = logging.getLogger(__name__)
+METHODS = ("lsq", "paper")
+
+
+@dataclass(frozen=True)
+class MarkData:
+    """Measured marks in plan order. Arrays (N, 2) unless noted."""
+
+    ids: tuple[str, ...]
+    q_deg: np.ndarray
+    approach: np.ndarray
+    xy_mm: np.ndarray
+    sigma_mm: np.ndarray | None  # (N,) per-axis standard deviation, when measured by camera
+    roles: tuple[str, ...]
+
+    def select(self, role: str) -> "MarkData":
+        k = np.array([r == role for r in self.roles], dtype=bool)
+        return MarkData(tuple(i for i, s in zip(self.ids, k) if s), self.q_deg[k],
+                        self.approach[k], self.xy_mm[k],
+                        None if self.sigma_mm is None else self.sigma_mm[k],
+                        tuple(r for r, s in zip(self.roles, k) if s))
+
+
+@dataclass(frozen=True)
+class CalibrationRun:
+    session: Session
+    document: dict
+    out_path: Path
+    diagnosis: object | None = None
+    paper: object | None = None
+    measurement: object | None = None
+
+
+def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[str]]:
+    """Marks with a position: ``measured_mm`` from the session, else from the photos."""
+    app = session.approach
+    ids, q, a, xy, sig, roles, missing = [], [], [], [], [], [], []
+    have_sigma = measurement is not None
+    for i, m in enumerate(session.marks):
+        if measurement is not None and m.id in measurement.marks:
+            mm = measurement.marks[m.id]
+            pos = np.asarray(mm.xy_mm, dtype=float)
+            s = float(np.sqrt(np.trace(np.asarray(mm.cov_mm2)) / 2))
+        elif m.measured_mm is not None:
+            pos, s = np.asarray(m.measured_mm, dtype=float), np.nan
+        else:
+            missing.append(m.id)
+            continue
+        ids.append(m.id)
+        q.append(m.joints_deg)
+        a.append(app[i])
+        xy.append(pos)
+        sig.append(s)
+        roles.append(m.role)
+    sigma = np.array(sig) if have_sigma and np.all(np.isfinite(sig)) and len(sig) else None
+    return MarkData(tuple(ids), np.array(q, float).reshape(-1, 2), np.array(a, float).reshape(-1, 2),
+                    np.array(xy, float).reshape(-1, 2), sigma, tuple(roles)), missing
+
+
+def _rms(r) -> float:
+    r = np.asarray(r, dtype=float).reshape(-1, 2)
+    return float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) if len(r) else float("nan")
+
+
+def _paper_std(q, xy, sigma_mm: float) -> dict:
+    """Std of the paper's parameters by linear propagation of mark noise ``sigma_mm``."""
+    v0 = paper_method(q, xy).params.vector
+    G = np.zeros((6, xy.size))
+    h = 1e-4
+    for k in range(xy.size):
+        d = np.zeros(xy.size)
+        d[k] = h
+        vp = paper_method(q, xy + d.reshape(xy.shape)).params.vector
+        vm = paper_method(q, xy - d.reshape(xy.shape)).params.vector
+        G[:, k] = (vp - vm) / (2 * h)
+    s = np.sqrt(np.diag(G @ G.T)) * sigma_mm if np.isfinite(sigma_mm) else np.full(6, np.nan)
+    del v0
+    return {"L1_mm": s[0], "L2_mm": s[1], "joint_zero_deg": [np.degrees(s[2]), np.degrees(s[3])],
+            "base_mm": [s[4], s[5]]}
+
+
+def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None = None,
+                      progress: bool = False, truth: bool = False) -> CalibrationRun:
+    """Measure (if needed), calibrate and diagnose a dataset folder; write calibration.json."""
+    if method not in METHODS:
+        raise VisionCalError(f"unknown method {method!r} (expected one of {', '.join(METHODS)})")
+    session = load_session(folder)
+    out_dir = Path(out_dir)
+    measurement = None
+    if any(m.measured_mm is None for m in session.marks):
+        from vision_cal.measure.batch import measure_folder
+
+        measurement = measure_folder(session, out_dir=out_dir, jobs=jobs, progress=progress)
+    data, missing = collect_marks(session, measurement)
+    cal, val = data.select("calibration"), data.select("validation")
+    if len(cal.ids) < 3:
+        raise CalibrationError(f"{len(cal.ids)} calibration marks were measured "
+                               f"({len(missing)} missing): at least 3 are needed")
+    doc: dict = {"format": "vision-cal/calibration/1", "method": method}
+    diag = paper = None
+    nominal = session.robot.params
+    if method == "paper":
+        paper = paper_method(cal.q_deg, cal.xy_mm)
+        params = paper.params
+        lsq_sigma = Fit.from_estimate(cal.q_deg, cal.xy_mm, approach=cal.approach,
+                                      robust=False).sigma_mm
+        std = _paper_std(cal.q_deg, cal.xy_mm, lsq_sigma)
+        res_cal = cal.xy_mm - _predict(params, cal)
+        res_val = val.xy_mm - _predict(params, val) if len(val.ids) else np.zeros((0, 2))
+        doc.update(params=params.to_json(), std=std, effects=[],
+                   residual_rms_mm={"base_model": _rms(res_cal), "final_model": _rms(res_cal)},
+                   validation_rms_mm={"base_model": _rms(res_val) if len(val.ids) else None,
+                                      "final_model": _rms(res_val) if len(val.ids) else None,
+                                      "kind": "validation marks" if len(val.ids) else "none"},
+                   circles={"base": paper.circle_base.to_json(),
+                            "elbow": paper.circle_elbow.to_json()})
+        final_model = None
+        residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
+        residual_all.update({i: r for i, r in zip(val.ids, res_val)})
+    else:
+        from vision_cal.diagnose.select import diagnose
+
+        diag = diagnose(cal.q_deg, cal.xy_mm, cal.approach, sigma_mm=cal.sigma_mm, ids=cal.ids,
+                        q_val=val.q_deg if len(val.ids) else None,
+                        xy_val=val.xy_mm if len(val.ids) else None,
+                        approach_val=val.approach if len(val.ids) else None)
+        fb, ff = diag.base_fit, diag.final_fit
+        final_model = ff.model
+        has_val = len(val.ids) >= 3
+        vb = _rms(val.xy_mm - fb.predict(val.q_deg, val.approach)) if has_val else diag.heldout_base_mm
+        vf = _rms(val.xy_mm - ff.predict(val.q_deg, val.approach)) if has_val else diag.heldout_final_mm
+        doc.update(
+            params=ff.params.to_json(), std=ff.base_std_json, effects=diag.effects_json(),
+            residual_rms_mm={"base_model": fb.rms_mm, "final_model": ff.rms_mm},
+            validation_rms_mm={"base_model": vb, "final_model": vf, "kind": diag.heldout_kind},
+            base_model_params=fb.params.to_json(), base_model_std=fb.base_std_json,
+            initial_guess={"method": "closed-form linear solve (generalised circle fits)",
+                           "params": fb.initial.to_json()},
+            identifiability={"condition_number": ff.cond, "rank": ff.rank,
+                             "n_params": ff.n_params, "labels": list(ff.labels),
+                             "high_correlations": [
+                                 {"a": a, "b": b, "r": r} for a, b, r in ff.high_correlations()],
+                             "not_identifiable": list(diag.not_identifiable)},
+            diagnosis={"heldout": diag.heldout_kind,
+                       "accepted": [e.to_json() for e in diag.accepted],
+                       "rejected": [e.to_json() for e in diag.rejected],
+                       "residual_analysis": diag.analysis},
+            notes=list(ff.notes),
+            sigma_mm=ff.sigma_mm,
+        )
+        res_cal = ff.residuals_mm
+        res_val = val.xy_mm - ff.predict(val.q_deg, val.approach)
+        residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
+        residual_all.update({i: r for i, r in zip(val.ids, res_val)})
+        outliers = [i for i, k in zip(cal.ids, ff.inliers) if not k]
+        if outliers:
+            doc["outliers"] = outliers
+        try:  # circle fits, where the plan has paper-style groups
+            pm = paper_method(cal.q_deg, cal.xy_mm)
+            doc["circles"] = {"base": pm.circle_base.to_json(), "elbow": pm.circle_elbow.to_json()}
+        except CalibrationError:
+            pass
+    doc["nominal"] = nominal.to_json()
+    if measurement is not None and measurement.lens is not None and measurement.lens.kept:
+        doc["effects"] = [measurement.lens.to_effect_json()] + doc["effects"]
+    if data.sigma_mm is not None:
+        doc["noise_floor_mm"] = float(np.sqrt(2 * np.mean(data.sigma_mm**2)))
+    marks = {}
+    for i, mid in enumerate(data.ids):
+        entry = {"measured_mm": data.xy_mm[i].tolist(),
+                 "residual_mm": np.asarray(residual_all[mid]).tolist(),
+                 "role": data.roles[i], "joints_deg": data.q_deg[i].tolist(),
+                 "approach": data.approach[i].astype(int).tolist()}
+        if data.sigma_mm is not None:
+            entry["sigma_mm"] = float(data.sigma_mm[i])
+        marks[mid] = entry
+    doc["marks"] = marks
+    if missing:
+        doc["missing_marks"] = missing
+    doc["images"] = ([im.to_json() for im in measurement.images] if measurement is not None
+                     else [])
+    targets = _target_errors(session, data, final_model)
+    if targets:
+        doc["targets"] = targets
+    if truth:
+        doc["truth_comparison"] = compare_truth(session.root / "truth.json", doc)
+    out_path = atomic_write_json(out_dir / "calibration.json", doc)
+    log.info("wrote %s", out_path)
+    return CalibrationRun(session, doc, out_path, diag, paper, measurement)
+
+
+def _predict(params, d: MarkData):
+    from vision_cal.kinematics import forward
+
+    return forward(params, d.q_deg) if len(d.ids) else np.zeros((0, 2))
+
+
+def _target_errors(session: Session, data: MarkData, model) -> list[dict]:
+    """Absolute error (measured minus target) of marks that carry ``target_mm``."""
+    pos = dict(zip(data.ids, data.xy_mm))
+    out = []
+    for m in session.marks:
+        if m.target_mm is not None and m.id in pos:
+            err = pos[m.id] - np.asarray(m.target_mm)
+            out.append({"id": m.id, "target_mm": list(m.target_mm),
+                        "measured_mm": pos[m.id].tolist(), "error_mm": err.tolist(),
+                        "error_norm_mm": float(np.hypot(*err))})
+    return out
+
+
+def compare_truth(path: Path, doc: dict) -> dict:
+    """Calibrated minus true parameters (synthetic data only; read only when asked)."""
+    t = read_json(path)
+    tp, cp = t["params"], doc["params"]
+    out = {"L1_mm": cp["L1_mm"] - tp["L1_mm"], "L2_mm": cp["L2_mm"] - tp["L2_mm"],
+           "joint_zero_deg": [cp["joint_zero_deg"][k] - tp["joint_zero_deg"][k] for k in (0, 1)],
+           "base_mm": [cp["base_mm"][k] - tp["base_mm"][k] for k in (0, 1)],
+           "true_effects": t.get("effects", [])}
+    tm = t.get("marks", {})
+    errs = [np.subtract(v["measured_mm"], tm[k]) for k, v in doc["marks"].items() if k in tm]
+    if errs:
+        out["mark_rms_mm"] = _rms(np.array(errs))
+    return out

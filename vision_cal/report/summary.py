@@ -1,0 +1,112 @@
+"""The short text summary printed after a calibration, rendered from calibration.json."""
+
+from __future__ import annotations
+
+import math
+
+
+def _f(x, nd=3) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    return f"{x:.{nd}f}"
+
+
+def _rows(doc: dict):
+    p, s, n = doc["params"], doc.get("std") or {}, doc.get("nominal") or {}
+
+    def g(d, key, k=None):
+        if not d or key not in d or d[key] is None:
+            return None
+        v = d[key]
+        return v[k] if k is not None else v
+
+    yield "L1 [mm]", g(n, "L1_mm"), g(p, "L1_mm"), g(s, "L1_mm"), ("L1_mm", None)
+    yield "L2 [mm]", g(n, "L2_mm"), g(p, "L2_mm"), g(s, "L2_mm"), ("L2_mm", None)
+    yield "z1 [deg]", g(n, "joint_zero_deg", 0), g(p, "joint_zero_deg", 0), \
+        g(s, "joint_zero_deg", 0), ("joint_zero_deg", 0)
+    yield "z2 [deg]", g(n, "joint_zero_deg", 1), g(p, "joint_zero_deg", 1), \
+        g(s, "joint_zero_deg", 1), ("joint_zero_deg", 1)
+    yield "base x [mm]", g(n, "base_mm", 0), g(p, "base_mm", 0), g(s, "base_mm", 0), ("base_mm", 0)
+    yield "base y [mm]", g(n, "base_mm", 1), g(p, "base_mm", 1), g(s, "base_mm", 1), ("base_mm", 1)
+
+
+def format_summary(doc: dict, *, reference: dict | None = None) -> str:
+    """Table-2 style comparison, effects with evidence, RMS against the noise floor."""
+    ref = (reference or {}).get("params")
+    head = f"{'parameter':<12}{'nominal':>11}{'calibrated':>13}{'std':>10}"
+    if ref:
+        head += f"{(reference.get('label') or 'reference'):>16}"
+    lines = [f"calibration ({doc.get('method', 'lsq')}): "
+             f"{len(doc.get('marks', {}))} marks", head, "-" * len(head)]
+    for name, nom, cal, std, (key, k) in _rows(doc):
+        row = f"{name:<12}{_f(nom):>11}{_f(cal):>13}{('+-' + _f(std, 4)) if std is not None else '-':>10}"
+        if ref:
+            v = ref.get(key)
+            v = v[k] if (v is not None and k is not None) else v
+            row += f"{_f(v, 1):>16}"
+        lines.append(row)
+    if ref and "note" in reference:
+        lines.append(f"  ({reference['note']})")
+    effects = [e for e in doc.get("effects", []) if e["name"] != "unexplained"]
+    if effects:
+        lines.append("effects found:")
+        for e in effects:
+            lines.append("  " + describe_effect(e))
+    else:
+        lines.append("effects found: none (the base model explains the marks)")
+    for e in doc.get("effects", []):
+        if e["name"] == "unexplained":
+            lines.append("  unexplained structure: " + "; ".join(e.get("seen", [])))
+    for d in (doc.get("identifiability") or {}).get("not_identifiable", []):
+        lines.append(f"  not identifiable by this plan: {d['label']} - {d['fix']}")
+    r, v = doc.get("residual_rms_mm", {}), doc.get("validation_rms_mm", {})
+    lines.append(f"residual RMS [mm]: base model {_f(r.get('base_model'), 4)} -> final "
+                 f"{_f(r.get('final_model'), 4)}")
+    if v.get("base_model") is not None:
+        lines.append(f"held-out RMS [mm] ({v.get('kind', 'validation')}): base model "
+                     f"{_f(v.get('base_model'), 4)} -> final {_f(v.get('final_model'), 4)}")
+    if doc.get("noise_floor_mm") is not None:
+        lines.append(f"measurement noise floor [mm]: {_f(doc['noise_floor_mm'], 4)}")
+    for c in (doc.get("identifiability") or {}).get("high_correlations", []):
+        lines.append(f"  correlated: {c['a']} ~ {c['b']} (r = {c['r']:+.3f})")
+    for note in doc.get("notes", []):
+        lines.append(f"  note: {note}")
+    skipped = [im for im in doc.get("images", []) if im.get("status") != "ok"]
+    if skipped:
+        lines.append(f"skipped photos: {len(skipped)}")
+        for im in skipped:
+            lines.append(f"  {im['file']}: {im.get('reason', '')}")
+    tc = doc.get("truth_comparison")
+    if tc:
+        lines.append("against truth.json: dL1 {} dL2 {} mm, dz1 {} dz2 {} deg, dbase {} {} mm".format(
+            _f(tc["L1_mm"], 4), _f(tc["L2_mm"], 4), _f(tc["joint_zero_deg"][0], 4),
+            _f(tc["joint_zero_deg"][1], 4), _f(tc["base_mm"][0], 4), _f(tc["base_mm"][1], 4)))
+        if "mark_rms_mm" in tc:
+            lines.append(f"  mark position RMS error against truth: {_f(tc['mark_rms_mm'], 4)} mm")
+    return "\n".join(lines)
+
+
+def describe_effect(e: dict) -> str:
+    name = e["name"]
+    if name == "joint_backlash":
+        s = f"joint_backlash joint {e['joint']}: {e['deg']:.4f} deg"
+    elif name == "joint_scale":
+        s = f"joint_scale joint {e['joint']}: {100 * e['scale']:+.4f} %"
+    elif name == "joint_cyclic":
+        s = (f"joint_cyclic joint {e['joint']} harmonic {e['harmonic']}: {e['deg']:.4f} deg "
+             f"at phase {e['phase_deg']:.1f} deg")
+    elif name == "sheet_affine":
+        m = e["matrix"]
+        s = (f"sheet_affine: x scale {m[0][0]:.5f}, y scale {m[1][1]:.5f}, "
+             f"shear {m[0][1]:+.5f}")
+    elif name == "lens_distortion":
+        s = "lens_distortion: " + ", ".join(f"{c:+.4g}" for c in e.get("coefficients", []))
+    else:
+        s = name
+    if "std" in e and e["std"] is not None:
+        s += f" (+-{e['std']:.2g})"
+    ev = e.get("evidence")
+    if ev:
+        b, a = ev["heldout_rms_mm"]
+        s += f"; held-out RMS {b:.4f} -> {a:.4f} mm, F = {ev['F']:.1f}, p = {ev['p_value']:.2g}"
+    return s
