@@ -138,6 +138,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         final_model = None
         residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
         residual_all.update({i: r for i, r in zip(val.ids, res_val)})
+        residual_base = residual_all
     else:
         from vision_cal.diagnose.select import diagnose
 
@@ -173,6 +174,9 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         res_val = val.xy_mm - ff.predict(val.q_deg, val.approach)
         residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
         residual_all.update({i: r for i, r in zip(val.ids, res_val)})
+        residual_base = {i: r for i, r in zip(cal.ids, fb.residuals_mm)}
+        residual_base.update({i: r for i, r in zip(
+            val.ids, val.xy_mm - fb.predict(val.q_deg, val.approach))})
         outliers = [i for i, k in zip(cal.ids, ff.inliers) if not k]
         if outliers:
             doc["outliers"] = outliers
@@ -190,6 +194,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     for i, mid in enumerate(data.ids):
         entry = {"measured_mm": data.xy_mm[i].tolist(),
                  "residual_mm": np.asarray(residual_all[mid]).tolist(),
+                 "residual_base_mm": np.asarray(residual_base[mid]).tolist(),
                  "role": data.roles[i], "joints_deg": data.q_deg[i].tolist(),
                  "approach": data.approach[i].astype(int).tolist()}
         if data.sigma_mm is not None:

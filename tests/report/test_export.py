@@ -1,0 +1,43 @@
+import math
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import yaml
+
+from tests.conftest import SM5
+from vision_cal.commands.main import main
+from vision_cal.kinematics import forward
+
+
+def _rot(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+
+
+def _origin(j):
+    o = j.find("origin")
+    xyz = [float(v) for v in o.get("xyz").split()]
+    yaw = float(o.get("rpy").split()[2])
+    t = np.eye(4)
+    t[:3, 3] = xyz
+    return t @ _rot(yaw)
+
+
+def test_urdf_chain_reproduces_the_model(tmp_path):
+    doc = {"format": "vision-cal/calibration/1", "params": SM5.to_json(),
+           "effects": [{"name": "joint_backlash", "joint": 2, "deg": 0.1, "std": 0.004,
+                        "evidence": {"F": 3.0}}]}
+    import json
+
+    (tmp_path / "c.json").write_text(json.dumps(doc))
+    assert main(["export", str(tmp_path / "c.json"), "--urdf", str(tmp_path / "r.urdf"),
+                 "--yaml", str(tmp_path / "c.yaml"), "-q"]) == 0
+    root = ET.parse(tmp_path / "r.urdf").getroot()
+    joints = {j.get("name"): j for j in root.findall("joint")}
+    for q in ([0.0, 0.0], [35.0, -80.0], [-120.0, 140.0]):
+        T = (_origin(joints["joint1"]) @ _rot(math.radians(q[0])) @ _origin(joints["joint2"])
+             @ _rot(math.radians(q[1])) @ _origin(joints["pen_tip"]))
+        np.testing.assert_allclose(T[:2, 3] * 1000.0, forward(SM5, [q])[0], atol=1e-5)
+    side = yaml.safe_load((tmp_path / "r.effects.yaml").read_text())
+    assert side["effects"] == [{"name": "joint_backlash", "joint": 2, "deg": 0.1, "std": 0.004}]
+    assert yaml.safe_load((tmp_path / "c.yaml").read_text())["params"]["L1_mm"] == SM5.L1_mm

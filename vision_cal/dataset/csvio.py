@@ -1,0 +1,108 @@
+"""Targets and planned joints (CSV), as ``../shared/dataset-format.md`` says::
+
+    targets.csv:  id,x_mm,y_mm
+    plan.csv:     id,q1_deg,q2_deg,approach1,approach2
+
+Extra columns may follow the listed ones (``status``, ``reason``, ``predicted_x_mm`` ...);
+readers ignore the columns they do not know.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+
+from vision_cal.dataset.io import atomic_write_text
+from vision_cal.errors import VisionCalError
+
+TARGET_FIELDS = ("id", "x_mm", "y_mm")
+PLAN_FIELDS = ("id", "q1_deg", "q2_deg", "approach1", "approach2")
+
+
+def _rows(path: Path, required: tuple[str, ...]) -> list[tuple[int, dict]]:
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError as e:
+        raise VisionCalError("file not found", file=str(path)) from e
+    except (OSError, UnicodeDecodeError) as e:
+        raise VisionCalError(f"cannot read: {e}", file=str(path)) from e
+    reader = csv.DictReader(io.StringIO(text))
+    header = [h.strip() for h in (reader.fieldnames or [])]
+    missing = [f for f in required if f not in header]
+    if missing:
+        raise VisionCalError(f"header lacks {', '.join(missing)} (expected {','.join(required)})",
+                             file=str(path), field="line 1")
+    reader.fieldnames = header
+    return [(i + 2, {k: (v or "").strip() for k, v in row.items() if k}) for i, row in
+            enumerate(reader)]
+
+
+def _num(v: str, path, line: int, name: str) -> float:
+    try:
+        x = float(v)
+    except ValueError as e:
+        raise VisionCalError(f"expected a number, got {v!r}", file=str(path),
+                             field=f"line {line}: {name}") from e
+    if not math.isfinite(x):
+        raise VisionCalError(f"expected a finite number, got {v!r}", file=str(path),
+                             field=f"line {line}: {name}")
+    return x
+
+
+def read_targets(path) -> tuple[list[str], np.ndarray]:
+    """Target ids and sheet positions (N, 2) mm."""
+    ids, xy, seen = [], [], set()
+    for line, row in _rows(path, TARGET_FIELDS):
+        tid = row["id"]
+        if not tid:
+            raise VisionCalError("empty id", file=str(path), field=f"line {line}: id")
+        if tid in seen:
+            raise VisionCalError(f"duplicate id {tid!r}", file=str(path), field=f"line {line}: id")
+        seen.add(tid)
+        ids.append(tid)
+        xy.append((_num(row["x_mm"], path, line, "x_mm"), _num(row["y_mm"], path, line, "y_mm")))
+    if not ids:
+        raise VisionCalError("no targets", file=str(path))
+    return ids, np.array(xy, dtype=float)
+
+
+def write_targets(path, ids, xy_mm) -> Path:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(TARGET_FIELDS)
+    for i, (x, y) in zip(ids, np.asarray(xy_mm, dtype=float)):
+        w.writerow([i, f"{x:.4f}", f"{y:.4f}"])
+    return atomic_write_text(path, buf.getvalue())
+
+
+def write_plan(path, rows: list[dict]) -> Path:
+    """Rows with the plan fields plus any extra columns (same keys in every row)."""
+    extra = [k for k in (rows[0] if rows else {}) if k not in PLAN_FIELDS]
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(PLAN_FIELDS) + extra, lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: (f"{v:.6f}" if isinstance(v, float) else v) for k, v in r.items()})
+    return atomic_write_text(path, buf.getvalue())
+
+
+def read_plan(path) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """Planned ids, joints (N, 2) deg and approach signs (N, 2); rows with a failed
+    ``status`` (not planned) are skipped."""
+    ids, q, s = [], [], []
+    for line, row in _rows(path, PLAN_FIELDS):
+        if row.get("status", "ok") not in ("", "ok"):
+            continue
+        ids.append(row["id"])
+        q.append((_num(row["q1_deg"], path, line, "q1_deg"), _num(row["q2_deg"], path, line, "q2_deg")))
+        a = (_num(row["approach1"], path, line, "approach1"),
+             _num(row["approach2"], path, line, "approach2"))
+        if any(v not in (1.0, -1.0) for v in a):
+            raise VisionCalError(f"expected +1 or -1, got {a}", file=str(path),
+                                 field=f"line {line}: approach")
+        s.append(a)
+    return ids, np.array(q, float).reshape(-1, 2), np.array(s, float).reshape(-1, 2)

@@ -1,0 +1,101 @@
+"""Export a calibration to the forms ROS and OLP tools import.
+
+URDF (metres and radians, as URDF wants): ``sheet -> joint1 -> link1 -> joint2 -> link2 ->
+pen``. ``joint1``'s origin is the calibrated base in the sheet frame, rotated by ``z1``
+about z; ``joint2``'s origin is ``L1`` along link 1, rotated by ``z2``; the pen is ``L2``
+along link 2. So a URDF consumer commanding ``q`` reproduces the calibrated base model
+exactly. Each joint carries a ``<calibration rising="0"/>`` element: the commanded zero is
+where the calibrated origin puts it.
+
+Effects a URDF cannot hold (backlash, gear-ratio and cyclic errors, sheet scale) go in a
+side file ``<name>.effects.yaml``: the format's effect names and parameters, in degrees and
+the format's units, with the model they act on documented in its header.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import yaml
+
+from vision_cal.dataset.io import atomic_write_text
+
+EFFECTS_HEADER = """\
+# Effects found by vision-cal that URDF cannot express (see docs/conventions.md).
+# Joint effects add to the angle joint J really turns to, at the commanded angle q:
+#   joint_backlash  -s * deg / 2     (s: approach sign, the joint's last motion)
+#   joint_scale     scale * q
+#   joint_cyclic    deg * sin(harmonic * q + phase_deg)
+# sheet_affine: printed sheet coordinates = matrix @ arm position (about the sheet origin).
+"""
+
+
+def urdf_text(doc: dict, *, name: str = "scara_calibrated",
+              limits_deg=((-170.0, 170.0), (-150.0, 150.0))) -> str:
+    p = doc["params"]
+    bx, by = (v / 1000.0 for v in p["base_mm"])
+    z1, z2 = (math.radians(v) for v in p["joint_zero_deg"])
+    L1, L2 = p["L1_mm"] / 1000.0, p["L2_mm"] / 1000.0
+
+    def lim(j):
+        lo, hi = (math.radians(v) for v in limits_deg[j])
+        return f'<limit lower="{lo:.9f}" upper="{hi:.9f}" effort="100" velocity="3"/>'
+
+    return f"""<?xml version="1.0"?>
+<!-- written by vision-cal from a calibration ({doc.get('method', 'lsq')}); lengths in m -->
+<robot name={quoteattr(name)}>
+  <link name="sheet"/>
+  <link name="link1"/>
+  <link name="link2"/>
+  <link name="pen"/>
+  <joint name="joint1" type="revolute">
+    <parent link="sheet"/>
+    <child link="link1"/>
+    <origin xyz="{bx:.9f} {by:.9f} 0" rpy="0 0 {z1:.12f}"/>
+    <axis xyz="0 0 1"/>
+    {lim(0)}
+    <calibration rising="0.0"/>
+  </joint>
+  <joint name="joint2" type="revolute">
+    <parent link="link1"/>
+    <child link="link2"/>
+    <origin xyz="{L1:.9f} 0 0" rpy="0 0 {z2:.12f}"/>
+    <axis xyz="0 0 1"/>
+    {lim(1)}
+    <calibration rising="0.0"/>
+  </joint>
+  <joint name="pen_tip" type="fixed">
+    <parent link="link2"/>
+    <child link="pen"/>
+    <origin xyz="{L2:.9f} 0 0" rpy="0 0 0"/>
+  </joint>
+</robot>
+"""
+
+
+def effects_yaml(doc: dict) -> str:
+    effects = [{k: v for k, v in e.items() if k != "evidence"} for e in doc.get("effects", [])]
+    return EFFECTS_HEADER + yaml.safe_dump({"effects": effects}, sort_keys=False)
+
+
+def calibration_yaml(doc: dict) -> str:
+    out = {"params": doc["params"], "std": doc.get("std"),
+           "effects": [{k: v for k, v in e.items() if k != "evidence"}
+                       for e in doc.get("effects", [])],
+           "residual_rms_mm": doc.get("residual_rms_mm"),
+           "validation_rms_mm": doc.get("validation_rms_mm")}
+    return EFFECTS_HEADER + yaml.safe_dump(out, sort_keys=False)
+
+
+def export(doc: dict, *, urdf=None, yaml_path=None) -> list[Path]:
+    written = []
+    if urdf:
+        urdf = Path(urdf)
+        written.append(atomic_write_text(urdf, urdf_text(doc, name=urdf.stem)))
+        side = urdf.with_name(urdf.stem + ".effects.yaml")
+        written.append(atomic_write_text(side, effects_yaml(doc)))
+    if yaml_path:
+        written.append(atomic_write_text(yaml_path, calibration_yaml(doc)))
+    return written

@@ -1,0 +1,131 @@
+"""Report figures (matplotlib, Agg), each returned as PNG bytes. Units on every axis."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _png(fig) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    _plt().close(fig)
+    return buf.getvalue()
+
+
+def _marks(report: dict):
+    m = report["marks"]
+    ids = list(m)
+    xy = np.array([m[i]["measured_mm"] for i in ids], float).reshape(-1, 2)
+    rb = np.array([m[i].get("residual_base_mm", m[i]["residual_mm"]) for i in ids],
+                  float).reshape(-1, 2)
+    rf = np.array([m[i]["residual_mm"] for i in ids], float).reshape(-1, 2)
+    q = np.array([m[i].get("joints_deg", [np.nan, np.nan]) for i in ids], float).reshape(-1, 2)
+    s = np.array([m[i].get("approach", [1, 1]) for i in ids], float).reshape(-1, 2)
+    roles = [m[i].get("role", "calibration") for i in ids]
+    return ids, xy, rb, rf, q, s, roles
+
+
+def residual_field(report: dict) -> bytes:
+    """Residual arrows on the sheet, base model and final model, same scale."""
+    plt = _plt()
+    ids, xy, rb, rf, *_ = _marks(report)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.8), layout="constrained", sharex=True,
+                             sharey=True)
+    big = max(np.nanmax(np.hypot(*rb.T)) if len(rb) else 0.0, 1e-6)
+    scale = big / 60.0  # the longest base-model arrow draws 60 mm long
+    for ax, r, title in ((axes[0], rb, "base model"), (axes[1], rf, "final model")):
+        ax.quiver(xy[:, 0], xy[:, 1], r[:, 0], r[:, 1], angles="xy", scale_units="xy",
+                  scale=scale, color="tab:red", width=0.004)
+        ax.plot(xy[:, 0], xy[:, 1], "k.", ms=3)
+        rms = np.sqrt(np.mean(np.sum(r**2, axis=1))) if len(r) else float("nan")
+        ax.set_title(f"{title}: residual RMS {rms:.4f} mm")
+        ax.set_xlabel("sheet x [mm]")
+        ax.set_aspect("equal")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("sheet y [mm]")
+    fig.suptitle(f"residual field (arrows x{1 / scale:.0f}: {big:.3f} mm draws 60 mm)")
+    return _png(fig)
+
+
+def joint_residuals(report: dict) -> bytes:
+    """Residuals as joint-angle errors against each joint angle, split by approach."""
+    plt = _plt()
+    from vision_cal.diagnose.candidates import joint_residuals_deg
+    from vision_cal.kinematics import ScaraParams
+    from vision_cal.model import RobotModel
+
+    ids, xy, rb, rf, q, s, _ = _marks(report)
+    model = RobotModel(ScaraParams.from_json(report["params"]))
+    fig, axes = plt.subplots(2, 2, figsize=(11, 6.5), layout="constrained")
+    for row, (r, title) in enumerate(((rb, "base model"), (rf, "final model"))):
+        dq = joint_residuals_deg(model, q, s, r) * 1000.0
+        for j in range(2):
+            ax = axes[row, j]
+            for sign, color, lab in ((1, "tab:blue", "approach +"), (-1, "tab:orange",
+                                                                     "approach -")):
+                k = s[:, j] == sign
+                ax.plot(q[k, j], dq[k, j], "o", ms=4, color=color, label=lab)
+            ax.axhline(0, color="k", lw=0.6)
+            ax.set_xlabel(f"joint {j + 1} command [deg]")
+            ax.set_ylabel(f"joint {j + 1} residual [mdeg]")
+            ax.set_title(f"{title}: joint {j + 1}")
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=8)
+    return _png(fig)
+
+
+def circles(report: dict) -> bytes | None:
+    """The paper-style circle fits with the marks on them."""
+    c = report.get("circles")
+    if not c:
+        return None
+    plt = _plt()
+    ids, xy, *_ = _marks(report)
+    fig, ax = plt.subplots(figsize=(6, 5.5), layout="constrained")
+    t = np.linspace(0, 2 * np.pi, 400)
+    for key, color in (("base", "tab:blue"), ("elbow", "tab:green")):
+        cc = c[key]
+        cx, cy = cc["center_mm"]
+        r = cc["radius_mm"]
+        ax.plot(cx + r * np.cos(t), cy + r * np.sin(t), color=color, lw=0.8,
+                label=f"{key} circle r {r:.2f} mm, arc {cc['arc_span_deg']:.0f} deg")
+        ax.plot([cx], [cy], "+", color=color, ms=10)
+    ax.plot(xy[:, 0], xy[:, 1], "k.", ms=5, label="marks")
+    ax.set_aspect("equal")
+    ax.set_xlabel("sheet x [mm]")
+    ax.set_ylabel("sheet y [mm]")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    return _png(fig)
+
+
+def targets(report: dict) -> bytes | None:
+    """Table-3 errors of every target, before and after, as bars."""
+    t = report.get("loop", {}).get("targets")
+    if not t:
+        return None
+    plt = _plt()
+    ids = [r["id"] for r in t]
+    before = [r.get("before_error_mm") or np.nan for r in t]
+    after = [r.get("after_error_mm") or np.nan for r in t]
+    fig, ax = plt.subplots(figsize=(11, 4), layout="constrained")
+    x = np.arange(len(ids))
+    ax.bar(x - 0.2, before, 0.4, label="nominal model (before)")
+    ax.bar(x + 0.2, after, 0.4, label="calibrated model (after)")
+    ax.set_yscale("log")
+    ax.set_xticks(x, ids, rotation=90, fontsize=7)
+    ax.set_ylabel("absolute error [mm]")
+    ax.legend()
+    ax.grid(alpha=0.3, axis="y")
+    return _png(fig)
