@@ -2,6 +2,12 @@
 
 ``PlannedMark.via_deg`` are overshoot via points the arm passes just before the mark, so
 that each joint arrives from the side ``approach`` says (the sign of its last motion).
+
+- :func:`paper_plan`: the seed paper's five marks (joint 1 +-20 deg, joint 2 +-60 deg).
+- :func:`informative_plan`: many marks spread over the reachable sheet in both elbows,
+  each joint approaching from + on half of them and from - on the other half, one
+  overshoot via point per mark; identifies backlash, gear scale and cyclic errors (see
+  docs/plans.md). Sheet positions use the nominal model (mm, sheet frame).
 """
 
 from __future__ import annotations
@@ -9,6 +15,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from vision_cal.errors import VisionCalError
+from vision_cal.kinematics import forward
 
 
 @dataclass(frozen=True)
@@ -39,4 +48,186 @@ def paper_plan() -> list[PlannedMark]:
         sign = np.where(moved != 0, moved, sign)
         out.append(PlannedMark(mid, q, "calibration", (int(sign[0]), int(sign[1]))))
         prev = np.asarray(q)
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# Informative plan
+# --------------------------------------------------------------------------------------
+
+def _polygon_distance_mm(xy: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """Distance (N,) from points ``xy`` (N, 2) to a convex polygon ``poly`` (V, 2); 0 inside."""
+    a = poly
+    b = np.roll(poly, -1, axis=0)
+    ab = b - a                                              # (V, 2)
+    ap = xy[:, None, :] - a[None, :, :]                     # (N, V, 2)
+    t = np.clip(np.einsum("nvk,vk->nv", ap, ab) / np.einsum("vk,vk->v", ab, ab), 0.0, 1.0)
+    d = np.linalg.norm(ap - t[..., None] * ab[None], axis=2).min(axis=1)
+    cross = ab[None, :, 0] * ap[..., 1] - ab[None, :, 1] * ap[..., 0]   # (N, V)
+    inside = np.all(cross >= 0, axis=1) | np.all(cross <= 0, axis=1)
+    return np.where(inside, 0.0, d)
+
+
+def sheet_clearance_mm(sheet, xy_mm) -> np.ndarray:
+    """Clearance (N,) of sheet points from the paper edge and every ArUco square (mm).
+
+    Negative outside the paper; 0 on or inside a marker.
+    """
+    xy = np.atleast_2d(np.asarray(xy_mm, dtype=float))
+    x0, y0, x1, y1 = sheet.extent_mm
+    edge = np.minimum.reduce([xy[:, 0] - x0, x1 - xy[:, 0], xy[:, 1] - y0, y1 - xy[:, 1]])
+    out = edge
+    for m in sheet.markers:
+        out = np.minimum(out, _polygon_distance_mm(xy, np.asarray(m.corners_mm, dtype=float)))
+    return out
+
+
+def _balanced_signs(q_deg: np.ndarray, elbow: np.ndarray, rng, tries: int = 400) -> np.ndarray:
+    """Approach signs (N, 2): per joint half +1 and half -1, decorrelated from the poses.
+
+    Among ``tries`` random balanced assignments, keep the one whose largest absolute
+    correlation with q1, q2, the elbow and the other joint's signs is smallest.
+    """
+    n = len(q_deg)
+    base = np.where(np.arange(n) < (n + 1) // 2, 1.0, -1.0)
+    if n < 2:
+        return np.ones((n, 2))
+    cov = np.column_stack([q_deg, elbow]).astype(float)
+    cov = cov - cov.mean(axis=0)
+    norms = np.linalg.norm(cov, axis=0)
+    cov = cov[:, norms > 0] / norms[norms > 0]
+    best, best_score = None, np.inf
+    for _ in range(tries):
+        s = np.column_stack([rng.permutation(base), rng.permutation(base)])
+        sc = s - s.mean(axis=0)
+        sc = sc / np.maximum(np.linalg.norm(sc, axis=0), 1e-12)
+        score = max(np.abs(sc.T @ cov).max() if cov.size else 0.0, abs(sc[:, 0] @ sc[:, 1]))
+        if score < best_score:
+            best, best_score = s, score
+    return best.astype(int)
+
+
+def informative_plan(nominal, sheet, *, n_calibration: int = 30, n_validation: int = 8,
+                     pen_diameter_mm: float = 1.2, min_separation_mm: float = 10.0,
+                     joint_limits_deg=((-150.0, 150.0), (-150.0, 150.0)), rng=None,
+                     margin_mm: float = 3.0, safety_mm: float = 15.0,
+                     overshoot_deg: float = 3.0, min_sin_elbow: float = 0.2,
+                     home_deg=(0.0, 0.0), n_candidates: int = 40000) -> list[PlannedMark]:
+    """A plan that identifies the base model *and* backlash, gear scale and cyclic errors.
+
+    Poses are drawn uniformly in joint space, kept where the pen (nominal model) lands on
+    the paper at least ``pen_diameter_mm / 2 + margin_mm + safety_mm`` from the edges and
+    from every ArUco square (the safety absorbs a nominal model tens of mm / several deg
+    off), inside ``joint_limits_deg`` with room for the overshoot, and away from the
+    stretched-arm singularity (``|sin(q2 + z2)| >= min_sin_elbow``). A greedy max-min
+    design in normalised joint space then picks ``n_calibration + n_validation`` poses,
+    alternating the elbow (sign of sin(q2 + z2)) so both solutions are used, at least
+    ``min_separation_mm`` apart on the sheet. Validation marks are a random subset of the
+    design (both elbows, never the first extreme picks), so they are spread like the
+    calibration marks.
+
+    Each joint's approach sign is +1 for half the marks of each role and -1 for the other
+    half, chosen to be uncorrelated with the joint angles, the elbow and the other joint.
+    Every mark gets one overshoot via point ``q - approach * overshoot_deg``, so both
+    joints make their last motion (``overshoot_deg``) from the planned side.
+
+    Marks are drawn in a nearest-neighbour tour (in joint travel time) from ``home_deg``;
+    ids are ``c00..`` and ``v00..`` in drawing order. Deterministic for a given ``rng``.
+    Raises :class:`VisionCalError` when the sheet does not hold enough such poses.
+    """
+    rng = np.random.default_rng(rng)
+    n_total = int(n_calibration) + int(n_validation)
+    if n_calibration < 0 or n_validation < 0 or n_total == 0:
+        raise VisionCalError(f"need at least one mark, got n_calibration={n_calibration}, "
+                             f"n_validation={n_validation}")
+    lim = np.asarray(joint_limits_deg, dtype=float).reshape(2, 2)
+    lo, hi = lim[:, 0] + overshoot_deg + 1.0, lim[:, 1] - overshoot_deg - 1.0
+    if np.any(hi <= lo):
+        raise VisionCalError(f"joint limits {lim.tolist()} leave no room for a "
+                             f"{overshoot_deg} deg overshoot", field="joint_limits_deg")
+
+    q = lo + (hi - lo) * rng.random((int(n_candidates), 2))
+    xy = forward(nominal, q)
+    clearance = pen_diameter_mm / 2 + margin_mm + safety_mm
+    ok = sheet_clearance_mm(sheet, xy) >= clearance
+    sin_el = np.sin(np.radians(q[:, 1] + nominal.z2_deg))
+    ok &= np.abs(sin_el) >= min_sin_elbow
+    q, xy, elbow = q[ok], xy[ok], np.where(sin_el[ok] > 0, 1, -1)
+    if len(q) < n_total:
+        raise VisionCalError(
+            f"only {len(q)} of {n_candidates} sampled poses put the pen on the sheet "
+            f"{clearance:.1f} mm clear of its edges and markers (nominal model): the sheet "
+            f"is out of reach or the nominal base/zeros are wrong", field="sheet")
+
+    # greedy max-min in normalised joint space, alternating elbows
+    u = (q - lo) / (hi - lo)
+    d_min = np.full(len(q), np.inf)
+    alive = np.ones(len(q), dtype=bool)
+    chosen: list[int] = []
+    # start at the candidate farthest from the centre of joint space (an extreme pose)
+    first = int(np.argmax(np.linalg.norm(u - 0.5, axis=1)))
+    while len(chosen) < n_total:
+        if chosen:
+            counts = {e: sum(elbow[c] == e for c in chosen) for e in (1, -1)}
+            want = min(counts, key=lambda e: counts[e])
+            pool = alive & (elbow == want)
+            if not pool.any():
+                pool = alive
+            if not pool.any():
+                raise VisionCalError(
+                    f"only {len(chosen)} poses fit {min_separation_mm} mm apart on the reachable "
+                    f"part of the sheet, {n_total} were asked for", field="sheet")
+            pick = int(np.flatnonzero(pool)[np.argmax(d_min[pool])])
+        else:
+            pick = first
+        chosen.append(pick)
+        d_min = np.minimum(d_min, np.linalg.norm(u - u[pick], axis=1))
+        alive &= np.linalg.norm(xy - xy[pick], axis=1) >= min_separation_mm
+
+    chosen_arr = np.array(chosen)
+    # validation: random subset of the design, both elbows, skipping the first extremes
+    role = np.array(["calibration"] * n_total, dtype=object)
+    if n_validation:
+        skip = min(4, max(0, n_total - n_validation))
+        cand = np.arange(skip, n_total)
+        pos = cand[elbow[chosen_arr[cand]] > 0]
+        neg = cand[elbow[chosen_arr[cand]] < 0]
+        n_pos = min(len(pos), (n_validation + 1) // 2)
+        n_neg = min(len(neg), n_validation - n_pos)
+        n_pos = min(len(pos), n_validation - n_neg)
+        val = np.concatenate([rng.choice(pos, n_pos, replace=False),
+                              rng.choice(neg, n_neg, replace=False)]).astype(int)
+        if len(val) < n_validation:
+            rest = np.setdiff1d(np.arange(n_total), val)
+            val = np.concatenate([val, rng.choice(rest, n_validation - len(val), replace=False)])
+        role[val] = "validation"
+
+    qs = q[chosen_arr]
+    els = elbow[chosen_arr]
+    signs = np.empty((n_total, 2), dtype=int)
+    for r in ("calibration", "validation"):
+        idx = np.flatnonzero(role == r)
+        if len(idx):
+            signs[idx] = _balanced_signs(qs[idx], els[idx], rng)
+
+    # drawing order: nearest neighbour in joint travel time (default speed limits) from home
+    speed = np.array([90.0, 120.0])
+    order, cur = [], np.asarray(home_deg, dtype=float)
+    left = list(range(n_total))
+    while left:
+        cost = np.max(np.abs(qs[left] - cur) / speed, axis=1)
+        k = left.pop(int(np.argmin(cost)))
+        order.append(k)
+        cur = qs[k]
+
+    out: list[PlannedMark] = []
+    counter = {"calibration": 0, "validation": 0}
+    for k in order:
+        r = str(role[k])
+        mid = f"{'c' if r == 'calibration' else 'v'}{counter[r]:02d}"
+        counter[r] += 1
+        qk = (float(qs[k, 0]), float(qs[k, 1]))
+        s = (int(signs[k, 0]), int(signs[k, 1]))
+        via = (float(qk[0] - s[0] * overshoot_deg), float(qk[1] - s[1] * overshoot_deg))
+        out.append(PlannedMark(mid, qk, r, s, (via,)))
     return out
