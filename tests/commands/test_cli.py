@@ -59,3 +59,34 @@ def test_console_script_version():
     out = subprocess.run([sys.executable, "-m", "vision_cal.commands.main", "--version"],
                          capture_output=True, text=True, check=True).stdout
     assert out.startswith("vision-cal ")
+
+
+def test_plan_command_writes_plan_and_trajectory(paper_folder, tmp_path, capsys):
+    from pathlib import Path
+
+    from vision_cal.dataset.csvio import read_plan
+
+    targets = Path(__file__).parents[2] / "fixtures" / "targets_origin.csv"
+    assert main([str(paper_folder), "--method", "paper", "--out", str(tmp_path), "-q"]) == 0
+    cal = tmp_path / "calibration.json"
+    assert main(["plan", str(cal), str(targets), "-o", str(tmp_path / "plan.csv"),
+                 "--trajectory", str(tmp_path / "traj.csv")]) == 0
+    err = capsys.readouterr().err
+    assert "target far" in err and "out of reach" in err
+    ids, q, s = read_plan(tmp_path / "plan.csv")
+    assert ids == ["origin", "p1"] and (s == 1).all()
+    # the paper's Table 3: the calibrated plan puts the pen on the sheet origin
+    doc = json.loads(cal.read_text())
+    from vision_cal.kinematics import ScaraParams, forward
+
+    assert abs(forward(ScaraParams.from_json(doc["params"]), q[:1])[0]).max() < 1e-4
+    traj = (tmp_path / "traj.csv").read_text().splitlines()
+    assert traj[0] == "t_s,q1_deg,q2_deg,qd1_deg_s,qd2_deg_s,pen"
+    t = [float(r.split(",")[0]) for r in traj[1:]]
+    assert abs(t[1] - t[0] - 0.016) < 1e-9
+    assert sum(int(r.split(",")[-1]) for r in traj[1:]) >= 2
+    # nominal model: a different plan
+    assert main(["plan", str(cal), str(targets), "-o", str(tmp_path / "before.csv"),
+                 "--model", "nominal", "-q"]) == 0
+    _, qn, _ = read_plan(tmp_path / "before.csv")
+    assert abs(qn - q).max() > 1.0

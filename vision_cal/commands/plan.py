@@ -44,7 +44,7 @@ def run(args) -> int:
     for p in failed:
         print(f"vision-cal: warning: {args.targets}: target {p.id}: {p.reason}", file=sys.stderr)
     if args.trajectory:
-        from vision_cal.plan.trajectory import write_plan_trajectory
+        from vision_cal.plan.compensate import write_plan_trajectory
 
         ok = [p for p in planned if p.status == "ok"]
         write_plan_trajectory(args.trajectory, ok, home_deg=doc.get("home_deg", (0.0, 0.0)))

@@ -86,7 +86,7 @@ def write_plan(path, rows: list[dict]) -> Path:
     w = csv.DictWriter(buf, fieldnames=list(PLAN_FIELDS) + extra, lineterminator="\n")
     w.writeheader()
     for r in rows:
-        w.writerow({k: (f"{v:.6f}" if isinstance(v, float) else v) for k, v in r.items()})
+        w.writerow({k: (f"{v:.9f}" if isinstance(v, float) else v) for k, v in r.items()})
     return atomic_write_text(path, buf.getvalue())
 
 

@@ -25,6 +25,7 @@ import numpy as np
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import inverse
 from vision_cal.model import JointEffect, RobotModel
+from vision_cal.plan.calibration_plan import PlannedMark
 
 DEFAULT_LIMITS_DEG = ((-170.0, 170.0), (-150.0, 150.0))
 
@@ -99,3 +100,28 @@ def plan_targets(model: RobotModel, ids, targets_mm, *, elbow: int = 1, approach
         out.append(PlannedTarget(tid, tuple(t), tuple(q), tuple(int(v) for v in s),
                                  "failed" if reason else "ok", reason, res))
     return out
+
+
+def to_planned_marks(planned: list[PlannedTarget], *, overshoot_deg: float = 3.0,
+                     role: str = "validation") -> list[PlannedMark]:
+    """Planned targets as marks to draw: each joint passes a via point ``overshoot_deg``
+    short of its angle on the approach side, so its last motion has the planned sign."""
+    out = []
+    for p in planned:
+        if p.status != "ok":
+            continue
+        q = np.asarray(p.q_deg)
+        via = q - np.asarray(p.approach, dtype=float) * overshoot_deg
+        out.append(PlannedMark(p.id, (float(q[0]), float(q[1])), role,
+                               (int(p.approach[0]), int(p.approach[1])),
+                               ((float(via[0]), float(via[1])),)))
+    return out
+
+
+def write_plan_trajectory(path, planned: list[PlannedTarget], *, home_deg=(0.0, 0.0),
+                          dt_s: float = 0.016):
+    """The joint-space reference trajectory through the planned points (CSV)."""
+    from vision_cal.plan.trajectory import plan_trajectory, write_trajectory_csv
+
+    traj = plan_trajectory(to_planned_marks(planned), home_deg=home_deg, dt_s=dt_s)
+    return write_trajectory_csv(path, traj)
