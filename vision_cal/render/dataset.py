@@ -1,0 +1,475 @@
+"""Render a scene into a dataset folder in the shared format (``vision-cal/1``).
+
+``render_dataset(scene, out_dir)`` builds the sheet, the plan (from the *nominal* model,
+as a real user would), lets the *true* robot draw the marks (``world.draw_marks``),
+photographs the sheet and writes::
+
+    out_dir/
+      img_000.png ...   photographs (JPEG ``img_000.jpg`` when photos.jpeg_quality is set)
+      session.json      what a real user knows: nominal robot, sheet, plan, images, and
+                        ``camera`` only when the scene declares the lens
+      truth.json        true params, effects (plus ``lens_distortion`` when the lens is
+                        present but undeclared), true mark positions, the camera's K, dist
+                        and per-photo poses ``T_cam_sheet`` (added field: 4x4, sheet mm ->
+                        camera mm, OpenCV camera axes); added fields: controller,
+                        arrival_sign / link_q_deg per mark, off_paper, on_marker,
+                        arm_parked_q_deg, extra_files, repeatability_mm, seed
+
+The lens is applied by ``Photographer.photograph(dist=..., K_dist=K)`` on an ideal render
+whose K is :func:`photographer_K` (wider than K for a barrel lens, so no black corners).
+
+Photos: ``series`` takes one photo after each mark (``images[k].marks`` = marks 0..k);
+``single`` one photo of the finished sheet. A moving camera cycles through
+``camera.n_views`` poses; a still one keeps the first. With ``photos.arm_parked`` the arm
+is parked over the sheet in every third photo of a series (photos 2, 5, 8, ...) and in a
+single photo.
+
+Everything is written into a hidden temporary folder next to ``out_dir`` that is renamed
+to ``out_dir`` at the end, so a failed render leaves nothing half-written. An existing
+``out_dir`` is replaced only when it is empty or a previous dataset (has session.json).
+
+Memory: the texture of the finished sheet is rendered once, and the texture with k marks
+is kept up to date by copying each new mark's small patch into a mark-free texture, so a
+38-photo series at 2400 x 1800 holds two textures and one photo at a time.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from vision_cal.errors import VisionCalError
+from vision_cal.render.scene import Scene
+from vision_cal.render.world import (WorldMarks, arm_boxes, draw_marks, parking_pose,
+                                     simulated_world)
+
+log = logging.getLogger(__name__)
+
+FORMAT = "vision-cal/1"
+PARK_EVERY = 3          # series: the arm is parked in photos k with k % 3 == 2
+DOT_SIZE_MAX = 1.1 * np.sqrt(1.15)  # largest dot radius / nominal radius (sheet_texture)
+
+
+@dataclass(frozen=True)
+class _Streams:
+    """Independent random streams, all from the scene seed (changing one part of a scene
+    does not reshuffle the others)."""
+
+    plan: np.random.Generator
+    world: np.random.Generator
+    texture_seed: int
+    views: np.random.Generator
+    photos: np.random.Generator
+    park: np.random.Generator
+    extras: np.random.Generator
+    sim: np.random.Generator
+
+    @classmethod
+    def from_seed(cls, seed: int) -> "_Streams":
+        ss = np.random.SeedSequence(seed).spawn(8)
+        g = [np.random.default_rng(s) for s in ss]
+        return cls(g[0], g[1], int(ss[2].generate_state(1)[0]), g[3], g[4], g[5], g[6], g[7])
+
+
+# --------------------------------------------------------------------------------- plan
+
+
+def pilot_params(scene: Scene, *, rng=None):
+    """The model an engineer plans with after a pilot run: the true robot draws the seed
+    paper's five marks (zero, joint 1 at +-20 deg, joint 2 at +-60 deg) on scrap paper,
+    measured to 0.05 mm, calibrated by the paper's circles. The catalogue model misses by
+    tens of millimetres (SM5: zeros 2.6 and 8.1 deg off), too much to keep marks off the
+    printed markers; the pilot model misses by about a millimetre."""
+    from vision_cal.calibrate.paper import paper_method
+    from vision_cal.plan.calibration_plan import paper_plan
+
+    rng = np.random.default_rng(rng)
+    pilot = paper_plan()
+    w = draw_marks(scene.robot.truth_model, pilot, home_deg=scene.robot.nominal.home_deg,
+                   repeatability_mm=0.05, rng=rng)
+    return paper_method(np.array([m.joints_deg for m in pilot]),
+                        w.xy_mm).params
+
+
+def build_plan(scene: Scene, sheet, *, rng=None) -> list:
+    """The scene's plan (``list[PlannedMark]``), computed from the nominal model, or with
+    ``plan.pilot`` (the default) from a pilot calibration (:func:`pilot_params`)."""
+    from vision_cal.plan import calibration_plan as cp
+
+    if scene.plan.kind == "paper":
+        return list(cp.paper_plan())
+    fn = getattr(cp, "informative_plan", None)
+    if fn is None:
+        log.warning("informative_plan is not available yet: using the renderer's fallback "
+                    "plan (random reachable points with random approach sides)")
+        return fallback_plan(scene.robot.nominal.params, sheet,
+                             n_calibration=scene.plan.n_calibration,
+                             n_validation=scene.plan.n_validation,
+                             min_separation_mm=scene.plan.min_separation_mm,
+                             home_deg=scene.robot.nominal.home_deg, rng=rng)
+    model = pilot_params(scene, rng=rng) if scene.plan.pilot else scene.robot.nominal.params
+    return list(fn(model, sheet, n_calibration=scene.plan.n_calibration,
+                   n_validation=scene.plan.n_validation,
+                   pen_diameter_mm=scene.robot.pen_diameter_mm,
+                   min_separation_mm=scene.plan.min_separation_mm, rng=rng))
+
+
+def fallback_plan(nominal, sheet, *, n_calibration=30, n_validation=8, min_separation_mm=10.0,
+                  home_deg=(0.0, 0.0), inset_mm=60.0, overshoot_deg=2.0, rng=None) -> list:
+    """A plain plan for when ``informative_plan`` is missing: random points on the paper.
+
+    Points lie ``inset_mm`` inside the paper, off the markers' quiet zones, within the
+    nominal arm's reach (20 mm off both reach limits), ``min_separation_mm`` apart; each
+    joint arrives from a random side through an overshoot via point ``overshoot_deg`` past
+    the mark. Ids ``c00..`` (calibration) then ``v00..`` (validation), drawn interleaved.
+    """
+    from vision_cal.kinematics import inverse
+    from vision_cal.plan.calibration_plan import PlannedMark
+
+    rng = np.random.default_rng(rng)
+    n = n_calibration + n_validation
+    x0, y0, x1, y1 = sheet.extent_mm
+    base = np.array(nominal.base_mm)
+    r_lo = abs(nominal.L1_mm - nominal.L2_mm) + 20.0
+    r_hi = nominal.L1_mm + nominal.L2_mm - 20.0
+    boxes = []
+    for m in sheet.markers:
+        c = np.asarray(m.corners_mm)
+        pad = 0.25 * (c[:, 0].max() - c[:, 0].min()) + 2.0
+        boxes.append((c.min(axis=0) - pad, c.max(axis=0) + pad))
+    pts: list[np.ndarray] = []
+    for _ in range(200 * n):
+        p = rng.uniform([x0 + inset_mm, y0 + inset_mm], [x1 - inset_mm, y1 - inset_mm])
+        r = np.linalg.norm(p - base)
+        if not r_lo <= r <= r_hi:
+            continue
+        if any(np.all(p >= lo) and np.all(p <= hi) for lo, hi in boxes):
+            continue
+        if pts and np.min(np.linalg.norm(np.array(pts) - p, axis=1)) < min_separation_mm:
+            continue
+        pts.append(p)
+        if len(pts) == n:
+            break
+    if len(pts) < n:
+        raise VisionCalError(f"only {len(pts)} of {n} plan points fit on the reachable part "
+                             "of the sheet", field="plan")
+    q = inverse(nominal, np.array(pts), elbow=1)
+    roles = ["calibration"] * n_calibration + ["validation"] * n_validation
+    order = rng.permutation(n)
+    out = []
+    ic = iv = 0
+    for k in order:
+        if roles[k] == "calibration":
+            mid, ic = f"c{ic:02d}", ic + 1
+        else:
+            mid, iv = f"v{iv:02d}", iv + 1
+        s = rng.choice([-1, 1], size=2)
+        via = tuple(float(v) for v in q[k] - s * overshoot_deg)
+        out.append(PlannedMark(mid, (float(q[k, 0]), float(q[k, 1])), roles[k],
+                               (int(s[0]), int(s[1])), (via,)))
+    return out
+
+
+# ----------------------------------------------------------------------------- textures
+
+
+class _Textures:
+    """The texture with the first k marks, kept up to date cheaply.
+
+    ``full`` is the finished sheet; ``current`` starts mark-free and gets each new mark's
+    disc copied in from ``full`` (same paper grain: both come from the same seed, and the
+    sheet texture draws the paper before the dots).
+    """
+
+    def __init__(self, sheet, xy_mm, diameters_mm, *, px_per_mm, seed):
+        from vision_cal.render.sheet import sheet_texture
+
+        self.xy_mm = np.asarray(xy_mm, float)
+        self.d_mm = np.asarray(diameters_mm, float)
+        self.ppm = float(px_per_mm)
+        self.extent = tuple(float(v) for v in sheet.extent_mm)
+        self.full = sheet_texture(sheet, marks_xy_mm=self.xy_mm, mark_diameters_mm=self.d_mm,
+                                  px_per_mm=self.ppm, rng=np.random.default_rng(seed))
+        self.current = sheet_texture(sheet, marks_xy_mm=np.zeros((0, 2)), mark_diameters_mm=1.0,
+                                     px_per_mm=self.ppm, rng=np.random.default_rng(seed))
+        self.k = 0
+
+    def add_marks(self, k: int) -> np.ndarray:
+        """The texture with marks 0..k-1 (in place; returns ``current``)."""
+        H, W = self.current.shape[:2]
+        x0, _, _, y1 = self.extent
+        for i in range(self.k, k):
+            u = (self.xy_mm[i, 0] - x0) * self.ppm - 0.5
+            v = (y1 - self.xy_mm[i, 1]) * self.ppm - 0.5
+            r = 0.5 * self.d_mm[i] * DOT_SIZE_MAX * self.ppm + 1.5
+            c0, c1 = max(int(np.floor(u - r)), 0), min(int(np.ceil(u + r)) + 1, W)
+            r0, r1 = max(int(np.floor(v - r)), 0), min(int(np.ceil(v + r)) + 1, H)
+            if c1 <= c0 or r1 <= r0:
+                continue  # off the paper
+            yy, xx = np.mgrid[r0:r1, c0:c1]
+            disc = (xx - u) ** 2 + (yy - v) ** 2 <= r * r
+            self.current[r0:r1, c0:c1][disc] = self.full[r0:r1, c0:c1][disc]
+        self.k = max(self.k, k)
+        return self.current
+
+
+# ------------------------------------------------------------------------------- output
+
+
+def _encode_image(rgb: np.ndarray, jpeg_quality: int | None) -> bytes:
+    """PNG (lossless) or JPEG bytes of an RGB image."""
+    import cv2
+
+    bgr = np.ascontiguousarray(rgb[:, :, ::-1])
+    if jpeg_quality is None:
+        ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 3])
+    else:
+        ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)])
+    if not ok:
+        raise VisionCalError("could not encode an image")
+    return buf.tobytes()
+
+
+def _extra_image(kind: str, size_px, rng: np.random.Generator) -> bytes:
+    """A bad photo: ``blank`` (grey), ``noise`` (random pixels) or ``corrupt`` (bad bytes)."""
+    w, h = size_px
+    if kind == "blank":
+        return _encode_image(np.full((h, w, 3), 128, np.uint8), None)
+    if kind == "noise":
+        return _encode_image(rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8), None)
+    good = _encode_image(np.full((h // 4, w // 4, 3), 200, np.uint8), None)
+    return good[:64] + rng.integers(0, 256, size=256, dtype=np.uint8).tobytes()
+
+
+def _prepare_out(out_dir: Path) -> None:
+    if out_dir.exists():
+        if not out_dir.is_dir():
+            raise VisionCalError("exists and is not a folder", file=str(out_dir))
+        if any(out_dir.iterdir()) and not (out_dir / "session.json").exists():
+            raise VisionCalError("exists and is not a dataset folder; refusing to replace it "
+                                 "(choose another --out or empty it)", file=str(out_dir))
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+
+
+def _commit(tmp: Path, out_dir: Path) -> None:
+    """Move the finished temp folder to ``out_dir`` (replacing an old dataset)."""
+    if not out_dir.exists():
+        os.replace(tmp, out_dir)
+        return
+    old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old.", dir=out_dir.parent))
+    os.rmdir(old)
+    os.replace(out_dir, old)
+    try:
+        os.replace(tmp, out_dir)
+    except BaseException:
+        os.replace(old, out_dir)
+        raise
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def lens_effect(scene: Scene) -> dict | None:
+    """truth.json's ``lens_distortion`` entry: a present lens the session does not declare."""
+    dist = [float(v) for v in scene.camera.dist]
+    if scene.camera.declared or not any(dist):
+        return None
+    return {"name": "lens_distortion", "model": "opencv", "coefficients": dist}
+
+
+def marks_on_markers(world: WorldMarks, sheet, *, pad_mm: float = 0.0) -> list[str]:
+    """Ids of the marks that landed on a printed ArUco square (grown by ``pad_mm``)."""
+    on = np.zeros(len(world.ids), dtype=bool)
+    for m in sheet.markers:
+        c = np.asarray(m.corners_mm, dtype=float)
+        lo, hi = c.min(axis=0) - pad_mm, c.max(axis=0) + pad_mm
+        on |= np.all((world.xy_mm >= lo) & (world.xy_mm <= hi), axis=1)
+    return [world.ids[i] for i in np.flatnonzero(on)]
+
+
+def marks_off_paper(world: WorldMarks, sheet) -> list[str]:
+    """Ids of the marks that really landed off the paper (the pen drew on the table)."""
+    x0, y0, x1, y1 = sheet.extent_mm
+    xy = world.xy_mm
+    off = np.flatnonzero((xy[:, 0] < x0) | (xy[:, 0] > x1) | (xy[:, 1] < y0) | (xy[:, 1] > y1))
+    if off.size:
+        log.warning("%d of %d marks land off the paper (first: %s at %s mm); they appear in "
+                    "no photo", off.size, len(xy), world.ids[off[0]],
+                    np.round(xy[off[0]], 1).tolist())
+    return [world.ids[i] for i in off]
+
+
+def photographer_K(scene: Scene) -> np.ndarray:
+    """K (3, 3) the ideal pinhole render needs so that the lens fills the whole photo.
+
+    The scene's own K, except for a lens that pulls the corners in (barrel): then the
+    ideal render uses a shorter focal length (same principal point) wide enough to hold
+    every undistorted photo corner, and ``photograph(K_dist=K, dist=...)`` maps it back.
+    """
+    import cv2
+
+    from vision_cal.render.camera import camera_matrix
+
+    cam = scene.camera
+    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px), dtype=float)
+    if not any(cam.dist):
+        return K
+    w, h = cam.size_px
+    border = np.concatenate([
+        np.column_stack([np.linspace(0, w - 1, 33), np.zeros(33)]),
+        np.column_stack([np.linspace(0, w - 1, 33), np.full(33, h - 1.0)]),
+        np.column_stack([np.zeros(25), np.linspace(0, h - 1, 25)]),
+        np.column_stack([np.full(25, w - 1.0), np.linspace(0, h - 1, 25)])])
+    crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
+    xn = cv2.undistortPoints(border.reshape(-1, 1, 2), K, np.asarray(cam.dist, float),
+                             criteria=crit).reshape(-1, 2)
+    c = K[:2, 2]
+    # the ideal render (focal f') must hold f' * xn + c inside [-0.5, size - 0.5]
+    need = np.max(np.abs(xn) / np.maximum(np.abs(np.column_stack([
+        np.where(xn[:, 0] < 0, c[0] + 0.5, w - 0.5 - c[0]),
+        np.where(xn[:, 1] < 0, c[1] + 0.5, h - 0.5 - c[1])])), 1e-9), axis=0).max()
+    f_ideal = min(cam.f_px, 0.995 / need)
+    Ki = K.copy()
+    Ki[0, 0] = Ki[1, 1] = f_ideal
+    return Ki
+
+
+def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographer=None,
+                   joint_source=None) -> Path:
+    """Render ``scene`` into the dataset folder ``out_dir``; return its path.
+
+    ``photographer``: an existing ``Photographer`` for this scene's camera (size K from
+    :func:`photographer_K`) to reuse (tests share one); by default one is built.
+    ``joint_source``: see :mod:`vision_cal.render.world` (overrides ``robot.controller``;
+    the truth model then predicts with every effect, backlash included).
+    """
+    from vision_cal.dataset.io import atomic_write_json
+    from vision_cal.render.camera import camera_matrix, default_views
+    from vision_cal.render.sheet import make_sheet
+
+    out_dir = Path(out_dir).absolute()
+    _prepare_out(out_dir)
+    st = _Streams.from_seed(scene.seed)
+    cam, ph, rob = scene.camera, scene.photos, scene.robot
+
+    sh = scene.sheet
+    sheet = make_sheet(size_mm=sh.size_mm, bottom_left_mm=sh.bottom_left_mm,
+                       dictionary=sh.dictionary, marker_mm=sh.marker_mm, grid=sh.grid,
+                       margin_mm=sh.margin_mm)
+    plan = build_plan(scene, sheet, rng=st.plan)
+    truth = rob.truth_model
+    predict_model, source = truth, joint_source
+    if source is None and rob.controller != "kinematic":
+        source, predict_model = simulated_world(truth, controller=rob.controller, rng=st.sim)
+    world = draw_marks(predict_model, plan, home_deg=rob.nominal.home_deg,
+                       repeatability_mm=rob.repeatability_mm, joint_source=source,
+                       rng=st.world)
+    off_paper = marks_off_paper(world, sheet)
+    n = len(plan)
+    diameters = rob.pen_diameter_mm * np.ones(n)
+
+    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px), dtype=float)
+    dist = np.asarray(cam.dist, dtype=float)
+    views = default_views(sheet, n=cam.n_views, size_px=cam.size_px, K=K, tilt_deg=cam.tilt_deg,
+                          rng=st.views, fill=cam.fill, target_jitter=(1.0 - cam.fill) / 2)
+    ext = "jpg" if ph.jpeg_quality is not None else "png"
+    if ph.mode == "series":
+        shots = [(f"img_{k:03d}.{ext}", k + 1) for k in range(n)]
+    else:
+        shots = [(f"img_000.{ext}", n)]
+
+    K_ideal = photographer_K(scene)
+    own = photographer is None
+    if own:
+        from vision_cal.render.photo import Photographer
+
+        photographer = Photographer(size_px=cam.size_px, K=K_ideal)
+    elif hasattr(photographer, "K") and hasattr(photographer, "size_px"):
+        if (tuple(photographer.size_px) != tuple(cam.size_px)
+                or not np.allclose(photographer.K, K_ideal)):
+            raise VisionCalError("the photographer given was built for another camera "
+                                 f"(size {tuple(photographer.size_px)}, K "
+                                 f"{np.round(photographer.K, 3).tolist()}); this scene needs "
+                                 f"size {tuple(cam.size_px)}, K "
+                                 f"{np.round(K_ideal, 3).tolist()}", field="photographer")
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp.", dir=out_dir.parent))
+    bar = None
+    try:
+        textures = _Textures(sheet, world.xy_mm, diameters, px_per_mm=ph.texture_px_per_mm,
+                             seed=st.texture_seed)
+        images, poses, parked = [], {}, {}
+        it = shots
+        if progress:
+            from tqdm import tqdm
+
+            it = bar = tqdm(shots, desc="render", unit="photo", leave=False)
+        for i, (fname, n_marks) in enumerate(it):
+            tex = textures.add_marks(n_marks)
+            T = np.asarray(views[i % len(views)] if cam.moving else views[0], dtype=float)
+            arm = None
+            if ph.arm_parked and (ph.mode == "single" or i % PARK_EVERY == PARK_EVERY - 1):
+                q_park = parking_pose(truth, sheet.extent_mm, rng=st.park)
+                arm = arm_boxes(truth, q_park)
+                parked[fname] = [float(v) for v in q_park]
+            rgb = photographer.photograph(
+                tex, extent_mm=sheet.extent_mm, T_cam_sheet=T,
+                dist=dist if any(dist) else None, K_dist=K if any(dist) else None, arm=arm,
+                vignetting=ph.vignetting, noise_sigma=ph.noise_sigma, jpeg_quality=None,
+                rng=st.photos)
+            (tmp / fname).write_bytes(_encode_image(np.asarray(rgb), ph.jpeg_quality))
+            images.append({"file": fname, "marks": list(world.ids[:n_marks])})
+            poses[fname] = T.tolist()
+            del rgb
+        for e in ph.extra_files:
+            (tmp / e.file).write_bytes(_extra_image(e.kind, cam.size_px, st.extras))
+            images.append({"file": e.file, "marks": list(world.ids)})
+        del textures
+
+        session = {
+            "format": FORMAT,
+            "sheet": sheet.to_json(),
+            "robot": rob.nominal.to_json(),
+            "pen": {"mark_diameter_mm": rob.pen_diameter_mm},
+            "marks": [m.to_json() for m in plan],
+            "images": images,
+        }
+        if cam.declared:
+            session["camera"] = {"size_px": list(cam.size_px), "K": K.tolist(),
+                                 "dist": dist.tolist()}
+        effects = [e.to_json() for e in rob.effects]
+        lens = lens_effect(scene)
+        if lens is not None:
+            effects.append(lens)
+        truth_json = {
+            "params": rob.truth.to_json(),
+            "effects": effects,
+            "marks": {mid: world.xy_mm[i].tolist() for i, mid in enumerate(world.ids)},
+            "camera": {"size_px": list(cam.size_px), "K": K.tolist(), "dist": dist.tolist(),
+                       "declared": cam.declared, "T_cam_sheet": poses},
+            # added fields: how the world got there
+            "repeatability_mm": rob.repeatability_mm,
+            "controller": rob.controller if joint_source is None else "custom",
+            "arrival_sign": {mid: world.approach[i].tolist() for i, mid in enumerate(world.ids)},
+            "link_q_deg": {mid: world.q_deg[i].tolist() for i, mid in enumerate(world.ids)},
+            "off_paper": off_paper,
+            "on_marker": marks_on_markers(world, sheet),
+            "arm_parked_q_deg": parked,
+            "extra_files": {e.file: e.kind for e in ph.extra_files},
+            "seed": scene.seed,
+        }
+        atomic_write_json(tmp / "session.json", session)
+        atomic_write_json(tmp / "truth.json", truth_json)
+        _commit(tmp, out_dir)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+        if own and hasattr(photographer, "close"):
+            photographer.close()
+    return out_dir
