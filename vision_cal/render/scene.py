@@ -26,10 +26,11 @@ Sections and fields::
                                   # joint_cyclic, sheet_affine (see dataset-format.md)
       repeatability_mm: 0.01      # sigma of the isotropic noise of each mark, per axis
       pen_diameter_mm: 1.2        # nominal diameter of a pen mark (session.json pen)
-      controller: kinematic       # kinematic: links reach each command exactly, from the
-                                  # planned side | smc | pd: vision_cal.simulate runs the
-                                  # plan (trajectory, controller, dynamics, gear play =
-                                  # the joint_backlash effects)
+      controller: smc             # smc (default) | pd: vision_cal.simulate runs the plan
+                                  # (trajectory, controller, dynamics, gear play = the
+                                  # joint_backlash effects) and the pen touches down where
+                                  # the joints settle | kinematic: links reach each
+                                  # command exactly, from the planned side
     sheet:                        # the printed ArUco sheet (frame S: x right, y up)
       size_mm: [594.0, 420.0]     # A2 landscape
       bottom_left_mm: [-297.0, -210.0]   # paper corner in frame S: origin at the centre
@@ -116,7 +117,7 @@ class RobotScene:
     effects: tuple[Effect, ...] = ()
     repeatability_mm: float = 0.01
     pen_diameter_mm: float = 1.2
-    controller: str = "kinematic"
+    controller: str = "smc"
 
     @property
     def truth_model(self) -> RobotModel:
