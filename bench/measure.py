@@ -1,0 +1,169 @@
+"""Benchmark of the measuring stage (vision_cal.measure).
+
+Prints, for photos of the project's renderer (or of a fast warp of the sheet texture when
+``--warp`` is given or pyrender is unavailable):
+
+- time per photo of ``detect_image`` (decode + markers + edge points + dot candidates)
+  against plain OpenCV on the same photos in the same run (``cv2.imdecode`` +
+  ``ArucoDetector.detectMarkers`` with default parameters), as a ratio (goal <= 1.5);
+- photos per second of ``measure_folder`` on a 40-photo folder with jobs=1 and jobs=2
+  (cold cache), and of a re-run with a warm cache;
+- the mark error against truth.json (RMS mm) and normalised errors (RMS, ideally ~1).
+
+Usage::
+
+    .venv/bin/python bench/measure.py [--folder DIR] [--photos 40] [--warp]
+
+The folder is rendered once into ``DIR`` (default /tmp/vision-cal-bench-measure) and
+reused by later runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def render_folder(folder: Path, n_photos: int) -> None:
+    from vision_cal.render.dataset import render_dataset
+    from vision_cal.render.scene import scene_from_dict
+
+    n_val = max(n_photos // 6, 1)
+    scene = scene_from_dict({"seed": 11, "plan": {"n_calibration": n_photos - n_val,
+                                                   "n_validation": n_val},
+                             "camera": {"n_views": 4, "moving": True}})
+    render_dataset(scene, folder, progress=True)
+
+
+def warp_folder(folder: Path, n_photos: int) -> None:
+    """Fallback: the test helper's warp of the sheet texture (no pyrender)."""
+    from tests.measure import synth_measure as sm
+    from vision_cal.render.camera import camera_matrix, look_at
+    from vision_cal.render.sheet import make_sheet
+
+    folder.mkdir(parents=True, exist_ok=True)
+    sheet = make_sheet()
+    rng = np.random.default_rng(0)
+    targets = []
+    cen = np.array([np.asarray(m.corners_mm).mean(axis=0) for m in sheet.markers])
+    while len(targets) < n_photos:
+        p = rng.uniform([-270, -190], [270, 190])
+        if np.all(np.any(np.abs(cen - p) > 16, axis=1)):
+            targets.append(p)
+    targets = np.array(targets)
+    q = sm.plan_for(targets)
+    size = (2400, 1800)
+    K = camera_matrix(size_px=size, f_px=2600.0)
+    T = look_at(eye_mm=(20.0, -60.0, 700.0), target_mm=(0.0, 0.0))
+    ids = [f"c{i:02d}" for i in range(n_photos)]
+    images = []
+    for k in range(n_photos):
+        tex = sm.texture(sheet, targets[:k + 1], rng=1)
+        sm.write_png(folder / f"img_{k:03d}.png",
+                     sm.photo(sheet, tex, K=K, T=T, size=size, rng=k))
+        images.append((f"img_{k:03d}.png", ids[:k + 1]))
+    d = sm.session_json(sheet, marks=list(zip(ids, q)), images=images, robot=sm.NOMINAL)
+    d["camera"] = {"size_px": list(size), "K": K.tolist(), "dist": [0.0] * 5}
+    sm.write_session(folder, d)
+    (folder / "truth.json").write_text(json.dumps(
+        {"marks": {i: t.tolist() for i, t in zip(ids, targets)}}))
+
+
+def plain_opencv(path: Path, dictionary: str) -> int:
+    img = cv2.imdecode(np.frombuffer(path.read_bytes(), np.uint8), cv2.IMREAD_COLOR)
+    gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(
+        getattr(cv2.aruco, dictionary)), cv2.aruco.DetectorParameters())
+    _, ids, _ = det.detectMarkers(gray)
+    return 0 if ids is None else len(ids)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--folder", default="/tmp/vision-cal-bench-measure")
+    ap.add_argument("--photos", type=int, default=40)
+    ap.add_argument("--warp", action="store_true", help="use the fast texture warp")
+    ap.add_argument("--repeat", type=int, default=8, help="photos timed per-photo")
+    a = ap.parse_args()
+
+    from vision_cal.dataset.session import load_session
+    from vision_cal.measure.batch import detect_image, measure_folder
+
+    folder = Path(a.folder)
+    if not (folder / "session.json").exists():
+        t = time.perf_counter()
+        if a.warp:
+            warp_folder(folder, a.photos)
+        else:
+            try:
+                render_folder(folder, a.photos)
+            except Exception as e:  # pyrender/EGL missing: fall back, say so
+                print(f"renderer unavailable ({e}); using the texture warp", file=sys.stderr)
+                shutil.rmtree(folder, ignore_errors=True)
+                warp_folder(folder, a.photos)
+        print(f"made {folder} in {time.perf_counter() - t:.1f} s")
+    s = load_session(folder)
+    files = [folder / im.file for im in s.images]
+    h, w = cv2.imread(str(files[0])).shape[:2]
+    print(f"{len(files)} photos of {w}x{h} px, {len(s.marks)} marks")
+
+    # per photo, interleaved so that both see the same machine state
+    sample = files[:: max(len(files) // a.repeat, 1)][: a.repeat]
+    plain_opencv(sample[0], s.sheet.aruco_dictionary)
+    detect_image(sample[0], s)
+    t_cv, t_me = [], []
+    for p in sample:
+        t = time.perf_counter()
+        plain_opencv(p, s.sheet.aruco_dictionary)
+        t_cv.append(time.perf_counter() - t)
+        t = time.perf_counter()
+        detect_image(p, s)
+        t_me.append(time.perf_counter() - t)
+    cv_ms, me_ms = 1e3 * np.median(t_cv), 1e3 * np.median(t_me)
+    print(f"per photo: plain OpenCV (decode + detectMarkers) {cv_ms:.0f} ms, "
+          f"vision_cal detect_image {me_ms:.0f} ms, ratio {me_ms / cv_ms:.2f} (goal <= 1.5)")
+
+    truth = None
+    if (folder / "truth.json").exists():
+        truth = json.loads((folder / "truth.json").read_text()).get("marks")
+    for jobs in (1, 2):
+        out = Path(tempfile.mkdtemp(prefix="bench-measure-"))
+        try:
+            t = time.perf_counter()
+            meas = measure_folder(s, out_dir=out, jobs=jobs)
+            dt = time.perf_counter() - t
+            t = time.perf_counter()
+            measure_folder(s, out_dir=out, jobs=jobs)
+            dt_warm = time.perf_counter() - t
+        finally:
+            shutil.rmtree(out, ignore_errors=True)
+        n = len(files)
+        print(f"measure_folder jobs={jobs}: {n / dt:.2f} photos/s ({dt:.1f} s cold), "
+              f"warm cache {n / dt_warm:.1f} photos/s ({dt_warm:.1f} s)")
+    ok = sum(im.status == "ok" for im in meas.images)
+    print(f"photos ok {ok}/{len(meas.images)}; marks measured {len(meas.marks)}/{len(s.marks)}"
+          f"; lens: {'declared' if s.camera else (meas.lens and meas.lens.kept)}")
+    if truth:
+        keys = [k for k in meas.marks if k in truth]
+        e = np.array([meas.marks[k].xy_mm - np.asarray(truth[k]) for k in keys])
+        sd = np.array([meas.marks[k].std_mm for k in keys])
+        rms = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
+        z = np.sqrt(np.mean((e / sd) ** 2, axis=0))
+        print(f"mark error vs truth: RMS {rms * 1000:.1f} um (goal <= 15), max "
+              f"{np.abs(e).max() * 1000:.1f} um; normalised error RMS x {z[0]:.2f} y {z[1]:.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,127 @@
+"""Test helper: synthetic photographs of a sheet with known truth (fast, no pyrender).
+
+A texture from ``vision_cal.render.sheet.sheet_texture`` is looked up, through the lens
+(accurate inverse map via ``cv2.undistortPoints``) and a pinhole camera at ``T_cam_sheet``,
+for every photo pixel in one ``cv2.remap``; then blur (in the texture) and noise.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from vision_cal.render.camera import camera_matrix, look_at
+from vision_cal.render.sheet import make_sheet, sheet_texture, sheet_to_texture_pixel
+
+SIZE = (1000, 750)
+
+
+def small_sheet(dictionary="DICT_5X5_100"):
+    # 240 x 180 mm, 4 x 3 markers of 20 mm; seen at ~0.25 mm per pixel in 1000 x 750
+    return make_sheet(size_mm=(240.0, 180.0), bottom_left_mm=(-120.0, -90.0),
+                      dictionary=dictionary, marker_mm=20.0, grid=(4, 3), margin_mm=8.0)
+
+
+def view(*, tilt_deg=0.0, azimuth_deg=30.0, dist_mm=None, f_px=1400.0, target=(0.0, 0.0),
+         size=SIZE, roll_up=(0.0, 1.0, 0.0)):
+    K = camera_matrix(size_px=size, f_px=f_px)
+    if dist_mm is None:
+        dist_mm = f_px * 0.25  # ~0.25 mm per pixel
+    t = np.radians(tilt_deg)
+    a = np.radians(azimuth_deg)
+    eye = np.array([target[0] + dist_mm * np.sin(t) * np.cos(a),
+                    target[1] + dist_mm * np.sin(t) * np.sin(a), dist_mm * np.cos(t)])
+    T = look_at(eye_mm=eye, target_mm=target, up_hint=roll_up)
+    return K, T
+
+
+def texture(sheet, marks_xy, *, ppm=8.0, rng=0, diameters=1.2, **kw):
+    return sheet_texture(sheet, marks_xy_mm=np.asarray(marks_xy, float).reshape(-1, 2),
+                         mark_diameters_mm=diameters, px_per_mm=ppm, rng=rng, **kw)
+
+
+def photo(sheet, tex, *, K, T, dist=None, size=SIZE, ppm=8.0, noise=2.0, blur_mm=0.12,
+          rng=0, shade=0.0):
+    """RGB uint8 (h, w, 3) photo of ``tex`` (texture of ``sheet`` at ``ppm``)."""
+    rng = np.random.default_rng(rng)
+    w, h = size
+    u, v = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+    uv = np.stack([u.ravel(), v.ravel()], axis=-1)
+    if dist is not None and np.any(dist):
+        uv = cv2.undistortPoints(uv.reshape(-1, 1, 2), K, np.asarray(dist, float), P=K,
+                                 criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS,
+                                           100, 1e-12)).reshape(-1, 2)
+    H = K @ np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]])
+    G = np.linalg.inv(H)
+    q = uv @ G[:, :2].T + G[:, 2]
+    xy = q[:, :2] / q[:, 2:3]
+    tp = sheet_to_texture_pixel(xy, extent_mm=sheet.extent_mm, px_per_mm=ppm)
+    mx = tp[:, 0].reshape(h, w).astype(np.float32)
+    my = tp[:, 1].reshape(h, w).astype(np.float32)
+    src = cv2.GaussianBlur(tex.astype(np.float32), (0, 0), blur_mm * ppm) if blur_mm else \
+        tex.astype(np.float32)
+    img = cv2.remap(src, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                    borderValue=(60, 60, 60))
+    if shade:
+        g = (1.0 - shade * (u / w)).astype(np.float32)
+        img *= g[:, :, None]
+    img += rng.normal(0.0, noise, img.shape).astype(np.float32)
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+def write_png(path, rgb):
+    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+    assert ok
+    Path(path).write_bytes(buf.tobytes())
+
+
+def session_json(sheet, *, marks, images, robot=None, camera=None, dia=1.2):
+    """A session.json dict. ``marks``: list of (id, (q1, q2)); ``images``: (file, [ids])."""
+    robot = robot or {"L1_mm": 350.0, "L2_mm": 260.0, "joint_zero_deg": [0.0, 0.0],
+                      "base_mm": [-250.0, 210.0]}
+    d = {"format": "vision-cal/1", "sheet": sheet.to_json(), "robot": robot,
+         "pen": {"mark_diameter_mm": dia},
+         "marks": [{"id": i, "joints_deg": [float(q[0]), float(q[1])]} for i, q in marks],
+         "images": [{"file": f, "marks": list(ids)} for f, ids in images]}
+    if camera is not None:
+        K, dist = camera
+        d["camera"] = {"size_px": list(SIZE), "K": np.asarray(K).tolist(),
+                       "dist": list(map(float, dist))}
+    return d
+
+
+def write_session(folder, d):
+    Path(folder, "session.json").write_text(json.dumps(d, indent=1))
+
+
+# --------------------------------------------------------------------------- datasets
+
+from vision_cal.kinematics import ScaraParams, inverse  # noqa: E402
+
+TRUTH = ScaraParams(350.0, 260.0, 3.0, -4.0, -250.0, 210.0)
+#: the user's nominal model: 8 / -7 deg off in the zeros and ~92 mm off in the base
+NOMINAL = {"L1_mm": 350.0, "L2_mm": 260.0, "joint_zero_deg": [3.0 + 8.0, -4.0 - 7.0],
+           "base_mm": [-250.0 + 65.0, 210.0 - 65.0]}
+
+
+def free_targets(sheet, n, *, rng=0, min_sep=8.0, box=(100.0, 75.0)):
+    """``n`` sheet points away from markers and their quiet zones, ``min_sep`` apart."""
+    rng = np.random.default_rng(rng)
+    cen = np.array([np.asarray(m.corners_mm).mean(axis=0) for m in sheet.markers])
+    out = []
+    while len(out) < n:
+        p = rng.uniform([-box[0], -box[1]], box)
+        if np.any(np.all(np.abs(cen - p) < 19.0, axis=1)):
+            continue
+        if out and np.min(np.hypot(*(np.array(out) - p).T)) < min_sep:
+            continue
+        out.append(p)
+    return np.array(out)
+
+
+def plan_for(targets, truth=TRUTH):
+    """Commanded joints (N, 2) that put the true robot's pen on ``targets``."""
+    return inverse(truth, targets, elbow=-1)

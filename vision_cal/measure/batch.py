@@ -1,0 +1,440 @@
+"""Measuring a dataset folder: every photo, every pen mark, in sheet millimetres.
+
+Pipeline (``measure_folder``):
+
+1. per photo, in parallel and cached by content (:func:`detect_image`): decode, find the
+   sheet's ArUco markers, an approximate homography, ink-dot candidates with small raw
+   patches (``vision_cal.measure.dots``). A bad photo is *skipped* with a one-line reason;
+   the batch goes on.
+2. the lens: ``session.camera`` when declared; otherwise estimated jointly over the photos
+   of each image size and kept only when held-out marker corners say it helps
+   (``vision_cal.measure.mapping.estimate_lens``), reported as ``lens_distortion``.
+3. per photo: the final mapping (lens + homography) and each dot's centre on the sheet with
+   its covariance.
+4. association of dots to plan marks and the combined estimate of each mark
+   (``vision_cal.measure.associate``).
+
+Nothing is ever written into the input folder: results and the cache go to ``out_dir``.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from vision_cal.dataset.io import atomic_write_json
+from vision_cal.dataset.session import Session, load_session
+from vision_cal.errors import VisionCalError
+from vision_cal.measure import associate as assoc
+from vision_cal.measure.aruco import (MIN_MARKERS, corners_from_edges, edge_points,
+                                     find_sheet_markers)
+from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerprint
+from vision_cal.measure.dots import DotCandidates, blank_regions, find_candidates, refine_dot
+from vision_cal.measure.mapping import (LensEstimate, distort_px, estimate_lens, fit_mapping,
+                                       undistort_px)
+
+log = logging.getLogger(__name__)
+
+IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp"}
+BLANK_STD = 2.0
+
+
+# --------------------------------------------------------------------------- results
+
+@dataclass(frozen=True)
+class ImageDetections:
+    """Stage-1 result of one photo (cached): markers and dot candidates in raw pixels."""
+
+    file: str
+    status: str
+    reason: str | None = None
+    size_px: tuple[int, int] | None = None
+    marker_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    corners_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 2)))
+    corners_mm: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 2)))
+    candidates: DotCandidates | None = None
+    edges_px: np.ndarray | None = None  # (M, 4, n, 2) sub-pixel points on marker edges
+
+    def corners_for(self, K=None, dist=None) -> np.ndarray:
+        """Marker corners (M, 4, 2) in raw px: intersections of the border edges, fitted
+        as straight lines in ideal pixels when a lens is given."""
+        if self.edges_px is None:
+            return self.corners_px
+        if K is None:
+            return corners_from_edges(self.edges_px, self.corners_px)
+        e = undistort_px(self.edges_px.reshape(-1, 2), K, dist).reshape(self.edges_px.shape)
+        c0 = undistort_px(self.corners_px.reshape(-1, 2), K, dist).reshape(-1, 4, 2)
+        c = corners_from_edges(e, c0)
+        return distort_px(c.reshape(-1, 2), K, dist).reshape(-1, 4, 2)
+
+
+@dataclass(frozen=True)
+class ImageResult:
+    """One photo measured. ``dots_xy_mm`` (K, 2), ``dots_cov_mm2`` (K, 2, 2), ``dots_uv_px``
+    (K, 2); ``rejected``: reason -> count of blobs that were not taken as pen marks."""
+
+    file: str
+    status: str
+    reason: str | None = None
+    n_markers: int = 0
+    corner_rms_px: float = float("nan")
+    corner_rms_mm: float = float("nan")
+    n_dots: int = 0
+    dots_xy_mm: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    dots_cov_mm2: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
+    dots_uv_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    rejected: dict = field(default_factory=dict)
+    noise_sigma: float = float("nan")
+    size_px: tuple[int, int] | None = None
+    from_cache: bool = False
+
+    def to_json(self) -> dict:
+        """The photo's entry of calibration.json ``images[]``."""
+        d: dict = {"file": self.file, "status": self.status}
+        if self.reason:
+            d["reason"] = self.reason
+        if self.status == "ok":
+            d.update({"n_markers": self.n_markers,
+                      "corner_rms_px": round(float(self.corner_rms_px), 4),
+                      "corner_rms_mm": round(float(self.corner_rms_mm), 5),
+                      "n_dots": self.n_dots})
+            if self.rejected:
+                d["rejected_blobs"] = dict(self.rejected)
+        return d
+
+
+@dataclass(frozen=True)
+class MarkMeasurement:
+    """A pen mark on the sheet: ``xy_mm`` (2,), ``cov_mm2`` (2, 2), seen in ``n_photos``
+    photos whose estimates scatter by ``spread_mm`` (RMS about the mean)."""
+
+    xy_mm: np.ndarray
+    cov_mm2: np.ndarray
+    n_photos: int
+    spread_mm: float
+    how: str = "model"
+    files: tuple[str, ...] = ()
+
+    @property
+    def std_mm(self) -> np.ndarray:
+        return np.sqrt(np.diag(self.cov_mm2))
+
+
+@dataclass(frozen=True)
+class Measurement:
+    marks: dict
+    images: list
+    lens: LensEstimate | None = None
+    unassigned: list = field(default_factory=list)
+    refused: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
+
+    def images_json(self) -> list[dict]:
+        return [im.to_json() for im in self.images]
+
+    def effects_json(self) -> list[dict]:
+        return [self.lens.to_effect_json()] if self.lens is not None and self.lens.kept else []
+
+    def to_json(self) -> dict:
+        return {"marks": {k: {"measured_mm": m.xy_mm.tolist(), "cov_mm2": m.cov_mm2.tolist(),
+                              "n_photos": m.n_photos, "spread_mm": m.spread_mm, "how": m.how}
+                          for k, m in self.marks.items()},
+                "images": self.images_json(), "effects": self.effects_json(),
+                "lens": None if self.lens is None else {
+                    **self.lens.to_effect_json(), "kept": self.lens.kept,
+                    "candidates_heldout_rms_px": self.lens.candidates},
+                "unassigned": self.unassigned, "refused": self.refused,
+                "warnings": self.warnings}
+
+
+# --------------------------------------------------------------------------- stage 1
+
+def _skip(file, why, size=None) -> ImageDetections:
+    return ImageDetections(file, "skipped", why, size)
+
+
+def _decode(data: bytes, file: str):
+    if not data:
+        return None, "unreadable: empty file"
+    if data[:8] == b"\x89PNG\r\n\x1a\n":
+        if b"IEND" not in data[-16:]:
+            return None, "truncated: the PNG ends before its IEND chunk"
+    elif data[:2] == b"\xff\xd8":
+        if b"\xff\xd9" not in data[-16:]:
+            return None, "truncated: the JPEG ends before its end marker"
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    if img is None:
+        return None, "unreadable: not an image OpenCV can decode"
+    return img, None  # BGR: the dot stages only use channel max and sum (order-free)
+
+
+def _drop_deformed_markers(d: ImageDetections, K, dist, *, min_px: float = 0.5,
+                           factor: float = 5.0):
+    """Leave out markers whose corners do not fit the sheet's shape (a corner on the arm's
+    edge, a marker half hidden): residuals of a homography fitted to all markers, with each
+    marker's mean residual removed (so that an undeclared lens, smooth over a marker, does
+    not count), above ``max(min_px, factor x median)``. Returns (detections, n dropped)."""
+    n_drop = 0
+    for _ in range(3):
+        M = len(d.marker_ids)
+        if M < MIN_MARKERS + 1:
+            break
+        c = d.corners_for(K, dist)
+        uv = undistort_px(c.reshape(-1, 2), K, dist).reshape(-1, 4, 2)
+        H, _ = cv2.findHomography(d.corners_mm.reshape(-1, 2), uv.reshape(-1, 2), 0)
+        if H is None:
+            break
+        pred = (d.corners_mm.reshape(-1, 2) @ H[:, :2].T + H[:, 2])
+        pred = (pred[:, :2] / pred[:, 2:3]).reshape(-1, 4, 2)
+        r = uv - pred
+        r -= r.mean(axis=1, keepdims=True)
+        rms = np.sqrt(np.mean(np.sum(r**2, axis=2), axis=1))
+        bad = rms > max(min_px, factor * float(np.median(rms)))
+        if not bad.any():
+            break
+        keep = ~bad
+        n_drop += int(bad.sum())
+        d = replace(d, marker_ids=d.marker_ids[keep], corners_px=d.corners_px[keep],
+                    corners_mm=d.corners_mm[keep],
+                    edges_px=None if d.edges_px is None else d.edges_px[keep])
+    return d, n_drop
+
+
+def detect_image_bytes(data: bytes, file: str, session: Session) -> ImageDetections:
+    """Stage 1 on one photo's bytes (pure function of its inputs)."""
+    rgb, why = _decode(data, file)
+    if rgb is None:
+        return _skip(file, why)
+    h, w = rgb.shape[:2]
+    size = (int(w), int(h))
+    cam = session.camera
+    if cam is not None and tuple(cam.size_px) != size:
+        return _skip(file, f"wrong size: {w}x{h} px, camera.size_px says "
+                           f"{cam.size_px[0]}x{cam.size_px[1]}", size)
+    gray = cv2.cvtColor(rgb, cv2.COLOR_BGR2GRAY)
+    if float(gray[::4, ::4].std()) < BLANK_STD:
+        return _skip(file, "blank image: no contrast", size)
+    det = find_sheet_markers(gray, session.sheet)
+    if det.reason:
+        return ImageDetections(file, "skipped", det.reason, size, det.ids, det.corners_px,
+                               det.corners_mm)
+    K = None if cam is None else cam.K
+    dist = None if cam is None else cam.dist
+    out = ImageDetections(file, "ok", None, size, det.ids, det.corners_px, det.corners_mm,
+                          None, edge_points(gray, det.corners_px))
+    out, n_bad = _drop_deformed_markers(out, K, dist)
+    if len(out.marker_ids) < MIN_MARKERS:
+        return _skip(file, f"too few markers: {len(out.marker_ids)} usable after {n_bad} "
+                           "deformed ones (partly hidden?) were left out", size)
+    try:
+        approx = fit_mapping(out.corners_mm.reshape(-1, 2),
+                             out.corners_for(K, dist).reshape(-1, 2), K=K, dist=dist)
+    except VisionCalError as e:
+        return _skip(file, f"no mapping: {e.reason}", size)
+    cand = find_candidates(rgb, approx, session.sheet, dia_mm=session.pen_mark_diameter_mm)
+    return replace(out, candidates=cand)
+
+
+def detect_image(path, session: Session) -> ImageDetections:
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        return _skip(path.name, "missing: file not found")
+    except OSError as e:
+        return _skip(path.name, f"unreadable: {e.strerror or e}")
+    return detect_image_bytes(data, path.name, session)
+
+
+# --------------------------------------------------------------------------- stage 2
+
+def _lens_of(session: Session, lens: LensEstimate | None, size):
+    if session.camera is not None:
+        return session.camera.K, session.camera.dist
+    if lens is not None and lens.kept and tuple(lens.size_px) == tuple(size):
+        return lens.K, lens.dist
+    return None, None
+
+
+def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | None = None,
+                 *, from_cache: bool = False) -> ImageResult:
+    """Stage 2: final mapping and dot centres on the sheet."""
+    if det.status != "ok":
+        return ImageResult(det.file, det.status, det.reason, n_markers=len(det.marker_ids),
+                           size_px=det.size_px, from_cache=from_cache)
+    K, dist = _lens_of(session, lens, det.size_px)
+    m = fit_mapping(det.corners_mm.reshape(-1, 2), det.corners_for(K, dist).reshape(-1, 2),
+                    K=K, dist=dist)
+    c = det.candidates
+    dia = session.pen_mark_diameter_mm
+    xy0 = m.image_to_sheet(c.uv_px) if len(c.uv_px) else np.zeros((0, 2))
+    xs, covs, uvs = [], [], []
+    rejected = dict(c.rejected)
+    blank = blank_regions(session.sheet)
+    for patch, org, x0, uv in zip(c.patches, c.origins, xy0, c.uv_px):
+        r = refine_dot(patch, org, m, x0, dia_mm=dia, noise_sigma=c.noise_sigma,
+                       blank_rects=blank)
+        if r is None:
+            rejected["not measurable"] = rejected.get("not measurable", 0) + 1
+            continue
+        xs.append(r.xy_mm)
+        covs.append(r.cov_mm2)
+        uvs.append(uv)
+    return ImageResult(det.file, "ok", None, len(det.marker_ids), m.corner_rms_px,
+                       m.corner_rms_mm, len(xs), np.asarray(xs).reshape(-1, 2),
+                       np.asarray(covs).reshape(-1, 2, 2), np.asarray(uvs).reshape(-1, 2),
+                       rejected, c.noise_sigma, det.size_px, from_cache)
+
+
+def measure_image(path, session: Session, *, lens: LensEstimate | None = None) -> ImageResult:
+    """Measure one photo (markers, mapping, dots in sheet mm). Pure; the result pickles."""
+    return finish_image(detect_image(path, session), session, lens)
+
+
+# --------------------------------------------------------------------------- batch
+
+def _worker(args):
+    path, session = args
+    return detect_image(path, session)
+
+
+def _is_inside(a: Path, b: Path) -> bool:
+    try:
+        a.resolve().relative_to(b.resolve())
+        return True
+    except ValueError:
+        return False
+
+
+def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
+                   progress=None) -> Measurement:
+    """Measure every photo of a dataset folder and every pen mark on the sheet.
+
+    ``session``: a :class:`Session` or a folder. ``out_dir``: where results go (never the
+    input folder); the cache defaults to ``out_dir/.cache``. ``jobs``: worker processes
+    (default ``os.cpu_count()``; 1 runs in this process). ``progress``: a tqdm bar on stderr.
+    """
+    if not isinstance(session, Session):
+        session = load_session(session)
+    if session.sheet is None:
+        raise VisionCalError("no sheet: photos cannot be measured", file=str(session.path),
+                             field="sheet")
+    root = Path(session.root)
+    out_dir = Path(out_dir)
+    if _is_inside(out_dir, root):
+        raise VisionCalError("the output folder must not be inside the input folder "
+                             "(photos are never written to)", file=str(out_dir))
+    cache = DetectionCache(Path(cache_dir) if cache_dir else out_dir / ".cache")
+    warnings: list[str] = []
+
+    listed = {im.file for im in session.images}
+    try:
+        present = sorted(p.name for p in root.iterdir()
+                         if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+    except OSError:
+        present = []
+    extra = [f for f in present if f not in listed]
+    if extra:
+        msg = (f"{len(extra)} image file(s) in {root} not listed in session.json, left alone: "
+               + ", ".join(extra[:10]) + (" ..." if len(extra) > 10 else ""))
+        log.warning(msg)
+        warnings.append(msg)
+
+    # stage 1, cached
+    fp = session_fingerprint(session)
+    dets: list[ImageDetections | None] = [None] * len(session.images)
+    cached = [False] * len(session.images)
+    todo = []
+    keys = {}
+    for i, im in enumerate(session.images):
+        p = root / im.file
+        try:
+            data = p.read_bytes()
+        except FileNotFoundError:
+            dets[i] = _skip(im.file, "missing: file not found")
+            continue
+        except OSError as e:
+            dets[i] = _skip(im.file, f"unreadable: {e.strerror or e}")
+            continue
+        key = cache_key(data, fp)
+        keys[i] = key
+        hit = cache.get(key)
+        if isinstance(hit, ImageDetections):
+            dets[i] = replace(hit, file=im.file)
+            cached[i] = True
+        else:
+            todo.append(i)
+    jobs = int(jobs or os.cpu_count() or 1)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(todo), file=sys.stderr, desc="measuring photos", unit="photo")
+    try:
+        if jobs <= 1 or len(todo) <= 1:
+            results = (_worker((root / session.images[i].file, session)) for i in todo)
+            for i, d in zip(todo, results):
+                dets[i] = d
+                cache.put(keys[i], d)
+                if bar:
+                    bar.update()
+        else:
+            with ProcessPoolExecutor(max_workers=min(jobs, len(todo))) as ex:
+                args = [(root / session.images[i].file, session) for i in todo]
+                for i, d in zip(todo, ex.map(_worker, args, chunksize=1)):
+                    dets[i] = d
+                    cache.put(keys[i], d)
+                    if bar:
+                        bar.update()
+    finally:
+        if bar:
+            bar.close()
+
+    # stage 2: the lens
+    lens = None
+    if session.camera is None:
+        ok = [d for d in dets if d.status == "ok"]
+        sizes = sorted({d.size_px for d in ok}, key=lambda s: -sum(x.size_px == s for x in ok))
+        if sizes:
+            size = sizes[0]
+            views = [(d.marker_ids, d.corners_mm, d.corners_for()) for d in ok
+                     if d.size_px == size]
+            lens = estimate_lens(views, size)
+            if len(sizes) > 1:
+                warnings.append(f"photos of {len(sizes)} image sizes: a lens is estimated only "
+                                f"for {size[0]}x{size[1]} px")
+    images = [finish_image(d, session, lens, from_cache=c) for d, c in zip(dets, cached)]
+
+    # stage 3: association
+    idx_ok = [i for i, r in enumerate(images) if r.status == "ok"]
+    per_image = [(i, images[i].dots_xy_mm, images[i].dots_cov_mm2) for i in idx_ok]
+    dia = session.pen_mark_diameter_mm or 1.2
+    groups = assoc.group_dots(per_image, tol_mm=max(0.4 * dia, 0.3))
+    mark_images = [{i for i in idx_ok if m.id in session.images[i].marks} for m in session.marks]
+    a = assoc.associate(session.joints_deg, [m.id for m in session.marks], mark_images, groups,
+                        session.robot.params)
+    warnings.extend(a.warnings)
+    marks = {}
+    used = set()
+    for mid, gi in a.mark_to_group.items():
+        g = groups[gi]
+        used.add(gi)
+        xy, cov, spread = assoc.combine(g)
+        marks[mid] = MarkMeasurement(xy, cov, len(g.images), spread, a.how.get(mid, "model"),
+                                     tuple(session.images[k].file for k in g.images))
+    unassigned = [{"xy_mm": g.mean_mm.tolist(),
+                   "files": [session.images[k].file for k in g.images]}
+                  for gi, g in enumerate(groups) if gi not in used]
+    refused = {k: v for k, v in a.refused.items()}
+    for r in images:
+        if r.status != "ok":
+            log.info("skipped %s: %s", r.file, r.reason)
+    meas = Measurement(marks, images, lens, unassigned, refused, warnings)
+    atomic_write_json(out_dir / "measurement.json", meas.to_json())
+    return meas

@@ -1,0 +1,417 @@
+"""Pen marks: finding ink dots in a photo and measuring their centres on the sheet.
+
+Two stages, so that the expensive pass over the whole photo can be cached and run in
+parallel before the lens is known:
+
+1. :func:`find_candidates` (whole photo, raw pixels, approximate mapping): ink is what
+   darkens the *brightest* colour channel strongly (light coloured plotting-grid lines
+   hardly do) relative to a local background (a morphological closing removes the dots,
+   so smooth shadows and paper shading cancel). Marker squares with their quiet zones and
+   everything off the paper are masked out using the mapping. Connected blobs are judged
+   by size (against the area a ``pen.mark_diameter_mm`` dot has at that place in the
+   photo), sheet-frame aspect and solidity; the survivors keep a small raw RGB patch.
+2. :func:`refine_dot` (one patch, final mapping including the lens): the patch is resampled
+   on a fine grid in *sheet* coordinates (0.05 mm), the background including the plotting
+   grid is modelled as separable in log intensity (``log S = a(x) + b(y)``, robust medians
+   outside the dot; grid lines are rows/columns of the sheet), and the centre is the
+   centroid of the ink fraction ``1 - S / bg`` in a disk around the dot. Because it is
+   computed on a uniform sheet grid, perspective and lens do not bias it.
+
+Uncertainty: white pixel noise (``sigma`` of the channel sum, estimated from the photo)
+propagated through the centroid and through the background fit, plus the mapping's
+covariance at the dot (homography fitted to the marker corners).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from scipy.ndimage import maximum_filter1d
+
+from vision_cal.dataset.session import Sheet
+from vision_cal.measure.mapping import SheetMapping
+
+INK_DARKENING = 0.30      # ink lowers the brightest channel by at least this fraction
+MIN_AREA_RATIO = 0.25     # smaller blobs are noise / paper texture (ignored)
+MAX_AREA_RATIO = 1.9      # above: merged marks or smudge
+HUGE_AREA_RATIO = 6.0     # above: not a pen mark at all (arm, shadow, print)
+MAX_ASPECT = 1.5          # sheet-frame aspect of a single dot
+MIN_SOLIDITY = 0.75
+MARKER_MARGIN_MM = 3.0    # masked around each printed marker square (patch half-size + margin)
+FINE_STEP_MM = 0.05
+DEFAULT_DIAMETER_MM = 1.2
+HIDDEN_LINES = True
+#: what the centroid cannot resolve of the print and the photo's sampling under a dot (px):
+#: seen as errors that repeat in every photo of a dot on synthetic photos and on the
+#: project's pyrender photos (0.01-0.03 px); added to every dot's covariance
+MODEL_FLOOR_PX = 0.02
+QUIET_MODULES = 2.0         # blank quiet zone around each marker, in modules
+
+
+def _radii_mm(dia_mm: float, mm_per_px: float) -> tuple[float, float]:
+    """(r_window, half_patch) in mm for a dot of ``dia_mm`` seen at ``mm_per_px``."""
+    r_win = 0.5 * dia_mm * 1.2 + 2.5 * mm_per_px
+    return r_win, r_win + max(0.8, 3.0 * mm_per_px)
+
+
+@dataclass(frozen=True)
+class DotCandidates:
+    """Ink dots found in one photo (stage 1).
+
+    ``uv_px`` (K, 2) raw-pixel blob centroids; ``patches`` K raw RGB uint8 patches and
+    ``origins`` (K, 2) int the (col, row) of each patch's top-left pixel; ``area_px`` (K,);
+    ``noise_sigma`` std of one pixel of the channel sum R+G+B (grey levels);
+    ``rejected``: reason -> count; ``rejected_uv`` (R, 2) where they were.
+    """
+
+    uv_px: np.ndarray
+    patches: tuple
+    origins: np.ndarray
+    area_px: np.ndarray
+    noise_sigma: float
+    rejected: dict = field(default_factory=dict)
+    rejected_uv: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+
+
+_LAPLACE = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
+
+
+def noise_sigma_sum(rgb: np.ndarray, mapping: SheetMapping | None = None,
+                    sheet: Sheet | None = None) -> float:
+    """Robust per-pixel noise std of R+G+B (grey levels).
+
+    Measured on blank paper, the white quiet zones around the markers (the plotting grid
+    elsewhere would pass for noise), with a Laplacian-like 3x3 kernel (norm 6) that ignores
+    smooth shading, and a median absolute value. Falls back to the whole image.
+    """
+    H, W = rgb.shape[:2]
+    vals = []
+    if mapping is not None and sheet is not None:
+        for m in sheet.markers:
+            c = np.asarray(m.corners_mm, float)
+            s = float(np.ptp(c[:, 0]))
+            lo, hi = c.min(axis=0), c.max(axis=0)
+            outer = s * 2.0 / 7.0 - 0.8
+            inner = 0.8
+            if outer <= inner:
+                continue
+            box = mapping.sheet_to_image(np.array([lo - outer, hi + outer, [lo[0] - outer, hi[1] + outer],
+                                                   [hi[0] + outer, lo[1] - outer]]))
+            u0, v0 = np.floor(box.min(axis=0)).astype(int) - 2
+            u1, v1 = np.ceil(box.max(axis=0)).astype(int) + 3
+            if u0 < 0 or v0 < 0 or u1 > W or v1 > H:
+                continue
+            crop = rgb[v0:v1, u0:u1].astype(np.float32).sum(axis=2)
+            resp = cv2.filter2D(crop, -1, _LAPLACE)
+            mk = np.zeros(crop.shape, np.uint8)
+            for d, val in ((outer, 255), (inner, 0)):
+                sq = np.array([[lo[0] - d, lo[1] - d], [hi[0] + d, lo[1] - d],
+                               [hi[0] + d, hi[1] + d], [lo[0] - d, hi[1] + d]])
+                poly = mapping.sheet_to_image(sq) - [u0, v0]
+                cv2.fillPoly(mk, [np.round(poly * 16).astype(np.int32)], val, cv2.LINE_8, 4)
+            mk[:1] = mk[-1:] = 0
+            mk[:, :1] = mk[:, -1:] = 0
+            vals.append(resp[mk > 0])
+    v = np.concatenate(vals) if vals else np.zeros(0)
+    if len(v) < 200:
+        S = rgb[::2, ::2].astype(np.float32).sum(axis=2)
+        v = cv2.filter2D(S, -1, _LAPLACE)[1:-1, 1:-1].ravel()
+    return float(max(1.4826 * np.median(np.abs(v)) / 6.0, 0.3))
+
+
+def _local_jac(mapping: SheetMapping, uv: np.ndarray) -> np.ndarray:
+    """d sheet / d raw px (N, 2, 2) by central differences."""
+    uv = np.asarray(uv, float).reshape(-1, 2)
+    e = 0.5
+    pts = np.concatenate([uv + [e, 0], uv - [e, 0], uv + [0, e], uv - [0, e]])
+    s = mapping.image_to_sheet(pts).reshape(4, -1, 2)
+    J = np.empty((len(uv), 2, 2))
+    J[:, :, 0] = (s[0] - s[1]) / (2 * e)
+    J[:, :, 1] = (s[2] - s[3]) / (2 * e)
+    return J
+
+
+def _polygon(mapping: SheetMapping, corners_mm: np.ndarray, n: int = 12) -> np.ndarray:
+    """Sheet polygon (closed, corners (M, 2)) as raw-pixel polygon with subdivided edges."""
+    c = np.asarray(corners_mm, float)
+    t = np.linspace(0, 1, n, endpoint=False)[:, None]
+    pts = np.concatenate([c[i] + t * (c[(i + 1) % len(c)] - c[i]) for i in range(len(c))])
+    return mapping.sheet_to_image(pts)
+
+
+def sheet_mask(shape, mapping: SheetMapping, sheet: Sheet, *, border_mm: float = 2.0
+               ) -> np.ndarray:
+    """uint8 (H, W) 255 where pen marks may be: on the paper, off markers and quiet zones."""
+    H, W = shape[:2]
+    mask = np.zeros((H, W), np.uint8)
+    x0, y0, x1, y1 = sheet.extent_mm
+    b = border_mm
+    paper = np.array([[x0 + b, y0 + b], [x1 - b, y0 + b], [x1 - b, y1 - b], [x0 + b, y1 - b]])
+    poly = _polygon(mapping, paper, 24)
+    cv2.fillPoly(mask, [np.round(poly * 16).astype(np.int32)], 255, cv2.LINE_8, 4)
+    for m in sheet.markers:
+        c = np.asarray(m.corners_mm, float)
+        s = float(np.ptp(c[:, 0]))
+        q = MARKER_MARGIN_MM  # the quiet zone is blank paper: dots there are measurable
+        lo, hi = c.min(axis=0) - q, c.max(axis=0) + q
+        sq = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+        poly = _polygon(mapping, sq, 4)
+        cv2.fillPoly(mask, [np.round(poly * 16).astype(np.int32)], 0, cv2.LINE_8, 4)
+    return mask
+
+
+def find_candidates(rgb: np.ndarray, mapping: SheetMapping, sheet: Sheet, *,
+                    dia_mm: float | None = None) -> DotCandidates:
+    """Stage 1 on a whole colour photo (H, W, 3) uint8 (any channel order: only the
+    channels' maximum and sum are used) with an approximate mapping."""
+    dia = float(dia_mm or DEFAULT_DIAMETER_MM)
+    H, W = rgb.shape[:2]
+    x0, y0, x1, y1 = sheet.extent_mm
+    probe = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1], [(x0 + x1) / 2, (y0 + y1) / 2]])
+    mmpp = mapping.mm_per_px(probe)
+    dia_px_max = dia / max(float(mmpp.min()), 1e-6)
+    k = int(2.4 * dia_px_max) + 3
+    k += 1 - k % 2
+    V = cv2.max(cv2.max(rgb[:, :, 0], rgb[:, :, 1]), rgb[:, :, 2])
+    bg = cv2.morphologyEx(V, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_RECT, (k, k)))
+    thr = cv2.multiply(bg, 1.0 - INK_DARKENING, dtype=cv2.CV_8U)
+    ink = cv2.compare(V, thr, cv2.CMP_LT)
+    mask = sheet_mask(rgb.shape, mapping, sheet)
+    ink = cv2.bitwise_and(ink, mask)
+    try:
+        n, labels, stats, cents = cv2.connectedComponentsWithStats(ink, connectivity=8,
+                                                                   ltype=cv2.CV_16U)
+    except cv2.error:  # more than 65535 blobs
+        n, labels, stats, cents = cv2.connectedComponentsWithStats(ink, connectivity=8)
+    sigma = noise_sigma_sum(rgb, mapping, sheet)
+    uvs, patches, origins, areas = [], [], [], []
+    rejected: dict[str, int] = {}
+    rej_uv = []
+
+    def reject(why, uv):
+        rejected[why] = rejected.get(why, 0) + 1
+        rej_uv.append(uv)
+
+    if n > 1:
+        idx = np.arange(1, n)
+        area = stats[idx, cv2.CC_STAT_AREA].astype(float)
+        J = _local_jac(mapping, cents[idx])
+        det = np.abs(np.linalg.det(J))  # mm^2 per px
+        exp_area = np.pi * (dia / 2) ** 2 / np.maximum(det, 1e-12)
+        ratio = area / exp_area
+        for j, lab in enumerate(idx):
+            uv = cents[lab]
+            r = ratio[j]
+            if r < MIN_AREA_RATIO:
+                continue  # noise, paper texture: not worth a reason
+            if r > HUGE_AREA_RATIO:
+                reject("too large for a pen mark (arm, shadow or print)", uv)
+                continue
+            if r > MAX_AREA_RATIO:
+                reject("too large for one mark (merged marks or smudge)", uv)
+                continue
+            xl, yt, w, h = stats[lab, :4]
+            crop = (labels[yt:yt + h, xl:xl + w] == lab)
+            # darkness-weighted second moments (above the level printed lines reach) on
+            # the blob grown by a pixel: steadier than the thresholded pixels of a small dot
+            y0_, x0_ = max(yt - 1, 0), max(xl - 1, 0)
+            y1_, x1_ = min(yt + h + 1, H), min(xl + w + 1, W)
+            grown = cv2.dilate((labels[y0_:y1_, x0_:x1_] == lab).astype(np.uint8),
+                               np.ones((3, 3), np.uint8)) > 0
+            bgc = bg[y0_:y1_, x0_:x1_].astype(float)
+            dk = np.clip(bgc - V[y0_:y1_, x0_:x1_] - 0.2 * bgc, 0.0, None) * grown
+            yy, xx = np.mgrid[y0_:y1_, x0_:x1_]
+            sw = dk.sum()
+            if sw > 0:
+                mx, my = (dk * xx).sum() / sw, (dk * yy).sum() / sw
+                C = np.array([[(dk * (xx - mx) ** 2).sum(), (dk * (xx - mx) * (yy - my)).sum()],
+                              [0.0, (dk * (yy - my) ** 2).sum()]]) / sw
+                C[1, 0] = C[0, 1]
+                C += np.eye(2) / 12.0
+            else:
+                C = np.eye(2)
+            Cm = J[j] @ C @ J[j].T
+            ev = np.linalg.eigvalsh(Cm)
+            aspect = float(np.sqrt(ev[1] / max(ev[0], 1e-12)))
+            if aspect > MAX_ASPECT:
+                reject("elongated (merged marks or smudge)", uv)
+                continue
+            cnts, _ = cv2.findContours(np.pad(crop, 1).astype(np.uint8), cv2.RETR_EXTERNAL,
+                                       cv2.CHAIN_APPROX_NONE)
+            cnt = max(cnts, key=len)
+            a_c = cv2.contourArea(cnt)
+            a_h = cv2.contourArea(cv2.convexHull(cnt))
+            if a_h > 8 and a_c / a_h < MIN_SOLIDITY:
+                reject("irregular shape (smudge)", uv)
+                continue
+            mm_px = float(np.sqrt(det[j]))
+            _, half_mm = _radii_mm(dia, mm_px)
+            smax = float(np.linalg.svd(J[j], compute_uv=False).min())  # mm per px, smallest
+            hp = int(np.ceil(1.15 * half_mm / max(smax, 1e-6))) + 3
+            cu, cv_ = int(round(uv[0])), int(round(uv[1]))
+            if cu - hp < 0 or cv_ - hp < 0 or cu + hp + 1 > W or cv_ + hp + 1 > H:
+                reject("too close to the image edge", uv)
+                continue
+            patches.append(np.ascontiguousarray(rgb[cv_ - hp:cv_ + hp + 1, cu - hp:cu + hp + 1]))
+            origins.append((cu - hp, cv_ - hp))
+            uvs.append(uv)
+            areas.append(area[j])
+    return DotCandidates(np.asarray(uvs, float).reshape(-1, 2), tuple(patches),
+                         np.asarray(origins, int).reshape(-1, 2), np.asarray(areas, float),
+                         sigma, rejected, np.asarray(rej_uv, float).reshape(-1, 2))
+
+
+@dataclass(frozen=True)
+class DotMeasurement:
+    """A dot's centre ``xy_mm`` (2,) on the sheet and its covariance ``cov_mm2`` (2, 2)
+    (noise + mapping); ``ink_area_mm2``: the ink-equivalent area measured (1 - S/bg summed)."""
+
+    xy_mm: np.ndarray
+    cov_mm2: np.ndarray
+    ink_area_mm2: float
+    cov_noise_mm2: np.ndarray
+    cov_mapping_mm2: np.ndarray
+    bg_residual: float = float("nan")  # background-model residual / noise (about 1 if clean)
+
+
+def _resample(S: np.ndarray, origin, mapping: SheetMapping, centre, half, step):
+    n = int(np.ceil(half / step))
+    g = step * np.arange(-n, n + 1)
+    X, Y = np.meshgrid(centre[0] + g, centre[1] + g)
+    uv = mapping.sheet_to_image(np.column_stack([X.ravel(), Y.ravel()]))
+    mx = (uv[:, 0] - origin[0]).reshape(X.shape).astype(np.float32)
+    my = (uv[:, 1] - origin[1]).reshape(X.shape).astype(np.float32)
+    out = cv2.remap(S, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                    borderValue=-1.0)
+    return X, Y, out
+
+
+def _fill(v: np.ndarray) -> np.ndarray:
+    """Replace NaNs by the nearest valid value (linear in between)."""
+    ok = np.isfinite(v)
+    if ok.all() or not ok.any():
+        return np.where(ok, v, 0.0)
+    i = np.arange(len(v))
+    return np.interp(i, i[ok], v[ok])
+
+
+def blank_regions(sheet: Sheet, *, quiet_modules: float = QUIET_MODULES) -> np.ndarray:
+    """(K, 4) sheet rectangles [x0, y0, x1, y1] of bare paper: each marker with its quiet
+    zone (``quiet_modules`` modules, the way ``vision_cal.render.sheet`` prints them)."""
+    try:
+        n_bits = int(sheet.aruco_dictionary.split("_")[1].split("X")[0])
+    except (IndexError, ValueError):
+        n_bits = 5
+    out = []
+    for m in sheet.markers:
+        c = np.asarray(m.corners_mm, float)
+        lo, hi = c.min(axis=0), c.max(axis=0)
+        q = quiet_modules * float(np.ptp(c[:, 0])) / (n_bits + 2)
+        out.append([lo[0] - q, lo[1] - q, hi[0] + q, hi[1] + q])
+    return np.asarray(out, float).reshape(-1, 4)
+
+
+def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
+               dia_mm: float | None = None, noise_sigma: float = 1.0,
+               median_efficiency: float = 1.57, blank_rects=None) -> DotMeasurement | None:
+    """Stage 2: the dot's sheet centre from its raw patch with the final mapping.
+
+    ``blank_rects`` (K, 4): sheet rectangles with no plotting grid (see
+    :func:`blank_regions`). Returns None when the dot cannot be measured (patch too small
+    for the mapping, no ink, centroid running away).
+    """
+    dia = float(dia_mm or DEFAULT_DIAMETER_MM)
+    S = patch_rgb.astype(np.float32).sum(axis=2)
+    c = np.asarray(xy0_mm, float).reshape(2)
+    mm_px = float(mapping.mm_per_px(c)[0])
+    r_win, half = _radii_mm(dia, mm_px)
+    step = min(FINE_STEP_MM, mm_px / 4)
+    for _pass in range(2):
+        X, Y, Sg = _resample(S, origin, mapping, c, half, step)
+        if np.any(Sg < 0):
+            return None
+        L = np.log(np.maximum(Sg, 1.0))
+        R = np.hypot(X - c[0], Y - c[1])
+        bgmask = R > r_win
+        # blank paper (quiet zones): the plotting grid ends there, which a separable model
+        # cannot follow; fit it on the ruled part and use the bare paper level inside
+        blank = np.zeros(X.shape, bool)
+        for x0, y0, x1, y1 in (() if blank_rects is None else blank_rects):
+            blank |= (X >= x0) & (X <= x1) & (Y >= y0) & (Y <= y1)
+        partial = blank.any() and not blank.all()
+        fitmask = bgmask & ~blank if partial else bgmask
+        if partial and (fitmask.sum(axis=0).max() == 0 or fitmask.sum(axis=1).max() == 0):
+            partial, fitmask = False, bgmask
+        Lm = np.where(fitmask, L, np.nan)
+        a = np.zeros(X.shape[1])
+        b = np.zeros(X.shape[0])
+        with warnings.catch_warnings():  # columns / rows with no background sample
+            warnings.simplefilter("ignore", RuntimeWarning)
+            for _ in range(3):
+                a = _fill(np.nanmedian(Lm - b[:, None], axis=0))
+                b = _fill(np.nanmedian(Lm - a[None, :], axis=1))
+        bg = np.exp(a[None, :] + b[:, None])
+        resid = (L - a[None, :] - b[:, None])[fitmask]
+        # paper level without printed lines: upper envelope of the separable model
+        k_env = 2 * int(0.35 / step) + 1
+        P = np.exp(maximum_filter1d(a, k_env, mode="nearest")[None, :]
+                   + maximum_filter1d(b, k_env, mode="nearest")[:, None])
+        if partial:
+            bg = np.where(blank, P, bg)
+        w0 = (bg - Sg) / P            # ink deficit, relative to the paper
+        ell = np.clip((P - bg) / P, 0.0, None) if HIDDEN_LINES else np.zeros_like(P)
+        r_dot = 0.5 * dia
+        cc = c.copy()
+        for _ in range(8):
+            rc = np.hypot(X - cc[0], Y - cc[1])
+            win = (rc <= r_win).astype(float)
+            # the opaque dot hides the printed lines under it: give their darkness back
+            # on a disk of the nominal size, with the dot's contrast (mass / nominal area)
+            disk = np.clip((r_dot - rc) / step + 0.5, 0.0, 1.0)
+            w = w0
+            for _k in range(2):
+                contrast = float((win * w).sum()) * step * step / (np.pi * r_dot**2)
+                w = w0 + disk * ell * min(max(contrast, 0.0), 1.0)
+            ww = win * w
+            M = ww.sum()
+            if M <= 0:
+                return None
+            new = np.array([(ww * X).sum() / M, (ww * Y).sum() / M])
+            moved = np.hypot(*(new - cc))
+            cc = new
+            if moved < 1e-5:
+                break
+        t = Sg / P
+        shift = np.hypot(*(cc - c))
+        c = cc
+        if shift < 0.1 * r_win:
+            break
+    if np.hypot(*(c - np.asarray(xy0_mm, float).reshape(2))) > 0.5 * r_win:
+        return None  # the centroid ran away from the blob: not a clean dot
+    M_mm2 = float(M * step * step)
+    if M_mm2 < 0.1 * np.pi * (0.5 * dia) ** 2:
+        return None  # hardly any ink
+    dX, dY = X - c[0], Y - c[1]
+    sw2 = (noise_sigma / float(np.median(bg))) ** 2 * mm_px**2  # per unit area
+    # pixel noise inside the window
+    w2 = win * win
+    cov_pix = np.array([[np.sum(w2 * dX * dX), np.sum(w2 * dX * dY)],
+                        [np.sum(w2 * dX * dY), np.sum(w2 * dY * dY)]]) * step**2
+    # background columns a(x) and rows b(y), each a median over its bg samples
+    wt = win * t
+    Lx = bgmask.sum(axis=0) * step
+    Ly = bgmask.sum(axis=1) * step
+    gx = np.stack([(wt * dX).sum(axis=0), (wt * dY).sum(axis=0)]) * step  # (2, nx)
+    gy = np.stack([(wt * dX).sum(axis=1), (wt * dY).sum(axis=1)]) * step  # (2, ny)
+    cov_bg = ((gx / np.maximum(Lx, step)) @ gx.T + (gy / np.maximum(Ly, step)) @ gy.T) * step
+    cov_noise = sw2 * (cov_pix + median_efficiency * cov_bg) / (M_mm2**2)
+    cov_noise = cov_noise + np.eye(2) * (MODEL_FLOOR_PX * mm_px) ** 2
+    cov_map = mapping.point_cov_mm2(c)[0]
+    # what the separable background leaves unexplained, relative to the noise (diagnostic)
+    noise_grid = np.sqrt(sw2) / mm_px  # per-sample std of the relative intensity (upper)
+    e_rms = float(np.sqrt(np.mean(resid**2)))
+    return DotMeasurement(c, cov_noise + cov_map, M_mm2, cov_noise, cov_map,
+                          e_rms / noise_grid)
