@@ -339,8 +339,12 @@ def photographer_K(scene: Scene) -> np.ndarray:
 
 
 def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographer=None,
-                   joint_source=None) -> Path:
+                   joint_source=None, plan=None, targets_mm: dict | None = None) -> Path:
     """Render ``scene`` into the dataset folder ``out_dir``; return its path.
+
+    ``plan``: draw these ``PlannedMark`` instead of the scene's calibration plan (the
+    closed loop draws planned targets); ``targets_mm``: id -> the sheet point the OLP meant
+    to hit, written as the marks' ``target_mm``.
 
     ``photographer``: an existing ``Photographer`` for this scene's camera (size K from
     :func:`photographer_K`) to reuse (tests share one); by default one is built.
@@ -360,7 +364,9 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     sheet = make_sheet(size_mm=sh.size_mm, bottom_left_mm=sh.bottom_left_mm,
                        dictionary=sh.dictionary, marker_mm=sh.marker_mm, grid=sh.grid,
                        margin_mm=sh.margin_mm)
-    plan = build_plan(scene, sheet, rng=st.plan)
+    if plan is None:
+        plan = build_plan(scene, sheet, rng=st.plan)
+    plan = list(plan)
     truth = rob.truth_model
     predict_model, source = truth, joint_source
     if source is None and rob.controller != "kinematic":
@@ -434,7 +440,9 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
             "sheet": sheet.to_json(),
             "robot": rob.nominal.to_json(),
             "pen": {"mark_diameter_mm": rob.pen_diameter_mm},
-            "marks": [m.to_json() for m in plan],
+            "marks": [dict(m.to_json(), **({"target_mm": [float(v) for v in targets_mm[m.id]]}
+                                           if targets_mm and m.id in targets_mm else {}))
+                      for m in plan],
             "images": images,
         }
         if cam.declared:

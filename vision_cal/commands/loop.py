@@ -1,0 +1,44 @@
+"""``vision-cal loop``: the closed loop on a synthetic scene, before and after."""
+
+from __future__ import annotations
+
+NAME = "loop"
+HELP = ("render a calibration session, calibrate it from the photos, plan targets with the "
+        "nominal and calibrated models, draw them with the true robot, photograph and measure")
+EXAMPLES = """\
+examples:
+  vision-cal loop renders/default.yaml --out out/demo        (what `make demo` runs)
+  vision-cal loop renders/small.yaml --out /tmp/loop --jobs 2
+"""
+
+
+def add_arguments(p) -> None:
+    p.add_argument("scene", metavar="SCENE.yaml")
+    p.add_argument("-o", "--out", required=True, metavar="DIR")
+    p.add_argument("-j", "--jobs", type=int, default=None, help="parallel photo measurement")
+    p.add_argument("--elbow", type=int, choices=(1, -1), default=1)
+    p.add_argument("--no-report", dest="report", action="store_false",
+                   help="skip DIR/calibration/report.html (written by default)")
+
+
+def run(args) -> int:
+    import sys
+    from pathlib import Path
+
+    from vision_cal.loop import format_table, run_loop
+    from vision_cal.report.summary import format_summary
+
+    progress = (not args.quiet) and sys.stderr.isatty()
+    doc, run = run_loop(args.scene, out_dir=args.out, jobs=args.jobs, progress=progress,
+                   elbow=args.elbow)
+    if not args.quiet:
+        print(format_summary(run.document))
+        print()
+        print("absolute error of each target, measured from the photographs (Table 3):")
+        print(format_table(doc))
+    if args.report:
+        from vision_cal.report.html import write_report
+
+        path = write_report(run, Path(args.out) / "calibration", loop=doc)
+        print(f"report: {path.resolve()}")
+    return 0
