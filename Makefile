@@ -12,11 +12,20 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
+# The seed paper's Table 2 side by side with ours, then the whole loop on the default
+# scene: render, calibrate from the photos, plan, simulate, photograph, measure (~2 min).
 demo: $(STAMP)
 	$(BIN)/vision-cal fixtures/paper_sm5 --method paper --out out/paper_sm5
+	$(BIN)/vision-cal loop renders/default.yaml --out out/demo
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
 clean:
 	rm -rf out .pytest_cache
+
+bench: $(STAMP)
+	$(BIN)/python bench/diagnose.py
+	$(BIN)/python bench/measure.py
+	$(BIN)/python bench/render.py
+	$(BIN)/python bench/simulate.py

@@ -36,7 +36,7 @@ Sections and fields::
       bottom_left_mm: [-297.0, -210.0]   # paper corner in frame S: origin at the centre
       dictionary: DICT_5X5_100
       marker_mm: 30.0
-      grid: [7, 5]                # markers across x, y (spread evenly over the sheet)
+      grid: [6, 4]                # markers across x, y (spread evenly over the sheet)
       margin_mm: 15.0
     plan:
       kind: informative           # informative | paper (the seed paper's 5 poses)
@@ -130,7 +130,7 @@ class SheetScene:
     bottom_left_mm: tuple[float, float] = (-297.0, -210.0)
     dictionary: str = "DICT_5X5_100"
     marker_mm: float = 30.0
-    grid: tuple[int, int] = (7, 5)
+    grid: tuple[int, int] = (6, 4)
     margin_mm: float = 15.0
 
 
