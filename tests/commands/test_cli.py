@@ -90,3 +90,17 @@ def test_plan_command_writes_plan_and_trajectory(paper_folder, tmp_path, capsys)
                  "--model", "nominal", "-q"]) == 0
     _, qn, _ = read_plan(tmp_path / "before.csv")
     assert abs(qn - q).max() > 1.0
+
+
+def test_many_folders_one_failing(paper_folder, tmp_path, capsys):
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "session.json").write_text("{broken")
+    rc = main(["calibrate", str(paper_folder), str(bad), "--out", str(tmp_path / "res")])
+    assert rc == 1
+    out = capsys.readouterr()
+    assert "not valid JSON" in out.err
+    assert (tmp_path / "res" / "paper_sm5" / "calibration.json").exists()
+    summary = json.loads((tmp_path / "res" / "summary.json").read_text())
+    assert [r["status"] for r in summary["folders"]] == ["ok", "failed"]
+    assert "paper_sm5" in out.out and "failed" in out.out

@@ -41,6 +41,7 @@ def run(args) -> int:
     progress = (not args.quiet) and sys.stderr.isatty()
     several = len(args.folders) > 1
     failures = 0
+    rows = []
     for folder in args.folders:
         name = Path(folder).resolve().name
         out = Path(args.out) / name if (args.out and several) else Path(args.out or f"out/{name}")
@@ -52,7 +53,16 @@ def run(args) -> int:
                 raise
             failures += 1
             print(f"vision-cal: error: {folder}: {e}", file=sys.stderr)
+            rows.append({"folder": str(folder), "status": "failed", "reason": str(e)})
             continue
+        d = result.document
+        rows.append({"folder": str(folder), "status": "ok", "out": str(result.out_path),
+                     "marks": len(d["marks"]),
+                     "skipped_photos": sum(im.get("status") != "ok" for im in d["images"]),
+                     "effects": [e["name"] + (f"(joint {e['joint']})" if "joint" in e else "")
+                                 for e in d["effects"]],
+                     "residual_rms_mm": d["residual_rms_mm"]["final_model"],
+                     "validation_rms_mm": d["validation_rms_mm"]["final_model"]})
         if not args.quiet:
             ref = result.session.raw.get("reference")
             print(format_summary(result.document, reference=ref))
@@ -66,4 +76,27 @@ def run(args) -> int:
             path = write_report(result, out)
             print(f"report: {path}")
         print(f"wrote {result.out_path}")
+    if several:
+        from vision_cal.dataset.io import atomic_write_json
+
+        root = Path(args.out or "out")
+        atomic_write_json(root / "summary.json", {"folders": rows})
+        print(_summary_table(rows))
+        print(f"wrote {root / 'summary.json'}")
     return 1 if failures else 0
+
+
+def _summary_table(rows) -> str:
+    def f(x):
+        return "-" if x is None else f"{x:.4f}"
+
+    lines = [f"{'folder':<28}{'status':<8}{'marks':>6}{'skipped':>8}{'rms [mm]':>10}"
+             f"{'held-out':>10}  effects"]
+    for r in rows:
+        if r["status"] != "ok":
+            lines.append(f"{r['folder'][-28:]:<28}{'failed':<8}  {r['reason']}")
+            continue
+        lines.append(f"{r['folder'][-28:]:<28}{'ok':<8}{r['marks']:>6}{r['skipped_photos']:>8}"
+                     f"{f(r['residual_rms_mm']):>10}{f(r['validation_rms_mm']):>10}  "
+                     f"{', '.join(r['effects']) or 'none'}")
+    return "\n".join(lines)

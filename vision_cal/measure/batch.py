@@ -94,6 +94,8 @@ class ImageResult:
     noise_sigma: float = float("nan")
     size_px: tuple[int, int] | None = None
     from_cache: bool = False
+    marker_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, int))   # (M,)
+    markers_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 2)))  # (M, 4, 2)
 
     def to_json(self) -> dict:
         """The photo's entry of calibration.json ``images[]``."""
@@ -290,7 +292,8 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     return ImageResult(det.file, "ok", None, len(det.marker_ids), m.corner_rms_px,
                        m.corner_rms_mm, len(xs), np.asarray(xs).reshape(-1, 2),
                        np.asarray(covs).reshape(-1, 2, 2), np.asarray(uvs).reshape(-1, 2),
-                       rejected, c.noise_sigma, det.size_px, from_cache)
+                       rejected, c.noise_sigma, det.size_px, from_cache,
+                       np.asarray(det.marker_ids), det.corners_for(K, dist))
 
 
 def measure_image(path, session: Session, *, lens: LensEstimate | None = None) -> ImageResult:

@@ -31,14 +31,25 @@ def build_report(run, *, loop: dict | None = None) -> dict:
            "reference": run.session.raw.get("reference")}
     photos = []
     if run.measurement is not None:
+        marks = run.measurement.marks
+        mids = list(marks)
+        mxy = np.array([marks[i].xy_mm for i in mids], float).reshape(-1, 2)
         for im in run.measurement.images:
             j = im.to_json()
             entry = {"file": j["file"], "path": str(run.session.root / j["file"]),
                      "status": j.get("status"), "reason": j.get("reason", "")}
-            for key in ("markers_px", "dots_px"):
-                v = getattr(im, key, None)
-                if v is not None:
-                    entry[key] = _plain(v)
+            ids = getattr(im, "marker_ids", np.zeros(0))
+            corners = getattr(im, "markers_px", np.zeros((0, 4, 2)))
+            entry["markers_px"] = [[int(i), np.asarray(c).tolist()] for i, c in zip(ids, corners)]
+            dots = []
+            for xy, uv in zip(im.dots_xy_mm, im.dots_uv_px):
+                name = None
+                if len(mxy):
+                    d = np.hypot(*(mxy - xy).T)
+                    k = int(np.argmin(d))
+                    name = mids[k] if d[k] < 0.5 else None
+                dots.append([name, float(uv[0]), float(uv[1])])
+            entry["dots_px"] = dots
             photos.append(entry)
     rep["photos"] = photos
     if loop:
