@@ -21,7 +21,7 @@ from vision_cal.report.summary import describe_effect
 
 MAX_PHOTOS = 40
 THUMB_PX = 320
-FULL_PX = 1600
+FULL_PX = 1200
 
 
 def build_report(run, *, loop: dict | None = None) -> dict:
@@ -117,7 +117,7 @@ def _photo_overlay(p: dict) -> tuple[str, str] | None:
     def enc(max_w):
         s = min(1.0, max_w / w)
         small = cv2.resize(img, (int(w * s), int(h * s)), interpolation=cv2.INTER_AREA)
-        ok, buf = cv2.imencode(".jpg", small, [cv2.IMWRITE_JPEG_QUALITY, 82])
+        ok, buf = cv2.imencode(".jpg", small, [cv2.IMWRITE_JPEG_QUALITY, 75])
         return _uri(buf.tobytes(), "image/jpeg")
 
     return enc(THUMB_PX), enc(FULL_PX)
