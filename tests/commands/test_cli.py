@@ -104,3 +104,12 @@ def test_many_folders_one_failing(paper_folder, tmp_path, capsys):
     summary = json.loads((tmp_path / "res" / "summary.json").read_text())
     assert [r["status"] for r in summary["folders"]] == ["ok", "failed"]
     assert "paper_sm5" in out.out and "failed" in out.out
+
+
+@pytest.mark.parametrize("sub", ["calibrate", "render", "plan", "loop", "export"])
+def test_every_subcommand_help_has_an_example(sub, capsys):
+    with pytest.raises(SystemExit) as e:
+        main([sub, "--help"])
+    assert e.value.code == 0
+    out = capsys.readouterr().out
+    assert "examples:" in out and f"vision-cal {sub if sub != 'calibrate' else ''}".strip() in out
