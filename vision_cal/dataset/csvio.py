@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.dataset.io import atomic_write_text
+from vision_cal.dataset.io import atomic_write_text, read_text
 from vision_cal.errors import VisionCalError
 
 TARGET_FIELDS = ("id", "x_mm", "y_mm")
@@ -24,12 +24,7 @@ PLAN_FIELDS = ("id", "q1_deg", "q2_deg", "approach1", "approach2")
 
 
 def _rows(path: Path, required: tuple[str, ...]) -> list[tuple[int, dict]]:
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError as e:
-        raise VisionCalError("file not found", file=str(path)) from e
-    except (OSError, UnicodeDecodeError) as e:
-        raise VisionCalError(f"cannot read: {e}", file=str(path)) from e
+    text = read_text(path)
     reader = csv.DictReader(io.StringIO(text))
     header = [h.strip() for h in (reader.fieldnames or [])]
     missing = [f for f in required if f not in header]

@@ -74,15 +74,21 @@ def atomic_write_json(path, obj) -> Path:
     return atomic_write_text(path, text + "\n")
 
 
+def read_text(path, *, what: str = "file") -> str:
+    """A UTF-8 text file; missing or unreadable is one clear line naming it."""
+    path = Path(path)
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError as e:
+        raise VisionCalError(f"{what} not found", file=str(path)) from e
+    except (OSError, UnicodeDecodeError) as e:
+        raise VisionCalError(f"cannot read: {e}", file=str(path)) from e
+
+
 def read_json(path) -> dict:
     """Read a JSON object; a missing or malformed file is one clear line."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError as e:
-        raise VisionCalError("file not found", file=str(path)) from e
-    except (OSError, UnicodeDecodeError) as e:
-        raise VisionCalError(f"cannot read: {e}", file=str(path)) from e
+    text = read_text(path)
     try:
         obj = json.loads(text, parse_constant=lambda c: float(c))
     except json.JSONDecodeError as e:

@@ -429,13 +429,10 @@ def load_scene(path) -> Scene:
     """Read and validate a scene YAML file."""
     import yaml
 
+    from vision_cal.dataset.io import read_text
+
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError as e:
-        raise VisionCalError("scene file not found", file=str(path)) from e
-    except (OSError, UnicodeDecodeError) as e:
-        raise VisionCalError(f"cannot read: {e}", file=str(path)) from e
+    text = read_text(path, what="scene file")
     try:
         tree = yaml.safe_load(text)
     except yaml.YAMLError as e:

@@ -75,15 +75,18 @@ def urdf_text(doc: dict, *, name: str = "scara_calibrated",
 """
 
 
+def _effects(doc: dict) -> list[dict]:
+    """The effects with their parameters and std (the evidence stays in the report)."""
+    return [{k: v for k, v in e.items() if k != "evidence"} for e in doc.get("effects", [])]
+
+
 def effects_yaml(doc: dict) -> str:
-    effects = [{k: v for k, v in e.items() if k != "evidence"} for e in doc.get("effects", [])]
-    return EFFECTS_HEADER + yaml.safe_dump({"effects": effects}, sort_keys=False)
+    return EFFECTS_HEADER + yaml.safe_dump({"effects": _effects(doc)}, sort_keys=False)
 
 
 def calibration_yaml(doc: dict) -> str:
     out = {"params": doc["params"], "std": doc.get("std"),
-           "effects": [{k: v for k, v in e.items() if k != "evidence"}
-                       for e in doc.get("effects", [])],
+           "effects": _effects(doc),
            "residual_rms_mm": doc.get("residual_rms_mm"),
            "validation_rms_mm": doc.get("validation_rms_mm")}
     return EFFECTS_HEADER + yaml.safe_dump(out, sort_keys=False)

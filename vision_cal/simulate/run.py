@@ -141,14 +141,9 @@ def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), contro
             u1, u2 = torque(q1, q2, v1, v2, a1, a2, b1, b2, c1, c2)
         return step(q1, q2, v1, v2, u1, u2, dt_s)
 
-    for k in range(n_ref):
-        if k:  # control from the state and reference at step k - 1, over one step
-            j = k - 1
-            q1, q2, v1, v2 = advance(q1, q2, v1, v2, r1s[j], r2s[j], rd1s[j], rd2s[j],
-                                     rdd1s[j], rdd2s[j])
-            steps += 1
-        a1, a2 = r1s[k], r2s[k]
-        # backlash (play operator) and direction trackers
+    def track(q1, q2, l1, l2, g1, g2, sg1, sg2):
+        """Play operator (link inside the band about the motor) and, with a tiny band,
+        the side each joint last moved towards (its arrival sign)."""
         if l1 < q1 - hb1:
             l1 = q1 - hb1
         elif l1 > q1 + hb1:
@@ -165,6 +160,17 @@ def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), contro
             g2, sg2 = q2 - dh2, 1.0
         elif g2 > q2 + dh2:
             g2, sg2 = q2 + dh2, -1.0
+        return l1, l2, g1, g2, sg1, sg2
+
+    for k in range(n_ref):
+        if k:  # control from the state and reference at step k - 1, over one step
+            j = k - 1
+            q1, q2, v1, v2 = advance(q1, q2, v1, v2, r1s[j], r2s[j], rd1s[j], rd2s[j],
+                                     rdd1s[j], rdd2s[j])
+            steps += 1
+        a1, a2 = r1s[k], r2s[k]
+        # backlash (play operator) and direction trackers
+        l1, l2, g1, g2, sg1, sg2 = track(q1, q2, l1, l2, g1, g2, sg1, sg2)
         e1, e2 = abs(a1 - q1), abs(a2 - q2)
         err_sq1 += e1 * e1
         err_sq2 += e2 * e2
@@ -185,22 +191,7 @@ def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), contro
             q1, q2, v1, v2 = advance(q1, q2, v1, v2, m1, m2, 0.0, 0.0, 0.0, 0.0)
             steps += 1
             hold += 1
-            if l1 < q1 - hb1:
-                l1 = q1 - hb1
-            elif l1 > q1 + hb1:
-                l1 = q1 + hb1
-            if l2 < q2 - hb2:
-                l2 = q2 - hb2
-            elif l2 > q2 + hb2:
-                l2 = q2 + hb2
-            if g1 < q1 - dh1:
-                g1, sg1 = q1 - dh1, 1.0
-            elif g1 > q1 + dh1:
-                g1, sg1 = q1 + dh1, -1.0
-            if g2 < q2 - dh2:
-                g2, sg2 = q2 - dh2, 1.0
-            elif g2 > q2 + dh2:
-                g2, sg2 = q2 + dh2, -1.0
+            l1, l2, g1, g2, sg1, sg2 = track(q1, q2, l1, l2, g1, g2, sg1, sg2)
         motor[i] = (q1, q2)
         link[i] = (l1, l2)
         arrival[i] = (sg1, sg2)
