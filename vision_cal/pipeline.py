@@ -185,6 +185,17 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
             doc["circles"] = {"base": pm.circle_base.to_json(), "elbow": pm.circle_elbow.to_json()}
         except CalibrationError:
             pass
+    if measurement is not None and diag is not None:
+        from vision_cal.diagnose.photos import per_photo_offsets
+
+        qd = dict(zip(data.ids, data.q_deg))
+        ad = dict(zip(data.ids, data.approach))
+        photos = per_photo_offsets(measurement, diag.final_fit.model, qd, ad)
+        doc["diagnosis"]["per_photo_offsets"] = photos
+        flagged = [p["file"] for p in photos if p["flagged"]]
+        if flagged:
+            doc["notes"].append("photos whose marks are shifted together beyond the noise "
+                                "(a bad sheet mapping?): " + ", ".join(flagged))
     doc["nominal"] = nominal.to_json()
     if measurement is not None and measurement.lens is not None and measurement.lens.kept:
         doc["effects"] = [measurement.lens.to_effect_json()] + doc["effects"]

@@ -204,6 +204,16 @@ def render_html(rep: dict) -> str:
             [[html.escape(e["label"]), _f(e["heldout_before_mm"]), _f(e["heldout_after_mm"]),
               _f(e["F"], 2), f"{e['p_value']:.2g}", _f(e["delta_bic"], 1),
               html.escape(e["reason"])] for e in diag["rejected"]]))
+    pp = diag.get("per_photo_offsets") or []
+    if pp:
+        bad = [p for p in pp if p.get("flagged")]
+        worst = max(pp, key=lambda p: float(np.hypot(*p["offset_mm"])))
+        parts.append(f"<p>Per-photo offsets: {len(pp)} photos checked, "
+                     + (f"<span class=bad>{len(bad)} shifted beyond the noise: " +
+                        ", ".join(html.escape(p['file']) for p in bad) + "</span>" if bad else
+                        "none shifted beyond the noise")
+                     + f"; largest mean offset {np.hypot(*worst['offset_mm']):.4f} mm "
+                     f"({html.escape(worst['file'])}).</p>")
     ni = ident.get("not_identifiable", [])
     if ni:
         parts.append("<h3>Not identifiable by this plan</h3><ul>" + "".join(
