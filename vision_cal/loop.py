@@ -122,7 +122,7 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
     ids, xy = default_targets(sheet, calibrated.params, elbow=elbow)
     write_targets(out / "targets.csv", ids, xy)
     targets = dict(zip(ids, xy))
-    results = {}
+    results, controller = {}, {}
     t = time.perf_counter()
     plans = {}
     for name, model in (("before", nominal), ("after", calibrated)):
@@ -138,6 +138,9 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
         sheet_dir = render_dataset(sc, out / f"sheet_{name}", progress=progress, plan=marks,
                                    targets_mm=targets, photographer=photographer)
         stages[f"simulate + draw + photograph ({name})"] = time.perf_counter() - t
+        from vision_cal.dataset.io import read_json
+
+        controller[name] = read_json(sheet_dir / "truth.json").get("controller_report")
         t = time.perf_counter()
         m = measure_folder(load_session(sheet_dir), out_dir=out / f"measure_{name}", jobs=jobs,
                            progress=progress)
@@ -177,6 +180,7 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
                       "max_mm": float(after.max()) if len(after) else None},
         },
         "stages_s": stages,
+        "controller": controller,
         "calibration": str(run.out_path),
     }
     _figures(doc, plans, targets, results, out)
@@ -243,6 +247,12 @@ def format_table(doc: dict) -> str:
                      f"{(f'{b:.3f}' if b is not None else r['before']['status']):>13}"
                      f"{(f'{a:.4f}' if a is not None else r['after']['status']):>12}")
     s = doc["summary"]
+    c = (doc.get("controller") or {}).get("after")
+    if c:
+        lines.append(f"simulated {c['controller']} controller: tracking RMS "
+                     f"{c['tracking_rms_deg'][0]:.4f} / {c['tracking_rms_deg'][1]:.4f} deg, settle "
+                     f"residual max {max(c['settle_residual_max_deg']):.1e} deg, "
+                     f"{c['duration_s']:.1f} s of motion")
     for k in ("before", "after"):
         v = s[k]
         if v["rms_mm"] is not None:

@@ -468,6 +468,7 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
             "arm_parked_q_deg": parked,
             "extra_files": {e.file: e.kind for e in ph.extra_files},
             "seed": scene.seed,
+            "controller_report": getattr(source, "report", None),
         }
         atomic_write_json(tmp / "session.json", session)
         atomic_write_json(tmp / "truth.json", truth_json)

@@ -129,9 +129,20 @@ def simulated_world(truth: RobotModel, *, controller: str = "smc", rng=None,
 
         r = simulate_plan(plan, home_deg=home_deg, backlash_deg=tuple(band),
                           controller=controller, rng=rng, **sim_kwargs)
+        source.report = controller_report(r, controller)
         return r.link_deg, r.arrival_sign
 
+    source.report = None
     return source, RobotModel(truth.params, tuple(rest))
+
+
+def controller_report(r, controller: str) -> dict:
+    """How the simulated controller did: tracking error and settle residual (degrees)."""
+    return {"controller": controller,
+            "tracking_rms_deg": np.asarray(r.tracking_rms_deg).tolist(),
+            "tracking_max_deg": np.asarray(r.tracking_max_deg).tolist(),
+            "settle_residual_max_deg": np.abs(r.settle_residual_deg).max(axis=0).tolist(),
+            "duration_s": float(r.duration_s)}
 
 
 def arm_points(model, q_deg) -> np.ndarray:
