@@ -100,7 +100,13 @@ def describe_effect(e: dict) -> str:
         s = (f"sheet_affine: x scale {m[0][0]:.5f}, y scale {m[1][1]:.5f}, "
              f"shear {m[0][1]:+.5f}")
     elif name == "lens_distortion":
-        s = "lens_distortion: " + ", ".join(f"{c:+.4g}" for c in e.get("coefficients", []))
+        names = e.get("coefficient_names") or ["k1", "k2", "p1", "p2", "k3"]
+        s = "lens_distortion (undeclared lens): " + ", ".join(
+            f"{n} {c:+.4g}" for n, c in zip(names, e.get("coefficients", [])) if c)
+        px, mm = e.get("corner_rms_px"), e.get("corner_rms_mm")
+        if px and mm:
+            s += (f"; marker corner RMS {px['before']:.3f} -> {px['after']:.3f} px "
+                  f"({mm['before']:.4f} -> {mm['after']:.4f} mm)")
     else:
         s = name
     if "std" in e and e["std"] is not None:
