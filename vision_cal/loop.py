@@ -133,7 +133,8 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
     for k, name in enumerate(("before", "after")):
         marks = to_planned_marks(plans[name])
         sc = scene.with_overrides(seed=scene.seed + 1000 + k, mode="single")
-        sc = replace(sc, photos=replace(sc.photos, extra_files=()))
+        # the arm is moved away before the finished sheet is photographed
+        sc = replace(sc, photos=replace(sc.photos, extra_files=(), arm_parked=False))
         t = time.perf_counter()
         sheet_dir = render_dataset(sc, out / f"sheet_{name}", progress=progress, plan=marks,
                                    targets_mm=targets, photographer=photographer)
