@@ -69,7 +69,7 @@ def hit(effect, key, size, found, p) -> bool:
     return base_ok and abs(e[key] - size) <= 0.2 * abs(size)
 
 
-def render_grid(seeds: int, width: int) -> None:
+def render_grid(seeds: int, width: int, only: str | None = None) -> None:
     import copy
     import tempfile
     from pathlib import Path
@@ -92,6 +92,8 @@ def render_grid(seeds: int, width: int) -> None:
         cases.append((name, eff, key, size, None))
     cases += [("lens barrel k1 -0.1", None, None, None, [-0.1, 0.03, 0, 0, 0]),
               ("lens pincushion k1 +0.08", None, None, None, [0.08, -0.02, 0, 0, 0])]
+    if only:
+        cases = [c for c in cases if only in c[0]]
     photographers = {}
     rows, false_claims, clean_runs, mark_rms = [], 0, 0, []
     t_all = time.perf_counter()
@@ -137,8 +139,9 @@ def render_grid(seeds: int, width: int) -> None:
         print(f"  {name:<28} {hits:>3}/{seeds}", flush=True)
     total = sum(h for nm, h, n in rows if nm != "clean")
     count = sum(n for nm, h, n in rows if nm != "clean")
-    print(f"rendered grid ({width} px wide photos): hit rate {total}/{count} = "
-          f"{100 * total / count:.1f} %; false claims on clean data {false_claims}/{clean_runs}")
+    rate = f"{100 * total / count:.1f} %" if count else "-"
+    print(f"rendered grid ({width} px wide photos): hit rate {total}/{count} = {rate}; "
+          f"false claims on clean data {false_claims}/{clean_runs}")
     print(f"mark position RMS error against truth: median {1000 * np.nanmedian(mark_rms):.1f} um, "
           f"max {1000 * np.nanmax(mark_rms):.1f} um; {time.perf_counter() - t_all:.0f} s")
 
@@ -150,9 +153,10 @@ def main() -> None:
     ap.add_argument("--render", action="store_true", help="render, measure and calibrate "
                     "each case from a photograph")
     ap.add_argument("--width", type=int, default=1600, help="--render: photo width, px")
+    ap.add_argument("--only", default=None, help="--render: only cases whose name has this")
     a = ap.parse_args()
     if a.render:
-        render_grid(a.seeds, a.width)
+        render_grid(a.seeds, a.width, a.only)
         return
     rows, t_diag, t_base = [], [], []
     cases = [("clean", None, None, None)] + list(grid())
