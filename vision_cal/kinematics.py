@@ -137,12 +137,14 @@ def jacobian(params: ScaraParams, q_deg) -> np.ndarray:
     return jacobian_rad(params.vector, _as_q_rad(q_deg))[0]
 
 
-def inverse(params: ScaraParams, xy_mm, *, elbow: int = 1, min_sin_q2: float = 0.0) -> np.ndarray:
+def inverse(params: ScaraParams, xy_mm, *, elbow: int = 1, min_sin_q2: float = 0.0,
+            on_fail: str = "raise") -> np.ndarray:
     """Commanded joints (N, 2) in degrees that put the pen on ``xy_mm`` (N, 2).
 
     ``elbow=+1`` picks sin(phi2) > 0 (elbow on the counter-clockwise side),
     ``elbow=-1`` the other solution. Raises :class:`VisionCalError` naming the first
-    unreachable point (or one closer to the singularity than ``min_sin_q2``).
+    unreachable point (or one closer to the singularity than ``min_sin_q2``); with
+    ``on_fail="nan"`` such points get NaN joints instead (see :func:`ik_failures`).
     """
     if elbow not in (1, -1):
         raise VisionCalError(f"elbow must be +1 or -1, got {elbow!r}")
@@ -152,6 +154,12 @@ def inverse(params: ScaraParams, xy_mm, *, elbow: int = 1, min_sin_q2: float = 0
     L1, L2 = params.L1_mm, params.L2_mm
     c2 = (r2 - L1**2 - L2**2) / (2 * L1 * L2)
     bad = np.flatnonzero(~(np.abs(c2) <= 1.0))
+    if on_fail == "nan":
+        s2 = elbow * np.sqrt(np.clip(1.0 - c2**2, 0.0, None))
+        fail = ~(np.abs(c2) <= 1.0) | (np.abs(s2) < min_sin_q2)
+        q = _ik_angles(params, d, c2, s2)
+        q[fail] = np.nan
+        return q
     if bad.size:
         i = int(bad[0])
         raise VisionCalError(
@@ -165,8 +173,32 @@ def inverse(params: ScaraParams, xy_mm, *, elbow: int = 1, min_sin_q2: float = 0
         raise VisionCalError(
             f"point {i} at ({xy[i, 0]:.3f}, {xy[i, 1]:.3f}) mm is too close to the "
             f"singularity (|sin phi2| = {abs(s2[i]):.4f} < {min_sin_q2})")
+    return _ik_angles(params, d, c2, s2)
+
+
+def _ik_angles(params: ScaraParams, d, c2, s2) -> np.ndarray:
+    L1, L2 = params.L1_mm, params.L2_mm
     phi2 = np.arctan2(s2, c2)
     phi1 = np.arctan2(d[:, 1], d[:, 0]) - np.arctan2(L2 * s2, L1 + L2 * c2)
     q = np.stack([phi1 - np.radians(params.z1_deg), phi2 - np.radians(params.z2_deg)], axis=1)
     q = (q + np.pi) % (2 * np.pi) - np.pi
     return np.degrees(q)
+
+
+def ik_failures(params: ScaraParams, xy_mm, *, min_sin_q2: float = 0.0) -> list[str]:
+    """Why each point (N, 2) cannot be reached ("" where it can)."""
+    xy = np.atleast_2d(np.asarray(xy_mm, dtype=float))
+    r = np.hypot(*(xy - np.array(params.base_mm)).T)
+    L1, L2 = params.L1_mm, params.L2_mm
+    c2 = (r**2 - L1**2 - L2**2) / (2 * L1 * L2)
+    out = []
+    for p, ri, ci in zip(xy, r, c2):
+        if not abs(ci) <= 1.0:
+            out.append(f"({p[0]:.3f}, {p[1]:.3f}) mm is out of reach: it is {ri:.3f} mm from "
+                       f"the base, the arm reaches {abs(L1 - L2):.3f}..{L1 + L2:.3f} mm")
+        elif np.sqrt(max(1.0 - ci**2, 0.0)) < min_sin_q2:
+            out.append(f"({p[0]:.3f}, {p[1]:.3f}) mm is too close to the singularity "
+                       f"(|sin phi2| = {np.sqrt(max(1.0 - ci**2, 0.0)):.4f} < {min_sin_q2})")
+        else:
+            out.append("")
+    return out

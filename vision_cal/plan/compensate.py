@@ -47,58 +47,68 @@ class PlannedTarget:
                 "status": self.status, "reason": self.reason}
 
 
-def _invert_joint(model: RobotModel, j: int, phi_rad: float, s: float) -> float:
-    """Command q (rad) whose effective angle is ``phi_rad`` for joint ``j`` (0-based)."""
-    effects = [e for e in model.effects if isinstance(e, JointEffect) and e.joint == j + 1]
-    if not effects:
-        return phi_rad
-    q = phi_rad
-    sv = np.array([s])
-    for _ in range(50):
-        total, deriv = 0.0, 1.0
-        h = 1e-7
-        for e in effects:
-            d0 = e.delta(np.array([q]), sv)[0][0]
-            d1 = e.delta(np.array([q + h]), sv)[0][0]
-            total += d0
-            deriv += (d1 - d0) / h
-        f = q + total - phi_rad
-        step = f / deriv
-        q -= step
-        if abs(step) < 1e-14:
-            break
-    return float(q)
+def _invert_joints(model: RobotModel, phi_deg: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Commands (N, 2) deg whose effective joint angles are ``phi_deg`` (N, 2), for the
+    approach signs ``s`` (N, 2): Newton's method on every target at once."""
+    q = np.radians(phi_deg).copy()
+    phi = np.radians(phi_deg)
+    for j in range(2):
+        effects = [e for e in model.effects if isinstance(e, JointEffect) and e.joint == j + 1]
+        if not effects:
+            continue
+        x, sj, h = q[:, j].copy(), s[:, j], 1e-7
+        for _ in range(50):
+            total = np.zeros_like(x)
+            deriv = np.ones_like(x)
+            for e in effects:
+                d0 = e.delta(x, sj)[0]
+                total += d0
+                deriv += (e.delta(x + h, sj)[0] - d0) / h
+            step = (x + total - phi[:, j]) / deriv
+            x -= step
+            if np.nanmax(np.abs(step), initial=0.0) < 1e-14:
+                break
+        q[:, j] = x
+    return np.degrees(q)
 
 
 def plan_targets(model: RobotModel, ids, targets_mm, *, elbow: int = 1, approach=(1, 1),
                  joint_limits_deg=DEFAULT_LIMITS_DEG, min_sin_q2: float = 0.05
                  ) -> list[PlannedTarget]:
     """Joint commands for every target (N, 2) mm; failures carry their reason."""
+    from vision_cal.kinematics import ik_failures
+
     xy = np.asarray(targets_mm, dtype=float).reshape(-1, 2)
-    s = np.array(approach, dtype=float)
-    minv = np.linalg.inv(model.sheet_matrix())
-    out = []
-    for tid, t in zip(ids, xy):
-        arm = minv @ t
-        try:
-            phi = inverse(model.params, arm[None], elbow=elbow, min_sin_q2=min_sin_q2)[0]
-        except VisionCalError as e:
-            out.append(PlannedTarget(tid, tuple(t), None, tuple(int(v) for v in s), "failed",
-                                     e.reason.replace("point 0 ", "target ")))
+    n = len(xy)
+    s = np.broadcast_to(np.asarray(approach, dtype=float), (n, 2))
+    arm = xy @ np.linalg.inv(model.sheet_matrix()).T
+    phi = inverse(model.params, arm, elbow=elbow, min_sin_q2=min_sin_q2, on_fail="nan")
+    unreachable = np.isnan(phi).any(axis=1)
+    q = _invert_joints(model, np.where(unreachable[:, None], 0.0, phi), s)
+    lim = np.asarray(joint_limits_deg, dtype=float)
+    res = np.hypot(*(model.predict(q, s) - xy).T)
+    reasons = [""] * n
+    why_ik = ik_failures(model.params, arm, min_sin_q2=min_sin_q2) if unreachable.any() else []
+    for i in range(n):
+        if unreachable[i]:
+            reasons[i] = "target " + why_ik[i]
             continue
-        q = np.array([np.degrees(_invert_joint(model, j, np.radians(phi[j]), s[j]))
-                      for j in range(2)])
-        reason = ""
         for j in range(2):
-            lo, hi = joint_limits_deg[j]
-            if not lo <= q[j] <= hi:
-                reason = f"joint {j + 1} at {q[j]:.3f} deg is outside its limits [{lo}, {hi}]"
+            if not lim[j, 0] <= q[i, j] <= lim[j, 1]:
+                reasons[i] = (f"joint {j + 1} at {q[i, j]:.3f} deg is outside its limits "
+                              f"[{lim[j, 0]:g}, {lim[j, 1]:g}]")
                 break
-        res = float(np.hypot(*(model.predict(q[None], s[None])[0] - t)))
-        if not reason and res > 1e-6:
-            reason = f"the model could not be inverted (residual {res:.2g} mm)"
-        out.append(PlannedTarget(tid, tuple(t), tuple(q), tuple(int(v) for v in s),
-                                 "failed" if reason else "ok", reason, res))
+        if not reasons[i] and not res[i] <= 1e-6:
+            reasons[i] = f"the model could not be inverted (residual {res[i]:.2g} mm)"
+    out = []
+    for i, tid in enumerate(ids):
+        sig = (int(s[i, 0]), int(s[i, 1]))
+        if unreachable[i]:
+            out.append(PlannedTarget(tid, tuple(xy[i]), None, sig, "failed", reasons[i]))
+        else:
+            out.append(PlannedTarget(tid, tuple(xy[i]), (float(q[i, 0]), float(q[i, 1])), sig,
+                                     "failed" if reasons[i] else "ok", reasons[i],
+                                     float(res[i])))
     return out
 
 
