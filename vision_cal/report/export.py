@@ -39,9 +39,17 @@ def urdf_text(doc: dict, *, name: str = "scara_calibrated",
     z1, z2 = (math.radians(v) for v in p["joint_zero_deg"])
     L1, L2 = p["L1_mm"] / 1000.0, p["L2_mm"] / 1000.0
 
-    def lim(j):
+    def revolute(name, parent, child, x, y, yaw, j):
         lo, hi = (math.radians(v) for v in limits_deg[j])
-        return f'<limit lower="{lo:.9f}" upper="{hi:.9f}" effort="100" velocity="3"/>'
+        return f"""  <joint name="{name}" type="revolute">
+    <parent link="{parent}"/>
+    <child link="{child}"/>
+    <origin xyz="{x:.9f} {y:.9f} 0" rpy="0 0 {yaw:.12f}"/>
+    <axis xyz="0 0 1"/>
+    <limit lower="{lo:.9f}" upper="{hi:.9f}" effort="100" velocity="3"/>
+    <calibration rising="0.0"/>
+  </joint>
+"""
 
     return f"""<?xml version="1.0"?>
 <!-- written by vision-cal from a calibration ({doc.get('method', 'lsq')}); lengths in m -->
@@ -50,23 +58,7 @@ def urdf_text(doc: dict, *, name: str = "scara_calibrated",
   <link name="link1"/>
   <link name="link2"/>
   <link name="pen"/>
-  <joint name="joint1" type="revolute">
-    <parent link="sheet"/>
-    <child link="link1"/>
-    <origin xyz="{bx:.9f} {by:.9f} 0" rpy="0 0 {z1:.12f}"/>
-    <axis xyz="0 0 1"/>
-    {lim(0)}
-    <calibration rising="0.0"/>
-  </joint>
-  <joint name="joint2" type="revolute">
-    <parent link="link1"/>
-    <child link="link2"/>
-    <origin xyz="{L1:.9f} 0 0" rpy="0 0 {z2:.12f}"/>
-    <axis xyz="0 0 1"/>
-    {lim(1)}
-    <calibration rising="0.0"/>
-  </joint>
-  <joint name="pen_tip" type="fixed">
+{revolute("joint1", "sheet", "link1", bx, by, z1, 0)}{revolute("joint2", "link1", "link2", L1, 0.0, z2, 1)}  <joint name="pen_tip" type="fixed">
     <parent link="link2"/>
     <child link="pen"/>
     <origin xyz="{L2:.9f} 0 0" rpy="0 0 0"/>
