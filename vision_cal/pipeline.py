@@ -85,7 +85,6 @@ def _rms(r) -> float:
 
 def _paper_std(q, xy, sigma_mm: float) -> dict:
     """Std of the paper's parameters by linear propagation of mark noise ``sigma_mm``."""
-    v0 = paper_method(q, xy).params.vector
     G = np.zeros((6, xy.size))
     h = 1e-4
     for k in range(xy.size):
@@ -95,7 +94,6 @@ def _paper_std(q, xy, sigma_mm: float) -> dict:
         vm = paper_method(q, xy - d.reshape(xy.shape)).params.vector
         G[:, k] = (vp - vm) / (2 * h)
     s = np.sqrt(np.diag(G @ G.T)) * sigma_mm if np.isfinite(sigma_mm) else np.full(6, np.nan)
-    del v0
     return {"L1_mm": s[0], "L2_mm": s[1], "joint_zero_deg": [np.degrees(s[2]), np.degrees(s[3])],
             "base_mm": [s[4], s[5]]}
 
