@@ -31,7 +31,6 @@ def run(args) -> int:
     import sys
     from pathlib import Path
 
-    from vision_cal.dataset.io import read_json
     from vision_cal.errors import VisionCalError
     from vision_cal.pipeline import calibrate_dataset
     from vision_cal.report.summary import format_summary

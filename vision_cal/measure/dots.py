@@ -154,7 +154,6 @@ def sheet_mask(shape, mapping: SheetMapping, sheet: Sheet, *, border_mm: float =
     cv2.fillPoly(mask, [np.round(poly * 16).astype(np.int32)], 255, cv2.LINE_8, 4)
     for m in sheet.markers:
         c = np.asarray(m.corners_mm, float)
-        s = float(np.ptp(c[:, 0]))
         q = MARKER_MARGIN_MM  # the quiet zone is blank paper: dots there are measurable
         lo, hi = c.min(axis=0) - q, c.max(axis=0) + q
         sq = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])

@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import inverse
 from vision_cal.model import JointEffect, RobotModel
 from vision_cal.plan.calibration_plan import PlannedMark
