@@ -11,7 +11,7 @@ import importlib
 import logging
 import sys
 
-SUBCOMMANDS = ("calibrate", "render", "plan", "loop", "export")
+SUBCOMMANDS = ("calibrate", "sheet", "design", "init", "render", "plan", "loop", "export")
 EXIT_OK, EXIT_CALIBRATION, EXIT_INPUT = 0, 1, 2
 
 EPILOG = """\
