@@ -21,8 +21,11 @@ from vision_cal.report import plots
 from vision_cal.report.summary import describe_effect
 
 MAX_PHOTOS = 40
-PHOTO_PX = 960        # every photo is embedded once, this wide (JPEG); the full file is linked
-PHOTO_QUALITY = 70
+# Every photo is embedded once, as a JPEG of the overlay (the full-size file is linked).
+# The photos share PHOTO_BUDGET_BYTES: each takes the first (width px, JPEG quality) step
+# that fits its share, so a few photos are sharp and a 40-photo series stays small.
+PHOTO_BUDGET_BYTES = 2_000_000
+PHOTO_STEPS = ((1000, 75), (960, 70), (960, 60), (800, 60), (720, 55), (640, 50), (480, 50))
 
 
 def build_report(run, *, loop: dict | None = None, out_dir=None) -> dict:
@@ -128,8 +131,9 @@ def _table(head, rows, *, sortable: bool = False, tid: str | None = None) -> str
     return f"<table{attrs}><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>"
 
 
-def _photo_overlay(p: dict) -> str | None:
-    """The photo with its detections drawn, downscaled to PHOTO_PX wide, as a JPEG URI."""
+def _photo_overlay(p: dict, budget_bytes: int = PHOTO_BUDGET_BYTES) -> str | None:
+    """The photo with its detections drawn, downscaled to fit ``budget_bytes`` (base64
+    included), as a JPEG URI."""
     import cv2
 
     img = cv2.imread(p["path"], cv2.IMREAD_COLOR)
@@ -148,10 +152,17 @@ def _photo_overlay(p: dict) -> str | None:
         if did is not None:
             cv2.putText(img, str(did), (int(x) + 7 * lw, int(y) - 7 * lw),
                         cv2.FONT_HERSHEY_SIMPLEX, 0.45 * lw, (0, 0, 230), lw)
-    s = min(1.0, PHOTO_PX / w)
-    small = cv2.resize(img, (int(w * s), int(h * s)), interpolation=cv2.INTER_AREA)
-    ok, buf = cv2.imencode(".jpg", small, [cv2.IMWRITE_JPEG_QUALITY, PHOTO_QUALITY])
-    return _uri(buf.tobytes(), "image/jpeg") if ok else None
+    data = b""
+    for width, quality in PHOTO_STEPS:
+        s = min(1.0, width / w)
+        small = cv2.resize(img, (int(w * s), int(h * s)), interpolation=cv2.INTER_AREA)
+        ok, buf = cv2.imencode(".jpg", small, [cv2.IMWRITE_JPEG_QUALITY, quality,
+                                               cv2.IMWRITE_JPEG_OPTIMIZE, 1])
+        if ok:
+            data = buf.tobytes()
+            if 4 * len(data) / 3 <= budget_bytes:
+                break
+    return _uri(data, "image/jpeg") if data else None
 
 
 CSS = """
@@ -443,8 +454,9 @@ def render_html(rep: dict) -> str:
                                                       for ph in skipped]))
         figs = []
         ok_photos = [ph for ph in photos if ph.get("status") == "ok"]
-        for ph in ok_photos[:MAX_PHOTOS]:
-            ov = _photo_overlay(ph)
+        shown = ok_photos[:MAX_PHOTOS]
+        for ph in shown:
+            ov = _photo_overlay(ph, PHOTO_BUDGET_BYTES // max(len(shown), 1))
             link = ph.get("link") or ph["path"]
             if ov:
                 figs.append(f"<figure><img src='{ov}' onclick='showFull(this)' "
