@@ -21,6 +21,7 @@ The errors come from the photographs, not from the simulator.
 from __future__ import annotations
 
 import logging
+import os
 from dataclasses import replace
 from pathlib import Path
 
@@ -126,14 +127,20 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
     stages = {}
     import time
 
+    from vision_cal.progress import stage_line
+
+    render_jobs = jobs or os.cpu_count() or 1
     t = time.perf_counter()
     session_dir = render_dataset(scene, out / "session", progress=progress,
-                                 photographer=photographer)
+                                 photographer=photographer, jobs=render_jobs)
     stages["render calibration session"] = time.perf_counter() - t
     t = time.perf_counter()
     run = calibrate_dataset(session_dir, out_dir=out / "calibration", jobs=jobs,
                             progress=progress)
     stages["measure + calibrate + diagnose"] = time.perf_counter() - t
+    if progress:
+        stage_line("measure + calibrate + diagnose", stages["measure + calibrate + diagnose"],
+                   n=len(run.document.get("marks", {})), unit="mark")
     calibrated, _ = load_calibration(run.out_path)
     nominal = RobotModel(load_session(session_dir).robot.params)
     sheet = run.session.sheet
@@ -155,7 +162,8 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
         sc = replace(sc, photos=replace(sc.photos, extra_files=(), arm_parked=False))
         t = time.perf_counter()
         sheet_dir = render_dataset(sc, out / f"sheet_{name}", progress=progress, plan=marks,
-                                   targets_mm=targets, photographer=photographer)
+                                   targets_mm=targets, photographer=photographer,
+                                   jobs=render_jobs)
         stages[f"simulate + draw + photograph ({name})"] = time.perf_counter() - t
         from vision_cal.dataset.io import read_json
 
@@ -201,6 +209,9 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
         "controller": controller,
         "calibration": str(run.out_path),
     }
+    if progress:
+        stage_line("loop", sum(stages.values()), note="; ".join(
+            f"{k} {v:.1f} s" for k, v in stages.items()))
     _figures(doc, plans, targets, results, out)
     atomic_write_json(out / "loop.json", doc)
     return doc, run

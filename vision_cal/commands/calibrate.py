@@ -37,7 +37,7 @@ def run(args) -> int:
 
     if args.jobs is not None and args.jobs < 1:
         raise VisionCalError(f"--jobs must be at least 1, got {args.jobs}")
-    progress = (not args.quiet) and sys.stderr.isatty()
+    progress = not args.quiet  # a bar on a terminal, else one line per stage
     several = len(args.folders) > 1
     failures = 0
     rows = []
@@ -73,7 +73,7 @@ def run(args) -> int:
             from vision_cal.report.html import write_report
 
             path = write_report(result, out)
-            print(f"report: {path}")
+            print(f"report: {path} ({path.stat().st_size / 1e6:.1f} MB)")
         print(f"wrote {result.out_path}")
     if several:
         from vision_cal.dataset.io import atomic_write_json

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import logging
 import os
-import sys
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -375,10 +374,11 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
         else:
             todo.append(i)
     jobs = int(jobs or os.cpu_count() or 1)
-    bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=len(todo), file=sys.stderr, desc="measuring photos", unit="photo")
+    from vision_cal.progress import bar as progress_bar
+
+    bar = progress_bar(progress, total=len(todo), desc=f"measure {root.name}", unit="photo",
+                       note=f"{min(jobs, max(len(todo), 1))} job(s), "
+                            f"{len(session.images) - len(todo)} from the cache")
     try:
         if jobs <= 1 or len(todo) <= 1:
             results = (_worker((root / session.images[i].file, session)) for i in todo)

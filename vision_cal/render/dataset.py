@@ -219,6 +219,53 @@ class _Textures:
         return self.current
 
 
+# ------------------------------------------------------------------------------- photos
+
+
+@dataclass(frozen=True)
+class _PhotoJob:
+    """What every photo of one dataset shares (pickled to the rendering processes)."""
+
+    sheet: object
+    xy_mm: np.ndarray
+    diameters_mm: np.ndarray
+    texture_seed: int
+    photos: object          # the scene's PhotoSpec
+    dist: np.ndarray | None
+    K_dist: np.ndarray | None
+    folder: Path
+
+
+def _shoot(job: _PhotoJob, tasks, photographer, bar=None) -> int:
+    """Render ``tasks`` ((file, n_marks, T_cam_sheet, arm, rng), in series order) into
+    ``job.folder``; returns how many."""
+    ph = job.photos
+    textures = _Textures(job.sheet, job.xy_mm, job.diameters_mm,
+                         px_per_mm=ph.texture_px_per_mm, seed=job.texture_seed)
+    for fname, n_marks, T, arm, rng in tasks:
+        tex = textures.add_marks(n_marks)
+        rgb = photographer.photograph(
+            tex, extent_mm=job.sheet.extent_mm, T_cam_sheet=T, dist=job.dist,
+            K_dist=job.K_dist, arm=arm, vignetting=ph.vignetting, noise_sigma=ph.noise_sigma,
+            jpeg_quality=None, rng=rng)
+        (job.folder / fname).write_bytes(_encode_image(np.asarray(rgb), ph.jpeg_quality))
+        del rgb
+        if bar is not None:
+            bar.update()
+    return len(tasks)
+
+
+def _render_chunk(job: _PhotoJob, tasks, size_px, K) -> int:
+    """A rendering process's share: its own Photographer, then :func:`_shoot`."""
+    from vision_cal.render.photo import Photographer
+
+    p = Photographer(size_px=size_px, K=K)
+    try:
+        return _shoot(job, tasks, p)
+    finally:
+        p.close()
+
+
 # ------------------------------------------------------------------------------- output
 
 
@@ -339,7 +386,8 @@ def photographer_K(scene: Scene) -> np.ndarray:
 
 
 def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographer=None,
-                   joint_source=None, plan=None, targets_mm: dict | None = None) -> Path:
+                   joint_source=None, plan=None, targets_mm: dict | None = None,
+                   jobs: int | None = 1) -> Path:
     """Render ``scene`` into the dataset folder ``out_dir``; return its path.
 
     ``plan``: draw these ``PlannedMark`` instead of the scene's calibration plan (the
@@ -350,6 +398,9 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     :func:`photographer_K`) to reuse (tests share one); by default one is built.
     ``joint_source``: see :mod:`vision_cal.render.world` (overrides ``robot.controller``;
     the truth model then predicts with every effect, backlash included).
+    ``jobs``: processes that render photos (contiguous runs of the series, one renderer
+    each; only with the default photographer); the photos are the same for any number.
+    ``progress``: see :mod:`vision_cal.progress`.
     """
     from vision_cal.dataset.io import atomic_write_json
     from vision_cal.render.camera import camera_matrix, default_views
@@ -405,35 +456,43 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp.", dir=out_dir.parent))
     bar = None
     try:
-        textures = _Textures(sheet, world.xy_mm, diameters, px_per_mm=ph.texture_px_per_mm,
-                             seed=st.texture_seed)
-        images, poses, parked = [], {}, {}
-        it = shots
-        if progress:
-            from tqdm import tqdm
-
-            it = bar = tqdm(shots, desc="render", unit="photo", leave=False)
-        for i, (fname, n_marks) in enumerate(it):
-            tex = textures.add_marks(n_marks)
+        # everything random is drawn here, in photo order, so the photos do not depend on
+        # how many processes render them (serial and --jobs N are bit-identical)
+        images, poses, parked, tasks = [], {}, {}, []
+        photo_rngs = st.photos.spawn(len(shots))
+        for i, (fname, n_marks) in enumerate(shots):
             T = np.asarray(views[i % len(views)] if cam.moving else views[0], dtype=float)
             arm = None
             if ph.arm_parked and (ph.mode == "single" or i % PARK_EVERY == PARK_EVERY - 1):
                 q_park = parking_pose(truth, sheet.extent_mm, rng=st.park)
                 arm = arm_boxes(truth, q_park)
                 parked[fname] = [float(v) for v in q_park]
-            rgb = photographer.photograph(
-                tex, extent_mm=sheet.extent_mm, T_cam_sheet=T,
-                dist=dist if any(dist) else None, K_dist=K if any(dist) else None, arm=arm,
-                vignetting=ph.vignetting, noise_sigma=ph.noise_sigma, jpeg_quality=None,
-                rng=st.photos)
-            (tmp / fname).write_bytes(_encode_image(np.asarray(rgb), ph.jpeg_quality))
+            tasks.append((fname, n_marks, T, arm, photo_rngs[i]))
             images.append({"file": fname, "marks": list(world.ids[:n_marks])})
             poses[fname] = T.tolist()
-            del rgb
+        job = _PhotoJob(sheet, world.xy_mm, diameters, st.texture_seed, ph,
+                        dist if any(dist) else None, K if any(dist) else None, tmp)
+        n_jobs = min(int(jobs or 1), len(tasks)) if own else 1
+        from vision_cal.progress import bar as progress_bar
+
+        bar = progress_bar(progress, total=len(tasks), desc=f"render {out_dir.name}",
+                           unit="photo", note=f"{max(n_jobs, 1)} job(s)")
+        if n_jobs <= 1:
+            _shoot(job, tasks, photographer, bar)
+        else:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            chunks = [c for c in np.array_split(np.arange(len(tasks)), n_jobs) if len(c)]
+            # spawn: a fresh process per worker, each with its own OpenGL context
+            with ProcessPoolExecutor(len(chunks), mp_context=mp.get_context("spawn")) as ex:
+                futs = [ex.submit(_render_chunk, job, [tasks[k] for k in c],
+                                  tuple(cam.size_px), K_ideal) for c in chunks]
+                for f in futs:
+                    bar.update(f.result())
         for e in ph.extra_files:
             (tmp / e.file).write_bytes(_extra_image(e.kind, cam.size_px, st.extras))
             images.append({"file": e.file, "marks": list(world.ids)})
-        del textures
 
         session = {
             "format": FORMAT,
