@@ -76,6 +76,10 @@ def format_summary(doc: dict, *, reference: dict | None = None) -> str:
         lines.append(f"skipped photos: {len(skipped)}")
         for im in skipped:
             lines.append(f"  {im['file']}: {im.get('reason', '')}")
+    if doc.get("residual_rms_mm"):
+        from vision_cal.report.headline import verdict
+
+        lines.append(verdict(doc)["text"])
     tc = doc.get("truth_comparison")
     if tc:
         lines.append("against truth.json: dL1 {} dL2 {} mm, dz1 {} dz2 {} deg, dbase {} {} mm".format(
