@@ -341,8 +341,9 @@ def make_layout(*, size: str | None = "A3", landscape: bool | None = None, custo
     x_max, y_max = W / 2.0, H / 2.0
     e = EDGE_MM + q                       # paper edge -> marker edge
     r = e + s + q                         # paper edge -> inner edge of the quiet zones
-    gx0, gy0 = math.ceil(x_min + r), math.ceil(y_min + r)
-    gx1, gy1 = math.floor(x_max - r), math.floor(y_max - r)
+    hw = BOLD_WIDTH_MM / 2                # a line's half width stays off the quiet zone
+    gx0, gy0 = math.ceil(x_min + r + hw), math.ceil(y_min + r + hw)
+    gx1, gy1 = math.floor(x_max - r - hw), math.floor(y_max - r - hw)
     dx0, dy0 = gx0 + BAND_LEFT_MM, gy0 + BAND_BOTTOM_MM
     dx1, dy1 = gx1 - BAND_RIGHT_MM, gy1 - BAND_TOP_MM
     need = BAR_MM + 2.0
@@ -371,15 +372,12 @@ def make_layout(*, size: str | None = "A3", landscape: bool | None = None, custo
                     for i, (x, y) in enumerate(spots))
 
     prims: list = []
-    # grid: whole millimetres from the origin, inside the quiet zones' inner edges
-    for k in range(gx0, gx1 + 1):
-        bold = k % BOLD_EVERY == 0
-        w = (BOLD_WIDTH_MM if bold else FINE_WIDTH_MM) / 2
-        prims.append(Rect(k - w, gy0, k + w, gy1, BOLD_RGB if bold else FINE_RGB))
-    for k in range(gy0, gy1 + 1):
-        bold = k % BOLD_EVERY == 0
-        w = (BOLD_WIDTH_MM if bold else FINE_WIDTH_MM) / 2
-        prims.append(Rect(gx0, k - w, gx1, k + w, BOLD_RGB if bold else FINE_RGB))
+    # grid: whole millimetres from the origin, inside the quiet zones' inner edges; the
+    # bold lines over the fine ones
+    for bold, width, rgb in ((False, FINE_WIDTH_MM, FINE_RGB), (True, BOLD_WIDTH_MM, BOLD_RGB)):
+        w = width / 2
+        prims += [Rect(k - w, gy0, k + w, gy1, rgb) for k in grid_lines(gx0, gx1, bold)]
+        prims += [Rect(gx0, k - w, gx1, k + w, rgb) for k in grid_lines(gy0, gy1, bold)]
     # the bands for bars and text are bare paper
     prims.append(Rect(gx0 - 1, gy0 - 1, gx1 + 1, dy0, PAPER_RGB))
     prims.append(Rect(gx0 - 1, dy0, dx0, gy1 + 1, PAPER_RGB))
@@ -436,6 +434,11 @@ def make_layout(*, size: str | None = "A3", landscape: bool | None = None, custo
         size_mm = min(TEXT_MM, _fit_size(line, width))
         prims.append(Text(dx0, by - 3.2 - i * (TEXT_MM + 1.0), line, size_mm))
     return _replace_prims(layout, tuple(prims))
+
+
+def grid_lines(lo: int, hi: int, bold: bool) -> list[int]:
+    """Whole-mm positions lo..hi of the bold (every ``BOLD_EVERY`` mm) or the fine lines."""
+    return [k for k in range(int(lo), int(hi) + 1) if (k % BOLD_EVERY == 0) == bold]
 
 
 def _quiet_boxes(markers, q):

@@ -8,7 +8,11 @@ snap or pad it. The page is exactly the paper, and ``PrintScaling = None`` asks 
 to print it at 100 %.
 
 Each marker's black modules are one filled path (a union of exact squares), so a
-rasteriser draws no seams between neighbouring modules.
+rasteriser draws no seams between neighbouring modules; consecutive rectangles of one
+colour (the grid lines, the two scale bars) are one path too. Besides being smaller, a
+compound path is anti-aliased at its true edges by pdfium (Chrome's PDF engine, which
+many users print from), whereas a lone rectangle is snapped outwards to whole device
+pixels: up to 0.04 mm per edge on a 600 dpi printer.
 """
 
 from __future__ import annotations
@@ -18,6 +22,17 @@ from io import BytesIO
 from vision_cal.sheet.layout import MarkerCells, Poly, Rect, SheetLayout, Text
 
 PT_PER_MM = 72.0 / 25.4
+
+
+def _runs(prims):
+    """Primitives with consecutive same-coloured ``Rect`` grouped into lists."""
+    out: list = []
+    for p in prims:
+        if isinstance(p, Rect) and out and isinstance(out[-1], list) and out[-1][0].rgb == p.rgb:
+            out[-1].append(p)
+        else:
+            out.append([p] if isinstance(p, Rect) else p)
+    return out
 
 
 def pdf_bytes(layout: SheetLayout) -> bytes:
@@ -35,10 +50,13 @@ def pdf_bytes(layout: SheetLayout) -> bytes:
     c.setViewerPreference("PrintScaling", "None")
     c.scale(PT_PER_MM, PT_PER_MM)
     c.translate(-x_min, -y_min)           # user units: sheet mm, origin of frame S
-    for p in layout.primitives:
-        if isinstance(p, Rect):
-            c.setFillColorRGB(*(v / 255.0 for v in p.rgb))
-            c.rect(p.x0, p.y0, p.x1 - p.x0, p.y1 - p.y0, stroke=0, fill=1)
+    for p in _runs(layout.primitives):
+        if isinstance(p, list):                      # rectangles of one colour
+            c.setFillColorRGB(*(v / 255.0 for v in p[0].rgb))
+            path = c.beginPath()
+            for r in p:
+                path.rect(r.x0, r.y0, r.x1 - r.x0, r.y1 - r.y0)
+            c.drawPath(path, stroke=0, fill=1, fillMode=0)
         elif isinstance(p, Poly):
             c.setFillColorRGB(*(v / 255.0 for v in p.rgb))
             path = c.beginPath()
