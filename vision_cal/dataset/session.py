@@ -32,6 +32,8 @@ class Sheet:
     markers: tuple[SheetMarker, ...]
     size_mm: tuple[float, float]
     bottom_left_mm: tuple[float, float] = (0.0, 0.0)  # added field: paper corner in frame S
+    grid: dict | None = None      # the printed grid as in the file (pitch_mm, origin_mm, ...)
+    printed: dict | None = None   # how it was printed (module_mm, quiet_zone_modules, ...)
 
     @property
     def extent_mm(self) -> tuple[float, float, float, float]:
@@ -40,10 +42,15 @@ class Sheet:
         return (x0, y0, x0 + self.size_mm[0], y0 + self.size_mm[1])
 
     def to_json(self) -> dict:
-        return {"aruco_dictionary": self.aruco_dictionary,
-                "markers": [{"id": m.id, "corners_mm": np.asarray(m.corners_mm).tolist()}
-                            for m in self.markers],
-                "size_mm": list(self.size_mm), "bottom_left_mm": list(self.bottom_left_mm)}
+        out = {"aruco_dictionary": self.aruco_dictionary,
+               "markers": [{"id": m.id, "corners_mm": np.asarray(m.corners_mm).tolist()}
+                           for m in self.markers],
+               "size_mm": list(self.size_mm), "bottom_left_mm": list(self.bottom_left_mm)}
+        if self.grid is not None:
+            out["grid"] = self.grid
+        if self.printed is not None:
+            out["printed"] = self.printed
+        return out
 
     def corners_by_id(self) -> dict[int, np.ndarray]:
         return {m.id: m.corners_mm for m in self.markers}
@@ -185,6 +192,61 @@ def _aruco_dictionary_ok(name: str) -> bool:
     return name.startswith("DICT_") and isinstance(getattr(cv2.aruco, name, None), int)
 
 
+def _optional_object(r: _Reader, obj: dict, key: str) -> dict | None:
+    v = obj.get(key)
+    if v is not None and not isinstance(v, dict):
+        r.fail(f"sheet.{key}", f"expected an object, got {type(v).__name__}")
+    return v
+
+
+def _parse_sheet(r: _Reader, sheet_raw, *, need_markers: bool) -> Sheet:
+    """The ``sheet`` block (also the whole of a ``sheet.json``)."""
+    d = r.string(r.get(sheet_raw, "aruco_dictionary", "sheet"), "sheet.aruco_dictionary")
+    if not _aruco_dictionary_ok(d):
+        r.fail("sheet.aruco_dictionary",
+               f"unknown ArUco dictionary {d!r} (expected an OpenCV name like DICT_5X5_100)")
+    size = r.vector(r.get(sheet_raw, "size_mm", "sheet"), "sheet.size_mm", 2)
+    mk_raw = r.list_(r.get(sheet_raw, "markers", "sheet"), "sheet.markers",
+                     nonempty=need_markers)
+    mks: list[SheetMarker] = []
+    ids_seen: set[int] = set()
+    for i, mk in enumerate(mk_raw):
+        w = f"sheet.markers[{i}]"
+        mid = r.get(mk, "id", w)
+        if isinstance(mid, bool) or not isinstance(mid, int) or mid < 0:
+            r.fail(f"{w}.id", f"expected a non-negative integer, got {mid!r}")
+        if mid in ids_seen:
+            r.fail(f"{w}.id", f"duplicate marker id {mid}")
+        ids_seen.add(mid)
+        cs = r.list_(r.get(mk, "corners_mm", w), f"{w}.corners_mm")
+        if len(cs) != 4:
+            r.fail(f"{w}.corners_mm", f"expected 4 corners, got {len(cs)}")
+        c = np.array([r.vector(p, f"{w}.corners_mm[{j}]", 2) for j, p in enumerate(cs)])
+        mks.append(SheetMarker(int(mid), c))
+    bl_raw = sheet_raw.get("bottom_left_mm")
+    bl = r.vector(bl_raw, "sheet.bottom_left_mm", 2) if bl_raw is not None else (0.0, 0.0)
+    grid = _optional_object(r, sheet_raw, "grid")
+    printed = _optional_object(r, sheet_raw, "printed")
+    if printed is not None:
+        for k in ("module_mm", "quiet_zone_mm", "quiet_zone_modules"):
+            if k in printed:
+                v = r.number(printed[k], f"sheet.printed.{k}")
+                if v < 0 or (k == "module_mm" and v == 0):
+                    r.fail(f"sheet.printed.{k}", f"expected a size >= 0 (> 0 for a module), "
+                                                 f"got {v}")
+        mb = printed.get("measured_bar_mm")
+        if mb is not None:
+            if any(v <= 0 for v in r.vector(mb, "sheet.printed.measured_bar_mm", 2)):
+                r.fail("sheet.printed.measured_bar_mm", f"expected two positive lengths, got {mb!r}")
+    return Sheet(d, tuple(mks), size, bl, grid, printed)
+
+
+def load_sheet(path) -> Sheet:
+    """Read and validate a ``sheet.json`` (what ``vision-cal sheet`` writes)."""
+    raw = read_json(path)
+    return _parse_sheet(_Reader(str(path)), raw, need_markers=True)
+
+
 def load_session(folder) -> Session:
     """Read and validate ``folder/session.json`` (or a path to the file itself)."""
     folder = Path(folder)
@@ -272,31 +334,7 @@ def load_session(folder) -> Session:
         if images:
             r.fail("sheet", "missing required field (images need the printed ArUco grid)")
     else:
-        d = r.string(r.get(sheet_raw, "aruco_dictionary", "sheet"), "sheet.aruco_dictionary")
-        if not _aruco_dictionary_ok(d):
-            r.fail("sheet.aruco_dictionary",
-                   f"unknown ArUco dictionary {d!r} (expected an OpenCV name like DICT_5X5_100)")
-        size = r.vector(r.get(sheet_raw, "size_mm", "sheet"), "sheet.size_mm", 2)
-        mk_raw = r.list_(r.get(sheet_raw, "markers", "sheet"), "sheet.markers",
-                         nonempty=bool(images))
-        mks: list[SheetMarker] = []
-        ids_seen: set[int] = set()
-        for i, mk in enumerate(mk_raw):
-            w = f"sheet.markers[{i}]"
-            mid = r.get(mk, "id", w)
-            if isinstance(mid, bool) or not isinstance(mid, int) or mid < 0:
-                r.fail(f"{w}.id", f"expected a non-negative integer, got {mid!r}")
-            if mid in ids_seen:
-                r.fail(f"{w}.id", f"duplicate marker id {mid}")
-            ids_seen.add(mid)
-            cs = r.list_(r.get(mk, "corners_mm", w), f"{w}.corners_mm")
-            if len(cs) != 4:
-                r.fail(f"{w}.corners_mm", f"expected 4 corners, got {len(cs)}")
-            c = np.array([r.vector(p, f"{w}.corners_mm[{j}]", 2) for j, p in enumerate(cs)])
-            mks.append(SheetMarker(int(mid), c))
-        bl_raw = sheet_raw.get("bottom_left_mm")
-        bl = r.vector(bl_raw, "sheet.bottom_left_mm", 2) if bl_raw is not None else (0.0, 0.0)
-        sheet = Sheet(d, tuple(mks), size, bl)
+        sheet = _parse_sheet(r, sheet_raw, need_markers=bool(images))
 
     # camera
     camera = None
