@@ -250,7 +250,7 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
         n = bits.shape[0]
         black = (bits < 128).astype(float)                  # (n, n), row 0 at the top
         mod = s / n
-        q = QUIET_MODULES * mod
+        q = float((sheet.printed or {}).get("quiet_zone_modules", QUIET_MODULES)) * mod
         quiet = _rect_coverage(extent, ppm, shape, np.array([mx0 - q, mx0 + s + q]),
                                np.array([my0 - q, my0 + s + q]))
         cells = _rect_coverage(extent, ppm, shape, mx0 + mod * np.arange(n + 1),
