@@ -62,6 +62,12 @@ class NominalRobot:
         return ScaraParams(self.L1_mm, self.L2_mm, self.joint_zero_deg[0], self.joint_zero_deg[1],
                            self.base_mm[0], self.base_mm[1])
 
+    def to_json(self) -> dict:
+        """The session's ``robot`` block."""
+        return {"L1_mm": self.L1_mm, "L2_mm": self.L2_mm,
+                "joint_zero_deg": list(self.joint_zero_deg), "base_mm": list(self.base_mm),
+                "home_deg": list(self.home_deg)}
+
 
 @dataclass(frozen=True)
 class Mark:
@@ -185,6 +191,28 @@ def _aruco_dictionary_ok(name: str) -> bool:
     return name.startswith("DICT_") and isinstance(getattr(cv2.aruco, name, None), int)
 
 
+def read_robot_block(r: _Reader, rob, where: str = "robot") -> NominalRobot:
+    """The session's ``robot`` block (also the core of a robot file), validated.
+
+    ``where`` is the block's path in its file (``"robot"`` in session.json, ``""`` for a
+    robot file whose top level is the block)."""
+    def w(key):
+        return f"{where}.{key}" if where else key
+
+    if not isinstance(rob, dict):
+        r.fail(where or "(top level)", f"expected an object, got {type(rob).__name__}")
+    L1 = r.number(r.get(rob, "L1_mm", where), w("L1_mm"))
+    L2 = r.number(r.get(rob, "L2_mm", where), w("L2_mm"))
+    for k, v in (("L1_mm", L1), ("L2_mm", L2)):
+        if v <= 0:
+            r.fail(w(k), f"expected a positive length, got {v}")
+    jz = r.vector(r.get(rob, "joint_zero_deg", where), w("joint_zero_deg"), 2)
+    base = r.vector(r.get(rob, "base_mm", where), w("base_mm"), 2)
+    home_raw = r.get(rob, "home_deg", where, required=False)
+    home = r.vector(home_raw, w("home_deg"), 2) if home_raw is not None else (0.0, 0.0)
+    return NominalRobot(L1, L2, jz, base, home)
+
+
 def load_session(folder) -> Session:
     """Read and validate ``folder/session.json`` (or a path to the file itself)."""
     folder = Path(folder)
@@ -202,18 +230,7 @@ def load_session(folder) -> Session:
     if fmt != FORMAT:
         r.fail("format", f"expected {FORMAT!r}, got {fmt!r}")
 
-    # robot
-    rob = r.get(raw, "robot", "")
-    L1 = r.number(r.get(rob, "L1_mm", "robot"), "robot.L1_mm")
-    L2 = r.number(r.get(rob, "L2_mm", "robot"), "robot.L2_mm")
-    for k, v in (("L1_mm", L1), ("L2_mm", L2)):
-        if v <= 0:
-            r.fail(f"robot.{k}", f"expected a positive length, got {v}")
-    jz = r.vector(r.get(rob, "joint_zero_deg", "robot"), "robot.joint_zero_deg", 2)
-    base = r.vector(r.get(rob, "base_mm", "robot"), "robot.base_mm", 2)
-    home_raw = r.get(rob, "home_deg", "robot", required=False)
-    home = r.vector(home_raw, "robot.home_deg", 2) if home_raw is not None else (0.0, 0.0)
-    robot = NominalRobot(L1, L2, jz, base, home)
+    robot = read_robot_block(r, r.get(raw, "robot", ""), "robot")
 
     # marks
     marks_raw = r.list_(r.get(raw, "marks", ""), "marks", nonempty=True)
