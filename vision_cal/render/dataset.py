@@ -364,6 +364,12 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     sheet = make_sheet(size_mm=sh.size_mm, bottom_left_mm=sh.bottom_left_mm,
                        dictionary=sh.dictionary, marker_mm=sh.marker_mm, grid=sh.grid,
                        margin_mm=sh.margin_mm)
+    hfield = None
+    if sh.height is not None:
+        hfield = sh.height.field(sheet.extent_mm, scene.seed)
+        if hfield.is_flat:
+            hfield = None
+    height_grid = None if hfield is None else hfield.grid()
     if plan is None:
         plan = build_plan(scene, sheet, rng=st.plan)
     plan = list(plan)
@@ -425,7 +431,7 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
                 tex, extent_mm=sheet.extent_mm, T_cam_sheet=T,
                 dist=dist if any(dist) else None, K_dist=K if any(dist) else None, arm=arm,
                 vignetting=ph.vignetting, noise_sigma=ph.noise_sigma, jpeg_quality=None,
-                rng=st.photos)
+                rng=st.photos, **({} if height_grid is None else {"height_grid": height_grid}))
             (tmp / fname).write_bytes(_encode_image(np.asarray(rgb), ph.jpeg_quality))
             images.append({"file": fname, "marks": list(world.ids[:n_marks])})
             poses[fname] = T.tolist()
@@ -452,6 +458,8 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
         lens = lens_effect(scene)
         if lens is not None:
             effects.append(lens)
+        if hfield is not None:
+            effects.append(hfield.effect_json())
         truth_json = {
             "params": rob.truth.to_json(),
             "effects": effects,
@@ -470,6 +478,10 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
             "seed": scene.seed,
             "controller_report": getattr(source, "report", None),
         }
+        if hfield is not None:  # added fields: the paper's height field, each mark's height
+            truth_json["sheet_height"] = hfield.to_json()
+            truth_json["mark_height_mm"] = {mid: float(z) for mid, z in zip(
+                world.ids, hfield.height_mm(world.xy_mm))}
         atomic_write_json(tmp / "session.json", session)
         atomic_write_json(tmp / "truth.json", truth_json)
         _commit(tmp, out_dir)
