@@ -127,7 +127,16 @@ class RobotScene:
 
     @property
     def truth_model(self) -> RobotModel:
+        """The truth as the estimator's model (for tests that compare the two codes)."""
         return RobotModel(self.truth, self.effects)
+
+    @property
+    def true_robot(self):
+        """The world's own robot (:mod:`vision_cal.render.truth_model`), built from the
+        truth's JSON blocks only."""
+        from vision_cal.render.truth_model import TrueRobot
+
+        return TrueRobot.from_json(self.truth.to_json(), [e.to_json() for e in self.effects])
 
 
 @dataclass(frozen=True)
