@@ -3,8 +3,8 @@
 ``vision-cal sheet --png-dpi N`` writes ``sheet.png`` next to ``sheet.json``; this module
 lets the synthetic world photograph exactly that print instead of the analytic sheet of
 :mod:`vision_cal.render.sheet`: the raster is the ink on the paper, the paper colour and
-grain and the pen dots are added here (the dots with the same area-exact ellipses as the
-analytic sheet, drawn from the same random stream order: size, aspect, angle per mark).
+grain are added here, the pen dots by :func:`vision_cal.render.sheet.ink_marks` (the
+analytic sheet's dot model).
 
 Texture convention: the same as :mod:`vision_cal.render.sheet` (row 0 at the top,
 ``px_per_mm`` = dpi / 25.4, the paper a whole number of pixels).
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.dataset.session import Sheet, load_sheet
+from vision_cal.dataset.session import Sheet, load_sheet_file
 from vision_cal.errors import VisionCalError
 
 
@@ -42,7 +42,7 @@ def load_printed_sheet(sheet_json, png=None) -> PrintedSheet:
     from vision_cal.render.sheet import texture_shape
 
     sheet_json = Path(sheet_json)
-    sheet = load_sheet(sheet_json)
+    sheet = load_sheet_file(sheet_json)
     png = Path(png) if png is not None else sheet_json.with_name("sheet.png")
     try:
         with Image.open(png) as im:
@@ -76,35 +76,18 @@ def printed_texture(printed: PrintedSheet, *, marks_xy_mm, mark_diameters_mm=1.2
 
     ``px_per_mm``, when given, must be the raster's own (the print is not resampled).
     """
-    from vision_cal.render.sheet import DOT_RGB, PAPER_RGB, _ellipse_coverage, _paper_field
+    from vision_cal.render.sheet import PAPER_RGB, _paper_field, ink_marks
 
     ppm = printed.px_per_mm
     if px_per_mm is not None and abs(float(px_per_mm) - ppm) > 1e-9:
         raise VisionCalError(f"the printed raster is {ppm:g} px/mm, not {px_per_mm:g}",
                              field="px_per_mm")
     rng = np.random.default_rng(rng)
-    x0, _, _, y1 = printed.sheet.extent_mm
     H, W = printed.rgb.shape[:2]
-    marks = np.asarray(marks_xy_mm, dtype=float).reshape(-1, 2)
-    dia = np.broadcast_to(np.asarray(mark_diameters_mm, dtype=float), (len(marks),))
     paper = _paper_field((H, W), rng) if paper_grain else np.ones((H, W), np.float32)
-    dots = []
-    for (mx, my), d in zip(marks, dia):
-        f = rng.uniform(0.9, 1.1)
-        aspect = rng.uniform(1.0, 1.15)
-        theta = rng.uniform(0.0, np.pi)
-        r_px = 0.5 * d * f * ppm
-        u, v = (mx - x0) * ppm - 0.5, (y1 - my) * ppm - 0.5
-        cov = _ellipse_coverage(u, v, r_px * np.sqrt(aspect), r_px / np.sqrt(aspect), theta,
-                                (H, W))
-        if cov is not None:
-            dots.append(cov)
-    out = np.empty((H, W, 3), np.uint8)
-    for ch in range(3):
-        val = printed.rgb[:, :, ch].astype(np.float32) * (PAPER_RGB[ch] / 255.0)
-        val *= paper
-        for rs, cs, alpha in dots:
-            val[rs, cs] = val[rs, cs] * (1.0 - alpha) + DOT_RGB[ch] * alpha
-        np.clip(val, 0.0, 255.0, out=val)
-        out[:, :, ch] = np.rint(val)
-    return out
+    # printed ink filters the paper's colour and grain (as in sheet_texture)
+    tex = printed.rgb.astype(np.float32) * (np.asarray(PAPER_RGB, np.float32) / 255.0)
+    tex *= paper[:, :, None]
+    tex = np.clip(np.rint(tex), 0, 255).astype(np.uint8)
+    return ink_marks(tex, extent_mm=printed.sheet.extent_mm, px_per_mm=ppm,
+                     marks_xy_mm=marks_xy_mm, mark_diameters_mm=mark_diameters_mm, rng=rng)

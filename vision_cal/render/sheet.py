@@ -301,3 +301,30 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
         out[:, :, ch] = np.rint(val)
     return out
 
+
+
+def ink_marks(texture_rgb: np.ndarray, *, extent_mm, px_per_mm: float, marks_xy_mm,
+              mark_diameters_mm=1.2, rng=None) -> np.ndarray:
+    """Pen marks inked onto any raster of the sheet (a copy; same pixel convention and dot
+    model as :func:`sheet_texture`): for photographing a sheet printed by another
+    generator, rasterised from its own PDF."""
+    rng = np.random.default_rng(rng)
+    out = np.array(texture_rgb, dtype=np.float32, copy=True)
+    ppm = float(px_per_mm)
+    x0, _, _, y1 = (float(v) for v in extent_mm)
+    marks = np.asarray(marks_xy_mm, dtype=float).reshape(-1, 2)
+    dia = np.broadcast_to(np.asarray(mark_diameters_mm, dtype=float), (len(marks),))
+    for (mx, my), d in zip(marks, dia):
+        f = rng.uniform(0.9, 1.1)
+        aspect = rng.uniform(1.0, 1.15)
+        theta = rng.uniform(0.0, np.pi)
+        r_px = 0.5 * d * f * ppm
+        u, v = (mx - x0) * ppm - 0.5, (y1 - my) * ppm - 0.5
+        cov = _ellipse_coverage(u, v, r_px * np.sqrt(aspect), r_px / np.sqrt(aspect), theta,
+                                out.shape[:2])
+        if cov is None:
+            continue
+        rs, cs, alpha = cov
+        out[rs, cs] = out[rs, cs] * (1.0 - alpha[..., None]) + \
+            np.asarray(DOT_RGB, np.float32) * alpha[..., None]
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8)

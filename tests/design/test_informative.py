@@ -1,0 +1,62 @@
+"""From the pilot's calibration to the informative plan, on the true robot."""
+
+import json
+
+import numpy as np
+import pytest
+
+from tests.design.conftest import ROBOT, border_sheet
+from vision_cal.kinematics import ScaraParams
+from vision_cal.model import JointBacklash, RobotModel
+from vision_cal.plan.calibration_plan import sheet_clearance_mm
+
+TRUTH = RobotModel(ScaraParams(344.05, 259.87, -2.57, -8.13, -420.0, -230.0),
+                   (JointBacklash(joint=2, deg=0.1),))
+
+
+@pytest.fixture(scope="module")
+def informative(tmp_path_factory, pilot_dir, sheet_json):
+    """The pilot drawn by the true robot, measured to 0.02 mm, calibrated; then designed."""
+    from vision_cal.design.stage import design_stage
+    from vision_cal.pipeline import calibrate_dataset
+
+    rng = np.random.default_rng(3)
+    s = json.loads((pilot_dir / "session.json").read_text())
+    q = np.array([m["joints_deg"] for m in s["marks"]])
+    a = np.array([m["approach"] for m in s["marks"]])
+    xy = TRUTH.predict(q, a) + rng.normal(0, 0.02, q.shape)
+    for m, p in zip(s["marks"], xy):
+        m["measured_mm"] = p.tolist()
+    d = tmp_path_factory.mktemp("pilot_measured")
+    (d / "session.json").write_text(json.dumps(s))
+    cal = calibrate_dataset(d, out_dir=d / "out").out_path
+    out = tmp_path_factory.mktemp("plan")
+    r = design_stage(ROBOT, sheet_json, out, pilot=cal, program="csv")
+    return r, json.loads((out / "session.json").read_text())
+
+
+def test_informative_marks_land_on_free_paper_on_the_true_robot(informative):
+    """Catches: planning with the nominal robot (its marks land tens of mm away, on
+    markers and off the paper) instead of the pilot's model."""
+    r, s = informative
+    q = np.array([m["joints_deg"] for m in s["marks"]])
+    a = np.array([m["approach"] for m in s["marks"]])
+    xy = TRUTH.predict(q, a)
+    assert sheet_clearance_mm(border_sheet(), xy).min() >= 0.6 + 3.0
+    assert r.info["safety_mm"] >= 5.0
+
+
+def test_informative_plan_has_both_elbows_sides_and_roles(informative):
+    r, s = informative
+    marks = s["marks"]
+    assert len(marks) == 38 and "images" not in s and s["design"]["stage"] == "informative"
+    roles = [m["role"] for m in marks]
+    assert roles.count("calibration") == 30 and roles.count("validation") == 8
+    a = np.array([m["approach"] for m in marks])
+    assert set(a[:, 0]) == {1, -1} and set(a[:, 1]) == {1, -1}
+    q = np.array([m["joints_deg"] for m in marks])
+    z2 = s["robot"]["joint_zero_deg"][1]
+    assert set(np.sign(np.sin(np.radians(q[:, 1] + z2)))) == {1.0, -1.0}
+    # the session's robot is the pilot's model, within a millimetre of the truth
+    assert abs(s["robot"]["base_mm"][0] - TRUTH.params.base_x_mm) < 1.0
+    assert r.program_path.name == "program_points.csv"
