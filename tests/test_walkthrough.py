@@ -24,14 +24,15 @@ from tests.conftest import ROOT
 from tests.design.test_programs import parse_spel
 from vision_cal.commands.main import main
 from vision_cal.kinematics import ScaraParams
-from vision_cal.model import JointBacklash, RobotModel
 from vision_cal.plan.calibration_plan import PlannedMark
+from vision_cal.render.truth_model import TrueRobot
 
 pytestmark = pytest.mark.render
 
 ROBOT = ROOT / "fixtures" / "robot_sm5.yaml"
-TRUTH = RobotModel(ScaraParams(344.05, 259.87, -2.57, -8.13, -420.0, -230.0),
-                   (JointBacklash(joint=2, deg=0.1),))
+TRUTH = TrueRobot.from_json(
+    {"L1_mm": 344.05, "L2_mm": 259.87, "joint_zero_deg": [-2.57, -8.13],
+     "base_mm": [-420.0, -230.0]}, [{"name": "joint_backlash", "joint": 2, "deg": 0.1}])
 REPEATABILITY_MM = 0.01
 PHOTO_PX = (1600, 1200)
 F_PX = 1750.0
@@ -82,15 +83,14 @@ def printed_raster(sheet_dir: Path, sheet, rng) -> np.ndarray:
 
         page = pdfium.PdfDocument(str(pdf))[0]
         w_pt, h_pt = page.get_size()
-        scale = TEXTURE_PX_PER_MM * 25.4 / 72.0
+        H = int(round(sheet.size_mm[1] * TEXTURE_PX_PER_MM))
+        W = int(round(sheet.size_mm[0] * TEXTURE_PX_PER_MM))
+        # pdfium sizes the bitmap with ceil(): a scale a hair under W / width keeps the
+        # page at W x H pixels (at exactly W / width it may get W + 1 and stretch by 1 px)
+        scale = min(W / w_pt, H / h_pt) * (1.0 - 1e-7)
         img = np.asarray(page.render(scale=scale).to_pil().convert("RGB"))
-        H, W = int(round(sheet.size_mm[1] * TEXTURE_PX_PER_MM)), \
-            int(round(sheet.size_mm[0] * TEXTURE_PX_PER_MM))
-        assert abs(img.shape[0] - H) <= 1 and abs(img.shape[1] - W) <= 1
-        out = np.full((H, W, 3), 255, np.uint8)
-        h, w = min(H, img.shape[0]), min(W, img.shape[1])
-        out[:h, :w] = img[:h, :w]
-        return out
+        assert img.shape[:2] == (H, W), (img.shape, H, W)
+        return img
     from vision_cal.render.sheet import sheet_texture
 
     return sheet_texture(sheet, marks_xy_mm=np.zeros((0, 2)), px_per_mm=TEXTURE_PX_PER_MM,

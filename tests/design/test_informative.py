@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from tests.design.conftest import ROBOT, border_sheet
-from vision_cal.kinematics import ScaraParams
-from vision_cal.model import JointBacklash, RobotModel
 from vision_cal.plan.calibration_plan import sheet_clearance_mm
+from vision_cal.render.truth_model import TrueRobot
 
-TRUTH = RobotModel(ScaraParams(344.05, 259.87, -2.57, -8.13, -420.0, -230.0),
-                   (JointBacklash(joint=2, deg=0.1),))
+TRUTH = TrueRobot.from_json(
+    {"L1_mm": 344.05, "L2_mm": 259.87, "joint_zero_deg": [-2.57, -8.13],
+     "base_mm": [-420.0, -230.0]}, [{"name": "joint_backlash", "joint": 2, "deg": 0.1}])
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +24,7 @@ def informative(tmp_path_factory, pilot_dir, sheet_json):
     s = json.loads((pilot_dir / "session.json").read_text())
     q = np.array([m["joints_deg"] for m in s["marks"]])
     a = np.array([m["approach"] for m in s["marks"]])
-    xy = TRUTH.predict(q, a) + rng.normal(0, 0.02, q.shape)
+    xy = TRUTH.pen_mm(q, a) + rng.normal(0, 0.02, q.shape)
     for m, p in zip(s["marks"], xy):
         m["measured_mm"] = p.tolist()
     d = tmp_path_factory.mktemp("pilot_measured")
@@ -41,7 +41,7 @@ def test_informative_marks_land_on_free_paper_on_the_true_robot(informative):
     r, s = informative
     q = np.array([m["joints_deg"] for m in s["marks"]])
     a = np.array([m["approach"] for m in s["marks"]])
-    xy = TRUTH.predict(q, a)
+    xy = TRUTH.pen_mm(q, a)
     assert sheet_clearance_mm(border_sheet(), xy).min() >= 0.6 + 3.0
     assert r.info["safety_mm"] >= 5.0
 
@@ -58,5 +58,5 @@ def test_informative_plan_has_both_elbows_sides_and_roles(informative):
     z2 = s["robot"]["joint_zero_deg"][1]
     assert set(np.sign(np.sin(np.radians(q[:, 1] + z2)))) == {1.0, -1.0}
     # the session's robot is the pilot's model, within a millimetre of the truth
-    assert abs(s["robot"]["base_mm"][0] - TRUTH.params.base_x_mm) < 1.0
+    assert abs(s["robot"]["base_mm"][0] - TRUTH.base_mm[0]) < 1.0
     assert r.program_path.name == "program_points.csv"
