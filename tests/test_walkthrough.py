@@ -97,8 +97,10 @@ def printed_raster(sheet_dir: Path, sheet, rng) -> np.ndarray:
                          rng=rng)
 
 
-def photograph(folder: Path, sheet_dir: Path, world, photographer, rng, *, n: int) -> list[str]:
-    """``n`` photos of the finished sheet from random views above it, into ``folder``."""
+def photograph(folder: Path, sheet_dir: Path, world, photographer, rng, *, n: int,
+               also_xy_mm=np.zeros((0, 2))) -> list[str]:
+    """``n`` photos of the finished sheet from random views above it, into ``folder``
+    (``also_xy_mm``: earlier marks already on the sheet)."""
     import cv2
 
     from vision_cal.dataset.session import load_sheet_file
@@ -107,7 +109,8 @@ def photograph(folder: Path, sheet_dir: Path, world, photographer, rng, *, n: in
 
     sheet = load_sheet_file(sheet_dir / "sheet.json")
     tex = ink_marks(printed_raster(sheet_dir, sheet, rng), extent_mm=sheet.extent_mm,
-                    px_per_mm=TEXTURE_PX_PER_MM, marks_xy_mm=world.xy_mm,
+                    px_per_mm=TEXTURE_PX_PER_MM,
+                    marks_xy_mm=np.vstack([also_xy_mm, world.xy_mm]),
                     mark_diameters_mm=1.2, rng=rng)
     K = camera_matrix(size_px=PHOTO_PX, f_px=F_PX)
     views = default_views(sheet, n=n, size_px=PHOTO_PX, K=K, tilt_deg=(0.0, 12.0), rng=rng,
@@ -184,7 +187,9 @@ def walkthrough(tmp_path_factory):
         "--pilot", tmp / "pilot_cal" / "calibration.json", "-q")
     stage("design informative")
     world = draw(tmp / "plan" / "program.prg", rng)
-    files = photograph(tmp / "plan", sheet_dir, world, photographer, rng, n=3)
+    # the same sheet, not moved: the pilot's marks are on it too
+    files = photograph(tmp / "plan", sheet_dir, world, photographer, rng, n=3,
+                       also_xy_mm=pilot_world.xy_mm)
     list_images_if_needed(tmp / "plan", files)
     stage("draw + photograph plan")
     cli(tmp / "plan", "--out", tmp / "cal", "--report", "-q")

@@ -79,6 +79,25 @@ def drawable_sheet(sheet, sheet_raw: dict, *, file: str | None = None):
     return replace(sheet, size_mm=(x1 - x0, y1 - y0), bottom_left_mm=(x0, y0))
 
 
+def with_pilot_marks(sheet, cal_doc: dict, diameter_mm: float):
+    """The sheet with the pilot's measured marks as obstacles (small squares), so that
+    the informative plan drawn on the same sheet keeps clear of them."""
+    from dataclasses import replace
+
+    from vision_cal.dataset.session import SheetMarker
+
+    extra = []
+    for k, m in enumerate((cal_doc.get("marks") or {}).values()):
+        xy = m.get("measured_mm") if isinstance(m, dict) else None
+        if not (isinstance(xy, list) and len(xy) == 2):
+            continue
+        x, y = float(xy[0]), float(xy[1])
+        h = diameter_mm / 2
+        extra.append(SheetMarker(-1 - k, np.array([[x - h, y + h], [x + h, y + h],
+                                                   [x + h, y - h], [x - h, y - h]])))
+    return replace(sheet, markers=tuple(sheet.markers) + tuple(extra))
+
+
 def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | None = "spel",
                  n_calibration: int = 30, n_validation: int = 8, safety_mm: float | None = None,
                  seed: int = 0) -> DesignResult:
@@ -121,6 +140,7 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
         cov = load_covariance(doc, model, file=str(pilot))
         if safety_mm is None:
             safety_mm = pilot_safety_mm(model, cov, sheet)
+        sheet = with_pilot_marks(sheet, doc, robot.mark_diameter_mm)
         p = model.params
         plan_robot = NominalRobot(p.L1_mm, p.L2_mm, p.joint_zero_deg, p.base_mm,
                                   nominal.home_deg)
