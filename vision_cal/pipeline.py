@@ -169,7 +169,8 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
             diagnosis={"heldout": diag.heldout_kind,
                        "accepted": [e.to_json() for e in diag.accepted],
                        "rejected": [e.to_json() for e in diag.rejected],
-                       "residual_analysis": diag.analysis},
+                       "residual_analysis": diag.analysis,
+                       "thresholds": diag.thresholds},
             notes=list(ff.notes),
             sigma_mm=ff.sigma_mm,
             covariance=covariance_json(ff.labels, ff.cov),
@@ -214,6 +215,8 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                  "approach": data.approach[i].astype(int).tolist()}
         if data.sigma_mm is not None:
             entry["sigma_mm"] = float(data.sigma_mm[i])
+        if measurement is not None and mid in measurement.marks:  # added field
+            entry["n_photos"] = int(measurement.marks[mid].n_photos)
         marks[mid] = entry
     doc["marks"] = marks
     if missing:

@@ -86,7 +86,7 @@ def format_summary(doc: dict, *, reference: dict | None = None) -> str:
     return "\n".join(lines)
 
 
-def describe_effect(e: dict) -> str:
+def describe_effect(e: dict, *, evidence: bool = True) -> str:
     name = e["name"]
     if name == "joint_backlash":
         s = f"joint_backlash joint {e['joint']}: {e['deg']:.4f} deg"
@@ -112,7 +112,7 @@ def describe_effect(e: dict) -> str:
     if "std" in e and e["std"] is not None:
         s += f" (+-{e['std']:.2g})"
     ev = e.get("evidence")
-    if ev:
+    if ev and evidence:
         b, a = ev["heldout_rms_mm"]
         s += f"; held-out RMS {b:.4f} -> {a:.4f} mm, F = {ev['F']:.1f}, p = {ev['p_value']:.2g}"
     return s
