@@ -204,7 +204,11 @@ def walkthrough(tmp_path_factory):
     photographer.close()
     hit = draw(tmp / "plan.prg", np.random.default_rng(7))
     pid, q, s = read_plan(tmp / "plan.csv")
-    return {"tmp": tmp, "stages_s": stages, "total_s": time.perf_counter() - t0, "cal": cal,
+    import csv
+
+    rows = csv.DictReader((tmp / "plan.csv").read_text().splitlines())
+    std = {r["id"]: float(r["std_mm"]) for r in rows if r["status"] == "ok"}
+    return {"std_mm": np.array([std[i] for i in pid]),"tmp": tmp, "stages_s": stages, "total_s": time.perf_counter() - t0, "cal": cal,
             "targets": dict(zip(ids, xy)), "plan_ids": pid, "hit_xy": hit.xy_mm,
             "pilot_world": pilot_world, "world": world}
 
@@ -220,11 +224,16 @@ def test_compensated_program_hits_its_targets_on_the_true_robot(walkthrough):
     report = {"stages_s": {k: round(v, 1) for k, v in w["stages_s"].items()},
               "total_s": round(w["total_s"], 1), "targets": len(err),
               "rms_mm": round(rms, 4), "max_mm": round(float(err.max()), 4),
-              "effects": [e["name"] for e in w["cal"]["effects"]]}
+              "effects": [e["name"] for e in w["cal"]["effects"]],
+              "predicted_std_mm_rms": round(float(np.sqrt(np.mean(w["std_mm"] ** 2))), 4)}
     (Path(w["tmp"]) / "walkthrough.json").write_text(json.dumps(report, indent=2))
     print("walkthrough:", json.dumps(report))
     assert len(err) >= 0.9 * len(w["targets"])
     assert rms < 0.05, report
+    # the misses agree with the predicted std and the robot's repeatability (per axis)
+    per_axis = rms / np.sqrt(2)
+    expected = float(np.sqrt(np.mean(w["std_mm"] ** 2) + REPEATABILITY_MM**2))
+    assert per_axis < 3 * expected, (per_axis, expected)
 
 
 def test_every_photo_was_used_and_the_backlash_found(walkthrough):
