@@ -72,7 +72,10 @@ def _serial_render(a, doc) -> None:
 
     jobs = a.jobs or os.cpu_count() or 1
     t = time.perf_counter()
-    serial = render_dataset(load_scene(a.scene), Path(a.out) / "session_serial", jobs=1)
+    from vision_cal.calibrate.paper import pilot_params
+
+    serial = render_dataset(load_scene(a.scene), Path(a.out) / "session_serial", jobs=1,
+                            pilot=pilot_params)
     ts = time.perf_counter() - t
     tp = doc["stages_s"]["render calibration session"]
 

@@ -131,8 +131,11 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
 
     render_jobs = jobs or os.cpu_count() or 1
     t = time.perf_counter()
+    from vision_cal.calibrate.paper import pilot_params
+
     session_dir = render_dataset(scene, out / "session", progress=progress,
-                                 photographer=photographer, jobs=render_jobs)
+                                 photographer=photographer, pilot=pilot_params,
+                                 jobs=render_jobs)
     stages["render calibration session"] = time.perf_counter() - t
     t = time.perf_counter()
     run = calibrate_dataset(session_dir, out_dir=out / "calibration", jobs=jobs,

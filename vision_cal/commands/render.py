@@ -41,6 +41,9 @@ def run(args) -> int:
         raise VisionCalError(f"must be at least 1, got {args.jobs}", field="--jobs")
     import os
 
-    out = render_dataset(scene, args.out, progress=progress, jobs=args.jobs or os.cpu_count())
+    from vision_cal.calibrate.paper import pilot_params
+
+    out = render_dataset(scene, args.out, progress=progress, pilot=pilot_params,
+                         jobs=args.jobs or os.cpu_count())
     print(out)
     return 0
