@@ -2,11 +2,12 @@
 
 ``progress`` arguments across the package are ``False`` (silent: tests, libraries) or
 ``True`` (the command line without ``--quiet``). With ``True``, :func:`bar` shows a tqdm bar
-when stderr is a terminal; when it is not (CI logs, ``make demo | tee``) it prints one
-line when the stage ends, with the count and the elapsed time, so a log shows where the
-time goes::
+when stderr is a terminal; when it is not (CI logs, ``make demo | tee``) it prints a line
+when a counted stage starts and one when it ends, with the count and the elapsed time, so
+a log shows what is running and where the time went::
 
-    vision-cal: render session: 38/38 photos in 91.2 s (0.42 photos/s, 2 jobs)
+    vision-cal: render session: 38 photos (2 job(s)) ...
+    vision-cal: render session: 38/38 photos in 91.2 s (0.42 photos/s, 2 job(s))
 """
 
 from __future__ import annotations
@@ -30,6 +31,9 @@ class _Line:
         self.n = 0
         self.t0 = time.perf_counter()
         self.closed = False
+        if total:
+            print(f"vision-cal: {desc}: {total} {unit}s" + (f" ({note})" if note else "")
+                  + " ...", file=sys.stderr, flush=True)
 
     def update(self, n: int = 1) -> None:
         self.n += n
