@@ -24,14 +24,15 @@ from tests.conftest import ROOT
 from tests.design.test_programs import parse_spel
 from vision_cal.commands.main import main
 from vision_cal.kinematics import ScaraParams
-from vision_cal.model import JointBacklash, RobotModel
 from vision_cal.plan.calibration_plan import PlannedMark
+from vision_cal.render.truth_model import TrueRobot
 
 pytestmark = pytest.mark.render
 
 ROBOT = ROOT / "fixtures" / "robot_sm5.yaml"
-TRUTH = RobotModel(ScaraParams(344.05, 259.87, -2.57, -8.13, -420.0, -230.0),
-                   (JointBacklash(joint=2, deg=0.1),))
+TRUTH = TrueRobot.from_json(
+    {"L1_mm": 344.05, "L2_mm": 259.87, "joint_zero_deg": [-2.57, -8.13],
+     "base_mm": [-420.0, -230.0]}, [{"name": "joint_backlash", "joint": 2, "deg": 0.1}])
 REPEATABILITY_MM = 0.01
 PHOTO_PX = (1600, 1200)
 F_PX = 1750.0
@@ -82,23 +83,24 @@ def printed_raster(sheet_dir: Path, sheet, rng) -> np.ndarray:
 
         page = pdfium.PdfDocument(str(pdf))[0]
         w_pt, h_pt = page.get_size()
-        scale = TEXTURE_PX_PER_MM * 25.4 / 72.0
+        H = int(round(sheet.size_mm[1] * TEXTURE_PX_PER_MM))
+        W = int(round(sheet.size_mm[0] * TEXTURE_PX_PER_MM))
+        # pdfium sizes the bitmap with ceil(): a scale a hair under W / width keeps the
+        # page at W x H pixels (at exactly W / width it may get W + 1 and stretch by 1 px)
+        scale = min(W / w_pt, H / h_pt) * (1.0 - 1e-7)
         img = np.asarray(page.render(scale=scale).to_pil().convert("RGB"))
-        H, W = int(round(sheet.size_mm[1] * TEXTURE_PX_PER_MM)), \
-            int(round(sheet.size_mm[0] * TEXTURE_PX_PER_MM))
-        assert abs(img.shape[0] - H) <= 1 and abs(img.shape[1] - W) <= 1
-        out = np.full((H, W, 3), 255, np.uint8)
-        h, w = min(H, img.shape[0]), min(W, img.shape[1])
-        out[:h, :w] = img[:h, :w]
-        return out
+        assert img.shape[:2] == (H, W), (img.shape, H, W)
+        return img
     from vision_cal.render.sheet import sheet_texture
 
     return sheet_texture(sheet, marks_xy_mm=np.zeros((0, 2)), px_per_mm=TEXTURE_PX_PER_MM,
                          rng=rng)
 
 
-def photograph(folder: Path, sheet_dir: Path, world, photographer, rng, *, n: int) -> list[str]:
-    """``n`` photos of the finished sheet from random views above it, into ``folder``."""
+def photograph(folder: Path, sheet_dir: Path, world, photographer, rng, *, n: int,
+               also_xy_mm=np.zeros((0, 2))) -> list[str]:
+    """``n`` photos of the finished sheet from random views above it, into ``folder``
+    (``also_xy_mm``: earlier marks already on the sheet)."""
     import cv2
 
     from vision_cal.dataset.session import load_sheet_file
@@ -107,7 +109,8 @@ def photograph(folder: Path, sheet_dir: Path, world, photographer, rng, *, n: in
 
     sheet = load_sheet_file(sheet_dir / "sheet.json")
     tex = ink_marks(printed_raster(sheet_dir, sheet, rng), extent_mm=sheet.extent_mm,
-                    px_per_mm=TEXTURE_PX_PER_MM, marks_xy_mm=world.xy_mm,
+                    px_per_mm=TEXTURE_PX_PER_MM,
+                    marks_xy_mm=np.vstack([also_xy_mm, world.xy_mm]),
                     mark_diameters_mm=1.2, rng=rng)
     K = camera_matrix(size_px=PHOTO_PX, f_px=F_PX)
     views = default_views(sheet, n=n, size_px=PHOTO_PX, K=K, tilt_deg=(0.0, 12.0), rng=rng,
@@ -184,7 +187,9 @@ def walkthrough(tmp_path_factory):
         "--pilot", tmp / "pilot_cal" / "calibration.json", "-q")
     stage("design informative")
     world = draw(tmp / "plan" / "program.prg", rng)
-    files = photograph(tmp / "plan", sheet_dir, world, photographer, rng, n=3)
+    # the same sheet, not moved: the pilot's marks are on it too
+    files = photograph(tmp / "plan", sheet_dir, world, photographer, rng, n=3,
+                       also_xy_mm=pilot_world.xy_mm)
     list_images_if_needed(tmp / "plan", files)
     stage("draw + photograph plan")
     cli(tmp / "plan", "--out", tmp / "cal", "--report", "-q")
@@ -199,7 +204,11 @@ def walkthrough(tmp_path_factory):
     photographer.close()
     hit = draw(tmp / "plan.prg", np.random.default_rng(7))
     pid, q, s = read_plan(tmp / "plan.csv")
-    return {"tmp": tmp, "stages_s": stages, "total_s": time.perf_counter() - t0, "cal": cal,
+    import csv
+
+    rows = csv.DictReader((tmp / "plan.csv").read_text().splitlines())
+    std = {r["id"]: float(r["std_mm"]) for r in rows if r["status"] == "ok"}
+    return {"std_mm": np.array([std[i] for i in pid]),"tmp": tmp, "stages_s": stages, "total_s": time.perf_counter() - t0, "cal": cal,
             "targets": dict(zip(ids, xy)), "plan_ids": pid, "hit_xy": hit.xy_mm,
             "pilot_world": pilot_world, "world": world}
 
@@ -215,11 +224,16 @@ def test_compensated_program_hits_its_targets_on_the_true_robot(walkthrough):
     report = {"stages_s": {k: round(v, 1) for k, v in w["stages_s"].items()},
               "total_s": round(w["total_s"], 1), "targets": len(err),
               "rms_mm": round(rms, 4), "max_mm": round(float(err.max()), 4),
-              "effects": [e["name"] for e in w["cal"]["effects"]]}
+              "effects": [e["name"] for e in w["cal"]["effects"]],
+              "predicted_std_mm_rms": round(float(np.sqrt(np.mean(w["std_mm"] ** 2))), 4)}
     (Path(w["tmp"]) / "walkthrough.json").write_text(json.dumps(report, indent=2))
     print("walkthrough:", json.dumps(report))
     assert len(err) >= 0.9 * len(w["targets"])
     assert rms < 0.05, report
+    # the misses agree with the predicted std and the robot's repeatability (per axis)
+    per_axis = rms / np.sqrt(2)
+    expected = float(np.sqrt(np.mean(w["std_mm"] ** 2) + REPEATABILITY_MM**2))
+    assert per_axis < 3 * expected, (per_axis, expected)
 
 
 def test_every_photo_was_used_and_the_backlash_found(walkthrough):
