@@ -78,3 +78,20 @@ def test_rendered_photos_of_the_print_measure_where_truth_is(sheet_dir, tmp_path
                   for k in on_paper])
     print(f"{len(on_paper)} marks, max |z| {np.abs(z).max():.2f}")
     assert np.abs(z).max() < 4.5
+
+
+def test_a_scene_can_name_a_printed_sheet(sheet_dir, tmp_path):
+    from vision_cal.render.scene import load_scene
+
+    scene_yaml = (RENDERS / "small.yaml").read_text()
+    (tmp_path / "s.yaml").write_text(scene_yaml + f"sheet:\n  printed: {sheet_dir}/sheet.json\n")
+    sc = load_scene(tmp_path / "s.yaml")
+    assert sc.sheet.printed == str(sheet_dir / "sheet.json")
+    assert sc.sheet.size_mm == (594.0, 420.0)
+    (tmp_path / "bad.yaml").write_text(scene_yaml + f"sheet:\n  printed: {sheet_dir}/sheet.json"
+                                       "\n  marker_mm: 20\n")
+    with pytest.raises(VisionCalError, match="sheet.printed: a printed sheet brings its own"):
+        load_scene(tmp_path / "bad.yaml")
+    (tmp_path / "missing.yaml").write_text(scene_yaml + "sheet:\n  printed: nowhere/sheet.json\n")
+    with pytest.raises(VisionCalError, match="sheet.printed: .*not found"):
+        load_scene(tmp_path / "missing.yaml")
