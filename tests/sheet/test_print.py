@@ -14,7 +14,8 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from tests.sheet.raster import detect_corners_mm, find_bars_mm, px_to_mm, rasterise_pdf
+from tests.sheet.raster import (detect_corners_mm, find_bars_mm, px_to_mm, rasterise_pdf,
+                                rasterise_pdftoppm)
 from vision_cal.commands.main import main
 
 pytest.importorskip("pypdfium2")
@@ -77,6 +78,18 @@ def test_pdf_scale_bars_measure_100_mm_where_sheet_json_says(printed):
         assert length == pytest.approx(100.0, abs=CORNER_TOL_MM)
         want = np.array(doc["printed"]["scale_bars_mm"][axis])
         assert start[k] == pytest.approx(want[0][k], abs=CORNER_TOL_MM)
+
+
+def test_pdftoppm_agrees_too(printed):
+    """A second rasteriser (poppler): corners and bars to the same 0.02 mm."""
+    out, doc = printed
+    rgb, ppm = rasterise_pdftoppm(out / "sheet.pdf", PPM)
+    err = _corner_errors(detect_corners_mm(rgb, doc["aruco_dictionary"], _extent(doc), ppm), doc)
+    print(f"PDF via pdftoppm: corner error max {err.max():.4f} mm")
+    assert err.max() < CORNER_TOL_MM
+    bars = find_bars_mm(rgb, _extent(doc), ppm)
+    assert bars["x"][1][0] - bars["x"][0][0] == pytest.approx(100.0, abs=CORNER_TOL_MM)
+    assert bars["y"][1][1] - bars["y"][0][1] == pytest.approx(100.0, abs=CORNER_TOL_MM)
 
 
 def test_png_raster_agrees_with_sheet_json(printed):
