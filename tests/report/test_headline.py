@@ -32,6 +32,14 @@ def test_headline_figures_are_calibration_json_figures(out, doc):
     for key in ("residual_rms_mm", "validation_rms_mm"):
         assert acc[key]["before_mm"] == doc[key]["base_model"]
         assert acc[key]["after_mm"] == doc[key]["final_model"]
+    # the same on a document where before and after differ (the paper's do not)
+    d = copy.deepcopy(doc)
+    d["residual_rms_mm"] = {"base_model": 0.25, "final_model": 0.011}
+    d["validation_rms_mm"] = {"base_model": 0.27, "final_model": 0.013, "kind": "validation marks"}
+    acc = {a["key"]: a for a in hl.headline(d)["accuracy"]}
+    assert (acc["residual_rms_mm"]["before_mm"], acc["residual_rms_mm"]["after_mm"]) == (0.25, 0.011)
+    assert (acc["validation_rms_mm"]["before_mm"],
+            acc["validation_rms_mm"]["after_mm"]) == (0.27, 0.013)
     # the paper's five marks: an honest "use with care", with the 95 % figure
     v = rep["headline"]["verdict"]
     assert v["status"] == "use with care"

@@ -32,6 +32,8 @@ class Sheet:
     markers: tuple[SheetMarker, ...]
     size_mm: tuple[float, float]
     bottom_left_mm: tuple[float, float] = (0.0, 0.0)  # added field: paper corner in frame S
+    grid: dict | None = None      # the printed grid as in the file (pitch_mm, origin_mm, ...)
+    printed: dict | None = None   # how it was printed (module_mm, quiet_zone_modules, ...)
 
     @property
     def extent_mm(self) -> tuple[float, float, float, float]:
@@ -40,10 +42,15 @@ class Sheet:
         return (x0, y0, x0 + self.size_mm[0], y0 + self.size_mm[1])
 
     def to_json(self) -> dict:
-        return {"aruco_dictionary": self.aruco_dictionary,
-                "markers": [{"id": m.id, "corners_mm": np.asarray(m.corners_mm).tolist()}
-                            for m in self.markers],
-                "size_mm": list(self.size_mm), "bottom_left_mm": list(self.bottom_left_mm)}
+        out = {"aruco_dictionary": self.aruco_dictionary,
+               "markers": [{"id": m.id, "corners_mm": np.asarray(m.corners_mm).tolist()}
+                           for m in self.markers],
+               "size_mm": list(self.size_mm), "bottom_left_mm": list(self.bottom_left_mm)}
+        if self.grid is not None:
+            out["grid"] = self.grid
+        if self.printed is not None:
+            out["printed"] = self.printed
+        return out
 
     def corners_by_id(self) -> dict[int, np.ndarray]:
         return {m.id: m.corners_mm for m in self.markers}
@@ -245,7 +252,27 @@ def read_sheet_block(r: _Reader, sheet_raw, where: str = "sheet", *,
         mks.append(SheetMarker(int(mid), c))
     bl_raw = sheet_raw.get("bottom_left_mm")
     bl = r.vector(bl_raw, w("bottom_left_mm"), 2) if bl_raw is not None else (0.0, 0.0)
-    return Sheet(d, tuple(mks), size, bl)
+    grid = _optional_object(r, sheet_raw, w("grid"))
+    printed = _optional_object(r, sheet_raw, w("printed"))
+    if printed is not None:
+        for k in ("module_mm", "quiet_zone_mm", "quiet_zone_modules"):
+            if k in printed:
+                v = r.number(printed[k], w(f"printed.{k}"))
+                if v < 0 or (k == "module_mm" and v == 0):
+                    r.fail(w(f"printed.{k}"), f"expected a size >= 0 (> 0 for a module), "
+                                              f"got {v}")
+        mb = printed.get("measured_bar_mm")
+        if mb is not None:
+            if any(v <= 0 for v in r.vector(mb, w("printed.measured_bar_mm"), 2)):
+                r.fail(w("printed.measured_bar_mm"), f"expected two positive lengths, got {mb!r}")
+    return Sheet(d, tuple(mks), size, bl, grid, printed)
+
+
+def _optional_object(r: _Reader, obj: dict, where: str) -> dict | None:
+    v = obj.get(where.rsplit(".", 1)[-1])
+    if v is not None and not isinstance(v, dict):
+        r.fail(where, f"expected an object, got {type(v).__name__}")
+    return v
 
 
 def load_sheet_file(path) -> Sheet:

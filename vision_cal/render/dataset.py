@@ -196,8 +196,16 @@ class _Textures:
     sheet texture draws the paper before the dots).
     """
 
-    def __init__(self, sheet, xy_mm, diameters_mm, *, px_per_mm, seed):
+    def __init__(self, sheet, xy_mm, diameters_mm, *, px_per_mm, seed, printed=None):
         from vision_cal.render.sheet import sheet_texture
+
+        if printed is not None:  # the printed sheet's own raster (vision_cal.render.printed)
+            from vision_cal.render.printed import printed_texture
+
+            def sheet_texture(_sheet, **kw):  # noqa: F811 (the printed raster instead)
+                return printed_texture(printed, **kw)
+
+            px_per_mm = printed.px_per_mm
 
         self.xy_mm = np.asarray(xy_mm, float)
         self.d_mm = np.asarray(diameters_mm, float)
@@ -349,7 +357,7 @@ def photographer_K(scene: Scene) -> np.ndarray:
 
 def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographer=None,
                    joint_source=None, plan=None, targets_mm: dict | None = None,
-                   pilot=None) -> Path:
+                   pilot=None, printed=None) -> Path:
     """Render ``scene`` into the dataset folder ``out_dir``; return its path.
 
     ``plan``: draw these ``PlannedMark`` instead of the scene's calibration plan (the
@@ -361,6 +369,8 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     :func:`photographer_K`) to reuse (tests share one); by default one is built.
     ``joint_source``: see :mod:`vision_cal.render.world` (overrides ``robot.controller``;
     the truth model then predicts with every effect, backlash included).
+    ``printed``: a :class:`vision_cal.render.printed.PrintedSheet` (``vision-cal sheet``'s
+    sheet.json and PNG) photographed instead of the scene's analytic sheet.
     """
     from vision_cal.dataset.io import atomic_write_json
     from vision_cal.render.camera import camera_matrix, default_views
@@ -374,7 +384,7 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     sh = scene.sheet
     sheet = make_sheet(size_mm=sh.size_mm, bottom_left_mm=sh.bottom_left_mm,
                        dictionary=sh.dictionary, marker_mm=sh.marker_mm, grid=sh.grid,
-                       margin_mm=sh.margin_mm)
+                       margin_mm=sh.margin_mm) if printed is None else printed.sheet
     hfield = None
     if sh.height is not None:
         hfield = sh.height.field(sheet.extent_mm, scene.seed)
@@ -423,7 +433,7 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     bar = None
     try:
         textures = _Textures(sheet, world.xy_mm, diameters, px_per_mm=ph.texture_px_per_mm,
-                             seed=st.texture_seed)
+                             seed=st.texture_seed, printed=printed)
         images, poses, parked = [], {}, {}
         it = shots
         if progress:

@@ -84,7 +84,10 @@ def make_sheet(*, size_mm=(594.0, 420.0), bottom_left_mm=(-297.0, -210.0),
         for c, x0 in enumerate(xs):
             corners = np.array([[x0, y0 + s], [x0 + s, y0 + s], [x0 + s, y0], [x0, y0]])
             markers.append(SheetMarker(r * nx + c, corners))
-    return Sheet(str(dictionary), tuple(markers), (w, h), (x_min, y_min))
+    # say how it is printed (the measurer reads the quiet zone from here, not from us)
+    printed = {"module_mm": s / (cv2.aruco.getPredefinedDictionary(d).markerSize + 2),
+               "quiet_zone_modules": QUIET_MODULES, "generator": "vision-cal render"}
+    return Sheet(str(dictionary), tuple(markers), (w, h), (x_min, y_min), printed=printed)
 
 
 def texture_shape(extent_mm, px_per_mm: float) -> tuple[int, int]:
@@ -247,7 +250,7 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
         n = bits.shape[0]
         black = (bits < 128).astype(float)                  # (n, n), row 0 at the top
         mod = s / n
-        q = QUIET_MODULES * mod
+        q = float((sheet.printed or {}).get("quiet_zone_modules", QUIET_MODULES)) * mod
         quiet = _rect_coverage(extent, ppm, shape, np.array([mx0 - q, mx0 + s + q]),
                                np.array([my0 - q, my0 + s + q]))
         cells = _rect_coverage(extent, ppm, shape, mx0 + mod * np.arange(n + 1),

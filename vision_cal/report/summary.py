@@ -65,6 +65,15 @@ def format_summary(doc: dict, *, reference: dict | None = None) -> str:
     if v.get("base_model") is not None:
         lines.append(f"held-out RMS [mm] ({v.get('kind', 'validation')}): base model "
                      f"{_f(v.get('base_model'), 4)} -> final {_f(v.get('final_model'), 4)}")
+    ps = doc.get("printer_scale")
+    if ps:
+        line = (f"printer scale (measured bars): x {ps['x']:.5f}, y {ps['y']:.5f} (uneven "
+                f"{100 * ps['uneven']:+.3f} %); physical lengths = calibrated x "
+                f"{ps['uniform']:.5f}")
+        if ps.get("sheet_affine_beyond_printer") is not None:
+            line += (f"; sheet_affine beyond the printer "
+                     f"{100 * ps['sheet_affine_beyond_printer']:+.3f} %")
+        lines.append(line)
     if doc.get("noise_floor_mm") is not None:
         lines.append(f"measurement noise floor [mm]: {_f(doc['noise_floor_mm'], 4)}")
     for c in (doc.get("identifiability") or {}).get("high_correlations", []):
