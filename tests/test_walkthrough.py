@@ -4,7 +4,7 @@ The user's page, step by step, through the command line: print the sheet (`visio
 sheet`), design the pilot (`vision-cal design`), the robot draws it (a simulated true
 robot - SM5 with a hidden 0.1 deg backlash in joint 2, placed 28 mm and several degrees
 away from the robot file's guess - follows the SPEL+ program, read back by the tests'
-parser), photograph the finished sheet (rendered with the printed sheet's own raster,
+parser, through the simulated sliding-mode controller and arm dynamics), photograph the finished sheet (rendered with the printed sheet's own raster,
 sheet.png), calibrate the pilot, design the informative plan from it, draw (on the same
 sheet), photograph, calibrate with --report, plan targets with --program spel, and run
 that program on the true robot. The targets are hit within 0.05 mm RMS (the bound of the
@@ -64,15 +64,18 @@ def follow_program(prg: Path, *, up: float, down: float) -> list[PlannedMark]:
 
 
 def draw(prg: Path, rng):
-    """The true robot follows the program; where the pen really marks (sheet mm)."""
+    """The true robot follows the program: the simulated sliding-mode controller drives
+    the arm's dynamics through every point (the backlash is real gear play there); where
+    the pen really marks (sheet mm)."""
     from vision_cal.dataset.robot import load_robot_file
-    from vision_cal.render.world import draw_marks
+    from vision_cal.render.world import draw_marks, simulated_world
 
     robot = load_robot_file(ROBOT)
     up, down = robot.require_pen_heights()
     marks = follow_program(prg, up=up, down=down)
-    return draw_marks(TRUTH, marks, home_deg=robot.nominal.home_deg,
-                      repeatability_mm=REPEATABILITY_MM, rng=rng)
+    source, model = simulated_world(TRUTH, controller="smc", rng=rng)
+    return draw_marks(model, marks, home_deg=robot.nominal.home_deg,
+                      repeatability_mm=REPEATABILITY_MM, joint_source=source, rng=rng)
 
 
 def photograph(folder: Path, sheet_dir: Path, world, photographer, rng, *, n: int,
