@@ -4,12 +4,13 @@ The user's page, step by step, through the command line: print the sheet (`visio
 sheet`), design the pilot (`vision-cal design`), the robot draws it (a simulated true
 robot - SM5 with a hidden 0.1 deg backlash in joint 2, placed 28 mm and several degrees
 away from the robot file's guess - follows the SPEL+ program, read back by the tests'
-parser, through the simulated sliding-mode controller and arm dynamics), photograph the finished sheet (rendered with the printed sheet's own raster,
-sheet.png), calibrate the pilot, design the informative plan from it, draw (on the same
-sheet), photograph, calibrate with --report, plan targets with --program spel, and run
-that program on the true robot. The targets are hit within 0.05 mm RMS (the bound of the
-issue; the calibrated model's own predicted std at the targets is a few micrometres, the
-robot's repeatability 0.01 mm).
+parser, through the simulated sliding-mode controller and arm dynamics), photograph the
+finished sheet (rendered with the printed sheet's own raster, sheet.png), calibrate the
+pilot, design the informative plan from it, draw (on the same sheet), photograph,
+calibrate with --report, plan targets with --program spel, and run that program on the
+true robot. The targets are hit within 0.05 mm RMS (the bound of the issue; the
+calibrated model's own predicted std at the targets is a few micrometres, the robot's
+repeatability 0.01 mm).
 """
 
 from __future__ import annotations
