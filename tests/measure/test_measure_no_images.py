@@ -128,6 +128,7 @@ def test_finished_sheet_photos_and_init(tmp_path, world, capsys):
     assert doc["marks"] == json.loads((plan / "session.json").read_text())["marks"]
     err = capsys.readouterr().err
     assert "robot.png: not used" in err
+    assert "2 photo(s) of the sheet (finished)" in err
     # the completed session calibrates like a hand-written one
     shutil.copy(out, src / "session.json")
     s = load_session(src)
