@@ -263,6 +263,20 @@ def decode_photo(data: bytes, *, turned: bool = False):
         return None
 
 
+def decode_as_measured(data: bytes, size_px=None):
+    """Pixels in the frame a photo was measured in (``size_px`` (w, h) of the measurement;
+    the stored frame unless only the turned one has that size), for drawing overlays."""
+    try:
+        h = read_header(data)
+        turned = (size_px is not None and tuple(h.stored_px) != tuple(size_px)
+                  and h.displayed_px == tuple(size_px))
+        if size_px is None and h.stored_px[0] * h.stored_px[1] > MAX_PIXELS:
+            return None
+    except PhotoRefused:
+        return None
+    return decode_photo(data, turned=turned)
+
+
 def load_photo(root, name: str, camera_size_px=None):
     """Read, check and decode one photo: (BGR pixels, header, bytes); PhotoRefused else."""
     data = read_photo(root, name)
