@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import io
+import logging
 import os
 import pickle
 import time
@@ -85,7 +86,8 @@ def test_entries_are_data_only_and_round_trip(tmp_path, folder, monkeypatch):
 
 @pytest.mark.parametrize("plant", ["pickle", "pickle_as_npy", "corrupt", "other_key",
                                    "zip_bomb"])
-def test_planted_or_corrupt_entry_is_recomputed_not_run(tmp_path, folder, monkeypatch, plant):
+def test_planted_or_corrupt_entry_is_recomputed_not_run(tmp_path, folder, monkeypatch, plant,
+                                                         caplog):
     out = tmp_path / "out"
     measure_folder(load_session(folder), out_dir=out, jobs=1)
     cache = DetectionCache(out / ".cache")
@@ -111,8 +113,11 @@ def test_planted_or_corrupt_entry_is_recomputed_not_run(tmp_path, folder, monkey
         np.savez_compressed(buf, meta=np.array("{}"), big=np.zeros(300 * 2**20, np.uint8))
         a_entry.write_bytes(buf.getvalue())
     calls = _count(monkeypatch)
-    m = measure_folder(load_session(folder), out_dir=out, jobs=1)
+    with caplog.at_level(logging.INFO, logger="vision_cal.measure.cache"):
+        m = measure_folder(load_session(folder), out_dir=out, jobs=1)
     assert not marker.exists(), "a planted cache entry ran code"
+    if plant == "zip_bomb":  # refused from the zip directory, not inflated
+        assert any("ignored: too large" in r.getMessage() for r in caplog.records)
     assert calls == ["a.png"]  # recomputed; b's good entry still used
     assert [im.from_cache for im in m.images] == [False, True]
     assert set(m.marks) == set(IDS)
