@@ -312,3 +312,15 @@ def test_one_owner_for_names():
             photos.normalise_name(bad)
     assert photos.list_photos.__doc__ and sorted(["i10", "i2", "i1"], key=photos.natural_key) \
         == ["i1", "i2", "i10"]
+
+
+def test_the_header_is_read_without_decoding(bombs, monkeypatch):
+    from PIL import ImageFile
+
+    loads = []
+    monkeypatch.setattr(ImageFile.ImageFile, "load", lambda *a, **k: loads.append(a))
+    h = photos.read_header(bombs["bomb12k.png"])
+    assert loads == [], "pixels decoded while reading the header"
+    assert h.stored_px == (12000, 12000) and h.orientation == 1
+    with pytest.raises(photos.PhotoRefused, match="refused before decoding"):
+        photos.check_header(h)

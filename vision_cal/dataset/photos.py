@@ -209,7 +209,14 @@ def read_header(data: bytes) -> PhotoHeader:
                 size = (int(im.size[0]), int(im.size[1]))
                 fmt, mode = str(im.format), str(im.mode)
                 try:
-                    exif = im.getexif()
+                    # EXIF from what the header gave: Pillow's getexif() on a PNG decodes
+                    # the whole image to look for an eXIf chunk after the pixels
+                    if fmt in ("TIFF", "MPO", "JPEG"):
+                        exif = im.getexif()
+                    else:
+                        exif = Image.Exif()
+                        if im.info.get("exif"):
+                            exif.load(im.info["exif"])
                     orient = int(exif.get(0x0112, 1) or 1)
                     captured = _capture_time(exif)
                 except Exception:  # noqa: BLE001 - unreadable EXIF: upright, no time
