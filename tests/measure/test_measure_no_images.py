@@ -67,9 +67,9 @@ def _err_rms(meas, targets, ids):
     return float(np.sqrt(np.mean(np.sum(err**2, axis=1))))
 
 
-def test_series_without_images_list(tmp_path, world):
+def test_series_without_images_list(tmp_path, world, capsys):
     """Natural order (s_2 before s_10), a photo of the floor, a repeated file, a photo of
-    the series missing: all reported, every photographed mark measured and named."""
+    the series missing: all reported, every photographed mark measured and named, exit 0."""
     sheet, targets, q, series, finished, floor = world
     src = tmp_path / "in"
     src.mkdir()
@@ -80,31 +80,44 @@ def test_series_without_images_list(tmp_path, world):
         sm.write_png(src / name, series[k])
     sm.write_png(src / "floor.png", floor)
     shutil.copy(src / "s_2.png", src / "s_2_copy.png")
+    again = series[1].copy()  # another photo of the same state: different bytes
+    again[:5, :5] = 255 - again[:5, :5]
+    sm.write_png(src / "s_2b.png", again)
     _plan(src, world)
     before = _snapshot(src)
     _readonly(src)
     try:
-        meas = measure_folder(load_session(src), out_dir=tmp_path / "out", jobs=2)
+        rc = main([str(src), "--out", str(tmp_path / "out"), "-q", "-j", "2"])
     finally:
         src.chmod(stat.S_IRWXU)
+    assert rc == 0
     assert _snapshot(src) == before
-    files = [im.file for im in meas.images]
+    err = capsys.readouterr().err.strip().splitlines()
+    meas = json.loads((tmp_path / "out" / "measurement.json").read_text())
+    files = [im["file"] for im in meas["images"]]
     # natural order, not "s_10" < "s_2"
     order = [f for f in files if f.startswith("s_") and "copy" not in f]
-    assert order == ["s_1.png", "s_2.png", "s_3.png", "s_10.png", "s_11.png"]
-    st = {im.file: im for im in meas.images}
-    assert st["floor.png"].status == "skipped"
-    assert st["s_2_copy.png"].status == "skipped"
-    assert st["s_2_copy.png"].reason == "repeated photo: the same file as s_2.png"
-    assert meas.inferred == "series"
-    got = {f: ms for f, ms in zip(files, meas.image_marks)}
-    assert got["s_1.png"] == ("c0",)
-    assert got["s_3.png"] == ("c0", "c1", "c2")
-    assert got["s_10.png"] == tuple(IDS[:5])
-    assert got["s_11.png"] == tuple(IDS)
-    assert any("s_10.png: 2 marks added" in w and "missing" in w for w in meas.warnings)
-    assert set(meas.marks) == set(IDS)
-    assert _err_rms(meas, targets, IDS) < 0.015
+    assert order == ["s_1.png", "s_2.png", "s_2b.png", "s_3.png", "s_10.png", "s_11.png"]
+    st = {im["file"]: im for im in meas["images"]}
+    assert st["floor.png"]["status"] == "skipped"
+    assert st["s_2_copy.png"]["reason"] == "repeated photo: the same file as s_2.png"
+    assert meas["inferred"] == "series"
+    got = dict(zip(files, meas["image_marks"]))
+    assert got["s_1.png"] == ["c0"]
+    assert got["s_2b.png"] == got["s_2.png"] == ["c0", "c1"]
+    assert got["s_3.png"] == ["c0", "c1", "c2"]
+    assert got["s_10.png"] == IDS[:5]
+    assert got["s_11.png"] == IDS
+    missing = (f"vision-cal: warning: {src}: s_10.png: 2 marks added since s_3.png: a photo "
+               "of the series may be missing")
+    assert err == [f"vision-cal: warning: {src}/floor.png: skipped: {st['floor.png']['reason']}",
+                   f"vision-cal: warning: {src}/s_2_copy.png: skipped: repeated photo: the "
+                   "same file as s_2.png",
+                   f"vision-cal: warning: {src}: s_2b.png: a repeated photo (no mark added "
+                   "since s_2.png)", missing], err
+    truth = dict(zip(IDS, targets))
+    e = np.array([np.subtract(meas["marks"][k]["measured_mm"], truth[k]) for k in IDS])
+    assert np.sqrt(np.mean(np.sum(e**2, axis=1))) < 0.015
 
 
 def test_finished_sheet_photos_and_init(tmp_path, world, capsys):

@@ -146,6 +146,8 @@ class Measurement:
     image_marks: tuple = ()
     #: how they were inferred ("series" | "finished" | "none"), None when listed
     inferred: str | None = None
+    #: what the inference found odd (a repeated or missing photo, extra dots), one line each
+    inferred_notes: tuple = ()
 
     def session_images(self) -> list[dict]:
         """``images`` for session.json: every usable photo and the marks it shows."""
@@ -168,6 +170,7 @@ class Measurement:
                     "candidates_heldout_rms_px": self.lens.candidates},
                 "unassigned": self.unassigned, "refused": self.refused,
                 "warnings": self.warnings, "inferred": self.inferred,
+                "inferred_notes": list(self.inferred_notes),
                 "image_marks": [list(m) for m in self.image_marks]}
 
 
@@ -549,6 +552,7 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
         if r.status != "ok":
             log.info("skipped %s: %s", r.file, r.reason)
     meas = Measurement(marks, images, lens, unassigned, refused, warnings,
-                       tuple(image_marks), None if inferred is None else inferred.mode)
+                       tuple(image_marks), None if inferred is None else inferred.mode,
+                       () if inferred is None else tuple(inferred.warnings))
     atomic_write_json(out_dir / "measurement.json", meas.to_json())
     return meas
