@@ -23,10 +23,13 @@ from vision_cal.errors import VisionCalError
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
 
 
-def camera_matrix(*, size_px, f_px: float) -> np.ndarray:
-    """K (3, 3) with square pixels and the principal point at the image centre."""
+def camera_matrix(*, size_px, f_px: float, principal_px=None) -> np.ndarray:
+    """K (3, 3) with square pixels; the principal point at ``principal_px`` (u, v), by
+    default the image centre ((w - 1) / 2, (h - 1) / 2)."""
     w, h = (float(v) for v in size_px)
-    return np.array([[f_px, 0.0, (w - 1) / 2], [0.0, f_px, (h - 1) / 2], [0.0, 0.0, 1.0]])
+    cx, cy = ((w - 1) / 2, (h - 1) / 2) if principal_px is None else (
+        float(principal_px[0]), float(principal_px[1]))
+    return np.array([[f_px, 0.0, cx], [0.0, f_px, cy], [0.0, 0.0, 1.0]])
 
 
 def look_at(*, eye_mm, target_mm, up_hint=(0.0, 1.0, 0.0)) -> np.ndarray:
