@@ -170,10 +170,10 @@ def distort_image(img, *, K, dist, K_ideal=None, interpolation: str = "spline3",
     point lands where ``cv2.projectPoints(..., K, dist)`` puts it.
 
     ``interpolation``: ``"spline3"`` (default) is a cubic B-spline interpolation
-    (``scipy.ndimage.map_coordinates``) at the exact positions: blob centroids within
-    0.003 px in tests. ``"linear"``, ``"cubic"``, ``"lanczos4"`` use cv2.remap, ~10x faster
-    but it quantises positions to 1/32 px: cubic moved blob centroids by up to 0.05 px,
-    linear by 0.024 px (fine on a supersampled image that is then averaged down).
+    (``scipy.ndimage.map_coordinates``) at the exact positions. ``"linear"``, ``"cubic"``,
+    ``"lanczos4"`` use cv2.remap, ~10x faster but it quantises positions to 1/32 px (fine on
+    a supersampled image that is then averaged down; ``bench/render.py --accuracy`` prints
+    the resulting dot-centre figures).
     Outside the ideal frame the output is ``border_value``. The maps are cached per
     (size, K, dist, K_ideal).
     """
