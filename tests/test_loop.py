@@ -78,3 +78,63 @@ def test_calibrated_plan_brings_the_true_robot_to_its_targets(loop):
     assert np.all(d2 < stats.chi2.ppf(1 - 1e-4 / len(pid), 2)), (d2, np.hypot(*err.T))
     model, _ = load_calibration(run.out_path)
     assert [e.name for e in model.effects] == ["joint_backlash"]
+
+
+def test_loop_report_headline_photos_once_and_linked(loop):
+    """The report of a loop: the headline carries the loop's target figures and
+    calibration.json's RMS; every measured photo is embedded once (within the budget) and
+    links to its full-size file; nothing is written into the input folder."""
+    import json
+    import os
+    import re
+
+    from vision_cal.report import html as rh
+
+    out, doc, run = loop
+    before = sorted(p.name for p in (out / "session").iterdir())
+    page_path = rh.write_report(run, out / "calibration", loop=doc)
+    assert sorted(p.name for p in (out / "session").iterdir()) == before
+    rep = json.loads((out / "calibration" / "report.json").read_text())
+    cal = json.loads(run.out_path.read_text())
+    acc = {a["key"]: a for a in rep["headline"]["accuracy"]}
+    assert acc["residual_rms_mm"]["after_mm"] == cal["residual_rms_mm"]["final_model"]
+    assert acc["validation_rms_mm"]["after_mm"] == cal["validation_rms_mm"]["final_model"]
+    assert acc["loop.summary"]["after_mm"] == doc["summary"]["after"]["rms_mm"]
+    assert acc["loop.summary"]["before_mm"] == doc["summary"]["before"]["rms_mm"]
+    page = page_path.read_text()
+    ok = [im for im in cal["images"] if im["status"] == "ok"]
+    jpegs = re.findall(r"src='data:image/jpeg;base64,([^']*)'", page)
+    assert len(jpegs) == min(len(ok), rh.MAX_PHOTOS)
+    assert page.count("data:image/jpeg") == len(jpegs)   # once each, nowhere else
+    assert sum(len(j) for j in jpegs) <= rh.PHOTO_BUDGET_BYTES
+    links = re.findall(r"<a href='([^']*)'>full size</a>", page)
+    assert len(links) == len(jpegs)
+    for link in links:
+        assert (page_path.parent / link).is_file(), link
+        assert not os.path.isabs(link)
+
+
+def test_landing_note_says_where_the_pen_went(loop):
+    from vision_cal.loop import landing_note
+    from vision_cal.plan.compensate import PlannedTarget
+
+    _, _, run = loop
+    sheet = run.session.sheet
+
+    class At:
+        def __init__(self, xy):
+            self.xy = np.array([xy], float)
+
+        def predict(self, q, s):
+            return self.xy
+
+    x0, y0, x1, y1 = sheet.extent_mm
+    p = PlannedTarget("t", (0.0, 0.0), (0.0, 0.0), (1, 1))
+    assert landing_note(sheet, At([x1 + 5, y0 + 10]), p).startswith("off the paper")
+    c = np.asarray(sheet.markers[0].corners_mm, float).mean(axis=0)
+    assert landing_note(sheet, At(c), p).startswith("on a printed marker")
+    free = [0.5 * (x0 + x1), 0.5 * (y0 + y1)]
+    from vision_cal.plan.calibration_plan import sheet_clearance_mm
+
+    if sheet_clearance_mm(sheet, np.array([free]))[0] > 0:
+        assert landing_note(sheet, At(free), p).startswith("not measured")

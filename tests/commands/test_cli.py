@@ -108,7 +108,7 @@ def test_many_folders_one_failing(paper_folder, tmp_path, capsys):
     assert "paper_sm5" in out.out and "failed" in out.out
 
 
-@pytest.mark.parametrize("sub", ["calibrate", "render", "plan", "loop", "export"])
+@pytest.mark.parametrize("sub", ["calibrate", "render", "plan", "loop", "export", "design"])
 def test_every_subcommand_help_has_an_example(sub, capsys):
     with pytest.raises(SystemExit) as e:
         main([sub, "--help"])

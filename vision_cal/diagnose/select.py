@@ -29,6 +29,9 @@ from vision_cal.diagnose.structure import harmonic_scan, sheet_scan
 from vision_cal.errors import CalibrationError
 from vision_cal.model import JointCyclic, RobotModel, SheetAffine
 
+ALPHA = 0.01   # family-wise level of the F-test, split over the candidates (Bonferroni)
+K_FOLDS = 5    # cross-validation folds when there are fewer than 3 validation marks
+
 
 @dataclass(frozen=True)
 class Evidence:
@@ -62,6 +65,7 @@ class Diagnosis:
     heldout_base_mm: float
     heldout_final_mm: float
     analysis: dict = field(default_factory=dict)
+    thresholds: dict = field(default_factory=dict)  # the tests' levels, for the report
 
     def effects_json(self) -> list[dict]:
         """calibration.json ``effects`` entries of the final model (with std)."""
@@ -144,8 +148,8 @@ def residual_analysis(fit: Fit, q, app, *, n_bins: int = 6) -> dict:
 
 
 def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None, xy_val=None,
-             approach_val=None, candidates: list[Candidate] | None = None, alpha: float = 0.01,
-             k_folds: int = 5, max_effects: int = 4, rng=None) -> Diagnosis:
+             approach_val=None, candidates: list[Candidate] | None = None, alpha: float = ALPHA,
+             k_folds: int = K_FOLDS, max_effects: int = 4, rng=None) -> Diagnosis:
     """Calibrate the base model, then add the effects the residual asks for."""
     q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
     xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
@@ -238,7 +242,11 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
     unexplained = _unexplained(analysis, alpha, found, sheet_alpha)
     return Diagnosis(base, current, tuple(accepted), tuple(last.values()),
                      tuple(sel.not_identifiable), unexplained, kind, base_held, current_held,
-                     analysis)
+                     analysis,
+                     {"alpha": alpha, "n_candidates": len(cands), "alpha_each": alpha_each,
+                      "delta_bic_below": 0.0, "k_folds": k_folds,
+                      "max_effects": max_effects, "unexplained_harmonics_alpha": alpha,
+                      "unexplained_sheet_alpha": sheet_alpha})
 
 
 @dataclass

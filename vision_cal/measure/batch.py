@@ -36,6 +36,7 @@ from vision_cal.measure import associate as assoc
 from vision_cal.measure.aruco import (MIN_MARKERS, corners_from_edges, edge_points,
                                      find_sheet_markers)
 from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerprint
+from vision_cal.measure.marker_geometry import marker_geometry
 from vision_cal.measure.dots import DotCandidates, blank_regions, find_candidates, refine_dot
 from vision_cal.measure.mapping import (LensEstimate, distort_px, estimate_lens, fit_mapping,
                                        undistort_px)
@@ -230,7 +231,8 @@ def detect_image_bytes(data: bytes, file: str, session: Session) -> ImageDetecti
     K = None if cam is None else cam.K
     dist = None if cam is None else cam.dist
     out = ImageDetections(file, "ok", None, size, det.ids, det.corners_px, det.corners_mm,
-                          None, edge_points(gray, det.corners_px))
+                          None, edge_points(gray, det.corners_px,
+                                            geometry=marker_geometry(session.sheet)))
     out, n_bad = _drop_deformed_markers(out, K, dist)
     if len(out.marker_ids) < MIN_MARKERS:
         return _skip(file, f"too few markers: {len(out.marker_ids)} usable after {n_bad} "

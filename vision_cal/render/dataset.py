@@ -198,8 +198,16 @@ class _Textures:
     sheet texture draws the paper before the dots).
     """
 
-    def __init__(self, sheet, xy_mm, diameters_mm, *, px_per_mm, seed):
+    def __init__(self, sheet, xy_mm, diameters_mm, *, px_per_mm, seed, printed=None):
         from vision_cal.render.sheet import sheet_texture
+
+        if printed is not None:  # the printed sheet's own raster (vision_cal.render.printed)
+            from vision_cal.render.printed import printed_texture
+
+            def sheet_texture(_sheet, **kw):  # noqa: F811 (the printed raster instead)
+                return printed_texture(printed, **kw)
+
+            px_per_mm = printed.px_per_mm
 
         self.xy_mm = np.asarray(xy_mm, float)
         self.d_mm = np.asarray(diameters_mm, float)
@@ -353,7 +361,7 @@ def photographer_K(scene: Scene) -> np.ndarray:
 
 def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographer=None,
                    joint_source=None, plan=None, targets_mm: dict | None = None,
-                   pilot=None) -> Path:
+                   pilot=None, printed=None) -> Path:
     """Render ``scene`` into the dataset folder ``out_dir``; return its path.
 
     ``plan``: draw these ``PlannedMark`` instead of the scene's calibration plan (the
@@ -365,6 +373,8 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     :func:`photographer_K`) to reuse (tests share one); by default one is built.
     ``joint_source``: see :mod:`vision_cal.render.world` (overrides ``robot.controller``;
     the truth model then predicts with every effect, backlash included).
+    ``printed``: a :class:`vision_cal.render.printed.PrintedSheet` (``vision-cal sheet``'s
+    sheet.json and PNG) photographed instead of the scene's analytic sheet.
     """
     from vision_cal.dataset.io import atomic_write_json
     from vision_cal.render.camera import camera_matrix, default_views
@@ -378,7 +388,13 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     sh = scene.sheet
     sheet = make_sheet(size_mm=sh.size_mm, bottom_left_mm=sh.bottom_left_mm,
                        dictionary=sh.dictionary, marker_mm=sh.marker_mm, grid=sh.grid,
-                       margin_mm=sh.margin_mm)
+                       margin_mm=sh.margin_mm) if printed is None else printed.sheet
+    hfield = None
+    if sh.height is not None:
+        hfield = sh.height.field(sheet.extent_mm, scene.seed)
+        if hfield.is_flat:
+            hfield = None
+    height_grid = None if hfield is None else hfield.grid()
     if plan is None:
         plan = build_plan(scene, sheet, pilot=pilot, rng=st.plan)
     plan = list(plan)
@@ -434,7 +450,7 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     bar = None
     try:
         textures = _Textures(sheet, world.xy_mm, diameters, px_per_mm=ph.texture_px_per_mm,
-                             seed=st.texture_seed)
+                             seed=st.texture_seed, printed=printed)
         images, poses, parked, K_photo = [], {}, {}, {}
         it = shots
         if progress:
@@ -457,7 +473,7 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
                 tex, extent_mm=sheet.extent_mm, T_cam_sheet=T,
                 dist=dist if any(dist) else None, K_dist=Ki if lens else None, arm=arm,
                 vignetting=ph.vignetting, noise_sigma=ph.noise_sigma, jpeg_quality=None,
-                rng=st.photos)
+                rng=st.photos, **({} if height_grid is None else {"height_grid": height_grid}))
             (tmp / fname).write_bytes(_encode_image(np.asarray(rgb), ph.jpeg_quality))
             images.append({"file": fname, "marks": list(world.ids[:n_marks])})
             poses[fname] = T.tolist()
@@ -485,6 +501,8 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
         lens = lens_effect(scene)
         if lens is not None:
             effects.append(lens)
+        if hfield is not None:
+            effects.append(hfield.effect_json())
         truth_json = {
             "params": rob.truth.to_json(),
             "effects": effects,
@@ -504,6 +522,10 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
             "seed": scene.seed,
             "controller_report": getattr(source, "report", None),
         }
+        if hfield is not None:  # added fields: the paper's height field, each mark's height
+            truth_json["sheet_height"] = hfield.to_json()
+            truth_json["mark_height_mm"] = {mid: float(z) for mid, z in zip(
+                world.ids, hfield.height_mm(world.xy_mm))}
         atomic_write_json(tmp / "session.json", session)
         atomic_write_json(tmp / "truth.json", truth_json)
         _commit(tmp, out_dir)
