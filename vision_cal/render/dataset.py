@@ -69,12 +69,14 @@ class _Streams:
     park: np.random.Generator
     extras: np.random.Generator
     sim: np.random.Generator
+    focal: np.random.Generator
 
     @classmethod
     def from_seed(cls, seed: int) -> "_Streams":
-        ss = np.random.SeedSequence(seed).spawn(8)
+        ss = np.random.SeedSequence(seed).spawn(9)
         g = [np.random.default_rng(s) for s in ss]
-        return cls(g[0], g[1], int(ss[2].generate_state(1)[0]), g[3], g[4], g[5], g[6], g[7])
+        return cls(g[0], g[1], int(ss[2].generate_state(1)[0]), g[3], g[4], g[5], g[6], g[7],
+                   g[8])
 
 
 # --------------------------------------------------------------------------------- plan
@@ -249,25 +251,24 @@ class _PhotoJob:
     texture_seed: int
     photos: object          # the scene's PhotoSpec
     dist: np.ndarray | None
-    K_dist: np.ndarray | None
     folder: Path
     printed: object = None         # a PrintedSheet photographed instead of the analytic one
     height_grid: object = None     # the sheet's height map (render.height), if not flat
 
 
 def _shoot(job: _PhotoJob, tasks, photographer, bar=None) -> int:
-    """Render ``tasks`` ((file, n_marks, T_cam_sheet, arm, rng), in series order) into
-    ``job.folder``; returns how many."""
+    """Render ``tasks`` ((file, n_marks, T_cam_sheet, arm, rng, K_dist), in series order)
+    into ``job.folder``; returns how many."""
     ph = job.photos
     textures = _Textures(job.sheet, job.xy_mm, job.diameters_mm,
                          px_per_mm=ph.texture_px_per_mm, seed=job.texture_seed,
                          printed=job.printed)
     extra = {} if job.height_grid is None else {"height_grid": job.height_grid}
-    for fname, n_marks, T, arm, rng in tasks:
+    for fname, n_marks, T, arm, rng, K_dist in tasks:
         tex = textures.add_marks(n_marks)
         rgb = photographer.photograph(
             tex, extent_mm=job.sheet.extent_mm, T_cam_sheet=T, dist=job.dist,
-            K_dist=job.K_dist, arm=arm, vignetting=ph.vignetting, noise_sigma=ph.noise_sigma,
+            K_dist=K_dist, arm=arm, vignetting=ph.vignetting, noise_sigma=ph.noise_sigma,
             jpeg_quality=None, rng=rng, **extra)
         (job.folder / fname).write_bytes(_encode_image(np.asarray(rgb), ph.jpeg_quality))
         del rgb
@@ -383,7 +384,9 @@ def photographer_K(scene: Scene) -> np.ndarray:
     from vision_cal.render.camera import camera_matrix
 
     cam = scene.camera
-    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px), dtype=float)
+    # the shortest focal length any photo has (phones: camera.f_scatter)
+    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px * (1.0 - cam.f_scatter),
+                                 principal_px=cam.principal_px), dtype=float)
     if not any(cam.dist):
         return K
     w, h = cam.size_px
@@ -400,7 +403,7 @@ def photographer_K(scene: Scene) -> np.ndarray:
     need = np.max(np.abs(xn) / np.maximum(np.abs(np.column_stack([
         np.where(xn[:, 0] < 0, c[0] + 0.5, w - 0.5 - c[0]),
         np.where(xn[:, 1] < 0, c[1] + 0.5, h - 0.5 - c[1])])), 1e-9), axis=0).max()
-    f_ideal = min(cam.f_px, 0.995 / need)
+    f_ideal = min(K[0, 0], 0.995 / need)
     Ki = K.copy()
     Ki[0, 0] = Ki[1, 1] = f_ideal
     return Ki
@@ -436,6 +439,10 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     cam, ph, rob = scene.camera, scene.photos, scene.robot
 
     sh = scene.sheet
+    if printed is None and sh.printed is not None:
+        from vision_cal.render.printed import load_printed_sheet
+
+        printed = load_printed_sheet(sh.printed)
     sheet = make_sheet(size_mm=sh.size_mm, bottom_left_mm=sh.bottom_left_mm,
                        dictionary=sh.dictionary, marker_mm=sh.marker_mm, grid=sh.grid,
                        margin_mm=sh.margin_mm) if printed is None else printed.sheet
@@ -459,15 +466,28 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     n = len(plan)
     diameters = rob.pen_diameter_mm * np.ones(n)
 
-    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px), dtype=float)
+    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px,
+                                 principal_px=cam.principal_px), dtype=float)
     dist = np.asarray(cam.dist, dtype=float)
-    views = default_views(sheet, n=cam.n_views, size_px=cam.size_px, K=K, tilt_deg=cam.tilt_deg,
-                          rng=st.views, fill=cam.fill, target_jitter=(1.0 - cam.fill) / 2)
+    # the views keep the sheet in frame at the longest focal length any photo has
+    K_long = K.copy()
+    K_long[0, 0] = K_long[1, 1] = cam.f_px * (1.0 + cam.f_scatter)
+    views = default_views(sheet, n=cam.n_views, size_px=cam.size_px, K=K_long,
+                          tilt_deg=cam.tilt_deg, rng=st.views, fill=cam.fill,
+                          target_jitter=(1.0 - cam.fill) / 2)
     ext = "jpg" if ph.jpeg_quality is not None else "png"
     if ph.mode == "series":
         shots = [(f"img_{k:03d}.{ext}", k + 1) for k in range(n)]
     else:
         shots = [(f"img_000.{ext}", n)]
+    # each photo's camera matrix: phones refocus between photos (camera.f_scatter)
+    Ks = []
+    for _ in shots:
+        Ki = K.copy()
+        if cam.f_scatter > 0:
+            Ki[0, 0] = Ki[1, 1] = cam.f_px * st.focal.uniform(1 - cam.f_scatter,
+                                                              1 + cam.f_scatter)
+        Ks.append(Ki)
 
     K_ideal = photographer_K(scene)
     own = photographer is None
@@ -499,11 +519,14 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
                 q_park = parking_pose(truth, sheet.extent_mm, rng=st.park)
                 arm = arm_boxes(truth, q_park)
                 parked[fname] = [float(v) for v in q_park]
-            tasks.append((fname, n_marks, T, arm, photo_rngs[i]))
+            Ki = Ks[i]
+            lens = any(dist) or not np.allclose(Ki, K_ideal)
+            tasks.append((fname, n_marks, T, arm, photo_rngs[i], Ki if lens else None))
             images.append({"file": fname, "marks": list(world.ids[:n_marks])})
             poses[fname] = T.tolist()
+            K_photo[fname] = Ki.tolist()
         job = _PhotoJob(sheet, world.xy_mm, diameters, st.texture_seed, ph,
-                        dist if any(dist) else None, K if any(dist) else None, tmp,
+                        dist if any(dist) else None, tmp,
                         printed, height_grid)
         n_jobs = min(int(jobs or 1), len(tasks)) if own else 1
         from vision_cal.progress import bar as progress_bar
@@ -551,7 +574,8 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
             "effects": effects,
             "marks": {mid: world.xy_mm[i].tolist() for i, mid in enumerate(world.ids)},
             "camera": {"size_px": list(cam.size_px), "K": K.tolist(), "dist": dist.tolist(),
-                       "declared": cam.declared, "T_cam_sheet": poses},
+                       "declared": cam.declared, "T_cam_sheet": poses,
+                       "K_per_photo": K_photo},
             # added fields: how the world got there
             "repeatability_mm": rob.repeatability_mm,
             "controller": rob.controller if joint_source is None else "custom",
