@@ -508,7 +508,7 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     try:
         # everything random is drawn here, in photo order, so the photos do not depend on
         # how many processes render them (serial and --jobs N are bit-identical)
-        images, poses, parked, tasks = [], {}, {}, []
+        images, poses, parked, tasks, K_photo = [], {}, {}, [], {}
         photo_rngs = st.photos.spawn(len(shots))
         for i, (fname, n_marks) in enumerate(shots):
             # the views are rigid poses of the arm frame; a deformed sheet (sheet_affine)
