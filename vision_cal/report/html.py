@@ -281,10 +281,14 @@ def _provenance_html(rep: dict) -> str:
                                                         for s in p["photos_skipped"]]))
     cfg = p["configuration"]
     crow = []
+
+    def _v(v):
+        return f"{v:.4g}" if isinstance(v, float) else _e(v)
+
     for group, vals in cfg.items():
         if isinstance(vals, dict):
             for k, v in vals.items():
-                crow.append([_e(group), _e(k), _e(v)])
+                crow.append([_e(group), _e(k), _v(v)])
         elif vals is not None:
             crow.append([_e(group), "", _e(vals)])
     out.append("<h3>Configuration (thresholds in force)</h3>"
