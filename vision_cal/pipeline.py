@@ -208,6 +208,10 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                  "approach": data.approach[i].astype(int).tolist()}
         if data.sigma_mm is not None:
             entry["sigma_mm"] = float(data.sigma_mm[i])
+        if measurement is not None and mid in measurement.marks:
+            from vision_cal.measure.batch import mark_reference_json
+
+            entry.update(mark_reference_json(measurement.marks[mid]))
         marks[mid] = entry
     doc["marks"] = marks
     if missing:

@@ -27,11 +27,38 @@ class SheetMarker:
 
 
 @dataclass(frozen=True)
+class SheetGrid:
+    """The printed plotting grid (``sheet.grid``): lines at ``origin_mm + k * pitch_mm``
+    in x and in y; every ``bold_every``-th one (counted from the origin) is bold. Added
+    optional fields: ``fine_width_mm`` / ``bold_width_mm`` (line widths) and ``extent_mm``
+    ([x0, y0, x1, y1], where the lines are printed; absent: the whole paper)."""
+
+    pitch_mm: float = 1.0
+    bold_every: int = 10
+    origin_mm: tuple[float, float] = (0.0, 0.0)
+    fine_width_mm: float | None = None
+    bold_width_mm: float | None = None
+    extent_mm: tuple[float, float, float, float] | None = None
+
+    def to_json(self) -> dict:
+        d = {"pitch_mm": self.pitch_mm, "bold_every": self.bold_every,
+             "origin_mm": list(self.origin_mm)}
+        if self.fine_width_mm is not None:
+            d["fine_width_mm"] = self.fine_width_mm
+        if self.bold_width_mm is not None:
+            d["bold_width_mm"] = self.bold_width_mm
+        if self.extent_mm is not None:
+            d["extent_mm"] = list(self.extent_mm)
+        return d
+
+
+@dataclass(frozen=True)
 class Sheet:
     aruco_dictionary: str
     markers: tuple[SheetMarker, ...]
     size_mm: tuple[float, float]
     bottom_left_mm: tuple[float, float] = (0.0, 0.0)  # added field: paper corner in frame S
+    grid: SheetGrid | None = None                      # the printed grid, when declared
 
     @property
     def extent_mm(self) -> tuple[float, float, float, float]:
@@ -43,7 +70,8 @@ class Sheet:
         return {"aruco_dictionary": self.aruco_dictionary,
                 "markers": [{"id": m.id, "corners_mm": np.asarray(m.corners_mm).tolist()}
                             for m in self.markers],
-                "size_mm": list(self.size_mm), "bottom_left_mm": list(self.bottom_left_mm)}
+                "size_mm": list(self.size_mm), "bottom_left_mm": list(self.bottom_left_mm),
+                **({"grid": self.grid.to_json()} if self.grid is not None else {})}
 
     def corners_by_id(self) -> dict[int, np.ndarray]:
         return {m.id: m.corners_mm for m in self.markers}
@@ -185,6 +213,37 @@ def _aruco_dictionary_ok(name: str) -> bool:
     return name.startswith("DICT_") and isinstance(getattr(cv2.aruco, name, None), int)
 
 
+def _sheet_grid(r: "_Reader", g) -> SheetGrid | None:
+    """``sheet.grid`` (optional): pitch, bold_every, origin; line widths and extent added."""
+    if g is None:
+        return None
+    if not isinstance(g, dict):
+        r.fail("sheet.grid", f"expected an object like {{\"pitch_mm\": 1.0, \"bold_every\": "
+                             f"10, \"origin_mm\": [x, y]}}, got {g!r}")
+    pitch = r.number(r.get(g, "pitch_mm", "sheet.grid"), "sheet.grid.pitch_mm")
+    if pitch <= 0:
+        r.fail("sheet.grid.pitch_mm", f"expected a positive pitch, got {pitch}")
+    bold = g.get("bold_every", 10)
+    if isinstance(bold, bool) or not isinstance(bold, int) or bold < 1:
+        r.fail("sheet.grid.bold_every", f"expected a positive integer, got {bold!r}")
+    origin = r.vector(g.get("origin_mm", [0.0, 0.0]), "sheet.grid.origin_mm", 2)
+    widths = {}
+    for k in ("fine_width_mm", "bold_width_mm"):
+        if g.get(k) is not None:
+            v = r.number(g[k], f"sheet.grid.{k}")
+            if v <= 0 or v >= pitch:
+                r.fail(f"sheet.grid.{k}", f"expected a width between 0 and the pitch, got {v}")
+            widths[k] = v
+    ext = None
+    if g.get("extent_mm") is not None:
+        ext = r.vector(g["extent_mm"], "sheet.grid.extent_mm", 4)
+        if ext[2] <= ext[0] or ext[3] <= ext[1]:
+            r.fail("sheet.grid.extent_mm", f"expected [x0, y0, x1, y1] with x1 > x0 and "
+                                           f"y1 > y0, got {list(ext)}")
+    return SheetGrid(pitch, int(bold), origin, widths.get("fine_width_mm"),
+                     widths.get("bold_width_mm"), ext)
+
+
 def load_session(folder) -> Session:
     """Read and validate ``folder/session.json`` (or a path to the file itself)."""
     folder = Path(folder)
@@ -296,7 +355,8 @@ def load_session(folder) -> Session:
             mks.append(SheetMarker(int(mid), c))
         bl_raw = sheet_raw.get("bottom_left_mm")
         bl = r.vector(bl_raw, "sheet.bottom_left_mm", 2) if bl_raw is not None else (0.0, 0.0)
-        sheet = Sheet(d, tuple(mks), size, bl)
+        grid = _sheet_grid(r, sheet_raw.get("grid"))
+        sheet = Sheet(d, tuple(mks), size, bl, grid)
 
     # camera
     camera = None

@@ -61,6 +61,10 @@ class ImageDetections:
     corners_mm: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 2)))
     candidates: DotCandidates | None = None
     edges_px: np.ndarray | None = None  # (M, 4, n, 2) sub-pixel points on marker edges
+    # with a declared sheet.grid: per candidate a wider uint16 patch of R+G+B around it (the
+    # printed lines that are its local reference) and its top-left (col, row)
+    grid_patches: tuple | None = None
+    grid_origins: np.ndarray | None = None
 
     def corners_for(self, K=None, dist=None) -> np.ndarray:
         """Marker corners (M, 4, 2) in raw px: intersections of the border edges, fitted
@@ -96,6 +100,12 @@ class ImageResult:
     from_cache: bool = False
     marker_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, int))   # (M,)
     markers_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 2)))  # (M, 4, 2)
+    # added: the marker-mapping centre of each dot (K, 2), the printed-grid offset seen
+    # around it (K, 2; NaN where the grid was not used) and which reference was used
+    dots_global_xy_mm: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    dots_grid_offset_mm: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    dots_reference: tuple = ()
+    mapping: object | None = field(default=None, repr=False, compare=False)
 
     def to_json(self) -> dict:
         """The photo's entry of calibration.json ``images[]``."""
@@ -123,6 +133,9 @@ class MarkMeasurement:
     spread_mm: float
     how: str = "model"
     files: tuple[str, ...] = ()
+    reference: str = "markers"          # grid | markers | mixed: what the photos measured against
+    local_minus_global_mm: np.ndarray | None = None   # mean over photos of (grid - markers)
+    local_minus_global_std_mm: np.ndarray | None = None
 
     @property
     def std_mm(self) -> np.ndarray:
@@ -146,7 +159,8 @@ class Measurement:
 
     def to_json(self) -> dict:
         return {"marks": {k: {"measured_mm": m.xy_mm.tolist(), "cov_mm2": m.cov_mm2.tolist(),
-                              "n_photos": m.n_photos, "spread_mm": m.spread_mm, "how": m.how}
+                              "n_photos": m.n_photos, "spread_mm": m.spread_mm, "how": m.how,
+                              **mark_reference_json(m)}
                           for k, m in self.marks.items()},
                 "images": self.images_json(), "effects": self.effects_json(),
                 "lens": None if self.lens is None else {
@@ -154,6 +168,15 @@ class Measurement:
                     "candidates_heldout_rms_px": self.lens.candidates},
                 "unassigned": self.unassigned, "refused": self.refused,
                 "warnings": self.warnings}
+
+
+def mark_reference_json(m: "MarkMeasurement") -> dict:
+    """Added mark fields: the reference used and the local-versus-global difference."""
+    d = {"reference": m.reference}
+    if m.local_minus_global_mm is not None:
+        d["local_minus_global_mm"] = [float(v) for v in m.local_minus_global_mm]
+        d["local_minus_global_std_mm"] = [float(v) for v in m.local_minus_global_std_mm]
+    return d
 
 
 # --------------------------------------------------------------------------- stage 1
@@ -241,7 +264,28 @@ def detect_image_bytes(data: bytes, file: str, session: Session) -> ImageDetecti
     except VisionCalError as e:
         return _skip(file, f"no mapping: {e.reason}", size)
     cand = find_candidates(rgb, approx, session.sheet, dia_mm=session.pen_mark_diameter_mm)
-    return replace(out, candidates=cand)
+    gp, go = None, None
+    if session.sheet.grid is not None and len(cand.uv_px):
+        gp, go = _grid_patches(rgb, approx, cand.uv_px)
+    return replace(out, candidates=cand, grid_patches=gp, grid_origins=go)
+
+
+def _grid_patches(rgb, mapping, uv_px):
+    """uint16 R+G+B patches around each candidate wide enough for the local grid window."""
+    from vision_cal.measure.grid import GRID_HALF_MM
+
+    H, W = rgb.shape[:2]
+    xy = mapping.image_to_sheet(uv_px)
+    mmpp = mapping.mm_per_px(xy)
+    patches, origins = [], []
+    for (u, v), mpp in zip(uv_px, mmpp):
+        hp = int(np.ceil(1.2 * (GRID_HALF_MM + 0.5) / max(float(mpp), 1e-6))) + 2
+        cu, cv_ = int(round(u)), int(round(v))
+        c0, r0 = max(cu - hp, 0), max(cv_ - hp, 0)
+        c1, r1 = min(cu + hp + 1, W), min(cv_ + hp + 1, H)
+        patches.append(rgb[r0:r1, c0:c1].astype(np.uint16).sum(axis=2, dtype=np.uint16))
+        origins.append((c0, r0))
+    return tuple(patches), np.asarray(origins, int).reshape(-1, 2)
 
 
 def detect_image(path, session: Session) -> ImageDetections:
@@ -277,23 +321,50 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     c = det.candidates
     dia = session.pen_mark_diameter_mm
     xy0 = m.image_to_sheet(c.uv_px) if len(c.uv_px) else np.zeros((0, 2))
-    xs, covs, uvs = [], [], []
+    xs, covs, uvs, xg, offs, refs = [], [], [], [], [], []
     rejected = dict(c.rejected)
     blank = blank_regions(session.sheet)
-    for patch, org, x0, uv in zip(c.patches, c.origins, xy0, c.uv_px):
+    grid = session.sheet.grid
+    have_grid = grid is not None and det.grid_patches is not None
+    for k, (patch, org, x0, uv) in enumerate(zip(c.patches, c.origins, xy0, c.uv_px)):
         r = refine_dot(patch, org, m, x0, dia_mm=dia, noise_sigma=c.noise_sigma,
                        blank_rects=blank)
         if r is None:
             rejected["not measurable"] = rejected.get("not measurable", 0) + 1
             continue
-        xs.append(r.xy_mm)
-        covs.append(r.cov_mm2)
+        xy, cov, off, ref = r.xy_mm, r.cov_mm2, np.full(2, np.nan), "markers"
+        if have_grid:
+            go = _local_grid(det, k, m, r.xy_mm, grid, dia, blank)
+            if go is not None:
+                # the dot against the printed lines around it: the marker mapping's error
+                # (and a raised paper's parallax) cancels, the lines' own noise adds
+                xy, off, ref = r.xy_mm - go.d_mm, go.d_mm, "grid"
+                cov = r.cov_noise_mm2 + go.cov_mm2
+        xs.append(xy)
+        covs.append(cov)
         uvs.append(uv)
+        xg.append(r.xy_mm)
+        offs.append(off)
+        refs.append(ref)
     return ImageResult(det.file, "ok", None, len(det.marker_ids), m.corner_rms_px,
                        m.corner_rms_mm, len(xs), np.asarray(xs).reshape(-1, 2),
                        np.asarray(covs).reshape(-1, 2, 2), np.asarray(uvs).reshape(-1, 2),
                        rejected, c.noise_sigma, det.size_px, from_cache,
-                       np.asarray(det.marker_ids), det.corners_for(K, dist))
+                       np.asarray(det.marker_ids), det.corners_for(K, dist),
+                       np.asarray(xg).reshape(-1, 2), np.asarray(offs).reshape(-1, 2),
+                       tuple(refs), m)
+
+
+def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank):
+    """The printed grid's offset around candidate ``k`` (None: not usable)."""
+    from vision_cal.measure.dots import DEFAULT_DIAMETER_MM, _radii_mm
+    from vision_cal.measure.grid import grid_offset
+
+    if k >= len(det.grid_patches):
+        return None
+    r_win, _ = _radii_mm(float(dia or DEFAULT_DIAMETER_MM), float(mapping.mm_per_px(xy_mm)[0]))
+    return grid_offset(det.grid_patches[k], det.grid_origins[k], mapping, xy_mm, grid,
+                       exclude_r_mm=r_win, blank_rects=blank)
 
 
 def measure_image(path, session: Session, *, lens: LensEstimate | None = None) -> ImageResult:
@@ -429,8 +500,18 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
         g = groups[gi]
         used.add(gi)
         xy, cov, spread = assoc.combine(g)
+        refs = [images[k].dots_reference[j] for k, j in zip(g.images, g.dot_index)]
+        ref = refs[0] if len(set(refs)) == 1 else "mixed"
+        offs = np.array([images[k].dots_grid_offset_mm[j] for k, j in zip(g.images, g.dot_index)])
+        offs = offs[np.all(np.isfinite(offs), axis=1)]
+        lmg = lmg_sd = None
+        if len(offs):  # local minus global = minus the grid's offset
+            lmg = -offs.mean(axis=0)
+            lmg_sd = (offs.std(axis=0, ddof=1) / np.sqrt(len(offs)) if len(offs) > 1
+                      else np.full(2, np.nan))
         marks[mid] = MarkMeasurement(xy, cov, len(g.images), spread, a.how.get(mid, "model"),
-                                     tuple(session.images[k].file for k in g.images))
+                                     tuple(session.images[k].file for k in g.images), ref,
+                                     lmg, lmg_sd)
     unassigned = [{"xy_mm": g.mean_mm.tolist(),
                    "files": [session.images[k].file for k in g.images]}
                   for gi, g in enumerate(groups) if gi not in used]
