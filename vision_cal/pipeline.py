@@ -197,6 +197,11 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     doc["nominal"] = nominal.to_json()
     if measurement is not None and measurement.lens is not None and measurement.lens.kept:
         doc["effects"] = [measurement.lens.to_effect_json()] + doc["effects"]
+    if measurement is not None and measurement.height_map is not None:
+        hm = measurement.height_map
+        if hm.claimed:
+            doc["effects"] = doc["effects"] + [hm.to_effect_json()]
+        doc.setdefault("diagnosis", {})["sheet_height"] = hm.to_json()
     if data.sigma_mm is not None:
         doc["noise_floor_mm"] = float(np.sqrt(2 * np.mean(data.sigma_mm**2)))
     marks = {}
@@ -209,9 +214,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         if data.sigma_mm is not None:
             entry["sigma_mm"] = float(data.sigma_mm[i])
         if measurement is not None and mid in measurement.marks:
-            from vision_cal.measure.batch import mark_reference_json
-
-            entry.update(mark_reference_json(measurement.marks[mid]))
+            entry.update(measurement.mark_json(mid))
         marks[mid] = entry
     doc["marks"] = marks
     if missing:

@@ -105,7 +105,10 @@ class ImageResult:
     dots_global_xy_mm: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     dots_grid_offset_mm: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     dots_reference: tuple = ()
+    dots_global_cov_mm2: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
+    dots_grid_offset_cov_mm2: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
     mapping: object | None = field(default=None, repr=False, compare=False)
+    K: np.ndarray | None = None     # the lens used for this photo's mapping (None: unknown)
 
     def to_json(self) -> dict:
         """The photo's entry of calibration.json ``images[]``."""
@@ -150,24 +153,39 @@ class Measurement:
     unassigned: list = field(default_factory=list)
     refused: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+    heights: dict = field(default_factory=dict)     # id -> measure.height.MarkHeight
+    height_map: object | None = None                # measure.height.HeightMap
+    height_note: str | None = None
 
     def images_json(self) -> list[dict]:
         return [im.to_json() for im in self.images]
 
     def effects_json(self) -> list[dict]:
-        return [self.lens.to_effect_json()] if self.lens is not None and self.lens.kept else []
+        out = [self.lens.to_effect_json()] if self.lens is not None and self.lens.kept else []
+        if self.height_map is not None and self.height_map.claimed:
+            out.append(self.height_map.to_effect_json())
+        return out
+
+    def mark_json(self, mid: str) -> dict:
+        """Added per-mark fields: reference, local-minus-global difference, height."""
+        d = mark_reference_json(self.marks[mid])
+        if mid in self.heights:
+            d.update(self.heights[mid].to_json())
+        return d
 
     def to_json(self) -> dict:
         return {"marks": {k: {"measured_mm": m.xy_mm.tolist(), "cov_mm2": m.cov_mm2.tolist(),
                               "n_photos": m.n_photos, "spread_mm": m.spread_mm, "how": m.how,
-                              **mark_reference_json(m)}
+                              **self.mark_json(k)}
                           for k, m in self.marks.items()},
                 "images": self.images_json(), "effects": self.effects_json(),
                 "lens": None if self.lens is None else {
                     **self.lens.to_effect_json(), "kept": self.lens.kept,
                     "candidates_heldout_rms_px": self.lens.candidates},
                 "unassigned": self.unassigned, "refused": self.refused,
-                "warnings": self.warnings}
+                "warnings": self.warnings,
+                "sheet_height": (self.height_map.to_json() if self.height_map is not None
+                                 else {"claimed": False, "note": self.height_note})}
 
 
 def mark_reference_json(m: "MarkMeasurement") -> dict:
@@ -321,7 +339,7 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     c = det.candidates
     dia = session.pen_mark_diameter_mm
     xy0 = m.image_to_sheet(c.uv_px) if len(c.uv_px) else np.zeros((0, 2))
-    xs, covs, uvs, xg, offs, refs = [], [], [], [], [], []
+    xs, covs, uvs, xg, offs, refs, gcov, ocov = [], [], [], [], [], [], [], []
     rejected = dict(c.rejected)
     blank = blank_regions(session.sheet)
     grid = session.sheet.grid
@@ -333,6 +351,7 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
             rejected["not measurable"] = rejected.get("not measurable", 0) + 1
             continue
         xy, cov, off, ref = r.xy_mm, r.cov_mm2, np.full(2, np.nan), "markers"
+        oc = np.full((2, 2), np.nan)
         if have_grid:
             go = _local_grid(det, k, m, r.xy_mm, grid, dia, blank)
             if go is not None:
@@ -340,11 +359,14 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
                 # (and a raised paper's parallax) cancels, the lines' own noise adds
                 xy, off, ref = r.xy_mm - go.d_mm, go.d_mm, "grid"
                 cov = r.cov_noise_mm2 + go.cov_mm2
+                oc = go.cov_mm2
         xs.append(xy)
         covs.append(cov)
         uvs.append(uv)
         xg.append(r.xy_mm)
         offs.append(off)
+        gcov.append(r.cov_mm2)
+        ocov.append(oc)
         refs.append(ref)
     return ImageResult(det.file, "ok", None, len(det.marker_ids), m.corner_rms_px,
                        m.corner_rms_mm, len(xs), np.asarray(xs).reshape(-1, 2),
@@ -352,7 +374,8 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
                        rejected, c.noise_sigma, det.size_px, from_cache,
                        np.asarray(det.marker_ids), det.corners_for(K, dist),
                        np.asarray(xg).reshape(-1, 2), np.asarray(offs).reshape(-1, 2),
-                       tuple(refs), m)
+                       tuple(refs), np.asarray(gcov).reshape(-1, 2, 2),
+                       np.asarray(ocov).reshape(-1, 2, 2), m, K)
 
 
 def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank):
@@ -516,9 +539,28 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                    "files": [session.images[k].file for k in g.images]}
                   for gi, g in enumerate(groups) if gi not in used]
     refused = {k: v for k, v in a.refused.items()}
+    # stage 4: the sheet's height (parallax against the grid or between camera places)
+    from vision_cal.measure.height import sheet_heights
+
+    groups_of = {mid: list(zip(groups[gi].images, groups[gi].dot_index))
+                 for mid, gi in a.mark_to_group.items()}
+    heights, hmap, hnote = {}, None, None
+    try:
+        heights, hmap, hnote = sheet_heights(images, marks, groups_of, session.sheet.extent_mm,
+                                             K_fallback=None if lens is None else lens.K)
+    except (VisionCalError, np.linalg.LinAlgError) as e:
+        hnote = f"no height map: {e}"
+    if hmap is not None and hmap.claimed:
+        # the paper is not flat: marks seen only through the marker mapping take the paper
+        # position that parallax between camera places found
+        for mid, h in heights.items():
+            mm = marks[mid]
+            if mm.reference == "markers" and h.xy_mm is not None:
+                marks[mid] = replace(mm, xy_mm=h.xy_mm, cov_mm2=h.cov_xy_mm2,
+                                     reference="parallax")
     for r in images:
         if r.status != "ok":
             log.info("skipped %s: %s", r.file, r.reason)
-    meas = Measurement(marks, images, lens, unassigned, refused, warnings)
+    meas = Measurement(marks, images, lens, unassigned, refused, warnings, heights, hmap, hnote)
     atomic_write_json(out_dir / "measurement.json", meas.to_json())
     return meas
