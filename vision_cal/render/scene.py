@@ -61,6 +61,10 @@ Sections and fields::
       fill: 0.96                  # the paper's corners stay inside this central fraction
                                   # of the image (the view aims within (1-fill)/2 of the
                                   # sheet size of its centre)
+      principal_px: null          # [u, v] principal point in pixels (null: image centre)
+      f_scatter: 0.0              # phones: each photo's focal length is f_px times a
+                                  # factor drawn uniformly in [1 - f_scatter, 1 + f_scatter]
+                                  # (needs declared: false; the contract has one K)
     photos:
       mode: series                # series: one photo after each mark | single: one photo
       texture_px_per_mm: 8.0      # resolution of the rendered sheet texture
@@ -170,6 +174,8 @@ class CameraScene:
     tilt_deg: tuple[float, float] = (0.0, 12.0)
     moving: bool = False
     fill: float = 0.96
+    principal_px: tuple[float, float] | None = None
+    f_scatter: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -401,7 +407,7 @@ def _plan(r: _R, d) -> PlanScene:
 
 def _camera(r: _R, d) -> CameraScene:
     d = r.section(d, "camera", ("size_px", "f_px", "dist", "declared", "n_views", "tilt_deg",
-                                "moving", "fill"))
+                                "moving", "fill", "principal_px", "f_scatter"))
     dflt = CameraScene()
     size = d.get("size_px", list(dflt.size_px))
     if not isinstance(size, (list, tuple)) or len(size) != 2:
@@ -420,7 +426,17 @@ def _camera(r: _R, d) -> CameraScene:
         tilt = (0.0, r.number(tilt_raw, "camera.tilt_deg", lo=0, hi=60))
     moving = r.boolean(d.get("moving", dflt.moving), "camera.moving")
     fill = r.number(d.get("fill", dflt.fill), "camera.fill", lo=0.3, hi=1.0)
-    return CameraScene(size, f, dist, declared, nv, tilt, moving, fill)
+    pp = d.get("principal_px")
+    if pp is not None:
+        pp = r.vector(pp, "camera.principal_px", 2)
+        if not (0 <= pp[0] <= size[0] - 1 and 0 <= pp[1] <= size[1] - 1):
+            r.fail("camera.principal_px", f"expected a point inside the {size[0]}x{size[1]} "
+                                          f"image, got {list(pp)}")
+    fs = r.number(d.get("f_scatter", dflt.f_scatter), "camera.f_scatter", lo=0, hi=0.5)
+    if fs > 0 and declared:
+        r.fail("camera.f_scatter", "a focal length that changes between photos cannot be "
+                                   "declared (session.json has one K): set declared: false")
+    return CameraScene(size, f, dist, declared, nv, tilt, moving, fill, pp, fs)
 
 
 def _photos(r: _R, d) -> PhotosScene:
