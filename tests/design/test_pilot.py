@@ -95,3 +95,17 @@ def test_unreachable_sheet_is_one_line_naming_the_robot_file(tmp_path, sheet_jso
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "\n" not in err and str(robot) in err and "placement_tolerance" in err
     assert not (tmp_path / "p").exists()
+
+
+def test_refuses_a_folder_that_already_holds_photos(tmp_path, sheet_json, capsys):
+    """A new plan over photos of the old one would pair them with the wrong marks."""
+    from vision_cal.commands.main import main
+
+    out = tmp_path / "pilot"
+    out.mkdir()
+    (out / "IMG_0001.jpg").write_bytes(b"\xff\xd8")
+    (out / "session.json").write_text("{}")
+    rc = main(["design", str(ROBOT), "--sheet", str(sheet_json), "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "\n" not in err and "IMG_0001.jpg" in err
+    assert (out / "session.json").read_text() == "{}"
