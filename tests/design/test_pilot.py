@@ -38,9 +38,14 @@ def test_every_mark_clears_markers_and_edges_for_any_placement(design):
     """Catches: a design checked at the nominal placement only (marks then land on a
     marker or off the paper for a real robot 35 mm / 10 deg away)."""
     robot, sheet, d = design
+    from vision_cal.render.truth_model import TrueRobot
+
     q = np.array([m.joints_deg for m in d.marks])
     P = random_placements(robot, 2000, np.random.default_rng(1))
-    xy = pens_mm(P, q).reshape(-1, 2)
+    # where the pen lands, by the world's own robot (not the design's pens_mm)
+    xy = np.vstack([TrueRobot(p[0], p[1], tuple(np.degrees(p[2:4])), tuple(p[4:6])).pen_mm(q)
+                    for p in P])
+    assert np.allclose(xy[:9], pens_mm(P[:1], q)[0])
     need = robot.mark_diameter_mm / 2          # a mark must not touch a marker or an edge
     assert sheet_clearance_mm(sheet, xy).min() >= need
     assert d.worst_clearance_mm >= d.required_clearance_mm
