@@ -41,7 +41,6 @@ def run(args) -> int:
     from vision_cal.dataset.calibration import load_calibration
     from vision_cal.dataset.csvio import read_targets, write_plan
     from vision_cal.plan.compensate import plan_targets
-
     from vision_cal.plan.uncertainty import load_covariance, predicted_std_mm
 
     robot = None
