@@ -39,10 +39,10 @@ def default_targets(sheet, params: ScaraParams, *, n_grid: int = 20, n_path: int
     """Ids and sheet points (N, 2): the origin, a grid over the reachable free paper, and a
     short path (an arc of ``n_path`` points) - all clear of markers and edges."""
     from vision_cal.plan.calibration_plan import sheet_clearance_mm
-    from vision_cal.plan.compensate import DEFAULT_LIMITS_DEG
+    from vision_cal.motion import JOINT_LIMITS_DEG
 
     rng = np.random.default_rng(0 if rng is None else rng)
-    lim = np.array(DEFAULT_LIMITS_DEG) * 0.95  # a margin for the effects and the overshoot
+    lim = np.array(JOINT_LIMITS_DEG) * 0.95  # a margin for the effects and the overshoot
     x0, y0, x1, y1 = sheet.extent_mm
 
     def usable(p):

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vision_cal.errors import VisionCalError
+from vision_cal.motion import TRAJECTORY_DT_S
 from vision_cal.plan.trajectory import Trajectory, plan_trajectory
 from vision_cal.simulate.controller import make_controller
 from vision_cal.simulate.dynamics import ScaraDynamics, Stepper
@@ -64,7 +65,7 @@ def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), contro
                   dynamics: ScaraDynamics | None = None, dt_s: float = 0.001,
                   settle_tol_deg: float = 1e-4, rng=None, encoder_noise_deg: float = 0.0,
                   max_settle_s: float = 5.0, trace_every: int = 16,
-                  trajectory: Trajectory | None = None, trajectory_dt_s: float = 0.016,
+                  trajectory: Trajectory | None = None, trajectory_dt_s: float = TRAJECTORY_DT_S,
                   **trajectory_kwargs) -> SimResult:
     """Run ``marks`` (list of :class:`~vision_cal.plan.calibration_plan.PlannedMark`).
 
@@ -105,7 +106,7 @@ def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), contro
     marks_rad = np.radians(np.array([m.joints_deg for m in marks], dtype=float).reshape(-1, 2))
 
     tol = math.radians(settle_tol_deg)
-    vtol = tol / 0.016
+    vtol = tol / TRAJECTORY_DT_S  # settled: slower than the tolerance per trajectory period
     hb1, hb2 = math.radians(band[0]) / 2, math.radians(band[1]) / 2
     # direction tracker: width of the band, or the settle tolerance with no backlash
     dh1 = hb1 if hb1 > 0 else tol / 2
