@@ -30,6 +30,7 @@ from vision_cal.dataset.csvio import write_plan, write_targets
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import ScaraParams, inverse
+from vision_cal.rms import rms
 
 log = logging.getLogger(__name__)
 
@@ -174,10 +175,10 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
         "summary": {
             "n_targets": len(rows),
             "before": {"n_measured": int(len(before)),
-                       "rms_mm": float(np.sqrt(np.mean(before**2))) if len(before) else None,
+                       "rms_mm": rms(before) if len(before) else None,
                        "max_mm": float(before.max()) if len(before) else None},
             "after": {"n_measured": int(len(after)),
-                      "rms_mm": float(np.sqrt(np.mean(after**2))) if len(after) else None,
+                      "rms_mm": rms(after) if len(after) else None,
                       "max_mm": float(after.max()) if len(after) else None},
         },
         "stages_s": stages,

@@ -18,6 +18,7 @@ from vision_cal.calibrate.paper import paper_method
 from vision_cal.dataset.io import atomic_write_json, read_json
 from vision_cal.dataset.session import Session, load_session
 from vision_cal.errors import CalibrationError, VisionCalError
+from vision_cal.rms import rms_2d
 
 log = logging.getLogger(__name__)
 METHODS = ("lsq", "paper")
@@ -78,11 +79,6 @@ def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[st
                     np.array(xy, float).reshape(-1, 2), sigma, tuple(roles)), missing
 
 
-def _rms(r) -> float:
-    r = np.asarray(r, dtype=float).reshape(-1, 2)
-    return float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) if len(r) else float("nan")
-
-
 def _paper_std(q, xy, sigma_mm: float) -> dict:
     """Std of the paper's parameters by linear propagation of mark noise ``sigma_mm``."""
     G = np.zeros((6, xy.size))
@@ -127,9 +123,9 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         res_cal = cal.xy_mm - _predict(params, cal)
         res_val = val.xy_mm - _predict(params, val) if len(val.ids) else np.zeros((0, 2))
         doc.update(params=params.to_json(), std=std, effects=[],
-                   residual_rms_mm={"base_model": _rms(res_cal), "final_model": _rms(res_cal)},
-                   validation_rms_mm={"base_model": _rms(res_val) if len(val.ids) else None,
-                                      "final_model": _rms(res_val) if len(val.ids) else None,
+                   residual_rms_mm={"base_model": rms_2d(res_cal), "final_model": rms_2d(res_cal)},
+                   validation_rms_mm={"base_model": rms_2d(res_val) if len(val.ids) else None,
+                                      "final_model": rms_2d(res_val) if len(val.ids) else None,
                                       "kind": "validation marks" if len(val.ids) else "none"},
                    circles={"base": paper.circle_base.to_json(),
                             "elbow": paper.circle_elbow.to_json()})
@@ -147,8 +143,8 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         fb, ff = diag.base_fit, diag.final_fit
         final_model = ff.model
         has_val = len(val.ids) >= 3
-        vb = _rms(val.xy_mm - fb.predict(val.q_deg, val.approach)) if has_val else diag.heldout_base_mm
-        vf = _rms(val.xy_mm - ff.predict(val.q_deg, val.approach)) if has_val else diag.heldout_final_mm
+        vb = rms_2d(val.xy_mm - fb.predict(val.q_deg, val.approach)) if has_val else diag.heldout_base_mm
+        vf = rms_2d(val.xy_mm - ff.predict(val.q_deg, val.approach)) if has_val else diag.heldout_final_mm
         doc.update(
             params=ff.params.to_json(), std=ff.base_std_json, effects=diag.effects_json(),
             residual_rms_mm={"base_model": fb.rms_mm, "final_model": ff.rms_mm},
@@ -254,5 +250,5 @@ def compare_truth(path: Path, doc: dict) -> dict:
     tm = t.get("marks", {})
     errs = [np.subtract(v["measured_mm"], tm[k]) for k, v in doc["marks"].items() if k in tm]
     if errs:
-        out["mark_rms_mm"] = _rms(np.array(errs))
+        out["mark_rms_mm"] = rms_2d(np.array(errs))
     return out

@@ -28,6 +28,7 @@ from vision_cal.calibrate.linear import explain_degeneracy, linear_init
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import RobotModel
+from vision_cal.rms import rms_2d
 
 COND_LIMIT = 1e8
 
@@ -160,7 +161,7 @@ class Fit:
     def rms_mm(self) -> float:
         """RMS of the 2-D residual over the inlier marks (mm)."""
         r = self.residuals_mm[self.inliers]
-        return float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+        return rms_2d(r)
 
     def predict(self, q_deg, approach=None) -> np.ndarray:
         return self.model.predict(q_deg, approach)

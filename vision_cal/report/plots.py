@@ -6,6 +6,8 @@ import io
 
 import numpy as np
 
+from vision_cal.rms import rms_2d
+
 
 def _plt():
     import matplotlib
@@ -48,7 +50,7 @@ def residual_field(report: dict) -> bytes:
         ax.quiver(xy[:, 0], xy[:, 1], r[:, 0], r[:, 1], angles="xy", scale_units="xy",
                   scale=scale, color="tab:red", width=0.004)
         ax.plot(xy[:, 0], xy[:, 1], "k.", ms=3)
-        rms = np.sqrt(np.mean(np.sum(r**2, axis=1))) if len(r) else float("nan")
+        rms = rms_2d(r)
         ax.set_title(f"{title}: residual RMS {rms:.4f} mm")
         ax.set_xlabel("sheet x [mm]")
         ax.set_aspect("equal")
