@@ -185,12 +185,12 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
         "controller": controller,
         "calibration": str(run.out_path),
     }
-    _figures(doc, plans, targets, results, out)
+    _figures(doc, plans, targets, results)
     atomic_write_json(out / "loop.json", doc)
     return doc, run
 
 
-def _figures(doc, plans, targets, results, out: Path) -> None:
+def _figures(doc, plans, targets, results) -> None:
     """Fig. 8-10 of the paper: paths on the sheet and joint trajectories, before/after."""
     import base64
     import io

@@ -210,7 +210,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         doc["missing_marks"] = missing
     doc["images"] = ([im.to_json() for im in measurement.images] if measurement is not None
                      else [])
-    targets = _target_errors(session, data, final_model)
+    targets = _target_errors(session, data)
     if targets:
         doc["targets"] = targets
     if truth:
@@ -226,7 +226,7 @@ def _predict(params, d: MarkData):
     return forward(params, d.q_deg) if len(d.ids) else np.zeros((0, 2))
 
 
-def _target_errors(session: Session, data: MarkData, model) -> list[dict]:
+def _target_errors(session: Session, data: MarkData) -> list[dict]:
     """Absolute error (measured minus target) of marks that carry ``target_mm``."""
     pos = dict(zip(data.ids, data.xy_mm))
     out = []

@@ -8,7 +8,7 @@ import pytest
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import JointBacklash, RobotModel
 from vision_cal.plan.calibration_plan import PlannedMark
-from vision_cal.simulate.dynamics import ScaraDynamics, Stepper, play
+from vision_cal.simulate.dynamics import ScaraDynamics, Stepper
 from vision_cal.simulate.run import simulate_plan
 
 DYN = ScaraDynamics()
@@ -76,12 +76,6 @@ def test_friction_stops_a_coasting_arm():
     for _ in range(3000):
         s = st.step(*s, 0.0, 0.0, 1e-3)
     assert abs(s[2]) < 1e-3 and abs(s[3]) < 1e-3   # no instability from the stiff tanh
-
-
-def test_play_operator():
-    assert play(0.0, 1.0, 0.25) == 0.75     # dragged in +: lags by half the band
-    assert play(0.0, -1.0, 0.25) == -0.75
-    assert play(0.1, 0.2, 0.25) == 0.1      # inside the band: the link stays
 
 
 def _one_mark(q, approach, over=3.0):

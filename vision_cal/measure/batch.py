@@ -162,7 +162,7 @@ def _skip(file, why, size=None) -> ImageDetections:
     return ImageDetections(file, "skipped", why, size)
 
 
-def _decode(data: bytes, file: str):
+def _decode(data: bytes):
     if not data:
         return None, "unreadable: empty file"
     if data[:8] == b"\x89PNG\r\n\x1a\n":
@@ -211,7 +211,7 @@ def _drop_deformed_markers(d: ImageDetections, K, dist, *, min_px: float = 0.5,
 
 def detect_image_bytes(data: bytes, file: str, session: Session) -> ImageDetections:
     """Stage 1 on one photo's bytes (pure function of its inputs)."""
-    rgb, why = _decode(data, file)
+    rgb, why = _decode(data)
     if rgb is None:
         return _skip(file, why)
     h, w = rgb.shape[:2]
