@@ -77,6 +77,7 @@ def render_grid(seeds: int, width: int, only: str | None = None) -> None:
     import yaml
 
     from vision_cal.pipeline import calibrate_dataset
+    from vision_cal.calibrate.paper import pilot_params
     from vision_cal.render.dataset import photographer_K, render_dataset
     from vision_cal.render.photo import Photographer
     from vision_cal.render.scene import scene_from_dict
@@ -111,7 +112,8 @@ def render_grid(seeds: int, width: int, only: str | None = None) -> None:
             if pk not in photographers:
                 photographers[pk] = Photographer(size_px=sc.camera.size_px, K=K)
             with tempfile.TemporaryDirectory() as tmp:
-                folder = render_dataset(sc, Path(tmp) / "d", photographer=photographers[pk])
+                folder = render_dataset(sc, Path(tmp) / "d", pilot=pilot_params,
+                                        photographer=photographers[pk])
                 doc = calibrate_dataset(folder, out_dir=Path(tmp) / "o", truth=True).document
             robot = [e for e in doc["effects"] if e["name"] not in ("lens_distortion",
                                                                      "unexplained")]

@@ -14,6 +14,7 @@ import yaml
 
 from vision_cal.dataset.io import read_json
 from vision_cal.pipeline import calibrate_dataset
+from vision_cal.calibrate.paper import pilot_params
 from vision_cal.render import dataset as ds
 from vision_cal.render.scene import scene_from_dict
 
@@ -47,7 +48,7 @@ def photographer():
 
 
 def calibrate(tmp_path, sc, photographer=None):
-    folder = ds.render_dataset(sc, tmp_path / "data", photographer=photographer)
+    folder = ds.render_dataset(sc, tmp_path / "data", pilot=pilot_params, photographer=photographer)
     run = calibrate_dataset(folder, out_dir=tmp_path / "out", truth=True)
     return run.document, read_json(folder / "truth.json")
 

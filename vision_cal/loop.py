@@ -110,8 +110,10 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
     import time
 
     t = time.perf_counter()
+    from vision_cal.calibrate.paper import pilot_params
+
     session_dir = render_dataset(scene, out / "session", progress=progress,
-                                 photographer=photographer)
+                                 photographer=photographer, pilot=pilot_params)
     stages["render calibration session"] = time.perf_counter() - t
     t = time.perf_counter()
     run = calibrate_dataset(session_dir, out_dir=out / "calibration", jobs=jobs,

@@ -18,6 +18,8 @@ from vision_cal.calibrate.paper import paper_method
 from vision_cal.dataset.io import atomic_write_json, read_json
 from vision_cal.dataset.session import Session, load_session
 from vision_cal.errors import CalibrationError, VisionCalError
+from vision_cal.model import RobotModel
+from vision_cal.plan.uncertainty import covariance_json
 from vision_cal.rms import rms_2d
 
 log = logging.getLogger(__name__)
@@ -79,8 +81,9 @@ def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[st
                     np.array(xy, float).reshape(-1, 2), sigma, tuple(roles)), missing
 
 
-def _paper_std(q, xy, sigma_mm: float) -> dict:
-    """Std of the paper's parameters by linear propagation of mark noise ``sigma_mm``."""
+def _paper_std(q, xy, sigma_mm: float) -> tuple[dict, np.ndarray]:
+    """Std of the paper's parameters by linear propagation of mark noise ``sigma_mm``,
+    and their covariance (6, 6) in internal units."""
     G = np.zeros((6, xy.size))
     h = 1e-4
     for k in range(xy.size):
@@ -89,9 +92,10 @@ def _paper_std(q, xy, sigma_mm: float) -> dict:
         vp = paper_method(q, xy + d.reshape(xy.shape)).params.vector
         vm = paper_method(q, xy - d.reshape(xy.shape)).params.vector
         G[:, k] = (vp - vm) / (2 * h)
-    s = np.sqrt(np.diag(G @ G.T)) * sigma_mm if np.isfinite(sigma_mm) else np.full(6, np.nan)
-    return {"L1_mm": s[0], "L2_mm": s[1], "joint_zero_deg": [np.degrees(s[2]), np.degrees(s[3])],
-            "base_mm": [s[4], s[5]]}
+    cov = G @ G.T * sigma_mm**2 if np.isfinite(sigma_mm) else np.full((6, 6), np.nan)
+    s = np.sqrt(np.diag(cov))
+    return ({"L1_mm": s[0], "L2_mm": s[1], "joint_zero_deg": [np.degrees(s[2]), np.degrees(s[3])],
+             "base_mm": [s[4], s[5]]}, cov)
 
 
 def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None = None,
@@ -119,7 +123,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         params = paper.params
         lsq_sigma = Fit.from_estimate(cal.q_deg, cal.xy_mm, approach=cal.approach,
                                       robust=False).sigma_mm
-        std = _paper_std(cal.q_deg, cal.xy_mm, lsq_sigma)
+        std, cov = _paper_std(cal.q_deg, cal.xy_mm, lsq_sigma)
         res_cal = cal.xy_mm - _predict(params, cal)
         res_val = val.xy_mm - _predict(params, val) if len(val.ids) else np.zeros((0, 2))
         doc.update(params=params.to_json(), std=std, effects=[],
@@ -128,7 +132,8 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                                       "final_model": rms_2d(res_val) if len(val.ids) else None,
                                       "kind": "validation marks" if len(val.ids) else "none"},
                    circles={"base": paper.circle_base.to_json(),
-                            "elbow": paper.circle_elbow.to_json()})
+                            "elbow": paper.circle_elbow.to_json()},
+                   covariance=covariance_json(RobotModel(params).param_labels(), cov))
         final_model = None
         residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
         residual_all.update({i: r for i, r in zip(val.ids, res_val)})
@@ -163,6 +168,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                        "residual_analysis": diag.analysis},
             notes=list(ff.notes),
             sigma_mm=ff.sigma_mm,
+            covariance=covariance_json(ff.labels, ff.cov),
         )
         res_cal = ff.residuals_mm
         res_val = val.xy_mm - ff.predict(val.q_deg, val.approach)

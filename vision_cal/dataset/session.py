@@ -63,6 +63,12 @@ class NominalRobot:
         return ScaraParams(self.L1_mm, self.L2_mm, self.joint_zero_deg[0], self.joint_zero_deg[1],
                            self.base_mm[0], self.base_mm[1])
 
+    def to_json(self) -> dict:
+        """The session's ``robot`` block."""
+        return {"L1_mm": self.L1_mm, "L2_mm": self.L2_mm,
+                "joint_zero_deg": list(self.joint_zero_deg), "base_mm": list(self.base_mm),
+                "home_deg": list(self.home_deg)}
+
 
 @dataclass(frozen=True)
 class Mark:
@@ -174,6 +180,69 @@ def _aruco_dictionary_ok(name: str) -> bool:
     return name.startswith("DICT_") and isinstance(getattr(cv2.aruco, name, None), int)
 
 
+def read_robot_block(r: _Reader, rob, where: str = "robot") -> NominalRobot:
+    """The session's ``robot`` block (also the core of a robot file), validated.
+
+    ``where`` is the block's path in its file (``"robot"`` in session.json, ``""`` for a
+    robot file whose top level is the block)."""
+    def w(key):
+        return f"{where}.{key}" if where else key
+
+    if not isinstance(rob, dict):
+        r.fail(where or "(top level)", f"expected an object, got {type(rob).__name__}")
+    L1 = r.number(r.get(rob, "L1_mm", where), w("L1_mm"))
+    L2 = r.number(r.get(rob, "L2_mm", where), w("L2_mm"))
+    for k, v in (("L1_mm", L1), ("L2_mm", L2)):
+        if v <= 0:
+            r.fail(w(k), f"expected a positive length, got {v}")
+    jz = r.vector(r.get(rob, "joint_zero_deg", where), w("joint_zero_deg"), 2)
+    base = r.vector(r.get(rob, "base_mm", where), w("base_mm"), 2)
+    home_raw = r.get(rob, "home_deg", where, required=False)
+    home = r.vector(home_raw, w("home_deg"), 2) if home_raw is not None else (0.0, 0.0)
+    return NominalRobot(L1, L2, jz, base, home)
+
+
+def read_sheet_block(r: _Reader, sheet_raw, where: str = "sheet", *,
+                     need_markers: bool = True) -> Sheet:
+    """The session's ``sheet`` block (also a whole ``sheet.json``), validated."""
+    def w(key):
+        return f"{where}.{key}" if where else key
+
+    if not isinstance(sheet_raw, dict):
+        r.fail(where or "(top level)", f"expected an object, got {type(sheet_raw).__name__}")
+    d = r.string(r.get(sheet_raw, "aruco_dictionary", where), w("aruco_dictionary"))
+    if not _aruco_dictionary_ok(d):
+        r.fail(w("aruco_dictionary"),
+               f"unknown ArUco dictionary {d!r} (expected an OpenCV name like DICT_5X5_100)")
+    size = r.vector(r.get(sheet_raw, "size_mm", where), w("size_mm"), 2)
+    mk_raw = r.list_(r.get(sheet_raw, "markers", where), w("markers"),
+                     nonempty=need_markers)
+    mks: list[SheetMarker] = []
+    ids_seen: set[int] = set()
+    for i, mk in enumerate(mk_raw):
+        wm = w(f"markers[{i}]")
+        mid = r.get(mk, "id", wm)
+        if isinstance(mid, bool) or not isinstance(mid, int) or mid < 0:
+            r.fail(f"{wm}.id", f"expected a non-negative integer, got {mid!r}")
+        if mid in ids_seen:
+            r.fail(f"{wm}.id", f"duplicate marker id {mid}")
+        ids_seen.add(mid)
+        cs = r.list_(r.get(mk, "corners_mm", wm), f"{wm}.corners_mm")
+        if len(cs) != 4:
+            r.fail(f"{wm}.corners_mm", f"expected 4 corners, got {len(cs)}")
+        c = np.array([r.vector(p, f"{wm}.corners_mm[{j}]", 2) for j, p in enumerate(cs)])
+        mks.append(SheetMarker(int(mid), c))
+    bl_raw = sheet_raw.get("bottom_left_mm")
+    bl = r.vector(bl_raw, w("bottom_left_mm"), 2) if bl_raw is not None else (0.0, 0.0)
+    return Sheet(d, tuple(mks), size, bl)
+
+
+def load_sheet_file(path) -> Sheet:
+    """Read and validate a ``sheet.json`` (the session's sheet block on its own)."""
+    path = Path(path)
+    return read_sheet_block(_Reader(str(path)), read_json(path), "")
+
+
 def load_session(folder) -> Session:
     """Read and validate ``folder/session.json`` (or a path to the file itself)."""
     folder = Path(folder)
@@ -191,18 +260,7 @@ def load_session(folder) -> Session:
     if fmt != FORMAT:
         r.fail("format", f"expected {FORMAT!r}, got {fmt!r}")
 
-    # robot
-    rob = r.get(raw, "robot", "")
-    L1 = r.number(r.get(rob, "L1_mm", "robot"), "robot.L1_mm")
-    L2 = r.number(r.get(rob, "L2_mm", "robot"), "robot.L2_mm")
-    for k, v in (("L1_mm", L1), ("L2_mm", L2)):
-        if v <= 0:
-            r.fail(f"robot.{k}", f"expected a positive length, got {v}")
-    jz = r.vector(r.get(rob, "joint_zero_deg", "robot"), "robot.joint_zero_deg", 2)
-    base = r.vector(r.get(rob, "base_mm", "robot"), "robot.base_mm", 2)
-    home_raw = r.get(rob, "home_deg", "robot", required=False)
-    home = r.vector(home_raw, "robot.home_deg", 2) if home_raw is not None else (0.0, 0.0)
-    robot = NominalRobot(L1, L2, jz, base, home)
+    robot = read_robot_block(r, r.get(raw, "robot", ""), "robot")
 
     # marks
     marks_raw = r.list_(r.get(raw, "marks", ""), "marks", nonempty=True)
@@ -261,31 +319,7 @@ def load_session(folder) -> Session:
         if images:
             r.fail("sheet", "missing required field (images need the printed ArUco grid)")
     else:
-        d = r.string(r.get(sheet_raw, "aruco_dictionary", "sheet"), "sheet.aruco_dictionary")
-        if not _aruco_dictionary_ok(d):
-            r.fail("sheet.aruco_dictionary",
-                   f"unknown ArUco dictionary {d!r} (expected an OpenCV name like DICT_5X5_100)")
-        size = r.vector(r.get(sheet_raw, "size_mm", "sheet"), "sheet.size_mm", 2)
-        mk_raw = r.list_(r.get(sheet_raw, "markers", "sheet"), "sheet.markers",
-                         nonempty=bool(images))
-        mks: list[SheetMarker] = []
-        ids_seen: set[int] = set()
-        for i, mk in enumerate(mk_raw):
-            w = f"sheet.markers[{i}]"
-            mid = r.get(mk, "id", w)
-            if isinstance(mid, bool) or not isinstance(mid, int) or mid < 0:
-                r.fail(f"{w}.id", f"expected a non-negative integer, got {mid!r}")
-            if mid in ids_seen:
-                r.fail(f"{w}.id", f"duplicate marker id {mid}")
-            ids_seen.add(mid)
-            cs = r.list_(r.get(mk, "corners_mm", w), f"{w}.corners_mm")
-            if len(cs) != 4:
-                r.fail(f"{w}.corners_mm", f"expected 4 corners, got {len(cs)}")
-            c = np.array([r.vector(p, f"{w}.corners_mm[{j}]", 2) for j, p in enumerate(cs)])
-            mks.append(SheetMarker(int(mid), c))
-        bl_raw = sheet_raw.get("bottom_left_mm")
-        bl = r.vector(bl_raw, "sheet.bottom_left_mm", 2) if bl_raw is not None else (0.0, 0.0)
-        sheet = Sheet(d, tuple(mks), size, bl)
+        sheet = read_sheet_block(r, sheet_raw, "sheet", need_markers=bool(images))
 
     # camera
     camera = None

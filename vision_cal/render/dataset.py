@@ -80,31 +80,40 @@ class _Streams:
 # --------------------------------------------------------------------------------- plan
 
 
-def pilot_params(scene: Scene, *, rng=None):
-    """The model an engineer plans with after a pilot run: the true robot draws the seed
-    paper's five marks (zero, joint 1 at +-20 deg, joint 2 at +-60 deg) on scrap paper,
-    measured to 0.05 mm, calibrated by the paper's circles. The catalogue model misses by
-    tens of millimetres (SM5: zeros 2.6 and 8.1 deg off), too much to keep marks off the
-    printed markers; the pilot model misses by about a millimetre."""
-    from vision_cal.calibrate.paper import paper_method
+def pilot_marks(scene: Scene, *, rng=None) -> tuple[np.ndarray, np.ndarray]:
+    """A pilot run: the true robot draws the seed paper's five marks (zero, joint 1 at
+    +-20 deg, joint 2 at +-60 deg) on scrap paper, measured to 0.05 mm. Returns the
+    commanded joints (5, 2) deg and the measured marks (5, 2) mm."""
     from vision_cal.plan.calibration_plan import paper_plan
 
     rng = np.random.default_rng(rng)
     pilot = paper_plan()
-    w = draw_marks(scene.robot.truth_model, pilot, home_deg=scene.robot.nominal.home_deg,
+    w = draw_marks(scene.robot.true_robot, pilot, home_deg=scene.robot.nominal.home_deg,
                    repeatability_mm=0.05, rng=rng)
-    return paper_method(np.array([m.joints_deg for m in pilot]),
-                        w.xy_mm).params
+    return np.array([m.joints_deg for m in pilot], dtype=float), w.xy_mm
 
 
-def build_plan(scene: Scene, sheet, *, rng=None) -> list:
+def build_plan(scene: Scene, sheet, *, pilot=None, rng=None) -> list:
     """The scene's plan (``list[PlannedMark]``), computed from the nominal model, or with
-    ``plan.pilot`` (the default) from a pilot calibration (:func:`pilot_params`)."""
+    ``plan.pilot`` (the default) from a pilot calibration: the world draws
+    :func:`pilot_marks` and ``pilot(q_deg, xy_mm) -> ScaraParams`` calibrates them (the
+    caller passes the calibrator, e.g. ``vision_cal.calibrate.paper.pilot_params``: the
+    world does not import the estimator). The catalogue model misses by tens of
+    millimetres (SM5: zeros 2.6 and 8.1 deg off), too much to keep marks off the printed
+    markers; the pilot model misses by about a millimetre."""
     from vision_cal.plan import calibration_plan as cp
 
     if scene.plan.kind == "paper":
         return list(cp.paper_plan())
-    model = pilot_params(scene, rng=rng) if scene.plan.pilot else scene.robot.nominal.params
+    if scene.plan.pilot:
+        if pilot is None:
+            raise VisionCalError("the scene plans from a pilot calibration (plan.pilot): "
+                                 "pass a calibrator, pilot=vision_cal.calibrate.paper."
+                                 "pilot_params", field="pilot")
+        rng = np.random.default_rng(rng)
+        model = pilot(*pilot_marks(scene, rng=rng))
+    else:
+        model = scene.robot.nominal.params
     return cp.informative_plan(model, sheet, n_calibration=scene.plan.n_calibration,
                                n_validation=scene.plan.n_validation,
                                pen_diameter_mm=scene.robot.pen_diameter_mm,
@@ -274,11 +283,13 @@ def photographer_K(scene: Scene) -> np.ndarray:
 
 
 def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographer=None,
-                   joint_source=None, plan=None, targets_mm: dict | None = None) -> Path:
+                   joint_source=None, plan=None, targets_mm: dict | None = None,
+                   pilot=None) -> Path:
     """Render ``scene`` into the dataset folder ``out_dir``; return its path.
 
     ``plan``: draw these ``PlannedMark`` instead of the scene's calibration plan (the
-    closed loop draws planned targets); ``targets_mm``: id -> the sheet point the OLP meant
+    closed loop draws planned targets); ``pilot``: the calibrator of the pilot run (see
+    :func:`build_plan`), needed when the scene plans from one; ``targets_mm``: id -> the sheet point the OLP meant
     to hit, written as the marks' ``target_mm``.
 
     ``photographer``: an existing ``Photographer`` for this scene's camera (size K from
@@ -299,10 +310,16 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     sheet = make_sheet(size_mm=sh.size_mm, bottom_left_mm=sh.bottom_left_mm,
                        dictionary=sh.dictionary, marker_mm=sh.marker_mm, grid=sh.grid,
                        margin_mm=sh.margin_mm)
+    hfield = None
+    if sh.height is not None:
+        hfield = sh.height.field(sheet.extent_mm, scene.seed)
+        if hfield.is_flat:
+            hfield = None
+    height_grid = None if hfield is None else hfield.grid()
     if plan is None:
-        plan = build_plan(scene, sheet, rng=st.plan)
+        plan = build_plan(scene, sheet, pilot=pilot, rng=st.plan)
     plan = list(plan)
-    truth = rob.truth_model
+    truth = rob.true_robot
     predict_model, source = truth, joint_source
     if source is None and rob.controller != "kinematic":
         source, predict_model = simulated_world(truth, controller=rob.controller, rng=st.sim)
@@ -350,7 +367,9 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
             it = bar = tqdm(shots, desc="render", unit="photo", leave=False)
         for i, (fname, n_marks) in enumerate(it):
             tex = textures.add_marks(n_marks)
-            T = np.asarray(views[i % len(views)] if cam.moving else views[0], dtype=float)
+            # the views are rigid poses of the arm frame; a deformed sheet (sheet_affine)
+            # lies physically shrunk in it: T maps printed sheet points to the camera
+            T = truth.T_render(views[i % len(views)] if cam.moving else views[0])
             arm = None
             if ph.arm_parked and (ph.mode == "single" or i % PARK_EVERY == PARK_EVERY - 1):
                 q_park = parking_pose(truth, sheet.extent_mm, rng=st.park)
@@ -360,7 +379,7 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
                 tex, extent_mm=sheet.extent_mm, T_cam_sheet=T,
                 dist=dist if any(dist) else None, K_dist=K if any(dist) else None, arm=arm,
                 vignetting=ph.vignetting, noise_sigma=ph.noise_sigma, jpeg_quality=None,
-                rng=st.photos)
+                rng=st.photos, **({} if height_grid is None else {"height_grid": height_grid}))
             (tmp / fname).write_bytes(_encode_image(np.asarray(rgb), ph.jpeg_quality))
             images.append({"file": fname, "marks": list(world.ids[:n_marks])})
             poses[fname] = T.tolist()
@@ -387,6 +406,8 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
         lens = lens_effect(scene)
         if lens is not None:
             effects.append(lens)
+        if hfield is not None:
+            effects.append(hfield.effect_json())
         truth_json = {
             "params": rob.truth.to_json(),
             "effects": effects,
@@ -405,6 +426,10 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
             "seed": scene.seed,
             "controller_report": getattr(source, "report", None),
         }
+        if hfield is not None:  # added fields: the paper's height field, each mark's height
+            truth_json["sheet_height"] = hfield.to_json()
+            truth_json["mark_height_mm"] = {mid: float(z) for mid, z in zip(
+                world.ids, hfield.height_mm(world.xy_mm))}
         atomic_write_json(tmp / "session.json", session)
         atomic_write_json(tmp / "truth.json", truth_json)
         _commit(tmp, out_dir)

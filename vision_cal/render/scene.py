@@ -38,6 +38,12 @@ Sections and fields::
       marker_mm: 30.0
       grid: [6, 4]                # markers across x, y (spread evenly over the sheet)
       margin_mm: 15.0
+      height:                     # the paper is not flat (absent: flat), heights in mm
+        bumps: [{centre_mm: [x, y], sigma_mm: 30, height_mm: 0.65}]   # Gaussian bumps
+        curls: [{edge: right, height_mm: 1.5, width_mm: 40}]  # left|right|bottom|top
+        sag_mm: 0.3               # the middle lower than the edges by this much
+        random: {n: 4, height_mm: [0.3, 0.65], sigma_mm: [25, 60], signed: true}
+                                  # bumps drawn from the seed (see render/height.py)
     plan:
       kind: informative           # informative | paper (the seed paper's 5 poses)
       n_calibration: 30
@@ -121,7 +127,16 @@ class RobotScene:
 
     @property
     def truth_model(self) -> RobotModel:
+        """The truth as the estimator's model (for tests that compare the two codes)."""
         return RobotModel(self.truth, self.effects)
+
+    @property
+    def true_robot(self):
+        """The world's own robot (:mod:`vision_cal.render.truth_model`), built from the
+        truth's JSON blocks only."""
+        from vision_cal.render.truth_model import TrueRobot
+
+        return TrueRobot.from_json(self.truth.to_json(), [e.to_json() for e in self.effects])
 
 
 @dataclass(frozen=True)
@@ -132,6 +147,7 @@ class SheetScene:
     marker_mm: float = 30.0
     grid: tuple[int, int] = (6, 4)
     margin_mm: float = 15.0
+    height: "HeightScene | None" = None   # not flat: vision_cal.render.height
 
 
 @dataclass(frozen=True)
@@ -301,7 +317,7 @@ def _robot(r: _R, d) -> RobotScene:
 
 def _sheet(r: _R, d) -> SheetScene:
     d = r.section(d, "sheet", ("size_mm", "bottom_left_mm", "dictionary", "marker_mm", "grid",
-                               "margin_mm"))
+                               "margin_mm", "height"))
     dflt = SheetScene()
     size = r.vector(d.get("size_mm", list(dflt.size_mm)), "sheet.size_mm", 2, lo=0, lo_open=True)
     if "bottom_left_mm" in d:
@@ -334,7 +350,10 @@ def _sheet(r: _R, d) -> SheetScene:
                    margin_mm=margin)
     except VisionCalError as e:
         r.fail(f"sheet.{e.field}" if e.field else "sheet", e.reason)
-    return SheetScene(size, bl, dic, marker, grid, margin)
+    from vision_cal.render.height import height_scene_from_dict
+
+    height = height_scene_from_dict(r, d.get("height"))
+    return SheetScene(size, bl, dic, marker, grid, margin, height)
 
 
 def _plan(r: _R, d) -> PlanScene:
