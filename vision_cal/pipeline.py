@@ -197,6 +197,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
             doc["notes"].append("photos whose marks are shifted together beyond the noise "
                                 "(a bad sheet mapping?): " + ", ".join(flagged))
     doc["nominal"] = nominal.to_json()
+    doc["home_deg"] = [float(v) for v in session.robot.home_deg]  # added: where plans start
     if measurement is not None and measurement.lens is not None and measurement.lens.kept:
         doc["effects"] = [measurement.lens.to_effect_json()] + doc["effects"]
     if data.sigma_mm is not None:
