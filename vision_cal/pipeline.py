@@ -121,9 +121,9 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     if method == "paper":
         paper = paper_method(cal.q_deg, cal.xy_mm)
         params = paper.params
-        lsq_sigma = Fit.from_estimate(cal.q_deg, cal.xy_mm, approach=cal.approach,
-                                      robust=False).sigma_mm
-        std, cov = _paper_std(cal.q_deg, cal.xy_mm, lsq_sigma)
+        noise_mm = Fit.from_estimate(cal.q_deg, cal.xy_mm, approach=cal.approach,
+                                     robust=False).residual_scale  # unweighted: mm
+        std, cov = _paper_std(cal.q_deg, cal.xy_mm, noise_mm)
         res_cal = cal.xy_mm - _predict(params, cal)
         res_val = val.xy_mm - _predict(params, val) if len(val.ids) else np.zeros((0, 2))
         doc.update(params=params.to_json(), std=std, effects=[],
@@ -167,7 +167,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                        "rejected": [e.to_json() for e in diag.rejected],
                        "residual_analysis": diag.analysis},
             notes=list(ff.notes),
-            sigma_mm=ff.sigma_mm,
+            residual_scale=ff.residual_scale,
             covariance=covariance_json(ff.labels, ff.cov),
         )
         res_cal = ff.residuals_mm

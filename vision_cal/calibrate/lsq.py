@@ -45,7 +45,8 @@ class Fit:
     ids: tuple[str, ...]         # (N,)
     cond: float                  # condition number of the column-scaled Jacobian
     rank: int
-    sigma_mm: float              # residual standard deviation per axis (sqrt(SSR/dof))
+    residual_scale: float        # sqrt(SSR/dof) of the weighted residuals, per axis: mm when
+                                 # unweighted, a ratio to the given sigma_mm when weighted
     dof: int
     initial: ScaraParams
     n_params: int = 0
@@ -124,6 +125,11 @@ class Fit:
                    tuple(notes))
 
     # -- results --------------------------------------------------------------------------
+    @property
+    def sigma_mm(self) -> float:
+        """Old name of :attr:`residual_scale` (``sigma_mm`` is a mark's measurement std)."""
+        return self.residual_scale
+
     @property
     def params(self) -> ScaraParams:
         return self.model.params

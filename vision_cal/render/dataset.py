@@ -12,7 +12,7 @@ photographs the sheet and writes::
                         present but undeclared), true mark positions, the camera's K, dist
                         and per-photo poses ``T_cam_sheet`` (added field: 4x4, sheet mm ->
                         camera mm, OpenCV camera axes); added fields: controller,
-                        arrival_sign / link_q_deg per mark, off_paper, on_marker,
+                        approach / link_q_deg per mark, off_paper, on_marker,
                         arm_parked_q_deg, extra_files, repeatability_mm, seed
 
 The lens is applied by ``Photographer.photograph(dist=..., K_dist=K)`` on an ideal render
@@ -417,7 +417,7 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
             # added fields: how the world got there
             "repeatability_mm": rob.repeatability_mm,
             "controller": rob.controller if joint_source is None else "custom",
-            "arrival_sign": {mid: world.approach[i].tolist() for i, mid in enumerate(world.ids)},
+            "approach": {mid: world.approach[i].tolist() for i, mid in enumerate(world.ids)},
             "link_q_deg": {mid: world.q_deg[i].tolist() for i, mid in enumerate(world.ids)},
             "off_paper": off_paper,
             "on_marker": marks_on_markers(world, sheet),

@@ -15,7 +15,7 @@ The pen lands where the *links* settled, not where the joints were commanded.
 
 Gear backlash is a play operator between encoder and link (see :mod:`.dynamics`); the
 link starts at ``home - band/2`` (as if the arm had last moved in +, the format's default
-approach). ``arrival_sign`` is the side of the band in contact at pen-down (the sign of the
+approach). ``approach`` is the side of the band in contact at pen-down (the sign of the
 last motion that dragged the link); with no backlash it is the sign of the last encoder
 motion larger than ``settle_tol_deg``.
 """
@@ -39,7 +39,8 @@ class SimResult:
     """What the simulated robot did (N marks, degrees).
 
     motor_deg (N, 2): encoder angles at pen-down; link_deg (N, 2): link angles at pen-down
-    (what the pen position depends on); arrival_sign (N, 2) +-1; settle_residual_deg (N, 2):
+    (what the pen position depends on); approach (N, 2) +-1: the side each joint arrived
+    from; settle_residual_deg (N, 2):
     encoder minus command at pen-down; settle_extra_s (N,): extra wait for settling;
     tracking_rms_deg / tracking_max_deg (2,): encoder minus reference over the whole run;
     reference: the commanded trajectory (at its own sampling period); t_s (K,), motor_trace_deg
@@ -48,7 +49,7 @@ class SimResult:
 
     motor_deg: np.ndarray
     link_deg: np.ndarray
-    arrival_sign: np.ndarray
+    approach: np.ndarray
     settle_residual_deg: np.ndarray
     settle_extra_s: np.ndarray
     tracking_rms_deg: np.ndarray
@@ -59,6 +60,11 @@ class SimResult:
     t_s: np.ndarray
     motor_trace_deg: np.ndarray
     link_trace_deg: np.ndarray
+
+    @property
+    def arrival_sign(self) -> np.ndarray:
+        """Old name of :attr:`approach`."""
+        return self.approach
 
 
 def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), controller="smc",
@@ -200,7 +206,7 @@ def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), contro
         extra[i] = hold * dt_s
 
     return SimResult(
-        motor_deg=np.degrees(motor), link_deg=np.degrees(link), arrival_sign=arrival,
+        motor_deg=np.degrees(motor), link_deg=np.degrees(link), approach=arrival,
         settle_residual_deg=np.degrees(resid), settle_extra_s=extra,
         tracking_rms_deg=np.degrees(np.sqrt(np.array([err_sq1, err_sq2]) / max(n_err, 1))),
         tracking_max_deg=np.degrees(np.array([err_max1, err_max2])),
