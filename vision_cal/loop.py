@@ -91,6 +91,24 @@ def default_targets(sheet, params: ScaraParams, *, n_grid: int = 20, n_path: int
     return ids, xy
 
 
+def landing_note(sheet, model, planned) -> str:
+    """Why a planned mark was not measured: where the calibrated ``model`` says the pen
+    landed (off the paper, on a printed marker), else a generic reason."""
+    from vision_cal.plan.calibration_plan import sheet_clearance_mm
+
+    generic = "not measured on the photo (not found or not associated)"
+    if planned.q_deg is None:
+        return generic
+    xy = model.predict(np.array([planned.q_deg], float), np.array([planned.approach], float))
+    x0, y0, x1, y1 = sheet.extent_mm
+    where = f"the calibrated model puts it at ({xy[0, 0]:.1f}, {xy[0, 1]:.1f}) mm"
+    if not (x0 <= xy[0, 0] <= x1 and y0 <= xy[0, 1] <= y1):
+        return f"off the paper: {where}"
+    if sheet_clearance_mm(sheet, xy)[0] <= 0.0:
+        return f"on a printed marker: {where}"
+    return f"{generic}; {where}"
+
+
 def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = False,
              elbow: int = 1, photographer=None):
     """Run the closed loop for a scene file; writes ``DIR/loop.json`` and returns
@@ -159,8 +177,7 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
                              "error_mm": e.tolist(), "error_norm_mm": float(np.hypot(*e))}
             else:
                 res[p.id] = {"status": "not found",
-                             "reason": "the mark was not measured on the photo (off the paper, "
-                                       "on a marker, or not associated)"}
+                             "reason": landing_note(sheet, calibrated, p)}
         results[name] = res
     rows = []
     for tid in ids:

@@ -165,7 +165,8 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
             diagnosis={"heldout": diag.heldout_kind,
                        "accepted": [e.to_json() for e in diag.accepted],
                        "rejected": [e.to_json() for e in diag.rejected],
-                       "residual_analysis": diag.analysis},
+                       "residual_analysis": diag.analysis,
+                       "thresholds": diag.thresholds},
             notes=list(ff.notes),
             residual_scale=ff.residual_scale,
             covariance=covariance_json(ff.labels, ff.cov),
@@ -211,6 +212,8 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                  "approach": data.approach[i].astype(int).tolist()}
         if data.sigma_mm is not None:
             entry["sigma_mm"] = float(data.sigma_mm[i])
+        if measurement is not None and mid in measurement.marks:  # added field
+            entry["n_photos"] = int(measurement.marks[mid].n_photos)
         marks[mid] = entry
     doc["marks"] = marks
     if missing:
@@ -222,6 +225,9 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         doc["targets"] = targets
     if truth:
         doc["truth_comparison"] = compare_truth(session.root / "truth.json", doc)
+    ps = printer_scale(session.sheet, doc.get("effects", []), doc.get("params"))
+    if ps is not None:
+        doc["printer_scale"] = ps
     out_path = atomic_write_json(out_dir / "calibration.json", doc)
     log.info("wrote %s", out_path)
     return CalibrationRun(session, doc, out_path, diag, paper, measurement)
@@ -258,4 +264,38 @@ def compare_truth(path: Path, doc: dict) -> dict:
     errs = [np.subtract(v["measured_mm"], tm[k]) for k, v in doc["marks"].items() if k in tm]
     if errs:
         out["mark_rms_mm"] = rms_2d(np.array(errs))
+    return out
+
+
+def printer_scale(sheet, effects, params: dict | None = None) -> dict | None:
+    """The printer's scale from the user's measurement of the printed bars, kept apart from
+    ``sheet_affine`` (added field ``printer_scale`` of calibration.json).
+
+    ``sheet.printed.measured_bar_mm`` = [X, Y] of the ``scale_bar_length_mm`` (100 mm) bars.
+    Sheet coordinates are the file's millimetres; the print is ``x`` = X / 100 and ``y`` =
+    Y / 100 times them. The photos cannot see a uniform print scale (it is the same as
+    longer links), so ``uniform`` = sqrt(x y) converts the calibrated lengths (L1, L2,
+    base) to physical mm; the uneven part ``x / y - 1`` appears in the photos as a
+    ``sheet_affine`` stretch (arm -> sheet matrix diag(1/x, 1/y)), and
+    ``sheet_affine_beyond_printer`` is what a found ``sheet_affine`` leaves once the
+    printer's part is taken out (paper shrink, a tilted motion plane); ``physical_mm`` the
+    calibrated link lengths times ``uniform``. None when the bars were not measured.
+    """
+    printed = getattr(sheet, "printed", None) or {}
+    mb = printed.get("measured_bar_mm")
+    if mb is None:
+        return None
+    bar = float(printed.get("scale_bar_length_mm", 100.0))
+    sx, sy = float(mb[0]) / bar, float(mb[1]) / bar
+    out = {"x": sx, "y": sy, "uniform": float(np.sqrt(sx * sy)), "uneven": sx / sy - 1.0,
+           "measured_bar_mm": [float(mb[0]), float(mb[1])], "bar_mm": bar,
+           "source": "sheet.printed.measured_bar_mm"}
+    if params:
+        out["physical_mm"] = {k: float(params[k]) * out["uniform"] for k in ("L1_mm", "L2_mm")
+                              if params.get(k) is not None}
+    for e in effects:
+        if e.get("name") == "sheet_affine" and e.get("matrix") is not None:
+            m = np.asarray(e["matrix"], float)
+            # found x/y stretch over the printer's (1/x)/(1/y) = y/x
+            out["sheet_affine_beyond_printer"] = float(m[0, 0] * sx / (m[1, 1] * sy) - 1.0)
     return out

@@ -41,3 +41,27 @@ def pilot_dir(tmp_path_factory, sheet_json):
     out = tmp_path_factory.mktemp("pilot")
     design_stage(ROBOT, sheet_json, out, program="spel")
     return out
+
+
+@pytest.fixture(scope="session")
+def informative_dir(tmp_path_factory, pilot_dir, sheet_json):
+    """The informative stage from a pilot calibration (a true robot's pilot marks with
+    0.02 mm of noise: the plan's structure, not its accuracy, is under test here)."""
+    from vision_cal.design.stage import design_stage
+    from vision_cal.kinematics import forward
+    from vision_cal.pipeline import calibrate_dataset
+
+    s = json.loads((pilot_dir / "session.json").read_text())
+    from vision_cal.kinematics import ScaraParams
+
+    truth = ScaraParams(344.05, 259.87, -2.57, -8.13, -420.0, -230.0)
+    q = np.array([m["joints_deg"] for m in s["marks"]])
+    noise = np.random.default_rng(5).normal(0, 0.02, q.shape)
+    for m, p in zip(s["marks"], forward(truth, q) + noise):
+        m["measured_mm"] = p.tolist()
+    d = tmp_path_factory.mktemp("pilot_cal")
+    (d / "session.json").write_text(json.dumps(s))
+    cal = calibrate_dataset(d, out_dir=d / "out").out_path
+    out = tmp_path_factory.mktemp("informative")
+    design_stage(ROBOT, sheet_json, out, pilot=cal, program="spel")
+    return out

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from vision_cal.dataset.io import read_json
+from vision_cal.dataset.photos import normalise_name
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.motion import approach_signs
@@ -33,6 +34,8 @@ class Sheet:
     markers: tuple[SheetMarker, ...]
     size_mm: tuple[float, float]
     bottom_left_mm: tuple[float, float] = (0.0, 0.0)  # added field: paper corner in frame S
+    grid: dict | None = None      # the printed grid as in the file (pitch_mm, origin_mm, ...)
+    printed: dict | None = None   # how it was printed (module_mm, quiet_zone_modules, ...)
 
     @property
     def extent_mm(self) -> tuple[float, float, float, float]:
@@ -41,10 +44,15 @@ class Sheet:
         return (x0, y0, x0 + self.size_mm[0], y0 + self.size_mm[1])
 
     def to_json(self) -> dict:
-        return {"aruco_dictionary": self.aruco_dictionary,
-                "markers": [{"id": m.id, "corners_mm": np.asarray(m.corners_mm).tolist()}
-                            for m in self.markers],
-                "size_mm": list(self.size_mm), "bottom_left_mm": list(self.bottom_left_mm)}
+        out = {"aruco_dictionary": self.aruco_dictionary,
+               "markers": [{"id": m.id, "corners_mm": np.asarray(m.corners_mm).tolist()}
+                           for m in self.markers],
+               "size_mm": list(self.size_mm), "bottom_left_mm": list(self.bottom_left_mm)}
+        if self.grid is not None:
+            out["grid"] = self.grid
+        if self.printed is not None:
+            out["printed"] = self.printed
+        return out
 
     def corners_by_id(self) -> dict[int, np.ndarray]:
         return {m.id: m.corners_mm for m in self.markers}
@@ -105,6 +113,9 @@ class Session:
     camera: Camera | None = None
     pen_mark_diameter_mm: float | None = None
     raw: dict = field(default_factory=dict, repr=False, compare=False)
+    #: False when session.json has no ``images``: every photo in the folder is used and
+    #: which marks each shows is found from the photos (``vision_cal.measure.infer``)
+    images_listed: bool = True
 
     @property
     def path(self) -> Path:
@@ -234,7 +245,27 @@ def read_sheet_block(r: _Reader, sheet_raw, where: str = "sheet", *,
         mks.append(SheetMarker(int(mid), c))
     bl_raw = sheet_raw.get("bottom_left_mm")
     bl = r.vector(bl_raw, w("bottom_left_mm"), 2) if bl_raw is not None else (0.0, 0.0)
-    return Sheet(d, tuple(mks), size, bl)
+    grid = _optional_object(r, sheet_raw, w("grid"))
+    printed = _optional_object(r, sheet_raw, w("printed"))
+    if printed is not None:
+        for k in ("module_mm", "quiet_zone_mm", "quiet_zone_modules"):
+            if k in printed:
+                v = r.number(printed[k], w(f"printed.{k}"))
+                if v < 0 or (k == "module_mm" and v == 0):
+                    r.fail(w(f"printed.{k}"), f"expected a size >= 0 (> 0 for a module), "
+                                              f"got {v}")
+        mb = printed.get("measured_bar_mm")
+        if mb is not None:
+            if any(v <= 0 for v in r.vector(mb, w("printed.measured_bar_mm"), 2)):
+                r.fail(w("printed.measured_bar_mm"), f"expected two positive lengths, got {mb!r}")
+    return Sheet(d, tuple(mks), size, bl, grid, printed)
+
+
+def _optional_object(r: _Reader, obj: dict, where: str) -> dict | None:
+    v = obj.get(where.rsplit(".", 1)[-1])
+    if v is not None and not isinstance(v, dict):
+        r.fail(where, f"expected an object, got {type(v).__name__}")
+    return v
 
 
 def load_sheet_file(path) -> Sheet:
@@ -288,38 +319,45 @@ def load_session(folder) -> Session:
         meas = r.vector(meas, f"{w}.measured_mm", 2) if meas is not None else None
         marks.append(Mark(mid, q, role, appr, tgt, meas))
 
-    # images
-    imgs_raw = raw.get("images", [])
-    imgs_raw = r.list_(imgs_raw, "images")
+    # images (absent: every photo in the folder, marks found from the photos)
+    images_listed = "images" in raw
+    imgs_raw = r.list_(raw.get("images", []), "images")
     images: list[ImageEntry] = []
-    files: set[str] = set()
+    files: dict[str, int] = {}
     for i, im in enumerate(imgs_raw):
         w = f"images[{i}]"
-        f = r.string(r.get(im, "file", w), f"{w}.file")
-        if Path(f).is_absolute() or ".." in Path(f).parts:
-            r.fail(f"{w}.file", f"expected a file name inside the dataset folder, got {f!r}")
+        given = r.string(r.get(im, "file", w), f"{w}.file")
+        try:
+            f = normalise_name(given)
+        except ValueError as e:
+            r.fail(f"{w}.file", str(e))
         if f in files:
-            r.fail(f"{w}.file", f"duplicate image file {f!r}")
-        files.add(f)
+            j = files[f]
+            also = "" if imgs_raw[j].get("file") == given else \
+                f" (images[{j}].file names it as {imgs_raw[j].get('file')!r})"
+            r.fail(f"{w}.file", f"duplicate image file {given!r}{also}")
+        files[f] = i
         ids = r.list_(r.get(im, "marks", w), f"{w}.marks")
         for j, mid in enumerate(ids):
             r.string(mid, f"{w}.marks[{j}]")
             if mid not in seen:
                 r.fail(f"{w}.marks[{j}]", f"names mark {mid!r}, which is not in marks")
         images.append(ImageEntry(f, tuple(ids)))
-    if not images and any(m.measured_mm is None for m in marks):
+    if images_listed and not images and any(m.measured_mm is None for m in marks):
         missing = next(m.id for m in marks if m.measured_mm is None)
         r.fail("images", f"no images, and mark {missing!r} has no measured_mm: "
                          "nothing to measure it from")
+    needs_photos = bool(images) or (not images_listed
+                                    and any(m.measured_mm is None for m in marks))
 
     # sheet
     sheet = None
     sheet_raw = raw.get("sheet")
     if sheet_raw is None:
-        if images:
-            r.fail("sheet", "missing required field (images need the printed ArUco grid)")
+        if needs_photos:
+            r.fail("sheet", "missing required field (photos need the printed ArUco grid)")
     else:
-        sheet = read_sheet_block(r, sheet_raw, "sheet", need_markers=bool(images))
+        sheet = read_sheet_block(r, sheet_raw, "sheet", need_markers=needs_photos)
 
     # camera
     camera = None
@@ -342,4 +380,5 @@ def load_session(folder) -> Session:
         v = r.get(pen, "mark_diameter_mm", "pen", required=False)
         dia = r.number(v, "pen.mark_diameter_mm") if v is not None else None
 
-    return Session(folder, sheet, robot, tuple(marks), tuple(images), camera, dia, raw)
+    return Session(folder, sheet, robot, tuple(marks), tuple(images), camera, dia, raw,
+                   images_listed)

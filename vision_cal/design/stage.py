@@ -59,6 +59,45 @@ def pilot_safety_mm(model, cov, sheet, *, k_sigma: float = 6.0, floor_mm: float 
     return float(floor_mm + k_sigma * np.nanmax(s))
 
 
+def drawable_sheet(sheet, sheet_raw: dict, *, file: str | None = None):
+    """The sheet to place marks on: the paper, or only its ``printed.drawable_mm`` box
+    ``[x0, y0, x1, y1]`` when the generator says where pen marks may go (clear of scale
+    bars, labels and the title block), with the same markers."""
+    from dataclasses import replace
+
+    from vision_cal.dataset.session import _Reader
+
+    printed = sheet_raw.get("printed")
+    box = printed.get("drawable_mm") if isinstance(printed, dict) else None
+    if box is None:
+        return sheet
+    x0, y0, x1, y1 = _Reader(file).vector(box, "printed.drawable_mm", 4)
+    px0, py0, px1, py1 = sheet.extent_mm
+    if not (px0 <= x0 < x1 <= px1 and py0 <= y0 < y1 <= py1):
+        raise VisionCalError(f"expected [x0, y0, x1, y1] inside the paper {list(sheet.extent_mm)}"
+                             f", got {box!r}", file=file, field="printed.drawable_mm")
+    return replace(sheet, size_mm=(x1 - x0, y1 - y0), bottom_left_mm=(x0, y0))
+
+
+def with_pilot_marks(sheet, cal_doc: dict, diameter_mm: float):
+    """The sheet with the pilot's measured marks as obstacles (small squares), so that
+    the informative plan drawn on the same sheet keeps clear of them."""
+    from dataclasses import replace
+
+    from vision_cal.dataset.session import SheetMarker
+
+    extra = []
+    for k, m in enumerate((cal_doc.get("marks") or {}).values()):
+        xy = m.get("measured_mm") if isinstance(m, dict) else None
+        if not (isinstance(xy, list) and len(xy) == 2):
+            continue
+        x, y = float(xy[0]), float(xy[1])
+        h = diameter_mm / 2
+        extra.append(SheetMarker(-1 - k, np.array([[x - h, y + h], [x + h, y + h],
+                                                   [x + h, y - h], [x - h, y - h]])))
+    return replace(sheet, markers=tuple(sheet.markers) + tuple(extra))
+
+
 def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | None = "spel",
                  n_calibration: int = 30, n_validation: int = 8, safety_mm: float | None = None,
                  seed: int = 0) -> DesignResult:
@@ -81,11 +120,15 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
                                  "not match them; choose another --out", file=str(out))
     if program is not None:
         robot.require_pen_heights()
+    sheet = drawable_sheet(sheet, sheet_raw, file=str(sheet_path))
     nominal = robot.nominal
     if pilot is None:
         from vision_cal.design.pilot import design_pilot
 
-        d = design_pilot(robot, sheet)
+        try:
+            d = design_pilot(robot, sheet)
+        except VisionCalError as e:
+            raise VisionCalError(e.reason, file=e.file or str(robot_path), field=e.field) from e
         marks = list(d.marks)
         plan_robot = nominal
         info = d.to_json()
@@ -100,6 +143,7 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
         cov = load_covariance(doc, model, file=str(pilot))
         if safety_mm is None:
             safety_mm = pilot_safety_mm(model, cov, sheet)
+        sheet = with_pilot_marks(sheet, doc, robot.mark_diameter_mm)
         p = model.params
         plan_robot = NominalRobot(p.L1_mm, p.L2_mm, p.joint_zero_deg, p.base_mm,
                                   nominal.home_deg)

@@ -6,8 +6,6 @@ import io
 
 import numpy as np
 
-from vision_cal.rms import rms_2d
-
 
 def _plt():
     import matplotlib
@@ -39,25 +37,43 @@ def _marks(report: dict):
 
 
 def residual_field(report: dict) -> bytes:
-    """Residual arrows on the sheet, base model and final model, same scale."""
+    """Residual arrows on the sheet, base model and final model, same scale.
+
+    Fitted marks red, held-out marks blue. The RMS in the titles is calibration.json's
+    (``residual_rms_mm``, ``validation_rms_mm``), never recomputed here: the figure and the
+    tables show the same number."""
     plt = _plt()
-    ids, xy, rb, rf, *_ = _marks(report)
+    ids, xy, rb, rf, _, _, roles = _marks(report)
+    held = np.array([r == "validation" for r in roles], dtype=bool)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.8), layout="constrained", sharex=True,
                              sharey=True)
     big = max(np.nanmax(np.hypot(*rb.T)) if len(rb) else 0.0, 1e-6)
     scale = big / 60.0  # the longest base-model arrow draws 60 mm long
-    for ax, r, title in ((axes[0], rb, "base model"), (axes[1], rf, "final model")):
-        ax.quiver(xy[:, 0], xy[:, 1], r[:, 0], r[:, 1], angles="xy", scale_units="xy",
-                  scale=scale, color="tab:red", width=0.004)
+    fit_rms, val_rms = report.get("residual_rms_mm", {}), report.get("validation_rms_mm", {})
+    for ax, r, key, title in ((axes[0], rb, "base_model", "base model"),
+                              (axes[1], rf, "final_model", "final model")):
+        for k, color, lab in ((~held, "tab:red", "fitted"), (held, "tab:blue", "held out")):
+            if k.any():
+                ax.quiver(xy[k, 0], xy[k, 1], r[k, 0], r[k, 1], angles="xy", scale_units="xy",
+                          scale=scale, color=color, width=0.004, label=lab)
         ax.plot(xy[:, 0], xy[:, 1], "k.", ms=3)
-        rms = rms_2d(r)
-        ax.set_title(f"{title}: residual RMS {rms:.4f} mm")
+        t = f"{title}: fitted RMS {_mm(fit_rms.get(key))}"
+        if val_rms.get(key) is not None:
+            t += f", held-out {_mm(val_rms.get(key))}"
+        ax.set_title(t, fontsize=10)
         ax.set_xlabel("sheet x [mm]")
         ax.set_aspect("equal")
         ax.grid(alpha=0.3)
+        if held.any():
+            ax.legend(fontsize=8)
     axes[0].set_ylabel("sheet y [mm]")
     fig.suptitle(f"residual field (arrows x{1 / scale:.0f}: {big:.3f} mm draws 60 mm)")
     return _png(fig)
+
+
+def _mm(x) -> str:
+    """One formatting for RMS figures, shared with the report's tables."""
+    return "-" if x is None or not np.isfinite(x) else f"{x:.4f} mm"
 
 
 def joint_residuals(report: dict) -> bytes:
