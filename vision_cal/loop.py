@@ -20,6 +20,7 @@ The errors come from the photographs, not from the simulator.
 
 from __future__ import annotations
 
+import base64
 import logging
 from dataclasses import replace
 from pathlib import Path
@@ -113,7 +114,6 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
              elbow: int = 1, photographer=None):
     """Run the closed loop for a scene file; writes ``DIR/loop.json`` and returns
     ``(loop document, CalibrationRun)``."""
-    from vision_cal.dataset.calibration import load_calibration
     from vision_cal.dataset.session import load_session
     from vision_cal.measure.batch import measure_folder
     from vision_cal.model import RobotModel
@@ -137,8 +137,8 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
     run = calibrate_dataset(session_dir, out_dir=out / "calibration", jobs=jobs,
                             progress=progress)
     stages["measure + calibrate + diagnose"] = time.perf_counter() - t
-    calibrated, _ = load_calibration(run.out_path)
-    nominal = RobotModel(load_session(session_dir).robot.params)
+    calibrated = run.model                      # kept in memory, not read back
+    nominal = RobotModel(run.session.robot.params)
     sheet = run.session.sheet
     ids, xy = default_targets(sheet, calibrated.params, elbow=elbow)
     write_targets(out / "targets.csv", ids, xy)
@@ -178,6 +178,8 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
             else:
                 res[p.id] = {"status": "not found",
                              "reason": landing_note(sheet, calibrated, p)}
+            if p.status == "ok":
+                res[p.id].update(q_deg=list(p.q_deg), approach=list(p.approach))
         results[name] = res
     rows = []
     for tid in ids:
@@ -203,59 +205,14 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
         "stages_s": stages,
         "controller": controller,
         "calibration": str(run.out_path),
+        "home_deg": [float(v) for v in run.session.robot.home_deg],
     }
-    _figures(doc, plans, targets, results)
+    from vision_cal.report.plots import loop_joints, loop_paths
+
+    doc["paths_png"] = base64.b64encode(loop_paths(doc)).decode("ascii")
+    doc["joints_png"] = base64.b64encode(loop_joints(doc)).decode("ascii")
     atomic_write_json(out / "loop.json", doc)
     return doc, run
-
-
-def _figures(doc, plans, targets, results) -> None:
-    """Fig. 8-10 of the paper: paths on the sheet and joint trajectories, before/after."""
-    import base64
-    import io
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from vision_cal.plan.compensate import to_planned_marks
-    from vision_cal.plan.trajectory import plan_trajectory
-
-    fig, ax = plt.subplots(figsize=(9, 6.5), layout="constrained")
-    t = np.array(list(targets.values()))
-    ax.plot(t[:, 0], t[:, 1], "k+", ms=9, label="targets")
-    for name, color in (("before", "tab:red"), ("after", "tab:green")):
-        pts = np.array([r["measured_mm"] for r in results[name].values() if "measured_mm" in r])
-        if len(pts):
-            ax.plot(pts[:, 0], pts[:, 1], "o", mfc="none", color=color,
-                    label=f"measured marks, {name} calibration")
-    ax.set_aspect("equal")
-    ax.set_xlabel("sheet x [mm]")
-    ax.set_ylabel("sheet y [mm]")
-    ax.legend()
-    ax.grid(alpha=0.3)
-    ax.set_title("targets and where the pen really went (paper Fig. 8-9)")
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    plt.close(fig)
-    doc["paths_png"] = base64.b64encode(buf.getvalue()).decode("ascii")
-
-    fig, axes = plt.subplots(2, 1, figsize=(9, 6), layout="constrained", sharex=True)
-    for name, style in (("before", "--"), ("after", "-")):
-        tr = plan_trajectory(to_planned_marks(plans[name]))
-        for j in range(2):
-            axes[j].plot(tr.t_s, tr.q_deg[:, j], style, lw=1, label=f"{name} calibration")
-    for j in range(2):
-        axes[j].set_ylabel(f"joint {j + 1} reference [deg]")
-        axes[j].grid(alpha=0.3)
-        axes[j].legend()
-    axes[1].set_xlabel("time [s] (samples every 0.016 s)")
-    axes[0].set_title("joint reference trajectories before and after (paper Fig. 10)")
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    plt.close(fig)
-    doc["joints_png"] = base64.b64encode(buf.getvalue()).decode("ascii")
 
 
 def format_table(doc: dict) -> str:

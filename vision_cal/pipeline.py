@@ -53,6 +53,7 @@ class CalibrationRun:
     diagnosis: object | None = None
     paper: object | None = None
     measurement: object | None = None
+    model: RobotModel | None = None   # the calibrated robot (what load_calibration reads back)
 
 
 def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[str]]:
@@ -134,7 +135,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                    circles={"base": paper.circle_base.to_json(),
                             "elbow": paper.circle_elbow.to_json()},
                    covariance=covariance_json(RobotModel(params).param_labels(), cov))
-        final_model = None
+        final_model = RobotModel(params)
         residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
         residual_all.update({i: r for i, r in zip(val.ids, res_val)})
         residual_base = residual_all
@@ -230,7 +231,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         doc["printer_scale"] = ps
     out_path = atomic_write_json(out_dir / "calibration.json", doc)
     log.info("wrote %s", out_path)
-    return CalibrationRun(session, doc, out_path, diag, paper, measurement)
+    return CalibrationRun(session, doc, out_path, diag, paper, measurement, final_model)
 
 
 def _predict(params, d: MarkData):

@@ -139,3 +139,19 @@ def test_plan_trajectory_starts_at_home(paper_folder, tmp_path):
 
     assert first_pose() == (10.0, -20.0)
     assert first_pose("--home", "5", "-7") == (5.0, -7.0)
+
+
+def test_calibration_run_keeps_the_model_calibration_json_holds(paper_folder, tmp_path):
+    """run_loop plans with CalibrationRun.model instead of re-reading calibration.json:
+    both must be the same robot."""
+    import numpy as np
+
+    from vision_cal.dataset.calibration import load_calibration
+    from vision_cal.pipeline import calibrate_dataset
+
+    for method in ("lsq", "paper"):
+        run = calibrate_dataset(paper_folder, out_dir=tmp_path / method, method=method)
+        back, _ = load_calibration(run.out_path)
+        q = np.array([[10.0, 20.0], [-30.0, 80.0], [45.0, -60.0]])
+        s = np.array([[1, -1], [-1, 1], [1, 1]])
+        np.testing.assert_allclose(run.model.predict(q, s), back.predict(q, s), atol=1e-9)
