@@ -115,9 +115,9 @@ def test_cache_measures_only_new_photos(tmp_path, world, monkeypatch):
     calls = []
     real = batch.detect_image
 
-    def counting(path, session):
+    def counting(path, session, **kw):
         calls.append(os.path.basename(path))
-        return real(path, session)
+        return real(path, session, **kw)
 
     monkeypatch.setattr(batch, "detect_image", counting)
     m1 = measure_folder(load_session(src), out_dir=tmp_path / "out", jobs=1)

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from vision_cal.dataset.io import read_json
+from vision_cal.dataset.photos import normalise_name
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import ScaraParams
 
@@ -111,6 +112,9 @@ class Session:
     camera: Camera | None = None
     pen_mark_diameter_mm: float | None = None
     raw: dict = field(default_factory=dict, repr=False, compare=False)
+    #: False when session.json has no ``images``: every photo in the folder is used and
+    #: which marks each shows is found from the photos (``vision_cal.measure.infer``)
+    images_listed: bool = True
 
     @property
     def path(self) -> Path:
@@ -326,38 +330,45 @@ def load_session(folder) -> Session:
         meas = r.vector(meas, f"{w}.measured_mm", 2) if meas is not None else None
         marks.append(Mark(mid, q, role, appr, tgt, meas))
 
-    # images
-    imgs_raw = raw.get("images", [])
-    imgs_raw = r.list_(imgs_raw, "images")
+    # images (absent: every photo in the folder, marks found from the photos)
+    images_listed = "images" in raw
+    imgs_raw = r.list_(raw.get("images", []), "images")
     images: list[ImageEntry] = []
-    files: set[str] = set()
+    files: dict[str, int] = {}
     for i, im in enumerate(imgs_raw):
         w = f"images[{i}]"
-        f = r.string(r.get(im, "file", w), f"{w}.file")
-        if Path(f).is_absolute() or ".." in Path(f).parts:
-            r.fail(f"{w}.file", f"expected a file name inside the dataset folder, got {f!r}")
+        given = r.string(r.get(im, "file", w), f"{w}.file")
+        try:
+            f = normalise_name(given)
+        except ValueError as e:
+            r.fail(f"{w}.file", str(e))
         if f in files:
-            r.fail(f"{w}.file", f"duplicate image file {f!r}")
-        files.add(f)
+            j = files[f]
+            also = "" if imgs_raw[j].get("file") == given else \
+                f" (images[{j}].file names it as {imgs_raw[j].get('file')!r})"
+            r.fail(f"{w}.file", f"duplicate image file {given!r}{also}")
+        files[f] = i
         ids = r.list_(r.get(im, "marks", w), f"{w}.marks")
         for j, mid in enumerate(ids):
             r.string(mid, f"{w}.marks[{j}]")
             if mid not in seen:
                 r.fail(f"{w}.marks[{j}]", f"names mark {mid!r}, which is not in marks")
         images.append(ImageEntry(f, tuple(ids)))
-    if not images and any(m.measured_mm is None for m in marks):
+    if images_listed and not images and any(m.measured_mm is None for m in marks):
         missing = next(m.id for m in marks if m.measured_mm is None)
         r.fail("images", f"no images, and mark {missing!r} has no measured_mm: "
                          "nothing to measure it from")
+    needs_photos = bool(images) or (not images_listed
+                                    and any(m.measured_mm is None for m in marks))
 
     # sheet
     sheet = None
     sheet_raw = raw.get("sheet")
     if sheet_raw is None:
-        if images:
-            r.fail("sheet", "missing required field (images need the printed ArUco grid)")
+        if needs_photos:
+            r.fail("sheet", "missing required field (photos need the printed ArUco grid)")
     else:
-        sheet = read_sheet_block(r, sheet_raw, "sheet", need_markers=bool(images))
+        sheet = read_sheet_block(r, sheet_raw, "sheet", need_markers=needs_photos)
 
     # camera
     camera = None
@@ -380,4 +391,5 @@ def load_session(folder) -> Session:
         v = r.get(pen, "mark_diameter_mm", "pen", required=False)
         dia = r.number(v, "pen.mark_diameter_mm") if v is not None else None
 
-    return Session(folder, sheet, robot, tuple(marks), tuple(images), camera, dia, raw)
+    return Session(folder, sheet, robot, tuple(marks), tuple(images), camera, dia, raw,
+                   images_listed)

@@ -386,6 +386,10 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     cam, ph, rob = scene.camera, scene.photos, scene.robot
 
     sh = scene.sheet
+    if printed is None and sh.printed is not None:
+        from vision_cal.render.printed import load_printed_sheet
+
+        printed = load_printed_sheet(sh.printed)
     sheet = make_sheet(size_mm=sh.size_mm, bottom_left_mm=sh.bottom_left_mm,
                        dictionary=sh.dictionary, marker_mm=sh.marker_mm, grid=sh.grid,
                        margin_mm=sh.margin_mm) if printed is None else printed.sheet

@@ -152,6 +152,7 @@ class SheetScene:
     grid: tuple[int, int] = (6, 4)
     margin_mm: float = 15.0
     height: "HeightScene | None" = None   # not flat: vision_cal.render.height
+    printed: str | None = None   # a vision-cal sheet's sheet.json: photograph its own raster
 
 
 @dataclass(frozen=True)
@@ -323,8 +324,10 @@ def _robot(r: _R, d) -> RobotScene:
 
 def _sheet(r: _R, d) -> SheetScene:
     d = r.section(d, "sheet", ("size_mm", "bottom_left_mm", "dictionary", "marker_mm", "grid",
-                               "margin_mm", "height"))
+                               "margin_mm", "height", "printed"))
     dflt = SheetScene()
+    if d.get("printed") is not None:
+        return _printed_sheet(r, d)
     size = r.vector(d.get("size_mm", list(dflt.size_mm)), "sheet.size_mm", 2, lo=0, lo_open=True)
     if "bottom_left_mm" in d:
         bl = r.vector(d["bottom_left_mm"], "sheet.bottom_left_mm", 2)
@@ -360,6 +363,31 @@ def _sheet(r: _R, d) -> SheetScene:
 
     height = height_scene_from_dict(r, d.get("height"))
     return SheetScene(size, bl, dic, marker, grid, margin, height)
+
+
+def _printed_sheet(r: _R, d) -> SheetScene:
+    """``sheet.printed: path/sheet.json`` (relative to the scene file): the sheet written by
+    ``vision-cal sheet --png-dpi N``, photographed through its own ``sheet.png`` (whose dpi
+    then sets the texture resolution); the analytic layout keys do not apply."""
+    from vision_cal.render.printed import load_printed_sheet
+
+    other = [k for k in ("size_mm", "bottom_left_mm", "dictionary", "marker_mm", "grid",
+                         "margin_mm") if k in d]
+    if other:
+        r.fail("sheet.printed", f"a printed sheet brings its own layout; remove sheet.{other[0]}")
+    raw = d["printed"]
+    if not isinstance(raw, str) or not raw:
+        r.fail("sheet.printed", f"expected the path of a sheet.json, got {raw!r}")
+    path = Path(raw) if Path(raw).is_absolute() else Path(r.file).parent / raw
+    try:
+        pr = load_printed_sheet(path)
+    except VisionCalError as e:
+        r.fail("sheet.printed", str(e))
+    from vision_cal.render.height import height_scene_from_dict
+
+    return SheetScene(pr.sheet.size_mm, pr.sheet.bottom_left_mm, pr.sheet.aruco_dictionary,
+                      height=height_scene_from_dict(r, d.get("height")),
+                      printed=str(path.absolute()))
 
 
 def _plan(r: _R, d) -> PlanScene:

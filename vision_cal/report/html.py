@@ -60,7 +60,8 @@ def build_report(run, *, loop: dict | None = None, out_dir=None) -> dict:
             path = Path(run.session.root) / j["file"]
             entry = {"file": j["file"], "path": str(path),
                      "link": os.path.relpath(path.resolve(), out_dir.resolve()),
-                     "status": j.get("status"), "reason": j.get("reason", "")}
+                     "status": j.get("status"), "reason": j.get("reason", ""),
+                     "size_px": None if im.size_px is None else list(im.size_px)}
             ids = getattr(im, "marker_ids", np.zeros(0))
             corners = getattr(im, "markers_px", np.zeros((0, 4, 2)))
             entry["markers_px"] = [[int(i), np.asarray(c).tolist()] for i, c in zip(ids, corners)]
@@ -136,7 +137,14 @@ def _photo_overlay(p: dict, budget_bytes: int = PHOTO_BUDGET_BYTES) -> str | Non
     included), as a JPEG URI."""
     import cv2
 
-    img = cv2.imread(p["path"], cv2.IMREAD_COLOR)
+    from vision_cal.dataset import photos
+
+    path = Path(p["path"])
+    try:  # the same reader and frame as the measurement (no FIFO, no bomb, EXIF turn)
+        img = photos.decode_as_measured(photos.read_photo(path.parent, path.name),
+                                        p.get("size_px"))
+    except photos.PhotoRefused:
+        return None
     if img is None:
         return None
     h, w = img.shape[:2]
