@@ -32,6 +32,8 @@ from vision_cal.rms import rms, rms_2d
 
 ALPHA = 0.01   # family-wise level of the F-test, split over the candidates (Bonferroni)
 K_FOLDS = 5    # cross-validation folds when there are fewer than 3 validation marks
+MIN_SCAN_DOF = 20   # residual dof below which no structure is looked for (unexplained)
+MIN_SHEET_MARKS = 12  # marks below which the sheet map is not tested
 
 
 @dataclass(frozen=True)
@@ -198,7 +200,8 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
     sel, found, nuisance = select_on(everything)
     # the sheet map of what is left once the nuisance harmonics are out
     keep = sel.fit.inliers
-    sheet_map = sheet_scan(xy[keep], sel.fit.residuals_mm[keep])
+    sheet_map = (sheet_scan(xy[keep], sel.fit.residuals_mm[keep])
+                 if keep.sum() >= MIN_SHEET_MARKS else {"p_value": 1.0, "k": 0})
     sheet_alpha = alpha / 2
     if sheet_map["p_value"] < sheet_alpha:
         # neighbouring marks share a residual: select again without the marks there, so
@@ -332,6 +335,8 @@ def _unexplained_harmonics(fit: Fit, q, app, sigma, cands, alpha, *, ids=None, x
     offered = {(c.effect.joint, c.effect.harmonic) for c in cands
                if isinstance(c.effect, JointCyclic)}
     out = []
+    if 2 * int(fit.inliers.sum()) - fit.n_params - 2 < MIN_SCAN_DOF:
+        return out          # too few marks to tell a harmonic from the noise
     for _ in range(max_found):
         keep = fit.inliers
         w = None if sigma is None else 1.0 / np.asarray(sigma)[keep]
