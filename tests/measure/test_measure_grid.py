@@ -38,7 +38,7 @@ def test_grid_offset_recovers_a_wrong_mapping(scene, shift):
     the per-photo floor of the line phase)."""
     sheet, marks, img, K, T = scene
     m = _mapping_shifted(K, T, np.array(shift))
-    grid = sheet.grid
+    grid = sheet.grid_spec
     assert isinstance(grid, SheetGrid) and grid.pitch_mm == 1.0
     uv = project(marks, K=K, T_cam_sheet=T)
     for p_mm, (u, v) in zip(marks, uv):

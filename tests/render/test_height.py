@@ -69,7 +69,9 @@ def test_raised_ink_moves_by_z_r_over_H(photographer, K, small_sheet, small_mark
 
 
 def test_rendered_dataset_records_the_field(tmp_path):
+    from vision_cal.calibrate.paper import pilot_params
     from vision_cal.dataset.io import read_json
+    from vision_cal.calibrate.paper import pilot_params
     from vision_cal.render.dataset import render_dataset
     from vision_cal.render.scene import scene_from_dict
 
@@ -81,7 +83,7 @@ def test_rendered_dataset_records_the_field(tmp_path):
         "plan": {"n_calibration": 4, "n_validation": 0},
         "camera": {"size_px": [400, 300], "f_px": 430.0}, "photos": {
             "mode": "single", "texture_px_per_mm": 1.0}})
-    out = render_dataset(sc, tmp_path / "d")
+    out = render_dataset(sc, tmp_path / "d", pilot=pilot_params)
     t = read_json(out / "truth.json")
     assert t["sheet_height"]["bumps"][0]["height_mm"] == 0.6
     assert "sheet_height" in [e["name"] for e in t["effects"]]

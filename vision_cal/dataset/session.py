@@ -13,8 +13,10 @@ from pathlib import Path
 import numpy as np
 
 from vision_cal.dataset.io import read_json
+from vision_cal.dataset.photos import normalise_name
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import ScaraParams
+from vision_cal.motion import approach_signs
 
 FORMAT = "vision-cal/1"
 ROLES = ("calibration", "validation")
@@ -58,7 +60,13 @@ class Sheet:
     markers: tuple[SheetMarker, ...]
     size_mm: tuple[float, float]
     bottom_left_mm: tuple[float, float] = (0.0, 0.0)  # added field: paper corner in frame S
-    grid: SheetGrid | None = None                      # the printed grid, when declared
+    grid: dict | None = None      # the printed grid as in the file (pitch_mm, origin_mm, ...)
+    printed: dict | None = None   # how it was printed (module_mm, quiet_zone_modules, ...)
+
+    @property
+    def grid_spec(self) -> "SheetGrid | None":
+        """``grid`` as a typed :class:`SheetGrid` (None when no grid is declared)."""
+        return None if self.grid is None else sheet_grid_from_dict(self.grid)
 
     @property
     def extent_mm(self) -> tuple[float, float, float, float]:
@@ -67,11 +75,15 @@ class Sheet:
         return (x0, y0, x0 + self.size_mm[0], y0 + self.size_mm[1])
 
     def to_json(self) -> dict:
-        return {"aruco_dictionary": self.aruco_dictionary,
-                "markers": [{"id": m.id, "corners_mm": np.asarray(m.corners_mm).tolist()}
-                            for m in self.markers],
-                "size_mm": list(self.size_mm), "bottom_left_mm": list(self.bottom_left_mm),
-                **({"grid": self.grid.to_json()} if self.grid is not None else {})}
+        out = {"aruco_dictionary": self.aruco_dictionary,
+               "markers": [{"id": m.id, "corners_mm": np.asarray(m.corners_mm).tolist()}
+                           for m in self.markers],
+               "size_mm": list(self.size_mm), "bottom_left_mm": list(self.bottom_left_mm)}
+        if self.grid is not None:
+            out["grid"] = self.grid
+        if self.printed is not None:
+            out["printed"] = self.printed
+        return out
 
     def corners_by_id(self) -> dict[int, np.ndarray]:
         return {m.id: m.corners_mm for m in self.markers}
@@ -89,6 +101,12 @@ class NominalRobot:
     def params(self) -> ScaraParams:
         return ScaraParams(self.L1_mm, self.L2_mm, self.joint_zero_deg[0], self.joint_zero_deg[1],
                            self.base_mm[0], self.base_mm[1])
+
+    def to_json(self) -> dict:
+        """The session's ``robot`` block."""
+        return {"L1_mm": self.L1_mm, "L2_mm": self.L2_mm,
+                "joint_zero_deg": list(self.joint_zero_deg), "base_mm": list(self.base_mm),
+                "home_deg": list(self.home_deg)}
 
 
 @dataclass(frozen=True)
@@ -126,6 +144,9 @@ class Session:
     camera: Camera | None = None
     pen_mark_diameter_mm: float | None = None
     raw: dict = field(default_factory=dict, repr=False, compare=False)
+    #: False when session.json has no ``images``: every photo in the folder is used and
+    #: which marks each shows is found from the photos (``vision_cal.measure.infer``)
+    images_listed: bool = True
 
     @property
     def path(self) -> Path:
@@ -146,22 +167,10 @@ class Session:
 
 
 def resolve_approach(marks, home_deg=(0.0, 0.0)) -> np.ndarray:
-    """Approach signs (N, 2): given, else the sign of the change from the previous pose.
-
-    A joint that did not move keeps its previous sign, starting at +1.
-    """
-    prev = np.asarray(home_deg, dtype=float)
-    sign = np.ones(2)
-    out = np.empty((len(marks), 2))
-    for i, m in enumerate(marks):
-        q = np.asarray(m.joints_deg, dtype=float)
-        moved = np.sign(q - prev)
-        sign = np.where(moved != 0, moved, sign)
-        if m.approach is not None:
-            sign = np.asarray(m.approach, dtype=float)
-        out[i] = sign
-        prev = q
-    return out
+    """Approach signs (N, 2) of ``marks``: given, else the format's rule
+    (:func:`vision_cal.motion.approach_signs`)."""
+    return approach_signs([m.joints_deg for m in marks], home_deg,
+                          given=[m.approach for m in marks])
 
 
 class _Reader:
@@ -213,35 +222,128 @@ def _aruco_dictionary_ok(name: str) -> bool:
     return name.startswith("DICT_") and isinstance(getattr(cv2.aruco, name, None), int)
 
 
-def _sheet_grid(r: "_Reader", g) -> SheetGrid | None:
+def read_robot_block(r: _Reader, rob, where: str = "robot") -> NominalRobot:
+    """The session's ``robot`` block (also the core of a robot file), validated.
+
+    ``where`` is the block's path in its file (``"robot"`` in session.json, ``""`` for a
+    robot file whose top level is the block)."""
+    def w(key):
+        return f"{where}.{key}" if where else key
+
+    if not isinstance(rob, dict):
+        r.fail(where or "(top level)", f"expected an object, got {type(rob).__name__}")
+    L1 = r.number(r.get(rob, "L1_mm", where), w("L1_mm"))
+    L2 = r.number(r.get(rob, "L2_mm", where), w("L2_mm"))
+    for k, v in (("L1_mm", L1), ("L2_mm", L2)):
+        if v <= 0:
+            r.fail(w(k), f"expected a positive length, got {v}")
+    jz = r.vector(r.get(rob, "joint_zero_deg", where), w("joint_zero_deg"), 2)
+    base = r.vector(r.get(rob, "base_mm", where), w("base_mm"), 2)
+    home_raw = r.get(rob, "home_deg", where, required=False)
+    home = r.vector(home_raw, w("home_deg"), 2) if home_raw is not None else (0.0, 0.0)
+    return NominalRobot(L1, L2, jz, base, home)
+
+
+def read_sheet_block(r: _Reader, sheet_raw, where: str = "sheet", *,
+                     need_markers: bool = True) -> Sheet:
+    """The session's ``sheet`` block (also a whole ``sheet.json``), validated."""
+    def w(key):
+        return f"{where}.{key}" if where else key
+
+    if not isinstance(sheet_raw, dict):
+        r.fail(where or "(top level)", f"expected an object, got {type(sheet_raw).__name__}")
+    d = r.string(r.get(sheet_raw, "aruco_dictionary", where), w("aruco_dictionary"))
+    if not _aruco_dictionary_ok(d):
+        r.fail(w("aruco_dictionary"),
+               f"unknown ArUco dictionary {d!r} (expected an OpenCV name like DICT_5X5_100)")
+    size = r.vector(r.get(sheet_raw, "size_mm", where), w("size_mm"), 2)
+    mk_raw = r.list_(r.get(sheet_raw, "markers", where), w("markers"),
+                     nonempty=need_markers)
+    mks: list[SheetMarker] = []
+    ids_seen: set[int] = set()
+    for i, mk in enumerate(mk_raw):
+        wm = w(f"markers[{i}]")
+        mid = r.get(mk, "id", wm)
+        if isinstance(mid, bool) or not isinstance(mid, int) or mid < 0:
+            r.fail(f"{wm}.id", f"expected a non-negative integer, got {mid!r}")
+        if mid in ids_seen:
+            r.fail(f"{wm}.id", f"duplicate marker id {mid}")
+        ids_seen.add(mid)
+        cs = r.list_(r.get(mk, "corners_mm", wm), f"{wm}.corners_mm")
+        if len(cs) != 4:
+            r.fail(f"{wm}.corners_mm", f"expected 4 corners, got {len(cs)}")
+        c = np.array([r.vector(p, f"{wm}.corners_mm[{j}]", 2) for j, p in enumerate(cs)])
+        mks.append(SheetMarker(int(mid), c))
+    bl_raw = sheet_raw.get("bottom_left_mm")
+    bl = r.vector(bl_raw, w("bottom_left_mm"), 2) if bl_raw is not None else (0.0, 0.0)
+    grid = _optional_object(r, sheet_raw, w("grid"))
+    _sheet_grid(r, grid, w("grid"))   # the grid must make sense to be used
+    printed = _optional_object(r, sheet_raw, w("printed"))
+    if printed is not None:
+        for k in ("module_mm", "quiet_zone_mm", "quiet_zone_modules"):
+            if k in printed:
+                v = r.number(printed[k], w(f"printed.{k}"))
+                if v < 0 or (k == "module_mm" and v == 0):
+                    r.fail(w(f"printed.{k}"), f"expected a size >= 0 (> 0 for a module), "
+                                              f"got {v}")
+        mb = printed.get("measured_bar_mm")
+        if mb is not None:
+            if any(v <= 0 for v in r.vector(mb, w("printed.measured_bar_mm"), 2)):
+                r.fail(w("printed.measured_bar_mm"), f"expected two positive lengths, got {mb!r}")
+    return Sheet(d, tuple(mks), size, bl, grid, printed)
+
+
+def _sheet_grid(r: "_Reader", g, where: str = "sheet.grid") -> SheetGrid | None:
     """``sheet.grid`` (optional): pitch, bold_every, origin; line widths and extent added."""
     if g is None:
         return None
     if not isinstance(g, dict):
-        r.fail("sheet.grid", f"expected an object like {{\"pitch_mm\": 1.0, \"bold_every\": "
+        r.fail(where, f"expected an object like {{\"pitch_mm\": 1.0, \"bold_every\": "
                              f"10, \"origin_mm\": [x, y]}}, got {g!r}")
-    pitch = r.number(r.get(g, "pitch_mm", "sheet.grid"), "sheet.grid.pitch_mm")
+    pitch = r.number(r.get(g, "pitch_mm", where), f"{where}.pitch_mm")
     if pitch <= 0:
-        r.fail("sheet.grid.pitch_mm", f"expected a positive pitch, got {pitch}")
+        r.fail(f"{where}.pitch_mm", f"expected a positive pitch, got {pitch}")
     bold = g.get("bold_every", 10)
     if isinstance(bold, bool) or not isinstance(bold, int) or bold < 1:
-        r.fail("sheet.grid.bold_every", f"expected a positive integer, got {bold!r}")
-    origin = r.vector(g.get("origin_mm", [0.0, 0.0]), "sheet.grid.origin_mm", 2)
+        r.fail(f"{where}.bold_every", f"expected a positive integer, got {bold!r}")
+    origin = r.vector(g.get("origin_mm", [0.0, 0.0]), f"{where}.origin_mm", 2)
     widths = {}
     for k in ("fine_width_mm", "bold_width_mm"):
         if g.get(k) is not None:
-            v = r.number(g[k], f"sheet.grid.{k}")
+            v = r.number(g[k], f"{where}.{k}")
             if v <= 0 or v >= pitch:
-                r.fail(f"sheet.grid.{k}", f"expected a width between 0 and the pitch, got {v}")
+                r.fail(f"{where}.{k}", f"expected a width between 0 and the pitch, got {v}")
             widths[k] = v
     ext = None
     if g.get("extent_mm") is not None:
-        ext = r.vector(g["extent_mm"], "sheet.grid.extent_mm", 4)
+        ext = r.vector(g["extent_mm"], f"{where}.extent_mm", 4)
         if ext[2] <= ext[0] or ext[3] <= ext[1]:
-            r.fail("sheet.grid.extent_mm", f"expected [x0, y0, x1, y1] with x1 > x0 and "
+            r.fail(f"{where}.extent_mm", f"expected [x0, y0, x1, y1] with x1 > x0 and "
                                            f"y1 > y0, got {list(ext)}")
     return SheetGrid(pitch, int(bold), origin, widths.get("fine_width_mm"),
                      widths.get("bold_width_mm"), ext)
+
+
+def sheet_grid_from_dict(g: dict) -> SheetGrid:
+    """A declared grid (already validated by :func:`_sheet_grid`) as a :class:`SheetGrid`."""
+    ext = g.get("extent_mm")
+    return SheetGrid(float(g["pitch_mm"]), int(g.get("bold_every", 10)),
+                     tuple(float(v) for v in g.get("origin_mm", (0.0, 0.0))),
+                     g.get("fine_width_mm"), g.get("bold_width_mm"),
+                     None if ext is None else tuple(float(v) for v in ext))
+
+
+def _optional_object(r: _Reader, obj: dict, where: str) -> dict | None:
+    v = obj.get(where.rsplit(".", 1)[-1])
+    if v is not None and not isinstance(v, dict):
+        r.fail(where, f"expected an object, got {type(v).__name__}")
+    return v
+
+
+def load_sheet_file(path) -> Sheet:
+    """Read and validate a ``sheet.json`` (the session's sheet block on its own)."""
+    path = Path(path)
+    return read_sheet_block(_Reader(str(path)), read_json(path), "")
 
 
 def load_session(folder) -> Session:
@@ -261,18 +363,7 @@ def load_session(folder) -> Session:
     if fmt != FORMAT:
         r.fail("format", f"expected {FORMAT!r}, got {fmt!r}")
 
-    # robot
-    rob = r.get(raw, "robot", "")
-    L1 = r.number(r.get(rob, "L1_mm", "robot"), "robot.L1_mm")
-    L2 = r.number(r.get(rob, "L2_mm", "robot"), "robot.L2_mm")
-    for k, v in (("L1_mm", L1), ("L2_mm", L2)):
-        if v <= 0:
-            r.fail(f"robot.{k}", f"expected a positive length, got {v}")
-    jz = r.vector(r.get(rob, "joint_zero_deg", "robot"), "robot.joint_zero_deg", 2)
-    base = r.vector(r.get(rob, "base_mm", "robot"), "robot.base_mm", 2)
-    home_raw = r.get(rob, "home_deg", "robot", required=False)
-    home = r.vector(home_raw, "robot.home_deg", 2) if home_raw is not None else (0.0, 0.0)
-    robot = NominalRobot(L1, L2, jz, base, home)
+    robot = read_robot_block(r, r.get(raw, "robot", ""), "robot")
 
     # marks
     marks_raw = r.list_(r.get(raw, "marks", ""), "marks", nonempty=True)
@@ -300,63 +391,45 @@ def load_session(folder) -> Session:
         meas = r.vector(meas, f"{w}.measured_mm", 2) if meas is not None else None
         marks.append(Mark(mid, q, role, appr, tgt, meas))
 
-    # images
-    imgs_raw = raw.get("images", [])
-    imgs_raw = r.list_(imgs_raw, "images")
+    # images (absent: every photo in the folder, marks found from the photos)
+    images_listed = "images" in raw
+    imgs_raw = r.list_(raw.get("images", []), "images")
     images: list[ImageEntry] = []
-    files: set[str] = set()
+    files: dict[str, int] = {}
     for i, im in enumerate(imgs_raw):
         w = f"images[{i}]"
-        f = r.string(r.get(im, "file", w), f"{w}.file")
-        if Path(f).is_absolute() or ".." in Path(f).parts:
-            r.fail(f"{w}.file", f"expected a file name inside the dataset folder, got {f!r}")
+        given = r.string(r.get(im, "file", w), f"{w}.file")
+        try:
+            f = normalise_name(given)
+        except ValueError as e:
+            r.fail(f"{w}.file", str(e))
         if f in files:
-            r.fail(f"{w}.file", f"duplicate image file {f!r}")
-        files.add(f)
+            j = files[f]
+            also = "" if imgs_raw[j].get("file") == given else \
+                f" (images[{j}].file names it as {imgs_raw[j].get('file')!r})"
+            r.fail(f"{w}.file", f"duplicate image file {given!r}{also}")
+        files[f] = i
         ids = r.list_(r.get(im, "marks", w), f"{w}.marks")
         for j, mid in enumerate(ids):
             r.string(mid, f"{w}.marks[{j}]")
             if mid not in seen:
                 r.fail(f"{w}.marks[{j}]", f"names mark {mid!r}, which is not in marks")
         images.append(ImageEntry(f, tuple(ids)))
-    if not images and any(m.measured_mm is None for m in marks):
+    if images_listed and not images and any(m.measured_mm is None for m in marks):
         missing = next(m.id for m in marks if m.measured_mm is None)
         r.fail("images", f"no images, and mark {missing!r} has no measured_mm: "
                          "nothing to measure it from")
+    needs_photos = bool(images) or (not images_listed
+                                    and any(m.measured_mm is None for m in marks))
 
     # sheet
     sheet = None
     sheet_raw = raw.get("sheet")
     if sheet_raw is None:
-        if images:
-            r.fail("sheet", "missing required field (images need the printed ArUco grid)")
+        if needs_photos:
+            r.fail("sheet", "missing required field (photos need the printed ArUco grid)")
     else:
-        d = r.string(r.get(sheet_raw, "aruco_dictionary", "sheet"), "sheet.aruco_dictionary")
-        if not _aruco_dictionary_ok(d):
-            r.fail("sheet.aruco_dictionary",
-                   f"unknown ArUco dictionary {d!r} (expected an OpenCV name like DICT_5X5_100)")
-        size = r.vector(r.get(sheet_raw, "size_mm", "sheet"), "sheet.size_mm", 2)
-        mk_raw = r.list_(r.get(sheet_raw, "markers", "sheet"), "sheet.markers",
-                         nonempty=bool(images))
-        mks: list[SheetMarker] = []
-        ids_seen: set[int] = set()
-        for i, mk in enumerate(mk_raw):
-            w = f"sheet.markers[{i}]"
-            mid = r.get(mk, "id", w)
-            if isinstance(mid, bool) or not isinstance(mid, int) or mid < 0:
-                r.fail(f"{w}.id", f"expected a non-negative integer, got {mid!r}")
-            if mid in ids_seen:
-                r.fail(f"{w}.id", f"duplicate marker id {mid}")
-            ids_seen.add(mid)
-            cs = r.list_(r.get(mk, "corners_mm", w), f"{w}.corners_mm")
-            if len(cs) != 4:
-                r.fail(f"{w}.corners_mm", f"expected 4 corners, got {len(cs)}")
-            c = np.array([r.vector(p, f"{w}.corners_mm[{j}]", 2) for j, p in enumerate(cs)])
-            mks.append(SheetMarker(int(mid), c))
-        bl_raw = sheet_raw.get("bottom_left_mm")
-        bl = r.vector(bl_raw, "sheet.bottom_left_mm", 2) if bl_raw is not None else (0.0, 0.0)
-        grid = _sheet_grid(r, sheet_raw.get("grid"))
-        sheet = Sheet(d, tuple(mks), size, bl, grid)
+        sheet = read_sheet_block(r, sheet_raw, "sheet", need_markers=needs_photos)
 
     # camera
     camera = None
@@ -379,4 +452,5 @@ def load_session(folder) -> Session:
         v = r.get(pen, "mark_diameter_mm", "pen", required=False)
         dia = r.number(v, "pen.mark_diameter_mm") if v is not None else None
 
-    return Session(folder, sheet, robot, tuple(marks), tuple(images), camera, dia, raw)
+    return Session(folder, sheet, robot, tuple(marks), tuple(images), camera, dia, raw,
+                   images_listed)
