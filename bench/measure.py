@@ -111,6 +111,7 @@ def _without_grid(folder: Path, tmp: Path) -> Path:
 def reference_table(scenes: list[str], root: Path, seed: int | None) -> None:
     """Mark error against truth.json, marker mapping (global) versus the printed grid
     (local), flat and bumped scenes, in one table; time per photo of both."""
+    from vision_cal.calibrate.paper import pilot_params
     from vision_cal.dataset.session import load_session
     from vision_cal.measure.batch import measure_folder
     from vision_cal.render.dataset import render_dataset
@@ -122,7 +123,7 @@ def reference_table(scenes: list[str], root: Path, seed: int | None) -> None:
         folder = root / f"{name}-seed{sc.seed}"
         if not (folder / "session.json").exists():
             t = time.perf_counter()
-            render_dataset(sc, folder, progress=True)
+            render_dataset(sc, folder, progress=True, pilot=pilot_params)
             print(f"rendered {folder} in {time.perf_counter() - t:.0f} s", file=sys.stderr)
         truth = json.loads((folder / "truth.json").read_text())
         tm = truth["marks"]

@@ -37,7 +37,9 @@ def _measure(tmp_path, scene, name, *, drop_grid=False):
     from vision_cal.measure.batch import measure_folder
     from vision_cal.render.dataset import render_dataset
 
-    folder = render_dataset(scene, tmp_path / name)
+    from vision_cal.calibrate.paper import pilot_params
+
+    folder = render_dataset(scene, tmp_path / name, pilot=pilot_params)
     if drop_grid:
         s = json.loads((folder / "session.json").read_text())
         s["sheet"].pop("grid")
