@@ -67,8 +67,8 @@ def smooth_residual(xy_mm, residual_mm, extent_mm, *, alpha: float = 1e-3,
     rms = float(np.sqrt(np.mean(np.sum(pred**2, axis=1))))
     return {"seen": [f"a residual that varies smoothly over the sheet (neighbouring marks "
                      f"agree, permutation p = {p:.2g}, smooth part {1000 * rms:.1f} um RMS) "
-                     "that no robot effect explains: the sheet is probably not flat (declare "
-                     "its printed grid, sheet.grid, or move the camera between photos)"],
+                     "that no robot effect explains: the sheet is probably not flat (measure "
+                     "the marks against its printed grid: declare sheet.grid)"],
             "kind": "sheet",
             "map": {"x_mm": xs.tolist(), "y_mm": ys.tolist(),
                     "dx_mm": np.round(field[:, 0].reshape(X.shape), 5).tolist(),
