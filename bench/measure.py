@@ -96,12 +96,12 @@ def plain_opencv(path: Path, dictionary: str) -> int:
 
 
 def _without_grid(folder: Path, tmp: Path) -> Path:
-    """The same dataset with ``sheet.grid`` left out (photos linked): the marker mapping only."""
+    """The same dataset with ``sheet.grid`` left out (photos copied): the marker mapping only."""
     out = tmp / (folder.name + "-nogrid")
     out.mkdir(parents=True, exist_ok=True)
     for p in folder.iterdir():
         if p.suffix.lower() in (".png", ".jpg", ".jpeg") and not (out / p.name).exists():
-            (out / p.name).symlink_to(p)
+            shutil.copyfile(p, out / p.name)   # a copy: photos behind links are refused
     d = json.loads((folder / "session.json").read_text())
     d["sheet"].pop("grid", None)
     (out / "session.json").write_text(json.dumps(d))
