@@ -706,6 +706,21 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
             if mm.reference == "markers" and h.xy_mm is not None:
                 marks[mid] = replace(mm, xy_mm=h.xy_mm, cov_mm2=h.cov_xy_mm2,
                                      reference="parallax")
+    elif heights:
+        # flat within what the grid and the views can see: the marker mapping is then the
+        # better reference (the line phase adds its own few micrometres); the grid's
+        # difference stays reported
+        for mid, gi in a.mark_to_group.items():
+            mm, g = marks[mid], groups[gi]
+            if mm.reference == "markers":
+                continue
+            gg = assoc.DotGroup(
+                np.array([images[k].dots_global_xy_mm[j] for k, j in zip(g.images, g.dot_index)]),
+                np.array([images[k].dots_global_cov_mm2[j]
+                          for k, j in zip(g.images, g.dot_index)]), g.images, g.dot_index)
+            xy, cov, spread = assoc.combine(gg)
+            marks[mid] = replace(mm, xy_mm=xy, cov_mm2=cov, spread_mm=spread,
+                                 reference="markers (sheet flat)")
     for r in images:
         if r.status != "ok":
             log.info("skipped %s: %s", r.file, r.reason)
