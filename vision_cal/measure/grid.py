@@ -32,7 +32,7 @@ import numpy as np
 from vision_cal.dataset.session import SheetGrid
 from vision_cal.measure.mapping import SheetMapping, apply_h
 
-GRID_STEP_MM = 0.1
+GRID_STEP_MM = 0.15       # window sampling (a pixel is 0.2-0.4 mm on the sheet)
 GRID_HALF_MM = 9.0        # window half-size: +-9 mm holds 18 lines at many pixel phases
 MIN_PERIODS = 3.0          # the window must hold this many pitches of usable profile per axis
 DARK_FRACTION = 0.7       # samples below this fraction of the paper level are not grid
