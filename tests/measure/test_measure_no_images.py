@@ -197,3 +197,27 @@ def test_no_photos_at_all_is_one_line(tmp_path, world, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "images: no photos" in err[0], err
     assert sorted(p.name for p in src.iterdir()) == ["session.json"]
+
+
+def _groups(seen):
+    from vision_cal.measure.associate import DotGroup
+
+    z = np.zeros((1, 2))
+    return [DotGroup(np.repeat(z, len(s), 0), np.zeros((len(s), 2, 2)), tuple(s),
+                     tuple([0] * len(s))) for s in seen]
+
+
+def test_a_dot_seen_once_is_not_a_mark():
+    """A reflection in photo 1 only (never seen again) does not shift the series; the dot of
+    a mark missed once (photo 3) still counts from where it first appeared."""
+    from vision_cal.measure.infer import infer_image_marks
+
+    ids = ["a", "b", "c", "d"]
+    files = [f"p{k}" for k in range(4)]
+    seen = [{0, 1, 2, 3}, {1, 2}, {2, 3}, {3}, {1}]  # last: the reflection
+    got = infer_image_marks(4, [0, 1, 2, 3], _groups(seen), ids, files)
+    assert got.mode == "series"
+    assert [len(m) for m in got.marks] == [1, 2, 3, 4]
+    finished = infer_image_marks(2, [0, 1], _groups([{0, 1}] * 5), ids, files)
+    assert finished.mode == "finished" and finished.marks == (tuple(ids), tuple(ids))
+    assert any("5 persistent dots" in w for w in finished.warnings)
