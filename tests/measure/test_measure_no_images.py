@@ -221,3 +221,17 @@ def test_a_dot_seen_once_is_not_a_mark():
     finished = infer_image_marks(2, [0, 1], _groups([{0, 1}] * 5), ids, files)
     assert finished.mode == "finished" and finished.marks == (tuple(ids), tuple(ids))
     assert any("5 persistent dots" in w for w in finished.warnings)
+
+
+def test_init_with_no_photo_of_the_sheet_is_one_line(tmp_path, world, capsys):
+    src = tmp_path / "photos"
+    src.mkdir()
+    sm.write_png(src / "floor.png", world[5])
+    _plan(tmp_path, world)
+    out = tmp_path / "o" / "session.json"
+    rc = main(["init", str(src), "--plan", str(tmp_path / "session.json"), "-o", str(out), "-q"])
+    assert rc == 2 and not out.exists()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith(f"vision-cal: error: {src}: no usable photo of the sheet among "
+                              "1 image file(s) (first: floor.png: "), err
+    assert [ln for ln in err if "error" in ln] == [err[-1]]
