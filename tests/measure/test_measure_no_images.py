@@ -37,7 +37,11 @@ def world():
     K2, T2 = sm.view(tilt_deg=14.0, azimuth_deg=-70.0)
     finished = [series[-1], sm.photo(sheet, tex, K=K2, T=T2, rng=30)]
     floor = np.random.default_rng(5).integers(40, 200, (750, 1000, 3)).astype(np.uint8)
-    return sheet, targets, q, series, finished, floor
+    # the same series drawn on a sheet that already carries 3 marks of an earlier plan
+    pilot = sm.free_targets(sheet, N + 3, rng=21, box=(85.0, 62.0))[N:]
+    on_pilot = [sm.photo(sheet, sm.texture(sheet, np.vstack([pilot, targets[:k + 1]]), rng=1),
+                         K=K, T=T, rng=40 + k) for k, (K, T) in enumerate(views[:4])]
+    return sheet, targets, q, series, finished, floor, on_pilot
 
 
 IDS = [f"c{i}" for i in range(N)]
@@ -70,7 +74,7 @@ def _err_rms(meas, targets, ids):
 def test_series_without_images_list(tmp_path, world, capsys):
     """Natural order (s_2 before s_10), a photo of the floor, a repeated file, a photo of
     the series missing: all reported, every photographed mark measured and named, exit 0."""
-    sheet, targets, q, series, finished, floor = world
+    sheet, targets, q, series, finished, floor, _ = world
     src = tmp_path / "in"
     src.mkdir()
     names = ["s_1.png", "s_2.png", "s_3.png", "s_9.png", "s_10.png", "s_11.png"]
@@ -122,7 +126,7 @@ def test_series_without_images_list(tmp_path, world, capsys):
 
 def test_finished_sheet_photos_and_init(tmp_path, world, capsys):
     """Two photos of the finished sheet (and one of the floor): every mark in each."""
-    sheet, targets, q, series, finished, floor = world
+    sheet, targets, q, series, finished, floor, _ = world
     src = tmp_path / "photos"
     src.mkdir()
     sm.write_png(src / "a.png", finished[0])
@@ -221,6 +225,29 @@ def test_a_dot_seen_once_is_not_a_mark():
     finished = infer_image_marks(2, [0, 1], _groups([{0, 1}] * 5), ids, files)
     assert finished.mode == "finished" and finished.marks == (tuple(ids), tuple(ids))
     assert any("5 persistent dots" in w for w in finished.warnings)
+    # 2 dots on the sheet before the series (an earlier plan): not counted as its marks
+    pre = infer_image_marks(4, [0, 1, 2, 3], _groups(seen[:4] + [{0, 1, 2, 3}] * 2), ids,
+                            files)
+    assert [len(m) for m in pre.marks] == [1, 2, 3, 4]
+    assert any("2 dot(s) already on the sheet" in w for w in pre.warnings)
+
+
+def test_series_on_a_sheet_with_earlier_marks(tmp_path, world):
+    sheet, targets, q, series, finished, floor, on_pilot = world
+    src = tmp_path / "in"
+    src.mkdir()
+    for k, img in enumerate(on_pilot):
+        sm.write_png(src / f"IMG_{k + 1}.png", img)
+    d = sm.session_json(sheet, marks=list(zip(IDS[:4], q[:4])), images=[], robot=sm.NOMINAL)
+    del d["images"]
+    sm.write_session(src, d)
+    meas = measure_folder(load_session(src), out_dir=tmp_path / "out", jobs=1)
+    assert meas.inferred == "series"
+    assert [len(m) for m in meas.image_marks] == [1, 2, 3, 4]
+    assert set(meas.marks) == set(IDS[:4]) and len(meas.unassigned) == 3
+    truth = dict(zip(IDS, targets))
+    e = np.array([meas.marks[k].xy_mm - truth[k] for k in IDS[:4]])
+    assert np.sqrt(np.mean(np.sum(e**2, axis=1))) < 0.015
 
 
 def test_init_with_no_photo_of_the_sheet_is_one_line(tmp_path, world, capsys):
