@@ -357,6 +357,7 @@ class _Photo:
     det: ImageDetections | None = None
     sha256: str | None = None
     captured: object = None
+    pixels: int = 0
     key: str | None = None
     cached: bool = False
 
@@ -377,6 +378,7 @@ def _check_photo(ph: _Photo, root: Path, session: Session) -> None:
         return
     ph.sha256 = hashlib.sha256(data).hexdigest()
     ph.captured = header.captured
+    ph.pixels = header.stored_px[0] * header.stored_px[1]
 
 
 def _capture_order(items: list[_Photo], warnings: list) -> list[_Photo]:
@@ -392,6 +394,20 @@ def _capture_order(items: list[_Photo], warnings: list) -> list[_Photo]:
         warnings.append(f"{len(readable) - len(timed)} of {len(readable)} photos have no EXIF "
                         "capture time: all are ordered by file name")
     return items
+
+
+#: pixels decoded at once over all workers: each photo is at most ``photos.MAX_PIXELS``
+#: (100 MP), and the workers together may not multiply that by more than two
+MAX_PIXELS_IN_FLIGHT = 2 * photos.MAX_PIXELS
+
+
+def jobs_for(jobs: int, pixels) -> int:
+    """Worker count for photos of ``pixels`` each (from their headers): ``jobs``, reduced
+    so that the largest photos decoded at once stay within :data:`MAX_PIXELS_IN_FLIGHT`."""
+    biggest = max(pixels, default=0)
+    if biggest <= 0:
+        return max(1, jobs)
+    return max(1, min(jobs, MAX_PIXELS_IN_FLIGHT // biggest))
 
 
 def _pool_initializer(parent_pid: int) -> None:
@@ -472,6 +488,12 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
         else:
             todo.append(i)
     jobs = int(jobs or os.cpu_count() or 1)
+    n_jobs = jobs_for(jobs, [items[i].pixels for i in todo])
+    if n_jobs < jobs and len(todo) > 1:
+        warnings.append(f"{n_jobs} worker(s) instead of {jobs}: photos of up to "
+                        f"{max(items[i].pixels for i in todo) / 1e6:.0f} MP, at most "
+                        f"{MAX_PIXELS_IN_FLIGHT / 1e6:.0f} MP are decoded at once")
+    jobs = n_jobs
     bar = None
     if progress:
         from tqdm import tqdm
