@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -28,24 +27,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.sheet.raster import detect_corners_mm, find_bars_mm, rasterise_pdf  # noqa: E402
+from tests.sheet.raster import (detect_corners_mm, find_bars_mm,  # noqa: E402
+                                rasterise_pdf, rasterise_pdftoppm)
 from vision_cal.commands.main import main  # noqa: E402
 
 PAGES = {"A4": ["--size", "A4", "--portrait"], "A3": ["--size", "A3"],
          "custom": ["--custom", "300", "250", "--dictionary", "DICT_4X4_50",
                     "--marker-mm", "18"]}
-
-
-def pdftoppm(pdf: Path, ppm: float):
-    """Page 1 by poppler at ``ppm`` px/mm: poppler keeps the exact scale (the last pixel
-    row/column may be partly off the page)."""
-    from PIL import Image
-
-    with tempfile.TemporaryDirectory() as d:
-        subprocess.run(["pdftoppm", "-r", f"{ppm * 25.4:.6f}", "-png", "-singlefile", str(pdf),
-                        f"{d}/p"], check=True)
-        rgb = np.asarray(Image.open(f"{d}/p.png").convert("RGB"))
-    return rgb, (ppm, ppm)
 
 
 def figures(doc, rgb, ppm) -> str:
@@ -64,7 +52,7 @@ def figures(doc, rgb, ppm) -> str:
 def run(args) -> None:
     tools = [("pdfium", rasterise_pdf)]
     if shutil.which("pdftoppm"):
-        tools.append(("pdftoppm", pdftoppm))
+        tools.append(("pdftoppm", rasterise_pdftoppm))
     else:
         print("pdftoppm not installed: poppler rows skipped")
     for page in args.pages:

@@ -4,11 +4,13 @@ The user's page, step by step, through the command line: print the sheet (`visio
 sheet`), design the pilot (`vision-cal design`), the robot draws it (a simulated true
 robot - SM5 with a hidden 0.1 deg backlash in joint 2, placed 28 mm and several degrees
 away from the robot file's guess - follows the SPEL+ program, read back by the tests'
-parser), photograph the finished sheet (rendered with the printed sheet's own raster),
-calibrate the pilot, design the informative plan from it, draw, photograph, calibrate with
---report, plan targets with --program spel, and run that program on the true robot. The
-targets are hit within 0.05 mm RMS (the bound of the issue; the calibrated model's own
-predicted std at the targets is a few micrometres, the robot's repeatability 0.01 mm).
+parser, through the simulated sliding-mode controller and arm dynamics), photograph the
+finished sheet (rendered with the printed sheet's own raster, sheet.png), calibrate the
+pilot, design the informative plan from it, draw (on the same sheet), photograph,
+calibrate with --report, plan targets with --program spel, and run that program on the
+true robot. The targets are hit within 0.05 mm RMS (the bound of the issue; the
+calibrated model's own predicted std at the targets is a few micrometres, the robot's
+repeatability 0.01 mm).
 """
 
 from __future__ import annotations
@@ -63,38 +65,18 @@ def follow_program(prg: Path, *, up: float, down: float) -> list[PlannedMark]:
 
 
 def draw(prg: Path, rng):
-    """The true robot follows the program; where the pen really marks (sheet mm)."""
+    """The true robot follows the program: the simulated sliding-mode controller drives
+    the arm's dynamics through every point (the backlash is real gear play there); where
+    the pen really marks (sheet mm)."""
     from vision_cal.dataset.robot import load_robot_file
-    from vision_cal.render.world import draw_marks
+    from vision_cal.render.world import draw_marks, simulated_world
 
     robot = load_robot_file(ROBOT)
     up, down = robot.require_pen_heights()
     marks = follow_program(prg, up=up, down=down)
-    return draw_marks(TRUTH, marks, home_deg=robot.nominal.home_deg,
-                      repeatability_mm=REPEATABILITY_MM, rng=rng)
-
-
-def printed_raster(sheet_dir: Path, sheet, rng) -> np.ndarray:
-    """The printed sheet at TEXTURE_PX_PER_MM: its own PDF rasterised when there is one,
-    else the renderer's drawing of the same sheet block."""
-    pdf = sheet_dir / "sheet.pdf"
-    if pdf.exists():
-        import pypdfium2 as pdfium
-
-        page = pdfium.PdfDocument(str(pdf))[0]
-        w_pt, h_pt = page.get_size()
-        H = int(round(sheet.size_mm[1] * TEXTURE_PX_PER_MM))
-        W = int(round(sheet.size_mm[0] * TEXTURE_PX_PER_MM))
-        # pdfium sizes the bitmap with ceil(): a scale a hair under W / width keeps the
-        # page at W x H pixels (at exactly W / width it may get W + 1 and stretch by 1 px)
-        scale = min(W / w_pt, H / h_pt) * (1.0 - 1e-7)
-        img = np.asarray(page.render(scale=scale).to_pil().convert("RGB"))
-        assert img.shape[:2] == (H, W), (img.shape, H, W)
-        return img
-    from vision_cal.render.sheet import sheet_texture
-
-    return sheet_texture(sheet, marks_xy_mm=np.zeros((0, 2)), px_per_mm=TEXTURE_PX_PER_MM,
-                         rng=rng)
+    source, model = simulated_world(TRUTH, controller="smc", rng=rng)
+    return draw_marks(model, marks, home_deg=robot.nominal.home_deg,
+                      repeatability_mm=REPEATABILITY_MM, joint_source=source, rng=rng)
 
 
 def photograph(folder: Path, sheet_dir: Path, world, photographer, rng, *, n: int,
@@ -103,15 +85,13 @@ def photograph(folder: Path, sheet_dir: Path, world, photographer, rng, *, n: in
     (``also_xy_mm``: earlier marks already on the sheet)."""
     import cv2
 
-    from vision_cal.dataset.session import load_sheet_file
     from vision_cal.render.camera import camera_matrix, default_views
-    from vision_cal.render.sheet import ink_marks
+    from vision_cal.render.printed import load_printed_sheet, printed_texture
 
-    sheet = load_sheet_file(sheet_dir / "sheet.json")
-    tex = ink_marks(printed_raster(sheet_dir, sheet, rng), extent_mm=sheet.extent_mm,
-                    px_per_mm=TEXTURE_PX_PER_MM,
-                    marks_xy_mm=np.vstack([also_xy_mm, world.xy_mm]),
-                    mark_diameters_mm=1.2, rng=rng)
+    printed = load_printed_sheet(sheet_dir / "sheet.json")
+    sheet = printed.sheet
+    tex = printed_texture(printed, marks_xy_mm=np.vstack([also_xy_mm, world.xy_mm]),
+                          mark_diameters_mm=1.2, rng=rng)
     K = camera_matrix(size_px=PHOTO_PX, f_px=F_PX)
     views = default_views(sheet, n=n, size_px=PHOTO_PX, K=K, tilt_deg=(0.0, 12.0), rng=rng,
                           fill=0.96, target_jitter=0.02)
@@ -140,21 +120,6 @@ def list_images_if_needed(folder: Path, files: list[str]) -> None:
     (folder / "session.json").write_text(json.dumps(s))
 
 
-def make_sheet(sheet_dir: Path) -> None:
-    """Step 1: `vision-cal sheet` (until it lands: the renderer's sheet block)."""
-    import importlib.util
-
-    if importlib.util.find_spec("vision_cal.commands.sheet") is not None:
-        cli("sheet", "--size", "A2", "--out", sheet_dir)
-        return
-    from vision_cal.render.sheet import make_sheet as render_sheet
-
-    sheet_dir.mkdir(parents=True)
-    s = render_sheet(size_mm=(594.0, 420.0), bottom_left_mm=(-297.0, -210.0), marker_mm=30.0,
-                     grid=(2, 2), margin_mm=12.0)
-    (sheet_dir / "sheet.json").write_text(json.dumps(s.to_json()))
-
-
 @pytest.fixture(scope="module")
 def walkthrough(tmp_path_factory):
     from vision_cal.dataset.csvio import read_plan, read_targets, write_targets
@@ -173,7 +138,7 @@ def walkthrough(tmp_path_factory):
         stages[name] = time.perf_counter() - t0 - sum(stages.values())
 
     sheet_dir = tmp / "sheet"
-    make_sheet(sheet_dir)
+    cli("sheet", "--size", "A2", "--png-dpi", 25.4 * TEXTURE_PX_PER_MM, "--out", sheet_dir, "-q")
     stage("sheet")
     cli("design", ROBOT, "--sheet", sheet_dir / "sheet.json", "--out", tmp / "pilot", "-q")
     stage("design pilot")

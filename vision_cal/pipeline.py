@@ -228,7 +228,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         doc["targets"] = targets
     if truth:
         doc["truth_comparison"] = compare_truth(session.root / "truth.json", doc)
-    ps = printer_scale(session.sheet, doc.get("effects", []))
+    ps = printer_scale(session.sheet, doc.get("effects", []), doc.get("params"))
     if ps is not None:
         doc["printer_scale"] = ps
     out_path = atomic_write_json(out_dir / "calibration.json", doc)
@@ -270,7 +270,7 @@ def compare_truth(path: Path, doc: dict) -> dict:
     return out
 
 
-def printer_scale(sheet, effects) -> dict | None:
+def printer_scale(sheet, effects, params: dict | None = None) -> dict | None:
     """The printer's scale from the user's measurement of the printed bars, kept apart from
     ``sheet_affine`` (added field ``printer_scale`` of calibration.json).
 
@@ -281,8 +281,8 @@ def printer_scale(sheet, effects) -> dict | None:
     base) to physical mm; the uneven part ``x / y - 1`` appears in the photos as a
     ``sheet_affine`` stretch (arm -> sheet matrix diag(1/x, 1/y)), and
     ``sheet_affine_beyond_printer`` is what a found ``sheet_affine`` leaves once the
-    printer's part is taken out (paper shrink, a tilted motion plane). None when the bars
-    were not measured.
+    printer's part is taken out (paper shrink, a tilted motion plane); ``physical_mm`` the
+    calibrated link lengths times ``uniform``. None when the bars were not measured.
     """
     printed = getattr(sheet, "printed", None) or {}
     mb = printed.get("measured_bar_mm")
@@ -293,6 +293,9 @@ def printer_scale(sheet, effects) -> dict | None:
     out = {"x": sx, "y": sy, "uniform": float(np.sqrt(sx * sy)), "uneven": sx / sy - 1.0,
            "measured_bar_mm": [float(mb[0]), float(mb[1])], "bar_mm": bar,
            "source": "sheet.printed.measured_bar_mm"}
+    if params:
+        out["physical_mm"] = {k: float(params[k]) * out["uniform"] for k in ("L1_mm", "L2_mm")
+                              if params.get(k) is not None}
     for e in effects:
         if e.get("name") == "sheet_affine" and e.get("matrix") is not None:
             m = np.asarray(e["matrix"], float)

@@ -75,7 +75,9 @@ def test_plan_command_writes_plan_and_trajectory(paper_folder, tmp_path, capsys)
     assert "target far" in err and "out of reach" in err
     ids, q, s = read_plan(tmp_path / "plan.csv")
     assert ids == ["origin", "p1"] and (s == 1).all()
-    # the paper's Table 3: the calibrated plan puts the pen on the sheet origin
+    # consistency (FK of the planned IK, not a paper figure; the paper's Table 3 is checked
+    # against its measured numbers in tests/calibrate/test_paper.py): the calibrated
+    # model puts the planned command on the sheet origin
     doc = json.loads(cal.read_text())
     from vision_cal.kinematics import ScaraParams, forward
 

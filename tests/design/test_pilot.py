@@ -83,3 +83,15 @@ def test_pilot_stage_writes_a_planned_session(pilot_dir):
     assert lines[0] == "t_s,q1_deg,q2_deg,qd1_deg_s,qd2_deg_s,pen"
     assert sum(line.endswith(",1") for line in lines[1:]) == 9
     assert (pilot_dir / "program.prg").exists()
+
+
+def test_unreachable_sheet_is_one_line_naming_the_robot_file(tmp_path, sheet_json, capsys):
+    from vision_cal.commands.main import main
+
+    robot = tmp_path / "far.yaml"
+    robot.write_text(ROBOT.read_text().replace("base_mm: [-400.0, -250.0]",
+                                               "base_mm: [-2000.0, -250.0]"))
+    rc = main(["design", str(robot), "--sheet", str(sheet_json), "--out", str(tmp_path / "p")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "\n" not in err and str(robot) in err and "placement_tolerance" in err
+    assert not (tmp_path / "p").exists()

@@ -152,3 +152,28 @@ def test_no_pen_heights_no_program(tmp_path, pilot_dir):
     with pytest.raises(VisionCalError, match="pen_up_mm"):
         write_program("spel", tmp_path / "x.prg", program_points(marks_of(s)), robot, title="t")
     assert not (tmp_path / "x.prg").exists()
+
+
+def test_plan_command_writes_std_and_the_compensated_program(tmp_path, robot):
+    """`vision-cal plan --program spel`: plan.csv gains std_mm, plan.prg draws exactly the
+    planned rows. Catches: the program written from other joints than plan.csv's."""
+    from tests.conftest import ROOT
+    from vision_cal.commands.main import main
+    from vision_cal.dataset.csvio import read_plan
+
+    assert main([str(ROOT / "fixtures" / "paper_sm5"), "--out", str(tmp_path / "cal"), "-q"]) == 0
+    (tmp_path / "t.csv").write_text("id,x_mm,y_mm\norigin,0,0\na,-60,40\nfar,900,0\n")
+    rc = main(["plan", str(tmp_path / "cal" / "calibration.json"), str(tmp_path / "t.csv"),
+               "-o", str(tmp_path / "plan.csv"), "--program", "spel", "--robot", str(ROBOT),
+               "-q"])
+    assert rc == 0
+    rows = {r["id"]: r for r in csv.DictReader(io.StringIO((tmp_path / "plan.csv").read_text()))}
+    assert all(0 < float(rows[i]["std_mm"]) < 5 for i in ("origin", "a"))
+    assert "far" not in rows or rows["far"]["status"] == "failed"   # out of reach
+    ids, q, s = read_plan(tmp_path / "plan.csv")
+    up, down = robot.require_pen_heights()
+    drawn = drawn_marks(parse_spel((tmp_path / "plan.prg").read_text())["ops"], up, down)
+    assert [d[0] for d in drawn] == ids
+    for (mid, at, before), qi, si in zip(drawn, q, s):
+        assert np.all(np.abs(np.array(at[:2]) - qi) <= 0.5e-4 + 1e-9)
+        assert np.all(np.sign(np.array(at[:2]) - np.array(before[:2])) == si)

@@ -273,3 +273,39 @@ def test_simulated_controller_scene(tmp_path):
     # the links really lag: the reached joint 2 differs from the command by half the band
     lag = np.array([t["link_q_deg"][m.id] for m in s.marks]) - s.joints_deg
     np.testing.assert_allclose(np.abs(lag[:, 1]), 0.05, atol=0.002)
+
+
+def test_shrunk_sheet_is_photographed_shrunk(tmp_path):
+    """sheet_affine is paper that shrank after printing: the photographer sees the printed
+    point p at inv(matrix) p in the arm frame (0.3 % closer to the origin along x), the
+    marks are drawn into the texture at matrix @ pen, and truth.json's T_cam_sheet maps
+    printed points to the camera (so it carries the shrink)."""
+    from dataclasses import replace
+
+    from vision_cal.model import SheetAffine
+
+    seen = []
+
+    class Spy(_Flat):
+        def photograph(self, tex, **kw):
+            seen.append(np.asarray(kw["T_cam_sheet"], float))
+            return super().photograph(tex, **kw)
+
+    M = ((1.003, 0.0), (0.0, 1.0))
+    scene = replace(SMALL, robot=replace(SMALL.robot, controller="kinematic",
+                                         effects=(SheetAffine(M),), repeatability_mm=0.0))
+    out = ds.render_dataset(scene.with_overrides(mode="single"), tmp_path / "s",
+                            pilot=pilot_params, photographer=Spy())
+    (T,) = seen
+    # columns of the rotation part: printed x is shrunk by 1/1.003, y untouched
+    np.testing.assert_allclose(np.linalg.norm(T[:3, :3], axis=0), [1 / 1.003, 1.0, 1.0],
+                               atol=1e-12)
+    t = _read(out, "truth.json")
+    np.testing.assert_allclose(t["camera"]["T_cam_sheet"]["img_000.png"], T)
+    # the marks in truth.json are printed coordinates: x read 1.003 times the arm's
+    s = load_session(out)
+    arm = scene.robot.true_robot.without_backlash()
+    xy_arm = arm.arm_points(arm.link_deg(s.joints_deg, s.approach))[:, 2]
+    xy = np.array([t["marks"][m.id] for m in s.marks])
+    np.testing.assert_allclose(xy[:, 0], 1.003 * xy_arm[:, 0], atol=1e-9)
+    np.testing.assert_allclose(xy[:, 1], xy_arm[:, 1], atol=1e-9)

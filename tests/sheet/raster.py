@@ -43,6 +43,25 @@ def rasterise_pdf(path, ppm: float):
     return rgb, (W / (w_pt * 25.4 / 72.0), H / (h_pt * 25.4 / 72.0))
 
 
+def rasterise_pdftoppm(path, ppm: float):
+    """Page 1 by poppler's ``pdftoppm`` at ``ppm`` px/mm. Poppler keeps the exact scale (the
+    last pixel row or column may be partly off the page). Returns (RGB, (ppm, ppm))."""
+    import shutil
+    import subprocess
+    import tempfile
+
+    from PIL import Image
+
+    exe = shutil.which("pdftoppm")
+    assert exe, "pdftoppm (poppler-utils) is needed: .ci/run installs it"
+    with tempfile.TemporaryDirectory() as d:
+        subprocess.run([exe, "-r", f"{ppm * 25.4:.6f}", "-singlefile", str(path),
+                        f"{d}/p"], check=True, capture_output=True)
+        with Image.open(f"{d}/p.ppm") as im:      # raw PPM: no PNG encoding
+            rgb = np.asarray(im.convert("RGB"))
+    return rgb, (float(ppm), float(ppm))
+
+
 def detect_corners_mm(rgb: np.ndarray, dictionary: str, extent_mm, ppm: float) -> dict:
     """id -> (4, 2) corners in sheet mm (TL, TR, BR, BL), cv2.aruco + cornerSubPix."""
     gray = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)

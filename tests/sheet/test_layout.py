@@ -122,6 +122,7 @@ def test_custom_size_and_measured_bars(tmp_path):
     (["--marker-mm", "90", "--size", "A4"], "--marker-mm"),
     (["--measured-bar-mm", "0", "100"], "--measured-bar-mm"),
     (["--png-dpi", "-300"], "--png-dpi"),
+    (["--size", "A4", "--custom", "300", "300"], "--custom"),
     (["--size", "A0", "--dictionary", "DICT_4X4_50", "--marker-mm", "10", "--pitch-mm", "17"],
      "--dictionary"),
 ])

@@ -14,7 +14,8 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from tests.sheet.raster import detect_corners_mm, find_bars_mm, px_to_mm, rasterise_pdf
+from tests.sheet.raster import (detect_corners_mm, find_bars_mm, px_to_mm, rasterise_pdf,
+                                rasterise_pdftoppm)
 from vision_cal.commands.main import main
 
 pytest.importorskip("pypdfium2")
@@ -51,8 +52,9 @@ def test_pdf_page_is_the_paper(printed):
 
     out, doc = printed
     w_pt, h_pt = pdfium.PdfDocument(str(out / "sheet.pdf"))[0].get_size()
-    assert w_pt * 25.4 / 72 == pytest.approx(doc["size_mm"][0], abs=1e-3)
-    assert h_pt * 25.4 / 72 == pytest.approx(doc["size_mm"][1], abs=1e-3)
+    # the page is rounded down to 0.01 pt (3.5 um), never up (see the next-but-one test)
+    for got_pt, want_mm in ((w_pt, doc["size_mm"][0]), (h_pt, doc["size_mm"][1])):
+        assert -0.0036 < got_pt * 25.4 / 72 - want_mm <= 1e-4   # pdfium: float32
 
 
 def test_pdf_marker_corners_land_where_sheet_json_says(printed):
@@ -76,6 +78,18 @@ def test_pdf_scale_bars_measure_100_mm_where_sheet_json_says(printed):
         assert length == pytest.approx(100.0, abs=CORNER_TOL_MM)
         want = np.array(doc["printed"]["scale_bars_mm"][axis])
         assert start[k] == pytest.approx(want[0][k], abs=CORNER_TOL_MM)
+
+
+def test_pdftoppm_agrees_too(printed):
+    """A second rasteriser (poppler): corners and bars to the same 0.02 mm."""
+    out, doc = printed
+    rgb, ppm = rasterise_pdftoppm(out / "sheet.pdf", PPM)
+    err = _corner_errors(detect_corners_mm(rgb, doc["aruco_dictionary"], _extent(doc), ppm), doc)
+    print(f"PDF via pdftoppm: corner error max {err.max():.4f} mm")
+    assert err.max() < CORNER_TOL_MM
+    bars = find_bars_mm(rgb, _extent(doc), ppm)
+    assert bars["x"][1][0] - bars["x"][0][0] == pytest.approx(100.0, abs=CORNER_TOL_MM)
+    assert bars["y"][1][1] - bars["y"][0][1] == pytest.approx(100.0, abs=CORNER_TOL_MM)
 
 
 def test_png_raster_agrees_with_sheet_json(printed):
@@ -118,3 +132,18 @@ def test_svg_markers_and_size_agree_with_sheet_json(printed):
         tl = px_to_mm([got[0] - 0.5], (x0, 0, 0, y1), 1.0)[0]
         br = px_to_mm([got[1] - 0.5], (x0, 0, 0, y1), 1.0)[0]
         assert np.allclose(tl, want[i][0], atol=1e-5) and np.allclose(br, want[i][2], atol=1e-5)
+
+
+@pytest.mark.parametrize("size", ["A4", "A3", "A2", "A1", "A0"])
+def test_pdfium_fits_the_page_to_whole_pixels_without_stretching(size, tmp_path):
+    """At whole px/mm pdfium's bitmap is exactly the paper (it stretches a page a hair
+    larger than N pixels to N + 1: the bug this guards against)."""
+    import pypdfium2 as pdfium
+
+    assert main(["sheet", "--size", size, "--out", str(tmp_path), "-q"]) == 0
+    doc = json.loads((tmp_path / "sheet.json").read_text())
+    page = pdfium.PdfDocument(str(tmp_path / "sheet.pdf"))[0]
+    for ppm in (2.0, 6.0):
+        bm = page.render(scale=ppm * 25.4 / 72.0)
+        assert (bm.width, bm.height) == (round(doc["size_mm"][0] * ppm),
+                                         round(doc["size_mm"][1] * ppm))

@@ -50,4 +50,7 @@ def test_calibration_reports_the_printer_scale(tmp_path, capsys):
     ps = cal["printer_scale"]
     assert (ps["x"], ps["y"]) == pytest.approx((0.998, 1.001))
     assert ps["measured_bar_mm"] == [99.8, 100.1]
+    u = np.sqrt(0.998 * 1.001)
+    assert ps["physical_mm"]["L1_mm"] == pytest.approx(cal["params"]["L1_mm"] * u)
+    assert ps["physical_mm"]["L2_mm"] == pytest.approx(cal["params"]["L2_mm"] * u)
     assert "printer scale (measured bars): x 0.99800, y 1.00100" in capsys.readouterr().out

@@ -8,7 +8,7 @@ import pytest
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import JointBacklash, RobotModel
 from vision_cal.plan.calibration_plan import PlannedMark
-from vision_cal.simulate.dynamics import ScaraDynamics, Stepper, play
+from vision_cal.simulate.dynamics import ScaraDynamics, Stepper
 from vision_cal.simulate.run import simulate_plan
 
 DYN = ScaraDynamics()
@@ -78,10 +78,20 @@ def test_friction_stops_a_coasting_arm():
     assert abs(s[2]) < 1e-3 and abs(s[3]) < 1e-3   # no instability from the stiff tanh
 
 
-def test_play_operator():
-    assert play(0.0, 1.0, 0.25) == 0.75     # dragged in +: lags by half the band
-    assert play(0.0, -1.0, 0.25) == -0.75
-    assert play(0.1, 0.2, 0.25) == 0.1      # inside the band: the link stays
+def test_play_in_the_simulated_run():
+    """The gear play simulate_plan really uses (not a helper production never calls):
+    dragged in + the link lags band/2 behind the encoder; a reversal smaller than the band
+    leaves the link where it was (and on the same side); a larger one drags it back."""
+    band = (0.25, 0.0)
+    up = PlannedMark("a", (10.0, 0.0), approach=(1, 1))
+    small_back = PlannedMark("b", (9.9, 0.0), approach=(-1, 1))     # 0.1 < 0.25 deg
+    big_back = PlannedMark("c", (9.5, 0.0), approach=(-1, 1))       # 0.4 > 0.25 deg
+    res = simulate_plan([up, small_back, big_back], backlash_deg=band)
+    # hand-computed: link = 10 - 0.125 = 9.875 at a; the encoder moves to 9.9, still inside
+    # the band (9.9 - 0.125 < 9.875 < 9.9 + 0.125): the link stays at 9.875; at c the
+    # encoder is at 9.5, dragging the link from above: 9.5 + 0.125 = 9.625
+    np.testing.assert_allclose(res.link_deg[:, 0], [9.875, 9.875, 9.625], atol=2e-4)
+    np.testing.assert_array_equal(res.arrival_sign[:, 0], [1, 1, -1])
 
 
 def _one_mark(q, approach, over=3.0):

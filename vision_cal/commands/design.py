@@ -60,6 +60,12 @@ def run(args) -> int:
                      safety_mm=args.safety_mm, seed=args.seed)
     if not args.quiet:
         print(f"{r.stage} plan: {r.n_marks} marks, {r.duration_s:.1f} s of motion")
+        if r.stage == "pilot":
+            print(f"every mark stays {r.info['worst_case_clearance_mm']:.1f} mm clear of markers "
+                  f"and edges for {r.info['placements_checked']} placements within the "
+                  "robot file's placement_tolerance")
+        else:
+            print(f"placed with the pilot's model, {r.info['safety_mm']:.1f} mm of safety")
         for p in (r.session_path, r.trajectory_path, r.program_path):
             if p is not None:
                 print(f"wrote {p}")

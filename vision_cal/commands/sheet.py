@@ -20,7 +20,7 @@ sheet.json as the "sheet" block of session.json (vision-cal design does it for y
 
 def add_arguments(p) -> None:
     page = p.add_argument_group("page")
-    page.add_argument("--size", default="A3", metavar="A0..A4",
+    page.add_argument("--size", default=None, metavar="A0..A4",
                       help="ISO page size (default A3)")
     page.add_argument("--custom", type=float, nargs=2, metavar=("W", "H"),
                       help="custom page width and height in mm (instead of --size)")
@@ -49,7 +49,11 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     from vision_cal.sheet import make_layout, write_sheet
 
-    layout = make_layout(size=args.size, landscape=args.landscape, custom_mm=args.custom,
+    if args.size is not None and args.custom is not None:
+        from vision_cal.errors import VisionCalError
+
+        raise VisionCalError("give either --size or --custom, not both", field="--custom")
+    layout = make_layout(size=args.size or "A3", landscape=args.landscape, custom_mm=args.custom,
                          dictionary=args.dictionary, marker_mm=args.marker_mm,
                          pitch_mm=args.pitch_mm, measured_bar_mm=args.measured_bar_mm)
     paths = write_sheet(layout, args.out, png_dpi=args.png_dpi)

@@ -125,7 +125,10 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
     if pilot is None:
         from vision_cal.design.pilot import design_pilot
 
-        d = design_pilot(robot, sheet)
+        try:
+            d = design_pilot(robot, sheet)
+        except VisionCalError as e:
+            raise VisionCalError(e.reason, file=e.file or str(robot_path), field=e.field) from e
         marks = list(d.marks)
         plan_robot = nominal
         info = d.to_json()

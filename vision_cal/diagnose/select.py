@@ -25,8 +25,9 @@ from scipy import stats
 
 from vision_cal.calibrate.lsq import Fit
 from vision_cal.diagnose.candidates import Candidate, default_candidates, joint_residuals_deg
+from vision_cal.diagnose.structure import harmonic_scan, sheet_scan
 from vision_cal.errors import CalibrationError
-from vision_cal.model import RobotModel, SheetAffine
+from vision_cal.model import JointCyclic, RobotModel, SheetAffine
 
 ALPHA = 0.01   # family-wise level of the F-test, split over the candidates (Bonferroni)
 K_FOLDS = 5    # cross-validation folds when there are fewer than 3 validation marks
@@ -164,12 +165,113 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
     cands = list(candidates if candidates is not None else default_candidates())
     alpha_each = alpha / max(len(cands), 1)
 
-    def held(model):
-        return heldout_rms(model, q, xy, app, sigma=sigma, q_val=q_val if has_val else None,
-                           xy_val=xy_val, app_val=approach_val, k_folds=k_folds, rng=rng)
+    def held_on(sub):
+        def held(model):
+            return heldout_rms(model, q[sub], xy[sub], app[sub],
+                               sigma=None if sigma is None else sigma[sub],
+                               q_val=q_val if has_val else None, xy_val=xy_val,
+                               app_val=approach_val, k_folds=k_folds, rng=rng)
+        return held
 
+    def select_on(sub):
+        """Selection on the marks ``sub``, with joint harmonics no candidate offers found
+        in the residual and fitted as nuisances (never reported as something else)."""
+        qs, xs, aps = q[sub], xy[sub], app[sub]
+        ss = None if sigma is None else sigma[sub]
+        idl = None if ids is None else tuple(np.asarray(ids, dtype=object)[sub])
+        held = held_on(sub)
+        b = _fit(None, qs, xs, aps, ss, idl)
+        sl = _select(b, (), cands, qs, xs, aps, ss, idl, held, alpha_each, max_effects)
+        # harmonics significant even beside every candidate the plan can fit
+        full = sl.fit
+        for c in cands:
+            if c.key in {k.key for k in cands if any(k.label == a.label for a in sl.accepted)}:
+                continue
+            try:
+                full = _fit(full.model.with_effect(c.effect), qs, xs, aps, ss, idl)
+            except CalibrationError:
+                continue
+        fnd = _unexplained_harmonics(full, qs, aps, ss, cands, alpha, ids=idl, xy=xs)
+        nui = tuple(JointCyclic(joint=h["joint"], harmonic=h["harmonic"]) for h in fnd)
+        if nui:
+            sl = _select(b, nui, cands, qs, xs, aps, ss, idl, held, alpha_each, max_effects)
+        return sl, fnd, nui
+
+    everything = np.ones(len(q), dtype=bool)
+    held = held_on(everything)
     base = _fit(None, q, xy, app, sigma, ids)
-    current, current_held = base, held(RobotModel(base.params))
+    sel, found, nuisance = select_on(everything)
+    # the sheet map of what is left once the nuisance harmonics are out
+    keep = sel.fit.inliers
+    sheet_map = sheet_scan(xy[keep], sel.fit.residuals_mm[keep])
+    sheet_alpha = alpha / 2
+    if sheet_map["p_value"] < sheet_alpha:
+        # neighbouring marks share a residual: select again without the marks there, so
+        # the local structure is not explained by a global effect
+        peak = np.asarray(sheet_map["peak_mm"])
+        d = np.linalg.norm(xy - peak, axis=1)
+        radius = 1.5 * np.sort(d)[min(sheet_map["k"], len(d) - 1)]
+        outside = d > radius
+        sheet_map["excluded_radius_mm"] = float(radius)
+        sheet_map["excluded_marks"] = int((~outside).sum())
+        if outside.sum() >= max(12, len(q) // 2):
+            sel, found, nuisance = select_on(outside)
+            # the map as the model fitted away from the structure sees it
+            again = sheet_scan(xy, xy - sel.fit.predict(q, app), n_perm=0)
+            sheet_map.update({k: again[k] for k in ("peak_mm", "peak_size_mm",
+                                                    "peak_residual_mm", "map")})
+    effects = tuple(sel.fit.model.effects[len(nuisance):])
+    if nuisance or not everything.all() or len(sel.fit.residuals_mm) != len(q):
+        zero = RobotModel(base.params, tuple(_at_zero(e) for e in effects))
+        current = _fit(zero if effects else None, q, xy, app, sigma, ids)
+    else:
+        current = sel.fit
+    current_held = held(current.model)
+    base_held = held(RobotModel(base.params))
+    accepted = sel.accepted
+    # keep only the last round's rejections per label (the final word on each candidate)
+    last = {}
+    for ev in sel.rejected:
+        last[ev.label] = ev
+    analysis = residual_analysis(current, q, app)
+    keep = current.inliers
+    w = None if sigma is None else 1.0 / np.asarray(sigma)[keep]
+    analysis["periodogram"] = harmonic_scan(current.model, q[keep], app[keep],
+                                            current.residuals_mm[keep], weights=w)
+    analysis["sheet_map"] = sheet_map
+    unexplained = _unexplained(analysis, alpha, found, sheet_alpha)
+    return Diagnosis(base, current, tuple(accepted), tuple(last.values()),
+                     tuple(sel.not_identifiable), unexplained, kind, base_held, current_held,
+                     analysis,
+                     {"alpha": alpha, "n_candidates": len(cands), "alpha_each": alpha_each,
+                      "delta_bic_below": 0.0, "k_folds": k_folds,
+                      "max_effects": max_effects, "unexplained_harmonics_alpha": alpha,
+                      "unexplained_sheet_alpha": sheet_alpha})
+
+
+@dataclass
+class _Selection:
+    fit: Fit
+    held: float
+    base_held: float
+    accepted: list
+    rejected: list
+    not_identifiable: list
+
+
+def _at_zero(e):
+    return e.with_theta(np.zeros(len(e.theta)))
+
+
+def _select(base: Fit, nuisance: tuple, cands, q, xy, app, sigma, ids, held, alpha_each,
+            max_effects) -> _Selection:
+    """Forward selection from the base model (plus ``nuisance`` effects, fitted but never
+    reported: structure no candidate explains)."""
+    if nuisance:
+        current = _fit(RobotModel(base.params, nuisance), q, xy, app, sigma, ids)
+    else:
+        current = base
+    current_held = held(current.model)
     base_held = current_held
     accepted, rejected, not_ident = [], [], []
     used_keys: set[str] = set()
@@ -223,17 +325,39 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
                                  eff.to_json()))
         used_keys.add(c.key)
         current, current_held = f, best[0]
-    # keep only the last round's rejections per label (the final word on each candidate)
-    last = {}
-    for ev in rejected:
-        last[ev.label] = ev
-    analysis = residual_analysis(current, q, app)
-    unexplained = _unexplained(analysis, alpha)
-    return Diagnosis(base, current, tuple(accepted), tuple(last.values()), tuple(not_ident),
-                     unexplained, kind, base_held, current_held, analysis,
-                     {"alpha": alpha, "n_candidates": len(cands), "alpha_each": alpha_each,
-                      "delta_bic_below": 0.0, "k_folds": k_folds,
-                      "max_effects": max_effects})
+    return _Selection(current, current_held, base_held, accepted, rejected, not_ident)
+
+
+def _unexplained_harmonics(fit: Fit, q, app, sigma, cands, alpha, *, ids=None, xy=None,
+                           max_found: int = 3) -> list[dict]:
+    """Joint harmonics significant in the residual that no candidate offers, at level
+    ``alpha`` split over every harmonic scanned. One at a time, strongest first: each found
+    one is fitted before the next scan (a strong harmonic of one joint leaks into the
+    other joint's periodogram)."""
+    offered = {(c.effect.joint, c.effect.harmonic) for c in cands
+               if isinstance(c.effect, JointCyclic)}
+    out = []
+    for _ in range(max_found):
+        keep = fit.inliers
+        w = None if sigma is None else 1.0 / np.asarray(sigma)[keep]
+        scan = harmonic_scan(fit.model, q[keep], app[keep], fit.residuals_mm[keep], weights=w)
+        n_tests = sum(len(v) for v in scan.values())
+        sig = [dict(r, joint=int(name[-1])) for name, rows in scan.items() for r in rows
+               if r["p_value"] < alpha / n_tests
+               and (int(name[-1]), r["harmonic"]) not in offered
+               and not any(o["joint"] == int(name[-1]) and o["harmonic"] == r["harmonic"]
+                           for o in out)]
+        if not sig:
+            break
+        best = max(sig, key=lambda r: r["F"])
+        out.append(best)
+        try:
+            fit = _fit(fit.model.with_effect(JointCyclic(joint=best["joint"],
+                                                         harmonic=best["harmonic"])),
+                       q, xy, app, sigma, ids)
+        except CalibrationError:
+            break
+    return out
 
 
 def _rss_w(fit: Fit, sigma) -> float:
@@ -253,9 +377,26 @@ def _prefer_shrink(trials):
     return trials
 
 
-def _unexplained(analysis: dict, alpha: float) -> dict | None:
-    seen = []
-    for j, res in analysis.items():
+def _unexplained(analysis: dict, alpha: float, harmonics=(), sheet_alpha=None) -> dict | None:
+    """What the final model leaves that no candidate explains: joint harmonics outside the
+    candidates (joint, harmonic, amplitude, the joint's periodogram), residuals shared by
+    neighbouring marks (where on the sheet, how big, the map), and the binned checks."""
+    seen, out = [], {}
+    for h in harmonics:
+        seen.append(f"joint{h['joint']} residual has a harmonic {h['harmonic']} of "
+                    f"{h['amplitude_deg']:.4f} deg (F = {h['F']:.1f}, p = {h['p_value']:.2g}), "
+                    f"which no candidate models")
+    if harmonics:
+        out["joint_harmonics"] = [dict(h, periodogram=analysis["periodogram"][
+            f"joint{h['joint']}"]) for h in harmonics]
+    sm = analysis.get("sheet_map")
+    if sm and sm.get("p_value", 1.0) < (alpha / 2 if sheet_alpha is None else sheet_alpha):
+        seen.append(f"neighbouring marks share their residual (p = {sm['p_value']:.2g}): "
+                    f"largest {sm['peak_size_mm']:.3f} mm near "
+                    f"({sm['peak_mm'][0]:.0f}, {sm['peak_mm'][1]:.0f}) mm on the sheet")
+        out["sheet"] = sm
+    for j in ("joint1", "joint2"):
+        res = analysis.get(j, {})
         ba = res.get("by_approach_deg")
         if ba and ba["p_value"] < alpha / 10:
             seen.append(f"{j} residual depends on the approach direction "
@@ -264,4 +405,4 @@ def _unexplained(analysis: dict, alpha: float) -> dict | None:
         if bn and bn["p_value"] < alpha / 10:
             seen.append(f"{j} residual varies with the joint angle (chi2 = {bn['chi2']:.1f}, "
                         f"p = {bn['p_value']:.2g})")
-    return {"seen": seen} if seen else None
+    return {"seen": seen, **out} if seen else None

@@ -9,7 +9,8 @@ Conventions
 - ``SheetMapping.H_img_sheet`` (3, 3) maps sheet mm (x right, y up) to ideal pixels;
   ``G_sheet_img`` is its inverse.
 - :class:`LensEstimate` is the lens found in the photos when ``session.camera`` is absent:
-  OpenCV ``K`` and ``dist`` (k1 k2 p1 p2 k3), principal point at the image centre.
+  OpenCV ``K`` and ``dist`` (k1 k2 p1 p2 k3); the principal point starts at the image
+  centre and is free in the ``k1k2_pp`` model (phones: often tens of pixels off).
 """
 
 from __future__ import annotations
@@ -186,8 +187,12 @@ def fit_mapping(sheet_mm, raw_px, *, K=None, dist=None) -> SheetMapping:
 #: candidate lens models, simplest first: (name, calibrateCamera flags for free terms)
 _BASE_FLAGS = (cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_FIX_PRINCIPAL_POINT
                | cv2.CALIB_FIX_ASPECT_RATIO)
+#: the principal point is where the radial distortion is centred; a phone's is often
+#: tens of pixels off the image centre: a model with it free competes on held-out corners
+_FREE_PP_FLAGS = cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_FIX_ASPECT_RATIO
 LENS_MODELS = (
     ("k1k2", _BASE_FLAGS | cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K3),
+    ("k1k2_pp", _FREE_PP_FLAGS | cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K3),
     ("k1k2k3p1p2", _BASE_FLAGS),
 )
 
@@ -260,7 +265,8 @@ def estimate_lens(views, size_px, *, n_folds: int = 3, min_gain: float = 0.8,
     """Fit a lens jointly over photos of one camera, keep it only if held-out corners agree.
 
     ``views``: list of (marker_ids (M,), corners_mm (M, 4, 2), corners_px (M, 4, 2)).
-    Shared intrinsics (unknown focal, principal point at the image centre) and distortion,
+    Shared intrinsics (unknown focal; principal point at the image centre, or free in the
+    ``k1k2_pp`` model) and distortion,
     one pose per photo. Markers are split into ``n_folds`` interleaved folds; each model is
     fitted without one fold and scored on its corners. A model is kept when its held-out
     RMS is below ``min_gain`` x and ``min_gain_px`` below the plain homography's; a richer

@@ -69,12 +69,14 @@ class _Streams:
     park: np.random.Generator
     extras: np.random.Generator
     sim: np.random.Generator
+    focal: np.random.Generator
 
     @classmethod
     def from_seed(cls, seed: int) -> "_Streams":
-        ss = np.random.SeedSequence(seed).spawn(8)
+        ss = np.random.SeedSequence(seed).spawn(9)
         g = [np.random.default_rng(s) for s in ss]
-        return cls(g[0], g[1], int(ss[2].generate_state(1)[0]), g[3], g[4], g[5], g[6], g[7])
+        return cls(g[0], g[1], int(ss[2].generate_state(1)[0]), g[3], g[4], g[5], g[6], g[7],
+                   g[8])
 
 
 # --------------------------------------------------------------------------------- plan
@@ -332,7 +334,9 @@ def photographer_K(scene: Scene) -> np.ndarray:
     from vision_cal.render.camera import camera_matrix
 
     cam = scene.camera
-    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px), dtype=float)
+    # the shortest focal length any photo has (phones: camera.f_scatter)
+    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px * (1.0 - cam.f_scatter),
+                                 principal_px=cam.principal_px), dtype=float)
     if not any(cam.dist):
         return K
     w, h = cam.size_px
@@ -349,7 +353,7 @@ def photographer_K(scene: Scene) -> np.ndarray:
     need = np.max(np.abs(xn) / np.maximum(np.abs(np.column_stack([
         np.where(xn[:, 0] < 0, c[0] + 0.5, w - 0.5 - c[0]),
         np.where(xn[:, 1] < 0, c[1] + 0.5, h - 0.5 - c[1])])), 1e-9), axis=0).max()
-    f_ideal = min(cam.f_px, 0.995 / need)
+    f_ideal = min(K[0, 0], 0.995 / need)
     Ki = K.copy()
     Ki[0, 0] = Ki[1, 1] = f_ideal
     return Ki
@@ -382,6 +386,10 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     cam, ph, rob = scene.camera, scene.photos, scene.robot
 
     sh = scene.sheet
+    if printed is None and sh.printed is not None:
+        from vision_cal.render.printed import load_printed_sheet
+
+        printed = load_printed_sheet(sh.printed)
     sheet = make_sheet(size_mm=sh.size_mm, bottom_left_mm=sh.bottom_left_mm,
                        dictionary=sh.dictionary, marker_mm=sh.marker_mm, grid=sh.grid,
                        margin_mm=sh.margin_mm) if printed is None else printed.sheet
@@ -405,15 +413,28 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     n = len(plan)
     diameters = rob.pen_diameter_mm * np.ones(n)
 
-    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px), dtype=float)
+    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px,
+                                 principal_px=cam.principal_px), dtype=float)
     dist = np.asarray(cam.dist, dtype=float)
-    views = default_views(sheet, n=cam.n_views, size_px=cam.size_px, K=K, tilt_deg=cam.tilt_deg,
-                          rng=st.views, fill=cam.fill, target_jitter=(1.0 - cam.fill) / 2)
+    # the views keep the sheet in frame at the longest focal length any photo has
+    K_long = K.copy()
+    K_long[0, 0] = K_long[1, 1] = cam.f_px * (1.0 + cam.f_scatter)
+    views = default_views(sheet, n=cam.n_views, size_px=cam.size_px, K=K_long,
+                          tilt_deg=cam.tilt_deg, rng=st.views, fill=cam.fill,
+                          target_jitter=(1.0 - cam.fill) / 2)
     ext = "jpg" if ph.jpeg_quality is not None else "png"
     if ph.mode == "series":
         shots = [(f"img_{k:03d}.{ext}", k + 1) for k in range(n)]
     else:
         shots = [(f"img_000.{ext}", n)]
+    # each photo's camera matrix: phones refocus between photos (camera.f_scatter)
+    Ks = []
+    for _ in shots:
+        Ki = K.copy()
+        if cam.f_scatter > 0:
+            Ki[0, 0] = Ki[1, 1] = cam.f_px * st.focal.uniform(1 - cam.f_scatter,
+                                                              1 + cam.f_scatter)
+        Ks.append(Ki)
 
     K_ideal = photographer_K(scene)
     own = photographer is None
@@ -434,7 +455,7 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     try:
         textures = _Textures(sheet, world.xy_mm, diameters, px_per_mm=ph.texture_px_per_mm,
                              seed=st.texture_seed, printed=printed)
-        images, poses, parked = [], {}, {}
+        images, poses, parked, K_photo = [], {}, {}, {}
         it = shots
         if progress:
             from tqdm import tqdm
@@ -450,14 +471,17 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
                 q_park = parking_pose(truth, sheet.extent_mm, rng=st.park)
                 arm = arm_boxes(truth, q_park)
                 parked[fname] = [float(v) for v in q_park]
+            Ki = Ks[i]
+            lens = any(dist) or not np.allclose(Ki, K_ideal)
             rgb = photographer.photograph(
                 tex, extent_mm=sheet.extent_mm, T_cam_sheet=T,
-                dist=dist if any(dist) else None, K_dist=K if any(dist) else None, arm=arm,
+                dist=dist if any(dist) else None, K_dist=Ki if lens else None, arm=arm,
                 vignetting=ph.vignetting, noise_sigma=ph.noise_sigma, jpeg_quality=None,
                 rng=st.photos, **({} if height_grid is None else {"height_grid": height_grid}))
             (tmp / fname).write_bytes(_encode_image(np.asarray(rgb), ph.jpeg_quality))
             images.append({"file": fname, "marks": list(world.ids[:n_marks])})
             poses[fname] = T.tolist()
+            K_photo[fname] = Ki.tolist()
             del rgb
         for e in ph.extra_files:
             (tmp / e.file).write_bytes(_extra_image(e.kind, cam.size_px, st.extras))
@@ -488,7 +512,8 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
             "effects": effects,
             "marks": {mid: world.xy_mm[i].tolist() for i, mid in enumerate(world.ids)},
             "camera": {"size_px": list(cam.size_px), "K": K.tolist(), "dist": dist.tolist(),
-                       "declared": cam.declared, "T_cam_sheet": poses},
+                       "declared": cam.declared, "T_cam_sheet": poses,
+                       "K_per_photo": K_photo},
             # added fields: how the world got there
             "repeatability_mm": rob.repeatability_mm,
             "controller": rob.controller if joint_source is None else "custom",

@@ -13,11 +13,11 @@ Conventions
   down in s x s blocks (cv2.INTER_AREA). The camera matrix of the big render is
   ``K_s = S K`` with ``u_s = s u + (s - 1) / 2``, so every output pixel is the area average
   over its own footprint. pyrender's ``IntrinsicsCamera`` takes an OpenGL principal point,
-  which is the OpenCV one + 0.5. Measured (tests/render/test_photo.py, 640 x 480, dots
-  ~3 px across, texture ~2.5 texels per render pixel): rendered dot centres within 0.03 px
-  of ``cv2.projectPoints`` (rms 0.01 px, no bias above 0.003 px), flat or tilted 20-30 deg.
-  Mean colours come out ~0.8 grey level brighter than the texture's (llvmpipe rounds up
-  when it builds mipmaps and filters), equally in all channels.
+  which is the OpenCV one + 0.5. ``bench/render.py --accuracy`` prints where rendered dot
+  centres land against ``cv2.projectPoints`` (flat, tilted 20-30 deg, with a lens);
+  tests/render/test_photo.py bounds them. Mean colours come out slightly brighter than the
+  texture's (llvmpipe rounds up when it builds mipmaps and filters), equally in all
+  channels.
 - Texture resolution: aim for about 2 texels per supersampled pixel (8 px/mm for an A2
   sheet in a 2000 x 1500 photo); the texture must fit ``max_texture_px`` (OpenGL limit).
 - The arm (optional) is a set of boxes and a pen-holder cylinder with lighting baked into
@@ -361,8 +361,9 @@ class Photographer:
         The lens is ``(K_dist or K, dist)``: a sheet point lands where
         ``cv2.projectPoints(..., K_dist, dist)`` puts it. The lens is applied to the
         supersampled render before it is averaged down (``distort_image`` with bilinear
-        cv2.remap there: dot centres within 0.03 px in tests, as good as the B-spline path
-        and ~10x faster); the lens maps are built once per (K, dist) and cached. Parts of the distorted frame that
+        cv2.remap there, ~10x faster than the B-spline path; the dot-centre figures come
+        from ``bench/render.py --accuracy``); the lens maps are built once per (K, dist) and
+        cached. Parts of the distorted frame that
         fall outside the ideal render come out black (barrel distortion, k1 < 0, in the
         corners): build the Photographer with a shorter focal length to avoid that.
         ``height_grid`` = (xs (nx,), ys (ny,), Z (ny, nx)) mm: the paper is not flat; the

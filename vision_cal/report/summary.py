@@ -70,6 +70,9 @@ def format_summary(doc: dict, *, reference: dict | None = None) -> str:
         line = (f"printer scale (measured bars): x {ps['x']:.5f}, y {ps['y']:.5f} (uneven "
                 f"{100 * ps['uneven']:+.3f} %); physical lengths = calibrated x "
                 f"{ps['uniform']:.5f}")
+        phys = ps.get("physical_mm") or {}
+        if phys.get("L1_mm") is not None and phys.get("L2_mm") is not None:
+            line += f" (L1 {phys['L1_mm']:.3f}, L2 {phys['L2_mm']:.3f} mm)"
         if ps.get("sheet_affine_beyond_printer") is not None:
             line += (f"; sheet_affine beyond the printer "
                      f"{100 * ps['sheet_affine_beyond_printer']:+.3f} %")

@@ -24,6 +24,16 @@ from vision_cal.sheet.layout import MarkerCells, Poly, Rect, SheetLayout, Text
 PT_PER_MM = 72.0 / 25.4
 
 
+def _page_pt(size_mm: float) -> float:
+    """The page side in points, rounded *down* to 0.01 pt (< 3.6 um
+    short of the paper; the drawing itself is at exact scale). Rounded up, a rasteriser
+    that fits the page to whole pixels (pdfium) would add a pixel and stretch the page by
+    1/N (0.03 % at 6 px/mm on A2)."""
+    import math
+
+    return math.floor(size_mm * PT_PER_MM * 100.0 + 1e-9) / 100.0
+
+
 def _runs(prims):
     """Primitives with consecutive same-coloured ``Rect`` grouped into lists."""
     out: list = []
@@ -41,7 +51,7 @@ def pdf_bytes(layout: SheetLayout) -> bytes:
     W, H = layout.size_mm
     x_min, y_min = layout.bottom_left_mm
     buf = BytesIO()
-    c = canvas.Canvas(buf, pagesize=(W * PT_PER_MM, H * PT_PER_MM), invariant=1,
+    c = canvas.Canvas(buf, pagesize=(_page_pt(W), _page_pt(H)), invariant=1,
                       pageCompression=1)
     c.setTitle(f"vision-cal sheet {layout.sheet_id}")
     c.setAuthor("vision-cal")
