@@ -87,6 +87,7 @@ def test_series_without_images_list(tmp_path, world, capsys):
     again = series[1].copy()  # another photo of the same state: different bytes
     again[:5, :5] = 255 - again[:5, :5]
     sm.write_png(src / "s_2b.png", again)
+    (src / "IMG_7.heic").write_bytes(b"\0\0\0\x18ftypheic")  # a phone's format: named
     _plan(src, world)
     before = _snapshot(src)
     _readonly(src)
@@ -117,6 +118,8 @@ def test_series_without_images_list(tmp_path, world, capsys):
     assert err == [f"vision-cal: warning: {src}/floor.png: skipped: {st['floor.png']['reason']}",
                    f"vision-cal: warning: {src}/s_2_copy.png: skipped: repeated photo: the "
                    "same file as s_2.png",
+                   f"vision-cal: warning: {src}: 1 file(s) of a format not read (IMG_7.heic): "
+                   "convert them to JPEG or PNG",
                    f"vision-cal: warning: {src}: s_2b.png: a repeated photo (no mark added "
                    "since s_2.png)", missing], err
     truth = dict(zip(IDS, targets))
@@ -196,11 +199,13 @@ def test_no_photos_at_all_is_one_line(tmp_path, world, capsys):
     src = tmp_path / "in"
     src.mkdir()
     _plan(src, world)
+    (src / "IMG_0001.HEIC").write_bytes(b"\0\0\0\x18ftypheic")
     rc = main([str(src), "--out", str(tmp_path / "out")])
     assert rc == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "images: no photos" in err[0], err
-    assert sorted(p.name for p in src.iterdir()) == ["session.json"]
+    assert "1 file(s) of a format not read (IMG_0001.HEIC): convert them to JPEG" in err[0]
+    assert sorted(p.name for p in src.iterdir()) == ["IMG_0001.HEIC", "session.json"]
 
 
 def _groups(seen):

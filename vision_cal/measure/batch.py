@@ -438,6 +438,7 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                              "(photos are never written to)", file=str(out_dir))
     cache = DetectionCache(Path(cache_dir) if cache_dir else out_dir / ".cache")
     warnings: list[str] = []
+    notes: list[str] = []  # no images list: what the user should see on the console
 
     try:
         present = photos.list_photos(root)
@@ -456,10 +457,17 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
             log.warning(msg)
             warnings.append(msg)
     else:
+        unread = photos.list_unread(root)
+        conv = (f"; {len(unread)} file(s) of a format not read ({unread[0]}"
+                f"{', ...' if len(unread) > 1 else ''}): convert them to JPEG or PNG"
+                if unread else "")
         if not present:
             raise VisionCalError("no photos: session.json has no images list and the folder "
                                  f"has no {'/'.join(s[1:] for s in photos.PHOTO_SUFFIXES)} "
-                                 "file", file=str(session.path), field="images")
+                                 f"file{conv}", file=str(session.path), field="images")
+        if unread:
+            notes.append(conv[2:])
+            warnings.append(conv[2:])
         items = [_Photo(f, None) for f in present]
 
     # checked in this process before anything is decoded or dispatched
@@ -575,6 +583,6 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
             log.info("skipped %s: %s", r.file, r.reason)
     meas = Measurement(marks, images, lens, unassigned, refused, warnings,
                        tuple(image_marks), None if inferred is None else inferred.mode,
-                       () if inferred is None else tuple(inferred.warnings))
+                       () if inferred is None else (*notes, *inferred.warnings))
     atomic_write_json(out_dir / "measurement.json", meas.to_json())
     return meas
