@@ -193,6 +193,12 @@ def test_exif_capture_time_orders_the_photos(tmp_path, world):
     assert [len(m) for m in meas.image_marks] == [1, 2, 3]
     assert meas.inferred == "series"
     assert set(meas.marks) == {"c0", "c1", "c2"}
+    # one photo without a capture time: all by file name (and said so)
+    (src / "z8.jpg").write_bytes(_jpeg(series[1], None))
+    meas = measure_folder(load_session(src), out_dir=tmp_path / "out", jobs=1)
+    assert [im.file for im in meas.images] == ["z7.jpg", "z8.jpg", "z9.jpg"]
+    assert any("1 of 3 photos have no EXIF capture time" in w for w in meas.warnings)
+    assert any("1 of 3 photos have no EXIF capture time" in w for w in meas.inferred_notes)
 
 
 def test_no_photos_at_all_is_one_line(tmp_path, world, capsys):

@@ -467,14 +467,14 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                                  f"file{conv}", file=str(session.path), field="images")
         if unread:
             notes.append(conv[2:])
-            warnings.append(conv[2:])
         items = [_Photo(f, None) for f in present]
 
     # checked in this process before anything is decoded or dispatched
     for ph in items:
         _check_photo(ph, root, session)
     if not session.images_listed:
-        items = _capture_order(items, warnings)
+        items = _capture_order(items, notes)
+        warnings.extend(notes)
     first_of: dict[str, str] = {}
     for ph in items:
         if ph.det is None and ph.sha256 in first_of:
