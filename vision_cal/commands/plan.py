@@ -30,6 +30,9 @@ def add_arguments(p) -> None:
     p.add_argument("--program", choices=("spel", "csv"), default=None,
                    help="also write a robot program beside PLAN.csv: spel (PLAN.prg, Epson "
                         "SPEL+) or csv (PLAN_points.csv); needs --robot")
+    p.add_argument("--home", type=float, nargs=2, metavar=("Q1", "Q2"), default=None,
+                   help="joints (deg) the arm starts from (default: the robot file's "
+                        "home_deg, else calibration.json's, which the session gave)")
     p.add_argument("--robot", metavar="ROBOT.yaml",
                    help="robot file: joint limits, speeds, pen heights for --program")
 
@@ -41,7 +44,6 @@ def run(args) -> int:
     from vision_cal.dataset.calibration import load_calibration
     from vision_cal.dataset.csvio import read_targets, write_plan
     from vision_cal.plan.compensate import plan_targets
-
     from vision_cal.plan.uncertainty import load_covariance, predicted_std_mm
 
     robot = None
@@ -70,18 +72,19 @@ def run(args) -> int:
     failed = [p for p in planned if p.status != "ok"]
     for p in failed:
         print(f"vision-cal: warning: {args.targets}: target {p.id}: {p.reason}", file=sys.stderr)
+    home_deg = _home_deg(args, doc, robot)
     if args.trajectory:
         from vision_cal.plan.compensate import write_plan_trajectory
 
         ok = [p for p in planned if p.status == "ok"]
-        write_plan_trajectory(args.trajectory, ok, home_deg=doc.get("home_deg", (0.0, 0.0)))
+        write_plan_trajectory(args.trajectory, ok, home_deg=home_deg)
     if args.program:
         from vision_cal.plan.compensate import to_planned_marks
         from vision_cal.program import program_path, program_points, write_program
 
         ok = [p for p in planned if p.status == "ok"]
         marks = to_planned_marks(ok, overshoot_deg=robot.overshoot_deg, role="target")
-        points = program_points(marks, home_deg=doc.get("home_deg", robot.nominal.home_deg),
+        points = program_points(marks, home_deg=home_deg,
                                 z2_deg=model.params.z2_deg)
         stem = Path(args.out).with_suffix("")
         path = write_program(args.program, program_path(args.program, stem), points, robot,
@@ -93,3 +96,26 @@ def run(args) -> int:
         print(f"planned {len(planned) - len(failed)} of {len(planned)} targets "
               f"with the {args.model} model -> {args.out}")
     return 0
+
+
+def _home_deg(args, doc: dict, robot) -> tuple[float, float]:
+    """Where the planned motion starts: ``--home``, else the robot file's ``home_deg``, else
+    calibration.json's ``home_deg`` (the session's), else (0, 0)."""
+    import math
+
+    from vision_cal.errors import VisionCalError
+
+    if args.home is not None:
+        home, where, file = args.home, "--home", None
+    elif robot is not None:
+        return tuple(robot.nominal.home_deg)
+    elif "home_deg" in doc:
+        home, where, file = doc["home_deg"], "home_deg", args.calibration
+    else:
+        return (0.0, 0.0)
+    if (not isinstance(home, (list, tuple)) or len(home) != 2
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                       and math.isfinite(v) for v in home)):
+        raise VisionCalError(f"expected two finite joint angles in degrees, got {home!r}",
+                             file=file, field=where)
+    return (float(home[0]), float(home[1]))

@@ -16,6 +16,7 @@ from vision_cal.dataset.io import read_json
 from vision_cal.dataset.photos import normalise_name
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import ScaraParams
+from vision_cal.motion import approach_signs
 
 FORMAT = "vision-cal/1"
 ROLES = ("calibration", "validation")
@@ -135,22 +136,10 @@ class Session:
 
 
 def resolve_approach(marks, home_deg=(0.0, 0.0)) -> np.ndarray:
-    """Approach signs (N, 2): given, else the sign of the change from the previous pose.
-
-    A joint that did not move keeps its previous sign, starting at +1.
-    """
-    prev = np.asarray(home_deg, dtype=float)
-    sign = np.ones(2)
-    out = np.empty((len(marks), 2))
-    for i, m in enumerate(marks):
-        q = np.asarray(m.joints_deg, dtype=float)
-        moved = np.sign(q - prev)
-        sign = np.where(moved != 0, moved, sign)
-        if m.approach is not None:
-            sign = np.asarray(m.approach, dtype=float)
-        out[i] = sign
-        prev = q
-    return out
+    """Approach signs (N, 2) of ``marks``: given, else the format's rule
+    (:func:`vision_cal.motion.approach_signs`)."""
+    return approach_signs([m.joints_deg for m in marks], home_deg,
+                          given=[m.approach for m in marks])
 
 
 class _Reader:

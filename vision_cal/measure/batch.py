@@ -69,15 +69,48 @@ class ImageDetections:
 
     def corners_for(self, K=None, dist=None) -> np.ndarray:
         """Marker corners (M, 4, 2) in raw px: intersections of the border edges, fitted
-        as straight lines in ideal pixels when a lens is given."""
+        as straight lines in ideal pixels when a lens is given.
+
+        Computed once per lens and kept with the detections (read-only: callers copy
+        before changing it)."""
         if self.edges_px is None:
             return self.corners_px
+        memo = self.__dict__.setdefault("_corners_memo", {})   # not a field: replace() drops it
+        key = _lens_key(K, dist)
+        if key not in memo:
+            memo[key] = self._corners_for(K, dist)
+        return memo[key]
+
+    def _corners_for(self, K, dist) -> np.ndarray:
         if K is None:
             return corners_from_edges(self.edges_px, self.corners_px)
         e = undistort_px(self.edges_px.reshape(-1, 2), K, dist).reshape(self.edges_px.shape)
         c0 = undistort_px(self.corners_px.reshape(-1, 2), K, dist).reshape(-1, 4, 2)
         c = corners_from_edges(e, c0)
         return distort_px(c.reshape(-1, 2), K, dist).reshape(-1, 4, 2)
+
+    def with_candidates(self, candidates: DotCandidates) -> "ImageDetections":
+        """The same detections with dot candidates (the corners found so far kept)."""
+        out = replace(self, candidates=candidates)
+        out.__dict__["_corners_memo"] = self.__dict__.get("_corners_memo", {})
+        return out
+
+    def keep_markers(self, keep: np.ndarray) -> "ImageDetections":
+        """The detections of the markers ``keep`` (bool (M,)), corners found so far kept
+        (each marker's corners depend on its own edges only)."""
+        out = replace(self, marker_ids=self.marker_ids[keep], corners_px=self.corners_px[keep],
+                      corners_mm=self.corners_mm[keep],
+                      edges_px=None if self.edges_px is None else self.edges_px[keep])
+        memo = self.__dict__.get("_corners_memo", {})
+        out.__dict__["_corners_memo"] = {k: c[keep] for k, c in memo.items()}
+        return out
+
+
+def _lens_key(K, dist):
+    if K is None:
+        return None
+    d = np.zeros(0) if dist is None else np.asarray(dist, float)
+    return (np.asarray(K, float).tobytes(), d.tobytes())
 
 
 @dataclass(frozen=True)
@@ -226,11 +259,8 @@ def _drop_deformed_markers(d: ImageDetections, K, dist, *, min_px: float = 0.5,
         bad = rms > max(min_px, factor * float(np.median(rms)))
         if not bad.any():
             break
-        keep = ~bad
         n_drop += int(bad.sum())
-        d = replace(d, marker_ids=d.marker_ids[keep], corners_px=d.corners_px[keep],
-                    corners_mm=d.corners_mm[keep],
-                    edges_px=None if d.edges_px is None else d.edges_px[keep])
+        d = d.keep_markers(~bad)
     return d, n_drop
 
 
@@ -267,7 +297,7 @@ def detect_image_bytes(data: bytes, file: str, session: Session) -> ImageDetecti
     except VisionCalError as e:
         return _skip(file, f"no mapping: {e.reason}", size)
     cand = find_candidates(rgb, approx, session.sheet, dia_mm=session.pen_mark_diameter_mm)
-    return replace(out, candidates=cand)
+    return out.with_candidates(cand)
 
 
 def detect_image(path, session: Session, *, root=None, name: str | None = None,

@@ -44,7 +44,6 @@ MIN_SOLIDITY = 0.75
 MARKER_MARGIN_MM = 3.0    # masked around each printed marker square (patch half-size + margin)
 FINE_STEP_MM = 0.05
 DEFAULT_DIAMETER_MM = 1.2
-HIDDEN_LINES = True
 #: what the centroid cannot resolve of the print and the photo's sampling under a dot (px):
 #: seen as errors that repeat in every photo of a dot on synthetic photos and on the
 #: project's pyrender photos (0.01-0.03 px); added to every dot's covariance
@@ -351,7 +350,7 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
         if partial:
             bg = np.where(blank, P, bg)
         w0 = (bg - Sg) / P            # ink deficit, relative to the paper
-        ell = np.clip((P - bg) / P, 0.0, None) if HIDDEN_LINES else np.zeros_like(P)
+        ell = np.clip((P - bg) / P, 0.0, None)
         r_dot = 0.5 * dia
         cc = c.copy()
         for _ in range(8):
