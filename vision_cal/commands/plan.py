@@ -34,8 +34,12 @@ def run(args) -> int:
 
     from vision_cal.dataset.calibration import load_calibration
     from vision_cal.dataset.csvio import read_targets, write_plan
+    from vision_cal.dataset.io import output_file
     from vision_cal.plan.compensate import plan_targets
 
+    output_file(args.out, field="-o")
+    if args.trajectory:
+        output_file(args.trajectory, field="--trajectory")
     model, doc = load_calibration(args.calibration, which=args.model)
     ids, xy = read_targets(args.targets)
     planned = plan_targets(model, ids, xy, elbow=args.elbow, approach=tuple(args.approach))

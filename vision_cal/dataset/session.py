@@ -136,8 +136,28 @@ def resolve_approach(marks, home_deg=(0.0, 0.0)) -> np.ndarray:
     return out
 
 
-class _Reader:
-    """Typed field access that names the file and the field in every error."""
+#: sanity bounds of a valid file: no sheet, robot or pen mark is 100 m across, and no SCARA
+#: joint is commanded beyond two turns either way
+MAX_MM = 1e5
+MAX_JOINT_DEG = 720.0
+MAX_PEN_MM = 50.0
+MAX_IMAGE_PX = 100_000
+MAX_K_PX = 1e7
+MAX_DIST = 1e3
+
+
+def _short(v, n: int = 60) -> str:
+    """``repr`` of a value from a file, cut to fit in one line of an error."""
+    try:
+        t = repr(v)
+    except (RecursionError, ValueError):  # deeply nested, or an int too long to print
+        t = f"<{type(v).__name__}>"
+    return t if len(t) <= n else t[:n - 3] + "..."
+
+
+class FieldReader:
+    """Typed field access that names the file and the field in every error (session.json,
+    calibration.json and the robot file use the same one)."""
 
     def __init__(self, file: str):
         self.file = file
@@ -154,21 +174,43 @@ class _Reader:
             return None
         return obj[key]
 
-    def number(self, v, where: str) -> float:
+    def number(self, v, where: str, *, lo: float | None = None, hi: float | None = None,
+               positive: bool = False, what: str = "number") -> float:
+        """A finite JSON number, optionally within [lo, hi] (and > 0 with ``positive``)."""
         if isinstance(v, bool) or not isinstance(v, (int, float)):
-            self.fail(where, f"expected a number, got {type(v).__name__} {v!r}")
-        if not math.isfinite(v):
-            self.fail(where, f"expected a finite number, got {v!r}")
-        return float(v)
+            self.fail(where, f"expected a number, got {type(v).__name__} {_short(v)}")
+        try:
+            x = float(v)
+        except OverflowError:
+            x = math.inf
+        if not math.isfinite(x):
+            self.fail(where, f"expected a finite number, got {_short(v)}")
+        if positive and x <= 0:
+            self.fail(where, f"expected a positive {what}, got {_short(v)}")
+        if (lo is not None and x < lo) or (hi is not None and x > hi):
+            self.fail(where, f"expected a {what} between {lo:g} and {hi:g}, got {_short(v)}")
+        return x
 
-    def vector(self, v, where: str, n: int) -> tuple[float, ...]:
+    def vector(self, v, where: str, n: int, **limits) -> tuple[float, ...]:
         if not isinstance(v, list) or len(v) != n:
-            self.fail(where, f"expected a list of {n} numbers, got {v!r}")
-        return tuple(self.number(x, f"{where}[{i}]") for i, x in enumerate(v))
+            self.fail(where, f"expected a list of {n} numbers, got {_short(v)}")
+        return tuple(self.number(x, f"{where}[{i}]", **limits) for i, x in enumerate(v))
+
+    def length(self, v, where: str, *, positive: bool = False) -> float:
+        """A length in mm: a position or size on a sheet, a link, a pen mark."""
+        return self.number(v, where, lo=-MAX_MM, hi=MAX_MM, positive=positive,
+                           what="length in mm")
+
+    def point(self, v, where: str) -> tuple[float, float]:
+        return self.vector(v, where, 2, lo=-MAX_MM, hi=MAX_MM, what="length in mm")
+
+    def angles(self, v, where: str) -> tuple[float, float]:
+        return self.vector(v, where, 2, lo=-MAX_JOINT_DEG, hi=MAX_JOINT_DEG,
+                           what="joint angle in degrees")
 
     def string(self, v, where: str) -> str:
         if not isinstance(v, str) or not v:
-            self.fail(where, f"expected a non-empty string, got {v!r}")
+            self.fail(where, f"expected a non-empty string, got {_short(v)}")
         return v
 
     def list_(self, v, where: str, *, nonempty=False) -> list:
@@ -177,6 +219,9 @@ class _Reader:
         if nonempty and not v:
             self.fail(where, "expected a non-empty list")
         return v
+
+
+_Reader = FieldReader
 
 
 def _aruco_dictionary_ok(name: str) -> bool:
@@ -204,15 +249,12 @@ def load_session(folder) -> Session:
 
     # robot
     rob = r.get(raw, "robot", "")
-    L1 = r.number(r.get(rob, "L1_mm", "robot"), "robot.L1_mm")
-    L2 = r.number(r.get(rob, "L2_mm", "robot"), "robot.L2_mm")
-    for k, v in (("L1_mm", L1), ("L2_mm", L2)):
-        if v <= 0:
-            r.fail(f"robot.{k}", f"expected a positive length, got {v}")
-    jz = r.vector(r.get(rob, "joint_zero_deg", "robot"), "robot.joint_zero_deg", 2)
-    base = r.vector(r.get(rob, "base_mm", "robot"), "robot.base_mm", 2)
+    L1 = r.length(r.get(rob, "L1_mm", "robot"), "robot.L1_mm", positive=True)
+    L2 = r.length(r.get(rob, "L2_mm", "robot"), "robot.L2_mm", positive=True)
+    jz = r.angles(r.get(rob, "joint_zero_deg", "robot"), "robot.joint_zero_deg")
+    base = r.point(r.get(rob, "base_mm", "robot"), "robot.base_mm")
     home_raw = r.get(rob, "home_deg", "robot", required=False)
-    home = r.vector(home_raw, "robot.home_deg", 2) if home_raw is not None else (0.0, 0.0)
+    home = r.angles(home_raw, "robot.home_deg") if home_raw is not None else (0.0, 0.0)
     robot = NominalRobot(L1, L2, jz, base, home)
 
     # marks
@@ -225,7 +267,7 @@ def load_session(folder) -> Session:
         if mid in seen:
             r.fail(f"{w}.id", f"duplicate mark id {mid!r}")
         seen.add(mid)
-        q = r.vector(r.get(m, "joints_deg", w), f"{w}.joints_deg", 2)
+        q = r.angles(r.get(m, "joints_deg", w), f"{w}.joints_deg")
         role = m.get("role", "calibration")
         if role not in ROLES:
             r.fail(f"{w}.role", f"expected one of {ROLES}, got {role!r}")
@@ -236,9 +278,9 @@ def load_session(folder) -> Session:
                 r.fail(f"{w}.approach", f"expected [+1 or -1, +1 or -1], got {appr!r}")
             appr = (int(a[0]), int(a[1]))
         tgt = m.get("target_mm")
-        tgt = r.vector(tgt, f"{w}.target_mm", 2) if tgt is not None else None
+        tgt = r.point(tgt, f"{w}.target_mm") if tgt is not None else None
         meas = m.get("measured_mm")
-        meas = r.vector(meas, f"{w}.measured_mm", 2) if meas is not None else None
+        meas = r.point(meas, f"{w}.measured_mm") if meas is not None else None
         marks.append(Mark(mid, q, role, appr, tgt, meas))
 
     # images
@@ -276,7 +318,8 @@ def load_session(folder) -> Session:
         if not _aruco_dictionary_ok(d):
             r.fail("sheet.aruco_dictionary",
                    f"unknown ArUco dictionary {d!r} (expected an OpenCV name like DICT_5X5_100)")
-        size = r.vector(r.get(sheet_raw, "size_mm", "sheet"), "sheet.size_mm", 2)
+        size = r.vector(r.get(sheet_raw, "size_mm", "sheet"), "sheet.size_mm", 2, lo=0.0,
+                        hi=MAX_MM, positive=True, what="length in mm")
         mk_raw = r.list_(r.get(sheet_raw, "markers", "sheet"), "sheet.markers",
                          nonempty=bool(images))
         mks: list[SheetMarker] = []
@@ -292,31 +335,44 @@ def load_session(folder) -> Session:
             cs = r.list_(r.get(mk, "corners_mm", w), f"{w}.corners_mm")
             if len(cs) != 4:
                 r.fail(f"{w}.corners_mm", f"expected 4 corners, got {len(cs)}")
-            c = np.array([r.vector(p, f"{w}.corners_mm[{j}]", 2) for j, p in enumerate(cs)])
+            c = np.array([r.point(p, f"{w}.corners_mm[{j}]") for j, p in enumerate(cs)])
             mks.append(SheetMarker(int(mid), c))
         bl_raw = sheet_raw.get("bottom_left_mm")
-        bl = r.vector(bl_raw, "sheet.bottom_left_mm", 2) if bl_raw is not None else (0.0, 0.0)
+        bl = r.point(bl_raw, "sheet.bottom_left_mm") if bl_raw is not None else (0.0, 0.0)
         sheet = Sheet(d, tuple(mks), size, bl)
 
     # camera
     camera = None
     cam = raw.get("camera")
     if cam is not None:
-        size_px = r.vector(r.get(cam, "size_px", "camera"), "camera.size_px", 2)
+        size_px = r.vector(r.get(cam, "size_px", "camera"), "camera.size_px", 2, lo=1,
+                           hi=MAX_IMAGE_PX, what="image size in pixels")
+        if any(x != int(x) for x in size_px):
+            r.fail("camera.size_px", f"expected whole pixels, got {_short(cam['size_px'])}")
         K_raw = r.list_(r.get(cam, "K", "camera"), "camera.K")
         if len(K_raw) != 3:
             r.fail("camera.K", "expected a 3x3 matrix")
-        K = np.array([r.vector(row, f"camera.K[{i}]", 3) for i, row in enumerate(K_raw)])
+        K = np.array([r.vector(row, f"camera.K[{i}]", 3, lo=-MAX_K_PX, hi=MAX_K_PX,
+                               what="pixel value") for i, row in enumerate(K_raw)])
+        for i in (0, 1):
+            if K[i, i] <= 0:
+                r.fail(f"camera.K[{i}][{i}]", f"expected a positive focal length in pixels, "
+                                              f"got {K[i, i]:g}")
+        if K[1, 0] != 0 or tuple(K[2]) != (0.0, 0.0, 1.0):
+            r.fail("camera.K", "expected an OpenCV camera matrix [[fx,s,cx],[0,fy,cy],[0,0,1]]")
         dist_raw = r.list_(r.get(cam, "dist", "camera"), "camera.dist")
         if len(dist_raw) not in (4, 5, 8, 12, 14):
             r.fail("camera.dist", f"expected 4, 5, 8, 12 or 14 OpenCV coefficients, got {len(dist_raw)}")
-        dist = np.array([r.number(x, f"camera.dist[{i}]") for i, x in enumerate(dist_raw)])
+        dist = np.array([r.number(x, f"camera.dist[{i}]", lo=-MAX_DIST, hi=MAX_DIST,
+                                  what="distortion coefficient")
+                         for i, x in enumerate(dist_raw)])
         camera = Camera((int(size_px[0]), int(size_px[1])), K, dist)
 
     pen = raw.get("pen")
     dia = None
     if pen is not None:
         v = r.get(pen, "mark_diameter_mm", "pen", required=False)
-        dia = r.number(v, "pen.mark_diameter_mm") if v is not None else None
+        dia = (r.number(v, "pen.mark_diameter_mm", lo=0.0, hi=MAX_PEN_MM, positive=True,
+                        what="diameter in mm") if v is not None else None)
 
     return Session(folder, sheet, robot, tuple(marks), tuple(images), camera, dia, raw)
