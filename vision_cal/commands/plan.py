@@ -33,7 +33,8 @@ def run(args) -> int:
     import sys
 
     from vision_cal.dataset.calibration import load_calibration
-    from vision_cal.dataset.csvio import read_targets, write_plan
+    from vision_cal.dataset.csvio import (failed_report_path, read_targets, write_failed_targets,
+                                          write_plan)
     from vision_cal.dataset.io import output_file
     from vision_cal.plan.compensate import plan_targets
 
@@ -43,16 +44,41 @@ def run(args) -> int:
     model, doc = load_calibration(args.calibration, which=args.model)
     ids, xy = read_targets(args.targets)
     planned = plan_targets(model, ids, xy, elbow=args.elbow, approach=tuple(args.approach))
-    write_plan(args.out, [p.to_row() for p in planned])
+    ok = [p for p in planned if p.status == "ok"]
     failed = [p for p in planned if p.status != "ok"]
-    for p in failed:
-        print(f"vision-cal: warning: {args.targets}: target {p.id}: {p.reason}", file=sys.stderr)
-    if args.trajectory:
+    # the command file holds only what can be sent to the robot: no NaN, no failed row
+    write_plan(args.out, [p.to_row() for p in ok])
+    report = failed_report_path(args.out)
+    if failed:
+        write_failed_targets(report, [(p.id, *p.target_mm, p.reason) for p in failed])
+        if ok:  # when none is planned, the error below says it once
+            print(f"vision-cal: warning: {args.targets}: {summarise_failures(failed)}; "
+                  f"all in {report}", file=sys.stderr)
+    else:
+        report.unlink(missing_ok=True)  # a stale report of an earlier run
+    if args.trajectory and ok:
         from vision_cal.plan.compensate import write_plan_trajectory
 
-        ok = [p for p in planned if p.status == "ok"]
         write_plan_trajectory(args.trajectory, ok, home_deg=doc.get("home_deg", (0.0, 0.0)))
     if not args.quiet:
         print(f"planned {len(planned) - len(failed)} of {len(planned)} targets "
               f"with the {args.model} model -> {args.out}")
+    if not ok:
+        print(f"vision-cal: error: {args.targets}: nothing could be planned with the "
+              f"{args.model} model of {args.calibration}: {summarise_failures(failed)}; "
+              f"all in {report}", file=sys.stderr)
+        return 1
     return 0
+
+
+def summarise_failures(failed, *, first: int = 3) -> str:
+    """One line for any number of failed targets: counts per kind of reason, the first few."""
+    kinds: dict[str, int] = {}
+    for p in failed:
+        k = next((k for k in ("out of reach", "singularity", "outside its limits",
+                              "could not be inverted") if k in p.reason), "other")
+        kinds[k] = kinds.get(k, 0) + 1
+    counts = ", ".join(f"{n} {k}" for k, n in sorted(kinds.items(), key=lambda kv: -kv[1]))
+    head = "; ".join(f"target {p.id}: {p.reason}" for p in failed[:first])
+    more = f" (and {len(failed) - first} more)" if len(failed) > first else ""
+    return f"{len(failed)} target(s) not planned ({counts}): {head}{more}"
