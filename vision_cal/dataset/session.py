@@ -31,22 +31,62 @@ class Sheet:
     aruco_dictionary: str
     markers: tuple[SheetMarker, ...]
     size_mm: tuple[float, float]
-    bottom_left_mm: tuple[float, float] = (0.0, 0.0)  # added field: paper corner in frame S
+    bottom_left_mm: tuple[float, float] | None = None  # added field: paper corner in frame S
+
+    def markers_hull_mm(self) -> tuple[float, float, float, float] | None:
+        """(x_min, y_min, x_max, y_max) of every printed marker corner, None without markers."""
+        if not self.markers:
+            return None
+        c = np.concatenate([np.asarray(m.corners_mm, float).reshape(-1, 2)
+                            for m in self.markers])
+        return (float(c[:, 0].min()), float(c[:, 1].min()), float(c[:, 0].max()),
+                float(c[:, 1].max()))
 
     @property
     def extent_mm(self) -> tuple[float, float, float, float]:
-        """(x_min, y_min, x_max, y_max) of the paper in the sheet frame."""
+        """(x_min, y_min, x_max, y_max) of what is surely paper in the sheet frame: the
+        declared paper (``bottom_left_mm`` + ``size_mm``) with the markers printed on it;
+        without ``bottom_left_mm``, the markers' bounding box (the paper is somewhere around
+        them, where, the sheet does not say). Nothing else about the frame is assumed."""
+        hull = self.markers_hull_mm()
+        if self.bottom_left_mm is None:
+            if hull is None:
+                return (0.0, 0.0, float(self.size_mm[0]), float(self.size_mm[1]))
+            return hull
         x0, y0 = self.bottom_left_mm
-        return (x0, y0, x0 + self.size_mm[0], y0 + self.size_mm[1])
+        box = (x0, y0, x0 + self.size_mm[0], y0 + self.size_mm[1])
+        return _union(box, hull)
+
+    @property
+    def search_extent_mm(self) -> tuple[float, float, float, float]:
+        """(x_min, y_min, x_max, y_max) of where the paper may be (where pen marks are looked
+        for): the declared paper, or without ``bottom_left_mm`` every place a paper of
+        ``size_mm`` holding all the markers can lie."""
+        hull = self.markers_hull_mm()
+        if self.bottom_left_mm is not None or hull is None:
+            return self.extent_mm
+        w, h = self.size_mm
+        return _union((hull[2] - w, hull[3] - h, hull[0] + w, hull[1] + h), hull)
 
     def to_json(self) -> dict:
-        return {"aruco_dictionary": self.aruco_dictionary,
-                "markers": [{"id": m.id, "corners_mm": np.asarray(m.corners_mm).tolist()}
-                            for m in self.markers],
-                "size_mm": list(self.size_mm), "bottom_left_mm": list(self.bottom_left_mm)}
+        d = {"aruco_dictionary": self.aruco_dictionary,
+             "markers": [{"id": m.id, "corners_mm": np.asarray(m.corners_mm).tolist()}
+                         for m in self.markers],
+             "size_mm": list(self.size_mm)}
+        if self.bottom_left_mm is not None:
+            d["bottom_left_mm"] = list(self.bottom_left_mm)
+        return d
 
     def corners_by_id(self) -> dict[int, np.ndarray]:
         return {m.id: m.corners_mm for m in self.markers}
+
+
+def _union(a, b):
+    """Bounding box of two boxes (x_min, y_min, x_max, y_max); ``b`` may be None."""
+    if b is None:
+        return tuple(float(v) for v in a)
+    return (float(min(a[0], b[0])), float(min(a[1], b[1])), float(max(a[2], b[2])),
+            float(max(a[3], b[3])))
 
 
 @dataclass(frozen=True)
@@ -338,7 +378,7 @@ def load_session(folder) -> Session:
             c = np.array([r.point(p, f"{w}.corners_mm[{j}]") for j, p in enumerate(cs)])
             mks.append(SheetMarker(int(mid), c))
         bl_raw = sheet_raw.get("bottom_left_mm")
-        bl = r.point(bl_raw, "sheet.bottom_left_mm") if bl_raw is not None else (0.0, 0.0)
+        bl = r.point(bl_raw, "sheet.bottom_left_mm") if bl_raw is not None else None
         sheet = Sheet(d, tuple(mks), size, bl)
 
     # camera
