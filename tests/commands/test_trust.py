@@ -42,11 +42,13 @@ def cli(argv, capsys) -> tuple[int, str, str]:
 
 
 def assert_one_line(err: str, *names: str) -> str:
-    """Exactly one line on stderr, naming each of ``names`` (file, field)."""
+    """Exactly one line on stderr, naming each of ``names`` (file, field; a name starting
+    with "-" is a command-line option, looked for as ": -o:")."""
     lines = err.strip().splitlines()
     assert len(lines) == 1, err
     for n in names:
-        assert str(n) in lines[0], (n, lines[0])
+        n = f": {n}:" if str(n).startswith("-") else str(n)
+        assert n in lines[0], (n, lines[0])
     return lines[0]
 
 
