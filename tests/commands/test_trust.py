@@ -158,17 +158,21 @@ def test_out_on_a_read_only_file_system(tmp_path, capsys, monkeypatch):
     assert list(ro.iterdir()) == []
 
 
-def test_write_failure_midway_is_one_line(tmp_path, capsys, monkeypatch, calibration):
-    """An OSError from the file system while writing (EROFS after the checks passed)."""
-    import tempfile
+@pytest.mark.parametrize("call", ["tempfile.mkstemp", "os.replace"])
+def test_write_failure_midway_is_one_line(tmp_path, capsys, monkeypatch, calibration, call):
+    """An OSError from the file system while writing (EROFS after the checks passed),
+    when the temporary file is made or when it is renamed into place."""
+    import importlib
 
     def refuse(*a, **k):
         raise OSError(errno.EROFS, "Read-only file system")
 
-    monkeypatch.setattr(tempfile, "mkstemp", refuse)
+    mod, name = call.split(".")
+    monkeypatch.setattr(importlib.import_module(mod), name, refuse)
     rc, _, err = cli(["plan", calibration, TARGETS, "-o", tmp_path / "plan.csv"], capsys)
     assert rc == 2
     assert "read-only file system" in assert_one_line(err, tmp_path / "plan.csv")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # no temporary file left
 
 
 def test_plan_out_is_a_folder(tmp_path, capsys, calibration):
