@@ -14,7 +14,7 @@ import tempfile
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from vision_cal.commands.main import main
@@ -64,6 +64,12 @@ def valid_calibration() -> dict:
             "home_deg": [0.0, 0.0]}
 
 
+def _at(doc, path):
+    for k in path:
+        doc = doc[k]
+    return doc
+
+
 def paths(o, prefix=()):
     """Every (container path, key) in a JSON document."""
     out = []
@@ -83,6 +89,16 @@ odd_values = st.one_of(
     st.dictionaries(st.text(max_size=3), st.integers(), max_size=2),
     st.just(DEEP))
 
+#: what a number in a file may turn into: huge, not finite, zero, negative, denormal
+nasty_numbers = st.one_of(
+    st.sampled_from([1e308, -1e308, 10**400, float("nan"), float("inf"), float("-inf"), 0,
+                     -2.0, 5e-324, 1e6, -1e6, 1e12]),
+    st.floats(allow_nan=True, allow_infinity=True))
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
 
 @st.composite
 def mutated(draw, doc: dict):
@@ -90,6 +106,9 @@ def mutated(draw, doc: dict):
     doc = json.loads(json.dumps(doc))
     for _ in range(draw(st.integers(1, 3))):
         ps = paths(doc)
+        leaves = [p for p in ps if _is_number(_at(doc, p))]
+        if leaves and draw(st.booleans()):  # numbers are where most damage hides
+            ps = leaves
         if not ps:
             break
         path = draw(st.sampled_from(ps))
@@ -97,8 +116,13 @@ def mutated(draw, doc: dict):
         for k in path[:-1]:
             parent = parent[k]
         key = path[-1]
-        how = draw(st.sampled_from(["drop", "replace", "replace", "shorten", "lengthen"]))
-        if how == "drop":
+        kinds = ["drop", "replace", "replace", "shorten", "lengthen"]
+        if _is_number(parent[key]):
+            kinds += ["number"] * 4
+        how = draw(st.sampled_from(kinds))
+        if how == "number":
+            parent[key] = draw(nasty_numbers)
+        elif how == "drop":
             del parent[key]
         elif how == "replace":
             parent[key] = draw(odd_values)
@@ -135,8 +159,19 @@ def check(rc, err, file):
         assert len(lines) == 1 and str(file) in lines[0], err
 
 
+def _edited(doc, path, value):
+    doc = json.loads(json.dumps(doc))
+    parent = _at(doc, path[:-1])
+    parent[path[-1]] = value
+    return doc
+
+
 @SETTINGS
 @given(doc=mutated(valid_session()))
+# the issue's cases, pinned: found by hand before the fuzzer, kept so it never loses them
+@example(doc=_edited(valid_session(), ("marks", 0, "joints_deg", 0), 1e308))
+@example(doc=_edited(valid_session(), ("sheet", "markers"), DEEP))
+@example(doc=_edited(valid_session(), ("pen", "mark_diameter_mm"), 10**400))
 def test_any_mutated_session_is_one_line_or_calibrates(doc, capsys):
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp) / "data"
@@ -154,6 +189,8 @@ def test_any_mutated_session_is_one_line_or_calibrates(doc, capsys):
 
 @SETTINGS
 @given(doc=mutated(valid_calibration()), model=st.sampled_from(["calibrated", "nominal"]))
+@example(doc=_edited(valid_calibration(), ("effects",), DEEP), model="calibrated")
+@example(doc=_edited(valid_calibration(), ("params", "L1_mm"), float("nan")), model="calibrated")
 def test_any_mutated_calibration_is_one_line_or_plans(doc, model, capsys):
     with tempfile.TemporaryDirectory() as tmp:
         cal = Path(tmp) / "in" / "calibration.json"
