@@ -29,3 +29,4 @@ bench: $(STAMP)
 	$(BIN)/python bench/measure.py
 	$(BIN)/python bench/render.py
 	$(BIN)/python bench/simulate.py
+	$(BIN)/python bench/walkthrough.py

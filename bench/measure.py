@@ -36,6 +36,7 @@ sys.path.insert(0, str(ROOT))
 
 
 def render_folder(folder: Path, n_photos: int) -> None:
+    from vision_cal.calibrate.paper import pilot_params
     from vision_cal.render.dataset import render_dataset
     from vision_cal.render.scene import scene_from_dict
 
@@ -43,7 +44,7 @@ def render_folder(folder: Path, n_photos: int) -> None:
     scene = scene_from_dict({"seed": 11, "plan": {"n_calibration": n_photos - n_val,
                                                    "n_validation": n_val},
                              "camera": {"n_views": 4, "moving": True}})
-    render_dataset(scene, folder, progress=True)
+    render_dataset(scene, folder, progress=True, pilot=pilot_params)
 
 
 def warp_folder(folder: Path, n_photos: int) -> None:

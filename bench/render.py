@@ -5,7 +5,11 @@ vignetting, noise. Every photo gets a texture with one more dot (as a series doe
 texture is uploaded again each time. Baseline in the same process: cv2.warpPerspective of
 the same texture to the same view (no supersampling, no mipmaps, no lens).
 
-    .venv/bin/python bench/render.py [--n 5]
+    .venv/bin/python bench/render.py [--n 5] [--accuracy]
+
+``--accuracy`` also prints where the rendered dots land against ``cv2.projectPoints``
+(640 x 480, dots ~3 px across, a view straight down, two tilted 20-30 deg, and a barrel
+lens): the figures the render docstrings used to quote, measured here each time.
 """
 
 from __future__ import annotations
@@ -25,7 +29,11 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=5, help="photos to time (default 5)")
     ap.add_argument("--px-per-mm", type=float, default=8.0)
+    ap.add_argument("--accuracy", action="store_true",
+                    help="also print rendered dot centres against cv2.projectPoints")
     args = ap.parse_args(argv)
+    if args.accuracy:
+        accuracy()
 
     size = (2000, 1500)
     K = camera_matrix(size_px=size, f_px=1800.0)
@@ -92,6 +100,55 @@ def main(argv=None) -> int:
           f"{photo / baseline:.0f}x the baseline, pyrender alone {med('render_s') / baseline:.0f}x")
     ph.close()
     return 0
+
+
+def _dot_centres(img, bare, guesses_px, *, r=6):
+    """Ink-coverage centroids near ``guesses_px`` (photo with and without the dots)."""
+    from vision_cal.render.sheet import DOT_RGB
+
+    img = img[..., 0].astype(float)
+    bare = bare[..., 0].astype(float)
+    alpha = (bare - img) / np.maximum(bare - DOT_RGB[0], 1.0)
+    out = []
+    for u, v in guesses_px:
+        u0, v0 = int(round(u)), int(round(v))
+        a = alpha[v0 - r:v0 + r + 1, u0 - r:u0 + r + 1]
+        vv, uu = np.mgrid[v0 - r:v0 + r + 1, u0 - r:u0 + r + 1]
+        out.append([np.sum(a * uu) / a.sum(), np.sum(a * vv) / a.sum()])
+    return np.array(out)
+
+
+def accuracy() -> None:
+    """Rendered dot centres minus cv2.projectPoints (px), as tests/render/test_photo.py
+    checks them, printed as figures."""
+    size = (640, 480)
+    K = camera_matrix(size_px=size, f_px=800.0)
+    sheet = make_sheet(size_mm=(200.0, 150.0), bottom_left_mm=(-100.0, -60.0), marker_mm=20.0,
+                       grid=(3, 2), margin_mm=10.0)
+    xy = np.array([[x, y] for x in np.arange(-80.0, 81.0, 12.3)
+                   for y in np.arange(-30.0, 71.0, 11.7)])
+    centres = np.stack([m.corners_mm.mean(axis=0) for m in sheet.markers])
+    xy = xy[np.min(np.linalg.norm(xy[:, None] - centres[None], axis=2), axis=1) > 20.0]
+    views = (default_views(sheet, n=1, size_px=size, K=K, tilt_deg=(0, 0), rng=1)
+             + default_views(sheet, n=2, size_px=size, K=K, tilt_deg=(20, 30), rng=2))
+    ph = Photographer(size_px=size, K=K)
+    print(f"dot centres vs cv2.projectPoints, {size[0]}x{size[1]}, {len(xy)} dots ~3 px across:")
+    for paper in ("plain", "grid"):
+        kw = (dict(grid=False, paper_grain=False, rng=7) if paper == "plain" else dict(rng=8))
+        tex = sheet_texture(sheet, marks_xy_mm=xy, px_per_mm=8.0, **kw)
+        bare = sheet_texture(sheet, marks_xy_mm=np.zeros((0, 2)), px_per_mm=8.0, **kw)
+        for name, T, dist in (("straight down", views[0], None), ("tilted 1", views[1], None),
+                              ("tilted 2", views[2], None),
+                              ("tilted 2, k1 -0.1", views[2],
+                               np.array([-0.1, 0.0, 0.0, 0.0, 0.0]))):
+            img = ph.photograph(tex, extent_mm=sheet.extent_mm, T_cam_sheet=T, dist=dist)
+            img0 = ph.photograph(bare, extent_mm=sheet.extent_mm, T_cam_sheet=T, dist=dist)
+            uv = project(xy, K=K, dist=dist, T_cam_sheet=T)
+            err = _dot_centres(img, img0, uv) - uv
+            print(f"  {paper:5s} paper, {name:18s} max {np.abs(err).max():.3f} px, "
+                  f"rms {np.sqrt(np.mean(err ** 2)):.3f} px, mean "
+                  f"({err[:, 0].mean():+.4f}, {err[:, 1].mean():+.4f}) px")
+    ph.close()
 
 
 if __name__ == "__main__":

@@ -9,11 +9,13 @@ from __future__ import annotations
 import copy
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
 from vision_cal.dataset.io import read_json
 from vision_cal.pipeline import calibrate_dataset
+from vision_cal.calibrate.paper import pilot_params
 from vision_cal.render import dataset as ds
 from vision_cal.render.scene import scene_from_dict
 
@@ -47,7 +49,7 @@ def photographer():
 
 
 def calibrate(tmp_path, sc, photographer=None):
-    folder = ds.render_dataset(sc, tmp_path / "data", photographer=photographer)
+    folder = ds.render_dataset(sc, tmp_path / "data", pilot=pilot_params, photographer=photographer)
     run = calibrate_dataset(folder, out_dir=tmp_path / "out", truth=True)
     return run.document, read_json(folder / "truth.json")
 
@@ -56,11 +58,16 @@ def robot_effects(doc):
     return [e for e in doc["effects"] if e["name"] not in ("lens_distortion", "unexplained")]
 
 
+#: how many reported standard deviations a found value may be from the truth
+N_STD = 4.0
+
+
 def check_base(doc):
-    t = doc["truth_comparison"]
-    assert abs(t["L1_mm"]) < 0.05 and abs(t["L2_mm"]) < 0.05, t
-    assert max(abs(v) for v in t["joint_zero_deg"]) < 0.01, t
-    assert max(abs(v) for v in t["base_mm"]) < 0.05, t
+    """Each base parameter within N_STD of the std calibration.json reports for it."""
+    t, sd = doc["truth_comparison"], doc["std"]
+    for k in ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm"):
+        err, std = np.atleast_1d(t[k]), np.atleast_1d(sd[k])
+        assert np.all(np.abs(err) < N_STD * std), (k, err, std)
 
 
 @pytest.mark.parametrize("seed", [12, 13])
@@ -81,7 +88,7 @@ def test_undeclared_joint_effect_is_named_and_sized(tmp_path, photographer, effe
     doc, truth = calibrate(tmp_path, scene([effect]), photographer)
     (found,) = robot_effects(doc)
     assert (found["name"], found["joint"]) == (effect["name"], effect["joint"])
-    assert found[key] == pytest.approx(effect[key], rel=0.2)
+    assert abs(found[key] - effect[key]) < N_STD * found["std"], found
     check_base(doc)
     v = doc["validation_rms_mm"]
     assert v["final_model"] < v["base_model"]
@@ -92,7 +99,7 @@ def test_sheet_shrink_is_named(tmp_path, photographer):
                                          "matrix": [[1.003, 0.0], [0.0, 1.0]]}]), photographer)
     (found,) = robot_effects(doc)
     assert found["name"] == "sheet_affine"
-    assert found["matrix"][0][0] - 1 == pytest.approx(0.003, rel=0.2)
+    assert abs(found["matrix"][0][0] - 1.003) < N_STD * found["std"], found
     check_base(doc)
 
 
@@ -100,6 +107,64 @@ def test_undeclared_barrel_lens_is_reported_and_measured_through(tmp_path):
     doc, _ = calibrate(tmp_path, scene(dist=[-0.12, 0.05, 0.0, 0.0, 0.0]))
     lens = [e for e in doc["effects"] if e["name"] == "lens_distortion"]
     assert lens and lens[0]["coefficients"][0] < 0
+    assert robot_effects(doc) == []
+    check_base(doc)
+    assert doc["truth_comparison"]["mark_rms_mm"] < MARK_RMS_MM
+
+
+def _phone(**camera):
+    d = copy.deepcopy(BASE)
+    d["camera"].update(camera)
+    return scene_from_dict(d, file="phone-scene")
+
+
+def test_phone_principal_point_off_centre_and_focal_per_photo(tmp_path):
+    """A phone: principal point 60 / -45 px off the centre, focal length changing by up to
+    6 % between photos, lens undeclared. Each photo shows the sheet where its own K puts
+    it, and the measurer (no lens to find here) assumes neither."""
+    import cv2
+
+    from vision_cal.render.camera import project
+
+    sc = _phone(principal_px=[559.5, 329.5], f_scatter=0.06, declared=False, n_views=3,
+                moving=True)
+    sc = sc.with_overrides(mode="series")
+    doc, truth = calibrate(tmp_path, sc)
+    cam = truth["camera"]
+    Ks = {f: np.array(K) for f, K in cam["K_per_photo"].items()}
+    f = np.array([K[0, 0] for K in Ks.values()])
+    assert f.max() / f.min() > 1.03 and np.all(np.abs(f / 1084.0 - 1) <= 0.06)
+    assert all(np.allclose(K[:2, 2], [559.5, 329.5]) for K in Ks.values())
+    # the ArUco corners of two photos are where their own K projects them
+    session = read_json(tmp_path / "data" / "session.json")
+    corners = {m["id"]: np.array(m["corners_mm"]) for m in session["sheet"]["markers"]}
+    params = cv2.aruco.DetectorParameters()
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(
+        getattr(cv2.aruco, session["sheet"]["aruco_dictionary"])), params)
+    for file in sorted(Ks, key=lambda k: Ks[k][0, 0])[::len(Ks) - 1]:   # shortest, longest
+        img = cv2.imread(str(tmp_path / "data" / file), cv2.IMREAD_GRAYSCALE)
+        found, ids, _ = det.detectMarkers(img)
+        assert ids is not None and len(ids) >= 4
+        err = [np.asarray(c).reshape(4, 2) - project(corners[int(i)], K=Ks[file],
+                                                     T_cam_sheet=cam["T_cam_sheet"][file])
+               for c, i in zip(found, np.ravel(ids))]
+        # sub-pixel corners: a few tenths of a pixel; a 3 % focal error moves them ~10 px
+        assert np.max(np.abs(err)) < 1.0, (file, np.max(np.abs(err)))
+    assert robot_effects(doc) == []
+    check_base(doc)
+    assert doc["truth_comparison"]["mark_rms_mm"] < MARK_RMS_MM
+
+
+def test_undeclared_lens_with_off_centre_principal_point(tmp_path, photographer):
+    """The distortion is centred on the principal point, 60 / -45 px off the image centre:
+    the lens estimate finds it (a lens fitted about the centre measured marks 0.21 mm off
+    instead of 0.03)."""
+    sc = _phone(dist=[-0.12, 0.05, 0.0, 0.0, 0.0], declared=False,
+                principal_px=[559.5, 329.5])
+    doc, _ = calibrate(tmp_path, sc)
+    (lens,) = [e for e in doc["effects"] if e["name"] == "lens_distortion"]
+    np.testing.assert_allclose(np.array(lens["K"])[:2, 2], [559.5, 329.5], atol=3.0)
     assert robot_effects(doc) == []
     check_base(doc)
     assert doc["truth_comparison"]["mark_rms_mm"] < MARK_RMS_MM

@@ -18,6 +18,9 @@ from vision_cal.calibrate.paper import paper_method
 from vision_cal.dataset.io import atomic_write_json, read_json
 from vision_cal.dataset.session import Session, load_session
 from vision_cal.errors import CalibrationError, VisionCalError
+from vision_cal.model import RobotModel
+from vision_cal.plan.uncertainty import covariance_json
+from vision_cal.rms import rms_2d
 
 log = logging.getLogger(__name__)
 METHODS = ("lsq", "paper")
@@ -50,6 +53,7 @@ class CalibrationRun:
     diagnosis: object | None = None
     paper: object | None = None
     measurement: object | None = None
+    model: RobotModel | None = None   # the calibrated robot (what load_calibration reads back)
 
 
 def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[str]]:
@@ -117,13 +121,9 @@ def _why_unmeasured(measurement) -> str:
     return f"; {why}" if why else ""
 
 
-def _rms(r) -> float:
-    r = np.asarray(r, dtype=float).reshape(-1, 2)
-    return float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) if len(r) else float("nan")
-
-
-def _paper_std(q, xy, sigma_mm: float) -> dict:
-    """Std of the paper's parameters by linear propagation of mark noise ``sigma_mm``."""
+def _paper_std(q, xy, sigma_mm: float) -> tuple[dict, np.ndarray]:
+    """Std of the paper's parameters by linear propagation of mark noise ``sigma_mm``,
+    and their covariance (6, 6) in internal units."""
     G = np.zeros((6, xy.size))
     h = 1e-4
     for k in range(xy.size):
@@ -132,9 +132,10 @@ def _paper_std(q, xy, sigma_mm: float) -> dict:
         vp = paper_method(q, xy + d.reshape(xy.shape)).params.vector
         vm = paper_method(q, xy - d.reshape(xy.shape)).params.vector
         G[:, k] = (vp - vm) / (2 * h)
-    s = np.sqrt(np.diag(G @ G.T)) * sigma_mm if np.isfinite(sigma_mm) else np.full(6, np.nan)
-    return {"L1_mm": s[0], "L2_mm": s[1], "joint_zero_deg": [np.degrees(s[2]), np.degrees(s[3])],
-            "base_mm": [s[4], s[5]]}
+    cov = G @ G.T * sigma_mm**2 if np.isfinite(sigma_mm) else np.full((6, 6), np.nan)
+    s = np.sqrt(np.diag(cov))
+    return ({"L1_mm": s[0], "L2_mm": s[1], "joint_zero_deg": [np.degrees(s[2]), np.degrees(s[3])],
+             "base_mm": [s[4], s[5]]}, cov)
 
 
 def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None = None,
@@ -161,19 +162,20 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     if method == "paper":
         paper = paper_method(cal.q_deg, cal.xy_mm)
         params = paper.params
-        lsq_sigma = Fit.from_estimate(cal.q_deg, cal.xy_mm, approach=cal.approach,
-                                      robust=False).sigma_mm
-        std = _paper_std(cal.q_deg, cal.xy_mm, lsq_sigma)
+        noise_mm = Fit.from_estimate(cal.q_deg, cal.xy_mm, approach=cal.approach,
+                                     robust=False).residual_scale  # unweighted: mm
+        std, cov = _paper_std(cal.q_deg, cal.xy_mm, noise_mm)
         res_cal = cal.xy_mm - _predict(params, cal)
         res_val = val.xy_mm - _predict(params, val) if len(val.ids) else np.zeros((0, 2))
         doc.update(params=params.to_json(), std=std, effects=[],
-                   residual_rms_mm={"base_model": _rms(res_cal), "final_model": _rms(res_cal)},
-                   validation_rms_mm={"base_model": _rms(res_val) if len(val.ids) else None,
-                                      "final_model": _rms(res_val) if len(val.ids) else None,
+                   residual_rms_mm={"base_model": rms_2d(res_cal), "final_model": rms_2d(res_cal)},
+                   validation_rms_mm={"base_model": rms_2d(res_val) if len(val.ids) else None,
+                                      "final_model": rms_2d(res_val) if len(val.ids) else None,
                                       "kind": "validation marks" if len(val.ids) else "none"},
                    circles={"base": paper.circle_base.to_json(),
-                            "elbow": paper.circle_elbow.to_json()})
-        final_model = None
+                            "elbow": paper.circle_elbow.to_json()},
+                   covariance=covariance_json(RobotModel(params).param_labels(), cov))
+        final_model = RobotModel(params)
         residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
         residual_all.update({i: r for i, r in zip(val.ids, res_val)})
         residual_base = residual_all
@@ -187,8 +189,8 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         fb, ff = diag.base_fit, diag.final_fit
         final_model = ff.model
         has_val = len(val.ids) >= 3
-        vb = _rms(val.xy_mm - fb.predict(val.q_deg, val.approach)) if has_val else diag.heldout_base_mm
-        vf = _rms(val.xy_mm - ff.predict(val.q_deg, val.approach)) if has_val else diag.heldout_final_mm
+        vb = rms_2d(val.xy_mm - fb.predict(val.q_deg, val.approach)) if has_val else diag.heldout_base_mm
+        vf = rms_2d(val.xy_mm - ff.predict(val.q_deg, val.approach)) if has_val else diag.heldout_final_mm
         doc.update(
             params=ff.params.to_json(), std=ff.base_std_json, effects=diag.effects_json(),
             residual_rms_mm={"base_model": fb.rms_mm, "final_model": ff.rms_mm},
@@ -204,9 +206,11 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
             diagnosis={"heldout": diag.heldout_kind,
                        "accepted": [e.to_json() for e in diag.accepted],
                        "rejected": [e.to_json() for e in diag.rejected],
-                       "residual_analysis": diag.analysis},
+                       "residual_analysis": diag.analysis,
+                       "thresholds": diag.thresholds},
             notes=list(ff.notes),
-            sigma_mm=ff.sigma_mm,
+            residual_scale=ff.residual_scale,
+            covariance=covariance_json(ff.labels, ff.cov),
         )
         res_cal = ff.residuals_mm
         res_val = val.xy_mm - ff.predict(val.q_deg, val.approach)
@@ -235,6 +239,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
             doc["notes"].append("photos whose marks are shifted together beyond the noise "
                                 "(a bad sheet mapping?): " + ", ".join(flagged))
     doc["nominal"] = nominal.to_json()
+    doc["home_deg"] = [float(v) for v in session.robot.home_deg]  # added: where plans start
     if measurement is not None and measurement.lens is not None and measurement.lens.kept:
         doc["effects"] = [measurement.lens.to_effect_json()] + doc["effects"]
     if data.sigma_mm is not None:
@@ -248,20 +253,25 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                  "approach": data.approach[i].astype(int).tolist()}
         if data.sigma_mm is not None:
             entry["sigma_mm"] = float(data.sigma_mm[i])
+        if measurement is not None and mid in measurement.marks:  # added field
+            entry["n_photos"] = int(measurement.marks[mid].n_photos)
         marks[mid] = entry
     doc["marks"] = marks
     if missing:
         doc["missing_marks"] = missing
     doc["images"] = ([im.to_json() for im in measurement.images] if measurement is not None
                      else [])
-    targets = _target_errors(session, data, final_model)
+    targets = _target_errors(session, data)
     if targets:
         doc["targets"] = targets
     if truth:
         doc["truth_comparison"] = compare_truth(session.root / "truth.json", doc)
+    ps = printer_scale(session.sheet, doc.get("effects", []), doc.get("params"))
+    if ps is not None:
+        doc["printer_scale"] = ps
     out_path = atomic_write_json(out_dir / "calibration.json", doc)
     log.info("wrote %s", out_path)
-    return CalibrationRun(session, doc, out_path, diag, paper, measurement)
+    return CalibrationRun(session, doc, out_path, diag, paper, measurement, final_model)
 
 
 def _predict(params, d: MarkData):
@@ -270,7 +280,7 @@ def _predict(params, d: MarkData):
     return forward(params, d.q_deg) if len(d.ids) else np.zeros((0, 2))
 
 
-def _target_errors(session: Session, data: MarkData, model) -> list[dict]:
+def _target_errors(session: Session, data: MarkData) -> list[dict]:
     """Absolute error (measured minus target) of marks that carry ``target_mm``."""
     pos = dict(zip(data.ids, data.xy_mm))
     out = []
@@ -294,5 +304,39 @@ def compare_truth(path: Path, doc: dict) -> dict:
     tm = t.get("marks", {})
     errs = [np.subtract(v["measured_mm"], tm[k]) for k, v in doc["marks"].items() if k in tm]
     if errs:
-        out["mark_rms_mm"] = _rms(np.array(errs))
+        out["mark_rms_mm"] = rms_2d(np.array(errs))
+    return out
+
+
+def printer_scale(sheet, effects, params: dict | None = None) -> dict | None:
+    """The printer's scale from the user's measurement of the printed bars, kept apart from
+    ``sheet_affine`` (added field ``printer_scale`` of calibration.json).
+
+    ``sheet.printed.measured_bar_mm`` = [X, Y] of the ``scale_bar_length_mm`` (100 mm) bars.
+    Sheet coordinates are the file's millimetres; the print is ``x`` = X / 100 and ``y`` =
+    Y / 100 times them. The photos cannot see a uniform print scale (it is the same as
+    longer links), so ``uniform`` = sqrt(x y) converts the calibrated lengths (L1, L2,
+    base) to physical mm; the uneven part ``x / y - 1`` appears in the photos as a
+    ``sheet_affine`` stretch (arm -> sheet matrix diag(1/x, 1/y)), and
+    ``sheet_affine_beyond_printer`` is what a found ``sheet_affine`` leaves once the
+    printer's part is taken out (paper shrink, a tilted motion plane); ``physical_mm`` the
+    calibrated link lengths times ``uniform``. None when the bars were not measured.
+    """
+    printed = getattr(sheet, "printed", None) or {}
+    mb = printed.get("measured_bar_mm")
+    if mb is None:
+        return None
+    bar = float(printed.get("scale_bar_length_mm", 100.0))
+    sx, sy = float(mb[0]) / bar, float(mb[1]) / bar
+    out = {"x": sx, "y": sy, "uniform": float(np.sqrt(sx * sy)), "uneven": sx / sy - 1.0,
+           "measured_bar_mm": [float(mb[0]), float(mb[1])], "bar_mm": bar,
+           "source": "sheet.printed.measured_bar_mm"}
+    if params:
+        out["physical_mm"] = {k: float(params[k]) * out["uniform"] for k in ("L1_mm", "L2_mm")
+                              if params.get(k) is not None}
+    for e in effects:
+        if e.get("name") == "sheet_affine" and e.get("matrix") is not None:
+            m = np.asarray(e["matrix"], float)
+            # found x/y stretch over the printer's (1/x)/(1/y) = y/x
+            out["sheet_affine_beyond_printer"] = float(m[0, 0] * sx / (m[1, 1] * sy) - 1.0)
     return out

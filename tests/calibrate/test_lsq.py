@@ -15,18 +15,40 @@ def test_linear_init_is_exact_on_clean_data():
     np.testing.assert_allclose(p.vector, SM5.vector, atol=1e-9)
 
 
+#: seeds for the covariance check: enough that a std 20 % off in either direction falls
+#: outside the chi-square window (checked in the test itself)
+N_SEEDS = 800
+
+
 def test_recovers_truth_without_a_good_nominal_and_std_is_honest():
+    """z = (found - truth) / std over many seeds: with 20 marks (40 residuals, 6 params)
+    the std is itself estimated from 34 dof, so z follows Student's t with 34 dof and
+    mean(z^2) ~ 34/32 chi2(n)/n. The window is its 1e-4 two-sided quantiles per parameter
+    (Bonferroni over 6): a std wrong by 20 % (z^2 scaled by 1/0.8^2 or 1/1.2^2) lands
+    outside it."""
+    from scipy import stats
+
     z = []
-    for seed in range(40):
+    for seed in range(N_SEEDS):
         rng = np.random.default_rng(seed)
         q, _ = random_plan(20, rng)
         xy = forward(SM5, q) + rng.normal(0, 0.02, (20, 2))
         f = Fit.from_estimate(q, xy)
-        assert abs(f.params.L1_mm - SM5.L1_mm) < 0.05
-        assert abs(f.params.z1_deg - SM5.z1_deg) < 0.01
-        z.append((f.params.vector - SM5.vector) / f.std)
+        err = f.params.vector - SM5.vector
+        assert np.all(np.abs(err) < 6 * f.std), (seed, err / f.std)    # no wild fit
+        z.append(err / f.std)
     z = np.array(z)
-    assert np.all((0.6 < z.std(axis=0)) & (z.std(axis=0) < 1.5)), z.std(axis=0)
+    dof = 2 * 20 - 6
+    t_var = dof / (dof - 2)
+    a = 1e-4 / 6
+    lo = t_var * stats.chi2.ppf(a / 2, N_SEEDS) / N_SEEDS
+    hi = t_var * stats.chi2.ppf(1 - a / 2, N_SEEDS) / N_SEEDS
+    # power: a std 20 % too large or too small is outside the window
+    assert t_var / 1.2**2 < lo and hi < t_var / 0.8**2
+    ms = np.mean(z**2, axis=0)
+    assert np.all((lo < ms) & (ms < hi)), (ms, lo, hi)
+    # and unbiased: the mean z within 4 of its standard errors
+    assert np.all(np.abs(z.mean(axis=0)) < 4 * np.sqrt(t_var / N_SEEDS)), z.mean(axis=0)
 
 
 def test_outlier_is_named_and_left_out():

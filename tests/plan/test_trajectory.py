@@ -89,15 +89,25 @@ def test_approach_direction_honoured_without_overshoot(plan, traj):
 
 
 def test_paper_plan_matches_the_format_approach_rule():
+    """Every mark, every joint, the "did not move" cases included: a joint that has not
+    moved since home must be on the format's starting side (+1), one that did not move on
+    the last leg on the side of its last motion."""
+    from types import SimpleNamespace
+
     marks = paper_plan()
     traj = plan_trajectory(marks)
-    want = resolve_approach(marks)
+    # the rule from the joints alone (no approach given), as a session without approach
+    want = resolve_approach([SimpleNamespace(joints_deg=m.joints_deg, approach=None)
+                             for m in marks])
+    np.testing.assert_array_equal(want, [[1, 1], [1, 1], [-1, 1], [1, 1], [1, -1]])
     knots = traj.knot_t_s[traj.mark_index >= 0]
+    unmoved = 0
     for i, tk in enumerate(knots):
         for j in range(2):
             got = _last_motion_sign(traj, tk, j)
-            if i > 0 and got != 0:
-                assert got == want[i, j]
+            unmoved += got == 0
+            assert (got if got != 0 else 1) == want[i, j], (i, j)
+    assert unmoved >= 3    # c00 both joints, joint 2 at j1p and j1n: the cases that matter
     assert np.sum(traj.pen_down) == 5
 
 

@@ -9,6 +9,7 @@ import pytest
 
 from vision_cal.dataset.session import load_session
 from vision_cal.errors import VisionCalError
+from vision_cal.calibrate.paper import pilot_params
 from vision_cal.render import dataset as ds
 from vision_cal.render.camera import project
 from vision_cal.render.scene import load_scene
@@ -29,7 +30,7 @@ def small_photographer():
 @pytest.fixture(scope="module")
 def series(tmp_path_factory, small_photographer):
     out = tmp_path_factory.mktemp("render") / "series"
-    return ds.render_dataset(SMALL, out, photographer=small_photographer)
+    return ds.render_dataset(SMALL, out, pilot=pilot_params, photographer=small_photographer)
 
 
 def _read(folder, name):
@@ -75,13 +76,13 @@ def test_truth_has_every_mark_and_pose(series):
     np.testing.assert_allclose(K, s.camera.K)
     # truth marks = the true robot at the commanded joints, within the repeatability
     q = s.joints_deg
-    pred = SMALL.robot.truth_model.predict(q, np.array(list(t["arrival_sign"].values())))
+    pred = SMALL.robot.truth_model.predict(q, np.array(list(t["approach"].values())))
     xy = np.array([t["marks"][m.id] for m in s.marks])
     assert np.max(np.abs(xy - pred)) < 6 * SMALL.robot.repeatability_mm
     # small.yaml's nominal is close to the truth: every mark on free paper
     assert t["off_paper"] == [] and t["on_marker"] == []
     # the kinematic world honours the planned approach
-    np.testing.assert_array_equal(np.array(list(t["arrival_sign"].values())), s.approach)
+    np.testing.assert_array_equal(np.array(list(t["approach"].values())), s.approach)
     # the stored pose is the one the photo was taken from: a marker's black border is
     # dark where T_cam_sheet puts it, its white quiet zone bright
     sheet = _sheet_of(SMALL)
@@ -125,7 +126,7 @@ def test_single_photo_undeclared_lens_jpeg_and_extras(tmp_path, small_photograph
                     photos=replace(SMALL.photos, mode="single", jpeg_quality=90, arm_parked=True,
                                    extra_files=(ExtraFile("blank.png", "blank"),
                                                 ExtraFile("broken.png", "corrupt"))))
-    out = ds.render_dataset(scene, tmp_path / "single", photographer=small_photographer)
+    out = ds.render_dataset(scene, tmp_path / "single", pilot=pilot_params, photographer=small_photographer)
     s = load_session(out)
     assert s.camera is None
     ids = tuple(m.id for m in s.marks)
@@ -156,7 +157,7 @@ def test_nothing_half_written_when_rendering_fails(tmp_path, monkeypatch):
     parent = tmp_path / "p"
     parent.mkdir()
     with pytest.raises(RuntimeError, match="crashed"):
-        ds.render_dataset(SMALL, parent / "out", photographer=Boom())
+        ds.render_dataset(SMALL, parent / "out", pilot=pilot_params, photographer=Boom())
     assert len(calls) == 3
     assert list(parent.iterdir()) == []
     # an existing dataset survives a failed re-render untouched
@@ -164,7 +165,7 @@ def test_nothing_half_written_when_rendering_fails(tmp_path, monkeypatch):
     (parent / "out" / "session.json").write_text("{}")
     calls.clear()
     with pytest.raises(RuntimeError):
-        ds.render_dataset(SMALL, parent / "out", photographer=Boom())
+        ds.render_dataset(SMALL, parent / "out", pilot=pilot_params, photographer=Boom())
     assert sorted(p.name for p in parent.iterdir()) == ["out"]
     assert (parent / "out" / "session.json").read_text() == "{}"
 
@@ -173,7 +174,7 @@ def test_refuses_to_replace_a_folder_that_is_not_a_dataset(tmp_path):
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "thesis.tex").write_text("x")
     with pytest.raises(VisionCalError, match="not a dataset folder"):
-        ds.render_dataset(SMALL, tmp_path / "mine", photographer=object())
+        ds.render_dataset(SMALL, tmp_path / "mine", pilot=pilot_params, photographer=object())
     assert (tmp_path / "mine" / "thesis.tex").exists()
 
 
@@ -186,9 +187,9 @@ class _Flat:
 
 def test_replaces_a_previous_dataset(tmp_path):
     out = tmp_path / "d"
-    ds.render_dataset(SMALL.with_overrides(mode="single"), out, photographer=_Flat())
+    ds.render_dataset(SMALL.with_overrides(mode="single"), out, pilot=pilot_params, photographer=_Flat())
     assert len(load_session(out).images) == 1
-    ds.render_dataset(SMALL, out, photographer=_Flat())
+    ds.render_dataset(SMALL, out, pilot=pilot_params, photographer=_Flat())
     assert len(load_session(out).images) == 10
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d"]
 
@@ -199,7 +200,7 @@ def test_paper_plan_scene(tmp_path):
 
     scene = replace(scene, camera=replace(scene.camera, size_px=(600, 800), f_px=867.0),
                     photos=replace(scene.photos, texture_px_per_mm=1.0))
-    out = ds.render_dataset(scene, tmp_path / "p", photographer=_Flat())
+    out = ds.render_dataset(scene, tmp_path / "p", pilot=pilot_params, photographer=_Flat())
     s = load_session(out)
     assert [m.id for m in s.marks] == ["c00", "j1p", "j1n", "j2p", "j2n"]
     assert _read(out, "truth.json")["off_paper"] == []
@@ -253,7 +254,7 @@ def test_photographer_for_another_camera_is_refused(tmp_path):
         K = np.eye(3)
 
     with pytest.raises(VisionCalError, match="another camera"):
-        ds.render_dataset(SMALL, tmp_path / "x", photographer=Other())
+        ds.render_dataset(SMALL, tmp_path / "x", pilot=pilot_params, photographer=Other())
     assert list(tmp_path.iterdir()) == []
 
 
@@ -261,7 +262,7 @@ def test_simulated_controller_scene(tmp_path):
     from dataclasses import replace
 
     scene = replace(SMALL, robot=replace(SMALL.robot, controller="smc", repeatability_mm=0.0))
-    out = ds.render_dataset(scene, tmp_path / "sim", photographer=_Flat())
+    out = ds.render_dataset(scene, tmp_path / "sim", pilot=pilot_params, photographer=_Flat())
     t = _read(out, "truth.json")
     assert t["controller"] == "smc"
     assert t["effects"] == [{"name": "joint_backlash", "joint": 2, "deg": 0.1}]
@@ -272,3 +273,58 @@ def test_simulated_controller_scene(tmp_path):
     # the links really lag: the reached joint 2 differs from the command by half the band
     lag = np.array([t["link_q_deg"][m.id] for m in s.marks]) - s.joints_deg
     np.testing.assert_allclose(np.abs(lag[:, 1]), 0.05, atol=0.002)
+
+
+def test_shrunk_sheet_is_photographed_shrunk(tmp_path):
+    """sheet_affine is paper that shrank after printing: the photographer sees the printed
+    point p at inv(matrix) p in the arm frame (0.3 % closer to the origin along x), the
+    marks are drawn into the texture at matrix @ pen, and truth.json's T_cam_sheet maps
+    printed points to the camera (so it carries the shrink)."""
+    from dataclasses import replace
+
+    from vision_cal.model import SheetAffine
+
+    seen = []
+
+    class Spy(_Flat):
+        def photograph(self, tex, **kw):
+            seen.append(np.asarray(kw["T_cam_sheet"], float))
+            return super().photograph(tex, **kw)
+
+    M = ((1.003, 0.0), (0.0, 1.0))
+    scene = replace(SMALL, robot=replace(SMALL.robot, controller="kinematic",
+                                         effects=(SheetAffine(M),), repeatability_mm=0.0))
+    out = ds.render_dataset(scene.with_overrides(mode="single"), tmp_path / "s",
+                            pilot=pilot_params, photographer=Spy())
+    (T,) = seen
+    # columns of the rotation part: printed x is shrunk by 1/1.003, y untouched
+    np.testing.assert_allclose(np.linalg.norm(T[:3, :3], axis=0), [1 / 1.003, 1.0, 1.0],
+                               atol=1e-12)
+    t = _read(out, "truth.json")
+    np.testing.assert_allclose(t["camera"]["T_cam_sheet"]["img_000.png"], T)
+    # the marks in truth.json are printed coordinates: x read 1.003 times the arm's
+    s = load_session(out)
+    arm = scene.robot.true_robot.without_backlash()
+    xy_arm = arm.arm_points(arm.link_deg(s.joints_deg, s.approach))[:, 2]
+    xy = np.array([t["marks"][m.id] for m in s.marks])
+    np.testing.assert_allclose(xy[:, 0], 1.003 * xy_arm[:, 0], atol=1e-9)
+    np.testing.assert_allclose(xy[:, 1], xy_arm[:, 1], atol=1e-9)
+
+
+def test_pilot_calibrator_is_passed_in(tmp_path):
+    """The world draws the pilot marks; the calibration of them comes from the caller
+    (the renderer does not import the estimator)."""
+    seen = []
+
+    def pilot(q_deg, xy_mm):
+        seen.append((np.asarray(q_deg), np.asarray(xy_mm)))
+        return pilot_params(q_deg, xy_mm)
+
+    with pytest.raises(VisionCalError, match="pilot"):
+        ds.render_dataset(SMALL, tmp_path / "none", photographer=_Flat())
+    assert not (tmp_path / "none").exists()
+    ds.render_dataset(SMALL.with_overrides(mode="single"), tmp_path / "p", pilot=pilot,
+                      photographer=_Flat())
+    ((q, xy),) = seen
+    np.testing.assert_array_equal(q, [[0, 0], [20, 0], [-20, 0], [0, 60], [0, -60]])
+    assert xy.shape == (5, 2)

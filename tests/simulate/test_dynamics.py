@@ -8,7 +8,7 @@ import pytest
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import JointBacklash, RobotModel
 from vision_cal.plan.calibration_plan import PlannedMark
-from vision_cal.simulate.dynamics import ScaraDynamics, Stepper, play
+from vision_cal.simulate.dynamics import ScaraDynamics, Stepper
 from vision_cal.simulate.run import simulate_plan
 
 DYN = ScaraDynamics()
@@ -78,10 +78,20 @@ def test_friction_stops_a_coasting_arm():
     assert abs(s[2]) < 1e-3 and abs(s[3]) < 1e-3   # no instability from the stiff tanh
 
 
-def test_play_operator():
-    assert play(0.0, 1.0, 0.25) == 0.75     # dragged in +: lags by half the band
-    assert play(0.0, -1.0, 0.25) == -0.75
-    assert play(0.1, 0.2, 0.25) == 0.1      # inside the band: the link stays
+def test_play_in_the_simulated_run():
+    """The gear play simulate_plan really uses (not a helper production never calls):
+    dragged in + the link lags band/2 behind the encoder; a reversal smaller than the band
+    leaves the link where it was (and on the same side); a larger one drags it back."""
+    band = (0.25, 0.0)
+    up = PlannedMark("a", (10.0, 0.0), approach=(1, 1))
+    small_back = PlannedMark("b", (9.9, 0.0), approach=(-1, 1))     # 0.1 < 0.25 deg
+    big_back = PlannedMark("c", (9.5, 0.0), approach=(-1, 1))       # 0.4 > 0.25 deg
+    res = simulate_plan([up, small_back, big_back], backlash_deg=band)
+    # hand-computed: link = 10 - 0.125 = 9.875 at a; the encoder moves to 9.9, still inside
+    # the band (9.9 - 0.125 < 9.875 < 9.9 + 0.125): the link stays at 9.875; at c the
+    # encoder is at 9.5, dragging the link from above: 9.5 + 0.125 = 9.625
+    np.testing.assert_allclose(res.link_deg[:, 0], [9.875, 9.875, 9.625], atol=2e-4)
+    np.testing.assert_array_equal(res.approach[:, 0], [1, 1, -1])
 
 
 def _one_mark(q, approach, over=3.0):
@@ -102,8 +112,8 @@ def test_backlash_offset_depends_on_approach(band):
                                atol=1e-9)
     np.testing.assert_allclose(minus.link_deg[0], minus.motor_deg[0] + np.array(band) / 2,
                                atol=1e-9)
-    np.testing.assert_array_equal(plus.arrival_sign[0], [1, 1])
-    np.testing.assert_array_equal(minus.arrival_sign[0], [-1, -1])
+    np.testing.assert_array_equal(plus.approach[0], [1, 1])
+    np.testing.assert_array_equal(minus.approach[0], [-1, -1])
     # and JointBacklash (the fitted model) predicts the same joint angles
     model = RobotModel(ScaraParams(344.0, 260.0),
                        (JointBacklash(1, band[0]), JointBacklash(2, band[1])))
@@ -119,7 +129,7 @@ def test_mixed_approach_and_zero_backlash():
     none = simulate_plan([_one_mark(q, (-1, 1))])
     np.testing.assert_array_equal(none.link_deg, none.motor_deg)
     np.testing.assert_allclose(none.link_deg[0], q, atol=2e-4)
-    np.testing.assert_array_equal(none.arrival_sign[0], [-1, 1])
+    np.testing.assert_array_equal(none.approach[0], [-1, 1])
 
 
 def test_link_stays_put_when_its_joint_does_not_move():
@@ -132,5 +142,5 @@ def test_link_stays_put_when_its_joint_does_not_move():
     # stays on the side it was left on, not where a fresh + approach would put it
     assert res.link_deg[1, 1] == pytest.approx(res.link_deg[0, 1], abs=1e-3)
     assert res.link_deg[1, 1] - 10.0 > 0.09
-    assert res.arrival_sign[1, 1] == -1
+    assert res.approach[1, 1] == -1
     assert math.isclose(res.link_deg[1, 0] - res.motor_deg[1, 0], -0.05, abs_tol=1e-9)

@@ -70,3 +70,8 @@ def paper_method(q_deg, xy_mm) -> PaperResult:
     params = ScaraParams(L1, ce.radius_mm, float(np.degrees(z1)), float(np.degrees(z2)),
                          cb.center_mm[0], cb.center_mm[1])
     return PaperResult(params, cb, ce, tuple(int(i) for i in b), tuple(int(i) for i in e))
+
+
+def pilot_params(q_deg, xy_mm) -> ScaraParams:
+    """The base model from a pilot run's marks (the renderer's ``pilot`` calibrator)."""
+    return paper_method(q_deg, xy_mm).params

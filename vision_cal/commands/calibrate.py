@@ -71,6 +71,9 @@ def run(args) -> int:
             if im.get("status") != "ok":
                 print(f"vision-cal: warning: {folder}/{im['file']}: skipped: {im.get('reason')}",
                       file=sys.stderr)
+        meas = getattr(result, "measurement", None)
+        for note in getattr(meas, "inferred_notes", ()):  # no images list: what looked odd
+            print(f"vision-cal: warning: {folder}: {note}", file=sys.stderr)
         if args.report:
             from vision_cal.report.html import write_report
 

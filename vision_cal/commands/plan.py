@@ -27,27 +27,58 @@ def add_arguments(p) -> None:
                    metavar=("S1", "S2"), help="approach sign of each joint (default: 1 1)")
     p.add_argument("--trajectory", metavar="TRAJ.csv",
                    help="also write the joint-space reference trajectory (0.016 s samples)")
+    p.add_argument("--program", choices=("spel", "csv"), default=None,
+                   help="also write a robot program beside PLAN.csv: spel (PLAN.prg, Epson "
+                        "SPEL+) or csv (PLAN_points.csv); needs --robot")
+    p.add_argument("--home", type=float, nargs=2, metavar=("Q1", "Q2"), default=None,
+                   help="joints (deg) the arm starts from (default: the robot file's "
+                        "home_deg, else calibration.json's, which the session gave)")
+    p.add_argument("--robot", metavar="ROBOT.yaml",
+                   help="robot file: joint limits, speeds, pen heights for --program")
 
 
 def run(args) -> int:
+    import math
     import sys
+    from pathlib import Path
 
     from vision_cal.dataset.calibration import load_calibration
     from vision_cal.dataset.csvio import (failed_report_path, read_targets, write_failed_targets,
                                           write_plan)
     from vision_cal.dataset.io import output_file
     from vision_cal.plan.compensate import plan_targets
+    from vision_cal.plan.uncertainty import load_covariance, predicted_std_mm
 
     output_file(args.out, field="-o")
     if args.trajectory:
         output_file(args.trajectory, field="--trajectory")
+    robot = None
+    if args.program and not args.robot:
+        from vision_cal.errors import VisionCalError
+
+        raise VisionCalError("--program needs --robot ROBOT.yaml (pen heights, speeds)",
+                             field="--robot")
+    if args.robot:
+        from vision_cal.dataset.robot import load_robot_file
+
+        robot = load_robot_file(args.robot)
+        if args.program:
+            robot.require_pen_heights()
     model, doc = load_calibration(args.calibration, which=args.model)
     ids, xy = read_targets(args.targets)
-    planned = plan_targets(model, ids, xy, elbow=args.elbow, approach=tuple(args.approach))
+    limits = {} if robot is None else {"joint_limits_deg": robot.joint_limits_deg}
+    planned = plan_targets(model, ids, xy, elbow=args.elbow, approach=tuple(args.approach),
+                           **limits)
+    cov = load_covariance(doc, model, file=args.calibration) if args.model == "calibrated" \
+        else None
     ok = [p for p in planned if p.status == "ok"]
     failed = [p for p in planned if p.status != "ok"]
+    std = (predicted_std_mm(model, cov, [p.q_deg for p in ok], [p.approach for p in ok])
+           if cov is not None and ok else [float("nan")] * len(ok))
     # the command file holds only what can be sent to the robot: no NaN, no failed row
-    write_plan(args.out, [p.to_row() for p in ok])
+    # (an unknown std, as with the nominal model, is left empty)
+    write_plan(args.out, [dict(p.to_row(), std_mm=float(s) if math.isfinite(s) else "")
+                          for p, s in zip(ok, std)])
     report = failed_report_path(args.out)
     if failed:
         write_failed_targets(report, [(p.id, *p.target_mm, p.reason) for p in failed])
@@ -56,10 +87,24 @@ def run(args) -> int:
                   f"all in {report}", file=sys.stderr)
     else:
         report.unlink(missing_ok=True)  # a stale report of an earlier run
+    home_deg = _home_deg(args, doc, robot)
     if args.trajectory and ok:
         from vision_cal.plan.compensate import write_plan_trajectory
 
-        write_plan_trajectory(args.trajectory, ok, home_deg=doc.get("home_deg", (0.0, 0.0)))
+        write_plan_trajectory(args.trajectory, ok, home_deg=home_deg)
+    if args.program:
+        from vision_cal.plan.compensate import to_planned_marks
+        from vision_cal.program import program_path, program_points, write_program
+
+        marks = to_planned_marks(ok, overshoot_deg=robot.overshoot_deg, role="target")
+        points = program_points(marks, home_deg=home_deg,
+                                z2_deg=model.params.z2_deg)
+        stem = Path(args.out).with_suffix("")
+        path = write_program(args.program, program_path(args.program, stem), points, robot,
+                             title=f"vision-cal compensated targets: {len(ok)} of {len(planned)} "
+                                   f"targets of {args.targets}, {args.model} model")
+        if not args.quiet:
+            print(f"wrote {path}")
     if not args.quiet:
         print(f"planned {len(planned) - len(failed)} of {len(planned)} targets "
               f"with the {args.model} model -> {args.out}")
@@ -82,3 +127,26 @@ def summarise_failures(failed, *, first: int = 3) -> str:
     head = "; ".join(f"target {p.id}: {p.reason}" for p in failed[:first])
     more = f" (and {len(failed) - first} more)" if len(failed) > first else ""
     return f"{len(failed)} target(s) not planned ({counts}): {head}{more}"
+
+
+def _home_deg(args, doc: dict, robot) -> tuple[float, float]:
+    """Where the planned motion starts: ``--home``, else the robot file's ``home_deg``, else
+    calibration.json's ``home_deg`` (the session's), else (0, 0)."""
+    import math
+
+    from vision_cal.errors import VisionCalError
+
+    if args.home is not None:
+        home, where, file = args.home, "--home", None
+    elif robot is not None:
+        return tuple(robot.nominal.home_deg)
+    elif "home_deg" in doc:
+        home, where, file = doc["home_deg"], "home_deg", args.calibration
+    else:
+        return (0.0, 0.0)
+    if (not isinstance(home, (list, tuple)) or len(home) != 2
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                       and math.isfinite(v) for v in home)):
+        raise VisionCalError(f"expected two finite joint angles in degrees, got {home!r}",
+                             file=file, field=where)
+    return (float(home[0]), float(home[1]))

@@ -35,6 +35,8 @@ def run(args) -> int:
         raise VisionCalError(f"expected a non-negative integer, got {args.seed}", field="--seed")
     scene = load_scene(args.scene).with_overrides(seed=args.seed, mode=args.mode)
     progress = not getattr(args, "quiet", False) and sys.stderr.isatty()
-    out = render_dataset(scene, args.out, progress=progress)
+    from vision_cal.calibrate.paper import pilot_params
+
+    out = render_dataset(scene, args.out, progress=progress, pilot=pilot_params)
     print(out)
     return 0

@@ -13,8 +13,10 @@ from pathlib import Path
 import numpy as np
 
 from vision_cal.dataset.io import read_json
+from vision_cal.dataset.photos import normalise_name
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import ScaraParams
+from vision_cal.motion import approach_signs
 
 FORMAT = "vision-cal/1"
 ROLES = ("calibration", "validation")
@@ -32,6 +34,8 @@ class Sheet:
     markers: tuple[SheetMarker, ...]
     size_mm: tuple[float, float]
     bottom_left_mm: tuple[float, float] | None = None  # added field: paper corner in frame S
+    grid: dict | None = None      # the printed grid as in the file (pitch_mm, origin_mm, ...)
+    printed: dict | None = None   # how it was printed (module_mm, quiet_zone_modules, ...)
 
     def markers_hull_mm(self) -> tuple[float, float, float, float] | None:
         """(x_min, y_min, x_max, y_max) of every printed marker corner, None without markers."""
@@ -69,13 +73,17 @@ class Sheet:
         return _union((hull[2] - w, hull[3] - h, hull[0] + w, hull[1] + h), hull)
 
     def to_json(self) -> dict:
-        d = {"aruco_dictionary": self.aruco_dictionary,
-             "markers": [{"id": m.id, "corners_mm": np.asarray(m.corners_mm).tolist()}
-                         for m in self.markers],
-             "size_mm": list(self.size_mm)}
+        out = {"aruco_dictionary": self.aruco_dictionary,
+               "markers": [{"id": m.id, "corners_mm": np.asarray(m.corners_mm).tolist()}
+                           for m in self.markers],
+               "size_mm": list(self.size_mm)}
         if self.bottom_left_mm is not None:
-            d["bottom_left_mm"] = list(self.bottom_left_mm)
-        return d
+            out["bottom_left_mm"] = list(self.bottom_left_mm)
+        if self.grid is not None:
+            out["grid"] = self.grid
+        if self.printed is not None:
+            out["printed"] = self.printed
+        return out
 
     def corners_by_id(self) -> dict[int, np.ndarray]:
         return {m.id: m.corners_mm for m in self.markers}
@@ -101,6 +109,12 @@ class NominalRobot:
     def params(self) -> ScaraParams:
         return ScaraParams(self.L1_mm, self.L2_mm, self.joint_zero_deg[0], self.joint_zero_deg[1],
                            self.base_mm[0], self.base_mm[1])
+
+    def to_json(self) -> dict:
+        """The session's ``robot`` block."""
+        return {"L1_mm": self.L1_mm, "L2_mm": self.L2_mm,
+                "joint_zero_deg": list(self.joint_zero_deg), "base_mm": list(self.base_mm),
+                "home_deg": list(self.home_deg)}
 
 
 @dataclass(frozen=True)
@@ -138,6 +152,9 @@ class Session:
     camera: Camera | None = None
     pen_mark_diameter_mm: float | None = None
     raw: dict = field(default_factory=dict, repr=False, compare=False)
+    #: False when session.json has no ``images``: every photo in the folder is used and
+    #: which marks each shows is found from the photos (``vision_cal.measure.infer``)
+    images_listed: bool = True
 
     @property
     def path(self) -> Path:
@@ -158,22 +175,10 @@ class Session:
 
 
 def resolve_approach(marks, home_deg=(0.0, 0.0)) -> np.ndarray:
-    """Approach signs (N, 2): given, else the sign of the change from the previous pose.
-
-    A joint that did not move keeps its previous sign, starting at +1.
-    """
-    prev = np.asarray(home_deg, dtype=float)
-    sign = np.ones(2)
-    out = np.empty((len(marks), 2))
-    for i, m in enumerate(marks):
-        q = np.asarray(m.joints_deg, dtype=float)
-        moved = np.sign(q - prev)
-        sign = np.where(moved != 0, moved, sign)
-        if m.approach is not None:
-            sign = np.asarray(m.approach, dtype=float)
-        out[i] = sign
-        prev = q
-    return out
+    """Approach signs (N, 2) of ``marks``: given, else the format's rule
+    (:func:`vision_cal.motion.approach_signs`)."""
+    return approach_signs([m.joints_deg for m in marks], home_deg,
+                          given=[m.approach for m in marks])
 
 
 #: sanity bounds of a valid file: no sheet, robot or pen mark is 100 m across, and no SCARA
@@ -270,6 +275,87 @@ def _aruco_dictionary_ok(name: str) -> bool:
     return name.startswith("DICT_") and isinstance(getattr(cv2.aruco, name, None), int)
 
 
+def read_robot_block(r: _Reader, rob, where: str = "robot") -> NominalRobot:
+    """The session's ``robot`` block (also the core of a robot file), validated.
+
+    ``where`` is the block's path in its file (``"robot"`` in session.json, ``""`` for a
+    robot file whose top level is the block)."""
+    def w(key):
+        return f"{where}.{key}" if where else key
+
+    if not isinstance(rob, dict):
+        r.fail(where or "(top level)", f"expected an object, got {type(rob).__name__}")
+    L1 = r.length(r.get(rob, "L1_mm", where), w("L1_mm"), positive=True)
+    L2 = r.length(r.get(rob, "L2_mm", where), w("L2_mm"), positive=True)
+    jz = r.angles(r.get(rob, "joint_zero_deg", where), w("joint_zero_deg"))
+    base = r.point(r.get(rob, "base_mm", where), w("base_mm"))
+    home_raw = r.get(rob, "home_deg", where, required=False)
+    home = r.angles(home_raw, w("home_deg")) if home_raw is not None else (0.0, 0.0)
+    return NominalRobot(L1, L2, jz, base, home)
+
+
+def read_sheet_block(r: _Reader, sheet_raw, where: str = "sheet", *,
+                     need_markers: bool = True) -> Sheet:
+    """The session's ``sheet`` block (also a whole ``sheet.json``), validated."""
+    def w(key):
+        return f"{where}.{key}" if where else key
+
+    if not isinstance(sheet_raw, dict):
+        r.fail(where or "(top level)", f"expected an object, got {type(sheet_raw).__name__}")
+    d = r.string(r.get(sheet_raw, "aruco_dictionary", where), w("aruco_dictionary"))
+    if not _aruco_dictionary_ok(d):
+        r.fail(w("aruco_dictionary"),
+               f"unknown ArUco dictionary {d!r} (expected an OpenCV name like DICT_5X5_100)")
+    size = r.vector(r.get(sheet_raw, "size_mm", where), w("size_mm"), 2, lo=0.0, hi=MAX_MM,
+                    positive=True, what="length in mm")
+    mk_raw = r.list_(r.get(sheet_raw, "markers", where), w("markers"),
+                     nonempty=need_markers)
+    mks: list[SheetMarker] = []
+    ids_seen: set[int] = set()
+    for i, mk in enumerate(mk_raw):
+        wm = w(f"markers[{i}]")
+        mid = r.get(mk, "id", wm)
+        if isinstance(mid, bool) or not isinstance(mid, int) or mid < 0:
+            r.fail(f"{wm}.id", f"expected a non-negative integer, got {mid!r}")
+        if mid in ids_seen:
+            r.fail(f"{wm}.id", f"duplicate marker id {mid}")
+        ids_seen.add(mid)
+        cs = r.list_(r.get(mk, "corners_mm", wm), f"{wm}.corners_mm")
+        if len(cs) != 4:
+            r.fail(f"{wm}.corners_mm", f"expected 4 corners, got {len(cs)}")
+        c = np.array([r.point(p, f"{wm}.corners_mm[{j}]") for j, p in enumerate(cs)])
+        mks.append(SheetMarker(int(mid), c))
+    bl_raw = sheet_raw.get("bottom_left_mm")
+    bl = r.point(bl_raw, w("bottom_left_mm")) if bl_raw is not None else None
+    grid = _optional_object(r, sheet_raw, w("grid"))
+    printed = _optional_object(r, sheet_raw, w("printed"))
+    if printed is not None:
+        for k in ("module_mm", "quiet_zone_mm", "quiet_zone_modules"):
+            if k in printed:
+                v = r.number(printed[k], w(f"printed.{k}"))
+                if v < 0 or (k == "module_mm" and v == 0):
+                    r.fail(w(f"printed.{k}"), f"expected a size >= 0 (> 0 for a module), "
+                                              f"got {v}")
+        mb = printed.get("measured_bar_mm")
+        if mb is not None:
+            if any(v <= 0 for v in r.vector(mb, w("printed.measured_bar_mm"), 2)):
+                r.fail(w("printed.measured_bar_mm"), f"expected two positive lengths, got {mb!r}")
+    return Sheet(d, tuple(mks), size, bl, grid, printed)
+
+
+def _optional_object(r: _Reader, obj: dict, where: str) -> dict | None:
+    v = obj.get(where.rsplit(".", 1)[-1])
+    if v is not None and not isinstance(v, dict):
+        r.fail(where, f"expected an object, got {type(v).__name__}")
+    return v
+
+
+def load_sheet_file(path) -> Sheet:
+    """Read and validate a ``sheet.json`` (the session's sheet block on its own)."""
+    path = Path(path)
+    return read_sheet_block(_Reader(str(path)), read_json(path), "")
+
+
 def load_session(folder) -> Session:
     """Read and validate ``folder/session.json`` (or a path to the file itself)."""
     folder = Path(folder)
@@ -287,15 +373,7 @@ def load_session(folder) -> Session:
     if fmt != FORMAT:
         r.fail("format", f"expected {FORMAT!r}, got {fmt!r}")
 
-    # robot
-    rob = r.get(raw, "robot", "")
-    L1 = r.length(r.get(rob, "L1_mm", "robot"), "robot.L1_mm", positive=True)
-    L2 = r.length(r.get(rob, "L2_mm", "robot"), "robot.L2_mm", positive=True)
-    jz = r.angles(r.get(rob, "joint_zero_deg", "robot"), "robot.joint_zero_deg")
-    base = r.point(r.get(rob, "base_mm", "robot"), "robot.base_mm")
-    home_raw = r.get(rob, "home_deg", "robot", required=False)
-    home = r.angles(home_raw, "robot.home_deg") if home_raw is not None else (0.0, 0.0)
-    robot = NominalRobot(L1, L2, jz, base, home)
+    robot = read_robot_block(r, r.get(raw, "robot", ""), "robot")
 
     # marks
     marks_raw = r.list_(r.get(raw, "marks", ""), "marks", nonempty=True)
@@ -323,63 +401,45 @@ def load_session(folder) -> Session:
         meas = r.point(meas, f"{w}.measured_mm") if meas is not None else None
         marks.append(Mark(mid, q, role, appr, tgt, meas))
 
-    # images
-    imgs_raw = raw.get("images", [])
-    imgs_raw = r.list_(imgs_raw, "images")
+    # images (absent: every photo in the folder, marks found from the photos)
+    images_listed = "images" in raw
+    imgs_raw = r.list_(raw.get("images", []), "images")
     images: list[ImageEntry] = []
-    files: set[str] = set()
+    files: dict[str, int] = {}
     for i, im in enumerate(imgs_raw):
         w = f"images[{i}]"
-        f = r.string(r.get(im, "file", w), f"{w}.file")
-        if Path(f).is_absolute() or ".." in Path(f).parts:
-            r.fail(f"{w}.file", f"expected a file name inside the dataset folder, got {f!r}")
+        given = r.string(r.get(im, "file", w), f"{w}.file")
+        try:
+            f = normalise_name(given)
+        except ValueError as e:
+            r.fail(f"{w}.file", str(e))
         if f in files:
-            r.fail(f"{w}.file", f"duplicate image file {f!r}")
-        files.add(f)
+            j = files[f]
+            also = "" if imgs_raw[j].get("file") == given else \
+                f" (images[{j}].file names it as {imgs_raw[j].get('file')!r})"
+            r.fail(f"{w}.file", f"duplicate image file {given!r}{also}")
+        files[f] = i
         ids = r.list_(r.get(im, "marks", w), f"{w}.marks")
         for j, mid in enumerate(ids):
             r.string(mid, f"{w}.marks[{j}]")
             if mid not in seen:
                 r.fail(f"{w}.marks[{j}]", f"names mark {mid!r}, which is not in marks")
         images.append(ImageEntry(f, tuple(ids)))
-    if not images and any(m.measured_mm is None for m in marks):
+    if images_listed and not images and any(m.measured_mm is None for m in marks):
         missing = next(m.id for m in marks if m.measured_mm is None)
         r.fail("images", f"no images, and mark {missing!r} has no measured_mm: "
                          "nothing to measure it from")
+    needs_photos = bool(images) or (not images_listed
+                                    and any(m.measured_mm is None for m in marks))
 
     # sheet
     sheet = None
     sheet_raw = raw.get("sheet")
     if sheet_raw is None:
-        if images:
-            r.fail("sheet", "missing required field (images need the printed ArUco grid)")
+        if needs_photos:
+            r.fail("sheet", "missing required field (photos need the printed ArUco grid)")
     else:
-        d = r.string(r.get(sheet_raw, "aruco_dictionary", "sheet"), "sheet.aruco_dictionary")
-        if not _aruco_dictionary_ok(d):
-            r.fail("sheet.aruco_dictionary",
-                   f"unknown ArUco dictionary {d!r} (expected an OpenCV name like DICT_5X5_100)")
-        size = r.vector(r.get(sheet_raw, "size_mm", "sheet"), "sheet.size_mm", 2, lo=0.0,
-                        hi=MAX_MM, positive=True, what="length in mm")
-        mk_raw = r.list_(r.get(sheet_raw, "markers", "sheet"), "sheet.markers",
-                         nonempty=bool(images))
-        mks: list[SheetMarker] = []
-        ids_seen: set[int] = set()
-        for i, mk in enumerate(mk_raw):
-            w = f"sheet.markers[{i}]"
-            mid = r.get(mk, "id", w)
-            if isinstance(mid, bool) or not isinstance(mid, int) or mid < 0:
-                r.fail(f"{w}.id", f"expected a non-negative integer, got {mid!r}")
-            if mid in ids_seen:
-                r.fail(f"{w}.id", f"duplicate marker id {mid}")
-            ids_seen.add(mid)
-            cs = r.list_(r.get(mk, "corners_mm", w), f"{w}.corners_mm")
-            if len(cs) != 4:
-                r.fail(f"{w}.corners_mm", f"expected 4 corners, got {len(cs)}")
-            c = np.array([r.point(p, f"{w}.corners_mm[{j}]") for j, p in enumerate(cs)])
-            mks.append(SheetMarker(int(mid), c))
-        bl_raw = sheet_raw.get("bottom_left_mm")
-        bl = r.point(bl_raw, "sheet.bottom_left_mm") if bl_raw is not None else None
-        sheet = Sheet(d, tuple(mks), size, bl)
+        sheet = read_sheet_block(r, sheet_raw, "sheet", need_markers=needs_photos)
 
     # camera
     camera = None
@@ -415,4 +475,5 @@ def load_session(folder) -> Session:
         dia = (r.number(v, "pen.mark_diameter_mm", lo=0.0, hi=MAX_PEN_MM, positive=True,
                         what="diameter in mm") if v is not None else None)
 
-    return Session(folder, sheet, robot, tuple(marks), tuple(images), camera, dia, raw)
+    return Session(folder, sheet, robot, tuple(marks), tuple(images), camera, dia, raw,
+                   images_listed)

@@ -12,9 +12,12 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
+GATE_MM = 0.5   # a dot belongs to the mark estimate within this distance
+ALPHA = 0.001   # a photo is flagged when its mean offset's chi-square p is below this
+
 
 def per_photo_offsets(measurement, model, q_by_id: dict, approach_by_id: dict, *,
-                      gate_mm: float = 0.5, alpha: float = 0.001) -> list[dict]:
+                      gate_mm: float = GATE_MM, alpha: float = ALPHA) -> list[dict]:
     """One entry per measured photo: mean residual (mm), its std, chi2 p-value, flag."""
     marks = measurement.marks
     ids = [i for i in marks if i in q_by_id]

@@ -25,8 +25,15 @@ from scipy import stats
 
 from vision_cal.calibrate.lsq import Fit
 from vision_cal.diagnose.candidates import Candidate, default_candidates, joint_residuals_deg
+from vision_cal.diagnose.structure import harmonic_scan, sheet_scan
 from vision_cal.errors import CalibrationError
-from vision_cal.model import RobotModel, SheetAffine
+from vision_cal.model import JointCyclic, RobotModel, SheetAffine
+from vision_cal.rms import rms, rms_2d
+
+ALPHA = 0.01   # family-wise level of the F-test, split over the candidates (Bonferroni)
+K_FOLDS = 5    # cross-validation folds when there are fewer than 3 validation marks
+MIN_SCAN_DOF = 20   # residual dof below which no structure is looked for (unexplained)
+MIN_SHEET_MARKS = 12  # marks below which the sheet map is not tested
 
 
 @dataclass(frozen=True)
@@ -61,6 +68,7 @@ class Diagnosis:
     heldout_base_mm: float
     heldout_final_mm: float
     analysis: dict = field(default_factory=dict)
+    thresholds: dict = field(default_factory=dict)  # the tests' levels, for the report
 
     def effects_json(self) -> list[dict]:
         """calibration.json ``effects`` entries of the final model (with std)."""
@@ -80,11 +88,6 @@ class Diagnosis:
         return out
 
 
-def _rss(fit: Fit) -> float:
-    r = fit.residuals_mm[fit.inliers]
-    return float(np.sum(r**2))
-
-
 def _fit(model, q, xy, app, sigma, ids):
     return Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, ids=ids)
 
@@ -95,7 +98,7 @@ def heldout_rms(model: RobotModel, q, xy, app, *, sigma=None, q_val=None, xy_val
     if q_val is not None and len(q_val) >= 3:
         f = Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, robust=False)
         r = xy_val - f.predict(q_val, app_val)
-        return float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+        return rms_2d(r)
     n = len(q)
     # folds from a fixed seed unless one is given: the same data calibrate the same way
     rng = np.random.default_rng(0 if rng is None else rng)
@@ -110,8 +113,7 @@ def heldout_rms(model: RobotModel, q, xy, app, *, sigma=None, q_val=None, xy_val
         except CalibrationError:
             return float("nan")
         err.append(xy[idx] - f.predict(q[idx], app[idx]))
-    r = np.concatenate(err)
-    return float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+    return rms_2d(np.concatenate(err))
 
 
 def residual_analysis(fit: Fit, q, app, *, n_bins: int = 6) -> dict:
@@ -123,7 +125,7 @@ def residual_analysis(fit: Fit, q, app, *, n_bins: int = 6) -> dict:
         d, a, qq = dq[keep, j], app[keep, j], q[keep, j]
         ok = np.isfinite(d)
         d, a, qq = d[ok], a[ok], qq[ok]
-        res = {"rms_deg": float(np.sqrt(np.mean(d**2))) if len(d) else float("nan")}
+        res = {"rms_deg": rms(d)}
         if (a > 0).sum() >= 2 and (a < 0).sum() >= 2:
             t = stats.ttest_ind(d[a > 0], d[a < 0], equal_var=False)
             res["by_approach_deg"] = {"+1": float(d[a > 0].mean()), "-1": float(d[a < 0].mean()),
@@ -143,8 +145,8 @@ def residual_analysis(fit: Fit, q, app, *, n_bins: int = 6) -> dict:
 
 
 def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None, xy_val=None,
-             approach_val=None, candidates: list[Candidate] | None = None, alpha: float = 0.01,
-             k_folds: int = 5, max_effects: int = 4, rng=None) -> Diagnosis:
+             approach_val=None, candidates: list[Candidate] | None = None, alpha: float = ALPHA,
+             k_folds: int = K_FOLDS, max_effects: int = 4, rng=None) -> Diagnosis:
     """Calibrate the base model, then add the effects the residual asks for."""
     q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
     xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
@@ -160,12 +162,114 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
     cands = list(candidates if candidates is not None else default_candidates())
     alpha_each = alpha / max(len(cands), 1)
 
-    def held(model):
-        return heldout_rms(model, q, xy, app, sigma=sigma, q_val=q_val if has_val else None,
-                           xy_val=xy_val, app_val=approach_val, k_folds=k_folds, rng=rng)
+    def held_on(sub):
+        def held(model):
+            return heldout_rms(model, q[sub], xy[sub], app[sub],
+                               sigma=None if sigma is None else sigma[sub],
+                               q_val=q_val if has_val else None, xy_val=xy_val,
+                               app_val=approach_val, k_folds=k_folds, rng=rng)
+        return held
 
+    def select_on(sub):
+        """Selection on the marks ``sub``, with joint harmonics no candidate offers found
+        in the residual and fitted as nuisances (never reported as something else)."""
+        qs, xs, aps = q[sub], xy[sub], app[sub]
+        ss = None if sigma is None else sigma[sub]
+        idl = None if ids is None else tuple(np.asarray(ids, dtype=object)[sub])
+        held = held_on(sub)
+        b = _fit(None, qs, xs, aps, ss, idl)
+        sl = _select(b, (), cands, qs, xs, aps, ss, idl, held, alpha_each, max_effects)
+        # harmonics significant even beside every candidate the plan can fit
+        full = sl.fit
+        for c in cands:
+            if c.key in {k.key for k in cands if any(k.label == a.label for a in sl.accepted)}:
+                continue
+            try:
+                full = _fit(full.model.with_effect(c.effect), qs, xs, aps, ss, idl)
+            except CalibrationError:
+                continue
+        fnd = _unexplained_harmonics(full, qs, aps, ss, cands, alpha, ids=idl, xy=xs)
+        nui = tuple(JointCyclic(joint=h["joint"], harmonic=h["harmonic"]) for h in fnd)
+        if nui:
+            sl = _select(b, nui, cands, qs, xs, aps, ss, idl, held, alpha_each, max_effects)
+        return sl, fnd, nui
+
+    everything = np.ones(len(q), dtype=bool)
+    held = held_on(everything)
     base = _fit(None, q, xy, app, sigma, ids)
-    current, current_held = base, held(RobotModel(base.params))
+    sel, found, nuisance = select_on(everything)
+    # the sheet map of what is left once the nuisance harmonics are out
+    keep = sel.fit.inliers
+    sheet_map = (sheet_scan(xy[keep], sel.fit.residuals_mm[keep])
+                 if keep.sum() >= MIN_SHEET_MARKS else {"p_value": 1.0, "k": 0})
+    sheet_alpha = alpha / 2
+    if sheet_map["p_value"] < sheet_alpha:
+        # neighbouring marks share a residual: select again without the marks there, so
+        # the local structure is not explained by a global effect
+        peak = np.asarray(sheet_map["peak_mm"])
+        d = np.linalg.norm(xy - peak, axis=1)
+        radius = 1.5 * np.sort(d)[min(sheet_map["k"], len(d) - 1)]
+        outside = d > radius
+        sheet_map["excluded_radius_mm"] = float(radius)
+        sheet_map["excluded_marks"] = int((~outside).sum())
+        if outside.sum() >= max(12, len(q) // 2):
+            sel, found, nuisance = select_on(outside)
+            # the map as the model fitted away from the structure sees it
+            again = sheet_scan(xy, xy - sel.fit.predict(q, app), n_perm=0)
+            sheet_map.update({k: again[k] for k in ("peak_mm", "peak_size_mm",
+                                                    "peak_residual_mm", "map")})
+    effects = tuple(sel.fit.model.effects[len(nuisance):])
+    if nuisance or not everything.all() or len(sel.fit.residuals_mm) != len(q):
+        zero = RobotModel(base.params, tuple(_at_zero(e) for e in effects))
+        current = _fit(zero if effects else None, q, xy, app, sigma, ids)
+    else:
+        current = sel.fit
+    current_held = held(current.model)
+    base_held = held(RobotModel(base.params))
+    accepted = sel.accepted
+    # keep only the last round's rejections per label (the final word on each candidate)
+    last = {}
+    for ev in sel.rejected:
+        last[ev.label] = ev
+    analysis = residual_analysis(current, q, app)
+    keep = current.inliers
+    w = None if sigma is None else 1.0 / np.asarray(sigma)[keep]
+    analysis["periodogram"] = harmonic_scan(current.model, q[keep], app[keep],
+                                            current.residuals_mm[keep], weights=w)
+    analysis["sheet_map"] = sheet_map
+    unexplained = _unexplained(analysis, alpha, found, sheet_alpha)
+    return Diagnosis(base, current, tuple(accepted), tuple(last.values()),
+                     tuple(sel.not_identifiable), unexplained, kind, base_held, current_held,
+                     analysis,
+                     {"alpha": alpha, "n_candidates": len(cands), "alpha_each": alpha_each,
+                      "delta_bic_below": 0.0, "k_folds": k_folds,
+                      "max_effects": max_effects, "unexplained_harmonics_alpha": alpha,
+                      "unexplained_sheet_alpha": sheet_alpha})
+
+
+@dataclass
+class _Selection:
+    fit: Fit
+    held: float
+    base_held: float
+    accepted: list
+    rejected: list
+    not_identifiable: list
+
+
+def _at_zero(e):
+    return e.with_theta(np.zeros(len(e.theta)))
+
+
+def _select(base: Fit, nuisance: tuple, cands, q, xy, app, sigma, ids, held, alpha_each,
+            max_effects) -> _Selection:
+    """Forward selection from the base model (plus ``nuisance`` effects, fitted but never
+    reported: structure no candidate explains)."""
+    if nuisance:
+        current = _fit(RobotModel(base.params, nuisance), q, xy, app, sigma, ids)
+    else:
+        current = base
+    current_held = held(current.model)
     base_held = current_held
     accepted, rejected, not_ident = [], [], []
     used_keys: set[str] = set()
@@ -219,14 +323,41 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
                                  eff.to_json()))
         used_keys.add(c.key)
         current, current_held = f, best[0]
-    # keep only the last round's rejections per label (the final word on each candidate)
-    last = {}
-    for ev in rejected:
-        last[ev.label] = ev
-    analysis = residual_analysis(current, q, app)
-    unexplained = _unexplained(analysis, alpha)
-    return Diagnosis(base, current, tuple(accepted), tuple(last.values()), tuple(not_ident),
-                     unexplained, kind, base_held, current_held, analysis)
+    return _Selection(current, current_held, base_held, accepted, rejected, not_ident)
+
+
+def _unexplained_harmonics(fit: Fit, q, app, sigma, cands, alpha, *, ids=None, xy=None,
+                           max_found: int = 3) -> list[dict]:
+    """Joint harmonics significant in the residual that no candidate offers, at level
+    ``alpha`` split over every harmonic scanned. One at a time, strongest first: each found
+    one is fitted before the next scan (a strong harmonic of one joint leaks into the
+    other joint's periodogram)."""
+    offered = {(c.effect.joint, c.effect.harmonic) for c in cands
+               if isinstance(c.effect, JointCyclic)}
+    out = []
+    if 2 * int(fit.inliers.sum()) - fit.n_params - 2 < MIN_SCAN_DOF:
+        return out          # too few marks to tell a harmonic from the noise
+    for _ in range(max_found):
+        keep = fit.inliers
+        w = None if sigma is None else 1.0 / np.asarray(sigma)[keep]
+        scan = harmonic_scan(fit.model, q[keep], app[keep], fit.residuals_mm[keep], weights=w)
+        n_tests = sum(len(v) for v in scan.values())
+        sig = [dict(r, joint=int(name[-1])) for name, rows in scan.items() for r in rows
+               if r["p_value"] < alpha / n_tests
+               and (int(name[-1]), r["harmonic"]) not in offered
+               and not any(o["joint"] == int(name[-1]) and o["harmonic"] == r["harmonic"]
+                           for o in out)]
+        if not sig:
+            break
+        best = max(sig, key=lambda r: r["F"])
+        out.append(best)
+        try:
+            fit = _fit(fit.model.with_effect(JointCyclic(joint=best["joint"],
+                                                         harmonic=best["harmonic"])),
+                       q, xy, app, sigma, ids)
+        except CalibrationError:
+            break
+    return out
 
 
 def _rss_w(fit: Fit, sigma) -> float:
@@ -246,9 +377,26 @@ def _prefer_shrink(trials):
     return trials
 
 
-def _unexplained(analysis: dict, alpha: float) -> dict | None:
-    seen = []
-    for j, res in analysis.items():
+def _unexplained(analysis: dict, alpha: float, harmonics=(), sheet_alpha=None) -> dict | None:
+    """What the final model leaves that no candidate explains: joint harmonics outside the
+    candidates (joint, harmonic, amplitude, the joint's periodogram), residuals shared by
+    neighbouring marks (where on the sheet, how big, the map), and the binned checks."""
+    seen, out = [], {}
+    for h in harmonics:
+        seen.append(f"joint{h['joint']} residual has a harmonic {h['harmonic']} of "
+                    f"{h['amplitude_deg']:.4f} deg (F = {h['F']:.1f}, p = {h['p_value']:.2g}), "
+                    f"which no candidate models")
+    if harmonics:
+        out["joint_harmonics"] = [dict(h, periodogram=analysis["periodogram"][
+            f"joint{h['joint']}"]) for h in harmonics]
+    sm = analysis.get("sheet_map")
+    if sm and sm.get("p_value", 1.0) < (alpha / 2 if sheet_alpha is None else sheet_alpha):
+        seen.append(f"neighbouring marks share their residual (p = {sm['p_value']:.2g}): "
+                    f"largest {sm['peak_size_mm']:.3f} mm near "
+                    f"({sm['peak_mm'][0]:.0f}, {sm['peak_mm'][1]:.0f}) mm on the sheet")
+        out["sheet"] = sm
+    for j in ("joint1", "joint2"):
+        res = analysis.get(j, {})
         ba = res.get("by_approach_deg")
         if ba and ba["p_value"] < alpha / 10:
             seen.append(f"{j} residual depends on the approach direction "
@@ -257,4 +405,4 @@ def _unexplained(analysis: dict, alpha: float) -> dict | None:
         if bn and bn["p_value"] < alpha / 10:
             seen.append(f"{j} residual varies with the joint angle (chi2 = {bn['chi2']:.1f}, "
                         f"p = {bn['p_value']:.2g})")
-    return {"seen": seen} if seen else None
+    return {"seen": seen, **out} if seen else None

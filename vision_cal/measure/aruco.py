@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from vision_cal.dataset.session import Sheet
+from vision_cal.measure.marker_geometry import MarkerGeometry
 
 #: dictionaries tried (only after a failure) to tell "another sheet" from "no sheet"
 _PROBE_DICTS = ("DICT_4X4_1000", "DICT_5X5_1000", "DICT_6X6_1000", "DICT_7X7_1000",
@@ -112,13 +113,17 @@ def _probe_other_dictionaries(gray: np.ndarray, own: str) -> str | None:
 N_EDGE = 16
 
 
-def edge_points(gray: np.ndarray, corners_px: np.ndarray, *, n: int = N_EDGE) -> np.ndarray:
+def edge_points(gray: np.ndarray, corners_px: np.ndarray, *, geometry: MarkerGeometry,
+                n: int = N_EDGE) -> np.ndarray:
     """Sub-pixel points on the outer edges of each marker's black border.
 
     ``corners_px`` (M, 4, 2) rough corners. For each side (corner k to k+1) ``n`` points
     along its middle 76 % are moved along the side's normal onto the dark-to-bright
-    mid-level crossing of a bilinear profile (unbiased for any symmetric blur). Returns
-    (M, 4, n, 2) raw pixels, NaN where no crossing was found.
+    mid-level crossing of a bilinear profile (unbiased for any symmetric blur). The
+    profile reaches 0.45 of a module (or of the quiet zone, if narrower) either side of
+    the edge: inside the black border module and the white quiet zone, from ``geometry``
+    (:func:`vision_cal.measure.marker_geometry.marker_geometry` of the session's sheet).
+    Returns (M, 4, n, 2) raw pixels, NaN where no crossing was found.
     """
     c = np.asarray(corners_px, float).reshape(-1, 4, 2)
     M = len(c)
@@ -133,8 +138,9 @@ def edge_points(gray: np.ndarray, corners_px: np.ndarray, *, n: int = N_EDGE) ->
     mid = 0.5 * (a + b)
     flip = np.sum((mid - centre) * nrm, axis=-1) < 0
     nrm[flip] *= -1.0  # outward
-    module = side.mean(axis=1) / 7.0  # px per module (5x5 markers with border; approx.)
-    L = np.clip(0.45 * module, 1.5, 4.0)[:, None]  # (M, 1)
+    module = side.mean(axis=1) / geometry.modules_per_side  # px per module (approx.)
+    reach = module * min(1.0, geometry.quiet_modules)       # stay in border and quiet zone
+    L = np.clip(0.45 * reach, 1.5, 4.0)[:, None]  # (M, 1)
     t = np.linspace(0.12, 0.88, n)
     s_unit = np.linspace(-1.0, 1.0, 33)
     P = a[:, :, None, :] + t[None, None, :, None] * (b - a)[:, :, None, :]  # (M,4,n,2)

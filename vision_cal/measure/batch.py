@@ -19,16 +19,19 @@ Nothing is ever written into the input folder: results and the cache go to ``out
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import os
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
+from datetime import datetime
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from vision_cal.dataset import photos
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.session import Session, load_session
 from vision_cal.errors import VisionCalError
@@ -36,6 +39,8 @@ from vision_cal.measure import associate as assoc
 from vision_cal.measure.aruco import (MIN_MARKERS, corners_from_edges, edge_points,
                                      find_sheet_markers)
 from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerprint
+from vision_cal.measure.infer import infer_image_marks
+from vision_cal.measure.marker_geometry import marker_geometry
 from vision_cal.measure.dots import DotCandidates, blank_regions, find_candidates, refine_dot
 from vision_cal.measure.sheetfit import MISFIT, corner_tolerance_mm, misfit_reason
 from vision_cal.measure.mapping import (LensEstimate, distort_px, estimate_lens, fit_mapping,
@@ -43,7 +48,7 @@ from vision_cal.measure.mapping import (LensEstimate, distort_px, estimate_lens,
 
 log = logging.getLogger(__name__)
 
-IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp"}
+IMAGE_SUFFIXES = set(photos.PHOTO_SUFFIXES)
 BLANK_STD = 2.0
 
 
@@ -65,15 +70,48 @@ class ImageDetections:
 
     def corners_for(self, K=None, dist=None) -> np.ndarray:
         """Marker corners (M, 4, 2) in raw px: intersections of the border edges, fitted
-        as straight lines in ideal pixels when a lens is given."""
+        as straight lines in ideal pixels when a lens is given.
+
+        Computed once per lens and kept with the detections (read-only: callers copy
+        before changing it)."""
         if self.edges_px is None:
             return self.corners_px
+        memo = self.__dict__.setdefault("_corners_memo", {})   # not a field: replace() drops it
+        key = _lens_key(K, dist)
+        if key not in memo:
+            memo[key] = self._corners_for(K, dist)
+        return memo[key]
+
+    def _corners_for(self, K, dist) -> np.ndarray:
         if K is None:
             return corners_from_edges(self.edges_px, self.corners_px)
         e = undistort_px(self.edges_px.reshape(-1, 2), K, dist).reshape(self.edges_px.shape)
         c0 = undistort_px(self.corners_px.reshape(-1, 2), K, dist).reshape(-1, 4, 2)
         c = corners_from_edges(e, c0)
         return distort_px(c.reshape(-1, 2), K, dist).reshape(-1, 4, 2)
+
+    def with_candidates(self, candidates: DotCandidates) -> "ImageDetections":
+        """The same detections with dot candidates (the corners found so far kept)."""
+        out = replace(self, candidates=candidates)
+        out.__dict__["_corners_memo"] = self.__dict__.get("_corners_memo", {})
+        return out
+
+    def keep_markers(self, keep: np.ndarray) -> "ImageDetections":
+        """The detections of the markers ``keep`` (bool (M,)), corners found so far kept
+        (each marker's corners depend on its own edges only)."""
+        out = replace(self, marker_ids=self.marker_ids[keep], corners_px=self.corners_px[keep],
+                      corners_mm=self.corners_mm[keep],
+                      edges_px=None if self.edges_px is None else self.edges_px[keep])
+        memo = self.__dict__.get("_corners_memo", {})
+        out.__dict__["_corners_memo"] = {k: c[keep] for k, c in memo.items()}
+        return out
+
+
+def _lens_key(K, dist):
+    if K is None:
+        return None
+    d = np.zeros(0) if dist is None else np.asarray(dist, float)
+    return (np.asarray(K, float).tobytes(), d.tobytes())
 
 
 @dataclass(frozen=True)
@@ -138,6 +176,17 @@ class Measurement:
     unassigned: list = field(default_factory=list)
     refused: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+    #: per photo (``images`` order) the marks on the sheet: listed, or inferred
+    image_marks: tuple = ()
+    #: how they were inferred ("series" | "finished" | "none"), None when listed
+    inferred: str | None = None
+    #: what the inference found odd (a repeated or missing photo, extra dots), one line each
+    inferred_notes: tuple = ()
+
+    def session_images(self) -> list[dict]:
+        """``images`` for session.json: every usable photo and the marks it shows."""
+        return [{"file": im.file, "marks": list(ms)}
+                for im, ms in zip(self.images, self.image_marks) if im.status == "ok"]
 
     def images_json(self) -> list[dict]:
         return [im.to_json() for im in self.images]
@@ -154,7 +203,9 @@ class Measurement:
                     **self.lens.to_effect_json(), "kept": self.lens.kept,
                     "candidates_heldout_rms_px": self.lens.candidates},
                 "unassigned": self.unassigned, "refused": self.refused,
-                "warnings": self.warnings}
+                "warnings": self.warnings, "inferred": self.inferred,
+                "inferred_notes": list(self.inferred_notes),
+                "image_marks": [list(m) for m in self.image_marks]}
 
 
 # --------------------------------------------------------------------------- stage 1
@@ -163,7 +214,10 @@ def _skip(file, why, size=None) -> ImageDetections:
     return ImageDetections(file, "skipped", why, size)
 
 
-def _decode(data: bytes, file: str):
+def _decode(data: bytes, file: str, camera_size_px=None):
+    """(BGR pixels, None) or (None, reason). The header is read and checked first, so a
+    decompression bomb is refused before any pixel is decoded
+    (:func:`vision_cal.dataset.photos.check_header`)."""
     if not data:
         return None, "unreadable: empty file"
     if data[:8] == b"\x89PNG\r\n\x1a\n":
@@ -172,7 +226,11 @@ def _decode(data: bytes, file: str):
     elif data[:2] == b"\xff\xd8":
         if b"\xff\xd9" not in data[-16:]:
             return None, "truncated: the JPEG ends before its end marker"
-    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    try:
+        turned = photos.check_header(photos.read_header(data), camera_size_px)
+    except photos.PhotoRefused as e:
+        return None, e.reason
+    img = photos.decode_photo(data, turned=turned)
     if img is None:
         return None, "unreadable: not an image OpenCV can decode"
     return img, None  # BGR: the dot stages only use channel max and sum (order-free)
@@ -202,22 +260,19 @@ def _drop_deformed_markers(d: ImageDetections, K, dist, *, min_px: float = 0.5,
         bad = rms > max(min_px, factor * float(np.median(rms)))
         if not bad.any():
             break
-        keep = ~bad
         n_drop += int(bad.sum())
-        d = replace(d, marker_ids=d.marker_ids[keep], corners_px=d.corners_px[keep],
-                    corners_mm=d.corners_mm[keep],
-                    edges_px=None if d.edges_px is None else d.edges_px[keep])
+        d = d.keep_markers(~bad)
     return d, n_drop
 
 
 def detect_image_bytes(data: bytes, file: str, session: Session) -> ImageDetections:
     """Stage 1 on one photo's bytes (pure function of its inputs)."""
-    rgb, why = _decode(data, file)
+    cam = session.camera
+    rgb, why = _decode(data, file, None if cam is None else cam.size_px)
     if rgb is None:
         return _skip(file, why)
     h, w = rgb.shape[:2]
     size = (int(w), int(h))
-    cam = session.camera
     if cam is not None and tuple(cam.size_px) != size:
         return _skip(file, f"wrong size: {w}x{h} px, camera.size_px says "
                            f"{cam.size_px[0]}x{cam.size_px[1]}", size)
@@ -231,7 +286,8 @@ def detect_image_bytes(data: bytes, file: str, session: Session) -> ImageDetecti
     K = None if cam is None else cam.K
     dist = None if cam is None else cam.dist
     out = ImageDetections(file, "ok", None, size, det.ids, det.corners_px, det.corners_mm,
-                          None, edge_points(gray, det.corners_px))
+                          None, edge_points(gray, det.corners_px,
+                                            geometry=marker_geometry(session.sheet)))
     out, n_bad = _drop_deformed_markers(out, K, dist)
     if len(out.marker_ids) < MIN_MARKERS:
         return _skip(file, f"too few markers: {len(out.marker_ids)} usable after {n_bad} "
@@ -242,18 +298,24 @@ def detect_image_bytes(data: bytes, file: str, session: Session) -> ImageDetecti
     except VisionCalError as e:
         return _skip(file, f"no mapping: {e.reason}", size)
     cand = find_candidates(rgb, approx, session.sheet, dia_mm=session.pen_mark_diameter_mm)
-    return replace(out, candidates=cand)
+    return out.with_candidates(cand)
 
 
-def detect_image(path, session: Session) -> ImageDetections:
+def detect_image(path, session: Session, *, root=None, name: str | None = None,
+                 sha256: str | None = None) -> ImageDetections:
+    """Stage 1 on one photo file: ``root``/``name`` (``name`` the photo's relative path,
+    kept in the result), or ``path`` itself. ``sha256``: the content the caller checked
+    (header, cache key); a file that changed since is skipped."""
     path = Path(path)
+    root = Path(root) if root is not None else path.parent
+    name = name if name is not None else path.name
     try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        return _skip(path.name, "missing: file not found")
-    except OSError as e:
-        return _skip(path.name, f"unreadable: {e.strerror or e}")
-    return detect_image_bytes(data, path.name, session)
+        data = photos.read_photo(root, name)
+    except photos.PhotoRefused as e:
+        return _skip(name, e.reason)
+    if sha256 is not None and hashlib.sha256(data).hexdigest() != sha256:
+        return _skip(name, "changed while being measured: run again")
+    return detect_image_bytes(data, name, session)
 
 
 # --------------------------------------------------------------------------- stage 2
@@ -313,8 +375,8 @@ def measure_image(path, session: Session, *, lens: LensEstimate | None = None) -
 # --------------------------------------------------------------------------- batch
 
 def _worker(args):
-    path, session = args
-    return detect_image(path, session)
+    root, name, session, sha = args
+    return detect_image(Path(root) / name, session, root=root, name=name, sha256=sha)
 
 
 def _is_inside(a: Path, b: Path) -> bool:
@@ -338,6 +400,58 @@ def _check_sheet_fits(session: Session, images: list[ImageResult]) -> None:
                          file=str(session.path), field="sheet.markers")
 
 
+@dataclass
+class _Photo:
+    """One photo before stage 1: its name, and what the parent learnt from its header."""
+
+    file: str
+    listed_marks: tuple | None
+    det: ImageDetections | None = None
+    sha256: str | None = None
+    captured: object = None
+    key: str | None = None
+    cached: bool = False
+
+
+def _check_photo(ph: _Photo, root: Path, session: Session) -> None:
+    """Read the photo once in the parent, before any worker sees it: regular file inside
+    the folder, header within the limits (no pixel decoded). Fills ``sha256``, ``captured``
+    or a skip (``det``)."""
+    cam = session.camera
+    try:
+        data = photos.read_photo(root, ph.file)
+        if not data:
+            raise photos.PhotoRefused("unreadable: empty file")
+        header = photos.read_header(data)
+        photos.check_header(header, None if cam is None else cam.size_px)
+    except photos.PhotoRefused as e:
+        ph.det = _skip(ph.file, e.reason)
+        return
+    ph.sha256 = hashlib.sha256(data).hexdigest()
+    ph.captured = header.captured
+
+
+def _capture_order(items: list[_Photo], warnings: list) -> list[_Photo]:
+    """Photos found in the folder: by EXIF capture time when every readable photo has one,
+    else by natural file name (already the order of ``items``)."""
+    readable = [p for p in items if p.det is None]
+    timed = [p for p in readable if p.captured is not None]
+    if readable and len(timed) == len(readable):
+        rank = {id(p): i for i, p in enumerate(items)}
+        return sorted(items, key=lambda p: (p.captured is None, p.captured or datetime.min,
+                                            rank[id(p)]))
+    if timed:
+        warnings.append(f"{len(readable) - len(timed)} of {len(readable)} photos have no EXIF "
+                        "capture time: all are ordered by file name")
+    return items
+
+
+def _pool_initializer(parent_pid: int) -> None:
+    from vision_cal.measure.workers import exit_with_parent
+
+    exit_with_parent(parent_pid)
+
+
 def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                    progress=None) -> Measurement:
     """Measure every photo of a dataset folder and every pen mark on the sheet.
@@ -345,6 +459,8 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
     ``session``: a :class:`Session` or a folder. ``out_dir``: where results go (never the
     input folder); the cache defaults to ``out_dir/.cache``. ``jobs``: worker processes
     (default ``os.cpu_count()``; 1 runs in this process). ``progress``: a tqdm bar on stderr.
+    Without ``images`` in session.json every photo in the folder is measured and which
+    marks each shows is inferred (:mod:`vision_cal.measure.infer`).
     """
     if not isinstance(session, Session):
         session = load_session(session)
@@ -359,41 +475,52 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
     cache = DetectionCache(Path(cache_dir) if cache_dir else out_dir / ".cache")
     warnings: list[str] = []
 
-    listed = {im.file for im in session.images}
     try:
-        present = sorted(p.name for p in root.iterdir()
-                         if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
-    except OSError:
+        present = photos.list_photos(root)
+    except OSError as e:
+        if not session.images_listed:
+            raise VisionCalError(f"cannot list the photos: {e.strerror or e}",
+                                 file=str(root)) from e
         present = []
-    extra = [f for f in present if f not in listed]
-    if extra:
-        msg = (f"{len(extra)} image file(s) in {root} not listed in session.json, left alone: "
-               + ", ".join(extra[:10]) + (" ..." if len(extra) > 10 else ""))
-        log.warning(msg)
-        warnings.append(msg)
+    if session.images_listed:
+        items = [_Photo(im.file, im.marks) for im in session.images]
+        listed = {im.file for im in session.images}
+        extra = [f for f in present if f not in listed]
+        if extra:
+            msg = (f"{len(extra)} image file(s) in {root} not listed in session.json, left "
+                   "alone: " + ", ".join(extra[:10]) + (" ..." if len(extra) > 10 else ""))
+            log.warning(msg)
+            warnings.append(msg)
+    else:
+        if not present:
+            raise VisionCalError("no photos: session.json has no images list and the folder "
+                                 f"has no {'/'.join(s[1:] for s in photos.PHOTO_SUFFIXES)} "
+                                 "file", file=str(session.path), field="images")
+        items = [_Photo(f, None) for f in present]
+
+    # checked in this process before anything is decoded or dispatched
+    for ph in items:
+        _check_photo(ph, root, session)
+    if not session.images_listed:
+        items = _capture_order(items, warnings)
+    first_of: dict[str, str] = {}
+    for ph in items:
+        if ph.det is None and ph.sha256 in first_of:
+            ph.det = _skip(ph.file, f"repeated photo: the same file as {first_of[ph.sha256]}")
+        elif ph.det is None:
+            first_of[ph.sha256] = ph.file
+    files = [ph.file for ph in items]
 
     # stage 1, cached
     fp = session_fingerprint(session)
-    dets: list[ImageDetections | None] = [None] * len(session.images)
-    cached = [False] * len(session.images)
     todo = []
-    keys = {}
-    for i, im in enumerate(session.images):
-        p = root / im.file
-        try:
-            data = p.read_bytes()
-        except FileNotFoundError:
-            dets[i] = _skip(im.file, "missing: file not found")
+    for i, ph in enumerate(items):
+        if ph.det is not None:
             continue
-        except OSError as e:
-            dets[i] = _skip(im.file, f"unreadable: {e.strerror or e}")
-            continue
-        key = cache_key(data, fp)
-        keys[i] = key
-        hit = cache.get(key)
-        if isinstance(hit, ImageDetections):
-            dets[i] = replace(hit, file=im.file)
-            cached[i] = True
+        ph.key = cache_key(ph.sha256, fp)
+        hit = cache.get(ph.key)
+        if hit is not None:
+            ph.det, ph.cached = replace(hit, file=ph.file), True
         else:
             todo.append(i)
     jobs = int(jobs or os.cpu_count() or 1)
@@ -401,25 +528,29 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
     if progress:
         from tqdm import tqdm
         bar = tqdm(total=len(todo), file=sys.stderr, desc="measuring photos", unit="photo")
+    args = [(root, items[i].file, session, items[i].sha256) for i in todo]
     try:
         if jobs <= 1 or len(todo) <= 1:
-            results = (_worker((root / session.images[i].file, session)) for i in todo)
+            results = (_worker(a) for a in args)
+        else:
+            ex = ProcessPoolExecutor(max_workers=min(jobs, len(todo)),
+                                     initializer=_pool_initializer, initargs=(os.getpid(),))
+            results = ex.map(_worker, args, chunksize=1)
+        try:
             for i, d in zip(todo, results):
-                dets[i] = d
-                cache.put(keys[i], d)
+                items[i].det = d
+                if d.reason is None or not d.reason.startswith("changed while"):
+                    cache.put(items[i].key, d)
                 if bar:
                     bar.update()
-        else:
-            with ProcessPoolExecutor(max_workers=min(jobs, len(todo))) as ex:
-                args = [(root / session.images[i].file, session) for i in todo]
-                for i, d in zip(todo, ex.map(_worker, args, chunksize=1)):
-                    dets[i] = d
-                    cache.put(keys[i], d)
-                    if bar:
-                        bar.update()
+        finally:
+            if jobs > 1 and len(todo) > 1:
+                ex.shutdown(wait=True, cancel_futures=True)
     finally:
         if bar:
             bar.close()
+    dets = [ph.det for ph in items]
+    cached = [ph.cached for ph in items]
 
     # stage 2: the lens
     lens = None
@@ -442,8 +573,20 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
     per_image = [(i, images[i].dots_xy_mm, images[i].dots_cov_mm2) for i in idx_ok]
     dia = session.pen_mark_diameter_mm or 1.2
     groups = assoc.group_dots(per_image, tol_mm=max(0.4 * dia, 0.3))
-    mark_images = [{i for i in idx_ok if m.id in session.images[i].marks} for m in session.marks]
-    a = assoc.associate(session.joints_deg, [m.id for m in session.marks], mark_images, groups,
+    mark_ids = [m.id for m in session.marks]
+    if session.images_listed:
+        image_marks = [tuple(ph.listed_marks) for ph in items]
+        inferred = None
+    else:
+        inferred = infer_image_marks(len(items), idx_ok, groups, mark_ids, files)
+        image_marks = list(inferred.marks)
+        warnings.extend(inferred.warnings)
+        n_off = sum(1 for r in images if r.status != "ok")
+        if n_off:
+            warnings.append(f"{n_off} photo(s) in the folder not used (not of the sheet, "
+                            "repeated or unreadable): see images[].reason")
+    mark_images = [{i for i in idx_ok if m.id in image_marks[i]} for m in session.marks]
+    a = assoc.associate(session.joints_deg, mark_ids, mark_images, groups,
                         session.robot.params)
     warnings.extend(a.warnings)
     marks = {}
@@ -453,14 +596,16 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
         used.add(gi)
         xy, cov, spread = assoc.combine(g)
         marks[mid] = MarkMeasurement(xy, cov, len(g.images), spread, a.how.get(mid, "model"),
-                                     tuple(session.images[k].file for k in g.images))
+                                     tuple(files[k] for k in g.images))
     unassigned = [{"xy_mm": g.mean_mm.tolist(),
-                   "files": [session.images[k].file for k in g.images]}
+                   "files": [files[k] for k in g.images]}
                   for gi, g in enumerate(groups) if gi not in used]
     refused = {k: v for k, v in a.refused.items()}
     for r in images:
         if r.status != "ok":
             log.info("skipped %s: %s", r.file, r.reason)
-    meas = Measurement(marks, images, lens, unassigned, refused, warnings)
+    meas = Measurement(marks, images, lens, unassigned, refused, warnings,
+                       tuple(image_marks), None if inferred is None else inferred.mode,
+                       () if inferred is None else tuple(inferred.warnings))
     atomic_write_json(out_dir / "measurement.json", meas.to_json())
     return meas

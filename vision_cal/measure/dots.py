@@ -33,6 +33,7 @@ from scipy.ndimage import maximum_filter1d
 
 from vision_cal.dataset.session import Sheet
 from vision_cal.measure.mapping import SheetMapping
+from vision_cal.measure.marker_geometry import marker_geometry, marker_side_mm, quiet_boxes_mm
 
 INK_DARKENING = 0.30      # ink lowers the brightest channel by at least this fraction
 MIN_AREA_RATIO = 0.25     # smaller blobs are noise / paper texture (ignored)
@@ -43,12 +44,10 @@ MIN_SOLIDITY = 0.75
 MARKER_MARGIN_MM = 3.0    # masked around each printed marker square (patch half-size + margin)
 FINE_STEP_MM = 0.05
 DEFAULT_DIAMETER_MM = 1.2
-HIDDEN_LINES = True
 #: what the centroid cannot resolve of the print and the photo's sampling under a dot (px):
 #: seen as errors that repeat in every photo of a dot on synthetic photos and on the
 #: project's pyrender photos (0.01-0.03 px); added to every dot's covariance
 MODEL_FLOOR_PX = 0.02
-QUIET_MODULES = 2.0         # blank quiet zone around each marker, in modules
 
 
 def _radii_mm(dia_mm: float, mm_per_px: float) -> tuple[float, float]:
@@ -90,11 +89,11 @@ def noise_sigma_sum(rgb: np.ndarray, mapping: SheetMapping | None = None,
     H, W = rgb.shape[:2]
     vals = []
     if mapping is not None and sheet is not None:
+        geometry = marker_geometry(sheet)
         for m in sheet.markers:
             c = np.asarray(m.corners_mm, float)
-            s = float(np.ptp(c[:, 0]))
             lo, hi = c.min(axis=0), c.max(axis=0)
-            outer = s * 2.0 / 7.0 - 0.8
+            outer = float(geometry.quiet_mm(marker_side_mm(c))) - 0.8
             inner = 0.8
             if outer <= inner:
                 continue
@@ -297,20 +296,10 @@ def _fill(v: np.ndarray) -> np.ndarray:
     return np.interp(i, i[ok], v[ok])
 
 
-def blank_regions(sheet: Sheet, *, quiet_modules: float = QUIET_MODULES) -> np.ndarray:
+def blank_regions(sheet: Sheet) -> np.ndarray:
     """(K, 4) sheet rectangles [x0, y0, x1, y1] of bare paper: each marker with its quiet
-    zone (``quiet_modules`` modules, the way ``vision_cal.render.sheet`` prints them)."""
-    try:
-        n_bits = int(sheet.aruco_dictionary.split("_")[1].split("X")[0])
-    except (IndexError, ValueError):
-        n_bits = 5
-    out = []
-    for m in sheet.markers:
-        c = np.asarray(m.corners_mm, float)
-        lo, hi = c.min(axis=0), c.max(axis=0)
-        q = quiet_modules * float(np.ptp(c[:, 0])) / (n_bits + 2)
-        out.append([lo[0] - q, lo[1] - q, hi[0] + q, hi[1] + q])
-    return np.asarray(out, float).reshape(-1, 4)
+    zone, as the sheet description says it was printed (:mod:`.marker_geometry`)."""
+    return quiet_boxes_mm(sheet)
 
 
 def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
@@ -361,7 +350,7 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
         if partial:
             bg = np.where(blank, P, bg)
         w0 = (bg - Sg) / P            # ink deficit, relative to the paper
-        ell = np.clip((P - bg) / P, 0.0, None) if HIDDEN_LINES else np.zeros_like(P)
+        ell = np.clip((P - bg) / P, 0.0, None)
         r_dot = 0.5 * dia
         cc = c.copy()
         for _ in range(8):

@@ -9,7 +9,8 @@ Conventions
 - ``SheetMapping.H_img_sheet`` (3, 3) maps sheet mm (x right, y up) to ideal pixels;
   ``G_sheet_img`` is its inverse.
 - :class:`LensEstimate` is the lens found in the photos when ``session.camera`` is absent:
-  OpenCV ``K`` and ``dist`` (k1 k2 p1 p2 k3), principal point at the image centre.
+  OpenCV ``K`` and ``dist`` (k1 k2 p1 p2 k3); the principal point starts at the image
+  centre and is free in the ``k1k2_pp`` model (phones: often tens of pixels off).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import cv2
 import numpy as np
 
 from vision_cal.errors import VisionCalError
+from vision_cal.rms import rms_2d
 
 _UNDIST_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 60, 1e-12)
 
@@ -154,11 +156,11 @@ def fit_mapping(sheet_mm, raw_px, *, K=None, dist=None) -> SheetMapping:
         raise VisionCalError("degenerate marker corners: no homography")
     pred = distort_px(apply_h(H, obj), K, dist)
     res_px = raw - pred
-    rms_px = float(np.sqrt(np.mean(np.sum(res_px**2, axis=1))))
+    rms_px = rms_2d(res_px)
     G = np.linalg.inv(H)
     back = apply_h(G, uv)
     res_mm = back - obj
-    rms_mm = float(np.sqrt(np.mean(np.sum(res_mm**2, axis=1))))
+    rms_mm = rms_2d(res_mm)
     # covariance of the inverse homography (ideal px -> sheet mm), normalised coordinates
     Ts, Td = _normaliser(uv), _normaliser(obj)
     Gn = Td @ G @ np.linalg.inv(Ts)
@@ -186,8 +188,12 @@ def fit_mapping(sheet_mm, raw_px, *, K=None, dist=None) -> SheetMapping:
 #: candidate lens models, simplest first: (name, calibrateCamera flags for free terms)
 _BASE_FLAGS = (cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_FIX_PRINCIPAL_POINT
                | cv2.CALIB_FIX_ASPECT_RATIO)
+#: the principal point is where the radial distortion is centred; a phone's is often
+#: tens of pixels off the image centre: a model with it free competes on held-out corners
+_FREE_PP_FLAGS = cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_FIX_ASPECT_RATIO
 LENS_MODELS = (
     ("k1k2", _BASE_FLAGS | cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K3),
+    ("k1k2_pp", _FREE_PP_FLAGS | cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K3),
     ("k1k2k3p1p2", _BASE_FLAGS),
 )
 
@@ -250,17 +256,13 @@ def _project(obj_mm, K, dist, rvec, tvec):
     return np.asarray(out, float).reshape(-1, 2)
 
 
-def _rms(r) -> float:
-    r = np.asarray(r).reshape(-1, 2)
-    return float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) if len(r) else float("nan")
-
-
 def estimate_lens(views, size_px, *, n_folds: int = 3, min_gain: float = 0.8,
                   min_gain_px: float = 0.02) -> LensEstimate | None:
     """Fit a lens jointly over photos of one camera, keep it only if held-out corners agree.
 
     ``views``: list of (marker_ids (M,), corners_mm (M, 4, 2), corners_px (M, 4, 2)).
-    Shared intrinsics (unknown focal, principal point at the image centre) and distortion,
+    Shared intrinsics (unknown focal; principal point at the image centre, or free in the
+    ``k1k2_pp`` model) and distortion,
     one pose per photo. Markers are split into ``n_folds`` interleaved folds; each model is
     fitted without one fold and scored on its corners. A model is kept when its held-out
     RMS is below ``min_gain`` x and ``min_gain_px`` below the plain homography's; a richer
@@ -300,8 +302,8 @@ def estimate_lens(views, size_px, *, n_folds: int = 3, min_gain: float = 0.8,
                 continue
             for (ot, pt), r_, t_ in zip(test, rv, tv):
                 res_model[name].append(pt - _project(ot, K, dist, r_, t_))
-    cv_none = _rms(np.concatenate(res_none)) if res_none else float("nan")
-    cv = {n: (_rms(np.concatenate(r)) if r else float("nan")) for n, r in res_model.items()}
+    cv_none = rms_2d(np.concatenate(res_none)) if res_none else float("nan")
+    cv = {n: (rms_2d(np.concatenate(r)) if r else float("nan")) for n, r in res_model.items()}
 
     chosen, cv_best = None, cv_none
     for name, _ in LENS_MODELS:
@@ -330,7 +332,7 @@ def estimate_lens(views, size_px, *, n_folds: int = 3, min_gain: float = 0.8,
     return LensEstimate(
         kept=chosen is not None, model=name, K=K, dist=dist,
         size_px=(int(size_px[0]), int(size_px[1])),
-        rms_px_before=_rms(np.concatenate(res_b)), rms_px_after=_rms(np.concatenate(res_a)),
-        rms_mm_before=_rms(np.concatenate(res_b_mm)), rms_mm_after=_rms(np.concatenate(res_a_mm)),
+        rms_px_before=rms_2d(np.concatenate(res_b)), rms_px_after=rms_2d(np.concatenate(res_a)),
+        rms_mm_before=rms_2d(np.concatenate(res_b_mm)), rms_mm_after=rms_2d(np.concatenate(res_a_mm)),
         cv_rms_px_before=cv_none, cv_rms_px_after=cv.get(name, float("nan")),
         n_photos=len(views), candidates={"none": cv_none, **cv})

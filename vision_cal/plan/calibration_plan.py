@@ -18,6 +18,7 @@ import numpy as np
 
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import forward
+from vision_cal.motion import JOINT_LIMITS_DEG, SPEED_DEG_S, approach_signs
 
 
 @dataclass(frozen=True)
@@ -42,13 +43,9 @@ def paper_plan() -> list[PlannedMark]:
     """
     poses = [("c00", (0.0, 0.0)), ("j1p", (20.0, 0.0)), ("j1n", (-20.0, 0.0)),
              ("j2p", (0.0, 60.0)), ("j2n", (0.0, -60.0))]
-    out, prev, sign = [], np.zeros(2), np.ones(2)
-    for mid, q in poses:
-        moved = np.sign(np.asarray(q) - prev)
-        sign = np.where(moved != 0, moved, sign)
-        out.append(PlannedMark(mid, q, "calibration", (int(sign[0]), int(sign[1]))))
-        prev = np.asarray(q)
-    return out
+    signs = approach_signs([q for _, q in poses])
+    return [PlannedMark(mid, q, "calibration", (int(s[0]), int(s[1])))
+            for (mid, q), s in zip(poses, signs)]
 
 
 # --------------------------------------------------------------------------------------
@@ -112,7 +109,8 @@ def informative_plan(nominal, sheet, *, n_calibration: int = 30, n_validation: i
                      joint_limits_deg=((-150.0, 150.0), (-150.0, 150.0)), rng=None,
                      margin_mm: float = 3.0, safety_mm: float = 15.0,
                      overshoot_deg: float = 3.0, min_sin_elbow: float = 0.2,
-                     home_deg=(0.0, 0.0), n_candidates: int = 40000) -> list[PlannedMark]:
+                     home_deg=(0.0, 0.0), n_candidates: int = 40000, elbows=(1, -1),
+                     speed_deg_s=SPEED_DEG_S) -> list[PlannedMark]:
     """A plan that identifies the base model *and* backlash, gear scale and cyclic errors.
 
     Poses are drawn uniformly in joint space, kept where the pen (nominal model) lands on
@@ -130,6 +128,9 @@ def informative_plan(nominal, sheet, *, n_calibration: int = 30, n_validation: i
     half, chosen to be uncorrelated with the joint angles, the elbow and the other joint.
     Every mark gets one overshoot via point ``q - approach * overshoot_deg``, so both
     joints make their last motion (``overshoot_deg``) from the planned side.
+
+    ``elbows`` limits the poses to those elbow solutions (a robot that may only use one);
+    ``speed_deg_s`` are the joint speeds the drawing order is timed with.
 
     Marks are drawn in a nearest-neighbour tour (in joint travel time) from ``home_deg``;
     ids are ``c00..`` and ``v00..`` in drawing order. Deterministic for a given ``rng``.
@@ -152,6 +153,7 @@ def informative_plan(nominal, sheet, *, n_calibration: int = 30, n_validation: i
     ok = sheet_clearance_mm(sheet, xy) >= clearance
     sin_el = np.sin(np.radians(q[:, 1] + nominal.z2_deg))
     ok &= np.abs(sin_el) >= min_sin_elbow
+    ok &= np.isin(np.where(sin_el > 0, 1, -1), np.asarray(elbows, dtype=int))
     q, xy, elbow = q[ok], xy[ok], np.where(sin_el[ok] > 0, 1, -1)
     if len(q) < n_total:
         raise VisionCalError(
@@ -211,7 +213,7 @@ def informative_plan(nominal, sheet, *, n_calibration: int = 30, n_validation: i
             signs[idx] = _balanced_signs(qs[idx], els[idx], rng)
 
     # drawing order: nearest neighbour in joint travel time (default speed limits) from home
-    speed = np.array([90.0, 120.0])
+    speed = np.asarray(speed_deg_s, dtype=float)
     order, cur = [], np.asarray(home_deg, dtype=float)
     left = list(range(n_total))
     while left:

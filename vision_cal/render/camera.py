@@ -23,10 +23,13 @@ from vision_cal.errors import VisionCalError
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
 
 
-def camera_matrix(*, size_px, f_px: float) -> np.ndarray:
-    """K (3, 3) with square pixels and the principal point at the image centre."""
+def camera_matrix(*, size_px, f_px: float, principal_px=None) -> np.ndarray:
+    """K (3, 3) with square pixels; the principal point at ``principal_px`` (u, v), by
+    default the image centre ((w - 1) / 2, (h - 1) / 2)."""
     w, h = (float(v) for v in size_px)
-    return np.array([[f_px, 0.0, (w - 1) / 2], [0.0, f_px, (h - 1) / 2], [0.0, 0.0, 1.0]])
+    cx, cy = ((w - 1) / 2, (h - 1) / 2) if principal_px is None else (
+        float(principal_px[0]), float(principal_px[1]))
+    return np.array([[f_px, 0.0, cx], [0.0, f_px, cy], [0.0, 0.0, 1.0]])
 
 
 def look_at(*, eye_mm, target_mm, up_hint=(0.0, 1.0, 0.0)) -> np.ndarray:
@@ -167,10 +170,10 @@ def distort_image(img, *, K, dist, K_ideal=None, interpolation: str = "spline3",
     point lands where ``cv2.projectPoints(..., K, dist)`` puts it.
 
     ``interpolation``: ``"spline3"`` (default) is a cubic B-spline interpolation
-    (``scipy.ndimage.map_coordinates``) at the exact positions: blob centroids within
-    0.003 px in tests. ``"linear"``, ``"cubic"``, ``"lanczos4"`` use cv2.remap, ~10x faster
-    but it quantises positions to 1/32 px: cubic moved blob centroids by up to 0.05 px,
-    linear by 0.024 px (fine on a supersampled image that is then averaged down).
+    (``scipy.ndimage.map_coordinates``) at the exact positions. ``"linear"``, ``"cubic"``,
+    ``"lanczos4"`` use cv2.remap, ~10x faster but it quantises positions to 1/32 px (fine on
+    a supersampled image that is then averaged down; ``bench/render.py --accuracy`` prints
+    the resulting dot-centre figures).
     Outside the ideal frame the output is ``border_value``. The maps are cached per
     (size, K, dist, K_ideal).
     """

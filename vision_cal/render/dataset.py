@@ -12,7 +12,7 @@ photographs the sheet and writes::
                         present but undeclared), true mark positions, the camera's K, dist
                         and per-photo poses ``T_cam_sheet`` (added field: 4x4, sheet mm ->
                         camera mm, OpenCV camera axes); added fields: controller,
-                        arrival_sign / link_q_deg per mark, off_paper, on_marker,
+                        approach / link_q_deg per mark, off_paper, on_marker,
                         arm_parked_q_deg, extra_files, repeatability_mm, seed
 
 The lens is applied by ``Photographer.photograph(dist=..., K_dist=K)`` on an ideal render
@@ -69,111 +69,57 @@ class _Streams:
     park: np.random.Generator
     extras: np.random.Generator
     sim: np.random.Generator
+    focal: np.random.Generator
 
     @classmethod
     def from_seed(cls, seed: int) -> "_Streams":
-        ss = np.random.SeedSequence(seed).spawn(8)
+        ss = np.random.SeedSequence(seed).spawn(9)
         g = [np.random.default_rng(s) for s in ss]
-        return cls(g[0], g[1], int(ss[2].generate_state(1)[0]), g[3], g[4], g[5], g[6], g[7])
+        return cls(g[0], g[1], int(ss[2].generate_state(1)[0]), g[3], g[4], g[5], g[6], g[7],
+                   g[8])
 
 
 # --------------------------------------------------------------------------------- plan
 
 
-def pilot_params(scene: Scene, *, rng=None):
-    """The model an engineer plans with after a pilot run: the true robot draws the seed
-    paper's five marks (zero, joint 1 at +-20 deg, joint 2 at +-60 deg) on scrap paper,
-    measured to 0.05 mm, calibrated by the paper's circles. The catalogue model misses by
-    tens of millimetres (SM5: zeros 2.6 and 8.1 deg off), too much to keep marks off the
-    printed markers; the pilot model misses by about a millimetre."""
-    from vision_cal.calibrate.paper import paper_method
+def pilot_marks(scene: Scene, *, rng=None) -> tuple[np.ndarray, np.ndarray]:
+    """A pilot run: the true robot draws the seed paper's five marks (zero, joint 1 at
+    +-20 deg, joint 2 at +-60 deg) on scrap paper, measured to 0.05 mm. Returns the
+    commanded joints (5, 2) deg and the measured marks (5, 2) mm."""
     from vision_cal.plan.calibration_plan import paper_plan
 
     rng = np.random.default_rng(rng)
     pilot = paper_plan()
-    w = draw_marks(scene.robot.truth_model, pilot, home_deg=scene.robot.nominal.home_deg,
+    w = draw_marks(scene.robot.true_robot, pilot, home_deg=scene.robot.nominal.home_deg,
                    repeatability_mm=0.05, rng=rng)
-    return paper_method(np.array([m.joints_deg for m in pilot]),
-                        w.xy_mm).params
+    return np.array([m.joints_deg for m in pilot], dtype=float), w.xy_mm
 
 
-def build_plan(scene: Scene, sheet, *, rng=None) -> list:
+def build_plan(scene: Scene, sheet, *, pilot=None, rng=None) -> list:
     """The scene's plan (``list[PlannedMark]``), computed from the nominal model, or with
-    ``plan.pilot`` (the default) from a pilot calibration (:func:`pilot_params`)."""
+    ``plan.pilot`` (the default) from a pilot calibration: the world draws
+    :func:`pilot_marks` and ``pilot(q_deg, xy_mm) -> ScaraParams`` calibrates them (the
+    caller passes the calibrator, e.g. ``vision_cal.calibrate.paper.pilot_params``: the
+    world does not import the estimator). The catalogue model misses by tens of
+    millimetres (SM5: zeros 2.6 and 8.1 deg off), too much to keep marks off the printed
+    markers; the pilot model misses by about a millimetre."""
     from vision_cal.plan import calibration_plan as cp
 
     if scene.plan.kind == "paper":
         return list(cp.paper_plan())
-    fn = getattr(cp, "informative_plan", None)
-    if fn is None:
-        log.warning("informative_plan is not available yet: using the renderer's fallback "
-                    "plan (random reachable points with random approach sides)")
-        return fallback_plan(scene.robot.nominal.params, sheet,
-                             n_calibration=scene.plan.n_calibration,
-                             n_validation=scene.plan.n_validation,
-                             min_separation_mm=scene.plan.min_separation_mm,
-                             home_deg=scene.robot.nominal.home_deg, rng=rng)
-    model = pilot_params(scene, rng=rng) if scene.plan.pilot else scene.robot.nominal.params
-    return list(fn(model, sheet, n_calibration=scene.plan.n_calibration,
-                   n_validation=scene.plan.n_validation,
-                   pen_diameter_mm=scene.robot.pen_diameter_mm,
-                   min_separation_mm=scene.plan.min_separation_mm, rng=rng))
-
-
-def fallback_plan(nominal, sheet, *, n_calibration=30, n_validation=8, min_separation_mm=10.0,
-                  home_deg=(0.0, 0.0), inset_mm=60.0, overshoot_deg=2.0, rng=None) -> list:
-    """A plain plan for when ``informative_plan`` is missing: random points on the paper.
-
-    Points lie ``inset_mm`` inside the paper, off the markers' quiet zones, within the
-    nominal arm's reach (20 mm off both reach limits), ``min_separation_mm`` apart; each
-    joint arrives from a random side through an overshoot via point ``overshoot_deg`` past
-    the mark. Ids ``c00..`` (calibration) then ``v00..`` (validation), drawn interleaved.
-    """
-    from vision_cal.kinematics import inverse
-    from vision_cal.plan.calibration_plan import PlannedMark
-
-    rng = np.random.default_rng(rng)
-    n = n_calibration + n_validation
-    x0, y0, x1, y1 = sheet.extent_mm
-    base = np.array(nominal.base_mm)
-    r_lo = abs(nominal.L1_mm - nominal.L2_mm) + 20.0
-    r_hi = nominal.L1_mm + nominal.L2_mm - 20.0
-    boxes = []
-    for m in sheet.markers:
-        c = np.asarray(m.corners_mm)
-        pad = 0.25 * (c[:, 0].max() - c[:, 0].min()) + 2.0
-        boxes.append((c.min(axis=0) - pad, c.max(axis=0) + pad))
-    pts: list[np.ndarray] = []
-    for _ in range(200 * n):
-        p = rng.uniform([x0 + inset_mm, y0 + inset_mm], [x1 - inset_mm, y1 - inset_mm])
-        r = np.linalg.norm(p - base)
-        if not r_lo <= r <= r_hi:
-            continue
-        if any(np.all(p >= lo) and np.all(p <= hi) for lo, hi in boxes):
-            continue
-        if pts and np.min(np.linalg.norm(np.array(pts) - p, axis=1)) < min_separation_mm:
-            continue
-        pts.append(p)
-        if len(pts) == n:
-            break
-    if len(pts) < n:
-        raise VisionCalError(f"only {len(pts)} of {n} plan points fit on the reachable part "
-                             "of the sheet", field="plan")
-    q = inverse(nominal, np.array(pts), elbow=1)
-    roles = ["calibration"] * n_calibration + ["validation"] * n_validation
-    order = rng.permutation(n)
-    out = []
-    ic = iv = 0
-    for k in order:
-        if roles[k] == "calibration":
-            mid, ic = f"c{ic:02d}", ic + 1
-        else:
-            mid, iv = f"v{iv:02d}", iv + 1
-        s = rng.choice([-1, 1], size=2)
-        via = tuple(float(v) for v in q[k] - s * overshoot_deg)
-        out.append(PlannedMark(mid, (float(q[k, 0]), float(q[k, 1])), roles[k],
-                               (int(s[0]), int(s[1])), (via,)))
-    return out
+    if scene.plan.pilot:
+        if pilot is None:
+            raise VisionCalError("the scene plans from a pilot calibration (plan.pilot): "
+                                 "pass a calibrator, pilot=vision_cal.calibrate.paper."
+                                 "pilot_params", field="pilot")
+        rng = np.random.default_rng(rng)
+        model = pilot(*pilot_marks(scene, rng=rng))
+    else:
+        model = scene.robot.nominal.params
+    return cp.informative_plan(model, sheet, n_calibration=scene.plan.n_calibration,
+                               n_validation=scene.plan.n_validation,
+                               pen_diameter_mm=scene.robot.pen_diameter_mm,
+                               min_separation_mm=scene.plan.min_separation_mm, rng=rng)
 
 
 # ----------------------------------------------------------------------------- textures
@@ -187,8 +133,16 @@ class _Textures:
     sheet texture draws the paper before the dots).
     """
 
-    def __init__(self, sheet, xy_mm, diameters_mm, *, px_per_mm, seed):
+    def __init__(self, sheet, xy_mm, diameters_mm, *, px_per_mm, seed, printed=None):
         from vision_cal.render.sheet import sheet_texture
+
+        if printed is not None:  # the printed sheet's own raster (vision_cal.render.printed)
+            from vision_cal.render.printed import printed_texture
+
+            def sheet_texture(_sheet, **kw):  # noqa: F811 (the printed raster instead)
+                return printed_texture(printed, **kw)
+
+            px_per_mm = printed.px_per_mm
 
         self.xy_mm = np.asarray(xy_mm, float)
         self.d_mm = np.asarray(diameters_mm, float)
@@ -315,7 +269,9 @@ def photographer_K(scene: Scene) -> np.ndarray:
     from vision_cal.render.camera import camera_matrix
 
     cam = scene.camera
-    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px), dtype=float)
+    # the shortest focal length any photo has (phones: camera.f_scatter)
+    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px * (1.0 - cam.f_scatter),
+                                 principal_px=cam.principal_px), dtype=float)
     if not any(cam.dist):
         return K
     w, h = cam.size_px
@@ -332,24 +288,28 @@ def photographer_K(scene: Scene) -> np.ndarray:
     need = np.max(np.abs(xn) / np.maximum(np.abs(np.column_stack([
         np.where(xn[:, 0] < 0, c[0] + 0.5, w - 0.5 - c[0]),
         np.where(xn[:, 1] < 0, c[1] + 0.5, h - 0.5 - c[1])])), 1e-9), axis=0).max()
-    f_ideal = min(cam.f_px, 0.995 / need)
+    f_ideal = min(K[0, 0], 0.995 / need)
     Ki = K.copy()
     Ki[0, 0] = Ki[1, 1] = f_ideal
     return Ki
 
 
 def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographer=None,
-                   joint_source=None, plan=None, targets_mm: dict | None = None) -> Path:
+                   joint_source=None, plan=None, targets_mm: dict | None = None,
+                   pilot=None, printed=None) -> Path:
     """Render ``scene`` into the dataset folder ``out_dir``; return its path.
 
     ``plan``: draw these ``PlannedMark`` instead of the scene's calibration plan (the
-    closed loop draws planned targets); ``targets_mm``: id -> the sheet point the OLP meant
+    closed loop draws planned targets); ``pilot``: the calibrator of the pilot run (see
+    :func:`build_plan`), needed when the scene plans from one; ``targets_mm``: id -> the sheet point the OLP meant
     to hit, written as the marks' ``target_mm``.
 
     ``photographer``: an existing ``Photographer`` for this scene's camera (size K from
     :func:`photographer_K`) to reuse (tests share one); by default one is built.
     ``joint_source``: see :mod:`vision_cal.render.world` (overrides ``robot.controller``;
     the truth model then predicts with every effect, backlash included).
+    ``printed``: a :class:`vision_cal.render.printed.PrintedSheet` (``vision-cal sheet``'s
+    sheet.json and PNG) photographed instead of the scene's analytic sheet.
     """
     from vision_cal.dataset.io import atomic_write_json
     from vision_cal.render.camera import camera_matrix, default_views
@@ -361,13 +321,23 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     cam, ph, rob = scene.camera, scene.photos, scene.robot
 
     sh = scene.sheet
+    if printed is None and sh.printed is not None:
+        from vision_cal.render.printed import load_printed_sheet
+
+        printed = load_printed_sheet(sh.printed)
     sheet = make_sheet(size_mm=sh.size_mm, bottom_left_mm=sh.bottom_left_mm,
                        dictionary=sh.dictionary, marker_mm=sh.marker_mm, grid=sh.grid,
-                       margin_mm=sh.margin_mm)
+                       margin_mm=sh.margin_mm) if printed is None else printed.sheet
+    hfield = None
+    if sh.height is not None:
+        hfield = sh.height.field(sheet.extent_mm, scene.seed)
+        if hfield.is_flat:
+            hfield = None
+    height_grid = None if hfield is None else hfield.grid()
     if plan is None:
-        plan = build_plan(scene, sheet, rng=st.plan)
+        plan = build_plan(scene, sheet, pilot=pilot, rng=st.plan)
     plan = list(plan)
-    truth = rob.truth_model
+    truth = rob.true_robot
     predict_model, source = truth, joint_source
     if source is None and rob.controller != "kinematic":
         source, predict_model = simulated_world(truth, controller=rob.controller, rng=st.sim)
@@ -378,15 +348,28 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     n = len(plan)
     diameters = rob.pen_diameter_mm * np.ones(n)
 
-    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px), dtype=float)
+    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px,
+                                 principal_px=cam.principal_px), dtype=float)
     dist = np.asarray(cam.dist, dtype=float)
-    views = default_views(sheet, n=cam.n_views, size_px=cam.size_px, K=K, tilt_deg=cam.tilt_deg,
-                          rng=st.views, fill=cam.fill, target_jitter=(1.0 - cam.fill) / 2)
+    # the views keep the sheet in frame at the longest focal length any photo has
+    K_long = K.copy()
+    K_long[0, 0] = K_long[1, 1] = cam.f_px * (1.0 + cam.f_scatter)
+    views = default_views(sheet, n=cam.n_views, size_px=cam.size_px, K=K_long,
+                          tilt_deg=cam.tilt_deg, rng=st.views, fill=cam.fill,
+                          target_jitter=(1.0 - cam.fill) / 2)
     ext = "jpg" if ph.jpeg_quality is not None else "png"
     if ph.mode == "series":
         shots = [(f"img_{k:03d}.{ext}", k + 1) for k in range(n)]
     else:
         shots = [(f"img_000.{ext}", n)]
+    # each photo's camera matrix: phones refocus between photos (camera.f_scatter)
+    Ks = []
+    for _ in shots:
+        Ki = K.copy()
+        if cam.f_scatter > 0:
+            Ki[0, 0] = Ki[1, 1] = cam.f_px * st.focal.uniform(1 - cam.f_scatter,
+                                                              1 + cam.f_scatter)
+        Ks.append(Ki)
 
     K_ideal = photographer_K(scene)
     own = photographer is None
@@ -406,8 +389,8 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     bar = None
     try:
         textures = _Textures(sheet, world.xy_mm, diameters, px_per_mm=ph.texture_px_per_mm,
-                             seed=st.texture_seed)
-        images, poses, parked = [], {}, {}
+                             seed=st.texture_seed, printed=printed)
+        images, poses, parked, K_photo = [], {}, {}, {}
         it = shots
         if progress:
             from tqdm import tqdm
@@ -415,20 +398,25 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
             it = bar = tqdm(shots, desc="render", unit="photo", leave=False)
         for i, (fname, n_marks) in enumerate(it):
             tex = textures.add_marks(n_marks)
-            T = np.asarray(views[i % len(views)] if cam.moving else views[0], dtype=float)
+            # the views are rigid poses of the arm frame; a deformed sheet (sheet_affine)
+            # lies physically shrunk in it: T maps printed sheet points to the camera
+            T = truth.T_render(views[i % len(views)] if cam.moving else views[0])
             arm = None
             if ph.arm_parked and (ph.mode == "single" or i % PARK_EVERY == PARK_EVERY - 1):
                 q_park = parking_pose(truth, sheet.extent_mm, rng=st.park)
                 arm = arm_boxes(truth, q_park)
                 parked[fname] = [float(v) for v in q_park]
+            Ki = Ks[i]
+            lens = any(dist) or not np.allclose(Ki, K_ideal)
             rgb = photographer.photograph(
                 tex, extent_mm=sheet.extent_mm, T_cam_sheet=T,
-                dist=dist if any(dist) else None, K_dist=K if any(dist) else None, arm=arm,
+                dist=dist if any(dist) else None, K_dist=Ki if lens else None, arm=arm,
                 vignetting=ph.vignetting, noise_sigma=ph.noise_sigma, jpeg_quality=None,
-                rng=st.photos)
+                rng=st.photos, **({} if height_grid is None else {"height_grid": height_grid}))
             (tmp / fname).write_bytes(_encode_image(np.asarray(rgb), ph.jpeg_quality))
             images.append({"file": fname, "marks": list(world.ids[:n_marks])})
             poses[fname] = T.tolist()
+            K_photo[fname] = Ki.tolist()
             del rgb
         for e in ph.extra_files:
             (tmp / e.file).write_bytes(_extra_image(e.kind, cam.size_px, st.extras))
@@ -452,16 +440,19 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
         lens = lens_effect(scene)
         if lens is not None:
             effects.append(lens)
+        if hfield is not None:
+            effects.append(hfield.effect_json())
         truth_json = {
             "params": rob.truth.to_json(),
             "effects": effects,
             "marks": {mid: world.xy_mm[i].tolist() for i, mid in enumerate(world.ids)},
             "camera": {"size_px": list(cam.size_px), "K": K.tolist(), "dist": dist.tolist(),
-                       "declared": cam.declared, "T_cam_sheet": poses},
+                       "declared": cam.declared, "T_cam_sheet": poses,
+                       "K_per_photo": K_photo},
             # added fields: how the world got there
             "repeatability_mm": rob.repeatability_mm,
             "controller": rob.controller if joint_source is None else "custom",
-            "arrival_sign": {mid: world.approach[i].tolist() for i, mid in enumerate(world.ids)},
+            "approach": {mid: world.approach[i].tolist() for i, mid in enumerate(world.ids)},
             "link_q_deg": {mid: world.q_deg[i].tolist() for i, mid in enumerate(world.ids)},
             "off_paper": off_paper,
             "on_marker": marks_on_markers(world, sheet),
@@ -470,6 +461,10 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
             "seed": scene.seed,
             "controller_report": getattr(source, "report", None),
         }
+        if hfield is not None:  # added fields: the paper's height field, each mark's height
+            truth_json["sheet_height"] = hfield.to_json()
+            truth_json["mark_height_mm"] = {mid: float(z) for mid, z in zip(
+                world.ids, hfield.height_mm(world.xy_mm))}
         atomic_write_json(tmp / "session.json", session)
         atomic_write_json(tmp / "truth.json", truth_json)
         _commit(tmp, out_dir)

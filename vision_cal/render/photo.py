@@ -13,11 +13,11 @@ Conventions
   down in s x s blocks (cv2.INTER_AREA). The camera matrix of the big render is
   ``K_s = S K`` with ``u_s = s u + (s - 1) / 2``, so every output pixel is the area average
   over its own footprint. pyrender's ``IntrinsicsCamera`` takes an OpenGL principal point,
-  which is the OpenCV one + 0.5. Measured (tests/render/test_photo.py, 640 x 480, dots
-  ~3 px across, texture ~2.5 texels per render pixel): rendered dot centres within 0.03 px
-  of ``cv2.projectPoints`` (rms 0.01 px, no bias above 0.003 px), flat or tilted 20-30 deg.
-  Mean colours come out ~0.8 grey level brighter than the texture's (llvmpipe rounds up
-  when it builds mipmaps and filters), equally in all channels.
+  which is the OpenCV one + 0.5. ``bench/render.py --accuracy`` prints where rendered dot
+  centres land against ``cv2.projectPoints`` (flat, tilted 20-30 deg, with a lens);
+  tests/render/test_photo.py bounds them. Mean colours come out slightly brighter than the
+  texture's (llvmpipe rounds up when it builds mipmaps and filters), equally in all
+  channels.
 - Texture resolution: aim for about 2 texels per supersampled pixel (8 px/mm for an A2
   sheet in a 2000 x 1500 photo); the texture must fit ``max_texture_px`` (OpenGL limit).
 - The arm (optional) is a set of boxes and a pen-holder cylinder with lighting baked into
@@ -166,7 +166,7 @@ class Photographer:
 
     # ------------------------------------------------------------------ scene content
 
-    def _set_sheet(self, texture_rgb: np.ndarray, extent_mm) -> float:
+    def _set_sheet(self, texture_rgb: np.ndarray, extent_mm, height_grid=None) -> float:
         tex = np.asarray(texture_rgb)
         if tex.ndim != 3 or tex.shape[2] != 3 or tex.dtype != np.uint8:
             raise VisionCalError(f"expected an (H, W, 3) uint8 texture, got {tex.shape} "
@@ -177,7 +177,11 @@ class Photographer:
                                  field="texture_rgb")
         ext = tuple(float(v) for v in extent_mm)
         tex = np.ascontiguousarray(tex)
-        key = (tex.shape, ext, zlib.crc32(tex.data))
+        hkey = None
+        if height_grid is not None:
+            xs, ys, Z = (np.ascontiguousarray(a, dtype=np.float64) for a in height_grid)
+            hkey = zlib.crc32(xs.tobytes() + ys.tobytes() + Z.tobytes())
+        key = (tex.shape, ext, zlib.crc32(tex.data), hkey)
         if key == self._sheet_key:
             return 0.0
         t0 = time.perf_counter()
@@ -194,9 +198,16 @@ class Photographer:
                                  lod_bias=self.lod_bias)
         mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=[1.0, 1.0, 1.0, 1.0],
                                                  baseColorTexture=texture, doubleSided=True)
-        prim = pyrender.Primitive(positions=pos, normals=np.tile([0, 0, 1], (4, 1)).astype(np.float32),
-                                  texcoord_0=uv, indices=np.array([[0, 1, 2], [0, 2, 3]]),
-                                  material=mat)
+        if height_grid is None:
+            prim = pyrender.Primitive(positions=pos,
+                                      normals=np.tile([0, 0, 1], (4, 1)).astype(np.float32),
+                                      texcoord_0=uv, indices=np.array([[0, 1, 2], [0, 2, 3]]),
+                                      material=mat)
+        else:  # a paper that is not flat: a fine mesh raised by its height field
+            pos, uv, idx = _height_mesh(xs, ys, Z, ext)
+            prim = pyrender.Primitive(positions=pos,
+                                      normals=np.tile([0, 0, 1], (len(pos), 1)).astype(np.float32),
+                                      texcoord_0=uv, indices=idx, material=mat)
         self._sheet_node = self._scene.add(pyrender.Mesh([prim]))
         self._sheet_key = key
         return time.perf_counter() - t0
@@ -248,15 +259,16 @@ class Photographer:
     # ------------------------------------------------------------------ rendering
 
     def render(self, texture_rgb, *, extent_mm, T_cam_sheet, arm=None,
-               lights="default") -> np.ndarray:
+               lights="default", height_grid=None) -> np.ndarray:
         """Ideal pinhole image (h, w, 3) uint8 of the textured sheet (and the arm)."""
         return self._shoot(texture_rgb, extent_mm=extent_mm, T_cam_sheet=T_cam_sheet, arm=arm,
-                           lights=lights, lens=None)
+                           lights=lights, lens=None, height_grid=height_grid)
 
-    def _shoot(self, texture_rgb, *, extent_mm, T_cam_sheet, arm, lights, lens):
+    def _shoot(self, texture_rgb, *, extent_mm, T_cam_sheet, arm, lights, lens,
+               height_grid=None):
         """Render at the supersampled size, apply ``lens`` = (K_out, dist) there, area-average."""
         t0 = time.perf_counter()
-        upload = self._set_sheet(texture_rgb, extent_mm)
+        upload = self._set_sheet(texture_rgb, extent_mm, height_grid)
         casters = self._set_arm(arm, lights)
         T = np.asarray(T_cam_sheet, dtype=float)
         pose = np.linalg.inv(T) @ np.diag([1.0, -1.0, -1.0, 1.0])
@@ -342,23 +354,28 @@ class Photographer:
 
     def photograph(self, texture_rgb, *, extent_mm, T_cam_sheet, dist=None, K_dist=None,
                    arm=None, lights="default", vignetting: float = 0.0,
-                   noise_sigma: float = 0.0, jpeg_quality=None, rng=None) -> np.ndarray:
+                   noise_sigma: float = 0.0, jpeg_quality=None, rng=None,
+                   height_grid=None) -> np.ndarray:
         """A photo (h, w, 3) uint8: render, lens distortion, vignetting, noise, JPEG.
 
         The lens is ``(K_dist or K, dist)``: a sheet point lands where
         ``cv2.projectPoints(..., K_dist, dist)`` puts it. The lens is applied to the
         supersampled render before it is averaged down (``distort_image`` with bilinear
-        cv2.remap there: dot centres within 0.03 px in tests, as good as the B-spline path
-        and ~10x faster); the lens maps are built once per (K, dist) and cached. Parts of the distorted frame that
+        cv2.remap there, ~10x faster than the B-spline path; the dot-centre figures come
+        from ``bench/render.py --accuracy``); the lens maps are built once per (K, dist) and
+        cached. Parts of the distorted frame that
         fall outside the ideal render come out black (barrel distortion, k1 < 0, in the
         corners): build the Photographer with a shorter focal length to avoid that.
+        ``height_grid`` = (xs (nx,), ys (ny,), Z (ny, nx)) mm: the paper is not flat; the
+        texel of sheet point (x, y) is drawn at (x, y, h) (bilinear mesh over the grid,
+        see :mod:`vision_cal.render.height`).
         """
         rng = np.random.default_rng(rng)
         lens = None
         if dist is not None or K_dist is not None:
             lens = (self.K if K_dist is None else np.asarray(K_dist, dtype=float), dist)
         img = self._shoot(texture_rgb, extent_mm=extent_mm, T_cam_sheet=T_cam_sheet, arm=arm,
-                          lights=lights, lens=lens)
+                          lights=lights, lens=lens, height_grid=height_grid)
         timing = dict(self.last_timing)
         t0 = time.perf_counter()
         K_out = self.K if K_dist is None else np.asarray(K_dist, dtype=float)
@@ -382,6 +399,25 @@ class Photographer:
         timing["total_s"] += post
         self.last_timing = timing
         return img
+
+
+def _height_mesh(xs, ys, Z, extent_mm):
+    """Vertices (N, 3), texture coords (N, 2) and triangles (M, 3) of the raised paper.
+
+    Vertex (x, y, h) carries the texture coordinate of the flat quad at (x, y): the
+    printed point (x, y) is lifted straight up (the sheet frame keeps its xy).
+    """
+    x0, y0, x1, y1 = extent_mm
+    X, Y = np.meshgrid(xs, ys)
+    pos = np.column_stack([X.ravel(), Y.ravel(), np.asarray(Z).ravel()]).astype(np.float32)
+    uv = np.column_stack([(X.ravel() - x0) / (x1 - x0),
+                          (Y.ravel() - y0) / (y1 - y0)]).astype(np.float32)
+    nx, ny = len(xs), len(ys)
+    i = np.arange(ny - 1)[:, None] * nx + np.arange(nx - 1)[None, :]
+    i = i.ravel()
+    idx = np.concatenate([np.column_stack([i, i + 1, i + nx + 1]),
+                          np.column_stack([i, i + nx + 1, i + nx])]).astype(np.uint32)
+    return pos, uv, idx
 
 
 def _vignetting_gain(size_px, K, strength: float) -> np.ndarray:

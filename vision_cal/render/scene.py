@@ -38,6 +38,12 @@ Sections and fields::
       marker_mm: 30.0
       grid: [6, 4]                # markers across x, y (spread evenly over the sheet)
       margin_mm: 15.0
+      height:                     # the paper is not flat (absent: flat), heights in mm
+        bumps: [{centre_mm: [x, y], sigma_mm: 30, height_mm: 0.65}]   # Gaussian bumps
+        curls: [{edge: right, height_mm: 1.5, width_mm: 40}]  # left|right|bottom|top
+        sag_mm: 0.3               # the middle lower than the edges by this much
+        random: {n: 4, height_mm: [0.3, 0.65], sigma_mm: [25, 60], signed: true}
+                                  # bumps drawn from the seed (see render/height.py)
     plan:
       kind: informative           # informative | paper (the seed paper's 5 poses)
       n_calibration: 30
@@ -55,6 +61,10 @@ Sections and fields::
       fill: 0.96                  # the paper's corners stay inside this central fraction
                                   # of the image (the view aims within (1-fill)/2 of the
                                   # sheet size of its centre)
+      principal_px: null          # [u, v] principal point in pixels (null: image centre)
+      f_scatter: 0.0              # phones: each photo's focal length is f_px times a
+                                  # factor drawn uniformly in [1 - f_scatter, 1 + f_scatter]
+                                  # (needs declared: false; the contract has one K)
     photos:
       mode: series                # series: one photo after each mark | single: one photo
       texture_px_per_mm: 8.0      # resolution of the rendered sheet texture
@@ -121,7 +131,16 @@ class RobotScene:
 
     @property
     def truth_model(self) -> RobotModel:
+        """The truth as the estimator's model (for tests that compare the two codes)."""
         return RobotModel(self.truth, self.effects)
+
+    @property
+    def true_robot(self):
+        """The world's own robot (:mod:`vision_cal.render.truth_model`), built from the
+        truth's JSON blocks only."""
+        from vision_cal.render.truth_model import TrueRobot
+
+        return TrueRobot.from_json(self.truth.to_json(), [e.to_json() for e in self.effects])
 
 
 @dataclass(frozen=True)
@@ -132,6 +151,8 @@ class SheetScene:
     marker_mm: float = 30.0
     grid: tuple[int, int] = (6, 4)
     margin_mm: float = 15.0
+    height: "HeightScene | None" = None   # not flat: vision_cal.render.height
+    printed: str | None = None   # a vision-cal sheet's sheet.json: photograph its own raster
 
 
 @dataclass(frozen=True)
@@ -153,6 +174,8 @@ class CameraScene:
     tilt_deg: tuple[float, float] = (0.0, 12.0)
     moving: bool = False
     fill: float = 0.96
+    principal_px: tuple[float, float] | None = None
+    f_scatter: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -301,8 +324,10 @@ def _robot(r: _R, d) -> RobotScene:
 
 def _sheet(r: _R, d) -> SheetScene:
     d = r.section(d, "sheet", ("size_mm", "bottom_left_mm", "dictionary", "marker_mm", "grid",
-                               "margin_mm"))
+                               "margin_mm", "height", "printed"))
     dflt = SheetScene()
+    if d.get("printed") is not None:
+        return _printed_sheet(r, d)
     size = r.vector(d.get("size_mm", list(dflt.size_mm)), "sheet.size_mm", 2, lo=0, lo_open=True)
     if "bottom_left_mm" in d:
         bl = r.vector(d["bottom_left_mm"], "sheet.bottom_left_mm", 2)
@@ -334,7 +359,35 @@ def _sheet(r: _R, d) -> SheetScene:
                    margin_mm=margin)
     except VisionCalError as e:
         r.fail(f"sheet.{e.field}" if e.field else "sheet", e.reason)
-    return SheetScene(size, bl, dic, marker, grid, margin)
+    from vision_cal.render.height import height_scene_from_dict
+
+    height = height_scene_from_dict(r, d.get("height"))
+    return SheetScene(size, bl, dic, marker, grid, margin, height)
+
+
+def _printed_sheet(r: _R, d) -> SheetScene:
+    """``sheet.printed: path/sheet.json`` (relative to the scene file): the sheet written by
+    ``vision-cal sheet --png-dpi N``, photographed through its own ``sheet.png`` (whose dpi
+    then sets the texture resolution); the analytic layout keys do not apply."""
+    from vision_cal.render.printed import load_printed_sheet
+
+    other = [k for k in ("size_mm", "bottom_left_mm", "dictionary", "marker_mm", "grid",
+                         "margin_mm") if k in d]
+    if other:
+        r.fail("sheet.printed", f"a printed sheet brings its own layout; remove sheet.{other[0]}")
+    raw = d["printed"]
+    if not isinstance(raw, str) or not raw:
+        r.fail("sheet.printed", f"expected the path of a sheet.json, got {raw!r}")
+    path = Path(raw) if Path(raw).is_absolute() else Path(r.file).parent / raw
+    try:
+        pr = load_printed_sheet(path)
+    except VisionCalError as e:
+        r.fail("sheet.printed", str(e))
+    from vision_cal.render.height import height_scene_from_dict
+
+    return SheetScene(pr.sheet.size_mm, pr.sheet.bottom_left_mm, pr.sheet.aruco_dictionary,
+                      height=height_scene_from_dict(r, d.get("height")),
+                      printed=str(path.absolute()))
 
 
 def _plan(r: _R, d) -> PlanScene:
@@ -354,7 +407,7 @@ def _plan(r: _R, d) -> PlanScene:
 
 def _camera(r: _R, d) -> CameraScene:
     d = r.section(d, "camera", ("size_px", "f_px", "dist", "declared", "n_views", "tilt_deg",
-                                "moving", "fill"))
+                                "moving", "fill", "principal_px", "f_scatter"))
     dflt = CameraScene()
     size = d.get("size_px", list(dflt.size_px))
     if not isinstance(size, (list, tuple)) or len(size) != 2:
@@ -373,7 +426,17 @@ def _camera(r: _R, d) -> CameraScene:
         tilt = (0.0, r.number(tilt_raw, "camera.tilt_deg", lo=0, hi=60))
     moving = r.boolean(d.get("moving", dflt.moving), "camera.moving")
     fill = r.number(d.get("fill", dflt.fill), "camera.fill", lo=0.3, hi=1.0)
-    return CameraScene(size, f, dist, declared, nv, tilt, moving, fill)
+    pp = d.get("principal_px")
+    if pp is not None:
+        pp = r.vector(pp, "camera.principal_px", 2)
+        if not (0 <= pp[0] <= size[0] - 1 and 0 <= pp[1] <= size[1] - 1):
+            r.fail("camera.principal_px", f"expected a point inside the {size[0]}x{size[1]} "
+                                          f"image, got {list(pp)}")
+    fs = r.number(d.get("f_scatter", dflt.f_scatter), "camera.f_scatter", lo=0, hi=0.5)
+    if fs > 0 and declared:
+        r.fail("camera.f_scatter", "a focal length that changes between photos cannot be "
+                                   "declared (session.json has one K): set declared: false")
+    return CameraScene(size, f, dist, declared, nv, tilt, moving, fill, pp, fs)
 
 
 def _photos(r: _R, d) -> PhotosScene:

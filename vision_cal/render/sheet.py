@@ -84,7 +84,10 @@ def make_sheet(*, size_mm=(594.0, 420.0), bottom_left_mm=(-297.0, -210.0),
         for c, x0 in enumerate(xs):
             corners = np.array([[x0, y0 + s], [x0 + s, y0 + s], [x0 + s, y0], [x0, y0]])
             markers.append(SheetMarker(r * nx + c, corners))
-    return Sheet(str(dictionary), tuple(markers), (w, h), (x_min, y_min))
+    # say how it is printed (the measurer reads the quiet zone from here, not from us)
+    printed = {"module_mm": s / (cv2.aruco.getPredefinedDictionary(d).markerSize + 2),
+               "quiet_zone_modules": QUIET_MODULES, "generator": "vision-cal render"}
+    return Sheet(str(dictionary), tuple(markers), (w, h), (x_min, y_min), printed=printed)
 
 
 def texture_shape(extent_mm, px_per_mm: float) -> tuple[int, int]:
@@ -247,7 +250,7 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
         n = bits.shape[0]
         black = (bits < 128).astype(float)                  # (n, n), row 0 at the top
         mod = s / n
-        q = QUIET_MODULES * mod
+        q = float((sheet.printed or {}).get("quiet_zone_modules", QUIET_MODULES)) * mod
         quiet = _rect_coverage(extent, ppm, shape, np.array([mx0 - q, mx0 + s + q]),
                                np.array([my0 - q, my0 + s + q]))
         cells = _rect_coverage(extent, ppm, shape, mx0 + mod * np.arange(n + 1),
@@ -298,3 +301,30 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
         out[:, :, ch] = np.rint(val)
     return out
 
+
+
+def ink_marks(texture_rgb: np.ndarray, *, extent_mm, px_per_mm: float, marks_xy_mm,
+              mark_diameters_mm=1.2, rng=None) -> np.ndarray:
+    """Pen marks inked onto any raster of the sheet (a copy; same pixel convention and dot
+    model as :func:`sheet_texture`): for photographing a sheet printed by another
+    generator, rasterised from its own PDF."""
+    rng = np.random.default_rng(rng)
+    out = np.array(texture_rgb, dtype=np.float32, copy=True)
+    ppm = float(px_per_mm)
+    x0, _, _, y1 = (float(v) for v in extent_mm)
+    marks = np.asarray(marks_xy_mm, dtype=float).reshape(-1, 2)
+    dia = np.broadcast_to(np.asarray(mark_diameters_mm, dtype=float), (len(marks),))
+    for (mx, my), d in zip(marks, dia):
+        f = rng.uniform(0.9, 1.1)
+        aspect = rng.uniform(1.0, 1.15)
+        theta = rng.uniform(0.0, np.pi)
+        r_px = 0.5 * d * f * ppm
+        u, v = (mx - x0) * ppm - 0.5, (y1 - my) * ppm - 0.5
+        cov = _ellipse_coverage(u, v, r_px * np.sqrt(aspect), r_px / np.sqrt(aspect), theta,
+                                out.shape[:2])
+        if cov is None:
+            continue
+        rs, cs, alpha = cov
+        out[rs, cs] = out[rs, cs] * (1.0 - alpha[..., None]) + \
+            np.asarray(DOT_RGB, np.float32) * alpha[..., None]
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8)

@@ -10,13 +10,14 @@ controller (links reach the command exactly; arrival signs follow the motion thr
 via points, a joint that did not move keeps its previous sign, starting at +1). A simulated
 controller can be plugged in with the same signature::
 
-    joint_source(plan, home_deg) -> (link_q_deg (N, 2), arrival_sign (N, 2))
+    joint_source(plan, home_deg) -> (link_q_deg (N, 2), approach (N, 2))
 
 :func:`simulated_world` builds one from ``vision_cal.simulate`` (trajectory, sliding-mode
 or PD controller, dynamics, gear play).
 
-The true mark is ``truth.predict(link_q_deg, arrival_sign)`` (every hidden effect of the
-truth model included) plus isotropic Gaussian noise of ``repeatability_mm`` per axis.
+The true mark is ``truth.pen_mm(link_q_deg, approach)`` (every hidden effect of the
+world's own :class:`~vision_cal.render.truth_model.TrueRobot` included, never the
+estimator's model) plus isotropic Gaussian noise of ``repeatability_mm`` per axis.
 """
 
 from __future__ import annotations
@@ -27,8 +28,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import ScaraParams, forward_rad
-from vision_cal.model import JointBacklash, RobotModel
+from vision_cal.render.truth_model import TrueRobot
 
 JointSource = Callable[[Sequence, Sequence[float]], tuple[np.ndarray, np.ndarray]]
 
@@ -56,7 +56,7 @@ class WorldMarks:
 
 
 def kinematic_joints(plan, home_deg=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
-    """A perfect controller: (link_q_deg (N, 2), arrival_sign (N, 2)) for ``plan``.
+    """A perfect controller: (link_q_deg (N, 2), approach (N, 2)) for ``plan``.
 
     The links reach each command exactly. Each joint's arrival sign is the sign of its
     last motion on the way home -> vias -> mark -> vias -> next mark ...; a joint that did
@@ -77,11 +77,18 @@ def kinematic_joints(plan, home_deg=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]
     return q, s
 
 
-def draw_marks(truth: RobotModel, plan, *, home_deg=(0.0, 0.0), repeatability_mm: float = 0.01,
+def _true(truth) -> TrueRobot:
+    if not isinstance(truth, TrueRobot):
+        raise VisionCalError(f"expected the world's TrueRobot, got {type(truth).__name__}",
+                             field="truth")
+    return truth
+
+
+def draw_marks(truth: TrueRobot, plan, *, home_deg=(0.0, 0.0), repeatability_mm: float = 0.01,
                joint_source: JointSource | None = None, rng=None) -> WorldMarks:
     """Let the true robot follow ``plan`` and return where each pen mark really is.
 
-    ``truth``: the true robot (base params and hidden effects); ``plan``: list of
+    ``truth``: the true robot (:class:`TrueRobot`: base params and hidden effects); ``plan``: list of
     ``PlannedMark``; ``joint_source``: see the module docstring (default
     :func:`kinematic_joints`); ``rng``: seed or Generator for the repeatability noise.
     """
@@ -90,6 +97,7 @@ def draw_marks(truth: RobotModel, plan, *, home_deg=(0.0, 0.0), repeatability_mm
                              field="repeatability_mm")
     if not len(plan):
         raise VisionCalError("the plan has no marks", field="plan")
+    truth = _true(truth)
     rng = np.random.default_rng(rng)
     source = joint_source or kinematic_joints
     q, s = source(plan, home_deg)
@@ -100,14 +108,14 @@ def draw_marks(truth: RobotModel, plan, *, home_deg=(0.0, 0.0), repeatability_mm
         raise VisionCalError(f"joint source returned shapes {q.shape}, {s.shape}; "
                              f"expected ({n}, 2) each", field="joint_source")
     s = np.where(s < 0, -1.0, 1.0)
-    xy = truth.predict(q, s)
+    xy = truth.pen_mm(q, s)
     if repeatability_mm > 0:
         xy = xy + rng.normal(0.0, repeatability_mm, size=xy.shape)
     return WorldMarks(tuple(m.id for m in plan), xy, s.astype(int), q)
 
 
-def simulated_world(truth: RobotModel, *, controller: str = "smc", rng=None,
-                    **sim_kwargs) -> tuple[JointSource, RobotModel]:
+def simulated_world(truth: TrueRobot, *, controller: str = "smc", rng=None,
+                    **sim_kwargs) -> tuple[JointSource, TrueRobot]:
     """A joint source that runs the simulated controller, and the model to predict with.
 
     The truth's ``joint_backlash`` effects become the simulator's gear play (the links
@@ -115,13 +123,8 @@ def simulated_world(truth: RobotModel, *, controller: str = "smc", rng=None,
     the returned model; every other effect stays in it and acts on the reached link angles.
     ``sim_kwargs`` go to :func:`vision_cal.simulate.run.simulate_plan`.
     """
-    band = np.zeros(2)
-    rest = []
-    for e in truth.effects:
-        if isinstance(e, JointBacklash):
-            band[e.joint - 1] += e.deg
-        else:
-            rest.append(e)
+    truth = _true(truth)
+    band = np.asarray(truth.backlash_deg, dtype=float)
     rng = np.random.default_rng(rng)
 
     def source(plan, home_deg):
@@ -130,10 +133,10 @@ def simulated_world(truth: RobotModel, *, controller: str = "smc", rng=None,
         r = simulate_plan(plan, home_deg=home_deg, backlash_deg=tuple(band),
                           controller=controller, rng=rng, **sim_kwargs)
         source.report = controller_report(r, controller)
-        return r.link_deg, r.arrival_sign
+        return r.link_deg, r.approach
 
     source.report = None
-    return source, RobotModel(truth.params, tuple(rest))
+    return source, truth.without_backlash()
 
 
 def controller_report(r, controller: str) -> dict:
@@ -145,26 +148,12 @@ def controller_report(r, controller: str) -> dict:
             "duration_s": float(r.duration_s)}
 
 
-def arm_points(model, q_deg) -> np.ndarray:
-    """(3, 2) base, elbow and pen of the true arm at joints ``q_deg`` (2,), sheet mm.
-
-    ``model`` is a :class:`RobotModel` (joint effects and sheet affine applied) or plain
-    :class:`ScaraParams`.
-    """
-    q = np.asarray(q_deg, dtype=float).reshape(1, 2)
-    if isinstance(model, RobotModel):
-        phi = model.joint_angles_rad(q)
-        p, m = model.params, model.sheet_matrix()
-    elif isinstance(model, ScaraParams):
-        phi, p, m = np.radians(q), model, np.eye(2)
-    else:
-        raise VisionCalError(f"expected a RobotModel or ScaraParams, got {type(model).__name__}")
-    v = p.vector
-    a1 = phi[0, 0] + v[2]
-    base = v[4:6]
-    elbow = base + v[0] * np.array([np.cos(a1), np.sin(a1)])
-    pen = forward_rad(v, phi)[0]
-    return np.stack([base, elbow, pen]) @ m.T
+def arm_points(truth: TrueRobot, q_deg) -> np.ndarray:
+    """(3, 2) base, elbow and pen of the true arm at commanded joints ``q_deg`` (2,), in
+    printed sheet coordinates (the frame :meth:`TrueRobot.T_render` photographs)."""
+    truth = _true(truth)
+    pts = truth.arm_points(truth.link_deg(np.reshape(q_deg, (1, 2))))[0]
+    return truth.to_sheet(pts)
 
 
 def arm_boxes(model, q_deg, *, link1=LINK1_BOX, link2=LINK2_BOX) -> list[tuple]:
@@ -178,7 +167,7 @@ def arm_boxes(model, q_deg, *, link1=LINK1_BOX, link2=LINK2_BOX) -> list[tuple]:
             (tuple(elbow), tuple(pen), float(link2[0]), float(link2[1]))]
 
 
-def parking_pose(model: RobotModel, extent_mm, *, rng=None, inset_mm: float = 40.0,
+def parking_pose(truth: TrueRobot, extent_mm, *, rng=None, inset_mm: float = 40.0,
                  tries: int = 200) -> np.ndarray:
     """Joints (2,) deg that park the pen over the sheet, ``inset_mm`` inside its edges.
 
@@ -190,7 +179,7 @@ def parking_pose(model: RobotModel, extent_mm, *, rng=None, inset_mm: float = 40
     lo = np.array([x0 + inset_mm, y0 + inset_mm])
     hi = np.array([x1 - inset_mm, y1 - inset_mm])
     q = rng.uniform([-180.0, -150.0], [180.0, 150.0], size=(tries, 2))
-    xy = model.predict(q)
+    xy = _true(truth).pen_mm(q)
     ok = np.flatnonzero(np.all((xy >= lo) & (xy <= hi), axis=1))
     if ok.size:
         return q[ok[0]]

@@ -11,6 +11,7 @@ from __future__ import annotations
 import base64
 import html
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -20,15 +21,35 @@ from vision_cal.report import plots
 from vision_cal.report.summary import describe_effect
 
 MAX_PHOTOS = 40
-THUMB_PX = 320
-FULL_PX = 1200
+# Every photo is embedded once, as a JPEG of the overlay (the full-size file is linked).
+# The photos share PHOTO_BUDGET_BYTES: each takes the first (width px, JPEG quality) step
+# that fits its share, so a few photos are sharp and a 40-photo series stays small.
+PHOTO_BUDGET_BYTES = 2_000_000
+PHOTO_STEPS = ((1000, 75), (960, 70), (960, 60), (800, 60), (720, 55), (640, 50), (480, 50))
 
 
-def build_report(run, *, loop: dict | None = None) -> dict:
-    """The report's statistics as a JSON-ready dict."""
+def build_report(run, *, loop: dict | None = None, out_dir=None) -> dict:
+    """The report's statistics as a JSON-ready dict.
+
+    ``out_dir``: where report.html goes (default: next to calibration.json); photo links
+    are relative to it."""
+    from datetime import datetime, timezone
+
+    from vision_cal.report.headline import (STATISTICS, actions, headline, mark_rows,
+                                            provenance)
+
     doc = dict(run.document)
+    out_dir = Path(out_dir) if out_dir is not None else Path(run.out_path).parent
     rep = {"format": "vision-cal/report/1", "dataset": str(run.session.root), "calibration": doc,
            "reference": run.session.raw.get("reference")}
+    rep["headline"] = headline(doc, loop)
+    rep["actions"] = actions(doc, calibration_path=str(run.out_path))
+    rep["provenance"] = provenance(
+        doc, dataset=str(Path(run.session.root).resolve()), out_dir=str(out_dir.resolve()),
+        camera=run.session.raw.get("camera"),
+        created_utc=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC"))
+    rep["marks_table"] = mark_rows(doc, getattr(run.measurement, "refused", None))
+    rep["statistics"] = STATISTICS
     photos = []
     if run.measurement is not None:
         marks = run.measurement.marks
@@ -36,8 +57,11 @@ def build_report(run, *, loop: dict | None = None) -> dict:
         mxy = np.array([marks[i].xy_mm for i in mids], float).reshape(-1, 2)
         for im in run.measurement.images:
             j = im.to_json()
-            entry = {"file": j["file"], "path": str(run.session.root / j["file"]),
-                     "status": j.get("status"), "reason": j.get("reason", "")}
+            path = Path(run.session.root) / j["file"]
+            entry = {"file": j["file"], "path": str(path),
+                     "link": os.path.relpath(path.resolve(), out_dir.resolve()),
+                     "status": j.get("status"), "reason": j.get("reason", ""),
+                     "size_px": None if im.size_px is None else list(im.size_px)}
             ids = getattr(im, "marker_ids", np.zeros(0))
             corners = getattr(im, "markers_px", np.zeros((0, 4, 2)))
             entry["markers_px"] = [[int(i), np.asarray(c).tolist()] for i, c in zip(ids, corners)]
@@ -72,7 +96,7 @@ def _plain(v):
 def write_report(run, out_dir, *, loop: dict | None = None) -> Path:
     """Write OUT/report.json, then OUT/report.html from it; returns the HTML path."""
     out_dir = Path(out_dir)
-    rep = build_report(run, loop=loop)
+    rep = build_report(run, loop=loop, out_dir=out_dir)
     jpath = atomic_write_json(out_dir / "report.json", rep)
     return atomic_write_text(out_dir / "report.html", render_html(read_json(jpath)))
 
@@ -87,17 +111,40 @@ def _f(x, nd=4) -> str:
     return f"{x:.{nd}f}"
 
 
-def _table(head, rows) -> str:
+def _e(x) -> str:
+    return html.escape(str(x))
+
+
+def _cell(c) -> str:
+    """A cell: plain HTML, or (HTML, sort key) for a sortable column."""
+    if isinstance(c, tuple):
+        text, key = c
+        if key is None or (isinstance(key, float) and not math.isfinite(key)):
+            return f"<td data-v=''>{text}</td>"
+        return f"<td data-v='{_e(key)}'>{text}</td>"
+    return f"<td>{c}</td>"
+
+
+def _table(head, rows, *, sortable: bool = False, tid: str | None = None) -> str:
     h = "".join(f"<th>{html.escape(str(c))}</th>" for c in head)
-    body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
-    return f"<table><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>"
+    body = "".join("<tr>" + "".join(_cell(c) for c in r) + "</tr>" for r in rows)
+    attrs = (" class=sortable" if sortable else "") + (f" id={tid}" if tid else "")
+    return f"<table{attrs}><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>"
 
 
-def _photo_overlay(p: dict) -> tuple[str, str] | None:
-    """(thumbnail URI, full-size URI) of a photo with its detections drawn, or None."""
+def _photo_overlay(p: dict, budget_bytes: int = PHOTO_BUDGET_BYTES) -> str | None:
+    """The photo with its detections drawn, downscaled to fit ``budget_bytes`` (base64
+    included), as a JPEG URI."""
     import cv2
 
-    img = cv2.imread(p["path"], cv2.IMREAD_COLOR)
+    from vision_cal.dataset import photos
+
+    path = Path(p["path"])
+    try:  # the same reader and frame as the measurement (no FIFO, no bomb, EXIF turn)
+        img = photos.decode_as_measured(photos.read_photo(path.parent, path.name),
+                                        p.get("size_px"))
+    except photos.PhotoRefused:
+        return None
     if img is None:
         return None
     h, w = img.shape[:2]
@@ -113,14 +160,17 @@ def _photo_overlay(p: dict) -> tuple[str, str] | None:
         if did is not None:
             cv2.putText(img, str(did), (int(x) + 7 * lw, int(y) - 7 * lw),
                         cv2.FONT_HERSHEY_SIMPLEX, 0.45 * lw, (0, 0, 230), lw)
-
-    def enc(max_w):
-        s = min(1.0, max_w / w)
+    data = b""
+    for width, quality in PHOTO_STEPS:
+        s = min(1.0, width / w)
         small = cv2.resize(img, (int(w * s), int(h * s)), interpolation=cv2.INTER_AREA)
-        ok, buf = cv2.imencode(".jpg", small, [cv2.IMWRITE_JPEG_QUALITY, 75])
-        return _uri(buf.tobytes(), "image/jpeg")
-
-    return enc(THUMB_PX), enc(FULL_PX)
+        ok, buf = cv2.imencode(".jpg", small, [cv2.IMWRITE_JPEG_QUALITY, quality,
+                                               cv2.IMWRITE_JPEG_OPTIMIZE, 1])
+        if ok:
+            data = buf.tobytes()
+            if 4 * len(data) / 3 <= budget_bytes:
+                break
+    return _uri(data, "image/jpeg") if data else None
 
 
 CSS = """
@@ -129,28 +179,151 @@ max-width:1150px;color:#222;padding:0 1em}
 h1{font-size:1.6em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.6em}
 table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #ddd;padding:.25em .6em;
 text-align:right;font-variant-numeric:tabular-nums}th{background:#f4f4f4}
-td:first-child,th:first-child{text-align:left}.ok{color:#070}.bad{color:#b00}
+td:first-child,th:first-child{text-align:left}.ok{color:#070}.bad{color:#b00}.warn{color:#a60}
+table.sortable th{cursor:pointer}table.sortable th:after{content:" \\2195";color:#aaa}
+.headline{border:2px solid #888;border-radius:6px;padding:.6em 1.2em;background:#fafafa}
+.verdict{font-size:1.25em;font-weight:600;margin:.4em 0}
+.verdict.ready{color:#070}.verdict.care{color:#a60}.verdict.unreliable{color:#b00}
+code,pre{background:#f4f4f4;padding:.1em .3em}pre{padding:.5em;white-space:pre-wrap}
 img.fig{max-width:100%;border:1px solid #eee}.thumbs{display:flex;flex-wrap:wrap;gap:8px}
 .thumbs figure{margin:0;width:320px}.thumbs figcaption{font-size:.8em;color:#555}
 .thumbs img{width:320px;cursor:zoom-in;border:1px solid #ccc}
 #lightbox{display:none;position:fixed;inset:0;background:rgba(0,0,0,.85);z-index:9;
 cursor:zoom-out;align-items:center;justify-content:center}
 #lightbox img{max-width:96vw;max-height:96vh}.note{color:#555;font-size:.9em}
+td.l{text-align:left}
 """
 
 JS = """
 function showFull(el){var lb=document.getElementById('lightbox');
-lb.querySelector('img').src=el.getAttribute('data-full');lb.style.display='flex';}
+lb.querySelector('img').src=el.src;lb.style.display='flex';}
 function hideFull(){document.getElementById('lightbox').style.display='none';}
+function sortBy(th){var t=th.closest('table'),b=t.tBodies[0],i=th.cellIndex;
+var asc=th.getAttribute('data-dir')!=='asc';th.setAttribute('data-dir',asc?'asc':'desc');
+var rows=Array.prototype.slice.call(b.rows);rows.sort(function(x,y){
+var a=x.cells[i],c=y.cells[i],ka=a.getAttribute('data-v'),kc=c.getAttribute('data-v');
+if(ka!==null&&kc!==null){if(ka==='')return 1;if(kc==='')return -1;
+var d=parseFloat(ka)-parseFloat(kc);if(!isNaN(d))return asc?d:-d;}
+var s=a.textContent.localeCompare(c.textContent);return asc?s:-s;});
+rows.forEach(function(r){b.appendChild(r);});}
+window.addEventListener('DOMContentLoaded',function(){
+document.querySelectorAll('table.sortable th').forEach(function(th){
+th.addEventListener('click',function(){sortBy(th);});});});
 """
+
+_VERDICT_CLASS = {"ready": "ready", "use with care": "care", "not reliable": "unreliable"}
+
+
+def _headline_html(rep: dict) -> str:
+    hl = rep["headline"]
+    v = hl["verdict"]
+    rows = []
+    for a in hl["accuracy"]:
+        n = f"{a['n']}" + (f" of {a['of']}" if a.get("of") is not None else "")
+        if a.get("n_before") is not None and a["n_before"] != a["n"]:
+            n += f" (before: {a['n_before']})"
+        rows.append([_e(a["what"]),
+                     f"<span data-key='{_e(a['key'])}.base_model'>{_f(a['before_mm'])}</span>",
+                     f"<span data-key='{_e(a['key'])}.final_model'>{_f(a['after_mm'])}</span>",
+                     n])
+    eff = "".join(f"<li>{_e(e['text'])}</li>" for e in hl["effects"])
+    return (f"<div class=headline id=headline><p><b>Calibrated:</b> {_e(hl['calibrated'])}</p>"
+            f"<p class='verdict {_VERDICT_CLASS.get(v['status'], '')}' id=verdict>"
+            f"{_e(v['text'])}</p>"
+            + _table(["accuracy [mm]", "before (nominal/base model)", "after (final model)",
+                      "marks / targets"], rows)
+            + ("<p><b>Effects found</b> (size &plusmn; 1 std):</p><ul>" + eff + "</ul>"
+               if eff else "<p><b>Effects found:</b> none; the base model explains the "
+                           "marks.</p>")
+            + "</div>")
+
+
+def _actions_html(rep: dict) -> str:
+    a = rep["actions"]
+    rows = [[_e(r["name"]), _f(r["nominal"], 3), f"<b>{_f(r['calibrated'], 4)}</b>",
+             "&plusmn;" + _f(r["std"], 4), r["unit"]] for r in a["olp_model"]]
+    out = ["<h2>What to do with it</h2>",
+           "<h3>1. Enter the calibrated model in the OLP</h3>",
+           _table(["parameter", "nominal", "calibrated", "std (1 sigma)", "unit"], rows),
+           f"<p class=note><b>Sign convention.</b> {_e(a['sign_convention'])}</p>",
+           "<h3>2. Or correct the controller's joint offsets</h3>",
+           f"<p>{_e(a['controller_offsets_text'])}</p>",
+           _table(["joint", "add to the controller offset [deg]", "std [deg]"],
+                  [[str(o["joint"]), f"<b>{o['add_to_offset_deg']:+.4f}</b>",
+                    "&plusmn;" + _f(o["std_deg"], 4)] for o in a["controller_offsets"]]),
+           "<p class=note>Link lengths and the base are model parameters, not controller "
+           "settings: they go to the OLP (or the controller's kinematic model where it has "
+           "one).</p>"]
+    for c in a["controller_effects"]:
+        out.append(f"<p>{_e(c['text'])}</p>")
+    out.append("<h3>3. Effects the controller cannot take: plan with them</h3>")
+    if a["planner_effects"]:
+        out.append(f"<p>{_e(', '.join(a['planner_effects']))} cannot be entered in a "
+                   "controller; the planner compensates them in the joint commands:</p>")
+    else:
+        out.append("<p>No effect needs the planner; these commands still apply the "
+                   "calibrated model:</p>")
+    out.append("<ul>" + "".join(f"<li>{_e(c['what'])}:<pre>{_e(c['command'])}</pre></li>"
+                                for c in a["commands"]) + "</ul>")
+    return "\n".join(out)
+
+
+def _provenance_html(rep: dict) -> str:
+    p = rep["provenance"]
+    rows = [["created", _e(p["created_utc"])], ["vision-cal", _e(p["vision_cal_version"])],
+            ["input folder", _e(p["dataset"])], ["output folder", _e(p["out"])],
+            ["camera / lens", _e(p["camera"])],
+            ["photos used", f"{len(p['photos_used'])}"],
+            ["photos skipped", f"{len(p['photos_skipped'])}"]]
+    out = ["<h2>Provenance</h2>", _table(["", ""], rows)]
+    if p["photos_skipped"]:
+        out.append(_table(["skipped photo", "reason"], [[_e(s["file"]), _e(s["reason"])]
+                                                        for s in p["photos_skipped"]]))
+    cfg = p["configuration"]
+    crow = []
+    for group, vals in cfg.items():
+        if isinstance(vals, dict):
+            for k, v in vals.items():
+                crow.append([_e(group), _e(k), _e(v)])
+        elif vals is not None:
+            crow.append([_e(group), "", _e(vals)])
+    out.append("<h3>Configuration (thresholds in force)</h3>"
+               + _table(["stage", "setting", "value"], crow))
+    return "\n".join(out)
+
+
+def _marks_html(rep: dict) -> str:
+    rows = []
+    for r in rep.get("marks_table", []):
+        m, res = r["measured_mm"], r["residual_mm"]
+        rows.append([
+            _e(r["id"]), _e(r["role"] or "-"),
+            (_f(m[0], 3), m[0]) if m else ("-", None), (_f(m[1], 3), m[1]) if m else ("-", None),
+            (_f(res[0]), res[0]) if res else ("-", None),
+            (_f(res[1]), res[1]) if res else ("-", None),
+            (_f(r["residual_norm_mm"]), r["residual_norm_mm"]),
+            (_f(r["sigma_mm"]), r["sigma_mm"]),
+            (str(r["n_photos"]) if r["n_photos"] is not None else "-", r["n_photos"]),
+            f"<span class=l>{_e('; '.join(r['flags']))}</span>"])
+    return ("<h2>Marks</h2><p class=note>Click a column to sort. Residual: measured minus the "
+            "final model's prediction; sigma: the measurement's per-axis standard deviation "
+            "(from the scatter over the photos that saw the mark).</p>"
+            + _table(["mark", "role", "x [mm]", "y [mm]", "residual x [mm]",
+                      "residual y [mm]", "|residual| [mm]", "sigma [mm]", "photos", "flags"],
+                     rows, sortable=True, tid="marks"))
 
 
 def render_html(rep: dict) -> str:
-    """The report page, from report.json's contents alone."""
+    """The page, from report.json's contents alone."""
     doc = rep["calibration"]
-    parts = [f"<h1>vision-cal report</h1><p class=note>dataset: {html.escape(rep['dataset'])}"
-             f" &middot; method: {html.escape(doc.get('method', ''))} &middot; "
+    stats_help = rep.get("statistics") or {}
+    parts = [f"<h1>vision-cal report</h1><p class=note>dataset: {_e(rep['dataset'])}"
+             f" &middot; method: {_e(doc.get('method', ''))} &middot; "
              f"{len(doc.get('marks', {}))} marks</p>"]
+    if rep.get("headline"):
+        parts.append(_headline_html(rep))
+    if rep.get("actions"):
+        parts.append(_actions_html(rep))
     # Table 2
     p, s, n = doc["params"], doc.get("std") or {}, doc.get("nominal") or {}
     ref = ((rep.get("reference") or {}).get("params")) or {}
@@ -175,6 +348,8 @@ def render_html(rep: dict) -> str:
         ["residual (fitted marks)", _f(r.get("base_model")), _f(r.get("final_model"))],
         [f"held-out ({html.escape(str(v.get('kind', 'validation')))})",
          _f(v.get("base_model")), _f(v.get("final_model"))]]))
+    if stats_help.get("held-out"):
+        parts.append(f"<p class=note>{_e(stats_help['held-out'])}</p>")
     if doc.get("noise_floor_mm") is not None:
         parts.append(f"<p>Measurement noise floor: {_f(doc['noise_floor_mm'])} mm (RMS, 2-D)</p>")
     ident = doc.get("identifiability") or {}
@@ -193,27 +368,41 @@ def render_html(rep: dict) -> str:
     parts.append("<ul>" + "".join(f"<li class=ok>{html.escape(describe_effect(e))}</li>"
                                   for e in eff) + "</ul>" if eff else
                  "<p>None found: the base model explains the marks.</p>")
+    diag = doc.get("diagnosis") or {}
+    th = diag.get("thresholds") or {}
+    if stats_help and (eff or diag.get("rejected")):
+        lvl = (f" Here alpha = {th['alpha']:g} over {th['n_candidates']} candidates: p must be "
+               f"below {th['alpha_each']:.2g}." if th.get("alpha_each") else "")
+        parts.append("<ul class=note>" + "".join(
+            f"<li>{_e(stats_help[k])}{_e(lvl) if k == 'p' else ''}</li>"
+            for k in ("F", "p", "dBIC") if k in stats_help) + "</ul>")
     for e in doc.get("effects", []):
         if e["name"] == "unexplained":
             parts.append("<p class=bad>Unexplained structure: " +
                          html.escape("; ".join(e.get("seen", []))) + "</p>")
-    diag = doc.get("diagnosis") or {}
     if diag.get("rejected"):
         parts.append("<h3>Candidates rejected</h3>" + _table(
             ["candidate", "held-out before [mm]", "held-out after [mm]", "F", "p", "dBIC", "why"],
             [[html.escape(e["label"]), _f(e["heldout_before_mm"]), _f(e["heldout_after_mm"]),
               _f(e["F"], 2), f"{e['p_value']:.2g}", _f(e["delta_bic"], 1),
-              html.escape(e["reason"])] for e in diag["rejected"]]))
+              html.escape(e["reason"])] for e in diag["rejected"]])
+            + "<p class=note>held-out after '-': the candidate failed the F/dBIC test, so "
+              "its held-out error was not computed.</p>")
     pp = diag.get("per_photo_offsets") or []
     if pp:
         bad = [p for p in pp if p.get("flagged")]
         worst = max(pp, key=lambda p: float(np.hypot(*p["offset_mm"])))
+        alpha = (((rep.get("provenance") or {}).get("configuration") or {})
+                 .get("per_photo_offsets") or {}).get("alpha")
         parts.append(f"<p>Per-photo offsets: {len(pp)} photos checked, "
                      + (f"<span class=bad>{len(bad)} shifted beyond the noise: " +
                         ", ".join(html.escape(p['file']) for p in bad) + "</span>" if bad else
                         "none shifted beyond the noise")
                      + f"; largest mean offset {np.hypot(*worst['offset_mm']):.4f} mm "
-                     f"({html.escape(worst['file'])}).</p>")
+                     f"({html.escape(worst['file'])}).</p>"
+                     "<p class=note>Each photo's mean residual is tested against its dots' own "
+                     "covariances (chi-square, 2 degrees of freedom); a photo is flagged when "
+                     "p is below " + (f"{alpha:g}" if alpha else "the level") + ".</p>")
     ni = ident.get("not_identifiable", [])
     if ni:
         parts.append("<h3>Not identifiable by this plan</h3><ul>" + "".join(
@@ -224,6 +413,8 @@ def render_html(rep: dict) -> str:
     if all("joints_deg" in m for m in doc.get("marks", {}).values()):
         parts.append(f"<img class=fig alt='joint residuals' "
                      f"src='{_uri(plots.joint_residuals(doc))}'>")
+    if rep.get("marks_table"):
+        parts.append(_marks_html(rep))
     c = plots.circles(doc)
     if c:
         parts.append("<h2>Circle fits</h2><p class=note>Arc span limits a circle fit: the "
@@ -233,11 +424,25 @@ def render_html(rep: dict) -> str:
     loop = rep.get("loop") or {}
     if loop.get("targets"):
         parts.append("<h2>Targets (Table 3)</h2>")
-        rows = [[html.escape(t["id"]), _f(t["target_mm"][0], 2), _f(t["target_mm"][1], 2),
-                 _f(t.get("before_error_mm")), _f(t.get("after_error_mm"))]
-                for t in loop["targets"]]
+        reasons = {}
+        rows = []
+        for t in loop["targets"]:
+            cells = [html.escape(t["id"]), _f(t["target_mm"][0], 2), _f(t["target_mm"][1], 2)]
+            for side in ("before", "after"):
+                val = t.get(f"{side}_error_mm")
+                if val is None:
+                    why = (t.get(side) or {}).get("reason") or (t.get(side) or {}).get(
+                        "status", "not measured")
+                    k = reasons.setdefault(why, len(reasons) + 1)
+                    cells.append(f"- <sup>{k}</sup>")
+                else:
+                    cells.append(_f(val))
+            rows.append(cells)
         parts.append(_table(["target", "x [mm]", "y [mm]", "error before [mm]",
                              "error after [mm]"], rows))
+        if reasons:
+            parts.append("<p class=note>" + "<br>".join(
+                f"<sup>{k}</sup> - : {html.escape(w)}" for w, k in reasons.items()) + "</p>")
         tp = plots.targets(rep)
         if tp:
             parts.append(f"<img class=fig alt='target errors' src='{_uri(tp)}'>")
@@ -249,20 +454,31 @@ def render_html(rep: dict) -> str:
     skipped = [ph for ph in photos if ph.get("status") != "ok"]
     if photos:
         parts.append(f"<h2>Photos</h2><p>{len(photos) - len(skipped)} measured, "
-                     f"{len(skipped)} skipped.</p>")
+                     f"{len(skipped)} skipped. Click a photo to enlarge it (detections drawn: "
+                     f"markers green, pen marks red); the link opens the full-size file.</p>")
         if skipped:
             parts.append(_table(["photo", "reason"], [[html.escape(ph["file"]),
                                                        html.escape(ph.get("reason", ""))]
                                                       for ph in skipped]))
         figs = []
-        for ph in [ph for ph in photos if ph.get("status") == "ok"][:MAX_PHOTOS]:
-            ov = _photo_overlay(ph)
+        ok_photos = [ph for ph in photos if ph.get("status") == "ok"]
+        shown = ok_photos[:MAX_PHOTOS]
+        for ph in shown:
+            ov = _photo_overlay(ph, PHOTO_BUDGET_BYTES // max(len(shown), 1))
+            link = ph.get("link") or ph["path"]
             if ov:
-                figs.append(f"<figure><img src='{ov[0]}' data-full='{ov[1]}' "
-                            f"onclick='showFull(this)' alt='{html.escape(ph['file'])}'>"
-                            f"<figcaption>{html.escape(ph['file'])}</figcaption></figure>")
+                figs.append(f"<figure><img src='{ov}' onclick='showFull(this)' "
+                            f"alt='{html.escape(ph['file'])}'><figcaption>"
+                            f"{html.escape(ph['file'])} &middot; <a href='"
+                            f"{html.escape(Path(link).as_posix())}'>full size</a>"
+                            f"</figcaption></figure>")
         if figs:
             parts.append("<div class=thumbs>" + "".join(figs) + "</div>")
+        if len(ok_photos) > MAX_PHOTOS:
+            parts.append(f"<p class=note>{len(ok_photos) - MAX_PHOTOS} more photos are not "
+                         "shown; their files are in the input folder.</p>")
+    if rep.get("provenance"):
+        parts.append(_provenance_html(rep))
     body = "\n".join(parts)
     return (f"<!doctype html><html lang=en><head><meta charset=utf-8><title>vision-cal report"
             f"</title><style>{CSS}</style><script>{JS}</script></head><body>{body}"

@@ -37,25 +37,43 @@ def _marks(report: dict):
 
 
 def residual_field(report: dict) -> bytes:
-    """Residual arrows on the sheet, base model and final model, same scale."""
+    """Residual arrows on the sheet, base model and final model, same scale.
+
+    Fitted marks red, held-out marks blue. The RMS in the titles is calibration.json's
+    (``residual_rms_mm``, ``validation_rms_mm``), never recomputed here: the figure and the
+    tables show the same number."""
     plt = _plt()
-    ids, xy, rb, rf, *_ = _marks(report)
+    ids, xy, rb, rf, _, _, roles = _marks(report)
+    held = np.array([r == "validation" for r in roles], dtype=bool)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.8), layout="constrained", sharex=True,
                              sharey=True)
     big = max(np.nanmax(np.hypot(*rb.T)) if len(rb) else 0.0, 1e-6)
     scale = big / 60.0  # the longest base-model arrow draws 60 mm long
-    for ax, r, title in ((axes[0], rb, "base model"), (axes[1], rf, "final model")):
-        ax.quiver(xy[:, 0], xy[:, 1], r[:, 0], r[:, 1], angles="xy", scale_units="xy",
-                  scale=scale, color="tab:red", width=0.004)
+    fit_rms, val_rms = report.get("residual_rms_mm", {}), report.get("validation_rms_mm", {})
+    for ax, r, key, title in ((axes[0], rb, "base_model", "base model"),
+                              (axes[1], rf, "final_model", "final model")):
+        for k, color, lab in ((~held, "tab:red", "fitted"), (held, "tab:blue", "held out")):
+            if k.any():
+                ax.quiver(xy[k, 0], xy[k, 1], r[k, 0], r[k, 1], angles="xy", scale_units="xy",
+                          scale=scale, color=color, width=0.004, label=lab)
         ax.plot(xy[:, 0], xy[:, 1], "k.", ms=3)
-        rms = np.sqrt(np.mean(np.sum(r**2, axis=1))) if len(r) else float("nan")
-        ax.set_title(f"{title}: residual RMS {rms:.4f} mm")
+        t = f"{title}: fitted RMS {_mm(fit_rms.get(key))}"
+        if val_rms.get(key) is not None:
+            t += f", held-out {_mm(val_rms.get(key))}"
+        ax.set_title(t, fontsize=10)
         ax.set_xlabel("sheet x [mm]")
         ax.set_aspect("equal")
         ax.grid(alpha=0.3)
+        if held.any():
+            ax.legend(fontsize=8)
     axes[0].set_ylabel("sheet y [mm]")
     fig.suptitle(f"residual field (arrows x{1 / scale:.0f}: {big:.3f} mm draws 60 mm)")
     return _png(fig)
+
+
+def _mm(x) -> str:
+    """One formatting for RMS figures, shared with the report's tables."""
+    return "-" if x is None or not np.isfinite(x) else f"{x:.4f} mm"
 
 
 def joint_residuals(report: dict) -> bytes:
@@ -128,4 +146,56 @@ def targets(report: dict) -> bytes | None:
     ax.set_ylabel("absolute error [mm]")
     ax.legend()
     ax.grid(alpha=0.3, axis="y")
+    return _png(fig)
+
+
+# ------------------------------------------------------------------- the closed loop
+
+def loop_paths(loop: dict) -> bytes:
+    """Targets and where the pen really went, before and after (paper Fig. 8-9), from
+    loop.json."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(9, 6.5), layout="constrained")
+    t = np.array([r["target_mm"] for r in loop["targets"]], float).reshape(-1, 2)
+    ax.plot(t[:, 0], t[:, 1], "k+", ms=9, label="targets")
+    for name, color in (("before", "tab:red"), ("after", "tab:green")):
+        pts = np.array([r[name]["measured_mm"] for r in loop["targets"]
+                        if "measured_mm" in r[name]], float).reshape(-1, 2)
+        if len(pts):
+            ax.plot(pts[:, 0], pts[:, 1], "o", mfc="none", color=color,
+                    label=f"measured marks, {name} calibration")
+    ax.set_aspect("equal")
+    ax.set_xlabel("sheet x [mm]")
+    ax.set_ylabel("sheet y [mm]")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    ax.set_title("targets and where the pen really went (paper Fig. 8-9)")
+    return _png(fig)
+
+
+def loop_joints(loop: dict) -> bytes:
+    """Joint reference trajectories of the planned targets before and after (paper
+    Fig. 10), from loop.json's planned joints, starting at its ``home_deg``."""
+    from vision_cal.motion import TRAJECTORY_DT_S
+    from vision_cal.plan.compensate import PlannedTarget, to_planned_marks
+    from vision_cal.plan.trajectory import plan_trajectory
+
+    plt = _plt()
+    fig, axes = plt.subplots(2, 1, figsize=(9, 6), layout="constrained", sharex=True)
+    home = loop.get("home_deg", (0.0, 0.0))
+    for name, style in (("before", "--"), ("after", "-")):
+        planned = [PlannedTarget(r["id"], tuple(r["target_mm"]), tuple(r[name]["q_deg"]),
+                                 tuple(int(s) for s in r[name]["approach"]))
+                   for r in loop["targets"] if "q_deg" in r[name]]
+        if not planned:
+            continue
+        tr = plan_trajectory(to_planned_marks(planned), home_deg=home)
+        for j in range(2):
+            axes[j].plot(tr.t_s, tr.q_deg[:, j], style, lw=1, label=f"{name} calibration")
+    for j in range(2):
+        axes[j].set_ylabel(f"joint {j + 1} reference [deg]")
+        axes[j].grid(alpha=0.3)
+        axes[j].legend()
+    axes[1].set_xlabel(f"time [s] (samples every {TRAJECTORY_DT_S} s)")
+    axes[0].set_title("joint reference trajectories before and after (paper Fig. 10)")
     return _png(fig)

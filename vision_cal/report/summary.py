@@ -65,6 +65,18 @@ def format_summary(doc: dict, *, reference: dict | None = None) -> str:
     if v.get("base_model") is not None:
         lines.append(f"held-out RMS [mm] ({v.get('kind', 'validation')}): base model "
                      f"{_f(v.get('base_model'), 4)} -> final {_f(v.get('final_model'), 4)}")
+    ps = doc.get("printer_scale")
+    if ps:
+        line = (f"printer scale (measured bars): x {ps['x']:.5f}, y {ps['y']:.5f} (uneven "
+                f"{100 * ps['uneven']:+.3f} %); physical lengths = calibrated x "
+                f"{ps['uniform']:.5f}")
+        phys = ps.get("physical_mm") or {}
+        if phys.get("L1_mm") is not None and phys.get("L2_mm") is not None:
+            line += f" (L1 {phys['L1_mm']:.3f}, L2 {phys['L2_mm']:.3f} mm)"
+        if ps.get("sheet_affine_beyond_printer") is not None:
+            line += (f"; sheet_affine beyond the printer "
+                     f"{100 * ps['sheet_affine_beyond_printer']:+.3f} %")
+        lines.append(line)
     if doc.get("noise_floor_mm") is not None:
         lines.append(f"measurement noise floor [mm]: {_f(doc['noise_floor_mm'], 4)}")
     for c in (doc.get("identifiability") or {}).get("high_correlations", []):
@@ -86,7 +98,7 @@ def format_summary(doc: dict, *, reference: dict | None = None) -> str:
     return "\n".join(lines)
 
 
-def describe_effect(e: dict) -> str:
+def describe_effect(e: dict, *, evidence: bool = True) -> str:
     name = e["name"]
     if name == "joint_backlash":
         s = f"joint_backlash joint {e['joint']}: {e['deg']:.4f} deg"
@@ -112,7 +124,7 @@ def describe_effect(e: dict) -> str:
     if "std" in e and e["std"] is not None:
         s += f" (+-{e['std']:.2g})"
     ev = e.get("evidence")
-    if ev:
+    if ev and evidence:
         b, a = ev["heldout_rms_mm"]
         s += f"; held-out RMS {b:.4f} -> {a:.4f} mm, F = {ev['F']:.1f}, p = {ev['p_value']:.2g}"
     return s

@@ -1,0 +1,121 @@
+"""The report's headline, verdict and actions: figures are calibration.json's, never
+recomputed; the verdict follows the identifiability diagnostics and the held-out RMS."""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+
+import pytest
+
+from vision_cal.commands.main import main
+from vision_cal.report import headline as hl
+from vision_cal.report import plots
+
+
+@pytest.fixture(scope="module")
+def out(tmp_path_factory, paper_folder):
+    o = tmp_path_factory.mktemp("head")
+    assert main([str(paper_folder), "--out", str(o), "--report", "-q"]) == 0
+    return o
+
+
+@pytest.fixture()
+def doc(out):
+    return json.loads((out / "calibration.json").read_text())
+
+
+def test_headline_figures_are_calibration_json_figures(out, doc):
+    rep = json.loads((out / "report.json").read_text())
+    acc = {a["key"]: a for a in rep["headline"]["accuracy"]}
+    for key in ("residual_rms_mm", "validation_rms_mm"):
+        assert acc[key]["before_mm"] == doc[key]["base_model"]
+        assert acc[key]["after_mm"] == doc[key]["final_model"]
+    # the same on a document where before and after differ (the paper's do not)
+    d = copy.deepcopy(doc)
+    d["residual_rms_mm"] = {"base_model": 0.25, "final_model": 0.011}
+    d["validation_rms_mm"] = {"base_model": 0.27, "final_model": 0.013, "kind": "validation marks"}
+    acc = {a["key"]: a for a in hl.headline(d)["accuracy"]}
+    assert (acc["residual_rms_mm"]["before_mm"], acc["residual_rms_mm"]["after_mm"]) == (0.25, 0.011)
+    assert (acc["validation_rms_mm"]["before_mm"],
+            acc["validation_rms_mm"]["after_mm"]) == (0.27, 0.013)
+    # the paper's five marks: an honest "use with care", with the 95 % figure
+    v = rep["headline"]["verdict"]
+    assert v["status"] == "use with care"
+    assert v["expected_r95_mm"] == pytest.approx(
+        hl.R95_PER_RMS * doc["validation_rms_mm"]["final_model"])
+
+
+def test_r95_is_the_95_percent_radius_of_a_circular_normal():
+    # per-axis sigma s, RMS (2-D) r = sqrt(2) s, P(|e| < R) = 1 - exp(-R^2 / (2 s^2)) = 0.95
+    r = 1.0
+    s = r / math.sqrt(2)
+    R = hl.R95_PER_RMS * r
+    assert 1 - math.exp(-R**2 / (2 * s**2)) == pytest.approx(0.95, abs=1e-12)
+
+
+def _many_marks(doc, n=20):
+    d = copy.deepcopy(doc)
+    m0 = next(iter(d["marks"].values()))
+    d["marks"] = {f"c{i:02d}": dict(m0) for i in range(n)}
+    return d
+
+
+def test_verdict_ready_only_when_the_plan_identifies_everything(doc):
+    d = _many_marks(doc)
+    d["validation_rms_mm"]["final_model"] = 0.012
+    d["residual_rms_mm"]["final_model"] = 0.011
+    v = hl.verdict(d)
+    assert v["status"] == "ready" and "0.021 mm (95 %)" in v["text"]
+    d["identifiability"]["not_identifiable"] = [
+        {"label": "joint_scale(joint 1)", "reason": "x", "fix": "add marks at q1 beyond +-60 deg"}]
+    v = hl.verdict(d)
+    assert v["status"] == "not reliable"
+    assert "joint_scale(joint 1)" in v["text"] and "add marks at q1" in v["text"]
+    d["identifiability"]["not_identifiable"] = []
+    d["identifiability"]["rank"] = 5
+    assert hl.verdict(d)["status"] == "not reliable"
+    d["identifiability"]["rank"] = 6
+    d["validation_rms_mm"]["final_model"] = 0.05      # 4.5 x the fitted RMS
+    assert hl.verdict(d)["status"] == "use with care"
+
+
+def test_controller_offsets_make_the_nominal_model_true(doc):
+    """Convention: the joint turns to q + c. With c added, the nominal zero z_nom gives
+    the calibrated link angle: q + c + z_cal == q + z_nom."""
+    a = hl.actions(doc)
+    for o in a["controller_offsets"]:
+        j = o["joint"] - 1
+        zc, zn = doc["params"]["joint_zero_deg"][j], doc["nominal"]["joint_zero_deg"][j]
+        assert o["add_to_offset_deg"] + zc == pytest.approx(zn)
+    assert "counter-clockwise seen from above" in a["sign_convention"]
+    assert any("vision-cal plan" in c["command"] for c in a["commands"])
+
+
+def test_plot_titles_show_the_documented_rms(doc, monkeypatch):
+    """One owner: the residual figure's titles print calibration.json's RMS, even when
+    the marks alone would give another number (outliers, held-out marks)."""
+    import matplotlib.axes
+
+    titles = []
+    orig = matplotlib.axes.Axes.set_title
+    monkeypatch.setattr(matplotlib.axes.Axes, "set_title",
+                        lambda self, t, *a, **k: (titles.append(t), orig(self, t, *a, **k))[1])
+    d = copy.deepcopy(doc)
+    d["residual_rms_mm"] = {"base_model": 0.1234, "final_model": 0.0567}
+    plots.residual_field(d)
+    assert any("fitted RMS 0.1234 mm" in t for t in titles)
+    assert any("fitted RMS 0.0567 mm" in t for t in titles)
+
+
+def test_mark_rows_flag_held_out_outliers_and_missing(doc):
+    d = copy.deepcopy(doc)
+    first = next(iter(d["marks"]))
+    d["outliers"] = [first]
+    d["missing_marks"] = ["v99"]
+    rows = {r["id"]: r for r in hl.mark_rows(d, {"v99": "not in any usable photo"})}
+    assert any("outlier" in f for f in rows[first]["flags"])
+    assert rows["v99"]["flags"] == ["not measured: not in any usable photo"]
+    assert rows[first]["residual_norm_mm"] == pytest.approx(
+        math.hypot(*d["marks"][first]["residual_mm"]))

@@ -1,0 +1,66 @@
+"""``vision-cal sheet``: the printable calibration sheet (PDF, SVG, PNG) and its sheet.json."""
+
+from __future__ import annotations
+
+NAME = "sheet"
+HELP = ("write the printable calibration sheet (vector PDF at true scale, SVG, optional PNG) "
+        "and sheet.json, the session's sheet block")
+EXAMPLES = """\
+examples:
+  vision-cal sheet --size A3 --out sheet/                  A3 landscape, DICT_5X5_100
+  vision-cal sheet --size A4 --portrait --dictionary DICT_4X4_50 --out a4/
+  vision-cal sheet --custom 500 350 --marker-mm 24 --pitch-mm 90 --png-dpi 254 --out s/
+  vision-cal sheet --size A3 --measured-bar-mm 99.8 100.1 --out sheet/
+      after printing: record the two 100 mm bars as measured on the paper
+
+Print sheet.pdf at 100 % (actual size, no fit-to-page) and measure both bars; paste
+sheet.json as the "sheet" block of session.json (vision-cal design does it for you).
+"""
+
+
+def add_arguments(p) -> None:
+    page = p.add_argument_group("page")
+    page.add_argument("--size", default=None, metavar="A0..A4",
+                      help="ISO page size (default A3)")
+    page.add_argument("--custom", type=float, nargs=2, metavar=("W", "H"),
+                      help="custom page width and height in mm (instead of --size)")
+    o = page.add_mutually_exclusive_group()
+    o.add_argument("--landscape", dest="landscape", action="store_const", const=True,
+                   default=None, help="wider than high (default for ISO sizes)")
+    o.add_argument("--portrait", dest="landscape", action="store_const", const=False,
+                   help="higher than wide")
+    m = p.add_argument_group("markers")
+    m.add_argument("--dictionary", default="DICT_5X5_100", metavar="DICT",
+                   help="OpenCV predefined ArUco dictionary (default DICT_5X5_100)")
+    m.add_argument("--marker-mm", type=float, metavar="S",
+                   help="marker side including its black border (default: about 1/15 of "
+                        "the short side)")
+    m.add_argument("--pitch-mm", type=float, metavar="P",
+                   help="largest centre spacing of the border markers (default 4 markers)")
+    p.add_argument("--png-dpi", type=float, metavar="N",
+                   help="also write sheet.png at N dpi (254 = 10 px/mm)")
+    p.add_argument("--measured-bar-mm", type=float, nargs=2, metavar=("X", "Y"),
+                   help="the printed x and y scale bars as measured (mm), recorded in "
+                        "sheet.json for the calibration's printer scale")
+    p.add_argument("-o", "--out", required=True, metavar="DIR",
+                   help="folder for sheet.pdf, sheet.svg, sheet.json (and sheet.png)")
+
+
+def run(args) -> int:
+    from vision_cal.sheet import make_layout, write_sheet
+
+    if args.size is not None and args.custom is not None:
+        from vision_cal.errors import VisionCalError
+
+        raise VisionCalError("give either --size or --custom, not both", field="--custom")
+    layout = make_layout(size=args.size or "A3", landscape=args.landscape, custom_mm=args.custom,
+                         dictionary=args.dictionary, marker_mm=args.marker_mm,
+                         pitch_mm=args.pitch_mm, measured_bar_mm=args.measured_bar_mm)
+    paths = write_sheet(layout, args.out, png_dpi=args.png_dpi)
+    if not args.quiet:
+        print(f"sheet {layout.sheet_id}: {layout.page} {layout.orientation} "
+              f"{layout.size_mm[0]:g} x {layout.size_mm[1]:g} mm, {len(layout.markers)} "
+              f"{layout.dictionary} markers of {layout.marker_mm:g} mm -> "
+              + ", ".join(str(p) for p in paths.values()))
+        print("print at 100 % (actual size) and check that both bars measure 100.0 mm")
+    return 0

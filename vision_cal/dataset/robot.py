@@ -1,0 +1,230 @@
+"""The robot file (YAML or JSON): what ``vision-cal design`` and the programs need.
+
+The session's ``robot`` block (``L1_mm``, ``L2_mm``, ``joint_zero_deg``, ``base_mm``,
+``home_deg``; ``../shared/dataset-format.md``) at the top level, plus optional fields::
+
+    name: SM5                        # shown in program headers
+    placement_tolerance:             # how far the nominal values may be off (worst case, +-)
+      base_mm: 40.0                  #   the base anywhere within this radius of base_mm
+      joint_zero_deg: [5.0, 10.0]    #   z1 (robot rotation + joint-1 zero) and z2
+      link_mm: 8.0                   #   L1 and L2
+    joint_limits_deg: [[-170, 170], [-150, 150]]
+    speed_limits_deg_s: [90, 120]    # the planned trajectory's joint speed limits
+    accel_limits_deg_s2: [300, 400]  # and acceleration limits
+    elbows: [1, -1]                  # allowed elbow solutions (+1: sin(q2 + z2) > 0)
+    pen_up_mm: -10.0                 # joint 3 (mm) with the pen clear of the paper
+    pen_down_mm: -25.0               # joint 3 (mm) with the pen touching it
+    j4_deg: 0.0                      # joint 4, held still
+    mark_diameter_mm: 1.2            # the pen's mark (session.json pen block)
+    overshoot_deg: 3.0               # the via point's distance before each mark
+    program:                         # controller-native settings of the robot program
+      power: low                     #   low | high
+      speed_percent: 10              #   SPEL+ Speed (PTP, % of the rated speed)
+      accel_percent: [10, 10]        #   SPEL+ Accel (acceleration, deceleration %)
+      settle_s: 0.3                  #   wait on the mark before the pen goes down
+      pen_dwell_s: 0.2               #   pen down this long
+
+Every malformed field is one line naming the file and the field (the typed readers of
+:mod:`vision_cal.dataset.session`); unknown fields are logged and ignored, so files
+written by other tools with more fields still read. YAML is read with ``safe_load`` (no
+tags, nothing read can run code).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from vision_cal.dataset.io import read_text
+from vision_cal.dataset.session import NominalRobot, _Reader, read_robot_block
+from vision_cal.errors import VisionCalError
+from vision_cal.motion import ACCEL_DEG_S2, JOINT_LIMITS_DEG, SPEED_DEG_S
+
+log = logging.getLogger(__name__)
+
+ROBOT_BLOCK = ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "home_deg")
+DEFAULT_LIMITS_DEG = JOINT_LIMITS_DEG  # the defaults live in vision_cal.motion
+
+
+@dataclass(frozen=True)
+class PlacementTolerance:
+    """How far the nominal model may be off, worst case (+-)."""
+
+    base_mm: float = 30.0
+    joint_zero_deg: tuple[float, float] = (5.0, 5.0)
+    link_mm: float = 2.0
+
+
+@dataclass(frozen=True)
+class ProgramSettings:
+    power: str = "low"
+    speed_percent: float = 10.0
+    accel_percent: tuple[float, float] = (10.0, 10.0)
+    settle_s: float = 0.3
+    pen_dwell_s: float = 0.2
+
+
+@dataclass(frozen=True)
+class RobotFile:
+    path: Path
+    nominal: NominalRobot
+    name: str = "robot"
+    tolerance: PlacementTolerance = field(default_factory=PlacementTolerance)
+    joint_limits_deg: tuple[tuple[float, float], tuple[float, float]] = DEFAULT_LIMITS_DEG
+    speed_limits_deg_s: tuple[float, float] = SPEED_DEG_S
+    accel_limits_deg_s2: tuple[float, float] = ACCEL_DEG_S2
+    elbows: tuple[int, ...] = (1, -1)
+    pen_up_mm: float | None = None
+    pen_down_mm: float | None = None
+    j4_deg: float = 0.0
+    mark_diameter_mm: float = 1.2
+    overshoot_deg: float = 3.0
+    program: ProgramSettings = field(default_factory=ProgramSettings)
+
+    def require_pen_heights(self) -> tuple[float, float]:
+        """(pen_up_mm, pen_down_mm); a program cannot be written without them."""
+        for k in ("pen_up_mm", "pen_down_mm"):
+            if getattr(self, k) is None:
+                raise VisionCalError("missing: a robot program needs the pen-up and pen-down "
+                                     "heights (joint 3, mm)", file=str(self.path), field=k)
+        return float(self.pen_up_mm), float(self.pen_down_mm)
+
+
+def _read_tree(path: Path) -> dict:
+    text = read_text(path, what="robot file")
+    if path.suffix.lower() == ".json":
+        try:
+            tree = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise VisionCalError(f"not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})",
+                                 file=str(path)) from e
+    else:
+        import yaml
+
+        try:
+            tree = yaml.safe_load(text)
+        except yaml.YAMLError as e:
+            mark = getattr(e, "problem_mark", None)
+            where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
+            problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+            raise VisionCalError(f"not valid YAML{where}: {problem}", file=str(path)) from e
+    if not isinstance(tree, dict):
+        raise VisionCalError("expected a mapping of robot fields at the top level",
+                             file=str(path))
+    return tree
+
+
+def _positive(r: _Reader, v, where: str, *, zero_ok=False) -> float:
+    x = r.number(v, where)
+    if x < 0 or (x == 0 and not zero_ok):
+        r.fail(where, f"expected a {'non-negative' if zero_ok else 'positive'} number, got {v!r}")
+    return x
+
+
+def load_robot_file(path) -> RobotFile:
+    """Read and validate a robot file (YAML, or JSON when it ends in .json)."""
+    path = Path(path)
+    tree = _read_tree(path)
+    r = _Reader(str(path))
+    nominal = read_robot_block(r, tree, "")
+    kw: dict = {}
+
+    def opt(key):
+        return tree.get(key)
+
+    if opt("name") is not None:
+        kw["name"] = r.string(opt("name"), "name")
+    t = opt("placement_tolerance")
+    if t is not None:
+        if not isinstance(t, dict):
+            r.fail("placement_tolerance", f"expected an object, got {type(t).__name__}")
+        d = PlacementTolerance()
+        b = _positive(r, t["base_mm"], "placement_tolerance.base_mm", zero_ok=True) \
+            if "base_mm" in t else d.base_mm
+        z = r.vector(t["joint_zero_deg"], "placement_tolerance.joint_zero_deg", 2) \
+            if "joint_zero_deg" in t else d.joint_zero_deg
+        for i, v in enumerate(z):
+            _positive(r, v, f"placement_tolerance.joint_zero_deg[{i}]", zero_ok=True)
+        ln = _positive(r, t["link_mm"], "placement_tolerance.link_mm", zero_ok=True) \
+            if "link_mm" in t else d.link_mm
+        extra = set(t) - {"base_mm", "joint_zero_deg", "link_mm"}
+        if extra:
+            log.warning("%s: placement_tolerance: ignoring unknown fields %s", path,
+                        ", ".join(sorted(extra)))
+        kw["tolerance"] = PlacementTolerance(b, z, ln)
+    lim = opt("joint_limits_deg")
+    if lim is not None:
+        rows = r.list_(lim, "joint_limits_deg")
+        if len(rows) != 2:
+            r.fail("joint_limits_deg", f"expected [[lo, hi], [lo, hi]], got {lim!r}")
+        pairs = []
+        for j, row in enumerate(rows):
+            lo, hi = r.vector(row, f"joint_limits_deg[{j}]", 2)
+            if not lo < hi:
+                r.fail(f"joint_limits_deg[{j}]", f"expected lo < hi, got {row!r}")
+            pairs.append((lo, hi))
+        kw["joint_limits_deg"] = tuple(pairs)
+    for key in ("speed_limits_deg_s", "accel_limits_deg_s2"):
+        if opt(key) is not None:
+            v = r.vector(opt(key), key, 2)
+            for i, x in enumerate(v):
+                _positive(r, x, f"{key}[{i}]")
+            kw[key] = v
+    if opt("elbows") is not None:
+        els = r.list_(opt("elbows"), "elbows", nonempty=True)
+        for i, e in enumerate(els):
+            if isinstance(e, bool) or e not in (1, -1):
+                r.fail(f"elbows[{i}]", f"expected +1 or -1, got {e!r}")
+        if len(set(els)) != len(els):
+            r.fail("elbows", f"expected distinct values, got {els!r}")
+        kw["elbows"] = tuple(int(e) for e in els)
+    for key in ("pen_up_mm", "pen_down_mm", "j4_deg"):
+        if opt(key) is not None:
+            kw[key] = r.number(opt(key), key)
+    if ("pen_up_mm" in kw) != ("pen_down_mm" in kw):
+        missing = "pen_down_mm" if "pen_up_mm" in kw else "pen_up_mm"
+        r.fail(missing, "missing: give both pen heights or neither")
+    if "pen_up_mm" in kw and kw["pen_up_mm"] == kw["pen_down_mm"]:
+        r.fail("pen_down_mm", "must differ from pen_up_mm")
+    for key in ("mark_diameter_mm", "overshoot_deg"):
+        if opt(key) is not None:
+            kw[key] = _positive(r, opt(key), key)
+    p = opt("program")
+    if p is not None:
+        if not isinstance(p, dict):
+            r.fail("program", f"expected an object, got {type(p).__name__}")
+        d = ProgramSettings()
+        power = p.get("power", d.power)
+        if power not in ("low", "high"):
+            r.fail("program.power", f"expected 'low' or 'high', got {power!r}")
+        sp = r.number(p["speed_percent"], "program.speed_percent") \
+            if "speed_percent" in p else d.speed_percent
+        if not 1 <= sp <= 100:
+            r.fail("program.speed_percent", f"expected 1..100, got {sp:g}")
+        ac = r.vector(p["accel_percent"], "program.accel_percent", 2) \
+            if "accel_percent" in p else d.accel_percent
+        for i, a in enumerate(ac):
+            if not 1 <= a <= 100:
+                r.fail(f"program.accel_percent[{i}]", f"expected 1..100, got {a:g}")
+        settle = _positive(r, p["settle_s"], "program.settle_s", zero_ok=True) \
+            if "settle_s" in p else d.settle_s
+        dwell = _positive(r, p["pen_dwell_s"], "program.pen_dwell_s", zero_ok=True) \
+            if "pen_dwell_s" in p else d.pen_dwell_s
+        extra = set(p) - {"power", "speed_percent", "accel_percent", "settle_s", "pen_dwell_s"}
+        if extra:
+            log.warning("%s: program: ignoring unknown fields %s", path, ", ".join(sorted(extra)))
+        kw["program"] = ProgramSettings(power, sp, ac, settle, dwell)
+    known = set(ROBOT_BLOCK) | {f for f in RobotFile.__dataclass_fields__} | {
+        "placement_tolerance"}
+    extra = set(tree) - known
+    if extra:
+        log.warning("%s: ignoring unknown fields %s", path, ", ".join(sorted(map(str, extra))))
+    home = nominal.home_deg
+    lims = kw.get("joint_limits_deg", DEFAULT_LIMITS_DEG)
+    for j in range(2):
+        if not lims[j][0] <= home[j] <= lims[j][1]:
+            r.fail("home_deg", f"joint {j + 1} at {home[j]:g} deg is outside joint_limits_deg "
+                               f"{list(lims[j])}")
+    return RobotFile(path, nominal, **kw)

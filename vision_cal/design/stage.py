@@ -1,0 +1,180 @@
+"""One design stage: robot file + sheet.json (+ pilot calibration) -> a planned dataset.
+
+``design_stage`` writes into ``out_dir``::
+
+    session.json      sheet (sheet.json verbatim), robot, pen, marks (joints_deg, approach,
+                      role) and no images yet: the dataset skeleton the photos go into;
+                      added field ``design`` (stage, how it was designed)
+    trajectory.csv    the joint-space reference (0.016 s cubic segments through the
+                      overshoot via points; vision_cal.plan.trajectory)
+    program.prg       the robot program (--program spel), or program_points.csv (csv)
+
+Without a pilot calibration it designs the pilot (:mod:`vision_cal.design.pilot`); with
+one, the informative plan (:func:`vision_cal.plan.calibration_plan.informative_plan`)
+placed with the pilot's model. Everything is computed before anything is written, and
+each file is written atomically.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from vision_cal.errors import VisionCalError
+
+log = logging.getLogger(__name__)
+
+FORMAT = "vision-cal/1"
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
+
+
+@dataclass(frozen=True)
+class DesignResult:
+    stage: str                 # "pilot" | "informative"
+    session_path: Path
+    trajectory_path: Path
+    program_path: Path | None
+    n_marks: int
+    duration_s: float
+    info: dict
+
+
+def pilot_safety_mm(model, cov, sheet, *, k_sigma: float = 6.0, floor_mm: float = 5.0,
+                    rng=None) -> float:
+    """Safety margin (mm) for marks placed with a pilot model: ``floor_mm`` plus
+    ``k_sigma`` times the largest predicted per-axis std over poses landing on the paper."""
+    from vision_cal.plan.uncertainty import predicted_std_mm
+
+    rng = np.random.default_rng(0 if rng is None else rng)
+    q = rng.uniform([-170, -150], [170, 150], size=(4000, 2))
+    xy = model.predict(q)
+    x0, y0, x1, y1 = sheet.extent_mm
+    on = (xy[:, 0] > x0) & (xy[:, 0] < x1) & (xy[:, 1] > y0) & (xy[:, 1] < y1)
+    if not on.any():
+        return floor_mm
+    s = predicted_std_mm(model, cov, q[on], np.ones((int(on.sum()), 2)))
+    return float(floor_mm + k_sigma * np.nanmax(s))
+
+
+def drawable_sheet(sheet, sheet_raw: dict, *, file: str | None = None):
+    """The sheet to place marks on: the paper, or only its ``printed.drawable_mm`` box
+    ``[x0, y0, x1, y1]`` when the generator says where pen marks may go (clear of scale
+    bars, labels and the title block), with the same markers."""
+    from dataclasses import replace
+
+    from vision_cal.dataset.session import _Reader
+
+    printed = sheet_raw.get("printed")
+    box = printed.get("drawable_mm") if isinstance(printed, dict) else None
+    if box is None:
+        return sheet
+    x0, y0, x1, y1 = _Reader(file).vector(box, "printed.drawable_mm", 4)
+    px0, py0, px1, py1 = sheet.extent_mm
+    if not (px0 <= x0 < x1 <= px1 and py0 <= y0 < y1 <= py1):
+        raise VisionCalError(f"expected [x0, y0, x1, y1] inside the paper {list(sheet.extent_mm)}"
+                             f", got {box!r}", file=file, field="printed.drawable_mm")
+    return replace(sheet, size_mm=(x1 - x0, y1 - y0), bottom_left_mm=(x0, y0))
+
+
+def with_pilot_marks(sheet, cal_doc: dict, diameter_mm: float):
+    """The sheet with the pilot's measured marks as obstacles (small squares), so that
+    the informative plan drawn on the same sheet keeps clear of them."""
+    from dataclasses import replace
+
+    from vision_cal.dataset.session import SheetMarker
+
+    extra = []
+    for k, m in enumerate((cal_doc.get("marks") or {}).values()):
+        xy = m.get("measured_mm") if isinstance(m, dict) else None
+        if not (isinstance(xy, list) and len(xy) == 2):
+            continue
+        x, y = float(xy[0]), float(xy[1])
+        h = diameter_mm / 2
+        extra.append(SheetMarker(-1 - k, np.array([[x - h, y + h], [x + h, y + h],
+                                                   [x + h, y - h], [x - h, y - h]])))
+    return replace(sheet, markers=tuple(sheet.markers) + tuple(extra))
+
+
+def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | None = "spel",
+                 n_calibration: int = 30, n_validation: int = 8, safety_mm: float | None = None,
+                 seed: int = 0) -> DesignResult:
+    from vision_cal.dataset.io import atomic_write_json, read_json
+    from vision_cal.dataset.robot import load_robot_file
+    from vision_cal.dataset.session import NominalRobot, load_sheet_file
+    from vision_cal.plan.trajectory import plan_trajectory, write_trajectory_csv
+    from vision_cal.program import program_path, program_points, write_program
+
+    robot = load_robot_file(robot_path)
+    sheet = load_sheet_file(sheet_path)
+    sheet_raw = read_json(sheet_path)
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise VisionCalError("exists and is not a folder", file=str(out))
+    if out.is_dir():
+        photos = sorted(p.name for p in out.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+        if photos:
+            raise VisionCalError(f"holds photos ({photos[0]}, ...) of a plan: a new plan would "
+                                 "not match them; choose another --out", file=str(out))
+    if program is not None:
+        robot.require_pen_heights()
+    sheet = drawable_sheet(sheet, sheet_raw, file=str(sheet_path))
+    nominal = robot.nominal
+    if pilot is None:
+        from vision_cal.design.pilot import design_pilot
+
+        try:
+            d = design_pilot(robot, sheet)
+        except VisionCalError as e:
+            raise VisionCalError(e.reason, file=e.file or str(robot_path), field=e.field) from e
+        marks = list(d.marks)
+        plan_robot = nominal
+        info = d.to_json()
+        title = (f"vision-cal pilot: {len(marks)} marks of the seed paper's pattern, kept on "
+                 "free paper for every placement within the robot file's tolerance")
+    else:
+        from vision_cal.dataset.calibration import load_calibration
+        from vision_cal.plan.calibration_plan import informative_plan
+        from vision_cal.plan.uncertainty import load_covariance
+
+        model, doc = load_calibration(pilot)
+        cov = load_covariance(doc, model, file=str(pilot))
+        if safety_mm is None:
+            safety_mm = pilot_safety_mm(model, cov, sheet)
+        sheet = with_pilot_marks(sheet, doc, robot.mark_diameter_mm)
+        p = model.params
+        plan_robot = NominalRobot(p.L1_mm, p.L2_mm, p.joint_zero_deg, p.base_mm,
+                                  nominal.home_deg)
+        try:
+            marks = informative_plan(
+                p, sheet, n_calibration=n_calibration, n_validation=n_validation,
+                pen_diameter_mm=robot.mark_diameter_mm, joint_limits_deg=robot.joint_limits_deg,
+                rng=seed, safety_mm=safety_mm, overshoot_deg=robot.overshoot_deg,
+                home_deg=nominal.home_deg, elbows=robot.elbows,
+                speed_deg_s=robot.speed_limits_deg_s)
+        except VisionCalError as e:
+            raise VisionCalError(e.reason, file=str(sheet_path), field=e.field) from e
+        info = {"stage": "informative", "pilot_calibration": str(pilot), "safety_mm": safety_mm,
+                "n_calibration": n_calibration, "n_validation": n_validation, "seed": seed}
+        title = (f"vision-cal calibration plan: {n_calibration} calibration + {n_validation} "
+                 "validation marks, both elbows, both approach sides per joint")
+    traj = plan_trajectory(marks, home_deg=nominal.home_deg, vmax_deg_s=robot.speed_limits_deg_s,
+                           amax_deg_s2=robot.accel_limits_deg_s2,
+                           dwell_s=robot.program.settle_s)
+    info["nominal_robot"] = nominal.to_json()
+    info["trajectory_s"] = traj.duration_s
+    session = {"format": FORMAT, "sheet": sheet_raw, "robot": plan_robot.to_json(),
+               "pen": {"mark_diameter_mm": robot.mark_diameter_mm},
+               "marks": [m.to_json() for m in marks], "design": info}
+    points = program_points(marks, home_deg=nominal.home_deg, z2_deg=plan_robot.joint_zero_deg[1])
+    # everything is computed: now write
+    session_path = atomic_write_json(out / "session.json", session)
+    traj_path = write_trajectory_csv(out / "trajectory.csv", traj)
+    prog_path = None
+    if program is not None:
+        prog_path = write_program(program, program_path(program, out / "program"), points, robot,
+                                  title=title)
+    return DesignResult(info["stage"], session_path, traj_path, prog_path, len(marks),
+                        traj.duration_s, info)

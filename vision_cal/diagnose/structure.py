@@ -1,0 +1,122 @@
+"""Structure left in a fit's residual: a joint-angle periodogram and a sheet map.
+
+A residual that is only measurement noise is white: it depends neither on the joint
+angles nor on where on the sheet the mark is. Two scans look for the opposite.
+
+- :func:`harmonic_scan` (per joint): for harmonics ``h = 1..h_max`` the 2-D residual is
+  regressed on the sheet displacement a joint error ``a sin(h q) + b cos(h q)`` would
+  cause (the joint's Jacobian column times the two sines), after projecting out what the
+  fitted model can already absorb (its own Jacobian). The drop in the residual sum of
+  squares gives an F statistic, a p-value and the amplitude (deg) for each ``h``: the
+  periodogram of that joint.
+- :func:`sheet_scan`: whether neighbouring marks share their residual (a local bump,
+  a wrinkle, a dent). The statistic is the mean dot product of each mark's residual with
+  the mean residual of its ``k`` nearest neighbours on the sheet, its p-value from random
+  permutations of the residuals over the marks (no distribution assumed). The map: the
+  residual smoothed over neighbours at each mark, the largest one (where and how big), and
+  mean residual vectors over a coarse grid of the marked area.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+from vision_cal.kinematics import jacobian_rad
+
+
+def _rows(a: np.ndarray) -> np.ndarray:
+    return np.asarray(a, dtype=float).reshape(len(a) * 2, -1)
+
+
+def harmonic_scan(model, q_deg, approach, residual_mm, *, weights=None, h_max: int = 8
+                  ) -> dict:
+    """Periodogram of the residual against each joint angle (see the module docstring).
+
+    ``model``: the fitted ``RobotModel``; ``q_deg``, ``approach`` (N, 2); ``residual_mm``
+    (N, 2) measured minus predicted; ``weights`` (N,) 1/sigma per mark (None: equal).
+    Returns ``{"joint1": [{"harmonic", "amplitude_deg", "F", "p_value"}, ...], ...}``.
+    """
+    q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
+    r = np.asarray(residual_mm, dtype=float).reshape(-1, 2)
+    n = len(q)
+    w = np.ones(n) if weights is None else np.asarray(weights, dtype=float)
+    J = model.jacobian(q, approach) * w[:, None, None]              # (N, 2, P)
+    Jr = _rows(J)
+    phi = model.joint_angles_rad(q, approach)
+    _, jq = jacobian_rad(model.params.vector, phi)
+    jq = np.einsum("ij,njk->nik", model.sheet_matrix(), jq) * w[:, None, None]
+    rw = (r * w[:, None]).reshape(-1)
+    # what the model can absorb: project it out of every basis
+    Qm, _ = np.linalg.qr(Jr)
+    rss = float(rw @ rw)
+    dof = 2 * n - Jr.shape[1] - 2
+    out = {}
+    for j in range(2):
+        qj = np.radians(q[:, j])
+        rows = []
+        for h in range(1, h_max + 1):
+            B = np.stack([jq[:, :, j] * np.sin(h * qj)[:, None],
+                          jq[:, :, j] * np.cos(h * qj)[:, None]], axis=2)   # (N, 2, 2)
+            Br = _rows(B)
+            Bp = Br - Qm @ (Qm.T @ Br)
+            coef, *_ = np.linalg.lstsq(Bp, rw, rcond=None)
+            fitted = Bp @ coef
+            drop = float(fitted @ fitted)
+            if dof <= 0 or rss - drop <= 0:
+                F, p = float("inf"), 0.0
+            else:
+                F = (drop / 2) / ((rss - drop) / dof)
+                p = float(stats.f.sf(F, 2, dof))
+            rows.append({"harmonic": h, "amplitude_deg": float(np.degrees(np.hypot(*coef))),
+                         "F": float(F), "p_value": p})
+        out[f"joint{j + 1}"] = rows
+    return out
+
+
+def sheet_scan(xy_mm, residual_mm, *, k: int = 5, n_perm: int = 999, grid=(4, 3),
+               rng=None) -> dict:
+    """Do neighbouring marks share their residual? (see the module docstring).
+
+    ``xy_mm`` (N, 2) where the marks are on the sheet; ``residual_mm`` (N, 2). Returns
+    ``{"statistic_mm2", "p_value", "k", "peak_mm": [x, y], "peak_size_mm", "map": {...}}``.
+    """
+    xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
+    r = np.asarray(residual_mm, dtype=float).reshape(-1, 2)
+    n = len(xy)
+    k = int(min(k, n - 1))
+    if k < 2:
+        return {"statistic_mm2": float("nan"), "p_value": 1.0, "k": k}
+    d = np.linalg.norm(xy[:, None] - xy[None], axis=2)
+    np.fill_diagonal(d, np.inf)
+    nb = np.argsort(d, axis=1)[:, :k]                              # (N, k)
+
+    def stat(res):
+        return float(np.mean(np.sum(res * res[nb].mean(axis=1), axis=1)))
+
+    s0 = stat(r)
+    rng = np.random.default_rng(0 if rng is None else rng)
+    perm = np.array([stat(r[rng.permutation(n)]) for _ in range(n_perm)])
+    p = float((1 + np.sum(perm >= s0)) / (n_perm + 1)) if n_perm else float("nan")
+    smooth = (r[nb].sum(axis=1) + r) / (k + 1)                      # neighbourhood means
+    i = int(np.argmax(np.linalg.norm(smooth, axis=1)))
+    x0, y0 = xy.min(axis=0)
+    x1, y1 = xy.max(axis=0)
+    gx, gy = grid
+    cx = np.clip(((xy[:, 0] - x0) / max(x1 - x0, 1e-9) * gx).astype(int), 0, gx - 1)
+    cy = np.clip(((xy[:, 1] - y0) / max(y1 - y0, 1e-9) * gy).astype(int), 0, gy - 1)
+    cells = []
+    for a in range(gx):
+        for b in range(gy):
+            m = (cx == a) & (cy == b)
+            if m.any():
+                cells.append({"x_mm": [float(x0 + a * (x1 - x0) / gx),
+                                       float(x0 + (a + 1) * (x1 - x0) / gx)],
+                              "y_mm": [float(y0 + b * (y1 - y0) / gy),
+                                       float(y0 + (b + 1) * (y1 - y0) / gy)],
+                              "n": int(m.sum()),
+                              "mean_residual_mm": r[m].mean(axis=0).tolist()})
+    return {"statistic_mm2": s0, "p_value": p, "k": k,
+            "peak_mm": xy[i].tolist(), "peak_size_mm": float(np.linalg.norm(smooth[i])),
+            "peak_residual_mm": smooth[i].tolist(),
+            "map": {"cells": cells, "grid": [gx, gy]}}

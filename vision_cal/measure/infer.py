@@ -1,0 +1,96 @@
+"""Which planned marks each photo shows, when ``session.json`` has no ``images`` list.
+
+The photos are in capture order (EXIF time, else natural file name). Pen marks are only
+ever added, so a dot group (one physical dot, :func:`vision_cal.measure.associate.group_dots`)
+that is a pen mark stays visible in the photos after the one it first appeared in. From
+the dot groups:
+
+- *persistent* groups are the ones seen in at least half of the usable photos from their
+  first one on (a dot seen once and never again is noise or a reflection, not ink);
+- **finished sheet**: every usable photo sees most (:data:`FINISHED_FRACTION`) of the
+  persistent groups: each photo shows every mark of the plan;
+- **series**: otherwise. Photo k shows the first ``n_k`` marks of the plan, ``n_k`` the
+  number of persistent groups first seen in photos up to k (capped at the plan's length).
+
+What does not fit is reported, never fatal: a photo that adds no mark in a series (a
+repeated photo), one that adds several (a photo of the series missing, or several marks
+drawn between photos), more persistent dots than planned marks, fewer (marks not drawn or
+not photographed). The association (``associate.associate``) then works as with a
+hand-written list, and checks the series against the robot model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+#: a photo of the finished sheet sees at least this fraction of the persistent dots
+FINISHED_FRACTION = 0.7
+
+
+@dataclass(frozen=True)
+class Inferred:
+    """``marks``: per photo (session order) the tuple of mark ids it shows (empty for a
+    photo that was not usable); ``mode``: "series" | "finished" | "none"."""
+
+    marks: tuple[tuple[str, ...], ...]
+    mode: str
+    warnings: tuple[str, ...] = ()
+
+
+def infer_image_marks(n_images: int, usable: list[int], groups, mark_ids, files
+                      ) -> Inferred:
+    """``usable``: indices of usable photos in capture order; ``groups``: DotGroups over
+    them; ``mark_ids``: the plan's ids in drawing order; ``files``: names for messages."""
+    mark_ids = [str(m) for m in mark_ids]
+    N = len(mark_ids)
+    empty = [()] * n_images
+    if not usable:
+        return Inferred(tuple(empty), "none", ("no usable photo of the sheet",))
+    pos = {k: r for r, k in enumerate(usable)}  # image index -> rank among usable photos
+    seen_by = [set(g.images) for g in groups]
+    persistent = []
+    for gi, s in enumerate(seen_by):
+        first = min(pos[k] for k in s)
+        later = len(usable) - first
+        if len(s) * 2 >= later:
+            persistent.append(gi)
+    P = len(persistent)
+    warnings: list[str] = []
+    if P == 0:
+        return Inferred(tuple(empty), "none", ("no pen mark found in any photo",))
+    first_of = {gi: min(pos[k] for k in seen_by[gi]) for gi in persistent}
+    frac = [sum(k in seen_by[gi] for gi in persistent) / P for k in usable]
+    out = list(empty)
+    if min(frac) >= FINISHED_FRACTION:
+        mode = "finished"
+        for k in usable:
+            out[k] = tuple(mark_ids)
+        if P > N:
+            warnings.append(f"{P} persistent dots in photos of the finished sheet, {N} marks "
+                            "planned: the extra dots are left unassigned")
+        elif P < N:
+            warnings.append(f"{P} dots found for {N} planned marks: {N - P} mark(s) not seen "
+                            "(not drawn, hidden, or too faint)")
+    else:
+        mode = "series"
+        prev = 0
+        for r, k in enumerate(usable):
+            n = sum(1 for gi in persistent if first_of[gi] <= r)
+            if n > N:
+                if prev <= N:
+                    warnings.append(f"{files[k]}: {n} persistent dots, more than the {N} "
+                                    "planned marks: the series is capped at the plan")
+                n = N
+            if r > 0 and n == prev:
+                warnings.append(f"{files[k]}: a repeated photo (no mark added since "
+                                f"{files[usable[r - 1]]})")
+            elif r > 0 and n > prev + 1:
+                warnings.append(f"{files[k]}: {n - prev} marks added since "
+                                f"{files[usable[r - 1]]}: a photo of the series may be missing")
+            out[k] = tuple(mark_ids[:n])
+            prev = n
+        if prev < N:
+            warnings.append(f"the last photo shows {prev} of {N} planned marks: marks "
+                            f"{', '.join(mark_ids[prev:prev + 5])}"
+                            f"{' ...' if N - prev > 5 else ''} were not photographed")
+    return Inferred(tuple(out), mode, tuple(warnings))

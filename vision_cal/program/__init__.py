@@ -1,0 +1,86 @@
+"""Robot programs from a plan: the points a controller drives through, in order.
+
+:func:`program_points` turns planned marks (``PlannedMark``: joints, approach, overshoot
+via points) into the ordered point list every writer shares: home, then for each mark its
+via points and the mark, then home again. Writers:
+
+- :mod:`vision_cal.program.csv_list` (``--program csv``): a neutral point list any
+  controller's import can take;
+- :mod:`vision_cal.program.spel` (``--program spel``): an Epson SPEL+ program.
+
+Joint 3 (the vertical axis of a SCARA) is in millimetres, joints 1, 2 and 4 in degrees.
+The pen travels at ``pen_up_mm`` and marks at ``pen_down_mm`` (the robot file).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from vision_cal.errors import VisionCalError
+
+KINDS = ("csv", "spel")
+
+
+@dataclass(frozen=True)
+class ProgramPoint:
+    id: str                      # the mark's id ("home" for home)
+    kind: str                    # "home" | "via" | "mark"
+    q_deg: tuple[float, float]   # joints 1 and 2
+    elbow: int                   # +1: sin(q2 + z2) > 0
+    approach: tuple[int, int] | None = None   # the mark's planned approach signs
+    role: str = ""
+
+
+def elbow_of(q2_deg, z2_deg: float) -> int:
+    """+1 when sin(q2 + z2) > 0 (docs/conventions.md), else -1."""
+    return 1 if np.sin(np.radians(float(q2_deg) + float(z2_deg))) > 0 else -1
+
+
+def program_points(marks, *, home_deg=(0.0, 0.0), z2_deg: float = 0.0) -> list[ProgramPoint]:
+    """Home, each mark's via points then the mark (drawing order), home."""
+    home = (float(home_deg[0]), float(home_deg[1]))
+    out = [ProgramPoint("home", "home", home, elbow_of(home[1], z2_deg))]
+    for m in marks:
+        a = tuple(int(v) for v in m.approach) if m.approach is not None else None
+        for v in m.via_deg:
+            q = (float(v[0]), float(v[1]))
+            out.append(ProgramPoint(m.id, "via", q, elbow_of(q[1], z2_deg), a, m.role))
+        q = (float(m.joints_deg[0]), float(m.joints_deg[1]))
+        out.append(ProgramPoint(m.id, "mark", q, elbow_of(q[1], z2_deg), a, m.role))
+    out.append(ProgramPoint("home", "home", home, elbow_of(home[1], z2_deg)))
+    if not all(np.isfinite(p.q_deg).all() for p in out):
+        raise VisionCalError("a program point is not a finite number", field="marks")
+    return out
+
+
+def program_path(kind: str, stem) -> Path:
+    """Where a program of ``kind`` goes, beside ``stem`` (a path without its suffix)."""
+    stem = Path(stem)
+    if kind == "spel":
+        return stem.with_suffix(".prg")
+    if kind == "csv":
+        return stem.with_name(stem.name + "_points.csv")
+    raise VisionCalError(f"unknown program kind {kind!r} (expected one of {', '.join(KINDS)})",
+                         field="--program")
+
+
+def write_program(kind: str, path, points, robot, *, title: str) -> Path:
+    """Write the program of ``kind`` ("csv" or "spel") for ``points`` to ``path``."""
+    robot.require_pen_heights()  # before anything is written
+    if kind == "spel":
+        from vision_cal.program.spel import spel_program
+
+        text = spel_program(points, robot, title=title)
+    elif kind == "csv":
+        from vision_cal.program.csv_list import point_list
+
+        text = point_list(points, robot)
+    else:
+        raise VisionCalError(f"unknown program kind {kind!r} (expected one of "
+                             f"{', '.join(KINDS)})", field="--program")
+    from vision_cal.dataset.io import atomic_write_text
+
+    return atomic_write_text(path, text)

@@ -1,0 +1,169 @@
+"""The synthetic world's own robot: every injected effect written out from the contract.
+
+This module deliberately shares **no code** with the estimator (``vision_cal.model``,
+``vision_cal.kinematics``): it reads the format's JSON blocks (``params`` and ``effects``
+of truth.json, ``../shared/dataset-format.md``) and computes where the pen really is from
+the contract's formulas, so a sign or convention error in the estimator cannot cancel
+against the same error in the world. Frames and units as in docs/conventions.md.
+
+Joints. With ``q`` the commanded angle and ``s`` the side the joint arrived from (+1: it
+last turned counter-clockwise), the angle a joint really turns to is::
+
+    q_link = q  - s * band / 2                       joint_backlash (lags against approach)
+                + scale * q                          joint_scale    (turns (1+scale) q)
+                + A * sin(h * q + phase)             joint_cyclic
+
+every term evaluated at the commanded ``q`` (degrees here; the cyclic argument in radians).
+
+Arm plane. The arm moves in a physical plane (the *arm frame*, mm): the link angles are
+measured from its x axis, ``phi1 = q_link1 + z1``, ``phi2 = q_link2 + z2``, and::
+
+    elbow = base + L1 (cos phi1, sin phi1)
+    pen   = elbow + L2 (cos(phi1 + phi2), sin(phi1 + phi2))
+
+Sheet. ``sheet_affine`` says the paper has deformed since it was printed (paper shrink):
+a point printed at ``p`` (sheet frame S, the coordinates of the sheet description) now lies
+at ``A p`` in the arm frame, with ``A = inv(matrix)`` about the sheet origin, so a pen
+position ``x`` in the arm frame reads ``matrix @ x`` on the printed sheet. The renderer
+places the printed texture and its markers at ``A p`` (physically shrunk, see
+:meth:`TrueRobot.T_render`); the marks are drawn into the texture at ``matrix @ x``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from vision_cal.errors import VisionCalError
+
+
+@dataclass(frozen=True)
+class Cyclic:
+    joint: int          # 1 or 2
+    harmonic: int
+    deg: float
+    phase_deg: float
+
+
+@dataclass(frozen=True)
+class TrueRobot:
+    """The true robot of a synthetic world (mm, degrees)."""
+
+    L1_mm: float
+    L2_mm: float
+    zero_deg: tuple[float, float]
+    base_mm: tuple[float, float]
+    backlash_deg: tuple[float, float] = (0.0, 0.0)   # full dead band per joint
+    scale: tuple[float, float] = (0.0, 0.0)          # gear-ratio error per joint
+    cyclic: tuple[Cyclic, ...] = ()
+    sheet_matrix: tuple[tuple[float, float], tuple[float, float]] = ((1.0, 0.0), (0.0, 1.0))
+
+    # ------------------------------------------------------------------ JSON reading
+
+    @classmethod
+    def from_json(cls, params: dict, effects=()) -> "TrueRobot":
+        """From truth.json's ``params`` and ``effects`` blocks (format names)."""
+        try:
+            L1, L2 = float(params["L1_mm"]), float(params["L2_mm"])
+            z = (float(params["joint_zero_deg"][0]), float(params["joint_zero_deg"][1]))
+            b = (float(params["base_mm"][0]), float(params["base_mm"][1]))
+        except (KeyError, TypeError, ValueError, IndexError) as e:
+            raise VisionCalError(f"malformed params {params!r}: {e}", field="params") from e
+        band, scale, cyc = [0.0, 0.0], [0.0, 0.0], []
+        matrix = ((1.0, 0.0), (0.0, 1.0))
+        for d in effects:
+            try:
+                name = d["name"]
+                if name in ("joint_backlash", "joint_scale", "joint_cyclic"):
+                    j = int(d["joint"])
+                    if j not in (1, 2):
+                        raise ValueError(f"joint must be 1 or 2, got {j}")
+                if name == "joint_backlash":
+                    band[j - 1] += float(d["deg"])
+                elif name == "joint_scale":
+                    scale[j - 1] += float(d["scale"])
+                elif name == "joint_cyclic":
+                    cyc.append(Cyclic(j, int(d["harmonic"]), float(d["deg"]),
+                                      float(d.get("phase_deg", 0.0))))
+                elif name == "sheet_affine":
+                    m = [[float(v) for v in row] for row in d["matrix"]]
+                    if len(m) != 2 or any(len(r) != 2 for r in m):
+                        raise ValueError("matrix must be 2x2")
+                    a, b2 = matrix
+                    # a later affine acts after the earlier ones: total = m @ total
+                    matrix = ((m[0][0] * a[0] + m[0][1] * b2[0], m[0][0] * a[1] + m[0][1] * b2[1]),
+                              (m[1][0] * a[0] + m[1][1] * b2[0], m[1][0] * a[1] + m[1][1] * b2[1]))
+                elif name in ("lens_distortion", "sheet_height"):
+                    continue   # the camera's / the paper's, not the robot's
+                else:
+                    raise ValueError(f"unknown effect {name!r}")
+            except (KeyError, TypeError, ValueError) as e:
+                raise VisionCalError(f"malformed effect {d!r}: {e}", field="effects") from e
+        return cls(L1, L2, z, b, tuple(band), tuple(scale), tuple(cyc), matrix)
+
+    def without_backlash(self) -> "TrueRobot":
+        """The same robot with the dead band taken out (a simulated gear play owns it)."""
+        return TrueRobot(self.L1_mm, self.L2_mm, self.zero_deg, self.base_mm, (0.0, 0.0),
+                         self.scale, self.cyclic, self.sheet_matrix)
+
+    # ------------------------------------------------------------------ joints
+
+    def link_deg(self, q_deg, approach=None) -> np.ndarray:
+        """Angles (N, 2) deg the links really turn to for commands ``q_deg`` (N, 2) reached
+        from sides ``approach`` (N, 2) of +-1 (None: +1)."""
+        q = np.array(q_deg, dtype=float, ndmin=2)
+        s = np.ones_like(q) if approach is None else np.where(
+            np.broadcast_to(np.asarray(approach, float), q.shape) < 0, -1.0, 1.0)
+        out = q.copy()
+        for j in range(2):
+            out[:, j] += -s[:, j] * self.backlash_deg[j] / 2.0 + self.scale[j] * q[:, j]
+        for c in self.cyclic:
+            qj = q[:, c.joint - 1]
+            out[:, c.joint - 1] += c.deg * np.sin(c.harmonic * np.radians(qj)
+                                                  + math.radians(c.phase_deg))
+        return out
+
+    # ------------------------------------------------------------------ arm frame
+
+    def arm_points(self, link_deg) -> np.ndarray:
+        """(N, 3, 2) base, elbow, pen in the arm frame (mm) for link angles (N, 2) deg."""
+        a = np.array(link_deg, dtype=float, ndmin=2)
+        phi1 = np.radians(a[:, 0] + self.zero_deg[0])
+        phi12 = phi1 + np.radians(a[:, 1] + self.zero_deg[1])
+        bx, by = self.base_mm
+        ex = bx + self.L1_mm * np.cos(phi1)
+        ey = by + self.L1_mm * np.sin(phi1)
+        px = ex + self.L2_mm * np.cos(phi12)
+        py = ey + self.L2_mm * np.sin(phi12)
+        base = np.broadcast_to([bx, by], (len(a), 2))
+        return np.stack([base, np.column_stack([ex, ey]), np.column_stack([px, py])], axis=1)
+
+    # ------------------------------------------------------------------ sheet
+
+    @property
+    def M(self) -> np.ndarray:
+        """Arm frame -> printed sheet coordinates (2, 2)."""
+        return np.array(self.sheet_matrix, dtype=float)
+
+    def to_sheet(self, xy_arm_mm) -> np.ndarray:
+        """Arm-frame points (N, 2) -> printed sheet coordinates (N, 2)."""
+        return np.asarray(xy_arm_mm, dtype=float).reshape(-1, 2) @ self.M.T
+
+    def T_render(self, T_cam_arm) -> np.ndarray:
+        """4x4 map printed sheet point (x, y, z, 1) -> camera, for a camera at rigid pose
+        ``T_cam_arm`` (arm frame -> camera): the printed point ``p`` lies at ``inv(M) p``.
+        An affine (not rigid) 4x4 when the sheet is deformed; OpenGL and projection take it
+        as it is."""
+        A = np.eye(4)
+        A[:2, :2] = np.linalg.inv(self.M)
+        return np.asarray(T_cam_arm, dtype=float) @ A
+
+    # ------------------------------------------------------------------ the pen
+
+    def pen_mm(self, q_deg, approach=None, *, link=False) -> np.ndarray:
+        """Pen positions (N, 2) on the printed sheet: commands ``q_deg`` reached from
+        ``approach`` (or, with ``link=True``, links already at ``q_deg``: no joint effects)."""
+        a = np.array(q_deg, dtype=float, ndmin=2) if link else self.link_deg(q_deg, approach)
+        return self.to_sheet(self.arm_points(a)[:, 2])

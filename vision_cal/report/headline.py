@@ -1,0 +1,285 @@
+"""What a robotics engineer reads first: the headline, the actions, the provenance.
+
+Everything here turns calibration.json (and the loop's document when a loop ran) into
+JSON-ready dicts that ``report.json`` holds and ``report.html`` renders; no figure is
+computed twice: the RMS values are calibration.json's, copied, never recomputed.
+
+The verdict's "expected target error (95 %)" is the radius that holds 95 % of the errors
+of a circular normal 2-D error whose RMS is the held-out RMS of the final model:
+``r95 = sqrt(-2 ln 0.05) / sqrt(2) * rms = 1.731 * rms`` (:data:`R95_PER_RMS`). The
+held-out marks were not fitted, so their RMS includes both the model's uncertainty and
+the measurement noise of the marks themselves (a conservative figure).
+"""
+
+from __future__ import annotations
+
+import math
+
+from vision_cal.report.summary import describe_effect
+
+R95_PER_RMS = math.sqrt(-2.0 * math.log(0.05)) / math.sqrt(2.0)
+HELDOUT_WARN_RATIO = 3.0  # held-out RMS above this many times the fitted RMS: use with care
+MIN_SPARE_DOF = 8         # 2 N - P below this: too few marks to test any effect
+
+# the effects a controller takes as parameters, and how (the rest need the planner)
+CONTROLLER_SIGN_CONVENTION = (
+    "Joint angles are positive counter-clockwise seen from above (the pen side of the "
+    "sheet). A controller joint offset c is added to every command before it reaches the "
+    "joint: the joint turns to q + c. The calibrated zero z is the angle of the link at "
+    "commanded zero (joint 1: from the sheet x axis, so z1 also holds the rotation "
+    "between robot and sheet; joint 2: from link 1).")
+
+
+def _finite(x) -> bool:
+    return isinstance(x, (int, float)) and math.isfinite(x)
+
+
+def headline(doc: dict, loop: dict | None = None) -> dict:
+    """What was calibrated, accuracy before/after, effects, verdict (JSON-ready)."""
+    marks = doc.get("marks", {})
+    roles = [m.get("role", "calibration") for m in marks.values()]
+    n_fit = roles.count("calibration")
+    n_val = roles.count("validation")
+    photos = doc.get("images", [])
+    n_ok = sum(im.get("status") == "ok" for im in photos)
+    effects = [e for e in doc.get("effects", []) if e["name"] != "unexplained"]
+    what = (f"SCARA base model (L1, L2, joint zeros z1 z2, base x y)"
+            + (" + " + ", ".join(_effect_name(e) for e in effects) if effects else "")
+            + f", {doc.get('method', 'lsq')} fit of {n_fit} marks"
+            + (f" ({n_val} held out)" if n_val else "")
+            + (f", measured on {n_ok} of {len(photos)} photos" if photos else ""))
+    r, v = doc.get("residual_rms_mm", {}), doc.get("validation_rms_mm", {})
+    acc = [{"what": "fitted marks (residual RMS)", "key": "residual_rms_mm",
+            "before_mm": r.get("base_model"), "after_mm": r.get("final_model"), "n": n_fit}]
+    if v.get("final_model") is not None:
+        acc.append({"what": f"held-out marks ({v.get('kind', 'validation')}, RMS)",
+                    "key": "validation_rms_mm", "before_mm": v.get("base_model"),
+                    "after_mm": v.get("final_model"),
+                    "n": n_val if v.get("kind") == "validation marks" else n_fit})
+    if loop and loop.get("summary"):
+        s = loop["summary"]
+        acc.append({"what": "targets drawn by the loop (absolute error RMS, measured)",
+                    "key": "loop.summary", "before_mm": s["before"]["rms_mm"],
+                    "after_mm": s["after"]["rms_mm"],
+                    "n": s["after"]["n_measured"], "n_before": s["before"]["n_measured"],
+                    "of": s["n_targets"]})
+    eff = [{"name": e["name"], "text": describe_effect(e, evidence=False), **_size(e)}
+           for e in effects]
+    return {"calibrated": what, "accuracy": acc, "effects": eff,
+            "verdict": verdict(doc, loop)}
+
+
+def _effect_name(e: dict) -> str:
+    return e["name"] + (f" (joint {e['joint']})" if "joint" in e else "")
+
+
+def _size(e: dict) -> dict:
+    for key, unit in (("deg", "deg"), ("scale", "")):
+        if key in e:
+            return {"value": e[key], "std": e.get("std"), "unit": unit}
+    return {}
+
+
+def verdict(doc: dict, loop: dict | None = None) -> dict:
+    """``{"status": ready | use with care | not reliable, "text": ...}``."""
+    ident = doc.get("identifiability") or {}
+    ni = ident.get("not_identifiable") or []
+    if ident and ident.get("rank") is not None and ident["rank"] < ident.get("n_params", 0):
+        return {"status": "not reliable",
+                "text": f"not reliable: the plan identifies only {ident['rank']} of "
+                        f"{ident['n_params']} parameters; add marks that spread both joints "
+                        "and both approach directions"}
+    if ni:
+        d = ni[0]
+        more = f" (and {len(ni) - 1} more, listed below)" if len(ni) > 1 else ""
+        return {"status": "not reliable",
+                "text": f"not reliable: the plan cannot separate {d['label']} from the base "
+                        f"model{more}; {d['fix']}"}
+    v = doc.get("validation_rms_mm", {})
+    held, fit = v.get("final_model"), doc.get("residual_rms_mm", {}).get("final_model")
+    if not _finite(held):
+        return {"status": "use with care",
+                "text": "use with care: no held-out marks and no cross-validation figure, so "
+                        f"the fitted RMS {fit:.4f} mm is the only accuracy figure (it "
+                        "understates the error on new targets)" if _finite(fit) else
+                        "use with care: no accuracy figure"}
+    r95 = R95_PER_RMS * held
+    tail = ""
+    if loop and loop.get("summary", {}).get("after", {}).get("rms_mm") is not None:
+        a = loop["summary"]["after"]
+        tail = (f"; measured on {a['n_measured']} targets: RMS {a['rms_mm']:.4f} mm, "
+                f"max {a['max_mm']:.4f} mm")
+    unexplained = [e for e in doc.get("effects", []) if e["name"] == "unexplained"]
+    if unexplained:
+        return {"status": "use with care", "expected_r95_mm": r95,
+                "text": f"use with care: structure no candidate explains is left in the "
+                        f"residual ({'; '.join(unexplained[0].get('seen', []))}); expected "
+                        f"target error {r95:.3f} mm (95 %){tail}"}
+    n_fit = sum(m.get("role", "calibration") == "calibration"
+                for m in doc.get("marks", {}).values())
+    n_par = ident.get("n_params") or 6
+    if 2 * n_fit - n_par < MIN_SPARE_DOF:
+        return {"status": "use with care", "expected_r95_mm": r95,
+                "text": f"use with care: {n_fit} fitted marks leave {2 * n_fit - n_par} "
+                        f"degrees of freedom, too few to test for backlash, gear-ratio or "
+                        f"sheet effects; expected target error {r95:.3f} mm (95 %) from the "
+                        f"held-out RMS {held:.4f} mm{tail}"}
+    if _finite(fit) and fit > 0 and held > HELDOUT_WARN_RATIO * fit:
+        return {"status": "use with care", "expected_r95_mm": r95,
+                "text": f"use with care: the held-out RMS ({held:.4f} mm) is "
+                        f"{held / fit:.1f} times the fitted RMS: the model misses something "
+                        f"on new poses; expected target error {r95:.3f} mm (95 %){tail}"}
+    return {"status": "ready", "expected_r95_mm": r95,
+            "text": f"ready to use: expected target error {r95:.3f} mm (95 %), from the "
+                    f"held-out RMS {held:.4f} mm{tail}"}
+
+
+def actions(doc: dict, *, calibration_path: str = "OUT/calibration.json") -> dict:
+    """The numbers to enter in the controller or OLP, and the commands for the rest."""
+    p, s, n = doc["params"], doc.get("std") or {}, doc.get("nominal") or {}
+
+    def g(d, key, k=None):
+        v = d.get(key) if d else None
+        return v[k] if (v is not None and k is not None) else v
+
+    olp = []
+    for label, key, k, unit in (("L1 (link 1 length)", "L1_mm", None, "mm"),
+                                ("L2 (link 2 length)", "L2_mm", None, "mm"),
+                                ("z1 (joint 1 zero, link 1 angle from sheet x)",
+                                 "joint_zero_deg", 0, "deg"),
+                                ("z2 (joint 2 zero, link 2 angle from link 1)",
+                                 "joint_zero_deg", 1, "deg"),
+                                ("base x (joint 1 axis, sheet frame)", "base_mm", 0, "mm"),
+                                ("base y (joint 1 axis, sheet frame)", "base_mm", 1, "mm")):
+        olp.append({"name": label, "unit": unit, "nominal": g(n, key, k),
+                    "calibrated": g(p, key, k), "std": g(s, key, k)})
+    offsets = []
+    for j in (0, 1):
+        zc, zn = g(p, "joint_zero_deg", j), g(n, "joint_zero_deg", j)
+        if zc is None or zn is None:
+            continue
+        offsets.append({"joint": j + 1, "add_to_offset_deg": zn - zc,
+                        "std_deg": g(s, "joint_zero_deg", j)})
+    controller_effects, planner_effects = [], []
+    for e in doc.get("effects", []):
+        if e["name"] == "joint_scale":
+            controller_effects.append(
+                {"name": "joint_scale", "joint": e["joint"],
+                 "text": f"joint {e['joint']} gear ratio: divide the controller's ratio "
+                         f"(motor turns per joint turn) by 1 + s = {1 + e['scale']:.6f}, or "
+                         "leave it and let the planner compensate"})
+        if e["name"] in ("joint_backlash", "joint_scale", "joint_cyclic", "sheet_affine",
+                         "sheet_height"):
+            planner_effects.append(_effect_name(e))
+    cal = calibration_path
+    return {
+        "olp_model": olp,
+        "sign_convention": CONTROLLER_SIGN_CONVENTION,
+        "controller_offsets": offsets,
+        "controller_offsets_text": (
+            "Either enter the calibrated model above in the OLP (and leave the controller "
+            "alone), or keep the OLP's nominal model and add these to the controller's joint "
+            "offsets so that the nominal model is true: "
+            + ", ".join(f"joint {o['joint']}: {o['add_to_offset_deg']:+.4f} deg"
+                        for o in offsets) + "."),
+        "controller_effects": controller_effects,
+        "planner_effects": planner_effects,
+        "commands": [
+            {"what": "joint commands that hit sheet targets with every effect compensated "
+                     + (f"({', '.join(planner_effects)})" if planner_effects else "")
+                     + " (targets.csv: id,x_mm,y_mm)",
+             "command": f"vision-cal plan {cal} targets.csv -o plan.csv "
+                        "--trajectory traj.csv"},
+            {"what": "the model for ROS/OLP tools (URDF plus the effects it cannot hold)",
+             "command": f"vision-cal export {cal} --urdf robot.urdf"},
+        ],
+    }
+
+
+def mark_rows(doc: dict, refused: dict | None = None) -> list[dict]:
+    """The per-mark table: measured, residual, uncertainty, photo count, flags.
+
+    ``refused``: mark id -> why the measurement refused it (``Measurement.refused``)."""
+    outliers = set(doc.get("outliers", []))
+    rows = []
+    for mid, m in doc.get("marks", {}).items():
+        flags = []
+        if m.get("role") == "validation":
+            flags.append("held out")
+        if mid in outliers:
+            flags.append("outlier (down-weighted by the robust fit)")
+        res = m.get("residual_mm") or [math.nan, math.nan]
+        rows.append({"id": mid, "role": m.get("role", "calibration"),
+                     "measured_mm": m.get("measured_mm"), "residual_mm": res,
+                     "residual_norm_mm": math.hypot(*res),
+                     "sigma_mm": m.get("sigma_mm"), "n_photos": m.get("n_photos"),
+                     "flags": flags})
+    for mid in doc.get("missing_marks", []):
+        why = (refused or {}).get(mid) or "not found on any photo"
+        rows.append({"id": mid, "role": None, "measured_mm": None, "residual_mm": None,
+                     "residual_norm_mm": None, "sigma_mm": None, "n_photos": 0,
+                     "flags": [f"not measured: {why}"]})
+    return rows
+
+
+STATISTICS = {
+    "F": "F: the drop in the (weighted) residual sum of squares per added parameter, divided "
+         "by the remaining residual variance; large F means the effect explains more than "
+         "noise would.",
+    "p": "p: the chance of an F this large if the effect were absent; an effect is kept only "
+         "when p is below alpha / (number of candidates) (Bonferroni).",
+    "dBIC": "dBIC: the change in the Bayesian information criterion, n ln(RSS1/RSS0) + k ln n; "
+            "negative means the extra parameters pay for themselves; an effect needs "
+            "dBIC < 0.",
+    "held-out": "held-out RMS: the error on marks the fit did not see (validation marks, or "
+                "k-fold cross-validation); an effect is kept only when it lowers it.",
+}
+
+
+def configuration(doc: dict) -> dict:
+    """The thresholds in force: the diagnosis's (from calibration.json) and the
+    measurement's (read from the modules that own them)."""
+    from vision_cal.calibrate import lsq
+    from vision_cal.diagnose import photos
+    from vision_cal.measure import aruco, batch, dots
+
+    return {
+        "method": doc.get("method"),
+        "diagnosis": (doc.get("diagnosis") or {}).get("thresholds"),
+        "per_photo_offsets": {"gate_mm": photos.GATE_MM, "alpha": photos.ALPHA},
+        "fit": {"condition_number_limit": lsq.COND_LIMIT},
+        "measurement": {
+            "min_markers_per_photo": aruco.MIN_MARKERS,
+            "min_marker_hull_fraction": aruco.MIN_HULL_FRACTION,
+            "blank_photo_std": batch.BLANK_STD,
+            "ink_darkening": dots.INK_DARKENING,
+            "dot_area_ratio": [dots.MIN_AREA_RATIO, dots.MAX_AREA_RATIO],
+            "dot_max_aspect": dots.MAX_ASPECT, "dot_min_solidity": dots.MIN_SOLIDITY,
+            "marker_margin_mm": dots.MARKER_MARGIN_MM},
+    }
+
+
+def provenance(doc: dict, *, dataset: str, out_dir: str, camera: dict | None,
+               created_utc: str) -> dict:
+    """Date, version, input folder, camera/lens, photos used and skipped."""
+    import vision_cal
+
+    images = doc.get("images", [])
+    lens = next((e for e in doc.get("effects", []) if e["name"] == "lens_distortion"), None)
+    if camera:
+        K = camera.get("K") or [[None]]
+        cam = (f"declared in session.json: {camera.get('size_px')} px, f {K[0][0]} px, "
+               f"dist {camera.get('dist')}")
+    elif lens is not None:
+        cam = "not declared; a lens was found: " + describe_effect(lens, evidence=False)
+    elif images:
+        cam = ("not declared; estimated from the photos' marker grids, no lens distortion "
+               "found beyond the noise")
+    else:
+        cam = "no photos (marks measured by other means)"
+    return {"created_utc": created_utc, "vision_cal_version": vision_cal.__version__,
+            "dataset": dataset, "out": out_dir, "camera": cam,
+            "photos_used": [im["file"] for im in images if im.get("status") == "ok"],
+            "photos_skipped": [{"file": im["file"], "reason": im.get("reason", "")}
+                               for im in images if im.get("status") != "ok"],
+            "configuration": configuration(doc)}
