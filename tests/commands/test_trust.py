@@ -256,9 +256,10 @@ def test_plan_failures_are_summarised_not_listed(tmp_path, capsys, calibration):
 @pytest.fixture(scope="module")
 def rendered(tmp_path_factory):
     """One small rendered dataset (the end-to-end suite's scene), edited per test."""
-    from tests.test_end_to_end import ds, scene
+    from tests.test_end_to_end import ds, pilot_params, scene
 
-    return ds.render_dataset(scene(seed=12), tmp_path_factory.mktemp("render") / "data")
+    return ds.render_dataset(scene(seed=12), tmp_path_factory.mktemp("render") / "data",
+                             pilot=pilot_params)
 
 
 def _markers(edit_corners):
