@@ -42,6 +42,7 @@ from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerpr
 from vision_cal.measure.infer import infer_image_marks
 from vision_cal.measure.marker_geometry import marker_geometry
 from vision_cal.measure.dots import DotCandidates, blank_regions, find_candidates, refine_dot
+from vision_cal.measure.sheetfit import MISFIT, corner_tolerance_mm, misfit_reason
 from vision_cal.measure.mapping import (LensEstimate, distort_px, estimate_lens, fit_mapping,
                                        undistort_px)
 
@@ -334,8 +335,16 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
         return ImageResult(det.file, det.status, det.reason, n_markers=len(det.marker_ids),
                            size_px=det.size_px, from_cache=from_cache)
     K, dist = _lens_of(session, lens, det.size_px)
-    m = fit_mapping(det.corners_mm.reshape(-1, 2), det.corners_for(K, dist).reshape(-1, 2),
-                    K=K, dist=dist)
+    corners_px = det.corners_for(K, dist)
+    m = fit_mapping(det.corners_mm.reshape(-1, 2), corners_px.reshape(-1, 2), K=K, dist=dist)
+    tol = corner_tolerance_mm(det.corners_mm,
+                              float(np.median(m.mm_per_px(det.corners_mm.mean(axis=1)))))
+    if not m.corner_rms_mm <= tol:  # the markers do not fit the declared sheet
+        return ImageResult(det.file, "skipped",
+                           misfit_reason(det.corners_mm, corners_px, m.corner_rms_mm, tol),
+                           n_markers=len(det.marker_ids), corner_rms_px=m.corner_rms_px,
+                           corner_rms_mm=m.corner_rms_mm, size_px=det.size_px,
+                           from_cache=from_cache)
     c = det.candidates
     dia = session.pen_mark_diameter_mm
     xy0 = m.image_to_sheet(c.uv_px) if len(c.uv_px) else np.zeros((0, 2))
@@ -376,6 +385,19 @@ def _is_inside(a: Path, b: Path) -> bool:
         return True
     except ValueError:
         return False
+
+
+def _check_sheet_fits(session: Session, images: list[ImageResult]) -> None:
+    """Stop when most photos say the markers do not fit the declared sheet: then the sheet
+    is typed wrong (corner order, marker size, dictionary), not the photos bad."""
+    misfit = [r for r in images if r.status != "ok" and (r.reason or "").startswith(MISFIT)]
+    if not misfit or 2 * len(misfit) <= len(images):
+        return
+    typical = sorted(misfit, key=lambda r: r.corner_rms_mm)[len(misfit) // 2]
+    raise VisionCalError(f"the markers do not fit the declared sheet in {len(misfit)} of "
+                         f"{len(images)} photos ({typical.file}: "
+                         f"{typical.reason[len(MISFIT) + 2:]})",
+                         file=str(session.path), field="sheet.markers")
 
 
 @dataclass
@@ -574,6 +596,7 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                 warnings.append(f"photos of {len(sizes)} image sizes: a lens is estimated only "
                                 f"for {size[0]}x{size[1]} px")
     images = [finish_image(d, session, lens, from_cache=c) for d, c in zip(dets, cached)]
+    _check_sheet_fits(session, images)
 
     # stage 3: association
     idx_ok = [i for i, r in enumerate(images) if r.status == "ok"]
