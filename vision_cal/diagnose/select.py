@@ -218,14 +218,16 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
             again = sheet_scan(xy, xy - sel.fit.predict(q, app), n_perm=0)
             sheet_map.update({k: again[k] for k in ("peak_mm", "peak_size_mm",
                                                     "peak_residual_mm", "map")})
+    # the reported model: the selected effects only (a nuisance is reported, not fitted),
+    # on every mark
     effects = tuple(sel.fit.model.effects[len(nuisance):])
-    if nuisance or not everything.all() or len(sel.fit.residuals_mm) != len(q):
+    if nuisance or len(sel.fit.residuals_mm) != len(q):
         zero = RobotModel(base.params, tuple(_at_zero(e) for e in effects))
         current = _fit(zero if effects else None, q, xy, app, sigma, ids)
+        current_held = held(current.model)
+        base_held = held(RobotModel(base.params))
     else:
-        current = sel.fit
-    current_held = held(current.model)
-    base_held = held(RobotModel(base.params))
+        current, current_held, base_held = sel.fit, sel.held, sel.base_held
     accepted = sel.accepted
     # keep only the last round's rejections per label (the final word on each candidate)
     last = {}
