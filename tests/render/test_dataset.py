@@ -76,13 +76,13 @@ def test_truth_has_every_mark_and_pose(series):
     np.testing.assert_allclose(K, s.camera.K)
     # truth marks = the true robot at the commanded joints, within the repeatability
     q = s.joints_deg
-    pred = SMALL.robot.truth_model.predict(q, np.array(list(t["arrival_sign"].values())))
+    pred = SMALL.robot.truth_model.predict(q, np.array(list(t["approach"].values())))
     xy = np.array([t["marks"][m.id] for m in s.marks])
     assert np.max(np.abs(xy - pred)) < 6 * SMALL.robot.repeatability_mm
     # small.yaml's nominal is close to the truth: every mark on free paper
     assert t["off_paper"] == [] and t["on_marker"] == []
     # the kinematic world honours the planned approach
-    np.testing.assert_array_equal(np.array(list(t["arrival_sign"].values())), s.approach)
+    np.testing.assert_array_equal(np.array(list(t["approach"].values())), s.approach)
     # the stored pose is the one the photo was taken from: a marker's black border is
     # dark where T_cam_sheet puts it, its white quiet zone bright
     sheet = _sheet_of(SMALL)

@@ -28,6 +28,7 @@ from vision_cal.diagnose.candidates import Candidate, default_candidates, joint_
 from vision_cal.diagnose.structure import harmonic_scan, sheet_scan
 from vision_cal.errors import CalibrationError
 from vision_cal.model import JointCyclic, RobotModel, SheetAffine
+from vision_cal.rms import rms, rms_2d
 
 ALPHA = 0.01   # family-wise level of the F-test, split over the candidates (Bonferroni)
 K_FOLDS = 5    # cross-validation folds when there are fewer than 3 validation marks
@@ -87,11 +88,6 @@ class Diagnosis:
         return out
 
 
-def _rss(fit: Fit) -> float:
-    r = fit.residuals_mm[fit.inliers]
-    return float(np.sum(r**2))
-
-
 def _fit(model, q, xy, app, sigma, ids):
     return Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, ids=ids)
 
@@ -102,7 +98,7 @@ def heldout_rms(model: RobotModel, q, xy, app, *, sigma=None, q_val=None, xy_val
     if q_val is not None and len(q_val) >= 3:
         f = Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, robust=False)
         r = xy_val - f.predict(q_val, app_val)
-        return float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+        return rms_2d(r)
     n = len(q)
     # folds from a fixed seed unless one is given: the same data calibrate the same way
     rng = np.random.default_rng(0 if rng is None else rng)
@@ -117,8 +113,7 @@ def heldout_rms(model: RobotModel, q, xy, app, *, sigma=None, q_val=None, xy_val
         except CalibrationError:
             return float("nan")
         err.append(xy[idx] - f.predict(q[idx], app[idx]))
-    r = np.concatenate(err)
-    return float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+    return rms_2d(np.concatenate(err))
 
 
 def residual_analysis(fit: Fit, q, app, *, n_bins: int = 6) -> dict:
@@ -130,7 +125,7 @@ def residual_analysis(fit: Fit, q, app, *, n_bins: int = 6) -> dict:
         d, a, qq = dq[keep, j], app[keep, j], q[keep, j]
         ok = np.isfinite(d)
         d, a, qq = d[ok], a[ok], qq[ok]
-        res = {"rms_deg": float(np.sqrt(np.mean(d**2))) if len(d) else float("nan")}
+        res = {"rms_deg": rms(d)}
         if (a > 0).sum() >= 2 and (a < 0).sum() >= 2:
             t = stats.ttest_ind(d[a > 0], d[a < 0], equal_var=False)
             res["by_approach_deg"] = {"+1": float(d[a > 0].mean()), "-1": float(d[a < 0].mean()),

@@ -44,7 +44,6 @@ MIN_SOLIDITY = 0.75
 MARKER_MARGIN_MM = 3.0    # masked around each printed marker square (patch half-size + margin)
 FINE_STEP_MM = 0.05
 DEFAULT_DIAMETER_MM = 1.2
-HIDDEN_LINES = True
 #: what the centroid cannot resolve of the print and the photo's sampling under a dot (px):
 #: seen as errors that repeat in every photo of a dot on synthetic photos and on the
 #: project's pyrender photos (0.01-0.03 px); added to every dot's covariance
@@ -147,7 +146,7 @@ def sheet_mask(shape, mapping: SheetMapping, sheet: Sheet, *, border_mm: float =
     """uint8 (H, W) 255 where pen marks may be: on the paper, off markers and quiet zones."""
     H, W = shape[:2]
     mask = np.zeros((H, W), np.uint8)
-    x0, y0, x1, y1 = sheet.extent_mm
+    x0, y0, x1, y1 = sheet.search_extent_mm
     b = border_mm
     paper = np.array([[x0 + b, y0 + b], [x1 - b, y0 + b], [x1 - b, y1 - b], [x0 + b, y1 - b]])
     poly = _polygon(mapping, paper, 24)
@@ -168,7 +167,7 @@ def find_candidates(rgb: np.ndarray, mapping: SheetMapping, sheet: Sheet, *,
     channels' maximum and sum are used) with an approximate mapping."""
     dia = float(dia_mm or DEFAULT_DIAMETER_MM)
     H, W = rgb.shape[:2]
-    x0, y0, x1, y1 = sheet.extent_mm
+    x0, y0, x1, y1 = sheet.search_extent_mm
     probe = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1], [(x0 + x1) / 2, (y0 + y1) / 2]])
     mmpp = mapping.mm_per_px(probe)
     dia_px_max = dia / max(float(mmpp.min()), 1e-6)
@@ -351,7 +350,7 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
         if partial:
             bg = np.where(blank, P, bg)
         w0 = (bg - Sg) / P            # ink deficit, relative to the paper
-        ell = np.clip((P - bg) / P, 0.0, None) if HIDDEN_LINES else np.zeros_like(P)
+        ell = np.clip((P - bg) / P, 0.0, None)
         r_dot = 0.5 * dia
         cc = c.copy()
         for _ in range(8):

@@ -147,3 +147,55 @@ def targets(report: dict) -> bytes | None:
     ax.legend()
     ax.grid(alpha=0.3, axis="y")
     return _png(fig)
+
+
+# ------------------------------------------------------------------- the closed loop
+
+def loop_paths(loop: dict) -> bytes:
+    """Targets and where the pen really went, before and after (paper Fig. 8-9), from
+    loop.json."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(9, 6.5), layout="constrained")
+    t = np.array([r["target_mm"] for r in loop["targets"]], float).reshape(-1, 2)
+    ax.plot(t[:, 0], t[:, 1], "k+", ms=9, label="targets")
+    for name, color in (("before", "tab:red"), ("after", "tab:green")):
+        pts = np.array([r[name]["measured_mm"] for r in loop["targets"]
+                        if "measured_mm" in r[name]], float).reshape(-1, 2)
+        if len(pts):
+            ax.plot(pts[:, 0], pts[:, 1], "o", mfc="none", color=color,
+                    label=f"measured marks, {name} calibration")
+    ax.set_aspect("equal")
+    ax.set_xlabel("sheet x [mm]")
+    ax.set_ylabel("sheet y [mm]")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    ax.set_title("targets and where the pen really went (paper Fig. 8-9)")
+    return _png(fig)
+
+
+def loop_joints(loop: dict) -> bytes:
+    """Joint reference trajectories of the planned targets before and after (paper
+    Fig. 10), from loop.json's planned joints, starting at its ``home_deg``."""
+    from vision_cal.motion import TRAJECTORY_DT_S
+    from vision_cal.plan.compensate import PlannedTarget, to_planned_marks
+    from vision_cal.plan.trajectory import plan_trajectory
+
+    plt = _plt()
+    fig, axes = plt.subplots(2, 1, figsize=(9, 6), layout="constrained", sharex=True)
+    home = loop.get("home_deg", (0.0, 0.0))
+    for name, style in (("before", "--"), ("after", "-")):
+        planned = [PlannedTarget(r["id"], tuple(r["target_mm"]), tuple(r[name]["q_deg"]),
+                                 tuple(int(s) for s in r[name]["approach"]))
+                   for r in loop["targets"] if "q_deg" in r[name]]
+        if not planned:
+            continue
+        tr = plan_trajectory(to_planned_marks(planned), home_deg=home)
+        for j in range(2):
+            axes[j].plot(tr.t_s, tr.q_deg[:, j], style, lw=1, label=f"{name} calibration")
+    for j in range(2):
+        axes[j].set_ylabel(f"joint {j + 1} reference [deg]")
+        axes[j].grid(alpha=0.3)
+        axes[j].legend()
+    axes[1].set_xlabel(f"time [s] (samples every {TRAJECTORY_DT_S} s)")
+    axes[0].set_title("joint reference trajectories before and after (paper Fig. 10)")
+    return _png(fig)
