@@ -33,7 +33,8 @@ from scipy.ndimage import maximum_filter1d
 
 from vision_cal.dataset.session import Sheet
 from vision_cal.measure.mapping import SheetMapping
-from vision_cal.measure.marker_geometry import marker_geometry, marker_side_mm, quiet_boxes_mm
+from vision_cal.measure.marker_geometry import (marker_boxes_mm, marker_geometry, marker_side_mm,
+                                                quiet_boxes_mm)
 
 INK_DARKENING = 0.30      # ink lowers the brightest channel by at least this fraction
 MIN_AREA_RATIO = 0.25     # smaller blobs are noise / paper texture (ignored)
@@ -90,10 +91,9 @@ def noise_sigma_sum(rgb: np.ndarray, mapping: SheetMapping | None = None,
     vals = []
     if mapping is not None and sheet is not None:
         geometry = marker_geometry(sheet)
-        for m in sheet.markers:
-            c = np.asarray(m.corners_mm, float)
-            lo, hi = c.min(axis=0), c.max(axis=0)
-            outer = float(geometry.quiet_mm(marker_side_mm(c))) - 0.8
+        for m, box_mm in zip(sheet.markers, marker_boxes_mm(sheet)):
+            lo, hi = box_mm[:2], box_mm[2:]
+            outer = float(geometry.quiet_mm(marker_side_mm(m.corners_mm))) - 0.8
             inner = 0.8
             if outer <= inner:
                 continue
@@ -151,10 +151,9 @@ def sheet_mask(shape, mapping: SheetMapping, sheet: Sheet, *, border_mm: float =
     paper = np.array([[x0 + b, y0 + b], [x1 - b, y0 + b], [x1 - b, y1 - b], [x0 + b, y1 - b]])
     poly = _polygon(mapping, paper, 24)
     cv2.fillPoly(mask, [np.round(poly * 16).astype(np.int32)], 255, cv2.LINE_8, 4)
-    for m in sheet.markers:
-        c = np.asarray(m.corners_mm, float)
-        q = MARKER_MARGIN_MM  # the quiet zone is blank paper: dots there are measurable
-        lo, hi = c.min(axis=0) - q, c.max(axis=0) + q
+    # the quiet zone is blank paper: dots there are measurable
+    for lo0, lo1, hi0, hi1 in marker_boxes_mm(sheet, MARKER_MARGIN_MM):
+        lo, hi = (lo0, lo1), (hi0, hi1)
         sq = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
         poly = _polygon(mapping, sq, 4)
         cv2.fillPoly(mask, [np.round(poly * 16).astype(np.int32)], 0, cv2.LINE_8, 4)
