@@ -31,24 +31,24 @@ import cv2
 import numpy as np
 from scipy.ndimage import maximum_filter1d
 
+from vision_cal.config import DEFAULT
 from vision_cal.dataset.session import Sheet
 from vision_cal.measure.mapping import SheetMapping
 from vision_cal.measure.marker_geometry import (marker_boxes_mm, marker_geometry, marker_side_mm,
                                                 quiet_boxes_mm)
 
-INK_DARKENING = 0.30      # ink lowers the brightest channel by at least this fraction
-MIN_AREA_RATIO = 0.25     # smaller blobs are noise / paper texture (ignored)
-MAX_AREA_RATIO = 1.9      # above: merged marks or smudge
-HUGE_AREA_RATIO = 6.0     # above: not a pen mark at all (arm, shadow, print)
-MAX_ASPECT = 1.5          # sheet-frame aspect of a single dot
-MIN_SOLIDITY = 0.75
-MARKER_MARGIN_MM = 3.0    # masked around each printed marker square (patch half-size + margin)
-FINE_STEP_MM = 0.05
-DEFAULT_DIAMETER_MM = 1.2
-#: what the centroid cannot resolve of the print and the photo's sampling under a dot (px):
-#: seen as errors that repeat in every photo of a dot on synthetic photos and on the
-#: project's pyrender photos (0.01-0.03 px); added to every dot's covariance
-MODEL_FLOOR_PX = 0.02
+_CFG = DEFAULT.dots
+# the thresholds live (documented) in vision_cal.config.DotConfig
+INK_DARKENING = _CFG.ink_darkening
+MIN_AREA_RATIO = _CFG.min_area_ratio
+MAX_AREA_RATIO = _CFG.max_area_ratio
+HUGE_AREA_RATIO = _CFG.huge_area_ratio
+MAX_ASPECT = _CFG.max_aspect
+MIN_SOLIDITY = _CFG.min_solidity
+MARKER_MARGIN_MM = _CFG.marker_margin_mm
+FINE_STEP_MM = _CFG.fine_step_mm
+DEFAULT_DIAMETER_MM = _CFG.default_diameter_mm
+MODEL_FLOOR_PX = _CFG.model_floor_px
 
 
 def _radii_mm(dia_mm: float, mm_per_px: float) -> tuple[float, float]:
