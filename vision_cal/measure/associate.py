@@ -28,6 +28,8 @@ from vision_cal.calibrate.linear import explain_degeneracy, linear_init
 from vision_cal.config import DEFAULT
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams, forward
+from vision_cal.rms import rms as rms_of
+from vision_cal.rms import rms_2d
 
 
 @dataclass(frozen=True)
@@ -98,7 +100,7 @@ def combine(group: DotGroup, *, common_fraction: float = COMMON_FRACTION
     xy = cov @ np.einsum("nij,nj->i", W, group.xy_mm)
     cov = cov * (1.0 + common_fraction * (n - 1))
     d = group.xy_mm - xy
-    spread = float(np.sqrt(np.mean(np.sum(d**2, axis=1))))
+    spread = rms_2d(d)
     if n > 1:
         chi2 = float(np.einsum("ni,nij,nj->", d, W, d))
         f = chi2 / (2 * (n - 1))
@@ -163,7 +165,7 @@ def _refine(q, dots, allowed, P0, anchors, *, gate0, nominal, max_zero_deg, max_
         params = p
         P = forward(p, q)
         res = np.array([np.hypot(*(P[i] - dots[j])) for i, j in new])
-        rms = float(np.sqrt(np.mean(res**2)))
+        rms = rms_of(res)
         gate_new = max(2.0, 5.0 * rms)
         if new == pairs and gate_new >= gate * 0.99:
             break
@@ -172,7 +174,7 @@ def _refine(q, dots, allowed, P0, anchors, *, gate0, nominal, max_zero_deg, max_
         return None
     P = forward(params, q)
     res = np.array([np.hypot(*(P[i] - dots[j])) for i, j in pairs])
-    return {"pairs": tuple(pairs), "params": params, "rms": float(np.sqrt(np.mean(res**2))),
+    return {"pairs": tuple(pairs), "params": params, "rms": rms_of(res),
             "gate": gate, "P": P}
 
 

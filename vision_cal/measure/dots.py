@@ -36,6 +36,7 @@ from vision_cal.dataset.session import Sheet
 from vision_cal.measure.mapping import SheetMapping
 from vision_cal.measure.marker_geometry import (marker_boxes_mm, marker_geometry, marker_side_mm,
                                                 quiet_boxes_mm)
+from vision_cal.rms import rms
 
 _CFG = DEFAULT.dots
 # the thresholds live (documented) in vision_cal.config.DotConfig
@@ -399,6 +400,6 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     cov_map = mapping.point_cov_mm2(c)[0]
     # what the separable background leaves unexplained, relative to the noise (diagnostic)
     noise_grid = np.sqrt(sw2) / mm_px  # per-sample std of the relative intensity (upper)
-    e_rms = float(np.sqrt(np.mean(resid**2)))
+    e_rms = rms(resid)
     return DotMeasurement(c, cov_noise + cov_map, M_mm2, cov_noise, cov_map,
                           e_rms / noise_grid)
