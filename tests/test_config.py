@@ -24,8 +24,8 @@ def test_calibration_json_says_how_it_was_obtained(paper_folder, tmp_path):
     cfg = replace(DEFAULT, selection=SelectionConfig(alpha=1e-3, k_folds=3, max_effects=1))
     calibrate_dataset(paper_folder, out_dir=tmp_path / "c", config=cfg)
     doc = json.loads((tmp_path / "c" / "calibration.json").read_text())
-    assert doc["config"]["selection"] == {"alpha": 1e-3, "k_folds": 3, "max_effects": 1,
-                                          "outlier_sigma": 5.0}
+    assert doc["config"]["selection"] == dict(DEFAULT.to_json()["selection"], alpha=1e-3,
+                                              k_folds=3, max_effects=1)
     assert doc["diagnosis"]["heldout"] == "3-fold cross-validation"
 
 

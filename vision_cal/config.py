@@ -56,6 +56,9 @@ class SelectionConfig:
     k_folds: int = 5                  # cross-validation folds when < 3 validation marks
     max_effects: int = 4              # effects added at most
     outlier_sigma: float = 5.0        # a mark this many robust sigmas off is left out
+    min_scan_dof: int = 20            # residual dof below which no structure is looked for
+                                      # (unexplained: periodograms need that many)
+    min_sheet_marks: int = 12         # marks below which the sheet map is not tested
 
 
 @dataclass(frozen=True)

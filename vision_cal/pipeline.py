@@ -83,6 +83,45 @@ def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[st
                     np.array(xy, float).reshape(-1, 2), sigma, tuple(roles)), missing
 
 
+def photo_reasons(measurement, *, top: int = 3) -> str:
+    """The most common reasons photos were skipped, counted, with one example each:
+    ``"5 of 6 photos skipped: 4 wrong sheet (img_000.png: wrong sheet: ...), 1 blank image"``.
+    Reasons are grouped by what comes before their first colon."""
+    skipped = [im for im in measurement.images if im.status != "ok"]
+    if not skipped:
+        return ""
+    groups: dict[str, list] = {}
+    for im in skipped:
+        groups.setdefault((im.reason or "no reason").split(":", 1)[0], []).append(im)
+    ranked = sorted(groups.items(), key=lambda kv: -len(kv[1]))
+    parts = [f"{len(ims)} {kind} ({ims[0].file}: {ims[0].reason})" if i == 0 else
+             f"{len(ims)} {kind}" for i, (kind, ims) in enumerate(ranked[:top])]
+    more = f", {len(ranked) - top} other reasons" if len(ranked) > top else ""
+    return (f"{len(skipped)} of {len(measurement.images)} photos skipped: "
+            + ", ".join(parts) + more)
+
+
+def _why_unmeasured(measurement) -> str:
+    """Why photos gave no marks (appended to the "too few marks" error), or ""."""
+    if measurement is None:
+        return ""
+    why = photo_reasons(measurement)
+    ok = [im for im in measurement.images if im.status == "ok"]
+    if ok:
+        dots = sum(im.n_dots for im in ok)
+        rejected: dict[str, int] = {}
+        for im in ok:
+            for k, v in (im.rejected or {}).items():
+                rejected[k] = rejected.get(k, 0) + v
+        top = sorted(rejected.items(), key=lambda kv: -kv[1])[:3]
+        seen = (f"{len(ok)} photo(s) measured found {dots} pen mark(s)"
+                + (" and rejected " + ", ".join(f"{v} {k}" for k, v in top) if top else "")
+                + (f", {len(measurement.unassigned)} not matched to any planned mark"
+                   if measurement.unassigned else ""))
+        why = f"{why}; {seen}" if why else seen
+    return f"; {why}" if why else ""
+
+
 def _paper_std(q, xy, sigma_mm: float) -> tuple[dict, np.ndarray]:
     """Std of the paper's parameters by linear propagation of mark noise ``sigma_mm``,
     and their covariance (6, 6) in internal units."""
@@ -126,7 +165,8 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     cal, val = data.select("calibration"), data.select("validation")
     if len(cal.ids) < 3:
         raise CalibrationError(f"{len(cal.ids)} calibration marks were measured "
-                               f"({len(missing)} missing): at least 3 are needed")
+                               f"({len(missing)} missing): at least 3 are needed"
+                               + _why_unmeasured(measurement), file=str(session.path))
     doc: dict = {"format": "vision-cal/calibration/1", "method": method,
                  "config": config.to_json()}
     diag = paper = None

@@ -33,6 +33,8 @@ from vision_cal.rms import rms, rms_2d
 
 ALPHA = DEFAULT.selection.alpha      # family-wise F-test level (see vision_cal.config)
 K_FOLDS = DEFAULT.selection.k_folds  # cross-validation folds when < 3 validation marks
+MIN_SCAN_DOF = DEFAULT.selection.min_scan_dof        # no structure looked for below
+MIN_SHEET_MARKS = DEFAULT.selection.min_sheet_marks  # no sheet map tested below
 
 
 @dataclass(frozen=True)
@@ -199,7 +201,8 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
     sel, found, nuisance = select_on(everything)
     # the sheet map of what is left once the nuisance harmonics are out
     keep = sel.fit.inliers
-    sheet_map = sheet_scan(xy[keep], sel.fit.residuals_mm[keep])
+    sheet_map = (sheet_scan(xy[keep], sel.fit.residuals_mm[keep])
+                 if keep.sum() >= MIN_SHEET_MARKS else {"p_value": 1.0, "k": 0})
     sheet_alpha = alpha / 2
     if sheet_map["p_value"] < sheet_alpha:
         # neighbouring marks share a residual: select again without the marks there, so
@@ -216,14 +219,16 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
             again = sheet_scan(xy, xy - sel.fit.predict(q, app), n_perm=0)
             sheet_map.update({k: again[k] for k in ("peak_mm", "peak_size_mm",
                                                     "peak_residual_mm", "map")})
+    # the reported model: the selected effects only (a nuisance is reported, not fitted),
+    # on every mark
     effects = tuple(sel.fit.model.effects[len(nuisance):])
-    if nuisance or not everything.all() or len(sel.fit.residuals_mm) != len(q):
+    if nuisance or len(sel.fit.residuals_mm) != len(q):
         zero = RobotModel(base.params, tuple(_at_zero(e) for e in effects))
         current = _fit(zero if effects else None, q, xy, app, sigma, ids)
+        current_held = held(current.model)
+        base_held = held(RobotModel(base.params))
     else:
-        current = sel.fit
-    current_held = held(current.model)
-    base_held = held(RobotModel(base.params))
+        current, current_held, base_held = sel.fit, sel.held, sel.base_held
     accepted = sel.accepted
     # keep only the last round's rejections per label (the final word on each candidate)
     last = {}
@@ -333,6 +338,8 @@ def _unexplained_harmonics(fit: Fit, q, app, sigma, cands, alpha, *, ids=None, x
     offered = {(c.effect.joint, c.effect.harmonic) for c in cands
                if isinstance(c.effect, JointCyclic)}
     out = []
+    if 2 * int(fit.inliers.sum()) - fit.n_params - 2 < MIN_SCAN_DOF:
+        return out          # too few marks to tell a harmonic from the noise
     for _ in range(max_found):
         keep = fit.inliers
         w = None if sigma is None else 1.0 / np.asarray(sigma)[keep]

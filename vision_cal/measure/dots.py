@@ -147,7 +147,7 @@ def sheet_mask(shape, mapping: SheetMapping, sheet: Sheet, *, border_mm: float =
     """uint8 (H, W) 255 where pen marks may be: on the paper, off markers and quiet zones."""
     H, W = shape[:2]
     mask = np.zeros((H, W), np.uint8)
-    x0, y0, x1, y1 = sheet.extent_mm
+    x0, y0, x1, y1 = sheet.search_extent_mm
     b = border_mm
     paper = np.array([[x0 + b, y0 + b], [x1 - b, y0 + b], [x1 - b, y1 - b], [x0 + b, y1 - b]])
     poly = _polygon(mapping, paper, 24)
@@ -167,7 +167,7 @@ def find_candidates(rgb: np.ndarray, mapping: SheetMapping, sheet: Sheet, *,
     channels' maximum and sum are used) with an approximate mapping."""
     dia = float(dia_mm or DEFAULT_DIAMETER_MM)
     H, W = rgb.shape[:2]
-    x0, y0, x1, y1 = sheet.extent_mm
+    x0, y0, x1, y1 = sheet.search_extent_mm
     probe = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1], [(x0 + x1) / 2, (y0 + y1) / 2]])
     mmpp = mapping.mm_per_px(probe)
     dia_px_max = dia / max(float(mmpp.min()), 1e-6)

@@ -88,7 +88,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from vision_cal.dataset.session import _Reader
+from vision_cal.dataset.session import FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import Effect, RobotModel, effect_from_json
@@ -222,8 +222,8 @@ class Scene:
 # ---------------------------------------------------------------------------- reading
 
 
-class _R(_Reader):
-    """The typed reader of session.json (one owner, :class:`vision_cal.dataset.session._Reader`)
+class _R(FieldReader):
+    """The typed reader of session.json (one owner, :class:`vision_cal.dataset.session.FieldReader`)
     with bounded numbers for scene files; every error names the file and the field."""
 
     def number(self, v, where: str, *, lo=None, hi=None, lo_open=False) -> float:

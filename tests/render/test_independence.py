@@ -1,0 +1,49 @@
+"""The synthetic world shares no code with the estimator but the JSON reading.
+
+If the world computed an effect with the estimator's own function (``RobotModel.predict``,
+the kinematics, a calibrator), a convention error there would cancel between the data and
+the fit and no test could see it. render/ and simulate/ may read the format's blocks with
+the estimator's readers (scene.py: ``effect_from_json``, ``ScaraParams``, ``RobotModel``
+for tests that compare the two codes); nothing else from it.
+"""
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2] / "vision_cal"
+ESTIMATOR = ("vision_cal.model", "vision_cal.kinematics", "vision_cal.calibrate",
+             "vision_cal.diagnose", "vision_cal.measure", "vision_cal.pipeline")
+#: (file, module) -> names allowed: reading the format's JSON blocks
+JSON_READING = {("scene.py", "vision_cal.model"): {"Effect", "RobotModel", "effect_from_json"},
+                ("scene.py", "vision_cal.kinematics"): {"ScaraParams"}}
+#: dead code another branch removes (house: fallback_plan); not part of the world
+DEAD_FUNCTIONS = {"fallback_plan"}
+
+
+def _imports(path: Path):
+    tree = ast.parse(path.read_text())
+    dead = [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)
+            and n.name in DEAD_FUNCTIONS]
+    skip = {id(x) for d in dead for x in ast.walk(d)}
+    for node in ast.walk(tree):
+        if id(node) in skip:
+            continue
+        if isinstance(node, ast.ImportFrom) and node.module:
+            yield node.module, {a.name for a in node.names}
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                yield a.name, {a.name}
+
+
+def test_world_imports_nothing_of_the_estimator():
+    bad = []
+    for sub in ("render", "simulate"):
+        for path in sorted((ROOT / sub).glob("*.py")):
+            for module, names in _imports(path):
+                if not module.startswith(ESTIMATOR):
+                    continue
+                allowed = JSON_READING.get((path.name, module), set())
+                if not names <= allowed:
+                    bad.append(f"{sub}/{path.name}: from {module} import "
+                               f"{', '.join(sorted(names - allowed))}")
+    assert not bad, bad
