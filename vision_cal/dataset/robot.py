@@ -83,6 +83,11 @@ class RobotFile:
     overshoot_deg: float = 3.0
     program: ProgramSettings = field(default_factory=ProgramSettings)
 
+    @property
+    def motion(self) -> MotionLimits:
+        return MotionLimits(self.joint_limits_deg, self.speed_limits_deg_s,
+                            self.accel_limits_deg_s2)
+
     def require_pen_heights(self) -> tuple[float, float]:
         """(pen_up_mm, pen_down_mm); a program cannot be written without them."""
         for k in ("pen_up_mm", "pen_down_mm"):
@@ -222,7 +227,7 @@ def load_robot_file(path) -> RobotFile:
     if extra:
         log.warning("%s: ignoring unknown fields %s", path, ", ".join(sorted(map(str, extra))))
     home = nominal.home_deg
-    lims = kw.get("joint_limits_deg", DEFAULT_LIMITS_DEG)
+    lims = kw.get("joint_limits_deg", JOINT_LIMITS_DEG)
     for j in range(2):
         if not lims[j][0] <= home[j] <= lims[j][1]:
             r.fail("home_deg", f"joint {j + 1} at {home[j]:g} deg is outside joint_limits_deg "
