@@ -83,11 +83,6 @@ class RobotFile:
     overshoot_deg: float = 3.0
     program: ProgramSettings = field(default_factory=ProgramSettings)
 
-    @property
-    def motion(self) -> MotionLimits:
-        return MotionLimits(self.joint_limits_deg, self.speed_limits_deg_s,
-                            self.accel_limits_deg_s2)
-
     def require_pen_heights(self) -> tuple[float, float]:
         """(pen_up_mm, pen_down_mm); a program cannot be written without them."""
         for k in ("pen_up_mm", "pen_down_mm"):
