@@ -15,6 +15,7 @@ import numpy as np
 
 from vision_cal.calibrate.lsq import Fit
 from vision_cal.calibrate.paper import paper_method
+from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.io import atomic_write_json, read_json
 from vision_cal.dataset.session import Session, load_session
 from vision_cal.errors import CalibrationError, VisionCalError
@@ -139,24 +140,35 @@ def _paper_std(q, xy, sigma_mm: float) -> tuple[dict, np.ndarray]:
 
 
 def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None = None,
-                      progress: bool = False, truth: bool = False) -> CalibrationRun:
-    """Measure (if needed), calibrate and diagnose a dataset folder; write calibration.json."""
+                      progress: bool = False, truth: bool = False,
+                      config: EstimatorConfig | None = None) -> CalibrationRun:
+    """Measure (if needed), calibrate and diagnose a dataset folder; write calibration.json.
+
+    ``config``: the estimator's thresholds (:mod:`vision_cal.config`; default
+    ``DEFAULT``), recorded in calibration.json's ``config``."""
     if method not in METHODS:
         raise VisionCalError(f"unknown method {method!r} (expected one of {', '.join(METHODS)})")
+    config = config or DEFAULT
+    if (config.dots != DEFAULT.dots
+            or config.selection.outlier_sigma != DEFAULT.selection.outlier_sigma):
+        raise VisionCalError("the dot thresholds and outlier_sigma are fixed at import in this "
+                             "version: change vision_cal.config.DEFAULT", field="config")
     session = load_session(folder)
     out_dir = Path(out_dir)
     measurement = None
     if any(m.measured_mm is None for m in session.marks):
         from vision_cal.measure.batch import measure_folder
 
-        measurement = measure_folder(session, out_dir=out_dir, jobs=jobs, progress=progress)
+        measurement = measure_folder(session, out_dir=out_dir, jobs=jobs, progress=progress,
+                                     association=config.association)
     data, missing = collect_marks(session, measurement)
     cal, val = data.select("calibration"), data.select("validation")
     if len(cal.ids) < 3:
         raise CalibrationError(f"{len(cal.ids)} calibration marks were measured "
                                f"({len(missing)} missing): at least 3 are needed"
                                + _why_unmeasured(measurement), file=str(session.path))
-    doc: dict = {"format": "vision-cal/calibration/1", "method": method}
+    doc: dict = {"format": "vision-cal/calibration/1", "method": method,
+                 "config": config.to_json()}
     diag = paper = None
     nominal = session.robot.params
     if method == "paper":
@@ -185,7 +197,9 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         diag = diagnose(cal.q_deg, cal.xy_mm, cal.approach, sigma_mm=cal.sigma_mm, ids=cal.ids,
                         q_val=val.q_deg if len(val.ids) else None,
                         xy_val=val.xy_mm if len(val.ids) else None,
-                        approach_val=val.approach if len(val.ids) else None)
+                        approach_val=val.approach if len(val.ids) else None,
+                        alpha=config.selection.alpha, k_folds=config.selection.k_folds,
+                        max_effects=config.selection.max_effects)
         fb, ff = diag.base_fit, diag.final_fit
         final_model = ff.model
         has_val = len(val.ids) >= 3

@@ -265,6 +265,37 @@ class FieldReader:
             self.fail(where, "expected a non-empty list")
         return v
 
+    def section(self, obj, where: str, allowed: tuple[str, ...]) -> dict:
+        """An optional mapping (None reads as empty) whose keys must all be ``allowed``."""
+        if obj is None:
+            return {}
+        if not isinstance(obj, dict):
+            self.fail(where, f"expected a mapping, got {type(obj).__name__} {obj!r}")
+        for k in obj:
+            if k not in allowed:
+                name = f"{where}.{k}" if where else str(k)
+                self.fail(name, f"unknown field (expected one of: {', '.join(allowed)})")
+        return obj
+
+    def integer(self, v, where: str, *, lo=None, hi=None) -> int:
+        if isinstance(v, bool) or not isinstance(v, int):
+            self.fail(where, f"expected an integer, got {v!r}")
+        if lo is not None and v < lo:
+            self.fail(where, f"expected an integer >= {lo}, got {v}")
+        if hi is not None and v > hi:
+            self.fail(where, f"expected an integer <= {hi}, got {v}")
+        return int(v)
+
+    def boolean(self, v, where: str) -> bool:
+        if not isinstance(v, bool):
+            self.fail(where, f"expected true or false, got {v!r}")
+        return v
+
+    def choice(self, v, where: str, options: tuple[str, ...]) -> str:
+        if v not in options:
+            self.fail(where, f"expected one of {', '.join(options)}, got {v!r}")
+        return v
+
 
 _Reader = FieldReader
 

@@ -31,6 +31,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from vision_cal.config import DEFAULT, AssociationConfig
 from vision_cal.dataset import photos
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.session import Session, load_session
@@ -469,12 +470,13 @@ def _pool_initializer(parent_pid: int) -> None:
 
 
 def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
-                   progress=None) -> Measurement:
+                   progress=None, association: AssociationConfig | None = None) -> Measurement:
     """Measure every photo of a dataset folder and every pen mark on the sheet.
 
     ``session``: a :class:`Session` or a folder. ``out_dir``: where results go (never the
     input folder); the cache defaults to ``out_dir/.cache``. ``jobs``: worker processes
     (default ``os.cpu_count()``; 1 runs in this process). ``progress``: a tqdm bar on stderr.
+    ``association``: grouping and matching thresholds (default ``vision_cal.config``).
     Without ``images`` in session.json every photo in the folder is measured and which
     marks each shows is inferred (:mod:`vision_cal.measure.infer`).
     """
@@ -601,8 +603,10 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
     # stage 3: association
     idx_ok = [i for i, r in enumerate(images) if r.status == "ok"]
     per_image = [(i, images[i].dots_xy_mm, images[i].dots_cov_mm2) for i in idx_ok]
-    dia = session.pen_mark_diameter_mm or 1.2
-    groups = assoc.group_dots(per_image, tol_mm=max(0.4 * dia, 0.3))
+    ac = association or DEFAULT.association
+    dia = session.pen_mark_diameter_mm or DEFAULT.dots.default_diameter_mm
+    groups = assoc.group_dots(per_image, tol_mm=max(ac.group_tol_diameters * dia,
+                                                    ac.group_tol_min_mm))
     mark_ids = [m.id for m in session.marks]
     if session.images_listed:
         image_marks = [tuple(ph.listed_marks) for ph in items]
@@ -617,14 +621,15 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                             "repeated or unreadable): see images[].reason")
     mark_images = [{i for i in idx_ok if m.id in image_marks[i]} for m in session.marks]
     a = assoc.associate(session.joints_deg, mark_ids, mark_images, groups,
-                        session.robot.params)
+                        session.robot.params, max_zero_deg=ac.max_zero_deg,
+                        max_base_mm=ac.max_base_mm)
     warnings.extend(a.warnings)
     marks = {}
     used = set()
     for mid, gi in a.mark_to_group.items():
         g = groups[gi]
         used.add(gi)
-        xy, cov, spread = assoc.combine(g)
+        xy, cov, spread = assoc.combine(g, common_fraction=ac.common_fraction)
         marks[mid] = MarkMeasurement(xy, cov, len(g.images), spread, a.how.get(mid, "model"),
                                      tuple(files[k] for k in g.images))
     unassigned = [{"xy_mm": g.mean_mm.tolist(),
