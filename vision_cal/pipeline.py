@@ -15,6 +15,7 @@ import numpy as np
 
 from vision_cal.calibrate.lsq import Fit
 from vision_cal.calibrate.paper import paper_method
+from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.io import atomic_write_json, read_json
 from vision_cal.dataset.session import Session, load_session
 from vision_cal.errors import CalibrationError, VisionCalError
@@ -82,6 +83,45 @@ def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[st
                     np.array(xy, float).reshape(-1, 2), sigma, tuple(roles)), missing
 
 
+def photo_reasons(measurement, *, top: int = 3) -> str:
+    """The most common reasons photos were skipped, counted, with one example each:
+    ``"5 of 6 photos skipped: 4 wrong sheet (img_000.png: wrong sheet: ...), 1 blank image"``.
+    Reasons are grouped by what comes before their first colon."""
+    skipped = [im for im in measurement.images if im.status != "ok"]
+    if not skipped:
+        return ""
+    groups: dict[str, list] = {}
+    for im in skipped:
+        groups.setdefault((im.reason or "no reason").split(":", 1)[0], []).append(im)
+    ranked = sorted(groups.items(), key=lambda kv: -len(kv[1]))
+    parts = [f"{len(ims)} {kind} ({ims[0].file}: {ims[0].reason})" if i == 0 else
+             f"{len(ims)} {kind}" for i, (kind, ims) in enumerate(ranked[:top])]
+    more = f", {len(ranked) - top} other reasons" if len(ranked) > top else ""
+    return (f"{len(skipped)} of {len(measurement.images)} photos skipped: "
+            + ", ".join(parts) + more)
+
+
+def _why_unmeasured(measurement) -> str:
+    """Why photos gave no marks (appended to the "too few marks" error), or ""."""
+    if measurement is None:
+        return ""
+    why = photo_reasons(measurement)
+    ok = [im for im in measurement.images if im.status == "ok"]
+    if ok:
+        dots = sum(im.n_dots for im in ok)
+        rejected: dict[str, int] = {}
+        for im in ok:
+            for k, v in (im.rejected or {}).items():
+                rejected[k] = rejected.get(k, 0) + v
+        top = sorted(rejected.items(), key=lambda kv: -kv[1])[:3]
+        seen = (f"{len(ok)} photo(s) measured found {dots} pen mark(s)"
+                + (" and rejected " + ", ".join(f"{v} {k}" for k, v in top) if top else "")
+                + (f", {len(measurement.unassigned)} not matched to any planned mark"
+                   if measurement.unassigned else ""))
+        why = f"{why}; {seen}" if why else seen
+    return f"; {why}" if why else ""
+
+
 def _paper_std(q, xy, sigma_mm: float) -> tuple[dict, np.ndarray]:
     """Std of the paper's parameters by linear propagation of mark noise ``sigma_mm``,
     and their covariance (6, 6) in internal units."""
@@ -100,23 +140,35 @@ def _paper_std(q, xy, sigma_mm: float) -> tuple[dict, np.ndarray]:
 
 
 def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None = None,
-                      progress: bool = False, truth: bool = False) -> CalibrationRun:
-    """Measure (if needed), calibrate and diagnose a dataset folder; write calibration.json."""
+                      progress: bool = False, truth: bool = False,
+                      config: EstimatorConfig | None = None) -> CalibrationRun:
+    """Measure (if needed), calibrate and diagnose a dataset folder; write calibration.json.
+
+    ``config``: the estimator's thresholds (:mod:`vision_cal.config`; default
+    ``DEFAULT``), recorded in calibration.json's ``config``."""
     if method not in METHODS:
         raise VisionCalError(f"unknown method {method!r} (expected one of {', '.join(METHODS)})")
+    config = config or DEFAULT
+    if (config.dots != DEFAULT.dots
+            or config.selection.outlier_sigma != DEFAULT.selection.outlier_sigma):
+        raise VisionCalError("the dot thresholds and outlier_sigma are fixed at import in this "
+                             "version: change vision_cal.config.DEFAULT", field="config")
     session = load_session(folder)
     out_dir = Path(out_dir)
     measurement = None
     if any(m.measured_mm is None for m in session.marks):
         from vision_cal.measure.batch import measure_folder
 
-        measurement = measure_folder(session, out_dir=out_dir, jobs=jobs, progress=progress)
+        measurement = measure_folder(session, out_dir=out_dir, jobs=jobs, progress=progress,
+                                     association=config.association)
     data, missing = collect_marks(session, measurement)
     cal, val = data.select("calibration"), data.select("validation")
     if len(cal.ids) < 3:
         raise CalibrationError(f"{len(cal.ids)} calibration marks were measured "
-                               f"({len(missing)} missing): at least 3 are needed")
-    doc: dict = {"format": "vision-cal/calibration/1", "method": method}
+                               f"({len(missing)} missing): at least 3 are needed"
+                               + _why_unmeasured(measurement), file=str(session.path))
+    doc: dict = {"format": "vision-cal/calibration/1", "method": method,
+                 "config": config.to_json()}
     diag = paper = None
     nominal = session.robot.params
     if method == "paper":
@@ -161,6 +213,8 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                         q_val=val.q_deg if len(val.ids) else None,
                         xy_val=val.xy_mm if len(val.ids) else None,
                         approach_val=val.approach if len(val.ids) else None,
+                        alpha=config.selection.alpha, k_folds=config.selection.k_folds,
+                        max_effects=config.selection.max_effects,
                         candidates=cands)
         fb, ff = diag.base_fit, diag.final_fit
         final_model = ff.model

@@ -25,6 +25,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from vision_cal.calibrate.linear import explain_degeneracy, linear_init
+from vision_cal.config import DEFAULT
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import RobotModel
@@ -56,7 +57,7 @@ class Fit:
     @classmethod
     def from_estimate(cls, q_deg, xy_mm, *, approach=None, model: RobotModel | None = None,
                       sigma_mm=None, ids=None, robust: bool = True,
-                      outlier_sigma: float = 5.0) -> "Fit":
+                      outlier_sigma: float = DEFAULT.selection.outlier_sigma) -> "Fit":
         q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
         xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
         n = len(q)

@@ -24,16 +24,17 @@ import numpy as np
 from scipy import stats
 
 from vision_cal.calibrate.lsq import Fit
+from vision_cal.config import DEFAULT
 from vision_cal.diagnose.candidates import Candidate, default_candidates, joint_residuals_deg
 from vision_cal.diagnose.structure import harmonic_scan, sheet_scan
 from vision_cal.errors import CalibrationError
 from vision_cal.model import JointCyclic, RobotModel, SheetAffine
 from vision_cal.rms import rms, rms_2d
 
-ALPHA = 0.01   # family-wise level of the F-test, split over the candidates (Bonferroni)
-K_FOLDS = 5    # cross-validation folds when there are fewer than 3 validation marks
-MIN_SCAN_DOF = 20   # residual dof below which no structure is looked for (unexplained)
-MIN_SHEET_MARKS = 12  # marks below which the sheet map is not tested
+ALPHA = DEFAULT.selection.alpha      # family-wise F-test level (see vision_cal.config)
+K_FOLDS = DEFAULT.selection.k_folds  # cross-validation folds when < 3 validation marks
+MIN_SCAN_DOF = DEFAULT.selection.min_scan_dof        # no structure looked for below
+MIN_SHEET_MARKS = DEFAULT.selection.min_sheet_marks  # no sheet map tested below
 
 
 @dataclass(frozen=True)
@@ -146,7 +147,7 @@ def residual_analysis(fit: Fit, q, app, *, n_bins: int = 6) -> dict:
 
 def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None, xy_val=None,
              approach_val=None, candidates: list[Candidate] | None = None, alpha: float = ALPHA,
-             k_folds: int = K_FOLDS, max_effects: int = 4, rng=None) -> Diagnosis:
+             k_folds: int = K_FOLDS, max_effects: int = DEFAULT.selection.max_effects, rng=None) -> Diagnosis:
     """Calibrate the base model, then add the effects the residual asks for."""
     q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
     xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
@@ -218,14 +219,16 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
             again = sheet_scan(xy, xy - sel.fit.predict(q, app), n_perm=0)
             sheet_map.update({k: again[k] for k in ("peak_mm", "peak_size_mm",
                                                     "peak_residual_mm", "map")})
+    # the reported model: the selected effects only (a nuisance is reported, not fitted),
+    # on every mark
     effects = tuple(sel.fit.model.effects[len(nuisance):])
-    if nuisance or not everything.all() or len(sel.fit.residuals_mm) != len(q):
+    if nuisance or len(sel.fit.residuals_mm) != len(q):
         zero = RobotModel(base.params, tuple(_at_zero(e) for e in effects))
         current = _fit(zero if effects else None, q, xy, app, sigma, ids)
+        current_held = held(current.model)
+        base_held = held(RobotModel(base.params))
     else:
-        current = sel.fit
-    current_held = held(current.model)
-    base_held = held(RobotModel(base.params))
+        current, current_held, base_held = sel.fit, sel.held, sel.base_held
     accepted = sel.accepted
     # keep only the last round's rejections per label (the final word on each candidate)
     last = {}

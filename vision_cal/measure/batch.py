@@ -31,6 +31,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from vision_cal.config import DEFAULT, AssociationConfig
 from vision_cal.dataset import photos
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.session import Session, load_session
@@ -40,8 +41,9 @@ from vision_cal.measure.aruco import (MIN_MARKERS, corners_from_edges, edge_poin
                                      find_sheet_markers)
 from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerprint
 from vision_cal.measure.infer import infer_image_marks
-from vision_cal.measure.marker_geometry import marker_geometry
+from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.measure.dots import DotCandidates, blank_regions, find_candidates, refine_dot
+from vision_cal.measure.sheetfit import MISFIT, corner_tolerance_mm, misfit_reason
 from vision_cal.measure.mapping import (LensEstimate, distort_px, estimate_lens, fit_mapping,
                                        undistort_px)
 
@@ -401,8 +403,16 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
         return ImageResult(det.file, det.status, det.reason, n_markers=len(det.marker_ids),
                            size_px=det.size_px, from_cache=from_cache)
     K, dist = _lens_of(session, lens, det.size_px)
-    m = fit_mapping(det.corners_mm.reshape(-1, 2), det.corners_for(K, dist).reshape(-1, 2),
-                    K=K, dist=dist)
+    corners_px = det.corners_for(K, dist)
+    m = fit_mapping(det.corners_mm.reshape(-1, 2), corners_px.reshape(-1, 2), K=K, dist=dist)
+    tol = corner_tolerance_mm(det.corners_mm,
+                              float(np.median(m.mm_per_px(det.corners_mm.mean(axis=1)))))
+    if not m.corner_rms_mm <= tol:  # the markers do not fit the declared sheet
+        return ImageResult(det.file, "skipped",
+                           misfit_reason(det.corners_mm, corners_px, m.corner_rms_mm, tol),
+                           n_markers=len(det.marker_ids), corner_rms_px=m.corner_rms_px,
+                           corner_rms_mm=m.corner_rms_mm, size_px=det.size_px,
+                           from_cache=from_cache)
     c = det.candidates
     dia = session.pen_mark_diameter_mm
     xy0 = m.image_to_sheet(c.uv_px) if len(c.uv_px) else np.zeros((0, 2))
@@ -477,6 +487,19 @@ def _is_inside(a: Path, b: Path) -> bool:
         return False
 
 
+def _check_sheet_fits(session: Session, images: list[ImageResult]) -> None:
+    """Stop when most photos say the markers do not fit the declared sheet: then the sheet
+    is typed wrong (corner order, marker size, dictionary), not the photos bad."""
+    misfit = [r for r in images if r.status != "ok" and (r.reason or "").startswith(MISFIT)]
+    if not misfit or 2 * len(misfit) <= len(images):
+        return
+    typical = sorted(misfit, key=lambda r: r.corner_rms_mm)[len(misfit) // 2]
+    raise VisionCalError(f"the markers do not fit the declared sheet in {len(misfit)} of "
+                         f"{len(images)} photos ({typical.file}: "
+                         f"{typical.reason[len(MISFIT) + 2:]})",
+                         file=str(session.path), field="sheet.markers")
+
+
 @dataclass
 class _Photo:
     """One photo before stage 1: its name, and what the parent learnt from its header."""
@@ -486,6 +509,7 @@ class _Photo:
     det: ImageDetections | None = None
     sha256: str | None = None
     captured: object = None
+    pixels: int = 0
     key: str | None = None
     cached: bool = False
 
@@ -506,6 +530,7 @@ def _check_photo(ph: _Photo, root: Path, session: Session) -> None:
         return
     ph.sha256 = hashlib.sha256(data).hexdigest()
     ph.captured = header.captured
+    ph.pixels = header.stored_px[0] * header.stored_px[1]
 
 
 def _capture_order(items: list[_Photo], warnings: list) -> list[_Photo]:
@@ -523,6 +548,20 @@ def _capture_order(items: list[_Photo], warnings: list) -> list[_Photo]:
     return items
 
 
+#: pixels decoded at once over all workers: each photo is at most ``photos.MAX_PIXELS``
+#: (100 MP), and the workers together may not multiply that by more than two
+MAX_PIXELS_IN_FLIGHT = 2 * photos.MAX_PIXELS
+
+
+def jobs_for(jobs: int, pixels) -> int:
+    """Worker count for photos of ``pixels`` each (from their headers): ``jobs``, reduced
+    so that the largest photos decoded at once stay within :data:`MAX_PIXELS_IN_FLIGHT`."""
+    biggest = max(pixels, default=0)
+    if biggest <= 0:
+        return max(1, jobs)
+    return max(1, min(jobs, MAX_PIXELS_IN_FLIGHT // biggest))
+
+
 def _pool_initializer(parent_pid: int) -> None:
     from vision_cal.measure.workers import exit_with_parent
 
@@ -530,12 +569,13 @@ def _pool_initializer(parent_pid: int) -> None:
 
 
 def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
-                   progress=None) -> Measurement:
+                   progress=None, association: AssociationConfig | None = None) -> Measurement:
     """Measure every photo of a dataset folder and every pen mark on the sheet.
 
     ``session``: a :class:`Session` or a folder. ``out_dir``: where results go (never the
     input folder); the cache defaults to ``out_dir/.cache``. ``jobs``: worker processes
     (default ``os.cpu_count()``; 1 runs in this process). ``progress``: a tqdm bar on stderr.
+    ``association``: grouping and matching thresholds (default ``vision_cal.config``).
     Without ``images`` in session.json every photo in the folder is measured and which
     marks each shows is inferred (:mod:`vision_cal.measure.infer`).
     """
@@ -551,6 +591,7 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                              "(photos are never written to)", file=str(out_dir))
     cache = DetectionCache(Path(cache_dir) if cache_dir else out_dir / ".cache")
     warnings: list[str] = []
+    notes: list[str] = []  # no images list: what the user should see on the console
 
     try:
         present = photos.list_photos(root)
@@ -569,17 +610,24 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
             log.warning(msg)
             warnings.append(msg)
     else:
+        unread = photos.list_unread(root)
+        conv = (f"; {len(unread)} file(s) of a format not read ({unread[0]}"
+                f"{', ...' if len(unread) > 1 else ''}): convert them to JPEG or PNG"
+                if unread else "")
         if not present:
             raise VisionCalError("no photos: session.json has no images list and the folder "
                                  f"has no {'/'.join(s[1:] for s in photos.PHOTO_SUFFIXES)} "
-                                 "file", file=str(session.path), field="images")
+                                 f"file{conv}", file=str(session.path), field="images")
+        if unread:
+            notes.append(conv[2:])
         items = [_Photo(f, None) for f in present]
 
     # checked in this process before anything is decoded or dispatched
     for ph in items:
         _check_photo(ph, root, session)
     if not session.images_listed:
-        items = _capture_order(items, warnings)
+        items = _capture_order(items, notes)
+        warnings.extend(notes)
     first_of: dict[str, str] = {}
     for ph in items:
         if ph.det is None and ph.sha256 in first_of:
@@ -601,6 +649,12 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
         else:
             todo.append(i)
     jobs = int(jobs or os.cpu_count() or 1)
+    n_jobs = jobs_for(jobs, [items[i].pixels for i in todo])
+    if n_jobs < jobs and len(todo) > 1:
+        warnings.append(f"{n_jobs} worker(s) instead of {jobs}: photos of up to "
+                        f"{max(items[i].pixels for i in todo) / 1e6:.0f} MP, at most "
+                        f"{MAX_PIXELS_IN_FLIGHT / 1e6:.0f} MP are decoded at once")
+    jobs = n_jobs
     bar = None
     if progress:
         from tqdm import tqdm
@@ -643,12 +697,15 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                 warnings.append(f"photos of {len(sizes)} image sizes: a lens is estimated only "
                                 f"for {size[0]}x{size[1]} px")
     images = [finish_image(d, session, lens, from_cache=c) for d, c in zip(dets, cached)]
+    _check_sheet_fits(session, images)
 
     # stage 3: association
     idx_ok = [i for i, r in enumerate(images) if r.status == "ok"]
     per_image = [(i, images[i].dots_xy_mm, images[i].dots_cov_mm2) for i in idx_ok]
-    dia = session.pen_mark_diameter_mm or 1.2
-    groups = assoc.group_dots(per_image, tol_mm=max(0.4 * dia, 0.3))
+    ac = association or DEFAULT.association
+    dia = session.pen_mark_diameter_mm or DEFAULT.dots.default_diameter_mm
+    groups = assoc.group_dots(per_image, tol_mm=max(ac.group_tol_diameters * dia,
+                                                    ac.group_tol_min_mm))
     mark_ids = [m.id for m in session.marks]
     if session.images_listed:
         image_marks = [tuple(ph.listed_marks) for ph in items]
@@ -663,14 +720,15 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                             "repeated or unreadable): see images[].reason")
     mark_images = [{i for i in idx_ok if m.id in image_marks[i]} for m in session.marks]
     a = assoc.associate(session.joints_deg, mark_ids, mark_images, groups,
-                        session.robot.params)
+                        session.robot.params, max_zero_deg=ac.max_zero_deg,
+                        max_base_mm=ac.max_base_mm)
     warnings.extend(a.warnings)
     marks = {}
     used = set()
     for mid, gi in a.mark_to_group.items():
         g = groups[gi]
         used.add(gi)
-        xy, cov, spread = assoc.combine(g)
+        xy, cov, spread = assoc.combine(g, common_fraction=ac.common_fraction)
         refs = [images[k].dots_reference[j] for k, j in zip(g.images, g.dot_index)]
         ref = refs[0] if len(set(refs)) == 1 else "mixed"
         offs = np.array([images[k].dots_grid_offset_mm[j] for k, j in zip(g.images, g.dot_index)])
@@ -718,7 +776,7 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                 np.array([images[k].dots_global_xy_mm[j] for k, j in zip(g.images, g.dot_index)]),
                 np.array([images[k].dots_global_cov_mm2[j]
                           for k, j in zip(g.images, g.dot_index)]), g.images, g.dot_index)
-            xy, cov, spread = assoc.combine(gg)
+            xy, cov, spread = assoc.combine(gg, common_fraction=ac.common_fraction)
             marks[mid] = replace(mm, xy_mm=xy, cov_mm2=cov, spread_mm=spread,
                                  reference="markers (sheet flat)")
     for r in images:
@@ -726,7 +784,7 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
             log.info("skipped %s: %s", r.file, r.reason)
     meas = Measurement(marks, images, lens, unassigned, refused, warnings,
                        tuple(image_marks), None if inferred is None else inferred.mode,
-                       () if inferred is None else tuple(inferred.warnings),
+                       () if inferred is None else (*notes, *inferred.warnings),
                        heights, hmap, hnote)
     atomic_write_json(out_dir / "measurement.json", meas.to_json())
     return meas
