@@ -41,7 +41,7 @@ from vision_cal.measure.aruco import (MIN_MARKERS, corners_from_edges, edge_poin
                                      find_sheet_markers)
 from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerprint
 from vision_cal.measure.infer import infer_image_marks
-from vision_cal.measure.marker_geometry import marker_geometry
+from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.measure.dots import DotCandidates, blank_regions, find_candidates, refine_dot
 from vision_cal.measure.sheetfit import MISFIT, corner_tolerance_mm, misfit_reason
 from vision_cal.measure.mapping import (LensEstimate, distort_px, estimate_lens, fit_mapping,

@@ -237,7 +237,7 @@ def lens_effect(scene: Scene) -> dict | None:
 
 def marks_on_markers(world: WorldMarks, sheet, *, pad_mm: float = 0.0) -> list[str]:
     """Ids of the marks that landed on a printed ArUco square (grown by ``pad_mm``)."""
-    from vision_cal.measure.marker_geometry import marker_boxes_mm
+    from vision_cal.dataset.marker_geometry import marker_boxes_mm
 
     on = np.zeros(len(world.ids), dtype=bool)
     for box in marker_boxes_mm(sheet, pad_mm):
