@@ -4,8 +4,8 @@ If the world computed an effect with the estimator's own function (``RobotModel.
 the kinematics, a calibrator), a convention error there would cancel between the data and
 the fit and no test could see it. render/ and simulate/ may read the format's blocks with
 the estimator's readers (scene.py: ``effect_from_json``, ``ScaraParams``, ``RobotModel``
-for tests that compare the two codes) and take the printed markers' boxes from the sheet
-geometry's one owner; nothing else from it.
+for tests that compare the two codes); nothing else from it (the sheet geometry,
+vision_cal.dataset.marker_geometry, belongs to the sheet description, not the estimator).
 """
 
 import ast
@@ -16,10 +16,7 @@ ESTIMATOR = ("vision_cal.model", "vision_cal.kinematics", "vision_cal.calibrate"
              "vision_cal.diagnose", "vision_cal.measure", "vision_cal.pipeline")
 #: (file, module) -> names allowed: reading the format's JSON blocks
 JSON_READING = {("scene.py", "vision_cal.model"): {"Effect", "RobotModel", "effect_from_json"},
-                ("scene.py", "vision_cal.kinematics"): {"ScaraParams"},
-                # where the printed markers are (the sheet description's geometry, one
-                # owner), for truth.json's on_marker list; not an effect
-                ("dataset.py", "vision_cal.measure.marker_geometry"): {"marker_boxes_mm"}}
+                ("scene.py", "vision_cal.kinematics"): {"ScaraParams"}}
 
 
 def _imports(path: Path):
