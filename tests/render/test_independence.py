@@ -4,7 +4,8 @@ If the world computed an effect with the estimator's own function (``RobotModel.
 the kinematics, a calibrator), a convention error there would cancel between the data and
 the fit and no test could see it. render/ and simulate/ may read the format's blocks with
 the estimator's readers (scene.py: ``effect_from_json``, ``ScaraParams``, ``RobotModel``
-for tests that compare the two codes); nothing else from it.
+for tests that compare the two codes); nothing else from it (the sheet geometry,
+vision_cal.dataset.marker_geometry, belongs to the sheet description, not the estimator).
 """
 
 import ast
