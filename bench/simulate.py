@@ -100,7 +100,7 @@ def main():
               f"{fmt(r.tracking_max_deg)} deg; settle residual max "
               f"{fmt(np.abs(r.settle_residual_deg).max(axis=0))} deg; extra settle wait mean "
               f"{r.settle_extra_s.mean():.3f} s max {r.settle_extra_s.max():.3f} s; arrivals as "
-              f"planned {int(np.all(r.arrival_sign == s, axis=1).sum())}/{len(plan)}; link off "
+              f"planned {int(np.all(r.approach == s, axis=1).sum())}/{len(plan)}; link off "
               f"the lagging flank max {fmt(link_err)} deg")
 
 

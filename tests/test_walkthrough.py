@@ -105,21 +105,6 @@ def photograph(folder: Path, sheet_dir: Path, world, photographer, rng, *, n: in
     return files
 
 
-def list_images_if_needed(folder: Path, files: list[str]) -> None:
-    """Until session.json may leave `images` out (the photos branch), list them."""
-    from vision_cal.dataset.session import load_session
-    from vision_cal.errors import VisionCalError
-
-    try:
-        load_session(folder)
-        return
-    except VisionCalError:
-        pass
-    s = json.loads((folder / "session.json").read_text())
-    s["images"] = [{"file": f, "marks": [m["id"] for m in s["marks"]]} for f in files]
-    (folder / "session.json").write_text(json.dumps(s))
-
-
 @pytest.fixture(scope="module")
 def walkthrough(tmp_path_factory):
     from vision_cal.dataset.csvio import read_plan, read_targets, write_targets
@@ -143,8 +128,7 @@ def walkthrough(tmp_path_factory):
     cli("design", ROBOT, "--sheet", sheet_dir / "sheet.json", "--out", tmp / "pilot", "-q")
     stage("design pilot")
     pilot_world = draw(tmp / "pilot" / "program.prg", rng)
-    files = photograph(tmp / "pilot", sheet_dir, pilot_world, photographer, rng, n=2)
-    list_images_if_needed(tmp / "pilot", files)
+    photograph(tmp / "pilot", sheet_dir, pilot_world, photographer, rng, n=2)
     stage("draw + photograph pilot")
     cli(tmp / "pilot", "--out", tmp / "pilot_cal", "-q")
     stage("calibrate pilot")
@@ -153,9 +137,8 @@ def walkthrough(tmp_path_factory):
     stage("design informative")
     world = draw(tmp / "plan" / "program.prg", rng)
     # the same sheet, not moved: the pilot's marks are on it too
-    files = photograph(tmp / "plan", sheet_dir, world, photographer, rng, n=3,
-                       also_xy_mm=pilot_world.xy_mm)
-    list_images_if_needed(tmp / "plan", files)
+    photograph(tmp / "plan", sheet_dir, world, photographer, rng, n=3,
+               also_xy_mm=pilot_world.xy_mm)
     stage("draw + photograph plan")
     cli(tmp / "plan", "--out", tmp / "cal", "--report", "-q")
     stage("calibrate --report")
@@ -206,3 +189,9 @@ def test_every_photo_was_used_and_the_backlash_found(walkthrough):
     assert all(im["status"] == "ok" for im in cal["images"])
     assert any(e["name"] == "joint_backlash" and e["joint"] == 2 for e in cal["effects"])
     assert (walkthrough["tmp"] / "cal" / "report.html").exists()
+    # nobody wrote an image list: the photos were found in the folder
+    for folder in ("pilot", "plan"):
+        s = json.loads((walkthrough["tmp"] / folder / "session.json").read_text())
+        assert "images" not in s
+    assert [im["file"] for im in cal["images"]] == ["IMG_0001.png", "IMG_0002.png",
+                                                    "IMG_0003.png"]

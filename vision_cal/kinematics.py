@@ -24,8 +24,6 @@ import numpy as np
 
 from vision_cal.errors import VisionCalError
 
-PARAM_NAMES = ("L1_mm", "L2_mm", "z1_deg", "z2_deg", "base_x_mm", "base_y_mm")
-
 
 @dataclass(frozen=True)
 class ScaraParams:

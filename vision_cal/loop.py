@@ -20,6 +20,7 @@ The errors come from the photographs, not from the simulator.
 
 from __future__ import annotations
 
+import base64
 import logging
 import os
 from dataclasses import replace
@@ -31,6 +32,7 @@ from vision_cal.dataset.csvio import write_plan, write_targets
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import ScaraParams, inverse
+from vision_cal.rms import rms
 
 log = logging.getLogger(__name__)
 
@@ -40,10 +42,10 @@ def default_targets(sheet, params: ScaraParams, *, n_grid: int = 20, n_path: int
     """Ids and sheet points (N, 2): the origin, a grid over the reachable free paper, and a
     short path (an arc of ``n_path`` points) - all clear of markers and edges."""
     from vision_cal.plan.calibration_plan import sheet_clearance_mm
-    from vision_cal.plan.compensate import DEFAULT_LIMITS_DEG
+    from vision_cal.motion import JOINT_LIMITS_DEG
 
     rng = np.random.default_rng(0 if rng is None else rng)
-    lim = np.array(DEFAULT_LIMITS_DEG) * 0.95  # a margin for the effects and the overshoot
+    lim = np.array(JOINT_LIMITS_DEG) * 0.95  # a margin for the effects and the overshoot
     x0, y0, x1, y1 = sheet.extent_mm
 
     def usable(p):
@@ -113,7 +115,6 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
              elbow: int = 1, photographer=None):
     """Run the closed loop for a scene file; writes ``DIR/loop.json`` and returns
     ``(loop document, CalibrationRun)``."""
-    from vision_cal.dataset.calibration import load_calibration
     from vision_cal.dataset.session import load_session
     from vision_cal.measure.batch import measure_folder
     from vision_cal.model import RobotModel
@@ -144,8 +145,8 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
     if progress:
         stage_line("measure + calibrate + diagnose", stages["measure + calibrate + diagnose"],
                    n=len(run.document.get("marks", {})), unit="mark")
-    calibrated, _ = load_calibration(run.out_path)
-    nominal = RobotModel(load_session(session_dir).robot.params)
+    calibrated = run.model                      # kept in memory, not read back
+    nominal = RobotModel(run.session.robot.params)
     sheet = run.session.sheet
     ids, xy = default_targets(sheet, calibrated.params, elbow=elbow)
     write_targets(out / "targets.csv", ids, xy)
@@ -186,6 +187,8 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
             else:
                 res[p.id] = {"status": "not found",
                              "reason": landing_note(sheet, calibrated, p)}
+            if p.status == "ok":
+                res[p.id].update(q_deg=list(p.q_deg), approach=list(p.approach))
         results[name] = res
     rows = []
     for tid in ids:
@@ -202,71 +205,26 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
         "summary": {
             "n_targets": len(rows),
             "before": {"n_measured": int(len(before)),
-                       "rms_mm": float(np.sqrt(np.mean(before**2))) if len(before) else None,
+                       "rms_mm": rms(before) if len(before) else None,
                        "max_mm": float(before.max()) if len(before) else None},
             "after": {"n_measured": int(len(after)),
-                      "rms_mm": float(np.sqrt(np.mean(after**2))) if len(after) else None,
+                      "rms_mm": rms(after) if len(after) else None,
                       "max_mm": float(after.max()) if len(after) else None},
         },
         "stages_s": stages,
         "controller": controller,
         "calibration": str(run.out_path),
+        "home_deg": [float(v) for v in run.session.robot.home_deg],
     }
     if progress:
         stage_line("loop", sum(stages.values()), note="; ".join(
             f"{k} {v:.1f} s" for k, v in stages.items()))
-    _figures(doc, plans, targets, results, out)
+    from vision_cal.report.plots import loop_joints, loop_paths
+
+    doc["paths_png"] = base64.b64encode(loop_paths(doc)).decode("ascii")
+    doc["joints_png"] = base64.b64encode(loop_joints(doc)).decode("ascii")
     atomic_write_json(out / "loop.json", doc)
     return doc, run
-
-
-def _figures(doc, plans, targets, results, out: Path) -> None:
-    """Fig. 8-10 of the paper: paths on the sheet and joint trajectories, before/after."""
-    import base64
-    import io
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from vision_cal.plan.compensate import to_planned_marks
-    from vision_cal.plan.trajectory import plan_trajectory
-
-    fig, ax = plt.subplots(figsize=(9, 6.5), layout="constrained")
-    t = np.array(list(targets.values()))
-    ax.plot(t[:, 0], t[:, 1], "k+", ms=9, label="targets")
-    for name, color in (("before", "tab:red"), ("after", "tab:green")):
-        pts = np.array([r["measured_mm"] for r in results[name].values() if "measured_mm" in r])
-        if len(pts):
-            ax.plot(pts[:, 0], pts[:, 1], "o", mfc="none", color=color,
-                    label=f"measured marks, {name} calibration")
-    ax.set_aspect("equal")
-    ax.set_xlabel("sheet x [mm]")
-    ax.set_ylabel("sheet y [mm]")
-    ax.legend()
-    ax.grid(alpha=0.3)
-    ax.set_title("targets and where the pen really went (paper Fig. 8-9)")
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    plt.close(fig)
-    doc["paths_png"] = base64.b64encode(buf.getvalue()).decode("ascii")
-
-    fig, axes = plt.subplots(2, 1, figsize=(9, 6), layout="constrained", sharex=True)
-    for name, style in (("before", "--"), ("after", "-")):
-        tr = plan_trajectory(to_planned_marks(plans[name]))
-        for j in range(2):
-            axes[j].plot(tr.t_s, tr.q_deg[:, j], style, lw=1, label=f"{name} calibration")
-    for j in range(2):
-        axes[j].set_ylabel(f"joint {j + 1} reference [deg]")
-        axes[j].grid(alpha=0.3)
-        axes[j].legend()
-    axes[1].set_xlabel("time [s] (samples every 0.016 s)")
-    axes[0].set_title("joint reference trajectories before and after (paper Fig. 10)")
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    plt.close(fig)
-    doc["joints_png"] = base64.b64encode(buf.getvalue()).decode("ascii")
 
 
 def format_table(doc: dict) -> str:

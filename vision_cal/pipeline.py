@@ -15,11 +15,13 @@ import numpy as np
 
 from vision_cal.calibrate.lsq import Fit
 from vision_cal.calibrate.paper import paper_method
+from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.io import atomic_write_json, read_json
 from vision_cal.dataset.session import Session, load_session
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.model import RobotModel
 from vision_cal.plan.uncertainty import covariance_json
+from vision_cal.rms import rms_2d
 
 log = logging.getLogger(__name__)
 METHODS = ("lsq", "paper")
@@ -52,6 +54,7 @@ class CalibrationRun:
     diagnosis: object | None = None
     paper: object | None = None
     measurement: object | None = None
+    model: RobotModel | None = None   # the calibrated robot (what load_calibration reads back)
 
 
 def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[str]]:
@@ -80,9 +83,43 @@ def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[st
                     np.array(xy, float).reshape(-1, 2), sigma, tuple(roles)), missing
 
 
-def _rms(r) -> float:
-    r = np.asarray(r, dtype=float).reshape(-1, 2)
-    return float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) if len(r) else float("nan")
+def photo_reasons(measurement, *, top: int = 3) -> str:
+    """The most common reasons photos were skipped, counted, with one example each:
+    ``"5 of 6 photos skipped: 4 wrong sheet (img_000.png: wrong sheet: ...), 1 blank image"``.
+    Reasons are grouped by what comes before their first colon."""
+    skipped = [im for im in measurement.images if im.status != "ok"]
+    if not skipped:
+        return ""
+    groups: dict[str, list] = {}
+    for im in skipped:
+        groups.setdefault((im.reason or "no reason").split(":", 1)[0], []).append(im)
+    ranked = sorted(groups.items(), key=lambda kv: -len(kv[1]))
+    parts = [f"{len(ims)} {kind} ({ims[0].file}: {ims[0].reason})" if i == 0 else
+             f"{len(ims)} {kind}" for i, (kind, ims) in enumerate(ranked[:top])]
+    more = f", {len(ranked) - top} other reasons" if len(ranked) > top else ""
+    return (f"{len(skipped)} of {len(measurement.images)} photos skipped: "
+            + ", ".join(parts) + more)
+
+
+def _why_unmeasured(measurement) -> str:
+    """Why photos gave no marks (appended to the "too few marks" error), or ""."""
+    if measurement is None:
+        return ""
+    why = photo_reasons(measurement)
+    ok = [im for im in measurement.images if im.status == "ok"]
+    if ok:
+        dots = sum(im.n_dots for im in ok)
+        rejected: dict[str, int] = {}
+        for im in ok:
+            for k, v in (im.rejected or {}).items():
+                rejected[k] = rejected.get(k, 0) + v
+        top = sorted(rejected.items(), key=lambda kv: -kv[1])[:3]
+        seen = (f"{len(ok)} photo(s) measured found {dots} pen mark(s)"
+                + (" and rejected " + ", ".join(f"{v} {k}" for k, v in top) if top else "")
+                + (f", {len(measurement.unassigned)} not matched to any planned mark"
+                   if measurement.unassigned else ""))
+        why = f"{why}; {seen}" if why else seen
+    return f"; {why}" if why else ""
 
 
 def _paper_std(q, xy, sigma_mm: float) -> tuple[dict, np.ndarray]:
@@ -103,57 +140,87 @@ def _paper_std(q, xy, sigma_mm: float) -> tuple[dict, np.ndarray]:
 
 
 def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None = None,
-                      progress: bool = False, truth: bool = False) -> CalibrationRun:
-    """Measure (if needed), calibrate and diagnose a dataset folder; write calibration.json."""
+                      progress: bool = False, truth: bool = False,
+                      config: EstimatorConfig | None = None) -> CalibrationRun:
+    """Measure (if needed), calibrate and diagnose a dataset folder; write calibration.json.
+
+    ``config``: the estimator's thresholds (:mod:`vision_cal.config`; default
+    ``DEFAULT``), recorded in calibration.json's ``config``."""
     if method not in METHODS:
         raise VisionCalError(f"unknown method {method!r} (expected one of {', '.join(METHODS)})")
+    config = config or DEFAULT
+    if (config.dots != DEFAULT.dots
+            or config.selection.outlier_sigma != DEFAULT.selection.outlier_sigma):
+        raise VisionCalError("the dot thresholds and outlier_sigma are fixed at import in this "
+                             "version: change vision_cal.config.DEFAULT", field="config")
     session = load_session(folder)
     out_dir = Path(out_dir)
     measurement = None
     if any(m.measured_mm is None for m in session.marks):
         from vision_cal.measure.batch import measure_folder
 
-        measurement = measure_folder(session, out_dir=out_dir, jobs=jobs, progress=progress)
+        measurement = measure_folder(session, out_dir=out_dir, jobs=jobs, progress=progress,
+                                     association=config.association)
     data, missing = collect_marks(session, measurement)
     cal, val = data.select("calibration"), data.select("validation")
     if len(cal.ids) < 3:
         raise CalibrationError(f"{len(cal.ids)} calibration marks were measured "
-                               f"({len(missing)} missing): at least 3 are needed")
-    doc: dict = {"format": "vision-cal/calibration/1", "method": method}
+                               f"({len(missing)} missing): at least 3 are needed"
+                               + _why_unmeasured(measurement), file=str(session.path))
+    doc: dict = {"format": "vision-cal/calibration/1", "method": method,
+                 "config": config.to_json()}
     diag = paper = None
     nominal = session.robot.params
     if method == "paper":
         paper = paper_method(cal.q_deg, cal.xy_mm)
         params = paper.params
-        lsq_sigma = Fit.from_estimate(cal.q_deg, cal.xy_mm, approach=cal.approach,
-                                      robust=False).sigma_mm
-        std, cov = _paper_std(cal.q_deg, cal.xy_mm, lsq_sigma)
+        noise_mm = Fit.from_estimate(cal.q_deg, cal.xy_mm, approach=cal.approach,
+                                     robust=False).residual_scale  # unweighted: mm
+        std, cov = _paper_std(cal.q_deg, cal.xy_mm, noise_mm)
         res_cal = cal.xy_mm - _predict(params, cal)
         res_val = val.xy_mm - _predict(params, val) if len(val.ids) else np.zeros((0, 2))
         doc.update(params=params.to_json(), std=std, effects=[],
-                   residual_rms_mm={"base_model": _rms(res_cal), "final_model": _rms(res_cal)},
-                   validation_rms_mm={"base_model": _rms(res_val) if len(val.ids) else None,
-                                      "final_model": _rms(res_val) if len(val.ids) else None,
+                   residual_rms_mm={"base_model": rms_2d(res_cal), "final_model": rms_2d(res_cal)},
+                   validation_rms_mm={"base_model": rms_2d(res_val) if len(val.ids) else None,
+                                      "final_model": rms_2d(res_val) if len(val.ids) else None,
                                       "kind": "validation marks" if len(val.ids) else "none"},
                    circles={"base": paper.circle_base.to_json(),
                             "elbow": paper.circle_elbow.to_json()},
                    covariance=covariance_json(RobotModel(params).param_labels(), cov))
-        final_model = None
+        final_model = RobotModel(params)
         residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
         residual_all.update({i: r for i, r in zip(val.ids, res_val)})
         residual_base = residual_all
     else:
         from vision_cal.diagnose.select import diagnose
 
+        not_flat = (measurement is not None and measurement.height_map is not None
+                    and measurement.height_map.claimed)
+        cands = None
+        if not_flat:  # a sheet that is not flat is its height, never an affine sheet
+            from vision_cal.diagnose.candidates import default_candidates
+            from vision_cal.model import SheetAffine
+
+            cands = [c for c in default_candidates() if not isinstance(c.effect, SheetAffine)]
+            if any(m.reference != "grid" for m in measurement.marks.values()):
+                # marks not measured against the paper's own grid keep some of its height:
+                # only effects that are not smooth over the sheet (backlash flips with the
+                # approach side) can be told from it
+                from vision_cal.model import JointBacklash
+
+                cands = [c for c in cands if isinstance(c.effect, JointBacklash)]
         diag = diagnose(cal.q_deg, cal.xy_mm, cal.approach, sigma_mm=cal.sigma_mm, ids=cal.ids,
                         q_val=val.q_deg if len(val.ids) else None,
                         xy_val=val.xy_mm if len(val.ids) else None,
-                        approach_val=val.approach if len(val.ids) else None)
+                        approach_val=val.approach if len(val.ids) else None,
+                        alpha=config.selection.alpha, k_folds=config.selection.k_folds,
+                        max_effects=config.selection.max_effects,
+                        candidates=cands)
         fb, ff = diag.base_fit, diag.final_fit
         final_model = ff.model
         has_val = len(val.ids) >= 3
-        vb = _rms(val.xy_mm - fb.predict(val.q_deg, val.approach)) if has_val else diag.heldout_base_mm
-        vf = _rms(val.xy_mm - ff.predict(val.q_deg, val.approach)) if has_val else diag.heldout_final_mm
+        vb = rms_2d(val.xy_mm - fb.predict(val.q_deg, val.approach)) if has_val else diag.heldout_base_mm
+        vf = rms_2d(val.xy_mm - ff.predict(val.q_deg, val.approach)) if has_val else diag.heldout_final_mm
         doc.update(
             params=ff.params.to_json(), std=ff.base_std_json, effects=diag.effects_json(),
             residual_rms_mm={"base_model": fb.rms_mm, "final_model": ff.rms_mm},
@@ -172,11 +239,29 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                        "residual_analysis": diag.analysis,
                        "thresholds": diag.thresholds},
             notes=list(ff.notes),
-            sigma_mm=ff.sigma_mm,
+            residual_scale=ff.residual_scale,
             covariance=covariance_json(ff.labels, ff.cov),
         )
         res_cal = ff.residuals_mm
         res_val = val.xy_mm - ff.predict(val.q_deg, val.approach)
+        if not_flat:
+            doc["notes"].append("sheet_affine not tried: the sheet is not flat (sheet_height); "
+                                "its smooth residual is the paper's height"
+                                + ("" if len(cands) > 2 else "; joint_scale and joint_cyclic "
+                                   "not tried either: marks not measured against a printed "
+                                   "grid cannot tell their smooth signature from it"))
+        if session.sheet is not None:
+            from vision_cal.diagnose.sheet import smooth_residual
+
+            sm = smooth_residual(np.concatenate([cal.xy_mm, val.xy_mm]),
+                                 np.concatenate([res_cal, res_val]), session.sheet.extent_mm)
+            if sm is not None:
+                ex = next((e for e in doc["effects"] if e["name"] == "unexplained"), None)
+                if ex is None:
+                    doc["effects"].append({"name": "unexplained", **sm})
+                else:
+                    ex["seen"] = list(ex.get("seen", [])) + sm["seen"]
+                    ex.update({k: v for k, v in sm.items() if k != "seen"})
         residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
         residual_all.update({i: r for i, r in zip(val.ids, res_val)})
         residual_base = {i: r for i, r in zip(cal.ids, fb.residuals_mm)}
@@ -202,8 +287,14 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
             doc["notes"].append("photos whose marks are shifted together beyond the noise "
                                 "(a bad sheet mapping?): " + ", ".join(flagged))
     doc["nominal"] = nominal.to_json()
+    doc["home_deg"] = [float(v) for v in session.robot.home_deg]  # added: where plans start
     if measurement is not None and measurement.lens is not None and measurement.lens.kept:
         doc["effects"] = [measurement.lens.to_effect_json()] + doc["effects"]
+    if measurement is not None and measurement.height_map is not None:
+        hm = measurement.height_map
+        if hm.claimed:
+            doc["effects"] = doc["effects"] + [hm.to_effect_json()]
+        doc.setdefault("diagnosis", {})["sheet_height"] = hm.to_json()
     if data.sigma_mm is not None:
         doc["noise_floor_mm"] = float(np.sqrt(2 * np.mean(data.sigma_mm**2)))
     marks = {}
@@ -217,13 +308,14 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
             entry["sigma_mm"] = float(data.sigma_mm[i])
         if measurement is not None and mid in measurement.marks:  # added field
             entry["n_photos"] = int(measurement.marks[mid].n_photos)
+            entry.update(measurement.mark_json(mid))
         marks[mid] = entry
     doc["marks"] = marks
     if missing:
         doc["missing_marks"] = missing
     doc["images"] = ([im.to_json() for im in measurement.images] if measurement is not None
                      else [])
-    targets = _target_errors(session, data, final_model)
+    targets = _target_errors(session, data)
     if targets:
         doc["targets"] = targets
     if truth:
@@ -233,7 +325,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         doc["printer_scale"] = ps
     out_path = atomic_write_json(out_dir / "calibration.json", doc)
     log.info("wrote %s", out_path)
-    return CalibrationRun(session, doc, out_path, diag, paper, measurement)
+    return CalibrationRun(session, doc, out_path, diag, paper, measurement, final_model)
 
 
 def _predict(params, d: MarkData):
@@ -242,7 +334,7 @@ def _predict(params, d: MarkData):
     return forward(params, d.q_deg) if len(d.ids) else np.zeros((0, 2))
 
 
-def _target_errors(session: Session, data: MarkData, model) -> list[dict]:
+def _target_errors(session: Session, data: MarkData) -> list[dict]:
     """Absolute error (measured minus target) of marks that carry ``target_mm``."""
     pos = dict(zip(data.ids, data.xy_mm))
     out = []
@@ -266,7 +358,7 @@ def compare_truth(path: Path, doc: dict) -> dict:
     tm = t.get("marks", {})
     errs = [np.subtract(v["measured_mm"], tm[k]) for k, v in doc["marks"].items() if k in tm]
     if errs:
-        out["mark_rms_mm"] = _rms(np.array(errs))
+        out["mark_rms_mm"] = rms_2d(np.array(errs))
     return out
 
 

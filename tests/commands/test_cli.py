@@ -115,3 +115,43 @@ def test_every_subcommand_help_has_an_example(sub, capsys):
     assert e.value.code == 0
     out = capsys.readouterr().out
     assert "examples:" in out and f"vision-cal {sub if sub != 'calibrate' else ''}".strip() in out
+
+
+def test_plan_trajectory_starts_at_home(paper_folder, tmp_path):
+    """The session's home_deg reaches the trajectory through calibration.json; --home wins."""
+    from pathlib import Path
+
+    session = json.loads((Path(paper_folder) / "session.json").read_text())
+    session["robot"]["home_deg"] = [10.0, -20.0]
+    (tmp_path / "ds").mkdir()
+    (tmp_path / "ds" / "session.json").write_text(json.dumps(session))
+    targets = Path(__file__).parents[2] / "fixtures" / "targets_origin.csv"
+    assert main([str(tmp_path / "ds"), "--out", str(tmp_path / "cal"), "-q"]) == 0
+    cal = tmp_path / "cal" / "calibration.json"
+    assert json.loads(cal.read_text())["home_deg"] == [10.0, -20.0]
+
+    def first_pose(*extra):
+        traj = tmp_path / "traj.csv"
+        assert main(["plan", str(cal), str(targets), "-o", str(tmp_path / "plan.csv"), "-q",
+                     "--trajectory", str(traj), *extra]) == 0
+        row = traj.read_text().splitlines()[1].split(",")
+        return float(row[1]), float(row[2])
+
+    assert first_pose() == (10.0, -20.0)
+    assert first_pose("--home", "5", "-7") == (5.0, -7.0)
+
+
+def test_calibration_run_keeps_the_model_calibration_json_holds(paper_folder, tmp_path):
+    """run_loop plans with CalibrationRun.model instead of re-reading calibration.json:
+    both must be the same robot."""
+    import numpy as np
+
+    from vision_cal.dataset.calibration import load_calibration
+    from vision_cal.pipeline import calibrate_dataset
+
+    for method in ("lsq", "paper"):
+        run = calibrate_dataset(paper_folder, out_dir=tmp_path / method, method=method)
+        back, _ = load_calibration(run.out_path)
+        q = np.array([[10.0, 20.0], [-30.0, 80.0], [45.0, -60.0]])
+        s = np.array([[1, -1], [-1, 1], [1, 1]])
+        np.testing.assert_allclose(run.model.predict(q, s), back.predict(q, s), atol=1e-9)

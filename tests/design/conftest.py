@@ -48,16 +48,14 @@ def informative_dir(tmp_path_factory, pilot_dir, sheet_json):
     """The informative stage from a pilot calibration (a true robot's pilot marks with
     0.02 mm of noise: the plan's structure, not its accuracy, is under test here)."""
     from vision_cal.design.stage import design_stage
-    from vision_cal.kinematics import forward
     from vision_cal.pipeline import calibrate_dataset
+    from vision_cal.render.truth_model import TrueRobot
 
     s = json.loads((pilot_dir / "session.json").read_text())
-    from vision_cal.kinematics import ScaraParams
-
-    truth = ScaraParams(344.05, 259.87, -2.57, -8.13, -420.0, -230.0)
+    truth = TrueRobot(344.05, 259.87, (-2.57, -8.13), (-420.0, -230.0))
     q = np.array([m["joints_deg"] for m in s["marks"]])
     noise = np.random.default_rng(5).normal(0, 0.02, q.shape)
-    for m, p in zip(s["marks"], forward(truth, q) + noise):
+    for m, p in zip(s["marks"], truth.pen_mm(q) + noise):
         m["measured_mm"] = p.tolist()
     d = tmp_path_factory.mktemp("pilot_cal")
     (d / "session.json").write_text(json.dumps(s))

@@ -38,9 +38,14 @@ def test_every_mark_clears_markers_and_edges_for_any_placement(design):
     """Catches: a design checked at the nominal placement only (marks then land on a
     marker or off the paper for a real robot 35 mm / 10 deg away)."""
     robot, sheet, d = design
+    from vision_cal.render.truth_model import TrueRobot
+
     q = np.array([m.joints_deg for m in d.marks])
     P = random_placements(robot, 2000, np.random.default_rng(1))
-    xy = pens_mm(P, q).reshape(-1, 2)
+    # where the pen lands, by the world's own robot (not the design's pens_mm)
+    xy = np.vstack([TrueRobot(p[0], p[1], tuple(np.degrees(p[2:4])), tuple(p[4:6])).pen_mm(q)
+                    for p in P])
+    assert np.allclose(xy[:9], pens_mm(P[:1], q)[0])
     need = robot.mark_diameter_mm / 2          # a mark must not touch a marker or an edge
     assert sheet_clearance_mm(sheet, xy).min() >= need
     assert d.worst_clearance_mm >= d.required_clearance_mm
@@ -95,3 +100,17 @@ def test_unreachable_sheet_is_one_line_naming_the_robot_file(tmp_path, sheet_jso
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "\n" not in err and str(robot) in err and "placement_tolerance" in err
     assert not (tmp_path / "p").exists()
+
+
+def test_refuses_a_folder_that_already_holds_photos(tmp_path, sheet_json, capsys):
+    """A new plan over photos of the old one would pair them with the wrong marks."""
+    from vision_cal.commands.main import main
+
+    out = tmp_path / "pilot"
+    out.mkdir()
+    (out / "IMG_0001.jpg").write_bytes(b"\xff\xd8")
+    (out / "session.json").write_text("{}")
+    rc = main(["design", str(ROBOT), "--sheet", str(sheet_json), "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "\n" not in err and "IMG_0001.jpg" in err
+    assert (out / "session.json").read_text() == "{}"

@@ -177,3 +177,15 @@ def test_plan_command_writes_std_and_the_compensated_program(tmp_path, robot):
     for (mid, at, before), qi, si in zip(drawn, q, s):
         assert np.all(np.abs(np.array(at[:2]) - qi) <= 0.5e-4 + 1e-9)
         assert np.all(np.sign(np.array(at[:2]) - np.array(before[:2])) == si)
+
+
+def test_target_ids_cannot_break_the_spel_program(robot):
+    """Catches: a target id with a quote or a line break ending the Print string or the
+    comment (ids come from the user's targets.csv)."""
+    from vision_cal.program.spel import spel_program
+
+    m = PlannedMark('a"b\nc', (10.0, 20.0), "target", (1, -1), ((7.0, 23.0),))
+    text = spel_program(program_points([m]), robot, title="t\nx")
+    p = parse_spel(text)
+    drawn = drawn_marks(p["ops"], *robot.require_pen_heights())
+    assert len(drawn) == 1 and drawn[0][1][:2] == (10.0, 20.0)

@@ -151,3 +151,30 @@ def test_a_deformed_marker_is_left_out(world):
     bad = replace(d, edges_px=e)
     kept, n = _drop_deformed_markers(bad, None, None)
     assert n == 1 and d.marker_ids[3] not in kept.marker_ids
+
+
+def test_marker_corners_are_found_once_per_photo_and_lens(tmp_path, world, monkeypatch):
+    """Corner fits are kept with the detections: one per lens a photo is seen through, and
+    the corners kept for a subset of markers are those a fresh fit of that subset gives."""
+    sheet, targets, q, good, *_ = world
+    src = tmp_path / "in"
+    src.mkdir()
+    sm.write_png(src / "a.png", good)
+    _write(src, world, ["a.png"])
+    calls = []
+    real = batch.corners_from_edges
+
+    def counting(edges, fallback):
+        calls.append(len(edges))
+        return real(edges, fallback)
+
+    monkeypatch.setattr(batch, "corners_from_edges", counting)
+    meas = measure_folder(load_session(src), out_dir=tmp_path / "out", jobs=1)
+    lenses = 1 + int(meas.lens is not None and meas.lens.kept)
+    assert meas.images[0].status == "ok" and len(calls) == lenses
+    ok, buf = cv2.imencode(".png", good)
+    d = detect_image_bytes(buf.tobytes(), "a.png", Session(None, sheet, None, (), ()))
+    keep = np.arange(len(d.marker_ids)) % 3 != 1
+    sub = d.keep_markers(keep)
+    np.testing.assert_array_equal(sub.corners_for(), sub._corners_for(None, None))
+    assert sub.corners_for() is sub.corners_for()

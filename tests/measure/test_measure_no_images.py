@@ -37,7 +37,11 @@ def world():
     K2, T2 = sm.view(tilt_deg=14.0, azimuth_deg=-70.0)
     finished = [series[-1], sm.photo(sheet, tex, K=K2, T=T2, rng=30)]
     floor = np.random.default_rng(5).integers(40, 200, (750, 1000, 3)).astype(np.uint8)
-    return sheet, targets, q, series, finished, floor
+    # the same series drawn on a sheet that already carries 3 marks of an earlier plan
+    pilot = sm.free_targets(sheet, N + 3, rng=21, box=(85.0, 62.0))[N:]
+    on_pilot = [sm.photo(sheet, sm.texture(sheet, np.vstack([pilot, targets[:k + 1]]), rng=1),
+                         K=K, T=T, rng=40 + k) for k, (K, T) in enumerate(views[:4])]
+    return sheet, targets, q, series, finished, floor, on_pilot
 
 
 IDS = [f"c{i}" for i in range(N)]
@@ -70,7 +74,7 @@ def _err_rms(meas, targets, ids):
 def test_series_without_images_list(tmp_path, world, capsys):
     """Natural order (s_2 before s_10), a photo of the floor, a repeated file, a photo of
     the series missing: all reported, every photographed mark measured and named, exit 0."""
-    sheet, targets, q, series, finished, floor = world
+    sheet, targets, q, series, finished, floor, _ = world
     src = tmp_path / "in"
     src.mkdir()
     names = ["s_1.png", "s_2.png", "s_3.png", "s_9.png", "s_10.png", "s_11.png"]
@@ -83,6 +87,7 @@ def test_series_without_images_list(tmp_path, world, capsys):
     again = series[1].copy()  # another photo of the same state: different bytes
     again[:5, :5] = 255 - again[:5, :5]
     sm.write_png(src / "s_2b.png", again)
+    (src / "IMG_7.heic").write_bytes(b"\0\0\0\x18ftypheic")  # a phone's format: named
     _plan(src, world)
     before = _snapshot(src)
     _readonly(src)
@@ -113,6 +118,8 @@ def test_series_without_images_list(tmp_path, world, capsys):
     assert err == [f"vision-cal: warning: {src}/floor.png: skipped: {st['floor.png']['reason']}",
                    f"vision-cal: warning: {src}/s_2_copy.png: skipped: repeated photo: the "
                    "same file as s_2.png",
+                   f"vision-cal: warning: {src}: 1 file(s) of a format not read (IMG_7.heic): "
+                   "convert them to JPEG or PNG",
                    f"vision-cal: warning: {src}: s_2b.png: a repeated photo (no mark added "
                    "since s_2.png)", missing], err
     truth = dict(zip(IDS, targets))
@@ -122,7 +129,7 @@ def test_series_without_images_list(tmp_path, world, capsys):
 
 def test_finished_sheet_photos_and_init(tmp_path, world, capsys):
     """Two photos of the finished sheet (and one of the floor): every mark in each."""
-    sheet, targets, q, series, finished, floor = world
+    sheet, targets, q, series, finished, floor, _ = world
     src = tmp_path / "photos"
     src.mkdir()
     sm.write_png(src / "a.png", finished[0])
@@ -186,14 +193,83 @@ def test_exif_capture_time_orders_the_photos(tmp_path, world):
     assert [len(m) for m in meas.image_marks] == [1, 2, 3]
     assert meas.inferred == "series"
     assert set(meas.marks) == {"c0", "c1", "c2"}
+    # one photo without a capture time: all by file name (and said so)
+    (src / "z8.jpg").write_bytes(_jpeg(series[1], None))
+    meas = measure_folder(load_session(src), out_dir=tmp_path / "out", jobs=1)
+    assert [im.file for im in meas.images] == ["z7.jpg", "z8.jpg", "z9.jpg"]
+    assert any("1 of 3 photos have no EXIF capture time" in w for w in meas.warnings)
+    assert any("1 of 3 photos have no EXIF capture time" in w for w in meas.inferred_notes)
 
 
 def test_no_photos_at_all_is_one_line(tmp_path, world, capsys):
     src = tmp_path / "in"
     src.mkdir()
     _plan(src, world)
+    (src / "IMG_0001.HEIC").write_bytes(b"\0\0\0\x18ftypheic")
     rc = main([str(src), "--out", str(tmp_path / "out")])
     assert rc == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "images: no photos" in err[0], err
-    assert sorted(p.name for p in src.iterdir()) == ["session.json"]
+    assert "1 file(s) of a format not read (IMG_0001.HEIC): convert them to JPEG" in err[0]
+    assert sorted(p.name for p in src.iterdir()) == ["IMG_0001.HEIC", "session.json"]
+
+
+def _groups(seen):
+    from vision_cal.measure.associate import DotGroup
+
+    z = np.zeros((1, 2))
+    return [DotGroup(np.repeat(z, len(s), 0), np.zeros((len(s), 2, 2)), tuple(s),
+                     tuple([0] * len(s))) for s in seen]
+
+
+def test_a_dot_seen_once_is_not_a_mark():
+    """A reflection in photo 1 only (never seen again) does not shift the series; the dot of
+    a mark missed once (photo 3) still counts from where it first appeared."""
+    from vision_cal.measure.infer import infer_image_marks
+
+    ids = ["a", "b", "c", "d"]
+    files = [f"p{k}" for k in range(4)]
+    seen = [{0, 1, 2, 3}, {1, 2}, {2, 3}, {3}, {1}]  # last: the reflection
+    got = infer_image_marks(4, [0, 1, 2, 3], _groups(seen), ids, files)
+    assert got.mode == "series"
+    assert [len(m) for m in got.marks] == [1, 2, 3, 4]
+    finished = infer_image_marks(2, [0, 1], _groups([{0, 1}] * 5), ids, files)
+    assert finished.mode == "finished" and finished.marks == (tuple(ids), tuple(ids))
+    assert any("5 persistent dots" in w for w in finished.warnings)
+    # 2 dots on the sheet before the series (an earlier plan): not counted as its marks
+    pre = infer_image_marks(4, [0, 1, 2, 3], _groups(seen[:4] + [{0, 1, 2, 3}] * 2), ids,
+                            files)
+    assert [len(m) for m in pre.marks] == [1, 2, 3, 4]
+    assert any("2 dot(s) already on the sheet" in w for w in pre.warnings)
+
+
+def test_series_on_a_sheet_with_earlier_marks(tmp_path, world):
+    sheet, targets, q, series, finished, floor, on_pilot = world
+    src = tmp_path / "in"
+    src.mkdir()
+    for k, img in enumerate(on_pilot):
+        sm.write_png(src / f"IMG_{k + 1}.png", img)
+    d = sm.session_json(sheet, marks=list(zip(IDS[:4], q[:4])), images=[], robot=sm.NOMINAL)
+    del d["images"]
+    sm.write_session(src, d)
+    meas = measure_folder(load_session(src), out_dir=tmp_path / "out", jobs=1)
+    assert meas.inferred == "series"
+    assert [len(m) for m in meas.image_marks] == [1, 2, 3, 4]
+    assert set(meas.marks) == set(IDS[:4]) and len(meas.unassigned) == 3
+    truth = dict(zip(IDS, targets))
+    e = np.array([meas.marks[k].xy_mm - truth[k] for k in IDS[:4]])
+    assert np.sqrt(np.mean(np.sum(e**2, axis=1))) < 0.015
+
+
+def test_init_with_no_photo_of_the_sheet_is_one_line(tmp_path, world, capsys):
+    src = tmp_path / "photos"
+    src.mkdir()
+    sm.write_png(src / "floor.png", world[5])
+    _plan(tmp_path, world)
+    out = tmp_path / "o" / "session.json"
+    rc = main(["init", str(src), "--plan", str(tmp_path / "session.json"), "-o", str(out), "-q"])
+    assert rc == 2 and not out.exists()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith(f"vision-cal: error: {src}: no usable photo of the sheet among "
+                              "1 image file(s) (first: floor.png: "), err
+    assert [ln for ln in err if "error" in ln] == [err[-1]]

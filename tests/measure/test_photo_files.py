@@ -324,3 +324,13 @@ def test_the_header_is_read_without_decoding(bombs, monkeypatch):
     assert h.stored_px == (12000, 12000) and h.orientation == 1
     with pytest.raises(photos.PhotoRefused, match="refused before decoding"):
         photos.check_header(h)
+
+
+def test_workers_do_not_multiply_the_largest_photo():
+    from vision_cal.measure.batch import MAX_PIXELS_IN_FLIGHT, jobs_for
+
+    assert MAX_PIXELS_IN_FLIGHT <= 2 * photos.MAX_PIXELS
+    assert jobs_for(8, [12_000_000] * 5) == 8          # phone photos: every core
+    assert jobs_for(8, [12_000_000, 90_000_000]) == 2  # two 90 MP photos at most
+    assert jobs_for(8, [100_000_000]) == 2
+    assert jobs_for(1, [100_000_000]) == 1 and jobs_for(4, []) == 4

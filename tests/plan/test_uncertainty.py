@@ -15,14 +15,17 @@ def test_std_mm_matches_the_spread_of_real_misses():
     sampling error of 300 draws, ~4 %, plus first-order error). Catches: the diagonal
     std used without correlations (L1, z and base are strongly correlated), the trace
     not halved, degrees and radians mixed in the file's covariance."""
+    from vision_cal.render.truth_model import TrueRobot
+
     rng = np.random.default_rng(0)
-    truth = RobotModel(SM5, (JointBacklash(joint=2, deg=0.1),))
+    truth = TrueRobot.from_json(SM5.to_json(), [{"name": "joint_backlash", "joint": 2,
+                                                 "deg": 0.1}])
     q, s = random_plan(12, rng)
     sigma = 0.05
     targets = np.array([[0.0, 0.0], [-150.0, 120.0]])
     misses, preds = [], []
     for k in range(300):
-        xy = truth.predict(q, s) + rng.normal(0, sigma, q.shape)
+        xy = truth.pen_mm(q, s) + rng.normal(0, sigma, q.shape)
         fit = Fit.from_estimate(q, xy, approach=s, model=RobotModel(SM5, (JointBacklash(2),)),
                                 robust=False)
         doc = {"covariance": covariance_json(fit.labels, fit.cov)}
@@ -30,7 +33,7 @@ def test_std_mm_matches_the_spread_of_real_misses():
         phi = inverse(fit.params, targets, elbow=1)
         cmd = phi + np.degrees(0.5 * np.radians(fit.model.effects[0].deg)) * np.array([0, 1])
         assert np.allclose(fit.model.predict(cmd, np.ones((2, 2))), targets, atol=1e-6)
-        misses.append(truth.predict(cmd, np.ones((2, 2))) - targets)
+        misses.append(truth.pen_mm(cmd, np.ones((2, 2))) - targets)
         preds.append(predicted_std_mm(fit.model, cov, cmd, np.ones((2, 2))))
     misses, preds = np.array(misses), np.array(preds)
     rms_axis = np.sqrt(np.mean(misses**2, axis=(0, 2)))       # per target

@@ -76,13 +76,13 @@ def test_truth_has_every_mark_and_pose(series):
     np.testing.assert_allclose(K, s.camera.K)
     # truth marks = the true robot at the commanded joints, within the repeatability
     q = s.joints_deg
-    pred = SMALL.robot.truth_model.predict(q, np.array(list(t["arrival_sign"].values())))
+    pred = SMALL.robot.truth_model.predict(q, np.array(list(t["approach"].values())))
     xy = np.array([t["marks"][m.id] for m in s.marks])
     assert np.max(np.abs(xy - pred)) < 6 * SMALL.robot.repeatability_mm
     # small.yaml's nominal is close to the truth: every mark on free paper
     assert t["off_paper"] == [] and t["on_marker"] == []
     # the kinematic world honours the planned approach
-    np.testing.assert_array_equal(np.array(list(t["arrival_sign"].values())), s.approach)
+    np.testing.assert_array_equal(np.array(list(t["approach"].values())), s.approach)
     # the stored pose is the one the photo was taken from: a marker's black border is
     # dark where T_cam_sheet puts it, its white quiet zone bright
     sheet = _sheet_of(SMALL)
@@ -333,3 +333,22 @@ def test_shrunk_sheet_is_photographed_shrunk(tmp_path):
     xy = np.array([t["marks"][m.id] for m in s.marks])
     np.testing.assert_allclose(xy[:, 0], 1.003 * xy_arm[:, 0], atol=1e-9)
     np.testing.assert_allclose(xy[:, 1], xy_arm[:, 1], atol=1e-9)
+
+
+def test_pilot_calibrator_is_passed_in(tmp_path):
+    """The world draws the pilot marks; the calibration of them comes from the caller
+    (the renderer does not import the estimator)."""
+    seen = []
+
+    def pilot(q_deg, xy_mm):
+        seen.append((np.asarray(q_deg), np.asarray(xy_mm)))
+        return pilot_params(q_deg, xy_mm)
+
+    with pytest.raises(VisionCalError, match="pilot"):
+        ds.render_dataset(SMALL, tmp_path / "none", photographer=_Flat())
+    assert not (tmp_path / "none").exists()
+    ds.render_dataset(SMALL.with_overrides(mode="single"), tmp_path / "p", pilot=pilot,
+                      photographer=_Flat())
+    ((q, xy),) = seen
+    np.testing.assert_array_equal(q, [[0, 0], [20, 0], [-20, 0], [0, 60], [0, -60]])
+    assert xy.shape == (5, 2)

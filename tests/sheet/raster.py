@@ -74,7 +74,8 @@ def detect_corners_mm(rgb: np.ndarray, dictionary: str, extent_mm, ppm: float) -
     ids = np.asarray(ids).reshape(-1)
     c = np.asarray(corners, np.float32).reshape(-1, 1, 2)
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-4)
-    win = max(3, int(0.6 * float(np.min(ppm))))  # well inside a module: the window sees one corner only
+    # well inside a module: the window sees one corner only
+    win = max(3, int(0.6 * float(np.min(ppm))))
     c = cv2.cornerSubPix(gray, c, (win, win), (-1, -1), crit)
     c = np.asarray(c, float).reshape(len(ids), 4, 2)
     return {int(i): px_to_mm(cc, extent_mm, ppm) for i, cc in zip(ids, c)}

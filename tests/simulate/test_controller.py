@@ -80,7 +80,7 @@ def test_smc_plan_settles_where_planned(plan):
     q = np.array([m.joints_deg for m in plan])
     assert np.all(np.abs(res.settle_residual_deg) < 1e-4)
     np.testing.assert_allclose(res.motor_deg, q, atol=1e-4)
-    np.testing.assert_array_equal(res.arrival_sign, s)
+    np.testing.assert_array_equal(res.approach, s)
     np.testing.assert_allclose(res.link_deg, res.motor_deg - s * band / 2, atol=1e-9)
     # SMC with an exact model tracks the cubic reference to a few thousandths of a degree
     assert np.all(res.tracking_max_deg < 0.02)
@@ -101,7 +101,7 @@ def test_paper_plan_arrivals_follow_the_format_rule():
     marks = paper_plan()
     res = simulate_plan(marks, backlash_deg=(0.1, 0.1))
     want = resolve_approach(marks)
-    np.testing.assert_array_equal(res.arrival_sign, want)
+    np.testing.assert_array_equal(res.approach, want)
     np.testing.assert_allclose(res.link_deg, res.motor_deg - want * 0.05, atol=2e-3)
 
 
@@ -131,7 +131,7 @@ def test_pd_zero_overshoots_a_stop_derivative_on_measurement_does_not(plan):
     for on_error in (True, False):
         res = simulate_plan(plan, backlash_deg=band,
                             controller=PDController(derivative_on_error=on_error))
-        np.testing.assert_array_equal(res.arrival_sign, s)
+        np.testing.assert_array_equal(res.approach, s)
         off[on_error] = np.abs(res.link_deg - (res.motor_deg - s * band / 2)).max()
     assert off[False] < 1e-9          # every link rests on its lagging flank
     assert off[True] > 0.01           # overshoot then return inside the band

@@ -91,7 +91,7 @@ def test_play_in_the_simulated_run():
     # the band (9.9 - 0.125 < 9.875 < 9.9 + 0.125): the link stays at 9.875; at c the
     # encoder is at 9.5, dragging the link from above: 9.5 + 0.125 = 9.625
     np.testing.assert_allclose(res.link_deg[:, 0], [9.875, 9.875, 9.625], atol=2e-4)
-    np.testing.assert_array_equal(res.arrival_sign[:, 0], [1, 1, -1])
+    np.testing.assert_array_equal(res.approach[:, 0], [1, 1, -1])
 
 
 def _one_mark(q, approach, over=3.0):
@@ -112,8 +112,8 @@ def test_backlash_offset_depends_on_approach(band):
                                atol=1e-9)
     np.testing.assert_allclose(minus.link_deg[0], minus.motor_deg[0] + np.array(band) / 2,
                                atol=1e-9)
-    np.testing.assert_array_equal(plus.arrival_sign[0], [1, 1])
-    np.testing.assert_array_equal(minus.arrival_sign[0], [-1, -1])
+    np.testing.assert_array_equal(plus.approach[0], [1, 1])
+    np.testing.assert_array_equal(minus.approach[0], [-1, -1])
     # and JointBacklash (the fitted model) predicts the same joint angles
     model = RobotModel(ScaraParams(344.0, 260.0),
                        (JointBacklash(1, band[0]), JointBacklash(2, band[1])))
@@ -129,7 +129,7 @@ def test_mixed_approach_and_zero_backlash():
     none = simulate_plan([_one_mark(q, (-1, 1))])
     np.testing.assert_array_equal(none.link_deg, none.motor_deg)
     np.testing.assert_allclose(none.link_deg[0], q, atol=2e-4)
-    np.testing.assert_array_equal(none.arrival_sign[0], [-1, 1])
+    np.testing.assert_array_equal(none.approach[0], [-1, 1])
 
 
 def test_link_stays_put_when_its_joint_does_not_move():
@@ -142,5 +142,5 @@ def test_link_stays_put_when_its_joint_does_not_move():
     # stays on the side it was left on, not where a fresh + approach would put it
     assert res.link_deg[1, 1] == pytest.approx(res.link_deg[0, 1], abs=1e-3)
     assert res.link_deg[1, 1] - 10.0 > 0.09
-    assert res.arrival_sign[1, 1] == -1
+    assert res.approach[1, 1] == -1
     assert math.isclose(res.link_deg[1, 0] - res.motor_deg[1, 0], -0.05, abs_tol=1e-9)

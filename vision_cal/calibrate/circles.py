@@ -23,6 +23,7 @@ from scipy.linalg import eig
 from scipy.optimize import least_squares
 
 from vision_cal.errors import CalibrationError
+from vision_cal.rms import rms
 
 
 @dataclass(frozen=True)
@@ -71,7 +72,7 @@ class Circle:
             return c
         cx, cy, r = _hyper(p)
         if not refine:
-            return cls((cx, cy), r, None, arc_span_deg(p, (cx, cy)), _rms(p, (cx, cy, r)), len(p))
+            return cls((cx, cy), r, None, arc_span_deg(p, (cx, cy)), rms(_dist(p, (cx, cy, r))), len(p))
         sol = least_squares(lambda v: _dist(p, v), np.array([cx, cy, r]),
                             jac=lambda v: _dist_jac(p, v), method="lm", xtol=1e-15, ftol=1e-15)
         v = sol.x
@@ -86,7 +87,7 @@ class Circle:
             except np.linalg.LinAlgError:
                 cov = None
         return cls((float(v[0]), float(v[1])), float(abs(v[2])), cov,
-                   arc_span_deg(p, v[:2]), float(np.sqrt(np.mean(res**2))), len(p))
+                   arc_span_deg(p, v[:2]), rms(res), len(p))
 
     def residuals(self, xy_mm) -> np.ndarray:
         """Signed distance (N,) of each point from the circle, mm."""
@@ -120,10 +121,6 @@ def _dist_jac(p, v):
     d = np.hypot(p[:, 0] - v[0], p[:, 1] - v[1])
     d = np.where(d > 0, d, 1e-300)
     return np.stack([-(p[:, 0] - v[0]) / d, -(p[:, 1] - v[1]) / d, -np.ones(len(p))], axis=1)
-
-
-def _rms(p, v):
-    return float(np.sqrt(np.mean(_dist(p, v) ** 2)))
 
 
 def _hyper(p: np.ndarray) -> tuple[float, float, float]:

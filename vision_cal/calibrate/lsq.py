@@ -25,9 +25,11 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from vision_cal.calibrate.linear import explain_degeneracy, linear_init
+from vision_cal.config import DEFAULT
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import RobotModel
+from vision_cal.rms import rms_2d
 
 COND_LIMIT = 1e8
 
@@ -44,7 +46,8 @@ class Fit:
     ids: tuple[str, ...]         # (N,)
     cond: float                  # condition number of the column-scaled Jacobian
     rank: int
-    sigma_mm: float              # residual standard deviation per axis (sqrt(SSR/dof))
+    residual_scale: float        # sqrt(SSR/dof) of the weighted residuals, per axis: mm when
+                                 # unweighted, a ratio to the given sigma_mm when weighted
     dof: int
     initial: ScaraParams
     n_params: int = 0
@@ -54,7 +57,7 @@ class Fit:
     @classmethod
     def from_estimate(cls, q_deg, xy_mm, *, approach=None, model: RobotModel | None = None,
                       sigma_mm=None, ids=None, robust: bool = True,
-                      outlier_sigma: float = 5.0) -> "Fit":
+                      outlier_sigma: float = DEFAULT.selection.outlier_sigma) -> "Fit":
         q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
         xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
         n = len(q)
@@ -124,6 +127,11 @@ class Fit:
 
     # -- results --------------------------------------------------------------------------
     @property
+    def sigma_mm(self) -> float:
+        """Old name of :attr:`residual_scale` (``sigma_mm`` is a mark's measurement std)."""
+        return self.residual_scale
+
+    @property
     def params(self) -> ScaraParams:
         return self.model.params
 
@@ -160,7 +168,7 @@ class Fit:
     def rms_mm(self) -> float:
         """RMS of the 2-D residual over the inlier marks (mm)."""
         r = self.residuals_mm[self.inliers]
-        return float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+        return rms_2d(r)
 
     def predict(self, q_deg, approach=None) -> np.ndarray:
         return self.model.predict(q_deg, approach)

@@ -31,6 +31,7 @@ def run(args) -> int:
     import sys
     from pathlib import Path
 
+    from vision_cal.dataset.io import output_dir
     from vision_cal.errors import VisionCalError
     from vision_cal.pipeline import calibrate_dataset
     from vision_cal.report.summary import format_summary
@@ -39,6 +40,7 @@ def run(args) -> int:
         raise VisionCalError(f"--jobs must be at least 1, got {args.jobs}")
     progress = not args.quiet  # a bar on a terminal, else one line per stage
     several = len(args.folders) > 1
+    output_dir(args.out or "out", field="--out")
     failures = 0
     rows = []
     for folder in args.folders:

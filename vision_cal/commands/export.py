@@ -21,11 +21,15 @@ def add_arguments(p) -> None:
 
 def run(args) -> int:
     from vision_cal.dataset.calibration import load_calibration
+    from vision_cal.dataset.io import output_file
     from vision_cal.errors import VisionCalError
     from vision_cal.report.export import export
 
     if not (args.urdf or args.yaml):
         raise VisionCalError("nothing to export: give --urdf and/or --yaml")
+    for opt, path in (("--urdf", args.urdf), ("--yaml", args.yaml)):
+        if path:
+            output_file(path, field=opt)
     _, doc = load_calibration(args.calibration)
     for path in export(doc, urdf=args.urdf, yaml_path=args.yaml):
         if not args.quiet:

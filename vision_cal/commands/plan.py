@@ -30,20 +30,28 @@ def add_arguments(p) -> None:
     p.add_argument("--program", choices=("spel", "csv"), default=None,
                    help="also write a robot program beside PLAN.csv: spel (PLAN.prg, Epson "
                         "SPEL+) or csv (PLAN_points.csv); needs --robot")
+    p.add_argument("--home", type=float, nargs=2, metavar=("Q1", "Q2"), default=None,
+                   help="joints (deg) the arm starts from (default: the robot file's "
+                        "home_deg, else calibration.json's, which the session gave)")
     p.add_argument("--robot", metavar="ROBOT.yaml",
                    help="robot file: joint limits, speeds, pen heights for --program")
 
 
 def run(args) -> int:
+    import math
     import sys
     from pathlib import Path
 
     from vision_cal.dataset.calibration import load_calibration
-    from vision_cal.dataset.csvio import read_targets, write_plan
+    from vision_cal.dataset.csvio import (failed_report_path, read_targets, write_failed_targets,
+                                          write_plan)
+    from vision_cal.dataset.io import output_file
     from vision_cal.plan.compensate import plan_targets
-
     from vision_cal.plan.uncertainty import load_covariance, predicted_std_mm
 
+    output_file(args.out, field="-o")
+    if args.trajectory:
+        output_file(args.trajectory, field="--trajectory")
     robot = None
     if args.program and not args.robot:
         from vision_cal.errors import VisionCalError
@@ -63,25 +71,33 @@ def run(args) -> int:
                            **limits)
     cov = load_covariance(doc, model, file=args.calibration) if args.model == "calibrated" \
         else None
-    q_all = [p.q_deg if p.q_deg is not None else (float("nan"),) * 2 for p in planned]
-    std = (predicted_std_mm(model, cov, q_all, [p.approach for p in planned])
-           if cov is not None else [float("nan")] * len(planned))
-    write_plan(args.out, [dict(p.to_row(), std_mm=float(s)) for p, s in zip(planned, std)])
+    ok = [p for p in planned if p.status == "ok"]
     failed = [p for p in planned if p.status != "ok"]
-    for p in failed:
-        print(f"vision-cal: warning: {args.targets}: target {p.id}: {p.reason}", file=sys.stderr)
-    if args.trajectory:
+    std = (predicted_std_mm(model, cov, [p.q_deg for p in ok], [p.approach for p in ok])
+           if cov is not None and ok else [float("nan")] * len(ok))
+    # the command file holds only what can be sent to the robot: no NaN, no failed row
+    # (an unknown std, as with the nominal model, is left empty)
+    write_plan(args.out, [dict(p.to_row(), std_mm=float(s) if math.isfinite(s) else "")
+                          for p, s in zip(ok, std)])
+    report = failed_report_path(args.out)
+    if failed:
+        write_failed_targets(report, [(p.id, *p.target_mm, p.reason) for p in failed])
+        if ok:  # when none is planned, the error below says it once
+            print(f"vision-cal: warning: {args.targets}: {summarise_failures(failed)}; "
+                  f"all in {report}", file=sys.stderr)
+    else:
+        report.unlink(missing_ok=True)  # a stale report of an earlier run
+    home_deg = _home_deg(args, doc, robot)
+    if args.trajectory and ok:
         from vision_cal.plan.compensate import write_plan_trajectory
 
-        ok = [p for p in planned if p.status == "ok"]
-        write_plan_trajectory(args.trajectory, ok, home_deg=doc.get("home_deg", (0.0, 0.0)))
+        write_plan_trajectory(args.trajectory, ok, home_deg=home_deg)
     if args.program:
         from vision_cal.plan.compensate import to_planned_marks
         from vision_cal.program import program_path, program_points, write_program
 
-        ok = [p for p in planned if p.status == "ok"]
         marks = to_planned_marks(ok, overshoot_deg=robot.overshoot_deg, role="target")
-        points = program_points(marks, home_deg=doc.get("home_deg", robot.nominal.home_deg),
+        points = program_points(marks, home_deg=home_deg,
                                 z2_deg=model.params.z2_deg)
         stem = Path(args.out).with_suffix("")
         path = write_program(args.program, program_path(args.program, stem), points, robot,
@@ -92,4 +108,45 @@ def run(args) -> int:
     if not args.quiet:
         print(f"planned {len(planned) - len(failed)} of {len(planned)} targets "
               f"with the {args.model} model -> {args.out}")
+    if not ok:
+        print(f"vision-cal: error: {args.targets}: nothing could be planned with the "
+              f"{args.model} model of {args.calibration}: {summarise_failures(failed)}; "
+              f"all in {report}", file=sys.stderr)
+        return 1
     return 0
+
+
+def summarise_failures(failed, *, first: int = 3) -> str:
+    """One line for any number of failed targets: counts per kind of reason, the first few."""
+    kinds: dict[str, int] = {}
+    for p in failed:
+        k = next((k for k in ("out of reach", "singularity", "outside its limits",
+                              "could not be inverted") if k in p.reason), "other")
+        kinds[k] = kinds.get(k, 0) + 1
+    counts = ", ".join(f"{n} {k}" for k, n in sorted(kinds.items(), key=lambda kv: -kv[1]))
+    head = "; ".join(f"target {p.id}: {p.reason}" for p in failed[:first])
+    more = f" (and {len(failed) - first} more)" if len(failed) > first else ""
+    return f"{len(failed)} target(s) not planned ({counts}): {head}{more}"
+
+
+def _home_deg(args, doc: dict, robot) -> tuple[float, float]:
+    """Where the planned motion starts: ``--home``, else the robot file's ``home_deg``, else
+    calibration.json's ``home_deg`` (the session's), else (0, 0)."""
+    import math
+
+    from vision_cal.errors import VisionCalError
+
+    if args.home is not None:
+        home, where, file = args.home, "--home", None
+    elif robot is not None:
+        return tuple(robot.nominal.home_deg)
+    elif "home_deg" in doc:
+        home, where, file = doc["home_deg"], "home_deg", args.calibration
+    else:
+        return (0.0, 0.0)
+    if (not isinstance(home, (list, tuple)) or len(home) != 2
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                       and math.isfinite(v) for v in home)):
+        raise VisionCalError(f"expected two finite joint angles in degrees, got {home!r}",
+                             file=file, field=where)
+    return (float(home[0]), float(home[1]))

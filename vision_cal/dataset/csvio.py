@@ -85,6 +85,25 @@ def write_plan(path, rows: list[dict]) -> Path:
     return atomic_write_text(path, buf.getvalue())
 
 
+FAILED_FIELDS = ("id", "x_mm", "y_mm", "reason")
+
+
+def failed_report_path(plan_path) -> Path:
+    """Where ``plan`` reports the targets it could not plan: ``PLAN.failed.csv`` beside it."""
+    p = Path(plan_path)
+    return p.with_name(f"{p.stem}.failed.csv")
+
+
+def write_failed_targets(path, rows) -> Path:
+    """Targets that were not planned: (id, x_mm, y_mm, reason) each."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(FAILED_FIELDS)
+    for tid, x, y, why in rows:
+        w.writerow([tid, f"{x:.4f}", f"{y:.4f}", why])
+    return atomic_write_text(path, buf.getvalue())
+
+
 def read_plan(path) -> tuple[list[str], np.ndarray, np.ndarray]:
     """Planned ids, joints (N, 2) deg and approach signs (N, 2); rows with a failed
     ``status`` (not planned) are skipped."""

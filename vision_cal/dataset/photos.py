@@ -43,6 +43,10 @@ from datetime import datetime
 from pathlib import Path, PurePosixPath
 
 PHOTO_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp")
+#: camera formats neither Pillow nor OpenCV reads here (HEIC from phones, raw files):
+#: named in a warning, so that they do not vanish silently
+UNREAD_SUFFIXES = (".heic", ".heif", ".avif", ".dng", ".cr2", ".cr3", ".nef", ".arw", ".raf",
+                   ".orf", ".rw2")
 #: largest photo measured (pixels): a 100 MP frame is ~300 MB decoded (8-bit RGB), above
 #: any phone or DSLR the sheet is photographed with; a larger header is a bomb or a scan
 MAX_PIXELS = 100_000_000
@@ -98,6 +102,12 @@ def list_photos(root) -> list[str]:
     root = Path(root)
     names = [e.name for e in os.scandir(root) if is_photo_name(e.name)]
     return sorted(names, key=natural_key)
+
+
+def list_unread(root) -> list[str]:
+    """Files directly in ``root`` of a camera format that is not read (HEIC, raw)."""
+    return sorted((e.name for e in os.scandir(root) if not e.name.startswith(".")
+                   and e.name.lower().endswith(UNREAD_SUFFIXES)), key=natural_key)
 
 
 # --------------------------------------------------------------------------- reading

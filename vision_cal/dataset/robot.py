@@ -40,11 +40,12 @@ from pathlib import Path
 from vision_cal.dataset.io import read_text
 from vision_cal.dataset.session import NominalRobot, _Reader, read_robot_block
 from vision_cal.errors import VisionCalError
+from vision_cal.motion import ACCEL_DEG_S2, JOINT_LIMITS_DEG, SPEED_DEG_S
 
 log = logging.getLogger(__name__)
 
 ROBOT_BLOCK = ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "home_deg")
-DEFAULT_LIMITS_DEG = ((-170.0, 170.0), (-150.0, 150.0))
+DEFAULT_LIMITS_DEG = JOINT_LIMITS_DEG  # the defaults live in vision_cal.motion
 
 
 @dataclass(frozen=True)
@@ -72,8 +73,8 @@ class RobotFile:
     name: str = "robot"
     tolerance: PlacementTolerance = field(default_factory=PlacementTolerance)
     joint_limits_deg: tuple[tuple[float, float], tuple[float, float]] = DEFAULT_LIMITS_DEG
-    speed_limits_deg_s: tuple[float, float] = (90.0, 120.0)
-    accel_limits_deg_s2: tuple[float, float] = (300.0, 400.0)
+    speed_limits_deg_s: tuple[float, float] = SPEED_DEG_S
+    accel_limits_deg_s2: tuple[float, float] = ACCEL_DEG_S2
     elbows: tuple[int, ...] = (1, -1)
     pen_up_mm: float | None = None
     pen_down_mm: float | None = None
@@ -221,7 +222,7 @@ def load_robot_file(path) -> RobotFile:
     if extra:
         log.warning("%s: ignoring unknown fields %s", path, ", ".join(sorted(map(str, extra))))
     home = nominal.home_deg
-    lims = kw.get("joint_limits_deg", DEFAULT_LIMITS_DEG)
+    lims = kw.get("joint_limits_deg", JOINT_LIMITS_DEG)
     for j in range(2):
         if not lims[j][0] <= home[j] <= lims[j][1]:
             r.fail("home_deg", f"joint {j + 1} at {home[j]:g} deg is outside joint_limits_deg "

@@ -16,6 +16,7 @@ from vision_cal.dataset.io import read_json
 from vision_cal.dataset.photos import normalise_name
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import ScaraParams
+from vision_cal.motion import approach_signs
 
 FORMAT = "vision-cal/1"
 ROLES = ("calibration", "validation")
@@ -28,25 +29,87 @@ class SheetMarker:
 
 
 @dataclass(frozen=True)
+class SheetGrid:
+    """The printed plotting grid (``sheet.grid``): lines at ``origin_mm + k * pitch_mm``
+    in x and in y; every ``bold_every``-th one (counted from the origin) is bold. Added
+    optional fields: ``fine_width_mm`` / ``bold_width_mm`` (line widths) and ``extent_mm``
+    ([x0, y0, x1, y1], where the lines are printed; absent: the whole paper)."""
+
+    pitch_mm: float = 1.0
+    bold_every: int = 10
+    origin_mm: tuple[float, float] = (0.0, 0.0)
+    fine_width_mm: float | None = None
+    bold_width_mm: float | None = None
+    extent_mm: tuple[float, float, float, float] | None = None
+
+    def to_json(self) -> dict:
+        d = {"pitch_mm": self.pitch_mm, "bold_every": self.bold_every,
+             "origin_mm": list(self.origin_mm)}
+        if self.fine_width_mm is not None:
+            d["fine_width_mm"] = self.fine_width_mm
+        if self.bold_width_mm is not None:
+            d["bold_width_mm"] = self.bold_width_mm
+        if self.extent_mm is not None:
+            d["extent_mm"] = list(self.extent_mm)
+        return d
+
+
+@dataclass(frozen=True)
 class Sheet:
     aruco_dictionary: str
     markers: tuple[SheetMarker, ...]
     size_mm: tuple[float, float]
-    bottom_left_mm: tuple[float, float] = (0.0, 0.0)  # added field: paper corner in frame S
+    bottom_left_mm: tuple[float, float] | None = None  # added field: paper corner in frame S
     grid: dict | None = None      # the printed grid as in the file (pitch_mm, origin_mm, ...)
     printed: dict | None = None   # how it was printed (module_mm, quiet_zone_modules, ...)
 
+    def markers_hull_mm(self) -> tuple[float, float, float, float] | None:
+        """(x_min, y_min, x_max, y_max) of every printed marker corner, None without markers."""
+        if not self.markers:
+            return None
+        c = np.concatenate([np.asarray(m.corners_mm, float).reshape(-1, 2)
+                            for m in self.markers])
+        return (float(c[:, 0].min()), float(c[:, 1].min()), float(c[:, 0].max()),
+                float(c[:, 1].max()))
+
+    @property
+    def grid_spec(self) -> "SheetGrid | None":
+        """``grid`` as a typed :class:`SheetGrid` (None when no grid is declared)."""
+        return None if self.grid is None else sheet_grid_from_dict(self.grid)
+
     @property
     def extent_mm(self) -> tuple[float, float, float, float]:
-        """(x_min, y_min, x_max, y_max) of the paper in the sheet frame."""
+        """(x_min, y_min, x_max, y_max) of what is surely paper in the sheet frame: the
+        declared paper (``bottom_left_mm`` + ``size_mm``) with the markers printed on it;
+        without ``bottom_left_mm``, the markers' bounding box (the paper is somewhere around
+        them, where, the sheet does not say). Nothing else about the frame is assumed."""
+        hull = self.markers_hull_mm()
+        if self.bottom_left_mm is None:
+            if hull is None:
+                return (0.0, 0.0, float(self.size_mm[0]), float(self.size_mm[1]))
+            return hull
         x0, y0 = self.bottom_left_mm
-        return (x0, y0, x0 + self.size_mm[0], y0 + self.size_mm[1])
+        box = (x0, y0, x0 + self.size_mm[0], y0 + self.size_mm[1])
+        return _union(box, hull)
+
+    @property
+    def search_extent_mm(self) -> tuple[float, float, float, float]:
+        """(x_min, y_min, x_max, y_max) of where the paper may be (where pen marks are looked
+        for): the declared paper, or without ``bottom_left_mm`` every place a paper of
+        ``size_mm`` holding all the markers can lie."""
+        hull = self.markers_hull_mm()
+        if self.bottom_left_mm is not None or hull is None:
+            return self.extent_mm
+        w, h = self.size_mm
+        return _union((hull[2] - w, hull[3] - h, hull[0] + w, hull[1] + h), hull)
 
     def to_json(self) -> dict:
         out = {"aruco_dictionary": self.aruco_dictionary,
                "markers": [{"id": m.id, "corners_mm": np.asarray(m.corners_mm).tolist()}
                            for m in self.markers],
-               "size_mm": list(self.size_mm), "bottom_left_mm": list(self.bottom_left_mm)}
+               "size_mm": list(self.size_mm)}
+        if self.bottom_left_mm is not None:
+            out["bottom_left_mm"] = list(self.bottom_left_mm)
         if self.grid is not None:
             out["grid"] = self.grid
         if self.printed is not None:
@@ -55,6 +118,14 @@ class Sheet:
 
     def corners_by_id(self) -> dict[int, np.ndarray]:
         return {m.id: m.corners_mm for m in self.markers}
+
+
+def _union(a, b):
+    """Bounding box of two boxes (x_min, y_min, x_max, y_max); ``b`` may be None."""
+    if b is None:
+        return tuple(float(v) for v in a)
+    return (float(min(a[0], b[0])), float(min(a[1], b[1])), float(max(a[2], b[2])),
+            float(max(a[3], b[3])))
 
 
 @dataclass(frozen=True)
@@ -135,26 +206,34 @@ class Session:
 
 
 def resolve_approach(marks, home_deg=(0.0, 0.0)) -> np.ndarray:
-    """Approach signs (N, 2): given, else the sign of the change from the previous pose.
-
-    A joint that did not move keeps its previous sign, starting at +1.
-    """
-    prev = np.asarray(home_deg, dtype=float)
-    sign = np.ones(2)
-    out = np.empty((len(marks), 2))
-    for i, m in enumerate(marks):
-        q = np.asarray(m.joints_deg, dtype=float)
-        moved = np.sign(q - prev)
-        sign = np.where(moved != 0, moved, sign)
-        if m.approach is not None:
-            sign = np.asarray(m.approach, dtype=float)
-        out[i] = sign
-        prev = q
-    return out
+    """Approach signs (N, 2) of ``marks``: given, else the format's rule
+    (:func:`vision_cal.motion.approach_signs`)."""
+    return approach_signs([m.joints_deg for m in marks], home_deg,
+                          given=[m.approach for m in marks])
 
 
-class _Reader:
-    """Typed field access that names the file and the field in every error."""
+#: sanity bounds of a valid file: no sheet, robot or pen mark is 100 m across, and no SCARA
+#: joint is commanded beyond two turns either way
+MAX_MM = 1e5
+MAX_JOINT_DEG = 720.0
+MAX_PEN_MM = 50.0
+MAX_IMAGE_PX = 100_000
+MAX_K_PX = 1e7
+MAX_DIST = 1e3
+
+
+def _short(v, n: int = 60) -> str:
+    """``repr`` of a value from a file, cut to fit in one line of an error."""
+    try:
+        t = repr(v)
+    except (RecursionError, ValueError):  # deeply nested, or an int too long to print
+        t = f"<{type(v).__name__}>"
+    return t if len(t) <= n else t[:n - 3] + "..."
+
+
+class FieldReader:
+    """Typed field access that names the file and the field in every error (session.json,
+    calibration.json and the robot file use the same one)."""
 
     def __init__(self, file: str):
         self.file = file
@@ -171,21 +250,43 @@ class _Reader:
             return None
         return obj[key]
 
-    def number(self, v, where: str) -> float:
+    def number(self, v, where: str, *, lo: float | None = None, hi: float | None = None,
+               positive: bool = False, what: str = "number") -> float:
+        """A finite JSON number, optionally within [lo, hi] (and > 0 with ``positive``)."""
         if isinstance(v, bool) or not isinstance(v, (int, float)):
-            self.fail(where, f"expected a number, got {type(v).__name__} {v!r}")
-        if not math.isfinite(v):
-            self.fail(where, f"expected a finite number, got {v!r}")
-        return float(v)
+            self.fail(where, f"expected a number, got {type(v).__name__} {_short(v)}")
+        try:
+            x = float(v)
+        except OverflowError:
+            x = math.inf
+        if not math.isfinite(x):
+            self.fail(where, f"expected a finite number, got {_short(v)}")
+        if positive and x <= 0:
+            self.fail(where, f"expected a positive {what}, got {_short(v)}")
+        if (lo is not None and x < lo) or (hi is not None and x > hi):
+            self.fail(where, f"expected a {what} between {lo:g} and {hi:g}, got {_short(v)}")
+        return x
 
-    def vector(self, v, where: str, n: int) -> tuple[float, ...]:
+    def vector(self, v, where: str, n: int, **limits) -> tuple[float, ...]:
         if not isinstance(v, list) or len(v) != n:
-            self.fail(where, f"expected a list of {n} numbers, got {v!r}")
-        return tuple(self.number(x, f"{where}[{i}]") for i, x in enumerate(v))
+            self.fail(where, f"expected a list of {n} numbers, got {_short(v)}")
+        return tuple(self.number(x, f"{where}[{i}]", **limits) for i, x in enumerate(v))
+
+    def length(self, v, where: str, *, positive: bool = False) -> float:
+        """A length in mm: a position or size on a sheet, a link, a pen mark."""
+        return self.number(v, where, lo=-MAX_MM, hi=MAX_MM, positive=positive,
+                           what="length in mm")
+
+    def point(self, v, where: str) -> tuple[float, float]:
+        return self.vector(v, where, 2, lo=-MAX_MM, hi=MAX_MM, what="length in mm")
+
+    def angles(self, v, where: str) -> tuple[float, float]:
+        return self.vector(v, where, 2, lo=-MAX_JOINT_DEG, hi=MAX_JOINT_DEG,
+                           what="joint angle in degrees")
 
     def string(self, v, where: str) -> str:
         if not isinstance(v, str) or not v:
-            self.fail(where, f"expected a non-empty string, got {v!r}")
+            self.fail(where, f"expected a non-empty string, got {_short(v)}")
         return v
 
     def list_(self, v, where: str, *, nonempty=False) -> list:
@@ -194,6 +295,40 @@ class _Reader:
         if nonempty and not v:
             self.fail(where, "expected a non-empty list")
         return v
+
+    def section(self, obj, where: str, allowed: tuple[str, ...]) -> dict:
+        """An optional mapping (None reads as empty) whose keys must all be ``allowed``."""
+        if obj is None:
+            return {}
+        if not isinstance(obj, dict):
+            self.fail(where, f"expected a mapping, got {type(obj).__name__} {obj!r}")
+        for k in obj:
+            if k not in allowed:
+                name = f"{where}.{k}" if where else str(k)
+                self.fail(name, f"unknown field (expected one of: {', '.join(allowed)})")
+        return obj
+
+    def integer(self, v, where: str, *, lo=None, hi=None) -> int:
+        if isinstance(v, bool) or not isinstance(v, int):
+            self.fail(where, f"expected an integer, got {v!r}")
+        if lo is not None and v < lo:
+            self.fail(where, f"expected an integer >= {lo}, got {v}")
+        if hi is not None and v > hi:
+            self.fail(where, f"expected an integer <= {hi}, got {v}")
+        return int(v)
+
+    def boolean(self, v, where: str) -> bool:
+        if not isinstance(v, bool):
+            self.fail(where, f"expected true or false, got {v!r}")
+        return v
+
+    def choice(self, v, where: str, options: tuple[str, ...]) -> str:
+        if v not in options:
+            self.fail(where, f"expected one of {', '.join(options)}, got {v!r}")
+        return v
+
+
+_Reader = FieldReader
 
 
 def _aruco_dictionary_ok(name: str) -> bool:
@@ -212,15 +347,12 @@ def read_robot_block(r: _Reader, rob, where: str = "robot") -> NominalRobot:
 
     if not isinstance(rob, dict):
         r.fail(where or "(top level)", f"expected an object, got {type(rob).__name__}")
-    L1 = r.number(r.get(rob, "L1_mm", where), w("L1_mm"))
-    L2 = r.number(r.get(rob, "L2_mm", where), w("L2_mm"))
-    for k, v in (("L1_mm", L1), ("L2_mm", L2)):
-        if v <= 0:
-            r.fail(w(k), f"expected a positive length, got {v}")
-    jz = r.vector(r.get(rob, "joint_zero_deg", where), w("joint_zero_deg"), 2)
-    base = r.vector(r.get(rob, "base_mm", where), w("base_mm"), 2)
+    L1 = r.length(r.get(rob, "L1_mm", where), w("L1_mm"), positive=True)
+    L2 = r.length(r.get(rob, "L2_mm", where), w("L2_mm"), positive=True)
+    jz = r.angles(r.get(rob, "joint_zero_deg", where), w("joint_zero_deg"))
+    base = r.point(r.get(rob, "base_mm", where), w("base_mm"))
     home_raw = r.get(rob, "home_deg", where, required=False)
-    home = r.vector(home_raw, w("home_deg"), 2) if home_raw is not None else (0.0, 0.0)
+    home = r.angles(home_raw, w("home_deg")) if home_raw is not None else (0.0, 0.0)
     return NominalRobot(L1, L2, jz, base, home)
 
 
@@ -236,7 +368,8 @@ def read_sheet_block(r: _Reader, sheet_raw, where: str = "sheet", *,
     if not _aruco_dictionary_ok(d):
         r.fail(w("aruco_dictionary"),
                f"unknown ArUco dictionary {d!r} (expected an OpenCV name like DICT_5X5_100)")
-    size = r.vector(r.get(sheet_raw, "size_mm", where), w("size_mm"), 2)
+    size = r.vector(r.get(sheet_raw, "size_mm", where), w("size_mm"), 2, lo=0.0, hi=MAX_MM,
+                    positive=True, what="length in mm")
     mk_raw = r.list_(r.get(sheet_raw, "markers", where), w("markers"),
                      nonempty=need_markers)
     mks: list[SheetMarker] = []
@@ -252,11 +385,12 @@ def read_sheet_block(r: _Reader, sheet_raw, where: str = "sheet", *,
         cs = r.list_(r.get(mk, "corners_mm", wm), f"{wm}.corners_mm")
         if len(cs) != 4:
             r.fail(f"{wm}.corners_mm", f"expected 4 corners, got {len(cs)}")
-        c = np.array([r.vector(p, f"{wm}.corners_mm[{j}]", 2) for j, p in enumerate(cs)])
+        c = np.array([r.point(p, f"{wm}.corners_mm[{j}]") for j, p in enumerate(cs)])
         mks.append(SheetMarker(int(mid), c))
     bl_raw = sheet_raw.get("bottom_left_mm")
-    bl = r.vector(bl_raw, w("bottom_left_mm"), 2) if bl_raw is not None else (0.0, 0.0)
+    bl = r.point(bl_raw, w("bottom_left_mm")) if bl_raw is not None else None
     grid = _optional_object(r, sheet_raw, w("grid"))
+    _sheet_grid(r, grid, w("grid"))   # the grid must make sense to be used
     printed = _optional_object(r, sheet_raw, w("printed"))
     if printed is not None:
         for k in ("module_mm", "quiet_zone_mm", "quiet_zone_modules"):
@@ -270,6 +404,46 @@ def read_sheet_block(r: _Reader, sheet_raw, where: str = "sheet", *,
             if any(v <= 0 for v in r.vector(mb, w("printed.measured_bar_mm"), 2)):
                 r.fail(w("printed.measured_bar_mm"), f"expected two positive lengths, got {mb!r}")
     return Sheet(d, tuple(mks), size, bl, grid, printed)
+
+
+def _sheet_grid(r: "_Reader", g, where: str = "sheet.grid") -> SheetGrid | None:
+    """``sheet.grid`` (optional): pitch, bold_every, origin; line widths and extent added."""
+    if g is None:
+        return None
+    if not isinstance(g, dict):
+        r.fail(where, f"expected an object like {{\"pitch_mm\": 1.0, \"bold_every\": "
+                             f"10, \"origin_mm\": [x, y]}}, got {g!r}")
+    pitch = r.number(r.get(g, "pitch_mm", where), f"{where}.pitch_mm")
+    if pitch <= 0:
+        r.fail(f"{where}.pitch_mm", f"expected a positive pitch, got {pitch}")
+    bold = g.get("bold_every", 10)
+    if isinstance(bold, bool) or not isinstance(bold, int) or bold < 1:
+        r.fail(f"{where}.bold_every", f"expected a positive integer, got {bold!r}")
+    origin = r.vector(g.get("origin_mm", [0.0, 0.0]), f"{where}.origin_mm", 2)
+    widths = {}
+    for k in ("fine_width_mm", "bold_width_mm"):
+        if g.get(k) is not None:
+            v = r.number(g[k], f"{where}.{k}")
+            if v <= 0 or v >= pitch:
+                r.fail(f"{where}.{k}", f"expected a width between 0 and the pitch, got {v}")
+            widths[k] = v
+    ext = None
+    if g.get("extent_mm") is not None:
+        ext = r.vector(g["extent_mm"], f"{where}.extent_mm", 4)
+        if ext[2] <= ext[0] or ext[3] <= ext[1]:
+            r.fail(f"{where}.extent_mm", f"expected [x0, y0, x1, y1] with x1 > x0 and "
+                                           f"y1 > y0, got {list(ext)}")
+    return SheetGrid(pitch, int(bold), origin, widths.get("fine_width_mm"),
+                     widths.get("bold_width_mm"), ext)
+
+
+def sheet_grid_from_dict(g: dict) -> SheetGrid:
+    """A declared grid (already validated by :func:`_sheet_grid`) as a :class:`SheetGrid`."""
+    ext = g.get("extent_mm")
+    return SheetGrid(float(g["pitch_mm"]), int(g.get("bold_every", 10)),
+                     tuple(float(v) for v in g.get("origin_mm", (0.0, 0.0))),
+                     g.get("fine_width_mm"), g.get("bold_width_mm"),
+                     None if ext is None else tuple(float(v) for v in ext))
 
 
 def _optional_object(r: _Reader, obj: dict, where: str) -> dict | None:
@@ -314,7 +488,7 @@ def load_session(folder) -> Session:
         if mid in seen:
             r.fail(f"{w}.id", f"duplicate mark id {mid!r}")
         seen.add(mid)
-        q = r.vector(r.get(m, "joints_deg", w), f"{w}.joints_deg", 2)
+        q = r.angles(r.get(m, "joints_deg", w), f"{w}.joints_deg")
         role = m.get("role", "calibration")
         if role not in ROLES:
             r.fail(f"{w}.role", f"expected one of {ROLES}, got {role!r}")
@@ -325,9 +499,9 @@ def load_session(folder) -> Session:
                 r.fail(f"{w}.approach", f"expected [+1 or -1, +1 or -1], got {appr!r}")
             appr = (int(a[0]), int(a[1]))
         tgt = m.get("target_mm")
-        tgt = r.vector(tgt, f"{w}.target_mm", 2) if tgt is not None else None
+        tgt = r.point(tgt, f"{w}.target_mm") if tgt is not None else None
         meas = m.get("measured_mm")
-        meas = r.vector(meas, f"{w}.measured_mm", 2) if meas is not None else None
+        meas = r.point(meas, f"{w}.measured_mm") if meas is not None else None
         marks.append(Mark(mid, q, role, appr, tgt, meas))
 
     # images (absent: every photo in the folder, marks found from the photos)
@@ -374,22 +548,35 @@ def load_session(folder) -> Session:
     camera = None
     cam = raw.get("camera")
     if cam is not None:
-        size_px = r.vector(r.get(cam, "size_px", "camera"), "camera.size_px", 2)
+        size_px = r.vector(r.get(cam, "size_px", "camera"), "camera.size_px", 2, lo=1,
+                           hi=MAX_IMAGE_PX, what="image size in pixels")
+        if any(x != int(x) for x in size_px):
+            r.fail("camera.size_px", f"expected whole pixels, got {_short(cam['size_px'])}")
         K_raw = r.list_(r.get(cam, "K", "camera"), "camera.K")
         if len(K_raw) != 3:
             r.fail("camera.K", "expected a 3x3 matrix")
-        K = np.array([r.vector(row, f"camera.K[{i}]", 3) for i, row in enumerate(K_raw)])
+        K = np.array([r.vector(row, f"camera.K[{i}]", 3, lo=-MAX_K_PX, hi=MAX_K_PX,
+                               what="pixel value") for i, row in enumerate(K_raw)])
+        for i in (0, 1):
+            if K[i, i] <= 0:
+                r.fail(f"camera.K[{i}][{i}]", f"expected a positive focal length in pixels, "
+                                              f"got {K[i, i]:g}")
+        if K[1, 0] != 0 or tuple(K[2]) != (0.0, 0.0, 1.0):
+            r.fail("camera.K", "expected an OpenCV camera matrix [[fx,s,cx],[0,fy,cy],[0,0,1]]")
         dist_raw = r.list_(r.get(cam, "dist", "camera"), "camera.dist")
         if len(dist_raw) not in (4, 5, 8, 12, 14):
             r.fail("camera.dist", f"expected 4, 5, 8, 12 or 14 OpenCV coefficients, got {len(dist_raw)}")
-        dist = np.array([r.number(x, f"camera.dist[{i}]") for i, x in enumerate(dist_raw)])
+        dist = np.array([r.number(x, f"camera.dist[{i}]", lo=-MAX_DIST, hi=MAX_DIST,
+                                  what="distortion coefficient")
+                         for i, x in enumerate(dist_raw)])
         camera = Camera((int(size_px[0]), int(size_px[1])), K, dist)
 
     pen = raw.get("pen")
     dia = None
     if pen is not None:
         v = r.get(pen, "mark_diameter_mm", "pen", required=False)
-        dia = r.number(v, "pen.mark_diameter_mm") if v is not None else None
+        dia = (r.number(v, "pen.mark_diameter_mm", lo=0.0, hi=MAX_PEN_MM, positive=True,
+                        what="diameter in mm") if v is not None else None)
 
     return Session(folder, sheet, robot, tuple(marks), tuple(images), camera, dia, raw,
                    images_listed)

@@ -143,7 +143,7 @@ def design_pilot(robot, sheet, *, margin_mm: float = 3.0, min_separation_mm: flo
     z2 = np.radians(nominal.joint_zero_deg[1])
     tz2 = np.radians(tol.joint_zero_deg[1])
     allowed = np.asarray(robot.elbows, dtype=int)
-    # the worst-case displacement of a pen point: an upper bound used only to prune
+    # the worst-case displacement of a pen point (an upper bound, for the message)
     reach = nominal.L1_mm + nominal.L2_mm + tol.link_mm * 2
     bound = tol.base_mm + 2 * tol.link_mm + np.radians(tol.joint_zero_deg[0]) * reach \
         + np.radians(tol.joint_zero_deg[1]) * (nominal.L2_mm + tol.link_mm)
@@ -152,7 +152,6 @@ def design_pilot(robot, sheet, *, margin_mm: float = 3.0, min_separation_mm: flo
     C = np.array(np.meshgrid(g1, g2, indexing="ij")).reshape(2, -1).T   # candidate centres
     nominal_p = placement_grid(nominal, type(tol)(0.0, (0.0, 0.0), 0.0))
     clear = ClearanceMap(sheet)
-    best_fail = -np.inf
     for span in SPANS_DEG:
         Q = C[:, None, :] + pattern_deg((0.0, 0.0), span)[None]           # (K, 9, 2)
         ok = np.all((Q >= lo) & (Q <= hi), axis=(1, 2))
@@ -171,13 +170,11 @@ def design_pilot(robot, sheet, *, margin_mm: float = 3.0, min_separation_mm: flo
                       for i in range(xy0.shape[1]) for j in range(i)], axis=0)
         keep = (c0 >= need) & (sep >= min_separation_mm)
         if not keep.any():
-            best_fail = max(best_fail, float(c0.max()) - bound)
             continue
         K, c0 = K[keep], c0[keep]
         order = K[np.argsort(-c0)][:300]
         xy = pens_mm(placements, Q[order].reshape(-1, 2))                 # (P, n*9, 2)
         worst = clear(xy.reshape(len(placements), len(order), -1, 2)).min(axis=(0, 2))
-        best_fail = max(best_fail, float(worst.max()))
         good = worst >= need
         if not good.any():
             continue
@@ -198,6 +195,7 @@ def design_pilot(robot, sheet, *, margin_mm: float = 3.0, min_separation_mm: flo
     raise VisionCalError(
         f"no pilot pattern keeps {need:.1f} mm clear of the paper's edges and markers for "
         f"every placement within the tolerance (base {tol.base_mm:g} mm, zeros "
-        f"{tol.joint_zero_deg[0]:g}/{tol.joint_zero_deg[1]:g} deg, links {tol.link_mm:g} mm; "
-        f"best worst-case clearance {best_fail:.1f} mm): move the robot closer to the sheet, "
-        "use a larger sheet, or measure the placement better", field="placement_tolerance")
+        f"{tol.joint_zero_deg[0]:g}/{tol.joint_zero_deg[1]:g} deg, links {tol.link_mm:g} mm, "
+        f"up to ~{bound:.0f} mm of pen displacement): use a larger sheet, move the robot so "
+        "the sheet lies well inside its reach, or measure the placement better",
+        field="placement_tolerance")

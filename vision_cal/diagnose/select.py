@@ -24,13 +24,17 @@ import numpy as np
 from scipy import stats
 
 from vision_cal.calibrate.lsq import Fit
+from vision_cal.config import DEFAULT
 from vision_cal.diagnose.candidates import Candidate, default_candidates, joint_residuals_deg
 from vision_cal.diagnose.structure import harmonic_scan, sheet_scan
 from vision_cal.errors import CalibrationError
 from vision_cal.model import JointCyclic, RobotModel, SheetAffine
+from vision_cal.rms import rms, rms_2d
 
-ALPHA = 0.01   # family-wise level of the F-test, split over the candidates (Bonferroni)
-K_FOLDS = 5    # cross-validation folds when there are fewer than 3 validation marks
+ALPHA = DEFAULT.selection.alpha      # family-wise F-test level (see vision_cal.config)
+K_FOLDS = DEFAULT.selection.k_folds  # cross-validation folds when < 3 validation marks
+MIN_SCAN_DOF = DEFAULT.selection.min_scan_dof        # no structure looked for below
+MIN_SHEET_MARKS = DEFAULT.selection.min_sheet_marks  # no sheet map tested below
 
 
 @dataclass(frozen=True)
@@ -85,11 +89,6 @@ class Diagnosis:
         return out
 
 
-def _rss(fit: Fit) -> float:
-    r = fit.residuals_mm[fit.inliers]
-    return float(np.sum(r**2))
-
-
 def _fit(model, q, xy, app, sigma, ids):
     return Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, ids=ids)
 
@@ -100,7 +99,7 @@ def heldout_rms(model: RobotModel, q, xy, app, *, sigma=None, q_val=None, xy_val
     if q_val is not None and len(q_val) >= 3:
         f = Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, robust=False)
         r = xy_val - f.predict(q_val, app_val)
-        return float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+        return rms_2d(r)
     n = len(q)
     # folds from a fixed seed unless one is given: the same data calibrate the same way
     rng = np.random.default_rng(0 if rng is None else rng)
@@ -115,8 +114,7 @@ def heldout_rms(model: RobotModel, q, xy, app, *, sigma=None, q_val=None, xy_val
         except CalibrationError:
             return float("nan")
         err.append(xy[idx] - f.predict(q[idx], app[idx]))
-    r = np.concatenate(err)
-    return float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+    return rms_2d(np.concatenate(err))
 
 
 def residual_analysis(fit: Fit, q, app, *, n_bins: int = 6) -> dict:
@@ -128,7 +126,7 @@ def residual_analysis(fit: Fit, q, app, *, n_bins: int = 6) -> dict:
         d, a, qq = dq[keep, j], app[keep, j], q[keep, j]
         ok = np.isfinite(d)
         d, a, qq = d[ok], a[ok], qq[ok]
-        res = {"rms_deg": float(np.sqrt(np.mean(d**2))) if len(d) else float("nan")}
+        res = {"rms_deg": rms(d)}
         if (a > 0).sum() >= 2 and (a < 0).sum() >= 2:
             t = stats.ttest_ind(d[a > 0], d[a < 0], equal_var=False)
             res["by_approach_deg"] = {"+1": float(d[a > 0].mean()), "-1": float(d[a < 0].mean()),
@@ -149,7 +147,7 @@ def residual_analysis(fit: Fit, q, app, *, n_bins: int = 6) -> dict:
 
 def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None, xy_val=None,
              approach_val=None, candidates: list[Candidate] | None = None, alpha: float = ALPHA,
-             k_folds: int = K_FOLDS, max_effects: int = 4, rng=None) -> Diagnosis:
+             k_folds: int = K_FOLDS, max_effects: int = DEFAULT.selection.max_effects, rng=None) -> Diagnosis:
     """Calibrate the base model, then add the effects the residual asks for."""
     q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
     xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
@@ -203,7 +201,8 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
     sel, found, nuisance = select_on(everything)
     # the sheet map of what is left once the nuisance harmonics are out
     keep = sel.fit.inliers
-    sheet_map = sheet_scan(xy[keep], sel.fit.residuals_mm[keep])
+    sheet_map = (sheet_scan(xy[keep], sel.fit.residuals_mm[keep])
+                 if keep.sum() >= MIN_SHEET_MARKS else {"p_value": 1.0, "k": 0})
     sheet_alpha = alpha / 2
     if sheet_map["p_value"] < sheet_alpha:
         # neighbouring marks share a residual: select again without the marks there, so
@@ -220,14 +219,16 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
             again = sheet_scan(xy, xy - sel.fit.predict(q, app), n_perm=0)
             sheet_map.update({k: again[k] for k in ("peak_mm", "peak_size_mm",
                                                     "peak_residual_mm", "map")})
+    # the reported model: the selected effects only (a nuisance is reported, not fitted),
+    # on every mark
     effects = tuple(sel.fit.model.effects[len(nuisance):])
-    if nuisance or not everything.all() or len(sel.fit.residuals_mm) != len(q):
+    if nuisance or len(sel.fit.residuals_mm) != len(q):
         zero = RobotModel(base.params, tuple(_at_zero(e) for e in effects))
         current = _fit(zero if effects else None, q, xy, app, sigma, ids)
+        current_held = held(current.model)
+        base_held = held(RobotModel(base.params))
     else:
-        current = sel.fit
-    current_held = held(current.model)
-    base_held = held(RobotModel(base.params))
+        current, current_held, base_held = sel.fit, sel.held, sel.base_held
     accepted = sel.accepted
     # keep only the last round's rejections per label (the final word on each candidate)
     last = {}
@@ -337,6 +338,8 @@ def _unexplained_harmonics(fit: Fit, q, app, sigma, cands, alpha, *, ids=None, x
     offered = {(c.effect.joint, c.effect.harmonic) for c in cands
                if isinstance(c.effect, JointCyclic)}
     out = []
+    if 2 * int(fit.inliers.sum()) - fit.n_params - 2 < MIN_SCAN_DOF:
+        return out          # too few marks to tell a harmonic from the noise
     for _ in range(max_found):
         keep = fit.inliers
         w = None if sigma is None else 1.0 / np.asarray(sigma)[keep]

@@ -74,7 +74,7 @@ def harmonic_scan(model, q_deg, approach, residual_mm, *, weights=None, h_max: i
     return out
 
 
-def sheet_scan(xy_mm, residual_mm, *, k: int = 5, n_perm: int = 1999, grid=(4, 3),
+def sheet_scan(xy_mm, residual_mm, *, k: int = 5, n_perm: int = 999, grid=(4, 3),
                rng=None) -> dict:
     """Do neighbouring marks share their residual? (see the module docstring).
 

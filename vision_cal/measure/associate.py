@@ -25,8 +25,11 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from vision_cal.calibrate.linear import explain_degeneracy, linear_init
+from vision_cal.config import DEFAULT
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams, forward
+from vision_cal.rms import rms as rms_of
+from vision_cal.rms import rms_2d
 
 
 @dataclass(frozen=True)
@@ -78,7 +81,7 @@ def group_dots(per_image, *, tol_mm: float) -> list[DotGroup]:
 #: fraction of a photo's error variance that repeats in every photo of the same dot (the
 #: printed grid under the dot, the paper grain, each marker's own corner bias): measured on
 #: synthetic series, where averaging n views shrank the error far less than 1/n
-COMMON_FRACTION = 0.5
+COMMON_FRACTION = DEFAULT.association.common_fraction  # see vision_cal.config
 
 
 def combine(group: DotGroup, *, common_fraction: float = COMMON_FRACTION
@@ -97,7 +100,7 @@ def combine(group: DotGroup, *, common_fraction: float = COMMON_FRACTION
     xy = cov @ np.einsum("nij,nj->i", W, group.xy_mm)
     cov = cov * (1.0 + common_fraction * (n - 1))
     d = group.xy_mm - xy
-    spread = float(np.sqrt(np.mean(np.sum(d**2, axis=1))))
+    spread = rms_2d(d)
     if n > 1:
         chi2 = float(np.einsum("ni,nij,nj->", d, W, d))
         f = chi2 / (2 * (n - 1))
@@ -162,7 +165,7 @@ def _refine(q, dots, allowed, P0, anchors, *, gate0, nominal, max_zero_deg, max_
         params = p
         P = forward(p, q)
         res = np.array([np.hypot(*(P[i] - dots[j])) for i, j in new])
-        rms = float(np.sqrt(np.mean(res**2)))
+        rms = rms_of(res)
         gate_new = max(2.0, 5.0 * rms)
         if new == pairs and gate_new >= gate * 0.99:
             break
@@ -171,7 +174,7 @@ def _refine(q, dots, allowed, P0, anchors, *, gate0, nominal, max_zero_deg, max_
         return None
     P = forward(params, q)
     res = np.array([np.hypot(*(P[i] - dots[j])) for i, j in pairs])
-    return {"pairs": tuple(pairs), "params": params, "rms": float(np.sqrt(np.mean(res**2))),
+    return {"pairs": tuple(pairs), "params": params, "rms": rms_of(res),
             "gate": gate, "P": P}
 
 
@@ -197,7 +200,8 @@ def clean_anchors(q_deg, dots_mm, anchors, *, tol_mm: float = 3.0) -> list:
 
 
 def match_to_plan(q_deg, dots_mm, nominal: ScaraParams, *, allowed=None, anchors=(),
-                  max_zero_deg: float = 10.0, max_base_mm: float = 100.0,
+                  max_zero_deg: float = DEFAULT.association.max_zero_deg,
+                  max_base_mm: float = DEFAULT.association.max_base_mm,
                   zero_step_deg: float = 0.5, bin_mm: float = 5.0):
     """Assign dots (M, 2) to planned marks at ``q_deg`` (N, 2) through the robot model.
 
@@ -281,7 +285,8 @@ def match_to_plan(q_deg, dots_mm, nominal: ScaraParams, *, allowed=None, anchors
 
 
 def associate(q_deg, mark_ids, mark_images, groups: list[DotGroup], nominal: ScaraParams,
-              *, max_zero_deg=10.0, max_base_mm=100.0) -> Assignment:
+              *, max_zero_deg=DEFAULT.association.max_zero_deg,
+              max_base_mm=DEFAULT.association.max_base_mm) -> Assignment:
     """Assign dot groups to marks.
 
     ``q_deg`` (N, 2) commanded joints, ``mark_ids`` (N,), ``mark_images``: for each mark the

@@ -31,24 +31,25 @@ import cv2
 import numpy as np
 from scipy.ndimage import maximum_filter1d
 
+from vision_cal.config import DEFAULT
 from vision_cal.dataset.session import Sheet
 from vision_cal.measure.mapping import SheetMapping
-from vision_cal.measure.marker_geometry import marker_geometry, marker_side_mm, quiet_boxes_mm
+from vision_cal.dataset.marker_geometry import (marker_boxes_mm, marker_geometry, marker_side_mm,
+                                                quiet_boxes_mm)
+from vision_cal.rms import rms
 
-INK_DARKENING = 0.30      # ink lowers the brightest channel by at least this fraction
-MIN_AREA_RATIO = 0.25     # smaller blobs are noise / paper texture (ignored)
-MAX_AREA_RATIO = 1.9      # above: merged marks or smudge
-HUGE_AREA_RATIO = 6.0     # above: not a pen mark at all (arm, shadow, print)
-MAX_ASPECT = 1.5          # sheet-frame aspect of a single dot
-MIN_SOLIDITY = 0.75
-MARKER_MARGIN_MM = 3.0    # masked around each printed marker square (patch half-size + margin)
-FINE_STEP_MM = 0.05
-DEFAULT_DIAMETER_MM = 1.2
-HIDDEN_LINES = True
-#: what the centroid cannot resolve of the print and the photo's sampling under a dot (px):
-#: seen as errors that repeat in every photo of a dot on synthetic photos and on the
-#: project's pyrender photos (0.01-0.03 px); added to every dot's covariance
-MODEL_FLOOR_PX = 0.02
+_CFG = DEFAULT.dots
+# the thresholds live (documented) in vision_cal.config.DotConfig
+INK_DARKENING = _CFG.ink_darkening
+MIN_AREA_RATIO = _CFG.min_area_ratio
+MAX_AREA_RATIO = _CFG.max_area_ratio
+HUGE_AREA_RATIO = _CFG.huge_area_ratio
+MAX_ASPECT = _CFG.max_aspect
+MIN_SOLIDITY = _CFG.min_solidity
+MARKER_MARGIN_MM = _CFG.marker_margin_mm
+FINE_STEP_MM = _CFG.fine_step_mm
+DEFAULT_DIAMETER_MM = _CFG.default_diameter_mm
+MODEL_FLOOR_PX = _CFG.model_floor_px
 
 
 def _radii_mm(dia_mm: float, mm_per_px: float) -> tuple[float, float]:
@@ -91,10 +92,9 @@ def noise_sigma_sum(rgb: np.ndarray, mapping: SheetMapping | None = None,
     vals = []
     if mapping is not None and sheet is not None:
         geometry = marker_geometry(sheet)
-        for m in sheet.markers:
-            c = np.asarray(m.corners_mm, float)
-            lo, hi = c.min(axis=0), c.max(axis=0)
-            outer = float(geometry.quiet_mm(marker_side_mm(c))) - 0.8
+        for m, box_mm in zip(sheet.markers, marker_boxes_mm(sheet)):
+            lo, hi = box_mm[:2], box_mm[2:]
+            outer = float(geometry.quiet_mm(marker_side_mm(m.corners_mm))) - 0.8
             inner = 0.8
             if outer <= inner:
                 continue
@@ -147,15 +147,14 @@ def sheet_mask(shape, mapping: SheetMapping, sheet: Sheet, *, border_mm: float =
     """uint8 (H, W) 255 where pen marks may be: on the paper, off markers and quiet zones."""
     H, W = shape[:2]
     mask = np.zeros((H, W), np.uint8)
-    x0, y0, x1, y1 = sheet.extent_mm
+    x0, y0, x1, y1 = sheet.search_extent_mm
     b = border_mm
     paper = np.array([[x0 + b, y0 + b], [x1 - b, y0 + b], [x1 - b, y1 - b], [x0 + b, y1 - b]])
     poly = _polygon(mapping, paper, 24)
     cv2.fillPoly(mask, [np.round(poly * 16).astype(np.int32)], 255, cv2.LINE_8, 4)
-    for m in sheet.markers:
-        c = np.asarray(m.corners_mm, float)
-        q = MARKER_MARGIN_MM  # the quiet zone is blank paper: dots there are measurable
-        lo, hi = c.min(axis=0) - q, c.max(axis=0) + q
+    # the quiet zone is blank paper: dots there are measurable
+    for lo0, lo1, hi0, hi1 in marker_boxes_mm(sheet, MARKER_MARGIN_MM):
+        lo, hi = (lo0, lo1), (hi0, hi1)
         sq = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
         poly = _polygon(mapping, sq, 4)
         cv2.fillPoly(mask, [np.round(poly * 16).astype(np.int32)], 0, cv2.LINE_8, 4)
@@ -168,7 +167,7 @@ def find_candidates(rgb: np.ndarray, mapping: SheetMapping, sheet: Sheet, *,
     channels' maximum and sum are used) with an approximate mapping."""
     dia = float(dia_mm or DEFAULT_DIAMETER_MM)
     H, W = rgb.shape[:2]
-    x0, y0, x1, y1 = sheet.extent_mm
+    x0, y0, x1, y1 = sheet.search_extent_mm
     probe = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1], [(x0 + x1) / 2, (y0 + y1) / 2]])
     mmpp = mapping.mm_per_px(probe)
     dia_px_max = dia / max(float(mmpp.min()), 1e-6)
@@ -351,7 +350,7 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
         if partial:
             bg = np.where(blank, P, bg)
         w0 = (bg - Sg) / P            # ink deficit, relative to the paper
-        ell = np.clip((P - bg) / P, 0.0, None) if HIDDEN_LINES else np.zeros_like(P)
+        ell = np.clip((P - bg) / P, 0.0, None)
         r_dot = 0.5 * dia
         cc = c.copy()
         for _ in range(8):
@@ -401,6 +400,6 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     cov_map = mapping.point_cov_mm2(c)[0]
     # what the separable background leaves unexplained, relative to the noise (diagnostic)
     noise_grid = np.sqrt(sw2) / mm_px  # per-sample std of the relative intensity (upper)
-    e_rms = float(np.sqrt(np.mean(resid**2)))
+    e_rms = rms(resid)
     return DotMeasurement(c, cov_noise + cov_map, M_mm2, cov_noise, cov_map,
                           e_rms / noise_grid)

@@ -10,7 +10,10 @@ the dot groups:
 - **finished sheet**: every usable photo sees most (:data:`FINISHED_FRACTION`) of the
   persistent groups: each photo shows every mark of the plan;
 - **series**: otherwise. Photo k shows the first ``n_k`` marks of the plan, ``n_k`` the
-  number of persistent groups first seen in photos up to k (capped at the plan's length).
+  number of persistent groups first seen in photos up to k (capped at the plan's length),
+  less the dots that were on the sheet before the series: when the last photo has more
+  persistent dots than the plan has marks, that excess (at most what the first photo
+  showed) is taken as earlier marks (a pilot plan drawn on the same sheet) or blemishes.
 
 What does not fit is reported, never fatal: a photo that adds no mark in a series (a
 repeated photo), one that adds several (a photo of the series missing, or several marks
@@ -73,11 +76,19 @@ def infer_image_marks(n_images: int, usable: list[int], groups, mark_ids, files
                             "(not drawn, hidden, or too faint)")
     else:
         mode = "series"
+        count = [sum(1 for gi in persistent if first_of[gi] <= r) for r in range(len(usable))]
+        # more dots than planned marks by the end: the excess was on the sheet before the
+        # series began (an earlier plan's marks, a blemish), seen from the first photo on
+        pre = min(max(0, count[-1] - N), count[0])
+        if pre:
+            warnings.append(f"{pre} dot(s) already on the sheet in the first photo "
+                            f"({files[usable[0]]}) and more dots than planned marks by the "
+                            "end: taken as marks made before this series, not counted")
         prev = 0
         for r, k in enumerate(usable):
-            n = sum(1 for gi in persistent if first_of[gi] <= r)
+            n = count[r] - pre
             if n > N:
-                if prev <= N:
+                if prev < N:
                     warnings.append(f"{files[k]}: {n} persistent dots, more than the {N} "
                                     "planned marks: the series is capped at the plan")
                 n = N

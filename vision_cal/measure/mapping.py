@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 
 from vision_cal.errors import VisionCalError
+from vision_cal.rms import rms_2d
 
 _UNDIST_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 60, 1e-12)
 
@@ -155,11 +156,11 @@ def fit_mapping(sheet_mm, raw_px, *, K=None, dist=None) -> SheetMapping:
         raise VisionCalError("degenerate marker corners: no homography")
     pred = distort_px(apply_h(H, obj), K, dist)
     res_px = raw - pred
-    rms_px = float(np.sqrt(np.mean(np.sum(res_px**2, axis=1))))
+    rms_px = rms_2d(res_px)
     G = np.linalg.inv(H)
     back = apply_h(G, uv)
     res_mm = back - obj
-    rms_mm = float(np.sqrt(np.mean(np.sum(res_mm**2, axis=1))))
+    rms_mm = rms_2d(res_mm)
     # covariance of the inverse homography (ideal px -> sheet mm), normalised coordinates
     Ts, Td = _normaliser(uv), _normaliser(obj)
     Gn = Td @ G @ np.linalg.inv(Ts)
@@ -255,11 +256,6 @@ def _project(obj_mm, K, dist, rvec, tvec):
     return np.asarray(out, float).reshape(-1, 2)
 
 
-def _rms(r) -> float:
-    r = np.asarray(r).reshape(-1, 2)
-    return float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) if len(r) else float("nan")
-
-
 def estimate_lens(views, size_px, *, n_folds: int = 3, min_gain: float = 0.8,
                   min_gain_px: float = 0.02) -> LensEstimate | None:
     """Fit a lens jointly over photos of one camera, keep it only if held-out corners agree.
@@ -306,8 +302,8 @@ def estimate_lens(views, size_px, *, n_folds: int = 3, min_gain: float = 0.8,
                 continue
             for (ot, pt), r_, t_ in zip(test, rv, tv):
                 res_model[name].append(pt - _project(ot, K, dist, r_, t_))
-    cv_none = _rms(np.concatenate(res_none)) if res_none else float("nan")
-    cv = {n: (_rms(np.concatenate(r)) if r else float("nan")) for n, r in res_model.items()}
+    cv_none = rms_2d(np.concatenate(res_none)) if res_none else float("nan")
+    cv = {n: (rms_2d(np.concatenate(r)) if r else float("nan")) for n, r in res_model.items()}
 
     chosen, cv_best = None, cv_none
     for name, _ in LENS_MODELS:
@@ -336,7 +332,7 @@ def estimate_lens(views, size_px, *, n_folds: int = 3, min_gain: float = 0.8,
     return LensEstimate(
         kept=chosen is not None, model=name, K=K, dist=dist,
         size_px=(int(size_px[0]), int(size_px[1])),
-        rms_px_before=_rms(np.concatenate(res_b)), rms_px_after=_rms(np.concatenate(res_a)),
-        rms_mm_before=_rms(np.concatenate(res_b_mm)), rms_mm_after=_rms(np.concatenate(res_a_mm)),
+        rms_px_before=rms_2d(np.concatenate(res_b)), rms_px_after=rms_2d(np.concatenate(res_a)),
+        rms_mm_before=rms_2d(np.concatenate(res_b_mm)), rms_mm_after=rms_2d(np.concatenate(res_a_mm)),
         cv_rms_px_before=cv_none, cv_rms_px_after=cv.get(name, float("nan")),
         n_photos=len(views), candidates={"none": cv_none, **cv})

@@ -18,6 +18,7 @@ import numpy as np
 
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import forward
+from vision_cal.motion import JOINT_LIMITS_DEG, SPEED_DEG_S, approach_signs
 
 
 @dataclass(frozen=True)
@@ -42,13 +43,9 @@ def paper_plan() -> list[PlannedMark]:
     """
     poses = [("c00", (0.0, 0.0)), ("j1p", (20.0, 0.0)), ("j1n", (-20.0, 0.0)),
              ("j2p", (0.0, 60.0)), ("j2n", (0.0, -60.0))]
-    out, prev, sign = [], np.zeros(2), np.ones(2)
-    for mid, q in poses:
-        moved = np.sign(np.asarray(q) - prev)
-        sign = np.where(moved != 0, moved, sign)
-        out.append(PlannedMark(mid, q, "calibration", (int(sign[0]), int(sign[1]))))
-        prev = np.asarray(q)
-    return out
+    signs = approach_signs([q for _, q in poses])
+    return [PlannedMark(mid, q, "calibration", (int(s[0]), int(s[1])))
+            for (mid, q), s in zip(poses, signs)]
 
 
 # --------------------------------------------------------------------------------------
@@ -113,7 +110,7 @@ def informative_plan(nominal, sheet, *, n_calibration: int = 30, n_validation: i
                      margin_mm: float = 3.0, safety_mm: float = 15.0,
                      overshoot_deg: float = 3.0, min_sin_elbow: float = 0.2,
                      home_deg=(0.0, 0.0), n_candidates: int = 40000, elbows=(1, -1),
-                     speed_deg_s=(90.0, 120.0)) -> list[PlannedMark]:
+                     speed_deg_s=SPEED_DEG_S) -> list[PlannedMark]:
     """A plan that identifies the base model *and* backlash, gear scale and cyclic errors.
 
     Poses are drawn uniformly in joint space, kept where the pen (nominal model) lands on

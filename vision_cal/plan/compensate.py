@@ -24,9 +24,10 @@ import numpy as np
 
 from vision_cal.kinematics import inverse
 from vision_cal.model import JointEffect, RobotModel
+from vision_cal.motion import JOINT_LIMITS_DEG, TRAJECTORY_DT_S
 from vision_cal.plan.calibration_plan import PlannedMark
 
-DEFAULT_LIMITS_DEG = ((-170.0, 170.0), (-150.0, 150.0))
+DEFAULT_LIMITS_DEG = JOINT_LIMITS_DEG  # the old name, kept for callers
 
 
 @dataclass(frozen=True)
@@ -72,7 +73,7 @@ def _invert_joints(model: RobotModel, phi_deg: np.ndarray, s: np.ndarray) -> np.
 
 
 def plan_targets(model: RobotModel, ids, targets_mm, *, elbow: int = 1, approach=(1, 1),
-                 joint_limits_deg=DEFAULT_LIMITS_DEG, min_sin_q2: float = 0.05
+                 joint_limits_deg=JOINT_LIMITS_DEG, min_sin_q2: float = 0.05
                  ) -> list[PlannedTarget]:
     """Joint commands for every target (N, 2) mm; failures carry their reason."""
     from vision_cal.kinematics import ik_failures
@@ -128,7 +129,7 @@ def to_planned_marks(planned: list[PlannedTarget], *, overshoot_deg: float = 3.0
 
 
 def write_plan_trajectory(path, planned: list[PlannedTarget], *, home_deg=(0.0, 0.0),
-                          dt_s: float = 0.016):
+                          dt_s: float = TRAJECTORY_DT_S):
     """The joint-space reference trajectory through the planned points (CSV)."""
     from vision_cal.plan.trajectory import plan_trajectory, write_trajectory_csv
 

@@ -27,6 +27,7 @@ from scipy.interpolate import CubicHermiteSpline
 
 from vision_cal.dataset.io import atomic_write_text
 from vision_cal.errors import VisionCalError
+from vision_cal.motion import ACCEL_DEG_S2, SPEED_DEG_S, TRAJECTORY_DT_S
 
 
 @dataclass(frozen=True, eq=False)
@@ -109,8 +110,8 @@ def segment_duration_s(delta_deg, *, vmax_deg_s, amax_deg_s2, dt_s: float) -> fl
     return max(n, 1) * dt_s
 
 
-def joint_trajectory(waypoints_deg, *, dt_s: float = 0.016, vmax_deg_s=(90.0, 120.0),
-                     amax_deg_s2=(300.0, 400.0), dwell_s: float = 0.3,
+def joint_trajectory(waypoints_deg, *, dt_s: float = TRAJECTORY_DT_S, vmax_deg_s=SPEED_DEG_S,
+                     amax_deg_s2=ACCEL_DEG_S2, dwell_s: float = 0.3,
                      mark_index=None) -> Trajectory:
     """Sampled trajectory through ``waypoints_deg`` (M, 2), stopping at each waypoint.
 

@@ -23,7 +23,12 @@ def _ja(q, z, j4) -> str:
 
 
 def _comment(text: str) -> str:
-    return "' " + text.replace("\n", " ")
+    return "' " + _safe(text)
+
+
+def _safe(text: str) -> str:
+    """Text that cannot end a SPEL+ string or line (ids come from the user's targets.csv)."""
+    return "".join(c if c.isprintable() and c != '"' else "_" for c in str(text))
 
 
 def spel_program(points, robot, *, title: str) -> str:
@@ -57,21 +62,21 @@ def spel_program(points, robot, *, title: str) -> str:
         if p.kind != "home" and p.id != announced:
             announced = p.id
             k += 1
-            lines.append(f"    Print \"mark {p.id} ({k} of {len(marks)})\"")
+            lines.append(f"    Print \"mark {_safe(p.id)} ({k} of {len(marks)})\"")
         if p.kind == "home":
             lines.append(f"    Go {_ja(p.q_deg, up, j4)}  ' home")
         elif p.kind == "via":
-            lines.append(f"    Go {_ja(p.q_deg, up, j4)}  ' {p.id} via")
+            lines.append(f"    Go {_ja(p.q_deg, up, j4)}  ' {_safe(p.id)} via")
         else:
             a = p.approach or (0, 0)
-            lines.append(f"    Go {_ja(p.q_deg, up, j4)}  ' {p.id} mark, approach "
+            lines.append(f"    Go {_ja(p.q_deg, up, j4)}  ' {_safe(p.id)} mark, approach "
                          f"{a[0]:+d} {a[1]:+d}, elbow {p.elbow:+d}")
             if prog.settle_s > 0:
                 lines.append(f"    Wait {prog.settle_s:g}")
-            lines.append(f"    Go {_ja(p.q_deg, down, j4)}  ' {p.id} pen down")
+            lines.append(f"    Go {_ja(p.q_deg, down, j4)}  ' {_safe(p.id)} pen down")
             if prog.pen_dwell_s > 0:
                 lines.append(f"    Wait {prog.pen_dwell_s:g}")
-            lines.append(f"    Go {_ja(p.q_deg, up, j4)}  ' {p.id} pen up")
+            lines.append(f"    Go {_ja(p.q_deg, up, j4)}  ' {_safe(p.id)} pen up")
     lines.append(f"    Print \"done: {len(marks)} marks\"")
     lines.append("Fend")
     return "\r\n".join(lines) + "\r\n"

@@ -12,7 +12,7 @@ photographs the sheet and writes::
                         present but undeclared), true mark positions, the camera's K, dist
                         and per-photo poses ``T_cam_sheet`` (added field: 4x4, sheet mm ->
                         camera mm, OpenCV camera axes); added fields: controller,
-                        arrival_sign / link_q_deg per mark, off_paper, on_marker,
+                        approach / link_q_deg per mark, off_paper, on_marker,
                         arm_parked_q_deg, extra_files, repeatability_mm, seed
 
 The lens is applied by ``Photographer.photograph(dist=..., K_dist=K)`` on an ideal render
@@ -107,15 +107,6 @@ def build_plan(scene: Scene, sheet, *, pilot=None, rng=None) -> list:
 
     if scene.plan.kind == "paper":
         return list(cp.paper_plan())
-    fn = getattr(cp, "informative_plan", None)
-    if fn is None:
-        log.warning("informative_plan is not available yet: using the renderer's fallback "
-                    "plan (random reachable points with random approach sides)")
-        return fallback_plan(scene.robot.nominal.params, sheet,
-                             n_calibration=scene.plan.n_calibration,
-                             n_validation=scene.plan.n_validation,
-                             min_separation_mm=scene.plan.min_separation_mm,
-                             home_deg=scene.robot.nominal.home_deg, rng=rng)
     if scene.plan.pilot:
         if pilot is None:
             raise VisionCalError("the scene plans from a pilot calibration (plan.pilot): "
@@ -125,66 +116,10 @@ def build_plan(scene: Scene, sheet, *, pilot=None, rng=None) -> list:
         model = pilot(*pilot_marks(scene, rng=rng))
     else:
         model = scene.robot.nominal.params
-    return list(fn(model, sheet, n_calibration=scene.plan.n_calibration,
-                   n_validation=scene.plan.n_validation,
-                   pen_diameter_mm=scene.robot.pen_diameter_mm,
-                   min_separation_mm=scene.plan.min_separation_mm, rng=rng))
-
-
-def fallback_plan(nominal, sheet, *, n_calibration=30, n_validation=8, min_separation_mm=10.0,
-                  home_deg=(0.0, 0.0), inset_mm=60.0, overshoot_deg=2.0, rng=None) -> list:
-    """A plain plan for when ``informative_plan`` is missing: random points on the paper.
-
-    Points lie ``inset_mm`` inside the paper, off the markers' quiet zones, within the
-    nominal arm's reach (20 mm off both reach limits), ``min_separation_mm`` apart; each
-    joint arrives from a random side through an overshoot via point ``overshoot_deg`` past
-    the mark. Ids ``c00..`` (calibration) then ``v00..`` (validation), drawn interleaved.
-    """
-    from vision_cal.kinematics import inverse
-    from vision_cal.plan.calibration_plan import PlannedMark
-
-    rng = np.random.default_rng(rng)
-    n = n_calibration + n_validation
-    x0, y0, x1, y1 = sheet.extent_mm
-    base = np.array(nominal.base_mm)
-    r_lo = abs(nominal.L1_mm - nominal.L2_mm) + 20.0
-    r_hi = nominal.L1_mm + nominal.L2_mm - 20.0
-    boxes = []
-    for m in sheet.markers:
-        c = np.asarray(m.corners_mm)
-        pad = 0.25 * (c[:, 0].max() - c[:, 0].min()) + 2.0
-        boxes.append((c.min(axis=0) - pad, c.max(axis=0) + pad))
-    pts: list[np.ndarray] = []
-    for _ in range(200 * n):
-        p = rng.uniform([x0 + inset_mm, y0 + inset_mm], [x1 - inset_mm, y1 - inset_mm])
-        r = np.linalg.norm(p - base)
-        if not r_lo <= r <= r_hi:
-            continue
-        if any(np.all(p >= lo) and np.all(p <= hi) for lo, hi in boxes):
-            continue
-        if pts and np.min(np.linalg.norm(np.array(pts) - p, axis=1)) < min_separation_mm:
-            continue
-        pts.append(p)
-        if len(pts) == n:
-            break
-    if len(pts) < n:
-        raise VisionCalError(f"only {len(pts)} of {n} plan points fit on the reachable part "
-                             "of the sheet", field="plan")
-    q = inverse(nominal, np.array(pts), elbow=1)
-    roles = ["calibration"] * n_calibration + ["validation"] * n_validation
-    order = rng.permutation(n)
-    out = []
-    ic = iv = 0
-    for k in order:
-        if roles[k] == "calibration":
-            mid, ic = f"c{ic:02d}", ic + 1
-        else:
-            mid, iv = f"v{iv:02d}", iv + 1
-        s = rng.choice([-1, 1], size=2)
-        via = tuple(float(v) for v in q[k] - s * overshoot_deg)
-        out.append(PlannedMark(mid, (float(q[k, 0]), float(q[k, 1])), roles[k],
-                               (int(s[0]), int(s[1])), (via,)))
-    return out
+    return cp.informative_plan(model, sheet, n_calibration=scene.plan.n_calibration,
+                               n_validation=scene.plan.n_validation,
+                               pen_diameter_mm=scene.robot.pen_diameter_mm,
+                               min_separation_mm=scene.plan.min_separation_mm, rng=rng)
 
 
 # ----------------------------------------------------------------------------- textures
@@ -352,11 +287,11 @@ def lens_effect(scene: Scene) -> dict | None:
 
 def marks_on_markers(world: WorldMarks, sheet, *, pad_mm: float = 0.0) -> list[str]:
     """Ids of the marks that landed on a printed ArUco square (grown by ``pad_mm``)."""
+    from vision_cal.dataset.marker_geometry import marker_boxes_mm
+
     on = np.zeros(len(world.ids), dtype=bool)
-    for m in sheet.markers:
-        c = np.asarray(m.corners_mm, dtype=float)
-        lo, hi = c.min(axis=0) - pad_mm, c.max(axis=0) + pad_mm
-        on |= np.all((world.xy_mm >= lo) & (world.xy_mm <= hi), axis=1)
+    for box in marker_boxes_mm(sheet, pad_mm):
+        on |= np.all((world.xy_mm >= box[:2]) & (world.xy_mm <= box[2:]), axis=1)
     return [world.ids[i] for i in np.flatnonzero(on)]
 
 
@@ -579,7 +514,7 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
             # added fields: how the world got there
             "repeatability_mm": rob.repeatability_mm,
             "controller": rob.controller if joint_source is None else "custom",
-            "arrival_sign": {mid: world.approach[i].tolist() for i, mid in enumerate(world.ids)},
+            "approach": {mid: world.approach[i].tolist() for i, mid in enumerate(world.ids)},
             "link_q_deg": {mid: world.q_deg[i].tolist() for i, mid in enumerate(world.ids)},
             "off_paper": off_paper,
             "on_marker": marks_on_markers(world, sheet),

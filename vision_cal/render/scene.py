@@ -85,11 +85,10 @@ the reachable annulus lies on the sheet.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
 
+from vision_cal.dataset.session import FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import Effect, RobotModel, effect_from_json
@@ -223,61 +222,22 @@ class Scene:
 # ---------------------------------------------------------------------------- reading
 
 
-class _R:
-    """Typed access to the YAML tree; every error names the file and the field."""
-
-    def __init__(self, file: str):
-        self.file = file
-
-    def fail(self, where: str, msg: str):
-        raise VisionCalError(msg, file=self.file, field=where or None)
-
-    def section(self, obj: Any, where: str, allowed: tuple[str, ...]) -> dict:
-        if obj is None:
-            return {}
-        if not isinstance(obj, dict):
-            self.fail(where, f"expected a mapping, got {type(obj).__name__} {obj!r}")
-        for k in obj:
-            if k not in allowed:
-                name = f"{where}.{k}" if where else str(k)
-                self.fail(name, f"unknown field (expected one of: {', '.join(allowed)})")
-        return obj
+class _R(FieldReader):
+    """The typed reader of session.json (one owner, :class:`vision_cal.dataset.session.FieldReader`)
+    with bounded numbers for scene files; every error names the file and the field."""
 
     def number(self, v, where: str, *, lo=None, hi=None, lo_open=False) -> float:
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            self.fail(where, f"expected a number, got {v!r}")
-        v = float(v)
-        if not math.isfinite(v):
-            self.fail(where, f"expected a finite number, got {v!r}")
+        v = super().number(v, where)
         if lo is not None and (v < lo or (lo_open and v == lo)):
             self.fail(where, f"expected a number {'>' if lo_open else '>='} {lo}, got {v:g}")
         if hi is not None and v > hi:
             self.fail(where, f"expected a number <= {hi}, got {v:g}")
         return v
 
-    def integer(self, v, where: str, *, lo=None, hi=None) -> int:
-        if isinstance(v, bool) or not isinstance(v, int):
-            self.fail(where, f"expected an integer, got {v!r}")
-        if lo is not None and v < lo:
-            self.fail(where, f"expected an integer >= {lo}, got {v}")
-        if hi is not None and v > hi:
-            self.fail(where, f"expected an integer <= {hi}, got {v}")
-        return int(v)
-
     def vector(self, v, where: str, n: int, **kw) -> tuple[float, ...]:
         if not isinstance(v, (list, tuple)) or len(v) != n:
             self.fail(where, f"expected a list of {n} numbers, got {v!r}")
         return tuple(self.number(x, f"{where}[{i}]", **kw) for i, x in enumerate(v))
-
-    def boolean(self, v, where: str) -> bool:
-        if not isinstance(v, bool):
-            self.fail(where, f"expected true or false, got {v!r}")
-        return v
-
-    def choice(self, v, where: str, options: tuple[str, ...]) -> str:
-        if v not in options:
-            self.fail(where, f"expected one of {', '.join(options)}, got {v!r}")
-        return v
 
 
 def _params(r: _R, d: dict, where: str, default: ScaraParams) -> ScaraParams:

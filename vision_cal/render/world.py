@@ -10,12 +10,12 @@ controller (links reach the command exactly; arrival signs follow the motion thr
 via points, a joint that did not move keeps its previous sign, starting at +1). A simulated
 controller can be plugged in with the same signature::
 
-    joint_source(plan, home_deg) -> (link_q_deg (N, 2), arrival_sign (N, 2))
+    joint_source(plan, home_deg) -> (link_q_deg (N, 2), approach (N, 2))
 
 :func:`simulated_world` builds one from ``vision_cal.simulate`` (trajectory, sliding-mode
 or PD controller, dynamics, gear play).
 
-The true mark is ``truth.pen_mm(link_q_deg, arrival_sign)`` (every hidden effect of the
+The true mark is ``truth.pen_mm(link_q_deg, approach)`` (every hidden effect of the
 world's own :class:`~vision_cal.render.truth_model.TrueRobot` included, never the
 estimator's model) plus isotropic Gaussian noise of ``repeatability_mm`` per axis.
 """
@@ -56,7 +56,7 @@ class WorldMarks:
 
 
 def kinematic_joints(plan, home_deg=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
-    """A perfect controller: (link_q_deg (N, 2), arrival_sign (N, 2)) for ``plan``.
+    """A perfect controller: (link_q_deg (N, 2), approach (N, 2)) for ``plan``.
 
     The links reach each command exactly. Each joint's arrival sign is the sign of its
     last motion on the way home -> vias -> mark -> vias -> next mark ...; a joint that did
@@ -133,7 +133,7 @@ def simulated_world(truth: TrueRobot, *, controller: str = "smc", rng=None,
         r = simulate_plan(plan, home_deg=home_deg, backlash_deg=tuple(band),
                           controller=controller, rng=rng, **sim_kwargs)
         source.report = controller_report(r, controller)
-        return r.link_deg, r.arrival_sign
+        return r.link_deg, r.approach
 
     source.report = None
     return source, truth.without_backlash()

@@ -21,6 +21,7 @@ from xml.sax.saxutils import quoteattr
 import yaml
 
 from vision_cal.dataset.io import atomic_write_text
+from vision_cal.motion import JOINT_LIMITS_DEG
 
 EFFECTS_HEADER = """\
 # Effects found by vision-cal that URDF cannot express (see docs/conventions.md).
@@ -33,7 +34,7 @@ EFFECTS_HEADER = """\
 
 
 def urdf_text(doc: dict, *, name: str = "scara_calibrated",
-              limits_deg=((-170.0, 170.0), (-150.0, 150.0))) -> str:
+              limits_deg=JOINT_LIMITS_DEG) -> str:
     p = doc["params"]
     bx, by = (v / 1000.0 for v in p["base_mm"])
     z1, z2 = (math.radians(v) for v in p["joint_zero_deg"])

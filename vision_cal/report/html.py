@@ -417,6 +417,12 @@ def render_html(rep: dict) -> str:
     if all("joints_deg" in m for m in doc.get("marks", {}).values()):
         parts.append(f"<img class=fig alt='joint residuals' "
                      f"src='{_uri(plots.joint_residuals(doc))}'>")
+    sh = plots.sheet_height(doc)
+    if sh:
+        parts.append("<h2>Sheet height</h2><p class=note>A raised paper moves a mark seen "
+                     "through the marker mapping by about z r / H; against the printed grid "
+                     "around it the mark keeps its paper position.</p>"
+                     f"<img class=fig alt='sheet height' src='{_uri(sh)}'>")
     if rep.get("marks_table"):
         parts.append(_marks_html(rep))
     c = plots.circles(doc)

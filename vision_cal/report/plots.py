@@ -147,3 +147,103 @@ def targets(report: dict) -> bytes | None:
     ax.legend()
     ax.grid(alpha=0.3, axis="y")
     return _png(fig)
+
+
+def sheet_height(report: dict) -> bytes | None:
+    """The sheet's height map (sheet_height, with its marks) and the marks' local-versus-
+    global differences (measured against the printed grid minus the marker mapping, arrows):
+    None when the calibration has neither."""
+    m = report.get("marks", {})
+    lg = [(v["measured_mm"], v["local_minus_global_mm"]) for v in m.values()
+          if v.get("local_minus_global_mm") is not None]
+    hm = (report.get("diagnosis") or {}).get("sheet_height")
+    if not lg and not hm:
+        return None
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), layout="constrained", sharex=True,
+                             sharey=True)
+    ax = axes[0]
+    if hm and hm.get("grid"):
+        g = hm["grid"]
+        z = np.asarray(g["z_mm"], float)
+        lim = max(float(np.nanmax(np.abs(z))), 1e-3)
+        im = ax.pcolormesh(g["x_mm"], g["y_mm"], z, cmap="RdBu_r", vmin=-lim, vmax=lim,
+                           shading="nearest")
+        fig.colorbar(im, ax=ax, label="height above the markers' plane [mm]")
+        mk = hm.get("marks", {})
+        if mk:
+            p = np.array([v["xy_mm"] for v in mk.values()], float)
+            ax.scatter(p[:, 0], p[:, 1], c=[v["height_mm"] for v in mk.values()], cmap="RdBu_r",
+                       vmin=-lim, vmax=lim, edgecolors="k", s=22)
+        sd = np.asarray(g.get("std_mm", [[np.nan]]), float)
+        ax.set_title(f"sheet height ({'claimed' if hm.get('claimed') else 'not claimed'}; "
+                     f"median std {np.nanmedian(sd):.3f} mm)")
+    else:
+        ax.set_title("sheet height: not observable (no grid, camera did not move)")
+    ax = axes[1]
+    if lg:
+        xy = np.array([a for a, _ in lg], float)
+        d = np.array([b for _, b in lg], float)
+        big = max(float(np.max(np.hypot(*d.T))), 1e-6)
+        ax.quiver(xy[:, 0], xy[:, 1], d[:, 0], d[:, 1], angles="xy", scale_units="xy",
+                  scale=big / 40.0, color="tab:blue", width=0.004)
+        ax.set_title(f"grid minus marker mapping (max {big:.3f} mm)")
+    else:
+        ax.set_title("no mark measured against the printed grid")
+    for a in axes:
+        a.set_xlabel("sheet x [mm]")
+        a.set_aspect("equal")
+        a.grid(alpha=0.3)
+    axes[0].set_ylabel("sheet y [mm]")
+
+
+# ------------------------------------------------------------------- the closed loop
+
+def loop_paths(loop: dict) -> bytes:
+    """Targets and where the pen really went, before and after (paper Fig. 8-9), from
+    loop.json."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(9, 6.5), layout="constrained")
+    t = np.array([r["target_mm"] for r in loop["targets"]], float).reshape(-1, 2)
+    ax.plot(t[:, 0], t[:, 1], "k+", ms=9, label="targets")
+    for name, color in (("before", "tab:red"), ("after", "tab:green")):
+        pts = np.array([r[name]["measured_mm"] for r in loop["targets"]
+                        if "measured_mm" in r[name]], float).reshape(-1, 2)
+        if len(pts):
+            ax.plot(pts[:, 0], pts[:, 1], "o", mfc="none", color=color,
+                    label=f"measured marks, {name} calibration")
+    ax.set_aspect("equal")
+    ax.set_xlabel("sheet x [mm]")
+    ax.set_ylabel("sheet y [mm]")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    ax.set_title("targets and where the pen really went (paper Fig. 8-9)")
+    return _png(fig)
+
+
+def loop_joints(loop: dict) -> bytes:
+    """Joint reference trajectories of the planned targets before and after (paper
+    Fig. 10), from loop.json's planned joints, starting at its ``home_deg``."""
+    from vision_cal.motion import TRAJECTORY_DT_S
+    from vision_cal.plan.compensate import PlannedTarget, to_planned_marks
+    from vision_cal.plan.trajectory import plan_trajectory
+
+    plt = _plt()
+    fig, axes = plt.subplots(2, 1, figsize=(9, 6), layout="constrained", sharex=True)
+    home = loop.get("home_deg", (0.0, 0.0))
+    for name, style in (("before", "--"), ("after", "-")):
+        planned = [PlannedTarget(r["id"], tuple(r["target_mm"]), tuple(r[name]["q_deg"]),
+                                 tuple(int(s) for s in r[name]["approach"]))
+                   for r in loop["targets"] if "q_deg" in r[name]]
+        if not planned:
+            continue
+        tr = plan_trajectory(to_planned_marks(planned), home_deg=home)
+        for j in range(2):
+            axes[j].plot(tr.t_s, tr.q_deg[:, j], style, lw=1, label=f"{name} calibration")
+    for j in range(2):
+        axes[j].set_ylabel(f"joint {j + 1} reference [deg]")
+        axes[j].grid(alpha=0.3)
+        axes[j].legend()
+    axes[1].set_xlabel(f"time [s] (samples every {TRAJECTORY_DT_S} s)")
+    axes[0].set_title("joint reference trajectories before and after (paper Fig. 10)")
+    return _png(fig)

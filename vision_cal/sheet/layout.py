@@ -303,8 +303,6 @@ def make_layout(*, size: str | None = "A3", landscape: bool | None = None, custo
     (default 4 marker sides); ``quiet_modules``: the white margin around each marker.
     Refuses (``VisionCalError`` naming the option) what does not fit.
     """
-    import cv2  # noqa: F401  (dictionary bits)
-
     if version is None:
         from vision_cal import __version__ as version
     page, orientation, (W, H) = page_size_mm(size, landscape=landscape, custom_mm=custom_mm)

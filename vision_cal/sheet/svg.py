@@ -43,7 +43,8 @@ def svg_text(layout: SheetLayout) -> str:
             out.append(f'<path id="marker{p.id}" d="{d}" fill="#000000" fill-rule="nonzero"/>')
         elif isinstance(p, Text):
             anchor = {"start": "start", "middle": "middle", "end": "end"}[p.anchor]
-            rot = f' transform="rotate({_f(-p.angle_deg)} {X(p.x)} {Y(p.y)})"' if p.angle_deg else ""
+            rot = (f' transform="rotate({_f(-p.angle_deg)} {X(p.x)} {Y(p.y)})"'
+                   if p.angle_deg else "")
             out.append(f'<text x="{X(p.x)}" y="{Y(p.y)}" font-family="Helvetica, Arial, '
                        f'sans-serif" font-size="{_f(p.size_mm)}" text-anchor="{anchor}" '
                        f'fill="{_rgb(p.rgb)}"{rot}>{escape(p.text)}</text>')

@@ -172,11 +172,3 @@ class Stepper:
         v2 += dv2
         return q1 + dt * v1, q2 + dt * v2, v1, v2
 
-
-def play(link: float, motor: float, half_band: float) -> float:
-    """Backlash play operator: the link angle after the motor moved to ``motor``."""
-    if link < motor - half_band:
-        return motor - half_band
-    if link > motor + half_band:
-        return motor + half_band
-    return link

@@ -15,7 +15,7 @@ The pen lands where the *links* settled, not where the joints were commanded.
 
 Gear backlash is a play operator between encoder and link (see :mod:`.dynamics`); the
 link starts at ``home - band/2`` (as if the arm had last moved in +, the format's default
-approach). ``arrival_sign`` is the side of the band in contact at pen-down (the sign of the
+approach). ``approach`` is the side of the band in contact at pen-down (the sign of the
 last motion that dragged the link); with no backlash it is the sign of the last encoder
 motion larger than ``settle_tol_deg``.
 """
@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vision_cal.errors import VisionCalError
+from vision_cal.motion import TRAJECTORY_DT_S
 from vision_cal.plan.trajectory import Trajectory, plan_trajectory
 from vision_cal.simulate.controller import make_controller
 from vision_cal.simulate.dynamics import ScaraDynamics, Stepper
@@ -38,7 +39,8 @@ class SimResult:
     """What the simulated robot did (N marks, degrees).
 
     motor_deg (N, 2): encoder angles at pen-down; link_deg (N, 2): link angles at pen-down
-    (what the pen position depends on); arrival_sign (N, 2) +-1; settle_residual_deg (N, 2):
+    (what the pen position depends on); approach (N, 2) +-1: the side each joint arrived
+    from; settle_residual_deg (N, 2):
     encoder minus command at pen-down; settle_extra_s (N,): extra wait for settling;
     tracking_rms_deg / tracking_max_deg (2,): encoder minus reference over the whole run;
     reference: the commanded trajectory (at its own sampling period); t_s (K,), motor_trace_deg
@@ -47,7 +49,7 @@ class SimResult:
 
     motor_deg: np.ndarray
     link_deg: np.ndarray
-    arrival_sign: np.ndarray
+    approach: np.ndarray
     settle_residual_deg: np.ndarray
     settle_extra_s: np.ndarray
     tracking_rms_deg: np.ndarray
@@ -59,12 +61,17 @@ class SimResult:
     motor_trace_deg: np.ndarray
     link_trace_deg: np.ndarray
 
+    @property
+    def arrival_sign(self) -> np.ndarray:
+        """Old name of :attr:`approach`."""
+        return self.approach
+
 
 def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), controller="smc",
                   dynamics: ScaraDynamics | None = None, dt_s: float = 0.001,
                   settle_tol_deg: float = 1e-4, rng=None, encoder_noise_deg: float = 0.0,
                   max_settle_s: float = 5.0, trace_every: int = 16,
-                  trajectory: Trajectory | None = None, trajectory_dt_s: float = 0.016,
+                  trajectory: Trajectory | None = None, trajectory_dt_s: float = TRAJECTORY_DT_S,
                   **trajectory_kwargs) -> SimResult:
     """Run ``marks`` (list of :class:`~vision_cal.plan.calibration_plan.PlannedMark`).
 
@@ -105,7 +112,7 @@ def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), contro
     marks_rad = np.radians(np.array([m.joints_deg for m in marks], dtype=float).reshape(-1, 2))
 
     tol = math.radians(settle_tol_deg)
-    vtol = tol / 0.016
+    vtol = tol / TRAJECTORY_DT_S  # settled: slower than the tolerance per trajectory period
     hb1, hb2 = math.radians(band[0]) / 2, math.radians(band[1]) / 2
     # direction tracker: width of the band, or the settle tolerance with no backlash
     dh1 = hb1 if hb1 > 0 else tol / 2
@@ -199,7 +206,7 @@ def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), contro
         extra[i] = hold * dt_s
 
     return SimResult(
-        motor_deg=np.degrees(motor), link_deg=np.degrees(link), arrival_sign=arrival,
+        motor_deg=np.degrees(motor), link_deg=np.degrees(link), approach=arrival,
         settle_residual_deg=np.degrees(resid), settle_extra_s=extra,
         tracking_rms_deg=np.degrees(np.sqrt(np.array([err_sq1, err_sq2]) / max(n_err, 1))),
         tracking_max_deg=np.degrees(np.array([err_max1, err_max2])),

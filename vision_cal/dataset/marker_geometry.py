@@ -1,4 +1,7 @@
-"""What the measurer may know about the printed markers, and where it comes from.
+"""What a sheet description says about its printed markers, and where it comes from.
+
+It belongs to the format (the ``sheet`` block), not to the estimator: the measurer, the
+planners and the synthetic world all read it here.
 
 A sheet printed by any generator with the same ``sheet`` block must measure the same
 (``../shared/dataset-format.md``), so nothing here looks at how this project prints:
@@ -72,13 +75,18 @@ def marker_side_mm(corners_mm) -> float:
     return float(np.mean(np.hypot(*(np.roll(c, -1, axis=0) - c).T)))
 
 
+def marker_boxes_mm(sheet, pad_mm=0.0) -> np.ndarray:
+    """(M, 4) [x0, y0, x1, y1]: each printed marker's bounding box in the sheet frame,
+    grown by ``pad_mm`` (a number, or (M,) one per marker). The one owner of the boxes
+    kept clear of pen marks (measurer masks, planners, the world's labels)."""
+    c = np.array([np.asarray(m.corners_mm, float).reshape(4, 2) for m in sheet.markers],
+                 float).reshape(-1, 4, 2)
+    pad = np.broadcast_to(np.asarray(pad_mm, float), (len(c),))[:, None]
+    return np.hstack([c.min(axis=1) - pad, c.max(axis=1) + pad]).reshape(-1, 4)
+
+
 def quiet_boxes_mm(sheet) -> np.ndarray:
     """(M, 4) [x0, y0, x1, y1]: each marker's bounding box grown by its quiet zone."""
     g = marker_geometry(sheet)
-    out = []
-    for m in sheet.markers:
-        c = np.asarray(m.corners_mm, float)
-        lo, hi = c.min(axis=0), c.max(axis=0)
-        q = float(g.quiet_mm(marker_side_mm(c)))
-        out.append([lo[0] - q, lo[1] - q, hi[0] + q, hi[1] + q])
-    return np.asarray(out, float).reshape(-1, 4)
+    q = [float(g.quiet_mm(marker_side_mm(m.corners_mm))) for m in sheet.markers]
+    return marker_boxes_mm(sheet, q)

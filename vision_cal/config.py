@@ -1,0 +1,75 @@
+"""The estimator's knobs in one place (OpenSfM-style configuration), recorded in
+calibration.json (field ``config``) so that a result says how it was obtained.
+
+Every threshold the measurement and the selection use is a field below, with its unit and
+why it has its value. The modules read their defaults from :data:`DEFAULT` (``dots``: the
+module constants of :mod:`vision_cal.measure.dots`; ``association``: group tolerance and
+search range of :mod:`vision_cal.measure.associate`; ``selection``: the F-test level,
+cross-validation and outlier rule of :mod:`vision_cal.diagnose.select` and
+:mod:`vision_cal.calibrate.lsq`). :func:`vision_cal.pipeline.calibrate_dataset` takes an
+:class:`EstimatorConfig`; the ``association`` and ``selection`` parts may be changed per
+call, the ``dots`` part is fixed at import (a different one is refused, not ignored).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+
+@dataclass(frozen=True)
+class DotConfig:
+    """Pen-mark detection and centring (``vision_cal.measure.dots``)."""
+
+    ink_darkening: float = 0.30       # ink lowers the brightest channel by at least this fraction
+    min_area_ratio: float = 0.25      # blob area / expected dot area below: noise, paper texture
+    max_area_ratio: float = 1.9       # above: merged marks or a smudge
+    huge_area_ratio: float = 6.0      # above: not a pen mark at all (arm, shadow, print)
+    max_aspect: float = 1.5           # sheet-frame aspect ratio of a single dot
+    min_solidity: float = 0.75        # blob area / convex hull area
+    marker_margin_mm: float = 3.0     # masked around each printed marker (patch half-size + margin)
+    fine_step_mm: float = 0.05        # sampling step of the resampled dot patch
+    default_diameter_mm: float = 1.2  # pen mark diameter when session.json's pen block is absent
+    model_floor_px: float = 0.02      # centroid error the print and sampling leave (px), added to
+                                      # every dot's covariance (0.01-0.03 px seen on renders)
+
+
+@dataclass(frozen=True)
+class AssociationConfig:
+    """Grouping dots across photos and matching them to planned marks
+    (``vision_cal.measure.associate``)."""
+
+    group_tol_diameters: float = 0.4  # dots of two photos closer than this many mark diameters
+    group_tol_min_mm: float = 0.3     # ... (at least this many mm) are the same mark
+    common_fraction: float = 0.5      # share of a dot's covariance common to all its photos
+                                      # (the sheet mapping's error), not averaged away
+    max_zero_deg: float = 10.0        # how far the nominal joint zeros may be off (search range)
+    max_base_mm: float = 100.0        # how far the nominal base may be off (search range)
+
+
+@dataclass(frozen=True)
+class SelectionConfig:
+    """Which effects are added to the base model (``vision_cal.diagnose.select``) and which
+    marks are left out of a fit (``vision_cal.calibrate.lsq``)."""
+
+    alpha: float = 0.01               # family-wise F-test level, split over the candidates
+                                      # (Bonferroni: clean data claims nothing)
+    k_folds: int = 5                  # cross-validation folds when < 3 validation marks
+    max_effects: int = 4              # effects added at most
+    outlier_sigma: float = 5.0        # a mark this many robust sigmas off is left out
+    min_scan_dof: int = 20            # residual dof below which no structure is looked for
+                                      # (unexplained: periodograms need that many)
+    min_sheet_marks: int = 12         # marks below which the sheet map is not tested
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    dots: DotConfig = field(default_factory=DotConfig)
+    association: AssociationConfig = field(default_factory=AssociationConfig)
+    selection: SelectionConfig = field(default_factory=SelectionConfig)
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+#: what every module uses unless told otherwise
+DEFAULT = EstimatorConfig()
