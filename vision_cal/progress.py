@@ -6,14 +6,20 @@ when stderr is a terminal; when it is not (CI logs, ``make demo | tee``) it prin
 when a counted stage starts and one when it ends, with the count and the elapsed time, so
 a log shows what is running and where the time went::
 
-    vision-cal: render session: 38 photos (2 job(s)) ...
-    vision-cal: render session: 38/38 photos in 91.2 s (0.42 photos/s, 2 job(s))
+    vision-cal: progress: render session: 38 photos (2 job(s)) ...
+    vision-cal: progress: render session: 38/38 photos in 91.2 s (0.42 photos/s, 2 job(s))
 """
 
 from __future__ import annotations
 
 import sys
 import time
+
+PREFIX = "vision-cal: progress: "  # every progress line starts so (errors: "vision-cal: error:")
+
+
+def is_progress_line(line: str) -> bool:
+    return line.startswith(PREFIX)
 
 
 def _tty() -> bool:
@@ -32,7 +38,7 @@ class _Line:
         self.t0 = time.perf_counter()
         self.closed = False
         if total:
-            print(f"vision-cal: {desc}: {total} {unit}s" + (f" ({note})" if note else "")
+            print(f"{PREFIX}{desc}: {total} {unit}s" + (f" ({note})" if note else "")
                   + " ...", file=sys.stderr, flush=True)
 
     def update(self, n: int = 1) -> None:
@@ -68,7 +74,7 @@ def bar(enabled, *, total: int | None, desc: str, unit: str, note: str = ""):
 
 def stage_line(desc: str, seconds: float, *, n: int | None = None, total: int | None = None,
                unit: str = "", note: str = "") -> None:
-    """Print ``vision-cal: DESC: N/TOTAL UNITs in S s (rate)`` on stderr."""
+    """Print ``vision-cal: progress: DESC: N/TOTAL UNITs in S s (rate)`` on stderr."""
     count = ""
     if n is not None:
         count = f"{n}/{total} {unit}s in " if total is not None else f"{n} {unit}s in "
@@ -77,4 +83,4 @@ def stage_line(desc: str, seconds: float, *, n: int | None = None, total: int | 
         rate = f" ({n / seconds:.2f} {unit}s/s" + (f", {note}" if note else "") + ")"
     elif note:
         rate = f" ({note})"
-    print(f"vision-cal: {desc}: {count}{seconds:.1f} s{rate}", file=sys.stderr, flush=True)
+    print(f"{PREFIX}{desc}: {count}{seconds:.1f} s{rate}", file=sys.stderr, flush=True)

@@ -295,8 +295,8 @@ def test_parallel_render_is_bit_identical_and_reports_its_stage(tmp_path, capsys
     da, db = digest(a), digest(b)
     assert len(da) == 8 and da == db   # 6 photos, session.json, truth.json
     err = capsys.readouterr().err
-    assert "vision-cal: render serial: 6 photos (1 job(s)) ..." in err, err
-    assert "vision-cal: render serial: 6/6 photos in " in err, err
+    assert "vision-cal: progress: render serial: 6 photos (1 job(s)) ..." in err, err
+    assert "vision-cal: progress: render serial: 6/6 photos in " in err, err
 
 
 def test_shrunk_sheet_is_photographed_shrunk(tmp_path):
