@@ -149,8 +149,11 @@ def test_phone_principal_point_off_centre_and_focal_per_photo(tmp_path):
         err = [np.asarray(c).reshape(4, 2) - project(corners[int(i)], K=Ks[file],
                                                      T_cam_sheet=cam["T_cam_sheet"][file])
                for c, i in zip(found, np.ravel(ids))]
-        # sub-pixel corners: a few tenths of a pixel; a 3 % focal error moves them ~10 px
-        assert np.max(np.abs(err)) < 1.0, (file, np.max(np.abs(err)))
+        # OpenCV's sub-pixel corners scatter a few tenths of a pixel (one in ~50 reaches
+        # 1 px); a 1 % focal error moves the outer corners ~3 px, the 6 % spread ~20 px
+        err = np.asarray(err, float)
+        rms_px = float(np.sqrt(np.mean(err ** 2)))
+        assert rms_px < 0.5 and np.max(np.abs(err)) < 2.5, (file, rms_px, np.max(np.abs(err)))
     assert robot_effects(doc) == []
     check_base(doc)
     assert doc["truth_comparison"]["mark_rms_mm"] < MARK_RMS_MM
