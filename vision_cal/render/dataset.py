@@ -237,11 +237,11 @@ def lens_effect(scene: Scene) -> dict | None:
 
 def marks_on_markers(world: WorldMarks, sheet, *, pad_mm: float = 0.0) -> list[str]:
     """Ids of the marks that landed on a printed ArUco square (grown by ``pad_mm``)."""
-    from vision_cal.measure.marker_geometry import marker_boxes_mm
-
     on = np.zeros(len(world.ids), dtype=bool)
-    for box in marker_boxes_mm(sheet, pad_mm):
-        on |= np.all((world.xy_mm >= box[:2]) & (world.xy_mm <= box[2:]), axis=1)
+    for m in sheet.markers:  # the world's own geometry (it imports nothing of the measurer)
+        c = np.asarray(m.corners_mm, dtype=float)
+        lo, hi = c.min(axis=0) - pad_mm, c.max(axis=0) + pad_mm
+        on |= np.all((world.xy_mm >= lo) & (world.xy_mm <= hi), axis=1)
     return [world.ids[i] for i in np.flatnonzero(on)]
 
 
