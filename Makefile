@@ -17,6 +17,7 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/vision-cal fixtures/paper_sm5 --method paper --out out/paper_sm5
 	$(BIN)/vision-cal loop renders/default.yaml --out out/demo
+	@echo "disk used by out/: $$(du -sh out | cut -f1)"
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

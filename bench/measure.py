@@ -10,6 +10,11 @@ Prints, for photos of the project's renderer (or of a fast warp of the sheet tex
   (cold cache), and of a re-run with a warm cache;
 - the mark error against truth.json (RMS mm) and normalised errors (RMS, ideally ~1).
 
+``--reference [SCENE ...] [--seed N]``: instead, one table of the mark error against truth
+for flat and bumped scenes (renders/flat_tilted, bumped_tilted, bumped_moving by default),
+measured through the marker mapping only (global: sheet.grid left out) and against the
+printed grid (local), with the time per photo of each and whether sheet_height is claimed.
+
 Usage::
 
     .venv/bin/python bench/measure.py [--folder DIR] [--photos 40] [--warp]
@@ -90,13 +95,83 @@ def plain_opencv(path: Path, dictionary: str) -> int:
     return 0 if ids is None else len(ids)
 
 
+def _without_grid(folder: Path, tmp: Path) -> Path:
+    """The same dataset with ``sheet.grid`` left out (photos copied): the marker mapping only."""
+    out = tmp / (folder.name + "-nogrid")
+    out.mkdir(parents=True, exist_ok=True)
+    for p in folder.iterdir():
+        if p.suffix.lower() in (".png", ".jpg", ".jpeg") and not (out / p.name).exists():
+            shutil.copyfile(p, out / p.name)   # a copy: photos behind links are refused
+    d = json.loads((folder / "session.json").read_text())
+    d["sheet"].pop("grid", None)
+    (out / "session.json").write_text(json.dumps(d))
+    return out
+
+
+def reference_table(scenes: list[str], root: Path, seed: int | None) -> None:
+    """Mark error against truth.json, marker mapping (global) versus the printed grid
+    (local), flat and bumped scenes, in one table; time per photo of both."""
+    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.dataset.session import load_session
+    from vision_cal.measure.batch import measure_folder
+    from vision_cal.render.dataset import render_dataset
+    from vision_cal.render.scene import load_scene
+
+    rows = []
+    for name in scenes:
+        sc = load_scene(ROOT / "renders" / f"{name}.yaml").with_overrides(seed=seed)
+        folder = root / f"{name}-seed{sc.seed}"
+        if not (folder / "session.json").exists():
+            t = time.perf_counter()
+            render_dataset(sc, folder, progress=True, pilot=pilot_params)
+            print(f"rendered {folder} in {time.perf_counter() - t:.0f} s", file=sys.stderr)
+        truth = json.loads((folder / "truth.json").read_text())
+        tm = truth["marks"]
+        tmp = Path(tempfile.mkdtemp(prefix="bench-ref-"))
+        try:
+            res = {}
+            for ref, f in (("global", _without_grid(folder, tmp)), ("local", folder)):
+                s = load_session(f)
+                t = time.perf_counter()
+                meas = measure_folder(s, out_dir=tmp / f"out-{ref}", jobs=1)
+                dt = (time.perf_counter() - t) / max(len(s.images), 1)
+                keys = [k for k in meas.marks if k in tm]
+                e = np.array([meas.marks[k].xy_mm - np.asarray(tm[k]) for k in keys])
+                sd = np.array([meas.marks[k].std_mm for k in keys])
+                hm = meas.height_map
+                res[ref] = (float(np.sqrt(np.mean(np.sum(e**2, axis=1)))),
+                            float(np.sqrt(np.mean((e / sd) ** 2))), dt,
+                            bool(hm is not None and hm.claimed),
+                            sorted({m.reference for m in meas.marks.values()}))
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+        zmax = truth.get("sheet_height", {}).get("max_abs_mm", 0.0)
+        rows.append((folder.name, zmax, res))
+    print(f"{'scene':28s} {'max z':>6s} | {'global um':>9s} {'z-rms':>5s} {'s/photo':>7s} "
+          f"{'height?':>7s} | {'local um':>8s} {'z-rms':>5s} {'s/photo':>7s} {'height?':>7s} "
+          f"reference  time ratio")
+    for name, zmax, r in rows:
+        g, loc = r["global"], r["local"]
+        print(f"{name:28s} {zmax:6.2f} | {1000 * g[0]:9.1f} {g[1]:5.2f} {g[2]:7.2f} "
+              f"{str(g[3]):>7s} | {1000 * loc[0]:8.1f} {loc[1]:5.2f} {loc[2]:7.2f} "
+              f"{str(loc[3]):>7s} {'+'.join(loc[4]):10s} {loc[2] / g[2]:.2f}")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--folder", default="/tmp/vision-cal-bench-measure")
     ap.add_argument("--photos", type=int, default=40)
     ap.add_argument("--warp", action="store_true", help="use the fast texture warp")
     ap.add_argument("--repeat", type=int, default=8, help="photos timed per-photo")
+    ap.add_argument("--reference", nargs="*", metavar="SCENE",
+                    help="only the global-versus-local table for these renders/ scenes "
+                         "(default: flat_tilted bumped_tilted bumped_moving)")
+    ap.add_argument("--seed", type=int, default=None, help="scene seed for --reference")
     a = ap.parse_args()
+    if a.reference is not None:
+        reference_table(a.reference or ["flat_tilted", "bumped_tilted", "bumped_moving"],
+                        Path("/tmp/vision-cal-bench-reference"), a.seed)
+        return 0
 
     from vision_cal.dataset.session import load_session
     from vision_cal.measure.batch import detect_image, measure_folder

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import base64
 import logging
+import os
 from dataclasses import replace
 from pathlib import Path
 
@@ -127,16 +128,23 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
     stages = {}
     import time
 
+    from vision_cal.progress import stage_line
+
+    render_jobs = jobs or os.cpu_count() or 1
     t = time.perf_counter()
     from vision_cal.calibrate.paper import pilot_params
 
     session_dir = render_dataset(scene, out / "session", progress=progress,
-                                 photographer=photographer, pilot=pilot_params)
+                                 photographer=photographer, pilot=pilot_params,
+                                 jobs=render_jobs)
     stages["render calibration session"] = time.perf_counter() - t
     t = time.perf_counter()
     run = calibrate_dataset(session_dir, out_dir=out / "calibration", jobs=jobs,
                             progress=progress)
     stages["measure + calibrate + diagnose"] = time.perf_counter() - t
+    if progress:
+        stage_line("measure + calibrate + diagnose", stages["measure + calibrate + diagnose"],
+                   n=len(run.document.get("marks", {})), unit="mark")
     calibrated = run.model                      # kept in memory, not read back
     nominal = RobotModel(run.session.robot.params)
     sheet = run.session.sheet
@@ -158,7 +166,8 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
         sc = replace(sc, photos=replace(sc.photos, extra_files=(), arm_parked=False))
         t = time.perf_counter()
         sheet_dir = render_dataset(sc, out / f"sheet_{name}", progress=progress, plan=marks,
-                                   targets_mm=targets, photographer=photographer)
+                                   targets_mm=targets, photographer=photographer,
+                                   jobs=render_jobs)
         stages[f"simulate + draw + photograph ({name})"] = time.perf_counter() - t
         from vision_cal.dataset.io import read_json
 
@@ -207,6 +216,9 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
         "calibration": str(run.out_path),
         "home_deg": [float(v) for v in run.session.robot.home_deg],
     }
+    if progress:
+        stage_line("loop", sum(stages.values()), note="; ".join(
+            f"{k} {v:.1f} s" for k, v in stages.items()))
     from vision_cal.report.plots import loop_joints, loop_paths
 
     doc["paths_png"] = base64.b64encode(loop_paths(doc)).decode("ascii")

@@ -194,12 +194,28 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     else:
         from vision_cal.diagnose.select import diagnose
 
+        not_flat = (measurement is not None and measurement.height_map is not None
+                    and measurement.height_map.claimed)
+        cands = None
+        if not_flat:  # a sheet that is not flat is its height, never an affine sheet
+            from vision_cal.diagnose.candidates import default_candidates
+            from vision_cal.model import SheetAffine
+
+            cands = [c for c in default_candidates() if not isinstance(c.effect, SheetAffine)]
+            if any(m.reference != "grid" for m in measurement.marks.values()):
+                # marks not measured against the paper's own grid keep some of its height:
+                # only effects that are not smooth over the sheet (backlash flips with the
+                # approach side) can be told from it
+                from vision_cal.model import JointBacklash
+
+                cands = [c for c in cands if isinstance(c.effect, JointBacklash)]
         diag = diagnose(cal.q_deg, cal.xy_mm, cal.approach, sigma_mm=cal.sigma_mm, ids=cal.ids,
                         q_val=val.q_deg if len(val.ids) else None,
                         xy_val=val.xy_mm if len(val.ids) else None,
                         approach_val=val.approach if len(val.ids) else None,
                         alpha=config.selection.alpha, k_folds=config.selection.k_folds,
-                        max_effects=config.selection.max_effects)
+                        max_effects=config.selection.max_effects,
+                        candidates=cands)
         fb, ff = diag.base_fit, diag.final_fit
         final_model = ff.model
         has_val = len(val.ids) >= 3
@@ -228,6 +244,24 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         )
         res_cal = ff.residuals_mm
         res_val = val.xy_mm - ff.predict(val.q_deg, val.approach)
+        if not_flat:
+            doc["notes"].append("sheet_affine not tried: the sheet is not flat (sheet_height); "
+                                "its smooth residual is the paper's height"
+                                + ("" if len(cands) > 2 else "; joint_scale and joint_cyclic "
+                                   "not tried either: marks not measured against a printed "
+                                   "grid cannot tell their smooth signature from it"))
+        if session.sheet is not None:
+            from vision_cal.diagnose.sheet import smooth_residual
+
+            sm = smooth_residual(np.concatenate([cal.xy_mm, val.xy_mm]),
+                                 np.concatenate([res_cal, res_val]), session.sheet.extent_mm)
+            if sm is not None:
+                ex = next((e for e in doc["effects"] if e["name"] == "unexplained"), None)
+                if ex is None:
+                    doc["effects"].append({"name": "unexplained", **sm})
+                else:
+                    ex["seen"] = list(ex.get("seen", [])) + sm["seen"]
+                    ex.update({k: v for k, v in sm.items() if k != "seen"})
         residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
         residual_all.update({i: r for i, r in zip(val.ids, res_val)})
         residual_base = {i: r for i, r in zip(cal.ids, fb.residuals_mm)}
@@ -256,6 +290,11 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     doc["home_deg"] = [float(v) for v in session.robot.home_deg]  # added: where plans start
     if measurement is not None and measurement.lens is not None and measurement.lens.kept:
         doc["effects"] = [measurement.lens.to_effect_json()] + doc["effects"]
+    if measurement is not None and measurement.height_map is not None:
+        hm = measurement.height_map
+        if hm.claimed:
+            doc["effects"] = doc["effects"] + [hm.to_effect_json()]
+        doc.setdefault("diagnosis", {})["sheet_height"] = hm.to_json()
     if data.sigma_mm is not None:
         doc["noise_floor_mm"] = float(np.sqrt(2 * np.mean(data.sigma_mm**2)))
     marks = {}
@@ -269,6 +308,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
             entry["sigma_mm"] = float(data.sigma_mm[i])
         if measurement is not None and mid in measurement.marks:  # added field
             entry["n_photos"] = int(measurement.marks[mid].n_photos)
+            entry.update(measurement.mark_json(mid))
         marks[mid] = entry
     doc["marks"] = marks
     if missing:

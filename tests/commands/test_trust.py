@@ -44,7 +44,9 @@ def cli(argv, capsys) -> tuple[int, str, str]:
 def assert_one_line(err: str, *names: str) -> str:
     """Exactly one line on stderr, naming each of ``names`` (file, field; a name starting
     with "-" is a command-line option, looked for as ": -o:")."""
-    lines = err.strip().splitlines()
+    from vision_cal.progress import is_progress_line
+
+    lines = [ln for ln in err.strip().splitlines() if not is_progress_line(ln)]
     assert len(lines) == 1, err
     for n in names:
         n = f": {n}:" if str(n).startswith("-") else str(n)

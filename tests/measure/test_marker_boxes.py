@@ -3,7 +3,7 @@
 import numpy as np
 
 from vision_cal.dataset.session import Sheet, SheetMarker
-from vision_cal.measure.marker_geometry import marker_boxes_mm, quiet_boxes_mm
+from vision_cal.dataset.marker_geometry import marker_boxes_mm, quiet_boxes_mm
 
 
 def _sheet(printed=None):

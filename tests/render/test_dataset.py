@@ -275,6 +275,30 @@ def test_simulated_controller_scene(tmp_path):
     np.testing.assert_allclose(np.abs(lag[:, 1]), 0.05, atol=0.002)
 
 
+@pytest.mark.render
+def test_parallel_render_is_bit_identical_and_reports_its_stage(tmp_path, capsys):
+    """--jobs 2 (two processes, one renderer each) writes the same bytes as one process;
+    with progress on and stderr not a terminal, each render is one line with its count
+    and time."""
+    import hashlib
+
+    from dataclasses import replace
+
+    sc = replace(SMALL, plan=replace(SMALL.plan, n_calibration=5, n_validation=1))
+    a = ds.render_dataset(sc, tmp_path / "serial", pilot=pilot_params, jobs=1, progress=True)
+    b = ds.render_dataset(sc, tmp_path / "parallel", pilot=pilot_params, jobs=2)
+
+    def digest(folder):
+        return {p.name: hashlib.sha256(p.read_bytes()).hexdigest()
+                for p in sorted(folder.iterdir())}
+
+    da, db = digest(a), digest(b)
+    assert len(da) == 8 and da == db   # 6 photos, session.json, truth.json
+    err = capsys.readouterr().err
+    assert "vision-cal: progress: render serial: 6 photos (1 job(s)) ..." in err, err
+    assert "vision-cal: progress: render serial: 6/6 photos in " in err, err
+
+
 def test_shrunk_sheet_is_photographed_shrunk(tmp_path):
     """sheet_affine is paper that shrank after printing: the photographer sees the printed
     point p at inv(matrix) p in the arm frame (0.3 % closer to the origin along x), the

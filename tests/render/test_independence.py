@@ -4,7 +4,8 @@ If the world computed an effect with the estimator's own function (``RobotModel.
 the kinematics, a calibrator), a convention error there would cancel between the data and
 the fit and no test could see it. render/ and simulate/ may read the format's blocks with
 the estimator's readers (scene.py: ``effect_from_json``, ``ScaraParams``, ``RobotModel``
-for tests that compare the two codes); nothing else from it.
+for tests that compare the two codes); nothing else from it (the sheet geometry,
+vision_cal.dataset.marker_geometry, belongs to the sheet description, not the estimator).
 """
 
 import ast
@@ -16,18 +17,10 @@ ESTIMATOR = ("vision_cal.model", "vision_cal.kinematics", "vision_cal.calibrate"
 #: (file, module) -> names allowed: reading the format's JSON blocks
 JSON_READING = {("scene.py", "vision_cal.model"): {"Effect", "RobotModel", "effect_from_json"},
                 ("scene.py", "vision_cal.kinematics"): {"ScaraParams"}}
-#: dead code another branch removes (house: fallback_plan); not part of the world
-DEAD_FUNCTIONS = {"fallback_plan"}
 
 
 def _imports(path: Path):
-    tree = ast.parse(path.read_text())
-    dead = [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)
-            and n.name in DEAD_FUNCTIONS]
-    skip = {id(x) for d in dead for x in ast.walk(d)}
-    for node in ast.walk(tree):
-        if id(node) in skip:
-            continue
+    for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.ImportFrom) and node.module:
             yield node.module, {a.name for a in node.names}
         elif isinstance(node, ast.Import):

@@ -38,7 +38,7 @@ def run(args) -> int:
 
     if args.jobs is not None and args.jobs < 1:
         raise VisionCalError(f"--jobs must be at least 1, got {args.jobs}")
-    progress = (not args.quiet) and sys.stderr.isatty()
+    progress = not args.quiet  # a bar on a terminal, else one line per stage
     several = len(args.folders) > 1
     output_dir(args.out or "out", field="--out")
     failures = 0
@@ -78,7 +78,7 @@ def run(args) -> int:
             from vision_cal.report.html import write_report
 
             path = write_report(result, out)
-            print(f"report: {path}")
+            print(f"report: {path} ({path.stat().st_size / 1e6:.1f} MB)")
         print(f"wrote {result.out_path}")
     if several:
         from vision_cal.dataset.io import atomic_write_json

@@ -15,20 +15,24 @@ examples:
 def add_arguments(p) -> None:
     p.add_argument("scene", metavar="SCENE.yaml")
     p.add_argument("-o", "--out", required=True, metavar="DIR")
-    p.add_argument("-j", "--jobs", type=int, default=None, help="parallel photo measurement")
+    p.add_argument("-j", "--jobs", type=int, default=None,
+                   help="processes that render and measure photos (default: every core)")
     p.add_argument("--elbow", type=int, choices=(1, -1), default=1)
     p.add_argument("--no-report", dest="report", action="store_false",
                    help="skip DIR/calibration/report.html (written by default)")
 
 
 def run(args) -> int:
-    import sys
     from pathlib import Path
 
     from vision_cal.loop import format_table, run_loop
     from vision_cal.report.summary import format_summary
 
-    progress = (not args.quiet) and sys.stderr.isatty()
+    if args.jobs is not None and args.jobs < 1:
+        from vision_cal.errors import VisionCalError
+
+        raise VisionCalError(f"must be at least 1, got {args.jobs}", field="--jobs")
+    progress = not args.quiet  # a bar on a terminal, else one line per stage
     doc, run = run_loop(args.scene, out_dir=args.out, jobs=args.jobs, progress=progress,
                    elbow=args.elbow)
     if not args.quiet:
@@ -40,5 +44,6 @@ def run(args) -> int:
         from vision_cal.report.html import write_report
 
         path = write_report(run, Path(args.out) / "calibration", loop=doc)
-        print(f"report: {path.resolve()}")
+        print(f"report: {path.resolve()} ({path.stat().st_size / 1e6:.1f} MB; the photos it "
+              f"links are in {Path(args.out).resolve()})")
     return 0

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
 NAME = "render"
 HELP = ("render a synthetic dataset (photos, session.json, truth.json) from a scene file "
@@ -24,6 +23,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="override the scene's seed")
     parser.add_argument("--mode", choices=("series", "single"), default=None,
                         help="override photos.mode: a photo after each mark, or one at the end")
+    parser.add_argument("-j", "--jobs", type=int, default=None, metavar="N",
+                        help="processes that render photos (default: every core); the photos "
+                             "are the same for any N")
 
 
 def run(args) -> int:
@@ -34,9 +36,14 @@ def run(args) -> int:
     if args.seed is not None and args.seed < 0:
         raise VisionCalError(f"expected a non-negative integer, got {args.seed}", field="--seed")
     scene = load_scene(args.scene).with_overrides(seed=args.seed, mode=args.mode)
-    progress = not getattr(args, "quiet", False) and sys.stderr.isatty()
+    progress = not getattr(args, "quiet", False)  # a bar on a terminal, else one line per stage
+    if args.jobs is not None and args.jobs < 1:
+        raise VisionCalError(f"must be at least 1, got {args.jobs}", field="--jobs")
+    import os
+
     from vision_cal.calibrate.paper import pilot_params
 
-    out = render_dataset(scene, args.out, progress=progress, pilot=pilot_params)
+    out = render_dataset(scene, args.out, progress=progress, pilot=pilot_params,
+                         jobs=args.jobs or os.cpu_count())
     print(out)
     return 0

@@ -222,7 +222,7 @@ def load_robot_file(path) -> RobotFile:
     if extra:
         log.warning("%s: ignoring unknown fields %s", path, ", ".join(sorted(map(str, extra))))
     home = nominal.home_deg
-    lims = kw.get("joint_limits_deg", DEFAULT_LIMITS_DEG)
+    lims = kw.get("joint_limits_deg", JOINT_LIMITS_DEG)
     for j in range(2):
         if not lims[j][0] <= home[j] <= lims[j][1]:
             r.fail("home_deg", f"joint {j + 1} at {home[j]:g} deg is outside joint_limits_deg "

@@ -29,6 +29,32 @@ class SheetMarker:
 
 
 @dataclass(frozen=True)
+class SheetGrid:
+    """The printed plotting grid (``sheet.grid``): lines at ``origin_mm + k * pitch_mm``
+    in x and in y; every ``bold_every``-th one (counted from the origin) is bold. Added
+    optional fields: ``fine_width_mm`` / ``bold_width_mm`` (line widths) and ``extent_mm``
+    ([x0, y0, x1, y1], where the lines are printed; absent: the whole paper)."""
+
+    pitch_mm: float = 1.0
+    bold_every: int = 10
+    origin_mm: tuple[float, float] = (0.0, 0.0)
+    fine_width_mm: float | None = None
+    bold_width_mm: float | None = None
+    extent_mm: tuple[float, float, float, float] | None = None
+
+    def to_json(self) -> dict:
+        d = {"pitch_mm": self.pitch_mm, "bold_every": self.bold_every,
+             "origin_mm": list(self.origin_mm)}
+        if self.fine_width_mm is not None:
+            d["fine_width_mm"] = self.fine_width_mm
+        if self.bold_width_mm is not None:
+            d["bold_width_mm"] = self.bold_width_mm
+        if self.extent_mm is not None:
+            d["extent_mm"] = list(self.extent_mm)
+        return d
+
+
+@dataclass(frozen=True)
 class Sheet:
     aruco_dictionary: str
     markers: tuple[SheetMarker, ...]
@@ -45,6 +71,11 @@ class Sheet:
                             for m in self.markers])
         return (float(c[:, 0].min()), float(c[:, 1].min()), float(c[:, 0].max()),
                 float(c[:, 1].max()))
+
+    @property
+    def grid_spec(self) -> "SheetGrid | None":
+        """``grid`` as a typed :class:`SheetGrid` (None when no grid is declared)."""
+        return None if self.grid is None else sheet_grid_from_dict(self.grid)
 
     @property
     def extent_mm(self) -> tuple[float, float, float, float]:
@@ -359,6 +390,7 @@ def read_sheet_block(r: _Reader, sheet_raw, where: str = "sheet", *,
     bl_raw = sheet_raw.get("bottom_left_mm")
     bl = r.point(bl_raw, w("bottom_left_mm")) if bl_raw is not None else None
     grid = _optional_object(r, sheet_raw, w("grid"))
+    _sheet_grid(r, grid, w("grid"))   # the grid must make sense to be used
     printed = _optional_object(r, sheet_raw, w("printed"))
     if printed is not None:
         for k in ("module_mm", "quiet_zone_mm", "quiet_zone_modules"):
@@ -372,6 +404,46 @@ def read_sheet_block(r: _Reader, sheet_raw, where: str = "sheet", *,
             if any(v <= 0 for v in r.vector(mb, w("printed.measured_bar_mm"), 2)):
                 r.fail(w("printed.measured_bar_mm"), f"expected two positive lengths, got {mb!r}")
     return Sheet(d, tuple(mks), size, bl, grid, printed)
+
+
+def _sheet_grid(r: "_Reader", g, where: str = "sheet.grid") -> SheetGrid | None:
+    """``sheet.grid`` (optional): pitch, bold_every, origin; line widths and extent added."""
+    if g is None:
+        return None
+    if not isinstance(g, dict):
+        r.fail(where, f"expected an object like {{\"pitch_mm\": 1.0, \"bold_every\": "
+                             f"10, \"origin_mm\": [x, y]}}, got {g!r}")
+    pitch = r.number(r.get(g, "pitch_mm", where), f"{where}.pitch_mm")
+    if pitch <= 0:
+        r.fail(f"{where}.pitch_mm", f"expected a positive pitch, got {pitch}")
+    bold = g.get("bold_every", 10)
+    if isinstance(bold, bool) or not isinstance(bold, int) or bold < 1:
+        r.fail(f"{where}.bold_every", f"expected a positive integer, got {bold!r}")
+    origin = r.vector(g.get("origin_mm", [0.0, 0.0]), f"{where}.origin_mm", 2)
+    widths = {}
+    for k in ("fine_width_mm", "bold_width_mm"):
+        if g.get(k) is not None:
+            v = r.number(g[k], f"{where}.{k}")
+            if v <= 0 or v >= pitch:
+                r.fail(f"{where}.{k}", f"expected a width between 0 and the pitch, got {v}")
+            widths[k] = v
+    ext = None
+    if g.get("extent_mm") is not None:
+        ext = r.vector(g["extent_mm"], f"{where}.extent_mm", 4)
+        if ext[2] <= ext[0] or ext[3] <= ext[1]:
+            r.fail(f"{where}.extent_mm", f"expected [x0, y0, x1, y1] with x1 > x0 and "
+                                           f"y1 > y0, got {list(ext)}")
+    return SheetGrid(pitch, int(bold), origin, widths.get("fine_width_mm"),
+                     widths.get("bold_width_mm"), ext)
+
+
+def sheet_grid_from_dict(g: dict) -> SheetGrid:
+    """A declared grid (already validated by :func:`_sheet_grid`) as a :class:`SheetGrid`."""
+    ext = g.get("extent_mm")
+    return SheetGrid(float(g["pitch_mm"]), int(g.get("bold_every", 10)),
+                     tuple(float(v) for v in g.get("origin_mm", (0.0, 0.0))),
+                     g.get("fine_width_mm"), g.get("bold_width_mm"),
+                     None if ext is None else tuple(float(v) for v in ext))
 
 
 def _optional_object(r: _Reader, obj: dict, where: str) -> dict | None:

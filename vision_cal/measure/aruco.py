@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from vision_cal.dataset.session import Sheet
-from vision_cal.measure.marker_geometry import MarkerGeometry
+from vision_cal.dataset.marker_geometry import MarkerGeometry
 
 #: dictionaries tried (only after a failure) to tell "another sheet" from "no sheet"
 _PROBE_DICTS = ("DICT_4X4_1000", "DICT_5X5_1000", "DICT_6X6_1000", "DICT_7X7_1000",
@@ -122,7 +122,7 @@ def edge_points(gray: np.ndarray, corners_px: np.ndarray, *, geometry: MarkerGeo
     mid-level crossing of a bilinear profile (unbiased for any symmetric blur). The
     profile reaches 0.45 of a module (or of the quiet zone, if narrower) either side of
     the edge: inside the black border module and the white quiet zone, from ``geometry``
-    (:func:`vision_cal.measure.marker_geometry.marker_geometry` of the session's sheet).
+    (:func:`vision_cal.dataset.marker_geometry.marker_geometry` of the session's sheet).
     Returns (M, 4, n, 2) raw pixels, NaN where no crossing was found.
     """
     c = np.asarray(corners_px, float).reshape(-1, 4, 2)

@@ -22,7 +22,6 @@ from __future__ import annotations
 import hashlib
 import logging
 import os
-import sys
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from datetime import datetime
@@ -41,7 +40,7 @@ from vision_cal.measure.aruco import (MIN_MARKERS, corners_from_edges, edge_poin
                                      find_sheet_markers)
 from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerprint
 from vision_cal.measure.infer import infer_image_marks
-from vision_cal.measure.marker_geometry import marker_geometry
+from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.measure.dots import DotCandidates, blank_regions, find_candidates, refine_dot
 from vision_cal.measure.sheetfit import MISFIT, corner_tolerance_mm, misfit_reason
 from vision_cal.measure.mapping import (LensEstimate, distort_px, estimate_lens, fit_mapping,
@@ -68,6 +67,10 @@ class ImageDetections:
     corners_mm: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 2)))
     candidates: DotCandidates | None = None
     edges_px: np.ndarray | None = None  # (M, 4, n, 2) sub-pixel points on marker edges
+    # with a declared sheet.grid: per candidate a wider uint16 patch of R+G+B around it (the
+    # printed lines that are its local reference) and its top-left (col, row)
+    grid_patches: tuple | None = None
+    grid_origins: np.ndarray | None = None
 
     def corners_for(self, K=None, dist=None) -> np.ndarray:
         """Marker corners (M, 4, 2) in raw px: intersections of the border edges, fitted
@@ -136,6 +139,15 @@ class ImageResult:
     from_cache: bool = False
     marker_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, int))   # (M,)
     markers_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 2)))  # (M, 4, 2)
+    # added: the marker-mapping centre of each dot (K, 2), the printed-grid offset seen
+    # around it (K, 2; NaN where the grid was not used) and which reference was used
+    dots_global_xy_mm: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    dots_grid_offset_mm: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    dots_reference: tuple = ()
+    dots_global_cov_mm2: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
+    dots_grid_offset_cov_mm2: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
+    mapping: object | None = field(default=None, repr=False, compare=False)
+    K: np.ndarray | None = None     # the lens used for this photo's mapping (None: unknown)
 
     def to_json(self) -> dict:
         """The photo's entry of calibration.json ``images[]``."""
@@ -163,6 +175,9 @@ class MarkMeasurement:
     spread_mm: float
     how: str = "model"
     files: tuple[str, ...] = ()
+    reference: str = "markers"          # grid | markers | mixed: what the photos measured against
+    local_minus_global_mm: np.ndarray | None = None   # mean over photos of (grid - markers)
+    local_minus_global_std_mm: np.ndarray | None = None
 
     @property
     def std_mm(self) -> np.ndarray:
@@ -188,16 +203,30 @@ class Measurement:
         """``images`` for session.json: every usable photo and the marks it shows."""
         return [{"file": im.file, "marks": list(ms)}
                 for im, ms in zip(self.images, self.image_marks) if im.status == "ok"]
+    heights: dict = field(default_factory=dict)     # id -> measure.height.MarkHeight
+    height_map: object | None = None                # measure.height.HeightMap
+    height_note: str | None = None
 
     def images_json(self) -> list[dict]:
         return [im.to_json() for im in self.images]
 
     def effects_json(self) -> list[dict]:
-        return [self.lens.to_effect_json()] if self.lens is not None and self.lens.kept else []
+        out = [self.lens.to_effect_json()] if self.lens is not None and self.lens.kept else []
+        if self.height_map is not None and self.height_map.claimed:
+            out.append(self.height_map.to_effect_json())
+        return out
+
+    def mark_json(self, mid: str) -> dict:
+        """Added per-mark fields: reference, local-minus-global difference, height."""
+        d = mark_reference_json(self.marks[mid])
+        if mid in self.heights:
+            d.update(self.heights[mid].to_json())
+        return d
 
     def to_json(self) -> dict:
         return {"marks": {k: {"measured_mm": m.xy_mm.tolist(), "cov_mm2": m.cov_mm2.tolist(),
-                              "n_photos": m.n_photos, "spread_mm": m.spread_mm, "how": m.how}
+                              "n_photos": m.n_photos, "spread_mm": m.spread_mm, "how": m.how,
+                              **self.mark_json(k)}
                           for k, m in self.marks.items()},
                 "images": self.images_json(), "effects": self.effects_json(),
                 "lens": None if self.lens is None else {
@@ -206,7 +235,18 @@ class Measurement:
                 "unassigned": self.unassigned, "refused": self.refused,
                 "warnings": self.warnings, "inferred": self.inferred,
                 "inferred_notes": list(self.inferred_notes),
-                "image_marks": [list(m) for m in self.image_marks]}
+                "image_marks": [list(m) for m in self.image_marks],
+                "sheet_height": (self.height_map.to_json() if self.height_map is not None
+                                 else {"claimed": False, "note": self.height_note})}
+
+
+def mark_reference_json(m: "MarkMeasurement") -> dict:
+    """Added mark fields: the reference used and the local-versus-global difference."""
+    d = {"reference": m.reference}
+    if m.local_minus_global_mm is not None:
+        d["local_minus_global_mm"] = [float(v) for v in m.local_minus_global_mm]
+        d["local_minus_global_std_mm"] = [float(v) for v in m.local_minus_global_std_mm]
+    return d
 
 
 # --------------------------------------------------------------------------- stage 1
@@ -299,7 +339,33 @@ def detect_image_bytes(data: bytes, file: str, session: Session) -> ImageDetecti
     except VisionCalError as e:
         return _skip(file, f"no mapping: {e.reason}", size)
     cand = find_candidates(rgb, approx, session.sheet, dia_mm=session.pen_mark_diameter_mm)
-    return out.with_candidates(cand)
+    gp, go = None, None
+    if session.sheet.grid_spec is not None and len(cand.uv_px):
+        gp, go = _grid_patches(rgb, approx, cand.uv_px)
+    out = out.with_candidates(cand)
+    if gp is None:
+        return out
+    out2 = replace(out, grid_patches=gp, grid_origins=go)
+    out2.__dict__["_corners_memo"] = out.__dict__.get("_corners_memo", {})
+    return out2
+
+
+def _grid_patches(rgb, mapping, uv_px):
+    """uint16 R+G+B patches around each candidate wide enough for the local grid window."""
+    from vision_cal.measure.grid import GRID_HALF_MM
+
+    H, W = rgb.shape[:2]
+    xy = mapping.image_to_sheet(uv_px)
+    mmpp = mapping.mm_per_px(xy)
+    patches, origins = [], []
+    for (u, v), mpp in zip(uv_px, mmpp):
+        hp = int(np.ceil(1.2 * (GRID_HALF_MM + 0.5) / max(float(mpp), 1e-6))) + 2
+        cu, cv_ = int(round(u)), int(round(v))
+        c0, r0 = max(cu - hp, 0), max(cv_ - hp, 0)
+        c1, r1 = min(cu + hp + 1, W), min(cv_ + hp + 1, H)
+        patches.append(rgb[r0:r1, c0:c1].astype(np.uint16).sum(axis=2, dtype=np.uint16))
+        origins.append((c0, r0))
+    return tuple(patches), np.asarray(origins, int).reshape(-1, 2)
 
 
 def detect_image(path, session: Session, *, root=None, name: str | None = None,
@@ -349,23 +415,55 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     c = det.candidates
     dia = session.pen_mark_diameter_mm
     xy0 = m.image_to_sheet(c.uv_px) if len(c.uv_px) else np.zeros((0, 2))
-    xs, covs, uvs = [], [], []
+    xs, covs, uvs, xg, offs, refs, gcov, ocov = [], [], [], [], [], [], [], []
     rejected = dict(c.rejected)
     blank = blank_regions(session.sheet)
-    for patch, org, x0, uv in zip(c.patches, c.origins, xy0, c.uv_px):
+    grid = session.sheet.grid_spec
+    have_grid = grid is not None and det.grid_patches is not None
+    for k, (patch, org, x0, uv) in enumerate(zip(c.patches, c.origins, xy0, c.uv_px)):
         r = refine_dot(patch, org, m, x0, dia_mm=dia, noise_sigma=c.noise_sigma,
                        blank_rects=blank)
         if r is None:
             rejected["not measurable"] = rejected.get("not measurable", 0) + 1
             continue
-        xs.append(r.xy_mm)
-        covs.append(r.cov_mm2)
+        xy, cov, off, ref = r.xy_mm, r.cov_mm2, np.full(2, np.nan), "markers"
+        oc = np.full((2, 2), np.nan)
+        if have_grid:
+            go = _local_grid(det, k, m, r.xy_mm, grid, dia, blank)
+            if go is not None:
+                # the dot against the printed lines around it: the marker mapping's error
+                # (and a raised paper's parallax) cancels, the lines' own noise adds
+                xy, off, ref = r.xy_mm - go.d_mm, go.d_mm, "grid"
+                cov = r.cov_noise_mm2 + go.cov_mm2
+                oc = go.cov_mm2
+        xs.append(xy)
+        covs.append(cov)
         uvs.append(uv)
+        xg.append(r.xy_mm)
+        offs.append(off)
+        gcov.append(r.cov_mm2)
+        ocov.append(oc)
+        refs.append(ref)
     return ImageResult(det.file, "ok", None, len(det.marker_ids), m.corner_rms_px,
                        m.corner_rms_mm, len(xs), np.asarray(xs).reshape(-1, 2),
                        np.asarray(covs).reshape(-1, 2, 2), np.asarray(uvs).reshape(-1, 2),
                        rejected, c.noise_sigma, det.size_px, from_cache,
-                       np.asarray(det.marker_ids), det.corners_for(K, dist))
+                       np.asarray(det.marker_ids), det.corners_for(K, dist),
+                       np.asarray(xg).reshape(-1, 2), np.asarray(offs).reshape(-1, 2),
+                       tuple(refs), np.asarray(gcov).reshape(-1, 2, 2),
+                       np.asarray(ocov).reshape(-1, 2, 2), m, K)
+
+
+def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank):
+    """The printed grid's offset around candidate ``k`` (None: not usable)."""
+    from vision_cal.measure.dots import DEFAULT_DIAMETER_MM, _radii_mm
+    from vision_cal.measure.grid import grid_offset
+
+    if k >= len(det.grid_patches):
+        return None
+    r_win, _ = _radii_mm(float(dia or DEFAULT_DIAMETER_MM), float(mapping.mm_per_px(xy_mm)[0]))
+    return grid_offset(det.grid_patches[k], det.grid_origins[k], mapping, xy_mm, grid,
+                       exclude_r_mm=r_win, blank_rects=blank)
 
 
 def measure_image(path, session: Session, *, lens: LensEstimate | None = None) -> ImageResult:
@@ -556,10 +654,11 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                         f"{max(items[i].pixels for i in todo) / 1e6:.0f} MP, at most "
                         f"{MAX_PIXELS_IN_FLIGHT / 1e6:.0f} MP are decoded at once")
     jobs = n_jobs
-    bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=len(todo), file=sys.stderr, desc="measuring photos", unit="photo")
+    from vision_cal.progress import bar as progress_bar
+
+    bar = progress_bar(progress, total=len(todo), desc=f"measure {root.name}", unit="photo",
+                       note=f"{min(jobs, max(len(todo), 1))} job(s), "
+                            f"{len(session.images) - len(todo)} from the cache")
     args = [(root, items[i].file, session, items[i].sha256) for i in todo]
     try:
         if jobs <= 1 or len(todo) <= 1:
@@ -630,17 +729,62 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
         g = groups[gi]
         used.add(gi)
         xy, cov, spread = assoc.combine(g, common_fraction=ac.common_fraction)
+        refs = [images[k].dots_reference[j] for k, j in zip(g.images, g.dot_index)]
+        ref = refs[0] if len(set(refs)) == 1 else "mixed"
+        offs = np.array([images[k].dots_grid_offset_mm[j] for k, j in zip(g.images, g.dot_index)])
+        offs = offs[np.all(np.isfinite(offs), axis=1)]
+        lmg = lmg_sd = None
+        if len(offs):  # local minus global = minus the grid's offset
+            lmg = -offs.mean(axis=0)
+            lmg_sd = (offs.std(axis=0, ddof=1) / np.sqrt(len(offs)) if len(offs) > 1
+                      else np.full(2, np.nan))
         marks[mid] = MarkMeasurement(xy, cov, len(g.images), spread, a.how.get(mid, "model"),
-                                     tuple(files[k] for k in g.images))
+                                     tuple(files[k] for k in g.images), ref,
+                                     lmg, lmg_sd)
     unassigned = [{"xy_mm": g.mean_mm.tolist(),
                    "files": [files[k] for k in g.images]}
                   for gi, g in enumerate(groups) if gi not in used]
     refused = {k: v for k, v in a.refused.items()}
+    # stage 4: the sheet's height (parallax against the grid or between camera places)
+    from vision_cal.measure.height import sheet_heights
+
+    groups_of = {mid: list(zip(groups[gi].images, groups[gi].dot_index))
+                 for mid, gi in a.mark_to_group.items()}
+    heights, hmap, hnote = {}, None, None
+    try:
+        heights, hmap, hnote = sheet_heights(images, marks, groups_of, session.sheet.extent_mm,
+                                             K_fallback=None if lens is None else lens.K)
+    except (VisionCalError, np.linalg.LinAlgError) as e:
+        hnote = f"no height map: {e}"
+    if hmap is not None and hmap.claimed:
+        # the paper is not flat: marks seen only through the marker mapping take the paper
+        # position that parallax between camera places found
+        for mid, h in heights.items():
+            mm = marks[mid]
+            if mm.reference == "markers" and h.xy_mm is not None:
+                marks[mid] = replace(mm, xy_mm=h.xy_mm, cov_mm2=h.cov_xy_mm2,
+                                     reference="parallax")
+    elif heights:
+        # flat within what the grid and the views can see: the marker mapping is then the
+        # better reference (the line phase adds its own few micrometres); the grid's
+        # difference stays reported
+        for mid, gi in a.mark_to_group.items():
+            mm, g = marks[mid], groups[gi]
+            if mm.reference == "markers":
+                continue
+            gg = assoc.DotGroup(
+                np.array([images[k].dots_global_xy_mm[j] for k, j in zip(g.images, g.dot_index)]),
+                np.array([images[k].dots_global_cov_mm2[j]
+                          for k, j in zip(g.images, g.dot_index)]), g.images, g.dot_index)
+            xy, cov, spread = assoc.combine(gg, common_fraction=ac.common_fraction)
+            marks[mid] = replace(mm, xy_mm=xy, cov_mm2=cov, spread_mm=spread,
+                                 reference="markers (sheet flat)")
     for r in images:
         if r.status != "ok":
             log.info("skipped %s: %s", r.file, r.reason)
     meas = Measurement(marks, images, lens, unassigned, refused, warnings,
                        tuple(image_marks), None if inferred is None else inferred.mode,
-                       () if inferred is None else (*notes, *inferred.warnings))
+                       () if inferred is None else (*notes, *inferred.warnings),
+                       heights, hmap, hnote)
     atomic_write_json(out_dir / "measurement.json", meas.to_json())
     return meas

@@ -32,7 +32,7 @@ from vision_cal.dataset.io import atomic_write_bytes
 log = logging.getLogger(__name__)
 
 #: bump when anything that changes a detection changes
-CODE_VERSION = "measure-4"
+CODE_VERSION = "measure-5"  # 5: grid patches (local reference)
 #: largest entry read (uncompressed bytes of all members)
 MAX_ENTRY_BYTES = 256 * 1024 * 1024
 #: a temporary file older than this is left over from a killed run
@@ -85,6 +85,14 @@ def encode_detections(det, key: str) -> bytes:
             patch_shapes=shapes,
             patches=(np.concatenate([np.asarray(p, np.uint8).ravel() for p in c.patches])
                      if len(c.patches) else np.zeros(0, np.uint8)))
+    gp = getattr(det, "grid_patches", None)
+    if gp is not None:  # the wider uint16 patches of the local grid reference
+        meta["has_grid_patches"] = True
+        arrays.update(
+            grid_shapes=np.array([p.shape for p in gp], np.int64).reshape(-1, 2),
+            grid_origins=np.asarray(det.grid_origins, np.int64).reshape(-1, 2),
+            grid_patches=(np.concatenate([np.asarray(p, np.uint16).ravel() for p in gp])
+                          if len(gp) else np.zeros(0, np.uint16)))
     arrays["meta"] = np.array(json.dumps(meta))
     buf = io.BytesIO()
     np.savez(buf, **arrays)
@@ -167,8 +175,20 @@ def decode_detections(data: bytes, key: str):
         if status not in ("ok", "skipped") or not isinstance(file, str) or \
                 not (reason is None or isinstance(reason, str)):
             raise _Bad("status")
+        gpatches = gorg = None
+        if meta.get("has_grid_patches"):
+            gsh = _arr(z, "grid_shapes", "i", (2,))
+            gorg = _arr(z, "grid_origins", "i", (2,))
+            gflat = _arr(z, "grid_patches", "u")
+            if len(gorg) != len(gsh) or (gsh < 0).any() or gflat.dtype != np.uint16:
+                raise _Bad("grid patch counts")
+            gsz = np.prod(gsh, axis=1)
+            if int(gsz.sum()) != gflat.size:
+                raise _Bad("grid patch sizes")
+            gend = np.cumsum(gsz)
+            gpatches = tuple(gflat[e - n:e].reshape(s) for e, n, s in zip(gend, gsz, gsh))
         return ImageDetections(file, status, reason, size, ids.astype(int), cpx, cmm, cand,
-                               edges)
+                               edges, gpatches, gorg)
 
 
 class DetectionCache:

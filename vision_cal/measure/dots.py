@@ -34,7 +34,7 @@ from scipy.ndimage import maximum_filter1d
 from vision_cal.config import DEFAULT
 from vision_cal.dataset.session import Sheet
 from vision_cal.measure.mapping import SheetMapping
-from vision_cal.measure.marker_geometry import (marker_boxes_mm, marker_geometry, marker_side_mm,
+from vision_cal.dataset.marker_geometry import (marker_boxes_mm, marker_geometry, marker_side_mm,
                                                 quiet_boxes_mm)
 from vision_cal.rms import rms
 

@@ -173,6 +173,56 @@ class _Textures:
         return self.current
 
 
+# ------------------------------------------------------------------------------- photos
+
+
+@dataclass(frozen=True)
+class _PhotoJob:
+    """What every photo of one dataset shares (pickled to the rendering processes)."""
+
+    sheet: object
+    xy_mm: np.ndarray
+    diameters_mm: np.ndarray
+    texture_seed: int
+    photos: object          # the scene's PhotoSpec
+    dist: np.ndarray | None
+    folder: Path
+    printed: object = None         # a PrintedSheet photographed instead of the analytic one
+    height_grid: object = None     # the sheet's height map (render.height), if not flat
+
+
+def _shoot(job: _PhotoJob, tasks, photographer, bar=None) -> int:
+    """Render ``tasks`` ((file, n_marks, T_cam_sheet, arm, rng, K_dist), in series order)
+    into ``job.folder``; returns how many."""
+    ph = job.photos
+    textures = _Textures(job.sheet, job.xy_mm, job.diameters_mm,
+                         px_per_mm=ph.texture_px_per_mm, seed=job.texture_seed,
+                         printed=job.printed)
+    extra = {} if job.height_grid is None else {"height_grid": job.height_grid}
+    for fname, n_marks, T, arm, rng, K_dist in tasks:
+        tex = textures.add_marks(n_marks)
+        rgb = photographer.photograph(
+            tex, extent_mm=job.sheet.extent_mm, T_cam_sheet=T, dist=job.dist,
+            K_dist=K_dist, arm=arm, vignetting=ph.vignetting, noise_sigma=ph.noise_sigma,
+            jpeg_quality=None, rng=rng, **extra)
+        (job.folder / fname).write_bytes(_encode_image(np.asarray(rgb), ph.jpeg_quality))
+        del rgb
+        if bar is not None:
+            bar.update()
+    return len(tasks)
+
+
+def _render_chunk(job: _PhotoJob, tasks, size_px, K) -> int:
+    """A rendering process's share: its own Photographer, then :func:`_shoot`."""
+    from vision_cal.render.photo import Photographer
+
+    p = Photographer(size_px=size_px, K=K)
+    try:
+        return _shoot(job, tasks, p)
+    finally:
+        p.close()
+
+
 # ------------------------------------------------------------------------------- output
 
 
@@ -237,11 +287,11 @@ def lens_effect(scene: Scene) -> dict | None:
 
 def marks_on_markers(world: WorldMarks, sheet, *, pad_mm: float = 0.0) -> list[str]:
     """Ids of the marks that landed on a printed ArUco square (grown by ``pad_mm``)."""
+    from vision_cal.dataset.marker_geometry import marker_boxes_mm
+
     on = np.zeros(len(world.ids), dtype=bool)
-    for m in sheet.markers:  # the world's own geometry (it imports nothing of the measurer)
-        c = np.asarray(m.corners_mm, dtype=float)
-        lo, hi = c.min(axis=0) - pad_mm, c.max(axis=0) + pad_mm
-        on |= np.all((world.xy_mm >= lo) & (world.xy_mm <= hi), axis=1)
+    for box in marker_boxes_mm(sheet, pad_mm):
+        on |= np.all((world.xy_mm >= box[:2]) & (world.xy_mm <= box[2:]), axis=1)
     return [world.ids[i] for i in np.flatnonzero(on)]
 
 
@@ -296,7 +346,7 @@ def photographer_K(scene: Scene) -> np.ndarray:
 
 def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographer=None,
                    joint_source=None, plan=None, targets_mm: dict | None = None,
-                   pilot=None, printed=None) -> Path:
+                   pilot=None, printed=None, jobs: int | None = 1) -> Path:
     """Render ``scene`` into the dataset folder ``out_dir``; return its path.
 
     ``plan``: draw these ``PlannedMark`` instead of the scene's calibration plan (the
@@ -310,6 +360,9 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     the truth model then predicts with every effect, backlash included).
     ``printed``: a :class:`vision_cal.render.printed.PrintedSheet` (``vision-cal sheet``'s
     sheet.json and PNG) photographed instead of the scene's analytic sheet.
+    ``jobs``: processes that render photos (contiguous runs of the series, one renderer
+    each; only with the default photographer); the photos are the same for any number.
+    ``progress``: see :mod:`vision_cal.progress`.
     """
     from vision_cal.dataset.io import atomic_write_json
     from vision_cal.render.camera import camera_matrix, default_views
@@ -388,16 +441,11 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp.", dir=out_dir.parent))
     bar = None
     try:
-        textures = _Textures(sheet, world.xy_mm, diameters, px_per_mm=ph.texture_px_per_mm,
-                             seed=st.texture_seed, printed=printed)
-        images, poses, parked, K_photo = [], {}, {}, {}
-        it = shots
-        if progress:
-            from tqdm import tqdm
-
-            it = bar = tqdm(shots, desc="render", unit="photo", leave=False)
-        for i, (fname, n_marks) in enumerate(it):
-            tex = textures.add_marks(n_marks)
+        # everything random is drawn here, in photo order, so the photos do not depend on
+        # how many processes render them (serial and --jobs N are bit-identical)
+        images, poses, parked, tasks, K_photo = [], {}, {}, [], {}
+        photo_rngs = st.photos.spawn(len(shots))
+        for i, (fname, n_marks) in enumerate(shots):
             # the views are rigid poses of the arm frame; a deformed sheet (sheet_affine)
             # lies physically shrunk in it: T maps printed sheet points to the camera
             T = truth.T_render(views[i % len(views)] if cam.moving else views[0])
@@ -408,20 +456,34 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
                 parked[fname] = [float(v) for v in q_park]
             Ki = Ks[i]
             lens = any(dist) or not np.allclose(Ki, K_ideal)
-            rgb = photographer.photograph(
-                tex, extent_mm=sheet.extent_mm, T_cam_sheet=T,
-                dist=dist if any(dist) else None, K_dist=Ki if lens else None, arm=arm,
-                vignetting=ph.vignetting, noise_sigma=ph.noise_sigma, jpeg_quality=None,
-                rng=st.photos, **({} if height_grid is None else {"height_grid": height_grid}))
-            (tmp / fname).write_bytes(_encode_image(np.asarray(rgb), ph.jpeg_quality))
+            tasks.append((fname, n_marks, T, arm, photo_rngs[i], Ki if lens else None))
             images.append({"file": fname, "marks": list(world.ids[:n_marks])})
             poses[fname] = T.tolist()
             K_photo[fname] = Ki.tolist()
-            del rgb
+        job = _PhotoJob(sheet, world.xy_mm, diameters, st.texture_seed, ph,
+                        dist if any(dist) else None, tmp,
+                        printed, height_grid)
+        n_jobs = min(int(jobs or 1), len(tasks)) if own else 1
+        from vision_cal.progress import bar as progress_bar
+
+        bar = progress_bar(progress, total=len(tasks), desc=f"render {out_dir.name}",
+                           unit="photo", note=f"{max(n_jobs, 1)} job(s)")
+        if n_jobs <= 1:
+            _shoot(job, tasks, photographer, bar)
+        else:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            chunks = [c for c in np.array_split(np.arange(len(tasks)), n_jobs) if len(c)]
+            # spawn: a fresh process per worker, each with its own OpenGL context
+            with ProcessPoolExecutor(len(chunks), mp_context=mp.get_context("spawn")) as ex:
+                futs = [ex.submit(_render_chunk, job, [tasks[k] for k in c],
+                                  tuple(cam.size_px), K_ideal) for c in chunks]
+                for f in futs:
+                    bar.update(f.result())
         for e in ph.extra_files:
             (tmp / e.file).write_bytes(_extra_image(e.kind, cam.size_px, st.extras))
             images.append({"file": e.file, "marks": list(world.ids)})
-        del textures
 
         session = {
             "format": FORMAT,

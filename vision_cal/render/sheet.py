@@ -32,7 +32,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from vision_cal.dataset.session import Sheet, SheetMarker
+from vision_cal.dataset.session import Sheet, SheetGrid, SheetMarker
 from vision_cal.errors import VisionCalError
 
 PAPER_RGB = (247.0, 245.0, 238.0)   # off-white paper
@@ -87,7 +87,20 @@ def make_sheet(*, size_mm=(594.0, 420.0), bottom_left_mm=(-297.0, -210.0),
     # say how it is printed (the measurer reads the quiet zone from here, not from us)
     printed = {"module_mm": s / (cv2.aruco.getPredefinedDictionary(d).markerSize + 2),
                "quiet_zone_modules": QUIET_MODULES, "generator": "vision-cal render"}
-    return Sheet(str(dictionary), tuple(markers), (w, h), (x_min, y_min), printed=printed)
+    return Sheet(str(dictionary), tuple(markers), (w, h), (x_min, y_min),
+                 grid=printed_grid((x_min, y_min, x_min + w, y_min + h)).to_json(),
+                 printed=printed)
+
+
+def printed_grid(extent_mm) -> SheetGrid:
+    """The plotting grid :func:`sheet_texture` prints on a paper ``extent_mm``: lines at
+    whole mm (bold every 10 mm of the sheet frame) from ``GRID_BORDER_MM`` inside the edge."""
+    x0, y0, x1, y1 = (float(v) for v in extent_mm)
+    lo = (float(np.ceil(x0 + GRID_BORDER_MM)), float(np.ceil(y0 + GRID_BORDER_MM)))
+    origin = tuple(float(10.0 * np.ceil(v / 10.0)) for v in lo)  # the first bold lines
+    return SheetGrid(1.0, 10, origin, FINE_WIDTH_MM, BOLD_WIDTH_MM,
+                     (x0 + GRID_BORDER_MM, y0 + GRID_BORDER_MM, x1 - GRID_BORDER_MM,
+                      y1 - GRID_BORDER_MM))
 
 
 def texture_shape(extent_mm, px_per_mm: float) -> tuple[int, int]:

@@ -281,10 +281,14 @@ def _provenance_html(rep: dict) -> str:
                                                         for s in p["photos_skipped"]]))
     cfg = p["configuration"]
     crow = []
+
+    def _v(v):
+        return f"{v:.4g}" if isinstance(v, float) else _e(v)
+
     for group, vals in cfg.items():
         if isinstance(vals, dict):
             for k, v in vals.items():
-                crow.append([_e(group), _e(k), _e(v)])
+                crow.append([_e(group), _e(k), _v(v)])
         elif vals is not None:
             crow.append([_e(group), "", _e(vals)])
     out.append("<h3>Configuration (thresholds in force)</h3>"
@@ -413,6 +417,12 @@ def render_html(rep: dict) -> str:
     if all("joints_deg" in m for m in doc.get("marks", {}).values()):
         parts.append(f"<img class=fig alt='joint residuals' "
                      f"src='{_uri(plots.joint_residuals(doc))}'>")
+    sh = plots.sheet_height(doc)
+    if sh:
+        parts.append("<h2>Sheet height</h2><p class=note>A raised paper moves a mark seen "
+                     "through the marker mapping by about z r / H; against the printed grid "
+                     "around it the mark keeps its paper position.</p>"
+                     f"<img class=fig alt='sheet height' src='{_uri(sh)}'>")
     if rep.get("marks_table"):
         parts.append(_marks_html(rep))
     c = plots.circles(doc)

@@ -149,6 +149,54 @@ def targets(report: dict) -> bytes | None:
     return _png(fig)
 
 
+def sheet_height(report: dict) -> bytes | None:
+    """The sheet's height map (sheet_height, with its marks) and the marks' local-versus-
+    global differences (measured against the printed grid minus the marker mapping, arrows):
+    None when the calibration has neither."""
+    m = report.get("marks", {})
+    lg = [(v["measured_mm"], v["local_minus_global_mm"]) for v in m.values()
+          if v.get("local_minus_global_mm") is not None]
+    hm = (report.get("diagnosis") or {}).get("sheet_height")
+    if not lg and not hm:
+        return None
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), layout="constrained", sharex=True,
+                             sharey=True)
+    ax = axes[0]
+    if hm and hm.get("grid"):
+        g = hm["grid"]
+        z = np.asarray(g["z_mm"], float)
+        lim = max(float(np.nanmax(np.abs(z))), 1e-3)
+        im = ax.pcolormesh(g["x_mm"], g["y_mm"], z, cmap="RdBu_r", vmin=-lim, vmax=lim,
+                           shading="nearest")
+        fig.colorbar(im, ax=ax, label="height above the markers' plane [mm]")
+        mk = hm.get("marks", {})
+        if mk:
+            p = np.array([v["xy_mm"] for v in mk.values()], float)
+            ax.scatter(p[:, 0], p[:, 1], c=[v["height_mm"] for v in mk.values()], cmap="RdBu_r",
+                       vmin=-lim, vmax=lim, edgecolors="k", s=22)
+        sd = np.asarray(g.get("std_mm", [[np.nan]]), float)
+        ax.set_title(f"sheet height ({'claimed' if hm.get('claimed') else 'not claimed'}; "
+                     f"median std {np.nanmedian(sd):.3f} mm)")
+    else:
+        ax.set_title("sheet height: not observable (no grid, camera did not move)")
+    ax = axes[1]
+    if lg:
+        xy = np.array([a for a, _ in lg], float)
+        d = np.array([b for _, b in lg], float)
+        big = max(float(np.max(np.hypot(*d.T))), 1e-6)
+        ax.quiver(xy[:, 0], xy[:, 1], d[:, 0], d[:, 1], angles="xy", scale_units="xy",
+                  scale=big / 40.0, color="tab:blue", width=0.004)
+        ax.set_title(f"grid minus marker mapping (max {big:.3f} mm)")
+    else:
+        ax.set_title("no mark measured against the printed grid")
+    for a in axes:
+        a.set_xlabel("sheet x [mm]")
+        a.set_aspect("equal")
+        a.grid(alpha=0.3)
+    axes[0].set_ylabel("sheet y [mm]")
+
+
 # ------------------------------------------------------------------- the closed loop
 
 def loop_paths(loop: dict) -> bytes:

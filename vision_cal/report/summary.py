@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 import math
 
 
@@ -88,6 +90,10 @@ def format_summary(doc: dict, *, reference: dict | None = None) -> str:
         lines.append(f"skipped photos: {len(skipped)}")
         for im in skipped:
             lines.append(f"  {im['file']}: {im.get('reason', '')}")
+    if doc.get("residual_rms_mm"):
+        from vision_cal.report.headline import verdict
+
+        lines.append(verdict(doc)["text"])
     tc = doc.get("truth_comparison")
     if tc:
         lines.append("against truth.json: dL1 {} dL2 {} mm, dz1 {} dz2 {} deg, dbase {} {} mm".format(
@@ -119,6 +125,14 @@ def describe_effect(e: dict, *, evidence: bool = True) -> str:
         if px and mm:
             s += (f"; marker corner RMS {px['before']:.3f} -> {px['after']:.3f} px "
                   f"({mm['before']:.4f} -> {mm['after']:.4f} mm)")
+    elif name == "sheet_height":
+        g = e.get("grid") or {}
+        z = np.asarray(g.get("z_mm", [[0.0]]), float)
+        sd = np.asarray(g.get("std_mm", [[np.nan]]), float)
+        s = (f"sheet_height (the paper is not flat): marks up to "
+             f"{e.get('max_abs_mark_height_mm', float('nan')):.3f} mm above/below the markers' "
+             f"plane; map {float(np.nanmin(z)):+.3f} .. {float(np.nanmax(z)):+.3f} mm "
+             f"(median std {float(np.nanmedian(sd)):.3f} mm)")
     else:
         s = name
     if "std" in e and e["std"] is not None:

@@ -1,4 +1,7 @@
-"""What the measurer may know about the printed markers, and where it comes from.
+"""What a sheet description says about its printed markers, and where it comes from.
+
+It belongs to the format (the ``sheet`` block), not to the estimator: the measurer, the
+planners and the synthetic world all read it here.
 
 A sheet printed by any generator with the same ``sheet`` block must measure the same
 (``../shared/dataset-format.md``), so nothing here looks at how this project prints:

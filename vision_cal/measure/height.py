@@ -1,0 +1,269 @@
+"""The sheet's height from parallax: each mark's height, and a smooth height map between.
+
+A point of the paper raised by z above the plane of the markers is seen where its ray
+meets that plane (the marker mapping's plane): moved by ``z v`` with
+``v = (p - C_xy) / (C_z - z)``, C the camera centre in the sheet frame (from the marker
+mapping and K). Two ways to see it:
+
+- **against the printed grid** (one photo is enough): the grid around the dot is raised
+  with it, so the marker-mapped position minus the paper position (the grid offset ``d``)
+  is ``z v``: ``z = v.d / v.v``.
+- **between camera places** (no grid): the marker-mapped positions ``a_k`` of the same
+  mark from photos at different C_k obey ``a_k = p + z v_k``: paper position p and height
+  z together, by weighted least squares, once the C_k differ enough.
+
+Per photo the camera pose comes from the marker mapping (``H = K [r1 r2 t]``), the lens
+from the session or the lens estimate; the heights are relative to the plane the marker
+mapping fits, which is what ``sheet_height`` means ("above the plane of the markers").
+
+:class:`HeightMap` is a Gaussian-process fit of the marks' heights (squared-exponential
+kernel, length and amplitude by maximum marginal likelihood over a small grid, each mark's
+own std as noise): a grid of heights and their std over the paper. It is claimed as the
+effect ``sheet_height`` only when the marks' heights are significantly not zero
+(chi-square against their std, ``alpha``) and larger than ``MIN_CLAIM_MM``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from vision_cal.errors import VisionCalError
+
+#: per-photo floor on a grid offset's std (mm): what the Fourier phase cannot resolve of
+#: the printed lines (aliasing of their sharp profile), seen as 5-8 um on rendered photos
+OFFSET_FLOOR_MM = 0.008
+#: fraction of a photo's error that repeats in every photo of the same mark (same camera:
+#: same pixel phase); as ``associate.COMMON_FRACTION``
+COMMON_FRACTION = 0.5
+MIN_CLAIM_MM = 0.05          # a height map whose marks all stay below this is called flat
+MAP_STEP_MM = 20.0
+
+
+def camera_centre_mm(H_img_sheet, K) -> np.ndarray:
+    """Camera centre (3,) in the sheet frame from the plane homography (sheet mm -> ideal
+    px) and K: ``K^-1 H = s [r1 r2 t]``, R made orthonormal, C = -R^T t (z > 0)."""
+    M = np.linalg.solve(np.asarray(K, float), np.asarray(H_img_sheet, float))
+    s = 2.0 / (np.linalg.norm(M[:, 0]) + np.linalg.norm(M[:, 1]))
+    M = M * s
+    if M[2, 2] < 0:  # the sheet must be in front of the camera
+        M = -M
+    r1, r2, t = M[:, 0], M[:, 1], M[:, 2]
+    R = np.column_stack([r1, r2, np.cross(r1, r2)])
+    U, _, Vt = np.linalg.svd(R)
+    R = U @ Vt
+    C = -R.T @ t
+    if C[2] < 0:
+        raise VisionCalError("the camera comes out below the sheet: bad mapping or K")
+    return C
+
+
+@dataclass(frozen=True)
+class MarkHeight:
+    """A mark's height ``z_mm`` above the markers' plane, its ``std_mm``, from ``n`` photos;
+    ``how``: grid | parallax; ``xy_mm`` the paper position parallax found (None: grid)."""
+
+    z_mm: float
+    std_mm: float
+    n: int
+    how: str
+    xy_mm: np.ndarray | None = None
+    cov_xy_mm2: np.ndarray | None = None
+
+    def to_json(self) -> dict:
+        return {"height_mm": self.z_mm, "height_std_mm": self.std_mm, "height_from": self.how}
+
+
+def _v(p, C):
+    return (np.asarray(p, float) - C[:2]) / C[2]
+
+
+def height_from_grid(obs) -> MarkHeight | None:
+    """``obs``: list of (C (3,), p_mm (2,), d_mm (2,), cov_d (2, 2)) of one mark."""
+    zs, ws = [], []
+    for C, p, d, cov in obs:
+        v = _v(p, C)
+        vv = float(v @ v)
+        if vv < 1e-6:
+            continue  # straight below the camera: no parallax
+        var_d = float(v @ cov @ v) / vv + OFFSET_FLOOR_MM**2
+        zs.append(float(v @ d) / vv)
+        ws.append(vv / var_d)
+    if not zs:
+        return None
+    zs, ws = np.array(zs), np.array(ws)
+    z = float(np.sum(ws * zs) / ws.sum())
+    n = len(zs)
+    var = (1.0 + COMMON_FRACTION * (n - 1)) / ws.sum()
+    if n > 1:
+        chi2 = float(np.sum(ws * (zs - z) ** 2))
+        var *= max(chi2 / (n - 1), 1.0)
+    return MarkHeight(z, float(np.sqrt(var)), n, "grid")
+
+
+def height_from_parallax(obs, *, min_baseline: float = 0.05) -> MarkHeight | None:
+    """``obs``: list of (C (3,), a_mm (2,), cov_a (2, 2)) of one mark seen through the marker
+    mapping from different places: p and z by weighted least squares (a_k = p + z v_k)."""
+    if len(obs) < 2:
+        return None
+    p = np.mean([a for _, a, _ in obs], axis=0)
+    for _ in range(3):
+        A, b, W = [], [], []
+        for C, a, cov in obs:
+            v = _v(p, C)
+            A.append(np.column_stack([np.eye(2), v]))
+            b.append(a)
+            W.append(np.linalg.inv(cov + np.eye(2) * 1e-10))
+        vs = np.array([row[:, 2] for row in A])
+        if np.ptp(vs, axis=0).max() < min_baseline:
+            return None  # the same view every time: height and position not separable
+        N = sum(Ai.T @ Wi @ Ai for Ai, Wi in zip(A, W))
+        r = sum(Ai.T @ Wi @ bi for Ai, Wi, bi in zip(A, W, b))
+        try:
+            Ninv = np.linalg.inv(N)
+        except np.linalg.LinAlgError:
+            return None
+        sol = Ninv @ r
+        p = sol[:2]
+    n = len(obs)
+    res = [bi - Ai @ sol for Ai, bi in zip(A, b)]
+    chi2 = float(sum(ri @ Wi @ ri for ri, Wi in zip(res, W)))
+    f = max(chi2 / max(2 * n - 3, 1), 1.0)
+    var = Ninv[2, 2] * f * (1.0 + COMMON_FRACTION * (n - 1))
+    infl = f * (1.0 + COMMON_FRACTION * (n - 1))
+    return MarkHeight(float(sol[2]), float(np.sqrt(var)), n, "parallax", sol[:2].copy(),
+                      Ninv[:2, :2] * infl)
+
+
+@dataclass(frozen=True)
+class HeightMap:
+    """Heights over the paper: ``z_mm`` / ``std_mm`` (ny, nx) at ``x_mm`` (nx,), ``y_mm``
+    (ny,); the marks it was fitted to; the chi-square test that the sheet is flat."""
+
+    x_mm: np.ndarray
+    y_mm: np.ndarray
+    z_mm: np.ndarray
+    std_mm: np.ndarray
+    length_mm: float
+    amplitude_mm: float
+    chi2: float
+    dof: int
+    p_flat: float
+    max_abs_mark_mm: float
+    claimed: bool
+    marks: dict = field(default_factory=dict)
+
+    @classmethod
+    def from_estimate(cls, xy_mm, z_mm, std_mm, extent_mm, *, ids=(), alpha: float = 1e-3,
+                      step_mm: float = MAP_STEP_MM) -> "HeightMap":
+        xy = np.asarray(xy_mm, float).reshape(-1, 2)
+        z = np.asarray(z_mm, float).ravel()
+        sd = np.asarray(std_mm, float).ravel()
+        if len(z) < 3:
+            raise VisionCalError(f"{len(z)} mark heights cannot make a height map")
+        D2 = np.sum((xy[:, None] - xy[None]) ** 2, axis=2)
+        best = None
+        for ell in (30.0, 50.0, 80.0, 130.0, 200.0, 320.0):
+            for amp in (0.02, 0.05, 0.1, 0.2, 0.4, 0.8, 1.6):
+                Kx = amp**2 * np.exp(-D2 / (2 * ell**2)) + np.diag(sd**2)
+                try:
+                    L = np.linalg.cholesky(Kx)
+                except np.linalg.LinAlgError:
+                    continue
+                al = np.linalg.solve(L, z)
+                ll = -0.5 * al @ al - np.sum(np.log(np.diag(L)))
+                if best is None or ll > best[0]:
+                    best = (ll, ell, amp)
+        _, ell, amp = best
+        x0, y0, x1, y1 = (float(v) for v in extent_mm)
+        xs = np.arange(x0, x1 + 1e-9, step_mm)
+        ys = np.arange(y0, y1 + 1e-9, step_mm)
+        X, Y = np.meshgrid(xs, ys)
+        P = np.column_stack([X.ravel(), Y.ravel()])
+        Kx = amp**2 * np.exp(-D2 / (2 * ell**2)) + np.diag(sd**2)
+        Ks = amp**2 * np.exp(-np.sum((P[:, None] - xy[None]) ** 2, axis=2) / (2 * ell**2))
+        Kinv = np.linalg.inv(Kx)
+        mean = Ks @ Kinv @ z
+        var = np.maximum(amp**2 - np.einsum("ij,jk,ik->i", Ks, Kinv, Ks), 0.0)
+        chi2 = float(np.sum((z / sd) ** 2))
+        p = float(stats.chi2.sf(chi2, len(z)))
+        max_abs = float(np.max(np.abs(z)))
+        claimed = bool(p < alpha and max_abs > MIN_CLAIM_MM)
+        marks = {str(i): {"xy_mm": xy[k].tolist(), "height_mm": float(z[k]),
+                          "height_std_mm": float(sd[k])} for k, i in enumerate(ids)}
+        return cls(xs, ys, mean.reshape(X.shape), np.sqrt(var).reshape(X.shape), ell, amp,
+                   chi2, len(z), p, max_abs, claimed, marks)
+
+    def at(self, xy_mm) -> np.ndarray:
+        """The map's height (N,) at sheet points (bilinear in the grid)."""
+        from scipy.interpolate import RegularGridInterpolator
+
+        f = RegularGridInterpolator((self.y_mm, self.x_mm), self.z_mm, bounds_error=False,
+                                    fill_value=None)
+        p = np.asarray(xy_mm, float).reshape(-1, 2)
+        return f(p[:, ::-1])
+
+    def to_json(self) -> dict:
+        return {"claimed": self.claimed,
+                "grid": {"x_mm": self.x_mm.tolist(), "y_mm": self.y_mm.tolist(),
+                         "z_mm": np.round(self.z_mm, 5).tolist(),
+                         "std_mm": np.round(self.std_mm, 5).tolist()},
+                "flat_test": {"chi2": self.chi2, "dof": self.dof, "p_value": self.p_flat},
+                "max_abs_mark_height_mm": self.max_abs_mark_mm,
+                "smoothness": {"length_mm": self.length_mm, "amplitude_mm": self.amplitude_mm},
+                "marks": self.marks}
+
+    def to_effect_json(self) -> dict:
+        """calibration.json's ``sheet_height`` effect: a grid of heights (mm) and its std."""
+        d = self.to_json()
+        return {"name": "sheet_height", "grid": d["grid"], "flat_test": d["flat_test"],
+                "max_abs_mark_height_mm": self.max_abs_mark_mm,
+                "smoothness": d["smoothness"],
+                "reference": "the plane of the markers (z up towards the camera)"}
+
+
+def sheet_heights(images, marks: dict, groups_of: dict, extent_mm, *, K_fallback=None):
+    """Heights of the measured marks and the map between them.
+
+    ``images``: the measured :class:`ImageResult` list; ``marks``: id -> MarkMeasurement;
+    ``groups_of``: id -> list of (image index, dot index). Returns (heights: id ->
+    MarkHeight, HeightMap or None, note or None).
+    """
+    centres = {}
+    for k, im in enumerate(images):
+        if im.status != "ok" or im.mapping is None:
+            continue
+        K = im.K if im.K is not None else K_fallback
+        if K is None:
+            continue
+        try:
+            centres[k] = camera_centre_mm(im.mapping.H_img_sheet, K)
+        except (VisionCalError, np.linalg.LinAlgError):
+            continue
+    if not centres:
+        return {}, None, "no camera pose: the lens is unknown, heights are not observable"
+    heights = {}
+    for mid, pairs in groups_of.items():
+        grid_obs, par_obs = [], []
+        for k, j in pairs:
+            if k not in centres:
+                continue
+            im = images[k]
+            C = centres[k]
+            par_obs.append((C, im.dots_global_xy_mm[j], im.dots_global_cov_mm2[j]))
+            if im.dots_reference[j] == "grid":
+                grid_obs.append((C, im.dots_xy_mm[j], im.dots_grid_offset_mm[j],
+                                 im.dots_grid_offset_cov_mm2[j]))
+        h = height_from_grid(grid_obs) if grid_obs else height_from_parallax(par_obs)
+        if h is not None:
+            heights[mid] = h
+    if len(heights) < 3:
+        return heights, None, (f"heights of {len(heights)} marks only: no height map "
+                               "(no printed grid and a camera that did not move?)")
+    ids = sorted(heights)
+    xy = [heights[i].xy_mm if heights[i].xy_mm is not None else marks[i].xy_mm for i in ids]
+    hm = HeightMap.from_estimate(xy, [heights[i].z_mm for i in ids],
+                                 [heights[i].std_mm for i in ids], extent_mm, ids=ids)
+    return heights, hm, None
