@@ -149,8 +149,10 @@ def test_phone_principal_point_off_centre_and_focal_per_photo(tmp_path):
         err = [np.asarray(c).reshape(4, 2) - project(corners[int(i)], K=Ks[file],
                                                      T_cam_sheet=cam["T_cam_sheet"][file])
                for c, i in zip(found, np.ravel(ids))]
-        # sub-pixel corners: a few tenths of a pixel; a 3 % focal error moves them ~10 px
-        assert np.max(np.abs(err)) < 1.0, (file, np.max(np.abs(err)))
+        # sub-pixel corners: a few tenths of a pixel RMS (one noisy corner of ~50 can reach
+        # 1 px); a 3 % focal error moves them ~10 px
+        e = np.abs(np.concatenate(err))
+        assert np.sqrt(np.mean(e**2)) < 0.5 and e.max() < 2.0, (file, e.max())
     assert robot_effects(doc) == []
     check_base(doc)
     assert doc["truth_comparison"]["mark_rms_mm"] < MARK_RMS_MM
