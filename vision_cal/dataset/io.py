@@ -158,3 +158,21 @@ def read_json(path) -> dict:
     if not isinstance(obj, dict):
         raise VisionCalError("expected a JSON object at the top level", file=str(path))
     return obj
+
+
+def read_yaml(path, *, what: str = "file"):
+    """Read a YAML document with ``safe_load`` (no tags that build objects or run code);
+    a malformed file is one clear line with the line and column."""
+    import yaml
+
+    path = Path(path)
+    text = read_text(path, what=what)
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
+        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+        raise VisionCalError(f"not valid YAML{where}: {problem}", file=str(path)) from e
+    except RecursionError as e:
+        raise VisionCalError("not valid YAML: nested too deeply", file=str(path)) from e

@@ -32,12 +32,11 @@ tags, nothing read can run code).
 
 from __future__ import annotations
 
-import json
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from vision_cal.dataset.io import read_text
+from vision_cal.dataset.io import read_json, read_yaml
 from vision_cal.dataset.session import NominalRobot, _Reader, read_robot_block
 from vision_cal.errors import VisionCalError
 from vision_cal.motion import ACCEL_DEG_S2, JOINT_LIMITS_DEG, SPEED_DEG_S
@@ -93,23 +92,10 @@ class RobotFile:
 
 
 def _read_tree(path: Path) -> dict:
-    text = read_text(path, what="robot file")
     if path.suffix.lower() == ".json":
-        try:
-            tree = json.loads(text)
-        except json.JSONDecodeError as e:
-            raise VisionCalError(f"not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})",
-                                 file=str(path)) from e
+        tree = read_json(path)
     else:
-        import yaml
-
-        try:
-            tree = yaml.safe_load(text)
-        except yaml.YAMLError as e:
-            mark = getattr(e, "problem_mark", None)
-            where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
-            problem = getattr(e, "problem", None) or str(e).splitlines()[0]
-            raise VisionCalError(f"not valid YAML{where}: {problem}", file=str(path)) from e
+        tree = read_yaml(path, what="robot file")
     if not isinstance(tree, dict):
         raise VisionCalError("expected a mapping of robot fields at the top level",
                              file=str(path))

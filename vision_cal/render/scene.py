@@ -450,17 +450,8 @@ def scene_from_dict(d: dict | None, *, file: str = "<scene>") -> Scene:
 
 def load_scene(path) -> Scene:
     """Read and validate a scene YAML file."""
-    import yaml
-
-    from vision_cal.dataset.io import read_text
+    from vision_cal.dataset.io import read_yaml
 
     path = Path(path)
-    text = read_text(path, what="scene file")
-    try:
-        tree = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
-        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
-        raise VisionCalError(f"not valid YAML{where}: {problem}", file=str(path)) from e
+    tree = read_yaml(path, what="scene file")
     return scene_from_dict(tree, file=str(path))
