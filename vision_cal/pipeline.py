@@ -1,8 +1,10 @@
 """The calibration pipeline: dataset -> measure -> calibrate -> diagnose -> calibration.json.
 
-:func:`calibrate_dataset` is what ``vision-cal DIR --out OUT`` runs. Statistics go to the
-calibration document (a dict written as ``OUT/calibration.json``); summaries and reports
-are rendered from that document.
+:func:`calibrate_dataset` is what ``vision-cal DIR --out OUT`` runs, one stage a
+function: :func:`measure_marks` -> :func:`fit_lsq` or :func:`fit_paper` -> :func:`document`.
+Statistics go to the calibration document (a dict written as ``OUT/calibration.json``);
+summaries and reports are rendered from that document. A new calibration method is one
+more ``fit_*`` returning ``_Fitted``.
 """
 
 from __future__ import annotations
@@ -139,22 +141,60 @@ def _paper_std(q, xy, sigma_mm: float) -> tuple[dict, np.ndarray]:
              "base_mm": [s[4], s[5]]}, cov)
 
 
+@dataclass(frozen=True)
+class _Fitted:
+    """What one calibration method leaves for the document: its part of calibration.json,
+    the final model and each mark's residual under the final and the base model."""
+
+    doc: dict
+    model: RobotModel
+    residual_all: dict
+    residual_base: dict
+    diagnosis: object | None = None
+    paper: object | None = None
+
+
 def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None = None,
                       progress: bool = False, truth: bool = False,
                       config: EstimatorConfig | None = None) -> CalibrationRun:
     """Measure (if needed), calibrate and diagnose a dataset folder; write calibration.json.
 
-    ``config``: the estimator's thresholds (:mod:`vision_cal.config`; default
-    ``DEFAULT``), recorded in calibration.json's ``config``."""
+    The stages: :func:`measure_marks`, then :func:`fit_paper` or :func:`fit_lsq`, then
+    :func:`document`. ``config``: the estimator's thresholds (:mod:`vision_cal.config`;
+    default ``DEFAULT``), recorded in calibration.json's ``config``."""
     if method not in METHODS:
         raise VisionCalError(f"unknown method {method!r} (expected one of {', '.join(METHODS)})")
+    config = _checked(config)
+    session = load_session(folder)
+    out_dir = Path(out_dir)
+    measurement, data, missing = measure_marks(session, out_dir=out_dir, jobs=jobs,
+                                               progress=progress, config=config)
+    cal, val = data.select("calibration"), data.select("validation")
+    fitted = (fit_paper(cal, val) if method == "paper"
+              else fit_lsq(session, cal, val, measurement, config))
+    doc = {"format": "vision-cal/calibration/1", "method": method, "config": config.to_json(),
+           **fitted.doc}
+    document(doc, session, data, missing, measurement, fitted, truth=truth)
+    out_path = atomic_write_json(out_dir / "calibration.json", doc)
+    log.info("wrote %s", out_path)
+    return CalibrationRun(session, doc, out_path, fitted.diagnosis, fitted.paper, measurement,
+                          fitted.model)
+
+
+def _checked(config: EstimatorConfig | None) -> EstimatorConfig:
     config = config or DEFAULT
     if (config.dots != DEFAULT.dots
             or config.selection.outlier_sigma != DEFAULT.selection.outlier_sigma):
         raise VisionCalError("the dot thresholds and outlier_sigma are fixed at import in this "
                              "version: change vision_cal.config.DEFAULT", field="config")
-    session = load_session(folder)
-    out_dir = Path(out_dir)
+    return config
+
+
+def measure_marks(session: Session, *, out_dir: Path, jobs: int | None = None,
+                  progress: bool = False, config: EstimatorConfig = DEFAULT):
+    """(measurement or None, MarkData, missing ids): the photos measured when a mark has
+    no ``measured_mm``; fewer than 3 calibration marks is a :class:`CalibrationError` that
+    names why photos gave none."""
     measurement = None
     if any(m.measured_mm is None for m in session.marks):
         from vision_cal.measure.batch import measure_folder
@@ -162,119 +202,132 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         measurement = measure_folder(session, out_dir=out_dir, jobs=jobs, progress=progress,
                                      association=config.association)
     data, missing = collect_marks(session, measurement)
-    cal, val = data.select("calibration"), data.select("validation")
-    if len(cal.ids) < 3:
-        raise CalibrationError(f"{len(cal.ids)} calibration marks were measured "
+    n_cal = len(data.select("calibration").ids)
+    if n_cal < 3:
+        raise CalibrationError(f"{n_cal} calibration marks were measured "
                                f"({len(missing)} missing): at least 3 are needed"
                                + _why_unmeasured(measurement), file=str(session.path))
-    doc: dict = {"format": "vision-cal/calibration/1", "method": method,
-                 "config": config.to_json()}
-    diag = paper = None
+    return measurement, data, missing
+
+
+def fit_paper(cal: MarkData, val: MarkData) -> _Fitted:
+    """The seed paper's circle method on the calibration marks; validation marks scored."""
+    paper = paper_method(cal.q_deg, cal.xy_mm)
+    params = paper.params
+    noise_mm = Fit.from_estimate(cal.q_deg, cal.xy_mm, approach=cal.approach,
+                                 robust=False).residual_scale  # unweighted: mm
+    std, cov = _paper_std(cal.q_deg, cal.xy_mm, noise_mm)
+    res_cal = cal.xy_mm - _predict(params, cal)
+    res_val = val.xy_mm - _predict(params, val) if len(val.ids) else np.zeros((0, 2))
+    doc = dict(params=params.to_json(), std=std, effects=[],
+               residual_rms_mm={"base_model": rms_2d(res_cal), "final_model": rms_2d(res_cal)},
+               validation_rms_mm={"base_model": rms_2d(res_val) if len(val.ids) else None,
+                                  "final_model": rms_2d(res_val) if len(val.ids) else None,
+                                  "kind": "validation marks" if len(val.ids) else "none"},
+               circles={"base": paper.circle_base.to_json(),
+                        "elbow": paper.circle_elbow.to_json()},
+               covariance=covariance_json(RobotModel(params).param_labels(), cov))
+    residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
+    residual_all.update({i: r for i, r in zip(val.ids, res_val)})
+    return _Fitted(doc, RobotModel(params), residual_all, residual_all, paper=paper)
+
+
+def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
+            config: EstimatorConfig) -> _Fitted:
+    """Least squares, then the diagnosis that adds the effects the base model lacks."""
+    from vision_cal.diagnose.select import diagnose
+
+    not_flat = (measurement is not None and measurement.height_map is not None
+                and measurement.height_map.claimed)
+    cands = None
+    if not_flat:  # a sheet that is not flat is its height, never an affine sheet
+        from vision_cal.diagnose.candidates import default_candidates
+        from vision_cal.model import SheetAffine
+
+        cands = [c for c in default_candidates() if not isinstance(c.effect, SheetAffine)]
+        if any(m.reference != "grid" for m in measurement.marks.values()):
+            # marks not measured against the paper's own grid keep some of its height:
+            # only effects that are not smooth over the sheet (backlash flips with the
+            # approach side) can be told from it
+            from vision_cal.model import JointBacklash
+
+            cands = [c for c in cands if isinstance(c.effect, JointBacklash)]
+    diag = diagnose(cal.q_deg, cal.xy_mm, cal.approach, sigma_mm=cal.sigma_mm, ids=cal.ids,
+                    q_val=val.q_deg if len(val.ids) else None,
+                    xy_val=val.xy_mm if len(val.ids) else None,
+                    approach_val=val.approach if len(val.ids) else None,
+                    alpha=config.selection.alpha, k_folds=config.selection.k_folds,
+                    max_effects=config.selection.max_effects,
+                    candidates=cands)
+    fb, ff = diag.base_fit, diag.final_fit
+    final_model = ff.model
+    has_val = len(val.ids) >= 3
+    vb = rms_2d(val.xy_mm - fb.predict(val.q_deg, val.approach)) if has_val else diag.heldout_base_mm
+    vf = rms_2d(val.xy_mm - ff.predict(val.q_deg, val.approach)) if has_val else diag.heldout_final_mm
+    doc = dict(
+        params=ff.params.to_json(), std=ff.base_std_json, effects=diag.effects_json(),
+        residual_rms_mm={"base_model": fb.rms_mm, "final_model": ff.rms_mm},
+        validation_rms_mm={"base_model": vb, "final_model": vf, "kind": diag.heldout_kind},
+        base_model_params=fb.params.to_json(), base_model_std=fb.base_std_json,
+        initial_guess={"method": "closed-form linear solve (generalised circle fits)",
+                       "params": fb.initial.to_json()},
+        identifiability={"condition_number": ff.cond, "rank": ff.rank,
+                         "n_params": ff.n_params, "labels": list(ff.labels),
+                         "high_correlations": [
+                             {"a": a, "b": b, "r": r} for a, b, r in ff.high_correlations()],
+                         "not_identifiable": list(diag.not_identifiable)},
+        diagnosis={"heldout": diag.heldout_kind,
+                   "accepted": [e.to_json() for e in diag.accepted],
+                   "rejected": [e.to_json() for e in diag.rejected],
+                   "residual_analysis": diag.analysis,
+                   "thresholds": diag.thresholds},
+        notes=list(ff.notes),
+        residual_scale=ff.residual_scale,
+        covariance=covariance_json(ff.labels, ff.cov),
+    )
+    res_cal = ff.residuals_mm
+    res_val = val.xy_mm - ff.predict(val.q_deg, val.approach)
+    if not_flat:
+        doc["notes"].append("sheet_affine not tried: the sheet is not flat (sheet_height); "
+                            "its smooth residual is the paper's height"
+                            + ("" if len(cands) > 2 else "; joint_scale and joint_cyclic "
+                               "not tried either: marks not measured against a printed "
+                               "grid cannot tell their smooth signature from it"))
+    if session.sheet is not None:
+        from vision_cal.diagnose.sheet import smooth_residual
+
+        sm = smooth_residual(np.concatenate([cal.xy_mm, val.xy_mm]),
+                             np.concatenate([res_cal, res_val]), session.sheet.extent_mm)
+        if sm is not None:
+            ex = next((e for e in doc["effects"] if e["name"] == "unexplained"), None)
+            if ex is None:
+                doc["effects"].append({"name": "unexplained", **sm})
+            else:
+                ex["seen"] = list(ex.get("seen", [])) + sm["seen"]
+                ex.update({k: v for k, v in sm.items() if k != "seen"})
+    residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
+    residual_all.update({i: r for i, r in zip(val.ids, res_val)})
+    residual_base = {i: r for i, r in zip(cal.ids, fb.residuals_mm)}
+    residual_base.update({i: r for i, r in zip(
+        val.ids, val.xy_mm - fb.predict(val.q_deg, val.approach))})
+    outliers = [i for i, k in zip(cal.ids, ff.inliers) if not k]
+    if outliers:
+        doc["outliers"] = outliers
+    try:  # circle fits, where the plan has paper-style groups
+        pm = paper_method(cal.q_deg, cal.xy_mm)
+        doc["circles"] = {"base": pm.circle_base.to_json(), "elbow": pm.circle_elbow.to_json()}
+    except CalibrationError:
+        pass
+    return _Fitted(doc, final_model, residual_all, residual_base, diagnosis=diag)
+
+
+def document(doc: dict, session: Session, data: MarkData, missing: list[str], measurement,
+             fitted: _Fitted, *, truth: bool = False) -> None:
+    """Complete ``doc`` in place: per-photo checks, the model the OLP had, the lens and the
+    sheet height found by measurement, every mark with its residuals, images, targets."""
+    diag = fitted.diagnosis
+    residual_all, residual_base = fitted.residual_all, fitted.residual_base
     nominal = session.robot.params
-    if method == "paper":
-        paper = paper_method(cal.q_deg, cal.xy_mm)
-        params = paper.params
-        noise_mm = Fit.from_estimate(cal.q_deg, cal.xy_mm, approach=cal.approach,
-                                     robust=False).residual_scale  # unweighted: mm
-        std, cov = _paper_std(cal.q_deg, cal.xy_mm, noise_mm)
-        res_cal = cal.xy_mm - _predict(params, cal)
-        res_val = val.xy_mm - _predict(params, val) if len(val.ids) else np.zeros((0, 2))
-        doc.update(params=params.to_json(), std=std, effects=[],
-                   residual_rms_mm={"base_model": rms_2d(res_cal), "final_model": rms_2d(res_cal)},
-                   validation_rms_mm={"base_model": rms_2d(res_val) if len(val.ids) else None,
-                                      "final_model": rms_2d(res_val) if len(val.ids) else None,
-                                      "kind": "validation marks" if len(val.ids) else "none"},
-                   circles={"base": paper.circle_base.to_json(),
-                            "elbow": paper.circle_elbow.to_json()},
-                   covariance=covariance_json(RobotModel(params).param_labels(), cov))
-        final_model = RobotModel(params)
-        residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
-        residual_all.update({i: r for i, r in zip(val.ids, res_val)})
-        residual_base = residual_all
-    else:
-        from vision_cal.diagnose.select import diagnose
-
-        not_flat = (measurement is not None and measurement.height_map is not None
-                    and measurement.height_map.claimed)
-        cands = None
-        if not_flat:  # a sheet that is not flat is its height, never an affine sheet
-            from vision_cal.diagnose.candidates import default_candidates
-            from vision_cal.model import SheetAffine
-
-            cands = [c for c in default_candidates() if not isinstance(c.effect, SheetAffine)]
-            if any(m.reference != "grid" for m in measurement.marks.values()):
-                # marks not measured against the paper's own grid keep some of its height:
-                # only effects that are not smooth over the sheet (backlash flips with the
-                # approach side) can be told from it
-                from vision_cal.model import JointBacklash
-
-                cands = [c for c in cands if isinstance(c.effect, JointBacklash)]
-        diag = diagnose(cal.q_deg, cal.xy_mm, cal.approach, sigma_mm=cal.sigma_mm, ids=cal.ids,
-                        q_val=val.q_deg if len(val.ids) else None,
-                        xy_val=val.xy_mm if len(val.ids) else None,
-                        approach_val=val.approach if len(val.ids) else None,
-                        alpha=config.selection.alpha, k_folds=config.selection.k_folds,
-                        max_effects=config.selection.max_effects,
-                        candidates=cands)
-        fb, ff = diag.base_fit, diag.final_fit
-        final_model = ff.model
-        has_val = len(val.ids) >= 3
-        vb = rms_2d(val.xy_mm - fb.predict(val.q_deg, val.approach)) if has_val else diag.heldout_base_mm
-        vf = rms_2d(val.xy_mm - ff.predict(val.q_deg, val.approach)) if has_val else diag.heldout_final_mm
-        doc.update(
-            params=ff.params.to_json(), std=ff.base_std_json, effects=diag.effects_json(),
-            residual_rms_mm={"base_model": fb.rms_mm, "final_model": ff.rms_mm},
-            validation_rms_mm={"base_model": vb, "final_model": vf, "kind": diag.heldout_kind},
-            base_model_params=fb.params.to_json(), base_model_std=fb.base_std_json,
-            initial_guess={"method": "closed-form linear solve (generalised circle fits)",
-                           "params": fb.initial.to_json()},
-            identifiability={"condition_number": ff.cond, "rank": ff.rank,
-                             "n_params": ff.n_params, "labels": list(ff.labels),
-                             "high_correlations": [
-                                 {"a": a, "b": b, "r": r} for a, b, r in ff.high_correlations()],
-                             "not_identifiable": list(diag.not_identifiable)},
-            diagnosis={"heldout": diag.heldout_kind,
-                       "accepted": [e.to_json() for e in diag.accepted],
-                       "rejected": [e.to_json() for e in diag.rejected],
-                       "residual_analysis": diag.analysis,
-                       "thresholds": diag.thresholds},
-            notes=list(ff.notes),
-            residual_scale=ff.residual_scale,
-            covariance=covariance_json(ff.labels, ff.cov),
-        )
-        res_cal = ff.residuals_mm
-        res_val = val.xy_mm - ff.predict(val.q_deg, val.approach)
-        if not_flat:
-            doc["notes"].append("sheet_affine not tried: the sheet is not flat (sheet_height); "
-                                "its smooth residual is the paper's height"
-                                + ("" if len(cands) > 2 else "; joint_scale and joint_cyclic "
-                                   "not tried either: marks not measured against a printed "
-                                   "grid cannot tell their smooth signature from it"))
-        if session.sheet is not None:
-            from vision_cal.diagnose.sheet import smooth_residual
-
-            sm = smooth_residual(np.concatenate([cal.xy_mm, val.xy_mm]),
-                                 np.concatenate([res_cal, res_val]), session.sheet.extent_mm)
-            if sm is not None:
-                ex = next((e for e in doc["effects"] if e["name"] == "unexplained"), None)
-                if ex is None:
-                    doc["effects"].append({"name": "unexplained", **sm})
-                else:
-                    ex["seen"] = list(ex.get("seen", [])) + sm["seen"]
-                    ex.update({k: v for k, v in sm.items() if k != "seen"})
-        residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
-        residual_all.update({i: r for i, r in zip(val.ids, res_val)})
-        residual_base = {i: r for i, r in zip(cal.ids, fb.residuals_mm)}
-        residual_base.update({i: r for i, r in zip(
-            val.ids, val.xy_mm - fb.predict(val.q_deg, val.approach))})
-        outliers = [i for i, k in zip(cal.ids, ff.inliers) if not k]
-        if outliers:
-            doc["outliers"] = outliers
-        try:  # circle fits, where the plan has paper-style groups
-            pm = paper_method(cal.q_deg, cal.xy_mm)
-            doc["circles"] = {"base": pm.circle_base.to_json(), "elbow": pm.circle_elbow.to_json()}
-        except CalibrationError:
-            pass
     if measurement is not None and diag is not None:
         from vision_cal.diagnose.photos import per_photo_offsets
 
@@ -323,9 +376,6 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     ps = printer_scale(session.sheet, doc.get("effects", []), doc.get("params"))
     if ps is not None:
         doc["printer_scale"] = ps
-    out_path = atomic_write_json(out_dir / "calibration.json", doc)
-    log.info("wrote %s", out_path)
-    return CalibrationRun(session, doc, out_path, diag, paper, measurement, final_model)
 
 
 def _predict(params, d: MarkData):
