@@ -270,17 +270,7 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
                                my0 + mod * np.arange(n + 1))
         marker_patches.append((quiet, cells, black))
     # dots
-    dot_patches = []
-    for (mx, my), d in zip(marks, dia):
-        f = rng.uniform(0.9, 1.1)
-        aspect = rng.uniform(1.0, 1.15)
-        theta = rng.uniform(0.0, np.pi)
-        r_px = 0.5 * d * f * ppm
-        u, v = (mx - x0) * ppm - 0.5, (y1 - my) * ppm - 0.5
-        cov = _ellipse_coverage(u, v, r_px * np.sqrt(aspect), r_px / np.sqrt(aspect), theta,
-                                shape)
-        if cov is not None:
-            dot_patches.append(cov)
+    dot_patches = _dot_patches(marks, dia, x0=x0, y1=y1, ppm=ppm, shape=shape, rng=rng)
 
     out = np.empty((H, W, 3), np.uint8)
     for ch in range(3):
@@ -315,6 +305,23 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
     return out
 
 
+def _dot_patches(marks, dia, *, x0: float, y1: float, ppm: float, shape, rng) -> list:
+    """The one dot model: each pen mark an ellipse 0.9-1.1 times its diameter, up to 1.15
+    in aspect, at a random angle; ``[(rows, cols, coverage)]`` in pixels of a raster whose
+    top-left pixel centre is (x0, y1) in sheet mm."""
+    patches = []
+    for (mx, my), d in zip(marks, dia):
+        f = rng.uniform(0.9, 1.1)
+        aspect = rng.uniform(1.0, 1.15)
+        theta = rng.uniform(0.0, np.pi)
+        r_px = 0.5 * d * f * ppm
+        u, v = (mx - x0) * ppm - 0.5, (y1 - my) * ppm - 0.5
+        cov = _ellipse_coverage(u, v, r_px * np.sqrt(aspect), r_px / np.sqrt(aspect), theta,
+                                shape)
+        if cov is not None:
+            patches.append(cov)
+    return patches
+
 
 def ink_marks(texture_rgb: np.ndarray, *, extent_mm, px_per_mm: float, marks_xy_mm,
               mark_diameters_mm=1.2, rng=None) -> np.ndarray:
@@ -327,17 +334,8 @@ def ink_marks(texture_rgb: np.ndarray, *, extent_mm, px_per_mm: float, marks_xy_
     x0, _, _, y1 = (float(v) for v in extent_mm)
     marks = np.asarray(marks_xy_mm, dtype=float).reshape(-1, 2)
     dia = np.broadcast_to(np.asarray(mark_diameters_mm, dtype=float), (len(marks),))
-    for (mx, my), d in zip(marks, dia):
-        f = rng.uniform(0.9, 1.1)
-        aspect = rng.uniform(1.0, 1.15)
-        theta = rng.uniform(0.0, np.pi)
-        r_px = 0.5 * d * f * ppm
-        u, v = (mx - x0) * ppm - 0.5, (y1 - my) * ppm - 0.5
-        cov = _ellipse_coverage(u, v, r_px * np.sqrt(aspect), r_px / np.sqrt(aspect), theta,
-                                out.shape[:2])
-        if cov is None:
-            continue
-        rs, cs, alpha = cov
+    for rs, cs, alpha in _dot_patches(marks, dia, x0=x0, y1=y1, ppm=ppm,
+                                      shape=out.shape[:2], rng=rng):
         out[rs, cs] = out[rs, cs] * (1.0 - alpha[..., None]) + \
             np.asarray(DOT_RGB, np.float32) * alpha[..., None]
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
