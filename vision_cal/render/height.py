@@ -154,10 +154,7 @@ def height_scene_from_dict(r, d, where: str = "sheet.height") -> HeightScene | N
         return None
     d = r.section(d, where, ("bumps", "curls", "sag_mm", "random"))
     bumps = []
-    raw = d.get("bumps") or []
-    if not isinstance(raw, list):
-        r.fail(f"{where}.bumps", f"expected a list of bumps, got {raw!r}")
-    for i, b in enumerate(raw):
+    for i, b in enumerate(r.list_(d.get("bumps") or [], f"{where}.bumps")):
         w = f"{where}.bumps[{i}]"
         b = r.section(b, w, ("centre_mm", "sigma_mm", "height_mm"))
         for k in ("centre_mm", "sigma_mm", "height_mm"):
@@ -167,10 +164,7 @@ def height_scene_from_dict(r, d, where: str = "sheet.height") -> HeightScene | N
                           r.number(b["sigma_mm"], f"{w}.sigma_mm", lo=1.0),
                           r.number(b["height_mm"], f"{w}.height_mm", lo=-20, hi=20)))
     curls = []
-    raw = d.get("curls") or []
-    if not isinstance(raw, list):
-        r.fail(f"{where}.curls", f"expected a list of curls, got {raw!r}")
-    for i, c in enumerate(raw):
+    for i, c in enumerate(r.list_(d.get("curls") or [], f"{where}.curls")):
         w = f"{where}.curls[{i}]"
         c = r.section(c, w, ("edge", "height_mm", "width_mm"))
         curls.append(Curl(r.choice(c.get("edge"), f"{w}.edge", EDGES),

@@ -261,9 +261,7 @@ def _robot(r: _R, d) -> RobotScene:
     p = _params(r, {k: v for k, v in n.items() if k != "home_deg"}, "robot.nominal", nd.params)
     nominal = NominalScene(p.L1_mm, p.L2_mm, p.joint_zero_deg, p.base_mm, home)
     truth = _params(r, d.get("truth"), "robot.truth", dflt.truth)
-    effects_raw = d.get("effects") or []
-    if not isinstance(effects_raw, list):
-        r.fail("robot.effects", f"expected a list of effects, got {effects_raw!r}")
+    effects_raw = r.list_(d.get("effects") or [], "robot.effects")
     effects = []
     for i, e in enumerate(effects_raw):
         where = f"robot.effects[{i}]"
@@ -412,9 +410,7 @@ def _photos(r: _R, d) -> PhotosScene:
     if jq is not None:
         jq = r.integer(jq, "photos.jpeg_quality", lo=1, hi=100)
     parked = r.boolean(d.get("arm_parked", dflt.arm_parked), "photos.arm_parked")
-    extra_raw = d.get("extra_files") or []
-    if not isinstance(extra_raw, list):
-        r.fail("photos.extra_files", f"expected a list of {{file, kind}}, got {extra_raw!r}")
+    extra_raw = r.list_(d.get("extra_files") or [], "photos.extra_files")
     extras, names = [], set()
     for i, e in enumerate(extra_raw):
         w = f"photos.extra_files[{i}]"
