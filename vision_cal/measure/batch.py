@@ -42,6 +42,7 @@ from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerpr
 from vision_cal.measure.infer import infer_image_marks
 from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.measure.dots import DotCandidates, blank_regions, find_candidates, refine_dot
+from vision_cal.measure.printed import printed_reference
 from vision_cal.measure.sheetfit import MISFIT, corner_tolerance_mm, misfit_reason
 from vision_cal.measure.mapping import (LensEstimate, distort_px, estimate_lens, fit_mapping,
                                        undistort_px)
@@ -111,6 +112,12 @@ class ImageDetections:
         return out
 
 
+def _dot_field(im: "ImageResult", name: str, j: int) -> str:
+    """Per-dot text field of a photo's result ("" when absent: older caches)."""
+    v = getattr(im, name, ())
+    return v[j] if j < len(v) else ""
+
+
 def _lens_key(K, dist):
     if K is None:
         return None
@@ -148,6 +155,10 @@ class ImageResult:
     dots_grid_offset_cov_mm2: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
     mapping: object | None = field(default=None, repr=False, compare=False)
     K: np.ndarray | None = None     # the lens used for this photo's mapping (None: unknown)
+    # added: per dot why its centre cannot be trusted ("" when it can) and what is printed
+    # under it ("" for paper and grid lines; vision_cal.measure.printed)
+    dots_unreliable: tuple = ()
+    dots_printed_under: tuple = ()
 
     def to_json(self) -> dict:
         """The photo's entry of calibration.json ``images[]``."""
@@ -178,6 +189,11 @@ class MarkMeasurement:
     reference: str = "markers"          # grid | markers | mixed: what the photos measured against
     local_minus_global_mm: np.ndarray | None = None   # mean over photos of (grid - markers)
     local_minus_global_std_mm: np.ndarray | None = None
+    #: "ok", or "unreliable" with ``reason``: every photo's dot of it could not be separated
+    #: from what is printed under it (docs/format.md: left out of the fit)
+    status: str = "ok"
+    reason: str = ""
+    printed_under: str = ""
 
     @property
     def std_mm(self) -> np.ndarray:
@@ -241,8 +257,14 @@ class Measurement:
 
 
 def mark_reference_json(m: "MarkMeasurement") -> dict:
-    """Added mark fields: the reference used and the local-versus-global difference."""
+    """Added mark fields: the reference used and the local-versus-global difference (and
+    the contract's ``status`` / ``reason`` of a mark that cannot be trusted, what is printed
+    under it)."""
     d = {"reference": m.reference}
+    if m.status != "ok":
+        d.update(status=m.status, reason=m.reason)
+    if m.printed_under:
+        d["printed_under"] = m.printed_under
     if m.local_minus_global_mm is not None:
         d["local_minus_global_mm"] = [float(v) for v in m.local_minus_global_mm]
         d["local_minus_global_std_mm"] = [float(v) for v in m.local_minus_global_std_mm]
@@ -416,20 +438,24 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     dia = session.pen_mark_diameter_mm
     xy0 = m.image_to_sheet(c.uv_px) if len(c.uv_px) else np.zeros((0, 2))
     xs, covs, uvs, xg, offs, refs, gcov, ocov = [], [], [], [], [], [], [], []
+    unrel, under = [], []
     rejected = dict(c.rejected)
     blank = blank_regions(session.sheet)
     grid = session.sheet.grid_spec
     have_grid = grid is not None and det.grid_patches is not None
+    pref = printed_reference(session.sheet)
+    # the local grid reference leaves out what is printed over or instead of the grid
+    grid_blank = blank if pref is None else np.concatenate([blank, pref.ungridded_boxes_mm()])
     for k, (patch, org, x0, uv) in enumerate(zip(c.patches, c.origins, xy0, c.uv_px)):
         r = refine_dot(patch, org, m, x0, dia_mm=dia, noise_sigma=c.noise_sigma,
-                       blank_rects=blank)
+                       blank_rects=blank, printed=pref)
         if r is None:
             rejected["not measurable"] = rejected.get("not measurable", 0) + 1
             continue
         xy, cov, off, ref = r.xy_mm, r.cov_mm2, np.full(2, np.nan), "markers"
         oc = np.full((2, 2), np.nan)
-        if have_grid:
-            go = _local_grid(det, k, m, r.xy_mm, grid, dia, blank)
+        if have_grid and not r.printed_under:   # over print, the grid around is interrupted
+            go = _local_grid(det, k, m, r.xy_mm, grid, dia, grid_blank)
             if go is not None:
                 # the dot against the printed lines around it: the marker mapping's error
                 # (and a raised paper's parallax) cancels, the lines' own noise adds
@@ -444,6 +470,8 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
         gcov.append(r.cov_mm2)
         ocov.append(oc)
         refs.append(ref)
+        unrel.append(r.unreliable)
+        under.append(r.printed_under)
     return ImageResult(det.file, "ok", None, len(det.marker_ids), m.corner_rms_px,
                        m.corner_rms_mm, len(xs), np.asarray(xs).reshape(-1, 2),
                        np.asarray(covs).reshape(-1, 2, 2), np.asarray(uvs).reshape(-1, 2),
@@ -451,7 +479,7 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
                        np.asarray(det.marker_ids), det.corners_for(K, dist),
                        np.asarray(xg).reshape(-1, 2), np.asarray(offs).reshape(-1, 2),
                        tuple(refs), np.asarray(gcov).reshape(-1, 2, 2),
-                       np.asarray(ocov).reshape(-1, 2, 2), m, K)
+                       np.asarray(ocov).reshape(-1, 2, 2), m, K, tuple(unrel), tuple(under))
 
 
 def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank):
@@ -728,6 +756,17 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
     for mid, gi in a.mark_to_group.items():
         g = groups[gi]
         used.add(gi)
+        why = [_dot_field(images[k], "dots_unreliable", j) for k, j in zip(g.images, g.dot_index)]
+        status, reason = "ok", ""
+        if all(why):
+            status, reason = "unreliable", why[0]
+        elif any(why):   # measured without the photos whose dot could not be separated
+            keep = [i for i, w in enumerate(why) if not w]
+            g = assoc.DotGroup(g.xy_mm[keep], g.cov_mm2[keep],
+                               tuple(g.images[i] for i in keep),
+                               tuple(g.dot_index[i] for i in keep))
+        under = next((u for u in (_dot_field(images[k], "dots_printed_under", j)
+                                  for k, j in zip(g.images, g.dot_index)) if u), "")
         xy, cov, spread = assoc.combine(g, common_fraction=ac.common_fraction)
         refs = [images[k].dots_reference[j] for k, j in zip(g.images, g.dot_index)]
         ref = refs[0] if len(set(refs)) == 1 else "mixed"
@@ -740,7 +779,7 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                       else np.full(2, np.nan))
         marks[mid] = MarkMeasurement(xy, cov, len(g.images), spread, a.how.get(mid, "model"),
                                      tuple(files[k] for k in g.images), ref,
-                                     lmg, lmg_sd)
+                                     lmg, lmg_sd, status, reason, under)
     unassigned = [{"xy_mm": g.mean_mm.tolist(),
                    "files": [files[k] for k in g.images]}
                   for gi, g in enumerate(groups) if gi not in used]
@@ -770,7 +809,9 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
         # difference stays reported
         for mid, gi in a.mark_to_group.items():
             mm, g = marks[mid], groups[gi]
-            if mm.reference == "markers":
+            if mm.reference == "markers" or any(
+                    _dot_field(images[k], "dots_unreliable", j)
+                    for k, j in zip(g.images, g.dot_index)):
                 continue
             gg = assoc.DotGroup(
                 np.array([images[k].dots_global_xy_mm[j] for k, j in zip(g.images, g.dot_index)]),

@@ -50,6 +50,8 @@ MARKER_MARGIN_MM = _CFG.marker_margin_mm
 FINE_STEP_MM = _CFG.fine_step_mm
 DEFAULT_DIAMETER_MM = _CFG.default_diameter_mm
 MODEL_FLOOR_PX = _CFG.model_floor_px
+UNRELIABLE_BG_RESIDUAL = _CFG.unreliable_bg_residual
+UNRELIABLE_INK_SHIFT_MM = _CFG.unreliable_ink_shift_mm
 
 
 def _radii_mm(dia_mm: float, mm_per_px: float) -> tuple[float, float]:
@@ -273,6 +275,14 @@ class DotMeasurement:
     cov_noise_mm2: np.ndarray
     cov_mapping_mm2: np.ndarray
     bg_residual: float = float("nan")  # background-model residual / noise (about 1 if clean)
+    #: what is printed under the dot (labels of :class:`vision_cal.measure.printed.PrintedItem`,
+    #: "" for bare paper and grid lines) and how the background was modelled: "separable"
+    #: (paper and grid lines) or "printed" (the sheet's own print rendered into the photo)
+    printed_under: str = ""
+    background: str = "separable"
+    #: why the centre cannot be trusted ("" when it can): the background model leaves more
+    #: than ``config.dots.unreliable_bg_residual`` times the noise around it
+    unreliable: str = ""
 
 
 def _resample(S: np.ndarray, origin, mapping: SheetMapping, centre, half, step):
@@ -304,12 +314,16 @@ def blank_regions(sheet: Sheet) -> np.ndarray:
 
 def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
                dia_mm: float | None = None, noise_sigma: float = 1.0,
-               median_efficiency: float = 1.57, blank_rects=None) -> DotMeasurement | None:
+               median_efficiency: float = 1.57, blank_rects=None,
+               printed=None) -> DotMeasurement | None:
     """Stage 2: the dot's sheet centre from its raw patch with the final mapping.
 
     ``blank_rects`` (K, 4): sheet rectangles with no plotting grid (see
-    :func:`blank_regions`). Returns None when the dot cannot be measured (patch too small
-    for the mapping, no ink, centroid running away).
+    :func:`blank_regions`). ``printed``: the sheet's own print
+    (:class:`vision_cal.measure.printed.PrintedReference`); where it has more than the grid
+    near the dot (axes, bars, text), the background is that print rendered into the patch
+    (:func:`_printed_background`) instead of the separable model. Returns None when the
+    dot cannot be measured (patch too small for the mapping, no ink, centroid running away).
     """
     dia = float(dia_mm or DEFAULT_DIAMETER_MM)
     S = patch_rgb.astype(np.float32).sum(axis=2)
@@ -317,6 +331,9 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     mm_px = float(mapping.mm_per_px(c)[0])
     r_win, half = _radii_mm(dia, mm_px)
     step = min(FINE_STEP_MM, mm_px / 4)
+    under = [] if printed is None else printed.content_near(c, half + 0.5)
+    background = "separable"
+    d_shift = 0.0
     for _pass in range(2):
         X, Y, Sg = _resample(S, origin, mapping, c, half, step)
         if np.any(Sg < 0):
@@ -349,9 +366,23 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
                    + maximum_filter1d(b, k_env, mode="nearest")[:, None])
         if partial:
             bg = np.where(blank, P, bg)
+        if under:
+            pb = _printed_background(S, origin, mapping, c, half, step, Sg, bgmask, printed,
+                                     mm_px, noise_sigma)
+            if pb is not None:
+                bg, P, resid = pb
+                background = "printed"
         w0 = (bg - Sg) / P            # ink deficit, relative to the paper
         ell = np.clip((P - bg) / P, 0.0, None)
         r_dot = 0.5 * dia
+        if background == "printed":
+            # the pen covers the print: the fraction of each sample the ink covers is
+            # (bg - S) / (bg - D), D the ink's own level (its darkest core); nothing of the
+            # print under the dot is then counted as pen, so nothing is given back below
+            core = np.hypot(X - c[0], Y - c[1]) <= 0.5 * r_dot
+            D = float(np.percentile(Sg[core], 10)) if core.any() else float(Sg.min())
+            w0 = (bg - Sg) / np.maximum(bg - D, 0.25 * (P - D)) * ((P - D) / P)
+            ell = np.zeros_like(ell)
         cc = c.copy()
         for _ in range(8):
             rc = np.hypot(X - cc[0], Y - cc[1])
@@ -373,6 +404,16 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
             if moved < 1e-5:
                 break
         t = Sg / P
+        if background == "printed":
+            # how far the centre depends on the ink's own level (the print under the dot
+            # weighs differently with another D): the part of the print the model may miss
+            d_shift = 0.0
+            win_f = (np.hypot(X - cc[0], Y - cc[1]) <= r_win).astype(float)
+            for Dp in (D - 0.2 * (P - D), D + 0.2 * (P - D)):
+                wp = win_f * (bg - Sg) / np.maximum(bg - Dp, 0.25 * (P - Dp))
+                if wp.sum() > 0:
+                    cp = np.array([(wp * X).sum(), (wp * Y).sum()]) / wp.sum()
+                    d_shift = max(d_shift, float(np.hypot(*(cp - cc))))
         shift = np.hypot(*(cc - c))
         c = cc
         if shift < 0.1 * r_win:
@@ -401,5 +442,55 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     # what the separable background leaves unexplained, relative to the noise (diagnostic)
     noise_grid = np.sqrt(sw2) / mm_px  # per-sample std of the relative intensity (upper)
     e_rms = rms(resid)
+    ratio = e_rms / noise_grid
+    on = "; ".join(it.label for it in under)
+    why = ""
+    if not ratio <= UNRELIABLE_BG_RESIDUAL:
+        what = (f"pen ink on printed ink ({on})" if on else
+                "the ground around the mark is not paper and grid lines (printed ink, a blot "
+                "or a neighbouring mark)")
+        how = ("the sheet's own print rendered into the photo" if background == "printed"
+               else "paper and grid lines")
+        why = (f"{what} that could not be separated: {how} leave {ratio:.1f} times the "
+               "noise around it")
+    elif background == "printed" and d_shift > UNRELIABLE_INK_SHIFT_MM:
+        why = (f"pen ink on printed ink ({on}) that could not be separated: the centre "
+               f"moves {1000 * d_shift:.0f} um with the ink's assumed darkness (+-20 %)")
     return DotMeasurement(c, cov_noise + cov_map, M_mm2, cov_noise, cov_map,
-                          e_rms / noise_grid)
+                          ratio, on, background, why)
+
+
+def _printed_background(S, origin, mapping: SheetMapping, c, half, step, Sg, bgmask, printed,
+                        mm_px, noise_sigma):
+    """(bg, P, log residual) of the print around a dot: the sheet's own print rendered into
+    the patch's raw pixels (:meth:`PrintedReference.predict_patch`) and resampled like the
+    photo, the photo's level fitted as ``S = a + sum_c b_c T_c`` over the background
+    samples (robust: samples 3.5 robust std off are left out, twice). The blur is the one of
+    :data:`vision_cal.measure.printed.BLUR_CANDIDATES_PX` that fits best. ``P`` is the bare
+    paper's level (every ``T_c`` = 1). None when the fit cannot be made."""
+    from vision_cal.measure.printed import BLUR_CANDIDATES_PX
+
+    best = None
+    y = Sg[bgmask].astype(float)
+    if len(y) < 20:
+        return None
+    for k in BLUR_CANDIDATES_PX:
+        T = printed.predict_patch(mapping, origin, S.shape, c, half, k * mm_px)
+        Tg = np.stack([_resample(t, origin, mapping, c, half, step)[2] for t in T])
+        A = np.column_stack([np.ones(len(y))] + [t[bgmask] for t in Tg])
+        keep = np.ones(len(y), bool)
+        for _ in range(3):
+            coef, *_ = np.linalg.lstsq(A[keep], y[keep], rcond=None)
+            r = y - A @ coef
+            s = 1.4826 * float(np.median(np.abs(r[keep]))) + 1e-9
+            keep = np.abs(r) < 3.5 * max(s, noise_sigma)
+        score = float(np.mean(r[keep] ** 2)) * len(y) / max(keep.sum(), 1) ** 1
+        if best is None or score < best[0]:
+            best = (score, coef, Tg, keep)
+    _, coef, Tg, keep = best
+    bg = coef[0] + np.tensordot(coef[1:], Tg, axes=1)
+    P = float(coef.sum())
+    if not np.isfinite(P) or P <= 0 or np.any(bg <= 0):
+        return None
+    resid = (np.log(np.maximum(Sg, 1.0)) - np.log(bg))[bgmask]
+    return bg, np.full(Sg.shape, P), resid
