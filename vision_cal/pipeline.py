@@ -67,6 +67,8 @@ def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[st
     for i, m in enumerate(session.marks):
         if measurement is not None and m.id in measurement.marks:
             mm = measurement.marks[m.id]
+            if getattr(mm, "status", "ok") != "ok":
+                continue   # kept in calibration.json with its reason, left out of the fit
             pos = np.asarray(mm.xy_mm, dtype=float)
             s = float(np.sqrt(np.trace(np.asarray(mm.cov_mm2)) / 2))
         elif m.measured_mm is not None:
@@ -363,6 +365,7 @@ def document(doc: dict, session: Session, data: MarkData, missing: list[str], me
             entry["n_photos"] = int(measurement.marks[mid].n_photos)
             entry.update(measurement.mark_json(mid))
         marks[mid] = entry
+    _unreliable_marks(doc, marks, session, measurement)
     doc["marks"] = marks
     if missing:
         doc["missing_marks"] = missing
@@ -376,6 +379,27 @@ def document(doc: dict, session: Session, data: MarkData, missing: list[str], me
     ps = printer_scale(session.sheet, doc.get("effects", []), doc.get("params"))
     if ps is not None:
         doc["printer_scale"] = ps
+
+
+def _unreliable_marks(doc: dict, marks: dict, session: Session, measurement) -> None:
+    """Marks found but not trusted (docs/format.md, "Marks that could not be trusted"): an
+    entry with ``status`` "unreliable" and the ``reason``, no residual (not fitted), and one
+    note naming them."""
+    if measurement is None:
+        return
+    bad = []
+    for m in session.marks:
+        mm = measurement.marks.get(m.id)
+        if mm is None or getattr(mm, "status", "ok") == "ok" or m.id in marks:
+            continue
+        marks[m.id] = {"measured_mm": np.asarray(mm.xy_mm, float).tolist(),
+                       "status": mm.status, "reason": mm.reason, "role": m.role,
+                       "joints_deg": [float(v) for v in m.joints_deg],
+                       "n_photos": int(mm.n_photos), **measurement.mark_json(m.id)}
+        bad.append(f"{m.id} ({mm.reason})")
+    if bad:
+        doc.setdefault("notes", []).append(
+            f"{len(bad)} mark(s) left out of the fit as unreliable: " + "; ".join(bad))
 
 
 def _predict(params, d: MarkData):

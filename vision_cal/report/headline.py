@@ -36,7 +36,7 @@ def _finite(x) -> bool:
 
 def headline(doc: dict, loop: dict | None = None) -> dict:
     """What was calibrated, accuracy before/after, effects, verdict (JSON-ready)."""
-    marks = doc.get("marks", {})
+    marks = {k: m for k, m in doc.get("marks", {}).items() if m.get("status", "ok") == "ok"}
     roles = [m.get("role", "calibration") for m in marks.values()]
     n_fit = roles.count("calibration")
     n_val = roles.count("validation")
@@ -115,7 +115,7 @@ def verdict(doc: dict, loop: dict | None = None) -> dict:
                 "text": f"use with care: structure no candidate explains is left in the "
                         f"residual ({'; '.join(unexplained[0].get('seen', []))}); expected "
                         f"target error {r95:.3f} mm (95 %){tail}"}
-    n_fit = sum(m.get("role", "calibration") == "calibration"
+    n_fit = sum(m.get("role", "calibration") == "calibration" and m.get("status", "ok") == "ok"
                 for m in doc.get("marks", {}).values())
     n_par = ident.get("n_params") or 6
     if 2 * n_fit - n_par < MIN_SPARE_DOF:
@@ -208,6 +208,8 @@ def mark_rows(doc: dict, refused: dict | None = None) -> list[dict]:
             flags.append("held out")
         if mid in outliers:
             flags.append("outlier (down-weighted by the robust fit)")
+        if m.get("status", "ok") != "ok":
+            flags.append(f"{m['status']}, left out of the fit: {m.get('reason', '')}")
         res = m.get("residual_mm") or [math.nan, math.nan]
         rows.append({"id": mid, "role": m.get("role", "calibration"),
                      "measured_mm": m.get("measured_mm"), "residual_mm": res,

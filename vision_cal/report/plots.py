@@ -25,7 +25,7 @@ def _png(fig) -> bytes:
 
 def _marks(report: dict):
     m = report["marks"]
-    ids = list(m)
+    ids = [i for i in m if m[i].get("status", "ok") == "ok"]   # unreliable: not fitted
     xy = np.array([m[i]["measured_mm"] for i in ids], float).reshape(-1, 2)
     rb = np.array([m[i].get("residual_base_mm", m[i]["residual_mm"]) for i in ids],
                   float).reshape(-1, 2)
