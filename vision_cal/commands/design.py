@@ -54,6 +54,11 @@ def run(args) -> int:
     if args.safety_mm is not None and not args.safety_mm >= 0:
         raise VisionCalError(f"expected a non-negative number, got {args.safety_mm}",
                              field="--safety-mm")
+    if args.pilot:
+        from vision_cal.dataset.io import read_json
+        from vision_cal.dataset.trust import require_ready_pilot
+
+        require_ready_pilot(read_json(args.pilot), args.pilot)
     r = design_stage(args.robot, args.sheet, args.out, pilot=args.pilot,
                      program=None if args.program == "none" else args.program,
                      n_calibration=args.n_calibration, n_validation=args.n_validation,

@@ -17,6 +17,8 @@ def add_arguments(p) -> None:
     p.add_argument("--urdf", metavar="ROBOT.urdf", help="URDF with the calibrated joint origins; "
                    "effects go to ROBOT.effects.yaml beside it")
     p.add_argument("--yaml", metavar="FILE.yaml", help="parameters, std and effects as YAML")
+    p.add_argument("--force", action="store_true",
+                   help="export even a calibration whose verdict is 'not reliable'")
 
 
 def run(args) -> int:
@@ -31,6 +33,13 @@ def run(args) -> int:
         if path:
             output_file(path, field=opt)
     _, doc = load_calibration(args.calibration)
+    from vision_cal.dataset.trust import refuse_unreliable
+
+    warn = refuse_unreliable(doc, args.calibration, force=args.force)
+    if warn:
+        import sys
+
+        print(warn, file=sys.stderr)
     for path in export(doc, urdf=args.urdf, yaml_path=args.yaml):
         if not args.quiet:
             print(f"wrote {path}")

@@ -35,6 +35,8 @@ def add_arguments(p) -> None:
                         "home_deg, else calibration.json's, which the session gave)")
     p.add_argument("--robot", metavar="ROBOT.yaml",
                    help="robot file: joint limits, speeds, pen heights for --program")
+    p.add_argument("--force", action="store_true",
+                   help="plan even with a calibration whose verdict is 'not reliable'")
 
 
 def run(args) -> int:
@@ -65,6 +67,11 @@ def run(args) -> int:
         if args.program:
             robot.require_pen_heights()
     model, doc = load_calibration(args.calibration, which=args.model)
+    from vision_cal.dataset.trust import refuse_unreliable
+
+    warn = refuse_unreliable(doc, args.calibration, force=args.force)
+    if warn:
+        print(warn, file=sys.stderr)
     ids, xy = read_targets(args.targets)
     limits = {} if robot is None else {"joint_limits_deg": robot.joint_limits_deg}
     planned = plan_targets(model, ids, xy, elbow=args.elbow, approach=tuple(args.approach),

@@ -1,0 +1,47 @@
+"""Whether a calibration.json may be used: its own ``verdict`` (docs/format.md), read, never
+recomputed here.
+
+``design --pilot`` needs a pilot whose verdict is ``ready``; ``plan`` and ``export`` refuse
+one whose verdict is ``not reliable`` unless ``--force``. A calibration.json without a
+``verdict`` block (written before it existed) is accepted.
+"""
+
+from __future__ import annotations
+
+from vision_cal.errors import VisionCalError
+
+
+def verdict_of(doc: dict) -> tuple[str | None, list[str]]:
+    """(status or None, reasons) of a calibration.json document."""
+    v = doc.get("verdict") if isinstance(doc, dict) else None
+    if not isinstance(v, dict):
+        return None, []
+    reasons = v.get("reasons") or []
+    return v.get("status"), [str(r) for r in reasons] if isinstance(reasons, list) else []
+
+
+def _why(reasons: list[str]) -> str:
+    return f": {'; '.join(reasons[:3])}" if reasons else ""
+
+
+def require_ready_pilot(doc: dict, path) -> None:
+    """Refuse (``VisionCalError``, exit 2) a pilot calibration whose verdict is not ready."""
+    status, reasons = verdict_of(doc)
+    if status is not None and status != "ready":
+        raise VisionCalError(f"the pilot calibration's verdict is {status!r}, not 'ready'"
+                             f"{_why(reasons)}; calibrate the pilot again (more photos, marks "
+                             "on free paper) before designing the informative plan",
+                             file=str(path), field="verdict.status")
+
+
+def refuse_unreliable(doc: dict, path, *, force: bool) -> str | None:
+    """Refuse a calibration whose verdict is "not reliable" unless ``force``; with it, the
+    warning line to print (None when there is nothing to say)."""
+    status, reasons = verdict_of(doc)
+    if status != "not reliable":
+        return None
+    msg = f"the calibration's verdict is 'not reliable'{_why(reasons)}"
+    if not force:
+        raise VisionCalError(f"{msg}; give --force to use it anyway", file=str(path),
+                             field="verdict.status")
+    return f"vision-cal: warning: {path}: {msg} (used because of --force)"
