@@ -751,6 +751,9 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                         session.robot.params, max_zero_deg=ac.max_zero_deg,
                         max_base_mm=ac.max_base_mm)
     warnings.extend(a.warnings)
+    from vision_cal.measure.plan_match import check_plan_match
+
+    check_plan_match(session.path, files, images, image_marks, len(groups), len(a.mark_to_group))
     marks = {}
     used = set()
     for mid, gi in a.mark_to_group.items():

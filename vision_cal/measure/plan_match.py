@@ -1,0 +1,60 @@
+"""Photos that do not belong to the session (issue 18): refused, not calibrated.
+
+After the association (``associate.associate``) the dots seen are compared with the plan:
+
+- a photo showing far more dots than the marks it should show (more than
+  :data:`MAX_DOTS_PER_MARK` times as many, plus :data:`SPARE_DOTS` for blemishes and an
+  earlier pilot's marks), in most of the usable photos: another, finished sheet;
+- fewer than :data:`MIN_MATCHED_FRACTION` of the marks the photos should show matched to a
+  dot, while at least as many dots as those marks were seen and the photos should show
+  at least :data:`MIN_MARKS_JUDGED` marks (fewer say little: a reversed series of three
+  photos is a wrong order, reported by the inference): the dots are not where the plan and
+  the robot model put them (another session's photos, another robot).
+
+Either stops the run with a :class:`vision_cal.errors.CalibrationError` (exit 1) naming the
+photos and what was seen, instead of calibrating with marks assigned to the wrong places.
+"""
+
+from __future__ import annotations
+
+from vision_cal.errors import CalibrationError
+
+MAX_DOTS_PER_MARK = 2.0
+SPARE_DOTS = 3
+MIN_MATCHED_FRACTION = 0.5
+MIN_MARKS_JUDGED = 6
+
+
+def _names(files) -> str:
+    files = list(files)
+    return ", ".join(files[:4]) + (f" and {len(files) - 4} more" if len(files) > 4 else "")
+
+
+def check_plan_match(session_path, files, images, image_marks, n_groups: int,
+                     matched: int) -> None:
+    """Raise when the photos do not match the plan (see the module docstring).
+
+    ``images``: per photo an ``ImageResult`` (``status``, ``n_dots``); ``image_marks``: per
+    photo the marks it should show; ``n_groups``: physical dots found over the photos;
+    ``matched``: marks assigned to a dot."""
+    ok = [k for k, im in enumerate(images) if im.status == "ok"]
+    if not ok:
+        return
+    crowded = [k for k in ok
+               if images[k].n_dots > MAX_DOTS_PER_MARK * len(image_marks[k]) + SPARE_DOTS]
+    expected = {m for k in ok for m in image_marks[k]}
+    if 2 * len(crowded) > len(ok):
+        k = crowded[0]
+        raise CalibrationError(
+            f"the photos do not match the plan: {_names(files[i] for i in crowded)} show "
+            f"{images[k].n_dots} dots where {len(image_marks[k])} planned marks should be "
+            f"({matched} of {len(expected)} marks could be matched): photos of another "
+            "sheet or another session? Put the photos of this plan in the folder",
+            file=str(session_path), field="images")
+    if len(expected) >= MIN_MARKS_JUDGED and n_groups >= len(expected) and matched < MIN_MATCHED_FRACTION * len(expected):
+        raise CalibrationError(
+            f"the photos do not match the plan: only {matched} of {len(expected)} planned "
+            f"marks could be matched to the {n_groups} dots seen on "
+            f"{_names(files[i] for i in ok)} (the dots are not where the plan and the robot "
+            "file put them: photos of another session, or another robot file?)",
+            file=str(session_path), field="images")
