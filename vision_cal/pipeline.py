@@ -387,6 +387,9 @@ def _unreliable_marks(doc: dict, marks: dict, session: Session, measurement) -> 
     note naming them."""
     if measurement is None:
         return
+    # the measurement's finding about the sheet's declaration (measure/grid_declaration.py)
+    doc.setdefault("notes", []).extend(w for w in measurement.warnings
+                                       if w.startswith("sheet.grid.origin_mm"))
     bad = []
     for m in session.marks:
         mm = measurement.marks.get(m.id)

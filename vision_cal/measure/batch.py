@@ -726,6 +726,14 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                                 f"for {size[0]}x{size[1]} px")
     images = [finish_image(d, session, lens, from_cache=c) for d, c in zip(dets, cached)]
     _check_sheet_fits(session, images)
+    from vision_cal.measure.grid_declaration import misdeclared_grid
+
+    wrong_grid = misdeclared_grid(images, session.sheet.grid_spec)
+    if wrong_grid is not None:   # two references disagree by a constant: the markers win
+        log.warning(wrong_grid.message)
+        warnings.append(wrong_grid.message)
+        session = replace(session, sheet=replace(session.sheet, grid=None))
+        images = [finish_image(d, session, lens, from_cache=c) for d, c in zip(dets, cached)]
 
     # stage 3: association
     idx_ok = [i for i, r in enumerate(images) if r.status == "ok"]
