@@ -343,6 +343,8 @@ def document(doc: dict, session: Session, data: MarkData, missing: list[str], me
                                 "(a bad sheet mapping?): " + ", ".join(flagged))
     doc["nominal"] = nominal.to_json()
     doc["home_deg"] = [float(v) for v in session.robot.home_deg]  # added: where plans start
+    if getattr(session.robot, "joint_limits_deg", None) is not None:   # added: plan, export
+        doc["joint_limits_deg"] = [[float(v) for v in p] for p in session.robot.joint_limits_deg]
     if measurement is not None and measurement.lens is not None and measurement.lens.kept:
         doc["effects"] = [measurement.lens.to_effect_json()] + doc["effects"]
     if measurement is not None and measurement.height_map is not None:

@@ -17,6 +17,9 @@ def add_arguments(p) -> None:
     p.add_argument("--urdf", metavar="ROBOT.urdf", help="URDF with the calibrated joint origins; "
                    "effects go to ROBOT.effects.yaml beside it")
     p.add_argument("--yaml", metavar="FILE.yaml", help="parameters, std and effects as YAML")
+    p.add_argument("--robot", metavar="ROBOT.yaml",
+                   help="robot file: the URDF's joint limits (default: calibration.json's "
+                        "joint_limits_deg, which the session's robot file gave)")
     p.add_argument("--force", action="store_true",
                    help="export even a calibration whose verdict is 'not reliable'")
 
@@ -40,7 +43,12 @@ def run(args) -> int:
         import sys
 
         print(warn, file=sys.stderr)
-    for path in export(doc, urdf=args.urdf, yaml_path=args.yaml):
+    limits = doc.get("joint_limits_deg")
+    if args.robot:
+        from vision_cal.dataset.robot import load_robot_file
+
+        limits = load_robot_file(args.robot).joint_limits_deg
+    for path in export(doc, urdf=args.urdf, yaml_path=args.yaml, limits_deg=limits):
         if not args.quiet:
             print(f"wrote {path}")
     return 0

@@ -74,6 +74,9 @@ def run(args) -> int:
         print(warn, file=sys.stderr)
     ids, xy = read_targets(args.targets)
     limits = {} if robot is None else {"joint_limits_deg": robot.joint_limits_deg}
+    if robot is None and doc.get("joint_limits_deg") is not None:   # recorded by the run
+        limits = {"joint_limits_deg": tuple(tuple(float(v) for v in p)
+                                            for p in doc["joint_limits_deg"])}
     planned = plan_targets(model, ids, xy, elbow=args.elbow, approach=tuple(args.approach),
                            **limits)
     cov = load_covariance(doc, model, file=args.calibration) if args.model == "calibrated" \

@@ -135,6 +135,8 @@ class NominalRobot:
     joint_zero_deg: tuple[float, float]
     base_mm: tuple[float, float]
     home_deg: tuple[float, float] = (0.0, 0.0)
+    #: added: the commanded joint limits [[lo, hi], [lo, hi]] (deg), when the block has them
+    joint_limits_deg: tuple | None = None
 
     @property
     def params(self) -> ScaraParams:
@@ -143,9 +145,12 @@ class NominalRobot:
 
     def to_json(self) -> dict:
         """The session's ``robot`` block."""
-        return {"L1_mm": self.L1_mm, "L2_mm": self.L2_mm,
-                "joint_zero_deg": list(self.joint_zero_deg), "base_mm": list(self.base_mm),
-                "home_deg": list(self.home_deg)}
+        d = {"L1_mm": self.L1_mm, "L2_mm": self.L2_mm,
+             "joint_zero_deg": list(self.joint_zero_deg), "base_mm": list(self.base_mm),
+             "home_deg": list(self.home_deg)}
+        if self.joint_limits_deg is not None:
+            d["joint_limits_deg"] = [list(p) for p in self.joint_limits_deg]
+        return d
 
 
 @dataclass(frozen=True)
@@ -353,7 +358,20 @@ def read_robot_block(r: _Reader, rob, where: str = "robot") -> NominalRobot:
     base = r.point(r.get(rob, "base_mm", where), w("base_mm"))
     home_raw = r.get(rob, "home_deg", where, required=False)
     home = r.angles(home_raw, w("home_deg")) if home_raw is not None else (0.0, 0.0)
-    return NominalRobot(L1, L2, jz, base, home)
+    lim_raw = r.get(rob, "joint_limits_deg", where, required=False)
+    limits = None
+    if lim_raw is not None:   # added field: [[lo, hi], [lo, hi]] deg
+        rows = r.list_(lim_raw, w("joint_limits_deg"))
+        if len(rows) != 2:
+            r.fail(w("joint_limits_deg"), f"expected [[lo, hi], [lo, hi]], got {lim_raw!r}")
+        pairs = []
+        for j, row in enumerate(rows):
+            lo, hi = r.vector(row, w(f"joint_limits_deg[{j}]"), 2)
+            if not lo < hi:
+                r.fail(w(f"joint_limits_deg[{j}]"), f"expected lo < hi, got {row!r}")
+            pairs.append((float(lo), float(hi)))
+        limits = tuple(pairs)
+    return NominalRobot(L1, L2, jz, base, home, limits)
 
 
 def read_sheet_block(r: _Reader, sheet_raw, where: str = "sheet", *,

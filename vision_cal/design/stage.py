@@ -168,6 +168,8 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
     session = {"format": FORMAT, "sheet": sheet_raw, "robot": plan_robot.to_json(),
                "pen": {"mark_diameter_mm": robot.mark_diameter_mm},
                "marks": [m.to_json() for m in marks], "design": info}
+    # the robot file's limits travel with the session into calibration.json (plan, export)
+    session["robot"]["joint_limits_deg"] = [[float(v) for v in p] for p in robot.joint_limits_deg]
     points = program_points(marks, home_deg=nominal.home_deg, z2_deg=plan_robot.joint_zero_deg[1])
     # everything is computed: now write
     session_path = atomic_write_json(out / "session.json", session)

@@ -85,11 +85,16 @@ def calibration_yaml(doc: dict) -> str:
     return EFFECTS_HEADER + yaml.safe_dump(out, sort_keys=False)
 
 
-def export(doc: dict, *, urdf=None, yaml_path=None) -> list[Path]:
+def export(doc: dict, *, urdf=None, yaml_path=None, limits_deg=None) -> list[Path]:
+    """``limits_deg``: the URDF's joint limits [[lo, hi], [lo, hi]] (default: the
+    calibration's ``joint_limits_deg``, else :data:`vision_cal.motion.JOINT_LIMITS_DEG`)."""
     written = []
+    if limits_deg is None:
+        limits_deg = doc.get("joint_limits_deg") or JOINT_LIMITS_DEG
     if urdf:
         urdf = Path(urdf)
-        written.append(atomic_write_text(urdf, urdf_text(doc, name=urdf.stem)))
+        written.append(atomic_write_text(urdf, urdf_text(doc, name=urdf.stem,
+                                                         limits_deg=limits_deg)))
         side = urdf.with_name(urdf.stem + ".effects.yaml")
         written.append(atomic_write_text(side, effects_yaml(doc)))
     if yaml_path:

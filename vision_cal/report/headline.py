@@ -189,9 +189,9 @@ def actions(doc: dict, *, calibration_path: str = "OUT/calibration.json") -> dic
                      + (f"({', '.join(planner_effects)})" if planner_effects else "")
                      + " (targets.csv: id,x_mm,y_mm)",
              "command": f"vision-cal plan {cal} targets.csv -o plan.csv "
-                        "--trajectory traj.csv"},
+                        "--trajectory traj.csv --program spel --robot robot.yaml"},
             {"what": "the model for ROS/OLP tools (URDF plus the effects it cannot hold)",
-             "command": f"vision-cal export {cal} --urdf robot.urdf"},
+             "command": f"vision-cal export {cal} --urdf robot.urdf --robot robot.yaml"},
         ],
     }
 
