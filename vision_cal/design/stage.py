@@ -79,6 +79,31 @@ def drawable_sheet(sheet, sheet_raw: dict, *, file: str | None = None):
     return replace(sheet, size_mm=(x1 - x0, y1 - y0), bottom_left_mm=(x0, y0))
 
 
+def with_printed_content(sheet):
+    """The sheet with what its own print has inside the drawable area (the axes, their
+    arrows and letters, "origin (0, 0)": :mod:`vision_cal.measure.printed`) as obstacles,
+    kept clear of as the markers are: a pen mark on printed ink is measured less well.
+    A sheet whose print is not described is returned as it is. Used for the informative
+    plan (placed with the pilot's model); the pilot's marks may land anywhere within the
+    placement tolerance, so print under them is left to the measurement."""
+    from dataclasses import replace
+
+    from vision_cal.dataset.session import SheetMarker
+    from vision_cal.measure.printed import printed_reference
+
+    ref = printed_reference(sheet)
+    if ref is None:
+        return sheet
+    x0, y0, x1, y1 = sheet.extent_mm
+    extra = []
+    for k, it in enumerate(ref.items):
+        a, b, c, d = it.box_mm
+        if c < x0 or a > x1 or d < y0 or b > y1:
+            continue
+        extra.append(SheetMarker(-10000 - k, np.array([[a, d], [c, d], [c, b], [a, b]])))
+    return replace(sheet, markers=tuple(sheet.markers) + tuple(extra))
+
+
 def with_pilot_marks(sheet, cal_doc: dict, diameter_mm: float):
     """The sheet with the pilot's measured marks as obstacles (small squares), so that
     the informative plan drawn on the same sheet keeps clear of them."""
@@ -121,6 +146,8 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
     if program is not None:
         robot.require_pen_heights()
     sheet = drawable_sheet(sheet, sheet_raw, file=str(sheet_path))
+    if pilot is not None:   # the pilot lands anywhere within the tolerance: measured over print
+        sheet = with_printed_content(sheet)
     nominal = robot.nominal
     if pilot is None:
         from vision_cal.design.pilot import design_pilot
