@@ -100,7 +100,7 @@ def with_pilot_marks(sheet, cal_doc: dict, diameter_mm: float):
 
 def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | None = "spel",
                  n_calibration: int = 30, n_validation: int = 8, safety_mm: float | None = None,
-                 seed: int = 0) -> DesignResult:
+                 seed: int = 0, stage: str | None = None) -> DesignResult:
     from vision_cal.dataset.io import atomic_write_json, read_json
     from vision_cal.dataset.robot import load_robot_file
     from vision_cal.dataset.session import NominalRobot, load_sheet_file
@@ -160,6 +160,10 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
                 "n_calibration": n_calibration, "n_validation": n_validation, "seed": seed}
         title = (f"vision-cal calibration plan: {n_calibration} calibration + {n_validation} "
                  "validation marks, both elbows, both approach sides per joint")
+        if stage == "verify":   # vision-cal verify: a short check of a calibration
+            info.update(stage="verify", calibration=str(pilot))
+            title = (f"vision-cal check of {Path(pilot).name}: {n_calibration} marks, both "
+                     "elbows, both approach sides (then: vision-cal verify)")
     traj = plan_trajectory(marks, home_deg=nominal.home_deg, vmax_deg_s=robot.speed_limits_deg_s,
                            amax_deg_s2=robot.accel_limits_deg_s2,
                            dwell_s=robot.program.settle_s)
