@@ -79,6 +79,28 @@ def drawable_sheet(sheet, sheet_raw: dict, *, file: str | None = None):
     return replace(sheet, size_mm=(x1 - x0, y1 - y0), bottom_left_mm=(x0, y0))
 
 
+def with_drawable_bands(sheet, paper):
+    """The sheet with the paper outside its drawable box as obstacles: ``sheet`` is
+    :func:`drawable_sheet`'s, ``paper`` the whole paper's. Its ``extent_mm`` still spans
+    the markers (they are printed outside the drawable box), so a planner that keeps to
+    the extent and clear of markers would put marks on the scale bars, labels and title;
+    the four bands between the paper edge and the drawable box become rectangles it keeps
+    clear of, like markers."""
+    from dataclasses import replace
+
+    from vision_cal.dataset.session import SheetMarker
+
+    if sheet.bottom_left_mm is None or sheet is paper:
+        return sheet
+    px0, py0, px1, py1 = paper.extent_mm
+    x0, y0 = sheet.bottom_left_mm
+    x1, y1 = x0 + sheet.size_mm[0], y0 + sheet.size_mm[1]
+    bands = [(px0, py0, px1, y0), (px0, y1, px1, py1), (px0, y0, x0, y1), (x1, y0, px1, y1)]
+    extra = [SheetMarker(-1000 - k, np.array([[a, d], [c, d], [c, b], [a, b]], float))
+             for k, (a, b, c, d) in enumerate(bands) if c > a and d > b]
+    return replace(sheet, markers=tuple(sheet.markers) + tuple(extra))
+
+
 def with_pilot_marks(sheet, cal_doc: dict, diameter_mm: float):
     """The sheet with the pilot's measured marks as obstacles (small squares), so that
     the informative plan drawn on the same sheet keeps clear of them."""
@@ -120,6 +142,7 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
                                  "not match them; choose another --out", file=str(out))
     if program is not None:
         robot.require_pen_heights()
+    paper = sheet
     sheet = drawable_sheet(sheet, sheet_raw, file=str(sheet_path))
     nominal = robot.nominal
     if pilot is None:
@@ -143,7 +166,7 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
         cov = load_covariance(doc, model, file=str(pilot))
         if safety_mm is None:
             safety_mm = pilot_safety_mm(model, cov, sheet)
-        sheet = with_pilot_marks(sheet, doc, robot.mark_diameter_mm)
+        sheet = with_pilot_marks(with_drawable_bands(sheet, paper), doc, robot.mark_diameter_mm)
         p = model.params
         plan_robot = NominalRobot(p.L1_mm, p.L2_mm, p.joint_zero_deg, p.base_mm,
                                   nominal.home_deg)
