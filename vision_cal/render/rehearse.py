@@ -190,7 +190,7 @@ def marks_from_program(path: Path, marks: list[dict], *, pen_down_mm: float) -> 
     """The program's pen-down points matched in order to session.json's ``marks``, each
     with the points driven through since the previous pen-down (its via points)."""
     moves = program_moves(path, pen_down_mm=pen_down_mm)
-    out, path_q = [], []
+    out, path_q, last = [], [], None
     for q, down in moves:
         if down:
             k = len(out)
@@ -202,9 +202,9 @@ def marks_from_program(path: Path, marks: list[dict], *, pen_down_mm: float) -> 
                 raise VisionCalError(f"pen-down point {k + 1} at {list(q)} deg is not "
                                      f"session.json's mark {marks[k]['id']} at {want} deg: the "
                                      "program is not this plan's", file=str(path))
-            vias = [p for p in path_q if p != q]
+            vias = [p for p in path_q if p != q and p != last]
             out.append(_Mark(str(marks[k]["id"]), q, tuple(vias)))
-            path_q = []
+            path_q, last = [], q
         elif not path_q or path_q[-1] != q:
             path_q.append(q)
     if len(out) != len(marks):

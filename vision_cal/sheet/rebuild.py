@@ -4,7 +4,7 @@
 module, quiet zone, the marker ring) except the ``--pitch-mm`` it was given; the ring's
 spacing gives it back (any pitch between the largest spacing and the next ring size builds the
 same ring). :func:`layout_from_sheet_json` rebuilds the layout and checks that it is the
-printed one (the same ``sheet_id``, the content hash of the printed geometry), so a rehearsal
+printed one (the same markers and ``sheet_id``, the content hash of the printed geometry), so a rehearsal
 (``vision-cal simulate``) can photograph exactly the sheet the user printed without a
 ``sheet.png`` having been written. A sheet from another generator cannot be rebuilt: the
 error says to give its raster.
@@ -57,7 +57,11 @@ def layout_from_sheet_json(doc: dict, *, file: str | None = None) -> SheetLayout
         raise VisionCalError(f"incomplete sheet description ({e!r}): give the printed sheet's "
                              "image (sheet.png beside sheet.json)", file=file,
                              field="printed") from e
-    if layout.sheet_id != printed.get("sheet_id"):
+    again = layout.to_sheet_json()["markers"]
+    same = len(again) == len(markers) and all(
+        a["id"] == m.get("id") and np.allclose(a["corners_mm"], m.get("corners_mm"), atol=1e-5)
+        for a, m in zip(again, markers))
+    if not same or layout.sheet_id != printed.get("sheet_id"):
         raise VisionCalError(f"the rebuilt sheet is {layout.sheet_id}, not the printed "
                              f"{printed.get('sheet_id')}: give the printed sheet's image "
                              "(sheet.png beside sheet.json)", file=file, field="printed.sheet_id")
