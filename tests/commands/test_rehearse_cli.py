@@ -101,3 +101,38 @@ def test_the_program_is_followed_and_must_be_the_plans(tmp_path):
     marks[1]["joints_deg"] = [-5.0, 41.0]
     with pytest.raises(VisionCalError, match="not this plan's"):
         marks_from_program(prg, marks, pen_down_mm=robot.pen_down_mm)
+
+
+def test_spel_options_pen_output_jump_limz_motor_off(tmp_path):
+    """The robot file's pen output bit, safe height and Motor Off reach the program, and
+    the program still draws the plan: the follower finds every mark with its via point,
+    the approach moves stay Go (a Jump only travels to a mark's first point)."""
+    import yaml
+
+    from vision_cal.dataset.robot import load_robot_file
+    from vision_cal.plan.calibration_plan import PlannedMark
+    from vision_cal.program import program_points, write_program
+    from vision_cal.render.rehearse import marks_from_program
+    from vision_cal.templates import template_text
+
+    doc = yaml.safe_load(template_text("robot"))
+    doc["program"].update(pen_output_bit=9, safe_z_mm=-2.0, motor_off=True)
+    (tmp_path / "robot.yaml").write_text(yaml.safe_dump(doc))
+    robot = load_robot_file(tmp_path / "robot.yaml")
+    plan = [PlannedMark("a", (10.0, 20.0), "target", (1, -1), ((7.0, 23.0),)),
+            PlannedMark("b", (-5.0, 40.0), "target", (-1, 1), ((-2.0, 37.0),))]
+    prg = write_program("spel", tmp_path / "p.prg", program_points(plan), robot, title="t")
+    text = prg.read_text()
+    assert text.count("    On 9") == 2 and text.count("    Off 9") == 2
+    assert "JA(7.0000, 23.0000, -10.000, 0.0000) LimZ -2.000" in text
+    assert "Go JA(10.0000, 20.0000, -10.000" in text          # onto the mark: Go
+    assert "-20.500" not in text                               # joint 3 never lowers the pen
+    assert text.rstrip().endswith("Motor Off\nFend")
+    assert "Do not edit the points: the calibration" not in text   # a targets program
+    got = marks_from_program(prg, [m.to_json() for m in plan], pen_down_mm=robot.pen_down_mm,
+                             pen_bit=9)
+    assert [(m.id, m.via_deg[-1]) for m in got] == [("a", (7.0, 23.0)), ("b", (-2.0, 37.0))]
+    doc["program"]["pen_output_bit"] = "nine"
+    (tmp_path / "robot.yaml").write_text(yaml.safe_dump(doc))
+    with pytest.raises(VisionCalError, match="program.pen_output_bit"):
+        load_robot_file(tmp_path / "robot.yaml")

@@ -50,7 +50,7 @@ SECTIONS = ("robot", "hidden", "camera", "seed")
 HIDDEN = ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "effects", "repeatability_mm",
           "controller")
 CAMERA = ("size_px", "f_px", "photos", "tilt_deg", "vignetting", "noise_sigma")
-_GO = re.compile(r"^\s*Go\s+JA\(\s*([^,()]+),\s*([^,()]+),\s*([^,()]+),\s*([^,()]+)\)",
+_GO = re.compile(r"^\s*(?:Go|Jump)\s+JA\(\s*([^,()]+),\s*([^,()]+),\s*([^,()]+),\s*([^,()]+)\)",
                  re.IGNORECASE)
 
 
@@ -152,11 +152,12 @@ class _Mark:
     approach: tuple[int, int] = (1, 1)
 
 
-def program_moves(path: Path, *, pen_down_mm: float) -> list[tuple[tuple[float, float], bool]]:
+def program_moves(path: Path, *, pen_down_mm: float,
+                  pen_bit: int | None = None) -> list[tuple[tuple[float, float], bool]]:
     """The joint moves of a robot program, in order: ((j1, j2) deg, pen down?).
 
-    SPEL+ (``.prg``): every ``Go JA(j1, j2, j3, j4)`` line; the pen is down where joint 3
-    is at ``pen_down_mm``. The neutral point list (``_points.csv``): each ``mark`` row is a
+    SPEL+ (``.prg``): every ``Go``/``Jump JA(j1, j2, j3, j4)`` line; the pen is down where
+    joint 3 is at ``pen_down_mm``, or at ``On pen_bit`` (the robot file's pen output). The neutral point list (``_points.csv``): each ``mark`` row is a
     stop with the pen going down, ``home`` and ``via`` rows are driven through.
     """
     from vision_cal.dataset.io import read_text
@@ -174,8 +175,13 @@ def program_moves(path: Path, *, pen_down_mm: float) -> list[tuple[tuple[float, 
             if kind == "mark":
                 moves.append((q, True))
         return moves
+    on = re.compile(rf"^\s*On\s+{pen_bit}\s*$", re.IGNORECASE) if pen_bit is not None else None
     for ln, line in enumerate(text.splitlines(), 1):
-        m = _GO.match(line.split("'")[0])
+        code = line.split("'")[0]
+        if on is not None and on.match(code) and moves:
+            moves.append((moves[-1][0], True))
+            continue
+        m = _GO.match(code)
         if not m:
             continue
         try:
@@ -186,10 +192,11 @@ def program_moves(path: Path, *, pen_down_mm: float) -> list[tuple[tuple[float, 
     return moves
 
 
-def marks_from_program(path: Path, marks: list[dict], *, pen_down_mm: float) -> list[_Mark]:
+def marks_from_program(path: Path, marks: list[dict], *, pen_down_mm: float,
+                       pen_bit: int | None = None) -> list[_Mark]:
     """The program's pen-down points matched in order to session.json's ``marks``, each
     with the points driven through since the previous pen-down (its via points)."""
-    moves = program_moves(path, pen_down_mm=pen_down_mm)
+    moves = program_moves(path, pen_down_mm=pen_down_mm, pen_bit=pen_bit)
     out, path_q, last = [], [], None
     for q, down in moves:
         if down:
@@ -267,7 +274,8 @@ def _plan_marks(plan_dir: Path, session: dict, robot) -> tuple[list[_Mark], str]
             if robot.pen_down_mm is None:
                 raise VisionCalError("missing: the simulated robot follows the program's "
                                      "pen-down height", file=str(robot.path), field="pen_down_mm")
-            return marks_from_program(p, marks, pen_down_mm=robot.pen_down_mm), name
+            return marks_from_program(p, marks, pen_down_mm=robot.pen_down_mm,
+                                      pen_bit=robot.program.pen_output_bit), name
     return marks_from_session(marks, robot.overshoot_deg), "session.json (no program)"
 
 

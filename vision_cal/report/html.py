@@ -398,7 +398,10 @@ def render_html(rep: dict) -> str:
         worst = max(pp, key=lambda p: float(np.hypot(*p["offset_mm"])))
         alpha = (((rep.get("provenance") or {}).get("configuration") or {})
                  .get("per_photo_offsets") or {}).get("alpha")
-        parts.append(f"<p>Per-photo offsets: {len(pp)} photos checked, "
+        n_ok = sum(1 for im in rep.get("images") or [] if im.get("status") == "ok")
+        untested = (f" ({n_ok - len(pp)} of {n_ok} with fewer than two marks: a photo's "
+                    "offset needs two)" if n_ok > len(pp) else "")
+        parts.append(f"<p>Per-photo offsets: {len(pp)} photos checked{untested}, "
                      + (f"<span class=bad>{len(bad)} shifted beyond the noise: " +
                         ", ".join(html.escape(p['file']) for p in bad) + "</span>" if bad else
                         "none shifted beyond the noise")
