@@ -68,6 +68,10 @@ def run(args) -> int:
                      n_validation=0 if check else args.n_validation,
                      safety_mm=args.safety_mm, seed=args.seed,
                      stage="verify" if check else None)
+    import sys
+
+    for w in r.info.get("warnings", []):
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
     if not args.quiet:
         print(f"{r.stage} plan: {r.n_marks} marks, {r.duration_s:.1f} s of motion")
         if r.stage == "pilot":

@@ -298,7 +298,8 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
     if out.exists() and not out.is_dir():
         raise VisionCalError("exists and is not a folder", file=str(out))
     if out.is_dir():
-        photos = sorted(p.name for p in out.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+        photos = sorted(p.name for p in out.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES
+                        and p.name != "preview.png")
         if photos:
             raise VisionCalError(f"holds photos already ({photos[0]}, ...): a rehearsal adds "
                                  "its own; choose an empty folder", file=str(out))
