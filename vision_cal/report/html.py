@@ -406,7 +406,7 @@ def render_html(rep: dict) -> str:
         worst = max(pp, key=lambda p: float(np.hypot(*p["offset_mm"])))
         alpha = (((rep.get("provenance") or {}).get("configuration") or {})
                  .get("per_photo_offsets") or {}).get("alpha")
-        n_ok = sum(1 for im in rep.get("images") or [] if im.get("status") == "ok")
+        n_ok = sum(1 for im in doc.get("images") or [] if im.get("status") == "ok")
         untested = (f" ({n_ok - len(pp)} of {n_ok} with fewer than two marks: a photo's "
                     "offset needs two)" if n_ok > len(pp) else "")
         parts.append(f"<p>Per-photo offsets: {len(pp)} photos checked{untested}, "

@@ -236,7 +236,8 @@ def loop_paths(loop: dict) -> bytes:
     ax.set_aspect("equal")
     ax.set_xlabel("sheet x [mm]")
     ax.set_ylabel("sheet y [mm]")
-    ax.legend()
+    ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.06), ncols=3, fontsize=9,
+              frameon=False)   # outside: inside it hid targets
     ax.grid(alpha=0.3)
     ax.set_title("targets and where the pen really went (paper Fig. 8-9)")
     return _png(fig)
