@@ -58,7 +58,7 @@ _GO = re.compile(r"^\s*(?:Go|Jump)\s+JA\(\s*([^,()]+),\s*([^,()]+),\s*([^,()]+),
 class SimCamera:
     size_px: tuple[int, int] = (1600, 1200)
     f_px: float = 1750.0
-    photos: int = 3
+    photos: int = 2
     tilt_deg: tuple[float, float] = (0.0, 12.0)
     vignetting: float = 0.15
     noise_sigma: float = 1.5
@@ -279,11 +279,51 @@ def _plan_marks(plan_dir: Path, session: dict, robot) -> tuple[list[_Mark], str]
     return marks_from_session(marks, robot.overshoot_deg), "session.json (no program)"
 
 
+def targets_session(program: Path, sim: SimulatedRobot, *, sheet_json, targets=None) -> dict:
+    """A session (no images) for a targets program written by ``vision-cal plan
+    --program``: its marks are the rows of the plan CSV beside it (``PLAN.prg`` ->
+    ``PLAN.csv``; joints, approach), with ``target_mm`` from ``targets`` (targets.csv)
+    when given; the sheet from ``sheet_json``; the robot block the robot file's."""
+    from vision_cal.dataset.csvio import read_plan, read_targets
+    from vision_cal.dataset.io import read_json
+
+    stem = program.with_suffix("") if program.suffix.lower() == ".prg" else \
+        program.with_name(program.name.removesuffix("_points.csv"))
+    plan_csv = stem.with_suffix(".csv")
+    if sheet_json is None:
+        raise VisionCalError("a targets program needs the sheet it is drawn on: give "
+                             "--sheet SHEET.json", field="--sheet")
+    ids, q, s = read_plan(plan_csv)
+    want = {}
+    if targets is not None:
+        tid, txy = read_targets(targets)
+        want = dict(zip(tid, txy))
+    n = sim.robot.nominal
+    marks = []
+    for i, mid in enumerate(ids):
+        m = {"id": mid, "joints_deg": [float(q[i, 0]), float(q[i, 1])],
+             "approach": [int(s[i, 0]), int(s[i, 1])], "role": "calibration"}
+        if mid in want:
+            m["target_mm"] = [float(v) for v in want[mid]]
+        marks.append(m)
+    return {"format": "vision-cal/1", "sheet": read_json(sheet_json),
+            "robot": {"L1_mm": n.L1_mm, "L2_mm": n.L2_mm,
+                      "joint_zero_deg": list(n.joint_zero_deg), "base_mm": list(n.base_mm),
+                      "home_deg": list(n.home_deg)},
+            "pen": {"mark_diameter_mm": sim.robot.mark_diameter_mm}, "marks": marks,
+            "design": {"stage": "targets", "program": str(program)}}
+
+
 def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool = False,
-                     rng=None) -> SimulateResult:
+                     rng=None, sheet_json=None, targets=None) -> SimulateResult:
     """The simulated robot of ``truth_path`` draws the plan in ``plan_dir`` on the printed
     sheet (with the true marks of the folders in ``after`` already on it) and photographs
-    it into ``out_dir``. See the module docstring."""
+    it into ``out_dir``. See the module docstring.
+
+    ``plan_dir`` may also be a targets program of ``vision-cal plan --program`` (``.prg``
+    or ``_points.csv``): then ``sheet_json`` says the sheet, ``targets`` (targets.csv) the
+    targets, and ``out_dir`` gets a session.json of the drawn targets (calibrate it to
+    measure where they landed: calibration.json ``targets``)."""
     from vision_cal.dataset.io import atomic_write_bytes, atomic_write_json, read_json
     from vision_cal.render.camera import camera_matrix, default_views
     from vision_cal.render.dataset import _encode_image, marks_off_paper, marks_on_markers
@@ -293,8 +333,15 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
 
     plan_dir, out = Path(plan_dir), Path(out_dir)
     sim = load_simulated_robot(truth_path)
-    session_path = plan_dir / "session.json"
-    session = read_json(session_path)
+    if plan_dir.is_file():
+        program = plan_dir
+        session = targets_session(program, sim, sheet_json=sheet_json, targets=targets)
+        session_path = Path(sheet_json)
+        plan_dir = out
+    else:
+        program = None
+        session_path = plan_dir / "session.json"
+        session = read_json(session_path)
     if out.exists() and not out.is_dir():
         raise VisionCalError("exists and is not a folder", file=str(out))
     if out.is_dir():
@@ -304,7 +351,12 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
             raise VisionCalError(f"holds photos already ({photos[0]}, ...): a rehearsal adds "
                                  "its own; choose an empty folder", file=str(out))
     rng = np.random.default_rng(sim.seed if rng is None else rng)
-    plan, source_name = _plan_marks(plan_dir, session, sim.robot)
+    if program is not None:
+        plan = marks_from_program(program, session["marks"], pen_down_mm=sim.robot.pen_down_mm,
+                                  pen_bit=sim.robot.program.pen_output_bit)
+        source_name = program.name
+    else:
+        plan, source_name = _plan_marks(plan_dir, session, sim.robot)
     sheet_block = session.get("sheet")
     if not isinstance(sheet_block, dict):
         raise VisionCalError("missing the sheet block", file=str(session_path), field="sheet")
@@ -372,7 +424,7 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
     }
     # everything is computed: now write (truth.json last)
     out.mkdir(parents=True, exist_ok=True)
-    if out.resolve() != plan_dir.resolve():
+    if program is not None or out.resolve() != plan_dir.resolve():
         atomic_write_json(out / "session.json", {k: v for k, v in session.items()
                                                  if k != "images"})
     paths = tuple(atomic_write_bytes(out / f, data) for f, data, _ in images)
