@@ -108,6 +108,14 @@ def landing_note(sheet, model, planned) -> str:
         return f"off the paper: {where}"
     if sheet_clearance_mm(sheet, xy)[0] <= 0.0:
         return f"on a printed marker: {where}"
+    from vision_cal.dataset.marker_geometry import quiet_boxes_mm
+
+    # a dot touching a marker's quiet zone is masked with the marker (measure/dots.py)
+    boxes = quiet_boxes_mm(sheet)
+    r = 1.0   # about a pen mark's radius, mm
+    if len(boxes) and np.any(np.all((xy[0] >= boxes[:, :2] - r) & (xy[0] <= boxes[:, 2:] + r),
+                                    axis=1)):
+        return f"on a printed marker's quiet zone (masked with the marker): {where}"
     return f"{generic}; {where}"
 
 
@@ -185,8 +193,11 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
                 res[p.id] = {"status": "ok", "measured_mm": np.asarray(m.marks[p.id].xy_mm).tolist(),
                              "error_mm": e.tolist(), "error_norm_mm": float(np.hypot(*e))}
             else:
+                # the measurement's own reason first (it saw the photo), else where the
+                # calibrated model says the pen landed
+                why = (getattr(m, "refused", None) or {}).get(p.id)
                 res[p.id] = {"status": "not found",
-                             "reason": landing_note(sheet, calibrated, p)}
+                             "reason": str(why) if why else landing_note(sheet, calibrated, p)}
             if p.status == "ok":
                 res[p.id].update(q_deg=list(p.q_deg), approach=list(p.approach))
         results[name] = res

@@ -44,8 +44,10 @@ IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
 
 def test_report_in_headless_chromium(report, tmp_path):
     if CHROMIUM is None:
-        msg = ("Chromium is not installed (Debian package 'chromium'): the browser check of "
-               "the report cannot run")
+        msg = ("Chromium is not installed: the browser check of the report cannot run; "
+               "install it (Debian/Ubuntu: sudo apt-get install chromium; Fedora: sudo dnf "
+               "install chromium; macOS: brew install --cask chromium) so that `chromium` "
+               "is on PATH, then make test runs it")
         if IN_CI:
             pytest.fail(msg + "; CI must install it (.ci/run)")
         pytest.skip(msg + " here")

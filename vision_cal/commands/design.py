@@ -30,6 +30,10 @@ def add_arguments(p) -> None:
                         "go here later)")
     p.add_argument("--pilot", metavar="CAL.json",
                    help="the pilot's calibration.json: design the informative plan with it")
+    p.add_argument("--verify", metavar="CAL.json",
+                   help="plan a short check of this calibration instead (about ten marks "
+                        "across the workspace, both elbows): draw it on a fresh sheet, then "
+                        "`vision-cal verify CAL.json OUT/`")
     p.add_argument("--program", choices=("spel", "csv", "none"), default="spel",
                    help="robot program: spel (Epson SPEL+ program.prg, default), csv (neutral "
                         "point list program_points.csv) or none")
@@ -54,21 +58,34 @@ def run(args) -> int:
     if args.safety_mm is not None and not args.safety_mm >= 0:
         raise VisionCalError(f"expected a non-negative number, got {args.safety_mm}",
                              field="--safety-mm")
+    if args.verify is not None and args.pilot is not None:
+        raise VisionCalError("give either --pilot (the informative plan) or --verify (a check "
+                             "of a calibration), not both", field="--verify")
     if args.pilot:
         from vision_cal.dataset.io import read_json
         from vision_cal.dataset.trust import require_ready_pilot
 
         require_ready_pilot(read_json(args.pilot), args.pilot)
-    r = design_stage(args.robot, args.sheet, args.out, pilot=args.pilot,
+    check = args.verify is not None
+    r = design_stage(args.robot, args.sheet, args.out, pilot=args.verify if check else args.pilot,
                      program=None if args.program == "none" else args.program,
-                     n_calibration=args.n_calibration, n_validation=args.n_validation,
-                     safety_mm=args.safety_mm, seed=args.seed)
+                     n_calibration=10 if check else args.n_calibration,
+                     n_validation=0 if check else args.n_validation,
+                     safety_mm=args.safety_mm, seed=args.seed,
+                     stage="verify" if check else None)
+    import sys
+
+    for w in r.info.get("warnings", []):
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
     if not args.quiet:
         print(f"{r.stage} plan: {r.n_marks} marks, {r.duration_s:.1f} s of motion")
         if r.stage == "pilot":
             print(f"every mark stays {r.info['worst_case_clearance_mm']:.1f} mm clear of markers "
                   f"and edges for {r.info['placements_checked']} placements within the "
                   "robot file's placement_tolerance")
+        elif r.stage == "verify":
+            print(f"a check of {args.verify}: draw it on a fresh sheet, photograph it into "
+                  f"{args.out}, then: vision-cal verify {args.verify} {args.out}")
         else:
             print(f"placed with the pilot's model, {r.info['safety_mm']:.1f} mm of safety")
         for p in (r.session_path, r.trajectory_path, r.program_path):

@@ -13,7 +13,7 @@ examples:
 
 
 def add_arguments(p) -> None:
-    p.add_argument("calibration", metavar="CALIBRATION.json")
+    p.add_argument("calibration", metavar="CALIBRATION.json", help="the calibration.json to export")
     p.add_argument("--urdf", metavar="ROBOT.urdf", help="URDF with the calibrated joint origins; "
                    "effects go to ROBOT.effects.yaml beside it")
     p.add_argument("--yaml", metavar="FILE.yaml", help="parameters, std and effects as YAML")

@@ -13,11 +13,13 @@ examples:
 
 
 def add_arguments(p) -> None:
-    p.add_argument("scene", metavar="SCENE.yaml")
-    p.add_argument("-o", "--out", required=True, metavar="DIR")
+    p.add_argument("scene", metavar="SCENE.yaml", help="scene file (see renders/README.md)")
+    p.add_argument("-o", "--out", required=True, metavar="DIR",
+                   help="folder for the rendered sessions, the calibration, loop.json")
     p.add_argument("-j", "--jobs", type=int, default=None,
                    help="processes that render and measure photos (default: every core)")
-    p.add_argument("--elbow", type=int, choices=(1, -1), default=1)
+    p.add_argument("--elbow", type=int, choices=(1, -1), default=1,
+                   help="elbow of the planned targets (+1: sin(q2 + z2) > 0; default 1)")
     p.add_argument("--no-report", dest="report", action="store_false",
                    help="skip DIR/calibration/report.html (written by default)")
 

@@ -11,7 +11,8 @@ import importlib
 import logging
 import sys
 
-SUBCOMMANDS = ("calibrate", "sheet", "design", "init", "render", "plan", "loop", "export")
+SUBCOMMANDS = ("calibrate", "sheet", "design", "init", "render", "plan", "loop", "export",
+               "simulate", "verify", "robot-template", "history")
 EXIT_OK, EXIT_CALIBRATION, EXIT_INPUT = 0, 1, 2
 
 EPILOG = """\
@@ -28,7 +29,7 @@ examples:
 
 
 def _module(name: str):
-    return importlib.import_module(f"vision_cal.commands.{name}")
+    return importlib.import_module(f"vision_cal.commands.{name.replace('-', '_')}")
 
 
 def build_parser() -> argparse.ArgumentParser:

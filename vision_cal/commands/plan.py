@@ -14,7 +14,7 @@ examples:
 
 
 def add_arguments(p) -> None:
-    p.add_argument("calibration", metavar="CALIBRATION.json")
+    p.add_argument("calibration", metavar="CALIBRATION.json", help="the calibration.json to plan with")
     p.add_argument("targets", metavar="TARGETS.csv", help="id,x_mm,y_mm")
     p.add_argument("-o", "--out", required=True, metavar="PLAN.csv",
                    help="id,q1_deg,q2_deg,approach1,approach2 (+ status, reason)")

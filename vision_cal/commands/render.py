@@ -17,7 +17,7 @@ examples:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", metavar="SCENE.yaml", help="scene file (see renders/README.md)")
-    parser.add_argument("--out", metavar="DIR", required=True,
+    parser.add_argument("-o", "--out", metavar="DIR", required=True,
                         help="dataset folder to write (replaced if it holds a previous dataset)")
     parser.add_argument("--seed", type=int, metavar="N", default=None,
                         help="override the scene's seed")

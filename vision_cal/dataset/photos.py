@@ -95,12 +95,18 @@ def is_photo_name(name: str) -> bool:
     return not name.startswith(".") and name.lower().endswith(PHOTO_SUFFIXES)
 
 
+#: pictures ``vision-cal design`` writes beside session.json: never photos of the sheet
+DESIGN_PICTURES = ("preview.png",)
+
+
 def list_photos(root) -> list[str]:
-    """Image files directly in ``root`` (not hidden), natural name order. Anything that is
-    not a regular file after following links is left for :func:`read_photo` to refuse with
-    its reason, so it shows in the report instead of vanishing."""
+    """Image files directly in ``root`` (not hidden, not :data:`DESIGN_PICTURES`), natural
+    name order. Anything that is not a regular file after following links is left for
+    :func:`read_photo` to refuse with its reason, so it shows in the report instead of
+    vanishing."""
     root = Path(root)
-    names = [e.name for e in os.scandir(root) if is_photo_name(e.name)]
+    names = [e.name for e in os.scandir(root) if is_photo_name(e.name)
+             and e.name not in DESIGN_PICTURES]
     return sorted(names, key=natural_key)
 
 

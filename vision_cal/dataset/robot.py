@@ -23,6 +23,10 @@ The session's ``robot`` block (``L1_mm``, ``L2_mm``, ``joint_zero_deg``, ``base_
       accel_percent: [10, 10]        #   SPEL+ Accel (acceleration, deceleration %)
       settle_s: 0.3                  #   wait on the mark before the pen goes down
       pen_dwell_s: 0.2               #   pen down this long
+      pen_output_bit: 9              #   optional: the pen is lowered by this output (On/Off)
+                                     #   instead of by joint 3
+      safe_z_mm: -5.0                #   optional: travel with Jump ... LimZ at this height
+      motor_off: true                #   optional: Motor Off at the end (default false)
 
 Every malformed field is one line naming the file and the field (the typed readers of
 :mod:`vision_cal.dataset.session`); unknown fields are logged and ignored, so files
@@ -63,6 +67,9 @@ class ProgramSettings:
     accel_percent: tuple[float, float] = (10.0, 10.0)
     settle_s: float = 0.3
     pen_dwell_s: float = 0.2
+    pen_output_bit: int | None = None   # SPEL+ On/Off output that lowers the pen
+    safe_z_mm: float | None = None      # travel height of Jump ... LimZ (joint 3, mm)
+    motor_off: bool = False             # Motor Off at the end of the program
 
 
 @dataclass(frozen=True)
@@ -198,10 +205,20 @@ def load_robot_file(path) -> RobotFile:
             if "settle_s" in p else d.settle_s
         dwell = _positive(r, p["pen_dwell_s"], "program.pen_dwell_s", zero_ok=True) \
             if "pen_dwell_s" in p else d.pen_dwell_s
-        extra = set(p) - {"power", "speed_percent", "accel_percent", "settle_s", "pen_dwell_s"}
+        bit = p.get("pen_output_bit")
+        if bit is not None and (isinstance(bit, bool) or not isinstance(bit, int)
+                                or not 0 <= bit <= 9999):
+            r.fail("program.pen_output_bit", f"expected an output bit number 0..9999, got {bit!r}")
+        safe = r.number(p["safe_z_mm"], "program.safe_z_mm") if p.get("safe_z_mm") is not None \
+            else None
+        moff = p.get("motor_off", False)
+        if not isinstance(moff, bool):
+            r.fail("program.motor_off", f"expected true or false, got {moff!r}")
+        extra = set(p) - {"power", "speed_percent", "accel_percent", "settle_s", "pen_dwell_s",
+                          "pen_output_bit", "safe_z_mm", "motor_off"}
         if extra:
             log.warning("%s: program: ignoring unknown fields %s", path, ", ".join(sorted(extra)))
-        kw["program"] = ProgramSettings(power, sp, ac, settle, dwell)
+        kw["program"] = ProgramSettings(power, sp, ac, settle, dwell, bit, safe, moff)
     known = set(ROBOT_BLOCK) | {f for f in RobotFile.__dataclass_fields__} | {
         "placement_tolerance"}
     extra = set(tree) - known

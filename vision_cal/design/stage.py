@@ -7,7 +7,10 @@
                       added field ``design`` (stage, how it was designed)
     trajectory.csv    the joint-space reference (0.016 s cubic segments through the
                       overshoot via points; vision_cal.plan.trajectory)
-    program.prg       the robot program (--program spel), or program_points.csv (csv)
+    program.prg       the robot program (--program spel), or program_points.csv (csv);
+                      none, with one warning, when the robot file has no pen heights
+    preview.png       the sheet, the robot at its guessed base with both links at joint
+                      zero and at a few planned marks, the marks (design/preview.py)
 
 Without a pilot calibration it designs the pilot (:mod:`vision_cal.design.pilot`); with
 one, the informative plan (:func:`vision_cal.plan.calibration_plan.informative_plan`)
@@ -104,6 +107,28 @@ def with_printed_content(sheet):
     return replace(sheet, markers=tuple(sheet.markers) + tuple(extra))
 
 
+def with_drawable_bands(sheet, paper):
+    """The sheet with the paper outside its drawable box as obstacles: ``sheet`` is
+    :func:`drawable_sheet`'s, ``paper`` the whole paper's. Its ``extent_mm`` still spans
+    the markers (they are printed outside the drawable box), so a planner that keeps to
+    the extent and clear of markers would put marks on the scale bars, labels and title;
+    the four bands between the paper edge and the drawable box become rectangles it keeps
+    clear of, like markers."""
+    from dataclasses import replace
+
+    from vision_cal.dataset.session import SheetMarker
+
+    if sheet.bottom_left_mm is None or sheet is paper:
+        return sheet
+    px0, py0, px1, py1 = paper.extent_mm
+    x0, y0 = sheet.bottom_left_mm
+    x1, y1 = x0 + sheet.size_mm[0], y0 + sheet.size_mm[1]
+    bands = [(px0, py0, px1, y0), (px0, y1, px1, py1), (px0, y0, x0, y1), (x1, y0, px1, y1)]
+    extra = [SheetMarker(-1000 - k, np.array([[a, d], [c, d], [c, b], [a, b]], float))
+             for k, (a, b, c, d) in enumerate(bands) if c > a and d > b]
+    return replace(sheet, markers=tuple(sheet.markers) + tuple(extra))
+
+
 def with_pilot_marks(sheet, cal_doc: dict, diameter_mm: float):
     """The sheet with the pilot's measured marks as obstacles (small squares), so that
     the informative plan drawn on the same sheet keeps clear of them."""
@@ -125,7 +150,7 @@ def with_pilot_marks(sheet, cal_doc: dict, diameter_mm: float):
 
 def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | None = "spel",
                  n_calibration: int = 30, n_validation: int = 8, safety_mm: float | None = None,
-                 seed: int = 0) -> DesignResult:
+                 seed: int = 0, stage: str | None = None) -> DesignResult:
     from vision_cal.dataset.io import atomic_write_json, read_json
     from vision_cal.dataset.robot import load_robot_file
     from vision_cal.dataset.session import NominalRobot, load_sheet_file
@@ -139,23 +164,47 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
     if out.exists() and not out.is_dir():
         raise VisionCalError("exists and is not a folder", file=str(out))
     if out.is_dir():
-        photos = sorted(p.name for p in out.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+        photos = sorted(p.name for p in out.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES
+                        and p.name != "preview.png")
         if photos:
             raise VisionCalError(f"holds photos ({photos[0]}, ...) of a plan: a new plan would "
                                  "not match them; choose another --out", file=str(out))
-    if program is not None:
-        robot.require_pen_heights()
+    warnings = []
+    if program is not None and (robot.pen_up_mm is None or robot.pen_down_mm is None):
+        # the plan and the trajectory do not need them: write those, skip only the program
+        warnings.append(f"{robot_path}: pen_up_mm, pen_down_mm: missing, so no robot program "
+                        "was written (session.json and trajectory.csv were); add both heights "
+                        "(joint 3, mm; docs/robot-file.md) and run design again")
+        program = None
+    paper = sheet
     sheet = drawable_sheet(sheet, sheet_raw, file=str(sheet_path))
     if pilot is not None:   # the pilot lands anywhere within the tolerance: measured over print
         sheet = with_printed_content(sheet)
     nominal = robot.nominal
+    from vision_cal.design.preview import REACH_WARN, preview_png, reach_fraction
+    from vision_cal.kinematics import ScaraParams
+
+    def _params(r) -> ScaraParams:
+        return ScaraParams(r.L1_mm, r.L2_mm, r.joint_zero_deg[0], r.joint_zero_deg[1],
+                           r.base_mm[0], r.base_mm[1])
+
+    reach = reach_fraction(_params(nominal), sheet, joint_limits_deg=robot.joint_limits_deg,
+                           elbows=robot.elbows)
+    reach_note = (f"the robot file's base_mm {list(nominal.base_mm)} and joint_zero_deg "
+                  f"{list(nominal.joint_zero_deg)} put only {100 * reach:.0f} % of the "
+                  "drawable paper within the arm's reach and joint limits: check base_mm (sheet "
+                  "frame, mm) and z1 (it includes the robot's rotation to the sheet; "
+                  "docs/robot-file.md)")
+    if reach < REACH_WARN:
+        warnings.append(f"{robot_path}: {reach_note}")
     if pilot is None:
         from vision_cal.design.pilot import design_pilot
 
         try:
             d = design_pilot(robot, sheet)
         except VisionCalError as e:
-            raise VisionCalError(e.reason, file=e.file or str(robot_path), field=e.field) from e
+            why = f"{e.reason}; {reach_note}" if reach < REACH_WARN else e.reason
+            raise VisionCalError(why, file=e.file or str(robot_path), field=e.field) from e
         marks = list(d.marks)
         plan_robot = nominal
         info = d.to_json()
@@ -170,7 +219,7 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
         cov = load_covariance(doc, model, file=str(pilot))
         if safety_mm is None:
             safety_mm = pilot_safety_mm(model, cov, sheet)
-        sheet = with_pilot_marks(sheet, doc, robot.mark_diameter_mm)
+        sheet = with_pilot_marks(with_drawable_bands(sheet, paper), doc, robot.mark_diameter_mm)
         p = model.params
         plan_robot = NominalRobot(p.L1_mm, p.L2_mm, p.joint_zero_deg, p.base_mm,
                                   nominal.home_deg)
@@ -187,10 +236,16 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
                 "n_calibration": n_calibration, "n_validation": n_validation, "seed": seed}
         title = (f"vision-cal calibration plan: {n_calibration} calibration + {n_validation} "
                  "validation marks, both elbows, both approach sides per joint")
+        if stage == "verify":   # vision-cal verify: a short check of a calibration
+            info.update(stage="verify", calibration=str(pilot))
+            title = (f"vision-cal check of {Path(pilot).name}: {n_calibration} marks, both "
+                     "elbows, both approach sides (then: vision-cal verify)")
     traj = plan_trajectory(marks, home_deg=nominal.home_deg, vmax_deg_s=robot.speed_limits_deg_s,
                            amax_deg_s2=robot.accel_limits_deg_s2,
                            dwell_s=robot.program.settle_s)
     info["nominal_robot"] = nominal.to_json()
+    if warnings:
+        info["warnings"] = warnings
     info["trajectory_s"] = traj.duration_s
     session = {"format": FORMAT, "sheet": sheet_raw, "robot": plan_robot.to_json(),
                "pen": {"mark_diameter_mm": robot.mark_diameter_mm},
@@ -198,8 +253,15 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
     # the robot file's limits travel with the session into calibration.json (plan, export)
     session["robot"]["joint_limits_deg"] = [[float(v) for v in p] for p in robot.joint_limits_deg]
     points = program_points(marks, home_deg=nominal.home_deg, z2_deg=plan_robot.joint_zero_deg[1])
+    preview = preview_png(_params(plan_robot), sheet, marks, paper=paper,
+                          title=f"{info['stage']} plan: {len(marks)} marks, robot "
+                                f"{robot.name} ({100 * reach:.0f} % of the paper in reach)")
+    info["reach_fraction"] = reach
     # everything is computed: now write
     session_path = atomic_write_json(out / "session.json", session)
+    from vision_cal.dataset.io import atomic_write_bytes
+
+    atomic_write_bytes(out / "preview.png", preview)
     traj_path = write_trajectory_csv(out / "trajectory.csv", traj)
     prog_path = None
     if program is not None:

@@ -684,9 +684,15 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
     jobs = n_jobs
     from vision_cal.progress import bar as progress_bar
 
-    bar = progress_bar(progress, total=len(todo), desc=f"measure {root.name}", unit="photo",
-                       note=f"{min(jobs, max(len(todo), 1))} job(s), "
-                            f"{len(session.images) - len(todo)} from the cache")
+    # the photos found in the folder when session.json lists none: count what is measured
+    n_cached = sum(bool(ph.cached) for ph in items)
+    bar = progress_bar(progress, total=len(todo) if todo else n_cached,
+                       desc=f"measure {root.name}", unit="photo",
+                       note=(f"{min(jobs, max(len(todo), 1))} job(s)"
+                             + (f", {n_cached} more from the cache" if n_cached else ""))
+                       if todo else "all from the cache")
+    if not todo and bar:
+        bar.update(n_cached)
     args = [(root, items[i].file, session, items[i].sha256) for i in todo]
     try:
         if jobs <= 1 or len(todo) <= 1:

@@ -222,15 +222,20 @@ def _headline_html(rep: dict) -> str:
         n = f"{a['n']}" + (f" of {a['of']}" if a.get("of") is not None else "")
         if a.get("n_before") is not None and a["n_before"] != a["n"]:
             n += f" (before: {a['n_before']})"
+        # what "before" is differs by row: the marks' base-model residual (the same fit
+        # without effects), the targets' error with the nominal model (before calibrating)
+        was = ("base model" if a["key"] in ("residual_rms_mm", "validation_rms_mm")
+               else "nominal model")
         rows.append([_e(a["what"]),
-                     f"<span data-key='{_e(a['key'])}.base_model'>{_f(a['before_mm'])}</span>",
+                     f"<span data-key='{_e(a['key'])}.base_model'>{_f(a['before_mm'])}</span>"
+                     f" <span class=note>({was})</span>",
                      f"<span data-key='{_e(a['key'])}.final_model'>{_f(a['after_mm'])}</span>",
                      n])
     eff = "".join(f"<li>{_e(e['text'])}</li>" for e in hl["effects"])
     return (f"<div class=headline id=headline><p><b>Calibrated:</b> {_e(hl['calibrated'])}</p>"
             f"<p class='verdict {_VERDICT_CLASS.get(v['status'], '')}' id=verdict>"
             f"{_e(v['text'])}</p>"
-            + _table(["accuracy [mm]", "before (nominal/base model)", "after (final model)",
+            + _table(["accuracy [mm]", "before", "after (final model)",
                       "marks / targets"], rows)
             + ("<p><b>Effects found</b> (size &plusmn; 1 std):</p><ul>" + eff + "</ul>"
                if eff else "<p><b>Effects found:</b> none; the base model explains the "
@@ -346,7 +351,10 @@ def render_html(rep: dict) -> str:
     head = ["parameter", "nominal", "calibrated", "std (1 sigma)"]
     if ref:
         head.append(html.escape((rep.get("reference") or {}).get("label", "reference")))
-    parts.append("<h2>Parameters (Table 2)</h2>" + _table(head, rows))
+    # "What to do with it" already lists the parameters; repeat them only beside published
+    # figures to compare with (the paper's Table 2)
+    parts.append(("<h2>Parameters (Table 2)</h2>" + _table(head, rows))
+                 if ref or not rep.get("actions") else "<h2>Fit statistics</h2>")
     r, v = doc.get("residual_rms_mm", {}), doc.get("validation_rms_mm", {})
     parts.append(_table(["RMS [mm]", "base model", "final model"], [
         ["residual (fitted marks)", _f(r.get("base_model")), _f(r.get("final_model"))],
@@ -398,7 +406,10 @@ def render_html(rep: dict) -> str:
         worst = max(pp, key=lambda p: float(np.hypot(*p["offset_mm"])))
         alpha = (((rep.get("provenance") or {}).get("configuration") or {})
                  .get("per_photo_offsets") or {}).get("alpha")
-        parts.append(f"<p>Per-photo offsets: {len(pp)} photos checked, "
+        n_ok = sum(1 for im in doc.get("images") or [] if im.get("status") == "ok")
+        untested = (f" ({n_ok - len(pp)} of {n_ok} with fewer than two marks: a photo's "
+                    "offset needs two)" if n_ok > len(pp) else "")
+        parts.append(f"<p>Per-photo offsets: {len(pp)} photos checked{untested}, "
                      + (f"<span class=bad>{len(bad)} shifted beyond the noise: " +
                         ", ".join(html.escape(p['file']) for p in bad) + "</span>" if bad else
                         "none shifted beyond the noise")

@@ -37,7 +37,10 @@ def _marks(report: dict):
 
 
 def residual_field(report: dict) -> bytes:
-    """Residual arrows on the sheet, base model and final model, same scale.
+    """Residual arrows on the sheet, base model and final model, each panel at its own
+    scale (its longest arrow draws 60 mm, said in its title: the final model's arrows are
+    tens of times shorter and would look empty at the base model's scale); the axes hold
+    every arrow's tip.
 
     Fitted marks red, held-out marks blue. The RMS in the titles is calibration.json's
     (``residual_rms_mm``, ``validation_rms_mm``), never recomputed here: the figure and the
@@ -47,11 +50,13 @@ def residual_field(report: dict) -> bytes:
     held = np.array([r == "validation" for r in roles], dtype=bool)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.8), layout="constrained", sharex=True,
                              sharey=True)
-    big = max(np.nanmax(np.hypot(*rb.T)) if len(rb) else 0.0, 1e-6)
-    scale = big / 60.0  # the longest base-model arrow draws 60 mm long
     fit_rms, val_rms = report.get("residual_rms_mm", {}), report.get("validation_rms_mm", {})
+    tips = [xy]
     for ax, r, key, title in ((axes[0], rb, "base_model", "base model"),
                               (axes[1], rf, "final_model", "final model")):
+        big = max(float(np.nanmax(np.hypot(*r.T))) if len(r) else 0.0, 1e-6)
+        scale = big / 60.0  # the longest arrow of this panel draws 60 mm long
+        tips.append(xy + r / scale)
         for k, color, lab in ((~held, "tab:red", "fitted"), (held, "tab:blue", "held out")):
             if k.any():
                 ax.quiver(xy[k, 0], xy[k, 1], r[k, 0], r[k, 1], angles="xy", scale_units="xy",
@@ -60,14 +65,20 @@ def residual_field(report: dict) -> bytes:
         t = f"{title}: fitted RMS {_mm(fit_rms.get(key))}"
         if val_rms.get(key) is not None:
             t += f", held-out {_mm(val_rms.get(key))}"
-        ax.set_title(t, fontsize=10)
+        ax.set_title(t + f"\narrows x{1 / scale:.0f} ({big:.3f} mm draws 60 mm)", fontsize=10)
         ax.set_xlabel("sheet x [mm]")
         ax.set_aspect("equal")
         ax.grid(alpha=0.3)
         if held.any():
             ax.legend(fontsize=8)
     axes[0].set_ylabel("sheet y [mm]")
-    fig.suptitle(f"residual field (arrows x{1 / scale:.0f}: {big:.3f} mm draws 60 mm)")
+    t = np.vstack(tips)
+    t = t[np.all(np.isfinite(t), axis=1)]
+    if len(t):
+        pad = 10.0
+        axes[0].set_xlim(t[:, 0].min() - pad, t[:, 0].max() + pad)
+        axes[0].set_ylim(t[:, 1].min() - pad, t[:, 1].max() + pad)
+    fig.suptitle("residual field (each panel at its own scale)")
     return _png(fig)
 
 
@@ -142,9 +153,19 @@ def targets(report: dict) -> bytes | None:
     ax.bar(x - 0.2, before, 0.4, label="nominal model (before)")
     ax.bar(x + 0.2, after, 0.4, label="calibrated model (after)")
     ax.set_yscale("log")
+    # a target with no value (not planned, not measured: the table says why) is marked
+    # on the axis instead of leaving a silent gap
+    lo = np.nanmin([v for v in before + after if v > 0] or [1e-3]) / 3
+    for off, vals, color in ((-0.2, before, "tab:blue"), (0.2, after, "tab:orange")):
+        miss = [i for i, v in enumerate(vals) if not np.isfinite(v)]
+        if miss:
+            ax.plot(x[miss] + off, np.full(len(miss), lo), "x", color=color, ms=7, mew=2,
+                    label="no value (see the table)" if color == "tab:blue" else None)
     ax.set_xticks(x, ids, rotation=90, fontsize=7)
     ax.set_ylabel("absolute error [mm]")
-    ax.legend()
+    # above the axes: inside, the legend hid the first targets' bars
+    ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.01), ncols=3, fontsize=9,
+              frameon=False)
     ax.grid(alpha=0.3, axis="y")
     return _png(fig)
 
@@ -215,7 +236,8 @@ def loop_paths(loop: dict) -> bytes:
     ax.set_aspect("equal")
     ax.set_xlabel("sheet x [mm]")
     ax.set_ylabel("sheet y [mm]")
-    ax.legend()
+    ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.06), ncols=3, fontsize=9,
+              frameon=False)   # outside: inside it hid targets
     ax.grid(alpha=0.3)
     ax.set_title("targets and where the pen really went (paper Fig. 8-9)")
     return _png(fig)

@@ -1,0 +1,64 @@
+"""vision_cal.verify.compare on kinematic data (no photos): the verdict and the moved
+parameters, with bounds from the reported std and the noise put in."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.conftest import SM5, random_plan
+from vision_cal.errors import CalibrationError
+from vision_cal.model import JointBacklash, RobotModel
+from vision_cal.verify import MOVED_SIGMA, compare
+
+NOISE_MM = 0.01                      # per axis, as the rendered photos measure
+CAL_DOC = {"validation_rms_mm": {"final_model": NOISE_MM * np.sqrt(2)}}
+CAL = RobotModel(SM5, (JointBacklash(2, 0.1),))
+
+
+def check(true: RobotModel, seed: int, n: int = 10):
+    rng = np.random.default_rng(seed)
+    q, s = random_plan(n, rng)
+    xy = true.predict(q, s) + rng.normal(0, NOISE_MM, (n, 2))
+    ids = [f"c{i:02d}" for i in range(n)]
+    return compare(CAL, CAL_DOC, ids, q, s, xy)
+
+
+def moved(model: RobotModel, *, L1=0.0, z1=0.0, z2=0.0, base=(0.0, 0.0)) -> RobotModel:
+    p = model.params
+    from vision_cal.kinematics import ScaraParams
+
+    return RobotModel(ScaraParams(p.L1_mm + L1, p.L2_mm, p.z1_deg + z1, p.z2_deg + z2,
+                                  p.base_mm[0] + base[0], p.base_mm[1] + base[1]),
+                      model.effects)
+
+
+@pytest.mark.parametrize("seed", [11, 12, 13])
+def test_unchanged_robot_on_a_sheet_placed_elsewhere_is_still_good(seed):
+    r = check(moved(CAL, z1=1.3, base=(12.0, -7.0)), seed)
+    assert r.verdict == "still good", r.reasons
+    assert r.changes["base_x_mm"]["sheet_placement"]
+    assert abs(r.changes["base_x_mm"]["delta"] - 12.0) < 4 * r.changes["base_x_mm"]["std"]
+
+
+@pytest.mark.parametrize("seed", [21, 22])
+def test_a_moved_joint_2_zero_is_found_within_4_std(seed):
+    r = check(moved(CAL, z2=0.04, z1=-0.5, base=(5.0, 3.0)), seed)
+    assert r.verdict.startswith("re-zero joint 2 by +"), r.reasons
+    z2 = r.changes["z2_deg"]
+    assert z2["moved"] and abs(z2["delta"] - 0.04) < 4 * z2["std"]
+    assert z2["sigmas"] > MOVED_SIGMA
+
+
+def test_a_changed_link_or_backlash_means_recalibrate():
+    r = check(moved(CAL, L1=0.3), 31)
+    assert r.verdict == "recalibrate" and r.changes["L1_mm"]["moved"], r.reasons
+    # a backlash that grew is no base parameter: the errors stay after the refit
+    r = check(RobotModel(SM5, (JointBacklash(2, 0.25),)), 32)
+    assert r.verdict == "recalibrate", r.reasons
+    assert r.rms_mm["refitted"] > r.bound_mm
+
+
+def test_too_few_marks_is_a_calibration_error():
+    with pytest.raises(CalibrationError, match="at least 5"):
+        check(CAL, 1, n=4)

@@ -1,0 +1,42 @@
+"""``vision-cal history``: a robot's calibrations over time, one table and one plot."""
+
+from __future__ import annotations
+
+NAME = "history"
+HELP = ("a robot's calibrations over time: every calibration.json under a folder as one "
+        "table (each parameter with its std, by date) and a plot")
+EXAMPLES = """\
+examples:
+  vision-cal history calibrations/              print the table
+  vision-cal history calibrations/ -o history.csv --plot history.png
+
+Each calibration is dated by the report.json beside it (written with --report), else by
+the file's modification time (the table says which).
+"""
+
+
+def add_arguments(p) -> None:
+    p.add_argument("folder", metavar="FOLDER", help="a folder holding calibration.json files "
+                                                    "(in subfolders, e.g. one per date)")
+    p.add_argument("-o", "--out", metavar="CSV", help="also write the table as CSV")
+    p.add_argument("--plot", metavar="PNG", help="also write the plot (each parameter +- std "
+                                                 "by date)")
+
+
+def run(args) -> int:
+    from vision_cal.dataset.io import atomic_write_bytes, atomic_write_text
+    from vision_cal.report.history import history_csv, history_png, history_table, read_history
+
+    rows = read_history(args.folder)
+    csv_text = history_csv(rows)
+    png = history_png(rows) if args.plot else None
+    if args.out:
+        atomic_write_text(args.out, csv_text)
+    if png is not None:
+        atomic_write_bytes(args.plot, png)
+    if not args.quiet:
+        print(history_table(rows))
+        for p in (args.out, args.plot):
+            if p:
+                print(f"wrote {p}")
+    return 0

@@ -1,0 +1,432 @@
+"""Rehearse the job without a robot: a simulated robot draws a planned session and is photographed.
+
+``vision-cal simulate PLAN_DIR --truth TRUE_ROBOT.yaml --out PHOTOS/`` stands in for the
+robot's part of the README walkthrough (draw the program, photograph the sheet):
+
+- the **simulated robot** is the user's robot file plus what the real robot hides: offsets
+  of the link lengths, joint zeros and base from the robot file's values, the format's
+  effects (backlash, gear scale, cyclic errors, sheet affine), the repeatability and the
+  controller; its own keys, read here (:func:`load_simulated_robot`, see
+  ``vision_cal/templates/simulated_robot.yaml``);
+- it follows the **robot program** in PLAN_DIR (``program.prg``, SPEL+, or
+  ``program_points.csv``) as a controller would: every ``Go``, with the pen down where
+  joint 3 goes to the pen-down height (the marks are matched in order to session.json's
+  marks); without a program (a robot file without pen heights) it follows session.json's
+  marks through the robot file's overshoot via points;
+- the **sheet** is the printed one: its raster is rebuilt from the session's sheet block
+  (``vision_cal.sheet.rebuild``: the same layout ``vision-cal sheet`` printed, checked by
+  its ``sheet_id``), so no ``sheet.png`` is needed; marks drawn before on the same sheet
+  (the pilot under the informative plan) come from the earlier folder's ``truth.json``
+  (``--after``);
+- the **photos**: ``camera.photos`` views of the finished sheet from above (pyrender, as
+  ``vision-cal render``), written as ``IMG_0001.png`` ... with ``truth.json`` (where each
+  mark really is, the true robot, each photo's pose) into PHOTOS/ (and a copy of
+  session.json, without an images list, when PHOTOS/ is not PLAN_DIR).
+
+Everything is computed and rendered in memory before anything is written; each file is
+written atomically and ``truth.json`` last.
+
+This module is the synthetic world's: it uses the world's own true robot
+(:mod:`vision_cal.render.truth_model`) and simulator, never the estimator's model.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from vision_cal.dataset.session import FieldReader
+from vision_cal.errors import VisionCalError
+from vision_cal.render.truth_model import TrueRobot
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
+CONTROLLERS = ("smc", "pd", "kinematic")
+SECTIONS = ("robot", "hidden", "camera", "seed")
+HIDDEN = ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "effects", "repeatability_mm",
+          "controller")
+CAMERA = ("size_px", "f_px", "photos", "tilt_deg", "vignetting", "noise_sigma")
+_GO = re.compile(r"^\s*(?:Go|Jump)\s+JA\(\s*([^,()]+),\s*([^,()]+),\s*([^,()]+),\s*([^,()]+)\)",
+                 re.IGNORECASE)
+
+
+@dataclass(frozen=True)
+class SimCamera:
+    size_px: tuple[int, int] = (1600, 1200)
+    f_px: float = 1750.0
+    photos: int = 2
+    tilt_deg: tuple[float, float] = (0.0, 12.0)
+    vignetting: float = 0.15
+    noise_sigma: float = 1.5
+
+
+@dataclass(frozen=True)
+class SimulatedRobot:
+    """The robot file (``robot``: a ``RobotFile``) and what the real robot hides.
+
+    ``truth``: the world's true robot (params = robot file + offsets, effects);
+    ``effects``: the format effect dicts (truth.json); ``repeatability_mm`` per axis;
+    ``controller``: smc | pd | kinematic; ``camera``; ``seed`` (None: fresh every run).
+    """
+
+    path: Path
+    robot: object
+    truth: TrueRobot
+    params: dict
+    effects: tuple
+    repeatability_mm: float
+    controller: str
+    camera: SimCamera
+    seed: int | None
+
+
+def load_simulated_robot(path) -> SimulatedRobot:
+    """Read a simulated robot file (YAML; the template: ``vision-cal robot-template
+    --simulated``). Unknown keys are errors (a typo must not fall back to a default)."""
+    from vision_cal.dataset.io import read_yaml
+    from vision_cal.dataset.robot import load_robot_file
+
+    path = Path(path)
+    tree = read_yaml(path, what="simulated robot file")
+    r = FieldReader(str(path))
+    tree = r.section(tree, "", SECTIONS)
+    robot_ref = r.string(r.get(tree, "robot", ""), "robot")
+    robot_path = (path.parent / robot_ref) if not Path(robot_ref).is_absolute() else Path(robot_ref)
+    robot = load_robot_file(robot_path)
+    n = robot.nominal
+    h = r.section(tree.get("hidden"), "hidden", HIDDEN)
+    dz = r.vector(h.get("joint_zero_deg", [0.0, 0.0]), "hidden.joint_zero_deg", 2, lo=-90, hi=90)
+    db = r.vector(h.get("base_mm", [0.0, 0.0]), "hidden.base_mm", 2, lo=-1000, hi=1000)
+    dl1 = r.number(h.get("L1_mm", 0.0), "hidden.L1_mm", lo=-100, hi=100)
+    dl2 = r.number(h.get("L2_mm", 0.0), "hidden.L2_mm", lo=-100, hi=100)
+    params = {"L1_mm": n.L1_mm + dl1, "L2_mm": n.L2_mm + dl2,
+              "joint_zero_deg": [n.joint_zero_deg[0] + dz[0], n.joint_zero_deg[1] + dz[1]],
+              "base_mm": [n.base_mm[0] + db[0], n.base_mm[1] + db[1]]}
+    if not (params["L1_mm"] > 0 and params["L2_mm"] > 0):
+        r.fail("hidden.L1_mm", "the true link lengths must stay positive")
+    effects = r.list_(h.get("effects") or [], "hidden.effects")
+    for i, e in enumerate(effects):
+        if not isinstance(e, dict):
+            r.fail(f"hidden.effects[{i}]", f"expected an effect mapping like "
+                                           f"{{name: joint_backlash, joint: 2, deg: 0.1}}, got {e!r}")
+        try:
+            TrueRobot.from_json(params, [e])
+        except VisionCalError as err:
+            r.fail(f"hidden.effects[{i}]", err.reason)
+    truth = TrueRobot.from_json(params, effects)
+    rep = r.number(h.get("repeatability_mm", 0.01), "hidden.repeatability_mm", lo=0, hi=5)
+    ctrl = h.get("controller", "smc")
+    if ctrl not in CONTROLLERS:
+        r.fail("hidden.controller", f"expected one of {', '.join(CONTROLLERS)}, got {ctrl!r}")
+    c = r.section(tree.get("camera"), "camera", CAMERA)
+    d = SimCamera()
+    size = r.vector(c.get("size_px", list(d.size_px)), "camera.size_px", 2, lo=64, hi=8000)
+    cam = SimCamera(
+        (int(size[0]), int(size[1])),
+        r.number(c.get("f_px", d.f_px), "camera.f_px", lo=50, hi=50000),
+        int(r.number(c.get("photos", d.photos), "camera.photos", lo=1, hi=50)),
+        r.vector(c.get("tilt_deg", list(d.tilt_deg)), "camera.tilt_deg", 2, lo=0, hi=60),
+        r.number(c.get("vignetting", d.vignetting), "camera.vignetting", lo=0, hi=1),
+        r.number(c.get("noise_sigma", d.noise_sigma), "camera.noise_sigma", lo=0, hi=50))
+    seed = tree.get("seed")
+    if seed is not None:
+        seed = int(r.number(seed, "seed", lo=0, hi=2**32 - 1))
+    return SimulatedRobot(path, robot, truth, params, tuple(effects), rep, ctrl, cam, seed)
+
+
+# ----------------------------------------------------------------------- the program
+
+
+@dataclass(frozen=True)
+class _Mark:
+    """A mark as the world follows it (the shape of ``PlannedMark``)."""
+
+    id: str
+    joints_deg: tuple[float, float]
+    via_deg: tuple[tuple[float, float], ...]
+    role: str = "calibration"
+    approach: tuple[int, int] = (1, 1)
+
+
+def program_moves(path: Path, *, pen_down_mm: float,
+                  pen_bit: int | None = None) -> list[tuple[tuple[float, float], bool]]:
+    """The joint moves of a robot program, in order: ((j1, j2) deg, pen down?).
+
+    SPEL+ (``.prg``): every ``Go``/``Jump JA(j1, j2, j3, j4)`` line; the pen is down where
+    joint 3 is at ``pen_down_mm``, or at ``On pen_bit`` (the robot file's pen output). The neutral point list (``_points.csv``): each ``mark`` row is a
+    stop with the pen going down, ``home`` and ``via`` rows are driven through.
+    """
+    from vision_cal.dataset.io import read_text
+
+    text = read_text(path)
+    moves = []
+    if path.suffix.lower() == ".csv":
+        for i, row in enumerate(csv.DictReader(io.StringIO(text))):
+            try:
+                q = (float(row["j1_deg"]), float(row["j2_deg"]))
+                kind = row["kind"]
+            except (KeyError, TypeError, ValueError) as e:
+                raise VisionCalError(f"row {i + 2}: unreadable point ({e})", file=str(path)) from e
+            moves.append((q, False))
+            if kind == "mark":
+                moves.append((q, True))
+        return moves
+    on = re.compile(rf"^\s*On\s+{pen_bit}\s*$", re.IGNORECASE) if pen_bit is not None else None
+    for ln, line in enumerate(text.splitlines(), 1):
+        code = line.split("'")[0]
+        if on is not None and on.match(code) and moves:
+            moves.append((moves[-1][0], True))
+            continue
+        m = _GO.match(code)
+        if not m:
+            continue
+        try:
+            j1, j2, j3, _ = (float(v) for v in m.groups())
+        except ValueError as e:
+            raise VisionCalError(f"line {ln}: unreadable JA point ({e})", file=str(path)) from e
+        moves.append(((j1, j2), abs(j3 - pen_down_mm) < 1e-3))
+    return moves
+
+
+def marks_from_program(path: Path, marks: list[dict], *, pen_down_mm: float,
+                       pen_bit: int | None = None) -> list[_Mark]:
+    """The program's pen-down points matched in order to session.json's ``marks``, each
+    with the points driven through since the previous pen-down (its via points)."""
+    moves = program_moves(path, pen_down_mm=pen_down_mm, pen_bit=pen_bit)
+    out, path_q, last = [], [], None
+    for q, down in moves:
+        if down:
+            k = len(out)
+            if k >= len(marks):
+                raise VisionCalError(f"puts the pen down more often than session.json has "
+                                     f"marks ({len(marks)})", file=str(path))
+            want = marks[k]["joints_deg"]
+            if max(abs(q[0] - want[0]), abs(q[1] - want[1])) > 1e-3:
+                raise VisionCalError(f"pen-down point {k + 1} at {list(q)} deg is not "
+                                     f"session.json's mark {marks[k]['id']} at {want} deg: the "
+                                     "program is not this plan's", file=str(path))
+            vias = [p for p in path_q if p != q and p != last]
+            out.append(_Mark(str(marks[k]["id"]), q, tuple(vias)))
+            path_q, last = [], q
+        elif not path_q or path_q[-1] != q:
+            path_q.append(q)
+    if len(out) != len(marks):
+        raise VisionCalError(f"draws {len(out)} marks, session.json plans {len(marks)}",
+                             file=str(path))
+    return out
+
+
+def marks_from_session(marks: list[dict], overshoot_deg: float) -> list[_Mark]:
+    """session.json's marks through an overshoot via point on their approach side."""
+    out = []
+    for m in marks:
+        q = (float(m["joints_deg"][0]), float(m["joints_deg"][1]))
+        s = m.get("approach") or [1, 1]
+        via = (q[0] - s[0] * overshoot_deg, q[1] - s[1] * overshoot_deg)
+        out.append(_Mark(str(m["id"]), q, (via,)))
+    return out
+
+
+# ----------------------------------------------------------------------- the sheet
+
+
+def printed_sheet(sheet_block: dict, *, file: str, size_px, f_px: float):
+    """The printed sheet (``PrintedSheet``) rebuilt from a session's sheet block, its raster
+    at a whole number of px/mm: at least twice the photos' resolution on the paper."""
+    from vision_cal.dataset.session import _Reader, read_sheet_block
+    from vision_cal.render.printed import PrintedSheet
+    from vision_cal.sheet.png import rasterise
+    from vision_cal.sheet.rebuild import layout_from_sheet_json
+
+    layout = layout_from_sheet_json(sheet_block, file=file)
+    sheet = read_sheet_block(_Reader(file), sheet_block, "sheet")
+    w_mm = max(layout.size_mm)
+    px_per_mm_photo = max(size_px) / w_mm   # the sheet fills the photo at best
+    k = int(np.clip(np.ceil(2.0 * px_per_mm_photo), 4, 16))
+    return PrintedSheet(sheet, rasterise(layout, 25.4 * k), float(k))
+
+
+# ----------------------------------------------------------------------- the rehearsal
+
+
+@dataclass(frozen=True)
+class SimulateResult:
+    out_dir: Path
+    photos: tuple[Path, ...]
+    n_marks: int
+    off_paper: tuple[str, ...]
+    on_marker: tuple[str, ...]
+    truth_path: Path
+
+
+def _plan_marks(plan_dir: Path, session: dict, robot) -> tuple[list[_Mark], str]:
+    marks = session.get("marks")
+    if not isinstance(marks, list) or not marks:
+        raise VisionCalError("no marks to draw", file=str(plan_dir / "session.json"),
+                             field="marks")
+    for name in ("program.prg", "program_points.csv"):
+        p = plan_dir / name
+        if p.is_file():
+            if robot.pen_down_mm is None:
+                raise VisionCalError("missing: the simulated robot follows the program's "
+                                     "pen-down height", file=str(robot.path), field="pen_down_mm")
+            return marks_from_program(p, marks, pen_down_mm=robot.pen_down_mm,
+                                      pen_bit=robot.program.pen_output_bit), name
+    return marks_from_session(marks, robot.overshoot_deg), "session.json (no program)"
+
+
+def targets_session(program: Path, sim: SimulatedRobot, *, sheet_json, targets=None) -> dict:
+    """A session (no images) for a targets program written by ``vision-cal plan
+    --program``: its marks are the rows of the plan CSV beside it (``PLAN.prg`` ->
+    ``PLAN.csv``; joints, approach), with ``target_mm`` from ``targets`` (targets.csv)
+    when given; the sheet from ``sheet_json``; the robot block the robot file's."""
+    from vision_cal.dataset.csvio import read_plan, read_targets
+    from vision_cal.dataset.io import read_json
+
+    stem = program.with_suffix("") if program.suffix.lower() == ".prg" else \
+        program.with_name(program.name.removesuffix("_points.csv"))
+    plan_csv = stem.with_suffix(".csv")
+    if sheet_json is None:
+        raise VisionCalError("a targets program needs the sheet it is drawn on: give "
+                             "--sheet SHEET.json", field="--sheet")
+    ids, q, s = read_plan(plan_csv)
+    want = {}
+    if targets is not None:
+        tid, txy = read_targets(targets)
+        want = dict(zip(tid, txy))
+    n = sim.robot.nominal
+    marks = []
+    for i, mid in enumerate(ids):
+        m = {"id": mid, "joints_deg": [float(q[i, 0]), float(q[i, 1])],
+             "approach": [int(s[i, 0]), int(s[i, 1])], "role": "calibration"}
+        if mid in want:
+            m["target_mm"] = [float(v) for v in want[mid]]
+        marks.append(m)
+    return {"format": "vision-cal/1", "sheet": read_json(sheet_json),
+            "robot": {"L1_mm": n.L1_mm, "L2_mm": n.L2_mm,
+                      "joint_zero_deg": list(n.joint_zero_deg), "base_mm": list(n.base_mm),
+                      "home_deg": list(n.home_deg)},
+            "pen": {"mark_diameter_mm": sim.robot.mark_diameter_mm}, "marks": marks,
+            "design": {"stage": "targets", "program": str(program)}}
+
+
+def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool = False,
+                     rng=None, sheet_json=None, targets=None) -> SimulateResult:
+    """The simulated robot of ``truth_path`` draws the plan in ``plan_dir`` on the printed
+    sheet (with the true marks of the folders in ``after`` already on it) and photographs
+    it into ``out_dir``. See the module docstring.
+
+    ``plan_dir`` may also be a targets program of ``vision-cal plan --program`` (``.prg``
+    or ``_points.csv``): then ``sheet_json`` says the sheet, ``targets`` (targets.csv) the
+    targets, and ``out_dir`` gets a session.json of the drawn targets (calibrate it to
+    measure where they landed: calibration.json ``targets``)."""
+    from vision_cal.dataset.io import atomic_write_bytes, atomic_write_json, read_json
+    from vision_cal.render.camera import camera_matrix, default_views
+    from vision_cal.render.dataset import _encode_image, marks_off_paper, marks_on_markers
+    from vision_cal.render.photo import Photographer
+    from vision_cal.render.printed import printed_texture
+    from vision_cal.render.world import draw_marks, simulated_world
+
+    plan_dir, out = Path(plan_dir), Path(out_dir)
+    sim = load_simulated_robot(truth_path)
+    if plan_dir.is_file():
+        program = plan_dir
+        session = targets_session(program, sim, sheet_json=sheet_json, targets=targets)
+        session_path = Path(sheet_json)
+        plan_dir = out
+    else:
+        program = None
+        session_path = plan_dir / "session.json"
+        session = read_json(session_path)
+    if out.exists() and not out.is_dir():
+        raise VisionCalError("exists and is not a folder", file=str(out))
+    if out.is_dir():
+        photos = sorted(p.name for p in out.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES
+                        and p.name != "preview.png")
+        if photos:
+            raise VisionCalError(f"holds photos already ({photos[0]}, ...): a rehearsal adds "
+                                 "its own; choose an empty folder", file=str(out))
+    rng = np.random.default_rng(sim.seed if rng is None else rng)
+    if program is not None:
+        plan = marks_from_program(program, session["marks"], pen_down_mm=sim.robot.pen_down_mm,
+                                  pen_bit=sim.robot.program.pen_output_bit)
+        source_name = program.name
+    else:
+        plan, source_name = _plan_marks(plan_dir, session, sim.robot)
+    sheet_block = session.get("sheet")
+    if not isinstance(sheet_block, dict):
+        raise VisionCalError("missing the sheet block", file=str(session_path), field="sheet")
+    printed = printed_sheet(sheet_block, file=str(session_path), size_px=sim.camera.size_px,
+                            f_px=sim.camera.f_px)
+    sheet_id = (sheet_block.get("printed") or {}).get("sheet_id")
+    earlier = []
+    for d in after:
+        t = read_json(Path(d) / "truth.json")
+        if (t.get("sheet_id") or sheet_id) != sheet_id:
+            raise VisionCalError(f"was drawn on sheet {t.get('sheet_id')}, this plan is for "
+                                 f"{sheet_id}", file=str(Path(d) / "truth.json"), field="sheet_id")
+        earlier += [v for v in (t.get("marks") or {}).values()]
+    earlier_xy = np.asarray(earlier, dtype=float).reshape(-1, 2)
+
+    home = sim.robot.nominal.home_deg
+    if sim.controller == "kinematic":
+        source, model = None, sim.truth
+    else:
+        source, model = simulated_world(sim.truth, controller=sim.controller, rng=rng)
+    world = draw_marks(model, plan, home_deg=home, repeatability_mm=sim.repeatability_mm,
+                       joint_source=source, rng=rng)
+    sheet = printed.sheet
+    off = marks_off_paper(world, sheet)
+    on = marks_on_markers(world, sheet)
+    pen = session.get("pen") or {}
+    dia = float(pen.get("mark_diameter_mm", sim.robot.mark_diameter_mm))
+
+    cam = sim.camera
+    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px), dtype=float)
+    all_xy = np.vstack([earlier_xy, world.xy_mm])
+    tex = printed_texture(printed, marks_xy_mm=all_xy, mark_diameters_mm=dia, rng=rng)
+    views = default_views(sheet, n=cam.photos, size_px=cam.size_px, K=K,
+                          tilt_deg=cam.tilt_deg, rng=rng, fill=0.96, target_jitter=0.02)
+    from vision_cal.progress import bar as progress_bar
+
+    bar = progress_bar(progress, total=len(views), desc=f"simulate {out.name}", unit="photo")
+    photographer = Photographer(size_px=cam.size_px, K=K)
+    images = []
+    try:
+        for i, T in enumerate(views):
+            rgb = photographer.photograph(tex, extent_mm=sheet.extent_mm,
+                                          T_cam_sheet=sim.truth.T_render(T),
+                                          vignetting=cam.vignetting,
+                                          noise_sigma=cam.noise_sigma, rng=rng)
+            images.append((f"IMG_{i + 1:04d}.png", _encode_image(np.asarray(rgb), None), T))
+            bar.update()
+    finally:
+        photographer.close()
+        bar.close()
+
+    truth = {
+        "params": sim.params, "effects": list(sim.effects),
+        "marks": {mid: world.xy_mm[i].tolist() for i, mid in enumerate(world.ids)},
+        "camera": {"size_px": list(cam.size_px), "K": K.tolist(), "dist": [0.0] * 5,
+                   "declared": False,
+                   "T_cam_sheet": {f: sim.truth.T_render(T).tolist() for f, _, T in images}},
+        "repeatability_mm": sim.repeatability_mm, "controller": sim.controller,
+        "approach": {mid: world.approach[i].tolist() for i, mid in enumerate(world.ids)},
+        "link_q_deg": {mid: world.q_deg[i].tolist() for i, mid in enumerate(world.ids)},
+        "off_paper": off, "on_marker": on, "sheet_id": sheet_id,
+        "earlier_marks_mm": earlier_xy.tolist(), "followed": source_name,
+        "simulated_robot": str(sim.path), "seed": sim.seed,
+        "controller_report": getattr(source, "report", None),
+    }
+    # everything is computed: now write (truth.json last)
+    out.mkdir(parents=True, exist_ok=True)
+    if program is not None or out.resolve() != plan_dir.resolve():
+        atomic_write_json(out / "session.json", {k: v for k, v in session.items()
+                                                 if k != "images"})
+    paths = tuple(atomic_write_bytes(out / f, data) for f, data, _ in images)
+    truth_path_out = atomic_write_json(out / "truth.json", truth)
+    return SimulateResult(out, paths, len(world.ids), tuple(off), tuple(on), truth_path_out)

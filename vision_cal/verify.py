@@ -1,0 +1,190 @@
+"""Is the robot still calibrated? A short check drawn on a fresh sheet against calibration.json.
+
+``vision-cal design ROBOT --sheet SHEET --verify CAL.json --out check/`` plans about ten
+marks across the workspace (both elbows, both approach sides) with the calibrated model;
+the robot draws them on a sheet (a new one, anywhere within reach), and
+``vision-cal verify CAL.json check/`` measures the photos and compares:
+
+1. **Each mark against the calibrated prediction**, after taking out where the sheet lies:
+   a new sheet sits at another place and angle, so the base (x, y) and ``z1`` (which is
+   the robot's rotation to the sheet plus joint 1's zero, ``docs/conventions.md``) are
+   refitted first, always. Joint 1's zero therefore cannot be checked on a new sheet.
+2. **Which parameters moved**: ``L1``, ``L2`` and ``z2`` refitted on top (Gauss-Newton from
+   the calibration, the calibrated effects kept), each change with its std (covariance
+   scaled by the residual variance ``SSR / (2N - P)``, ``docs/conventions.md``). A change
+   beyond ``MOVED_SIGMA`` std is "moved".
+3. **The verdict**:
+
+   - ``still good``: nothing moved and the marks' RMS error (sheet placement taken out) is
+     within ``TOLERANCE_FACTOR`` times what the calibration promised (its held-out RMS, or
+     the check's own measurement noise when that is larger);
+   - ``re-zero joint 2 by +0.040 deg``: only ``z2`` moved and refitting it alone brings the
+     marks back within that bound (the sign: the joint's zero offset grew by that much;
+     enter ``z2 + delta`` in the OLP, or re-zero the joint so that it reads the old value);
+   - ``recalibrate``: anything else (a link, several parameters, or errors no single zero
+     explains: a changed backlash, a bent link).
+
+The estimator's own code is used (measurement, model, Jacobian); the result is a frozen
+:class:`VerifyResult` and ``verify.json`` (atomic) in the output folder.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from vision_cal.errors import CalibrationError, VisionCalError
+from vision_cal.rms import rms_2d
+
+MOVED_SIGMA = 4.0          # a parameter moved when its change exceeds this many std
+TOLERANCE_FACTOR = 2.0     # still good: RMS within this factor of the promised error
+PLACEMENT = (2, 4, 5)      # z1, base x, base y: where the sheet lies (always refitted)
+CHECKED = (0, 1, 3)        # L1, L2, z2: what a new sheet can check
+LABELS = ("L1_mm", "L2_mm", "z1_deg", "z2_deg", "base_x_mm", "base_y_mm")
+UNIT = (1.0, 1.0, 180 / np.pi, 180 / np.pi, 1.0, 1.0)   # internal vector -> file units
+
+
+@dataclass(frozen=True)
+class VerifyResult:
+    """``marks``: id -> {measured_mm, predicted_mm, error_mm, error_norm_mm};
+    ``rms_mm``: 2-D RMS error against the calibration as is (``as_calibrated``), with the
+    sheet placement taken out (``sheet_placed``) and after refitting L1, L2, z2
+    (``refitted``); ``changes``: label -> {delta, std, sigmas, moved} (file units);
+    ``bound_mm``: the "still good" bound; ``verdict``, ``reasons``."""
+
+    marks: dict
+    rms_mm: dict
+    changes: dict
+    bound_mm: float
+    verdict: str
+    reasons: tuple[str, ...]
+
+    def to_json(self) -> dict:
+        return {"format": "vision-cal/verify/1", "verdict": self.verdict,
+                "reasons": list(self.reasons), "rms_mm": self.rms_mm,
+                "bound_mm": self.bound_mm, "changes": self.changes, "marks": self.marks,
+                "thresholds": {"moved_sigma": MOVED_SIGMA,
+                               "tolerance_factor": TOLERANCE_FACTOR}}
+
+
+def _fit(model, q, s, xy, free: tuple[int, ...], iters: int = 8):
+    """Gauss-Newton on the base-vector entries ``free``; (model, residual (N, 2), cov)."""
+    for _ in range(iters):
+        r = (xy - model.predict(q, s)).reshape(-1)
+        J = model.jacobian(q, s)[:, :, list(free)].reshape(-1, len(free))
+        step, *_ = np.linalg.lstsq(J, r, rcond=None)
+        v = model.vector.copy()
+        v[list(free)] += step
+        model = model.with_vector(v)
+        if np.max(np.abs(step)) < 1e-12:
+            break
+    res = xy - model.predict(q, s)
+    J = model.jacobian(q, s)[:, :, list(free)].reshape(-1, len(free))
+    dof = max(2 * len(q) - len(free), 1)
+    sigma2 = float(np.sum(res**2)) / dof
+    cov = np.linalg.pinv(J.T @ J) * sigma2
+    return model, res, cov
+
+
+def compare(model, cal_doc: dict, ids, q_deg, approach, xy_mm, *,
+            noise_floor_mm: float | None = None) -> VerifyResult:
+    """The check's measured marks against the calibrated ``model`` (see the module)."""
+    q = np.asarray(q_deg, float).reshape(-1, 2)
+    s = np.asarray(approach, float).reshape(-1, 2)
+    xy = np.asarray(xy_mm, float).reshape(-1, 2)
+    if len(q) < 5:
+        raise CalibrationError(f"{len(q)} marks were measured: a check needs at least 5 "
+                               "(L1, L2, z2 and where the sheet lies)")
+    raw = xy - model.predict(q, s)
+    placed, res_p, _ = _fit(model, q, s, xy, PLACEMENT)
+    full = tuple(sorted(PLACEMENT + CHECKED))
+    refit, res_f, cov = _fit(placed, q, s, xy, full)
+    delta = (refit.vector[:6] - model.vector[:6]) * np.array(UNIT)
+    std = np.sqrt(np.clip(np.diag(cov), 0, None)) * np.array([UNIT[i] for i in full])
+    std_of = dict(zip(full, std))
+    changes, moved = {}, []
+    for i in CHECKED:
+        sig = float(abs(delta[i]) / std_of[i]) if std_of[i] > 0 else float("inf")
+        m = sig > MOVED_SIGMA
+        changes[LABELS[i]] = {"delta": float(delta[i]), "std": float(std_of[i]),
+                              "sigmas": sig, "moved": m}
+        if m:
+            moved.append(i)
+    for i in PLACEMENT:   # where the sheet lies: reported, never judged
+        changes[LABELS[i]] = {"delta": float(delta[i]), "std": float(std_of[i]),
+                              "sheet_placement": True}
+    val = (cal_doc.get("validation_rms_mm") or {}).get("final_model")
+    promised = float(val) if isinstance(val, (int, float)) else float(
+        (cal_doc.get("residual_rms_mm") or {}).get("final_model") or 0.0)
+    bound = TOLERANCE_FACTOR * max(promised, float(noise_floor_mm or 0.0), 1e-6)
+    rms = {"as_calibrated": rms_2d(raw), "sheet_placed": rms_2d(res_p), "refitted": rms_2d(res_f)}
+    reasons = []
+    if not moved and rms["sheet_placed"] <= bound:
+        verdict = "still good"
+        reasons.append(f"the marks miss the calibrated prediction by {rms['sheet_placed']:.4f} mm "
+                       f"RMS (the sheet's placement taken out), within {bound:.4f} mm "
+                       f"({TOLERANCE_FACTOR:g} x the promised {promised:.4f} mm); no parameter "
+                       f"moved beyond {MOVED_SIGMA:g} std")
+    elif moved == [3]:
+        z2_only, res_z, _ = _fit(placed, q, s, xy, tuple(sorted(PLACEMENT + (3,))))
+        d = float((z2_only.vector[3] - model.vector[3]) * UNIT[3])
+        if rms_2d(res_z) <= bound:
+            verdict = f"re-zero joint 2 by {d:+.3f} deg"
+            reasons.append(f"joint 2's zero moved by {d:+.4f} deg ({changes['z2_deg']['sigmas']:.1f}"
+                           f" std); with it the marks miss by {rms_2d(res_z):.4f} mm RMS, within "
+                           f"{bound:.4f} mm: enter z2 = {model.params.z2_deg + d:.4f} deg in "
+                           "the OLP, or re-zero joint 2 so that it reads the calibrated value")
+        else:
+            verdict = "recalibrate"
+            reasons.append(f"joint 2's zero moved by {d:+.4f} deg, but the marks still miss by "
+                           f"{rms_2d(res_z):.4f} mm RMS with it refitted (bound {bound:.4f} mm)")
+    else:
+        verdict = "recalibrate"
+        if moved:
+            reasons.append("moved: " + ", ".join(
+                f"{LABELS[i]} {changes[LABELS[i]]['delta']:+.4f} (std "
+                f"{changes[LABELS[i]]['std']:.4f}, {changes[LABELS[i]]['sigmas']:.1f} std)"
+                for i in moved))
+        if rms["refitted"] > bound:
+            reasons.append(f"the marks miss by {rms['refitted']:.4f} mm RMS even with L1, L2, z2 "
+                           f"refitted (bound {bound:.4f} mm): something the base parameters do "
+                           "not explain changed (backlash, a link, the pen)")
+        elif not moved:
+            reasons.append(f"the marks miss by {rms['sheet_placed']:.4f} mm RMS (bound "
+                           f"{bound:.4f} mm)")
+    pred = placed.predict(q, s)
+    marks = {mid: {"measured_mm": xy[k].tolist(), "predicted_mm": pred[k].tolist(),
+                   "error_mm": (xy[k] - pred[k]).tolist(),
+                   "error_norm_mm": float(np.hypot(*(xy[k] - pred[k])))}
+             for k, mid in enumerate(ids)}
+    return VerifyResult(marks, rms, changes, float(bound), verdict, tuple(reasons))
+
+
+def verify_folder(cal_path, folder, *, out_dir, jobs: int | None = None,
+                  progress: bool = False) -> tuple[VerifyResult, Path]:
+    """Measure the check's photos in ``folder`` and compare them with ``cal_path``; writes
+    ``out_dir/verify.json``."""
+    from vision_cal.dataset.calibration import load_calibration
+    from vision_cal.dataset.io import atomic_write_json
+    from vision_cal.dataset.session import load_session
+    from vision_cal.pipeline import measure_marks
+
+    model, doc = load_calibration(cal_path)
+    session = load_session(folder)
+    out_dir = Path(out_dir)
+    if out_dir.resolve() == Path(folder).resolve():
+        raise VisionCalError("is the check's folder: the input folder is never written to",
+                             file=str(out_dir), field="--out")
+    measurement, data, missing = measure_marks(session, out_dir=out_dir, jobs=jobs,
+                                               progress=progress)
+    noise = (float(np.sqrt(2 * np.mean(data.sigma_mm**2)))
+             if data.sigma_mm is not None and len(data.sigma_mm) else None)
+    r = compare(model, doc, data.ids, data.q_deg, data.approach, data.xy_mm,
+                noise_floor_mm=noise)
+    out = r.to_json()
+    out.update(calibration=str(cal_path), folder=str(folder), missing_marks=missing,
+               noise_floor_mm=noise)
+    path = atomic_write_json(out_dir / "verify.json", out)
+    return r, path
