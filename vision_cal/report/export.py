@@ -85,12 +85,18 @@ def calibration_yaml(doc: dict) -> str:
     return EFFECTS_HEADER + yaml.safe_dump(out, sort_keys=False)
 
 
+def effects_path(urdf) -> Path:
+    """The effects side file written beside a URDF: ``ROBOT.effects.yaml``."""
+    urdf = Path(urdf)
+    return urdf.with_name(urdf.stem + ".effects.yaml")
+
+
 def export(doc: dict, *, urdf=None, yaml_path=None) -> list[Path]:
     written = []
     if urdf:
         urdf = Path(urdf)
         written.append(atomic_write_text(urdf, urdf_text(doc, name=urdf.stem)))
-        side = urdf.with_name(urdf.stem + ".effects.yaml")
+        side = effects_path(urdf)
         written.append(atomic_write_text(side, effects_yaml(doc)))
     if yaml_path:
         written.append(atomic_write_text(yaml_path, calibration_yaml(doc)))
