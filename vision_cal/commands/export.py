@@ -26,15 +26,18 @@ def add_arguments(p) -> None:
 
 def run(args) -> int:
     from vision_cal.dataset.calibration import load_calibration
-    from vision_cal.dataset.io import output_file
+    from vision_cal.dataset.io import distinct_outputs, output_file, written_together
     from vision_cal.errors import VisionCalError
-    from vision_cal.report.export import export
+    from vision_cal.report.export import effects_path, export
 
     if not (args.urdf or args.yaml):
         raise VisionCalError("nothing to export: give --urdf and/or --yaml")
     for opt, path in (("--urdf", args.urdf), ("--yaml", args.yaml)):
         if path:
             output_file(path, field=opt)
+    distinct_outputs([("--urdf", args.urdf),
+                      ("--urdf (its effects)", args.urdf and effects_path(args.urdf)),
+                      ("--yaml", args.yaml)], [("CALIBRATION.json", args.calibration)])
     _, doc = load_calibration(args.calibration)
     from vision_cal.dataset.trust import refuse_unreliable
 
@@ -48,7 +51,9 @@ def run(args) -> int:
         from vision_cal.dataset.robot import load_robot_file
 
         limits = load_robot_file(args.robot).joint_limits_deg
-    for path in export(doc, urdf=args.urdf, yaml_path=args.yaml, limits_deg=limits):
+    with written_together():
+        written = export(doc, urdf=args.urdf, yaml_path=args.yaml, limits_deg=limits)
+    for path in written:
         if not args.quiet:
             print(f"wrote {path}")
     return 0

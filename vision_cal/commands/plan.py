@@ -47,17 +47,27 @@ def run(args) -> int:
     from vision_cal.dataset.calibration import load_calibration
     from vision_cal.dataset.csvio import (failed_report_path, read_targets, write_failed_targets,
                                           write_plan)
-    from vision_cal.dataset.io import output_file
+    from vision_cal.dataset.io import distinct_outputs, output_file, written_together
+    from vision_cal.errors import VisionCalError
     from vision_cal.plan.compensate import plan_targets
     from vision_cal.plan.uncertainty import load_covariance, predicted_std_mm
 
     output_file(args.out, field="-o")
     if args.trajectory:
         output_file(args.trajectory, field="--trajectory")
+    prg = None
+    if args.program:
+        from vision_cal.program import program_path
+
+        prg = program_path(args.program, Path(args.out).with_suffix(""))
+        output_file(prg, field="--program")
+    report = failed_report_path(args.out)
+    distinct_outputs([("-o", args.out), ("-o (its failed targets)", report),
+                      ("--trajectory", args.trajectory), ("--program", prg)],
+                     [("CALIBRATION.json", args.calibration), ("TARGETS.csv", args.targets),
+                      ("--robot", args.robot)])
     robot = None
     if args.program and not args.robot:
-        from vision_cal.errors import VisionCalError
-
         raise VisionCalError("--program needs --robot ROBOT.yaml (pen heights, speeds)",
                              field="--robot")
     if args.robot:
@@ -72,6 +82,7 @@ def run(args) -> int:
     warn = refuse_unreliable(doc, args.calibration, force=args.force)
     if warn:
         print(warn, file=sys.stderr)
+    home_deg = _home_deg(args, doc, robot)
     ids, xy = read_targets(args.targets)
     limits = {} if robot is None else {"joint_limits_deg": robot.joint_limits_deg}
     if robot is None and doc.get("joint_limits_deg") is not None:   # recorded by the run
@@ -85,36 +96,42 @@ def run(args) -> int:
     failed = [p for p in planned if p.status != "ok"]
     std = (predicted_std_mm(model, cov, [p.q_deg for p in ok], [p.approach for p in ok])
            if cov is not None and ok else [float("nan")] * len(ok))
-    # the command file holds only what can be sent to the robot: no NaN, no failed row
-    # (an unknown std, as with the nominal model, is left empty)
-    write_plan(args.out, [dict(p.to_row(), std_mm=float(s) if math.isfinite(s) else "")
-                          for p, s in zip(ok, std)])
-    report = failed_report_path(args.out)
+    # every output is written together or not at all (a program path that cannot be
+    # written, a trajectory too long, leave the earlier files as they were)
+    with written_together():
+        # the command file holds only what can be sent to the robot: no NaN, no failed row
+        # (an unknown std, as with the nominal model, is left empty)
+        write_plan(args.out, [dict(p.to_row(), std_mm=float(s) if math.isfinite(s) else "")
+                              for p, s in zip(ok, std)])
+        if failed:
+            write_failed_targets(report, [(p.id, *p.target_mm, p.reason) for p in failed])
+        if args.trajectory and ok:
+            from vision_cal.plan.compensate import write_plan_trajectory
+
+            try:
+                write_plan_trajectory(args.trajectory, ok, home_deg=home_deg)
+            except VisionCalError as e:
+                raise VisionCalError(e.reason, file=str(args.trajectory),
+                                     field="--trajectory") from e
+        if args.program and ok:  # no program of nothing (exit 1 below)
+            from vision_cal.plan.compensate import to_planned_marks
+            from vision_cal.program import program_points, write_program
+
+            marks = to_planned_marks(ok, overshoot_deg=robot.overshoot_deg, role="target")
+            points = program_points(marks, home_deg=home_deg,
+                                    z2_deg=model.params.z2_deg)
+            path = write_program(args.program, prg, points, robot,
+                                 title=f"vision-cal compensated targets: {len(ok)} of "
+                                       f"{len(planned)} targets of {args.targets}, "
+                                       f"{args.model} model")
+            if not args.quiet:
+                print(f"wrote {path}")
     if failed:
-        write_failed_targets(report, [(p.id, *p.target_mm, p.reason) for p in failed])
         if ok:  # when none is planned, the error below says it once
             print(f"vision-cal: warning: {args.targets}: {summarise_failures(failed)}; "
                   f"all in {report}", file=sys.stderr)
     else:
         report.unlink(missing_ok=True)  # a stale report of an earlier run
-    home_deg = _home_deg(args, doc, robot)
-    if args.trajectory and ok:
-        from vision_cal.plan.compensate import write_plan_trajectory
-
-        write_plan_trajectory(args.trajectory, ok, home_deg=home_deg)
-    if args.program:
-        from vision_cal.plan.compensate import to_planned_marks
-        from vision_cal.program import program_path, program_points, write_program
-
-        marks = to_planned_marks(ok, overshoot_deg=robot.overshoot_deg, role="target")
-        points = program_points(marks, home_deg=home_deg,
-                                z2_deg=model.params.z2_deg)
-        stem = Path(args.out).with_suffix("")
-        path = write_program(args.program, program_path(args.program, stem), points, robot,
-                             title=f"vision-cal compensated targets: {len(ok)} of {len(planned)} "
-                                   f"targets of {args.targets}, {args.model} model")
-        if not args.quiet:
-            print(f"wrote {path}")
     if not args.quiet:
         print(f"planned {len(planned) - len(failed)} of {len(planned)} targets "
               f"with the {args.model} model -> {args.out}")
@@ -148,6 +165,14 @@ def _home_deg(args, doc: dict, robot) -> tuple[float, float]:
 
     if args.home is not None:
         home, where, file = args.home, "--home", None
+        from vision_cal.motion import JOINT_LIMITS_DEG
+
+        lims = JOINT_LIMITS_DEG if robot is None else robot.joint_limits_deg
+        of = "the default joint limits" if robot is None else f"joint_limits_deg of {args.robot}"
+        for j in range(2):
+            if not (math.isfinite(home[j]) and lims[j][0] <= home[j] <= lims[j][1]):
+                raise VisionCalError(f"joint {j + 1} at {home[j]:g} deg is outside {of} "
+                                     f"{list(lims[j])}", field="--home")
     elif robot is not None:
         return tuple(robot.nominal.home_deg)
     elif "home_deg" in doc:

@@ -23,17 +23,49 @@ TARGET_FIELDS = ("id", "x_mm", "y_mm")
 PLAN_FIELDS = ("id", "q1_deg", "q2_deg", "approach1", "approach2")
 
 
+#: The longest field read (bytes): a stray quote makes the rest of the file one field.
+MAX_FIELD_CHARS = 4096
+
+
 def _rows(path: Path, required: tuple[str, ...]) -> list[tuple[int, dict]]:
+    """Rows as dicts with their line number. A row with more fields than the header (an
+    unquoted decimal comma: ``a,100,5,250``), a field running over a line end or longer than
+    :data:`MAX_FIELD_CHARS` (a stray quote) is refused naming the line: never read as
+    something else."""
     text = read_text(path)
-    reader = csv.DictReader(io.StringIO(text))
-    header = [h.strip() for h in (reader.fieldnames or [])]
+    reader = csv.reader(io.StringIO(text))
+    try:
+        rows = []
+        start = 1
+        for row in reader:
+            rows.append((start, row))
+            if any(len(v) > MAX_FIELD_CHARS or "\n" in v or "\r" in v for v in row):
+                raise VisionCalError(
+                    "a field runs over the line end (a stray quote \")", file=str(path),
+                    field=f"line {start}")
+            start = reader.line_num + 1
+    except csv.Error as e:
+        raise VisionCalError(f"not valid CSV ({e}; a stray quote \"?)", file=str(path),
+                             field=f"line {start}") from e
+    if not rows:
+        header = []
+    else:
+        header = [h.strip() for h in rows[0][1]]
     missing = [f for f in required if f not in header]
     if missing:
         raise VisionCalError(f"header lacks {', '.join(missing)} (expected {','.join(required)})",
                              file=str(path), field="line 1")
-    reader.fieldnames = header
-    return [(i + 2, {k: (v or "").strip() for k, v in row.items() if k}) for i, row in
-            enumerate(reader)]
+    out = []
+    for line, row in rows[1:]:
+        if not row:  # a blank line
+            continue
+        if len(row) > len(header):
+            raise VisionCalError(
+                f"{len(row)} fields but the header has {len(header)} (a decimal comma? "
+                "write 100.5, or quote the field)", file=str(path), field=f"line {line}")
+        out.append((line, {k: v.strip() for k, v in zip(header, row) if k}
+                    | {k: "" for k in header[len(row):] if k}))
+    return out
 
 
 def _num(v: str, path, line: int, name: str) -> float:

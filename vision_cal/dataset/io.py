@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import errno
 import json
 import math
@@ -111,7 +113,11 @@ def atomic_write_bytes(path, data: bytes) -> Path:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
-        os.replace(tmp, path)
+        pending = _PENDING.get()
+        if pending is None:
+            os.replace(tmp, path)
+        else:  # inside written_together(): renamed with the others at its end
+            pending.append((tmp, path))
     except BaseException as e:
         try:
             os.unlink(tmp)
@@ -121,6 +127,71 @@ def atomic_write_bytes(path, data: bytes) -> Path:
             raise _cannot_write(path, e) from e
         raise
     return path
+
+
+#: the (temporary file, final path) pairs of the ``written_together`` block being run
+_PENDING: contextvars.ContextVar = contextvars.ContextVar("vision_cal_pending", default=None)
+
+
+@contextlib.contextmanager
+def written_together():
+    """The outputs of one command, written together or not at all: inside the block every
+    :func:`atomic_write_bytes` writes its temporary file only; when the block ends without
+    an error (or a Ctrl-C) they are all renamed into place, else all removed, so a failure
+    half-way (a program path that is a folder, a full disk) leaves every earlier output as
+    it was."""
+    if _PENDING.get() is not None:  # nested: the outer block decides
+        yield
+        return
+    pending: list = []
+    token = _PENDING.set(pending)
+    try:
+        yield
+    except BaseException:
+        _PENDING.reset(token)
+        for tmp, _ in pending:
+            try:
+                os.unlink(tmp)
+            except FileNotFoundError:
+                pass
+        raise
+    _PENDING.reset(token)
+    for i, (tmp, path) in enumerate(pending):
+        try:
+            os.replace(tmp, path)
+        except OSError as e:
+            for t, _ in pending[i:]:
+                try:
+                    os.unlink(t)
+                except FileNotFoundError:
+                    pass
+            raise _cannot_write(Path(path), e) from e
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    if a.resolve() == b.resolve():
+        return True
+    try:
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def distinct_outputs(outputs, inputs=()) -> None:
+    """Refuse, in one line, an output path that is one of the command's inputs (it would be
+    destroyed) or two outputs on one path (one would be lost). ``outputs`` and ``inputs``
+    are (option or field name, path) pairs; None paths are skipped."""
+    outs = [(f, Path(p)) for f, p in outputs if p is not None]
+    ins = [(f, Path(p)) for f, p in inputs if p is not None]
+    for i, (field, path) in enumerate(outs):
+        for f_in, p_in in ins:
+            if _same_file(path, p_in):
+                raise VisionCalError(f"is the input {f_in}: writing it would destroy it; "
+                                     "choose another name", file=str(path), field=field)
+        for f2, p2 in outs[:i]:
+            if _same_file(path, p2):
+                raise VisionCalError(f"is also the output of {f2}: one would be lost; "
+                                     "choose another name", file=str(path), field=field)
 
 
 def atomic_write_text(path, text: str) -> Path:
@@ -144,31 +215,168 @@ def read_text(path, *, what: str = "file") -> str:
         raise VisionCalError(f"cannot read: {e}", file=str(path)) from e
 
 
+def _line(text: str, pos: int) -> int:
+    return text.count("\n", 0, pos) + 1
+
+
+def _top_keys(s: str, start: int, end: int):
+    """(key, position) of the keys of the JSON object whose text is ``s[start:end]`` (after
+    its ``{``), skipping nested objects, lists and strings."""
+    depth, i = 0, start
+    while i < end:
+        c = s[i]
+        if c == '"':
+            j = i + 1
+            while s[j] != '"':
+                j += 2 if s[j] == "\\" else 1
+            if depth == 0:
+                k = j + 1
+                while s[k] in " \t\r\n":
+                    k += 1
+                if s[k] == ":":
+                    yield json.loads(s[i:j + 1]), i
+            i = j + 1
+            continue
+        if c in "{[":
+            depth += 1
+        elif c in "}]":
+            depth -= 1
+        i += 1
+
+
+def _json_duplicate(text: str) -> tuple[str, int, int]:
+    """The first key given twice in one object, with its two lines: found again with the
+    pure-Python scanner, which tells where each object starts (only run on a duplicate)."""
+    from json import decoder, scanner
+
+    found: list = []
+
+    def parse_object(s_and_end, *args, **kw):
+        s, start = s_and_end
+        pairs, end = decoder.JSONObject(s_and_end, *args, **kw)
+        if not found:
+            keys = [k for k, _ in pairs]
+            dup = next((k for i, k in enumerate(keys) if k in keys[:i]), None)
+            if dup is not None:
+                pos = [p for k, p in _top_keys(s, start, end) if k == dup]
+                found.append((dup, _line(s, pos[0]), _line(s, pos[1])))
+        return pairs, end
+
+    dec = json.JSONDecoder(object_pairs_hook=list, parse_constant=float)
+    dec.parse_object = parse_object
+    dec.scan_once = scanner.py_make_scanner(dec)
+    dec.decode(text)
+    return found[0]
+
+
+class _DuplicateKey(Exception):
+    pass
+
+
+def _no_duplicates(pairs):
+    d = dict(pairs)
+    if len(d) != len(pairs):
+        raise _DuplicateKey
+    return d
+
+
 def read_json(path) -> dict:
-    """Read a JSON object; a missing or malformed file is one clear line."""
+    """Read a JSON object; a missing or malformed file is one clear line. A key given twice
+    in one object (JSON parsers silently keep the last) is refused naming both lines."""
     path = Path(path)
     text = read_text(path)
     try:
-        obj = json.loads(text, parse_constant=lambda c: float(c))
+        obj = json.loads(text, parse_constant=lambda c: float(c),
+                         object_pairs_hook=_no_duplicates)
     except json.JSONDecodeError as e:
         raise VisionCalError(f"not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})",
                              file=str(path)) from e
     except RecursionError as e:
         raise VisionCalError("not valid JSON: nested too deeply", file=str(path)) from e
+    except _DuplicateKey as e:
+        try:
+            key, a, b = _json_duplicate(text)
+        except RecursionError:
+            raise VisionCalError("a key is given twice in one object", file=str(path)) from e
+        raise VisionCalError(f"key {key!r} is given twice (lines {a} and {b}); keep one",
+                             file=str(path)) from e
     if not isinstance(obj, dict):
         raise VisionCalError("expected a JSON object at the top level", file=str(path))
     return obj
 
 
+#: the most values a YAML document may expand to through its aliases (``*name``): a robot
+#: or scene file has a few hundred; an "alias bomb" of nine nested lists of nine has 10^9
+MAX_YAML_VALUES = 1_000_000
+
+#: YAML 1.2's core-schema float (``1e5``, ``2.5E-3``): PyYAML follows YAML 1.1, whose float
+#: needs a dot and a signed exponent (``1.0e+5``), and reads ``1e5`` as the string "1e5"
+_YAML12_FLOAT = r"^[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)[eE][-+]?[0-9]+$"
+
+
+def _yaml_loader():
+    import re
+
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        """``safe_load`` plus: a key given twice in one mapping is refused with both lines,
+        numbers follow YAML 1.2's core schema for exponents (``1e5`` is 100000.0), and a
+        document whose aliases expand beyond :data:`MAX_YAML_VALUES` values is refused
+        before anything is built."""
+
+        def construct_mapping(self, node, deep=False):
+            if isinstance(node, yaml.MappingNode):
+                seen: dict = {}
+                for key_node, _ in node.value:
+                    if isinstance(key_node, yaml.ScalarNode):
+                        k = key_node.value
+                        if k in seen:
+                            raise yaml.constructor.ConstructorError(
+                                None, None, f"key {k!r} is given twice (lines {seen[k] + 1} "
+                                f"and {key_node.start_mark.line + 1}); keep one",
+                                key_node.start_mark)
+                        seen[k] = key_node.start_mark.line
+            return super().construct_mapping(node, deep=deep)
+
+        def construct_document(self, node):
+            sizes: dict = {}
+
+            def size(n) -> int:
+                if id(n) in sizes:
+                    return sizes[id(n)]
+                sizes[id(n)] = 1  # a recursive alias counts once
+                if isinstance(n, yaml.SequenceNode):
+                    total = 1 + sum(size(c) for c in n.value)
+                elif isinstance(n, yaml.MappingNode):
+                    total = 1 + sum(size(k) + size(v) for k, v in n.value)
+                else:
+                    total = 1
+                sizes[id(n)] = total
+                if total > MAX_YAML_VALUES:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f"its aliases expand to more than {MAX_YAML_VALUES:,} "
+                        "values (an alias bomb?)", n.start_mark)
+                return total
+
+            size(node)
+            return super().construct_document(node)
+
+    Loader.add_implicit_resolver("tag:yaml.org,2002:float", re.compile(_YAML12_FLOAT),
+                                 list("-+.0123456789"))
+    return Loader
+
+
 def read_yaml(path, *, what: str = "file"):
-    """Read a YAML document with ``safe_load`` (no tags that build objects or run code);
-    a malformed file is one clear line with the line and column."""
+    """Read a YAML document with a safe loader (no tags that build objects or run code; see
+    :func:`_yaml_loader` for duplicate keys, ``1e5`` and aliases); a malformed file is one
+    clear line with the line and column."""
     import yaml
 
     path = Path(path)
     text = read_text(path, what=what)
     try:
-        return yaml.safe_load(text)
+        return yaml.load(text, Loader=_yaml_loader())  # noqa: S506 - a SafeLoader subclass
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""

@@ -7,6 +7,7 @@ field (``marks[3].joints_deg[0]``) and what was expected.
 from __future__ import annotations
 
 import math
+import reprlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -227,10 +228,14 @@ MAX_K_PX = 1e7
 MAX_DIST = 1e3
 
 
+_REPR = reprlib.Repr()
+_REPR.maxlevel, _REPR.maxlist, _REPR.maxdict, _REPR.maxstring, _REPR.maxlong = 3, 4, 4, 60, 40
+
+
 def _short(v, n: int = 60) -> str:
     """``repr`` of a value from a file, cut to fit in one line of an error."""
     try:
-        t = repr(v)
+        t = _REPR.repr(v)  # bounded: a huge value (a YAML alias bomb) is never printed whole
     except (RecursionError, ValueError):  # deeply nested, or an int too long to print
         t = f"<{type(v).__name__}>"
     return t if len(t) <= n else t[:n - 3] + "..."
@@ -306,7 +311,7 @@ class FieldReader:
         if obj is None:
             return {}
         if not isinstance(obj, dict):
-            self.fail(where, f"expected a mapping, got {type(obj).__name__} {obj!r}")
+            self.fail(where, f"expected a mapping, got {type(obj).__name__} {_short(obj)}")
         for k in obj:
             if k not in allowed:
                 name = f"{where}.{k}" if where else str(k)
@@ -315,7 +320,7 @@ class FieldReader:
 
     def integer(self, v, where: str, *, lo=None, hi=None) -> int:
         if isinstance(v, bool) or not isinstance(v, int):
-            self.fail(where, f"expected an integer, got {v!r}")
+            self.fail(where, f"expected an integer, got {_short(v)}")
         if lo is not None and v < lo:
             self.fail(where, f"expected an integer >= {lo}, got {v}")
         if hi is not None and v > hi:
@@ -324,12 +329,12 @@ class FieldReader:
 
     def boolean(self, v, where: str) -> bool:
         if not isinstance(v, bool):
-            self.fail(where, f"expected true or false, got {v!r}")
+            self.fail(where, f"expected true or false, got {_short(v)}")
         return v
 
     def choice(self, v, where: str, options: tuple[str, ...]) -> str:
         if v not in options:
-            self.fail(where, f"expected one of {', '.join(options)}, got {v!r}")
+            self.fail(where, f"expected one of {', '.join(options)}, got {_short(v)}")
         return v
 
 

@@ -98,6 +98,19 @@ def plan_waypoints(marks, *, home_deg=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarra
     return wp, np.asarray(index, dtype=int)
 
 
+#: the most samples a trajectory may have: 10^6 at 16 ms is 4.4 hours of motion and a CSV of
+#: about 60 MB; a million targets would need 10^8 samples and gigabytes of memory
+MAX_TRAJECTORY_SAMPLES = 1_000_000
+
+
+def _too_long(n_samples: int, dt_s: float, n_marks: int):
+    raise VisionCalError(
+        f"the trajectory through {n_marks} marks would have at least {n_samples:,} samples "
+        f"({n_samples * dt_s / 3600:.1f} h at {dt_s * 1000:g} ms), more than "
+        f"{MAX_TRAJECTORY_SAMPLES:,}: split the targets into several files",
+        field="trajectory")
+
+
 def segment_duration_s(delta_deg, *, vmax_deg_s, amax_deg_s2, dt_s: float) -> float:
     """Shortest duration (a multiple of ``dt_s``) of a zero-end-velocity cubic moving
     ``delta_deg`` (2,) within the velocity and acceleration limits."""
@@ -137,6 +150,9 @@ def joint_trajectory(waypoints_deg, *, dt_s: float = TRAJECTORY_DT_S, vmax_deg_s
         raise VisionCalError(f"mark_index must have shape ({len(wp)},)", field="mark_index")
 
     n_dwell = int(np.ceil(dwell_s / dt_s - 1e-9)) if dwell_s > 0 else 0
+    n_marks = int(np.count_nonzero(mark_index >= 0))
+    if n_marks * max(n_dwell, 1) + 1 > MAX_TRAJECTORY_SAMPLES:  # before any per-mark work
+        _too_long(n_marks * max(n_dwell, 1) + 1, dt_s, n_marks)
     # integer sample counts keep every knot exactly on the sampling grid
     k_now = 0
     knot_k = np.zeros(len(wp), dtype=np.int64)
@@ -163,6 +179,8 @@ def joint_trajectory(waypoints_deg, *, dt_s: float = TRAJECTORY_DT_S, vmax_deg_s
         spl_k.append(1)
         spl_q.append(wp[0])
         k_now = max(k_now, 1)
+    if k_now + 1 > MAX_TRAJECTORY_SAMPLES:
+        _too_long(k_now + 1, dt_s, n_marks)
     x = np.asarray(spl_k, dtype=float) * dt_s
     spline = CubicHermiteSpline(x, np.vstack(spl_q), np.zeros((len(x), 2)), axis=0)
     t = np.arange(k_now + 1) * dt_s

@@ -85,6 +85,12 @@ def calibration_yaml(doc: dict) -> str:
     return EFFECTS_HEADER + yaml.safe_dump(out, sort_keys=False)
 
 
+def effects_path(urdf) -> Path:
+    """The effects side file written beside a URDF: ``ROBOT.effects.yaml``."""
+    urdf = Path(urdf)
+    return urdf.with_name(urdf.stem + ".effects.yaml")
+
+
 def export(doc: dict, *, urdf=None, yaml_path=None, limits_deg=None) -> list[Path]:
     """``limits_deg``: the URDF's joint limits [[lo, hi], [lo, hi]] (default: the
     calibration's ``joint_limits_deg``, else :data:`vision_cal.motion.JOINT_LIMITS_DEG`)."""
@@ -95,7 +101,7 @@ def export(doc: dict, *, urdf=None, yaml_path=None, limits_deg=None) -> list[Pat
         urdf = Path(urdf)
         written.append(atomic_write_text(urdf, urdf_text(doc, name=urdf.stem,
                                                          limits_deg=limits_deg)))
-        side = urdf.with_name(urdf.stem + ".effects.yaml")
+        side = effects_path(urdf)
         written.append(atomic_write_text(side, effects_yaml(doc)))
     if yaml_path:
         written.append(atomic_write_text(yaml_path, calibration_yaml(doc)))

@@ -1,0 +1,195 @@
+"""Never lose a file, never take a wrong number quietly (issue 19): an output that is an
+input or another output is refused, a command's outputs are written together or not at
+all, odd CSV/JSON/YAML input is refused naming the line, and large inputs are bounded;
+each case is exit 2, one line on stderr, and no input or earlier output lost."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+from tests.commands.test_trust import (PAPER, ROOT, TARGETS, assert_one_line, calibration,  # noqa: F401
+                                       cli, snapshot)
+
+ROBOT = ROOT / "fixtures" / "robot_sm5.yaml"
+
+
+@pytest.fixture()
+def work(tmp_path, calibration):  # noqa: F811
+    """A folder holding a calibration, the targets and the robot file (the inputs)."""
+    d = tmp_path / "w"
+    d.mkdir()
+    shutil.copy(calibration, d / "cal.json")
+    shutil.copy(TARGETS, d / "targets.csv")
+    shutil.copy(ROBOT, d / "robot.yaml")
+    return d
+
+
+# --------------------------------------------------------------------------- outputs
+
+@pytest.mark.parametrize("argv,field", [
+    (["plan", "cal.json", "targets.csv", "-o", "cal.json"], "-o"),
+    (["plan", "cal.json", "targets.csv", "-o", "targets.csv"], "-o"),
+    (["plan", "cal.json", "targets.csv", "-o", "p.csv", "--trajectory", "cal.json"],
+     "--trajectory"),
+    (["plan", "cal.json", "targets.csv", "-o", "p.csv", "--trajectory", "p.csv"],
+     "--trajectory"),
+    (["plan", "cal.json", "targets.csv", "-o", "p.csv", "--trajectory", "p.failed.csv"],
+     "--trajectory"),
+    (["export", "cal.json", "--yaml", "cal.json"], "--yaml"),
+    (["export", "cal.json", "--urdf", "cal.json"], "--urdf"),
+    (["export", "cal.json", "--urdf", "x.urdf", "--yaml", "x.urdf"], "--yaml"),
+    (["export", "cal.json", "--urdf", "x.urdf", "--yaml", "x.effects.yaml"], "--yaml"),
+], ids=["plan-o-cal", "plan-o-targets", "traj-cal", "traj-plan", "traj-failed", "yaml-cal",
+        "urdf-cal", "urdf-yaml", "effects-yaml"])
+def test_an_output_on_an_input_or_another_output_is_refused(work, capsys, monkeypatch, argv,
+                                                            field):
+    monkeypatch.chdir(work)
+    before = snapshot(work)
+    rc, _, err = cli(argv, capsys)
+    assert rc == 2
+    assert_one_line(err, field, "choose another name")
+    assert snapshot(work) == before
+
+
+def test_a_program_path_that_is_a_folder_writes_nothing(work, capsys):
+    (work / "p.prg").mkdir()
+    (work / "p.csv").write_text("earlier\n")
+    before = snapshot(work)
+    rc, _, err = cli(["plan", work / "cal.json", work / "targets.csv", "-o", work / "p.csv",
+                      "--program", "spel", "--robot", work / "robot.yaml",
+                      "--trajectory", work / "t.csv"], capsys)
+    assert rc == 2
+    assert_one_line(err, work / "p.prg", "--program")
+    assert snapshot(work) == before
+
+
+def test_outputs_written_together_or_not_at_all(work, capsys, monkeypatch):
+    """A failure while writing the last output (the program) leaves the earlier outputs
+    of this command unwritten and the files of an earlier run untouched."""
+    import vision_cal.program as program
+
+    (work / "p.csv").write_text("earlier\n")
+    before = snapshot(work)
+
+    def broken(*a, **k):
+        from vision_cal.dataset.io import atomic_write_text
+
+        atomic_write_text(work / "p.prg", "half")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(program, "write_program", broken)
+    with pytest.raises(OSError):
+        cli(["plan", work / "cal.json", work / "targets.csv", "-o", work / "p.csv",
+             "--program", "spel", "--robot", work / "robot.yaml", "--trajectory",
+             work / "t.csv", "-q"], capsys)
+    assert snapshot(work) == before
+    assert not [p for p in work.iterdir() if p.name.endswith(".tmp")]
+
+
+def test_home_outside_the_joint_limits_is_refused(work, capsys):
+    before = snapshot(work)
+    rc, _, err = cli(["plan", work / "cal.json", work / "targets.csv", "-o", work / "p.csv",
+                      "--home", "1000", "0", "--program", "spel", "--robot",
+                      work / "robot.yaml"], capsys)
+    assert rc == 2
+    assert_one_line(err, "--home", "joint 1 at 1000 deg", "robot.yaml")
+    assert snapshot(work) == before
+
+
+def test_a_trajectory_too_long_is_refused_before_it_is_built(work, capsys, monkeypatch):
+    import vision_cal.plan.trajectory as trajectory
+
+    monkeypatch.setattr(trajectory, "MAX_TRAJECTORY_SAMPLES", 40)  # 3 targets dwell 57
+    before = snapshot(work)
+    rc, _, err = cli(["plan", work / "cal.json", work / "targets.csv", "-o", work / "p.csv",
+                      "--trajectory", work / "t.csv"], capsys)
+    assert rc == 2
+    assert_one_line(err, work / "t.csv", "--trajectory", "split the targets")
+    assert snapshot(work) == before
+
+
+# --------------------------------------------------------------------------- CSV rows
+
+@pytest.mark.parametrize("text,line,words", [
+    ("id,x_mm,y_mm\norigin,0,0\na,100,5,250\n", "line 3", "decimal comma"),
+    ('id,x_mm,y_mm\norigin,0,0\na,"100,5\nb,1,2\n', "line 3", "stray quote"),
+    ('id,x_mm,y_mm\na,"1,2\n' + "".join(f"b{i},1,2\n" for i in range(12000)), "line 2",
+     "stray quote"),
+], ids=["decimal-comma", "stray-quote", "stray-quote-over-128KB"])
+def test_targets_row_read_wrong_is_refused_naming_the_line(work, capsys, text, line, words):
+    t = work / "targets.csv"
+    t.write_text(text)
+    before = snapshot(work)
+    rc, _, err = cli(["plan", work / "cal.json", t, "-o", work / "p.csv"], capsys)
+    assert rc == 2
+    assert_one_line(err, t, line, words)
+    assert snapshot(work) == before
+
+
+# --------------------------------------------------------------------------- JSON / YAML
+
+def test_duplicate_key_in_session_json_names_both_lines(tmp_path, capsys):
+    folder = tmp_path / "data"
+    shutil.copytree(PAPER, folder)
+    text = (folder / "session.json").read_text()
+    s = json.loads(text)
+    lines = json.dumps(s, indent=1).splitlines()
+    i = next(i for i, ln in enumerate(lines) if ln.startswith(' "format"'))
+    lines.insert(i + 1, ' "format": "vision-cal/1",')
+    (folder / "session.json").write_text("\n".join(lines))
+    before = snapshot(folder)
+    rc, _, err = cli([folder, "-o", tmp_path / "out"], capsys)
+    assert rc == 2
+    assert_one_line(err, folder / "session.json", "'format'", f"lines {i + 1} and {i + 2}")
+    assert snapshot(folder) == before and not (tmp_path / "out" / "calibration.json").exists()
+
+
+def _robot(work, edit) -> tuple:
+    r = work / "robot.yaml"
+    r.write_text(edit(r.read_text()))
+    return r
+
+
+def test_duplicate_key_in_robot_yaml_names_both_lines(work, capsys):
+    text = (work / "robot.yaml").read_text()
+    i = next(i for i, ln in enumerate(text.splitlines()) if ln.startswith("L1_mm:"))
+    r = _robot(work, lambda t: t + "L1_mm: 360.0\n")
+    n = len(text.splitlines()) + 1
+    before = snapshot(work)
+    rc, _, err = cli(["plan", work / "cal.json", work / "targets.csv", "-o", work / "p.csv",
+                      "--robot", r], capsys)
+    assert rc == 2
+    assert_one_line(err, r, "'L1_mm' is given twice", f"lines {i + 1} and {n}")
+    assert snapshot(work) == before
+
+
+def test_yaml_exponent_without_dot_is_a_number(tmp_path):
+    from vision_cal.dataset.io import read_yaml
+
+    p = tmp_path / "a.yaml"
+    p.write_text("a: 1e5\nb: -2.5E-3\nc: '1e5'\nd: 1.0e+5\ne: 12\n")
+    assert read_yaml(p) == {"a": 1e5, "b": -2.5e-3, "c": "1e5", "d": 1e5, "e": 12}
+
+
+def test_yaml_alias_bomb_is_refused_without_building_it(work, capsys):
+    lines = ["a: &a [x, x, x, x, x, x, x, x, x]"]
+    for prev, n in zip("abcdefgh", "bcdefghi"):
+        lines.append(f"{n}: &{n} [" + ", ".join([f"*{prev}"] * 9) + "]")
+    r = work / "robot.yaml"
+    r.write_text("\n".join(lines) + "\n")
+    before = snapshot(work)
+    rc, _, err = cli(["plan", work / "cal.json", work / "targets.csv", "-o", work / "p.csv",
+                      "--robot", r], capsys)
+    assert rc == 2
+    assert_one_line(err, r, "alias bomb")
+    assert snapshot(work) == before
+
+
+def test_a_huge_value_in_an_error_is_cut_before_it_is_printed():
+    from vision_cal.dataset.session import _short
+
+    big = [[list(range(1000))] * 1000] * 1000  # 10^9 numbers if printed whole
+    assert len(_short(big)) <= 60
