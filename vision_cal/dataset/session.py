@@ -135,6 +135,9 @@ class NominalRobot:
     joint_zero_deg: tuple[float, float]
     base_mm: tuple[float, float]
     home_deg: tuple[float, float] = (0.0, 0.0)
+    #: the robot's positioning repeatability (mm, per axis, one std; docs/format.md), None:
+    #: not declared (the noise-floor gate then takes DEFAULT_REPEATABILITY_MM)
+    repeatability_mm: float | None = None
 
     @property
     def params(self) -> ScaraParams:
@@ -143,9 +146,12 @@ class NominalRobot:
 
     def to_json(self) -> dict:
         """The session's ``robot`` block."""
-        return {"L1_mm": self.L1_mm, "L2_mm": self.L2_mm,
-                "joint_zero_deg": list(self.joint_zero_deg), "base_mm": list(self.base_mm),
-                "home_deg": list(self.home_deg)}
+        d = {"L1_mm": self.L1_mm, "L2_mm": self.L2_mm,
+             "joint_zero_deg": list(self.joint_zero_deg), "base_mm": list(self.base_mm),
+             "home_deg": list(self.home_deg)}
+        if self.repeatability_mm is not None:
+            d["repeatability_mm"] = self.repeatability_mm
+        return d
 
 
 @dataclass(frozen=True)
@@ -353,7 +359,13 @@ def read_robot_block(r: _Reader, rob, where: str = "robot") -> NominalRobot:
     base = r.point(r.get(rob, "base_mm", where), w("base_mm"))
     home_raw = r.get(rob, "home_deg", where, required=False)
     home = r.angles(home_raw, w("home_deg")) if home_raw is not None else (0.0, 0.0)
-    return NominalRobot(L1, L2, jz, base, home)
+    rep_raw = r.get(rob, "repeatability_mm", where, required=False)
+    rep = None
+    if rep_raw is not None:
+        rep = r.length(rep_raw, w("repeatability_mm"))
+        if not 0 <= rep <= 10:
+            r.fail(w("repeatability_mm"), f"expected 0..10 mm (one std per axis), got {rep:g}")
+    return NominalRobot(L1, L2, jz, base, home, rep)
 
 
 def read_sheet_block(r: _Reader, sheet_raw, where: str = "sheet", *,
