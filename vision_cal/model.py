@@ -25,6 +25,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from vision_cal import joint_terms as jt
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import ScaraParams, forward_rad, jacobian_rad
 
@@ -163,6 +164,52 @@ class JointCyclic(JointEffect):
 
 
 @dataclass(frozen=True)
+class JointTerms(JointEffect):
+    """A joint error found from the residual: the joint turns ``sum(coef_k * f_k)`` degrees
+    more than commanded, ``f_k`` features of both commanded angles and approach signs
+    (:mod:`vision_cal.joint_terms`). Internally ``theta_k = radians(coef_k) * unit(f_k)``."""
+
+    name: ClassVar[str] = "joint_terms"
+    features: tuple[str, ...] = ()
+    coef_deg: tuple[float, ...] = ()
+
+    @property
+    def param_names(self):
+        return tuple(self.features)
+
+    @property
+    def label(self) -> str:
+        return f"{self.name}(joint {self.joint}: {', '.join(self.features)})"
+
+    @property
+    def theta(self):
+        c = self.coef_deg or (0.0,) * len(self.features)
+        return np.array([np.radians(v) * jt.unit(f) for v, f in zip(c, self.features)])
+
+    def with_theta(self, theta):
+        return replace(self, coef_deg=tuple(float(np.degrees(t) / jt.unit(f))
+                                            for t, f in zip(theta, self.features)))
+
+    def delta_all(self, q_rad: np.ndarray, s: np.ndarray):
+        """Angle added (N,) rad and its derivative (N, k), from both joints (N, 2)."""
+        qd = np.degrees(q_rad)
+        cols = np.stack([jt.evaluate(f, qd, s) / jt.unit(f) for f in self.features], axis=1) \
+            if self.features else np.zeros((len(qd), 0))
+        return cols @ self.theta, cols
+
+    def to_json(self, std=None):
+        terms = []
+        for k, (f, c) in enumerate(zip(self.features, self.coef_deg or (0.0,) * len(self.features))):
+            t = {"feature": f, "coef": c}
+            if std is not None:
+                t["std"] = float(np.degrees(std[k]) / jt.unit(f))
+            terms.append(t)
+        return {"name": self.name, "joint": self.joint, "terms": terms,
+                "description": "; ".join(jt.describe(self.joint, t["feature"], t["coef"])
+                                         for t in terms)}
+
+
+@dataclass(frozen=True)
 class SheetAffine(Effect):
     """Printed sheet coordinates = ``matrix @`` arm position (about the sheet origin).
 
@@ -239,6 +286,14 @@ def effect_from_json(d: dict, *, where: str = "effects") -> Effect:
                 raise VisionCalError(f"harmonic must be 1 or 2, got {h}", field=where)
             return JointCyclic(joint=_check_joint(d["joint"], where), harmonic=h,
                                deg=float(d["deg"]), phase_deg=float(d.get("phase_deg", 0.0)))
+        if name == "joint_terms":
+            terms = d["terms"]
+            if not isinstance(terms, list) or not terms:
+                raise VisionCalError("terms must be a non-empty list", field=where)
+            fs = tuple(jt.check_feature(t["feature"], f"{where}.terms[{i}].feature")
+                       for i, t in enumerate(terms))
+            return JointTerms(joint=_check_joint(d["joint"], where), features=fs,
+                              coef_deg=tuple(float(t["coef"]) for t in terms))
         if name == "sheet_affine":
             m = np.asarray(d["matrix"], dtype=float)
             if m.shape != (2, 2) or not np.all(np.isfinite(m)):
@@ -286,7 +341,9 @@ class RobotModel:
         s = self._approach(q, approach)
         out = q.copy()
         for e in self.effects:
-            if isinstance(e, JointEffect):
+            if isinstance(e, JointTerms):
+                out[:, e.joint - 1] += e.delta_all(q, s)[0]
+            elif isinstance(e, JointEffect):
                 j = e.joint - 1
                 out[:, j] += e.delta(q[:, j], s[:, j])[0]
         return out
@@ -318,7 +375,7 @@ class RobotModel:
         for k, e in enumerate(self.effects):
             if isinstance(e, JointEffect):
                 j = e.joint - 1
-                _, dd = e.delta(q[:, j], s[:, j])
+                _, dd = e.delta_all(q, s) if isinstance(e, JointTerms) else e.delta(q[:, j], s[:, j])
                 cols.append(jq_sheet[:, :, j][:, :, None] * dd[:, None, :])
             elif isinstance(e, SheetAffine):
                 # M_total = A_after @ e.M @ A_before

@@ -381,6 +381,29 @@ def document(doc: dict, session: Session, data: MarkData, missing: list[str], me
     ps = printer_scale(session.sheet, doc.get("effects", []), doc.get("params"))
     if ps is not None:
         doc["printer_scale"] = ps
+    _judge(doc, session)
+
+
+def _judge(doc: dict, session: Session) -> None:
+    """The run's verdict (one owner: :mod:`vision_cal.diagnose.verdict`) into ``doc``; a
+    residual beyond the noise floor is ``unexplained`` with its ratio unless an effect
+    entry already says what is left."""
+    from vision_cal.diagnose.verdict import judge
+
+    v = judge(doc, repeatability_mm=session.robot.repeatability_mm)
+    doc["verdict"] = v.to_json()
+    f = v.floor
+    if f is not None and f["beyond"]:
+        effects = doc.setdefault("effects", [])
+        ex = next((e for e in effects if e["name"] in ("unexplained", "drift")), None)
+        line = v.floor_line
+        if ex is None:
+            effects.append({"name": "unexplained", "seen": [line],
+                            "residual_over_floor": f["residual_over_floor"]})
+        else:
+            ex["residual_over_floor"] = f["residual_over_floor"]
+            if ex["name"] == "unexplained":
+                ex["seen"] = list(ex.get("seen", [])) + [line]
 
 
 def _unreliable_marks(doc: dict, marks: dict, session: Session, measurement) -> None:

@@ -10,6 +10,7 @@ import math
 import pytest
 
 from vision_cal.commands.main import main
+from vision_cal.diagnose.verdict import judge
 from vision_cal.report import headline as hl
 from vision_cal.report import plots
 
@@ -44,17 +45,18 @@ def test_headline_figures_are_calibration_json_figures(out, doc):
     # base model: "not reliable", with the plan change that fixes it; without that
     # diagnostic, five marks are still too few: "use with care", with the 95 % figure
     v = rep["headline"]["verdict"]
+    assert v["status"] == doc["verdict"]["status"]     # the document's block, read
     ni = doc["identifiability"]["not_identifiable"]
     if ni:
         assert v["status"] == "not reliable" and ni[0]["fix"] in v["text"]
     else:
-        assert v["status"] == "use with care"
+        assert v["status"] == "check"
     d = copy.deepcopy(doc)
     d["identifiability"]["not_identifiable"] = []
     d["effects"] = []
-    v = hl.verdict(d)
-    assert v["status"] == "use with care" and "5 fitted marks" in v["text"]
-    assert v["expected_r95_mm"] == pytest.approx(
+    v = judge(d)
+    assert v.status == "check" and "5 fitted marks" in v.text
+    assert v.expected_target_error_mm == pytest.approx(
         hl.R95_PER_RMS * doc["validation_rms_mm"]["final_model"])
 
 
@@ -75,8 +77,11 @@ def _many_marks(doc, n=20):
 
 def test_verdict_ready_only_when_the_plan_identifies_everything(doc):
     d = _many_marks(doc)
+    for m in d["marks"].values():         # residuals at the noise: within the floor
+        m["sigma_mm"], m["residual_mm"] = 0.005, [0.008, -0.004]
     d["identifiability"]["not_identifiable"] = []
     d["effects"] = []
+    d.pop("verdict", None)
     d["validation_rms_mm"]["final_model"] = 0.012
     d["residual_rms_mm"]["final_model"] = 0.011
     v = hl.verdict(d)
@@ -91,7 +96,12 @@ def test_verdict_ready_only_when_the_plan_identifies_everything(doc):
     assert hl.verdict(d)["status"] == "not reliable"
     d["identifiability"]["rank"] = 6
     d["validation_rms_mm"]["final_model"] = 0.05      # 4.5 x the fitted RMS
-    assert hl.verdict(d)["status"] == "use with care"
+    assert hl.verdict(d)["status"] == "check"
+    d["validation_rms_mm"]["final_model"] = 0.012
+    for m in d["marks"].values():         # marks without a measured noise: no floor known
+        m.pop("sigma_mm")
+    v = hl.verdict(d)
+    assert v["status"] == "check" and "noise floor" in v["text"]
 
 
 def test_controller_offsets_make_the_nominal_model_true(doc):

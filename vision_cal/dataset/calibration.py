@@ -14,14 +14,15 @@ from pathlib import Path
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.session import MAX_JOINT_DEG, FieldReader
 from vision_cal.errors import VisionCalError
+from vision_cal.joint_terms import check_feature
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import RobotModel, effect_from_json
 
 FORMAT = "vision-cal/calibration/1"
-ROBOT_EFFECTS = ("joint_backlash", "joint_scale", "joint_cyclic", "sheet_affine")
+ROBOT_EFFECTS = ("joint_backlash", "joint_scale", "joint_cyclic", "sheet_affine", "joint_terms")
 #: effects of the contract that do not act on the robot (the camera's, the paper's height,
 #: what nothing explains): read, never planned with
-OTHER_EFFECTS = ("lens_distortion", "sheet_height", "unexplained")
+OTHER_EFFECTS = ("lens_distortion", "sheet_height", "unexplained", "drift")
 #: the largest effects a calibration can plausibly report (a joint error of 90 degrees, a
 #: gear ratio off by half, a sheet scaled by half, is a broken file, not a robot)
 MAX_EFFECT_DEG = 90.0
@@ -55,6 +56,18 @@ def _read_effect(r: FieldReader, e, where: str):
     elif name == "joint_scale":
         r.number(r.get(e, "scale", where), f"{where}.scale", lo=-MAX_SCALE, hi=MAX_SCALE,
                  what="scale")
+    elif name == "joint_terms":
+        terms = r.list_(r.get(e, "terms", where), f"{where}.terms", nonempty=True)
+        for i, t in enumerate(terms):
+            w = f"{where}.terms[{i}]"
+            if not isinstance(t, dict):
+                r.fail(w, f"expected {{feature, coef}}, got {t!r}")
+            try:
+                check_feature(r.get(t, "feature", w), f"{w}.feature")
+            except VisionCalError as err:
+                r.fail(err.field, err.reason)
+            r.number(r.get(t, "coef", w), f"{w}.coef", lo=-MAX_EFFECT_DEG, hi=MAX_EFFECT_DEG,
+                     what="coefficient (deg per feature unit)")
     elif name == "joint_cyclic":
         h = r.get(e, "harmonic", where)
         if h not in (1, 2) or isinstance(h, bool):

@@ -15,6 +15,8 @@ The session's ``robot`` block (``L1_mm``, ``L2_mm``, ``joint_zero_deg``, ``base_
     pen_up_mm: -10.0                 # joint 3 (mm) with the pen clear of the paper
     pen_down_mm: -25.0               # joint 3 (mm) with the pen touching it
     j4_deg: 0.0                      # joint 4, held still
+    repeatability_mm: 0.01           # positioning repeatability, one std per axis (the
+                                     # noise-floor gate's robot part; default 0.01)
     mark_diameter_mm: 1.2            # the pen's mark (session.json pen block)
     overshoot_deg: 3.0               # the via point's distance before each mark
     program:                         # controller-native settings of the robot program
@@ -47,7 +49,7 @@ from vision_cal.motion import ACCEL_DEG_S2, JOINT_LIMITS_DEG, SPEED_DEG_S
 
 log = logging.getLogger(__name__)
 
-ROBOT_BLOCK = ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "home_deg")
+ROBOT_BLOCK = ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "home_deg", "repeatability_mm")
 DEFAULT_LIMITS_DEG = JOINT_LIMITS_DEG  # the defaults live in vision_cal.motion
 
 

@@ -138,6 +138,9 @@ class NominalRobot:
     home_deg: tuple[float, float] = (0.0, 0.0)
     #: added: the commanded joint limits [[lo, hi], [lo, hi]] (deg), when the block has them
     joint_limits_deg: tuple | None = None
+    #: the robot's positioning repeatability (mm, per axis, one std; docs/format.md), None:
+    #: not declared (the noise-floor gate then takes DEFAULT_REPEATABILITY_MM)
+    repeatability_mm: float | None = None
 
     @property
     def params(self) -> ScaraParams:
@@ -151,6 +154,8 @@ class NominalRobot:
              "home_deg": list(self.home_deg)}
         if self.joint_limits_deg is not None:
             d["joint_limits_deg"] = [list(p) for p in self.joint_limits_deg]
+        if self.repeatability_mm is not None:
+            d["repeatability_mm"] = self.repeatability_mm
         return d
 
 
@@ -376,7 +381,13 @@ def read_robot_block(r: _Reader, rob, where: str = "robot") -> NominalRobot:
                 r.fail(w(f"joint_limits_deg[{j}]"), f"expected lo < hi, got {row!r}")
             pairs.append((float(lo), float(hi)))
         limits = tuple(pairs)
-    return NominalRobot(L1, L2, jz, base, home, limits)
+    rep_raw = r.get(rob, "repeatability_mm", where, required=False)
+    rep = None
+    if rep_raw is not None:
+        rep = r.length(rep_raw, w("repeatability_mm"))
+        if not 0 <= rep <= 10:
+            r.fail(w("repeatability_mm"), f"expected 0..10 mm (one std per axis), got {rep:g}")
+    return NominalRobot(L1, L2, jz, base, home, limits, rep)
 
 
 def read_sheet_block(r: _Reader, sheet_raw, where: str = "sheet", *,

@@ -498,7 +498,7 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
         if cam.declared:
             session["camera"] = {"size_px": list(cam.size_px), "K": K.tolist(),
                                  "dist": dist.tolist()}
-        effects = [e.to_json() for e in rob.effects]
+        effects = [e.to_json() for e in rob.effects] + list(rob.drift)
         lens = lens_effect(scene)
         if lens is not None:
             effects.append(lens)

@@ -23,7 +23,12 @@ Sections and fields::
         joint_zero_deg: [-2.57, -8.13]
         base_mm: [-420.0, -230.0]
       effects: []                 # format effect dicts: joint_backlash, joint_scale,
-                                  # joint_cyclic, sheet_affine (see dataset-format.md)
+                                  # joint_cyclic, sheet_affine, joint_terms (coupling,
+                                  # polynomial: {name: joint_terms, joint: 2, terms:
+                                  # [{feature: q1, coef: 0.001}]}), drift ({name: drift,
+                                  # param: z1_deg | z2_deg | L1_mm | L2_mm | base_x_mm |
+                                  # base_y_mm, change: 0.02, shape: linear | warmup,
+                                  # tau: 0.2}; see render/truth_model.py)
       repeatability_mm: 0.01      # sigma of the isotropic noise of each mark, per axis
       pen_diameter_mm: 1.2        # nominal diameter of a pen mark (session.json pen)
       controller: smc             # smc (default) | pd: vision_cal.simulate runs the plan
@@ -92,6 +97,7 @@ from vision_cal.dataset.session import FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import Effect, RobotModel, effect_from_json
+from vision_cal.render.truth_model import DRIFT_PARAMS
 
 PLAN_KINDS = ("informative", "paper")
 PHOTO_MODES = ("series", "single")
@@ -127,6 +133,7 @@ class RobotScene:
     repeatability_mm: float = 0.01
     pen_diameter_mm: float = 1.2
     controller: str = "smc"
+    drift: tuple[dict, ...] = ()   # the world's drift effects (truth.json dicts)
 
     @property
     def truth_model(self) -> RobotModel:
@@ -139,7 +146,8 @@ class RobotScene:
         truth's JSON blocks only."""
         from vision_cal.render.truth_model import TrueRobot
 
-        return TrueRobot.from_json(self.truth.to_json(), [e.to_json() for e in self.effects])
+        return TrueRobot.from_json(self.truth.to_json(),
+                                   [e.to_json() for e in self.effects] + list(self.drift))
 
 
 @dataclass(frozen=True)
@@ -262,12 +270,15 @@ def _robot(r: _R, d) -> RobotScene:
     nominal = NominalScene(p.L1_mm, p.L2_mm, p.joint_zero_deg, p.base_mm, home)
     truth = _params(r, d.get("truth"), "robot.truth", dflt.truth)
     effects_raw = r.list_(d.get("effects") or [], "robot.effects")
-    effects = []
+    effects, drift = [], []
     for i, e in enumerate(effects_raw):
         where = f"robot.effects[{i}]"
         if not isinstance(e, dict):
             r.fail(where, f"expected an effect mapping like {{name: joint_backlash, ...}}, "
                           f"got {e!r}")
+        if e.get("name") == "drift":
+            drift.append(_drift(r, e, where))
+            continue
         try:
             effects.append(effect_from_json(e, where=where))
         except VisionCalError as err:
@@ -277,7 +288,17 @@ def _robot(r: _R, d) -> RobotScene:
     pen = r.number(d.get("pen_diameter_mm", dflt.pen_diameter_mm), "robot.pen_diameter_mm",
                    lo=0, lo_open=True)
     ctrl = r.choice(d.get("controller", dflt.controller), "robot.controller", CONTROLLERS)
-    return RobotScene(nominal, truth, tuple(effects), rep, pen, ctrl)
+    return RobotScene(nominal, truth, tuple(effects), rep, pen, ctrl, tuple(drift))
+
+
+def _drift(r: _R, e: dict, where: str) -> dict:
+    """A world drift effect (render/truth_model.py): one parameter changing with time."""
+    e = r.section(e, where, ("name", "param", "change", "shape", "tau"))
+    param = r.choice(e.get("param"), f"{where}.param", DRIFT_PARAMS)
+    change = r.number(e.get("change"), f"{where}.change", lo=-10, hi=10)
+    shape = r.choice(e.get("shape", "linear"), f"{where}.shape", ("linear", "warmup"))
+    tau = r.number(e.get("tau", 0.2), f"{where}.tau", lo=0, lo_open=True, hi=10)
+    return {"name": "drift", "param": param, "change": change, "shape": shape, "tau": tau}
 
 
 def _sheet(r: _R, d) -> SheetScene:

@@ -13,7 +13,20 @@ last turned counter-clockwise), the angle a joint really turns to is::
                 + scale * q                          joint_scale    (turns (1+scale) q)
                 + A * sin(h * q + phase)             joint_cyclic
 
+                + sum_k coef_k * f_k(q1, q2, s1, s2)  joint_terms (coupling, polynomial)
+
 every term evaluated at the commanded ``q`` (degrees here; the cyclic argument in radians).
+A ``joint_terms`` feature is a product of factors ``q1``, ``q2``, ``q1^p``, ``sin(h*q1)``,
+``cos(h*q2)`` (argument in degrees), ``approach1``, ``approach2`` (docs/format.md).
+
+Drift (``drift``, world fields ``param``, ``change``, ``shape``, ``tau``): one base
+parameter (``L1_mm``, ``L2_mm``, ``z1_deg``, ``z2_deg``, ``base_x_mm``, ``base_y_mm``)
+changes while the marks are drawn; with ``t`` = 0 at the first mark and 1 at the last::
+
+    linear:  p(t) = p + change * t
+    warmup:  p(t) = p + change * (1 - exp(-t / tau)) / (1 - exp(-1 / tau))
+
+so ``change`` is the change from the first to the last mark in both shapes.
 
 Arm plane. The arm moves in a physical plane (the *arm frame*, mm): the link angles are
 measured from its x axis, ``phi1 = q_link1 + z1``, ``phi2 = q_link2 + z2``, and::
@@ -48,6 +61,57 @@ class Cyclic:
 
 
 @dataclass(frozen=True)
+class Term:
+    joint: int          # 1 or 2: the joint that turns coef * feature degrees more
+    feature: str
+    coef: float
+
+
+DRIFT_PARAMS = ("L1_mm", "L2_mm", "z1_deg", "z2_deg", "base_x_mm", "base_y_mm")
+
+
+@dataclass(frozen=True)
+class Drift:
+    param: str          # one of DRIFT_PARAMS
+    change: float       # mm or deg, first to last mark
+    shape: str = "linear"   # linear | warmup
+    tau: float = 0.2    # warmup: time constant as a fraction of the session
+
+    def at(self, t) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        if self.shape == "linear":
+            return self.change * t
+        return self.change * (1.0 - np.exp(-t / self.tau)) / (1.0 - math.exp(-1.0 / self.tau))
+
+
+def _feature(feature: str, q: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """The world's own reading of a joint_terms feature (q in degrees, s signs)."""
+    val = np.ones(len(q))
+    parts, depth, cur = [], 0, ""
+    for ch in feature.replace(" ", ""):
+        depth += (ch == "(") - (ch == ")")
+        if ch == "*" and depth == 0:
+            parts.append(cur)
+            cur = ""
+        else:
+            cur += ch
+    parts.append(cur)
+    for f in parts:
+        if f[:4] in ("sin(", "cos(") and f.endswith(")"):
+            inner = f[4:-1]
+            h, _, qj = inner.rpartition("*")
+            j = {"q1": 0, "q2": 1}[qj]
+            arg = (float(h) if h else 1.0) * np.radians(q[:, j])
+            val = val * (np.sin(arg) if f[:3] == "sin" else np.cos(arg))
+        elif f.startswith("approach"):
+            val = val * s[:, {"approach1": 0, "approach2": 1}[f]]
+        else:
+            base, _, power = f.partition("^")
+            val = val * q[:, {"q1": 0, "q2": 1}[base]] ** (int(power) if power else 1)
+    return val
+
+
+@dataclass(frozen=True)
 class TrueRobot:
     """The true robot of a synthetic world (mm, degrees)."""
 
@@ -59,6 +123,8 @@ class TrueRobot:
     scale: tuple[float, float] = (0.0, 0.0)          # gear-ratio error per joint
     cyclic: tuple[Cyclic, ...] = ()
     sheet_matrix: tuple[tuple[float, float], tuple[float, float]] = ((1.0, 0.0), (0.0, 1.0))
+    terms: tuple[Term, ...] = ()
+    drift: tuple[Drift, ...] = ()
 
     # ------------------------------------------------------------------ JSON reading
 
@@ -71,12 +137,12 @@ class TrueRobot:
             b = (float(params["base_mm"][0]), float(params["base_mm"][1]))
         except (KeyError, TypeError, ValueError, IndexError) as e:
             raise VisionCalError(f"malformed params {params!r}: {e}", field="params") from e
-        band, scale, cyc = [0.0, 0.0], [0.0, 0.0], []
+        band, scale, cyc, terms, drift = [0.0, 0.0], [0.0, 0.0], [], [], []
         matrix = ((1.0, 0.0), (0.0, 1.0))
         for d in effects:
             try:
                 name = d["name"]
-                if name in ("joint_backlash", "joint_scale", "joint_cyclic"):
+                if name in ("joint_backlash", "joint_scale", "joint_cyclic", "joint_terms"):
                     j = int(d["joint"])
                     if j not in (1, 2):
                         raise ValueError(f"joint must be 1 or 2, got {j}")
@@ -87,6 +153,21 @@ class TrueRobot:
                 elif name == "joint_cyclic":
                     cyc.append(Cyclic(j, int(d["harmonic"]), float(d["deg"]),
                                       float(d.get("phase_deg", 0.0))))
+                elif name == "joint_terms":
+                    for t in d["terms"]:
+                        f = str(t["feature"])
+                        _feature(f, np.zeros((1, 2)), np.ones((1, 2)))   # readable?
+                        terms.append(Term(j, f, float(t["coef"])))
+                elif name == "drift":
+                    if d["param"] not in DRIFT_PARAMS:
+                        raise ValueError(f"drift param must be one of {DRIFT_PARAMS}")
+                    shape = d.get("shape", "linear")
+                    if shape not in ("linear", "warmup"):
+                        raise ValueError("drift shape must be linear or warmup")
+                    tau = float(d.get("tau", 0.2))
+                    if not tau > 0:
+                        raise ValueError("drift tau must be > 0")
+                    drift.append(Drift(d["param"], float(d["change"]), shape, tau))
                 elif name == "sheet_affine":
                     m = [[float(v) for v in row] for row in d["matrix"]]
                     if len(m) != 2 or any(len(r) != 2 for r in m):
@@ -99,14 +180,15 @@ class TrueRobot:
                     continue   # the camera's / the paper's, not the robot's
                 else:
                     raise ValueError(f"unknown effect {name!r}")
-            except (KeyError, TypeError, ValueError) as e:
+            except (KeyError, TypeError, ValueError, IndexError) as e:
                 raise VisionCalError(f"malformed effect {d!r}: {e}", field="effects") from e
-        return cls(L1, L2, z, b, tuple(band), tuple(scale), tuple(cyc), matrix)
+        return cls(L1, L2, z, b, tuple(band), tuple(scale), tuple(cyc), matrix, tuple(terms),
+                   tuple(drift))
 
     def without_backlash(self) -> "TrueRobot":
         """The same robot with the dead band taken out (a simulated gear play owns it)."""
         return TrueRobot(self.L1_mm, self.L2_mm, self.zero_deg, self.base_mm, (0.0, 0.0),
-                         self.scale, self.cyclic, self.sheet_matrix)
+                         self.scale, self.cyclic, self.sheet_matrix, self.terms, self.drift)
 
     # ------------------------------------------------------------------ joints
 
@@ -123,21 +205,31 @@ class TrueRobot:
             qj = q[:, c.joint - 1]
             out[:, c.joint - 1] += c.deg * np.sin(c.harmonic * np.radians(qj)
                                                   + math.radians(c.phase_deg))
+        for t in self.terms:
+            out[:, t.joint - 1] += t.coef * _feature(t.feature, q, s)
         return out
 
     # ------------------------------------------------------------------ arm frame
 
-    def arm_points(self, link_deg) -> np.ndarray:
-        """(N, 3, 2) base, elbow, pen in the arm frame (mm) for link angles (N, 2) deg."""
+    def arm_points(self, link_deg, t=None) -> np.ndarray:
+        """(N, 3, 2) base, elbow, pen in the arm frame (mm) for link angles (N, 2) deg,
+        drawn at times ``t`` (N,) (0: first mark, 1: last; None: 0, no drift)."""
         a = np.array(link_deg, dtype=float, ndmin=2)
-        phi1 = np.radians(a[:, 0] + self.zero_deg[0])
-        phi12 = phi1 + np.radians(a[:, 1] + self.zero_deg[1])
-        bx, by = self.base_mm
-        ex = bx + self.L1_mm * np.cos(phi1)
-        ey = by + self.L1_mm * np.sin(phi1)
-        px = ex + self.L2_mm * np.cos(phi12)
-        py = ey + self.L2_mm * np.sin(phi12)
-        base = np.broadcast_to([bx, by], (len(a), 2))
+        p = {"L1_mm": self.L1_mm, "L2_mm": self.L2_mm, "z1_deg": self.zero_deg[0],
+             "z2_deg": self.zero_deg[1], "base_x_mm": self.base_mm[0],
+             "base_y_mm": self.base_mm[1]}
+        p = {k: np.full(len(a), float(v)) for k, v in p.items()}
+        tt = np.zeros(len(a)) if t is None else np.broadcast_to(np.asarray(t, float), (len(a),))
+        for d in self.drift:
+            p[d.param] = p[d.param] + d.at(tt)
+        phi1 = np.radians(a[:, 0] + p["z1_deg"])
+        phi12 = phi1 + np.radians(a[:, 1] + p["z2_deg"])
+        bx, by = p["base_x_mm"], p["base_y_mm"]
+        ex = bx + p["L1_mm"] * np.cos(phi1)
+        ey = by + p["L1_mm"] * np.sin(phi1)
+        px = ex + p["L2_mm"] * np.cos(phi12)
+        py = ey + p["L2_mm"] * np.sin(phi12)
+        base = np.column_stack([bx, by])
         return np.stack([base, np.column_stack([ex, ey]), np.column_stack([px, py])], axis=1)
 
     # ------------------------------------------------------------------ sheet
@@ -162,8 +254,9 @@ class TrueRobot:
 
     # ------------------------------------------------------------------ the pen
 
-    def pen_mm(self, q_deg, approach=None, *, link=False) -> np.ndarray:
+    def pen_mm(self, q_deg, approach=None, *, link=False, t=None) -> np.ndarray:
         """Pen positions (N, 2) on the printed sheet: commands ``q_deg`` reached from
-        ``approach`` (or, with ``link=True``, links already at ``q_deg``: no joint effects)."""
+        ``approach`` (or, with ``link=True``, links already at ``q_deg``: no joint effects),
+        drawn at times ``t`` (N,) in [0, 1] (None: no drift)."""
         a = np.array(q_deg, dtype=float, ndmin=2) if link else self.link_deg(q_deg, approach)
-        return self.to_sheet(self.arm_points(a)[:, 2])
+        return self.to_sheet(self.arm_points(a, t)[:, 2])

@@ -108,7 +108,8 @@ def draw_marks(truth: TrueRobot, plan, *, home_deg=(0.0, 0.0), repeatability_mm:
         raise VisionCalError(f"joint source returned shapes {q.shape}, {s.shape}; "
                              f"expected ({n}, 2) each", field="joint_source")
     s = np.where(s < 0, -1.0, 1.0)
-    xy = truth.pen_mm(q, s)
+    # drawing time: 0 at the first mark, 1 at the last (what a drift follows)
+    xy = truth.pen_mm(q, s, t=np.linspace(0.0, 1.0, n) if n > 1 else np.zeros(n))
     if repeatability_mm > 0:
         xy = xy + rng.normal(0.0, repeatability_mm, size=xy.shape)
     return WorldMarks(tuple(m.id for m in plan), xy, s.astype(int), q)

@@ -15,11 +15,8 @@ from __future__ import annotations
 
 import math
 
+from vision_cal.diagnose.verdict import R95_PER_RMS, verdict_of
 from vision_cal.report.summary import describe_effect
-
-R95_PER_RMS = math.sqrt(-2.0 * math.log(0.05)) / math.sqrt(2.0)
-HELDOUT_WARN_RATIO = 3.0  # held-out RMS above this many times the fitted RMS: use with care
-MIN_SPARE_DOF = 8         # 2 N - P below this: too few marks to test any effect
 
 # the effects a controller takes as parameters, and how (the rest need the planner)
 CONTROLLER_SIGN_CONVENTION = (
@@ -28,10 +25,6 @@ CONTROLLER_SIGN_CONVENTION = (
     "joint: the joint turns to q + c. The calibrated zero z is the angle of the link at "
     "commanded zero (joint 1: from the sheet x axis, so z1 also holds the rotation "
     "between robot and sheet; joint 2: from link 1).")
-
-
-def _finite(x) -> bool:
-    return isinstance(x, (int, float)) and math.isfinite(x)
 
 
 def headline(doc: dict, loop: dict | None = None) -> dict:
@@ -81,57 +74,20 @@ def _size(e: dict) -> dict:
 
 
 def verdict(doc: dict, loop: dict | None = None) -> dict:
-    """``{"status": ready | use with care | not reliable, "text": ...}``."""
-    ident = doc.get("identifiability") or {}
-    ni = ident.get("not_identifiable") or []
-    if ident and ident.get("rank") is not None and ident["rank"] < ident.get("n_params", 0):
-        return {"status": "not reliable",
-                "text": f"not reliable: the plan identifies only {ident['rank']} of "
-                        f"{ident['n_params']} parameters; add marks that spread both joints "
-                        "and both approach directions"}
-    if ni:
-        d = ni[0]
-        more = f" (and {len(ni) - 1} more, listed below)" if len(ni) > 1 else ""
-        return {"status": "not reliable",
-                "text": f"not reliable: the plan cannot separate {d['label']} from the base "
-                        f"model{more}; {d['fix']}"}
-    v = doc.get("validation_rms_mm", {})
-    held, fit = v.get("final_model"), doc.get("residual_rms_mm", {}).get("final_model")
-    if not _finite(held):
-        return {"status": "use with care",
-                "text": "use with care: no held-out marks and no cross-validation figure, so "
-                        f"the fitted RMS {fit:.4f} mm is the only accuracy figure (it "
-                        "understates the error on new targets)" if _finite(fit) else
-                        "use with care: no accuracy figure"}
-    r95 = R95_PER_RMS * held
+    """``{"status": ready | check | not reliable, "text": ..., "expected_r95_mm"}``: the
+    document's own ``verdict`` block (:mod:`vision_cal.diagnose.verdict`), never judged
+    here; the loop's measured figures appended."""
+    v = verdict_of(doc)
     tail = ""
     if loop and loop.get("summary", {}).get("after", {}).get("rms_mm") is not None:
         a = loop["summary"]["after"]
         tail = (f"; measured on {a['n_measured']} targets: RMS {a['rms_mm']:.4f} mm, "
                 f"max {a['max_mm']:.4f} mm")
-    unexplained = [e for e in doc.get("effects", []) if e["name"] == "unexplained"]
-    if unexplained:
-        return {"status": "use with care", "expected_r95_mm": r95,
-                "text": f"use with care: structure no candidate explains is left in the "
-                        f"residual ({'; '.join(unexplained[0].get('seen', []))}); expected "
-                        f"target error {r95:.3f} mm (95 %){tail}"}
-    n_fit = sum(m.get("role", "calibration") == "calibration" and m.get("status", "ok") == "ok"
-                for m in doc.get("marks", {}).values())
-    n_par = ident.get("n_params") or 6
-    if 2 * n_fit - n_par < MIN_SPARE_DOF:
-        return {"status": "use with care", "expected_r95_mm": r95,
-                "text": f"use with care: {n_fit} fitted marks leave {2 * n_fit - n_par} "
-                        f"degrees of freedom, too few to test for backlash, gear-ratio or "
-                        f"sheet effects; expected target error {r95:.3f} mm (95 %) from the "
-                        f"held-out RMS {held:.4f} mm{tail}"}
-    if _finite(fit) and fit > 0 and held > HELDOUT_WARN_RATIO * fit:
-        return {"status": "use with care", "expected_r95_mm": r95,
-                "text": f"use with care: the held-out RMS ({held:.4f} mm) is "
-                        f"{held / fit:.1f} times the fitted RMS: the model misses something "
-                        f"on new poses; expected target error {r95:.3f} mm (95 %){tail}"}
-    return {"status": "ready", "expected_r95_mm": r95,
-            "text": f"ready to use: expected target error {r95:.3f} mm (95 %), from the "
-                    f"held-out RMS {held:.4f} mm{tail}"}
+    out = {"status": v.status, "text": v.text + tail, "reasons": list(v.reasons),
+           "residual_over_floor": v.residual_over_floor}
+    if v.expected_target_error_mm is not None:
+        out["expected_r95_mm"] = v.expected_target_error_mm
+    return out
 
 
 def actions(doc: dict, *, calibration_path: str = "OUT/calibration.json") -> dict:

@@ -211,7 +211,8 @@ document.querySelectorAll('table.sortable th').forEach(function(th){
 th.addEventListener('click',function(){sortBy(th);});});});
 """
 
-_VERDICT_CLASS = {"ready": "ready", "use with care": "care", "not reliable": "unreliable"}
+_VERDICT_CLASS = {"ready": "ready", "check": "care", "use with care": "care",
+                  "not reliable": "unreliable"}
 
 
 def _headline_html(rep: dict) -> str:

@@ -91,9 +91,12 @@ def format_summary(doc: dict, *, reference: dict | None = None) -> str:
         for im in skipped:
             lines.append(f"  {im['file']}: {im.get('reason', '')}")
     if doc.get("residual_rms_mm"):
-        from vision_cal.report.headline import verdict
+        from vision_cal.diagnose.verdict import verdict_of
 
-        lines.append(verdict(doc)["text"])
+        v = verdict_of(doc)
+        if v.floor_line:
+            lines.append(v.floor_line)
+        lines.append(v.text)
     tc = doc.get("truth_comparison")
     if tc:
         lines.append("against truth.json: dL1 {} dL2 {} mm, dz1 {} dz2 {} deg, dbase {} {} mm".format(

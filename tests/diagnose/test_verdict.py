@@ -1,0 +1,76 @@
+"""The noise-floor gate and the verdict block (kinematic data: the gate reads only the
+residuals and the per-mark noise, so no photograph is needed)."""
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from tests.conftest import SM5, random_plan
+from vision_cal.calibrate.lsq import Fit
+from vision_cal.diagnose.verdict import Verdict, floor_test, judge
+from vision_cal.render.truth_model import TrueRobot
+
+SIGMA = 0.006   # measurer's per-axis std
+REP = 0.01      # robot repeatability, per axis
+
+
+def _fit_doc(effects=(), seed=0, n=40):
+    """A calibration document of the base model fitted to a world with ``effects``."""
+    rng = np.random.default_rng(seed)
+    q, s = random_plan(n, rng)
+    truth = TrueRobot.from_json(SM5.to_json(), effects)
+    xy = truth.pen_mm(q, s) + rng.normal(0, np.hypot(SIGMA, REP), (n, 2))
+    fit = Fit.from_estimate(q, xy, approach=s, sigma_mm=np.full(n, SIGMA), robust=False)
+    marks = {f"c{i:02d}": {"residual_mm": fit.residuals_mm[i].tolist(), "sigma_mm": SIGMA,
+                           "role": "calibration"} for i in range(n)}
+    return {"marks": marks, "identifiability": {"rank": 6, "n_params": 6,
+                                                "not_identifiable": []},
+            "effects": [], "residual_rms_mm": {"final_model": fit.rms_mm},
+            "validation_rms_mm": {"final_model": 1.1 * fit.rms_mm}}
+
+
+def test_floor_is_a_chi_square_of_the_declared_noise():
+    # hand-computed: two marks, residuals (0.03, 0.04) and (0, 0), noise 0.03 + 0.04 -> var
+    # 0.0025 per axis: chi2 = 0.0025 / 0.0025 = 1 on 4 - 1 dof
+    f = floor_test([[0.03, 0.04], [0.0, 0.0]], [0.03, 0.03], 0.04, n_params=1)
+    assert f.chi2 == pytest.approx(1.0) and f.dof == 3
+    assert f.p_value == pytest.approx(stats.chi2.sf(1.0, 3))
+    assert f.ratio == pytest.approx(np.sqrt(1 / 3))
+
+
+def test_clean_fit_is_within_the_floor_and_ready():
+    for seed in range(5):
+        v = judge(_fit_doc(seed=seed), repeatability_mm=REP)
+        # ratio of an honest fit: sqrt(chi2_dof / dof), 74 dof -> within 1 +- 0.4 at 1e-4
+        assert abs(v.residual_over_floor - 1) < 0.4, v
+        assert v.status == "ready", v.reasons
+
+
+def test_missing_effect_is_beyond_the_floor_and_never_ready():
+    # a coupling the base model cannot absorb: joint 2 turns 0.001 deg per degree of q1
+    # (not a library effect): residuals of ~0.1 mm against a 0.016 mm floor
+    eff = [{"name": "joint_terms", "joint": 2, "terms": [{"feature": "q1*q2", "coef": 2e-5}]}]
+    v = judge(_fit_doc(eff, seed=11), repeatability_mm=REP)
+    assert v.floor["beyond"] and v.residual_over_floor > 2
+    assert v.status == "not reliable"
+    assert "times the noise floor" in v.text and "chi2" in v.floor_line
+    # the same residual with a floor declared 10x larger is within it
+    v = judge(_fit_doc(eff, seed=11), repeatability_mm=0.2)
+    assert not v.floor["beyond"]
+
+
+def test_drift_and_structure_downgrade_and_the_block_round_trips():
+    d = _fit_doc(seed=3)
+    d["effects"] = [{"name": "drift", "size_mm": 0.05, "along": "joint 1 zero"}]
+    v = judge(d, repeatability_mm=REP)
+    assert v.status == "not reliable" and "warm it up" in v.text
+    d["effects"] = [{"name": "unexplained", "seen": ["joint2 residual has a harmonic 3"]}]
+    v = judge(d, repeatability_mm=REP)
+    assert v.status == "check" and "harmonic 3" in v.text
+    d["effects"] = []
+    d["outliers"] = ["c03"]
+    assert judge(d, repeatability_mm=REP).status == "check"
+    back = Verdict.from_json(v.to_json())
+    assert back.to_json() == v.to_json() and back.text == v.text
+    assert set(v.to_json()) >= {"status", "expected_target_error_mm", "residual_over_floor",
+                                "reasons"}

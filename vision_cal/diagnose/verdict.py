@@ -1,0 +1,235 @@
+"""The run's judgement of itself: the noise-floor gate and the contract's ``verdict`` block.
+
+One owner. :func:`judge` reads a calibration document (calibration.json as a dict) and
+returns the :class:`Verdict` that calibration.json carries as ``verdict`` (status,
+``expected_target_error_mm``, ``residual_over_floor``, ``reasons``; docs/format.md); the
+console, the report and other programs read that block and decide nothing themselves.
+
+The noise floor. Each mark's position carries the measurer's per-axis standard deviation
+``sigma_mm`` (calibration.json ``marks[].sigma_mm``); the robot adds its repeatability
+``r`` (the robot block's ``repeatability_mm``, one standard deviation per axis, default
+:data:`DEFAULT_REPEATABILITY_MM`; the synthetic world uses the same meaning). If the model
+is right, the fitted residuals are that noise alone::
+
+    chi2 = sum_i |res_i|^2 / (sigma_i^2 + r^2)     over the fitted marks (outliers out)
+    dof  = 2 N - P                                  (P fitted parameters)
+
+is chi-square with ``dof`` degrees of freedom; ``residual_over_floor = sqrt(chi2 / dof)``
+(1 where noise explains it all) and its p-value is ``chi2.sf(chi2, dof)``. The gate is
+passed unless the p-value is below :data:`FLOOR_ALPHA` *and* the ratio above
+:data:`FLOOR_RATIO_TOL` (a ratio that small is within how well a measurer knows its own
+noise). Held-out marks are judged against the same floor, their variance raised by the
+model's own prediction error, on average ``P / (2 N)`` of the noise (the mean leverage).
+
+Status: ``not reliable`` when the plan cannot identify the model, the robot drifted, or the
+residual is beyond the floor by :data:`NOT_RELIABLE_RATIO` or more; ``check`` for every
+other reason listed (beyond the floor by less, structure left, outliers or unreliable
+marks, too few marks, no noise known); ``ready`` only with no reason at all.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+#: the robot's repeatability when the robot block does not give it (mm, per axis, one std):
+#: a SCARA catalogue's +-0.01 mm read as one std (conservative: catalogues quote more)
+DEFAULT_REPEATABILITY_MM = 0.01
+FLOOR_ALPHA = 1e-3          # chi-square level of the gate
+FLOOR_RATIO_TOL = 1.25      # residual / floor below this: within how well the noise is known
+NOT_RELIABLE_RATIO = 2.0    # beyond the gate by this much: do not plan with the model
+HELDOUT_WARN_RATIO = 3.0    # held-out RMS above this many times the fitted RMS: check
+MIN_SPARE_DOF = 8           # 2 N - P below this: too few marks to test any effect
+#: radius holding 95 % of a circular normal 2-D error per unit of its RMS
+R95_PER_RMS = math.sqrt(-2.0 * math.log(0.05)) / math.sqrt(2.0)
+
+_RANK = {"ready": 0, "check": 1, "not reliable": 2}
+
+
+@dataclass(frozen=True)
+class FloorTest:
+    """The residual of some marks against the noise floor."""
+
+    n_marks: int
+    dof: int
+    chi2: float
+    p_value: float
+    ratio: float            # sqrt(chi2 / dof): residual over floor
+    rms_mm: float           # 2-D RMS of the residuals
+    floor_rms_mm: float     # 2-D RMS the noise alone gives
+
+    @property
+    def beyond(self) -> bool:
+        return self.p_value < FLOOR_ALPHA and self.ratio > FLOOR_RATIO_TOL
+
+    def to_json(self) -> dict:
+        return {"n_marks": self.n_marks, "dof": self.dof, "chi2": self.chi2,
+                "p_value": self.p_value, "residual_over_floor": self.ratio,
+                "rms_mm": self.rms_mm, "floor_rms_mm": self.floor_rms_mm,
+                "beyond": self.beyond}
+
+
+def floor_test(residual_mm, sigma_mm, repeatability_mm: float = DEFAULT_REPEATABILITY_MM, *,
+               n_params: int = 0, inflate: float = 1.0) -> FloorTest | None:
+    """Chi-square of residuals (N, 2) against per-mark per-axis noise ``sigma_mm`` (N,)
+    plus ``repeatability_mm``; ``n_params`` fitted parameters (0 for held-out marks);
+    ``inflate`` multiplies the variance (held-out marks: 1 + P / 2N). None if no dof."""
+    r = np.asarray(residual_mm, dtype=float).reshape(-1, 2)
+    s = np.asarray(sigma_mm, dtype=float).reshape(-1)
+    var = (s**2 + float(repeatability_mm) ** 2) * inflate
+    ok = np.all(np.isfinite(r), axis=1) & np.isfinite(var) & (var > 0)
+    n = int(ok.sum())
+    dof = 2 * n - int(n_params)
+    if dof <= 0:
+        return None
+    chi2 = float(np.sum(r[ok] ** 2 / var[ok, None]))
+    return FloorTest(n, dof, chi2, float(stats.chi2.sf(chi2, dof)), math.sqrt(chi2 / dof),
+                     float(np.sqrt(np.mean(np.sum(r[ok] ** 2, axis=1)))),
+                     float(np.sqrt(2 * np.mean(var[ok]) * dof / (2 * n))))
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The contract's ``verdict`` block plus the gate's figures (added fields)."""
+
+    status: str                          # ready | check | not reliable
+    expected_target_error_mm: float | None
+    residual_over_floor: float | None
+    reasons: tuple[str, ...]
+    floor: dict | None = None            # FloorTest.to_json of the fitted marks
+    heldout_floor: dict | None = None    # FloorTest.to_json of the validation marks
+    repeatability_mm: float = DEFAULT_REPEATABILITY_MM
+
+    @property
+    def text(self) -> str:
+        """The one-line judgement the console and the report print."""
+        head = {"ready": "ready to use", "check": "check before use",
+                "not reliable": "not reliable"}[self.status]
+        e = self.expected_target_error_mm
+        fig = f"expected target error {e:.3f} mm (95 %)" if e is not None else ""
+        parts = [p for p in ([fig] if self.status == "ready" else
+                             list(self.reasons) + ([fig] if fig else [])) if p]
+        return head + (": " + "; ".join(parts) if parts else "")
+
+    @property
+    def floor_line(self) -> str | None:
+        """One console line: the final residual against the noise floor."""
+        f = self.floor
+        if not f:
+            return None
+        tail = ("beyond the noise floor: the model misses something" if f["beyond"] else
+                "within the noise floor")
+        return (f"residual vs noise floor: {f['rms_mm']:.4f} mm vs {f['floor_rms_mm']:.4f} mm "
+                f"({f['residual_over_floor']:.2f}x, chi2 = {f['chi2']:.1f} on {f['dof']} dof, "
+                f"p = {f['p_value']:.2g}): {tail}")
+
+    @classmethod
+    def from_json(cls, d: dict) -> "Verdict":
+        """Back from calibration.json's ``verdict`` block (what readers print)."""
+        return cls(d["status"], d.get("expected_target_error_mm"), d.get("residual_over_floor"),
+                   tuple(d.get("reasons") or ()), d.get("floor"), d.get("heldout_floor"),
+                   d.get("repeatability_mm", DEFAULT_REPEATABILITY_MM))
+
+    def to_json(self) -> dict:
+        d = {"status": self.status, "expected_target_error_mm": self.expected_target_error_mm,
+             "residual_over_floor": self.residual_over_floor, "reasons": list(self.reasons),
+             "repeatability_mm": self.repeatability_mm}
+        if self.floor is not None:
+            d["floor"] = self.floor
+        if self.heldout_floor is not None:
+            d["heldout_floor"] = self.heldout_floor
+        return d
+
+
+def _finite(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def verdict_of(doc: dict) -> Verdict:
+    """The document's own ``verdict`` block (judged now for a document without one)."""
+    v = doc.get("verdict")
+    return Verdict.from_json(v) if isinstance(v, dict) and "status" in v else judge(doc)
+
+
+def judge(doc: dict, *, repeatability_mm: float | None = None) -> Verdict:
+    """The verdict of a calibration document (see the module docstring)."""
+    rep = DEFAULT_REPEATABILITY_MM if repeatability_mm is None else float(repeatability_mm)
+    reasons: list[tuple[str, str]] = []     # (status, sentence)
+
+    def add(status, text):
+        reasons.append((status, text))
+
+    ident = doc.get("identifiability") or {}
+    if ident and ident.get("rank") is not None and ident["rank"] < ident.get("n_params", 0):
+        add("not reliable", f"the plan identifies only {ident['rank']} of "
+                            f"{ident['n_params']} parameters; add marks that spread both "
+                            "joints and both approach directions")
+    ni = ident.get("not_identifiable") or []
+    if ni:
+        d = ni[0]
+        more = f" (and {len(ni) - 1} more, listed below)" if len(ni) > 1 else ""
+        add("not reliable", f"the plan cannot separate {d['label']} from the base model"
+                            f"{more}; {d['fix']}")
+    effects = doc.get("effects") or []
+    for e in effects:
+        if e.get("name") == "drift":
+            add("not reliable", f"the robot changed while drawing ({e.get('size_mm', 0):.3f} mm "
+                                f"from the first to the last mark, {e.get('along', '?')}): "
+                                "warm it up / re-home, then draw again")
+    # the noise floor
+    marks = doc.get("marks") or {}
+    outliers = set(doc.get("outliers") or [])
+    n_par = int(ident.get("n_params") or 6)
+    fitted = [m for k, m in marks.items() if m.get("role", "calibration") == "calibration"
+              and k not in outliers and m.get("status", "ok") == "ok"]
+    held = [m for m in marks.values() if m.get("role") == "validation"
+            and m.get("status", "ok") == "ok"]
+    floor = hfloor = None
+    if fitted and all(m.get("sigma_mm") is not None for m in fitted):
+        floor = floor_test([m["residual_mm"] for m in fitted],
+                           [m["sigma_mm"] for m in fitted], rep, n_params=n_par)
+        if held and all(m.get("sigma_mm") is not None for m in held):
+            hfloor = floor_test([m["residual_mm"] for m in held], [m["sigma_mm"] for m in held],
+                                rep, inflate=1.0 + n_par / max(2 * len(fitted), 1))
+    elif fitted:
+        add("check", "the marks carry no measurement noise (measured_mm given): the residual "
+                     "cannot be compared with a noise floor")
+    for name, f in (("final residual", floor), ("held-out residual", hfloor)):
+        if f is not None and f.beyond:
+            add("not reliable" if f.ratio >= NOT_RELIABLE_RATIO else "check",
+                f"the {name} is {f.ratio:.1f} times the noise floor ({f.rms_mm:.4f} vs "
+                f"{f.floor_rms_mm:.4f} mm, chi2 = {f.chi2:.0f} on {f.dof} dof, "
+                f"p = {f.p_value:.2g}): the model misses something")
+    unexplained = [e for e in effects if e.get("name") == "unexplained"]
+    if unexplained:
+        seen = "; ".join(unexplained[0].get("seen", [])) or "structure"
+        add("check", f"structure no candidate explains is left in the residual ({seen})")
+    if outliers:
+        add("check", f"{len(outliers)} mark(s) left out as outliers: "
+                     + ", ".join(sorted(outliers)[:5]))
+    unreliable = [k for k, m in marks.items() if m.get("status") == "unreliable"]
+    if unreliable:
+        add("check", f"{len(unreliable)} mark(s) could not be trusted and were left out: "
+                     + ", ".join(sorted(unreliable)[:5]))
+    v = doc.get("validation_rms_mm") or {}
+    held_rms, fit_rms = v.get("final_model"), (doc.get("residual_rms_mm") or {}).get("final_model")
+    r95 = R95_PER_RMS * held_rms if _finite(held_rms) else None
+    if r95 is None:
+        add("check", "no held-out marks and no cross-validation figure: the fitted RMS "
+                     f"{fit_rms:.4f} mm understates the error on new targets"
+            if _finite(fit_rms) else "no accuracy figure")
+    n_fit = sum(m.get("role", "calibration") == "calibration" for m in marks.values())
+    if marks and 2 * n_fit - n_par < MIN_SPARE_DOF:
+        add("check", f"{n_fit} fitted marks leave {2 * n_fit - n_par} degrees of freedom, "
+                     "too few to test for backlash, gear-ratio or sheet effects")
+    if r95 is not None and _finite(fit_rms) and fit_rms > 0 and held_rms > HELDOUT_WARN_RATIO * fit_rms:
+        add("check", f"the held-out RMS ({held_rms:.4f} mm) is {held_rms / fit_rms:.1f} times "
+                     "the fitted RMS: the model misses something on new poses")
+    status = max((s for s, _ in reasons), key=_RANK.get, default="ready")
+    ordered = [t for s, t in sorted(reasons, key=lambda st: -_RANK[st[0]])]
+    return Verdict(status, r95, floor.ratio if floor is not None else None, tuple(ordered),
+                   floor.to_json() if floor is not None else None,
+                   hfloor.to_json() if hfloor is not None else None, rep)
