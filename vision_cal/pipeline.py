@@ -381,6 +381,12 @@ def document(doc: dict, session: Session, data: MarkData, missing: list[str], me
     ps = printer_scale(session.sheet, doc.get("effects", []), doc.get("params"))
     if ps is not None:
         doc["printer_scale"] = ps
+    if measurement is not None:  # added: still cameras (vision_cal/camera/fixed.py)
+        from vision_cal.camera.fixed import cameras_json
+
+        cameras = cameras_json(session, measurement, fitted.model, doc)
+        if cameras:
+            doc["cameras"] = cameras
     _judge(doc, session)
 
 
