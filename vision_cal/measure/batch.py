@@ -43,6 +43,7 @@ from vision_cal.measure.infer import infer_image_marks
 from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.measure.dots import DotCandidates, blank_regions, find_candidates, refine_dot
 from vision_cal.measure.printed import printed_reference
+from vision_cal.measure.rotated import to_main_px, transposed, turned_lens
 from vision_cal.measure.sheetfit import MISFIT, corner_tolerance_mm, misfit_reason
 from vision_cal.measure.mapping import (LensEstimate, distort_px, estimate_lens, fit_mapping,
                                        undistort_px)
@@ -414,6 +415,8 @@ def _lens_of(session: Session, lens: LensEstimate | None, size):
         return session.camera.K, session.camera.dist
     if lens is not None and lens.kept and tuple(lens.size_px) == tuple(size):
         return lens.K, lens.dist
+    if lens is not None and lens.kept and lens.turned and transposed(size, lens.size_px):
+        return turned_lens(lens.K, lens.dist, lens.size_px, lens.turned)
     return None, None
 
 
@@ -720,10 +723,23 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
             size = sizes[0]
             views = [(d.marker_ids, d.corners_mm, d.corners_for()) for d in ok
                      if d.size_px == size]
-            lens = estimate_lens(views, size)
-            if len(sizes) > 1:
-                warnings.append(f"photos of {len(sizes)} image sizes: a lens is estimated only "
-                                f"for {size[0]}x{size[1]} px")
+            turned = [d for d in ok if transposed(d.size_px, size)]
+            if turned:   # the same camera held the other way: one lens, fitted over all
+                best = None
+                for turn in (1, -1):
+                    est = estimate_lens(views + [(d.marker_ids, d.corners_mm,
+                                                  to_main_px(d.corners_for(), size, turn))
+                                                 for d in turned], size)
+                    if est is not None and (best is None or est.rms_px_after < best[0].rms_px_after):
+                        best = (est, turn)
+                lens = None if best is None else replace(best[0], turned=best[1])
+            else:
+                lens = estimate_lens(views, size)
+            rest = [s for s in sizes[1:] if not transposed(s, size)]
+            if rest:
+                warnings.append(f"photos of {len(rest) + 1} image sizes: a lens is estimated "
+                                f"only for {size[0]}x{size[1]} px"
+                                + (" (and the same camera turned)" if turned else ""))
     images = [finish_image(d, session, lens, from_cache=c) for d, c in zip(dets, cached)]
     _check_sheet_fits(session, images)
     from vision_cal.measure.grid_declaration import misdeclared_grid
