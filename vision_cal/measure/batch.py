@@ -751,6 +751,13 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
         session = replace(session, sheet=replace(session.sheet, grid=None))
         images = [finish_image(d, session, lens, from_cache=c) for d, c in zip(dets, cached)]
 
+    # a photo moved as a whole against the others is left out, not the marks it shares
+    from vision_cal.measure.photo_agreement import disagreeing_photos
+
+    for k, why in disagreeing_photos(images).items():
+        log.warning("%s: %s", images[k].file, why)
+        warnings.append(f"{images[k].file}: {why}")
+        images[k] = replace(images[k], status="skipped", reason=why)
     # stage 3: association
     idx_ok = [i for i, r in enumerate(images) if r.status == "ok"]
     per_image = [(i, images[i].dots_xy_mm, images[i].dots_cov_mm2) for i in idx_ok]
