@@ -843,10 +843,14 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
         # difference stays reported
         for mid, gi in a.mark_to_group.items():
             mm, g = marks[mid], groups[gi]
-            if mm.reference == "markers" or any(
-                    _dot_field(images[k], "dots_unreliable", j)
-                    for k, j in zip(g.images, g.dot_index)):
+            if mm.reference == "markers":
                 continue
+            keep = [i for i, (k, j) in enumerate(zip(g.images, g.dot_index))
+                    if not _dot_field(images[k], "dots_unreliable", j)]
+            if keep and len(keep) < len(g.images):   # as above: without the flagged dots
+                g = assoc.DotGroup(g.xy_mm[keep], g.cov_mm2[keep],
+                                   tuple(g.images[i] for i in keep),
+                                   tuple(g.dot_index[i] for i in keep))
             gg = assoc.DotGroup(
                 np.array([images[k].dots_global_xy_mm[j] for k, j in zip(g.images, g.dot_index)]),
                 np.array([images[k].dots_global_cov_mm2[j]
