@@ -15,6 +15,12 @@ for flat and bumped scenes (renders/flat_tilted, bumped_tilted, bumped_moving by
 measured through the marker mapping only (global: sheet.grid left out) and against the
 printed grid (local), with the time per photo of each and whether sheet_height is claimed.
 
+``--printed [--seeds N]``: instead, marks on every kind of printed content of the sheet's
+own raster (A4, 254 dpi; the photos of ``tests/measure/test_printed_ink.py`` at views and
+noise of seeds 100..100+N, not the tests' seeds): per kind, the largest error of the marks
+not flagged, how many were flagged unreliable, and the same with the sheet's ``printed``
+block removed (a sheet nobody describes).
+
 Usage::
 
     .venv/bin/python bench/measure.py [--folder DIR] [--photos 40] [--warp]
@@ -157,6 +163,33 @@ def reference_table(scenes: list[str], root: Path, seed: int | None) -> None:
               f"{str(loc[3]):>7s} {'+'.join(loc[4]):10s} {loc[2] / g[2]:.2f}")
 
 
+def printed_table(n_seeds: int) -> None:
+    from tests.measure.test_printed_ink import ON_PRINT, PLAIN, _measure
+    from vision_cal.sheet import make_layout, write_sheet
+
+    root = Path(tempfile.mkdtemp(prefix="vision-cal-bench-printed-"))
+    try:
+        write_sheet(make_layout(size="A4"), root / "a4", png_dpi=254)
+        for describe in (True, False):
+            per: dict = {k: [] for k in (*ON_PRINT, *PLAIN)}
+            t = time.perf_counter()
+            for s in range(100, 100 + n_seeds):
+                res = _measure(root / "a4", root / f"d{s}{int(describe)}", s, describe=describe)
+                for k, v in res.items():
+                    per[k].append(v)
+            dt = (time.perf_counter() - t) / n_seeds
+            print(f"sheet.printed {'described' if describe else 'removed'}: {n_seeds} photos "
+                  f"2000x1500 (0.15 mm/px), {dt:.2f} s per photo")
+            print(f"  {'mark on':14s} {'max err um (not flagged)':>24s} {'flagged':>8s}")
+            for k, vals in per.items():
+                ok = [e for e, why, _ in vals if not why]
+                n_flag = sum(bool(why) for _, why, _ in vals)
+                worst = f"{1000 * max(ok):.1f}" if ok else "-"
+                print(f"  {k:14s} {worst:>24s} {n_flag:>4d}/{len(vals)}")
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--folder", default="/tmp/vision-cal-bench-measure")
@@ -167,7 +200,13 @@ def main() -> int:
                     help="only the global-versus-local table for these renders/ scenes "
                          "(default: flat_tilted bumped_tilted bumped_moving)")
     ap.add_argument("--seed", type=int, default=None, help="scene seed for --reference")
+    ap.add_argument("--printed", action="store_true",
+                    help="only the marks-on-printed-ink table (see the module docstring)")
+    ap.add_argument("--seeds", type=int, default=10, help="photos for --printed")
     a = ap.parse_args()
+    if a.printed:
+        printed_table(a.seeds)
+        return 0
     if a.reference is not None:
         reference_table(a.reference or ["flat_tilted", "bumped_tilted", "bumped_moving"],
                         Path("/tmp/vision-cal-bench-reference"), a.seed)

@@ -1,6 +1,6 @@
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from vision_cal.errors import VisionCalError
@@ -31,7 +31,10 @@ def test_jacobian_matches_finite_differences():
         np.testing.assert_allclose(J[:, :, k], num, atol=1e-6)
 
 
-@settings(max_examples=200, deadline=None)
+# deterministic examples (no example database, no random seed) and no health check on
+# generation time: the same cases on a loaded machine and on an idle one
+@settings(max_examples=200, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
 @given(r=st.floats(0.05, 0.98), ang=st.floats(-np.pi, np.pi), elbow=st.sampled_from([1, -1]))
 def test_fk_of_ik_is_identity(r, ang, elbow):
     lo, hi = abs(P.L1_mm - P.L2_mm), P.L1_mm + P.L2_mm

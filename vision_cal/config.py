@@ -31,10 +31,12 @@ class DotConfig:
     default_diameter_mm: float = 1.2  # pen mark diameter when session.json's pen block is absent
     model_floor_px: float = 0.02      # centroid error the print and sampling leave (px), added to
                                       # every dot's covariance (0.01-0.03 px seen on renders)
-    unreliable_bg_residual: float = 2.5  # the background model (paper + grid, or the sheet's own
-                                      # print) leaves this many times the noise around the dot:
-                                      # ink it could not separate, the mark is "unreliable"
-                                      # (clean renders: 0.7-1.1; marks over print: up to 1.45)
+    unreliable_bg_residual: float = 2.5  # the sheet's own print rendered around the dot leaves
+                                      # this many times the noise: ink it could not separate,
+                                      # the mark is "unreliable" (marks over print: up to 1.45)
+    unreliable_bg_residual_separable: float = 3.5  # the same for paper + grid lines alone
+                                      # (clean renders: 0.7-1.1, and 3.2 by two bold lines
+                                      # crossing, which the separable model cannot follow)
     unreliable_ink_shift_mm: float = 0.01  # over the sheet's own print: the centre moves more
                                       # than this when the pen's ink level is taken 20 % darker
                                       # or lighter (a third of the 0.03 mm a mark must meet):

@@ -343,6 +343,11 @@ def document(doc: dict, session: Session, data: MarkData, missing: list[str], me
                                 "(a bad sheet mapping?): " + ", ".join(flagged))
     doc["nominal"] = nominal.to_json()
     doc["home_deg"] = [float(v) for v in session.robot.home_deg]  # added: where plans start
+    from vision_cal.measure.printed import printed_content_json
+
+    printed = printed_content_json(session.sheet)
+    if printed:   # added: what the sheet's own print has where, for plan
+        doc["printed_content"] = printed
     if getattr(session.robot, "joint_limits_deg", None) is not None:   # added: plan, export
         doc["joint_limits_deg"] = [[float(v) for v in p] for p in session.robot.joint_limits_deg]
     if measurement is not None and measurement.lens is not None and measurement.lens.kept:

@@ -69,7 +69,9 @@ def _run(src, out, capsys, *extra):
         raise TimeoutError("the run hung")
 
     old = signal.signal(signal.SIGALRM, hang)
-    signal.alarm(120)
+    # a guard against a FIFO that blocks forever, not a speed limit: a run takes seconds on
+    # an idle machine and may take minutes on a loaded one (120 s failed under load)
+    signal.alarm(1800)
     try:
         rc = main([str(src), "--out", str(out), "-q", "-j", "1", *extra])
     finally:

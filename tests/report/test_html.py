@@ -75,7 +75,7 @@ def test_report_in_headless_chromium(report, tmp_path):
     profile = tmp_path / "profile"
     run = subprocess.run([CHROMIUM, *FLAGS, f"--user-data-dir={profile}", "--enable-logging=stderr",
                           "--v=0", "--virtual-time-budget=5000", "--dump-dom",
-                          probed.as_uri()], capture_output=True, text=True, timeout=120)
+                          probed.as_uri()], capture_output=True, text=True, timeout=900)
     dom = run.stdout
     assert 'data-broken="0"' in dom, run.stderr[-2000:]
     n = int(re.search(r'data-images="(\d+)"', dom).group(1))
@@ -97,5 +97,5 @@ def test_report_in_headless_chromium(report, tmp_path):
     shot = ARTEFACTS / "report.png"
     subprocess.run([CHROMIUM, *FLAGS, f"--user-data-dir={profile}", "--window-size=1200,2400",
                     f"--screenshot={shot}", (report / "report.html").as_uri()],
-                   capture_output=True, timeout=120, check=True)
+                   capture_output=True, timeout=900, check=True)
     assert shot.stat().st_size > 20_000

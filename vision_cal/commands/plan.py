@@ -132,6 +132,7 @@ def run(args) -> int:
                   f"all in {report}", file=sys.stderr)
     else:
         report.unlink(missing_ok=True)  # a stale report of an earlier run
+    _say_targets_on_print(args, doc, ok)
     if not args.quiet:
         print(f"planned {len(planned) - len(failed)} of {len(planned)} targets "
               f"with the {args.model} model -> {args.out}")
@@ -141,6 +142,27 @@ def run(args) -> int:
               f"all in {report}", file=sys.stderr)
         return 1
     return 0
+
+
+def _say_targets_on_print(args, doc: dict, ok) -> None:
+    """One warning line naming the planned targets that lie on the sheet's printed ink
+    (calibration.json ``printed_content``) and what it costs."""
+    import sys
+
+    from vision_cal.measure.printed import targets_on_print
+
+    content = doc.get("printed_content") or []
+    if not content or not ok:
+        return
+    on = targets_on_print(content, [p.id for p in ok], [p.target_mm for p in ok], 1.0)
+    if not on:
+        return
+    head = "; ".join(f"{tid} ({', '.join(labels)})" for tid, labels in on[:3])
+    more = f" and {len(on) - 3} more" if len(on) > 3 else ""
+    print(f"vision-cal: warning: {args.targets}: {len(on)} target(s) on the sheet's printed "
+          f"ink: {head}{more}: a pen mark there is measured against the print (0.01-0.02 mm "
+          "less certain) or, where it cannot be separated, left out as unreliable; move the "
+          "target by a few millimetres onto plain paper to check it", file=sys.stderr)
 
 
 def summarise_failures(failed, *, first: int = 3) -> str:

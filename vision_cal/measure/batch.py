@@ -43,6 +43,7 @@ from vision_cal.measure.infer import infer_image_marks
 from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.measure.dots import DotCandidates, blank_regions, find_candidates, refine_dot
 from vision_cal.measure.printed import printed_reference
+from vision_cal.measure.rotated import to_main_px, transposed, turned_lens
 from vision_cal.measure.sheetfit import MISFIT, corner_tolerance_mm, misfit_reason
 from vision_cal.measure.mapping import (LensEstimate, distort_px, estimate_lens, fit_mapping,
                                        undistort_px)
@@ -414,6 +415,8 @@ def _lens_of(session: Session, lens: LensEstimate | None, size):
         return session.camera.K, session.camera.dist
     if lens is not None and lens.kept and tuple(lens.size_px) == tuple(size):
         return lens.K, lens.dist
+    if lens is not None and lens.kept and lens.turned and transposed(size, lens.size_px):
+        return turned_lens(lens.K, lens.dist, lens.size_px, lens.turned)
     return None, None
 
 
@@ -726,10 +729,23 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
             size = sizes[0]
             views = [(d.marker_ids, d.corners_mm, d.corners_for()) for d in ok
                      if d.size_px == size]
-            lens = estimate_lens(views, size)
-            if len(sizes) > 1:
-                warnings.append(f"photos of {len(sizes)} image sizes: a lens is estimated only "
-                                f"for {size[0]}x{size[1]} px")
+            turned = [d for d in ok if transposed(d.size_px, size)]
+            if turned:   # the same camera held the other way: one lens, fitted over all
+                best = None
+                for turn in (1, -1):
+                    est = estimate_lens(views + [(d.marker_ids, d.corners_mm,
+                                                  to_main_px(d.corners_for(), size, turn))
+                                                 for d in turned], size)
+                    if est is not None and (best is None or est.rms_px_after < best[0].rms_px_after):
+                        best = (est, turn)
+                lens = None if best is None else replace(best[0], turned=best[1])
+            else:
+                lens = estimate_lens(views, size)
+            rest = [s for s in sizes[1:] if not transposed(s, size)]
+            if rest:
+                warnings.append(f"photos of {len(rest) + 1} image sizes: a lens is estimated "
+                                f"only for {size[0]}x{size[1]} px"
+                                + (" (and the same camera turned)" if turned else ""))
     images = [finish_image(d, session, lens, from_cache=c) for d, c in zip(dets, cached)]
     _check_sheet_fits(session, images)
     from vision_cal.measure.grid_declaration import misdeclared_grid
@@ -741,6 +757,13 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
         session = replace(session, sheet=replace(session.sheet, grid=None))
         images = [finish_image(d, session, lens, from_cache=c) for d, c in zip(dets, cached)]
 
+    # a photo moved as a whole against the others is left out, not the marks it shares
+    from vision_cal.measure.photo_agreement import disagreeing_photos
+
+    for k, why in disagreeing_photos(images).items():
+        log.warning("%s: %s", images[k].file, why)
+        warnings.append(f"{images[k].file}: {why}")
+        images[k] = replace(images[k], status="skipped", reason=why)
     # stage 3: association
     idx_ok = [i for i, r in enumerate(images) if r.status == "ok"]
     per_image = [(i, images[i].dots_xy_mm, images[i].dots_cov_mm2) for i in idx_ok]
@@ -826,10 +849,14 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
         # difference stays reported
         for mid, gi in a.mark_to_group.items():
             mm, g = marks[mid], groups[gi]
-            if mm.reference == "markers" or any(
-                    _dot_field(images[k], "dots_unreliable", j)
-                    for k, j in zip(g.images, g.dot_index)):
+            if mm.reference == "markers":
                 continue
+            keep = [i for i, (k, j) in enumerate(zip(g.images, g.dot_index))
+                    if not _dot_field(images[k], "dots_unreliable", j)]
+            if keep and len(keep) < len(g.images):   # as above: without the flagged dots
+                g = assoc.DotGroup(g.xy_mm[keep], g.cov_mm2[keep],
+                                   tuple(g.images[i] for i in keep),
+                                   tuple(g.dot_index[i] for i in keep))
             gg = assoc.DotGroup(
                 np.array([images[k].dots_global_xy_mm[j] for k, j in zip(g.images, g.dot_index)]),
                 np.array([images[k].dots_global_cov_mm2[j]

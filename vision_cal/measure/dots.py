@@ -51,6 +51,7 @@ FINE_STEP_MM = _CFG.fine_step_mm
 DEFAULT_DIAMETER_MM = _CFG.default_diameter_mm
 MODEL_FLOOR_PX = _CFG.model_floor_px
 UNRELIABLE_BG_RESIDUAL = _CFG.unreliable_bg_residual
+UNRELIABLE_BG_RESIDUAL_SEPARABLE = _CFG.unreliable_bg_residual_separable
 UNRELIABLE_INK_SHIFT_MM = _CFG.unreliable_ink_shift_mm
 
 
@@ -445,7 +446,9 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     ratio = e_rms / noise_grid
     on = "; ".join(it.label for it in under)
     why = ""
-    if not ratio <= UNRELIABLE_BG_RESIDUAL:
+    limit = (UNRELIABLE_BG_RESIDUAL if background == "printed"
+             else UNRELIABLE_BG_RESIDUAL_SEPARABLE)
+    if not ratio <= limit:
         what = (f"pen ink on printed ink ({on})" if on else
                 "the ground around the mark is not paper and grid lines (printed ink, a blot "
                 "or a neighbouring mark)")

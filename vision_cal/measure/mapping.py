@@ -222,6 +222,9 @@ class LensEstimate:
     cv_rms_px_after: float
     n_photos: int
     candidates: dict = field(default_factory=dict, compare=False)
+    #: added: photos of the transposed size are the same camera turned this way (+1 / -1,
+    #: :mod:`vision_cal.measure.rotated`); 0 when there are none
+    turned: int = 0
 
     @property
     def coefficients(self) -> list[float]:

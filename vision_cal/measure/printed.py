@@ -244,3 +244,28 @@ def printed_reference(sheet: Sheet | None) -> PrintedReference | None:
                                                                              float).tolist()}
                                   for m in sheet.markers]}, sort_keys=True)
     return _reference_cached(key)
+
+
+def printed_content_json(sheet: Sheet | None) -> list[dict]:
+    """calibration.json ``printed_content``: every printed item but the grid and the markers
+    (``kind``, ``label``, ``box_mm``), for ``plan`` to say which targets lie on printed ink;
+    [] for a sheet whose print is not described."""
+    ref = printed_reference(sheet)
+    if ref is None:
+        return []
+    return [{"kind": it.kind, "label": it.label, "box_mm": [round(v, 4) for v in it.box_mm]}
+            for it in ref.items]
+
+
+def targets_on_print(content: list[dict], ids, xy_mm, radius_mm: float) -> list[tuple]:
+    """(id, labels) of the targets within ``radius_mm`` of a printed item's box."""
+    out = []
+    for tid, (x, y) in zip(ids, np.asarray(xy_mm, float).reshape(-1, 2)):
+        near = []
+        for it in content:
+            x0, y0, x1, y1 = it["box_mm"]
+            if math.hypot(max(x0 - x, 0.0, x - x1), max(y0 - y, 0.0, y - y1)) <= radius_mm:
+                near.append(it["label"])
+        if near:
+            out.append((tid, near))
+    return out

@@ -1,0 +1,50 @@
+"""A photo whose dots all sit a millimetre from where the other photos see them is left out,
+not the marks it shares with them (issue 18 section 4)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tests.measure import synth_measure as sm
+from vision_cal.dataset.session import load_session
+from vision_cal.measure.batch import measure_folder
+
+VIEWS = [dict(tilt_deg=12.0, azimuth_deg=20.0), dict(tilt_deg=18.0, azimuth_deg=150.0),
+         dict(tilt_deg=8.0, azimuth_deg=-100.0), dict(tilt_deg=15.0, azimuth_deg=70.0)]
+
+
+def _run(tmp_path, shift_mm):
+    sheet = sm.small_sheet()
+    targets = sm.free_targets(sheet, 10, rng=88, box=(85.0, 62.0))
+    ids = [f"c{i:02d}" for i in range(len(targets))]
+    src = tmp_path / "in"
+    src.mkdir()
+    images = []
+    for n, v in enumerate(VIEWS):
+        K, T = sm.view(**v)
+        # photo 2 sees every dot moved together (what a bad mapping of it would give)
+        xy = targets + (np.asarray(shift_mm) if n == 2 else 0.0)
+        sm.write_png(src / f"p{n}.png", sm.photo(sheet, sm.texture(sheet, xy, rng=8), K=K, T=T,
+                                                  rng=30 + n))
+        images.append((f"p{n}.png", ids))
+    sm.write_session(src, sm.session_json(sheet, marks=list(zip(ids, sm.plan_for(targets))),
+                                          images=images, robot=sm.NOMINAL))
+    meas = measure_folder(load_session(src), out_dir=tmp_path / "out", jobs=1)
+    return meas, dict(zip(ids, targets))
+
+
+def test_the_photo_is_left_out_not_its_marks(tmp_path):
+    meas, truth = _run(tmp_path, (0.8, -0.6))
+    st = {im.file: (im.status, im.reason or "") for im in meas.images}
+    assert st["p2.png"][0] == "skipped" and "disagrees with the other photos" in st["p2.png"][1]
+    assert "1.00 mm" in st["p2.png"][1]
+    assert all(st[f][0] == "ok" for f in ("p0.png", "p1.png", "p3.png"))
+    assert set(meas.marks) == set(truth) and not meas.refused
+    e = np.array([meas.marks[k].xy_mm - truth[k] for k in truth])
+    assert np.abs(e).max() < 0.03
+
+
+def test_photos_that_agree_are_all_kept(tmp_path):
+    meas, truth = _run(tmp_path, (0.0, 0.0))
+    assert all(im.status == "ok" for im in meas.images)
+    assert set(meas.marks) == set(truth)

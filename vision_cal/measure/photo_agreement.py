@@ -1,0 +1,54 @@
+"""A photo whose dots all sit away from where the other photos see them (issue 18).
+
+A bad sheet mapping in one photo (a marker misread, a lens that does not fit that photo)
+moves every dot of it together. Grouped with the other photos' dots, each of its dots then
+becomes a second candidate near its mark ("two candidate dots"), and the marks it shares
+with the others would be left out. Instead the photo is left out: for each photo with at
+least :data:`MIN_DOTS` dots that the other photos see too (nearest dot of another photo
+within :data:`SEARCH_MM`), the median displacement from them is compared with
+:data:`MAX_OFFSET_MM` (far beyond a mapping's error of hundredths of a millimetre, far
+below the spacing of marks) and with the displacements' own scatter (a photo moved as a
+whole, not dots that happen to be near others). Needs at least three usable photos, so that
+"the others" agree among themselves.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+MIN_PHOTOS = 3
+MIN_DOTS = 3
+SEARCH_MM = 3.0
+MAX_OFFSET_MM = 0.25
+
+
+def disagreeing_photos(images) -> dict[int, str]:
+    """{index in ``images``: reason} of the usable photos whose dots are displaced together
+    from the other photos' (``images``: results with ``status``, ``dots_xy_mm`` (K, 2))."""
+    ok = [k for k, im in enumerate(images) if im.status == "ok" and len(im.dots_xy_mm)]
+    if len(ok) < MIN_PHOTOS:
+        return {}
+    out = {}
+    for k in ok:
+        others = np.concatenate([images[j].dots_xy_mm for j in ok if j != k])
+        if not len(others):
+            continue
+        xy = images[k].dots_xy_mm
+        d = xy[:, None, :] - others[None, :, :]
+        dist = np.linalg.norm(d, axis=2)
+        j = dist.argmin(axis=1)
+        near = dist[np.arange(len(xy)), j] <= SEARCH_MM
+        if near.sum() < MIN_DOTS:
+            continue
+        disp = d[np.arange(len(xy)), j][near]
+        med = np.median(disp, axis=0)
+        spread = 1.4826 * np.median(np.linalg.norm(disp - med, axis=1))
+        size = float(np.hypot(*med))
+        if size > MAX_OFFSET_MM and size > 3.0 * spread:
+            out[k] = (f"disagrees with the other photos: its {int(near.sum())} dots sit "
+                      f"{size:.2f} mm ({med[0]:+.2f}, {med[1]:+.2f}) from where they see them "
+                      "(a bad sheet mapping in this photo); left out, its marks measured on "
+                      "the others")
+    if len(out) * 2 >= len(ok):   # no majority to disagree with
+        return {}
+    return out
