@@ -62,3 +62,26 @@ def test_a_changed_link_or_backlash_means_recalibrate():
 def test_too_few_marks_is_a_calibration_error():
     with pytest.raises(CalibrationError, match="at least 5"):
         check(CAL, 1, n=4)
+
+
+def test_iso9283_visits_give_ap_and_rp_from_their_own_commanded_points():
+    """Visits of one point at offsets 6 mm apart, the robot unchanged: each visit's own
+    commanded point is taken out, so AP is within the noise of the mean (4 std) and RP
+    near its Rayleigh value 3.218 sigma, though the offsets span 18 mm."""
+    from vision_cal.design.iso9283 import iso_marks
+
+    rng = np.random.default_rng(41)
+    true = moved(CAL, z1=0.4, base=(3.0, -2.0))            # a new sheet
+    marks, info = iso_marks(CAL, (-250, -140, 230, 150), 30)
+    q = np.array([m.joints_deg for m in marks])
+    s = np.array([m.approach for m in marks], float)
+    xy = true.predict(q, s) + rng.normal(0, NOISE_MM, q.shape)
+    qc, sc = random_plan(10, rng)
+    xyc = true.predict(qc, sc) + rng.normal(0, NOISE_MM, qc.shape)
+    r = compare(CAL, CAL_DOC, [f"c{i}" for i in range(10)], qc, sc, xyc,
+                iso=([m.id for m in marks], q, s, xy, [info[m.id]["point"] for m in marks]))
+    assert set(r.iso9283) == {"P1", "P2", "P3", "P4", "P5"}
+    for v in r.iso9283.values():
+        assert v["n"] == 30
+        assert v["AP_mm"] < 4 * NOISE_MM * np.sqrt(2) / np.sqrt(30) + 0.01  # + the placement fit
+        assert 1.5 * NOISE_MM < v["RP_mm"] < 5.0 * NOISE_MM

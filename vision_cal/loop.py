@@ -240,13 +240,22 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
 
 def format_table(doc: dict) -> str:
     """The Table-3 comparison for every target."""
-    lines = [f"{'target':<8}{'x [mm]':>9}{'y [mm]':>9}{'before [mm]':>13}{'after [mm]':>12}"]
+    lines = [f"{'target':<8}{'x [mm]':>9}{'y [mm]':>9}{'before [mm]':>16}{'after [mm]':>16}"]
+    reasons: dict[str, int] = {}
+
+    def cell(r, side, v, fmt):
+        if v is not None:
+            return fmt.format(v)
+        why = (r[side] or {}).get("reason") or (r[side] or {}).get("status", "not measured")
+        k = reasons.setdefault(why, len(reasons) + 1)
+        return f"{r[side]['status']} ({k})"   # every missing value says why, below
+
     for r in doc["targets"]:
-        b = r["before_error_mm"]
-        a = r["after_error_mm"]
         lines.append(f"{r['id']:<8}{r['target_mm'][0]:>9.2f}{r['target_mm'][1]:>9.2f}"
-                     f"{(f'{b:.3f}' if b is not None else r['before']['status']):>13}"
-                     f"{(f'{a:.4f}' if a is not None else r['after']['status']):>12}")
+                     f"{cell(r, 'before', r['before_error_mm'], '{:.3f}'):>16}"
+                     f"{cell(r, 'after', r['after_error_mm'], '{:.4f}'):>16}")
+    for why, k in reasons.items():
+        lines.append(f"  ({k}) {why}")
     s = doc["summary"]
     c = (doc.get("controller") or {}).get("after")
     if c:

@@ -79,7 +79,7 @@ def stage_line(desc: str, seconds: float, *, n: int | None = None, total: int | 
     if n is not None:
         count = f"{n}/{total} {unit}s in " if total is not None else f"{n} {unit}s in "
     rate = ""
-    if n and seconds > 0:
+    if n and seconds >= 0.05:   # a rate over a few milliseconds (all cached) says nothing
         rate = f" ({n / seconds:.2f} {unit}s/s" + (f", {note}" if note else "") + ")"
     elif note:
         rate = f" ({note})"

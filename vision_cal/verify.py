@@ -60,11 +60,13 @@ class VerifyResult:
     bound_mm: float
     verdict: str
     reasons: tuple[str, ...]
+    iso9283: dict | None = None   # point -> {n, AP_mm, RP_mm, ...} (design --iso9283)
 
     def to_json(self) -> dict:
         return {"format": "vision-cal/verify/1", "verdict": self.verdict,
                 "reasons": list(self.reasons), "rms_mm": self.rms_mm,
                 "bound_mm": self.bound_mm, "changes": self.changes, "marks": self.marks,
+                "iso9283": self.iso9283,
                 "thresholds": {"moved_sigma": MOVED_SIGMA,
                                "tolerance_factor": TOLERANCE_FACTOR}}
 
@@ -89,8 +91,11 @@ def _fit(model, q, s, xy, free: tuple[int, ...], iters: int = 8):
 
 
 def compare(model, cal_doc: dict, ids, q_deg, approach, xy_mm, *,
-            noise_floor_mm: float | None = None) -> VerifyResult:
-    """The check's measured marks against the calibrated ``model`` (see the module)."""
+            noise_floor_mm: float | None = None, iso=None) -> VerifyResult:
+    """The check's measured marks against the calibrated ``model`` (see the module).
+
+    ``iso``: ISO 9283 visits ``(ids, q_deg, approach, xy_mm, point per id)``, judged with
+    the placement fitted on the check's marks (``vision_cal.design.iso9283``)."""
     q = np.asarray(q_deg, float).reshape(-1, 2)
     s = np.asarray(approach, float).reshape(-1, 2)
     xy = np.asarray(xy_mm, float).reshape(-1, 2)
@@ -159,7 +164,22 @@ def compare(model, cal_doc: dict, ids, q_deg, approach, xy_mm, *,
                    "error_mm": (xy[k] - pred[k]).tolist(),
                    "error_norm_mm": float(np.hypot(*(xy[k] - pred[k])))}
              for k, mid in enumerate(ids)}
-    return VerifyResult(marks, rms, changes, float(bound), verdict, tuple(reasons))
+    iso_out = None
+    if iso is not None and len(iso[0]):
+        from vision_cal.design.iso9283 import ap_rp
+
+        iid, iq, isg, ixy, ipt = iso
+        e = np.asarray(ixy, float) - placed.predict(np.asarray(iq, float), np.asarray(isg, float))
+        iso_out = {}
+        for name in sorted(set(ipt)):
+            k = [i for i, p in enumerate(ipt) if p == name]
+            iso_out[name] = ap_rp(e[k])
+        for i, mid in enumerate(iid):
+            marks[mid] = {"measured_mm": list(map(float, ixy[i])),
+                          "predicted_mm": (np.asarray(ixy[i]) - e[i]).tolist(),
+                          "error_mm": e[i].tolist(), "error_norm_mm": float(np.hypot(*e[i])),
+                          "iso9283_point": ipt[i]}
+    return VerifyResult(marks, rms, changes, float(bound), verdict, tuple(reasons), iso_out)
 
 
 def verify_folder(cal_path, folder, *, out_dir, jobs: int | None = None,
@@ -181,8 +201,16 @@ def verify_folder(cal_path, folder, *, out_dir, jobs: int | None = None,
                                                progress=progress)
     noise = (float(np.sqrt(2 * np.mean(data.sigma_mm**2)))
              if data.sigma_mm is not None and len(data.sigma_mm) else None)
-    r = compare(model, doc, data.ids, data.q_deg, data.approach, data.xy_mm,
-                noise_floor_mm=noise)
+    design = session.raw.get("design") if isinstance(session.raw, dict) else None
+    iso_info = (((design or {}).get("iso9283") or {}).get("marks")) or {}
+    k = np.array([i not in iso_info for i in data.ids], bool)
+    iso = None
+    if iso_info:
+        j = ~k
+        iso = ([i for i, s in zip(data.ids, j) if s], data.q_deg[j], data.approach[j],
+               data.xy_mm[j], [iso_info[i]["point"] for i, s in zip(data.ids, j) if s])
+    r = compare(model, doc, [i for i, s in zip(data.ids, k) if s], data.q_deg[k],
+                data.approach[k], data.xy_mm[k], noise_floor_mm=noise, iso=iso)
     out = r.to_json()
     out.update(calibration=str(cal_path), folder=str(folder), missing_marks=missing,
                noise_floor_mm=noise)

@@ -273,3 +273,27 @@ def test_init_with_no_photo_of_the_sheet_is_one_line(tmp_path, world, capsys):
     assert err[-1].startswith(f"vision-cal: error: {src}: no usable photo of the sheet among "
                               "1 image file(s) (first: floor.png: "), err
     assert [ln for ln in err if "error" in ln] == [err[-1]]
+
+
+def test_progress_counts_and_the_design_preview(tmp_path, world, capsys, monkeypatch):
+    """No images list: the progress line counts the photos found (not minus the cache),
+    a re-run says all came from the cache (not 0/0), and design's preview.png beside
+    session.json is never taken for a photo."""
+    import vision_cal.progress as progress
+
+    monkeypatch.setattr(progress, "_tty", lambda: False)
+    sheet, targets, q, series, finished, floor, _ = world
+    folder = tmp_path / "f"
+    folder.mkdir()
+    _plan(folder, world)
+    sm.write_png(folder / "a.png", finished[0])
+    sm.write_png(folder / "b.png", finished[1])
+    sm.write_png(folder / "preview.png", floor)
+    out = tmp_path / "out"
+    m = measure_folder(load_session(folder), out_dir=out, jobs=1, progress=True)
+    assert [im.file for im in m.images] == ["a.png", "b.png"]
+    err = capsys.readouterr().err
+    assert "2/2 photos" in err and "-2" not in err and "from the cache" not in err, err
+    measure_folder(load_session(folder), out_dir=out, jobs=1, progress=True)
+    err = capsys.readouterr().err
+    assert "2/2 photos" in err and "all from the cache" in err and "0/0" not in err, err

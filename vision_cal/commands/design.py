@@ -34,6 +34,10 @@ def add_arguments(p) -> None:
                    help="plan a short check of this calibration instead (about ten marks "
                         "across the workspace, both elbows): draw it on a fresh sheet, then "
                         "`vision-cal verify CAL.json OUT/`")
+    p.add_argument("--iso9283", type=int, default=0, metavar="N",
+                   help="with --verify: also visit ISO 9283's five points N times each (small "
+                        "known offsets keep the dots apart) for positioning accuracy AP and "
+                        "repeatability RP")
     p.add_argument("--program", choices=("spel", "csv", "none"), default="spel",
                    help="robot program: spel (Epson SPEL+ program.prg, default), csv (neutral "
                         "point list program_points.csv) or none")
@@ -67,12 +71,16 @@ def run(args) -> int:
 
         require_ready_pilot(read_json(args.pilot), args.pilot)
     check = args.verify is not None
+    if args.iso9283 and not check or not 0 <= args.iso9283 <= 30:
+        raise VisionCalError(f"expected 1..30 cycles with --verify, got {args.iso9283}",
+                             field="--iso9283")
     r = design_stage(args.robot, args.sheet, args.out, pilot=args.verify if check else args.pilot,
                      program=None if args.program == "none" else args.program,
                      n_calibration=10 if check else args.n_calibration,
                      n_validation=0 if check else args.n_validation,
                      safety_mm=args.safety_mm, seed=args.seed,
-                     stage="verify" if check else None)
+                     stage="verify" if check else None,
+                     iso9283_cycles=args.iso9283 if check else 0)
     import sys
 
     for w in r.info.get("warnings", []):

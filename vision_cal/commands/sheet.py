@@ -38,7 +38,8 @@ def add_arguments(p) -> None:
     m.add_argument("--pitch-mm", type=float, metavar="P",
                    help="largest centre spacing of the border markers (default 4 markers)")
     p.add_argument("--png-dpi", type=float, metavar="N",
-                   help="also write sheet.png at N dpi (254 = 10 px/mm)")
+                   help="also write sheet.png at N dpi (254 = 10 px/mm); `vision-cal "
+                        "simulate` does not need it (it rebuilds the print from sheet.json)")
     p.add_argument("--measured-bar-mm", type=float, nargs=2, metavar=("X", "Y"),
                    help="the printed x and y scale bars as measured (mm), recorded in "
                         "sheet.json for the calibration's printer scale")

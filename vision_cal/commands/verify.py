@@ -57,6 +57,12 @@ def run(args) -> int:
                 continue
             print(f"{label:<12}{c['delta']:>+10.4f}{c['std']:>9.4f}  "
                   f"{'yes' if c['moved'] else 'no'} ({c['sigmas']:.1f} std)")
+        if r.iso9283:
+            print("ISO 9283 (each visit's own commanded point taken out; assumes the robot's "
+                  "error is the same over each point's few-mm grid of visits):")
+            for name, v in r.iso9283.items():
+                print(f"  {name}: AP {v['AP_mm']:.4f} mm, RP {v['RP_mm']:.4f} mm "
+                      f"({v['n']} visits)")
         print(f"verdict: {r.verdict}")
         for reason in r.reasons:
             print(f"  {reason}")

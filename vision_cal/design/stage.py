@@ -150,7 +150,8 @@ def with_pilot_marks(sheet, cal_doc: dict, diameter_mm: float):
 
 def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | None = "spel",
                  n_calibration: int = 30, n_validation: int = 8, safety_mm: float | None = None,
-                 seed: int = 0, stage: str | None = None) -> DesignResult:
+                 seed: int = 0, stage: str | None = None,
+                 iso9283_cycles: int = 0) -> DesignResult:
     from vision_cal.dataset.io import atomic_write_json, read_json
     from vision_cal.dataset.robot import load_robot_file
     from vision_cal.dataset.session import NominalRobot, load_sheet_file
@@ -223,6 +224,26 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
         p = model.params
         plan_robot = NominalRobot(p.L1_mm, p.L2_mm, p.joint_zero_deg, p.base_mm,
                                   nominal.home_deg)
+        iso_extra, iso = [], None
+        if stage == "verify" and iso9283_cycles:
+            # ISO 9283's points first; the check's marks keep clear of their patches
+            from dataclasses import replace
+
+            from vision_cal.dataset.session import SheetMarker
+            from vision_cal.design.iso9283 import PITCH_MM, iso_marks
+
+            bl, sz = sheet.bottom_left_mm, sheet.size_mm
+            box = (bl[0], bl[1], bl[0] + sz[0], bl[1] + sz[1]) if bl is not None \
+                else sheet.extent_mm
+            iso_extra, iso = iso_marks(model, box, iso9283_cycles, elbow=robot.elbows[0],
+                                       overshoot_deg=robot.overshoot_deg,
+                                       joint_limits_deg=robot.joint_limits_deg)
+            h = PITCH_MM * (np.ceil(np.sqrt(iso9283_cycles)) + 1) / 2
+            centres = sorted({tuple(v["point_mm"]) for v in iso.values()})
+            patches = [SheetMarker(-2000 - k, np.array([[x - h, y + h], [x + h, y + h],
+                                                        [x + h, y - h], [x - h, y - h]]))
+                       for k, (x, y) in enumerate(centres)]
+            sheet = replace(sheet, markers=tuple(sheet.markers) + tuple(patches))
         try:
             marks = informative_plan(
                 p, sheet, n_calibration=n_calibration, n_validation=n_validation,
@@ -238,6 +259,9 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
                  "validation marks, both elbows, both approach sides per joint")
         if stage == "verify":   # vision-cal verify: a short check of a calibration
             info.update(stage="verify", calibration=str(pilot))
+            if iso_extra:
+                marks = list(marks) + list(iso_extra)
+                info["iso9283"] = {"cycles": iso9283_cycles, "marks": iso}
             title = (f"vision-cal check of {Path(pilot).name}: {n_calibration} marks, both "
                      "elbows, both approach sides (then: vision-cal verify)")
     traj = plan_trajectory(marks, home_deg=nominal.home_deg, vmax_deg_s=robot.speed_limits_deg_s,
