@@ -106,19 +106,22 @@ def main() -> None:
     a = ap.parse_args()
     floor_rms = np.sqrt(2) * np.hypot(ROBOT, MEAS)     # 2-D RMS of one mark's noise
     t0 = time.perf_counter()
-    alarms, named, not_ready, per_scan = 0, 0, 0, {}
+    alarms, named, named_new, not_ready, per_scan = 0, 0, 0, 0, {}
     for k in range(a.clean):
         _, v, eff, _, scans = run_case([], a.first_seed + k)
         alarms += scans["alarm"]
         for sc in scans["scans"]:
             per_scan[sc["name"]] = per_scan.get(sc["name"], 0) + sc["alarm"]
         named += any(e["name"] != "unexplained" for e in eff)
+        named_new += any(e["name"] in ("joint_terms", "drift") for e in eff)
         not_ready += v.status != "ready"
     print(f"clean kinematic datasets: {a.clean} (seeds {a.first_seed}..{a.first_seed + a.clean - 1})")
     print(f"  any axis scan alarm (family level 1 %): {alarms} = {100 * alarms / a.clean:.1f} %")
     for name, c in per_scan.items():
         print(f"    {name:<22} {c}")
     print(f"  an effect or drift named:              {named} = {100 * named / a.clean:.1f} %")
+    print(f"    of which joint_terms or drift:       {named_new} = "
+          f"{100 * named_new / a.clean:.1f} % (the rest: library effects, select.py)")
     print(f"  verdict not 'ready':                   {not_ready} = "
           f"{100 * not_ready / a.clean:.1f} %")
     print(f"\nkinds the library lacks, {a.seeds} seeds each (noise floor RMS {floor_rms:.4f} mm)")
