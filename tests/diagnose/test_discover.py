@@ -2,6 +2,7 @@
 the world's own robot draws the marks, the estimator never sees its code; rendering each
 case would take minutes, the rendered check is bench/diagnose.py --render's)."""
 
+import jsonschema
 import numpy as np
 import pytest
 
@@ -12,6 +13,7 @@ from vision_cal.diagnose.select import diagnose
 from vision_cal.pipeline import calibrate_dataset
 from vision_cal.plan.compensate import plan_targets
 from vision_cal.render.truth_model import TrueRobot
+from vision_cal.schema import validate
 
 N, SIGMA, MEAS = 46, 0.01, 0.003      # marks, robot noise per axis, measurer's std
 N_STD = 4.0
@@ -104,6 +106,11 @@ def test_drift_is_reported_and_the_verdict_is_not_reliable(tmp_path):
     assert drift[0]["size_mm"] == pytest.approx(np.radians(0.02) * 400, rel=0.6)
     assert run.document["verdict"]["status"] == "not reliable"
     assert any("warm it up" in r for r in run.document["verdict"]["reasons"])
+    # the document follows the shipped schema (drift, verdict), which refuses a bad verdict
+    validate(run.document, "calibration")
+    bad = dict(run.document, verdict={"status": "fine"})
+    with pytest.raises(jsonschema.ValidationError):
+        validate(bad, "calibration")
 
 
 def _base_fit(q, xy, s):

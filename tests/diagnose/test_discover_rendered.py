@@ -7,6 +7,7 @@ from __future__ import annotations
 import pytest
 
 from tests.test_end_to_end import calibrate, photographer, scene  # noqa: F401 (fixture)
+from vision_cal.schema import validate
 
 N_STD = 4.0
 
@@ -25,6 +26,7 @@ def test_rendered_coupling_is_named_within_4_std(tmp_path, photographer, seed): 
     assert not [e for e in doc["effects"] if e["name"] in ("joint_scale", "joint_cyclic")]
     assert doc["verdict"]["status"] in ("ready", "check", "not reliable")
     assert doc["verdict"]["residual_over_floor"] is not None
+    validate(doc, "calibration")      # joint_terms and the verdict as the schema has them
 
 
 def test_rendered_drift_is_reported_and_not_reliable(tmp_path, photographer):  # noqa: F811
