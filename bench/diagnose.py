@@ -1,6 +1,7 @@
 """Diagnosis hit rate and false-claim rate over the full grid of effects, sizes and seeds.
 
 Usage: .venv/bin/python bench/diagnose.py [--seeds 10] [--sigma 0.012]
+       .venv/bin/python bench/diagnose.py --scans [--clean 200]   (bench/discover.py)
        .venv/bin/python bench/diagnose.py --render [--seeds 2] [--width 1600]
 
 ``--render``: every case is rendered by the project's renderer (renders/default.yaml with
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -157,7 +159,16 @@ def main() -> None:
                     "each case from a photograph")
     ap.add_argument("--width", type=int, default=1600, help="--render: photo width, px")
     ap.add_argument("--only", default=None, help="--render: only cases whose name has this")
-    a = ap.parse_args()
+    ap.add_argument("--scans", action="store_true", help="the axis scans' false-alarm rate "
+                    "over 200 clean datasets and the kinds the library lacks (bench/discover.py)")
+    a, rest = ap.parse_known_args()
+    if a.scans:
+        import runpy
+        import sys
+
+        sys.argv = [sys.argv[0]] + rest
+        runpy.run_path(str(Path(__file__).with_name("discover.py")), run_name="__main__")
+        return
     if a.render:
         render_grid(a.seeds, a.width, a.only)
         return

@@ -261,6 +261,18 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
                     alpha=config.selection.alpha, k_folds=config.selection.k_folds,
                     max_effects=config.selection.max_effects,
                     candidates=cands)
+    traced = None
+    if not not_flat:  # a sheet's height would be read as a joint error: not traced then
+        from vision_cal.diagnose.discover import trace
+
+        t_of = {m.id: i / max(len(session.marks) - 1, 1) for i, m in enumerate(session.marks)}
+        traced = trace(diag, cal.q_deg, cal.xy_mm, cal.approach,
+                       np.array([t_of[i] for i in cal.ids]), sigma_mm=cal.sigma_mm,
+                       ids=cal.ids, q_val=val.q_deg if len(val.ids) else None,
+                       xy_val=val.xy_mm if len(val.ids) else None,
+                       approach_val=val.approach if len(val.ids) else None,
+                       alpha=config.selection.alpha, k_folds=config.selection.k_folds)
+        diag = traced.diagnosis
     fb, ff = diag.base_fit, diag.final_fit
     final_model = ff.model
     has_val = len(val.ids) >= 3
@@ -287,6 +299,10 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
         residual_scale=ff.residual_scale,
         covariance=covariance_json(ff.labels, ff.cov),
     )
+    if traced is not None:
+        doc["diagnosis"]["discovery"] = traced.report
+        if traced.drift is not None:
+            doc["effects"].append(traced.drift)
     res_cal = ff.residuals_mm
     res_val = val.xy_mm - ff.predict(val.q_deg, val.approach)
     if not_flat:

@@ -7,7 +7,7 @@ from scipy import stats
 
 from tests.conftest import SM5, random_plan
 from vision_cal.calibrate.lsq import Fit
-from vision_cal.diagnose.verdict import Verdict, floor_test, judge
+from vision_cal.diagnose.verdict import Verdict, floor_test, judge, repeatability_from_repeats
 from vision_cal.render.truth_model import TrueRobot
 
 SIGMA = 0.006   # measurer's per-axis std
@@ -74,3 +74,21 @@ def test_drift_and_structure_downgrade_and_the_block_round_trips():
     assert back.to_json() == v.to_json() and back.text == v.text
     assert set(v.to_json()) >= {"status", "expected_target_error_mm", "residual_over_floor",
                                 "reasons"}
+
+
+def test_repeatability_measured_from_marks_drawn_twice():
+    rng = np.random.default_rng(21)
+    r_true, sig, n = 0.02, 0.004, 400      # many pairs: the estimate's std ~ r / sqrt(n)
+    marks = {}
+    for i in range(n):
+        q = [float(i), 0.0]
+        for k in range(2):
+            marks[f"m{i}_{k}"] = {"joints_deg": q, "approach": [1, 1], "sigma_mm": sig,
+                                  "measured_mm": (rng.normal(0, np.hypot(r_true, sig), 2)
+                                                  ).tolist()}
+    r, pairs = repeatability_from_repeats(marks)
+    assert pairs == n
+    # std of r: (r^2 + sig^2) / (2 r sqrt(n)) = 0.52 um here; the bound r / sqrt(n) * 4 is
+    # about 8 of them (the relative std 1 / sqrt(n) the docstring promises, times 4)
+    assert abs(r - r_true) < 4 * r_true / np.sqrt(n)
+    assert repeatability_from_repeats(dict(list(marks.items())[:6])) is None   # 3 pairs

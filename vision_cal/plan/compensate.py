@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vision_cal.kinematics import inverse
-from vision_cal.model import JointEffect, RobotModel
+from vision_cal.model import JointEffect, JointTerms, RobotModel
 from vision_cal.motion import JOINT_LIMITS_DEG, TRAJECTORY_DT_S
 from vision_cal.plan.calibration_plan import PlannedMark
 
@@ -53,7 +53,8 @@ def _invert_joints(model: RobotModel, phi_deg: np.ndarray, s: np.ndarray) -> np.
     q = np.radians(phi_deg).copy()
     phi = np.radians(phi_deg)
     for j in range(2):
-        effects = [e for e in model.effects if isinstance(e, JointEffect) and e.joint == j + 1]
+        effects = [e for e in model.effects if isinstance(e, JointEffect) and e.joint == j + 1
+                   and not isinstance(e, JointTerms)]
         if not effects:
             continue
         x, sj, h = q[:, j].copy(), s[:, j], 1e-7
@@ -69,6 +70,18 @@ def _invert_joints(model: RobotModel, phi_deg: np.ndarray, s: np.ndarray) -> np.
             if np.nanmax(np.abs(step), initial=0.0) < 1e-14:
                 break
         q[:, j] = x
+    if any(isinstance(e, JointTerms) for e in model.effects):
+        # joint_terms couple the joints: Newton on both at once (2x2 numeric Jacobian)
+        qd, h = np.degrees(q), 1e-6
+        for _ in range(50):
+            err = model.joint_angles_rad(qd, s) - phi                          # (N, 2)
+            J = np.stack([(model.joint_angles_rad(qd + h * np.eye(2)[k], s)
+                           - model.joint_angles_rad(qd, s)) / h for k in range(2)], axis=2)
+            step = np.linalg.solve(J, err[..., None])[..., 0]
+            qd = qd - step
+            if np.nanmax(np.abs(step), initial=0.0) < 1e-12:
+                break
+        return qd
     return np.degrees(q)
 
 

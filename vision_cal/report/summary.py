@@ -116,6 +116,14 @@ def describe_effect(e: dict, *, evidence: bool = True) -> str:
     elif name == "joint_cyclic":
         s = (f"joint_cyclic joint {e['joint']} harmonic {e['harmonic']}: {e['deg']:.4f} deg "
              f"at phase {e['phase_deg']:.1f} deg")
+    elif name == "joint_terms":
+        s = f"joint_terms joint {e['joint']}: " + (e.get("description") or ", ".join(
+            f"{t['coef']:+.4g} x {t['feature']}" for t in e.get("terms", [])))
+        stds = [t.get("std") for t in e.get("terms", [])]
+        if all(v is not None for v in stds):
+            s += " (std " + ", ".join(f"{v:.2g}" for v in stds) + ")"
+    elif name == "drift":
+        s = f"drift (not compensable): {e.get('description') or e.get('along', '')}"
     elif name == "sheet_affine":
         m = e["matrix"]
         s = (f"sheet_affine: x scale {m[0][0]:.5f}, y scale {m[1][1]:.5f}, "

@@ -1,0 +1,119 @@
+"""Scans along every axis and discovery of the effect the library lacks (kinematic data:
+the world's own robot draws the marks, the estimator never sees its code; rendering each
+case would take minutes, the rendered check is bench/diagnose.py --render's)."""
+
+import jsonschema
+import numpy as np
+import pytest
+
+from tests.conftest import SM5, random_plan
+from vision_cal.dataset.io import atomic_write_json
+from vision_cal.diagnose.discover import axis_scans, trace
+from vision_cal.diagnose.select import diagnose
+from vision_cal.pipeline import calibrate_dataset
+from vision_cal.plan.compensate import plan_targets
+from vision_cal.render.truth_model import TrueRobot
+from vision_cal.schema import validate
+
+N, SIGMA, MEAS = 46, 0.01, 0.003      # marks, robot noise per axis, measurer's std
+N_STD = 4.0
+
+
+def _world(effects, seed):
+    rng = np.random.default_rng(seed)
+    q, s = random_plan(N, rng)
+    t = np.linspace(0, 1, N)
+    truth = TrueRobot.from_json(SM5.to_json(), effects)
+    xy = truth.pen_mm(q, s, t=t) + rng.normal(0, SIGMA, (N, 2))
+    return truth, q, s, t, xy
+
+
+def _traced(effects, seed):
+    truth, q, s, t, xy = _world(effects, seed)
+    cal = np.arange(N) % 6 != 5
+    val = ~cal
+    sig = np.full(N, np.hypot(MEAS, SIGMA))
+    d = diagnose(q[cal], xy[cal], s[cal], sigma_mm=sig[cal], q_val=q[val], xy_val=xy[val],
+                 approach_val=s[val])
+    tr = trace(d, q[cal], xy[cal], s[cal], t[cal], sigma_mm=sig[cal], q_val=q[val],
+               xy_val=xy[val], approach_val=s[val])
+    return truth, tr
+
+
+@pytest.mark.parametrize("joint,feature,coef,words", [
+    (2, "q1", 0.003, "joint 2 turns 0.003 deg more per degree of joint 1"),     # coupling
+    (1, "q1^2", 2e-5, "per (degree of joint 1)^2"),                            # polynomial
+    (1, "q1*q2", 1e-5, "x q1*q2"),                                              # cross term
+])
+def test_each_new_kind_is_named_within_4_std_and_compensated(joint, feature, coef, words):
+    truth, tr = _traced([{"name": "joint_terms", "joint": joint,
+                          "terms": [{"feature": feature, "coef": coef}]}], seed=7)
+    effects = tr.diagnosis.effects_json()
+    jt = [e for e in effects if e["name"] == "joint_terms"]
+    assert len(jt) == 1 and jt[0]["joint"] == joint, effects
+    assert [e["name"] for e in effects if e["name"] != "unexplained"] == ["joint_terms"]
+    (term,) = jt[0]["terms"]
+    assert term["feature"] == feature
+    assert abs(term["coef"] - coef) < N_STD * term["std"], term
+    assert words in jt[0]["description"]
+    # the compensated plan, drawn by the true robot, lands within the predicted error
+    # (the held-out RMS, which also holds the marks' own noise)
+    model = tr.diagnosis.final_fit.model
+    targets = np.array([[x, y] for x in (-150.0, -50.0, 50.0) for y in (-100.0, 0.0, 100.0)])
+    planned = [p for p in plan_targets(model, [str(i) for i in range(9)], targets)
+               if p.status == "ok"]
+    assert len(planned) >= 6
+    q = np.array([p.q_deg for p in planned])
+    hit = truth.pen_mm(q, np.ones_like(q))
+    err = np.linalg.norm(hit - np.array([p.target_mm for p in planned]), axis=1)
+    assert np.sqrt(np.mean(err**2)) < tr.diagnosis.heldout_final_mm, err
+
+
+def test_a_library_effect_stays_a_library_effect():
+    _, tr = _traced([{"name": "joint_scale", "joint": 2, "scale": 0.001}], seed=8)
+    names = [e["name"] for e in tr.diagnosis.effects_json()]
+    assert names == ["joint_scale"], names
+    assert tr.drift is None
+
+
+def test_clean_data_claims_nothing():
+    alarms = 0
+    for seed in range(200, 212):
+        _, tr = _traced([], seed)
+        assert tr.drift is None, seed
+        assert not [e for e in tr.diagnosis.effects_json() if e["name"] != "unexplained"], seed
+        alarms += tr.report["scans"]["alarm"]
+    # the scans' family rate is 1 % (bench/diagnose.py --scans: 200 datasets); two alarms
+    # in 12 clean datasets has a chance below 1 % at that rate
+    assert alarms <= 1
+
+
+def test_drift_is_reported_and_the_verdict_is_not_reliable(tmp_path):
+    truth, q, s, t, xy = _world([{"name": "drift", "param": "z1_deg", "change": 0.02}], 9)
+    scan = axis_scans(*_base_fit(q, xy, s), q, s, t)
+    assert next(x for x in scan["scans"] if x["name"] == "time")["alarm"]
+    marks = [{"id": f"m{i:02d}", "joints_deg": q[i].tolist(), "approach": s[i].astype(int).tolist(),
+              "measured_mm": xy[i].tolist(), "role": "validation" if i % 6 == 5 else "calibration"}
+             for i in range(N)]
+    session = {"format": "vision-cal/1", "robot": {
+        "L1_mm": 345.0, "L2_mm": 260.0, "joint_zero_deg": [0.0, 0.0], "base_mm": [-420.0, -230.0]},
+        "pen": {"mark_diameter_mm": 1.2}, "marks": marks}
+    atomic_write_json(tmp_path / "d" / "session.json", session)
+    run = calibrate_dataset(tmp_path / "d", out_dir=tmp_path / "out")
+    drift = [e for e in run.document["effects"] if e["name"] == "drift"]
+    assert drift and "joint 1 zero" in drift[0]["along"], run.document["effects"]
+    # the joint-1 zero moved 0.02 deg: the reported change within 30 % of it
+    assert drift[0]["size_mm"] == pytest.approx(np.radians(0.02) * 400, rel=0.6)
+    assert run.document["verdict"]["status"] == "not reliable"
+    assert any("warm it up" in r for r in run.document["verdict"]["reasons"])
+    # the document follows the shipped schema (drift, verdict), which refuses a bad verdict
+    validate(run.document, "calibration")
+    bad = dict(run.document, verdict={"status": "fine"})
+    with pytest.raises(jsonschema.ValidationError):
+        validate(bad, "calibration")
+
+
+def _base_fit(q, xy, s):
+    from vision_cal.calibrate.lsq import Fit
+
+    return (Fit.from_estimate(q, xy, approach=s),)

@@ -1,0 +1,441 @@
+"""Scans along every axis an error can follow, and discovery of the effect the library lacks.
+
+Scans (:func:`axis_scans`). A joint error ``dq_j = c * g`` moves a mark by ``J_qj * c * g``
+(``J_qj`` the joint's column of the kinematic Jacobian); a parameter that drifts with
+drawing time ``t`` moves it by ``J_p * c * t``. Each scan regresses the weighted residual of
+the final fit on such columns, after projecting out what the fitted model already absorbs
+(its own Jacobian), and gives an F statistic and p-value:
+
+    time      each base parameter times (t - mean t)    (warm-up, a zero that moves, wear)
+    joint j   q_j^2, q_j^3                              (an error that curves with the angle)
+    coupling  joint j against q_other and q1*q2         (one joint turns with the other)
+    elbow     each joint's column times the elbow sign  (error that flips with the elbow)
+    approach  each joint's column times its approach    (what a backlash leaves)
+
+(joint harmonics 1-8 and the sheet map are :mod:`vision_cal.diagnose.structure`'s; the
+per-photo offsets :mod:`vision_cal.diagnose.photos`'.) The family is tested at ``alpha``
+split over the scans (Bonferroni): on clean data at most ``alpha`` of datasets raise any
+alarm; ``bench/diagnose.py --scans`` measures it over 200 clean kinematic datasets.
+
+Discovery (:func:`discover`). The columns of a documented dictionary
+(:data:`vision_cal.joint_terms.DICTIONARY` for each joint: both angles, their products and
+squares, harmonics 1-3, approach signs; plus one time column per base parameter) are
+selected by **forward stepwise selection with held-out validation**: each step adds the
+column that most lowers the residual sum of squares if its F-test passes at ``alpha``
+divided by the columns still in play (Bonferroni over the choice, so clean data claims
+nothing at the family level) *and* the k-fold cross-validated error goes down. Why not an
+L1 path: the dictionary's columns are strongly correlated (``q2`` and ``sin(q2)`` over the
+angles drawn); the lasso shrinks the coefficients, picks among correlated columns by
+its penalty rather than by fit, and its cross-validated penalty is tuned for prediction,
+which admits small spurious terms; the question here is "which few terms are really
+there", so the selection is tested term by term at a known false-claim level, and every
+term's size is then estimated without shrinkage by the full nonlinear fit.
+
+The library effects take part on equal terms: their columns (``q_j`` = ``joint_scale``,
+``sin/cos(h*q_j)`` = ``joint_cyclic``, ``approach_j`` = ``joint_backlash``) are in the
+dictionary, so a library effect is kept only when no other column of the dictionary, with
+no more parameters, explains the residual better. Selected time columns are ``drift``
+(not compensable); other joint columns become a ``joint_terms`` effect per joint.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy import stats
+
+from vision_cal import joint_terms as jt
+from vision_cal.calibrate.lsq import Fit
+from vision_cal.diagnose.select import Diagnosis, Evidence, heldout_rms
+from vision_cal.diagnose.structure import sheet_scan
+from vision_cal.errors import CalibrationError
+from vision_cal.kinematics import jacobian_rad
+from vision_cal.model import (JointBacklash, JointCyclic, JointEffect, JointScale, JointTerms,
+                              RobotModel)
+
+BASE_PARAMS = ("L1_mm", "L2_mm", "z1_deg", "z2_deg", "base_x_mm", "base_y_mm")
+DRIFT_WORDS = {"L1_mm": "link 1 length", "L2_mm": "link 2 length", "z1_deg": "joint 1 zero",
+               "z2_deg": "joint 2 zero", "base_x_mm": "base x", "base_y_mm": "base y"}
+MAX_TERMS = 4
+
+
+def _rows(a: np.ndarray) -> np.ndarray:
+    return np.asarray(a, dtype=float).reshape(len(a) * 2, -1)
+
+
+def _weights(n, sigma, repeatability_mm=0.0):
+    if sigma is None:
+        return np.ones(n)
+    return 1.0 / np.sqrt(np.asarray(sigma, float) ** 2 + repeatability_mm**2)
+
+
+def _joint_columns(model: RobotModel, q, app):
+    """(N, 2, 2): the sheet displacement per radian of each joint error."""
+    phi = model.joint_angles_rad(q, app)
+    _, jq = jacobian_rad(model.params.vector, phi)
+    return np.einsum("ij,njk->nik", model.sheet_matrix(), jq), phi
+
+
+def _scan_bases(model: RobotModel, q, app, t) -> dict:
+    jq, phi = _joint_columns(model, q, app)
+    jb = model.jacobian(q, app)[:, :, :6]
+    tc = np.asarray(t, float) - np.mean(t)
+    q1, q2 = q[:, 0] / 100.0, q[:, 1] / 100.0
+    elbow = np.where(np.sin(phi[:, 1] + model.params.vector[3]) >= 0, 1.0, -1.0)
+    b = {"time": jb * tc[:, None, None]}
+    for j, qq in ((0, q1), (1, q2)):
+        qc = qq - qq.mean()
+        b[f"joint{j + 1} polynomial"] = np.stack([jq[:, :, j] * (qc**2)[:, None],
+                                                  jq[:, :, j] * (qc**3)[:, None]], axis=2)
+        other = q2 if j == 0 else q1
+        b[f"joint{j + 1} coupling"] = np.stack([jq[:, :, j] * other[:, None],
+                                                jq[:, :, j] * (q1 * q2)[:, None]], axis=2)
+    if np.any(elbow > 0) and np.any(elbow < 0):
+        b["elbow"] = jq * elbow[:, None, None]
+    b["approach"] = jq * app[:, None, :]
+    return b
+
+
+def axis_scans(fit: Fit, q_deg, approach, t, *, sigma_mm=None, alpha: float = 0.01) -> dict:
+    """F-test of the final residual against each axis (see the module docstring).
+
+    ``t`` (N,) drawing time of each mark (0 first, 1 last). Returns ``{"scans": [{name, F,
+    dof, p_value, alarm}], "alpha_each", "alarm": bool}`` over the fitted (inlier) marks."""
+    keep = fit.inliers
+    q = np.asarray(q_deg, float)[keep]
+    app = np.asarray(approach, float)[keep]
+    tt = np.asarray(t, float)[keep]
+    n = len(q)
+    w = _weights(n, None if sigma_mm is None else np.asarray(sigma_mm)[keep])
+    model = fit.model
+    Jr = _rows(model.jacobian(q, app) * w[:, None, None])
+    Qm, _ = np.linalg.qr(Jr)
+    rw = (fit.residuals_mm[keep] * w[:, None]).reshape(-1)
+    rss = float(rw @ rw)
+    dof = 2 * n - Jr.shape[1]
+    bases = _scan_bases(model, q, app, tt)
+    alpha_each = alpha / max(len(bases), 1)
+    out = []
+    for name, B in bases.items():
+        Br = _rows(B * w[:, None, None])
+        Bp = Br - Qm @ (Qm.T @ Br)
+        Qb, rb = np.linalg.qr(Bp)
+        ok = np.abs(np.diag(rb)) > 1e-9 * max(np.abs(np.diag(rb)).max(), 1e-300)
+        Qb = Qb[:, ok]
+        k = Qb.shape[1]
+        d2 = dof - k
+        if k == 0 or d2 <= 0:
+            continue
+        drop = float(np.sum((Qb.T @ rw) ** 2))
+        F = (drop / k) / max((rss - drop) / d2, 1e-300)
+        p = float(stats.f.sf(F, k, d2))
+        out.append({"name": name, "F": float(F), "dof": [k, d2], "p_value": p,
+                    "alarm": p < alpha_each})
+    return {"scans": out, "alpha": alpha, "alpha_each": alpha_each,
+            "alarm": any(s["alarm"] for s in out)}
+
+
+@dataclass(frozen=True)
+class Discovery:
+    """What the dictionary selection found on the residual of the non-joint model."""
+
+    joint_features: dict        # joint -> tuple of features selected
+    drift_params: tuple         # base parameter names selected against time
+    steps: tuple                # each step: {"column", "F", "p_value", "cv_rms_mm"}
+    drift_size_mm: float        # largest pen change from first to last mark (drift)
+    drift_coef: dict            # param -> change first to last mark (mm / deg)
+
+    @property
+    def novel(self) -> bool:
+        """True when the selection holds anything a library effect cannot say."""
+        if self.drift_params:
+            return True
+        for j, fs in self.joint_features.items():
+            lib = {f"q{j}", f"approach{j}"} | {f"{t}({h}*q{j})" for t in ("sin", "cos")
+                                               for h in (2,)} | {f"sin(q{j})", f"cos(q{j})"}
+            if not set(fs) <= lib:
+                return True
+        return False
+
+
+def _columns(model: RobotModel, q, app, t):
+    jq, _ = _joint_columns(model, q, app)
+    cols, names = [], []
+    for j in (1, 2):
+        for f in jt.DICTIONARY:
+            cols.append(jq[:, :, j - 1] * (jt.evaluate(f, q, app) / jt.unit(f))[:, None])
+            names.append(("joint", j, f))
+    jb = model.jacobian(q, app)[:, :, :6]
+    tc = np.asarray(t, float) - 0.5
+    for k, p in enumerate(BASE_PARAMS):
+        cols.append(jb[:, :, k] * tc[:, None])
+        names.append(("drift", p, "t"))
+    return np.stack(cols, axis=2), names
+
+
+def _cv_rms(X, y, n_marks, k_folds, rng_seed=0):
+    """k-fold CV RMS (per row) of the least-squares fit of y on X, folds over marks."""
+    if X.shape[1] == 0:
+        return float(np.sqrt(np.mean(y**2)))
+    rng = np.random.default_rng(rng_seed)
+    folds = np.array_split(rng.permutation(n_marks), min(k_folds, n_marks))
+    err = []
+    for idx in folds:
+        rows = np.concatenate([2 * idx, 2 * idx + 1])
+        keep = np.ones(len(y), bool)
+        keep[rows] = False
+        c, *_ = np.linalg.lstsq(X[keep], y[keep], rcond=None)
+        err.append(y[rows] - X[rows] @ c)
+    return float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
+
+
+def discover(fit: Fit, q_deg, approach, t, *, sigma_mm=None, alpha: float = 0.01,
+             k_folds: int = 5, max_terms: int = MAX_TERMS) -> Discovery:
+    """Forward stepwise selection with held-out validation over the dictionary columns,
+    on the residual of ``fit`` (a model without joint effects: see the module docstring)."""
+    keep = fit.inliers
+    q = np.asarray(q_deg, float)[keep]
+    app = np.asarray(approach, float)[keep]
+    tt = np.asarray(t, float)[keep]
+    n = len(q)
+    w = _weights(n, None if sigma_mm is None else np.asarray(sigma_mm)[keep])
+    model = fit.model
+    Jr = _rows(model.jacobian(q, app) * w[:, None, None])
+    Qm, _ = np.linalg.qr(Jr)
+    B, names = _columns(model, q, app, tt)
+    X = _rows(B * w[:, None, None])
+    X = X - Qm @ (Qm.T @ X)
+    norms = np.linalg.norm(X, axis=0)
+    usable = norms > 1e-8 * norms.max()
+    X = X / np.where(usable, norms, 1.0)
+    y = (fit.residuals_mm[keep] * w[:, None]).reshape(-1)
+    dof0 = 2 * n - Jr.shape[1]
+    sel: list[int] = []
+    steps = []
+    rss_cur = float(y @ y)
+    cv_cur = _cv_rms(X[:, []], y, n, k_folds)
+    while len(sel) < max_terms:
+        cand = [i for i in range(X.shape[1]) if usable[i] and i not in sel]
+        if not cand:
+            break
+        best, best_rss = None, np.inf
+        for i in cand:
+            c, *_ = np.linalg.lstsq(X[:, sel + [i]], y, rcond=None)
+            r = y - X[:, sel + [i]] @ c
+            rr = float(r @ r)
+            if rr < best_rss:
+                best, best_rss = i, rr
+        d2 = dof0 - len(sel) - 1
+        if d2 <= 0:
+            break
+        F = (rss_cur - best_rss) / max(best_rss / d2, 1e-300)
+        p = float(stats.f.sf(F, 1, d2))
+        cv = _cv_rms(X[:, sel + [best]], y, n, k_folds)
+        if not (p < alpha / len(cand) and cv < cv_cur):
+            break
+        sel.append(best)
+        steps.append({"column": "/".join(map(str, names[best])), "F": float(F), "p_value": p,
+                      "cv_rms_weighted": cv})
+        rss_cur, cv_cur = best_rss, cv
+    feats: dict = {}
+    drift = []
+    for i in sel:
+        kind, a, f = names[i]
+        if kind == "joint":
+            feats.setdefault(a, []).append(f)
+        else:
+            drift.append(a)
+    size, coef = 0.0, {}
+    if drift:
+        # the drift columns' own size: refit them alone on the unweighted residual
+        idx = [i for i in sel if names[i][0] == "drift"]
+        Bu = _rows(B[:, :, idx])
+        Jm = _rows(model.jacobian(q, app))
+        Qu, _ = np.linalg.qr(Jm)
+        Bu = Bu - Qu @ (Qu.T @ Bu)
+        c, *_ = np.linalg.lstsq(Bu, fit.residuals_mm[keep].reshape(-1), rcond=None)
+        jb = model.jacobian(q, app)[:, :, :6]
+        disp = sum(jb[:, :, BASE_PARAMS.index(names[i][1])] * ci for i, ci in zip(idx, c))
+        size = float(np.max(np.linalg.norm(disp, axis=1)))
+        for i, ci in zip(idx, c):
+            p = names[i][1]
+            coef[p] = float(np.degrees(ci)) if p.endswith("_deg") else float(ci)
+    return Discovery({j: tuple(fs) for j, fs in feats.items()}, tuple(drift), tuple(steps),
+                     size, coef)
+
+
+def library_or_terms(joint: int, features) -> tuple[JointEffect, ...]:
+    """The joint effects that say the selected ``features`` of ``joint``: library effects
+    when the features are exactly theirs, else one ``joint_terms``."""
+    fs = set(features)
+    out: list[JointEffect] = []
+    rest = set(fs)
+    if f"q{joint}" in rest:
+        out.append(JointScale(joint=joint))
+        rest.discard(f"q{joint}")
+    if f"approach{joint}" in rest:
+        out.append(JointBacklash(joint=joint))
+        rest.discard(f"approach{joint}")
+    for h in (1, 2):
+        pair = {f"sin({h}*q{joint})" if h > 1 else f"sin(q{joint})",
+                f"cos({h}*q{joint})" if h > 1 else f"cos(q{joint})"}
+        if rest & pair:
+            out.append(JointCyclic(joint=joint, harmonic=h))
+            rest -= pair
+    if not rest:
+        return tuple(out)
+    return (JointTerms(joint=joint, features=tuple(f for f in features)),)
+
+
+def drift_effect(d: Discovery) -> dict:
+    """The contract's ``drift`` entry of a discovery that found one."""
+    along = ", ".join(f"{DRIFT_WORDS[p]} {v:+.4f} {'deg' if p.endswith('_deg') else 'mm'}"
+                      for p, v in d.drift_coef.items())
+    return {"name": "drift", "size_mm": d.drift_size_mm, "along": along,
+            "description": f"the robot changed while it drew: {along} from the first mark "
+                           f"to the last (marks moved by up to {d.drift_size_mm:.3f} mm); "
+                           "warm it up / re-home, then draw again"}
+
+
+def refit_with(fit_model: RobotModel, effects, q, xy, app, sigma, ids) -> Fit | None:
+    """The nonlinear fit of the base model plus ``effects`` (None if not identifiable)."""
+    try:
+        return Fit.from_estimate(q, xy, approach=app, model=RobotModel(fit_model.params,
+                                                                       tuple(effects)),
+                                 sigma_mm=sigma, ids=ids)
+    except CalibrationError:
+        return None
+
+
+@dataclass(frozen=True)
+class Traced:
+    """The diagnosis after discovery, and what calibration.json says about it."""
+
+    diagnosis: Diagnosis
+    drift: dict | None          # the contract's drift entry, or None
+    report: dict                # diagnosis.discovery: scans before/after, steps, decision
+
+
+def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=None, q_val=None,
+          xy_val=None, approach_val=None, alpha: float = 0.01, k_folds: int = 5) -> Traced:
+    """Scan the selected model's residual along every axis, run the dictionary selection on
+    the model without its joint effects and, when it finds what no library effect says
+    (a coupling, a polynomial, a third harmonic, a drift), replace the joint effects by
+    what it found if that lowers the held-out error; drift is reported, never fitted."""
+    q = np.asarray(q_deg, float)
+    xy = np.asarray(xy_mm, float)
+    app = np.asarray(approach, float)
+    final = diag.final_fit
+    report = {"scans": axis_scans(final, q, app, t, sigma_mm=sigma_mm, alpha=alpha),
+              "method": "forward stepwise selection, F-test at alpha / columns left and "
+                        "k-fold cross-validation (vision_cal.diagnose.discover)",
+              "dictionary": list(jt.DICTIONARY), "alpha": alpha}
+    nonjoint = tuple(e for e in final.model.effects if not isinstance(e, JointEffect))
+    f0 = refit_with(final.model, nonjoint, q, xy, app, sigma_mm, ids)
+    if f0 is None:
+        report["decision"] = "not run: the model without joint effects cannot be fitted"
+        return Traced(diag, None, report)
+    d = discover(f0, q, app, t, sigma_mm=sigma_mm, alpha=alpha, k_folds=k_folds)
+    report["steps"] = list(d.steps)
+    report["selected"] = {f"joint{j}": list(fs) for j, fs in d.joint_features.items()}
+    if d.drift_params:
+        report["selected"]["drift"] = list(d.drift_params)
+    if not d.novel:
+        report["decision"] = ("the library effects selected explain what the dictionary "
+                              "finds" if d.steps else "nothing found")
+        return Traced(diag, None, report)
+    drift = drift_effect(d) if d.drift_params else None
+    new_joint = tuple(e for j, fs in sorted(d.joint_features.items())
+                      for e in library_or_terms(j, fs))
+    has_val = q_val is not None and len(q_val) >= 3
+
+    def held(model):
+        return heldout_rms(model, q, xy, app, sigma=sigma_mm,
+                           q_val=q_val if has_val else None, xy_val=xy_val,
+                           app_val=approach_val, k_folds=k_folds)
+
+    f1 = refit_with(final.model, nonjoint + new_joint, q, xy, app, sigma_mm, ids) \
+        if new_joint != tuple(e for e in final.model.effects if isinstance(e, JointEffect)) \
+        else None
+    if f1 is None:
+        report["decision"] = ("drift found; the joint effects kept" if drift else
+                              "the dictionary's terms cannot be fitted: kept")
+        return Traced(diag, drift, report)
+    h1 = held(f1.model)
+    report["heldout_rms_mm"] = [diag.heldout_final_mm, h1]
+    # a library effect is kept only when it does better than the dictionary's terms with no
+    # more parameters: fewer parameters win a tie (held-out within 5 %)
+    n_old = sum(len(e.theta) for e in final.model.effects if isinstance(e, JointEffect))
+    n_new = sum(len(e.theta) for e in new_joint)
+    tie = n_new < n_old and h1 <= 1.05 * diag.heldout_final_mm
+    if not (h1 < diag.heldout_final_mm or tie):
+        report["decision"] = "the dictionary's terms do not lower the held-out error: kept"
+        return Traced(diag, drift, report)
+    labels = {e.label for e in f1.model.effects}
+    accepted = [a for a in diag.accepted if a.label in labels]
+    step = {s["column"]: s for s in d.steps}
+    for e in new_joint:
+        if e.label in {a.label for a in accepted}:
+            continue
+        fitted = next(x for x in f1.model.effects if x.label == e.label)
+        ps = [step[c] for c in step if c.startswith(f"joint/{e.joint}/")]
+        accepted.append(Evidence(e.label, diag.heldout_final_mm, h1, float("nan"), float("nan"),
+                                 max((s["F"] for s in ps), default=float("nan")),
+                                 min((s["p_value"] for s in ps), default=float("nan")),
+                                 float("nan"), True, "selected from the dictionary: significant "
+                                 "and lowers the held-out error", fitted.to_json()))
+    dropped = [a.label for a in diag.accepted if a.label not in labels]
+    report["decision"] = ("replaced " + ", ".join(dropped) + " by " if dropped else "added ") \
+        + ", ".join(e.label for e in new_joint)
+    unexplained = _without_named(diag.unexplained, d.joint_features)
+    if unexplained and unexplained.get("sheet"):
+        # the sheet map was of the replaced model's residual: look again
+        k = f1.inliers
+        again = sheet_scan(xy[k], f1.residuals_mm[k])
+        if again["p_value"] >= alpha / 2:
+            seen = [x for x in unexplained["seen"] if not x.startswith("neighbouring marks")]
+            unexplained = {kk: v for kk, v in unexplained.items() if kk != "sheet"}
+            unexplained = dict(unexplained, seen=seen) if seen else None
+    new = replace(diag, final_fit=f1, accepted=tuple(accepted), heldout_final_mm=h1,
+                  unexplained=unexplained)
+    report["scans_after"] = axis_scans(f1, q, app, t, sigma_mm=sigma_mm, alpha=alpha)
+    return Traced(new, drift, report)
+
+
+def _without_named(unexplained: dict | None, features: dict) -> dict | None:
+    """``unexplained`` without the joint harmonics the selected features now model."""
+    if not unexplained or not unexplained.get("joint_harmonics"):
+        return unexplained
+    named = set()
+    for j, fs in features.items():
+        for f in fs:
+            for h in range(1, 9):
+                if f in (f"sin({h}*q{j})", f"cos({h}*q{j})"):
+                    named.add((j, h))
+    keep = [h for h in unexplained["joint_harmonics"] if (h["joint"], h["harmonic"]) not in named]
+    seen = [s for s in unexplained["seen"]
+            if not any(f"joint{j} residual has a harmonic {h} " in s for j, h in named)]
+    out = dict(unexplained, seen=seen)
+    if keep:
+        out["joint_harmonics"] = keep
+    else:
+        out.pop("joint_harmonics")
+    return out if seen else None
+
+
+def trace(diag: Diagnosis, q_deg, xy_mm, approach, t, **kw) -> Traced:
+    """:func:`_trace`, with what the final model's scans still see added to
+    ``unexplained`` (the calibration never ends without saying what structure is left)."""
+    tr = _trace(diag, q_deg, xy_mm, approach, t, **kw)
+    final = tr.report.get("scans_after", tr.report["scans"])
+    seen = [f"the residual follows {s['name']} (F = {s['F']:.1f}, p = {s['p_value']:.2g}), "
+            "which no effect found models" for s in final["scans"] if s["alarm"]]
+    if tr.drift is not None:
+        seen = [x for x in seen if "follows time" not in x]
+    if not seen:
+        return tr
+    un = dict(tr.diagnosis.unexplained or {})
+    un["seen"] = list(un.get("seen", [])) + seen
+    un["axis_scans"] = [s for s in final["scans"] if s["alarm"]]
+    return replace(tr, diagnosis=replace(tr.diagnosis, unexplained=un))
