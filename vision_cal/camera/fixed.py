@@ -406,3 +406,17 @@ def locate(cam: FixedCamera, uv_px, z_mm: float = 0.0) -> list[Located]:
     ps = p @ T_sr[:3, :3].T + T_sr[:3, 3]
     return [Located((float(a), float(b)), float(z_mm), p[i], ps[i], std[i])
             for i, (a, b) in enumerate(uv)]
+
+
+def camera_of(doc: dict, index: int, *, file: str | None = None) -> FixedCamera:
+    """The still camera ``cameras[index]`` of a calibration document."""
+    cams = doc.get("cameras")
+    if not isinstance(cams, list) or not cams:
+        raise VisionCalError("no still camera in this calibration (cameras is absent: the "
+                             "photos came from different places; take two or more photos "
+                             "from the fixed camera, or declare camera.fixed)", file=file,
+                             field="cameras")
+    if not 0 <= index < len(cams):
+        raise VisionCalError(f"camera {index} does not exist (cameras holds {len(cams)}: "
+                             f"0..{len(cams) - 1})", file=file, field="--camera")
+    return camera_from_json(cams[index], where=f"cameras[{index}]", file=file)

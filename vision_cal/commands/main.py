@@ -11,7 +11,8 @@ import importlib
 import logging
 import sys
 
-SUBCOMMANDS = ("calibrate", "sheet", "design", "init", "render", "plan", "loop", "export")
+SUBCOMMANDS = ("calibrate", "sheet", "design", "init", "render", "plan", "loop", "export",
+               "locate")
 EXIT_OK, EXIT_CALIBRATION, EXIT_INPUT = 0, 1, 2
 
 EPILOG = """\
