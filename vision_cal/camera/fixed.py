@@ -40,6 +40,10 @@ from vision_cal.rms import rms_2d
 #: taken from one camera pose
 SAME_POSE_PX = 0.5
 #: names of the covariance's parameters (the entry's ``covariance.params``)
+#: a fitted focal length with a std above this fraction of itself is not used: the camera
+#: looks (nearly) square at the sheet, so only points on the sheet's plane can be located
+F_REL_STD_MAX = 0.1
+UNDETERMINED = "focal length undetermined"
 COV_PARAMS = ("rot_x_deg", "rot_y_deg", "rot_z_deg", "x_mm", "y_mm", "z_mm", "f_px")
 
 
@@ -115,6 +119,11 @@ class FixedCamera:
                                 "sheet_matrix": self.sheet_matrix.tolist()}}
         if self.intrinsics == "estimated":
             d["f_px_std"] = float(sd[6])
+        if self.intrinsics == UNDETERMINED:
+            d["note"] = ("the camera looks square at the sheet, so its focal length and its "
+                         "height cannot be told apart: pixels map to the sheet's plane only "
+                         "(its height and T_robot_camera's z are not known); declare camera K "
+                         "in session.json, or tilt the camera")
         return d
 
 
@@ -233,7 +242,14 @@ def fit_pose(obj_mm: np.ndarray, img_px: np.ndarray, K, dist, *, free_f: bool
     s2 = float(r @ r) / dof
     J = sol.jac
     cov = np.zeros((7, 7))
-    cov[:n_free, :n_free] = np.linalg.pinv(J.T @ J) * s2
+    # columns scaled before inverting, and no pseudo-inverse: a direction the corners do not
+    # fix (f against the distance for a camera square to the sheet) must show a huge std,
+    # not the minimum-norm one
+    sc = 1.0 / np.maximum(np.linalg.norm(J, axis=0), 1e-300)
+    Js = J * sc
+    u, sv, vt = np.linalg.svd(Js, full_matrices=False)
+    sv = np.maximum(sv, sv[0] * 1e-15)
+    cov[:n_free, :n_free] = (vt.T / sv**2) @ vt * np.outer(sc, sc) * s2
     if free_f:
         K[0, 0] = K[1, 1] = p[6]
     T = homogeneous(cv2.Rodrigues(p[:3].reshape(3, 1))[0], p[3:6])
@@ -283,6 +299,10 @@ def fixed_camera(images, idx, sheet_corners: dict, *, K, dist, free_f: bool, rob
                              "camera's pose")
     obj = np.concatenate([np.asarray(sheet_corners[int(m)], float) for m in ids])
     T_cs, K_used, cov_p, rms_px = fit_pose(obj, px.reshape(-1, 2), K, dist, free_f=free_f)
+    if free_f and not (K_used[0, 0] > 0 and np.sqrt(cov_p[6, 6]) < F_REL_STD_MAX * K_used[0, 0]):
+        # square to the sheet: f and the distance trade; the plane's mapping is still exact
+        T_cs, K_used, cov_p, rms_px = fit_pose(obj, px.reshape(-1, 2), K, dist, free_f=False)
+        intrinsics = UNDETERMINED
     rvec = cv2.Rodrigues(T_cs[:3, :3])[0].ravel()
     p7 = np.concatenate([rvec, T_cs[:3, 3], [K_used[0, 0]]])
     T0 = _robot_camera(p7, robot3, sheet_matrix)
@@ -384,6 +404,10 @@ def locate(cam: FixedCamera, uv_px, z_mm: float = 0.0) -> list[Located]:
     """Pixels (N, 2) of this camera's photos -> robot-frame and sheet-frame points at
     height ``z_mm`` above the sheet's plane, with their std."""
     uv = np.asarray(uv_px, float).reshape(-1, 2)
+    if cam.intrinsics == UNDETERMINED and z_mm != 0.0:
+        raise VisionCalError("this camera's focal length is undetermined (it looks square at "
+                             "the sheet): only z = 0 can be located; declare camera K in "
+                             "session.json and calibrate again", field="--z-mm")
     T = cam.T_robot_camera
     p = _ray_to_plane(uv, cam.K, cam.dist, T, z_mm)
     # std: the 7 covariance parameters perturbed (deg, mm, px), central differences
