@@ -32,6 +32,7 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
+from vision_cal.dataset.session import FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.mapping import undistort_px
 from vision_cal.rms import rms_2d
@@ -340,10 +341,18 @@ def cameras_json(session, measurement, model, doc: dict) -> list[dict]:
     sheet_corners = {int(m.id): np.asarray(m.corners_mm, float) for m in session.sheet.markers}
     pts = np.concatenate(list(sheet_corners.values())) if sheet_corners else np.zeros((0, 2))
     images = measurement.images
-    declared_fixed = bool((session.raw.get("camera") or {}).get("fixed", False))
+    cam_raw = session.raw.get("camera")
+    declared_fixed = (isinstance(cam_raw, dict) and FieldReader(str(session.path)).boolean(
+        cam_raw.get("fixed", False), "camera.fixed"))
     robot3, cov3, M = robot_block(model, doc.get("covariance"), doc.get("std"))
     out = []
-    for g in still_groups(images, pts):
+    groups = still_groups(images, pts)
+    if declared_fixed and len(groups) > 1:
+        doc.setdefault("notes", []).append(
+            f"camera.fixed is declared but the photos were taken from {len(groups)} places "
+            f"(their marker mappings differ by {SAME_POSE_PX} px or more): one camera entry "
+            "per place")
+    for g in groups:
         if len(g) < 2 and not declared_fixed:
             continue
         size = tuple(images[g[0]].size_px)
