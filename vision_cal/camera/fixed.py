@@ -209,6 +209,17 @@ def mean_corners(images, idx) -> tuple[np.ndarray, np.ndarray]:
 
 # --------------------------------------------------------------------------- the pose fit
 
+def lsq_covariance(J: np.ndarray, s2: float) -> np.ndarray:
+    """Covariance (P, P) of a least-squares fit with Jacobian ``J`` (N, P) and residual
+    variance ``s2``. Columns scaled before inverting, and no pseudo-inverse: a direction
+    the data do not fix (f against the distance for a camera square to the sheet) shows a
+    huge std, not the minimum-norm one."""
+    sc = 1.0 / np.maximum(np.linalg.norm(J, axis=0), 1e-300)
+    _, sv, vt = np.linalg.svd(J * sc, full_matrices=False)
+    sv = np.maximum(sv, sv[0] * 1e-15)
+    return (vt.T / sv**2) @ vt * np.outer(sc, sc) * s2
+
+
 def _project(p, obj, K, dist, free_f):
     Kp = K.copy()
     if free_f:
@@ -241,16 +252,8 @@ def fit_pose(obj_mm: np.ndarray, img_px: np.ndarray, K, dist, *, free_f: bool
     r = sol.fun
     dof = max(len(r) - n_free, 1)
     s2 = float(r @ r) / dof
-    J = sol.jac
     cov = np.zeros((7, 7))
-    # columns scaled before inverting, and no pseudo-inverse: a direction the corners do not
-    # fix (f against the distance for a camera square to the sheet) must show a huge std,
-    # not the minimum-norm one
-    sc = 1.0 / np.maximum(np.linalg.norm(J, axis=0), 1e-300)
-    Js = J * sc
-    u, sv, vt = np.linalg.svd(Js, full_matrices=False)
-    sv = np.maximum(sv, sv[0] * 1e-15)
-    cov[:n_free, :n_free] = (vt.T / sv**2) @ vt * np.outer(sc, sc) * s2
+    cov[:n_free, :n_free] = lsq_covariance(sol.jac, s2)
     if free_f:
         K[0, 0] = K[1, 1] = p[6]
     T = homogeneous(cv2.Rodrigues(p[:3].reshape(3, 1))[0], p[3:6])
