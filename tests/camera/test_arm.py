@@ -38,12 +38,16 @@ def _plan(n, rng, *, turn_j4=True):
     return out
 
 
-def _views(plan, X, rng, noise_px=0.1):
+def _views(plan, X, rng, noise_px=0.1, repeatability_mm=0.01):
+    """Each photo: the flange off its place by the robot's repeatability (per axis), the
+    corners by ``noise_px``."""
     corners = np.concatenate([m.corners_mm for m in _field().markers])
     q = np.array([p[0] for p in plan])
     j4 = np.array([p[1] for p in plan])
+    T_sf = world.T_sheet_flange(TRUTH, q, j4)
+    T_sf[:, :2, 3] += rng.normal(0, repeatability_mm, (len(q), 2))
     views = []
-    for i, T in enumerate(world.T_cam_sheet(TRUTH, q, j4, X)):
+    for i, T in enumerate(np.linalg.inv(T_sf @ X)):
         pc = np.column_stack([corners, np.zeros(len(corners))]) @ T[:3, :3].T + T[:3, 3]
         uv = pc[:, :2] / pc[:, 2:3] * K[0, 0] + K[:2, 2]
         inside = (uv[:, 0] > 5) & (uv[:, 0] < SIZE[0] - 6) & (uv[:, 1] > 5) & (uv[:, 1] < SIZE[1] - 6)

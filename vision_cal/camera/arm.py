@@ -68,6 +68,7 @@ class ArmFit:
     rms_px: float
     view_rms_px: np.ndarray
     n_corners: int
+    pose_rms: dict | None = None     # per-photo flange pose scatter (mm, deg) by component
 
     @property
     def std(self) -> np.ndarray:
@@ -87,6 +88,7 @@ class ArmFit:
                                         "translation_mm": sd[9:12].tolist()},
                 "covariance": {"params": list(LABELS), "matrix": self.cov.tolist()},
                 "corner_rms_px": self.rms_px, "n_corners": self.n_corners,
+                "pose_rms": self.pose_rms,
                 "not_identifiable": self.not_identifiable}
 
 
@@ -168,9 +170,62 @@ def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams) -> ArmFi
     sol = least_squares(_residuals, x1, args=(views, K, dist, R0), method="lm", x_scale="jac")
     r = sol.fun
     n = len(r)
-    s2 = float(r @ r) / max(n - len(x0), 1)
-    cov = lsq_covariance(sol.jac, s2)
     p, X = _unpack(sol.x, R0)
     sizes = np.cumsum([0] + [2 * len(v.corners_mm) for v in views])
     view_rms = np.array([rms_2d(r[a:b].reshape(-1, 2)) for a, b in zip(sizes[:-1], sizes[1:])])
-    return ArmFit(p, X, cov, rms_2d(r.reshape(-1, 2)), view_rms, n // 2)
+    # the std: at the photo level. The robot's repeatability moves a whole photo, so corner
+    # residuals are not independent; the flange pose each photo implies, against the
+    # model's, is (one 6-vector per photo), with each kind of component's variance found
+    # from its own scatter
+    M = np.array([camera_pose(v, K, dist) for v in views])
+    x2 = np.concatenate([sol.x[:6], np.zeros(3), sol.x[9:12]])
+    x3, cov, rms_pose = _pose_level_fit(x2, views, M, R0)
+    p, X = _unpack(x3, R0)          # the estimate the covariance belongs to
+    return ArmFit(p, X, cov, rms_2d(r.reshape(-1, 2)), view_rms, n // 2, rms_pose)
+
+
+def _pose_residuals(x, views, M, R0) -> np.ndarray:
+    """(N, 6): per photo the flange pose the photo implies (``M_i inv(X)``) in the model's
+    flange frame: translation (mm) and small rotation (rad)."""
+    p, X = _unpack(x, R0)
+    P = T_sheet_flange(p, [v.q_deg for v in views], [v.j4_deg for v in views])
+    Xi = np.linalg.inv(X)
+    out = np.empty((len(views), 6))
+    for i in range(len(views)):
+        D = np.linalg.inv(P[i]) @ M[i] @ Xi
+        R = D[:3, :3]
+        out[i, :3] = D[:3, 3]
+        out[i, 3:] = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    return out
+
+
+#: the pose residual's components whose variances are found separately: in-plane position,
+#: height, tilt, turn
+_GROUPS = ((0, 1), (2,), (3, 4), (5,))
+
+
+def _pose_level_fit(x, views, M, R0) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The parameters refitted on the photo-level residuals with each group's variance as
+    its weight, their covariance (12, 12) and the RMS of each group (mm, deg)."""
+    w = np.ones(6)
+    n, P = len(views), len(x)
+    for _ in range(3):
+        def f(z):
+            return (_pose_residuals(z, views, M, R0) * w).ravel()
+        sol = least_squares(f, x, method="lm", x_scale="jac")
+        x = sol.x
+        e = _pose_residuals(x, views, M, R0)
+        var = np.empty(6)
+        for g in _GROUPS:
+            # each group takes its share of the parameters' degrees of freedom
+            dof = max(n * len(g) - P * len(g) / 6.0, 1.0)
+            var[list(g)] = max(float(np.sum(e[:, list(g)] ** 2)) / dof, 1e-30)
+        w = 1.0 / np.sqrt(var)
+    sol = least_squares(lambda z: (_pose_residuals(z, views, M, R0) * w).ravel(), x,
+                        method="lm", x_scale="jac")
+    cov = lsq_covariance(sol.jac, 1.0)
+    x = sol.x
+    rms = {"position_mm": float(np.sqrt(var[0])), "height_mm": float(np.sqrt(var[2])),
+           "tilt_deg": float(np.degrees(np.sqrt(var[3]))),
+           "turn_deg": float(np.degrees(np.sqrt(var[5])))}
+    return x, cov, rms

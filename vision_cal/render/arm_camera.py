@@ -73,3 +73,89 @@ def T_flange_camera_true(rng=None, *, height_mm=(150.0, 250.0), offset_mm: float
     b = rng.uniform(-np.pi, np.pi)
     T[:3, 3] = [r * np.cos(b), r * np.sin(b), rng.uniform(*height_mm)]
     return T
+
+
+def field_sheet(*, size_mm=(594.0, 420.0), bottom_left_mm=(-297.0, -210.0), marker_mm=18.0,
+                grid=(14, 10), margin_mm=12.0, dictionary="DICT_5X5_250"):
+    """The marker field an arm camera sees piecewise: a dense ArUco grid over the sheet."""
+    from vision_cal.render.sheet import make_sheet
+
+    return make_sheet(size_mm=size_mm, bottom_left_mm=bottom_left_mm, dictionary=dictionary,
+                      marker_mm=marker_mm, grid=grid, margin_mm=margin_mm)
+
+
+def reachable_poses(robot: TrueRobot, n: int, rng, *, extent_mm, inset_mm: float = 60.0,
+                    turn_j4: bool = True) -> list[tuple[np.ndarray, float]]:
+    """``n`` commands (q (2,), j4) whose flange lies over the sheet ``inset_mm`` inside its
+    ``extent_mm`` (x0, y0, x1, y1), both elbows (|q2| > 20 deg), joint 4 turned at random."""
+    x0, y0, x1, y1 = extent_mm
+    out = []
+    for _ in range(200 * n):
+        q = np.array([rng.uniform(-180, 180), rng.uniform(-150, 150)])
+        xy = robot.pen_mm(q[None], link=True)[0]
+        if (x0 + inset_mm < xy[0] < x1 - inset_mm and y0 + inset_mm < xy[1] < y1 - inset_mm
+                and abs(q[1]) > 20):
+            out.append((q, float(rng.uniform(-170, 170)) if turn_j4 else 0.0))
+            if len(out) == n:
+                return out
+    raise ValueError(f"only {len(out)} of {n} poses put the flange over the sheet")
+
+
+def render_arm_dataset(folder, *, truth: dict, nominal: dict, n_poses: int = 16,
+                       size_px=(800, 600), f_px: float = 900.0, seed: int = 0,
+                       px_per_mm: float = 8.0, noise_sigma: float = 1.5,
+                       mount: str = "flange", repeatability_mm: float = 0.01,
+                       photographer=None):
+    """Photos of the marker field by the camera on the true robot: session.json (``poses``,
+    declared lens) and truth.json (``params``, ``T_flange_camera``, per photo
+    ``T_cam_sheet``). ``truth`` / ``nominal``: the format's ``params`` blocks; the flange
+    misses its commanded place by ``repeatability_mm`` (per axis, Gaussian) in each photo."""
+    from pathlib import Path
+
+    from vision_cal.dataset.io import atomic_write_json
+    from vision_cal.render.dataset import _encode_image
+    from vision_cal.render.photo import Photographer
+    from vision_cal.render.sheet import sheet_texture
+
+    rng = np.random.default_rng(seed)
+    robot = TrueRobot.from_json(truth)
+    sheet = field_sheet()
+    X = T_flange_camera_true(rng)
+    poses = reachable_poses(robot, n_poses, rng, extent_mm=sheet.extent_mm,
+                            turn_j4=(mount == "flange"))
+    w, h = size_px
+    K = np.array([[f_px, 0, (w - 1) / 2], [0, f_px, (h - 1) / 2], [0, 0, 1.0]])
+    tex = sheet_texture(sheet, marks_xy_mm=np.zeros((0, 2)), px_per_mm=px_per_mm, rng=rng)
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    own = photographer is None
+    ph = Photographer(size_px=size_px, K=K) if own else photographer
+    q = np.array([p[0] for p in poses])
+    j4 = np.array([p[1] for p in poses])
+    # the robot's repeatability: each photo's flange off its commanded place (per axis)
+    T_sf = T_sheet_flange(robot, q, j4)
+    T_sf[:, :2, 3] += rng.normal(0.0, repeatability_mm, (len(q), 2))
+    Ts = np.linalg.inv(T_sf @ X)
+    files = []
+    try:
+        for i, T in enumerate(Ts):
+            rgb = ph.photograph(tex, extent_mm=sheet.extent_mm, T_cam_sheet=T,
+                                noise_sigma=noise_sigma, rng=rng)
+            name = f"pose_{i:03d}.png"
+            (folder / name).write_bytes(_encode_image(np.asarray(rgb), None))
+            files.append(name)
+    finally:
+        if own:
+            ph.close()
+    session = {"format": "vision-cal/1", "sheet": sheet.to_json(),
+               "robot": {**nominal, "home_deg": [0.0, 0.0]},
+               "camera": {"size_px": list(size_px), "K": K.tolist(), "dist": [0.0] * 5},
+               "camera_mount": mount,
+               "poses": [{"image": f, "joints_deg": [float(a), float(b)], "j4_deg": float(c)}
+                         for f, (a, b), c in zip(files, q, j4)]}
+    atomic_write_json(folder / "session.json", session)
+    atomic_write_json(folder / "truth.json", {
+        "params": truth, "T_flange_camera": X.tolist(), "repeatability_mm": repeatability_mm,
+        "camera": {"K": K.tolist(), "dist": [0.0] * 5,
+                   "T_cam_sheet": {f: T.tolist() for f, T in zip(files, Ts)}}})
+    return folder
