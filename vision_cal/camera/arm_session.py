@@ -131,7 +131,8 @@ def calibrate_arm_camera(folder) -> dict:
     return {"format": "vision-cal/calibration/1", "method": "arm_camera",
             "params": d["params"], "std": d["std"], "covariance": d["covariance"],
             "nominal": nominal.to_json(), "effects": [], "cameras": [cam],
-            "not_identifiable": d["not_identifiable"], "images": images,
+            "not_identifiable": d["not_identifiable"], "pose_rms": d["pose_rms"],
+            "images": images,
             "notes": ["robot calibrated from the arm camera's views of the marker field (no "
                       "pen): base model only; joint effects are not looked for in this "
                       "version"]}
