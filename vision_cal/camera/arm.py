@@ -41,6 +41,8 @@ from vision_cal.rms import rms_2d
 LABELS = ("L1_mm", "L2_mm", "z1_deg", "z2_deg", "base_x_mm", "base_y_mm",
           "cam_rot_x_deg", "cam_rot_y_deg", "cam_rot_z_deg", "cam_x_mm", "cam_y_mm",
           "cam_z_mm")
+#: fewer photos leave too few degrees of freedom to estimate the photo-level variances
+MIN_POSES = 6
 #: a parameter whose std is above this (its unit: mm or deg) is reported not identifiable
 UNIDENTIFIED_STD = 1.0
 
@@ -151,9 +153,10 @@ def camera_pose(view: ArmView, K, dist) -> np.ndarray:
 def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams) -> ArmFit:
     """Robot and ``T_flange_camera`` from photos taken by the arm's camera (``K``, ``dist``
     declared); starts from ``nominal`` and the first photo's pose."""
-    if len(views) < 4:
-        raise CalibrationError(f"{len(views)} usable photos: at least 4 are needed (more, "
-                               "with both elbows and joint-4 turns, to fit the robot)")
+    if len(views) < MIN_POSES:
+        raise CalibrationError(f"{len(views)} usable photos: at least {MIN_POSES} are needed "
+                               "(12 parameters, and each kind of pose residual needs its own "
+                               "degrees of freedom for its variance)")
     K = np.asarray(K, float)
     dist = np.zeros(5) if dist is None else np.asarray(dist, float)
     T0 = camera_pose(views[0], K, dist)

@@ -19,7 +19,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vision_cal.camera.arm import ArmView, fit_arm_camera
+from vision_cal.camera.arm import MIN_POSES, ArmView, fit_arm_camera
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.dataset.photos import PhotoRefused, load_photo, normalise_name
@@ -109,9 +109,9 @@ def calibrate_arm_camera(folder) -> dict:
         images.append(entry)
         if v is not None:
             views.append(v)
-    if len(views) < 4:
-        raise CalibrationError(f"{len(views)} of {len(poses)} photos usable: at least 4 are "
-                               "needed", file=str(folder / "session.json"))
+    if len(views) < MIN_POSES:
+        raise CalibrationError(f"{len(views)} of {len(poses)} photos usable: at least "
+                               f"{MIN_POSES} are needed", file=str(folder / "session.json"))
     size, K, dist = camera
     fit = fit_arm_camera(views, K, dist, nominal)
     d = fit.to_json()
