@@ -32,6 +32,7 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
+from vision_cal.dataset.session import FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.mapping import undistort_px
 from vision_cal.rms import rms_2d
@@ -40,6 +41,10 @@ from vision_cal.rms import rms_2d
 #: taken from one camera pose
 SAME_POSE_PX = 0.5
 #: names of the covariance's parameters (the entry's ``covariance.params``)
+#: a fitted focal length with a std above this fraction of itself is not used: the camera
+#: looks (nearly) square at the sheet, so only points on the sheet's plane can be located
+F_REL_STD_MAX = 0.1
+UNDETERMINED = "focal length undetermined"
 COV_PARAMS = ("rot_x_deg", "rot_y_deg", "rot_z_deg", "x_mm", "y_mm", "z_mm", "f_px")
 
 
@@ -115,6 +120,11 @@ class FixedCamera:
                                 "sheet_matrix": self.sheet_matrix.tolist()}}
         if self.intrinsics == "estimated":
             d["f_px_std"] = float(sd[6])
+        if self.intrinsics == UNDETERMINED:
+            d["note"] = ("the camera looks square at the sheet, so its focal length and its "
+                         "height cannot be told apart: pixels map to the sheet's plane only "
+                         "(its height and T_robot_camera's z are not known); declare camera K "
+                         "in session.json, or tilt the camera")
         return d
 
 
@@ -199,6 +209,17 @@ def mean_corners(images, idx) -> tuple[np.ndarray, np.ndarray]:
 
 # --------------------------------------------------------------------------- the pose fit
 
+def lsq_covariance(J: np.ndarray, s2: float) -> np.ndarray:
+    """Covariance (P, P) of a least-squares fit with Jacobian ``J`` (N, P) and residual
+    variance ``s2``. Columns scaled before inverting, and no pseudo-inverse: a direction
+    the data do not fix (f against the distance for a camera square to the sheet) shows a
+    huge std, not the minimum-norm one."""
+    sc = 1.0 / np.maximum(np.linalg.norm(J, axis=0), 1e-300)
+    _, sv, vt = np.linalg.svd(J * sc, full_matrices=False)
+    sv = np.maximum(sv, sv[0] * 1e-15)
+    return (vt.T / sv**2) @ vt * np.outer(sc, sc) * s2
+
+
 def _project(p, obj, K, dist, free_f):
     Kp = K.copy()
     if free_f:
@@ -231,9 +252,8 @@ def fit_pose(obj_mm: np.ndarray, img_px: np.ndarray, K, dist, *, free_f: bool
     r = sol.fun
     dof = max(len(r) - n_free, 1)
     s2 = float(r @ r) / dof
-    J = sol.jac
     cov = np.zeros((7, 7))
-    cov[:n_free, :n_free] = np.linalg.pinv(J.T @ J) * s2
+    cov[:n_free, :n_free] = lsq_covariance(sol.jac, s2)
     if free_f:
         K[0, 0] = K[1, 1] = p[6]
     T = homogeneous(cv2.Rodrigues(p[:3].reshape(3, 1))[0], p[3:6])
@@ -283,6 +303,10 @@ def fixed_camera(images, idx, sheet_corners: dict, *, K, dist, free_f: bool, rob
                              "camera's pose")
     obj = np.concatenate([np.asarray(sheet_corners[int(m)], float) for m in ids])
     T_cs, K_used, cov_p, rms_px = fit_pose(obj, px.reshape(-1, 2), K, dist, free_f=free_f)
+    if free_f and not (K_used[0, 0] > 0 and np.sqrt(cov_p[6, 6]) < F_REL_STD_MAX * K_used[0, 0]):
+        # square to the sheet: f and the distance trade; the plane's mapping is still exact
+        T_cs, K_used, cov_p, rms_px = fit_pose(obj, px.reshape(-1, 2), K, dist, free_f=False)
+        intrinsics = UNDETERMINED
     rvec = cv2.Rodrigues(T_cs[:3, :3])[0].ravel()
     p7 = np.concatenate([rvec, T_cs[:3, 3], [K_used[0, 0]]])
     T0 = _robot_camera(p7, robot3, sheet_matrix)
@@ -320,10 +344,18 @@ def cameras_json(session, measurement, model, doc: dict) -> list[dict]:
     sheet_corners = {int(m.id): np.asarray(m.corners_mm, float) for m in session.sheet.markers}
     pts = np.concatenate(list(sheet_corners.values())) if sheet_corners else np.zeros((0, 2))
     images = measurement.images
-    declared_fixed = bool((session.raw.get("camera") or {}).get("fixed", False))
+    cam_raw = session.raw.get("camera")
+    declared_fixed = (isinstance(cam_raw, dict) and FieldReader(str(session.path)).boolean(
+        cam_raw.get("fixed", False), "camera.fixed"))
     robot3, cov3, M = robot_block(model, doc.get("covariance"), doc.get("std"))
     out = []
-    for g in still_groups(images, pts):
+    groups = still_groups(images, pts)
+    if declared_fixed and len(groups) > 1:
+        doc.setdefault("notes", []).append(
+            f"camera.fixed is declared but the photos were taken from {len(groups)} places "
+            f"(their marker mappings differ by {SAME_POSE_PX} px or more): one camera entry "
+            "per place")
+    for g in groups:
         if len(g) < 2 and not declared_fixed:
             continue
         size = tuple(images[g[0]].size_px)
@@ -384,6 +416,10 @@ def locate(cam: FixedCamera, uv_px, z_mm: float = 0.0) -> list[Located]:
     """Pixels (N, 2) of this camera's photos -> robot-frame and sheet-frame points at
     height ``z_mm`` above the sheet's plane, with their std."""
     uv = np.asarray(uv_px, float).reshape(-1, 2)
+    if cam.intrinsics == UNDETERMINED and z_mm != 0.0:
+        raise VisionCalError("this camera's focal length is undetermined (it looks square at "
+                             "the sheet): only z = 0 can be located; declare camera K in "
+                             "session.json and calibrate again", field="--z-mm")
     T = cam.T_robot_camera
     p = _ray_to_plane(uv, cam.K, cam.dist, T, z_mm)
     # std: the 7 covariance parameters perturbed (deg, mm, px), central differences
@@ -406,3 +442,17 @@ def locate(cam: FixedCamera, uv_px, z_mm: float = 0.0) -> list[Located]:
     ps = p @ T_sr[:3, :3].T + T_sr[:3, 3]
     return [Located((float(a), float(b)), float(z_mm), p[i], ps[i], std[i])
             for i, (a, b) in enumerate(uv)]
+
+
+def camera_of(doc: dict, index: int, *, file: str | None = None) -> FixedCamera:
+    """The still camera ``cameras[index]`` of a calibration document."""
+    cams = doc.get("cameras")
+    if not isinstance(cams, list) or not cams:
+        raise VisionCalError("no still camera in this calibration (cameras is absent: the "
+                             "photos came from different places; take two or more photos "
+                             "from the fixed camera, or declare camera.fixed)", file=file,
+                             field="cameras")
+    if not 0 <= index < len(cams):
+        raise VisionCalError(f"camera {index} does not exist (cameras holds {len(cams)}: "
+                             f"0..{len(cams) - 1})", file=file, field="--camera")
+    return camera_from_json(cams[index], where=f"cameras[{index}]", file=file)

@@ -49,11 +49,26 @@ def add_arguments(p) -> None:
                    help="informative plan: extra clearance from markers and edges (default: "
                         "5 mm + 6 x the pilot model's largest predicted std on the sheet)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the design (default 0)")
+    c = p.add_argument_group("camera on the arm (vision_cal/camera/arm_design.py)")
+    c.add_argument("--camera-on-arm", action="store_true",
+                   help="plan camera poses over a marker field (vision-cal sheet --field) "
+                        "instead of pen marks: session.json poses and program.prg")
+    c.add_argument("--n-poses", type=int, default=24, metavar="N",
+                   help="camera poses (default 24)")
+    c.add_argument("--mount", choices=("flange", "link2"), default="flange",
+                   help="the camera turns with joint 4 (flange, default) or not (link2)")
+    c.add_argument("--trigger", choices=("output", "wait"), default="output",
+                   help="camera trigger per pose: an output pulse (default) or a pause")
+    c.add_argument("--trigger-output", type=int, default=8, metavar="BIT",
+                   help="output bit pulsed for the camera (default 8)")
 
 
 def run(args) -> int:
     from vision_cal.design.stage import design_stage
     from vision_cal.errors import VisionCalError
+
+    if args.camera_on_arm:
+        return _camera_on_arm(args)
 
     if args.n_calibration < 3 or args.n_validation < 0:
         raise VisionCalError(f"expected at least 3 calibration and 0 validation marks, got "
@@ -99,4 +114,25 @@ def run(args) -> int:
         for p in (r.session_path, r.trajectory_path, r.program_path):
             if p is not None:
                 print(f"wrote {p}")
+    return 0
+
+
+def _camera_on_arm(args) -> int:
+    from vision_cal.camera.arm_design import design_camera_on_arm
+    from vision_cal.dataset.io import output_dir, read_json
+    from vision_cal.dataset.robot import load_robot_file
+    from vision_cal.dataset.session import load_sheet_file
+
+    out = output_dir(args.out, field="--out")
+    robot = load_robot_file(args.robot)
+    sheet = load_sheet_file(args.sheet)
+    a, b = design_camera_on_arm(robot, sheet, read_json(args.sheet), out, n_poses=args.n_poses,
+                                mount=args.mount, trigger=args.trigger,
+                                output_bit=args.trigger_output, seed=args.seed)
+    if not args.quiet:
+        print(f"camera poses: {args.n_poses} ({args.mount} mount); add your camera's lens "
+              f"(camera: size_px, K, dist) to {a}, put the photos beside it, then "
+              f"vision-cal handeye {out} --out CAL/")
+        print(f"wrote {a}")
+        print(f"wrote {b}")
     return 0

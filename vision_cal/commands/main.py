@@ -12,7 +12,7 @@ import logging
 import sys
 
 SUBCOMMANDS = ("calibrate", "sheet", "design", "init", "render", "plan", "loop", "export",
-               "simulate", "verify", "robot-template", "history")
+               "simulate", "verify", "robot-template", "history", "locate", "handeye")
 EXIT_OK, EXIT_CALIBRATION, EXIT_INPUT = 0, 1, 2
 
 EPILOG = """\

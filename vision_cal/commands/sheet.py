@@ -10,12 +10,15 @@ examples:
   vision-cal sheet --size A3 --out sheet/                  A3 landscape, DICT_5X5_100
   vision-cal sheet --size A4 --portrait --dictionary DICT_4X4_50 --out a4/
   vision-cal sheet --custom 500 350 --marker-mm 24 --pitch-mm 90 --png-dpi 254 --out s/
+  vision-cal sheet --size A2 --field --out field/          marker field for an arm camera
   vision-cal sheet --size A3 --measured-bar-mm 99.8 100.1 --out sheet/
       after printing: record the two 100 mm bars as measured on the paper
 
 Print sheet.pdf at 100 % (actual size, no fit-to-page) and measure both bars; paste
 sheet.json as the "sheet" block of session.json (vision-cal design does it for you).
 """
+
+DEFAULT_DICT = "DICT_5X5_100"
 
 
 def add_arguments(p) -> None:
@@ -30,13 +33,16 @@ def add_arguments(p) -> None:
     o.add_argument("--portrait", dest="landscape", action="store_const", const=False,
                    help="higher than wide")
     m = p.add_argument_group("markers")
-    m.add_argument("--dictionary", default="DICT_5X5_100", metavar="DICT",
+    m.add_argument("--dictionary", default=DEFAULT_DICT, metavar="DICT",
                    help="OpenCV predefined ArUco dictionary (default DICT_5X5_100)")
     m.add_argument("--marker-mm", type=float, metavar="S",
                    help="marker side including its black border (default: about 1/15 of "
                         "the short side)")
     m.add_argument("--pitch-mm", type=float, metavar="P",
                    help="largest centre spacing of the border markers (default 4 markers)")
+    p.add_argument("--field", action="store_true",
+                   help="a marker field over the whole page for a camera on the arm (no "
+                        "ruled grid; default DICT_5X5_1000, 18 mm markers every 36 mm)")
     p.add_argument("--png-dpi", type=float, metavar="N",
                    help="also write sheet.png at N dpi (254 = 10 px/mm); `vision-cal "
                         "simulate` does not need it (it rebuilds the print from sheet.json)")
@@ -54,9 +60,18 @@ def run(args) -> int:
         from vision_cal.errors import VisionCalError
 
         raise VisionCalError("give either --size or --custom, not both", field="--custom")
-    layout = make_layout(size=args.size or "A3", landscape=args.landscape, custom_mm=args.custom,
-                         dictionary=args.dictionary, marker_mm=args.marker_mm,
-                         pitch_mm=args.pitch_mm, measured_bar_mm=args.measured_bar_mm)
+    if args.field:  # added: vision_cal/sheet/field.py
+        from vision_cal.sheet.field import make_field_layout
+
+        layout = make_field_layout(
+            size=args.size or "A3", landscape=args.landscape, custom_mm=args.custom,
+            dictionary=args.dictionary if args.dictionary != DEFAULT_DICT else "DICT_5X5_1000",
+            marker_mm=args.marker_mm, pitch_mm=args.pitch_mm)
+    else:
+        layout = make_layout(size=args.size or "A3", landscape=args.landscape,
+                             custom_mm=args.custom, dictionary=args.dictionary,
+                             marker_mm=args.marker_mm, pitch_mm=args.pitch_mm,
+                             measured_bar_mm=args.measured_bar_mm)
     paths = write_sheet(layout, args.out, png_dpi=args.png_dpi)
     if not args.quiet:
         print(f"sheet {layout.sheet_id}: {layout.page} {layout.orientation} "

@@ -1,0 +1,107 @@
+"""A camera on the arm: the world's camera (render/arm_camera.py, its own robot code) sees a
+dense marker field; its corners (projected, 0.1 px noise) feed the estimator.
+
+Bounds are 4 reported std (one std from the fit's covariance scaled by its residual)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vision_cal.camera.arm import (LABELS, ArmView, fit_arm_camera, relative_motion)
+from vision_cal.kinematics import ScaraParams
+from vision_cal.render import arm_camera as world
+from vision_cal.render.sheet import make_sheet
+from vision_cal.render.truth_model import TrueRobot
+
+N_STD = 4.0
+SIZE = (800, 600)
+K = np.array([[900.0, 0, 399.5], [0, 900.0, 299.5], [0, 0, 1]])
+TRUTH = TrueRobot(344.05, 259.87, (-2.57, -8.13), (-424.26, -230.35))
+NOMINAL = ScaraParams(350.0, 260.0, 0.0, 0.0, -410.0, -240.0)
+
+
+def _field():
+    """The marker field: 14 x 10 markers of 18 mm over an A2 sheet."""
+    return make_sheet(size_mm=(594.0, 420.0), bottom_left_mm=(-297.0, -210.0),
+                      dictionary="DICT_5X5_250", marker_mm=18.0, grid=(14, 10), margin_mm=12.0)
+
+
+def _plan(n, rng, *, turn_j4=True):
+    """Commands whose flange lands over the sheet: both elbows, joint 4 turned."""
+    out = []
+    while len(out) < n:
+        q = np.array([rng.uniform(-60, 60), rng.uniform(-150, 150)])
+        xy = TRUTH.pen_mm(q[None])[0]
+        if abs(xy[0]) < 230 and abs(xy[1]) < 150 and abs(q[1]) > 20:
+            out.append((q, rng.uniform(-170, 170) if turn_j4 else 0.0))
+    return out
+
+
+def _views(plan, X, rng, noise_px=0.1, repeatability_mm=0.01):
+    """Each photo: the flange off its place by the robot's repeatability (per axis), the
+    corners by ``noise_px``."""
+    corners = np.concatenate([m.corners_mm for m in _field().markers])
+    q = np.array([p[0] for p in plan])
+    j4 = np.array([p[1] for p in plan])
+    T_sf = world.T_sheet_flange(TRUTH, q, j4)
+    T_sf[:, :2, 3] += rng.normal(0, repeatability_mm, (len(q), 2))
+    views = []
+    for i, T in enumerate(np.linalg.inv(T_sf @ X)):
+        pc = np.column_stack([corners, np.zeros(len(corners))]) @ T[:3, :3].T + T[:3, 3]
+        uv = pc[:, :2] / pc[:, 2:3] * K[0, 0] + K[:2, 2]
+        inside = (uv[:, 0] > 5) & (uv[:, 0] < SIZE[0] - 6) & (uv[:, 1] > 5) & (uv[:, 1] < SIZE[1] - 6)
+        inside = inside.reshape(-1, 4).all(axis=1).repeat(4)     # whole markers only
+        views.append(ArmView(f"p{i}", q[i], j4[i], corners[inside],
+                             uv[inside] + rng.normal(0, noise_px, (inside.sum(), 2))))
+    return views
+
+
+def _truth_vector(X):
+    return np.array([TRUTH.L1_mm, TRUTH.L2_mm, *TRUTH.zero_deg, *TRUTH.base_mm])
+
+
+@pytest.mark.parametrize("seed", [3])
+def test_robot_and_T_flange_camera_found_within_their_std(seed):
+    rng = np.random.default_rng(seed)
+    X = world.T_flange_camera_true(rng)
+    views = _views(_plan(24, rng), X, rng)
+    assert min(len(v.corners_mm) for v in views) >= 16
+    fit = fit_arm_camera(views, K, None, NOMINAL)
+    sd = fit.std
+    p = fit.params
+    err = np.array([p.L1_mm, p.L2_mm, p.z1_deg, p.z2_deg, p.base_x_mm, p.base_y_mm]) - _truth_vector(X)
+    assert np.all(np.abs(err) < N_STD * sd[:6]), dict(zip(LABELS, err / sd[:6]))
+    dt = fit.T_flange_camera[:3, 3] - X[:3, 3]
+    assert np.all(np.abs(dt) < N_STD * sd[9:12]), (dt, sd[9:12])
+    R = fit.T_flange_camera[:3, :3] @ X[:3, :3].T
+    dr = np.degrees(0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]))
+    assert np.all(np.abs(dr) < N_STD * sd[6:9]), (dr, sd[6:9])
+    assert fit.not_identifiable == []
+    assert fit.rms_px < 0.2          # the 0.1 px noise, per axis, is all that is left
+
+
+def test_planar_motion_leaves_the_height_to_the_sheet_plane():
+    """Relative camera motions (classic AX = XB hand-eye) are the same for any camera
+    height; the poses in the sheet frame are not, and the fit finds the height."""
+    rng = np.random.default_rng(8)
+    X = world.T_flange_camera_true(rng)
+    plan = _plan(6, rng)
+    q = np.array([p[0] for p in plan])
+    j4 = np.array([p[1] for p in plan])
+    params = ScaraParams(TRUTH.L1_mm, TRUTH.L2_mm, *TRUTH.zero_deg, *TRUTH.base_mm)
+    X_up = X.copy()
+    X_up[2, 3] += 30.0
+    assert np.allclose(relative_motion(params, q, j4, X), relative_motion(params, q, j4, X_up),
+                       atol=1e-9)
+    T_a = world.T_cam_sheet(TRUTH, q, j4, X)
+    T_b = world.T_cam_sheet(TRUTH, q, j4, X_up)
+    assert np.abs(np.linalg.inv(T_a)[:, 2, 3] - np.linalg.inv(T_b)[:, 2, 3]).min() > 29.9
+
+
+def test_without_joint_4_turns_L2_and_the_camera_offset_are_not_identified():
+    rng = np.random.default_rng(5)
+    X = world.T_flange_camera_true(rng)
+    views = _views(_plan(16, rng, turn_j4=False), X, rng)
+    fit = fit_arm_camera(views, K, None, NOMINAL)
+    assert "L2_mm" in fit.not_identifiable and "cam_x_mm" in fit.not_identifiable

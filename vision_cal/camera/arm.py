@@ -1,0 +1,234 @@
+"""A camera on the arm: the robot and ``T_flange_camera`` from photos of the fixed sheet.
+
+Each photo is taken with the arm at commanded joints ``q`` (and ``j4_deg``) and sees some
+of the sheet's markers. The model (``docs/format.md``, "The robot frame and cameras"):
+
+    T_sheet_camera(q) = T_sheet_flange(q) @ T_flange_camera
+    T_sheet_flange(q): origin base + L1 [cos phi1, sin phi1] + L2 [cos phi12, sin phi12]
+                       in the sheet's plane (z = 0), x axis at phi12 + q4, z up
+
+(``phi1 = q1 + z1``, ``phi12 = phi1 + q2 + z2``; joint 4's zero is part of
+``T_flange_camera``). The fit is on the marker corners' reprojection error in every photo
+(sub-pixel corners of the measurement stage), jointly over the six base parameters and the
+six of ``T_flange_camera`` (rotation vector, translation), by Levenberg-Marquardt from the
+nominal robot and the first photo's pose.
+
+Why the height is found: SCARA motion is planar (rotations about z, translations in the
+plane), so relative motions between photos, which is what classic hand-eye (AX = XB) uses,
+are the same for every camera height (:func:`relative_motion`). The sheet's plane is the
+flange frame's z = 0 by definition, and each photo's pose *in the sheet frame* gives the
+camera's height above it directly.
+
+What it cannot find: with ``q4`` the same in every photo (or a camera on link 2) the
+camera's offset along link 2 and ``L2`` (and its sideways offset and ``z2``) move every
+photo alike; the covariance then shows them unidentified (``not_identifiable``): turn
+joint 4 between photos (``vision-cal design --camera-on-arm`` plans it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.optimize import least_squares
+
+from vision_cal.camera.fixed import homogeneous, lsq_covariance
+from vision_cal.errors import CalibrationError
+from vision_cal.kinematics import ScaraParams, forward
+from vision_cal.rms import rms_2d
+
+LABELS = ("L1_mm", "L2_mm", "z1_deg", "z2_deg", "base_x_mm", "base_y_mm",
+          "cam_rot_x_deg", "cam_rot_y_deg", "cam_rot_z_deg", "cam_x_mm", "cam_y_mm",
+          "cam_z_mm")
+#: fewer photos leave too few degrees of freedom to estimate the photo-level variances
+MIN_POSES = 6
+#: a parameter whose std is above this (its unit: mm or deg) is reported not identifiable
+UNIDENTIFIED_STD = 1.0
+
+
+@dataclass(frozen=True)
+class ArmView:
+    """One photo: commanded joints ``q_deg`` (2,), ``j4_deg``, marker corners in sheet mm
+    ``corners_mm`` (N, 2) and where they were seen ``corners_px`` (N, 2)."""
+
+    file: str
+    q_deg: np.ndarray
+    j4_deg: float
+    corners_mm: np.ndarray
+    corners_px: np.ndarray
+
+
+@dataclass(frozen=True)
+class ArmFit:
+    """``params`` the robot; ``T_flange_camera`` (4, 4); ``cov`` (12, 12) in
+    :data:`LABELS` units; ``rms_px`` the corner reprojection RMS, ``view_rms_px`` (N,)."""
+
+    params: ScaraParams
+    T_flange_camera: np.ndarray
+    cov: np.ndarray
+    rms_px: float
+    view_rms_px: np.ndarray
+    n_corners: int
+    pose_rms: dict | None = None     # per-photo flange pose scatter (mm, deg) by component
+
+    @property
+    def std(self) -> np.ndarray:
+        return np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
+
+    @property
+    def not_identifiable(self) -> list[str]:
+        return [lab for lab, s in zip(LABELS, self.std) if not s < UNIDENTIFIED_STD]
+
+    def to_json(self) -> dict:
+        sd = self.std
+        return {"params": self.params.to_json(),
+                "std": {"L1_mm": sd[0], "L2_mm": sd[1], "joint_zero_deg": [sd[2], sd[3]],
+                        "base_mm": [sd[4], sd[5]]},
+                "T_flange_camera": self.T_flange_camera.tolist(),
+                "T_flange_camera_std": {"rotation_deg": sd[6:9].tolist(),
+                                        "translation_mm": sd[9:12].tolist()},
+                "covariance": {"params": list(LABELS), "matrix": self.cov.tolist()},
+                "corner_rms_px": self.rms_px, "n_corners": self.n_corners,
+                "pose_rms": self.pose_rms,
+                "not_identifiable": self.not_identifiable}
+
+
+def flange_angle_deg(params: ScaraParams, q_deg, j4_deg) -> np.ndarray:
+    """The flange x axis' angle (N,) deg in the sheet frame: ``q1 + z1 + q2 + z2 + q4`` (the
+    contract's flange frame: x along link 2 at commanded ``q4 = 0``)."""
+    q = np.array(q_deg, dtype=float, ndmin=2)
+    return q[:, 0] + params.z1_deg + q[:, 1] + params.z2_deg + np.asarray(j4_deg, float).ravel()
+
+
+def T_sheet_flange(params: ScaraParams, q_deg, j4_deg) -> np.ndarray:
+    """(N, 4, 4) flange -> sheet for commanded joints (N, 2) and ``j4_deg`` (N,)."""
+    q = np.array(q_deg, dtype=float, ndmin=2)
+    a = np.radians(flange_angle_deg(params, q, j4_deg))
+    p = forward(params, q)
+    T = np.tile(np.eye(4), (len(q), 1, 1))
+    T[:, 0, 0], T[:, 0, 1], T[:, 1, 0], T[:, 1, 1] = np.cos(a), -np.sin(a), np.sin(a), np.cos(a)
+    T[:, :2, 3] = p
+    return T
+
+
+def relative_motion(params: ScaraParams, q_deg, j4_deg, T_flange_camera) -> np.ndarray:
+    """(N-1, 4, 4) camera motion from photo 0 to each later photo (camera frames): what
+    AX = XB hand-eye sees. It does not depend on ``T_flange_camera``'s z (planar motion)."""
+    T = T_sheet_flange(params, q_deg, j4_deg) @ np.asarray(T_flange_camera, float)
+    return np.array([np.linalg.inv(T[0]) @ Ti for Ti in T[1:]])
+
+
+def _unpack(x: np.ndarray, R0: np.ndarray) -> tuple[ScaraParams, np.ndarray]:
+    """Robot and T_flange_camera; the camera's rotation is a small turn (deg, about the
+    flange axes) of ``R0`` (the start), so the parameters stay far from any singularity."""
+    p = ScaraParams(x[0], x[1], x[2], x[3], x[4], x[5])
+    X = homogeneous(cv2.Rodrigues(np.radians(x[6:9]).reshape(3, 1))[0] @ R0, x[9:12])
+    return p, X
+
+
+def _residuals(x, views, K, dist, R0) -> np.ndarray:
+    p, X = _unpack(x, R0)
+    T_sc = T_sheet_flange(p, [v.q_deg for v in views], [v.j4_deg for v in views]) @ X
+    out = []
+    for v, T in zip(views, T_sc):
+        T_cs = np.linalg.inv(T)
+        rvec = cv2.Rodrigues(T_cs[:3, :3])[0]
+        obj = np.column_stack([v.corners_mm, np.zeros(len(v.corners_mm))])
+        uv, _ = cv2.projectPoints(obj.reshape(-1, 1, 3), rvec, T_cs[:3, 3], K, dist)
+        out.append((uv.reshape(-1, 2) - v.corners_px).ravel())
+    return np.concatenate(out)
+
+
+def camera_pose(view: ArmView, K, dist) -> np.ndarray:
+    """T_sheet_camera (4, 4) of one photo from its corners alone."""
+    obj = np.column_stack([view.corners_mm, np.zeros(len(view.corners_mm))])
+    ok, rvec, tvec = cv2.solvePnP(obj.reshape(-1, 1, 3), view.corners_px.reshape(-1, 1, 2),
+                                  K, dist, flags=cv2.SOLVEPNP_ITERATIVE)
+    if not ok:
+        raise CalibrationError(f"{view.file}: no camera pose from its markers")
+    return np.linalg.inv(homogeneous(cv2.Rodrigues(rvec)[0], tvec))
+
+
+def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams) -> ArmFit:
+    """Robot and ``T_flange_camera`` from photos taken by the arm's camera (``K``, ``dist``
+    declared); starts from ``nominal`` and the first photo's pose."""
+    if len(views) < MIN_POSES:
+        raise CalibrationError(f"{len(views)} usable photos: at least {MIN_POSES} are needed "
+                               "(12 parameters, and each kind of pose residual needs its own "
+                               "degrees of freedom for its variance)")
+    K = np.asarray(K, float)
+    dist = np.zeros(5) if dist is None else np.asarray(dist, float)
+    T0 = camera_pose(views[0], K, dist)
+    X0 = np.linalg.inv(T_sheet_flange(nominal, [views[0].q_deg], [views[0].j4_deg])[0]) @ T0
+    x0 = np.concatenate([[nominal.L1_mm, nominal.L2_mm, nominal.z1_deg, nominal.z2_deg,
+                          nominal.base_x_mm, nominal.base_y_mm],
+                         np.zeros(3), X0[:3, 3]])
+    R0 = X0[:3, :3]
+    sol = least_squares(_residuals, x0, args=(views, K, dist, R0), method="lm", x_scale="jac")
+    # again about the solution, so the rotation's covariance is about the found frame
+    p1, X1 = _unpack(sol.x, R0)
+    R0 = X1[:3, :3]
+    x1 = np.concatenate([sol.x[:6], np.zeros(3), sol.x[9:12]])
+    sol = least_squares(_residuals, x1, args=(views, K, dist, R0), method="lm", x_scale="jac")
+    r = sol.fun
+    n = len(r)
+    p, X = _unpack(sol.x, R0)
+    sizes = np.cumsum([0] + [2 * len(v.corners_mm) for v in views])
+    view_rms = np.array([rms_2d(r[a:b].reshape(-1, 2)) for a, b in zip(sizes[:-1], sizes[1:])])
+    # the std: at the photo level. The robot's repeatability moves a whole photo, so corner
+    # residuals are not independent; the flange pose each photo implies, against the
+    # model's, is (one 6-vector per photo), with each kind of component's variance found
+    # from its own scatter
+    M = np.array([camera_pose(v, K, dist) for v in views])
+    x2 = np.concatenate([sol.x[:6], np.zeros(3), sol.x[9:12]])
+    x3, cov, rms_pose = _pose_level_fit(x2, views, M, R0)
+    p, X = _unpack(x3, R0)          # the estimate the covariance belongs to
+    return ArmFit(p, X, cov, rms_2d(r.reshape(-1, 2)), view_rms, n // 2, rms_pose)
+
+
+def _pose_residuals(x, views, M, R0) -> np.ndarray:
+    """(N, 6): per photo the flange pose the photo implies (``M_i inv(X)``) in the model's
+    flange frame: translation (mm) and small rotation (rad)."""
+    p, X = _unpack(x, R0)
+    P = T_sheet_flange(p, [v.q_deg for v in views], [v.j4_deg for v in views])
+    Xi = np.linalg.inv(X)
+    out = np.empty((len(views), 6))
+    for i in range(len(views)):
+        D = np.linalg.inv(P[i]) @ M[i] @ Xi
+        R = D[:3, :3]
+        out[i, :3] = D[:3, 3]
+        out[i, 3:] = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    return out
+
+
+#: the pose residual's components whose variances are found separately: in-plane position,
+#: height, tilt, turn
+_GROUPS = ((0, 1), (2,), (3, 4), (5,))
+
+
+def _pose_level_fit(x, views, M, R0) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The parameters refitted on the photo-level residuals with each group's variance as
+    its weight, their covariance (12, 12) and the RMS of each group (mm, deg)."""
+    w = np.ones(6)
+    n, P = len(views), len(x)
+    for _ in range(3):
+        def f(z):
+            return (_pose_residuals(z, views, M, R0) * w).ravel()
+        sol = least_squares(f, x, method="lm", x_scale="jac")
+        x = sol.x
+        e = _pose_residuals(x, views, M, R0)
+        var = np.empty(6)
+        for g in _GROUPS:
+            # each group takes its share of the parameters' degrees of freedom
+            dof = max(n * len(g) - P * len(g) / 6.0, 1.0)
+            var[list(g)] = max(float(np.sum(e[:, list(g)] ** 2)) / dof, 1e-30)
+        w = 1.0 / np.sqrt(var)
+    sol = least_squares(lambda z: (_pose_residuals(z, views, M, R0) * w).ravel(), x,
+                        method="lm", x_scale="jac")
+    cov = lsq_covariance(sol.jac, 1.0)
+    x = sol.x
+    rms = {"position_mm": float(np.sqrt(var[0])), "height_mm": float(np.sqrt(var[2])),
+           "tilt_deg": float(np.degrees(np.sqrt(var[3]))),
+           "turn_deg": float(np.degrees(np.sqrt(var[5])))}
+    return x, cov, rms

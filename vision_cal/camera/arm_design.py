@@ -1,0 +1,121 @@
+"""Poses for a camera on the arm (``vision-cal design --camera-on-arm``) and their program.
+
+The poses put the flange (nominal model) over the marker field, ``margin_mm`` inside the
+markers' extent so the camera sees markers whatever its offset; half with each elbow
+(``elbows`` of the robot file), spread over the field (the candidate farthest from those
+already chosen, among random reachable ones), joint 4 stepped evenly over its range when the
+camera is on the flange (so ``L2`` and the camera's offset along link 2 can be told
+apart: ``camera/arm.py``). The program (Epson SPEL+) drives to each pose with joint 3 at
+``pen_up_mm``, waits ``settle_s``, then triggers the camera: an output pulse
+(``On N; Wait t; Off N``) or, with ``trigger="wait"``, a pause for a photo taken by hand;
+then waits for the exposure before moving on.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from vision_cal.dataset.io import atomic_write_json, atomic_write_text
+from vision_cal.errors import VisionCalError
+from vision_cal.kinematics import forward
+from vision_cal.program.spel import _comment, _ja
+
+TRIGGERS = ("output", "wait")
+
+
+def plan_poses(robot, sheet, *, n_poses: int = 24, margin_mm: float = 60.0,
+               mount: str = "flange", j4_range_deg=(-170.0, 170.0), rng=None) -> list[dict]:
+    """``poses`` entries ({image, joints_deg, j4_deg}) in driving order."""
+    rng = np.random.default_rng(rng)
+    p = robot.nominal.params
+    hull = sheet.markers_hull_mm()
+    if hull is None:
+        raise VisionCalError("the sheet has no markers", field="--sheet")
+    x0, y0, x1, y1 = hull
+    x0, y0, x1, y1 = x0 + margin_mm, y0 + margin_mm, x1 - margin_mm, y1 - margin_mm
+    if x1 <= x0 or y1 <= y0:
+        raise VisionCalError(f"the marker field is smaller than twice the {margin_mm:g} mm "
+                             "margin", field="--sheet")
+    lim = np.asarray(robot.joint_limits_deg, float)
+    chosen: list[np.ndarray] = []
+    qs: list[np.ndarray] = []
+    for k in range(n_poses):
+        elbow = robot.elbows[k % len(robot.elbows)]
+        q = rng.uniform(lim[:, 0], lim[:, 1], (4000, 2))
+        xy = forward(p, q)
+        ok = ((xy[:, 0] > x0) & (xy[:, 0] < x1) & (xy[:, 1] > y0) & (xy[:, 1] < y1)
+              & (np.sign(np.sin(np.radians(q[:, 1] + p.z2_deg))) == elbow)
+              & (np.abs(np.sin(np.radians(q[:, 1] + p.z2_deg))) > 0.2))
+        if not ok.any():
+            raise VisionCalError(f"no pose with elbow {elbow:+d} puts the flange over the marker "
+                                 "field within the joint limits", field="--sheet")
+        q, xy = q[ok], xy[ok]
+        if chosen:
+            d = np.min(np.linalg.norm(xy[:, None] - np.array(chosen)[None], axis=2), axis=1)
+            i = int(np.argmax(d))
+        else:
+            i = 0
+        chosen.append(xy[i])
+        qs.append(q[i])
+    if mount == "flange":
+        j4 = np.linspace(j4_range_deg[0], j4_range_deg[1], n_poses)
+        j4 = j4[rng.permutation(n_poses)]
+    else:
+        j4 = np.zeros(n_poses)
+    order = np.argsort(np.arctan2(np.array(chosen)[:, 1] - p.base_y_mm,
+                                  np.array(chosen)[:, 0] - p.base_x_mm))
+    return [{"image": f"pose_{k:03d}.png", "joints_deg": [round(float(qs[i][0]), 4),
+                                                          round(float(qs[i][1]), 4)],
+             "j4_deg": round(float(j4[i]), 4)} for k, i in enumerate(order)]
+
+
+def spel_camera_program(poses, robot, *, trigger: str = "output", output_bit: int = 8,
+                        pulse_s: float = 0.05, exposure_s: float = 0.3,
+                        wait_s: float = 3.0) -> str:
+    up, _ = robot.require_pen_heights()
+    prog = robot.program
+    lines = [_comment(f"vision-cal design --camera-on-arm: {len(poses)} camera poses for robot "
+                      f"{robot.name}"),
+             _comment("Points are joint angles JA(j1 deg, j2 deg, j3 mm, j4 deg); joint 3 "
+                      "stays up. At each pose the arm settles, then the camera is triggered "
+                      + (f"by a {pulse_s:g} s pulse on output {output_bit}."
+                         if trigger == "output" else f"by hand during a {wait_s:g} s pause.")),
+             _comment("Do not edit the points: the calibration reads the commanded joints "
+                      "from session.json poses."),
+             "", "Function main", "    Motor On",
+             f"    Power {'High' if prog.power == 'high' else 'Low'}",
+             f"    Speed {prog.speed_percent:g}",
+             f"    Accel {prog.accel_percent[0]:g}, {prog.accel_percent[1]:g}"]
+    for k, p in enumerate(poses):
+        lines.append(f"    Print \"pose {k + 1} of {len(poses)}: {p['image']}\"")
+        lines.append(f"    Go {_ja(p['joints_deg'], up, p['j4_deg'])}")
+        if prog.settle_s > 0:
+            lines.append(f"    Wait {prog.settle_s:g}")
+        if trigger == "output":
+            lines += [f"    On {output_bit}", f"    Wait {pulse_s:g}", f"    Off {output_bit}",
+                      f"    Wait {exposure_s:g}"]
+        else:
+            lines.append(f"    Wait {wait_s:g}  ' take the photo {p['image']} now")
+    lines += [f"    Print \"done: {len(poses)} poses\"", "Fend"]
+    return "\r\n".join(lines) + "\r\n"
+
+
+def design_camera_on_arm(robot, sheet, sheet_json: dict, out, *, n_poses: int = 24,
+                         mount: str = "flange", trigger: str = "output", output_bit: int = 8,
+                         seed: int = 0) -> tuple[Path, Path]:
+    """session.json (poses, no camera yet) and program.prg in ``out``."""
+    if trigger not in TRIGGERS:
+        raise VisionCalError(f"expected one of {', '.join(TRIGGERS)}", field="--trigger")
+    if n_poses < 8:
+        raise VisionCalError(f"expected at least 8 poses (12 parameters, and both elbows), got "
+                             f"{n_poses}", field="--n-poses")
+    poses = plan_poses(robot, sheet, n_poses=n_poses, mount=mount, rng=seed)
+    prg = spel_camera_program(poses, robot, trigger=trigger, output_bit=output_bit)
+    out = Path(out)
+    session = {"format": "vision-cal/1", "sheet": sheet_json,
+               "robot": robot.nominal.to_json(), "camera_mount": mount, "poses": poses}
+    a = atomic_write_json(out / "session.json", session)
+    b = atomic_write_text(out / "program.prg", prg)
+    return a, b

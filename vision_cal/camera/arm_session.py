@@ -1,0 +1,138 @@
+"""A dataset of photos taken by the arm's camera: session.json ``poses``, measured and fitted.
+
+session.json (``docs/format.md``, "Cameras")::
+
+    "camera": {"size_px": [w, h], "K": [[...]], "dist": [...]},     required: declared lens
+    "camera_mount": "flange",           "flange" (turns with joint 4) or "link2"
+    "poses": [ {"image": "pose_000.png", "joints_deg": [q1, q2], "j4_deg": 30.0} ]
+
+with the contract's ``sheet`` (the marker field, ``vision-cal sheet --field``) and
+``robot`` blocks. ``marks`` may be absent. Each photo's marker corners come from the
+measurement stage's own detector and sub-pixel edge fit (``measure/aruco.py``); a photo
+that cannot be used is skipped with its reason and the others go on.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from vision_cal.camera.arm import MIN_POSES, ArmView, fit_arm_camera
+from vision_cal.dataset.io import read_json
+from vision_cal.dataset.marker_geometry import marker_geometry
+from vision_cal.dataset.photos import PhotoRefused, load_photo, normalise_name
+from vision_cal.dataset.session import FieldReader, read_robot_block, read_sheet_block
+from vision_cal.errors import CalibrationError
+from vision_cal.kinematics import ScaraParams
+from vision_cal.measure.aruco import corners_from_edges, edge_points, find_sheet_markers
+
+MOUNTS = ("flange", "link2")
+FORMAT = "vision-cal/1"
+
+
+def read_arm_session(folder):
+    """(folder, sheet, nominal ScaraParams, (size_px, K, dist), mount, poses) where poses is a
+    list of (image, q_deg (2,), j4_deg); every field checked, one line naming it."""
+    folder = Path(folder)
+    path = folder / "session.json"
+    raw = read_json(path)
+    r = FieldReader(str(path))
+    fmt = r.get(raw, "format", "")
+    if fmt != FORMAT:
+        r.fail("format", f"expected {FORMAT!r}, got {fmt!r}")
+    robot = read_robot_block(r, r.get(raw, "robot", ""), "robot")
+    sheet = read_sheet_block(r, r.get(raw, "sheet", ""), "sheet")
+    cam = r.get(raw, "camera", "")
+    if not isinstance(cam, dict):
+        r.fail("camera", "expected an object with size_px, K and dist (a camera on the arm "
+                         "needs its lens declared)")
+    size = r.vector(r.get(cam, "size_px", "camera"), "camera.size_px", 2, lo=1)
+    K_raw = r.list_(r.get(cam, "K", "camera"), "camera.K")
+    if len(K_raw) != 3:
+        r.fail("camera.K", "expected a 3x3 matrix")
+    K = np.array([r.vector(row, f"camera.K[{i}]", 3) for i, row in enumerate(K_raw)])
+    if not (K[0, 0] > 0 and K[1, 1] > 0 and tuple(K[2]) == (0.0, 0.0, 1.0)):
+        r.fail("camera.K", "expected an OpenCV camera matrix [[fx,0,cx],[0,fy,cy],[0,0,1]]")
+    dist_raw = r.list_(r.get(cam, "dist", "camera"), "camera.dist")
+    if len(dist_raw) not in (4, 5, 8, 12, 14):
+        r.fail("camera.dist", f"expected 4, 5, 8, 12 or 14 OpenCV coefficients, got "
+                              f"{len(dist_raw)}")
+    dist = np.array([r.number(v, f"camera.dist[{i}]") for i, v in enumerate(dist_raw)])
+    mount = raw.get("camera_mount", "flange")
+    if mount not in MOUNTS:
+        r.fail("camera_mount", f"expected one of {', '.join(MOUNTS)}, got {mount!r}")
+    poses = []
+    for i, p in enumerate(r.list_(r.get(raw, "poses", ""), "poses", nonempty=True)):
+        w = f"poses[{i}]"
+        img = normalise_name(r.string(r.get(p, "image", w), f"{w}.image"))
+        q = r.angles(r.get(p, "joints_deg", w), f"{w}.joints_deg")
+        j4 = r.number(p.get("j4_deg", 0.0), f"{w}.j4_deg")
+        if mount == "link2" and j4 != 0.0:
+            r.fail(f"{w}.j4_deg", "a camera on link 2 does not turn with joint 4: leave "
+                                  "j4_deg out or set camera_mount: flange")
+        poses.append((img, np.asarray(q, float), float(j4)))
+    nominal = ScaraParams(robot.L1_mm, robot.L2_mm, robot.joint_zero_deg[0],
+                          robot.joint_zero_deg[1], robot.base_mm[0], robot.base_mm[1])
+    return folder, sheet, nominal, ((int(size[0]), int(size[1])), K, dist), mount, poses
+
+
+def measure_view(folder, sheet, camera, image: str, q, j4) -> tuple[ArmView | None, dict]:
+    """One photo's corners (sub-pixel) as an :class:`ArmView`, and its ``images[]`` entry."""
+    size, K, dist = camera
+    try:
+        bgr, _, _ = load_photo(folder, image, size)
+    except PhotoRefused as e:
+        return None, {"file": image, "status": "skipped", "reason": e.reason}
+    if bgr is None:
+        return None, {"file": image, "status": "skipped", "reason": "not a readable image"}
+    gray = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
+    det = find_sheet_markers(gray, sheet)
+    if det.reason:
+        return None, {"file": image, "status": "skipped", "reason": det.reason}
+    edges = edge_points(gray, det.corners_px, geometry=marker_geometry(sheet))
+    corners = corners_from_edges(edges, det.corners_px)
+    view = ArmView(image, np.asarray(q, float), float(j4),
+                   np.asarray(det.corners_mm, float).reshape(-1, 2),
+                   np.asarray(corners, float).reshape(-1, 2))
+    return view, {"file": image, "status": "ok", "n_markers": int(len(det.ids))}
+
+
+def calibrate_arm_camera(folder) -> dict:
+    """calibration.json (as a dict) of an arm-camera dataset: the robot's base parameters
+    with std and covariance, and the ``cameras`` entry with ``T_flange_camera``."""
+    folder, sheet, nominal, camera, mount, poses = read_arm_session(folder)
+    views, images = [], []
+    for img, q, j4 in poses:
+        v, entry = measure_view(folder, sheet, camera, img, q, j4)
+        images.append(entry)
+        if v is not None:
+            views.append(v)
+    if len(views) < MIN_POSES:
+        raise CalibrationError(f"{len(views)} of {len(poses)} photos usable: at least "
+                               f"{MIN_POSES} are needed", file=str(folder / "session.json"))
+    size, K, dist = camera
+    fit = fit_arm_camera(views, K, dist, nominal)
+    d = fit.to_json()
+    for entry, v, rms in zip([e for e in images if e["status"] == "ok"], views, fit.view_rms_px):
+        entry["corner_rms_px"] = float(rms)
+    reasons = []
+    if fit.not_identifiable:
+        reasons.append("not identified by these poses: " + ", ".join(fit.not_identifiable)
+                       + (" (turn joint 4 between photos: vision-cal design --camera-on-arm)"
+                          if mount == "flange" else
+                          " (a camera on link 2 cannot separate L2 from its own offset)"))
+    cam = {"images": [v.file for v in views], "size_px": list(size), "K": K.tolist(),
+           "dist": dist.tolist(), "T_flange_camera": d["T_flange_camera"],
+           "mount": mount, "T_flange_camera_std": d["T_flange_camera_std"],
+           "corner_rms_px": d["corner_rms_px"], "n_corners": d["n_corners"],
+           "status": "check" if reasons else "ok", "reasons": reasons}
+    return {"format": "vision-cal/calibration/1", "method": "arm_camera",
+            "params": d["params"], "std": d["std"], "covariance": d["covariance"],
+            "nominal": nominal.to_json(), "effects": [], "cameras": [cam],
+            "not_identifiable": d["not_identifiable"], "pose_rms": d["pose_rms"],
+            "images": images,
+            "notes": ["robot calibrated from the arm camera's views of the marker field (no "
+                      "pen): base model only; joint effects are not looked for in this "
+                      "version"]}

@@ -1,0 +1,45 @@
+"""``vision-cal handeye``: a camera on the arm calibrates the robot and finds its mount."""
+
+from __future__ import annotations
+
+NAME = "handeye"
+HELP = ("calibrate the robot and T_flange_camera from photos taken by the arm's camera "
+        "(session.json poses; no pen)")
+EXAMPLES = """\
+examples:
+  vision-cal handeye arm_photos/ --out arm_cal/     -> arm_cal/calibration.json
+
+session.json lists "poses" ({"image", "joints_deg", "j4_deg"}), the declared camera lens,
+"camera_mount" (flange | link2) and the marker field (vision-cal sheet --field); see
+docs/format.md, "Cameras".
+"""
+
+
+def add_arguments(p) -> None:
+    p.add_argument("folder", metavar="FOLDER", help="dataset folder with session.json poses")
+    p.add_argument("-o", "--out", required=True, metavar="DIR", help="output folder")
+
+
+def run(args) -> int:
+    from vision_cal.camera.arm_session import calibrate_arm_camera
+    from vision_cal.dataset.io import atomic_write_json, output_dir
+
+    out = output_dir(args.out, field="--out")
+    doc = calibrate_arm_camera(args.folder)
+    path = atomic_write_json(out / "calibration.json", doc)
+    if not args.quiet:
+        cam = doc["cameras"][0]
+        p, sd = doc["params"], doc["std"]
+        skipped = [im for im in doc["images"] if im["status"] != "ok"]
+        print(f"{len(cam['images'])} photos used, {len(skipped)} skipped; corner RMS "
+              f"{cam['corner_rms_px']:.3f} px")
+        print(f"L1 {p['L1_mm']:.4f} +- {sd['L1_mm']:.4f} mm, L2 {p['L2_mm']:.4f} +- "
+              f"{sd['L2_mm']:.4f} mm, zeros {p['joint_zero_deg'][0]:.4f} "
+              f"{p['joint_zero_deg'][1]:.4f} deg, base {p['base_mm'][0]:.3f} "
+              f"{p['base_mm'][1]:.3f} mm")
+        t = cam["T_flange_camera"]
+        print(f"T_flange_camera: camera at {t[0][3]:.3f} {t[1][3]:.3f} {t[2][3]:.3f} mm in the "
+              f"flange frame (std {', '.join(f'{v:.3f}' for v in cam['T_flange_camera_std']['translation_mm'])})"
+              f"; status {cam['status']}" + (f": {'; '.join(cam['reasons'])}" if cam["reasons"] else ""))
+        print(f"wrote {path}")
+    return 0
