@@ -175,6 +175,9 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     doc = {"format": "vision-cal/calibration/1", "method": method, "config": config.to_json(),
            **fitted.doc}
     document(doc, session, data, missing, measurement, fitted, truth=truth)
+    from vision_cal.calibrate.plausible import check_plausible
+
+    check_plausible(doc, session)  # radians, metres: stop before any calibration.json
     out_path = atomic_write_json(out_dir / "calibration.json", doc)
     log.info("wrote %s", out_path)
     return CalibrationRun(session, doc, out_path, fitted.diagnosis, fitted.paper, measurement,

@@ -273,3 +273,34 @@ def test_the_same_folder_twice_is_refused(tmp_path, capsys):
     assert rc == 2
     assert_one_line(err, "DIR", "given twice")
     assert not (tmp_path / "B").exists()
+
+
+# --------------------------------------------------------------------------- implausible fits
+
+@pytest.mark.parametrize("unit,words", [("rad", "radians"), ("m", "metres")])
+def test_a_unit_mistake_stops_the_run_naming_it(tmp_path, capsys, unit, words):
+    """Joints in radians (the fit reaches L1 ~ 60x nominal), or the robot block in metres:
+    exit 2, one line naming session.json and the likely mistake, no calibration.json, the
+    earlier results kept under previous/."""
+    import math
+
+    def edit(s):
+        if unit == "rad":
+            for m in s["marks"]:
+                m["joints_deg"] = [math.radians(v) for v in m["joints_deg"]]
+        else:
+            r = s["robot"]
+            r["L1_mm"], r["L2_mm"] = r["L1_mm"] / 1000, r["L2_mm"] / 1000
+
+    from tests.commands.test_trust import dataset
+
+    folder = dataset(tmp_path, edit)
+    out = tmp_path / "out"
+    assert _calibrate(capsys, PAPER, "-o", out)[0] == 0
+    first = snapshot(out)
+    before = snapshot(folder)
+    rc, _, err = _calibrate(capsys, folder, "-o", out)
+    assert rc == 2
+    assert_one_line(err, folder / "session.json", "implausible", words)
+    assert not (out / "calibration.json").exists() and snapshot(out / "previous") == first
+    assert snapshot(folder) == before
