@@ -24,15 +24,18 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
 import time
 import tracemalloc
+from pathlib import Path
 
 import numpy as np
 
 CHILD = "--child"
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def marks(n: int, seed: int = 7):
@@ -86,8 +89,11 @@ def main() -> None:
     for n in a.sizes:
         argv = [sys.executable, __file__, CHILD, str(n)] + (["--no-diagnose"] if a.no_diagnose
                                                              else [])
-        r = json.loads(subprocess.run(argv, check=True, capture_output=True,
-                                      text=True).stdout.strip().splitlines()[-1])
+        # the child imports this checkout's vision_cal, whatever the venv has installed
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+            [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]))
+        r = json.loads(subprocess.run(argv, check=True, capture_output=True, text=True,
+                                      env=env).stdout.strip().splitlines()[-1])
         print(f"{n:>6} " + " ".join(f"{r[c + '_s']:>18.2f} {r[c + '_peak_mb']:>7.1f}"
                                     for c in cols) + f" {r['max_rss_mb']:>10.0f}", flush=True)
 

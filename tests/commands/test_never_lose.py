@@ -304,3 +304,12 @@ def test_a_unit_mistake_stops_the_run_naming_it(tmp_path, capsys, unit, words):
     assert_one_line(err, folder / "session.json", "implausible", words)
     assert not (out / "calibration.json").exists() and snapshot(out / "previous") == first
     assert snapshot(folder) == before
+
+
+@pytest.mark.parametrize("size", ["1e6", "1e7", "5001"])
+def test_a_custom_sheet_beyond_any_work_area_is_refused(tmp_path, capsys, size):
+    out = tmp_path / "s"
+    rc, _, err = cli(["sheet", "--custom", size, "300", "--out", out], capsys)
+    assert rc == 2
+    assert_one_line(err, "--custom", "at most 5000 mm")
+    assert not out.exists()
