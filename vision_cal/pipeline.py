@@ -177,6 +177,14 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     doc = {"format": "vision-cal/calibration/1", "method": method, "config": config.to_json(),
            **fitted.doc}
     document(doc, session, data, missing, measurement, fitted, truth=truth)
+    from vision_cal.calibrate.plausible import check_plausible
+
+    check_plausible(doc, session)  # radians, metres: stop before any calibration.json
+    from vision_cal.dataset.sheet_identity import sheet_identity
+
+    ident = sheet_identity(session.raw.get("sheet"))
+    if ident is not None:  # which printed sheet: design --pilot checks it
+        doc["sheet"] = ident
     out_path = atomic_write_json(out_dir / "calibration.json", doc)
     log.info("wrote %s", out_path)
     return CalibrationRun(session, doc, out_path, fitted.diagnosis, fitted.paper, measurement,

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from pathlib import Path
 
 import pytest
 
@@ -193,3 +194,122 @@ def test_a_huge_value_in_an_error_is_cut_before_it_is_printed():
 
     big = [[list(range(1000))] * 1000] * 1000  # 10^9 numbers if printed whole
     assert len(_short(big)) <= 60
+
+
+# --------------------------------------------------------------------------- the OUT folder
+
+def _calibrate(capsys, *argv):
+    return cli([*argv, "-q"], capsys)
+
+
+def test_a_run_without_report_retires_the_earlier_report(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert _calibrate(capsys, PAPER, "-o", out, "--report")[0] == 0
+    first = snapshot(out)
+    rc, _, err = _calibrate(capsys, PAPER, "-o", out)
+    assert rc == 0, err
+    assert not (out / "report.json").exists() and not (out / "report.html").exists()
+    # nothing lost: the earlier set is kept, marked as previous
+    assert snapshot(out / "previous") == {k: v for k, v in first.items()
+                                          if k in ("calibration.json", "report.json",
+                                                   "report.html")}
+
+
+def test_a_failed_run_leaves_no_calibration_that_looks_current(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert _calibrate(capsys, PAPER, "-o", out, "--report")[0] == 0
+    first = snapshot(out)
+    bad = tmp_path / "bad"
+    shutil.copytree(PAPER, bad)
+    s = json.loads((bad / "session.json").read_text())
+    s["marks"] = s["marks"][:2]  # too few marks: cannot calibrate (exit 1)
+    s.pop("images", None)
+    (bad / "session.json").write_text(json.dumps(s))
+    rc, _, err = _calibrate(capsys, bad, "-o", out)
+    assert rc == 1
+    assert_one_line(err, "at least 3")
+    assert not (out / "calibration.json").exists() and not (out / "report.html").exists()
+    assert snapshot(out / "previous") == first
+
+
+def test_ctrl_c_while_the_report_is_written_leaves_no_report(tmp_path, capsys, monkeypatch):
+    import vision_cal.report.html as html
+
+    out = tmp_path / "out"
+    assert _calibrate(capsys, PAPER, "-o", out, "--report")[0] == 0
+    first = snapshot(out)
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(html, "render_html", interrupted)
+    rc, _, err = _calibrate(capsys, PAPER, "-o", out, "--report")
+    assert rc == 130
+    assert_one_line(err, "interrupted")
+    assert not (out / "report.json").exists() and not (out / "report.html").exists()
+    assert snapshot(out / "previous") == first
+
+
+def test_two_folders_with_one_name_get_their_own_outputs(tmp_path, capsys):
+    for day in ("day1", "day2"):
+        shutil.copytree(PAPER, tmp_path / day / "plan")
+    s = json.loads((tmp_path / "day2" / "plan" / "session.json").read_text())
+    s["marks"] = s["marks"][:-1]  # day 2 is a different session
+    (tmp_path / "day2" / "plan" / "session.json").write_text(json.dumps(s))
+    out = tmp_path / "B"
+    rc, _, err = cli([tmp_path / "day1" / "plan", tmp_path / "day2" / "plan", "--out", out],
+                     capsys)
+    assert rc == 0, err
+    summary = json.loads((out / "summary.json").read_text())["folders"]
+    outs = [r["out"] for r in summary]
+    assert outs == [str(out / "day1-plan" / "calibration.json"),
+                    str(out / "day2-plan" / "calibration.json")]
+    docs = [json.loads(Path(o).read_text()) for o in outs]
+    assert len(docs[0]["marks"]) == len(docs[1]["marks"]) + 1
+
+
+def test_the_same_folder_twice_is_refused(tmp_path, capsys):
+    rc, _, err = cli([PAPER, f"{PAPER}/", "--out", tmp_path / "B"], capsys)
+    assert rc == 2
+    assert_one_line(err, "DIR", "given twice")
+    assert not (tmp_path / "B").exists()
+
+
+# --------------------------------------------------------------------------- implausible fits
+
+@pytest.mark.parametrize("unit,words", [("rad", "radians"), ("m", "metres")])
+def test_a_unit_mistake_stops_the_run_naming_it(tmp_path, capsys, unit, words):
+    """Joints in radians (the fit reaches L1 ~ 60x nominal), or the robot block in metres:
+    exit 2, one line naming session.json and the likely mistake, no calibration.json, the
+    earlier results kept under previous/."""
+    import math
+
+    def edit(s):
+        if unit == "rad":
+            for m in s["marks"]:
+                m["joints_deg"] = [math.radians(v) for v in m["joints_deg"]]
+        else:
+            r = s["robot"]
+            r["L1_mm"], r["L2_mm"] = r["L1_mm"] / 1000, r["L2_mm"] / 1000
+
+    from tests.commands.test_trust import dataset
+
+    folder = dataset(tmp_path, edit)
+    out = tmp_path / "out"
+    assert _calibrate(capsys, PAPER, "-o", out)[0] == 0
+    first = snapshot(out)
+    before = snapshot(folder)
+    rc, _, err = _calibrate(capsys, folder, "-o", out)
+    assert rc == 2
+    assert_one_line(err, folder / "session.json", "implausible", words)
+    assert not (out / "calibration.json").exists() and snapshot(out / "previous") == first
+    assert snapshot(folder) == before
+
+
+@pytest.mark.parametrize("size", ["1e6", "1e7", "5001"])
+def test_a_custom_sheet_beyond_any_work_area_is_refused(tmp_path, capsys, size):
+    out = tmp_path / "s"
+    rc, _, err = cli(["sheet", "--custom", size, "300", "--out", out], capsys)
+    assert rc == 2
+    assert_one_line(err, "--custom", "at most 5000 mm")
+    assert not out.exists()

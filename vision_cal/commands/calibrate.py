@@ -41,12 +41,24 @@ def run(args) -> int:
     progress = not args.quiet  # a bar on a terminal, else one line per stage
     several = len(args.folders) > 1
     output_dir(args.out or "out", field="--out")
+    from vision_cal.dataset.out_folder import output_names, retire_earlier_run
+
+    names = output_names(args.folders)
+    if several and not args.quiet:
+        plain = [Path(f).resolve().name for f in args.folders]
+        if names != plain:  # two folders share a name: say where each one goes
+            print("outputs: " + ", ".join(f"{f} -> {Path(args.out or 'out') / n}"
+                                          for f, n in zip(args.folders, names)))
     failures = 0
     rows = []
-    for folder in args.folders:
-        name = Path(folder).resolve().name
+    for folder, name in zip(args.folders, names):
         out = Path(args.out) / name if (args.out and several) else Path(args.out or f"out/{name}")
         try:
+            # OUT holds one run: an earlier run's results go to OUT/previous/ first, so a
+            # failed or interrupted run leaves nothing that looks current
+            moved = retire_earlier_run(out)
+            if moved and not args.quiet:
+                print(f"moved the earlier results ({', '.join(moved)}) to {out / 'previous'}")
             result = calibrate_dataset(folder, out_dir=out, method=args.method, jobs=args.jobs,
                                        progress=progress, truth=args.truth)
         except VisionCalError as e:
@@ -77,7 +89,12 @@ def run(args) -> int:
         if args.report:
             from vision_cal.report.html import write_report
 
-            path = write_report(result, out)
+            try:
+                path = write_report(result, out)
+            except BaseException:  # Ctrl-C or a failure: both report files or neither
+                for n in ("report.json", "report.html"):
+                    (out / n).unlink(missing_ok=True)
+                raise
             print(f"report: {path} ({path.stat().st_size / 1e6:.1f} MB)")
         print(f"wrote {result.out_path}")
     if several:

@@ -273,6 +273,72 @@ def check_header(h: PhotoHeader, camera_size_px=None) -> bool:
     return False
 
 
+def check_complete(data: bytes) -> None:
+    """Refuse (:class:`PhotoRefused`) a PNG or JPEG that ends before its image does, judged
+    by walking its structure from the start, not by its last bytes: bytes after the end
+    (Samsung's trailer, a motion photo's video, an appended depth map) are left alone, as
+    every decoder leaves them. PNG: each chunk's length and CRC up to ``IEND`` (a chunk
+    failing its CRC is named here, before libpng prints its own line). JPEG: each segment
+    up to the first scan, then the scans up to the end marker ``FFD9``. Other formats are
+    left to the decoder."""
+    import struct
+    import zlib
+
+    if data[:8] == b"\x89PNG\r\n\x1a\n":
+        pos = 8
+        while True:
+            if pos + 12 > len(data):
+                raise PhotoRefused("truncated: the PNG ends before its IEND chunk")
+            n, kind = struct.unpack(">I4s", data[pos:pos + 8])
+            end = pos + 12 + n
+            if end > len(data):
+                raise PhotoRefused("truncated: the PNG ends inside its "
+                                   f"{kind.decode('latin-1')!s} chunk")
+            crc = struct.unpack(">I", data[end - 4:end])[0]
+            if zlib.crc32(data[pos + 4:end - 4]) & 0xFFFFFFFF != crc:
+                raise PhotoRefused(f"corrupt: the PNG's {kind.decode('latin-1')} chunk fails "
+                                   "its CRC check (a damaged copy?)")
+            if kind == b"IEND":
+                return
+            pos = end
+    if data[:2] == b"\xff\xd8":
+        truncated = PhotoRefused("truncated: the JPEG ends before its end marker")
+        pos = 2
+        while True:
+            # a marker: FF (any fill FFs) then its code
+            while pos < len(data) and data[pos] == 0xFF and pos + 1 < len(data) \
+                    and data[pos + 1] == 0xFF:
+                pos += 1
+            if pos + 2 > len(data) or data[pos] != 0xFF:
+                raise truncated if pos + 2 > len(data) else PhotoRefused(
+                    "corrupt: the JPEG's segments do not follow each other")
+            code = data[pos + 1]
+            if code == 0xD9:  # EOI
+                return
+            if code == 0x01 or 0xD0 <= code <= 0xD7:  # no length
+                pos += 2
+                continue
+            if pos + 4 > len(data):
+                raise truncated
+            n = struct.unpack(">H", data[pos + 2:pos + 4])[0]
+            pos += 2 + n
+            if pos > len(data):
+                raise truncated
+            if code == 0xDA:  # a scan: its entropy-coded data runs to the next marker
+                while True:
+                    pos = data.find(b"\xff", pos)
+                    if pos < 0 or pos + 1 >= len(data):
+                        raise truncated
+                    nxt = data[pos + 1]
+                    if nxt == 0x00 or 0xD0 <= nxt <= 0xD7:
+                        pos += 2  # stuffed FF, or a restart marker inside the scan
+                        continue
+                    if nxt == 0xFF:
+                        pos += 1  # fill byte before a marker
+                        continue
+                    break
+
+
 def decode_photo(data: bytes, *, turned: bool = False):
     """BGR uint8 pixels (OpenCV), in the stored frame unless ``turned``; None if OpenCV
     cannot decode them."""

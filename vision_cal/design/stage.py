@@ -217,6 +217,9 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
         from vision_cal.plan.uncertainty import load_covariance
 
         model, doc = load_calibration(pilot)
+        from vision_cal.dataset.sheet_identity import check_same_sheet
+
+        check_same_sheet(doc, sheet_raw, file=str(pilot), sheet_file=str(sheet_path))
         cov = load_covariance(doc, model, file=str(pilot))
         if safety_mm is None:
             safety_mm = pilot_safety_mm(model, cov, sheet)

@@ -231,6 +231,11 @@ def _r(v, nd: int = 6):
 
 # --------------------------------------------------------------------------- page sizes
 
+#: the largest custom page side (mm): the largest SCARA reaches about 1 m, so its whole work
+#: area fits in 2 m; 5 m leaves room and keeps the SVG and PDF a few MB (1e6 mm wrote 154 MB)
+MAX_PAGE_MM = 5000.0
+
+
 def page_size_mm(size: str | None = "A3", *, landscape: bool | None = None,
                  custom_mm=None) -> tuple[str, str, tuple[float, float]]:
     """(page name, orientation, (width, height) mm) from an ISO name or a custom size.
@@ -242,6 +247,10 @@ def page_size_mm(size: str | None = "A3", *, landscape: bool | None = None,
         w, h = (float(v) for v in custom_mm)
         if not (math.isfinite(w) and math.isfinite(h)) or w <= 0 or h <= 0:
             raise VisionCalError(f"expected two positive sizes in mm, got {custom_mm!r}",
+                                 field="--custom")
+        if max(w, h) > MAX_PAGE_MM:
+            raise VisionCalError(f"expected sides of at most {MAX_PAGE_MM:g} mm (no plotter "
+                                 f"roll or SCARA work area is wider), got {w:g} x {h:g} mm",
                                  field="--custom")
         name = "custom"
     else:
