@@ -1,0 +1,74 @@
+"""`vision-cal calibrate` on marks drawn at several j4_deg (measured_mm from the world's own
+truth model): tool_mm in calibration.json within 4 reported std, read back for planning;
+one j4_deg says the tool is folded into L2 and z2."""
+
+import json
+
+import numpy as np
+import pytest
+
+from vision_cal.dataset.calibration import load_calibration
+from vision_cal.pipeline import calibrate_dataset
+from vision_cal.render.truth_model import TrueRobot
+
+PARAMS = {"L1_mm": 344.05, "L2_mm": 259.87, "joint_zero_deg": [-2.57, -8.13],
+          "base_mm": [-424.26, -230.35]}
+TOOL = [-18.7, 22.4]
+
+
+def _session(tmp_path, j4, q, effects=(), seed=7, name="ds"):
+    rng = np.random.default_rng(seed)
+    truth = TrueRobot.from_json({**PARAMS, "tool_mm": TOOL}, list(effects))
+    # the world's own approach side for joint 4: the sign of its last motion (start 0, +1)
+    prev, side, s4 = 0.0, 1.0, []
+    for v in j4:
+        side = np.sign(v - prev) or side
+        s4.append(side)
+        prev = v
+    s = np.column_stack([np.ones((len(q), 2)), s4])   # no joint-1/2 effects here
+    xy = truth.pen_mm(np.column_stack([q, j4]), s) + rng.normal(0, 0.01, (len(q), 2))
+    marks = [{"id": f"c{i:02d}", "joints_deg": list(map(float, qi)), "j4_deg": float(a),
+              "measured_mm": list(map(float, p))} for i, (qi, a, p) in enumerate(zip(q, j4, xy))]
+    d = tmp_path / name
+    d.mkdir()
+    (d / "session.json").write_text(json.dumps({
+        "format": "vision-cal/1",
+        "robot": {**PARAMS, "home_deg": [0, 0], "tool_mm": [-20.0, 20.0]},
+        "marks": marks}))
+    return d
+
+
+def test_lsq_tool_and_joint4_scale_through_the_pipeline(tmp_path):
+    rng = np.random.default_rng(11)
+    n = 36
+    q = np.column_stack([rng.uniform(10, 100, n), rng.uniform(-110, -40, n)])
+    j4 = rng.uniform(-160, 160, n)
+    d = _session(tmp_path, j4, q, [{"name": "joint_scale", "joint": 4, "scale": 0.004}])
+    run = calibrate_dataset(d, out_dir=tmp_path / "out")
+    doc = run.document
+    tool, std = np.array(doc["params"]["tool_mm"]), np.array(doc["std"]["tool_mm"])
+    assert np.all(np.abs(tool - TOOL) < 4 * std), (tool, std)
+    (e,) = doc["effects"]
+    assert e["name"] == "joint_scale" and e["joint"] == 4
+    assert abs(e["scale"] - 0.004) < 4 * e["std"]
+    model, _ = load_calibration(run.out_path)
+    np.testing.assert_allclose(model.tool.tool_mm, tool)
+
+
+def test_paper_method_on_joint4_through_the_pipeline(tmp_path):
+    q = [[0, -60], [30, -60], [60, -60], [30, -90], [30, -30], [30, -60], [30, -60], [30, -60]]
+    j4 = [0, 0, 0, 0, 0, -120, 60, 150]
+    d = _session(tmp_path, np.array(j4, float), np.array(q, float))
+    doc = calibrate_dataset(d, out_dir=tmp_path / "out", method="paper").document
+    np.testing.assert_allclose(doc["params"]["tool_mm"], TOOL, atol=0.1)
+    assert doc["tool"]["identified"] is True
+
+
+def test_one_j4_is_folded(tmp_path):
+    rng = np.random.default_rng(3)
+    q = np.column_stack([rng.uniform(10, 100, 12), rng.uniform(-110, -40, 12)])
+    d = _session(tmp_path, np.full(12, 30.0), q)
+    doc = calibrate_dataset(d, out_dir=tmp_path / "out").document
+    assert doc["tool"]["identified"] is False
+    assert "folded into L2 and z2" in doc["tool"]["statement"]
+    assert "tool_mm" not in doc["params"]
