@@ -72,3 +72,33 @@ def test_one_j4_is_folded(tmp_path):
     assert doc["tool"]["identified"] is False
     assert "folded into L2 and z2" in doc["tool"]["statement"]
     assert "tool_mm" not in doc["params"]
+
+
+def test_plan_command_with_theta_writes_q4_and_tlset(tmp_path):
+    from vision_cal.commands.main import main
+    from vision_cal.dataset.csvio import read_plan
+
+    rng = np.random.default_rng(5)
+    n = 30
+    q = np.column_stack([rng.uniform(10, 100, n), rng.uniform(-110, -40, n)])
+    d = _session(tmp_path, rng.uniform(-160, 160, n), q)
+    assert main([str(d), "--out", str(tmp_path / "out"), "-q"]) == 0
+    targets = tmp_path / "targets.csv"
+    targets.write_text("id,x_mm,y_mm,theta_deg\na,-200.0,50.0,30.0\nb,-150.0,0.0,-120.0\n")
+    out = tmp_path / "plan.csv"
+    assert main(["plan", str(tmp_path / "out" / "calibration.json"), str(targets), "-o",
+                 str(out), "--program", "spel", "--robot", "fixtures/robot_sm5.yaml",
+                 "-q"]) == 0
+    text = out.read_text()
+    head = text.splitlines()[0].split(",")
+    assert "q4_deg" in head and "approach4" in head
+    ids, qp, _ = read_plan(out)
+    q4 = [float(r.split(",")[head.index("q4_deg")]) for r in text.splitlines()[1:]]
+    truth = TrueRobot.from_json({**PARAMS, "tool_mm": TOOL})
+    q3 = np.column_stack([qp, q4])
+    np.testing.assert_allclose(truth.pen_mm(q3), [[-200, 50], [-150, 0]], atol=0.03)
+    np.testing.assert_allclose((truth.tool_angle_deg(q3) - [30, -120] + 180) % 360 - 180, 0,
+                               atol=0.05)
+    prg = (tmp_path / "plan.prg").read_text()
+    assert "TLSet 1, XY(" in prg
+    assert f"{q4[0]:.4f})" in prg   # joint 4 of the first target in its JA point

@@ -35,6 +35,8 @@ def add_arguments(p) -> None:
                         "home_deg, else calibration.json's, which the session gave)")
     p.add_argument("--robot", metavar="ROBOT.yaml",
                    help="robot file: joint limits, speeds, pen heights for --program")
+    p.add_argument("--approach4", type=int, choices=(1, -1), default=1,
+                   help="approach sign of joint 4 when the plan turns it (default: 1)")
 
 
 def run(args) -> int:
@@ -43,8 +45,8 @@ def run(args) -> int:
     from pathlib import Path
 
     from vision_cal.dataset.calibration import load_calibration
-    from vision_cal.dataset.csvio import (failed_report_path, read_targets, write_failed_targets,
-                                          write_plan)
+    from vision_cal.dataset.csvio import (failed_report_path, read_target_theta, read_targets,
+                                          write_failed_targets, write_plan)
     from vision_cal.dataset.io import output_file
     from vision_cal.plan.compensate import plan_targets
     from vision_cal.plan.uncertainty import load_covariance, predicted_std_mm
@@ -67,17 +69,36 @@ def run(args) -> int:
     model, doc = load_calibration(args.calibration, which=args.model)
     ids, xy = read_targets(args.targets)
     limits = {} if robot is None else {"joint_limits_deg": robot.joint_limits_deg}
-    planned = plan_targets(model, ids, xy, elbow=args.elbow, approach=tuple(args.approach),
-                           **limits)
+    theta = read_target_theta(args.targets)
+    poses = None
+    if theta is not None or model.tool is not None:   # joint 4 and the tool (plan/orient.py)
+        from vision_cal.plan.orient import plan_poses
+
+        if robot is not None:
+            limits["joint4_limits_deg"] = robot.joint4_limits_deg
+        poses = plan_poses(model, ids, xy, theta, elbow=args.elbow,
+                           approach=(*args.approach, args.approach4),
+                           q4_deg=robot.j4_deg if robot is not None else 0.0, **limits)
+        planned = [p.target for p in poses]
+        pose_of = {p.target.id: p for p in poses}
+    else:
+        planned = plan_targets(model, ids, xy, elbow=args.elbow, approach=tuple(args.approach),
+                               **limits)
     cov = load_covariance(doc, model, file=args.calibration) if args.model == "calibrated" \
         else None
     ok = [p for p in planned if p.status == "ok"]
     failed = [p for p in planned if p.status != "ok"]
-    std = (predicted_std_mm(model, cov, [p.q_deg for p in ok], [p.approach for p in ok])
+    if poses is None:
+        q_ok, a_ok = [p.q_deg for p in ok], [p.approach for p in ok]
+    else:
+        q_ok = [(*p.q_deg, pose_of[p.id].q4_deg) for p in ok]
+        a_ok = [(*p.approach, pose_of[p.id].approach4) for p in ok]
+    std = (predicted_std_mm(model, cov, q_ok, a_ok)
            if cov is not None and ok else [float("nan")] * len(ok))
     # the command file holds only what can be sent to the robot: no NaN, no failed row
     # (an unknown std, as with the nominal model, is left empty)
-    write_plan(args.out, [dict(p.to_row(), std_mm=float(s) if math.isfinite(s) else "")
+    write_plan(args.out, [dict(p.to_row() if poses is None else pose_of[p.id].to_row(),
+                               std_mm=float(s) if math.isfinite(s) else "")
                           for p, s in zip(ok, std)])
     report = failed_report_path(args.out)
     if failed:
@@ -97,12 +118,21 @@ def run(args) -> int:
         from vision_cal.program import program_path, program_points, write_program
 
         marks = to_planned_marks(ok, overshoot_deg=robot.overshoot_deg, role="target")
+        joint4, tool = None, None
+        if poses is not None:   # joint 4 turns: its via point on the approach side
+            from vision_cal.plan.orient import controller_tool_mm
+
+            joint4 = {p.target.id: (p.q4_deg, p.q4_deg - p.approach4 * robot.overshoot_deg)
+                      for p in poses if p.target.status == "ok"}
+            if model.tool is not None:
+                tool = controller_tool_mm(model.params, model.tool.tool_mm)
         points = program_points(marks, home_deg=home_deg,
-                                z2_deg=model.params.z2_deg)
+                                z2_deg=model.params.z2_deg, joint4=joint4)
         stem = Path(args.out).with_suffix("")
         path = write_program(args.program, program_path(args.program, stem), points, robot,
                              title=f"vision-cal compensated targets: {len(ok)} of {len(planned)} "
-                                   f"targets of {args.targets}, {args.model} model")
+                                   f"targets of {args.targets}, {args.model} model",
+                             tool_mm=tool)
         if not args.quiet:
             print(f"wrote {path}")
     if not args.quiet:

@@ -145,3 +145,12 @@ def plan_poses(model: RobotModel, ids, targets_mm, theta_deg=None, *, elbow: int
                           "failed" if reason else "ok", reason, res)
         out.append(PlannedPose(t, q4, int(s[i, 2]), float(np.degrees(theta[i])), ang))
     return out
+
+
+def controller_tool_mm(params: ScaraParams, tool_mm) -> tuple[float, float]:
+    """The tool in the controller's tool-0 frame (x along link 2 at J4 = 0 as the
+    controller counts it, i.e. without the calibrated z2): ``Rot(z2) tool_mm``. What a
+    SPEL+ ``TLSet`` takes (:func:`vision_cal.program.spel.tlset_line`)."""
+    a = np.radians(params.z2_deg)
+    return (float(np.cos(a) * tool_mm[0] - np.sin(a) * tool_mm[1]),
+            float(np.sin(a) * tool_mm[0] + np.cos(a) * tool_mm[1]))
