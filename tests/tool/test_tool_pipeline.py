@@ -102,3 +102,31 @@ def test_plan_command_with_theta_writes_q4_and_tlset(tmp_path):
     prg = (tmp_path / "plan.prg").read_text()
     assert "TLSet 1, XY(" in prg
     assert f"{q4[0]:.4f})" in prg   # joint 4 of the first target in its JA point
+
+
+def test_urdf_with_joints_3_4_and_tool_reproduces_the_model(tmp_path):
+    import xml.etree.ElementTree as ET
+
+    from vision_cal.kinematics import ScaraParams, forward_tool
+    from vision_cal.report.export import urdf_text
+
+    p = ScaraParams(344.0, 260.0, -2.5, -8.0, -424.0, -230.0)
+    root = ET.fromstring(urdf_text({"params": {**p.to_json(), "tool_mm": TOOL}}))
+    joints = {j.get("name"): j for j in root.findall("joint")}
+    assert joints["joint3"].get("type") == "prismatic"
+    assert joints["tool"].get("type") == "fixed"
+
+    def T(j, yaw=0.0):
+        o = j.find("origin")
+        x, y, z = (float(v) for v in o.get("xyz").split())
+        a = float(o.get("rpy").split()[2]) + yaw
+        m = np.eye(3)
+        m[:2, :2] = [[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]
+        m[:2, 2] = (x, y)
+        return m
+
+    for q1, q2, q4 in ((0, 0, 0), (35, -80, 90), (-120, 140, -45)):
+        m = (T(joints["joint1"], np.radians(q1)) @ T(joints["joint2"], np.radians(q2))
+             @ T(joints["joint3"]) @ T(joints["joint4"], np.radians(q4)) @ T(joints["tool"]))
+        np.testing.assert_allclose(m[:2, 2] * 1000, forward_tool(p, [[q1, q2]], q4, TOOL)[0],
+                                   atol=1e-5)
