@@ -154,3 +154,16 @@ def controller_tool_mm(params: ScaraParams, tool_mm) -> tuple[float, float]:
     a = np.radians(params.z2_deg)
     return (float(np.cos(a) * tool_mm[0] - np.sin(a) * tool_mm[1]),
             float(np.sin(a) * tool_mm[0] + np.cos(a) * tool_mm[1]))
+
+
+def unfold_params(folded: ScaraParams, tool_mm, q4_real_deg: float = 0.0) -> ScaraParams:
+    """The inverse of :func:`folded_params`: the link-2 model whose link plus the tool at
+    real joint-4 angle ``q4_real_deg`` is ``folded``'s link 2 (a model calibrated with
+    every mark at one ``j4_deg``, and a rough ``tool_mm``)."""
+    a = np.radians(q4_real_deg)
+    t = np.array([np.cos(a) * tool_mm[0] - np.sin(a) * tool_mm[1],
+                  np.sin(a) * tool_mm[0] + np.cos(a) * tool_mm[1]])
+    along = np.sqrt(folded.L2_mm**2 - t[1]**2)
+    return ScaraParams(folded.L1_mm, float(along - t[0]), folded.z1_deg,
+                       folded.z2_deg - float(np.degrees(np.arctan2(t[1], along))),
+                       folded.base_x_mm, folded.base_y_mm)

@@ -127,6 +127,7 @@ class RobotScene:
     repeatability_mm: float = 0.01
     pen_diameter_mm: float = 1.2
     controller: str = "smc"
+    tool_mm: tuple[float, float] | None = None   # the pen off the joint-4 axis (truth)
 
     @property
     def truth_model(self) -> RobotModel:
@@ -139,7 +140,15 @@ class RobotScene:
         truth's JSON blocks only."""
         from vision_cal.render.truth_model import TrueRobot
 
-        return TrueRobot.from_json(self.truth.to_json(), [e.to_json() for e in self.effects])
+        return TrueRobot.from_json(self.truth_params_json, [e.to_json() for e in self.effects])
+
+    @property
+    def truth_params_json(self) -> dict:
+        """truth.json's ``params`` (with ``tool_mm`` when the pen is off the joint-4 axis)."""
+        d = self.truth.to_json()
+        if self.tool_mm is not None:
+            d["tool_mm"] = [float(v) for v in self.tool_mm]
+        return d
 
 
 @dataclass(frozen=True)
@@ -252,7 +261,7 @@ def _params(r: _R, d: dict, where: str, default: ScaraParams) -> ScaraParams:
 
 def _robot(r: _R, d) -> RobotScene:
     d = r.section(d, "robot", ("nominal", "truth", "effects", "repeatability_mm",
-                               "pen_diameter_mm", "controller"))
+                               "pen_diameter_mm", "controller", "tool_mm"))
     dflt = RobotScene()
     nd = dflt.nominal
     n = r.section(d.get("nominal"), "robot.nominal",
@@ -277,7 +286,8 @@ def _robot(r: _R, d) -> RobotScene:
     pen = r.number(d.get("pen_diameter_mm", dflt.pen_diameter_mm), "robot.pen_diameter_mm",
                    lo=0, lo_open=True)
     ctrl = r.choice(d.get("controller", dflt.controller), "robot.controller", CONTROLLERS)
-    return RobotScene(nominal, truth, tuple(effects), rep, pen, ctrl)
+    tool = r.vector(d["tool_mm"], "robot.tool_mm", 2) if d.get("tool_mm") is not None else None
+    return RobotScene(nominal, truth, tuple(effects), rep, pen, ctrl, tool)
 
 
 def _sheet(r: _R, d) -> SheetScene:

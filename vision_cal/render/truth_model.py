@@ -124,10 +124,11 @@ class TrueRobot:
                    tool, band[2], scale[2])
 
     def without_backlash(self) -> "TrueRobot":
-        """The same robot with the dead band taken out (a simulated gear play owns it)."""
+        """The same robot with the dead band of joints 1 and 2 taken out (a simulated gear
+        play owns it; joint 4 is not simulated and keeps its own)."""
         return TrueRobot(self.L1_mm, self.L2_mm, self.zero_deg, self.base_mm, (0.0, 0.0),
-                         self.scale, self.cyclic, self.sheet_matrix, self.tool_mm, 0.0,
-                         self.scale4)
+                         self.scale, self.cyclic, self.sheet_matrix, self.tool_mm,
+                         self.backlash4_deg, self.scale4)
 
     # ------------------------------------------------------------------ joints
 
