@@ -7,7 +7,7 @@ pilot calibration at one ``j4_deg``, or the nominal model) and turns joint 4 ove
 re-solving joints 1 and 2 so each mark stays on the sheet point the plan chose (with the
 rough ``tool_mm`` of the robot file: marks land within a few millimetres of it, clear of
 markers as the plan kept them). The via points keep each joint's planned approach. A mark
-no turned tool can keep on its point stays as planned at ``j4_deg = 0``.
+no turned tool can keep on its point stays as planned (at ``folded_j4_deg``).
 """
 
 from __future__ import annotations
@@ -25,13 +25,16 @@ J4_VALUES_DEG = (-150.0, -90.0, -30.0, 30.0, 90.0, 150.0)
 
 
 def turn_joint4(plan, folded: ScaraParams, tool_mm, *, j4_values=J4_VALUES_DEG,
-                overshoot_deg: float = 3.0) -> tuple[list[PlannedMark], dict[str, float]]:
-    """(new plan, mark id -> j4_deg): the same sheet points with joint 4 turned."""
+                overshoot_deg: float = 3.0, folded_j4_deg: float = 0.0
+                ) -> tuple[list[PlannedMark], dict[str, float]]:
+    """(new plan, mark id -> j4_deg): the same sheet points with joint 4 turned.
+    ``folded_j4_deg``: the joint-4 angle at which ``folded`` was calibrated."""
     if np.hypot(*tool_mm) == 0:
         raise VisionCalError("the tool is on the joint-4 axis (tool_mm = [0, 0]): turning "
                              "joint 4 moves no mark; give the robot file's tool_mm",
                              field="tool_mm")
-    model = RobotModel(unfold_params(folded, tool_mm), (Tool(tool_mm=tuple(tool_mm)),))
+    model = RobotModel(unfold_params(folded, tool_mm, folded_j4_deg),
+                       (Tool(tool_mm=tuple(tool_mm)),))
     out, j4 = [], {}
     for i, m in enumerate(plan):
         xy = forward(folded, [m.joints_deg])
@@ -47,7 +50,7 @@ def turn_joint4(plan, folded: ScaraParams, tool_mm, *, j4_values=J4_VALUES_DEG,
                 break
         if p is None or p.target.status != "ok":
             out.append(m)
-            j4[m.id] = 0.0
+            j4[m.id] = float(folded_j4_deg)
             continue
         q = np.asarray(p.target.q_deg)
         via = q - np.asarray(m.approach, dtype=float) * overshoot_deg
