@@ -4,8 +4,8 @@ Usage: .venv/bin/python bench/tool_joint4.py [--seeds 10] [--first 1000] [--sigm
 
 Seeds ``first .. first + seeds - 1`` (the tests use 2024, 77, 100, 5, 7, 11: not these).
 Marks come from the world's own truth model (render/truth_model.py) with isotropic noise
-``sigma`` mm per axis, as ``measured_mm`` would carry them (photographs of marks drawn at
-several j4_deg are not measured yet: see docs/format.md).
+``sigma`` mm per axis, as ``measured_mm`` would carry them; ``--render`` adds one case
+measured from a rendered photograph (1600 px wide, 30 + 6 marks at six joint-4 angles).
 
 1. tool_mm and joint-4 effects: SM5-like truth with a tool of random direction and 15-35 mm
    radius, joint-4 gear scale 0.004 and backlash 0.1 deg; 40 marks over the sheet's pose

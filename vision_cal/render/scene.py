@@ -108,6 +108,7 @@ class NominalScene:
     joint_zero_deg: tuple[float, float] = (0.0, 0.0)
     base_mm: tuple[float, float] = (-400.0, -250.0)
     home_deg: tuple[float, float] = (0.0, 0.0)
+    tool_mm: tuple[float, float] | None = None   # the user's rough tool (docs/format.md)
 
     @property
     def params(self) -> ScaraParams:
@@ -116,7 +117,8 @@ class NominalScene:
     def to_json(self) -> dict:
         return {"L1_mm": self.L1_mm, "L2_mm": self.L2_mm,
                 "joint_zero_deg": list(self.joint_zero_deg), "base_mm": list(self.base_mm),
-                "home_deg": list(self.home_deg)}
+                "home_deg": list(self.home_deg),
+                **({"tool_mm": list(self.tool_mm)} if self.tool_mm is not None else {})}
 
 
 @dataclass(frozen=True)
@@ -265,10 +267,13 @@ def _robot(r: _R, d) -> RobotScene:
     dflt = RobotScene()
     nd = dflt.nominal
     n = r.section(d.get("nominal"), "robot.nominal",
-                  ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "home_deg"))
+                  ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "home_deg", "tool_mm"))
     home = r.vector(n.get("home_deg", list(nd.home_deg)), "robot.nominal.home_deg", 2)
-    p = _params(r, {k: v for k, v in n.items() if k != "home_deg"}, "robot.nominal", nd.params)
-    nominal = NominalScene(p.L1_mm, p.L2_mm, p.joint_zero_deg, p.base_mm, home)
+    p = _params(r, {k: v for k, v in n.items() if k not in ("home_deg", "tool_mm")},
+                "robot.nominal", nd.params)
+    ntool = (r.vector(n["tool_mm"], "robot.nominal.tool_mm", 2)
+             if n.get("tool_mm") is not None else None)
+    nominal = NominalScene(p.L1_mm, p.L2_mm, p.joint_zero_deg, p.base_mm, home, ntool)
     truth = _params(r, d.get("truth"), "robot.truth", dflt.truth)
     effects_raw = r.list_(d.get("effects") or [], "robot.effects")
     effects = []
