@@ -90,12 +90,57 @@ def placements_case(seed: int, sigma: float, amp_deg: float = 0.003):
     return bool(found), float(z), alone, [e.label for e in fit.effects]
 
 
+def render_case(seed: int) -> None:
+    """tool_mm and joint-4 scale from one rendered photo (1600 x 1200, 30 + 6 marks)."""
+    import copy
+    import tempfile
+
+    import yaml
+
+    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.design.joint4 import turn_joint4
+    from vision_cal.pipeline import calibrate_dataset
+    from vision_cal.render import dataset as ds
+    from vision_cal.render.scene import scene_from_dict
+    from vision_cal.render.sheet import make_sheet
+
+    tool, scale4 = [-17.0, 19.0], 0.003
+    d = copy.deepcopy(yaml.safe_load((ROOT / "renders" / "small.yaml").read_text()))
+    d["seed"] = seed
+    d["camera"].update(size_px=[1600, 1200], f_px=1734.0, n_views=1, moving=False)
+    d["photos"] = {"mode": "single", "texture_px_per_mm": 6.0}
+    d["plan"].update(n_calibration=30, n_validation=6)
+    d["robot"].update(effects=[{"name": "joint_scale", "joint": 4, "scale": scale4}],
+                      tool_mm=tool, controller="kinematic")
+    d["robot"]["nominal"]["tool_mm"] = [-15.0, 20.0]
+    sc = scene_from_dict(d, file="bench")
+    s = sc.sheet
+    sheet = make_sheet(size_mm=s.size_mm, bottom_left_mm=s.bottom_left_mm,
+                       dictionary=s.dictionary, marker_mm=s.marker_mm, grid=s.grid,
+                       margin_mm=s.margin_mm)
+    plan = ds.build_plan(sc, sheet, pilot=pilot_params, rng=seed)
+    plan, j4 = turn_joint4(plan, pilot_params(*ds.pilot_marks(sc, rng=seed)), (-15.0, 20.0))
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = ds.render_dataset(sc, Path(tmp) / "data", plan=plan, joint4_deg=j4)
+        doc = calibrate_dataset(folder, out_dir=Path(tmp) / "out").document
+    err = np.subtract(doc["params"]["tool_mm"], tool)
+    std = np.array(doc["std"]["tool_mm"])
+    print(f"4. rendered photo (seed {seed}): tool error {np.round(err, 4).tolist()} mm "
+          f"(|error| {np.hypot(*err):.4f} mm, {np.round(np.abs(err) / std, 2).tolist()} std); "
+          + "; ".join(f"{e['name']}(joint {e['joint']}) {e.get('scale', e.get('deg')):.5f} "
+                      f"+- {e['std']:.5f}" for e in doc["effects"])
+          + f" (true joint_scale(4) {scale4})")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--first", type=int, default=1000)
     ap.add_argument("--sigma", type=float, default=0.01)
+    ap.add_argument("--render", action="store_true", help="also one rendered case")
     a = ap.parse_args()
+    if a.render:
+        render_case(a.first + 1)
     seeds = range(a.first, a.first + a.seeds)
     print(f"1-2. tool_mm, joint-4 effects, plan with orientation ({a.seeds} seeds, sigma "
           f"{a.sigma} mm)")
