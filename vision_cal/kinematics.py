@@ -14,6 +14,16 @@ at commanded zero measured from the sheet x axis, and it absorbs both.
 The flat parameter vector (``ScaraParams.vector``) is, in internal units::
 
     [L1_mm, L2_mm, z1_rad, z2_rad, base_x_mm, base_y_mm]
+
+Joint 4 and the tool (contract section "Joint 4 and the tool", docs/format.md): with the
+pen at ``tool`` (mm) in the flange frame at commanded ``q4 = 0``::
+
+    pen = base + L1 [cos phi1, sin phi1] + L2 [cos(phi1+phi2), sin(phi1+phi2)]
+               + Rot(phi1 + phi2 + q4) tool
+
+:func:`tool_offset_rad` is that last term; :func:`flange_angle_rad` is ``phi1 + phi2``
+(the direction of link 2, the flange frame's x axis at ``q4 = 0``). Every function here
+without a tool is the tool-less model (tool = [0, 0], q4 = 0).
 """
 
 from __future__ import annotations
@@ -123,6 +133,33 @@ def jacobian_rad(p: np.ndarray, phi_rel: np.ndarray) -> tuple[np.ndarray, np.nda
     jq[:, :, 0] = jp[:, :, 2]
     jq[:, :, 1] = jp[:, :, 3]
     return jp, jq
+
+
+def flange_angle_rad(p: np.ndarray, phi_rel: np.ndarray) -> np.ndarray:
+    """``phi1 + phi2`` (N,) rad: the direction of link 2 in the sheet frame, which is the
+    flange frame's x axis at commanded ``q4 = 0`` (p and phi_rel as in :func:`forward_rad`)."""
+    return phi_rel[:, 0] + p[2] + phi_rel[:, 1] + p[3]
+
+
+def tool_offset_rad(tool_mm, angle_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The tool term ``Rot(angle) tool`` (N, 2) mm and its derivative w.r.t. the angle
+    (N, 2) mm/rad, for ``angle = phi1 + phi2 + q4`` (N,) rad and ``tool_mm`` (2,)."""
+    tx, ty = float(tool_mm[0]), float(tool_mm[1])
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    off = np.stack([c * tx - s * ty, s * tx + c * ty], axis=-1)
+    d = np.stack([-s * tx - c * ty, c * tx - s * ty], axis=-1)
+    return off, d
+
+
+def forward_tool(params: ScaraParams, q_deg, q4_deg=0.0, tool_mm=(0.0, 0.0)) -> np.ndarray:
+    """Pen positions (N, 2) in sheet mm with a tool: commanded joints ``q_deg`` (N, 2),
+    joint 4 ``q4_deg`` (N,) or scalar, ``tool_mm`` (2,) in the flange frame (contract
+    "Joint 4 and the tool"). ``tool_mm = [0, 0]`` is :func:`forward`."""
+    q = _as_q_rad(q_deg)
+    q4 = np.broadcast_to(np.radians(np.asarray(q4_deg, dtype=float)), (len(q),))
+    p = params.vector
+    off, _ = tool_offset_rad(tool_mm, flange_angle_rad(p, q) + q4)
+    return forward_rad(p, q) + off
 
 
 def forward(params: ScaraParams, q_deg) -> np.ndarray:

@@ -16,6 +16,13 @@ direction), each adds a term evaluated at the *commanded* angle::
 the sheet origin: ``pen_sheet = M @ pen_arm``. A uniform scale of M is the same as
 scaling L1, L2 and the base, so only its uneven part is identifiable; the fitted
 candidates stretch one sheet axis (see docs/conventions.md).
+
+Joint 4 and the tool (contract "Joint 4 and the tool"). Commanded joints may be
+``(N, 3)``: ``[q1, q2, q4]`` (``(N, 2)`` means ``q4 = 0``), approach signs ``(N, 2)`` or
+``(N, 3)`` (joint 4's sign +1 when absent). A :class:`Tool` effect puts the pen at
+``tool_mm`` in the flange frame (``pen += Rot(phi1 + phi2 + q4_real) tool``); joint
+effects with ``joint=4`` change ``q4_real`` as those of joints 1 and 2 change theirs.
+Without a :class:`Tool` the model is exactly the tool-less one.
 """
 
 from __future__ import annotations
@@ -27,12 +34,14 @@ import numpy as np
 
 from vision_cal import joint_terms as jt
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import ScaraParams, forward_rad, jacobian_rad
+from vision_cal.kinematics import (ScaraParams, flange_angle_rad, forward_rad, jacobian_rad,
+                                   tool_offset_rad)
 
 
-def _check_joint(joint, where: str) -> int:
-    if joint not in (1, 2):
-        raise VisionCalError(f"joint must be 1 or 2, got {joint!r}", field=where)
+def _check_joint(joint, where: str, allowed=(1, 2)) -> int:
+    if joint not in allowed or isinstance(joint, bool):
+        raise VisionCalError(f"joint must be {' or '.join(map(str, allowed))}, got {joint!r}",
+                             field=where)
     return int(joint)
 
 
@@ -272,14 +281,40 @@ class SheetAffine(Effect):
         return d
 
 
+@dataclass(frozen=True)
+class Tool(Effect):
+    """The pen off the joint-4 axis: ``tool_mm`` (2,) in the flange frame at commanded
+    ``q4 = 0`` (contract "Joint 4 and the tool"; it absorbs joint 4's zero offset).
+    calibration.json reports it as ``params.tool_mm`` (``std.tool_mm``), not in ``effects``."""
+
+    name: ClassVar[str] = "tool"
+    param_names: ClassVar[tuple[str, ...]] = ("x_mm", "y_mm")
+    tool_mm: tuple[float, float] = (0.0, 0.0)
+
+    @property
+    def theta(self):
+        return np.array(self.tool_mm, dtype=float)
+
+    def with_theta(self, theta):
+        return replace(self, tool_mm=(float(theta[0]), float(theta[1])))
+
+    def to_json(self, std=None):
+        d = {"name": self.name, "tool_mm": [float(v) for v in self.tool_mm]}
+        if std is not None:
+            d["std"] = [float(v) for v in std]
+        return d
+
+
 def effect_from_json(d: dict, *, where: str = "effects") -> Effect:
     """Build an effect from its format dictionary (names as in dataset-format.md)."""
     try:
         name = d["name"]
         if name == "joint_backlash":
-            return JointBacklash(joint=_check_joint(d["joint"], where), deg=float(d["deg"]))
+            return JointBacklash(joint=_check_joint(d["joint"], where, (1, 2, 4)),
+                                 deg=float(d["deg"]))
         if name == "joint_scale":
-            return JointScale(joint=_check_joint(d["joint"], where), scale=float(d["scale"]))
+            return JointScale(joint=_check_joint(d["joint"], where, (1, 2, 4)),
+                              scale=float(d["scale"]))
         if name == "joint_cyclic":
             h = int(d["harmonic"])
             if h not in (1, 2):
@@ -332,21 +367,58 @@ class RobotModel:
     def _approach(q: np.ndarray, approach) -> np.ndarray:
         if approach is None:
             return np.ones_like(q)
-        s = np.broadcast_to(np.asarray(approach, dtype=float), q.shape)
+        a = np.asarray(approach, dtype=float)
+        if a.ndim == 2 and a.shape[-1] == 3 and q.shape[-1] == 2:
+            a = a[:, :2]
+        s = np.broadcast_to(a, q.shape)
         return np.where(s < 0, -1.0, 1.0)
 
+    @staticmethod
+    def _joint4(q_deg, approach) -> tuple[np.ndarray, np.ndarray]:
+        """Commanded joint 4 (N,) rad (0 for (N, 2) joints) and its approach sign (N,)."""
+        q = np.atleast_2d(np.asarray(q_deg, dtype=float))
+        q4 = np.radians(q[:, 2]) if q.shape[-1] == 3 else np.zeros(len(q))
+        a = None if approach is None else np.atleast_2d(np.asarray(approach, dtype=float))
+        s4 = (np.where(a[:, 2] < 0, -1.0, 1.0) if a is not None and a.shape[-1] == 3
+              else np.ones(len(q)))
+        return q4, s4
+
+    @property
+    def tool(self) -> "Tool | None":
+        """The :class:`Tool` effect, if the model has one."""
+        return next((e for e in self.effects if isinstance(e, Tool)), None)
+
     def joint_angles_rad(self, q_deg, approach=None) -> np.ndarray:
-        """Angles (N, 2) the joints really turn to (rad, before the zero offsets)."""
-        q = np.radians(np.atleast_2d(np.asarray(q_deg, dtype=float)))
+        """Angles (N, 2) joints 1 and 2 really turn to (rad, before the zero offsets)."""
+        q = np.radians(np.atleast_2d(np.asarray(q_deg, dtype=float))[:, :2])
         s = self._approach(q, approach)
         out = q.copy()
         for e in self.effects:
             if isinstance(e, JointTerms):
                 out[:, e.joint - 1] += e.delta_all(q, s)[0]
-            elif isinstance(e, JointEffect):
+            elif isinstance(e, JointEffect) and e.joint in (1, 2):
                 j = e.joint - 1
                 out[:, j] += e.delta(q[:, j], s[:, j])[0]
         return out
+
+    def joint4_rad(self, q_deg, approach=None) -> np.ndarray:
+        """The angle (N,) rad joint 4 really turns to (its commanded angle plus joint-4
+        effects; 0 plus effects for (N, 2) joints)."""
+        q4, s4 = self._joint4(q_deg, approach)
+        out = q4.copy()
+        for e in self.effects:
+            if isinstance(e, JointEffect) and e.joint == 4:
+                out += e.delta(q4, s4)[0]
+        return out
+
+    def tool_term(self, q_deg, approach=None) -> np.ndarray:
+        """``Rot(phi1 + phi2 + q4) tool`` (N, 2) in the arm frame (zeros without a tool)."""
+        tool = self.tool
+        phi = self.joint_angles_rad(q_deg, approach)
+        if tool is None:
+            return np.zeros((len(phi), 2))
+        ang = flange_angle_rad(self.params.vector, phi) + self.joint4_rad(q_deg, approach)
+        return tool_offset_rad(tool.tool_mm, ang)[0]
 
     def sheet_matrix(self) -> np.ndarray:
         m = np.eye(2)
@@ -359,24 +431,47 @@ class RobotModel:
         """Pen positions (N, 2) in sheet mm for commanded ``q_deg`` (N, 2) and approach signs."""
         phi = self.joint_angles_rad(q_deg, approach)
         xy = forward_rad(self.params.vector, phi)
+        if self.tool is not None:
+            xy = xy + self.tool_term(q_deg, approach)
         return xy @ self.sheet_matrix().T
 
     def jacobian(self, q_deg, approach=None) -> np.ndarray:
         """d predict / d vector: (N, 2, P), analytic."""
-        q = np.radians(np.atleast_2d(np.asarray(q_deg, dtype=float)))
+        q = np.radians(np.atleast_2d(np.asarray(q_deg, dtype=float))[:, :2])
         s = self._approach(q, approach)
         phi = self.joint_angles_rad(q_deg, approach)
         p = self.params.vector
         jp, jq = jacobian_rad(p, phi)
         m = self.sheet_matrix()
         arm = forward_rad(p, phi)
+        tool = self.tool
+        if tool is not None:   # the tool turns with phi1 + phi2 (and q4)
+            q4, s4 = self._joint4(q_deg, approach)
+            ang = flange_angle_rad(p, phi) + self.joint4_rad(q_deg, approach)
+            off, d_ang = tool_offset_rad(tool.tool_mm, ang)
+            arm = arm + off
+            for k in (2, 3):
+                jp[:, :, k] += d_ang
+            for k in (0, 1):
+                jq[:, :, k] += d_ang
+            d_ang_sheet = d_ang @ m.T
         cols = [np.einsum("ij,njk->nik", m, jp)]
         jq_sheet = np.einsum("ij,njk->nik", m, jq)
         for k, e in enumerate(self.effects):
-            if isinstance(e, JointEffect):
+            if isinstance(e, JointEffect) and e.joint == 4:
+                if tool is None:
+                    cols.append(np.zeros((len(q), 2, len(e.theta))))
+                else:
+                    _, dd = e.delta(q4, s4)
+                    cols.append(d_ang_sheet[:, :, None] * dd[:, None, :])
+            elif isinstance(e, JointEffect):
                 j = e.joint - 1
                 _, dd = e.delta_all(q, s) if isinstance(e, JointTerms) else e.delta(q[:, j], s[:, j])
                 cols.append(jq_sheet[:, :, j][:, :, None] * dd[:, None, :])
+            elif isinstance(e, Tool):
+                c, sn = np.cos(ang), np.sin(ang)
+                rot = np.stack([np.stack([c, -sn], -1), np.stack([sn, c], -1)], 1)  # (N,2,2)
+                cols.append(np.einsum("ij,njk->nik", m, rot))
             elif isinstance(e, SheetAffine):
                 # M_total = A_after @ e.M @ A_before
                 before = np.eye(2)

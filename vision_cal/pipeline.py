@@ -39,13 +39,15 @@ class MarkData:
     xy_mm: np.ndarray
     sigma_mm: np.ndarray | None  # (N,) per-axis standard deviation, when measured by camera
     roles: tuple[str, ...]
+    joint4: np.ndarray | None = None  # (N, 2) [j4_deg, approach4] when the session uses joint 4
 
     def select(self, role: str) -> "MarkData":
         k = np.array([r == role for r in self.roles], dtype=bool)
         return MarkData(tuple(i for i, s in zip(self.ids, k) if s), self.q_deg[k],
                         self.approach[k], self.xy_mm[k],
                         None if self.sigma_mm is None else self.sigma_mm[k],
-                        tuple(r for r, s in zip(self.roles, k) if s))
+                        tuple(r for r, s in zip(self.roles, k) if s),
+                        None if self.joint4 is None else self.joint4[k])
 
 
 @dataclass(frozen=True)
@@ -62,7 +64,8 @@ class CalibrationRun:
 def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[str]]:
     """Marks with a position: ``measured_mm`` from the session, else from the photos."""
     app = session.approach
-    ids, q, a, xy, sig, roles, missing = [], [], [], [], [], [], []
+    j4 = np.column_stack([session.j4_deg, session.approach4]) if session.uses_joint4 else None
+    ids, q, a, xy, sig, roles, missing, k4 = [], [], [], [], [], [], [], []
     have_sigma = measurement is not None
     for i, m in enumerate(session.marks):
         if measurement is not None and m.id in measurement.marks:
@@ -82,9 +85,11 @@ def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[st
         xy.append(pos)
         sig.append(s)
         roles.append(m.role)
+        k4.append(i)
     sigma = np.array(sig) if have_sigma and np.all(np.isfinite(sig)) and len(sig) else None
     return MarkData(tuple(ids), np.array(q, float).reshape(-1, 2), np.array(a, float).reshape(-1, 2),
-                    np.array(xy, float).reshape(-1, 2), sigma, tuple(roles)), missing
+                    np.array(xy, float).reshape(-1, 2), sigma, tuple(roles),
+                    None if j4 is None else j4[np.array(k4, dtype=int)]), missing
 
 
 def photo_reasons(measurement, *, top: int = 3) -> str:
@@ -172,8 +177,18 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     measurement, data, missing = measure_marks(session, out_dir=out_dir, jobs=jobs,
                                                progress=progress, config=config)
     cal, val = data.select("calibration"), data.select("validation")
-    fitted = (fit_paper(cal, val) if method == "paper"
-              else fit_lsq(session, cal, val, measurement, config))
+    if cal.joint4 is not None and len(np.unique(np.round(cal.joint4[:, 0], 6))) > 1:
+        from vision_cal.calibrate.joint4 import fit_joint4  # the tool and joint 4 (#21)
+
+        fitted = _Fitted(*fit_joint4(cal, val, method, session.robot.tool_mm))
+    else:
+        fitted = (fit_paper(cal, val) if method == "paper"
+                  else fit_lsq(session, cal, val, measurement, config))
+        if cal.joint4 is not None:   # one j4_deg: the tool is folded into L2 and z2
+            from vision_cal.calibrate.tool import folded_statement
+
+            fitted.doc["tool"] = folded_statement(cal.joint4[:, 0], session.robot.tool_mm
+                                                  or (0.0, 0.0))
     doc = {"format": "vision-cal/calibration/1", "method": method, "config": config.to_json(),
            **fitted.doc}
     document(doc, session, data, missing, measurement, fitted, truth=truth)
@@ -386,6 +401,7 @@ def document(doc: dict, session: Session, data: MarkData, missing: list[str], me
     marks = {}
     for i, mid in enumerate(data.ids):
         entry = {"measured_mm": data.xy_mm[i].tolist(),
+                 **({"j4_deg": float(data.joint4[i, 0])} if data.joint4 is not None else {}),
                  "residual_mm": np.asarray(residual_all[mid]).tolist(),
                  "residual_base_mm": np.asarray(residual_base[mid]).tolist(),
                  "role": data.roles[i], "joints_deg": data.q_deg[i].tolist(),
@@ -425,7 +441,7 @@ def _judge(doc: dict, session: Session) -> None:
     entry already says what is left."""
     from vision_cal.diagnose.verdict import judge
 
-    v = judge(doc, repeatability_mm=session.robot.repeatability_mm)
+    v = judge(doc, repeatability_mm=session.robot.repeatability_mm, stage=session.design_stage)
     doc["verdict"] = v.to_json()
     f = v.floor
     if f is not None and f["beyond"]:

@@ -15,6 +15,8 @@
   ``s^2 = SSR / (2N - P)``, and correlations (pairs above 0.9 are flagged).
 
 Weights: ``sigma_mm`` (N,) per-mark measurement standard deviations, if known.
+Joints ``(N, 3)`` carry joint 4 (``[q1, q2, q4]``, for a model with a tool, see
+:mod:`vision_cal.model`); the linear start uses joints 1 and 2 only.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from vision_cal.calibrate.linear import explain_degeneracy, linear_init
 from vision_cal.config import DEFAULT
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams
-from vision_cal.model import RobotModel
+from vision_cal.model import RobotModel, Tool
 from vision_cal.rms import rms_2d
 
 COND_LIMIT = 1e8
@@ -58,22 +60,25 @@ class Fit:
     def from_estimate(cls, q_deg, xy_mm, *, approach=None, model: RobotModel | None = None,
                       sigma_mm=None, ids=None, robust: bool = True,
                       outlier_sigma: float = DEFAULT.selection.outlier_sigma) -> "Fit":
-        q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
+        q = np.asarray(q_deg, dtype=float)
+        q = q.reshape(-1, 3 if q.ndim == 2 and q.shape[-1] == 3 else 2)  # [q1, q2(, q4)]
         xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
         n = len(q)
         if len(xy) != n:
             raise CalibrationError(f"{n} poses but {len(xy)} measured marks")
         if not np.all(np.isfinite(xy)) or not np.all(np.isfinite(q)):
             raise CalibrationError("non-finite joint angles or mark positions")
-        s_app = np.ones((n, 2)) if approach is None else np.asarray(approach, float).reshape(-1, 2)
+        s_app = (np.ones((n, 2)) if approach is None
+                 else np.asarray(approach, float).reshape(n, -1))
         ids = tuple(ids) if ids is not None else tuple(f"#{i}" for i in range(n))
         w = np.ones(n) if sigma_mm is None else 1.0 / np.asarray(sigma_mm, dtype=float)
-        why = explain_degeneracy(q)
+        why = explain_degeneracy(q[:, :2])
         if why:
             raise CalibrationError(why)
-        init = linear_init(q, xy)
+        init = linear_init(q[:, :2], xy)
         base = model if model is not None else RobotModel(init)
-        start = RobotModel(init, tuple(e.with_theta(np.zeros_like(e.theta))
+        start = RobotModel(init, tuple(e if isinstance(e, Tool)  # a tool starts as given
+                                       else e.with_theta(np.zeros_like(e.theta))
                                        for e in base.effects))
         P = len(start.vector)
         if 2 * n <= P:

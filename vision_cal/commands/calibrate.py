@@ -9,6 +9,7 @@ examples:
   vision-cal fixtures/paper_sm5 --out /tmp/x               least squares (default)
   vision-cal fixtures/paper_sm5 --method paper --out /tmp/x  the seed paper's circles
   vision-cal images/ --out out/ --jobs 2                   photographs, in parallel
+  vision-cal calibrate A/ B/ C/ --joint --out X/           one robot, three placements
 """
 
 
@@ -25,6 +26,10 @@ def add_arguments(p) -> None:
     p.add_argument("--truth", action="store_true",
                    help="compare with truth.json (synthetic data only)")
     p.add_argument("--report", action="store_true", help="also write report.json and report.html")
+    p.add_argument("--joint", action="store_true",
+                   help="the folders are placements of one sheet (or several sheets) drawn by "
+                        "one robot: fit one robot and one sheet pose each (robot frame R; "
+                        "OUT/calibration.json, OUT/<folder>/calibration.json)")
 
 
 def run(args) -> int:
@@ -39,6 +44,24 @@ def run(args) -> int:
     if args.jobs is not None and args.jobs < 1:
         raise VisionCalError(f"--jobs must be at least 1, got {args.jobs}")
     progress = not args.quiet  # a bar on a terminal, else one line per stage
+    if args.joint:   # one robot from several placements (calibrate/placements.py)
+        from vision_cal.calibrate.placements import calibrate_placements
+
+        if args.method != "lsq":
+            raise VisionCalError("--joint fits by least squares only", field="--method")
+        out = Path(args.out or "out")
+        output_dir(out, field="--out")
+        doc = calibrate_placements(args.folders, out_dir=out, jobs=args.jobs,
+                                   progress=progress)
+        if not args.quiet:
+            for pl in doc["placements"]:
+                print(f"{pl['folder']}: sheet at {pl['angle_deg']:.3f} deg, base "
+                      f"({pl['base_mm'][0]:.3f}, {pl['base_mm'][1]:.3f}) mm, rms "
+                      f"{pl['residual_rms_mm']:.4f} mm")
+            print("effects: " + (", ".join(e["name"] + f"(joint {e['joint']})"
+                                           for e in doc["effects"]) or "none"))
+        print(f"wrote {out / 'calibration.json'}")
+        return 0
     several = len(args.folders) > 1
     output_dir(args.out or "out", field="--out")
     from vision_cal.dataset.out_folder import output_names, retire_earlier_run

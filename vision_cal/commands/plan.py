@@ -37,6 +37,8 @@ def add_arguments(p) -> None:
                    help="robot file: joint limits, speeds, pen heights for --program")
     p.add_argument("--force", action="store_true",
                    help="plan even with a calibration whose verdict is 'not reliable'")
+    p.add_argument("--approach4", type=int, choices=(1, -1), default=1,
+                   help="approach sign of joint 4 when the plan turns it (default: 1)")
 
 
 def run(args) -> int:
@@ -45,8 +47,8 @@ def run(args) -> int:
     from pathlib import Path
 
     from vision_cal.dataset.calibration import load_calibration
-    from vision_cal.dataset.csvio import (failed_report_path, read_targets, write_failed_targets,
-                                          write_plan)
+    from vision_cal.dataset.csvio import (failed_report_path, read_target_theta, read_targets,
+                                          write_failed_targets, write_plan)
     from vision_cal.dataset.io import distinct_outputs, output_file, written_together
     from vision_cal.errors import VisionCalError
     from vision_cal.plan.compensate import plan_targets
@@ -88,20 +90,39 @@ def run(args) -> int:
     if robot is None and doc.get("joint_limits_deg") is not None:   # recorded by the run
         limits = {"joint_limits_deg": tuple(tuple(float(v) for v in p)
                                             for p in doc["joint_limits_deg"])}
-    planned = plan_targets(model, ids, xy, elbow=args.elbow, approach=tuple(args.approach),
-                           **limits)
+    theta = read_target_theta(args.targets)
+    poses = None
+    if theta is not None or model.tool is not None:   # joint 4 and the tool (plan/orient.py)
+        from vision_cal.plan.orient import plan_poses
+
+        if robot is not None:
+            limits["joint4_limits_deg"] = robot.joint4_limits_deg
+        poses = plan_poses(model, ids, xy, theta, elbow=args.elbow,
+                           approach=(*args.approach, args.approach4),
+                           q4_deg=robot.j4_deg if robot is not None else 0.0, **limits)
+        planned = [p.target for p in poses]
+        pose_of = {p.target.id: p for p in poses}
+    else:
+        planned = plan_targets(model, ids, xy, elbow=args.elbow, approach=tuple(args.approach),
+                               **limits)
     cov = load_covariance(doc, model, file=args.calibration) if args.model == "calibrated" \
         else None
     ok = [p for p in planned if p.status == "ok"]
     failed = [p for p in planned if p.status != "ok"]
-    std = (predicted_std_mm(model, cov, [p.q_deg for p in ok], [p.approach for p in ok])
+    if poses is None:
+        q_ok, a_ok = [p.q_deg for p in ok], [p.approach for p in ok]
+    else:
+        q_ok = [(*p.q_deg, pose_of[p.id].q4_deg) for p in ok]
+        a_ok = [(*p.approach, pose_of[p.id].approach4) for p in ok]
+    std = (predicted_std_mm(model, cov, q_ok, a_ok)
            if cov is not None and ok else [float("nan")] * len(ok))
     # every output is written together or not at all (a program path that cannot be
     # written, a trajectory too long, leave the earlier files as they were)
     with written_together():
         # the command file holds only what can be sent to the robot: no NaN, no failed row
         # (an unknown std, as with the nominal model, is left empty)
-        write_plan(args.out, [dict(p.to_row(), std_mm=float(s) if math.isfinite(s) else "")
+        write_plan(args.out, [dict(p.to_row() if poses is None else pose_of[p.id].to_row(),
+                                   std_mm=float(s) if math.isfinite(s) else "")
                               for p, s in zip(ok, std)])
         if failed:
             write_failed_targets(report, [(p.id, *p.target_mm, p.reason) for p in failed])
@@ -118,12 +139,20 @@ def run(args) -> int:
             from vision_cal.program import program_points, write_program
 
             marks = to_planned_marks(ok, overshoot_deg=robot.overshoot_deg, role="target")
+            joint4, tool = None, None
+            if poses is not None:   # joint 4 turns: its via point on the approach side
+                from vision_cal.plan.orient import controller_tool_mm
+
+                joint4 = {p.target.id: (p.q4_deg, p.q4_deg - p.approach4 * robot.overshoot_deg)
+                          for p in poses if p.target.status == "ok"}
+                if model.tool is not None:
+                    tool = controller_tool_mm(model.params, model.tool.tool_mm)
             points = program_points(marks, home_deg=home_deg,
-                                    z2_deg=model.params.z2_deg)
+                                    z2_deg=model.params.z2_deg, joint4=joint4)
             path = write_program(args.program, prg, points, robot,
                                  title=f"vision-cal compensated targets: {len(ok)} of "
                                        f"{len(planned)} targets of {args.targets}, "
-                                       f"{args.model} model")
+                                       f"{args.model} model", tool_mm=tool)
             if not args.quiet:
                 print(f"wrote {path}")
     if failed:

@@ -16,7 +16,7 @@ from vision_cal.dataset.session import MAX_JOINT_DEG, FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.joint_terms import check_feature
 from vision_cal.kinematics import ScaraParams
-from vision_cal.model import RobotModel, effect_from_json
+from vision_cal.model import RobotModel, Tool, effect_from_json
 
 FORMAT = "vision-cal/calibration/1"
 ROBOT_EFFECTS = ("joint_backlash", "joint_scale", "joint_cyclic", "sheet_affine", "joint_terms")
@@ -49,8 +49,10 @@ def _read_effect(r: FieldReader, e, where: str):
     small_deg = dict(lo=-MAX_EFFECT_DEG, hi=MAX_EFFECT_DEG, what="angle in degrees")
     if name != "sheet_affine":
         j = r.get(e, "joint", where)
-        if j not in (1, 2) or isinstance(j, bool):
-            r.fail(f"{where}.joint", f"expected 1 or 2, got {j!r}")
+        joints = (1, 2, 4) if name in ("joint_backlash", "joint_scale") else (1, 2)
+        if j not in joints or isinstance(j, bool):
+            r.fail(f"{where}.joint",
+                   f"expected {', '.join(map(str, joints[:-1]))} or {joints[-1]}, got {j!r}")
     if name == "joint_backlash":
         r.number(r.get(e, "deg", where), f"{where}.deg", **small_deg)
     elif name == "joint_scale":
@@ -135,6 +137,9 @@ def load_calibration(path, *, which: str = "calibrated") -> tuple[RobotModel, di
             effects.append(eff)
     if doc.get("home_deg") is not None:
         r.angles(doc["home_deg"], "home_deg")
+    tool = doc["params"].get("tool_mm") if isinstance(doc["params"], dict) else None
+    if tool is not None:   # contract "Joint 4 and the tool": the pen off the joint-4 axis
+        effects.insert(0, Tool(tool_mm=r.point(tool, "params.tool_mm")))
     if which == "calibrated":
         return RobotModel(params, tuple(effects)), doc
     return RobotModel(nominal, ()), doc

@@ -152,3 +152,12 @@ def read_plan(path) -> tuple[list[str], np.ndarray, np.ndarray]:
                                  field=f"line {line}: approach")
         s.append(a)
     return ids, np.array(q, float).reshape(-1, 2), np.array(s, float).reshape(-1, 2)
+
+
+def read_target_theta(path) -> np.ndarray | None:
+    """The optional ``theta_deg`` column of targets.csv (N,) - the tool's orientation in the
+    sheet frame (docs/format.md) - or None when the file has no such column."""
+    rows = _rows(path, TARGET_FIELDS)
+    if not rows or "theta_deg" not in rows[0][1]:
+        return None
+    return np.array([_num(row["theta_deg"], path, line, "theta_deg") for line, row in rows])

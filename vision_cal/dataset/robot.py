@@ -14,7 +14,9 @@ The session's ``robot`` block (``L1_mm``, ``L2_mm``, ``joint_zero_deg``, ``base_
     elbows: [1, -1]                  # allowed elbow solutions (+1: sin(q2 + z2) > 0)
     pen_up_mm: -10.0                 # joint 3 (mm) with the pen clear of the paper
     pen_down_mm: -25.0               # joint 3 (mm) with the pen touching it
-    j4_deg: 0.0                      # joint 4, held still
+    j4_deg: 0.0                      # joint 4, held still (the marks' default j4_deg)
+    tool_mm: [0.0, 0.0]              # the pen in the flange frame at j4 = 0 (rough; docs/format.md)
+    joint4_limits_deg: [-360, 360]   # joint 4's commanded range
     repeatability_mm: 0.01           # positioning repeatability, one std per axis (the
                                      # noise-floor gate's robot part; default 0.01)
     mark_diameter_mm: 1.2            # the pen's mark (session.json pen block)
@@ -90,6 +92,7 @@ class RobotFile:
     mark_diameter_mm: float = 1.2
     overshoot_deg: float = 3.0
     program: ProgramSettings = field(default_factory=ProgramSettings)
+    joint4_limits_deg: tuple[float, float] = (-360.0, 360.0)
 
     def require_pen_heights(self) -> tuple[float, float]:
         """(pen_up_mm, pen_down_mm); a program cannot be written without them."""
@@ -161,6 +164,11 @@ def load_robot_file(path) -> RobotFile:
                 r.fail(f"joint_limits_deg[{j}]", f"expected lo < hi, got {row!r}")
             pairs.append((lo, hi))
         kw["joint_limits_deg"] = tuple(pairs)
+    if opt("joint4_limits_deg") is not None:
+        lo, hi = r.vector(opt("joint4_limits_deg"), "joint4_limits_deg", 2)
+        if not lo < hi:
+            r.fail("joint4_limits_deg", f"expected lo < hi, got {opt('joint4_limits_deg')!r}")
+        kw["joint4_limits_deg"] = (lo, hi)
     for key in ("speed_limits_deg_s", "accel_limits_deg_s2"):
         if opt(key) is not None:
             v = r.vector(opt(key), key, 2)
@@ -222,7 +230,7 @@ def load_robot_file(path) -> RobotFile:
             log.warning("%s: program: ignoring unknown fields %s", path, ", ".join(sorted(extra)))
         kw["program"] = ProgramSettings(power, sp, ac, settle, dwell, bit, safe, moff)
     known = set(ROBOT_BLOCK) | {f for f in RobotFile.__dataclass_fields__} | {
-        "placement_tolerance"}
+        "placement_tolerance", "tool_mm"}
     extra = set(tree) - known
     if extra:
         log.warning("%s: ignoring unknown fields %s", path, ", ".join(sorted(map(str, extra))))

@@ -141,6 +141,8 @@ class NominalRobot:
     #: the robot's positioning repeatability (mm, per axis, one std; docs/format.md), None:
     #: not declared (the noise-floor gate then takes DEFAULT_REPEATABILITY_MM)
     repeatability_mm: float | None = None
+    tool_mm: tuple[float, float] | None = None   # contract "Joint 4 and the tool" (nominal)
+    j4_deg: float | None = None                  # default commanded joint 4 of the marks
 
     @property
     def params(self) -> ScaraParams:
@@ -156,6 +158,10 @@ class NominalRobot:
             d["joint_limits_deg"] = [list(p) for p in self.joint_limits_deg]
         if self.repeatability_mm is not None:
             d["repeatability_mm"] = self.repeatability_mm
+        if self.tool_mm is not None:
+            d["tool_mm"] = list(self.tool_mm)
+        if self.j4_deg is not None:
+            d["j4_deg"] = self.j4_deg
         return d
 
 
@@ -167,6 +173,7 @@ class Mark:
     approach: tuple[int, int] | None = None
     target_mm: tuple[float, float] | None = None
     measured_mm: tuple[float, float] | None = None
+    j4_deg: float | None = None   # commanded joint 4 (contract "Joint 4 and the tool")
 
 
 @dataclass(frozen=True)
@@ -202,6 +209,14 @@ class Session:
     def path(self) -> Path:
         return self.root / "session.json"
 
+    @property
+    def design_stage(self) -> str | None:
+        """The stage ``vision-cal design`` planned this session for (its ``design.stage``:
+        ``pilot``, ``informative``, ``verify``, ...; docs/format.md), None otherwise."""
+        d = self.raw.get("design") if isinstance(self.raw, dict) else None
+        stage = d.get("stage") if isinstance(d, dict) else None
+        return stage if isinstance(stage, str) else None
+
     def mark_index(self) -> dict[str, int]:
         return {m.id: i for i, m in enumerate(self.marks)}
 
@@ -214,6 +229,27 @@ class Session:
     def approach(self) -> np.ndarray:
         """(N, 2) approach signs of every mark, resolved as the format says."""
         return resolve_approach(self.marks, self.robot.home_deg)
+
+    @property
+    def j4_deg(self) -> np.ndarray:
+        """(N,) commanded joint 4 of every mark: its ``j4_deg``, else the robot block's,
+        else 0 (contract "Joint 4 and the tool")."""
+        d = self.robot.j4_deg if self.robot.j4_deg is not None else 0.0
+        return np.array([d if m.j4_deg is None else m.j4_deg for m in self.marks], dtype=float)
+
+    @property
+    def uses_joint4(self) -> bool:
+        """True when the session says anything about joint 4 or the tool."""
+        return (self.robot.tool_mm is not None or self.robot.j4_deg is not None
+                or any(m.j4_deg is not None for m in self.marks))
+
+    @property
+    def approach4(self) -> np.ndarray:
+        """(N,) approach sign of joint 4, by the format's rule (joint 4 starts at the robot
+        block's ``j4_deg``, else 0)."""
+        q4 = self.j4_deg
+        start = self.robot.j4_deg if self.robot.j4_deg is not None else 0.0
+        return approach_signs(np.column_stack([q4, q4]), (start, start))[:, 0]
 
 
 def resolve_approach(marks, home_deg=(0.0, 0.0)) -> np.ndarray:
@@ -387,7 +423,11 @@ def read_robot_block(r: _Reader, rob, where: str = "robot") -> NominalRobot:
         rep = r.length(rep_raw, w("repeatability_mm"))
         if not 0 <= rep <= 10:
             r.fail(w("repeatability_mm"), f"expected 0..10 mm (one std per axis), got {rep:g}")
-    return NominalRobot(L1, L2, jz, base, home, limits, rep)
+    tool = r.get(rob, "tool_mm", where, required=False)
+    tool = r.point(tool, w("tool_mm")) if tool is not None else None
+    j4 = r.get(rob, "j4_deg", where, required=False)
+    j4 = r.number(j4, w("j4_deg"), lo=-MAX_JOINT_DEG, hi=MAX_JOINT_DEG) if j4 is not None else None
+    return NominalRobot(L1, L2, jz, base, home, limits, rep, tool, j4)
 
 
 def read_sheet_block(r: _Reader, sheet_raw, where: str = "sheet", *,
@@ -536,7 +576,10 @@ def load_session(folder) -> Session:
         tgt = r.point(tgt, f"{w}.target_mm") if tgt is not None else None
         meas = m.get("measured_mm")
         meas = r.point(meas, f"{w}.measured_mm") if meas is not None else None
-        marks.append(Mark(mid, q, role, appr, tgt, meas))
+        j4 = m.get("j4_deg")
+        j4 = r.number(j4, f"{w}.j4_deg", lo=-MAX_JOINT_DEG, hi=MAX_JOINT_DEG) \
+            if j4 is not None else None
+        marks.append(Mark(mid, q, role, appr, tgt, meas, j4))
 
     # images (absent: every photo in the folder, marks found from the photos)
     images_listed = "images" in raw

@@ -198,6 +198,7 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
                   "docs/robot-file.md)")
     if reach < REACH_WARN:
         warnings.append(f"{robot_path}: {reach_note}")
+    joint4 = None   # mark id -> j4_deg when the plan turns joint 4
     if pilot is None:
         from vision_cal.design.pilot import design_pilot
 
@@ -258,6 +259,13 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
             raise VisionCalError(e.reason, file=str(sheet_path), field=e.field) from e
         info = {"stage": "informative", "pilot_calibration": str(pilot), "safety_mm": safety_mm,
                 "n_calibration": n_calibration, "n_validation": n_validation, "seed": seed}
+        if nominal.tool_mm is not None and any(nominal.tool_mm):   # an off-axis tool (#21)
+            from vision_cal.design.joint4 import turn_joint4
+
+            marks, joint4 = turn_joint4(marks, p, nominal.tool_mm,
+                                        folded_j4_deg=robot.j4_deg,
+                                        overshoot_deg=robot.overshoot_deg)
+            info["joint4_turns"] = sorted(set(joint4.values()))
         title = (f"vision-cal calibration plan: {n_calibration} calibration + {n_validation} "
                  "validation marks, both elbows, both approach sides per joint")
         if stage == "verify":   # vision-cal verify: a short check of a calibration
@@ -276,10 +284,13 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
     info["trajectory_s"] = traj.duration_s
     session = {"format": FORMAT, "sheet": sheet_raw, "robot": plan_robot.to_json(),
                "pen": {"mark_diameter_mm": robot.mark_diameter_mm},
-               "marks": [m.to_json() for m in marks], "design": info}
+               "marks": [dict(m.to_json(), **({"j4_deg": joint4[m.id]} if joint4 else {}))
+                         for m in marks], "design": info}
     # the robot file's limits travel with the session into calibration.json (plan, export)
     session["robot"]["joint_limits_deg"] = [[float(v) for v in p] for p in robot.joint_limits_deg]
-    points = program_points(marks, home_deg=nominal.home_deg, z2_deg=plan_robot.joint_zero_deg[1])
+    points = program_points(marks, home_deg=nominal.home_deg, z2_deg=plan_robot.joint_zero_deg[1],
+                            joint4=None if joint4 is None else {
+                                k: (v, v - robot.overshoot_deg) for k, v in joint4.items()})
     preview = preview_png(_params(plan_robot), sheet, marks, paper=paper,
                           title=f"{info['stage']} plan: {len(marks)} marks, robot "
                                 f"{robot.name} ({100 * reach:.0f} % of the paper in reach)")

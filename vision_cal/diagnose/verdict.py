@@ -186,8 +186,16 @@ def verdict_of(doc: dict) -> Verdict:
     return Verdict.from_json(v) if isinstance(v, dict) and "status" in v else judge(doc)
 
 
-def judge(doc: dict, *, repeatability_mm: float | None = None) -> Verdict:
-    """The verdict of a calibration document (see the module docstring)."""
+def judge(doc: dict, *, repeatability_mm: float | None = None,
+          stage: str | None = None) -> Verdict:
+    """The verdict of a calibration document (see the module docstring). ``stage``: the
+    design stage of the session (session.json ``design.stage``). A ``pilot`` is a rough
+    model for designing the informative plan: what its nine marks cannot do by design
+    (test effects, compare marks given as ``measured_mm`` with a noise floor) is said among
+    the reasons at the ``ready`` level, so it does not hold the pilot back; the informative
+    plan tests the effects."""
+    pilot = stage == "pilot"
+    by_design = "ready" if pilot else None
     rep = DEFAULT_REPEATABILITY_MM if repeatability_mm is None else float(repeatability_mm)
     source = "default" if repeatability_mm is None else "robot block"
     measured = repeatability_from_repeats(doc.get("marks") or {})
@@ -207,8 +215,9 @@ def judge(doc: dict, *, repeatability_mm: float | None = None) -> Verdict:
     if ni:
         d = ni[0]
         more = f" (and {len(ni) - 1} more, listed below)" if len(ni) > 1 else ""
-        add("not reliable", f"the plan cannot separate {d['label']} from the base model"
-                            f"{more}; {d['fix']}")
+        add(by_design or "not reliable",
+            f"the plan cannot separate {d['label']} from the base model{more}; {d['fix']}"
+            + ("; a pilot leaves that to the informative plan" if pilot else ""))
     effects = doc.get("effects") or []
     for e in effects:
         if e.get("name") == "drift":
@@ -231,8 +240,8 @@ def judge(doc: dict, *, repeatability_mm: float | None = None) -> Verdict:
             hfloor = floor_test([m["residual_mm"] for m in held], [m["sigma_mm"] for m in held],
                                 rep, inflate=1.0 + n_par / max(2 * len(fitted), 1))
     elif fitted:
-        add("check", "the marks carry no measurement noise (measured_mm given): the residual "
-                     "cannot be compared with a noise floor")
+        add(by_design or "check", "the marks carry no measurement noise (measured_mm given): "
+                                  "the residual cannot be compared with a noise floor")
     for name, f in (("final residual", floor), ("held-out residual", hfloor)):
         if f is not None and f.beyond:
             add("not reliable" if f.ratio >= NOT_RELIABLE_RATIO else "check",
@@ -259,8 +268,9 @@ def judge(doc: dict, *, repeatability_mm: float | None = None) -> Verdict:
             if _finite(fit_rms) else "no accuracy figure")
     n_fit = sum(m.get("role", "calibration") == "calibration" for m in marks.values())
     if marks and 2 * n_fit - n_par < MIN_SPARE_DOF:
-        add("check", f"{n_fit} fitted marks leave {2 * n_fit - n_par} degrees of freedom, "
-                     "too few to test for backlash, gear-ratio or sheet effects")
+        add(by_design or "check",
+            f"{n_fit} fitted marks leave {2 * n_fit - n_par} degrees of freedom, too few to "
+            "test for backlash, gear-ratio or sheet effects")
     if r95 is not None and _finite(fit_rms) and fit_rms > 0 and held_rms > HELDOUT_WARN_RATIO * fit_rms:
         add("check", f"the held-out RMS ({held_rms:.4f} mm) is {held_rms / fit_rms:.1f} times "
                      "the fitted RMS: the model misses something on new poses")

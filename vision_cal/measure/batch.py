@@ -779,7 +779,14 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
             warnings.append(f"{n_off} photo(s) in the folder not used (not of the sheet, "
                             "repeated or unreadable): see images[].reason")
     mark_images = [{i for i in idx_ok if m.id in image_marks[i]} for m in session.marks]
-    a = assoc.associate(session.joints_deg, mark_ids, mark_images, groups,
+    q_assoc = session.joints_deg
+    if session.uses_joint4 and session.robot.tool_mm is not None:   # an off-axis tool (#21)
+        from vision_cal.plan.orient import equivalent_joints
+
+        eq = equivalent_joints(session.robot.params, session.robot.tool_mm, q_assoc,
+                               session.j4_deg)
+        q_assoc = np.where(np.isfinite(eq), eq, q_assoc)
+    a = assoc.associate(q_assoc, mark_ids, mark_images, groups,
                         session.robot.params, max_zero_deg=ac.max_zero_deg,
                         max_base_mm=ac.max_base_mm)
     warnings.extend(a.warnings)

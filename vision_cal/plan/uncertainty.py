@@ -89,13 +89,15 @@ def load_covariance(doc: dict, model, *, file: str | None = None) -> np.ndarray:
 
 
 def predicted_std_mm(model, cov, q_deg, approach=None) -> np.ndarray:
-    """(N,) per-axis std (mm) of where commands ``q_deg`` (N, 2) land, from ``cov``."""
-    q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
+    """(N,) per-axis std (mm) of where commands ``q_deg`` (N, 2) (or (N, 3) with joint 4)
+    land, from ``cov``."""
+    q = np.asarray(q_deg, dtype=float)
+    q = q.reshape(-1, 3 if q.ndim == 2 and q.shape[-1] == 3 else 2)
     out = np.full(len(q), np.nan)
     ok = np.all(np.isfinite(q), axis=1)
     if not ok.any():
         return out
-    s = None if approach is None else np.asarray(approach, dtype=float).reshape(-1, 2)[ok]
+    s = None if approach is None else np.asarray(approach, dtype=float).reshape(len(q), -1)[ok]
     J = model.jacobian(q[ok], s)                                   # (n, 2, P)
     C = np.einsum("nip,pq,njq->nij", J, np.asarray(cov, float), J)
     out[ok] = np.sqrt(np.clip(np.trace(C, axis1=1, axis2=2), 0.0, None) / 2)

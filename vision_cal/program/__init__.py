@@ -32,6 +32,7 @@ class ProgramPoint:
     elbow: int                   # +1: sin(q2 + z2) > 0
     approach: tuple[int, int] | None = None   # the mark's planned approach signs
     role: str = ""
+    q4_deg: float | None = None  # joint 4 (None: the robot file's j4_deg)
 
 
 def elbow_of(q2_deg, z2_deg: float) -> int:
@@ -39,17 +40,21 @@ def elbow_of(q2_deg, z2_deg: float) -> int:
     return 1 if np.sin(np.radians(float(q2_deg) + float(z2_deg))) > 0 else -1
 
 
-def program_points(marks, *, home_deg=(0.0, 0.0), z2_deg: float = 0.0) -> list[ProgramPoint]:
-    """Home, each mark's via points then the mark (drawing order), home."""
+def program_points(marks, *, home_deg=(0.0, 0.0), z2_deg: float = 0.0,
+                   joint4: dict | None = None) -> list[ProgramPoint]:
+    """Home, each mark's via points then the mark (drawing order), home. ``joint4``
+    (optional): mark id -> (q4 at the mark, q4 at its via points), deg, for plans that
+    turn joint 4 (:mod:`vision_cal.plan.orient`)."""
     home = (float(home_deg[0]), float(home_deg[1]))
     out = [ProgramPoint("home", "home", home, elbow_of(home[1], z2_deg))]
     for m in marks:
         a = tuple(int(v) for v in m.approach) if m.approach is not None else None
+        q4, q4_via = (joint4 or {}).get(m.id, (None, None))
         for v in m.via_deg:
             q = (float(v[0]), float(v[1]))
-            out.append(ProgramPoint(m.id, "via", q, elbow_of(q[1], z2_deg), a, m.role))
+            out.append(ProgramPoint(m.id, "via", q, elbow_of(q[1], z2_deg), a, m.role, q4_via))
         q = (float(m.joints_deg[0]), float(m.joints_deg[1]))
-        out.append(ProgramPoint(m.id, "mark", q, elbow_of(q[1], z2_deg), a, m.role))
+        out.append(ProgramPoint(m.id, "mark", q, elbow_of(q[1], z2_deg), a, m.role, q4))
     out.append(ProgramPoint("home", "home", home, elbow_of(home[1], z2_deg)))
     if not all(np.isfinite(p.q_deg).all() for p in out):
         raise VisionCalError("a program point is not a finite number", field="marks")
@@ -67,13 +72,14 @@ def program_path(kind: str, stem) -> Path:
                          field="--program")
 
 
-def write_program(kind: str, path, points, robot, *, title: str) -> Path:
-    """Write the program of ``kind`` ("csv" or "spel") for ``points`` to ``path``."""
+def write_program(kind: str, path, points, robot, *, title: str, tool_mm=None) -> Path:
+    """Write the program of ``kind`` ("csv" or "spel") for ``points`` to ``path``;
+    ``tool_mm`` (SPEL+ only): the calibrated tool for a ``TLSet`` definition."""
     robot.require_pen_heights()  # before anything is written
     if kind == "spel":
         from vision_cal.program.spel import spel_program
 
-        text = spel_program(points, robot, title=title)
+        text = spel_program(points, robot, title=title, tool_mm=tool_mm)
     elif kind == "csv":
         from vision_cal.program.csv_list import point_list
 

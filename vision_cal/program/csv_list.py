@@ -27,6 +27,6 @@ def point_list(points, robot) -> str:
     for p in points:
         a = p.approach or ("", "")
         w.writerow([p.id, p.kind, f"{p.q_deg[0]:.6f}", f"{p.q_deg[1]:.6f}", f"{up:.3f}",
-                    f"{robot.j4_deg:.6f}", p.elbow, a[0], a[1],
+                    f"{robot.j4_deg if p.q4_deg is None else p.q4_deg:.6f}", p.elbow, a[0], a[1],
                     f"{down:.3f}" if p.kind == "mark" else "", p.role])
     return buf.getvalue()

@@ -37,7 +37,15 @@ def _safe(text: str) -> str:
     return "".join(c if c.isprintable() and c != '"' else "_" for c in str(text))
 
 
-def spel_program(points, robot, *, title: str) -> str:
+def tlset_line(tool_mm) -> str:
+    """``TLSet 1, XY(x, y, 0, 0)``: the calibrated tool as SPEL+ tool 1. ``tool_mm`` is
+    the tool in the controller's tool-0 frame (x along link 2 at J4 = 0 as the controller
+    counts it: calibration.json's ``tool_mm`` turned by the calibrated z2, see
+    :func:`vision_cal.plan.orient.controller_tool_mm`)."""
+    return f"    TLSet 1, XY({tool_mm[0]:.4f}, {tool_mm[1]:.4f}, 0, 0)"
+
+
+def spel_program(points, robot, *, title: str, tool_mm=None) -> str:
     up, down = robot.require_pen_heights()
     prog = robot.program
     j4 = robot.j4_deg
@@ -68,6 +76,10 @@ def spel_program(points, robot, *, title: str) -> str:
         f"    Speed {prog.speed_percent:g}",
         f"    Accel {prog.accel_percent[0]:g}, {prog.accel_percent[1]:g}",
     ]
+    if tool_mm is not None:
+        lines += ["    ' the calibrated tool as tool 1, for programs in tool coordinates "
+                  "(select it with Tool 1);", "    ' the joint points below do not use it",
+                  tlset_line(tool_mm)]
     k = 0
     announced = None
     travel = (lambda q: f"Jump {_ja(q, up, j4)} LimZ {Z_FMT.format(prog.safe_z_mm)}") \
@@ -79,6 +91,7 @@ def spel_program(points, robot, *, title: str) -> str:
             k += 1
             first = True
             lines.append(f"    Print \"mark {_safe(p.id)} ({k} of {len(marks)})\"")
+        j4 = robot.j4_deg if getattr(p, "q4_deg", None) is None else p.q4_deg
         if p.kind == "home":
             lines.append(f"    {travel(p.q_deg)}  ' home")
         elif p.kind == "via":

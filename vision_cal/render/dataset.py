@@ -346,7 +346,8 @@ def photographer_K(scene: Scene) -> np.ndarray:
 
 def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographer=None,
                    joint_source=None, plan=None, targets_mm: dict | None = None,
-                   pilot=None, printed=None, jobs: int | None = 1) -> Path:
+                   pilot=None, printed=None, jobs: int | None = 1,
+                   joint4_deg: dict | None = None) -> Path:
     """Render ``scene`` into the dataset folder ``out_dir``; return its path.
 
     ``plan``: draw these ``PlannedMark`` instead of the scene's calibration plan (the
@@ -363,6 +364,8 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     ``jobs``: processes that render photos (contiguous runs of the series, one renderer
     each; only with the default photographer); the photos are the same for any number.
     ``progress``: see :mod:`vision_cal.progress`.
+    ``joint4_deg``: mark id -> commanded joint 4 (deg), written as the marks' ``j4_deg``
+    (marks not named: 0); the world turns joint 4 there (``robot.tool_mm`` in the scene).
     """
     from vision_cal.dataset.io import atomic_write_json
     from vision_cal.render.camera import camera_matrix, default_views
@@ -394,9 +397,10 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     predict_model, source = truth, joint_source
     if source is None and rob.controller != "kinematic":
         source, predict_model = simulated_world(truth, controller=rob.controller, rng=st.sim)
+    j4 = None if joint4_deg is None else [float(joint4_deg.get(m.id, 0.0)) for m in plan]
     world = draw_marks(predict_model, plan, home_deg=rob.nominal.home_deg,
                        repeatability_mm=rob.repeatability_mm, joint_source=source,
-                       rng=st.world)
+                       rng=st.world, joint4_deg=j4)
     off_paper = marks_off_paper(world, sheet)
     n = len(plan)
     diameters = rob.pen_diameter_mm * np.ones(n)
@@ -491,8 +495,9 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
             "robot": rob.nominal.to_json(),
             "pen": {"mark_diameter_mm": rob.pen_diameter_mm},
             "marks": [dict(m.to_json(), **({"target_mm": [float(v) for v in targets_mm[m.id]]}
-                                           if targets_mm and m.id in targets_mm else {}))
-                      for m in plan],
+                                           if targets_mm and m.id in targets_mm else {}),
+                           **({"j4_deg": j4[i]} if j4 is not None else {}))
+                      for i, m in enumerate(plan)],
             "images": images,
         }
         if cam.declared:
@@ -505,7 +510,7 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
         if hfield is not None:
             effects.append(hfield.effect_json())
         truth_json = {
-            "params": rob.truth.to_json(),
+            "params": rob.truth_params_json,
             "effects": effects,
             "marks": {mid: world.xy_mm[i].tolist() for i, mid in enumerate(world.ids)},
             "camera": {"size_px": list(cam.size_px), "K": K.tolist(), "dist": dist.tolist(),

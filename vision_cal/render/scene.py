@@ -114,6 +114,7 @@ class NominalScene:
     joint_zero_deg: tuple[float, float] = (0.0, 0.0)
     base_mm: tuple[float, float] = (-400.0, -250.0)
     home_deg: tuple[float, float] = (0.0, 0.0)
+    tool_mm: tuple[float, float] | None = None   # the user's rough tool (docs/format.md)
 
     @property
     def params(self) -> ScaraParams:
@@ -122,7 +123,8 @@ class NominalScene:
     def to_json(self) -> dict:
         return {"L1_mm": self.L1_mm, "L2_mm": self.L2_mm,
                 "joint_zero_deg": list(self.joint_zero_deg), "base_mm": list(self.base_mm),
-                "home_deg": list(self.home_deg)}
+                "home_deg": list(self.home_deg),
+                **({"tool_mm": list(self.tool_mm)} if self.tool_mm is not None else {})}
 
 
 @dataclass(frozen=True)
@@ -134,6 +136,7 @@ class RobotScene:
     pen_diameter_mm: float = 1.2
     controller: str = "smc"
     drift: tuple[dict, ...] = ()   # the world's drift effects (truth.json dicts)
+    tool_mm: tuple[float, float] | None = None   # the pen off the joint-4 axis (truth)
 
     @property
     def truth_model(self) -> RobotModel:
@@ -146,8 +149,16 @@ class RobotScene:
         truth's JSON blocks only."""
         from vision_cal.render.truth_model import TrueRobot
 
-        return TrueRobot.from_json(self.truth.to_json(),
+        return TrueRobot.from_json(self.truth_params_json,
                                    [e.to_json() for e in self.effects] + list(self.drift))
+
+    @property
+    def truth_params_json(self) -> dict:
+        """truth.json's ``params`` (with ``tool_mm`` when the pen is off the joint-4 axis)."""
+        d = self.truth.to_json()
+        if self.tool_mm is not None:
+            d["tool_mm"] = [float(v) for v in self.tool_mm]
+        return d
 
 
 @dataclass(frozen=True)
@@ -260,14 +271,17 @@ def _params(r: _R, d: dict, where: str, default: ScaraParams) -> ScaraParams:
 
 def _robot(r: _R, d) -> RobotScene:
     d = r.section(d, "robot", ("nominal", "truth", "effects", "repeatability_mm",
-                               "pen_diameter_mm", "controller"))
+                               "pen_diameter_mm", "controller", "tool_mm"))
     dflt = RobotScene()
     nd = dflt.nominal
     n = r.section(d.get("nominal"), "robot.nominal",
-                  ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "home_deg"))
+                  ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "home_deg", "tool_mm"))
     home = r.vector(n.get("home_deg", list(nd.home_deg)), "robot.nominal.home_deg", 2)
-    p = _params(r, {k: v for k, v in n.items() if k != "home_deg"}, "robot.nominal", nd.params)
-    nominal = NominalScene(p.L1_mm, p.L2_mm, p.joint_zero_deg, p.base_mm, home)
+    p = _params(r, {k: v for k, v in n.items() if k not in ("home_deg", "tool_mm")},
+                "robot.nominal", nd.params)
+    ntool = (r.vector(n["tool_mm"], "robot.nominal.tool_mm", 2)
+             if n.get("tool_mm") is not None else None)
+    nominal = NominalScene(p.L1_mm, p.L2_mm, p.joint_zero_deg, p.base_mm, home, ntool)
     truth = _params(r, d.get("truth"), "robot.truth", dflt.truth)
     effects_raw = r.list_(d.get("effects") or [], "robot.effects")
     effects, drift = [], []
@@ -288,7 +302,8 @@ def _robot(r: _R, d) -> RobotScene:
     pen = r.number(d.get("pen_diameter_mm", dflt.pen_diameter_mm), "robot.pen_diameter_mm",
                    lo=0, lo_open=True)
     ctrl = r.choice(d.get("controller", dflt.controller), "robot.controller", CONTROLLERS)
-    return RobotScene(nominal, truth, tuple(effects), rep, pen, ctrl, tuple(drift))
+    tool = r.vector(d["tool_mm"], "robot.tool_mm", 2) if d.get("tool_mm") is not None else None
+    return RobotScene(nominal, truth, tuple(effects), rep, pen, ctrl, tuple(drift), tool)
 
 
 def _drift(r: _R, e: dict, where: str) -> dict:

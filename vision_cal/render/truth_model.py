@@ -34,6 +34,14 @@ measured from its x axis, ``phi1 = q_link1 + z1``, ``phi2 = q_link2 + z2``, and:
     elbow = base + L1 (cos phi1, sin phi1)
     pen   = elbow + L2 (cos(phi1 + phi2), sin(phi1 + phi2))
 
+Joint 4 and the tool (contract "Joint 4 and the tool"). Commands may be ``(N, 3)``:
+``[q1, q2, q4]``. Joint 4 really turns to ``q4 - s4 * band4 / 2 + scale4 * q4`` (its own
+backlash and gear ratio, ``s4`` its approach side) and the pen sits at ``tool_mm`` in the
+flange frame, turned by the flange's direction ``phi1 + phi2 + q4_real``::
+
+    pen = elbow + L2 (cos(phi1 + phi2), sin(phi1 + phi2))
+                + (cos a tx - sin a ty, sin a tx + cos a ty),   a = phi1 + phi2 + q4_real
+
 Sheet. ``sheet_affine`` says the paper has deformed since it was printed (paper shrink):
 a point printed at ``p`` (sheet frame S, the coordinates of the sheet description) now lies
 at ``A p`` in the arm frame, with ``A = inv(matrix)`` about the sheet origin, so a pen
@@ -125,6 +133,9 @@ class TrueRobot:
     sheet_matrix: tuple[tuple[float, float], tuple[float, float]] = ((1.0, 0.0), (0.0, 1.0))
     terms: tuple[Term, ...] = ()
     drift: tuple[Drift, ...] = ()
+    tool_mm: tuple[float, float] = (0.0, 0.0)        # pen in the flange frame at q4 = 0
+    backlash4_deg: float = 0.0                       # joint 4's full dead band
+    scale4: float = 0.0                              # joint 4's gear-ratio error
 
     # ------------------------------------------------------------------ JSON reading
 
@@ -137,15 +148,23 @@ class TrueRobot:
             b = (float(params["base_mm"][0]), float(params["base_mm"][1]))
         except (KeyError, TypeError, ValueError, IndexError) as e:
             raise VisionCalError(f"malformed params {params!r}: {e}", field="params") from e
-        band, scale, cyc, terms, drift = [0.0, 0.0], [0.0, 0.0], [], [], []
+        try:
+            tool = tuple(float(v) for v in params.get("tool_mm", (0.0, 0.0)))
+            if len(tool) != 2:
+                raise ValueError("tool_mm must be [x, y]")
+        except (TypeError, ValueError) as e:
+            raise VisionCalError(f"malformed params.tool_mm: {e}", field="params") from e
+        band, scale, cyc, terms, drift = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [], [], []
         matrix = ((1.0, 0.0), (0.0, 1.0))
         for d in effects:
             try:
                 name = d["name"]
                 if name in ("joint_backlash", "joint_scale", "joint_cyclic", "joint_terms"):
                     j = int(d["joint"])
-                    if j not in (1, 2):
-                        raise ValueError(f"joint must be 1 or 2, got {j}")
+                    ok = (1, 2, 4) if name in ("joint_backlash", "joint_scale") else (1, 2)
+                    if j not in ok:
+                        raise ValueError(f"joint must be one of {ok}, got {j}")
+                    j = 3 if j == 4 else j
                 if name == "joint_backlash":
                     band[j - 1] += float(d["deg"])
                 elif name == "joint_scale":
@@ -182,22 +201,25 @@ class TrueRobot:
                     raise ValueError(f"unknown effect {name!r}")
             except (KeyError, TypeError, ValueError, IndexError) as e:
                 raise VisionCalError(f"malformed effect {d!r}: {e}", field="effects") from e
-        return cls(L1, L2, z, b, tuple(band), tuple(scale), tuple(cyc), matrix, tuple(terms),
-                   tuple(drift))
+        return cls(L1, L2, z, b, tuple(band[:2]), tuple(scale[:2]), tuple(cyc), matrix,
+                   tuple(terms), tuple(drift), tool, band[2], scale[2])
 
     def without_backlash(self) -> "TrueRobot":
-        """The same robot with the dead band taken out (a simulated gear play owns it)."""
+        """The same robot with the dead band of joints 1 and 2 taken out (a simulated gear
+        play owns it; joint 4 is not simulated and keeps its own)."""
         return TrueRobot(self.L1_mm, self.L2_mm, self.zero_deg, self.base_mm, (0.0, 0.0),
-                         self.scale, self.cyclic, self.sheet_matrix, self.terms, self.drift)
+                         self.scale, self.cyclic, self.sheet_matrix, self.terms, self.drift,
+                         self.tool_mm, self.backlash4_deg, self.scale4)
 
     # ------------------------------------------------------------------ joints
 
     def link_deg(self, q_deg, approach=None) -> np.ndarray:
         """Angles (N, 2) deg the links really turn to for commands ``q_deg`` (N, 2) reached
         from sides ``approach`` (N, 2) of +-1 (None: +1)."""
-        q = np.array(q_deg, dtype=float, ndmin=2)
-        s = np.ones_like(q) if approach is None else np.where(
-            np.broadcast_to(np.asarray(approach, float), q.shape) < 0, -1.0, 1.0)
+        q = np.array(q_deg, dtype=float, ndmin=2)[:, :2]
+        a = None if approach is None else np.array(approach, dtype=float, ndmin=2)
+        s = np.ones_like(q) if a is None else np.where(
+            np.broadcast_to(a[:, :2] if a.shape[-1] == 3 else a, q.shape) < 0, -1.0, 1.0)
         out = q.copy()
         for j in range(2):
             out[:, j] += -s[:, j] * self.backlash_deg[j] / 2.0 + self.scale[j] * q[:, j]
@@ -254,9 +276,35 @@ class TrueRobot:
 
     # ------------------------------------------------------------------ the pen
 
+    def joint4_deg(self, q_deg, approach=None) -> np.ndarray:
+        """The angle (N,) deg joint 4 really turns to: commands ``q_deg`` (N, 3) (0 for
+        (N, 2)), approach side from ``approach``'s third column (+1 when absent)."""
+        q = np.array(q_deg, dtype=float, ndmin=2)
+        q4 = q[:, 2] if q.shape[-1] == 3 else np.zeros(len(q))
+        a = None if approach is None else np.array(approach, dtype=float, ndmin=2)
+        s4 = np.where(a[:, 2] < 0, -1.0, 1.0) if a is not None and a.shape[-1] == 3 else 1.0
+        return q4 - s4 * self.backlash4_deg / 2.0 + self.scale4 * q4
+
+    def tool_angle_deg(self, q_deg, approach=None) -> np.ndarray:
+        """The tool frame's direction (N,) deg in the arm frame: ``phi1 + phi2 + q4_real``
+        for commands ``q_deg`` (N, 3) reached from ``approach`` (N, 3)."""
+        a = self.link_deg(q_deg, approach)
+        return (a[:, 0] + self.zero_deg[0] + a[:, 1] + self.zero_deg[1]
+                + self.joint4_deg(q_deg, approach))
+
     def pen_mm(self, q_deg, approach=None, *, link=False, t=None) -> np.ndarray:
-        """Pen positions (N, 2) on the printed sheet: commands ``q_deg`` reached from
-        ``approach`` (or, with ``link=True``, links already at ``q_deg``: no joint effects),
-        drawn at times ``t`` (N,) in [0, 1] (None: no drift)."""
-        a = np.array(q_deg, dtype=float, ndmin=2) if link else self.link_deg(q_deg, approach)
-        return self.to_sheet(self.arm_points(a, t)[:, 2])
+        """Pen positions (N, 2) on the printed sheet: commands ``q_deg`` (N, 2) or
+        (N, 3) with joint 4, reached from ``approach`` (or, with ``link=True``, links
+        already at ``q_deg``: no joint effects on joints 1 and 2), drawn at times ``t``
+        (N,) in [0, 1] (None: no drift)."""
+        q = np.array(q_deg, dtype=float, ndmin=2)
+        a = q[:, :2] if link else self.link_deg(q, approach)
+        arm = self.arm_points(a, t)
+        pen = arm[:, 2]
+        tx, ty = self.tool_mm
+        if tx or ty:   # the flange's direction is link 2's (drift included), plus joint 4
+            d = arm[:, 2] - arm[:, 1]
+            ang = np.arctan2(d[:, 1], d[:, 0]) + np.radians(self.joint4_deg(q, approach))
+            pen = pen + np.column_stack([np.cos(ang) * tx - np.sin(ang) * ty,
+                                         np.sin(ang) * tx + np.cos(ang) * ty])
+        return self.to_sheet(pen)

@@ -84,13 +84,29 @@ def _true(truth) -> TrueRobot:
     return truth
 
 
+def joint4_sides(j4_deg, start_deg: float = 0.0) -> np.ndarray:
+    """The side (N,) +-1 joint 4 really arrived from at each of ``j4_deg`` (N,) visited in
+    order from ``start_deg``: the sign of its last motion, kept when it did not move
+    (starting at +1). The world's own tracking (not the estimator's rule)."""
+    prev, side, out = float(start_deg), 1.0, []
+    for v in np.asarray(j4_deg, dtype=float):
+        if v != prev:
+            side = 1.0 if v > prev else -1.0
+        out.append(side)
+        prev = v
+    return np.array(out)
+
+
 def draw_marks(truth: TrueRobot, plan, *, home_deg=(0.0, 0.0), repeatability_mm: float = 0.01,
-               joint_source: JointSource | None = None, rng=None) -> WorldMarks:
+               joint_source: JointSource | None = None, rng=None,
+               joint4_deg=None) -> WorldMarks:
     """Let the true robot follow ``plan`` and return where each pen mark really is.
 
     ``truth``: the true robot (:class:`TrueRobot`: base params and hidden effects); ``plan``: list of
     ``PlannedMark``; ``joint_source``: see the module docstring (default
-    :func:`kinematic_joints`); ``rng``: seed or Generator for the repeatability noise.
+    :func:`kinematic_joints`); ``rng``: seed or Generator for the repeatability noise;
+    ``joint4_deg`` (N,): joint 4's command at each mark (None: 0), reached kinematically
+    (its effects and the tool are the truth's).
     """
     if repeatability_mm < 0 or not np.isfinite(repeatability_mm):
         raise VisionCalError(f"expected a non-negative number, got {repeatability_mm!r}",
@@ -109,7 +125,12 @@ def draw_marks(truth: TrueRobot, plan, *, home_deg=(0.0, 0.0), repeatability_mm:
                              f"expected ({n}, 2) each", field="joint_source")
     s = np.where(s < 0, -1.0, 1.0)
     # drawing time: 0 at the first mark, 1 at the last (what a drift follows)
-    xy = truth.pen_mm(q, s, t=np.linspace(0.0, 1.0, n) if n > 1 else np.zeros(n))
+    t = np.linspace(0.0, 1.0, n) if n > 1 else np.zeros(n)
+    if joint4_deg is None:
+        xy = truth.pen_mm(q, s, t=t)
+    else:
+        j4 = np.asarray(joint4_deg, dtype=float).reshape(n)
+        xy = truth.pen_mm(np.column_stack([q, j4]), np.column_stack([s, joint4_sides(j4)]), t=t)
     if repeatability_mm > 0:
         xy = xy + rng.normal(0.0, repeatability_mm, size=xy.shape)
     return WorldMarks(tuple(m.id for m in plan), xy, s.astype(int), q)

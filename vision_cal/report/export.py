@@ -7,6 +7,12 @@ along link 2. So a URDF consumer commanding ``q`` reproduces the calibrated base
 exactly. Each joint carries a ``<calibration rising="0"/>`` element: the commanded zero is
 where the calibrated origin puts it.
 
+With a tool (``params.tool_mm``, contract "Joint 4 and the tool") the chain goes on past
+link 2 as a SCARA's does: ``link2 -> joint3 (prismatic, z, at L2 along link 2) -> quill ->
+joint4 (revolute about z) -> flange -> tool (fixed, at tool_mm in the flange frame) ->
+pen``, so ``pen`` is the calibrated pen tip for any ``q1, q2, q3, q4`` (joint 3 moves the
+pen vertically only). Without a tool the chain ends at ``pen_tip`` as before.
+
 Effects a URDF cannot hold (backlash, gear-ratio and cyclic errors, sheet scale) go in a
 side file ``<name>.effects.yaml``: the format's effect names and parameters, in degrees and
 the format's units, with the model they act on documented in its header.
@@ -33,8 +39,41 @@ EFFECTS_HEADER = """\
 """
 
 
+#: default joint-3 travel (m, commanded) and joint-4 range (deg) when no robot file says
+JOINT3_LIMITS_M = (-0.2, 0.0)
+JOINT4_LIMITS_DEG = (-360.0, 360.0)
+
+
+def _tool_chain(L2: float, tool_mm, limits3_m, limits4_deg) -> str:
+    """Joints 3 and 4 and the tool frame (metres, radians), ending at link ``pen``."""
+    tx, ty = (v / 1000.0 for v in tool_mm)
+    lo4, hi4 = (math.radians(v) for v in limits4_deg)
+    return f"""  <joint name="joint3" type="prismatic">
+    <parent link="link2"/>
+    <child link="quill"/>
+    <origin xyz="{L2:.9f} 0 0" rpy="0 0 0"/>
+    <axis xyz="0 0 1"/>
+    <limit lower="{limits3_m[0]:.6f}" upper="{limits3_m[1]:.6f}" effort="100" velocity="1"/>
+  </joint>
+  <joint name="joint4" type="revolute">
+    <parent link="quill"/>
+    <child link="flange"/>
+    <origin xyz="0 0 0" rpy="0 0 0"/>
+    <axis xyz="0 0 1"/>
+    <limit lower="{lo4:.9f}" upper="{hi4:.9f}" effort="100" velocity="6"/>
+    <calibration rising="0.0"/>
+  </joint>
+  <joint name="tool" type="fixed">
+    <parent link="flange"/>
+    <child link="pen"/>
+    <origin xyz="{tx:.9f} {ty:.9f} 0" rpy="0 0 0"/>
+  </joint>
+"""
+
+
 def urdf_text(doc: dict, *, name: str = "scara_calibrated",
-              limits_deg=JOINT_LIMITS_DEG) -> str:
+              limits_deg=JOINT_LIMITS_DEG, limits3_m=JOINT3_LIMITS_M,
+              limits4_deg=JOINT4_LIMITS_DEG) -> str:
     p = doc["params"]
     bx, by = (v / 1000.0 for v in p["base_mm"])
     z1, z2 = (math.radians(v) for v in p["joint_zero_deg"])
@@ -52,6 +91,17 @@ def urdf_text(doc: dict, *, name: str = "scara_calibrated",
   </joint>
 """
 
+    if p.get("tool_mm") is not None:
+        extra_links = '  <link name="quill"/>\n  <link name="flange"/>\n'
+        tip = _tool_chain(L2, p["tool_mm"], limits3_m, limits4_deg)
+    else:
+        extra_links = ""
+        tip = f"""  <joint name="pen_tip" type="fixed">
+    <parent link="link2"/>
+    <child link="pen"/>
+    <origin xyz="{L2:.9f} 0 0" rpy="0 0 0"/>
+  </joint>
+"""
     return f"""<?xml version="1.0"?>
 <!-- written by vision-cal from a calibration ({doc.get('method', 'lsq')}); lengths in m -->
 <robot name={quoteattr(name)}>
@@ -59,12 +109,7 @@ def urdf_text(doc: dict, *, name: str = "scara_calibrated",
   <link name="link1"/>
   <link name="link2"/>
   <link name="pen"/>
-{revolute("joint1", "sheet", "link1", bx, by, z1, 0)}{revolute("joint2", "link1", "link2", L1, 0.0, z2, 1)}  <joint name="pen_tip" type="fixed">
-    <parent link="link2"/>
-    <child link="pen"/>
-    <origin xyz="{L2:.9f} 0 0" rpy="0 0 0"/>
-  </joint>
-</robot>
+{extra_links}{revolute("joint1", "sheet", "link1", bx, by, z1, 0)}{revolute("joint2", "link1", "link2", L1, 0.0, z2, 1)}{tip}</robot>
 """
 
 

@@ -1,0 +1,315 @@
+"""One robot from several sheet placements (``vision-cal calibrate A/ B/ C/ --joint``).
+
+The robot stays where it is; the sheet is taped down in two or three places (or several
+sheets are used), one dataset folder each. Everything is written in the robot frame R of
+the contract ("The robot frame and cameras"): origin on the joint-1 axis, x along link 1 at
+commanded ``q1 = 0``. In R the base model has ``base = 0`` and ``z1 = 0``; placement ``k``
+is a sheet pose, ``p_S = b_k + Rot(a_k) p_R``, so on its own sheet placement ``k`` is the
+usual model with ``z1 = a_k`` and ``base = b_k``. Shared by all placements: ``L1``, ``L2``,
+``z2`` and every effect (a tool and joint-4 effects included, joints ``(N, 3)``).
+
+The flat vector is ``[L1, L2, z2, (a_k, bx_k, by_k) for each placement, effects...]``
+(mm, rad). A joint-1 error that is once per turn (``joint_cyclic`` harmonic 1) looks over
+the ~135 deg one sheet spans almost like a constant (``a_k``) plus a slope
+(``joint_scale``); over the combined range of three placements it does not.
+
+Effects are chosen by forward selection: each round adds the candidate with the smallest
+F-test p-value while that is below ``alpha / n_candidates`` (the family-wise level split
+over the candidates, as :mod:`vision_cal.diagnose.select` does), at most ``max_effects``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+from scipy.optimize import least_squares
+
+from vision_cal.calibrate.lsq import Fit
+from vision_cal.config import DEFAULT
+from vision_cal.errors import CalibrationError
+from vision_cal.kinematics import ScaraParams
+from vision_cal.model import Effect, JointBacklash, JointCyclic, JointScale, RobotModel, Tool
+
+
+@dataclass(frozen=True)
+class Placement:
+    """One placement's marks. Arrays over its N marks."""
+
+    name: str
+    q_deg: np.ndarray          # (N, 2) or (N, 3) with joint 4
+    xy_mm: np.ndarray          # (N, 2) sheet mm
+    approach: np.ndarray       # (N, 2) or (N, 3)
+    sigma_mm: np.ndarray | None = None   # (N,) measurement std, when known
+
+
+def default_candidates() -> list[Effect]:
+    """Joint effects tried on the combined marks."""
+    return [JointCyclic(joint=1, harmonic=1), JointCyclic(joint=1, harmonic=2),
+            JointCyclic(joint=2, harmonic=1), JointScale(joint=1), JointScale(joint=2),
+            JointBacklash(joint=1), JointBacklash(joint=2)]
+
+
+@dataclass(frozen=True)
+class PlacementsFit:
+    """Shared robot and per-placement sheet poses, with the covariance of the flat vector."""
+
+    shared: ScaraParams                   # in R: z1 = 0, base = 0
+    effects: tuple[Effect, ...]
+    poses: tuple[tuple[float, float, float], ...]   # (a_deg, bx_mm, by_mm) per placement
+    cov: np.ndarray
+    labels: tuple[str, ...]
+    names: tuple[str, ...]
+    residuals_mm: tuple[np.ndarray, ...]  # (N_k, 2) per placement
+    ssr: float                            # weighted
+    dof: int
+
+    def model_on(self, k: int) -> RobotModel:
+        """Placement ``k``'s model in its sheet frame (z1 = a_k, base = b_k)."""
+        a, bx, by = self.poses[k]
+        p = self.shared
+        return RobotModel(ScaraParams(p.L1_mm, p.L2_mm, a, p.z2_deg, bx, by), self.effects)
+
+    @property
+    def std(self) -> np.ndarray:
+        return np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
+
+    def effect_std(self, k: int) -> np.ndarray:
+        start = 3 + 3 * len(self.poses) + sum(len(e.theta) for e in self.effects[:k])
+        return self.std[start:start + len(self.effects[k].theta)]
+
+    @property
+    def rms_mm(self) -> float:
+        r = np.concatenate(self.residuals_mm)
+        return float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+
+
+def _vector(shared: ScaraParams, poses, effects) -> np.ndarray:
+    v = [shared.L1_mm, shared.L2_mm, np.radians(shared.z2_deg)]
+    for a, bx, by in poses:
+        v += [np.radians(a), bx, by]
+    return np.concatenate([np.array(v)] + [e.theta for e in effects])
+
+
+def _unpack(v, n_place: int, effects):
+    shared = ScaraParams(float(v[0]), float(v[1]), 0.0, float(np.degrees(v[2])))
+    poses = tuple((float(np.degrees(v[3 + 3 * k])), float(v[4 + 3 * k]), float(v[5 + 3 * k]))
+                  for k in range(n_place))
+    rest = v[3 + 3 * n_place:]
+    out, i = [], 0
+    for e in effects:
+        n = len(e.theta)
+        out.append(e.with_theta(rest[i:i + n]))
+        i += n
+    return shared, poses, tuple(out)
+
+
+def _solve(places: list[Placement], shared, poses, effects) -> PlacementsFit:
+    n_place = len(places)
+    w = [np.ones(len(p.xy_mm)) if p.sigma_mm is None else 1.0 / p.sigma_mm for p in places]
+    n_eff = sum(len(e.theta) for e in effects)
+    P = 3 + 3 * n_place + n_eff
+
+    def models(v):
+        sh, po, ef = _unpack(v, n_place, effects)
+        return [RobotModel(ScaraParams(sh.L1_mm, sh.L2_mm, a, sh.z2_deg, bx, by), ef)
+                for a, bx, by in po]
+
+    def fun(v):
+        return np.concatenate([((m.predict(p.q_deg, p.approach) - p.xy_mm) * wk[:, None]).ravel()
+                               for m, p, wk in zip(models(v), places, w)])
+
+    def jac(v):
+        rows = []
+        for k, (m, p, wk) in enumerate(zip(models(v), places, w)):
+            J = m.jacobian(p.q_deg, p.approach) * wk[:, None, None]   # (N, 2, 6 + n_eff)
+            full = np.zeros((len(p.xy_mm), 2, P))
+            full[:, :, 0], full[:, :, 1], full[:, :, 2] = J[:, :, 0], J[:, :, 1], J[:, :, 3]
+            full[:, :, 3 + 3 * k] = J[:, :, 2]
+            full[:, :, 4 + 3 * k] = J[:, :, 4]
+            full[:, :, 5 + 3 * k] = J[:, :, 5]
+            full[:, :, 3 + 3 * n_place:] = J[:, :, 6:]
+            rows.append(full.reshape(-1, P))
+        return np.concatenate(rows)
+
+    v0 = _vector(shared, poses, effects)
+    sol = least_squares(fun, v0, jac=jac, method="lm", xtol=1e-14, ftol=1e-14)
+    J = jac(sol.x)
+    r = fun(sol.x)
+    dof = len(r) - P
+    if dof <= 0:
+        raise CalibrationError(f"{len(r) // 2} marks over {n_place} placements give {len(r)} "
+                               f"equations for {P} unknowns: more marks are needed")
+    s = np.linalg.svd(J / np.where(np.linalg.norm(J, axis=0) > 0,
+                                   np.linalg.norm(J, axis=0), 1.0), compute_uv=False)
+    if s[-1] < s[0] * 1e-8:
+        raise CalibrationError("the placements cannot tell the shared parameters apart")
+    ssr = float(r @ r)
+    cov = np.linalg.pinv(J.T @ J) * ssr / dof
+    sh, po, ef = _unpack(sol.x, n_place, effects)
+    fitted = PlacementsFit(sh, ef, po, cov, (), tuple(p.name for p in places), (), ssr, dof)
+    res = tuple(p.xy_mm - fitted.model_on(k).predict(p.q_deg, p.approach)
+                for k, p in enumerate(places))
+    labels = (["L1_mm", "L2_mm", "z2"] + [f"{p.name}.{x}" for p in places
+                                         for x in ("a", "base_x_mm", "base_y_mm")]
+              + [f"{e.label}.{n}" for e in ef for n in e.param_names])
+    return PlacementsFit(sh, ef, po, cov, tuple(labels), fitted.names, res, ssr, dof)
+
+
+def _start(places: list[Placement], tool: Tool | None) -> tuple[ScaraParams, tuple]:
+    """Each placement fitted alone (base model, and the tool when given): shared lengths and
+    z2 averaged, each sheet pose from its own fit."""
+    fits = []
+    for p in places:
+        model = RobotModel(ScaraParams(1.0, 1.0), (tool,)) if tool is not None else None
+        fits.append(Fit.from_estimate(p.q_deg, p.xy_mm, approach=p.approach, model=model,
+                                      sigma_mm=p.sigma_mm, robust=False).params)
+    shared = ScaraParams(float(np.mean([f.L1_mm for f in fits])),
+                         float(np.mean([f.L2_mm for f in fits])), 0.0,
+                         float(np.degrees(np.angle(np.mean(np.exp(1j * np.radians(
+                             [f.z2_deg for f in fits])))))))
+    return shared, tuple((f.z1_deg, f.base_x_mm, f.base_y_mm) for f in fits)
+
+
+def fit_placements(places: list[Placement], *, candidates=None, tool: Tool | None = None,
+                   alpha: float = DEFAULT.selection.alpha,
+                   max_effects: int = DEFAULT.selection.max_effects) -> tuple[PlacementsFit, list]:
+    """The shared robot from every placement, effects chosen by forward F-tests.
+
+    Returns the fit and the selection log (one dict per round: the effect, F, p)."""
+    if len(places) < 1:
+        raise CalibrationError("no placement given")
+    shared, poses = _start(places, tool)
+    base_effects = (tool,) if tool is not None else ()
+    fit = _solve(places, shared, poses, base_effects)
+    cands = list(default_candidates() if candidates is None else candidates)
+    alpha_each = alpha / max(len(cands), 1)
+    log = []
+    while cands and len(fit.effects) - len(base_effects) < max_effects:
+        trials = []
+        for c in cands:
+            try:
+                t = _solve(places, fit.shared, fit.poses, fit.effects + (c,))
+            except CalibrationError:
+                continue
+            k = len(c.theta)
+            F = ((fit.ssr - t.ssr) / k) / (t.ssr / t.dof) if t.ssr > 0 else np.inf
+            p = float(stats.f.sf(F, k, t.dof)) if np.isfinite(F) else 0.0
+            trials.append((p, -F, c, t))
+        if not trials:
+            break
+        trials.sort(key=lambda x: (x[0], x[1]))
+        p, negF, c, t = trials[0]
+        log.append({"effect": c.label, "F": float(-negF), "p_value": p,
+                    "accepted": bool(p < alpha_each)})
+        if p >= alpha_each:
+            break
+        fit = t
+        cands = [x for x in cands if x is not c]
+    return fit, log
+
+
+def robot_frame_json(fit: PlacementsFit, names) -> dict:
+    """calibration.json's part for a multi-placement calibration: ``params`` in the robot
+    frame R (``joint_zero_deg[0] = 0``, ``base_mm = [0, 0]``), ``std``, ``effects``,
+    ``placements`` (each sheet's pose: ``p_S = base_mm + Rot(angle_deg) p_R``, with std)."""
+    s = fit.std
+    sh = fit.shared
+    params = {"L1_mm": sh.L1_mm, "L2_mm": sh.L2_mm, "joint_zero_deg": [0.0, sh.z2_deg],
+              "base_mm": [0.0, 0.0]}
+    std = {"L1_mm": float(s[0]), "L2_mm": float(s[1]),
+           "joint_zero_deg": [0.0, float(np.degrees(s[2]))], "base_mm": [0.0, 0.0]}
+    effects = []
+    for k, e in enumerate(fit.effects):
+        if isinstance(e, Tool):
+            params["tool_mm"] = list(e.tool_mm)
+            std["tool_mm"] = fit.effect_std(k).tolist()
+        else:
+            effects.append(e.to_json(fit.effect_std(k)))
+    placements = []
+    for k, name in enumerate(names):
+        a, bx, by = fit.poses[k]
+        i = 3 + 3 * k
+        placements.append({"folder": str(name), "angle_deg": a, "base_mm": [bx, by],
+                           "std": {"angle_deg": float(np.degrees(s[i])),
+                                   "base_mm": [float(s[i + 1]), float(s[i + 2])]},
+                           "residual_rms_mm": float(np.sqrt(np.mean(np.sum(
+                               fit.residuals_mm[k]**2, axis=1)))),
+                           "n_marks": int(len(fit.residuals_mm[k]))})
+    return {"frame": "robot", "params": params, "std": std, "effects": effects,
+            "placements": placements, "residual_rms_mm": {"final_model": fit.rms_mm}}
+
+
+def placement_cov(fit: PlacementsFit, k: int) -> np.ndarray:
+    """Covariance of placement ``k``'s model vector (``fit.model_on(k).vector`` order)."""
+    n = len(fit.poses)
+    idx = [0, 1, 3 + 3 * k, 2, 4 + 3 * k, 5 + 3 * k] + list(range(3 + 3 * n, len(fit.cov)))
+    return fit.cov[np.ix_(idx, idx)]
+
+
+def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
+                         progress: bool = False) -> dict:
+    """``vision-cal calibrate A/ B/ C/ --joint --out X``: measure each folder, fit one robot
+    and one sheet pose per placement, write ``X/calibration.json`` (robot frame R) and
+    ``X/<folder>/calibration.json`` (each placement's sheet frame, for ``plan``).
+    Returns the robot-frame document."""
+    from pathlib import Path
+
+    from vision_cal.calibrate.tool import joint4_values
+    from vision_cal.dataset.io import atomic_write_json
+    from vision_cal.dataset.session import load_session
+    from vision_cal.pipeline import measure_marks
+    from vision_cal.plan.uncertainty import covariance_json
+
+    out_dir = Path(out_dir)
+    places, sessions = [], []
+    names = [Path(f).resolve().name for f in folders]
+    if len(set(names)) != len(names):
+        raise CalibrationError("two placement folders have the same name: "
+                               + ", ".join(sorted({n for n in names if names.count(n) > 1})))
+    for folder, name in zip(folders, names):
+        session = load_session(folder)
+        _, data, _ = measure_marks(session, out_dir=out_dir / name, jobs=jobs, progress=progress)
+        cal = data.select("calibration")
+        q, a = cal.q_deg, cal.approach
+        if cal.joint4 is not None:
+            q = np.column_stack([q, cal.joint4[:, 0]])
+            a = np.column_stack([a, cal.joint4[:, 1]])
+        places.append(Placement(name, q, cal.xy_mm, a, cal.sigma_mm))
+        sessions.append((session, cal))
+    with_j4 = [p for p in places if p.q_deg.shape[1] == 3]
+    if with_j4 and len(with_j4) != len(places):
+        raise CalibrationError("some placements give j4_deg and others do not: give it in "
+                               "every session.json or in none")
+    tool = None
+    if with_j4 and len(joint4_values(np.concatenate([p.q_deg[:, 2] for p in places]))) > 1:
+        tool = Tool()
+    fit, log = fit_placements(places, tool=tool)
+    doc = {"format": "vision-cal/calibration/1", "method": "lsq-placements",
+           **robot_frame_json(fit, names),
+           "diagnosis": {"selection": log,
+                         "alpha": DEFAULT.selection.alpha},
+           "covariance": covariance_json(list(fit.labels), fit.cov),
+           "notes": ["one robot from several placements: params in the robot frame R "
+                     "(docs/format.md); each placement's sheet-frame calibration in its "
+                     "sub-folder"]}
+    for k, ((session, cal), name) in enumerate(zip(sessions, names)):
+        m = fit.model_on(k)
+        params = m.params.to_json()
+        if m.tool is not None:
+            params["tool_mm"] = list(m.tool.tool_mm)
+        sub = {"format": "vision-cal/calibration/1", "method": "lsq-placements",
+               "params": params,
+               "effects": [e.to_json(fit.effect_std(i)) for i, e in enumerate(fit.effects)
+                           if not isinstance(e, Tool)],
+               "covariance": covariance_json(m.param_labels(), placement_cov(fit, k)),
+               "nominal": session.robot.params.to_json(),
+               "home_deg": [float(v) for v in session.robot.home_deg],
+               "placement": doc["placements"][k],
+               "residual_rms_mm": {"final_model": doc["placements"][k]["residual_rms_mm"]},
+               "marks": {i: {"measured_mm": xy.tolist(), "residual_mm": r.tolist()}
+                         for i, xy, r in zip(cal.ids, cal.xy_mm, fit.residuals_mm[k])}}
+        atomic_write_json(out_dir / name / "calibration.json", sub)
+    atomic_write_json(out_dir / "calibration.json", doc)
+    return doc

@@ -1,0 +1,193 @@
+"""The tool offset and joint 4 from marks (contract "Joint 4 and the tool", docs/format.md).
+
+Two methods, as for the base model:
+
+- :func:`fit_tool` - least squares: ``tool_mm`` (and joint-4 effects, when asked) jointly
+  with the base parameters and any other effect, through :class:`vision_cal.calibrate.lsq.Fit`
+  on joints ``[q1, q2, q4]``; std and correlations from its covariance.
+- :func:`paper_tool` - the seed paper's circle method extended to joint 4: marks drawn at
+  one joint-1/joint-2 pose and three or more joint-4 angles lie on a circle whose centre
+  is the flange (the joint-4 axis) and whose radius is ``|tool|``. With the paper's base
+  circle and elbow circle drawn at one joint-4 angle ``q4c`` (there the tool is folded
+  into L2 and z2), the elbow of the joint-4 group's pose is ``base + L1 Rot(q1 + z1)``,
+  and::
+
+      L2      = |flange - elbow|
+      z2      = atan2(flange - elbow) - (q1 + z1) - q2
+      tool    = |tool| Rot(a) [1, 0],  a = circular mean of atan2(pen_i - flange)
+                                           - (q1 + z1 + q2 + z2) - q4_i
+
+When every mark has the same ``j4_deg`` the tool cannot be told from link 2:
+:func:`folded_statement` says so, and what marks would separate it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from vision_cal.calibrate.circles import Circle
+from vision_cal.calibrate.lsq import Fit
+from vision_cal.calibrate.paper import paper_method
+from vision_cal.errors import CalibrationError
+from vision_cal.kinematics import ScaraParams
+from vision_cal.model import Effect, JointEffect, RobotModel, Tool
+
+
+def joint4_values(q4_deg, tol_deg: float = 1e-6) -> np.ndarray:
+    """The distinct commanded joint-4 angles (deg), sorted."""
+    q4 = np.asarray(q4_deg, dtype=float).ravel()
+    return np.unique(np.round(q4 / tol_deg) * tol_deg)
+
+
+def folded_statement(q4_deg, tool_nominal_mm=(0.0, 0.0)) -> dict:
+    """calibration.json's ``tool`` block when every mark has the same ``j4_deg``: the
+    tool is part of L2 and z2 (contract), with what would separate it."""
+    v = joint4_values(q4_deg)
+    return {"identified": False, "j4_deg": float(v[0]) if len(v) else 0.0,
+            "tool_mm_nominal": [float(t) for t in tool_nominal_mm],
+            "statement": "every mark has the same j4_deg: an off-axis pen is folded into "
+                         "L2 and z2 (the calibrated L2 and z2 hold for this j4_deg only)",
+            "to_separate": "draw marks at three or more j4_deg values at one joint-1/joint-2 "
+                           "pose (a joint-4 circle, `vision-cal calibrate --method paper`) or "
+                           "spread over the sheet (least squares)"}
+
+
+@dataclass(frozen=True)
+class ToolFit:
+    """A least-squares fit with the tool. ``fit.model`` holds the :class:`Tool` effect."""
+
+    fit: Fit
+
+    def _index(self, label: str) -> int:
+        return self.fit.labels.index(label)
+
+    @property
+    def tool_mm(self) -> np.ndarray:
+        """(2,) the tool in the flange frame at commanded q4 = 0, mm."""
+        return np.array(self.fit.model.tool.tool_mm)
+
+    @property
+    def tool_std_mm(self) -> np.ndarray:
+        """(2,) one standard deviation of ``tool_mm``."""
+        return self.fit.std[[self._index("tool.x_mm"), self._index("tool.y_mm")]]
+
+    @property
+    def joint4_effects(self) -> tuple[Effect, ...]:
+        return tuple(e for e in self.fit.model.effects
+                     if isinstance(e, JointEffect) and e.joint == 4)
+
+    def effect_std(self, effect: Effect) -> np.ndarray:
+        """Std (k,) of an effect's theta, internal units (as ``Effect.to_json`` takes)."""
+        k = self.fit.model.effects.index(effect)
+        start = int(np.sum(self.fit.model.sizes[:k + 1]))
+        return self.fit.std[start:start + len(effect.theta)]
+
+    def correlations(self) -> dict:
+        """Correlation of tool.x_mm and tool.y_mm with every other parameter."""
+        c = self.fit.correlation
+        out = {}
+        for name in ("tool.x_mm", "tool.y_mm"):
+            i = self._index(name)
+            out[name] = {lab: float(c[i, j]) for j, lab in enumerate(self.fit.labels) if j != i}
+        return out
+
+    def to_json(self) -> dict:
+        """The ``tool`` block of calibration.json (added field; ``params.tool_mm`` and
+        ``std.tool_mm`` carry the same numbers)."""
+        return {"identified": True, "tool_mm": self.tool_mm.tolist(),
+                "std_mm": self.tool_std_mm.tolist(),
+                "radius_mm": float(np.hypot(*self.tool_mm)),
+                "joint4_effects": [e.to_json(self.effect_std(e)) for e in self.joint4_effects],
+                "correlations": self.correlations()}
+
+
+def joints_with_q4(q_deg, q4_deg) -> np.ndarray:
+    """``[q1, q2, q4]`` (N, 3) from joints (N, 2) and joint 4 (N,) or a scalar."""
+    q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
+    return np.column_stack([q, np.broadcast_to(np.asarray(q4_deg, dtype=float), (len(q),))])
+
+
+def fit_tool(q_deg, q4_deg, xy_mm, *, approach=None, effects=(), sigma_mm=None, ids=None,
+             robust: bool = True) -> ToolFit:
+    """Least squares of the base model, ``tool_mm`` and ``effects`` (joint-4 ones included,
+    e.g. ``JointScale(joint=4)``) from marks (N, 2) at joints (N, 2), joint 4 (N,) deg;
+    ``approach`` (N, 2) or (N, 3) (joint 4's side third). Raises
+    :class:`CalibrationError` when the marks do not identify the tool (one ``j4_deg``)."""
+    q4 = np.broadcast_to(np.asarray(q4_deg, dtype=float), (len(np.atleast_2d(q_deg)),))
+    if len(joint4_values(q4)) < 2:
+        raise CalibrationError(folded_statement(q4)["statement"] + "; "
+                               + folded_statement(q4)["to_separate"])
+    q3 = joints_with_q4(q_deg, q4)
+    tool = Tool()
+    if effects:   # joint-4 effects act through the tool: start them from a fitted tool
+        tool = fit_tool(q_deg, q4, xy_mm, approach=approach, sigma_mm=sigma_mm, ids=ids,
+                        robust=robust).fit.model.tool
+    model = RobotModel(ScaraParams(1.0, 1.0), (tool,) + tuple(effects))
+    fit = Fit.from_estimate(q3, xy_mm, approach=approach, model=model,
+                            sigma_mm=sigma_mm, ids=ids, robust=robust)
+    return ToolFit(fit)
+
+
+@dataclass(frozen=True)
+class PaperTool:
+    """The circle method on joint 4: the base model with the tool separated."""
+
+    params: ScaraParams
+    tool_mm: tuple[float, float]
+    circle_joint4: Circle
+    joint4_group: tuple[int, ...]   # indices of the marks on the joint-4 circle
+    folded_q4_deg: float            # the joint-4 angle of the base and elbow circles
+
+    @property
+    def model(self) -> RobotModel:
+        return RobotModel(self.params, (Tool(tool_mm=self.tool_mm),))
+
+    def to_json(self) -> dict:
+        return {"identified": True, "tool_mm": list(self.tool_mm),
+                "radius_mm": float(np.hypot(*self.tool_mm)),
+                "circle_joint4": self.circle_joint4.to_json(),
+                "folded_q4_deg": self.folded_q4_deg}
+
+
+def _joint4_group(q: np.ndarray, q4: np.ndarray) -> np.ndarray:
+    """Indices of the largest group of marks at one (q1, q2) with >= 3 distinct q4."""
+    key = np.round(q, 6)
+    best = np.zeros(0, dtype=int)
+    for k in np.unique(key, axis=0):
+        idx = np.flatnonzero(np.all(key == k, axis=1))
+        if len(joint4_values(q4[idx])) >= 3 and len(idx) > len(best):
+            best = idx
+    return best
+
+
+def paper_tool(q_deg, q4_deg, xy_mm) -> PaperTool:
+    """The circle method with joint 4 (module docstring): marks (N, 2) sheet mm at joints
+    (N, 2) and joint 4 (N,) deg."""
+    q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
+    q4 = np.broadcast_to(np.asarray(q4_deg, dtype=float), (len(q),))
+    p = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
+    g4 = _joint4_group(q, q4)
+    if len(g4) == 0:
+        raise CalibrationError("the circle method on joint 4 needs 3 marks at one joint-1/"
+                               "joint-2 pose and three j4_deg values (the joint-4 circle): "
+                               "none found")
+    values, counts = np.unique(np.round(q4, 6), return_counts=True)
+    q4c = float(values[np.argmax(counts)])
+    base_marks = np.flatnonzero(np.abs(q4 - q4c) <= 1e-6)
+    base = paper_method(q[base_marks], p[base_marks]).params   # tool folded at q4c
+    c4 = Circle.from_estimate(p[g4])
+    flange = np.array(c4.center_mm)
+    phi1 = np.radians(q[g4[0], 0] + base.z1_deg)
+    elbow = np.array(base.base_mm) + base.L1_mm * np.array([np.cos(phi1), np.sin(phi1)])
+    d = flange - elbow
+    phi12 = np.arctan2(d[1], d[0])
+    z2 = (phi12 - phi1 - np.radians(q[g4[0], 1]) + np.pi) % (2 * np.pi) - np.pi
+    a = np.arctan2(p[g4, 1] - flange[1], p[g4, 0] - flange[0]) - phi12 - np.radians(q4[g4])
+    a_mean = float(np.arctan2(np.mean(np.sin(a)), np.mean(np.cos(a))))
+    tool = (c4.radius_mm * np.cos(a_mean), c4.radius_mm * np.sin(a_mean))
+    params = ScaraParams(base.L1_mm, float(np.hypot(*d)), base.z1_deg, float(np.degrees(z2)),
+                         base.base_x_mm, base.base_y_mm)
+    return PaperTool(params, (float(tool[0]), float(tool[1])), c4,
+                     tuple(int(i) for i in g4), q4c)
