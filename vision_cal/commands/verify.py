@@ -40,7 +40,8 @@ def run(args) -> int:
     if args.jobs is not None and args.jobs < 1:
         raise VisionCalError(f"must be at least 1, got {args.jobs}", field="--jobs")
     folder = Path(args.folder)
-    out = Path(args.out) if args.out else folder.with_name(folder.resolve().name + "_verify")
+    here = folder.resolve()
+    out = Path(args.out) if args.out else here.with_name(here.name + "_verify")
     r, path = verify_folder(args.calibration, folder, out_dir=out, jobs=args.jobs,
                             progress=not args.quiet)
     if not args.quiet:
