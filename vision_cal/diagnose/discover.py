@@ -392,6 +392,14 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     if not (h1 < diag.heldout_final_mm or tie):
         report["decision"] = "the dictionary's terms do not lower the held-out error: kept"
         return Traced(diag, drift, report)
+    # a sheet effect selected before the joint terms were known may stand in for them: it
+    # stays only if it is still significant beside them
+    f1, nonjoint, gone = _recheck_nonjoint(f1, nonjoint, new_joint, q, xy, app, sigma_mm, ids,
+                                           alpha)
+    if gone:
+        report["dropped_beside_joint_terms"] = gone
+        h1 = held(f1.model)
+        report["heldout_rms_mm"] = [diag.heldout_final_mm, h1]
     labels = {e.label for e in f1.model.effects}
     accepted = [a for a in diag.accepted if a.label in labels]
     step = {s["column"]: s for s in d.steps}
@@ -421,6 +429,32 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
                   unexplained=unexplained)
     report["scans_after"] = axis_scans(f1, q, app, t, sigma_mm=sigma_mm, alpha=alpha)
     return Traced(new, drift, report)
+
+
+def _rss(fit: Fit, sigma) -> float:
+    r = fit.residuals_mm[fit.inliers]
+    if sigma is not None:
+        r = r / np.asarray(sigma, float)[fit.inliers, None]
+    return float(np.sum(r**2))
+
+
+def _recheck_nonjoint(f1, nonjoint, new_joint, q, xy, app, sigma, ids, alpha):
+    """Drop each non-joint effect whose F-test beside the new joint effects fails at
+    ``alpha``; returns (fit, the non-joint effects kept, labels dropped)."""
+    gone = []
+    for e in list(nonjoint):
+        rest = tuple(x for x in nonjoint if x is not e)
+        f2 = refit_with(f1.model, rest + new_joint, q, xy, app, sigma, ids)
+        if f2 is None:
+            continue
+        k = len(e.theta)
+        dof = max(2 * int(f1.inliers.sum()) - f1.n_params, 1)
+        rss1, rss2 = _rss(f1, sigma), _rss(f2, sigma)
+        F = ((rss2 - rss1) / max(k, 1)) / max(rss1 / dof, 1e-300)
+        if float(stats.f.sf(F, max(k, 1), dof)) >= alpha:
+            gone.append(e.label)
+            f1, nonjoint = f2, rest
+    return f1, nonjoint, gone
 
 
 def _without_named(unexplained: dict | None, features: dict) -> dict | None:
