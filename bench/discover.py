@@ -116,7 +116,7 @@ def main() -> None:
         named_new += any(e["name"] in ("joint_terms", "drift") for e in eff)
         not_ready += v.status != "ready"
     print(f"clean kinematic datasets: {a.clean} (seeds {a.first_seed}..{a.first_seed + a.clean - 1})")
-    print(f"  any axis scan alarm (family level 1 %): {alarms} = {100 * alarms / a.clean:.1f} %")
+    print(f"  any axis scan alarm (family at 0.5 %): {alarms} = {100 * alarms / a.clean:.1f} %")
     for name, c in per_scan.items():
         print(f"    {name:<22} {c}")
     print(f"  an effect or drift named:              {named} = {100 * named / a.clean:.1f} %")

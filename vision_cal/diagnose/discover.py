@@ -58,6 +58,18 @@ BASE_PARAMS = ("L1_mm", "L2_mm", "z1_deg", "z2_deg", "base_x_mm", "base_y_mm")
 DRIFT_WORDS = {"L1_mm": "link 1 length", "L2_mm": "link 2 length", "z1_deg": "joint 1 zero",
                "z2_deg": "joint 2 zero", "base_x_mm": "base x", "base_y_mm": "base y"}
 MAX_TERMS = 4
+SCAN_LEVEL = 0.5    # scans and discovery run at this share of the selection's alpha
+HELDOUT_TIE = 1.25  # held-out RMS ratio within which fewer parameters win (see _trace)
+
+
+def _bic(fit: Fit, sigma) -> float:
+    """BIC of a fit's weighted residual: n log(RSS / n) + P log n (n = 2 x inliers)."""
+    k = fit.inliers
+    r = fit.residuals_mm[k]
+    if sigma is not None:
+        r = r / np.asarray(sigma, float)[k, None]
+    n = r.size
+    return float(n * np.log(max(float(np.sum(r**2)), 1e-300) / n) + fit.n_params * np.log(n))
 
 
 def _rows(a: np.ndarray) -> np.ndarray:
@@ -327,6 +339,11 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     xy = np.asarray(xy_mm, float)
     app = np.asarray(approach, float)
     final = diag.final_fit
+    # scans and selection at half the family level: their F-tests run on a robust nonlinear
+    # fit's residual, whose p-values come out slightly low (5.4 % below 0.05 over 7000 clean
+    # scans, bench/discover.py), and the issue's bound (1 % of clean datasets) is on the
+    # family measured, not on the nominal level
+    alpha = SCAN_LEVEL * alpha
     report = {"scans": axis_scans(final, q, app, t, sigma_mm=sigma_mm, alpha=alpha),
               "method": "forward stepwise selection, F-test at alpha / columns left and "
                         "k-fold cross-validation (vision_cal.diagnose.discover)",
@@ -365,13 +382,24 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     h1 = held(f1.model)
     report["heldout_rms_mm"] = [diag.heldout_final_mm, h1]
     # a library effect is kept only when it does better than the dictionary's terms with no
-    # more parameters: fewer parameters win a tie (held-out within 5 %)
+    # more parameters: fewer parameters win when the fit's BIC says so and the held-out
+    # error is within its own noise (an RMS over a few held-out marks scatters by ~20 %)
     n_old = sum(len(e.theta) for e in final.model.effects if isinstance(e, JointEffect))
     n_new = sum(len(e.theta) for e in new_joint)
-    tie = n_new < n_old and h1 <= 1.05 * diag.heldout_final_mm
+    tie = (n_new < n_old and _bic(f1, sigma_mm) <= _bic(final, sigma_mm)
+           and h1 <= HELDOUT_TIE * diag.heldout_final_mm)
+    report["bic"] = [_bic(final, sigma_mm), _bic(f1, sigma_mm)]
     if not (h1 < diag.heldout_final_mm or tie):
         report["decision"] = "the dictionary's terms do not lower the held-out error: kept"
         return Traced(diag, drift, report)
+    # a sheet effect selected before the joint terms were known may stand in for them: it
+    # stays only if it is still significant beside them
+    f1, nonjoint, gone = _recheck_nonjoint(f1, nonjoint, new_joint, q, xy, app, sigma_mm, ids,
+                                           alpha)
+    if gone:
+        report["dropped_beside_joint_terms"] = gone
+        h1 = held(f1.model)
+        report["heldout_rms_mm"] = [diag.heldout_final_mm, h1]
     labels = {e.label for e in f1.model.effects}
     accepted = [a for a in diag.accepted if a.label in labels]
     step = {s["column"]: s for s in d.steps}
@@ -401,6 +429,32 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
                   unexplained=unexplained)
     report["scans_after"] = axis_scans(f1, q, app, t, sigma_mm=sigma_mm, alpha=alpha)
     return Traced(new, drift, report)
+
+
+def _rss(fit: Fit, sigma) -> float:
+    r = fit.residuals_mm[fit.inliers]
+    if sigma is not None:
+        r = r / np.asarray(sigma, float)[fit.inliers, None]
+    return float(np.sum(r**2))
+
+
+def _recheck_nonjoint(f1, nonjoint, new_joint, q, xy, app, sigma, ids, alpha):
+    """Drop each non-joint effect whose F-test beside the new joint effects fails at
+    ``alpha``; returns (fit, the non-joint effects kept, labels dropped)."""
+    gone = []
+    for e in list(nonjoint):
+        rest = tuple(x for x in nonjoint if x is not e)
+        f2 = refit_with(f1.model, rest + new_joint, q, xy, app, sigma, ids)
+        if f2 is None:
+            continue
+        k = len(e.theta)
+        dof = max(2 * int(f1.inliers.sum()) - f1.n_params, 1)
+        rss1, rss2 = _rss(f1, sigma), _rss(f2, sigma)
+        F = ((rss2 - rss1) / max(k, 1)) / max(rss1 / dof, 1e-300)
+        if float(stats.f.sf(F, max(k, 1), dof)) >= alpha:
+            gone.append(e.label)
+            f1, nonjoint = f2, rest
+    return f1, nonjoint, gone
 
 
 def _without_named(unexplained: dict | None, features: dict) -> dict | None:
