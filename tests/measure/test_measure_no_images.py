@@ -273,3 +273,19 @@ def test_init_with_no_photo_of_the_sheet_is_one_line(tmp_path, world, capsys):
     assert err[-1].startswith(f"vision-cal: error: {src}: no usable photo of the sheet among "
                               "1 image file(s) (first: floor.png: "), err
     assert [ln for ln in err if "error" in ln] == [err[-1]]
+
+
+def test_a_photo_out_of_order_is_named_and_left_out():
+    """Photos of marks 1, 2, 4, 3 (two swapped): the one with 3 marks after the one with 4
+    adds nothing and lacks mark 4: named out of order, not 'repeated', and not used (it
+    would otherwise claim a mark it does not show). Issue 19."""
+    from vision_cal.measure.infer import infer_image_marks
+
+    ids = ["a", "b", "c", "d"]
+    files = ["p1", "p2", "p4", "p3"]
+    seen = [{0, 1, 2, 3}, {1, 2, 3}, {2, 3}, {2}]  # mark d first seen in p4 (rank 2) only
+    got = infer_image_marks(4, [0, 1, 2, 3], _groups(seen), ids, files)
+    assert got.mode == "series"
+    assert [len(m) for m in got.marks] == [1, 2, 4, 0]
+    assert any(w.startswith("p3: out of order") and "left out" in w for w in got.warnings)
+    assert not any("repeated" in w for w in got.warnings)

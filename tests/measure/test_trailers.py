@@ -124,3 +124,17 @@ def test_a_crc_error_is_one_reason(tmp_path, world, capsys):  # noqa: F811
     assert rc == 0 and _status(doc)["b.png"][0] == "skipped"
     assert "CRC" in _status(doc)["b.png"][1]
     assert len(err) == 1 and "b.png" in err[0] and "CRC" in err[0]
+
+
+def test_a_heic_listed_in_session_json_says_convert_it(tmp_path, world, capsys):  # noqa: F811
+    """Issue 19: the same advice as for a folder without a list, not 'no header'."""
+    src = tmp_path / "in"
+    src.mkdir()
+    sm.write_png(src / "a.png", world[3])
+    (src / "IMG_0001.HEIC").write_bytes(b"\0\0\0\x18ftypheic" + b"\0" * 64)
+    _session(src, world, ["a.png", "IMG_0001.HEIC"])
+    rc, err, doc = _run(src, tmp_path / "out", capsys)
+    assert rc == 0
+    assert _status(doc)["IMG_0001.HEIC"] == (
+        "skipped", "a HEIC file, a format not read: convert it to JPEG or PNG")
+    assert len(err) == 1 and "IMG_0001.HEIC" in err[0]

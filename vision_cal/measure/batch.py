@@ -265,7 +265,7 @@ def _decode(data: bytes, file: str, camera_size_px=None):
         photos.check_complete(data)  # by its structure: a phone's trailer is not truncation
         turned = photos.check_header(photos.read_header(data), camera_size_px)
     except photos.PhotoRefused as e:
-        return None, e.reason
+        return None, _refusal(file, e)
     img = photos.decode_photo(data, turned=turned)
     if img is None:
         return None, "unreadable: not an image OpenCV can decode"
@@ -508,6 +508,16 @@ class _Photo:
     cached: bool = False
 
 
+def _refusal(file: str, e: "photos.PhotoRefused") -> str:
+    """The reason a photo is refused; a camera format not read (HEIC, raw) says so and how
+    to fix it, listed in session.json or found in the folder alike."""
+    if e.reason.startswith("unreadable: not an image") and file.lower().endswith(
+            photos.UNREAD_SUFFIXES):
+        return (f"a {file.rsplit('.', 1)[-1].upper()} file, a format not read: convert it to "
+                "JPEG or PNG")
+    return e.reason
+
+
 def _check_photo(ph: _Photo, root: Path, session: Session) -> None:
     """Read the photo once in the parent, before any worker sees it: regular file inside
     the folder, header within the limits (no pixel decoded). Fills ``sha256``, ``captured``
@@ -520,7 +530,7 @@ def _check_photo(ph: _Photo, root: Path, session: Session) -> None:
         header = photos.read_header(data)
         photos.check_header(header, None if cam is None else cam.size_px)
     except photos.PhotoRefused as e:
-        ph.det = _skip(ph.file, e.reason)
+        ph.det = _skip(ph.file, _refusal(ph.file, e))
         return
     ph.sha256 = hashlib.sha256(data).hexdigest()
     ph.captured = header.captured
