@@ -289,3 +289,18 @@ def test_a_photo_out_of_order_is_named_and_left_out():
     assert [len(m) for m in got.marks] == [1, 2, 4, 0]
     assert any(w.startswith("p3: out of order") and "left out" in w for w in got.warnings)
     assert not any("repeated" in w for w in got.warnings)
+
+
+def test_init_on_an_empty_folder_names_the_folder(tmp_path, world, capsys):
+    """Issue 19: not PHOTOS/session.json, a file that does not exist."""
+    plan = tmp_path / "plan"
+    plan.mkdir()
+    _plan(plan, world)
+    empty = tmp_path / "photos"
+    empty.mkdir()
+    rc = main(["init", str(empty), "--plan", str(plan / "session.json")])
+    assert rc == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"vision-cal: error: {empty}: no photos"), err
+    assert "session.json" not in err[0]
+    assert list(empty.iterdir()) == []
