@@ -42,7 +42,8 @@ from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerpr
 from vision_cal.measure.infer import infer_image_marks
 from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.measure.dots import DotCandidates, blank_regions, find_candidates, refine_dot
-from vision_cal.measure.sheetfit import MISFIT, corner_tolerance_mm, misfit_reason
+from vision_cal.measure.sheetfit import (LENS_CAUSE, MISFIT, corner_tolerance_mm,
+                                         misfit_reason)
 from vision_cal.measure.mapping import (LensEstimate, distort_px, estimate_lens, fit_mapping,
                                        undistort_px)
 
@@ -403,7 +404,9 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
                               float(np.median(m.mm_per_px(det.corners_mm.mean(axis=1)))))
     if not m.corner_rms_mm <= tol:  # the markers do not fit the declared sheet
         return ImageResult(det.file, "skipped",
-                           misfit_reason(det.corners_mm, corners_px, m.corner_rms_mm, tol),
+                           misfit_reason(det.corners_mm, corners_px, m.corner_rms_mm, tol,
+                                         raw_px=(det.corners_for(None, None)
+                                                 if dist is not None and np.any(dist) else None)),
                            n_markers=len(det.marker_ids), corner_rms_px=m.corner_rms_px,
                            corner_rms_mm=m.corner_rms_mm, size_px=det.size_px,
                            from_cache=from_cache)
@@ -488,10 +491,11 @@ def _check_sheet_fits(session: Session, images: list[ImageResult]) -> None:
     if not misfit or 2 * len(misfit) <= len(images):
         return
     typical = sorted(misfit, key=lambda r: r.corner_rms_mm)[len(misfit) // 2]
+    lens = f"likely cause: {LENS_CAUSE}" in typical.reason  # the lens, not the sheet
     raise VisionCalError(f"the markers do not fit the declared sheet in {len(misfit)} of "
                          f"{len(images)} photos ({typical.file}: "
                          f"{typical.reason[len(MISFIT) + 2:]})",
-                         file=str(session.path), field="sheet.markers")
+                         file=str(session.path), field="camera.dist" if lens else "sheet.markers")
 
 
 @dataclass
