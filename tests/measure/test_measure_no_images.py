@@ -304,3 +304,15 @@ def test_init_on_an_empty_folder_names_the_folder(tmp_path, world, capsys):
     assert len(err) == 1 and err[0].startswith(f"vision-cal: error: {empty}: no photos"), err
     assert "session.json" not in err[0]
     assert list(empty.iterdir()) == []
+
+
+def test_a_photo_with_one_dot_after_the_finished_sheet_is_not_listed_with_six():
+    """Issue 19: a photo showing one of the six dots, taken after one of the finished sheet,
+    was listed as showing all six ("a repeated photo"); it is left out, named."""
+    from vision_cal.measure.infer import infer_image_marks
+
+    ids = ["a", "b", "c", "d", "e", "f"]
+    seen = [{0, 1}] + [{0}] * 5
+    got = infer_image_marks(2, [0, 1], _groups(seen), ids, ["all.png", "one.png"])
+    assert [len(m) for m in got.marks] == [6, 0]
+    assert any(w.startswith("one.png: out of order (it shows 1 marks") for w in got.warnings)
