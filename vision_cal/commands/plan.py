@@ -77,6 +77,14 @@ def run(args) -> int:
     model, doc = load_calibration(args.calibration, which=args.model)
     home_deg = _home_deg(args, doc, robot)
     ids, xy = read_targets(args.targets)
+    if args.trajectory:  # a million targets: refused before they are planned
+        from vision_cal.plan.trajectory import check_length
+
+        try:
+            check_length(len(ids))
+        except VisionCalError as e:
+            raise VisionCalError(e.reason, file=str(args.trajectory),
+                                 field="--trajectory") from e
     limits = {} if robot is None else {"joint_limits_deg": robot.joint_limits_deg}
     planned = plan_targets(model, ids, xy, elbow=args.elbow, approach=tuple(args.approach),
                            **limits)
