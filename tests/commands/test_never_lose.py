@@ -148,7 +148,7 @@ def test_duplicate_key_in_session_json_names_both_lines(tmp_path, capsys):
     assert snapshot(folder) == before and not (tmp_path / "out" / "calibration.json").exists()
 
 
-def _robot(work, edit) -> tuple:
+def _robot(work, edit) -> Path:
     r = work / "robot.yaml"
     r.write_text(edit(r.read_text()))
     return r
