@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from tests.commands.test_trust import (PAPER, ROOT, TARGETS, assert_one_line, calibration,  # noqa: F401
-                                       cli, snapshot)
+                                       cli, dataset, rendered, snapshot)
 
 ROBOT = ROOT / "fixtures" / "robot_sm5.yaml"
 
@@ -148,7 +148,7 @@ def test_duplicate_key_in_session_json_names_both_lines(tmp_path, capsys):
     assert snapshot(folder) == before and not (tmp_path / "out" / "calibration.json").exists()
 
 
-def _robot(work, edit) -> tuple:
+def _robot(work, edit) -> Path:
     r = work / "robot.yaml"
     r.write_text(edit(r.read_text()))
     return r
@@ -313,3 +313,22 @@ def test_a_custom_sheet_beyond_any_work_area_is_refused(tmp_path, capsys, size):
     assert rc == 2
     assert_one_line(err, "--custom", "at most 5000 mm")
     assert not out.exists()
+
+
+def test_a_wrong_declared_lens_is_blamed_on_camera_dist(tmp_path, capsys, rendered):  # noqa: F811
+    """Issue 19: k1 = 0.5 declared for a lens without distortion: the markers fit the sheet
+    without it, so the line names camera.dist, not sheet.markers."""
+    truth = json.loads((rendered / "truth.json").read_text())
+
+    def edit(s):
+        cam = s.get("camera") or {"size_px": truth["camera"]["size_px"], "K": truth["camera"]["K"]}
+        cam["dist"] = [0.5, 0.0, 0.0, 0.0, 0.0]
+        s["camera"] = cam
+
+    folder = dataset(tmp_path, edit, src=rendered)
+    before = snapshot(folder)
+    rc, _, err = cli([folder, "-o", tmp_path / "out", "-j", "1"], capsys)
+    assert rc == 2
+    line = assert_one_line(err, folder / "session.json", "camera.dist", "lens distortion")
+    assert "sheet.markers" not in line
+    assert snapshot(folder) == before and not (tmp_path / "out" / "calibration.json").exists()

@@ -33,7 +33,6 @@ def test_grid_smoother_is_the_gaussian_within_its_cells():
     _, xy, r = _marks(sheet.EXACT_MAX_MARKS + 400)
     grid = sheet._Smoother(xy, 60.0)
     assert grid.W is None
-    exact = sheet._Smoother.__new__(sheet._Smoother)
     D2 = np.sum((xy[:, None] - xy[None]) ** 2, axis=2)
     W = np.exp(-D2 / (2 * 60.0**2))
     np.fill_diagonal(W, 0.0)
@@ -41,7 +40,6 @@ def test_grid_smoother_is_the_gaussian_within_its_cells():
     got = grid(r)
     rel = np.sqrt(np.mean((got - want) ** 2) / np.mean(want**2))
     assert rel < 0.03, rel
-    del exact
 
 
 def _peak_mb(f) -> float:

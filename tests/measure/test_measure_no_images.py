@@ -297,3 +297,46 @@ def test_progress_counts_and_the_design_preview(tmp_path, world, capsys, monkeyp
     measure_folder(load_session(folder), out_dir=out, jobs=1, progress=True)
     err = capsys.readouterr().err
     assert "2/2 photos" in err and "all from the cache" in err and "0/0" not in err, err
+
+
+def test_a_photo_out_of_order_is_named_and_left_out():
+    """Photos of marks 1, 2, 4, 3 (two swapped): the one with 3 marks after the one with 4
+    adds nothing and lacks mark 4: named out of order, not 'repeated', and not used (it
+    would otherwise claim a mark it does not show). Issue 19."""
+    from vision_cal.measure.infer import infer_image_marks
+
+    ids = ["a", "b", "c", "d"]
+    files = ["p1", "p2", "p4", "p3"]
+    seen = [{0, 1, 2, 3}, {1, 2, 3}, {2, 3}, {2}]  # mark d first seen in p4 (rank 2) only
+    got = infer_image_marks(4, [0, 1, 2, 3], _groups(seen), ids, files)
+    assert got.mode == "series"
+    assert [len(m) for m in got.marks] == [1, 2, 4, 0]
+    assert any(w.startswith("p3: out of order") and "left out" in w for w in got.warnings)
+    assert not any("repeated" in w for w in got.warnings)
+
+
+def test_init_on_an_empty_folder_names_the_folder(tmp_path, world, capsys):
+    """Issue 19: not PHOTOS/session.json, a file that does not exist."""
+    plan = tmp_path / "plan"
+    plan.mkdir()
+    _plan(plan, world)
+    empty = tmp_path / "photos"
+    empty.mkdir()
+    rc = main(["init", str(empty), "--plan", str(plan / "session.json")])
+    assert rc == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"vision-cal: error: {empty}: no photos"), err
+    assert "session.json" not in err[0]
+    assert list(empty.iterdir()) == []
+
+
+def test_a_photo_with_one_dot_after_the_finished_sheet_is_not_listed_with_six():
+    """Issue 19: a photo showing one of the six dots, taken after one of the finished sheet,
+    was listed as showing all six ("a repeated photo"); it is left out, named."""
+    from vision_cal.measure.infer import infer_image_marks
+
+    ids = ["a", "b", "c", "d", "e", "f"]
+    seen = [{0, 1}] + [{0}] * 5
+    got = infer_image_marks(2, [0, 1], _groups(seen), ids, ["all.png", "one.png"])
+    assert [len(m) for m in got.marks] == [6, 0]
+    assert any(w.startswith("one.png: out of order (it shows 1 marks") for w in got.warnings)

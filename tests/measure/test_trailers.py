@@ -63,29 +63,26 @@ def test_trailer_layouts_are_complete_and_decode_the_same(world, kind):  # noqa:
     assert photos.decode_photo(base + trailer).tobytes() == photos.decode_photo(base).tobytes()
 
 
-@pytest.mark.parametrize("kind", ["samsung", "motion", "png-trailer"])
-def test_a_photo_with_a_trailer_measures_like_without(tmp_path, world, capsys, kind):  # noqa: F811
+def test_photos_with_trailers_measure_like_without(tmp_path, world, capsys):  # noqa: F811
+    """One folder: a JPEG and a PNG, and the same bytes with Samsung's trailer and a motion
+    photo's video appended; every photo is used and measures exactly like its plain twin."""
     src = tmp_path / "in"
     src.mkdir()
-    img = world[3]
-    base = (_png(img) if kind.startswith("png") else
-            _jpeg(img, progressive=kind.startswith("progressive")))
-    trailer = {"samsung": samsung_trailer(), "progressive-samsung": samsung_trailer(),
-               "motion": motion_photo_trailer(), "depth": depth_map_trailer(img),
-               "png-trailer": samsung_trailer()}[kind]
-    ext = "png" if kind.startswith("png") else "jpg"
-    (src / f"plain.{ext}").write_bytes(base)
-    (src / f"phone.{ext}").write_bytes(base + trailer)
-    assert photos.decode_photo(base + trailer).tobytes() == photos.decode_photo(base).tobytes()
-    _session(src, world, [f"plain.{ext}", f"phone.{ext}"])
+    jpg, png = _jpeg(world[3]), _png(world[3])
+    files = {"plain.jpg": jpg, "samsung.jpg": jpg + samsung_trailer(),
+             "motion.jpg": jpg + motion_photo_trailer(), "plain.png": png,
+             "trailer.png": png + samsung_trailer()}
+    for name, data in files.items():
+        (src / name).write_bytes(data)
+    assert photos.decode_photo(files["motion.jpg"]).tobytes() == photos.decode_photo(jpg).tobytes()
+    _session(src, world, list(files))
     rc, err, doc = _run(src, tmp_path / "out", capsys)
     assert rc == 0 and err == [], err
-    st = _status(doc)
-    assert st[f"phone.{ext}"] == ("ok", "") and st[f"plain.{ext}"] == ("ok", "")
-    im = {i["file"]: i for i in doc["images"]}
-    # the same pixels measure the same: the photo's own record is identical but its name
-    a, b = (dict(im[f"{n}.{ext}"], file=None) for n in ("plain", "phone"))
-    assert a == b
+    assert set(_status(doc).values()) == {("ok", "")}
+    im = {i["file"]: dict(i, file=None) for i in doc["images"]}
+    # the same pixels measure the same: each record identical to its plain twin's
+    assert im["samsung.jpg"] == im["plain.jpg"] and im["motion.jpg"] == im["plain.jpg"]
+    assert im["trailer.png"] == im["plain.png"]
 
 
 @pytest.mark.parametrize("cut,reason", [
@@ -124,3 +121,17 @@ def test_a_crc_error_is_one_reason(tmp_path, world, capsys):  # noqa: F811
     assert rc == 0 and _status(doc)["b.png"][0] == "skipped"
     assert "CRC" in _status(doc)["b.png"][1]
     assert len(err) == 1 and "b.png" in err[0] and "CRC" in err[0]
+
+
+def test_a_heic_listed_in_session_json_says_convert_it(tmp_path, world, capsys):  # noqa: F811
+    """Issue 19: the same advice as for a folder without a list, not 'no header'."""
+    src = tmp_path / "in"
+    src.mkdir()
+    sm.write_png(src / "a.png", world[3])
+    (src / "IMG_0001.HEIC").write_bytes(b"\0\0\0\x18ftypheic" + b"\0" * 64)
+    _session(src, world, ["a.png", "IMG_0001.HEIC"])
+    rc, err, doc = _run(src, tmp_path / "out", capsys)
+    assert rc == 0
+    assert _status(doc)["IMG_0001.HEIC"] == (
+        "skipped", "a HEIC file, a format not read: convert it to JPEG or PNG")
+    assert len(err) == 1 and "IMG_0001.HEIC" in err[0]

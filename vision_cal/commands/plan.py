@@ -86,6 +86,14 @@ def run(args) -> int:
         print(warn, file=sys.stderr)
     home_deg = _home_deg(args, doc, robot)
     ids, xy = read_targets(args.targets)
+    if args.trajectory:  # a million targets: refused before they are planned
+        from vision_cal.plan.trajectory import check_length
+
+        try:
+            check_length(len(ids))
+        except VisionCalError as e:
+            raise VisionCalError(e.reason, file=str(args.trajectory),
+                                 field="--trajectory") from e
     limits = {} if robot is None else {"joint_limits_deg": robot.joint_limits_deg}
     if robot is None and doc.get("joint_limits_deg") is not None:   # recorded by the run
         limits = {"joint_limits_deg": tuple(tuple(float(v) for v in p)

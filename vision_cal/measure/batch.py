@@ -44,7 +44,8 @@ from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.measure.dots import DotCandidates, blank_regions, find_candidates, refine_dot
 from vision_cal.measure.printed import printed_reference
 from vision_cal.measure.rotated import to_main_px, transposed, turned_lens
-from vision_cal.measure.sheetfit import MISFIT, corner_tolerance_mm, misfit_reason
+from vision_cal.measure.sheetfit import (LENS_CAUSE, MISFIT, corner_tolerance_mm,
+                                         misfit_reason)
 from vision_cal.measure.mapping import (LensEstimate, distort_px, estimate_lens, fit_mapping,
                                        undistort_px)
 
@@ -288,7 +289,7 @@ def _decode(data: bytes, file: str, camera_size_px=None):
         photos.check_complete(data)  # by its structure: a phone's trailer is not truncation
         turned = photos.check_header(photos.read_header(data), camera_size_px)
     except photos.PhotoRefused as e:
-        return None, e.reason
+        return None, _refusal(file, e)
     img = photos.decode_photo(data, turned=turned)
     if img is None:
         return None, "unreadable: not an image OpenCV can decode"
@@ -428,7 +429,9 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
                               float(np.median(m.mm_per_px(det.corners_mm.mean(axis=1)))))
     if not m.corner_rms_mm <= tol:  # the markers do not fit the declared sheet
         return ImageResult(det.file, "skipped",
-                           misfit_reason(det.corners_mm, corners_px, m.corner_rms_mm, tol),
+                           misfit_reason(det.corners_mm, corners_px, m.corner_rms_mm, tol,
+                                         raw_px=(det.corners_for(None, None)
+                                                 if dist is not None and np.any(dist) else None)),
                            n_markers=len(det.marker_ids), corner_rms_px=m.corner_rms_px,
                            corner_rms_mm=m.corner_rms_mm, size_px=det.size_px,
                            from_cache=from_cache)
@@ -519,10 +522,11 @@ def _check_sheet_fits(session: Session, images: list[ImageResult]) -> None:
     if not misfit or 2 * len(misfit) <= len(images):
         return
     typical = sorted(misfit, key=lambda r: r.corner_rms_mm)[len(misfit) // 2]
+    lens = f"likely cause: {LENS_CAUSE}" in typical.reason  # the lens, not the sheet
     raise VisionCalError(f"the markers do not fit the declared sheet in {len(misfit)} of "
                          f"{len(images)} photos ({typical.file}: "
                          f"{typical.reason[len(MISFIT) + 2:]})",
-                         file=str(session.path), field="sheet.markers")
+                         file=str(session.path), field="camera.dist" if lens else "sheet.markers")
 
 
 @dataclass
@@ -539,6 +543,16 @@ class _Photo:
     cached: bool = False
 
 
+def _refusal(file: str, e: "photos.PhotoRefused") -> str:
+    """The reason a photo is refused; a camera format not read (HEIC, raw) says so and how
+    to fix it, listed in session.json or found in the folder alike."""
+    if e.reason.startswith("unreadable: not an image") and file.lower().endswith(
+            photos.UNREAD_SUFFIXES):
+        return (f"a {file.rsplit('.', 1)[-1].upper()} file, a format not read: convert it to "
+                "JPEG or PNG")
+    return e.reason
+
+
 def _check_photo(ph: _Photo, root: Path, session: Session) -> None:
     """Read the photo once in the parent, before any worker sees it: regular file inside
     the folder, header within the limits (no pixel decoded). Fills ``sha256``, ``captured``
@@ -551,7 +565,7 @@ def _check_photo(ph: _Photo, root: Path, session: Session) -> None:
         header = photos.read_header(data)
         photos.check_header(header, None if cam is None else cam.size_px)
     except photos.PhotoRefused as e:
-        ph.det = _skip(ph.file, e.reason)
+        ph.det = _skip(ph.file, _refusal(ph.file, e))
         return
     ph.sha256 = hashlib.sha256(data).hexdigest()
     ph.captured = header.captured

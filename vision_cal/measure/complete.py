@@ -34,7 +34,18 @@ def complete_session(photos_dir, plan_path, *, jobs: int | None = None, progress
                              file=str(plan_path), field="sheet")
     session = replace(planned, root=photos_dir, images=(), images_listed=False)
     with tempfile.TemporaryDirectory(prefix="vision-cal-init-") as tmp:
-        meas = measure_folder(session, out_dir=tmp, jobs=jobs, progress=progress)
+        try:
+            meas = measure_folder(session, out_dir=tmp, jobs=jobs, progress=progress)
+        except VisionCalError as e:
+            if e.file != str(session.path):
+                raise
+            # session.path is PHOTOS/session.json, which init never reads nor writes: name
+            # the photo folder (no photos) or the plan (anything else it lacks)
+            if e.field == "images":
+                raise VisionCalError(e.reason.replace("session.json has no images list and "
+                                                      "the folder", "the folder"),
+                                     file=str(photos_dir)) from e
+            raise VisionCalError(e.reason, file=str(plan_path), field=e.field) from e
     doc = copy.deepcopy(planned.raw)
     doc["images"] = meas.session_images()
     return doc, meas

@@ -16,7 +16,8 @@ the dot groups:
   showed) is taken as earlier marks (a pilot plan drawn on the same sheet) or blemishes.
 
 What does not fit is reported, never fatal: a photo that adds no mark in a series (a
-repeated photo), one that adds several (a photo of the series missing, or several marks
+repeated photo; one that also shows fewer dots than the photo before it was taken before
+it, *out of order*, and is left out), one that adds several (a photo of the series missing, or several marks
 drawn between photos), more persistent dots than planned marks, fewer (marks not drawn or
 not photographed). The association (``associate.associate``) then works as with a
 hand-written list, and checks the series against the robot model.
@@ -84,6 +85,7 @@ def infer_image_marks(n_images: int, usable: list[int], groups, mark_ids, files
             warnings.append(f"{pre} dot(s) already on the sheet in the first photo "
                             f"({files[usable[0]]}) and more dots than planned marks by the "
                             "end: taken as marks made before this series, not counted")
+        sees = [sum(k in seen_by[gi] for gi in persistent) for k in usable]
         prev = 0
         for r, k in enumerate(usable):
             n = count[r] - pre
@@ -92,6 +94,14 @@ def infer_image_marks(n_images: int, usable: list[int], groups, mark_ids, files
                     warnings.append(f"{files[k]}: {n} persistent dots, more than the {N} "
                                     "planned marks: the series is capped at the plan")
                 n = N
+            if r > 0 and n == prev and sees[r] < sees[r - 1]:
+                # it adds no mark and shows fewer than the photo before it: taken before
+                # that photo (a wrong clock, a renamed file); which marks it shows is not
+                # known, and a repeated photo adds nothing: left out either way
+                warnings.append(f"{files[k]}: out of order (it shows {sees[r]} marks, "
+                                f"{files[usable[r - 1]]} before it {sees[r - 1]}, and adds "
+                                "none): left out")
+                continue
             if r > 0 and n == prev:
                 warnings.append(f"{files[k]}: a repeated photo (no mark added since "
                                 f"{files[usable[r - 1]]})")

@@ -96,7 +96,23 @@ def likely_cause(corners_mm, corners_px, tol_mm: float) -> str:
             "layout than the printed sheet)")
 
 
-def misfit_reason(corners_mm, corners_px, rms_mm: float, tol_mm: float) -> str:
-    """The one-line reason a photo is not measured (starts with :data:`MISFIT`)."""
+#: the phrase of a misfit the declared lens explains (the field to fix is camera.dist)
+LENS_CAUSE = "camera.dist"
+
+
+def misfit_reason(corners_mm, corners_px, rms_mm: float, tol_mm: float, *,
+                  raw_px=None) -> str:
+    """The one-line reason a photo is not measured (starts with :data:`MISFIT`).
+    ``raw_px``: the corners without the declared lens distortion (when one is declared):
+    if they fit the sheet (within the tolerance, or twice as well), the declared
+    ``camera.dist`` is the likely cause, not the sheet."""
+    cause = None
+    if raw_px is not None:
+        raw = _rms_mm(np.asarray(corners_mm, float), np.asarray(raw_px, float))
+        if raw <= tol_mm or raw < 0.5 * rms_mm:
+            cause = (f"{LENS_CAUSE}: the declared lens distortion is wrong (without it the "
+                     f"markers fit to {raw:.3g} mm)")
+    if cause is None:
+        cause = likely_cause(corners_mm, corners_px, tol_mm)
     return (f"{MISFIT}: corner RMS {rms_mm:.3g} mm, a printer and lens explain "
-            f"{tol_mm:.2g} mm; likely cause: {likely_cause(corners_mm, corners_px, tol_mm)}")
+            f"{tol_mm:.2g} mm; likely cause: {cause}")

@@ -111,6 +111,14 @@ def _too_long(n_samples: int, dt_s: float, n_marks: int):
         field="trajectory")
 
 
+def check_length(n_marks: int, *, dt_s: float = TRAJECTORY_DT_S, dwell_s: float = 0.3) -> None:
+    """Refuse, before anything is planned, a trajectory through ``n_marks`` marks that would
+    exceed :data:`MAX_TRAJECTORY_SAMPLES` on its dwells alone."""
+    n_dwell = int(np.ceil(dwell_s / dt_s - 1e-9)) if dwell_s > 0 else 0
+    if n_marks * max(n_dwell, 1) + 1 > MAX_TRAJECTORY_SAMPLES:
+        _too_long(n_marks * max(n_dwell, 1) + 1, dt_s, n_marks)
+
+
 def segment_duration_s(delta_deg, *, vmax_deg_s, amax_deg_s2, dt_s: float) -> float:
     """Shortest duration (a multiple of ``dt_s``) of a zero-end-velocity cubic moving
     ``delta_deg`` (2,) within the velocity and acceleration limits."""
@@ -151,8 +159,7 @@ def joint_trajectory(waypoints_deg, *, dt_s: float = TRAJECTORY_DT_S, vmax_deg_s
 
     n_dwell = int(np.ceil(dwell_s / dt_s - 1e-9)) if dwell_s > 0 else 0
     n_marks = int(np.count_nonzero(mark_index >= 0))
-    if n_marks * max(n_dwell, 1) + 1 > MAX_TRAJECTORY_SAMPLES:  # before any per-mark work
-        _too_long(n_marks * max(n_dwell, 1) + 1, dt_s, n_marks)
+    check_length(n_marks, dt_s=dt_s, dwell_s=dwell_s)  # before any per-mark work
     # integer sample counts keep every knot exactly on the sampling grid
     k_now = 0
     knot_k = np.zeros(len(wp), dtype=np.int64)
