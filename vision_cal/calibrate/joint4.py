@@ -7,7 +7,7 @@ model with ``tool_mm`` (:func:`vision_cal.calibrate.tool.fit_tool`), then joint 
 backlash and gear-ratio error, each kept only when its estimate exceeds
 ``JOINT4_ACCEPT_SIGMA`` reported std (clean data claims nothing). The paper method:
 :func:`vision_cal.calibrate.tool.paper_tool`, with std by linear propagation of the mark
-noise. Joint-1/2 effects are not searched on this branch (a note says so).
+noise (the least-squares fit's residual scale). Joint-1/2 effects are not searched on this branch (a note says so).
 """
 
 from __future__ import annotations
@@ -46,8 +46,11 @@ def fit_joint4(cal, val, method: str, tool_nominal_mm=None):
     if method == "paper":
         pt = paper_tool(cal.q_deg, cal.joint4[:, 0], cal.xy_mm)
         model = pt.model
-        res = cal.xy_mm - model.predict(q, app)
-        noise = rms_2d(res) / np.sqrt(2) if len(res) > 9 else float("nan")
+        try:   # the mark noise, as fit_paper takes it: the least-squares residual scale
+            noise = fit_tool(cal.q_deg, cal.joint4[:, 0], cal.xy_mm, approach=app,
+                             robust=False).fit.residual_scale
+        except CalibrationError:
+            noise = float("nan")
         G = np.zeros((8, cal.xy_mm.size))
         h = 1e-4
         for k in range(cal.xy_mm.size):

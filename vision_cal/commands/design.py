@@ -49,6 +49,10 @@ def add_arguments(p) -> None:
                    help="informative plan: extra clearance from markers and edges (default: "
                         "5 mm + 6 x the pilot model's largest predicted std on the sheet)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the design (default 0)")
+    p.add_argument("--placements", type=int, default=None, metavar="N",
+                   help="plan N placements of the sheet turned about joint 1 (a joint "
+                        "calibration, `calibrate ... --joint`): OUT/placeK/ each with its "
+                        "robot.yaml and pilot design, OUT/placements.json")
     c = p.add_argument_group("camera on the arm (vision_cal/camera/arm_design.py)")
     c.add_argument("--camera-on-arm", action="store_true",
                    help="plan camera poses over a marker field (vision-cal sheet --field) "
@@ -77,6 +81,19 @@ def run(args) -> int:
     if args.safety_mm is not None and not args.safety_mm >= 0:
         raise VisionCalError(f"expected a non-negative number, got {args.safety_mm}",
                              field="--safety-mm")
+    if args.placements is not None:   # several placements (design/placements.py, #21)
+        from vision_cal.design.placements import design_placements
+
+        if args.pilot:
+            raise VisionCalError("--placements designs each placement's pilot; design the "
+                                 "informative plans per placement folder", field="--pilot")
+        places = design_placements(args.robot, args.sheet, args.out, args.placements,
+                                   program=None if args.program == "none" else args.program,
+                                   seed=args.seed)
+        if not args.quiet:
+            for p in places:
+                print(f"{p['folder']}: {p['instruction']}")
+        return 0
     if args.verify is not None and args.pilot is not None:
         raise VisionCalError("give either --pilot (the informative plan) or --verify (a check "
                              "of a calibration), not both", field="--verify")
