@@ -1,6 +1,6 @@
 """The full robot model: the base model plus effects the base model lacks.
 
-Every effect of ``../shared/dataset-format.md`` that acts on the robot lives here with
+Every effect of docs/format.md that acts on the robot lives here with
 its own Jacobian, so the same code generates synthetic truth (``render``), fits
 (``calibrate``, ``diagnose``) and compensates (``plan``).
 
@@ -306,7 +306,7 @@ class Tool(Effect):
 
 
 def effect_from_json(d: dict, *, where: str = "effects") -> Effect:
-    """Build an effect from its format dictionary (names as in dataset-format.md)."""
+    """Build an effect from its format dictionary (names as in docs/format.md)."""
     try:
         name = d["name"]
         if name == "joint_backlash":

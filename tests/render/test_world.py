@@ -1,7 +1,7 @@
 """The world's robot: true mark positions, arrival sides, noise, arm boxes.
 
 The anchors below are worked out by hand from the contract's formulas
-(../shared/dataset-format.md, docs/conventions.md), not from any code: an arm with
+(docs/format.md, docs/conventions.md), not from any code: an arm with
 L1 = 300, L2 = 200, base (-100, 50), zeros (10, -20) commanded to q = (80, -70) has
 phi1 = 90 deg and phi1 + phi2 = 0 deg, so the elbow is at (-100, 350) and the pen at
 (100, 350), i.e. pen - base = (200, 300). A rotation of joint 1 by d turns (200, 300) by d

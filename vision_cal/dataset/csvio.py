@@ -1,4 +1,4 @@
-"""Targets and planned joints (CSV), as ``../shared/dataset-format.md`` says::
+"""Targets and planned joints (CSV), as docs/format.md says::
 
     targets.csv:  id,x_mm,y_mm
     plan.csv:     id,q1_deg,q2_deg,approach1,approach2

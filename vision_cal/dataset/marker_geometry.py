@@ -4,7 +4,7 @@ It belongs to the format (the ``sheet`` block), not to the estimator: the measur
 planners and the synthetic world all read it here.
 
 A sheet printed by any generator with the same ``sheet`` block must measure the same
-(``../shared/dataset-format.md``), so nothing here looks at how this project prints:
+(docs/format.md), so nothing here looks at how this project prints:
 
 - modules per side: the OpenCV dictionary's ``markerSize`` plus the black border (one
   module on each side: OpenCV's detector requires exactly that, whoever printed it);

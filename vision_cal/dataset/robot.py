@@ -1,7 +1,7 @@
 """The robot file (YAML or JSON): what ``vision-cal design`` and the programs need.
 
 The session's ``robot`` block (``L1_mm``, ``L2_mm``, ``joint_zero_deg``, ``base_mm``,
-``home_deg``; ``../shared/dataset-format.md``) at the top level, plus optional fields::
+``home_deg``; docs/format.md) at the top level, plus optional fields::
 
     name: SM5                        # shown in program headers
     placement_tolerance:             # how far the nominal values may be off (worst case, +-)

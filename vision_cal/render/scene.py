@@ -2,7 +2,7 @@
 
 A scene says what the robot truly is, what the user believes it is, the sheet it draws on,
 the plan it follows and how it is photographed. ``vision-cal render SCENE.yaml --out DIR``
-turns it into a dataset folder (``../shared/dataset-format.md``). Every section and every
+turns it into a dataset folder (docs/format.md). Every section and every
 field is optional; a missing one takes the default below (the seed's SM5 beside an A2 sheet).
 Unknown fields are errors (a typo must not silently fall back to a default). Lengths in mm,
 angles in degrees, as in every file.

@@ -1,8 +1,8 @@
 """JSON Schemas of the files vision-cal reads and writes (docs/format.md), shipped with
 the package: ``load_schema("session")`` and :func:`validate` for tests and other tools.
 
-The schemas encode ``vision-cal/1`` (``../shared/dataset-format.md``, reproduced in
-docs/format.md): required fields and their types, units in the names; every object
+The schemas encode ``vision-cal/1`` (the format as docs/format.md gives
+it): required fields and their types, units in the names; every object
 accepts added fields, as the format allows."""
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ derived from the same object, so the file and the print cannot disagree.
 
 Frames and conventions
 ----------------------
-- Sheet frame S (``../shared/dataset-format.md``): x right, y up, mm, seen from the printed
+- Sheet frame S (docs/format.md): x right, y up, mm, seen from the printed
   side. The origin is the centre of the paper (``bottom_left_mm = (-W/2, -H/2)``), which is
   also the grid origin: the grid lines sit at whole millimetres in S and the bold ones at
   multiples of 10 mm, so a mark's position can be read off the paper with a ruler.
@@ -190,7 +190,7 @@ class SheetLayout:
                          for m in self.markers])
 
     def to_sheet_json(self) -> dict:
-        """The session's ``sheet`` block (dataset-format.md), with ``bottom_left_mm``,
+        """The session's ``sheet`` block (docs/format.md), with ``bottom_left_mm``,
         ``grid`` and ``printed``."""
         printed = {
             "module_mm": _r(self.module_mm),
