@@ -26,12 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
+from vision_cal.dataset.photos import list_photos
 from vision_cal.errors import VisionCalError
 
 log = logging.getLogger(__name__)
 
 FORMAT = "vision-cal/1"
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 
 
 @dataclass(frozen=True)
@@ -165,8 +165,7 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
     if out.exists() and not out.is_dir():
         raise VisionCalError("exists and is not a folder", file=str(out))
     if out.is_dir():
-        photos = sorted(p.name for p in out.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES
-                        and p.name != "preview.png")
+        photos = list_photos(out)
         if photos:
             raise VisionCalError(f"holds photos ({photos[0]}, ...) of a plan: a new plan would "
                                  "not match them; choose another --out", file=str(out))

@@ -100,14 +100,7 @@ class PrintedReference:
         for b, p in self._prims:
             if b[2] < ext[0] or b[0] > ext[2] or b[3] < ext[1] or b[1] > ext[3]:
                 continue
-            if isinstance(p, Rect):
-                cv.rect(p)
-            elif isinstance(p, MarkerCells):
-                cv.marker(p)
-            elif isinstance(p, Poly):
-                cv.poly(p)
-            elif isinstance(p, Text):
-                cv.text(p)
+            cv.draw(p)
         return cv.img.astype(np.float32) / 255.0, wx0, wy1
 
     def predict_patch(self, mapping, origin_px, shape_hw, centre_mm, half_mm: float,

@@ -40,11 +40,11 @@ from pathlib import Path
 
 import numpy as np
 
+from vision_cal.dataset.photos import list_photos
 from vision_cal.dataset.session import FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.render.truth_model import TrueRobot
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 CONTROLLERS = ("smc", "pd", "kinematic")
 SECTIONS = ("robot", "hidden", "camera", "seed")
 HIDDEN = ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "effects", "repeatability_mm",
@@ -345,8 +345,7 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
     if out.exists() and not out.is_dir():
         raise VisionCalError("exists and is not a folder", file=str(out))
     if out.is_dir():
-        photos = sorted(p.name for p in out.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES
-                        and p.name != "preview.png")
+        photos = list_photos(out)
         if photos:
             raise VisionCalError(f"holds photos already ({photos[0]}, ...): a rehearsal adds "
                                  "its own; choose an empty folder", file=str(out))

@@ -39,6 +39,20 @@ class _Canvas:
                                  field="--png-dpi")
         self.img = np.full((self.H, self.W, 3), 255, np.uint8)
 
+    def draw(self, p) -> None:
+        """Draw one layout primitive (the one dispatch: the sheet's PNG and the print model
+        of :mod:`vision_cal.measure.printed` both draw through it)."""
+        if isinstance(p, Rect):
+            self.rect(p)
+        elif isinstance(p, MarkerCells):
+            self.marker(p)
+        elif isinstance(p, Poly):
+            self.poly(p)
+        elif isinstance(p, Text):
+            self.text(p)
+        else:  # pragma: no cover
+            raise TypeError(f"no raster writer for {type(p).__name__}")
+
     def u(self, x):
         return (np.asarray(x, float) - self.x0) * self.ppm
 
@@ -126,16 +140,7 @@ def rasterise(layout: SheetLayout, dpi: float) -> np.ndarray:
         raise VisionCalError(f"expected a positive dpi, got {dpi!r}", field="--png-dpi")
     cv = _Canvas(layout, dpi / 25.4)
     for p in layout.primitives:
-        if isinstance(p, Rect):
-            cv.rect(p)
-        elif isinstance(p, MarkerCells):
-            cv.marker(p)
-        elif isinstance(p, Poly):
-            cv.poly(p)
-        elif isinstance(p, Text):
-            cv.text(p)
-        else:  # pragma: no cover
-            raise TypeError(f"no raster writer for {type(p).__name__}")
+        cv.draw(p)
     return cv.img
 
 
