@@ -2,9 +2,10 @@ import math
 import xml.etree.ElementTree as ET
 
 import numpy as np
+import pytest
 import yaml
 
-from tests.conftest import SM5
+from tests.conftest import ROOT, SM5
 from vision_cal.commands.main import main
 from vision_cal.kinematics import forward
 
@@ -41,3 +42,28 @@ def test_urdf_chain_reproduces_the_model(tmp_path):
     side = yaml.safe_load((tmp_path / "r.effects.yaml").read_text())
     assert side["effects"] == [{"name": "joint_backlash", "joint": 2, "deg": 0.1, "std": 0.004}]
     assert yaml.safe_load((tmp_path / "c.yaml").read_text())["params"]["L1_mm"] == SM5.L1_mm
+
+
+def test_urdf_with_a_tool_takes_joint_4_limits_from_the_robot_file(tmp_path):
+    """Issue 21: ``export --robot`` gives the URDF the robot file's ``joint4_limits_deg``
+    (without it, the documented default +-360 deg)."""
+    import json
+
+    doc = {"format": "vision-cal/calibration/1",
+           "params": dict(SM5.to_json(), tool_mm=[30.0, 5.0]), "effects": []}
+    (tmp_path / "c.json").write_text(json.dumps(doc))
+    robot = tmp_path / "robot.yaml"
+    robot.write_text((ROOT / "fixtures" / "robot_sm5.yaml").read_text()
+                     + "joint4_limits_deg: [-200, 120]\n")
+
+    def joint4_limits(urdf):
+        j = {j.get("name"): j for j in ET.parse(urdf).getroot().findall("joint")}["joint4"]
+        lim = j.find("limit")
+        return math.degrees(float(lim.get("lower"))), math.degrees(float(lim.get("upper")))
+
+    assert main(["export", str(tmp_path / "c.json"), "--urdf", str(tmp_path / "d.urdf"),
+                 "-q"]) == 0
+    assert joint4_limits(tmp_path / "d.urdf") == pytest.approx((-360.0, 360.0), abs=1e-6)
+    assert main(["export", str(tmp_path / "c.json"), "--urdf", str(tmp_path / "r.urdf"),
+                 "--robot", str(robot), "-q"]) == 0
+    assert joint4_limits(tmp_path / "r.urdf") == pytest.approx((-200.0, 120.0), abs=1e-6)

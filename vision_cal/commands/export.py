@@ -19,8 +19,9 @@ def add_arguments(p) -> None:
                    "effects go to ROBOT.effects.yaml beside it")
     p.add_argument("--yaml", metavar="FILE.yaml", help="parameters, std and effects as YAML")
     p.add_argument("--robot", metavar="ROBOT.yaml",
-                   help="robot file: the URDF's joint limits (default: calibration.json's "
-                        "joint_limits_deg, which the session's robot file gave)")
+                   help="robot file: the URDF's joint limits, joint 4's too (default: "
+                        "calibration.json's joint_limits_deg, which the session's robot file "
+                        "gave)")
     p.add_argument("--force", action="store_true",
                    help="export even a calibration whose verdict is 'not reliable'")
     p.add_argument("--opencv", metavar="FILE.yaml", help="a still camera as OpenCV FileStorage "
@@ -58,11 +59,12 @@ def run(args) -> int:
         import sys
 
         print(warn, file=sys.stderr)
-    limits = doc.get("joint_limits_deg")
+    limits, limits4 = doc.get("joint_limits_deg"), None
     if args.robot:
         from vision_cal.dataset.robot import load_robot_file
 
-        limits = load_robot_file(args.robot).joint_limits_deg
+        robot = load_robot_file(args.robot)
+        limits, limits4 = robot.joint_limits_deg, robot.joint4_limits_deg
     written = []
     with written_together():
         if args.opencv or args.ros:
@@ -74,7 +76,7 @@ def run(args) -> int:
             written += write_ros(args.ros, cam) if args.ros else []
         if args.urdf or args.yaml:
             written = export(doc, urdf=args.urdf, yaml_path=args.yaml,
-                             limits_deg=limits) + written
+                             limits_deg=limits, limits4_deg=limits4) + written
     for path in written:
         if not args.quiet:
             print(f"wrote {path}")

@@ -136,16 +136,20 @@ def effects_path(urdf) -> Path:
     return urdf.with_name(urdf.stem + ".effects.yaml")
 
 
-def export(doc: dict, *, urdf=None, yaml_path=None, limits_deg=None) -> list[Path]:
+def export(doc: dict, *, urdf=None, yaml_path=None, limits_deg=None,
+           limits4_deg=None) -> list[Path]:
     """``limits_deg``: the URDF's joint limits [[lo, hi], [lo, hi]] (default: the
-    calibration's ``joint_limits_deg``, else :data:`vision_cal.motion.JOINT_LIMITS_DEG`)."""
+    calibration's ``joint_limits_deg``, else :data:`vision_cal.motion.JOINT_LIMITS_DEG`);
+    ``limits4_deg``: joint 4's [lo, hi] when the URDF has a tool (default
+    :data:`JOINT4_LIMITS_DEG`; the robot file's ``joint4_limits_deg`` via ``export --robot``)."""
     written = []
     if limits_deg is None:
         limits_deg = doc.get("joint_limits_deg") or JOINT_LIMITS_DEG
     if urdf:
         urdf = Path(urdf)
-        written.append(atomic_write_text(urdf, urdf_text(doc, name=urdf.stem,
-                                                         limits_deg=limits_deg)))
+        written.append(atomic_write_text(urdf, urdf_text(
+            doc, name=urdf.stem, limits_deg=limits_deg,
+            limits4_deg=JOINT4_LIMITS_DEG if limits4_deg is None else limits4_deg)))
         side = effects_path(urdf)
         written.append(atomic_write_text(side, effects_yaml(doc)))
     if yaml_path:
