@@ -35,7 +35,7 @@ from scipy.optimize import least_squares
 
 from vision_cal.camera.fixed import homogeneous, lsq_covariance
 from vision_cal.errors import CalibrationError
-from vision_cal.kinematics import ScaraParams, forward
+from vision_cal.kinematics import ScaraParams, flange_angle_rad, forward
 from vision_cal.rms import rms_2d
 
 LABELS = ("L1_mm", "L2_mm", "z1_deg", "z2_deg", "base_x_mm", "base_y_mm",
@@ -94,17 +94,14 @@ class ArmFit:
                 "not_identifiable": self.not_identifiable}
 
 
-def flange_angle_deg(params: ScaraParams, q_deg, j4_deg) -> np.ndarray:
-    """The flange x axis' angle (N,) deg in the sheet frame: ``q1 + z1 + q2 + z2 + q4`` (the
-    contract's flange frame: x along link 2 at commanded ``q4 = 0``)."""
-    q = np.array(q_deg, dtype=float, ndmin=2)
-    return q[:, 0] + params.z1_deg + q[:, 1] + params.z2_deg + np.asarray(j4_deg, float).ravel()
-
-
 def T_sheet_flange(params: ScaraParams, q_deg, j4_deg) -> np.ndarray:
-    """(N, 4, 4) flange -> sheet for commanded joints (N, 2) and ``j4_deg`` (N,)."""
+    """(N, 4, 4) flange -> sheet for commanded joints (N, 2) and ``j4_deg`` (N,): the flange
+    x axis turned by ``phi1 + phi2`` (the estimator's one owner,
+    :func:`vision_cal.kinematics.flange_angle_rad`) plus ``q4`` (the contract's flange frame:
+    x along link 2 at commanded ``q4 = 0``)."""
     q = np.array(q_deg, dtype=float, ndmin=2)
-    a = np.radians(flange_angle_deg(params, q, j4_deg))
+    a = (flange_angle_rad(params.vector, np.radians(q[:, :2]))
+         + np.radians(np.asarray(j4_deg, float).ravel()))
     p = forward(params, q)
     T = np.tile(np.eye(4), (len(q), 1, 1))
     T[:, 0, 0], T[:, 0, 1], T[:, 1, 0], T[:, 1, 1] = np.cos(a), -np.sin(a), np.sin(a), np.cos(a)
