@@ -416,8 +416,7 @@ def document(doc: dict, session: Session, data: MarkData, missing: list[str], me
     doc["marks"] = marks
     if missing:
         doc["missing_marks"] = missing
-    doc["images"] = ([im.to_json() for im in measurement.images] if measurement is not None
-                     else [])
+    doc["images"] = measurement.images_json() if measurement is not None else []
     targets = _target_errors(session, data)
     if targets:
         doc["targets"] = targets
