@@ -10,7 +10,7 @@ import math
 import pytest
 
 from vision_cal.commands.main import main
-from vision_cal.diagnose.verdict import judge
+from vision_cal.diagnose.verdict import R95_PER_RMS, Verdict, judge
 from vision_cal.report import headline as hl
 from vision_cal.report import plots
 
@@ -57,14 +57,14 @@ def test_headline_figures_are_calibration_json_figures(out, doc):
     v = judge(d)
     assert v.status == "check" and "5 fitted marks" in v.text
     assert v.expected_target_error_mm == pytest.approx(
-        hl.R95_PER_RMS * doc["validation_rms_mm"]["final_model"])
+        R95_PER_RMS * doc["validation_rms_mm"]["final_model"])
 
 
 def test_r95_is_the_95_percent_radius_of_a_circular_normal():
     # per-axis sigma s, RMS (2-D) r = sqrt(2) s, P(|e| < R) = 1 - exp(-R^2 / (2 s^2)) = 0.95
     r = 1.0
     s = r / math.sqrt(2)
-    R = hl.R95_PER_RMS * r
+    R = R95_PER_RMS * r
     assert 1 - math.exp(-R**2 / (2 * s**2)) == pytest.approx(0.95, abs=1e-12)
 
 
@@ -84,24 +84,39 @@ def test_verdict_ready_only_when_the_plan_identifies_everything(doc):
     d.pop("verdict", None)
     d["validation_rms_mm"]["final_model"] = 0.012
     d["residual_rms_mm"]["final_model"] = 0.011
-    v = hl.verdict(d)
-    assert v["status"] == "ready" and "0.021 mm (95 %)" in v["text"]
+    v = judge(d)
+    assert v.status == "ready" and "0.021 mm (95 %)" in v.text
     d["identifiability"]["not_identifiable"] = [
         {"label": "joint_scale(joint 1)", "reason": "x", "fix": "add marks at q1 beyond +-60 deg"}]
-    v = hl.verdict(d)
-    assert v["status"] == "not reliable"
-    assert "joint_scale(joint 1)" in v["text"] and "add marks at q1" in v["text"]
+    v = judge(d)
+    assert v.status == "not reliable"
+    assert "joint_scale(joint 1)" in v.text and "add marks at q1" in v.text
     d["identifiability"]["not_identifiable"] = []
     d["identifiability"]["rank"] = 5
-    assert hl.verdict(d)["status"] == "not reliable"
+    assert judge(d).status == "not reliable"
     d["identifiability"]["rank"] = 6
     d["validation_rms_mm"]["final_model"] = 0.05      # 4.5 x the fitted RMS
-    assert hl.verdict(d)["status"] == "check"
+    assert judge(d).status == "check"
     d["validation_rms_mm"]["final_model"] = 0.012
     for m in d["marks"].values():         # marks without a measured noise: no floor known
         m.pop("sigma_mm")
-    v = hl.verdict(d)
-    assert v["status"] == "check" and "noise floor" in v["text"]
+    v = judge(d)
+    assert v.status == "check" and "noise floor" in v.text
+
+
+def test_the_report_reads_the_verdict_block_and_never_judges(doc):
+    """The headline's verdict is calibration.json's block, sentence included, whatever
+    the rest of the document says; a file without a block is not judged by the report."""
+    d = copy.deepcopy(doc)
+    d["verdict"] = {"status": "ready", "reasons": [], "text": "ready to use: as written"}
+    d["identifiability"]["rank"] = 1        # judge() would say "not reliable"
+    assert hl.verdict(d) == {"status": "ready", "text": "ready to use: as written",
+                             "reasons": [], "residual_over_floor": None}
+    assert hl.verdict({**d, "verdict": {"status": "check", "reasons": ["a", "b"]}})["text"] \
+        == "check: a; b"
+    d.pop("verdict")
+    assert hl.verdict(d)["status"] == "check" and "no verdict" in hl.verdict(d)["text"]
+    assert doc["verdict"]["text"] == Verdict.from_json(doc["verdict"]).text   # the owner's
 
 
 def test_controller_offsets_make_the_nominal_model_true(doc):

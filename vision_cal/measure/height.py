@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
+from scipy.interpolate import RegularGridInterpolator
 
 from vision_cal.errors import VisionCalError
 
@@ -216,8 +217,6 @@ class HeightMap:
 
     def at(self, xy_mm) -> np.ndarray:
         """The map's height (N,) at sheet points (bilinear in the grid)."""
-        from scipy.interpolate import RegularGridInterpolator
-
         f = RegularGridInterpolator((self.y_mm, self.x_mm), self.z_mm, bounds_error=False,
                                     fill_value=None)
         p = np.asarray(xy_mm, float).reshape(-1, 2)
