@@ -157,3 +157,23 @@ def test_mark_rows_flag_held_out_outliers_and_missing(doc):
     assert rows["v99"]["flags"] == ["not measured: not in any usable photo"]
     assert rows[first]["residual_norm_mm"] == pytest.approx(
         math.hypot(*d["marks"][first]["residual_mm"]))
+
+
+def test_joint_residuals_written_by_the_pipeline_explain_the_residuals(doc):
+    """calibration.json's per-mark joint-angle residuals (what the report's joint figure
+    draws, computed by the pipeline): turning the joints by them moves the pen by the
+    mark's residual (to first order: the residuals are a few tenths of a degree)."""
+    import numpy as np
+
+    from vision_cal.kinematics import ScaraParams, forward
+
+    p = ScaraParams.from_json(doc["params"])
+    marks = doc["marks"]
+    assert marks and all("residual_joint_deg" in m for m in marks.values())
+    for m in marks.values():
+        q = np.array([m["joints_deg"]], float)
+        for key, res in (("residual_joint_deg", "residual_mm"),
+                         ("residual_base_joint_deg", "residual_base_mm")):
+            moved = forward(p, q + np.array([m[key]])) - forward(p, q)
+            r = np.asarray(m[res])
+            assert np.hypot(*(moved[0] - r)) < 0.02 * np.hypot(*r) + 1e-6
