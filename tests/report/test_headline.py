@@ -177,3 +177,23 @@ def test_joint_residuals_written_by_the_pipeline_explain_the_residuals(doc):
             moved = forward(p, q + np.array([m[key]])) - forward(p, q)
             r = np.asarray(m[res])
             assert np.hypot(*(moved[0] - r)) < 0.02 * np.hypot(*r) + 1e-6
+
+
+def test_an_older_calibration_json_is_reported_from_what_it_has(doc, tmp_path):
+    """A calibration.json written before the report read only files (no ``dataset``, no
+    joint-angle residuals, a verdict without its sentence): the report says what is not
+    recorded and leaves out what it cannot draw, without recomputing anything."""
+    from vision_cal.report.html import write_report
+
+    d = copy.deepcopy(doc)
+    d.pop("dataset")
+    d["verdict"].pop("text")
+    for m in d["marks"].values():
+        m.pop("residual_joint_deg")
+        m.pop("residual_base_joint_deg")
+    (tmp_path / "calibration.json").write_text(json.dumps(d))
+    page = write_report(tmp_path / "calibration.json").read_text()
+    rep = json.loads((tmp_path / "report.json").read_text())
+    assert "not recorded" in rep["dataset"] and rep["reference"] is None
+    assert rep["headline"]["verdict"]["text"].startswith(d["verdict"]["status"] + ": ")
+    assert "alt='joint residuals'" not in page and "alt='residual field'" in page

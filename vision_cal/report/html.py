@@ -54,12 +54,13 @@ def build_report(calibration_path, *, loop=None, out_dir=None) -> dict:
     meas = _read(cal_path.parent / "measurement.json") if doc.get("images") else None
     dataset = doc.get("dataset") or (meas or {}).get("dataset")
     session = (_read(Path(dataset) / "session.json") if dataset else None) or {}
-    rep = {"format": "vision-cal/report/1", "dataset": str(dataset), "calibration": doc,
+    where = str(dataset) if dataset else "not recorded (an older calibration.json)"
+    rep = {"format": "vision-cal/report/1", "dataset": where, "calibration": doc,
            "reference": session.get("reference")}
     rep["headline"] = headline(doc, loop)
     rep["actions"] = actions(doc, calibration_path=str(cal_path))
     rep["provenance"] = provenance(
-        doc, dataset=str(dataset), out_dir=str(out_dir.resolve()), camera=session.get("camera"),
+        doc, dataset=where, out_dir=str(out_dir.resolve()), camera=session.get("camera"),
         created_utc=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC"))
     rep["marks_table"] = mark_rows(doc, (meas or {}).get("refused"))
     rep["statistics"] = STATISTICS
