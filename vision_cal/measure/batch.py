@@ -12,9 +12,12 @@ Pipeline (``measure_folder``):
 3. per photo: the final mapping (lens + homography) and each dot's centre on the sheet with
    its covariance.
 4. association of dots to plan marks and the combined estimate of each mark
-   (``vision_cal.measure.associate``).
+   (``vision_cal.measure.associate``), then the sheet's height (``vision_cal.measure.height``).
 
-Nothing is ever written into the input folder: results and the cache go to ``out_dir``.
+Each stage is one function (:func:`measure_folder` lists them); what they return are the
+types of :mod:`vision_cal.measure.types`, and ``OUT/measurement.json`` is
+``Measurement.to_json``. Nothing is ever written into the input folder: results and the
+cache go to ``out_dir``.
 """
 
 from __future__ import annotations
