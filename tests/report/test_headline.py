@@ -197,3 +197,14 @@ def test_an_older_calibration_json_is_reported_from_what_it_has(doc, tmp_path):
     assert "not recorded" in rep["dataset"] and rep["reference"] is None
     assert rep["headline"]["verdict"]["text"].startswith(d["verdict"]["status"] + ": ")
     assert "alt='joint residuals'" not in page and "alt='residual field'" in page
+
+
+def test_the_sheet_height_figure_is_drawn_when_the_marks_have_a_grid_difference(doc):
+    """A calibration whose marks were measured against the printed grid gets its sheet
+    figure (it was drawn and thrown away: the report never showed it)."""
+    d = copy.deepcopy(doc)
+    assert plots.sheet_height(d) is None                  # nothing to draw
+    for k, m in enumerate(d["marks"].values()):
+        m["local_minus_global_mm"] = [0.001 * k, -0.002]
+    png = plots.sheet_height(d)
+    assert isinstance(png, bytes) and png.startswith(b"\x89PNG")

@@ -217,6 +217,7 @@ def sheet_height(report: dict) -> bytes | None:
         a.set_aspect("equal")
         a.grid(alpha=0.3)
     axes[0].set_ylabel("sheet y [mm]")
+    return _png(fig)
 
 
 # ------------------------------------------------------------------- the closed loop
