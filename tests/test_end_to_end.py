@@ -73,6 +73,13 @@ def check_base(doc):
 @pytest.mark.parametrize("seed", [12, 13])
 def test_clean_render_claims_nothing(tmp_path, photographer, seed):
     doc, _ = calibrate(tmp_path, scene(seed=seed), photographer)
+    # calibration.json holds each photo's summary; the detail (markers, dots) is
+    # measurement.json's (vision_cal.measure.types: summary_json against to_json)
+    assert doc["images"] and set().union(*doc["images"]) <= {
+        "file", "status", "reason", "n_markers", "corner_rms_px", "corner_rms_mm", "n_dots",
+        "rejected_blobs"}
+    meas = read_json(tmp_path / "out" / "measurement.json")
+    assert all("dots" in im and "markers_px" in im for im in meas["images"])
     assert robot_effects(doc) == []
     assert not any(e["name"] == "lens_distortion" for e in doc["effects"])
     check_base(doc)

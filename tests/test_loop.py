@@ -92,7 +92,7 @@ def test_loop_report_headline_photos_once_and_linked(loop):
 
     out, doc, run = loop
     before = sorted(p.name for p in (out / "session").iterdir())
-    page_path = rh.write_report(run, out / "calibration", loop=doc)
+    page_path = rh.write_report(run.out_path, out / "calibration", loop=out / "loop.json")
     assert sorted(p.name for p in (out / "session").iterdir()) == before
     rep = json.loads((out / "calibration" / "report.json").read_text())
     cal = json.loads(run.out_path.read_text())

@@ -32,6 +32,7 @@ from vision_cal.dataset.csvio import write_plan, write_targets
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import ScaraParams, inverse
+from vision_cal.report_data import loop_trajectories
 from vision_cal.rms import rms
 
 log = logging.getLogger(__name__)
@@ -232,6 +233,7 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
             f"{k} {v:.1f} s" for k, v in stages.items()))
     from vision_cal.report.plots import loop_joints, loop_paths
 
+    doc["trajectories"] = loop_trajectories(doc)   # what the report's Fig. 10 draws
     doc["paths_png"] = base64.b64encode(loop_paths(doc)).decode("ascii")
     doc["joints_png"] = base64.b64encode(loop_joints(doc)).decode("ascii")
     atomic_write_json(out / "loop.json", doc)

@@ -23,6 +23,7 @@ from vision_cal.dataset.session import Session, load_session
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.model import RobotModel
 from vision_cal.plan.uncertainty import covariance_json
+from vision_cal.report_data import add_to_calibration
 from vision_cal.rms import rms_2d
 
 log = logging.getLogger(__name__)
@@ -192,6 +193,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     doc = {"format": "vision-cal/calibration/1", "method": method, "config": config.to_json(),
            **fitted.doc}
     document(doc, session, data, missing, measurement, fitted, truth=truth)
+    add_to_calibration(doc, session)   # what the report draws: it reads only the files
     from vision_cal.calibrate.plausible import check_plausible
 
     check_plausible(doc, session)  # radians, metres: stop before any calibration.json
@@ -416,8 +418,7 @@ def document(doc: dict, session: Session, data: MarkData, missing: list[str], me
     doc["marks"] = marks
     if missing:
         doc["missing_marks"] = missing
-    doc["images"] = ([im.to_json() for im in measurement.images] if measurement is not None
-                     else [])
+    doc["images"] = measurement.images_json() if measurement is not None else []
     targets = _target_errors(session, data)
     if targets:
         doc["targets"] = targets

@@ -14,7 +14,7 @@ import pytest
 from tests.measure import synth_measure as sm
 from vision_cal.dataset.session import Session, load_session
 from vision_cal.errors import VisionCalError
-from vision_cal.measure import batch
+from vision_cal.measure import batch, types
 from vision_cal.measure.batch import _drop_deformed_markers, detect_image_bytes, measure_folder
 
 
@@ -162,13 +162,13 @@ def test_marker_corners_are_found_once_per_photo_and_lens(tmp_path, world, monke
     sm.write_png(src / "a.png", good)
     _write(src, world, ["a.png"])
     calls = []
-    real = batch.corners_from_edges
+    real = types.corners_from_edges
 
     def counting(edges, fallback):
         calls.append(len(edges))
         return real(edges, fallback)
 
-    monkeypatch.setattr(batch, "corners_from_edges", counting)
+    monkeypatch.setattr(types, "corners_from_edges", counting)
     meas = measure_folder(load_session(src), out_dir=tmp_path / "out", jobs=1)
     lenses = 1 + int(meas.lens is not None and meas.lens.kept)
     assert meas.images[0].status == "ok" and len(calls) == lenses

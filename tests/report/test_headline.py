@@ -10,7 +10,7 @@ import math
 import pytest
 
 from vision_cal.commands.main import main
-from vision_cal.diagnose.verdict import judge
+from vision_cal.diagnose.verdict import R95_PER_RMS, Verdict, judge
 from vision_cal.report import headline as hl
 from vision_cal.report import plots
 
@@ -57,14 +57,14 @@ def test_headline_figures_are_calibration_json_figures(out, doc):
     v = judge(d)
     assert v.status == "check" and "5 fitted marks" in v.text
     assert v.expected_target_error_mm == pytest.approx(
-        hl.R95_PER_RMS * doc["validation_rms_mm"]["final_model"])
+        R95_PER_RMS * doc["validation_rms_mm"]["final_model"])
 
 
 def test_r95_is_the_95_percent_radius_of_a_circular_normal():
     # per-axis sigma s, RMS (2-D) r = sqrt(2) s, P(|e| < R) = 1 - exp(-R^2 / (2 s^2)) = 0.95
     r = 1.0
     s = r / math.sqrt(2)
-    R = hl.R95_PER_RMS * r
+    R = R95_PER_RMS * r
     assert 1 - math.exp(-R**2 / (2 * s**2)) == pytest.approx(0.95, abs=1e-12)
 
 
@@ -84,24 +84,39 @@ def test_verdict_ready_only_when_the_plan_identifies_everything(doc):
     d.pop("verdict", None)
     d["validation_rms_mm"]["final_model"] = 0.012
     d["residual_rms_mm"]["final_model"] = 0.011
-    v = hl.verdict(d)
-    assert v["status"] == "ready" and "0.021 mm (95 %)" in v["text"]
+    v = judge(d)
+    assert v.status == "ready" and "0.021 mm (95 %)" in v.text
     d["identifiability"]["not_identifiable"] = [
         {"label": "joint_scale(joint 1)", "reason": "x", "fix": "add marks at q1 beyond +-60 deg"}]
-    v = hl.verdict(d)
-    assert v["status"] == "not reliable"
-    assert "joint_scale(joint 1)" in v["text"] and "add marks at q1" in v["text"]
+    v = judge(d)
+    assert v.status == "not reliable"
+    assert "joint_scale(joint 1)" in v.text and "add marks at q1" in v.text
     d["identifiability"]["not_identifiable"] = []
     d["identifiability"]["rank"] = 5
-    assert hl.verdict(d)["status"] == "not reliable"
+    assert judge(d).status == "not reliable"
     d["identifiability"]["rank"] = 6
     d["validation_rms_mm"]["final_model"] = 0.05      # 4.5 x the fitted RMS
-    assert hl.verdict(d)["status"] == "check"
+    assert judge(d).status == "check"
     d["validation_rms_mm"]["final_model"] = 0.012
     for m in d["marks"].values():         # marks without a measured noise: no floor known
         m.pop("sigma_mm")
-    v = hl.verdict(d)
-    assert v["status"] == "check" and "noise floor" in v["text"]
+    v = judge(d)
+    assert v.status == "check" and "noise floor" in v.text
+
+
+def test_the_report_reads_the_verdict_block_and_never_judges(doc):
+    """The headline's verdict is calibration.json's block, sentence included, whatever
+    the rest of the document says; a file without a block is not judged by the report."""
+    d = copy.deepcopy(doc)
+    d["verdict"] = {"status": "ready", "reasons": [], "text": "ready to use: as written"}
+    d["identifiability"]["rank"] = 1        # judge() would say "not reliable"
+    assert hl.verdict(d) == {"status": "ready", "text": "ready to use: as written",
+                             "reasons": [], "residual_over_floor": None}
+    assert hl.verdict({**d, "verdict": {"status": "check", "reasons": ["a", "b"]}})["text"] \
+        == "check: a; b"
+    d.pop("verdict")
+    assert hl.verdict(d)["status"] == "check" and "no verdict" in hl.verdict(d)["text"]
+    assert doc["verdict"]["text"] == Verdict.from_json(doc["verdict"]).text   # the owner's
 
 
 def test_controller_offsets_make_the_nominal_model_true(doc):
@@ -142,3 +157,54 @@ def test_mark_rows_flag_held_out_outliers_and_missing(doc):
     assert rows["v99"]["flags"] == ["not measured: not in any usable photo"]
     assert rows[first]["residual_norm_mm"] == pytest.approx(
         math.hypot(*d["marks"][first]["residual_mm"]))
+
+
+def test_joint_residuals_written_by_the_pipeline_explain_the_residuals(doc):
+    """calibration.json's per-mark joint-angle residuals (what the report's joint figure
+    draws, computed by the pipeline): turning the joints by them moves the pen by the
+    mark's residual (to first order: the residuals are a few tenths of a degree)."""
+    import numpy as np
+
+    from vision_cal.kinematics import ScaraParams, forward
+
+    p = ScaraParams.from_json(doc["params"])
+    marks = doc["marks"]
+    assert marks and all("residual_joint_deg" in m for m in marks.values())
+    for m in marks.values():
+        q = np.array([m["joints_deg"]], float)
+        for key, res in (("residual_joint_deg", "residual_mm"),
+                         ("residual_base_joint_deg", "residual_base_mm")):
+            moved = forward(p, q + np.array([m[key]])) - forward(p, q)
+            r = np.asarray(m[res])
+            assert np.hypot(*(moved[0] - r)) < 0.02 * np.hypot(*r) + 1e-6
+
+
+def test_an_older_calibration_json_is_reported_from_what_it_has(doc, tmp_path):
+    """A calibration.json written before the report read only files (no ``dataset``, no
+    joint-angle residuals, a verdict without its sentence): the report says what is not
+    recorded and leaves out what it cannot draw, without recomputing anything."""
+    from vision_cal.report.html import write_report
+
+    d = copy.deepcopy(doc)
+    d.pop("dataset")
+    d["verdict"].pop("text")
+    for m in d["marks"].values():
+        m.pop("residual_joint_deg")
+        m.pop("residual_base_joint_deg")
+    (tmp_path / "calibration.json").write_text(json.dumps(d))
+    page = write_report(tmp_path / "calibration.json").read_text()
+    rep = json.loads((tmp_path / "report.json").read_text())
+    assert "not recorded" in rep["dataset"] and rep["reference"] is None
+    assert rep["headline"]["verdict"]["text"].startswith(d["verdict"]["status"] + ": ")
+    assert "alt='joint residuals'" not in page and "alt='residual field'" in page
+
+
+def test_the_sheet_height_figure_is_drawn_when_the_marks_have_a_grid_difference(doc):
+    """A calibration whose marks were measured against the printed grid gets its sheet
+    figure (it was drawn and thrown away: the report never showed it)."""
+    d = copy.deepcopy(doc)
+    assert plots.sheet_height(d) is None                  # nothing to draw
+    for k, m in enumerate(d["marks"].values()):
+        m["local_minus_global_mm"] = [0.001 * k, -0.002]
+    png = plots.sheet_height(d)
+    assert isinstance(png, bytes) and png.startswith(b"\x89PNG")

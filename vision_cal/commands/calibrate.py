@@ -113,7 +113,7 @@ def run(args) -> int:
             from vision_cal.report.html import write_report
 
             try:
-                path = write_report(result, out)
+                path = write_report(result.out_path, out)
             except BaseException:  # Ctrl-C or a failure: both report files or neither
                 for n in ("report.json", "report.html"):
                     (out / n).unlink(missing_ok=True)

@@ -45,7 +45,8 @@ def run(args) -> int:
     if args.report:
         from vision_cal.report.html import write_report
 
-        path = write_report(run, Path(args.out) / "calibration", loop=doc)
+        path = write_report(run.out_path, Path(args.out) / "calibration",
+                            loop=Path(args.out) / "loop.json")
         print(f"report: {path.resolve()} ({path.stat().st_size / 1e6:.1f} MB; the photos it "
               f"links are in {Path(args.out).resolve()})")
     return 0

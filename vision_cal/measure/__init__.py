@@ -11,7 +11,8 @@ Public API (imports are lazy so that ``import vision_cal.measure`` stays light):
 
 Modules: ``aruco`` (markers, sub-pixel edges), ``mapping`` (lens + homography, lens
 estimate), ``dots`` (ink dots and their centres on the sheet), ``associate`` (dots to
-plan mark ids), ``cache`` (per-photo cache), ``batch`` (the pipeline).
+plan mark ids), ``types`` (the measurement's types and their JSON), ``cache`` (per-photo
+cache), ``batch`` (the pipeline).
 """
 
 from __future__ import annotations
@@ -21,10 +22,13 @@ __all__ = ["measure_folder", "measure_image", "Measurement", "MarkMeasurement", 
 
 
 def __getattr__(name):
-    if name in ("measure_folder", "measure_image", "Measurement", "MarkMeasurement",
-                "ImageResult"):
+    # local imports: ``import vision_cal.measure`` stays light (no OpenCV) until one is used
+    if name in ("measure_folder", "measure_image"):
         from vision_cal.measure import batch
         return getattr(batch, name)
+    if name in ("Measurement", "MarkMeasurement", "ImageResult"):
+        from vision_cal.measure import types
+        return getattr(types, name)
     if name == "LensEstimate":
         from vision_cal.measure.mapping import LensEstimate
         return LensEstimate

@@ -12,9 +12,12 @@ Pipeline (``measure_folder``):
 3. per photo: the final mapping (lens + homography) and each dot's centre on the sheet with
    its covariance.
 4. association of dots to plan marks and the combined estimate of each mark
-   (``vision_cal.measure.associate``).
+   (``vision_cal.measure.associate``), then the sheet's height (``vision_cal.measure.height``).
 
-Nothing is ever written into the input folder: results and the cache go to ``out_dir``.
+Each stage is one function (:func:`measure_folder` lists them); what they return are the
+types of :mod:`vision_cal.measure.types`, and ``OUT/measurement.json`` is
+``Measurement.to_json``. Nothing is ever written into the input folder: results and the
+cache go to ``out_dir``.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import hashlib
 import logging
 import os
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from datetime import datetime
 from pathlib import Path
 
@@ -36,241 +39,31 @@ from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.session import Session, load_session
 from vision_cal.errors import VisionCalError
 from vision_cal.measure import associate as assoc
-from vision_cal.measure.aruco import (MIN_MARKERS, corners_from_edges, edge_points,
-                                     find_sheet_markers)
+from vision_cal.measure.aruco import MIN_MARKERS, edge_points, find_sheet_markers
 from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerprint
 from vision_cal.measure.infer import infer_image_marks
 from vision_cal.dataset.marker_geometry import marker_geometry
-from vision_cal.measure.dots import DotCandidates, blank_regions, find_candidates, refine_dot
+from vision_cal.measure.dots import _radii_mm, blank_regions, find_candidates, refine_dot
 from vision_cal.measure.printed import printed_reference
 from vision_cal.measure.rotated import to_main_px, transposed, turned_lens
 from vision_cal.measure.sheetfit import (LENS_CAUSE, MISFIT, corner_tolerance_mm,
                                          misfit_reason)
-from vision_cal.measure.mapping import (LensEstimate, distort_px, estimate_lens, fit_mapping,
-                                       undistort_px)
+from vision_cal.measure.grid import GRID_HALF_MM, grid_offset
+from vision_cal.measure.grid_declaration import misdeclared_grid
+from vision_cal.measure.height import sheet_heights
+from vision_cal.measure.mapping import LensEstimate, estimate_lens, fit_mapping, undistort_px
+from vision_cal.measure.photo_agreement import disagreeing_photos
+from vision_cal.measure.plan_match import check_plan_match
+from vision_cal.measure.workers import exit_with_parent
+from vision_cal.plan.orient import equivalent_joints
+from vision_cal.progress import bar as progress_bar
+from vision_cal.measure.types import (ImageDetections, ImageResult, MarkMeasurement, Measurement,
+                                      dot_field)
 
 log = logging.getLogger(__name__)
 
 IMAGE_SUFFIXES = set(photos.PHOTO_SUFFIXES)
 BLANK_STD = 2.0
-
-
-# --------------------------------------------------------------------------- results
-
-@dataclass(frozen=True)
-class ImageDetections:
-    """Stage-1 result of one photo (cached): markers and dot candidates in raw pixels."""
-
-    file: str
-    status: str
-    reason: str | None = None
-    size_px: tuple[int, int] | None = None
-    marker_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
-    corners_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 2)))
-    corners_mm: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 2)))
-    candidates: DotCandidates | None = None
-    edges_px: np.ndarray | None = None  # (M, 4, n, 2) sub-pixel points on marker edges
-    # with a declared sheet.grid: per candidate a wider uint16 patch of R+G+B around it (the
-    # printed lines that are its local reference) and its top-left (col, row)
-    grid_patches: tuple | None = None
-    grid_origins: np.ndarray | None = None
-
-    def corners_for(self, K=None, dist=None) -> np.ndarray:
-        """Marker corners (M, 4, 2) in raw px: intersections of the border edges, fitted
-        as straight lines in ideal pixels when a lens is given.
-
-        Computed once per lens and kept with the detections (read-only: callers copy
-        before changing it)."""
-        if self.edges_px is None:
-            return self.corners_px
-        memo = self.__dict__.setdefault("_corners_memo", {})   # not a field: replace() drops it
-        key = _lens_key(K, dist)
-        if key not in memo:
-            memo[key] = self._corners_for(K, dist)
-        return memo[key]
-
-    def _corners_for(self, K, dist) -> np.ndarray:
-        if K is None:
-            return corners_from_edges(self.edges_px, self.corners_px)
-        e = undistort_px(self.edges_px.reshape(-1, 2), K, dist).reshape(self.edges_px.shape)
-        c0 = undistort_px(self.corners_px.reshape(-1, 2), K, dist).reshape(-1, 4, 2)
-        c = corners_from_edges(e, c0)
-        return distort_px(c.reshape(-1, 2), K, dist).reshape(-1, 4, 2)
-
-    def with_candidates(self, candidates: DotCandidates) -> "ImageDetections":
-        """The same detections with dot candidates (the corners found so far kept)."""
-        out = replace(self, candidates=candidates)
-        out.__dict__["_corners_memo"] = self.__dict__.get("_corners_memo", {})
-        return out
-
-    def keep_markers(self, keep: np.ndarray) -> "ImageDetections":
-        """The detections of the markers ``keep`` (bool (M,)), corners found so far kept
-        (each marker's corners depend on its own edges only)."""
-        out = replace(self, marker_ids=self.marker_ids[keep], corners_px=self.corners_px[keep],
-                      corners_mm=self.corners_mm[keep],
-                      edges_px=None if self.edges_px is None else self.edges_px[keep])
-        memo = self.__dict__.get("_corners_memo", {})
-        out.__dict__["_corners_memo"] = {k: c[keep] for k, c in memo.items()}
-        return out
-
-
-def _dot_field(im: "ImageResult", name: str, j: int) -> str:
-    """Per-dot text field of a photo's result ("" when absent: older caches)."""
-    v = getattr(im, name, ())
-    return v[j] if j < len(v) else ""
-
-
-def _lens_key(K, dist):
-    if K is None:
-        return None
-    d = np.zeros(0) if dist is None else np.asarray(dist, float)
-    return (np.asarray(K, float).tobytes(), d.tobytes())
-
-
-@dataclass(frozen=True)
-class ImageResult:
-    """One photo measured. ``dots_xy_mm`` (K, 2), ``dots_cov_mm2`` (K, 2, 2), ``dots_uv_px``
-    (K, 2); ``rejected``: reason -> count of blobs that were not taken as pen marks."""
-
-    file: str
-    status: str
-    reason: str | None = None
-    n_markers: int = 0
-    corner_rms_px: float = float("nan")
-    corner_rms_mm: float = float("nan")
-    n_dots: int = 0
-    dots_xy_mm: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    dots_cov_mm2: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
-    dots_uv_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    rejected: dict = field(default_factory=dict)
-    noise_sigma: float = float("nan")
-    size_px: tuple[int, int] | None = None
-    from_cache: bool = False
-    marker_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, int))   # (M,)
-    markers_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 2)))  # (M, 4, 2)
-    # added: the marker-mapping centre of each dot (K, 2), the printed-grid offset seen
-    # around it (K, 2; NaN where the grid was not used) and which reference was used
-    dots_global_xy_mm: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    dots_grid_offset_mm: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    dots_reference: tuple = ()
-    dots_global_cov_mm2: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
-    dots_grid_offset_cov_mm2: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
-    mapping: object | None = field(default=None, repr=False, compare=False)
-    K: np.ndarray | None = None     # the lens used for this photo's mapping (None: unknown)
-    # added: per dot why its centre cannot be trusted ("" when it can) and what is printed
-    # under it ("" for paper and grid lines; vision_cal.measure.printed)
-    dots_unreliable: tuple = ()
-    dots_printed_under: tuple = ()
-
-    def to_json(self) -> dict:
-        """The photo's entry of calibration.json ``images[]``."""
-        d: dict = {"file": self.file, "status": self.status}
-        if self.reason:
-            d["reason"] = self.reason
-        if self.status == "ok":
-            d.update({"n_markers": self.n_markers,
-                      "corner_rms_px": round(float(self.corner_rms_px), 4),
-                      "corner_rms_mm": round(float(self.corner_rms_mm), 5),
-                      "n_dots": self.n_dots})
-            if self.rejected:
-                d["rejected_blobs"] = dict(self.rejected)
-        return d
-
-
-@dataclass(frozen=True)
-class MarkMeasurement:
-    """A pen mark on the sheet: ``xy_mm`` (2,), ``cov_mm2`` (2, 2), seen in ``n_photos``
-    photos whose estimates scatter by ``spread_mm`` (RMS about the mean)."""
-
-    xy_mm: np.ndarray
-    cov_mm2: np.ndarray
-    n_photos: int
-    spread_mm: float
-    how: str = "model"
-    files: tuple[str, ...] = ()
-    reference: str = "markers"          # grid | markers | mixed: what the photos measured against
-    local_minus_global_mm: np.ndarray | None = None   # mean over photos of (grid - markers)
-    local_minus_global_std_mm: np.ndarray | None = None
-    #: "ok", or "unreliable" with ``reason``: every photo's dot of it could not be separated
-    #: from what is printed under it (docs/format.md: left out of the fit)
-    status: str = "ok"
-    reason: str = ""
-    printed_under: str = ""
-
-    @property
-    def std_mm(self) -> np.ndarray:
-        return np.sqrt(np.diag(self.cov_mm2))
-
-
-@dataclass(frozen=True)
-class Measurement:
-    marks: dict
-    images: list
-    lens: LensEstimate | None = None
-    unassigned: list = field(default_factory=list)
-    refused: dict = field(default_factory=dict)
-    warnings: list = field(default_factory=list)
-    #: per photo (``images`` order) the marks on the sheet: listed, or inferred
-    image_marks: tuple = ()
-    #: how they were inferred ("series" | "finished" | "none"), None when listed
-    inferred: str | None = None
-    #: what the inference found odd (a repeated or missing photo, extra dots), one line each
-    inferred_notes: tuple = ()
-
-    def session_images(self) -> list[dict]:
-        """``images`` for session.json: every usable photo and the marks it shows."""
-        return [{"file": im.file, "marks": list(ms)}
-                for im, ms in zip(self.images, self.image_marks) if im.status == "ok"]
-    heights: dict = field(default_factory=dict)     # id -> measure.height.MarkHeight
-    height_map: object | None = None                # measure.height.HeightMap
-    height_note: str | None = None
-
-    def images_json(self) -> list[dict]:
-        return [im.to_json() for im in self.images]
-
-    def effects_json(self) -> list[dict]:
-        out = [self.lens.to_effect_json()] if self.lens is not None and self.lens.kept else []
-        if self.height_map is not None and self.height_map.claimed:
-            out.append(self.height_map.to_effect_json())
-        return out
-
-    def mark_json(self, mid: str) -> dict:
-        """Added per-mark fields: reference, local-minus-global difference, height."""
-        d = mark_reference_json(self.marks[mid])
-        if mid in self.heights:
-            d.update(self.heights[mid].to_json())
-        return d
-
-    def to_json(self) -> dict:
-        return {"marks": {k: {"measured_mm": m.xy_mm.tolist(), "cov_mm2": m.cov_mm2.tolist(),
-                              "n_photos": m.n_photos, "spread_mm": m.spread_mm, "how": m.how,
-                              **self.mark_json(k)}
-                          for k, m in self.marks.items()},
-                "images": self.images_json(), "effects": self.effects_json(),
-                "lens": None if self.lens is None else {
-                    **self.lens.to_effect_json(), "kept": self.lens.kept,
-                    "candidates_heldout_rms_px": self.lens.candidates},
-                "unassigned": self.unassigned, "refused": self.refused,
-                "warnings": self.warnings, "inferred": self.inferred,
-                "inferred_notes": list(self.inferred_notes),
-                "image_marks": [list(m) for m in self.image_marks],
-                "sheet_height": (self.height_map.to_json() if self.height_map is not None
-                                 else {"claimed": False, "note": self.height_note})}
-
-
-def mark_reference_json(m: "MarkMeasurement") -> dict:
-    """Added mark fields: the reference used and the local-versus-global difference (and
-    the contract's ``status`` / ``reason`` of a mark that cannot be trusted, what is printed
-    under it)."""
-    d = {"reference": m.reference}
-    if m.status != "ok":
-        d.update(status=m.status, reason=m.reason)
-    if m.printed_under:
-        d["printed_under"] = m.printed_under
-    if m.local_minus_global_mm is not None:
-        d["local_minus_global_mm"] = [float(v) for v in m.local_minus_global_mm]
-        d["local_minus_global_std_mm"] = [float(v) for v in m.local_minus_global_std_mm]
-    return d
 
 
 # --------------------------------------------------------------------------- stage 1
@@ -371,8 +164,6 @@ def detect_image_bytes(data: bytes, file: str, session: Session) -> ImageDetecti
 
 def _grid_patches(rgb, mapping, uv_px):
     """uint16 R+G+B patches around each candidate wide enough for the local grid window."""
-    from vision_cal.measure.grid import GRID_HALF_MM
-
     H, W = rgb.shape[:2]
     xy = mapping.image_to_sheet(uv_px)
     mmpp = mapping.mm_per_px(xy)
@@ -485,12 +276,9 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
 
 def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank):
     """The printed grid's offset around candidate ``k`` (None: not usable)."""
-    from vision_cal.measure.dots import DEFAULT_DIAMETER_MM, _radii_mm
-    from vision_cal.measure.grid import grid_offset
-
     if k >= len(det.grid_patches):
         return None
-    r_win, _ = _radii_mm(float(dia or DEFAULT_DIAMETER_MM), float(mapping.mm_per_px(xy_mm)[0]))
+    r_win, _ = _radii_mm(float(dia or DEFAULT.dots.default_diameter_mm), float(mapping.mm_per_px(xy_mm)[0]))
     return grid_offset(det.grid_patches[k], det.grid_origins[k], mapping, xy_mm, grid,
                        exclude_r_mm=r_win, blank_rects=blank)
 
@@ -602,8 +390,6 @@ def jobs_for(jobs: int, pixels) -> int:
 
 
 def _pool_initializer(parent_pid: int) -> None:
-    from vision_cal.measure.workers import exit_with_parent
-
     exit_with_parent(parent_pid)
 
 
@@ -617,6 +403,12 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
     ``association``: grouping and matching thresholds (default ``vision_cal.config``).
     Without ``images`` in session.json every photo in the folder is measured and which
     marks each shows is inferred (:mod:`vision_cal.measure.infer`).
+
+    The stages, one function each: :func:`photos_to_measure` (listing and checks),
+    :func:`detect_all` (stage 1, cached, parallel), :func:`lens_of_photos` (stage 2),
+    :func:`finish_all` (mapping and dots per photo), :func:`associate_dots` (stage 3),
+    :func:`mark_measurements`, :func:`sheet_height_stage` (stage 4); measurement.json is
+    written last.
     """
     if not isinstance(session, Session):
         session = load_session(session)
@@ -629,9 +421,42 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
         raise VisionCalError("the output folder must not be inside the input folder "
                              "(photos are never written to)", file=str(out_dir))
     cache = DetectionCache(Path(cache_dir) if cache_dir else out_dir / ".cache")
-    warnings: list[str] = []
-    notes: list[str] = []  # no images list: what the user should see on the console
+    ac = association or DEFAULT.association
 
+    items, warnings, notes = photos_to_measure(session)
+    warnings += detect_all(items, session, cache, jobs=jobs, progress=progress)
+    dets = [ph.det for ph in items]
+    cached = [ph.cached for ph in items]
+    lens, lens_warnings = lens_of_photos(session, dets)
+    warnings += lens_warnings
+    images, finish_warnings = finish_all(session, dets, cached, lens)
+    warnings += finish_warnings
+    files = [ph.file for ph in items]
+    dots = associate_dots(session, items, images, ac)
+    warnings += dots.warnings
+    marks = mark_measurements(dots, images, files, ac)
+    heights, hmap, hnote = sheet_height_stage(session, images, marks, dots, lens, ac)
+    for r in images:
+        if r.status != "ok":
+            log.info("skipped %s: %s", r.file, r.reason)
+    inferred = dots.inferred
+    meas = Measurement(marks, images, lens, dots.unassigned(files), dict(dots.assoc.refused),
+                       warnings, tuple(dots.image_marks),
+                       None if inferred is None else inferred.mode,
+                       () if inferred is None else (*notes, *inferred.warnings),
+                       heights, hmap, hnote, str(root.resolve()))
+    atomic_write_json(out_dir / "measurement.json", meas.to_json())
+    return meas
+
+
+def photos_to_measure(session: Session) -> tuple[list[_Photo], list[str], list[str]]:
+    """The photos to measure, in order (listed in session.json, or found in the folder by
+    capture time), each read once and checked here before any worker sees it; a repeated
+    file is skipped. Returns (photos, warnings, notes: what the console should see when
+    session.json lists no images)."""
+    root = Path(session.root)
+    warnings: list[str] = []
+    notes: list[str] = []
     try:
         present = photos.list_photos(root)
     except OSError as e:
@@ -673,9 +498,16 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
             ph.det = _skip(ph.file, f"repeated photo: the same file as {first_of[ph.sha256]}")
         elif ph.det is None:
             first_of[ph.sha256] = ph.file
-    files = [ph.file for ph in items]
+    return items, warnings, notes
 
-    # stage 1, cached
+
+def detect_all(items: list[_Photo], session: Session, cache: DetectionCache, *,
+               jobs: int | None = None, progress=None) -> list[str]:
+    """Stage 1 of every photo not skipped yet (``ph.det`` filled): from the cache, else in
+    ``jobs`` worker processes (fewer when large photos would not fit
+    :data:`MAX_PIXELS_IN_FLIGHT`), with a progress bar. Returns the warnings."""
+    root = Path(session.root)
+    warnings: list[str] = []
     fp = session_fingerprint(session)
     todo = []
     for i, ph in enumerate(items):
@@ -694,8 +526,6 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                         f"{max(items[i].pixels for i in todo) / 1e6:.0f} MP, at most "
                         f"{MAX_PIXELS_IN_FLIGHT / 1e6:.0f} MP are decoded at once")
     jobs = n_jobs
-    from vision_cal.progress import bar as progress_bar
-
     # the photos found in the folder when session.json lists none: count what is measured
     n_cached = sum(bool(ph.cached) for ph in items)
     bar = progress_bar(progress, total=len(todo) if todo else n_cached,
@@ -726,57 +556,99 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
     finally:
         if bar:
             bar.close()
-    dets = [ph.det for ph in items]
-    cached = [ph.cached for ph in items]
+    return warnings
 
-    # stage 2: the lens
-    lens = None
-    if session.camera is None:
-        ok = [d for d in dets if d.status == "ok"]
-        sizes = sorted({d.size_px for d in ok}, key=lambda s: -sum(x.size_px == s for x in ok))
-        if sizes:
-            size = sizes[0]
-            views = [(d.marker_ids, d.corners_mm, d.corners_for()) for d in ok
-                     if d.size_px == size]
-            turned = [d for d in ok if transposed(d.size_px, size)]
-            if turned:   # the same camera held the other way: one lens, fitted over all
-                best = None
-                for turn in (1, -1):
-                    est = estimate_lens(views + [(d.marker_ids, d.corners_mm,
-                                                  to_main_px(d.corners_for(), size, turn))
-                                                 for d in turned], size)
-                    if est is not None and (best is None or est.rms_px_after < best[0].rms_px_after):
-                        best = (est, turn)
-                lens = None if best is None else replace(best[0], turned=best[1])
-            else:
-                lens = estimate_lens(views, size)
-            rest = [s for s in sizes[1:] if not transposed(s, size)]
-            if rest:
-                warnings.append(f"photos of {len(rest) + 1} image sizes: a lens is estimated "
-                                f"only for {size[0]}x{size[1]} px"
-                                + (" (and the same camera turned)" if turned else ""))
+
+def lens_of_photos(session: Session, dets: list[ImageDetections]
+                   ) -> tuple[LensEstimate | None, list[str]]:
+    """Stage 2: the lens, estimated over the photos of the commonest size (and the same
+    camera turned) when session.json declares no camera. Returns (lens or None, warnings)."""
+    if session.camera is not None:
+        return None, []
+    ok = [d for d in dets if d.status == "ok"]
+    sizes = sorted({d.size_px for d in ok}, key=lambda s: -sum(x.size_px == s for x in ok))
+    if not sizes:
+        return None, []
+    size = sizes[0]
+    views = [(d.marker_ids, d.corners_mm, d.corners_for()) for d in ok if d.size_px == size]
+    turned = [d for d in ok if transposed(d.size_px, size)]
+    if turned:   # the same camera held the other way: one lens, fitted over all
+        best = None
+        for turn in (1, -1):
+            est = estimate_lens(views + [(d.marker_ids, d.corners_mm,
+                                          to_main_px(d.corners_for(), size, turn))
+                                         for d in turned], size)
+            if est is not None and (best is None or est.rms_px_after < best[0].rms_px_after):
+                best = (est, turn)
+        lens = None if best is None else replace(best[0], turned=best[1])
+    else:
+        lens = estimate_lens(views, size)
+    rest = [s for s in sizes[1:] if not transposed(s, size)]
+    warnings = []
+    if rest:
+        warnings.append(f"photos of {len(rest) + 1} image sizes: a lens is estimated "
+                        f"only for {size[0]}x{size[1]} px"
+                        + (" (and the same camera turned)" if turned else ""))
+    return lens, warnings
+
+
+def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool],
+               lens: LensEstimate | None) -> tuple[list[ImageResult], list[str]]:
+    """Every photo's final mapping and dots (:func:`finish_image`); the sheet's declaration
+    checked (markers that do not fit it stop the run, a misdeclared grid is dropped: the
+    markers win) and a photo moved as a whole against the others left out. Returns
+    (images, warnings)."""
+    warnings: list[str] = []
     images = [finish_image(d, session, lens, from_cache=c) for d, c in zip(dets, cached)]
     _check_sheet_fits(session, images)
-    from vision_cal.measure.grid_declaration import misdeclared_grid
-
     wrong_grid = misdeclared_grid(images, session.sheet.grid_spec)
     if wrong_grid is not None:   # two references disagree by a constant: the markers win
         log.warning(wrong_grid.message)
         warnings.append(wrong_grid.message)
         session = replace(session, sheet=replace(session.sheet, grid=None))
         images = [finish_image(d, session, lens, from_cache=c) for d, c in zip(dets, cached)]
-
     # a photo moved as a whole against the others is left out, not the marks it shares
-    from vision_cal.measure.photo_agreement import disagreeing_photos
-
     for k, why in disagreeing_photos(images).items():
         log.warning("%s: %s", images[k].file, why)
         warnings.append(f"{images[k].file}: {why}")
         images[k] = replace(images[k], status="skipped", reason=why)
-    # stage 3: association
+    return images, warnings
+
+
+@dataclass(frozen=True)
+class AssociatedDots:
+    """Stage 3's result: the dot groups across photos, which mark each group is
+    (``assoc``: :class:`vision_cal.measure.associate` result), which marks each photo
+    shows, and how they were inferred (None when session.json lists them)."""
+
+    groups: list
+    assoc: object
+    image_marks: list
+    inferred: object | None
+    warnings: list
+
+    def unassigned(self, files: list[str]) -> list[dict]:
+        """The dot groups no mark took: mean position and the photos they are on."""
+        used = set(self.assoc.mark_to_group.values())
+        return [{"xy_mm": g.mean_mm.tolist(), "files": [files[k] for k in g.images]}
+                for gi, g in enumerate(self.groups) if gi not in used]
+
+    def members(self, mid: str) -> list[tuple[int, int]]:
+        """(photo index, dot index) of each dot of mark ``mid``."""
+        g = self.groups[self.assoc.mark_to_group[mid]]
+        return list(zip(g.images, g.dot_index))
+
+
+def associate_dots(session: Session, items: list[_Photo], images: list[ImageResult],
+                   ac: AssociationConfig) -> AssociatedDots:
+    """Stage 3: dots grouped across photos and the groups matched to the planned marks
+    (which marks a photo shows: listed, or inferred); photos that do not match the plan
+    stop the run (:mod:`vision_cal.measure.plan_match`). Each photo's ``dots_mark`` is set
+    in ``images``."""
+    warnings: list[str] = []
+    files = [ph.file for ph in items]
     idx_ok = [i for i, r in enumerate(images) if r.status == "ok"]
     per_image = [(i, images[i].dots_xy_mm, images[i].dots_cov_mm2) for i in idx_ok]
-    ac = association or DEFAULT.association
     dia = session.pen_mark_diameter_mm or DEFAULT.dots.default_diameter_mm
     groups = assoc.group_dots(per_image, tol_mm=max(ac.group_tol_diameters * dia,
                                                     ac.group_tol_min_mm))
@@ -795,8 +667,6 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
     mark_images = [{i for i in idx_ok if m.id in image_marks[i]} for m in session.marks]
     q_assoc = session.joints_deg
     if session.uses_joint4 and session.robot.tool_mm is not None:   # an off-axis tool (#21)
-        from vision_cal.plan.orient import equivalent_joints
-
         eq = equivalent_joints(session.robot.params, session.robot.tool_mm, q_assoc,
                                session.j4_deg)
         q_assoc = np.where(np.isfinite(eq), eq, q_assoc)
@@ -804,24 +674,43 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                         session.robot.params, max_zero_deg=ac.max_zero_deg,
                         max_base_mm=ac.max_base_mm)
     warnings.extend(a.warnings)
-    from vision_cal.measure.plan_match import check_plan_match
-
     check_plan_match(session.path, files, images, image_marks, len(groups), len(a.mark_to_group))
-    marks = {}
-    used = set()
+    dot_mark = [[""] * len(im.dots_xy_mm) for im in images]
     for mid, gi in a.mark_to_group.items():
-        g = groups[gi]
-        used.add(gi)
-        why = [_dot_field(images[k], "dots_unreliable", j) for k, j in zip(g.images, g.dot_index)]
+        for k, j in zip(groups[gi].images, groups[gi].dot_index):
+            dot_mark[k][j] = mid
+    for k, im in enumerate(images):
+        if im.status == "ok":
+            images[k] = replace(im, dots_mark=tuple(dot_mark[k]))
+    return AssociatedDots(groups, a, image_marks, inferred, warnings)
+
+
+def _without_flagged(g, images: list[ImageResult]):
+    """The group without the dots that could not be separated from the print under them
+    (all of it when none or every dot is flagged)."""
+    keep = [i for i, (k, j) in enumerate(zip(g.images, g.dot_index))
+            if not dot_field(images[k], "dots_unreliable", j)]
+    if not keep or len(keep) == len(g.images):
+        return g
+    return assoc.DotGroup(g.xy_mm[keep], g.cov_mm2[keep], tuple(g.images[i] for i in keep),
+                          tuple(g.dot_index[i] for i in keep))
+
+
+def mark_measurements(dots: AssociatedDots, images: list[ImageResult], files: list[str],
+                      ac: AssociationConfig) -> dict[str, MarkMeasurement]:
+    """Each associated mark combined over its photos (id -> :class:`MarkMeasurement`):
+    "unreliable" when every photo's dot of it was, else measured without the flagged ones;
+    the reference (grid, markers or mixed) and the local-minus-global difference."""
+    marks = {}
+    for mid, gi in dots.assoc.mark_to_group.items():
+        g = dots.groups[gi]
+        why = [dot_field(images[k], "dots_unreliable", j) for k, j in zip(g.images, g.dot_index)]
         status, reason = "ok", ""
         if all(why):
             status, reason = "unreliable", why[0]
-        elif any(why):   # measured without the photos whose dot could not be separated
-            keep = [i for i, w in enumerate(why) if not w]
-            g = assoc.DotGroup(g.xy_mm[keep], g.cov_mm2[keep],
-                               tuple(g.images[i] for i in keep),
-                               tuple(g.dot_index[i] for i in keep))
-        under = next((u for u in (_dot_field(images[k], "dots_printed_under", j)
+        else:   # measured without the photos whose dot could not be separated
+            g = _without_flagged(g, images)
+        under = next((u for u in (dot_field(images[k], "dots_printed_under", j)
                                   for k, j in zip(g.images, g.dot_index)) if u), "")
         xy, cov, spread = assoc.combine(g, common_fraction=ac.common_fraction)
         refs = [images[k].dots_reference[j] for k, j in zip(g.images, g.dot_index)]
@@ -833,18 +722,21 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
             lmg = -offs.mean(axis=0)
             lmg_sd = (offs.std(axis=0, ddof=1) / np.sqrt(len(offs)) if len(offs) > 1
                       else np.full(2, np.nan))
-        marks[mid] = MarkMeasurement(xy, cov, len(g.images), spread, a.how.get(mid, "model"),
+        marks[mid] = MarkMeasurement(xy, cov, len(g.images), spread,
+                                     dots.assoc.how.get(mid, "model"),
                                      tuple(files[k] for k in g.images), ref,
                                      lmg, lmg_sd, status, reason, under)
-    unassigned = [{"xy_mm": g.mean_mm.tolist(),
-                   "files": [files[k] for k in g.images]}
-                  for gi, g in enumerate(groups) if gi not in used]
-    refused = {k: v for k, v in a.refused.items()}
-    # stage 4: the sheet's height (parallax against the grid or between camera places)
-    from vision_cal.measure.height import sheet_heights
+    return marks
 
-    groups_of = {mid: list(zip(groups[gi].images, groups[gi].dot_index))
-                 for mid, gi in a.mark_to_group.items()}
+
+def sheet_height_stage(session: Session, images: list[ImageResult], marks: dict,
+                       dots: AssociatedDots, lens: LensEstimate | None, ac: AssociationConfig):
+    """Stage 4: the sheet's height (parallax against the grid or between camera places).
+    A paper that is not flat moves the marks seen through the marker mapping alone to the
+    position parallax found; a flat one puts the grid-referenced marks back on the marker
+    mapping (the line phase adds its own few micrometres; the grid's difference stays
+    reported). ``marks`` is updated; returns (heights, height map or None, note or None)."""
+    groups_of = {mid: dots.members(mid) for mid in dots.assoc.mark_to_group}
     heights, hmap, hnote = {}, None, None
     try:
         heights, hmap, hnote = sheet_heights(images, marks, groups_of, session.sheet.extent_mm,
@@ -852,27 +744,17 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
     except (VisionCalError, np.linalg.LinAlgError) as e:
         hnote = f"no height map: {e}"
     if hmap is not None and hmap.claimed:
-        # the paper is not flat: marks seen only through the marker mapping take the paper
-        # position that parallax between camera places found
         for mid, h in heights.items():
             mm = marks[mid]
             if mm.reference == "markers" and h.xy_mm is not None:
                 marks[mid] = replace(mm, xy_mm=h.xy_mm, cov_mm2=h.cov_xy_mm2,
                                      reference="parallax")
     elif heights:
-        # flat within what the grid and the views can see: the marker mapping is then the
-        # better reference (the line phase adds its own few micrometres); the grid's
-        # difference stays reported
-        for mid, gi in a.mark_to_group.items():
-            mm, g = marks[mid], groups[gi]
+        for mid, gi in dots.assoc.mark_to_group.items():
+            mm = marks[mid]
             if mm.reference == "markers":
                 continue
-            keep = [i for i, (k, j) in enumerate(zip(g.images, g.dot_index))
-                    if not _dot_field(images[k], "dots_unreliable", j)]
-            if keep and len(keep) < len(g.images):   # as above: without the flagged dots
-                g = assoc.DotGroup(g.xy_mm[keep], g.cov_mm2[keep],
-                                   tuple(g.images[i] for i in keep),
-                                   tuple(g.dot_index[i] for i in keep))
+            g = _without_flagged(dots.groups[gi], images)
             gg = assoc.DotGroup(
                 np.array([images[k].dots_global_xy_mm[j] for k, j in zip(g.images, g.dot_index)]),
                 np.array([images[k].dots_global_cov_mm2[j]
@@ -880,12 +762,4 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
             xy, cov, spread = assoc.combine(gg, common_fraction=ac.common_fraction)
             marks[mid] = replace(mm, xy_mm=xy, cov_mm2=cov, spread_mm=spread,
                                  reference="markers (sheet flat)")
-    for r in images:
-        if r.status != "ok":
-            log.info("skipped %s: %s", r.file, r.reason)
-    meas = Measurement(marks, images, lens, unassigned, refused, warnings,
-                       tuple(image_marks), None if inferred is None else inferred.mode,
-                       () if inferred is None else (*notes, *inferred.warnings),
-                       heights, hmap, hnote)
-    atomic_write_json(out_dir / "measurement.json", meas.to_json())
-    return meas
+    return heights, hmap, hnote

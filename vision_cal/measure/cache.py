@@ -28,6 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from vision_cal.dataset.io import atomic_write_bytes
+from vision_cal.measure.dots import DotCandidates
+from vision_cal.measure.types import ImageDetections
 
 log = logging.getLogger(__name__)
 
@@ -116,9 +118,6 @@ def _arr(z, name, dtype_kind, shape_tail=None):
 
 def decode_detections(data: bytes, key: str):
     """The ImageDetections of an entry, or raise ``_Bad`` (never runs code)."""
-    from vision_cal.measure.batch import ImageDetections
-    from vision_cal.measure.dots import DotCandidates
-
     try:
         with zipfile.ZipFile(io.BytesIO(data)) as zf:
             if sum(i.file_size for i in zf.infolist()) > MAX_ENTRY_BYTES:

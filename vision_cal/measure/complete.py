@@ -16,12 +16,11 @@ from pathlib import Path
 
 from vision_cal.dataset.session import load_session
 from vision_cal.errors import VisionCalError
+from vision_cal.measure.batch import measure_folder
 
 
 def complete_session(photos_dir, plan_path, *, jobs: int | None = None, progress=None):
     """(session.json document with ``images``, the Measurement)."""
-    from vision_cal.measure.batch import measure_folder
-
     photos_dir = Path(photos_dir)
     if not photos_dir.is_dir():
         raise VisionCalError("not a folder of photos", file=str(photos_dir))

@@ -34,6 +34,7 @@ from scipy.ndimage import maximum_filter1d
 from vision_cal.config import DEFAULT
 from vision_cal.dataset.session import Sheet
 from vision_cal.measure.mapping import SheetMapping
+from vision_cal.measure.printed import BLUR_CANDIDATES_PX
 from vision_cal.dataset.marker_geometry import (marker_boxes_mm, marker_geometry, marker_side_mm,
                                                 quiet_boxes_mm)
 from vision_cal.rms import rms
@@ -471,8 +472,6 @@ def _printed_background(S, origin, mapping: SheetMapping, c, half, step, Sg, bgm
     samples (robust: samples 3.5 robust std off are left out, twice). The blur is the one of
     :data:`vision_cal.measure.printed.BLUR_CANDIDATES_PX` that fits best. ``P`` is the bare
     paper's level (every ``T_c`` = 1). None when the fit cannot be made."""
-    from vision_cal.measure.printed import BLUR_CANDIDATES_PX
-
     best = None
     y = Sg[bgmask].astype(float)
     if len(y) < 20:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from scipy.interpolate import RectBivariateSpline
 
 from vision_cal.dataset.session import SheetGrid
 from vision_cal.measure.mapping import SheetMapping, apply_h
@@ -88,8 +89,6 @@ def _nanmedian0(A: np.ndarray) -> np.ndarray:
 
 def _bicubic(Z: np.ndarray, f: np.ndarray) -> np.ndarray:
     """Z (m, m) sampled at integer lattice points, evaluated at (f[j], f[i]) for all i, j."""
-    from scipy.interpolate import RectBivariateSpline
-
     k = np.arange(Z.shape[0], dtype=float)
     return RectBivariateSpline(k, k, Z, kx=3, ky=3, s=0)(f, f)
 

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
+from scipy.interpolate import RegularGridInterpolator
 
 from vision_cal.errors import VisionCalError
 
@@ -73,7 +74,25 @@ class MarkHeight:
     cov_xy_mm2: np.ndarray | None = None
 
     def to_json(self) -> dict:
+        """The mark's height fields of calibration.json ``marks``."""
         return {"height_mm": self.z_mm, "height_std_mm": self.std_mm, "height_from": self.how}
+
+    def to_full_json(self) -> dict:
+        """Every field (measurement.json ``heights``); :meth:`from_json` reads it back."""
+        return {**self.to_json(), "n": self.n,
+                "xy_mm": None if self.xy_mm is None else np.asarray(self.xy_mm).tolist(),
+                "cov_xy_mm2": (None if self.cov_xy_mm2 is None
+                               else np.asarray(self.cov_xy_mm2).tolist())}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "MarkHeight":
+        def a(k):
+            return None if d.get(k) is None else np.asarray(d[k], float)
+
+        nan = float("nan")
+        return cls(nan if d.get("height_mm") is None else float(d["height_mm"]),
+                   nan if d.get("height_std_mm") is None else float(d["height_std_mm"]),
+                   int(d.get("n", 0)), d.get("height_from", ""), a("xy_mm"), a("cov_xy_mm2"))
 
 
 def _v(p, C):
@@ -198,22 +217,34 @@ class HeightMap:
 
     def at(self, xy_mm) -> np.ndarray:
         """The map's height (N,) at sheet points (bilinear in the grid)."""
-        from scipy.interpolate import RegularGridInterpolator
-
         f = RegularGridInterpolator((self.y_mm, self.x_mm), self.z_mm, bounds_error=False,
                                     fill_value=None)
         p = np.asarray(xy_mm, float).reshape(-1, 2)
         return f(p[:, ::-1])
 
-    def to_json(self) -> dict:
+    def to_json(self, *, decimals: int | None = 5) -> dict:
+        """calibration.json ``diagnosis.sheet_height``: heights to 1e-5 mm (``decimals``;
+        None: as computed, measurement.json)."""
+        def r(a):
+            return (a if decimals is None else np.round(a, decimals)).tolist()
+
         return {"claimed": self.claimed,
                 "grid": {"x_mm": self.x_mm.tolist(), "y_mm": self.y_mm.tolist(),
-                         "z_mm": np.round(self.z_mm, 5).tolist(),
-                         "std_mm": np.round(self.std_mm, 5).tolist()},
+                         "z_mm": r(self.z_mm), "std_mm": r(self.std_mm)},
                 "flat_test": {"chi2": self.chi2, "dof": self.dof, "p_value": self.p_flat},
                 "max_abs_mark_height_mm": self.max_abs_mark_mm,
                 "smoothness": {"length_mm": self.length_mm, "amplitude_mm": self.amplitude_mm},
                 "marks": self.marks}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "HeightMap":
+        """Back from :meth:`to_json`."""
+        g, ft, sm = d["grid"], d["flat_test"], d["smoothness"]
+        return cls(np.asarray(g["x_mm"], float), np.asarray(g["y_mm"], float),
+                   np.asarray(g["z_mm"], float), np.asarray(g["std_mm"], float),
+                   float(sm["length_mm"]), float(sm["amplitude_mm"]), float(ft["chi2"]),
+                   int(ft["dof"]), float(ft["p_value"]), float(d["max_abs_mark_height_mm"]),
+                   bool(d["claimed"]), dict(d.get("marks") or {}))
 
     def to_effect_json(self) -> dict:
         """calibration.json's ``sheet_height`` effect: a grid of heights (mm) and its std."""

@@ -100,6 +100,27 @@ class SheetMapping:
     T_src: np.ndarray | None = field(default=None, repr=False)
     T_dst: np.ndarray | None = field(default=None, repr=False)
 
+    def to_json(self) -> dict:
+        """Every field, as lists (measurement.json); :meth:`from_json` reads it back."""
+        def a(v):
+            return None if v is None else np.asarray(v, float).tolist()
+
+        return {"H_img_sheet": a(self.H_img_sheet), "K": a(self.K), "dist": a(self.dist),
+                "corner_rms_px": float(self.corner_rms_px),
+                "corner_rms_mm": float(self.corner_rms_mm), "n_corners": int(self.n_corners),
+                "cov_g": a(self.cov_g), "T_src": a(self.T_src), "T_dst": a(self.T_dst)}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "SheetMapping":
+        def a(k):
+            return None if d.get(k) is None else np.asarray(d[k], float)
+
+        def f(k):
+            return float("nan") if d.get(k) is None else float(d[k])
+
+        return cls(a("H_img_sheet"), a("K"), a("dist"), f("corner_rms_px"), f("corner_rms_mm"),
+                   int(d.get("n_corners", 0)), a("cov_g"), a("T_src"), a("T_dst"))
+
     @property
     def G_sheet_img(self) -> np.ndarray:
         return np.linalg.inv(self.H_img_sheet)
@@ -240,6 +261,26 @@ class LensEstimate:
                 "heldout_corner_rms_px": {"before": self.cv_rms_px_before,
                                           "after": self.cv_rms_px_after},
                 "n_photos": self.n_photos}
+
+    def to_json(self) -> dict:
+        """measurement.json ``lens``: the effect's fields plus ``kept``, the candidate
+        models' held-out RMS and ``turned``; :meth:`from_json` reads it back."""
+        return {**self.to_effect_json(), "kept": self.kept,
+                "candidates_heldout_rms_px": self.candidates, "turned": self.turned}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "LensEstimate":
+        def f(v):
+            return float("nan") if v is None else float(v)
+
+        px, mm, cv = d["corner_rms_px"], d["corner_rms_mm"], d["heldout_corner_rms_px"]
+        model = str(d["model"])
+        return cls(bool(d["kept"]), model[len("opencv_"):] if model.startswith("opencv_")
+                   else model, np.asarray(d["K"], float), np.asarray(d["coefficients"], float),
+                   tuple(int(v) for v in d["size_px"]), f(px["before"]), f(px["after"]),
+                   f(mm["before"]), f(mm["after"]), f(cv["before"]), f(cv["after"]),
+                   int(d["n_photos"]), dict(d.get("candidates_heldout_rms_px") or {}),
+                   int(d.get("turned", 0)))
 
 
 def _calibrate(views, size_px, flags, f0):

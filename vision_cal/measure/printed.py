@@ -18,6 +18,7 @@ dot's local background is then modelled robustly from the photo alone (``refine_
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -171,8 +172,6 @@ def _kind(p, layout) -> tuple[str, str] | None:
 
 @lru_cache(maxsize=8)
 def _reference_cached(key: str) -> PrintedReference | None:
-    import json
-
     d = json.loads(key)
     pr = d["printed"]
     page = pr.get("page") or {}
@@ -223,8 +222,6 @@ def _reference_cached(key: str) -> PrintedReference | None:
 def printed_reference(sheet: Sheet | None) -> PrintedReference | None:
     """The sheet's own print, when ``sheet.printed`` names this project's generator and the
     layout rebuilt from it matches the declared markers; else None (not described)."""
-    import json
-
     pr = None if sheet is None else sheet.printed
     if not isinstance(pr, dict) or pr.get("generator") != GENERATOR:
         return None

@@ -27,7 +27,7 @@ from xml.sax.saxutils import quoteattr
 import yaml
 
 from vision_cal.dataset.io import atomic_write_text
-from vision_cal.motion import JOINT_LIMITS_DEG
+from vision_cal.dataset.robot import DEFAULT_LIMITS_DEG as JOINT_LIMITS_DEG
 
 EFFECTS_HEADER = """\
 # Effects found by vision-cal that URDF cannot express (see docs/conventions.md).
@@ -139,7 +139,8 @@ def effects_path(urdf) -> Path:
 def export(doc: dict, *, urdf=None, yaml_path=None, limits_deg=None,
            limits4_deg=None) -> list[Path]:
     """``limits_deg``: the URDF's joint limits [[lo, hi], [lo, hi]] (default: the
-    calibration's ``joint_limits_deg``, else :data:`vision_cal.motion.JOINT_LIMITS_DEG`);
+    calibration's ``joint_limits_deg``, else a robot file's default,
+    :data:`vision_cal.dataset.robot.DEFAULT_LIMITS_DEG`);
     ``limits4_deg``: joint 4's [lo, hi] when the URDF has a tool (default
     :data:`JOINT4_LIMITS_DEG`; the robot file's ``joint4_limits_deg`` via ``export --robot``)."""
     written = []

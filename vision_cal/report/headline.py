@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import math
 
-from vision_cal.diagnose.verdict import R95_PER_RMS, verdict_of
-from vision_cal.report.summary import describe_effect
+import vision_cal
+from vision_cal.report.summary import describe_effect, verdict_block
 
 # the effects a controller takes as parameters, and how (the rest need the planner)
 CONTROLLER_SIGN_CONVENTION = (
@@ -75,18 +75,18 @@ def _size(e: dict) -> dict:
 
 def verdict(doc: dict, loop: dict | None = None) -> dict:
     """``{"status": ready | check | not reliable, "text": ..., "expected_r95_mm"}``: the
-    document's own ``verdict`` block (:mod:`vision_cal.diagnose.verdict`), never judged
-    here; the loop's measured figures appended."""
-    v = verdict_of(doc)
+    document's own ``verdict`` block (written by :mod:`vision_cal.diagnose.verdict`), never
+    judged here; the loop's measured figures appended."""
+    v = verdict_block(doc)
     tail = ""
     if loop and loop.get("summary", {}).get("after", {}).get("rms_mm") is not None:
         a = loop["summary"]["after"]
         tail = (f"; measured on {a['n_measured']} targets: RMS {a['rms_mm']:.4f} mm, "
                 f"max {a['max_mm']:.4f} mm")
-    out = {"status": v.status, "text": v.text + tail, "reasons": list(v.reasons),
-           "residual_over_floor": v.residual_over_floor}
-    if v.expected_target_error_mm is not None:
-        out["expected_r95_mm"] = v.expected_target_error_mm
+    out = {"status": v["status"], "text": v["text"] + tail, "reasons": list(v["reasons"]),
+           "residual_over_floor": v.get("residual_over_floor")}
+    if v.get("expected_target_error_mm") is not None:
+        out["expected_r95_mm"] = v["expected_target_error_mm"]
     return out
 
 
@@ -195,33 +195,33 @@ STATISTICS = {
 
 
 def configuration(doc: dict) -> dict:
-    """The thresholds in force: the diagnosis's (from calibration.json) and the
-    measurement's (read from the modules that own them)."""
-    from vision_cal.calibrate import lsq
-    from vision_cal.diagnose import photos
-    from vision_cal.measure import aruco, batch, dots
+    """The thresholds the run used, as calibration.json recorded them (``config``; None
+    for a threshold a file written before it was recorded does not have)."""
+    cfg = doc.get("config") or {}
 
+    def part(name):
+        return cfg.get(name) or {}
+
+    m, d, p = part("markers"), part("dots"), part("per_photo_offsets")
     return {
         "method": doc.get("method"),
         "diagnosis": (doc.get("diagnosis") or {}).get("thresholds"),
-        "per_photo_offsets": {"gate_mm": photos.GATE_MM, "alpha": photos.ALPHA},
-        "fit": {"condition_number_limit": lsq.COND_LIMIT},
+        "per_photo_offsets": {"gate_mm": p.get("gate_mm"), "alpha": p.get("alpha")},
+        "fit": {"condition_number_limit": part("fit").get("condition_number_limit")},
         "measurement": {
-            "min_markers_per_photo": aruco.MIN_MARKERS,
-            "min_marker_hull_fraction": aruco.MIN_HULL_FRACTION,
-            "blank_photo_std": batch.BLANK_STD,
-            "ink_darkening": dots.INK_DARKENING,
-            "dot_area_ratio": [dots.MIN_AREA_RATIO, dots.MAX_AREA_RATIO],
-            "dot_max_aspect": dots.MAX_ASPECT, "dot_min_solidity": dots.MIN_SOLIDITY,
-            "marker_margin_mm": dots.MARKER_MARGIN_MM},
+            "min_markers_per_photo": m.get("min_markers"),
+            "min_marker_hull_fraction": m.get("min_hull_fraction"),
+            "blank_photo_std": m.get("blank_photo_std"),
+            "ink_darkening": d.get("ink_darkening"),
+            "dot_area_ratio": [d.get("min_area_ratio"), d.get("max_area_ratio")],
+            "dot_max_aspect": d.get("max_aspect"), "dot_min_solidity": d.get("min_solidity"),
+            "marker_margin_mm": d.get("marker_margin_mm")},
     }
 
 
 def provenance(doc: dict, *, dataset: str, out_dir: str, camera: dict | None,
                created_utc: str) -> dict:
     """Date, version, input folder, camera/lens, photos used and skipped."""
-    import vision_cal
-
     images = doc.get("images", [])
     lens = next((e for e in doc.get("effects", []) if e["name"] == "lens_distortion"), None)
     if camera:

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vision_cal.dataset.io import read_json
 from vision_cal.errors import VisionCalError
 
 PARAMS = (("L1_mm", "L1_mm", None), ("L2_mm", "L2_mm", None), ("z1_deg", "joint_zero_deg", 0),
@@ -36,8 +37,6 @@ class HistoryRow:
 
 
 def _date(cal_path: Path) -> tuple[str, str]:
-    from vision_cal.dataset.io import read_json
-
     rep = cal_path.with_name("report.json")
     if rep.is_file():
         try:
@@ -62,8 +61,6 @@ def _get(d: dict, key: str, k):
 
 def read_history(folder) -> list[HistoryRow]:
     """Every ``calibration.json`` under ``folder`` (recursively), oldest first."""
-    from vision_cal.dataset.io import read_json
-
     folder = Path(folder)
     if not folder.is_dir():
         raise VisionCalError("not a folder", file=str(folder))
@@ -123,7 +120,7 @@ def history_table(rows: list[HistoryRow]) -> str:
 
 def history_png(rows: list[HistoryRow]) -> bytes:
     """Each parameter against the calibration's date, with +-1 std error bars (PNG)."""
-    import matplotlib
+    import matplotlib   # local: matplotlib is slow to import and only figures need it
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -1,9 +1,12 @@
 """report.json, then report.html rendered from it (one self-contained file).
 
-``build_report(run)`` collects the statistics (the calibration document plus what the
-figures need) into a dict that is written as ``OUT/report.json``;
-``render_html(report)`` makes the HTML from that dict alone, with every figure and photo
-embedded as a data URI so the file opens from disk with no network.
+``build_report(calibration_path)`` collects the statistics into a dict that is written as
+``OUT/report.json``, from the files alone: calibration.json, the measurement.json beside it
+(when the calibration measured photos: marker corners and dots drawn on each photo), the
+dataset's session.json (the published ``reference`` and the declared ``camera``, when it is
+still there) and loop.json (a closed loop's targets). ``render_html(report)`` makes the
+HTML from that dict alone, with every figure and photo embedded as a data URI so the file
+opens from disk with no network.
 """
 
 from __future__ import annotations
@@ -12,12 +15,16 @@ import base64
 import html
 import math
 import os
+from datetime import datetime, timezone
 from pathlib import Path
 
+import cv2
 import numpy as np
 
+from vision_cal.dataset import photos as photo_files
 from vision_cal.dataset.io import atomic_write_json, atomic_write_text, read_json
 from vision_cal.report import plots
+from vision_cal.report.headline import STATISTICS, actions, headline, mark_rows, provenance
 from vision_cal.report.summary import describe_effect
 
 MAX_PHOTOS = 40
@@ -28,57 +35,55 @@ PHOTO_BUDGET_BYTES = 2_000_000
 PHOTO_STEPS = ((1000, 75), (960, 70), (960, 60), (800, 60), (720, 55), (640, 50), (480, 50))
 
 
-def build_report(run, *, loop: dict | None = None, out_dir=None) -> dict:
-    """The report's statistics as a JSON-ready dict.
+def _read(path) -> dict | None:
+    """A JSON file the report may read, or None when it is not there."""
+    return read_json(path) if path is not None and Path(path).is_file() else None
 
-    ``out_dir``: where report.html goes (default: next to calibration.json); photo links
-    are relative to it."""
-    from datetime import datetime, timezone
 
-    from vision_cal.report.headline import (STATISTICS, actions, headline, mark_rows,
-                                            provenance)
+def build_report(calibration_path, *, loop=None, out_dir=None) -> dict:
+    """The report's statistics as a JSON-ready dict, from the written files.
 
-    doc = dict(run.document)
-    out_dir = Path(out_dir) if out_dir is not None else Path(run.out_path).parent
-    rep = {"format": "vision-cal/report/1", "dataset": str(run.session.root), "calibration": doc,
-           "reference": run.session.raw.get("reference")}
+    ``calibration_path``: ``OUT/calibration.json``. ``loop``: loop.json (its path, or its
+    contents). ``out_dir``: where report.html goes (default: next to calibration.json);
+    photo links are relative to it."""
+    cal_path = Path(calibration_path)
+    doc = read_json(cal_path)
+    loop = _read(loop) if isinstance(loop, (str, Path)) else loop
+    out_dir = Path(out_dir) if out_dir is not None else cal_path.parent
+    # the photos measured for this calibration (a folder of marks given in mm has none)
+    meas = _read(cal_path.parent / "measurement.json") if doc.get("images") else None
+    dataset = doc.get("dataset") or (meas or {}).get("dataset")
+    session = (_read(Path(dataset) / "session.json") if dataset else None) or {}
+    where = str(dataset) if dataset else "not recorded (an older calibration.json)"
+    rep = {"format": "vision-cal/report/1", "dataset": where, "calibration": doc,
+           "reference": session.get("reference")}
     rep["headline"] = headline(doc, loop)
-    rep["actions"] = actions(doc, calibration_path=str(run.out_path))
+    rep["actions"] = actions(doc, calibration_path=str(cal_path))
     rep["provenance"] = provenance(
-        doc, dataset=str(Path(run.session.root).resolve()), out_dir=str(out_dir.resolve()),
-        camera=run.session.raw.get("camera"),
+        doc, dataset=where, out_dir=str(out_dir.resolve()), camera=session.get("camera"),
         created_utc=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC"))
-    rep["marks_table"] = mark_rows(doc, getattr(run.measurement, "refused", None))
+    rep["marks_table"] = mark_rows(doc, (meas or {}).get("refused"))
     rep["statistics"] = STATISTICS
-    photos = []
-    if run.measurement is not None:
-        marks = run.measurement.marks
-        mids = list(marks)
-        mxy = np.array([marks[i].xy_mm for i in mids], float).reshape(-1, 2)
-        for im in run.measurement.images:
-            j = im.to_json()
-            path = Path(run.session.root) / j["file"]
-            entry = {"file": j["file"], "path": str(path),
-                     "link": os.path.relpath(path.resolve(), out_dir.resolve()),
-                     "status": j.get("status"), "reason": j.get("reason", ""),
-                     "size_px": None if im.size_px is None else list(im.size_px)}
-            ids = getattr(im, "marker_ids", np.zeros(0))
-            corners = getattr(im, "markers_px", np.zeros((0, 4, 2)))
-            entry["markers_px"] = [[int(i), np.asarray(c).tolist()] for i, c in zip(ids, corners)]
-            dots = []
-            for xy, uv in zip(im.dots_xy_mm, im.dots_uv_px):
-                name = None
-                if len(mxy):
-                    d = np.hypot(*(mxy - xy).T)
-                    k = int(np.argmin(d))
-                    name = mids[k] if d[k] < 0.5 else None
-                dots.append([name, float(uv[0]), float(uv[1])])
-            entry["dots_px"] = dots
-            photos.append(entry)
-    rep["photos"] = photos
+    rep["photos"] = [_photo_entry(im, dataset, out_dir) for im in (meas or {}).get("images", [])]
     if loop:
         rep["loop"] = loop
     return rep
+
+
+def _photo_entry(im: dict, dataset, out_dir: Path) -> dict:
+    """A photo of measurement.json ``images[]`` as the report draws it: where it is, its
+    markers (id, corners in px) and its dots (the mark each was taken for, px)."""
+    path = Path(dataset) / im["file"]
+    dots = im.get("dots") or {}
+    names = dots.get("mark") or []
+    return {"file": im["file"], "path": str(path),
+            "link": os.path.relpath(path.resolve(), out_dir.resolve()),
+            "status": im.get("status"), "reason": im.get("reason") or "",
+            "size_px": im.get("size_px"),
+            "markers_px": [[int(i), c] for i, c in zip(im.get("marker_ids") or [],
+                                                        im.get("markers_px") or [])],
+            "dots_px": [[(names[k] or None) if k < len(names) else None, float(uv[0]),
+                         float(uv[1])] for k, uv in enumerate(dots.get("uv_px") or [])]}
 
 
 def _plain(v):
@@ -93,10 +98,11 @@ def _plain(v):
     return v
 
 
-def write_report(run, out_dir, *, loop: dict | None = None) -> Path:
-    """Write OUT/report.json, then OUT/report.html from it; returns the HTML path."""
-    out_dir = Path(out_dir)
-    rep = build_report(run, loop=loop, out_dir=out_dir)
+def write_report(calibration_path, out_dir=None, *, loop=None) -> Path:
+    """Write OUT/report.json, then OUT/report.html from it (``out_dir``: default the folder
+    of calibration.json); returns the HTML path. ``loop``: loop.json, path or contents."""
+    out_dir = Path(out_dir) if out_dir is not None else Path(calibration_path).parent
+    rep = build_report(calibration_path, loop=loop, out_dir=out_dir)
     jpath = atomic_write_json(out_dir / "report.json", rep)
     return atomic_write_text(out_dir / "report.html", render_html(read_json(jpath)))
 
@@ -135,15 +141,11 @@ def _table(head, rows, *, sortable: bool = False, tid: str | None = None) -> str
 def _photo_overlay(p: dict, budget_bytes: int = PHOTO_BUDGET_BYTES) -> str | None:
     """The photo with its detections drawn, downscaled to fit ``budget_bytes`` (base64
     included), as a JPEG URI."""
-    import cv2
-
-    from vision_cal.dataset import photos
-
     path = Path(p["path"])
     try:  # the same reader and frame as the measurement (no FIFO, no bomb, EXIF turn)
-        img = photos.decode_as_measured(photos.read_photo(path.parent, path.name),
-                                        p.get("size_px"))
-    except photos.PhotoRefused:
+        img = photo_files.decode_as_measured(photo_files.read_photo(path.parent, path.name),
+                                             p.get("size_px"))
+    except photo_files.PhotoRefused:
         return None
     if img is None:
         return None
@@ -426,7 +428,7 @@ def render_html(rep: dict) -> str:
     # figures
     parts.append("<h2>Residuals</h2>")
     parts.append(f"<img class=fig alt='residual field' src='{_uri(plots.residual_field(doc))}'>")
-    if all("joints_deg" in m for m in doc.get("marks", {}).values()):
+    if any("residual_joint_deg" in m for m in doc.get("marks", {}).values()):
         parts.append(f"<img class=fig alt='joint residuals' "
                      f"src='{_uri(plots.joint_residuals(doc))}'>")
     sh = plots.sheet_height(doc)

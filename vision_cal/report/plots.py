@@ -8,6 +8,7 @@ import numpy as np
 
 
 def _plt():
+    # local: matplotlib is slow to import (and its backend must be set before pyplot is)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -88,17 +89,17 @@ def _mm(x) -> str:
 
 
 def joint_residuals(report: dict) -> bytes:
-    """Residuals as joint-angle errors against each joint angle, split by approach."""
+    """Residuals as joint-angle errors against each joint angle, split by approach: the
+    marks' ``residual_base_joint_deg`` / ``residual_joint_deg`` (calibration.json, computed
+    by the pipeline: :mod:`vision_cal.report_data`)."""
     plt = _plt()
-    from vision_cal.diagnose.candidates import joint_residuals_deg
-    from vision_cal.kinematics import ScaraParams
-    from vision_cal.model import RobotModel
-
+    m = report["marks"]
     ids, xy, rb, rf, q, s, _ = _marks(report)
-    model = RobotModel(ScaraParams.from_json(report["params"]))
     fig, axes = plt.subplots(2, 2, figsize=(11, 6.5), layout="constrained")
-    for row, (r, title) in enumerate(((rb, "base model"), (rf, "final model"))):
-        dq = joint_residuals_deg(model, q, s, r) * 1000.0
+    for row, (key, title) in enumerate((("residual_base_joint_deg", "base model"),
+                                        ("residual_joint_deg", "final model"))):
+        dq = np.array([m[i].get(key) or [np.nan, np.nan] for i in ids],
+                      float).reshape(-1, 2) * 1000.0
         for j in range(2):
             ax = axes[row, j]
             for sign, color, lab in ((1, "tab:blue", "approach +"), (-1, "tab:orange",
@@ -216,6 +217,7 @@ def sheet_height(report: dict) -> bytes | None:
         a.set_aspect("equal")
         a.grid(alpha=0.3)
     axes[0].set_ylabel("sheet y [mm]")
+    return _png(fig)
 
 
 # ------------------------------------------------------------------- the closed loop
@@ -245,27 +247,22 @@ def loop_paths(loop: dict) -> bytes:
 
 def loop_joints(loop: dict) -> bytes:
     """Joint reference trajectories of the planned targets before and after (paper
-    Fig. 10), from loop.json's planned joints, starting at its ``home_deg``."""
-    from vision_cal.motion import TRAJECTORY_DT_S
-    from vision_cal.plan.compensate import PlannedTarget, to_planned_marks
-    from vision_cal.plan.trajectory import plan_trajectory
-
+    Fig. 10), from loop.json's ``trajectories`` (planned by the loop from ``home_deg``:
+    :func:`vision_cal.report_data.loop_trajectories`)."""
     plt = _plt()
     fig, axes = plt.subplots(2, 1, figsize=(9, 6), layout="constrained", sharex=True)
-    home = loop.get("home_deg", (0.0, 0.0))
+    tr = loop.get("trajectories") or {}
     for name, style in (("before", "--"), ("after", "-")):
-        planned = [PlannedTarget(r["id"], tuple(r["target_mm"]), tuple(r[name]["q_deg"]),
-                                 tuple(int(s) for s in r[name]["approach"]))
-                   for r in loop["targets"] if "q_deg" in r[name]]
-        if not planned:
+        if name not in tr:
             continue
-        tr = plan_trajectory(to_planned_marks(planned), home_deg=home)
+        t = np.asarray(tr[name]["t_s"], float)
+        q = np.asarray(tr[name]["q_deg"], float).reshape(-1, 2)
         for j in range(2):
-            axes[j].plot(tr.t_s, tr.q_deg[:, j], style, lw=1, label=f"{name} calibration")
+            axes[j].plot(t, q[:, j], style, lw=1, label=f"{name} calibration")
     for j in range(2):
         axes[j].set_ylabel(f"joint {j + 1} reference [deg]")
         axes[j].grid(alpha=0.3)
         axes[j].legend()
-    axes[1].set_xlabel(f"time [s] (samples every {TRAJECTORY_DT_S} s)")
+    axes[1].set_xlabel(f"time [s] (samples every {tr.get('dt_s')} s)")
     axes[0].set_title("joint reference trajectories before and after (paper Fig. 10)")
     return _png(fig)

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 import math
+
+import numpy as np
 
 
 def _f(x, nd=3) -> str:
@@ -91,12 +91,10 @@ def format_summary(doc: dict, *, reference: dict | None = None) -> str:
         for im in skipped:
             lines.append(f"  {im['file']}: {im.get('reason', '')}")
     if doc.get("residual_rms_mm"):
-        from vision_cal.diagnose.verdict import verdict_of
-
-        v = verdict_of(doc)
-        if v.floor_line:
-            lines.append(v.floor_line)
-        lines.append(v.text)
+        v = verdict_block(doc)
+        if v.get("floor_line"):
+            lines.append(v["floor_line"])
+        lines.append(v["text"])
     tc = doc.get("truth_comparison")
     if tc:
         lines.append("against truth.json: dL1 {} dL2 {} mm, dz1 {} dz2 {} deg, dbase {} {} mm".format(
@@ -105,6 +103,26 @@ def format_summary(doc: dict, *, reference: dict | None = None) -> str:
         if "mark_rms_mm" in tc:
             lines.append(f"  mark position RMS error against truth: {_f(tc['mark_rms_mm'], 4)} mm")
     return "\n".join(lines)
+
+
+#: what a calibration.json without a verdict block (written before verdicts) is shown as
+NO_VERDICT = "this calibration.json has no verdict (written by an older version)"
+
+
+def verdict_block(doc: dict) -> dict:
+    """calibration.json's ``verdict`` (status, reasons, ``text``, ``floor_line``: the
+    sentences :mod:`vision_cal.diagnose.verdict` wrote), read and never judged here; an older
+    file's block without its ``text`` shows status and reasons, a file without a block
+    :data:`NO_VERDICT`."""
+    v = doc.get("verdict")
+    if not isinstance(v, dict) or "status" not in v:
+        return {"status": "check", "text": f"check before use: {NO_VERDICT}",
+                "reasons": [NO_VERDICT]}
+    v = dict(v)
+    v.setdefault("reasons", [])
+    if not v.get("text"):
+        v["text"] = v["status"] + (": " + "; ".join(v["reasons"]) if v["reasons"] else "")
+    return v
 
 
 def describe_effect(e: dict, *, evidence: bool = True) -> str:

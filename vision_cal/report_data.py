@@ -1,0 +1,77 @@
+"""What the report draws that needs the estimator, computed once here and written into the
+files the report reads (``vision_cal.report`` imports nothing of the estimator: it renders
+calibration.json, measurement.json and loop.json).
+
+- :func:`add_to_calibration` (called by :func:`vision_cal.pipeline.calibrate_dataset` before
+  calibration.json is written): the input folder (``dataset``), each fitted mark's residual
+  as joint-angle errors under the base and the final model (``residual_base_joint_deg``,
+  ``residual_joint_deg``: :func:`vision_cal.diagnose.candidates.joint_residuals_deg` with
+  the final parameters), and the verdict's sentences (``verdict.text``,
+  ``verdict.floor_line``: :class:`vision_cal.diagnose.verdict.Verdict`, the one owner).
+- :func:`loop_trajectories` (called by :func:`vision_cal.loop.run_loop` before loop.json is
+  written): the joint reference trajectories of the targets planned before and after
+  (:func:`vision_cal.plan.trajectory.plan_trajectory`), loop.json ``trajectories``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from vision_cal.diagnose.candidates import joint_residuals_deg
+from vision_cal.diagnose.verdict import Verdict
+from vision_cal.kinematics import ScaraParams
+from vision_cal.model import RobotModel
+from vision_cal.motion import TRAJECTORY_DT_S
+from vision_cal.plan.compensate import PlannedTarget, to_planned_marks
+from vision_cal.plan.trajectory import plan_trajectory
+
+
+def add_to_calibration(doc: dict, session) -> None:
+    """The report's fields of calibration.json, into ``doc`` (see the module docstring)."""
+    doc["dataset"] = str(Path(session.root).resolve())
+    for mid, extra in joint_residuals(doc).items():
+        doc["marks"][mid].update(extra)
+    v = doc.get("verdict")
+    if isinstance(v, dict) and "status" in v:
+        verdict = Verdict.from_json(v)
+        v["text"] = verdict.text
+        if verdict.floor_line is not None:
+            v["floor_line"] = verdict.floor_line
+
+
+def joint_residuals(doc: dict) -> dict[str, dict]:
+    """id -> ``residual_joint_deg`` / ``residual_base_joint_deg`` (2,) (None where the arm
+    is straight: no joint error explains a residual there) of every fitted mark, when every
+    mark has its joint angles; the final model's parameters turn both into joint angles."""
+    m = doc.get("marks", {})
+    ids = [i for i in m if m[i].get("status", "ok") == "ok" and "residual_mm" in m[i]]
+    if not ids or not all("joints_deg" in v for v in m.values()):
+        return {}
+    q = np.array([m[i]["joints_deg"] for i in ids], float).reshape(-1, 2)
+    s = np.array([m[i].get("approach", [1, 1]) for i in ids], float).reshape(-1, 2)
+    rf = np.array([m[i]["residual_mm"] for i in ids], float).reshape(-1, 2)
+    rb = np.array([m[i].get("residual_base_mm", m[i]["residual_mm"]) for i in ids],
+                  float).reshape(-1, 2)
+    model = RobotModel(ScaraParams.from_json(doc["params"]))
+    db, df = joint_residuals_deg(model, q, s, rb), joint_residuals_deg(model, q, s, rf)
+    return {i: {"residual_base_joint_deg": db[k].tolist(), "residual_joint_deg": df[k].tolist()}
+            for k, i in enumerate(ids)}
+
+
+def loop_trajectories(loop: dict) -> dict:
+    """loop.json ``trajectories``: ``dt_s`` and, for ``before`` / ``after``, ``t_s`` (K,)
+    and ``q_deg`` (K, 2) of the targets planned with that model, from ``home_deg``."""
+    home = loop.get("home_deg", (0.0, 0.0))
+    out: dict = {"dt_s": TRAJECTORY_DT_S}
+    for name in ("before", "after"):
+        planned = [PlannedTarget(r["id"], tuple(r["target_mm"]), tuple(r[name]["q_deg"]),
+                                 tuple(int(s) for s in r[name]["approach"]))
+                   for r in loop["targets"] if "q_deg" in r[name]]
+        if not planned:
+            continue
+        tr = plan_trajectory(to_planned_marks(planned), home_deg=home)
+        out[name] = {"t_s": np.asarray(tr.t_s, float).tolist(),
+                     "q_deg": np.asarray(tr.q_deg, float).tolist()}
+    return out
