@@ -33,7 +33,7 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
-from vision_cal.camera.fixed import homogeneous, lsq_covariance
+from vision_cal.camera.fixed import fit_pose, homogeneous, lsq_covariance
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams, flange_angle_rad, forward
 from vision_cal.rms import rms_2d
@@ -71,6 +71,14 @@ class ArmFit:
     view_rms_px: np.ndarray
     n_corners: int
     pose_rms: dict | None = None     # per-photo flange pose scatter (mm, deg) by component
+    #: the noise floor's inputs (:func:`_floor_terms`): per photo the in-plane residual of
+    #: the flange position (N, 2) mm, the per-axis std the corner noise alone gives it (N,),
+    #: its leave-one-photo-out residual (N, 2) and the parameters those rows consume
+    flange_residual_mm: np.ndarray | None = None
+    flange_sigma_mm: np.ndarray | None = None
+    flange_heldout_mm: np.ndarray | None = None
+    n_params_xy: float = 0.0
+    corner_sigma_px: float = float("nan")
 
     @property
     def std(self) -> np.ndarray:
@@ -79,6 +87,15 @@ class ArmFit:
     @property
     def not_identifiable(self) -> list[str]:
         return [lab for lab, s in zip(LABELS, self.std) if not s < UNIDENTIFIED_STD]
+
+    def high_correlations(self, limit: float = 0.9) -> list[dict]:
+        """Pairs of parameters whose correlation is above ``limit`` in size."""
+        sd = self.std
+        with np.errstate(invalid="ignore", divide="ignore"):
+            c = self.cov / np.outer(sd, sd)
+        return [{"a": LABELS[i], "b": LABELS[j], "r": float(c[i, j])}
+                for i in range(len(LABELS)) for j in range(i + 1, len(LABELS))
+                if np.isfinite(c[i, j]) and abs(c[i, j]) > limit]
 
     def to_json(self) -> dict:
         sd = self.std
@@ -91,7 +108,9 @@ class ArmFit:
                 "covariance": {"params": list(LABELS), "matrix": self.cov.tolist()},
                 "corner_rms_px": self.rms_px, "n_corners": self.n_corners,
                 "pose_rms": self.pose_rms,
-                "not_identifiable": self.not_identifiable}
+                "not_identifiable": self.not_identifiable,
+                "identifiability": {"n_params": len(LABELS), "labels": list(LABELS),
+                                    "high_correlations": self.high_correlations()}}
 
 
 def T_sheet_flange(params: ScaraParams, q_deg, j4_deg) -> np.ndarray:
@@ -177,11 +196,56 @@ def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams) -> ArmFi
     # residuals are not independent; the flange pose each photo implies, against the
     # model's, is (one 6-vector per photo), with each kind of component's variance found
     # from its own scatter
-    M = np.array([camera_pose(v, K, dist) for v in views])
+    M, C_pnp, sigma_px = _view_poses(views, K, dist)
     x2 = np.concatenate([sol.x[:6], np.zeros(3), sol.x[9:12]])
-    x3, cov, rms_pose = _pose_level_fit(x2, views, M, R0)
+    x3, cov, rms_pose, lev = _pose_level_fit(x2, views, M, R0)
     p, X = _unpack(x3, R0)          # the estimate the covariance belongs to
-    return ArmFit(p, X, cov, rms_2d(r.reshape(-1, 2)), view_rms, n // 2, rms_pose)
+    e = _pose_residuals(x3, views, M, R0)
+    sig = _floor_terms(x3, views, M, C_pnp, R0)
+    held = e[:, :2] / np.clip(1.0 - lev[:, :2], 1e-3, None)
+    return ArmFit(p, X, cov, rms_2d(r.reshape(-1, 2)), view_rms, n // 2, rms_pose,
+                  e[:, :2].copy(), sig, held, float(lev[:, :2].sum()), sigma_px)
+
+
+def _view_poses(views, K, dist) -> tuple[np.ndarray, np.ndarray, float]:
+    """Per photo ``T_sheet_camera`` from its corners alone (N, 4, 4), the covariance (N, 6, 6)
+    of its ``T_camera_sheet`` (rotation vector rad, translation mm) from the corner noise,
+    and that noise (px, per axis): pooled over the photos (each photo's own pose fit
+    leaves the corner noise alone, robot-free), so one photo's few corners do not make
+    its own figure."""
+    T, C, ssr, dof = [], [], 0.0, 0
+    for v in views:
+        T_cs, _, cov, rms = fit_pose(v.corners_mm, v.corners_px, K, dist, free_f=False)
+        n = len(v.corners_mm)
+        s2 = rms**2 * n / max(2 * n - 6, 1)
+        T.append(np.linalg.inv(T_cs))
+        C.append(cov[:6, :6] / max(s2, 1e-30))
+        ssr += rms**2 * n
+        dof += 2 * n - 6
+    s2 = ssr / max(dof, 1)
+    return np.array(T), np.array(C) * s2, float(np.sqrt(s2))
+
+
+def _floor_terms(x, views, M, C_pnp, R0) -> np.ndarray:
+    """(N,) per-axis std of each photo's in-plane flange residual that the corner noise
+    alone gives: its pose covariance ``C_pnp`` carried through the residual (the camera's
+    tilt error times its height above the flange is in it)."""
+    out = np.empty(len(views))
+    for i, v in enumerate(views):
+        T_cs = np.linalg.inv(M[i])
+        p0 = np.concatenate([cv2.Rodrigues(T_cs[:3, :3])[0].ravel(), T_cs[:3, 3]])
+        J = np.empty((2, 6))
+        for k in range(6):
+            step = 1e-6 if k < 3 else 1e-4
+            rows = []
+            for sgn in (1.0, -1.0):
+                pk = p0.copy()
+                pk[k] += sgn * step
+                Mk = np.linalg.inv(homogeneous(cv2.Rodrigues(pk[:3].reshape(3, 1))[0], pk[3:]))
+                rows.append(_pose_residuals(x, [v], Mk[None], R0)[0, :2])
+            J[:, k] = (rows[0] - rows[1]) / (2 * step)
+        out[i] = np.sqrt(max(np.trace(J @ C_pnp[i] @ J.T) / 2.0, 0.0))
+    return out
 
 
 def _pose_residuals(x, views, M, R0) -> np.ndarray:
@@ -204,9 +268,10 @@ def _pose_residuals(x, views, M, R0) -> np.ndarray:
 _GROUPS = ((0, 1), (2,), (3, 4), (5,))
 
 
-def _pose_level_fit(x, views, M, R0) -> tuple[np.ndarray, np.ndarray, dict]:
+def _pose_level_fit(x, views, M, R0) -> tuple[np.ndarray, np.ndarray, dict, np.ndarray]:
     """The parameters refitted on the photo-level residuals with each group's variance as
-    its weight, their covariance (12, 12) and the RMS of each group (mm, deg)."""
+    its weight, their covariance (12, 12), the RMS of each group (mm, deg) and the
+    residuals' leverages (N, 6)."""
     w = np.ones(6)
     n, P = len(views), len(x)
     for _ in range(3):
@@ -228,4 +293,8 @@ def _pose_level_fit(x, views, M, R0) -> tuple[np.ndarray, np.ndarray, dict]:
     rms = {"position_mm": float(np.sqrt(var[0])), "height_mm": float(np.sqrt(var[2])),
            "tilt_deg": float(np.degrees(np.sqrt(var[3]))),
            "turn_deg": float(np.degrees(np.sqrt(var[5])))}
-    return x, cov, rms
+    # leverages (the hat matrix's diagonal, per residual component): the parameters each
+    # row consumes, and a row's leave-one-out residual e / (1 - h)
+    Q, _ = np.linalg.qr(sol.jac / np.maximum(np.linalg.norm(sol.jac, axis=0), 1e-300))
+    lev = np.sum(Q**2, axis=1).reshape(n, 6)
+    return x, cov, rms, lev

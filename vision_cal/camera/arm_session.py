@@ -24,6 +24,7 @@ from vision_cal.dataset.io import read_json
 from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.dataset.photos import PhotoRefused, load_photo, normalise_name
 from vision_cal.dataset.session import FieldReader, read_robot_block, read_sheet_block
+from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.measure.aruco import corners_from_edges, edge_points, find_sheet_markers
@@ -75,7 +76,30 @@ def read_arm_session(folder):
         poses.append((img, np.asarray(q, float), float(j4)))
     nominal = ScaraParams(robot.L1_mm, robot.L2_mm, robot.joint_zero_deg[0],
                           robot.joint_zero_deg[1], robot.base_mm[0], robot.base_mm[1])
-    return folder, sheet, nominal, ((int(size[0]), int(size[1])), K, dist), mount, poses
+    return (folder, sheet, nominal, ((int(size[0]), int(size[1])), K, dist), mount, poses,
+            robot.repeatability_mm)
+
+
+def _reasons(fit, mount: str) -> list[tuple[str, str]]:
+    """(status, sentence) of what the poses leave undetermined."""
+    out = []
+    if fit.not_identifiable:
+        out.append(("not reliable", "the poses do not separate "
+                    + ", ".join(fit.not_identifiable)
+                    + (" from the rest (turn joint 4 between photos: vision-cal design "
+                       "--camera-on-arm)" if mount == "flange" else
+                       " from the rest (a camera on link 2 cannot separate L2 from its own "
+                       "offset along it)")))
+    return out
+
+
+def _pose_table(views, fit) -> list[dict]:
+    """Per photo: its command, the in-plane flange residual and its corner-noise std."""
+    return [{"image": v.file, "joints_deg": [float(a) for a in v.q_deg], "j4_deg": v.j4_deg,
+             "residual_mm": [float(a) for a in r], "sigma_mm": float(s),
+             "heldout_residual_mm": [float(a) for a in h]}
+            for v, r, s, h in zip(views, fit.flange_residual_mm, fit.flange_sigma_mm,
+                                  fit.flange_heldout_mm)]
 
 
 def measure_view(folder, sheet, camera, image: str, q, j4) -> tuple[ArmView | None, dict]:
@@ -102,7 +126,7 @@ def measure_view(folder, sheet, camera, image: str, q, j4) -> tuple[ArmView | No
 def calibrate_arm_camera(folder) -> dict:
     """calibration.json (as a dict) of an arm-camera dataset: the robot's base parameters
     with std and covariance, and the ``cameras`` entry with ``T_flange_camera``."""
-    folder, sheet, nominal, camera, mount, poses = read_arm_session(folder)
+    folder, sheet, nominal, camera, mount, poses, rep = read_arm_session(folder)
     views, images = [], []
     for img, q, j4 in poses:
         v, entry = measure_view(folder, sheet, camera, img, q, j4)
@@ -117,21 +141,20 @@ def calibrate_arm_camera(folder) -> dict:
     d = fit.to_json()
     for entry, v, rms in zip([e for e in images if e["status"] == "ok"], views, fit.view_rms_px):
         entry["corner_rms_px"] = float(rms)
-    reasons = []
-    if fit.not_identifiable:
-        reasons.append("not identified by these poses: " + ", ".join(fit.not_identifiable)
-                       + (" (turn joint 4 between photos: vision-cal design --camera-on-arm)"
-                          if mount == "flange" else
-                          " (a camera on link 2 cannot separate L2 from its own offset)"))
+    verdict = judge_camera_poses(
+        fit.flange_residual_mm, fit.flange_sigma_mm, fit.flange_heldout_mm,
+        n_params=fit.n_params_xy, repeatability_mm=rep, reasons=_reasons(fit, mount))
     cam = {"images": [v.file for v in views], "size_px": list(size), "K": K.tolist(),
            "dist": dist.tolist(), "T_flange_camera": d["T_flange_camera"],
            "mount": mount, "T_flange_camera_std": d["T_flange_camera_std"],
            "corner_rms_px": d["corner_rms_px"], "n_corners": d["n_corners"],
-           "status": "check" if reasons else "ok", "reasons": reasons}
+           "corner_sigma_px": fit.corner_sigma_px}
     return {"format": "vision-cal/calibration/1", "method": "arm_camera",
             "params": d["params"], "std": d["std"], "covariance": d["covariance"],
             "nominal": nominal.to_json(), "effects": [], "cameras": [cam],
             "not_identifiable": d["not_identifiable"], "pose_rms": d["pose_rms"],
+            "identifiability": d["identifiability"],
+            "poses": _pose_table(views, fit), "verdict": verdict.to_json(),
             "images": images,
             "notes": ["robot calibrated from the arm camera's views of the marker field (no "
                       "pen): base model only; joint effects are not looked for in this "
