@@ -11,6 +11,8 @@ import json
 import numpy as np
 import pytest
 
+from vision_cal.camera.arm import camera_for
+from vision_cal.camera.fixed import locate
 from vision_cal.commands.main import main
 from vision_cal.dataset.io import read_json
 from vision_cal.render.arm_camera import render_arm_dataset
@@ -82,3 +84,50 @@ def test_bad_pose_field_one_line_exit_2(arm, tmp_path, capsys):
     assert main(["handeye", str(tmp_path), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "poses[1].joints_deg" in err[0]
+
+
+def _true_robot_frame(p_s):
+    """Sheet points (N, 3) in the true robot frame (the contract: p_S = base + Rot(z1) p_R)."""
+    z1 = np.radians(TRUTH["joint_zero_deg"][0])
+    R = np.array([[np.cos(z1), np.sin(z1)], [-np.sin(z1), np.cos(z1)]])
+    return (p_s[:, :2] - TRUTH["base_mm"]) @ R.T
+
+
+@pytest.mark.parametrize("z_mm", [0.0, 30.0])
+def test_locate_a_pixel_of_an_arm_photo_against_the_truth(arm, z_mm):
+    """True points (at the sheet's plane and raised) projected by a photo's true camera come
+    back to their true robot-frame place through the fitted robot and T_flange_camera at
+    the photo's commanded joints: within 4 std (the robot's repeatability in it) and 0.05 mm."""
+    _, doc, truth = arm
+    photo = doc["poses"][3]["image"]
+    T_cs = np.array(truth["camera"]["T_cam_sheet"][photo])
+    K = np.array(truth["camera"]["K"])
+    rng = np.random.default_rng(4)
+    centre = np.linalg.inv(T_cs)[:2, 3]
+    p_s = np.column_stack([centre + rng.uniform(-40, 40, (30, 2)), np.full(30, z_mm)])
+    pc = p_s @ T_cs[:3, :3].T + T_cs[:3, 3]
+    uv = pc[:, :2] / pc[:, 2:] * K[0, 0] + K[:2, 2]
+    ok = (uv[:, 0] > 0) & (uv[:, 0] < 639) & (uv[:, 1] > 0) & (uv[:, 1] < 479)
+    assert ok.sum() > 10
+    got = locate(camera_for(doc, 0, photo=photo), uv[ok], z_mm)
+    err = np.array([g.robot_mm[:2] for g in got]) - _true_robot_frame(p_s[ok])
+    std = np.array([g.robot_std_mm[:2] for g in got])
+    assert np.all(np.abs(err) < N_STD * std), np.abs(err / std).max()
+    assert np.hypot(*err.T).max() < 0.05
+
+
+def test_locate_cli_takes_the_arm_command(arm, tmp_path, capsys):
+    folder, doc, _ = arm
+    cal = tmp_path / "calibration.json"
+    cal.write_text(json.dumps(doc))
+    pose = doc["poses"][5]
+    (tmp_path / "px.csv").write_text("id,u_px,v_px\na,100,80\nb,500,400\n")
+    q = [str(v) for v in pose["joints_deg"] + [pose["j4_deg"]]]
+    assert main(["locate", str(cal), "--csv", str(tmp_path / "px.csv"), "--joints", *q]) == 0
+    rows = capsys.readouterr().out.strip().splitlines()[1:]
+    want = locate(camera_for(doc, 0, photo=pose["image"]), [[100, 80], [500, 400]], 0.0)
+    for row, w in zip(rows, want):
+        assert np.allclose([float(v) for v in row.split(",")[4:6]], w.robot_mm[:2], atol=1e-4)
+    assert main(["locate", str(cal), "--pixel", "100", "80"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--joints" in err[0]

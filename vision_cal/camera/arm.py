@@ -33,8 +33,9 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
-from vision_cal.camera.fixed import fit_pose, homogeneous, lsq_covariance
-from vision_cal.errors import CalibrationError
+from vision_cal.camera.fixed import (FixedCamera, T_sheet_robot, _delta, camera_of, fit_pose,
+                                     homogeneous, lsq_covariance)
+from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.kinematics import ScaraParams, flange_angle_rad, forward
 from vision_cal.rms import rms_2d
 
@@ -298,3 +299,88 @@ def _pose_level_fit(x, views, M, R0) -> tuple[np.ndarray, np.ndarray, dict, np.n
     Q, _ = np.linalg.qr(sol.jac / np.maximum(np.linalg.norm(sol.jac, axis=0), 1e-300))
     lev = np.sum(Q**2, axis=1).reshape(n, 6)
     return x, cov, rms, lev
+
+
+# --------------------------------------------------------------------------- pixel -> robot
+
+def camera_for(doc: dict, index: int, *, joints_deg=None, photo: str | None = None,
+               file: str | None = None) -> FixedCamera:
+    """The camera ``cameras[index]`` of a calibration document as it stood for one photo:
+    a still camera as is; a camera on the arm at commanded ``joints_deg`` ([q1, q2] or
+    [q1, q2, q4]) or at the command of ``photo`` (one of calibration.json's ``poses``).
+    ``vision_cal.camera.fixed.locate`` then maps its pixels."""
+    cams = doc.get("cameras")
+    entry = cams[index] if isinstance(cams, list) and 0 <= index < len(cams) else None
+    if not isinstance(entry, dict) or "T_flange_camera" not in entry:
+        if joints_deg is not None or photo is not None:
+            camera_of(doc, index, file=file)       # its own error first, if any
+            raise VisionCalError(f"camera {index} stood still: --joints and --photo are for "
+                                 "a camera on the arm", file=file,
+                                 field="--joints" if joints_deg is not None else "--photo")
+        return camera_of(doc, index, file=file)
+    where = f"cameras[{index}]"
+    if (joints_deg is None) == (photo is None):
+        raise VisionCalError("a camera on the arm: give the arm's command for the photo, "
+                             "--joints Q1 Q2 [Q4] or --photo NAME (one of calibration.json "
+                             "poses)", file=file, field="--joints")
+    if photo is not None:
+        pose = next((p for p in doc.get("poses") or [] if p.get("image") == photo), None)
+        if pose is None:
+            raise VisionCalError(f"no pose named {photo!r} in calibration.json poses",
+                                 file=file, field="--photo")
+        q, j4 = pose["joints_deg"], float(pose.get("j4_deg", 0.0))
+    else:
+        if len(joints_deg) not in (2, 3) or not np.all(np.isfinite(joints_deg)):
+            raise VisionCalError("expected Q1 Q2 [Q4], finite degrees", file=file,
+                                 field="--joints")
+        q, j4 = joints_deg[:2], float(joints_deg[2]) if len(joints_deg) == 3 else 0.0
+    if entry.get("mount") == "link2" and j4 != 0.0:
+        raise VisionCalError("this camera is on link 2 and does not turn with joint 4: leave "
+                             "Q4 out", file=file, field="--joints")
+    try:
+        params = ScaraParams.from_json(doc["params"])
+        X = np.asarray(entry["T_flange_camera"], float).reshape(4, 4)
+        K = np.asarray(entry["K"], float).reshape(3, 3)
+        dist = np.asarray(entry["dist"], float).ravel()
+        size = tuple(int(v) for v in entry["size_px"])
+        cov12 = np.asarray(doc["covariance"]["matrix"], float).reshape(12, 12)
+    except (KeyError, TypeError, ValueError) as e:
+        raise VisionCalError(f"expected params, covariance and {where}'s T_flange_camera, K, "
+                             "dist, size_px", file=file, field=where) from e
+    rep = float((doc.get("verdict") or {}).get("repeatability_mm", 0.0))
+    f_sd = float(entry.get("f_px_std", 0.0))
+    return _camera_at(params, X, cov12, q, j4, K=K, dist=dist, size=size, rep=rep, f_sd=f_sd,
+                      intrinsics=str(entry.get("intrinsics", "declared")),
+                      images=tuple(entry.get("images") or ()))
+
+
+def _camera_at(params: ScaraParams, X, cov12, q, j4, *, K, dist, size, rep, f_sd, intrinsics,
+               images) -> FixedCamera:
+    """The arm camera at command (q, j4) as a :class:`FixedCamera`: ``T_robot_camera`` and
+    its covariance from the fit's (12, 12), the robot's repeatability ``rep`` added to its
+    in-plane place (the arm stands there within it), ``f_sd`` the focal length's std."""
+    R0 = X[:3, :3]
+    x0 = np.concatenate([[params.L1_mm, params.L2_mm, params.z1_deg, params.z2_deg,
+                          params.base_x_mm, params.base_y_mm], np.zeros(3), X[:3, 3]])
+
+    def T_rc(x):
+        p, Xk = _unpack(x, R0)
+        T_sc = T_sheet_flange(p, [q], [j4])[0] @ Xk
+        return np.linalg.inv(T_sheet_robot(p.z1_deg, (p.base_x_mm, p.base_y_mm))) @ T_sc
+
+    T0 = T_rc(x0)
+    J = np.zeros((6, 12))
+    steps = np.array([1e-4, 1e-4, 1e-6, 1e-6, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6, 1e-4, 1e-4, 1e-4])
+    for k in range(12):
+        d = np.zeros(12)
+        d[k] = steps[k]
+        J[:, k] = (_delta(T_rc(x0 + d), T0) - _delta(T_rc(x0 - d), T0)) / (2 * steps[k])
+    cov = np.zeros((7, 7))
+    cov[:6, :6] = J @ cov12 @ J.T
+    s = np.array([np.degrees(1.0)] * 3 + [1.0] * 3)
+    cov[:6, :6] *= np.outer(s, s)
+    cov[3, 3] += rep**2
+    cov[4, 4] += rep**2
+    cov[6, 6] = f_sd**2
+    return FixedCamera(images, size, K, dist, intrinsics, T0, cov, float("nan"), 0,
+                       params.z1_deg, (params.base_x_mm, params.base_y_mm), np.eye(2))
