@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from vision_cal.camera.arm import camera_for
-from vision_cal.camera.fixed import locate
+from vision_cal.camera.fixed import UNDETERMINED, locate
 from vision_cal.commands.main import main
 from vision_cal.dataset.io import read_json
 from vision_cal.render.arm_camera import render_arm_dataset
@@ -131,3 +131,47 @@ def test_locate_cli_takes_the_arm_command(arm, tmp_path, capsys):
     assert main(["locate", str(cal), "--pixel", "100", "80"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--joints" in err[0]
+
+
+def _params_within_std(doc):
+    p, sd = doc["params"], doc["std"]
+    for k in ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm"):
+        err = np.subtract(p[k], TRUTH[k])
+        assert np.all(np.abs(err) < N_STD * np.asarray(sd[k])), (k, err, sd[k])
+
+
+def test_an_undeclared_lens_seen_square_is_said_undetermined(tmp_path, capsys):
+    """A camera looking down within 0.5 deg: every view sees the sheet under that same
+    tilt, so the focal length trades with the height. The robot is still found; the
+    verdict says what is unknown and locate refuses heights off the plane."""
+    data = render_arm_dataset(tmp_path / "data", truth=TRUTH, nominal=NOMINAL, n_poses=8,
+                              size_px=(640, 480), f_px=720.0, seed=31, tilt_deg=0.5,
+                              declare_lens=False)
+    assert main(["handeye", str(data), "--out", str(tmp_path / "out"), "-q"]) == 0
+    doc = read_json(tmp_path / "out" / "calibration.json")
+    assert doc["cameras"][0]["intrinsics"] == UNDETERMINED
+    assert doc["verdict"]["status"] == "check"
+    assert any("focal length" in r for r in doc["verdict"]["reasons"])
+    _params_within_std(doc)
+    cal = str(tmp_path / "out" / "calibration.json")
+    assert main(["locate", cal, "--pixel", "100", "80", "--photo", "pose_001.png",
+                 "--z-mm", "10"]) == 2
+    assert "--z-mm" in capsys.readouterr().err
+
+
+def test_an_undeclared_lens_seen_tilted_is_estimated(tmp_path):
+    """A camera tilted 20-25 deg: one view's perspective fixes the focal length (principal
+    point at the image centre, as rendered); found within 4 of its std, and the robot and
+    T_flange_camera's height within theirs."""
+    folder = render_arm_dataset(tmp_path / "data", truth=TRUTH, nominal=NOMINAL, n_poses=10,
+                                size_px=(640, 480), f_px=720.0, seed=29, tilt_deg=(20.0, 25.0),
+                                declare_lens=False)
+    assert main(["handeye", str(folder), "--out", str(tmp_path / "out"), "-q"]) == 0
+    doc = read_json(tmp_path / "out" / "calibration.json")
+    cam = doc["cameras"][0]
+    assert cam["intrinsics"] == "estimated"
+    assert abs(cam["K"][0][0] - 720.0) < N_STD * cam["f_px_std"], (cam["K"][0][0], cam["f_px_std"])
+    _params_within_std(doc)
+    X = np.array(read_json(folder / "truth.json")["T_flange_camera"])
+    dz = cam["T_flange_camera"][2][3] - X[2, 3]
+    assert abs(dz) < N_STD * cam["T_flange_camera_std"]["translation_mm"][2], dz

@@ -33,8 +33,8 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
-from vision_cal.camera.fixed import (FixedCamera, T_sheet_robot, _delta, camera_of, fit_pose,
-                                     homogeneous, lsq_covariance)
+from vision_cal.camera.fixed import (F_REL_STD_MAX, UNDETERMINED, FixedCamera, T_sheet_robot,
+                                     _delta, camera_of, fit_pose, homogeneous, lsq_covariance)
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.kinematics import ScaraParams, flange_angle_rad, forward
 from vision_cal.rms import rms_2d
@@ -112,6 +112,79 @@ class ArmFit:
                 "not_identifiable": self.not_identifiable,
                 "identifiability": {"n_params": len(LABELS), "labels": list(LABELS),
                                     "high_correlations": self.high_correlations()}}
+
+
+def _focal_std(obj, img, K, dist, rvecs, tvecs) -> float:
+    """The focal length's std (px) at a ``calibrateCamera`` solution: the reprojection
+    Jacobian in (f, k1, k2) with every view's pose profiled out (Schur complement), scaled
+    by the residual variance. (OpenCV's own figure assumes the problem well posed and says
+    0.01 px for views that leave f free.)"""
+    S = np.zeros((3, 3))
+    ssr, n_rows = 0.0, 0
+    for o, m, rv, tv in zip(obj, img, rvecs, tvecs):
+        uv, J = cv2.projectPoints(o.reshape(-1, 1, 3).astype(np.float64), rv, tv, K, dist)
+        r = (uv.reshape(-1, 2) - m.reshape(-1, 2)).ravel()
+        ssr += float(r @ r)
+        n_rows += len(r)
+        A = np.column_stack([J[:, 6] + J[:, 7], J[:, 10], J[:, 11]])   # f, k1, k2
+        B = J[:, :6]                                                    # rvec, tvec
+        S += A.T @ A - A.T @ B @ np.linalg.solve(B.T @ B, B.T @ A)
+    s2 = ssr / max(n_rows - 6 * len(obj) - 3, 1)
+    cov = lsq_covariance(np.linalg.cholesky(S + 1e-300 * np.eye(3)).T, s2) \
+        if np.all(np.linalg.eigvalsh(S) > 0) else np.full((3, 3), np.inf)
+    return float(np.sqrt(cov[0, 0]))
+
+
+@dataclass(frozen=True)
+class Lens:
+    """The arm camera's lens estimated from its views: ``K`` (3, 3), ``dist`` (5,), how
+    (``estimated`` or :data:`~vision_cal.camera.fixed.UNDETERMINED`), ``f_px_std``."""
+
+    K: np.ndarray
+    dist: np.ndarray
+    intrinsics: str
+    f_px_std: float
+    reason: str = ""
+
+
+def estimate_lens(views: list["ArmView"], size_px) -> Lens:
+    """The lens from the views' marker corners when session.json declares none: OpenCV's
+    ``calibrateCamera`` (Zhang's method) with the principal point at the image centre and
+    square pixels, focal length, k1 and k2 fitted.
+
+    A SCARA turns its camera about the sheet's normal only, so every view sees the sheet
+    under the same tilt: the views add no new constraint on the lens (parallel planes,
+    Zhang's degenerate case) beyond what one view's tilt gives. A camera looking square
+    at the sheet therefore cannot tell its focal length from its height: then (std above
+    ``F_REL_STD_MAX`` of itself) ``UNDETERMINED``, the focal length set to 1.2 times the
+    image's larger side, and only the sheet's plane can be located."""
+    w, h = (int(v) for v in size_px)
+    f0 = 1.2 * max(w, h)
+    K0 = np.array([[f0, 0, (w - 1) / 2], [0, f0, (h - 1) / 2], [0, 0, 1.0]])
+    obj = [np.column_stack([v.corners_mm, np.zeros(len(v.corners_mm))]).astype(np.float32)
+           for v in views]
+    img = [np.asarray(v.corners_px, np.float32).reshape(-1, 1, 2) for v in views]
+    flags = (cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_FIX_PRINCIPAL_POINT
+             | cv2.CALIB_FIX_ASPECT_RATIO | cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K3)
+    try:
+        out = cv2.calibrateCameraExtended(obj, img, (w, h), K0.copy(), np.zeros(5), flags=flags)
+    except cv2.error as e:
+        raise CalibrationError(f"the lens could not be estimated from the views: {e}") from e
+    K, dist = out[1], np.asarray(out[2], float).ravel()[:5]
+    f_sd = _focal_std(obj, img, K, dist, out[3], out[4])
+    if K[0, 0] > 0 and f_sd < F_REL_STD_MAX * K[0, 0]:
+        return Lens(np.asarray(K, float), dist, "estimated", f_sd)
+    # f free trades with the height: keep the plane's mapping, distortion with f fixed
+    out = cv2.calibrateCameraExtended(obj, img, (w, h), K0.copy(), np.zeros(5),
+                                      flags=flags | cv2.CALIB_FIX_FOCAL_LENGTH)
+    return Lens(np.asarray(out[1], float), np.asarray(out[2], float).ravel()[:5], UNDETERMINED,
+                float("nan"),
+                f"the lens was not declared and the views (all at the same tilt to the sheet, "
+                f"{f_sd / max(K[0, 0], 1e-9):.0%} relative std of the focal length) cannot "
+                "tell its focal length from the camera's height: T_flange_camera's z and "
+                "heights off the sheet's plane are unknown (the robot and the sheet's plane "
+                "are not affected); declare camera K in session.json, or tilt the camera "
+                "15 deg or more")
 
 
 def T_sheet_flange(params: ScaraParams, q_deg, j4_deg) -> np.ndarray:
@@ -381,6 +454,8 @@ def _camera_at(params: ScaraParams, X, cov12, q, j4, *, K, dist, size, rep, f_sd
     cov[:6, :6] *= np.outer(s, s)
     cov[3, 3] += rep**2
     cov[4, 4] += rep**2
-    cov[6, 6] = f_sd**2
+    if f_sd > 0:     # f and the camera's height move together (the fit's cam_z holds it)
+        cov[6, 6] = f_sd**2
+        cov[5, 6] = cov[6, 5] = f_sd**2 * T0[2, 3] / K[0, 0]
     return FixedCamera(images, size, K, dist, intrinsics, T0, cov, float("nan"), 0,
                        params.z1_deg, (params.base_x_mm, params.base_y_mm), np.eye(2))

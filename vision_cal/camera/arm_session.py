@@ -14,12 +14,13 @@ that cannot be used is skipped with its reason and the others go on.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from vision_cal.camera.arm import MIN_POSES, ArmView, fit_arm_camera
+from vision_cal.camera.arm import MIN_POSES, ArmView, estimate_lens, fit_arm_camera
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.dataset.photos import PhotoRefused, load_photo, normalise_name
@@ -45,22 +46,8 @@ def read_arm_session(folder):
         r.fail("format", f"expected {FORMAT!r}, got {fmt!r}")
     robot = read_robot_block(r, r.get(raw, "robot", ""), "robot")
     sheet = read_sheet_block(r, r.get(raw, "sheet", ""), "sheet")
-    cam = r.get(raw, "camera", "")
-    if not isinstance(cam, dict):
-        r.fail("camera", "expected an object with size_px, K and dist (a camera on the arm "
-                         "needs its lens declared)")
-    size = r.vector(r.get(cam, "size_px", "camera"), "camera.size_px", 2, lo=1)
-    K_raw = r.list_(r.get(cam, "K", "camera"), "camera.K")
-    if len(K_raw) != 3:
-        r.fail("camera.K", "expected a 3x3 matrix")
-    K = np.array([r.vector(row, f"camera.K[{i}]", 3) for i, row in enumerate(K_raw)])
-    if not (K[0, 0] > 0 and K[1, 1] > 0 and tuple(K[2]) == (0.0, 0.0, 1.0)):
-        r.fail("camera.K", "expected an OpenCV camera matrix [[fx,0,cx],[0,fy,cy],[0,0,1]]")
-    dist_raw = r.list_(r.get(cam, "dist", "camera"), "camera.dist")
-    if len(dist_raw) not in (4, 5, 8, 12, 14):
-        r.fail("camera.dist", f"expected 4, 5, 8, 12 or 14 OpenCV coefficients, got "
-                              f"{len(dist_raw)}")
-    dist = np.array([r.number(v, f"camera.dist[{i}]") for i, v in enumerate(dist_raw)])
+    cam = raw.get("camera")
+    camera = None if cam is None else _read_lens(r, cam)
     mount = raw.get("camera_mount", "flange")
     if mount not in MOUNTS:
         r.fail("camera_mount", f"expected one of {', '.join(MOUNTS)}, got {mount!r}")
@@ -76,8 +63,27 @@ def read_arm_session(folder):
         poses.append((img, np.asarray(q, float), float(j4)))
     nominal = ScaraParams(robot.L1_mm, robot.L2_mm, robot.joint_zero_deg[0],
                           robot.joint_zero_deg[1], robot.base_mm[0], robot.base_mm[1])
-    return (folder, sheet, nominal, ((int(size[0]), int(size[1])), K, dist), mount, poses,
-            robot.repeatability_mm)
+    return folder, sheet, nominal, camera, mount, poses, robot.repeatability_mm
+
+
+def _read_lens(r: FieldReader, cam) -> tuple:
+    """session.json ``camera``: (size_px, K (3, 3), dist (n,)), every field checked."""
+    if not isinstance(cam, dict):
+        r.fail("camera", "expected an object with size_px, K and dist (or leave it out: the "
+                         "lens is then estimated from the views)")
+    size = r.vector(r.get(cam, "size_px", "camera"), "camera.size_px", 2, lo=1)
+    K_raw = r.list_(r.get(cam, "K", "camera"), "camera.K")
+    if len(K_raw) != 3:
+        r.fail("camera.K", "expected a 3x3 matrix")
+    K = np.array([r.vector(row, f"camera.K[{i}]", 3) for i, row in enumerate(K_raw)])
+    if not (K[0, 0] > 0 and K[1, 1] > 0 and tuple(K[2]) == (0.0, 0.0, 1.0)):
+        r.fail("camera.K", "expected an OpenCV camera matrix [[fx,0,cx],[0,fy,cy],[0,0,1]]")
+    dist_raw = r.list_(r.get(cam, "dist", "camera"), "camera.dist")
+    if len(dist_raw) not in (4, 5, 8, 12, 14):
+        r.fail("camera.dist", f"expected 4, 5, 8, 12 or 14 OpenCV coefficients, got "
+                              f"{len(dist_raw)}")
+    dist = np.array([r.number(v, f"camera.dist[{i}]") for i, v in enumerate(dist_raw)])
+    return (int(size[0]), int(size[1])), K, dist
 
 
 def _reasons(fit, mount: str) -> list[tuple[str, str]]:
@@ -102,9 +108,9 @@ def _pose_table(views, fit) -> list[dict]:
                                   fit.flange_heldout_mm)]
 
 
-def measure_view(folder, sheet, camera, image: str, q, j4) -> tuple[ArmView | None, dict]:
-    """One photo's corners (sub-pixel) as an :class:`ArmView`, and its ``images[]`` entry."""
-    size, K, dist = camera
+def measure_view(folder, sheet, size, image: str, q, j4) -> tuple[ArmView | None, dict]:
+    """One photo's corners (sub-pixel) as an :class:`ArmView`, and its ``images[]`` entry
+    (``size_px`` of the photo); ``size``: the declared camera's, or None."""
     try:
         bgr, _, _ = load_photo(folder, image, size)
     except PhotoRefused as e:
@@ -120,7 +126,8 @@ def measure_view(folder, sheet, camera, image: str, q, j4) -> tuple[ArmView | No
     view = ArmView(image, np.asarray(q, float), float(j4),
                    np.asarray(det.corners_mm, float).reshape(-1, 2),
                    np.asarray(corners, float).reshape(-1, 2))
-    return view, {"file": image, "status": "ok", "n_markers": int(len(det.ids))}
+    return view, {"file": image, "status": "ok", "n_markers": int(len(det.ids)),
+                  "size_px": [int(gray.shape[1]), int(gray.shape[0])]}
 
 
 def calibrate_arm_camera(folder) -> dict:
@@ -129,26 +136,48 @@ def calibrate_arm_camera(folder) -> dict:
     folder, sheet, nominal, camera, mount, poses, rep = read_arm_session(folder)
     views, images = [], []
     for img, q, j4 in poses:
-        v, entry = measure_view(folder, sheet, camera, img, q, j4)
+        v, entry = measure_view(folder, sheet, None if camera is None else camera[0], img, q, j4)
         images.append(entry)
         if v is not None:
             views.append(v)
+    sizes = {tuple(e["size_px"]) for e in images if e["status"] == "ok"}
+    if camera is None and len(sizes) > 1:
+        raise CalibrationError(f"photos of {len(sizes)} sizes ({', '.join(f'{a}x{b}' for a, b in sorted(sizes))}) "
+                               "and no camera declared: one camera takes photos of one size",
+                               file=str(folder / "session.json"), field="camera")
     if len(views) < MIN_POSES:
         raise CalibrationError(f"{len(views)} of {len(poses)} photos usable: at least "
                                f"{MIN_POSES} are needed", file=str(folder / "session.json"))
-    size, K, dist = camera
+    lens_reason = []
+    if camera is None:
+        size = sizes.pop()
+        lens = estimate_lens(views, size)
+        K, dist, how, f_sd = lens.K, lens.dist, lens.intrinsics, lens.f_px_std
+        if lens.reason:
+            lens_reason = [("check", lens.reason)]
+    else:
+        (size, K, dist), how, f_sd = camera, "declared", 0.0
     fit = fit_arm_camera(views, K, dist, nominal)
+    if how == "estimated":
+        # the focal length's error moves the camera's height with it (f / height is what
+        # the views fix): into T_flange_camera's z
+        cov = fit.cov.copy()
+        cov[11, 11] += (fit.T_flange_camera[2, 3] * f_sd / K[0, 0]) ** 2
+        fit = replace(fit, cov=cov)
     d = fit.to_json()
     for entry, v, rms in zip([e for e in images if e["status"] == "ok"], views, fit.view_rms_px):
         entry["corner_rms_px"] = float(rms)
     verdict = judge_camera_poses(
         fit.flange_residual_mm, fit.flange_sigma_mm, fit.flange_heldout_mm,
-        n_params=fit.n_params_xy, repeatability_mm=rep, reasons=_reasons(fit, mount))
+        n_params=fit.n_params_xy, repeatability_mm=rep,
+        reasons=_reasons(fit, mount) + lens_reason)
     cam = {"images": [v.file for v in views], "size_px": list(size), "K": K.tolist(),
            "dist": dist.tolist(), "T_flange_camera": d["T_flange_camera"],
            "mount": mount, "T_flange_camera_std": d["T_flange_camera_std"],
            "corner_rms_px": d["corner_rms_px"], "n_corners": d["n_corners"],
-           "corner_sigma_px": fit.corner_sigma_px}
+           "corner_sigma_px": fit.corner_sigma_px, "intrinsics": how}
+    if how == "estimated":
+        cam["f_px_std"] = f_sd
     return {"format": "vision-cal/calibration/1", "method": "arm_camera",
             "params": d["params"], "std": d["std"], "covariance": d["covariance"],
             "nominal": nominal.to_json(), "effects": [], "cameras": [cam],

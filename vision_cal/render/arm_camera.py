@@ -53,10 +53,11 @@ def T_cam_sheet(robot: TrueRobot, q_deg, j4_deg, T_flange_camera, approach=None)
 
 
 def T_flange_camera_true(rng=None, *, height_mm=(150.0, 250.0), offset_mm: float = 40.0,
-                         tilt_deg: float = 4.0) -> np.ndarray:
+                         tilt_deg=4.0) -> np.ndarray:
     """A camera mount (4, 4) flange -> camera: looking down (camera z along -z of F) from a
     height drawn in ``height_mm``, off the joint-4 axis by up to ``offset_mm``, its axis
-    tilted by up to ``tilt_deg`` and turned about it at random."""
+    tilted by up to ``tilt_deg`` (or by a tilt drawn in a (lo, hi) pair) and turned about
+    it at random."""
     rng = np.random.default_rng(rng)
     down = np.diag([1.0, -1.0, -1.0])                   # camera x = F x, camera z = -F z
     yaw = rng.uniform(-np.pi, np.pi)
@@ -64,7 +65,8 @@ def T_flange_camera_true(rng=None, *, height_mm=(150.0, 250.0), offset_mm: float
     ax = rng.normal(size=3)
     ax[2] = 0.0
     ax /= np.linalg.norm(ax)
-    t = np.radians(rng.uniform(0, tilt_deg))
+    lo, hi = (0.0, tilt_deg) if np.isscalar(tilt_deg) else tilt_deg
+    t = np.radians(rng.uniform(lo, hi))
     Kx = np.array([[0, -ax[2], ax[1]], [ax[2], 0, -ax[0]], [-ax[1], ax[0], 0]])
     Rt = np.eye(3) + np.sin(t) * Kx + (1 - np.cos(t)) * Kx @ Kx
     T = np.eye(4)
@@ -105,11 +107,13 @@ def render_arm_dataset(folder, *, truth: dict, nominal: dict, n_poses: int = 16,
                        size_px=(800, 600), f_px: float = 900.0, seed: int = 0,
                        px_per_mm: float = 8.0, noise_sigma: float = 1.5,
                        mount: str = "flange", repeatability_mm: float = 0.01,
-                       photographer=None):
+                       photographer=None, tilt_deg=4.0, declare_lens: bool = True):
     """Photos of the marker field by the camera on the true robot: session.json (``poses``,
     declared lens) and truth.json (``params``, ``T_flange_camera``, per photo
     ``T_cam_sheet``). ``truth`` / ``nominal``: the format's ``params`` blocks; the flange
-    misses its commanded place by ``repeatability_mm`` (per axis, Gaussian) in each photo."""
+    misses its commanded place by ``repeatability_mm`` (per axis, Gaussian) in each photo;
+    the camera's axis is tilted by up to ``tilt_deg``; ``declare_lens=False`` leaves
+    session.json's ``camera`` out."""
     from pathlib import Path
 
     from vision_cal.dataset.io import atomic_write_json
@@ -120,7 +124,7 @@ def render_arm_dataset(folder, *, truth: dict, nominal: dict, n_poses: int = 16,
     rng = np.random.default_rng(seed)
     robot = TrueRobot.from_json(truth)
     sheet = field_sheet()
-    X = T_flange_camera_true(rng)
+    X = T_flange_camera_true(rng, tilt_deg=tilt_deg)
     poses = reachable_poses(robot, n_poses, rng, extent_mm=sheet.extent_mm,
                             turn_j4=(mount == "flange"))
     w, h = size_px
@@ -149,10 +153,11 @@ def render_arm_dataset(folder, *, truth: dict, nominal: dict, n_poses: int = 16,
             ph.close()
     session = {"format": "vision-cal/1", "sheet": sheet.to_json(),
                "robot": {**nominal, "home_deg": [0.0, 0.0]},
-               "camera": {"size_px": list(size_px), "K": K.tolist(), "dist": [0.0] * 5},
                "camera_mount": mount,
                "poses": [{"image": f, "joints_deg": [float(a), float(b)], "j4_deg": float(c)}
                          for f, (a, b), c in zip(files, q, j4)]}
+    if declare_lens:
+        session["camera"] = {"size_px": list(size_px), "K": K.tolist(), "dist": [0.0] * 5}
     atomic_write_json(folder / "session.json", session)
     atomic_write_json(folder / "truth.json", {
         "params": truth, "T_flange_camera": X.tolist(), "repeatability_mm": repeatability_mm,
