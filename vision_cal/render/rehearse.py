@@ -263,6 +263,54 @@ class SimulateResult:
     truth_path: Path
 
 
+def _simulate_arm(session: dict, session_path: Path, sim, out: Path, rng) -> SimulateResult:
+    """A camera-on-arm session (``vision-cal design --camera-on-arm``): the simulated robot
+    stands at each pose and its camera (a mount drawn by the world, looking down, on the
+    flange or link 2 as ``camera_mount`` says) photographs the marker field. The
+    simulated camera's lens is added to session.json when it declares none (what the user
+    adds by hand), and truth.json holds ``T_flange_camera``."""
+    from vision_cal.dataset.io import atomic_write_json
+    from vision_cal.dataset.session import FieldReader, read_sheet_block
+    from vision_cal.render.arm_camera import T_flange_camera_true, photograph_poses
+    from vision_cal.render.camera import camera_matrix
+
+    r = FieldReader(str(session_path))
+    sheet = read_sheet_block(r, r.get(session, "sheet", ""), "sheet")
+    poses = r.list_(session["poses"], "poses", nonempty=True)
+    try:
+        files = [str(p["image"]) for p in poses]
+        q = np.array([p["joints_deg"][:2] for p in poses], float)
+        j4 = np.array([float(p.get("j4_deg", 0.0)) for p in poses])
+    except (KeyError, TypeError, ValueError, IndexError) as e:
+        raise VisionCalError(f"expected image, joints_deg, j4_deg in every pose: {e}",
+                             file=str(session_path), field="poses") from e
+    cam = sim.camera
+    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px), dtype=float)
+    X = T_flange_camera_true(rng)
+    out.mkdir(parents=True, exist_ok=True)
+    # the world's own record of the motion: each joint's last move from the previous pose
+    # (from home for the first), kept when it did not move
+    steps = np.diff(np.vstack([np.asarray(sim.robot.nominal.home_deg, float)[:2], q]), axis=0)
+    approach = np.ones_like(q)
+    for i in range(len(q)):
+        prev = approach[i - 1] if i else np.ones(2)
+        approach[i] = np.where(steps[i] > 0, 1.0, np.where(steps[i] < 0, -1.0, prev))
+    Ts = photograph_poses(out, sim.truth, sheet, q, j4, files, X, K=K, size_px=cam.size_px,
+                          rng=rng, repeatability_mm=sim.repeatability_mm,
+                          noise_sigma=cam.noise_sigma, approach=approach)
+    if "camera" not in session:
+        session = {**session, "camera": {"size_px": list(cam.size_px), "K": K.tolist(),
+                                         "dist": [0.0] * 5}}
+    atomic_write_json(out / "session.json", session)
+    truth = {"params": sim.params, "effects": list(sim.effects), "T_flange_camera": X.tolist(),
+             "repeatability_mm": sim.repeatability_mm, "simulated_robot": str(sim.path),
+             "seed": sim.seed,
+             "camera": {"size_px": list(cam.size_px), "K": K.tolist(), "dist": [0.0] * 5,
+                        "T_cam_sheet": {f: T.tolist() for f, T in zip(files, Ts)}}}
+    truth_path = atomic_write_json(out / "truth.json", truth)
+    return SimulateResult(out, tuple(out / f for f in files), 0, (), (), truth_path)
+
+
 def _plan_marks(plan_dir: Path, session: dict, robot) -> tuple[list[_Mark], str]:
     marks = session.get("marks")
     if not isinstance(marks, list) or not marks:
@@ -350,6 +398,8 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
             raise VisionCalError(f"holds photos already ({photos[0]}, ...): a rehearsal adds "
                                  "its own; choose an empty folder", file=str(out))
     rng = np.random.default_rng(sim.seed if rng is None else rng)
+    if program is None and session.get("poses") and not session.get("marks"):
+        return _simulate_arm(session, session_path, sim, out, rng)
     if program is not None:
         plan = marks_from_program(program, session["marks"], pen_down_mm=sim.robot.pen_down_mm,
                                   pen_bit=sim.robot.program.pen_output_bit)
