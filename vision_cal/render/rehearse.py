@@ -49,7 +49,7 @@ CONTROLLERS = ("smc", "pd", "kinematic")
 SECTIONS = ("robot", "hidden", "camera", "seed")
 HIDDEN = ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "effects", "repeatability_mm",
           "controller")
-CAMERA = ("size_px", "f_px", "photos", "tilt_deg", "vignetting", "noise_sigma")
+CAMERA = ("size_px", "f_px", "photos", "tilt_deg", "vignetting", "noise_sigma", "fixed")
 _GO = re.compile(r"^\s*(?:Go|Jump)\s+JA\(\s*([^,()]+),\s*([^,()]+),\s*([^,()]+),\s*([^,()]+)\)",
                  re.IGNORECASE)
 
@@ -62,6 +62,7 @@ class SimCamera:
     tilt_deg: tuple[float, float] = (0.0, 12.0)
     vignetting: float = 0.15
     noise_sigma: float = 1.5
+    fixed: bool = False             # every photo from the first view: a still camera
 
 
 @dataclass(frozen=True)
@@ -131,7 +132,8 @@ def load_simulated_robot(path) -> SimulatedRobot:
         int(r.number(c.get("photos", d.photos), "camera.photos", lo=1, hi=50)),
         r.vector(c.get("tilt_deg", list(d.tilt_deg)), "camera.tilt_deg", 2, lo=0, hi=60),
         r.number(c.get("vignetting", d.vignetting), "camera.vignetting", lo=0, hi=1),
-        r.number(c.get("noise_sigma", d.noise_sigma), "camera.noise_sigma", lo=0, hi=50))
+        r.number(c.get("noise_sigma", d.noise_sigma), "camera.noise_sigma", lo=0, hi=50),
+        r.boolean(c.get("fixed", d.fixed), "camera.fixed"))
     seed = tree.get("seed")
     if seed is not None:
         seed = int(r.number(seed, "seed", lo=0, hi=2**32 - 1))
@@ -440,6 +442,8 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
     tex = printed_texture(printed, marks_xy_mm=all_xy, mark_diameters_mm=dia, rng=rng)
     views = default_views(sheet, n=cam.photos, size_px=cam.size_px, K=K,
                           tilt_deg=cam.tilt_deg, rng=rng, fill=0.96, target_jitter=0.02)
+    if cam.fixed:   # a camera fixed over the work area: one place, several photos
+        views = [views[0]] * len(views)
     from vision_cal.progress import bar as progress_bar
 
     bar = progress_bar(progress, total=len(views), desc=f"simulate {out.name}", unit="photo")
