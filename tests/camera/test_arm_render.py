@@ -45,6 +45,10 @@ def test_robot_found_without_a_pen_within_its_std(arm):
         err = np.subtract(p[k], TRUTH[k])
         assert np.all(np.abs(err) < N_STD * np.asarray(sd[k])), (k, err, sd[k])
     assert doc["not_identifiable"] == []
+    # the poses reach each joint from both sides, so its backlash is fitted: none in this world
+    assert [e["joint"] for e in doc["effects"]] == [1, 2]
+    for e in doc["effects"]:
+        assert abs(e["deg"]) < N_STD * e["std"], e
 
 
 def test_rendered_clean_poses_are_judged_on_the_noise_floor(arm):
@@ -54,7 +58,8 @@ def test_rendered_clean_poses_are_judged_on_the_noise_floor(arm):
     v = doc["verdict"]
     assert v["status"] in ("ready", "check"), v["reasons"]
     assert 0.3 < v["residual_over_floor"] < 1.7, v["floor"]
-    assert len(doc["poses"]) == 12 and doc["identifiability"]["n_params"] == 12
+    assert len(doc["poses"]) == 12
+    assert doc["identifiability"]["n_params"] == 12 + len(doc["effects"])
 
 
 def test_T_flange_camera_found_within_its_std(arm):

@@ -58,6 +58,7 @@ class ArmView:
     j4_deg: float
     corners_mm: np.ndarray
     corners_px: np.ndarray
+    approach: tuple[float, float] = (1.0, 1.0)   # each joint's last motion sign
 
 
 @dataclass(frozen=True)
@@ -80,6 +81,17 @@ class ArmFit:
     flange_heldout_mm: np.ndarray | None = None
     n_params_xy: float = 0.0
     corner_sigma_px: float = float("nan")
+    #: joints (1, 2) whose backlash was fitted: parameters 12, 13 ... (full band, deg)
+    backlash_joints: tuple[int, ...] = ()
+    backlash_band_deg: tuple[float, ...] = ()
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        return LABELS + tuple(f"backlash{j}_deg" for j in self.backlash_joints)
+
+    @property
+    def backlash_deg(self) -> dict[int, float]:
+        return dict(zip(self.backlash_joints, self.backlash_band_deg))
 
     @property
     def std(self) -> np.ndarray:
@@ -87,15 +99,16 @@ class ArmFit:
 
     @property
     def not_identifiable(self) -> list[str]:
-        return [lab for lab, s in zip(LABELS, self.std) if not s < UNIDENTIFIED_STD]
+        return [lab for lab, s in zip(self.labels, self.std) if not s < UNIDENTIFIED_STD]
 
     def high_correlations(self, limit: float = 0.9) -> list[dict]:
         """Pairs of parameters whose correlation is above ``limit`` in size."""
         sd = self.std
         with np.errstate(invalid="ignore", divide="ignore"):
             c = self.cov / np.outer(sd, sd)
-        return [{"a": LABELS[i], "b": LABELS[j], "r": float(c[i, j])}
-                for i in range(len(LABELS)) for j in range(i + 1, len(LABELS))
+        lab = self.labels
+        return [{"a": lab[i], "b": lab[j], "r": float(c[i, j])}
+                for i in range(len(lab)) for j in range(i + 1, len(lab))
                 if np.isfinite(c[i, j]) and abs(c[i, j]) > limit]
 
     def to_json(self) -> dict:
@@ -106,11 +119,14 @@ class ArmFit:
                 "T_flange_camera": self.T_flange_camera.tolist(),
                 "T_flange_camera_std": {"rotation_deg": sd[6:9].tolist(),
                                         "translation_mm": sd[9:12].tolist()},
-                "covariance": {"params": list(LABELS), "matrix": self.cov.tolist()},
+                "covariance": {"params": list(self.labels), "matrix": self.cov.tolist()},
+                "effects": [{"name": "joint_backlash", "joint": j, "deg": d,
+                             "std": float(sd[12 + k])}
+                            for k, (j, d) in enumerate(self.backlash_deg.items())],
                 "corner_rms_px": self.rms_px, "n_corners": self.n_corners,
                 "pose_rms": self.pose_rms,
                 "not_identifiable": self.not_identifiable,
-                "identifiability": {"n_params": len(LABELS), "labels": list(LABELS),
+                "identifiability": {"n_params": len(self.labels), "labels": list(self.labels),
                                     "high_correlations": self.high_correlations()}}
 
 
@@ -217,9 +233,19 @@ def _unpack(x: np.ndarray, R0: np.ndarray) -> tuple[ScaraParams, np.ndarray]:
     return p, X
 
 
-def _residuals(x, views, K, dist, R0) -> np.ndarray:
+def _link_commands(x, views, bl) -> np.ndarray:
+    """(N, 2) commands with the fitted backlash of joints ``bl`` applied (the contract's
+    ``joint_backlash``: the joint lags by ``-s band / 2`` against its approach ``s``)."""
+    q = np.array([v.q_deg for v in views], float).reshape(-1, 2)
+    for k, j in enumerate(bl):
+        s = np.array([v.approach[j - 1] for v in views], float)
+        q[:, j - 1] -= s * x[12 + k] / 2.0
+    return q
+
+
+def _residuals(x, views, K, dist, R0, bl=()) -> np.ndarray:
     p, X = _unpack(x, R0)
-    T_sc = T_sheet_flange(p, [v.q_deg for v in views], [v.j4_deg for v in views]) @ X
+    T_sc = T_sheet_flange(p, _link_commands(x, views, bl), [v.j4_deg for v in views]) @ X
     out = []
     for v, T in zip(views, T_sc):
         T_cs = np.linalg.inv(T)
@@ -242,7 +268,10 @@ def camera_pose(view: ArmView, K, dist) -> np.ndarray:
 
 def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams) -> ArmFit:
     """Robot and ``T_flange_camera`` from photos taken by the arm's camera (``K``, ``dist``
-    declared); starts from ``nominal`` and the first photo's pose."""
+    declared); starts from ``nominal`` and the first photo's pose. A joint reached from
+    both sides in the photos (their ``approach``) has its backlash fitted as well (the
+    contract's ``joint_backlash``; from one side only it is part of the joint's zero)."""
+    bl = tuple(j for j in (1, 2) if len({v.approach[j - 1] for v in views}) > 1)
     if len(views) < MIN_POSES:
         raise CalibrationError(f"{len(views)} usable photos: at least {MIN_POSES} are needed "
                                "(12 parameters, and each kind of pose residual needs its own "
@@ -253,14 +282,16 @@ def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams) -> ArmFi
     X0 = np.linalg.inv(T_sheet_flange(nominal, [views[0].q_deg], [views[0].j4_deg])[0]) @ T0
     x0 = np.concatenate([[nominal.L1_mm, nominal.L2_mm, nominal.z1_deg, nominal.z2_deg,
                           nominal.base_x_mm, nominal.base_y_mm],
-                         np.zeros(3), X0[:3, 3]])
+                         np.zeros(3), X0[:3, 3], np.zeros(len(bl))])
     R0 = X0[:3, :3]
-    sol = least_squares(_residuals, x0, args=(views, K, dist, R0), method="lm", x_scale="jac")
+    sol = least_squares(_residuals, x0, args=(views, K, dist, R0, bl), method="lm",
+                        x_scale="jac")
     # again about the solution, so the rotation's covariance is about the found frame
     p1, X1 = _unpack(sol.x, R0)
     R0 = X1[:3, :3]
-    x1 = np.concatenate([sol.x[:6], np.zeros(3), sol.x[9:12]])
-    sol = least_squares(_residuals, x1, args=(views, K, dist, R0), method="lm", x_scale="jac")
+    x1 = np.concatenate([sol.x[:6], np.zeros(3), sol.x[9:]])
+    sol = least_squares(_residuals, x1, args=(views, K, dist, R0, bl), method="lm",
+                        x_scale="jac")
     r = sol.fun
     n = len(r)
     p, X = _unpack(sol.x, R0)
@@ -271,14 +302,15 @@ def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams) -> ArmFi
     # model's, is (one 6-vector per photo), with each kind of component's variance found
     # from its own scatter
     M, C_pnp, sigma_px = _view_poses(views, K, dist)
-    x2 = np.concatenate([sol.x[:6], np.zeros(3), sol.x[9:12]])
-    x3, cov, rms_pose, lev = _pose_level_fit(x2, views, M, R0)
+    x2 = np.concatenate([sol.x[:6], np.zeros(3), sol.x[9:]])
+    x3, cov, rms_pose, lev = _pose_level_fit(x2, views, M, R0, bl)
     p, X = _unpack(x3, R0)          # the estimate the covariance belongs to
-    e = _pose_residuals(x3, views, M, R0)
-    sig = _floor_terms(x3, views, M, C_pnp, R0)
+    e = _pose_residuals(x3, views, M, R0, bl)
+    sig = _floor_terms(x3, views, M, C_pnp, R0, bl)
     held = e[:, :2] / np.clip(1.0 - lev[:, :2], 1e-3, None)
     return ArmFit(p, X, cov, rms_2d(r.reshape(-1, 2)), view_rms, n // 2, rms_pose,
-                  e[:, :2].copy(), sig, held, float(lev[:, :2].sum()), sigma_px)
+                  e[:, :2].copy(), sig, held, float(lev[:, :2].sum()), sigma_px, bl,
+                  tuple(float(v) for v in x3[12:]))
 
 
 def _view_poses(views, K, dist) -> tuple[np.ndarray, np.ndarray, float]:
@@ -300,7 +332,7 @@ def _view_poses(views, K, dist) -> tuple[np.ndarray, np.ndarray, float]:
     return np.array(T), np.array(C) * s2, float(np.sqrt(s2))
 
 
-def _floor_terms(x, views, M, C_pnp, R0) -> np.ndarray:
+def _floor_terms(x, views, M, C_pnp, R0, bl=()) -> np.ndarray:
     """(N,) per-axis std of each photo's in-plane flange residual that the corner noise
     alone gives: its pose covariance ``C_pnp`` carried through the residual (the camera's
     tilt error times its height above the flange is in it)."""
@@ -316,17 +348,17 @@ def _floor_terms(x, views, M, C_pnp, R0) -> np.ndarray:
                 pk = p0.copy()
                 pk[k] += sgn * step
                 Mk = np.linalg.inv(homogeneous(cv2.Rodrigues(pk[:3].reshape(3, 1))[0], pk[3:]))
-                rows.append(_pose_residuals(x, [v], Mk[None], R0)[0, :2])
+                rows.append(_pose_residuals(x, [v], Mk[None], R0, bl)[0, :2])
             J[:, k] = (rows[0] - rows[1]) / (2 * step)
         out[i] = np.sqrt(max(np.trace(J @ C_pnp[i] @ J.T) / 2.0, 0.0))
     return out
 
 
-def _pose_residuals(x, views, M, R0) -> np.ndarray:
+def _pose_residuals(x, views, M, R0, bl=()) -> np.ndarray:
     """(N, 6): per photo the flange pose the photo implies (``M_i inv(X)``) in the model's
     flange frame: translation (mm) and small rotation (rad)."""
     p, X = _unpack(x, R0)
-    P = T_sheet_flange(p, [v.q_deg for v in views], [v.j4_deg for v in views])
+    P = T_sheet_flange(p, _link_commands(x, views, bl), [v.j4_deg for v in views])
     Xi = np.linalg.inv(X)
     out = np.empty((len(views), 6))
     for i in range(len(views)):
@@ -342,7 +374,7 @@ def _pose_residuals(x, views, M, R0) -> np.ndarray:
 _GROUPS = ((0, 1), (2,), (3, 4), (5,))
 
 
-def _pose_level_fit(x, views, M, R0) -> tuple[np.ndarray, np.ndarray, dict, np.ndarray]:
+def _pose_level_fit(x, views, M, R0, bl=()) -> tuple[np.ndarray, np.ndarray, dict, np.ndarray]:
     """The parameters refitted on the photo-level residuals with each group's variance as
     its weight, their covariance (12, 12), the RMS of each group (mm, deg) and the
     residuals' leverages (N, 6)."""
@@ -350,17 +382,17 @@ def _pose_level_fit(x, views, M, R0) -> tuple[np.ndarray, np.ndarray, dict, np.n
     n, P = len(views), len(x)
     for _ in range(3):
         def f(z):
-            return (_pose_residuals(z, views, M, R0) * w).ravel()
+            return (_pose_residuals(z, views, M, R0, bl) * w).ravel()
         sol = least_squares(f, x, method="lm", x_scale="jac")
         x = sol.x
-        e = _pose_residuals(x, views, M, R0)
+        e = _pose_residuals(x, views, M, R0, bl)
         var = np.empty(6)
         for g in _GROUPS:
             # each group takes its share of the parameters' degrees of freedom
             dof = max(n * len(g) - P * len(g) / 6.0, 1.0)
             var[list(g)] = max(float(np.sum(e[:, list(g)] ** 2)) / dof, 1e-30)
         w = 1.0 / np.sqrt(var)
-    sol = least_squares(lambda z: (_pose_residuals(z, views, M, R0) * w).ravel(), x,
+    sol = least_squares(lambda z: (_pose_residuals(z, views, M, R0, bl) * w).ravel(), x,
                         method="lm", x_scale="jac")
     cov = lsq_covariance(sol.jac, 1.0)
     x = sol.x
@@ -380,8 +412,10 @@ def camera_for(doc: dict, index: int, *, joints_deg=None, photo: str | None = No
                file: str | None = None) -> FixedCamera:
     """The camera ``cameras[index]`` of a calibration document as it stood for one photo:
     a still camera as is; a camera on the arm at commanded ``joints_deg`` ([q1, q2] or
-    [q1, q2, q4]) or at the command of ``photo`` (one of calibration.json's ``poses``).
-    ``vision_cal.camera.fixed.locate`` then maps its pixels."""
+    [q1, q2, q4], reached with each joint turning counter-clockwise last) or at the command
+    and approach of ``photo`` (one of calibration.json's ``poses``); a fitted
+    ``joint_backlash`` is applied. ``vision_cal.camera.fixed.locate`` then maps its pixels
+    (its std leaves the backlash's own std out)."""
     cams = doc.get("cameras")
     entry = cams[index] if isinstance(cams, list) and 0 <= index < len(cams) else None
     if not isinstance(entry, dict) or "T_flange_camera" not in entry:
@@ -402,7 +436,9 @@ def camera_for(doc: dict, index: int, *, joints_deg=None, photo: str | None = No
             raise VisionCalError(f"no pose named {photo!r} in calibration.json poses",
                                  file=file, field="--photo")
         q, j4 = pose["joints_deg"], float(pose.get("j4_deg", 0.0))
+        approach = pose.get("approach") or (1, 1)
     else:
+        approach = (1, 1)
         if len(joints_deg) not in (2, 3) or not np.all(np.isfinite(joints_deg)):
             raise VisionCalError("expected Q1 Q2 [Q4], finite degrees", file=file,
                                  field="--joints")
@@ -416,10 +452,14 @@ def camera_for(doc: dict, index: int, *, joints_deg=None, photo: str | None = No
         K = np.asarray(entry["K"], float).reshape(3, 3)
         dist = np.asarray(entry["dist"], float).ravel()
         size = tuple(int(v) for v in entry["size_px"])
-        cov12 = np.asarray(doc["covariance"]["matrix"], float).reshape(12, 12)
+        cov12 = np.asarray(doc["covariance"]["matrix"], float)[:12, :12]
     except (KeyError, TypeError, ValueError) as e:
         raise VisionCalError(f"expected params, covariance and {where}'s T_flange_camera, K, "
                              "dist, size_px", file=file, field=where) from e
+    q = np.array(q[:2], float)
+    for e in doc.get("effects") or []:     # a fitted backlash: the joint lags its approach
+        if isinstance(e, dict) and e.get("name") == "joint_backlash" and e.get("joint") in (1, 2):
+            q[e["joint"] - 1] -= float(approach[e["joint"] - 1]) * float(e["deg"]) / 2.0
     rep = float((doc.get("verdict") or {}).get("repeatability_mm", 0.0))
     f_sd = float(entry.get("f_px_std", 0.0))
     return _camera_at(params, X, cov12, q, j4, K=K, dist=dist, size=size, rep=rep, f_sd=f_sd,

@@ -28,6 +28,7 @@ from vision_cal.dataset.session import FieldReader, read_robot_block, read_sheet
 from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams
+from vision_cal.motion import approach_signs
 from vision_cal.measure.aruco import corners_from_edges, edge_points, find_sheet_markers
 
 MOUNTS = ("flange", "link2")
@@ -63,6 +64,9 @@ def read_arm_session(folder):
         poses.append((img, np.asarray(q, float), float(j4)))
     nominal = ScaraParams(robot.L1_mm, robot.L2_mm, robot.joint_zero_deg[0],
                           robot.joint_zero_deg[1], robot.base_mm[0], robot.base_mm[1])
+    # each joint's approach (the format's rule: its last motion, over every pose in order)
+    signs = approach_signs([q for _, q, _ in poses], robot.home_deg)
+    poses = [(img, q, j4, tuple(float(v) for v in sg)) for (img, q, j4), sg in zip(poses, signs)]
     return folder, sheet, nominal, camera, mount, poses, robot.repeatability_mm
 
 
@@ -102,13 +106,15 @@ def _reasons(fit, mount: str) -> list[tuple[str, str]]:
 def _pose_table(views, fit) -> list[dict]:
     """Per photo: its command, the in-plane flange residual and its corner-noise std."""
     return [{"image": v.file, "joints_deg": [float(a) for a in v.q_deg], "j4_deg": v.j4_deg,
+             "approach": [int(a) for a in v.approach],
              "residual_mm": [float(a) for a in r], "sigma_mm": float(s),
              "heldout_residual_mm": [float(a) for a in h]}
             for v, r, s, h in zip(views, fit.flange_residual_mm, fit.flange_sigma_mm,
                                   fit.flange_heldout_mm)]
 
 
-def measure_view(folder, sheet, size, image: str, q, j4) -> tuple[ArmView | None, dict]:
+def measure_view(folder, sheet, size, image: str, q, j4, approach=(1.0, 1.0)
+                 ) -> tuple[ArmView | None, dict]:
     """One photo's corners (sub-pixel) as an :class:`ArmView`, and its ``images[]`` entry
     (``size_px`` of the photo); ``size``: the declared camera's, or None."""
     try:
@@ -125,7 +131,7 @@ def measure_view(folder, sheet, size, image: str, q, j4) -> tuple[ArmView | None
     corners = corners_from_edges(edges, det.corners_px)
     view = ArmView(image, np.asarray(q, float), float(j4),
                    np.asarray(det.corners_mm, float).reshape(-1, 2),
-                   np.asarray(corners, float).reshape(-1, 2))
+                   np.asarray(corners, float).reshape(-1, 2), tuple(approach))
     return view, {"file": image, "status": "ok", "n_markers": int(len(det.ids)),
                   "size_px": [int(gray.shape[1]), int(gray.shape[0])]}
 
@@ -135,8 +141,9 @@ def calibrate_arm_camera(folder) -> dict:
     with std and covariance, and the ``cameras`` entry with ``T_flange_camera``."""
     folder, sheet, nominal, camera, mount, poses, rep = read_arm_session(folder)
     views, images = [], []
-    for img, q, j4 in poses:
-        v, entry = measure_view(folder, sheet, None if camera is None else camera[0], img, q, j4)
+    for img, q, j4, sg in poses:
+        v, entry = measure_view(folder, sheet, None if camera is None else camera[0], img, q, j4,
+                                sg)
         images.append(entry)
         if v is not None:
             views.append(v)
@@ -180,11 +187,11 @@ def calibrate_arm_camera(folder) -> dict:
         cam["f_px_std"] = f_sd
     return {"format": "vision-cal/calibration/1", "method": "arm_camera",
             "params": d["params"], "std": d["std"], "covariance": d["covariance"],
-            "nominal": nominal.to_json(), "effects": [], "cameras": [cam],
+            "nominal": nominal.to_json(), "effects": d["effects"], "cameras": [cam],
             "not_identifiable": d["not_identifiable"], "pose_rms": d["pose_rms"],
             "identifiability": d["identifiability"],
             "poses": _pose_table(views, fit), "verdict": verdict.to_json(),
             "images": images,
             "notes": ["robot calibrated from the arm camera's views of the marker field (no "
-                      "pen): base model only; joint effects are not looked for in this "
-                      "version"]}
+                      "pen): the base model, and the backlash of a joint reached from both "
+                      "sides; other joint effects are not looked for in this version"]}
