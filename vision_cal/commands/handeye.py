@@ -40,8 +40,9 @@ def run(args) -> int:
               f"{p['base_mm'][1]:.3f} mm")
         t = cam["T_flange_camera"]
         print(f"T_flange_camera: camera at {t[0][3]:.3f} {t[1][3]:.3f} {t[2][3]:.3f} mm in the "
-              f"flange frame (std {', '.join(f'{v:.3f}' for v in cam['T_flange_camera_std']['translation_mm'])})"
-              ")")
+              f"flange frame (std {', '.join(f'{v:.3f}' for v in cam['T_flange_camera_std']['translation_mm'])})")
+        for e in doc["effects"]:
+            print(f"joint {e['joint']} backlash {e['deg']:.4f} +- {e['std']:.4f} deg")
         v = Verdict.from_json(doc["verdict"])
         if v.floor_line:
             print(v.floor_line)
