@@ -7,8 +7,15 @@ marks, the default hidden joint-2 backlash) calibrated as a user would; then, ag
 world's truth (truth.json: true z1, base and T_cam_sheet):
 
 - ``plane``: 200 random sheet points projected by the true camera, located at z = 0;
-- ``+50 mm``: the same at 50 mm above the sheet (objects on a raised plate: the point is
-  projected from its true 3-D place and located with ``--z-mm 50``);
+- ``+50 mm``: the same at 50 mm above the sheet (the point is projected from its true 3-D
+  place and located with ``--z-mm 50``);
+- ``plate +50``: a raised plate rendered by the world's photographer (a 160 x 120 mm card
+  of twelve ArUco markers lying 50 mm above the sheet, at five places under the camera,
+  photographed by the true camera with its lens and sensor noise); its marker corners
+  found by the measurement stage's sub-pixel edge fit and located at ``--z-mm 50``,
+  against the corners' true robot-frame place: RMS over the corners (the corner
+  detection's own noise is in it, printed in px) and each plate's mean error (that noise
+  averaged out over its 48 corners: the mapping's error there);
 - ``val marks``: each validation mark's true ink position, projected, located, against
   where the calibrated model says the commanded joints put the pen (robot frame), so
   robot repeatability and model error are in it;
@@ -21,8 +28,10 @@ Arm camera (``--arm``): the world's camera on the true robot (0.01 mm repeatabil
 photo) photographs the marker field from 24 poses (1280 x 960 px); ``vision-cal handeye``:
 
 - ``plane`` / ``+50 mm``: for each photo, 20 true points projected by the photo's true
-  camera, located through the fitted robot and ``T_flange_camera`` at the commanded joints,
-  against their true robot-frame place (the robot's repeatability is in it);
+  camera, located through the fitted robot and ``T_flange_camera`` at the commanded joints
+  (``camera/arm.camera_for``, as ``vision-cal locate --photo``), against their true
+  robot-frame place (the robot's repeatability is in it), and RMS(err/std);
+- the verdict (residual over the noise floor);
 - kinematics against the pen method: the pen calibration of a rendered series of the same
   true robot, each parameter's difference over the combined std;
 - poses needed: the predicted std of the flange position (per axis, RMS over the reachable
@@ -101,6 +110,8 @@ def still(seed: int, declared: bool, out: Path) -> dict:
         std = np.array([g.robot_std_mm[:2] for g in got])
         e = np.hypot(*err.T)
         res[name] = (np.sqrt(np.mean(e**2)), e.max(), np.sqrt(np.mean((err / std) ** 2)))
+    if cam.intrinsics != "focal length undetermined":
+        res["plate +50"] = _raised_plate(sc, truth, cam, 50.0, T_rs, rng)
     # validation marks: true ink -> pixel -> robot frame, against the calibrated model
     model = run.model
     z1 = np.radians(model.params.joint_zero_deg[0])
@@ -120,37 +131,79 @@ def still(seed: int, declared: bool, out: Path) -> dict:
     return res
 
 
-def _arm_locate(doc, truth, session, z_mm, rng):
-    """Errors (N, 2) mm and predicted nothing: pixel -> robot through the fitted arm."""
-    from vision_cal.camera.arm import T_sheet_flange
-    from vision_cal.kinematics import ScaraParams
-    from vision_cal.measure.mapping import undistort_px
+def _raised_plate(sc, truth, cam, z_mm, T_rs, rng):
+    """The rendered plate's marker corners located at z_mm against their truth: RMS and max
+    (mm, 2-D) over the corners, the RMS over plates of each plate's mean error (the corner
+    detection's noise averaged out: the mapping's own error there) and the detection's
+    2-D RMS error in px against the true projection."""
+    from vision_cal.dataset.marker_geometry import marker_geometry
+    from vision_cal.measure.aruco import corners_from_edges, edge_points, find_sheet_markers
+    from vision_cal.render.photo import Photographer
+    from vision_cal.render.sheet import make_sheet, sheet_texture
 
-    p = ScaraParams.from_json(doc["params"])
-    X = np.array(doc["cameras"][0]["T_flange_camera"])
-    K = np.array(session["camera"]["K"])
+    _, T_cs, K, dist = _truth_T(truth)
+    w, h = sc.camera.size_px
+    ph = Photographer(size_px=(w, h), K=K)
+    errs, det_px = [], []
+    try:
+        for cx, cy in ((0, 0), (-150, -90), (150, -90), (-150, 90), (150, 90)):
+            plate = make_sheet(size_mm=(160.0, 120.0), bottom_left_mm=(cx - 80.0, cy - 60.0),
+                               dictionary="DICT_5X5_100", marker_mm=22.0, grid=(4, 3),
+                               margin_mm=10.0)
+            tex = sheet_texture(plate, marks_xy_mm=np.zeros((0, 2)), px_per_mm=8.0, rng=rng)
+            x0, y0, x1, y1 = plate.extent_mm
+            grid = (np.array([x0, x1]), np.array([y0, y1]), np.full((2, 2), z_mm))
+            rgb = ph.photograph(tex, extent_mm=plate.extent_mm, T_cam_sheet=T_cs,
+                                dist=dist if np.any(dist) else None,
+                                K_dist=K if np.any(dist) else None,
+                                noise_sigma=sc.photos.noise_sigma, rng=rng, height_grid=grid)
+            gray = cv2.cvtColor(np.asarray(rgb), cv2.COLOR_RGB2GRAY)
+            det = find_sheet_markers(gray, plate)
+            if det.reason:
+                continue
+            edges = edge_points(gray, det.corners_px, geometry=marker_geometry(plate))
+            px = np.asarray(corners_from_edges(edges, det.corners_px), float).reshape(-1, 2)
+            mm = np.asarray(det.corners_mm, float).reshape(-1, 2)
+            got = locate(cam, px, z_mm)
+            p_s = np.column_stack([mm, np.full(len(mm), z_mm)])
+            err = (np.array([g.robot_mm[:2] for g in got])
+                   - (p_s @ T_rs[:3, :3].T + T_rs[:3, 3])[:, :2])
+            errs.append(err)
+            det_px.append(px - _project(T_cs, K, dist, p_s))
+    finally:
+        ph.close()
+    if not errs:
+        return None
+    e = np.hypot(*np.concatenate(errs).T)
+    bias = np.array([np.hypot(*er.mean(axis=0)) for er in errs])
+    dpx = np.concatenate(det_px)
+    return {"rms": np.sqrt(np.mean(e**2)), "max": e.max(), "n": len(e),
+            "plate_mean_rms": float(np.sqrt(np.mean(bias**2))),
+            "detection_px": float(np.sqrt(np.mean(np.sum(dpx**2, axis=1))))}
+
+
+def _arm_locate(doc, truth, session, z_mm, rng):
+    """Errors (N, 2) mm and their ratio to locate's std: pixel -> robot through the fitted
+    arm at each photo's commanded joints (``vision-cal locate --photo``)."""
+    from vision_cal.camera.arm import camera_for
+
     T_sr_true, _, _, _ = _truth_T({"params": truth["params"], "camera": {
-        "T_cam_sheet": {"x": np.eye(4)}, "K": K, "dist": np.zeros(5)}})
-    z1 = np.radians(p.z1_deg)
-    T_sr_fit = np.array([[np.cos(z1), -np.sin(z1), 0, p.base_x_mm],
-                         [np.sin(z1), np.cos(z1), 0, p.base_y_mm], [0, 0, 1, 0], [0, 0, 0, 1]])
-    errs = []
-    for pose in session["poses"]:
+        "T_cam_sheet": {"x": np.eye(4)}, "K": np.eye(3), "dist": np.zeros(5)}})
+    T_rs = np.linalg.inv(T_sr_true)
+    K = np.array(truth["camera"]["K"])
+    w, h = session["camera"]["size_px"] if "camera" in session else doc["cameras"][0]["size_px"]
+    errs, ratios = [], []
+    for pose in doc["poses"]:
         T_cs = np.array(truth["camera"]["T_cam_sheet"][pose["image"]])
         centre = np.linalg.inv(T_cs)[:2, 3]
         p_s = np.column_stack([centre + rng.uniform(-40, 40, (20, 2)), np.full(20, z_mm)])
         uv = _project(T_cs, K, np.zeros(5), p_s)
-        w, h = session["camera"]["size_px"]
         ok = (uv[:, 0] > 0) & (uv[:, 0] < w - 1) & (uv[:, 1] > 0) & (uv[:, 1] < h - 1)
-        T_sc = T_sheet_flange(p, [pose["joints_deg"]], [pose["j4_deg"]])[0] @ X
-        ideal = undistort_px(uv[ok], K, np.zeros(5))
-        d = np.column_stack([(ideal - K[:2, 2]) / K[0, 0], np.ones(ok.sum())]) @ T_sc[:3, :3].T
-        t = (z_mm - T_sc[2, 3]) / d[:, 2]
-        got_s = T_sc[:3, 3] + t[:, None] * d
-        got_r = (np.linalg.inv(T_sr_fit)[:3, :3] @ got_s.T).T + np.linalg.inv(T_sr_fit)[:3, 3]
-        true_r = (np.linalg.inv(T_sr_true)[:3, :3] @ p_s[ok].T).T + np.linalg.inv(T_sr_true)[:3, 3]
-        errs.append(got_r[:, :2] - true_r[:, :2])
-    return np.concatenate(errs)
+        got = locate(camera_for(doc, 0, photo=pose["image"]), uv[ok], z_mm)
+        err = np.array([g.robot_mm[:2] for g in got]) - (p_s[ok] @ T_rs[:3, :3].T + T_rs[:3, 3])[:, :2]
+        errs.append(err)
+        ratios.append(err / np.array([g.robot_std_mm[:2] for g in got]))
+    return np.concatenate(errs), np.concatenate(ratios)
 
 
 def arm(seed: int, out: Path) -> None:
@@ -183,9 +236,15 @@ def arm(seed: int, out: Path) -> None:
     print(f"arm camera, seed {seed}: {len(doc['cameras'][0]['images'])} photos, corner RMS "
           f"{doc['cameras'][0]['corner_rms_px']:.3f} px, photo-level scatter "
           f"{json.dumps({k: round(v, 4) for k, v in doc['pose_rms'].items()})}")
+    v = doc["verdict"]
+    print(f"  verdict {v['status']}: residual over floor {v['residual_over_floor']:.2f}, "
+          f"expected target error {v['expected_target_error_mm']:.4f} mm (95 %)"
+          + (f"; {'; '.join(v['reasons'])}" if v["reasons"] else ""))
     for name, z in (("plane", 0.0), ("+50 mm", 50.0)):
-        e = np.hypot(*_arm_locate(doc, truth, session, z, rng).T)
-        print(f"  {name:<10}  RMS {np.sqrt(np.mean(e**2)):.4f}  max {e.max():.4f}")
+        err, ratio = _arm_locate(doc, truth, session, z, rng)
+        e = np.hypot(*err.T)
+        print(f"  {name:<10}  RMS {np.sqrt(np.mean(e**2)):.4f}  max {e.max():.4f}  "
+              f"ratio {np.sqrt(np.mean(ratio**2)):.2f}")
     X, Xf = np.array(truth["T_flange_camera"]), np.array(doc["cameras"][0]["T_flange_camera"])
     sd = doc["cameras"][0]["T_flange_camera_std"]["translation_mm"]
     print("  T_flange_camera translation error (mm) / std: " + ", ".join(
@@ -260,6 +319,11 @@ def main() -> None:
                 v = r.get(k)
                 print(f"  {k:<10}" + ("  not located (focal length undetermined)" if v is None
                                       else f"  RMS {v[0]:.4f}  max {v[1]:.4f}  ratio {v[2]:.2f}"))
+            v = r.get("plate +50")
+            if v is not None:
+                print(f"  plate +50   RMS {v['rms']:.4f}  max {v['max']:.4f} over {v['n']} "
+                      f"corners (detection {v['detection_px']:.3f} px RMS); each plate's mean "
+                      f"error {v['plate_mean_rms']:.4f} RMS")
 
 
 if __name__ == "__main__":

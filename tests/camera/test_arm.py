@@ -8,7 +8,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import dataclasses
+
 from vision_cal.camera.arm import (LABELS, ArmView, fit_arm_camera, relative_motion)
+from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.kinematics import ScaraParams
 from vision_cal.render import arm_camera as world
 from vision_cal.render.sheet import make_sheet
@@ -27,24 +30,24 @@ def _field():
                       dictionary="DICT_5X5_250", marker_mm=18.0, grid=(14, 10), margin_mm=12.0)
 
 
-def _plan(n, rng, *, turn_j4=True):
+def _plan(n, rng, *, turn_j4=True, truth=TRUTH):
     """Commands whose flange lands over the sheet: both elbows, joint 4 turned."""
     out = []
     while len(out) < n:
         q = np.array([rng.uniform(-60, 60), rng.uniform(-150, 150)])
-        xy = TRUTH.pen_mm(q[None])[0]
+        xy = truth.pen_mm(q[None])[0]
         if abs(xy[0]) < 230 and abs(xy[1]) < 150 and abs(q[1]) > 20:
             out.append((q, rng.uniform(-170, 170) if turn_j4 else 0.0))
     return out
 
 
-def _views(plan, X, rng, noise_px=0.1, repeatability_mm=0.01):
+def _views(plan, X, rng, noise_px=0.1, repeatability_mm=0.01, truth=TRUTH):
     """Each photo: the flange off its place by the robot's repeatability (per axis), the
     corners by ``noise_px``."""
     corners = np.concatenate([m.corners_mm for m in _field().markers])
     q = np.array([p[0] for p in plan])
     j4 = np.array([p[1] for p in plan])
-    T_sf = world.T_sheet_flange(TRUTH, q, j4)
+    T_sf = world.T_sheet_flange(truth, q, j4)
     T_sf[:, :2, 3] += rng.normal(0, repeatability_mm, (len(q), 2))
     views = []
     for i, T in enumerate(np.linalg.inv(T_sf @ X)):
@@ -105,3 +108,43 @@ def test_without_joint_4_turns_L2_and_the_camera_offset_are_not_identified():
     views = _views(_plan(16, rng, turn_j4=False), X, rng)
     fit = fit_arm_camera(views, K, None, NOMINAL)
     assert "L2_mm" in fit.not_identifiable and "cam_x_mm" in fit.not_identifiable
+
+
+def _verdict(fit, **kw):
+    return judge_camera_poses(fit.flange_residual_mm, fit.flange_sigma_mm,
+                              fit.flange_heldout_mm, n_params=fit.n_params_xy, **kw)
+
+
+def test_clean_poses_sit_on_the_noise_floor():
+    """Corner noise and the robot's repeatability are all there is: the residual over the
+    floor is 1 within its spread (sqrt(chi2 / dof) on ~40 dof: std ~0.11, 4 std allowed)."""
+    rng = np.random.default_rng(11)
+    X = world.T_flange_camera_true(rng)
+    fit = fit_arm_camera(_views(_plan(24, rng), X, rng), K, None, NOMINAL)
+    v = _verdict(fit, repeatability_mm=0.01)
+    assert 0.55 < v.residual_over_floor < 1.45, v.floor
+    assert v.status in ("ready", "check") and not v.floor["beyond"], v.reasons
+    assert v.expected_target_error_mm < 0.1
+
+
+def test_an_unmodelled_gear_ratio_error_is_never_ready():
+    """Joint 2 turns 1.0003 times its command (up to ~0.1 mm at the flange): the base
+    model plus camera cannot take it, and the residual says so."""
+    rng = np.random.default_rng(11)
+    truth = dataclasses.replace(TRUTH, scale=(0.0, 3e-4))
+    X = world.T_flange_camera_true(rng)
+    fit = fit_arm_camera(_views(_plan(24, rng, truth=truth), X, rng, truth=truth), K, None,
+                         NOMINAL)
+    v = _verdict(fit, repeatability_mm=0.01)
+    assert v.status != "ready" and v.floor["beyond"], v.floor
+    assert any("noise floor" in r for r in v.reasons)
+
+
+def test_poses_that_do_not_separate_a_parameter_are_not_reliable():
+    rng = np.random.default_rng(5)
+    X = world.T_flange_camera_true(rng)
+    fit = fit_arm_camera(_views(_plan(16, rng, turn_j4=False), X, rng), K, None, NOMINAL)
+    from vision_cal.camera.arm_session import _reasons
+
+    v = _verdict(fit, reasons=_reasons(fit, "flange"))
+    assert v.status == "not reliable" and "L2_mm" in v.reasons[0], v.reasons

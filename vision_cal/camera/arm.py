@@ -33,8 +33,9 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
-from vision_cal.camera.fixed import homogeneous, lsq_covariance
-from vision_cal.errors import CalibrationError
+from vision_cal.camera.fixed import (F_REL_STD_MAX, UNDETERMINED, FixedCamera, T_sheet_robot,
+                                     _delta, camera_of, fit_pose, homogeneous, lsq_covariance)
+from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.kinematics import ScaraParams, flange_angle_rad, forward
 from vision_cal.rms import rms_2d
 
@@ -57,6 +58,7 @@ class ArmView:
     j4_deg: float
     corners_mm: np.ndarray
     corners_px: np.ndarray
+    approach: tuple[float, float] = (1.0, 1.0)   # each joint's last motion sign
 
 
 @dataclass(frozen=True)
@@ -71,6 +73,25 @@ class ArmFit:
     view_rms_px: np.ndarray
     n_corners: int
     pose_rms: dict | None = None     # per-photo flange pose scatter (mm, deg) by component
+    #: the noise floor's inputs (:func:`_floor_terms`): per photo the in-plane residual of
+    #: the flange position (N, 2) mm, the per-axis std the corner noise alone gives it (N,),
+    #: its leave-one-photo-out residual (N, 2) and the parameters those rows consume
+    flange_residual_mm: np.ndarray | None = None
+    flange_sigma_mm: np.ndarray | None = None
+    flange_heldout_mm: np.ndarray | None = None
+    n_params_xy: float = 0.0
+    corner_sigma_px: float = float("nan")
+    #: joints (1, 2) whose backlash was fitted: parameters 12, 13 ... (full band, deg)
+    backlash_joints: tuple[int, ...] = ()
+    backlash_band_deg: tuple[float, ...] = ()
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        return LABELS + tuple(f"backlash{j}_deg" for j in self.backlash_joints)
+
+    @property
+    def backlash_deg(self) -> dict[int, float]:
+        return dict(zip(self.backlash_joints, self.backlash_band_deg))
 
     @property
     def std(self) -> np.ndarray:
@@ -78,7 +99,17 @@ class ArmFit:
 
     @property
     def not_identifiable(self) -> list[str]:
-        return [lab for lab, s in zip(LABELS, self.std) if not s < UNIDENTIFIED_STD]
+        return [lab for lab, s in zip(self.labels, self.std) if not s < UNIDENTIFIED_STD]
+
+    def high_correlations(self, limit: float = 0.9) -> list[dict]:
+        """Pairs of parameters whose correlation is above ``limit`` in size."""
+        sd = self.std
+        with np.errstate(invalid="ignore", divide="ignore"):
+            c = self.cov / np.outer(sd, sd)
+        lab = self.labels
+        return [{"a": lab[i], "b": lab[j], "r": float(c[i, j])}
+                for i in range(len(lab)) for j in range(i + 1, len(lab))
+                if np.isfinite(c[i, j]) and abs(c[i, j]) > limit]
 
     def to_json(self) -> dict:
         sd = self.std
@@ -88,10 +119,88 @@ class ArmFit:
                 "T_flange_camera": self.T_flange_camera.tolist(),
                 "T_flange_camera_std": {"rotation_deg": sd[6:9].tolist(),
                                         "translation_mm": sd[9:12].tolist()},
-                "covariance": {"params": list(LABELS), "matrix": self.cov.tolist()},
+                "covariance": {"params": list(self.labels), "matrix": self.cov.tolist()},
+                "effects": [{"name": "joint_backlash", "joint": j, "deg": d,
+                             "std": float(sd[12 + k])}
+                            for k, (j, d) in enumerate(self.backlash_deg.items())],
                 "corner_rms_px": self.rms_px, "n_corners": self.n_corners,
                 "pose_rms": self.pose_rms,
-                "not_identifiable": self.not_identifiable}
+                "not_identifiable": self.not_identifiable,
+                "identifiability": {"n_params": len(self.labels), "labels": list(self.labels),
+                                    "high_correlations": self.high_correlations()}}
+
+
+def _focal_std(obj, img, K, dist, rvecs, tvecs) -> float:
+    """The focal length's std (px) at a ``calibrateCamera`` solution: the reprojection
+    Jacobian in (f, k1, k2) with every view's pose profiled out (Schur complement), scaled
+    by the residual variance. (OpenCV's own figure assumes the problem well posed and says
+    0.01 px for views that leave f free.)"""
+    S = np.zeros((3, 3))
+    ssr, n_rows = 0.0, 0
+    for o, m, rv, tv in zip(obj, img, rvecs, tvecs):
+        uv, J = cv2.projectPoints(o.reshape(-1, 1, 3).astype(np.float64), rv, tv, K, dist)
+        r = (uv.reshape(-1, 2) - m.reshape(-1, 2)).ravel()
+        ssr += float(r @ r)
+        n_rows += len(r)
+        A = np.column_stack([J[:, 6] + J[:, 7], J[:, 10], J[:, 11]])   # f, k1, k2
+        B = J[:, :6]                                                    # rvec, tvec
+        S += A.T @ A - A.T @ B @ np.linalg.solve(B.T @ B, B.T @ A)
+    s2 = ssr / max(n_rows - 6 * len(obj) - 3, 1)
+    cov = lsq_covariance(np.linalg.cholesky(S + 1e-300 * np.eye(3)).T, s2) \
+        if np.all(np.linalg.eigvalsh(S) > 0) else np.full((3, 3), np.inf)
+    return float(np.sqrt(cov[0, 0]))
+
+
+@dataclass(frozen=True)
+class Lens:
+    """The arm camera's lens estimated from its views: ``K`` (3, 3), ``dist`` (5,), how
+    (``estimated`` or :data:`~vision_cal.camera.fixed.UNDETERMINED`), ``f_px_std``."""
+
+    K: np.ndarray
+    dist: np.ndarray
+    intrinsics: str
+    f_px_std: float
+    reason: str = ""
+
+
+def estimate_lens(views: list["ArmView"], size_px) -> Lens:
+    """The lens from the views' marker corners when session.json declares none: OpenCV's
+    ``calibrateCamera`` (Zhang's method) with the principal point at the image centre and
+    square pixels, focal length, k1 and k2 fitted.
+
+    A SCARA turns its camera about the sheet's normal only, so every view sees the sheet
+    under the same tilt: the views add no new constraint on the lens (parallel planes,
+    Zhang's degenerate case) beyond what one view's tilt gives. A camera looking square
+    at the sheet therefore cannot tell its focal length from its height: then (std above
+    ``F_REL_STD_MAX`` of itself) ``UNDETERMINED``, the focal length set to 1.2 times the
+    image's larger side, and only the sheet's plane can be located."""
+    w, h = (int(v) for v in size_px)
+    f0 = 1.2 * max(w, h)
+    K0 = np.array([[f0, 0, (w - 1) / 2], [0, f0, (h - 1) / 2], [0, 0, 1.0]])
+    obj = [np.column_stack([v.corners_mm, np.zeros(len(v.corners_mm))]).astype(np.float32)
+           for v in views]
+    img = [np.asarray(v.corners_px, np.float32).reshape(-1, 1, 2) for v in views]
+    flags = (cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_FIX_PRINCIPAL_POINT
+             | cv2.CALIB_FIX_ASPECT_RATIO | cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K3)
+    try:
+        out = cv2.calibrateCameraExtended(obj, img, (w, h), K0.copy(), np.zeros(5), flags=flags)
+    except cv2.error as e:
+        raise CalibrationError(f"the lens could not be estimated from the views: {e}") from e
+    K, dist = out[1], np.asarray(out[2], float).ravel()[:5]
+    f_sd = _focal_std(obj, img, K, dist, out[3], out[4])
+    if K[0, 0] > 0 and f_sd < F_REL_STD_MAX * K[0, 0]:
+        return Lens(np.asarray(K, float), dist, "estimated", f_sd)
+    # f free trades with the height: keep the plane's mapping, distortion with f fixed
+    out = cv2.calibrateCameraExtended(obj, img, (w, h), K0.copy(), np.zeros(5),
+                                      flags=flags | cv2.CALIB_FIX_FOCAL_LENGTH)
+    return Lens(np.asarray(out[1], float), np.asarray(out[2], float).ravel()[:5], UNDETERMINED,
+                float("nan"),
+                f"the lens was not declared and the views (all at the same tilt to the sheet, "
+                f"{f_sd / max(K[0, 0], 1e-9):.0%} relative std of the focal length) cannot "
+                "tell its focal length from the camera's height: T_flange_camera's z and "
+                "heights off the sheet's plane are unknown (the robot and the sheet's plane "
+                "are not affected); declare camera K in session.json, or tilt the camera "
+                "15 deg or more")
 
 
 def T_sheet_flange(params: ScaraParams, q_deg, j4_deg) -> np.ndarray:
@@ -124,9 +233,19 @@ def _unpack(x: np.ndarray, R0: np.ndarray) -> tuple[ScaraParams, np.ndarray]:
     return p, X
 
 
-def _residuals(x, views, K, dist, R0) -> np.ndarray:
+def _link_commands(x, views, bl) -> np.ndarray:
+    """(N, 2) commands with the fitted backlash of joints ``bl`` applied (the contract's
+    ``joint_backlash``: the joint lags by ``-s band / 2`` against its approach ``s``)."""
+    q = np.array([v.q_deg for v in views], float).reshape(-1, 2)
+    for k, j in enumerate(bl):
+        s = np.array([v.approach[j - 1] for v in views], float)
+        q[:, j - 1] -= s * x[12 + k] / 2.0
+    return q
+
+
+def _residuals(x, views, K, dist, R0, bl=()) -> np.ndarray:
     p, X = _unpack(x, R0)
-    T_sc = T_sheet_flange(p, [v.q_deg for v in views], [v.j4_deg for v in views]) @ X
+    T_sc = T_sheet_flange(p, _link_commands(x, views, bl), [v.j4_deg for v in views]) @ X
     out = []
     for v, T in zip(views, T_sc):
         T_cs = np.linalg.inv(T)
@@ -149,7 +268,10 @@ def camera_pose(view: ArmView, K, dist) -> np.ndarray:
 
 def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams) -> ArmFit:
     """Robot and ``T_flange_camera`` from photos taken by the arm's camera (``K``, ``dist``
-    declared); starts from ``nominal`` and the first photo's pose."""
+    declared); starts from ``nominal`` and the first photo's pose. A joint reached from
+    both sides in the photos (their ``approach``) has its backlash fitted as well (the
+    contract's ``joint_backlash``; from one side only it is part of the joint's zero)."""
+    bl = tuple(j for j in (1, 2) if len({v.approach[j - 1] for v in views}) > 1)
     if len(views) < MIN_POSES:
         raise CalibrationError(f"{len(views)} usable photos: at least {MIN_POSES} are needed "
                                "(12 parameters, and each kind of pose residual needs its own "
@@ -160,14 +282,16 @@ def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams) -> ArmFi
     X0 = np.linalg.inv(T_sheet_flange(nominal, [views[0].q_deg], [views[0].j4_deg])[0]) @ T0
     x0 = np.concatenate([[nominal.L1_mm, nominal.L2_mm, nominal.z1_deg, nominal.z2_deg,
                           nominal.base_x_mm, nominal.base_y_mm],
-                         np.zeros(3), X0[:3, 3]])
+                         np.zeros(3), X0[:3, 3], np.zeros(len(bl))])
     R0 = X0[:3, :3]
-    sol = least_squares(_residuals, x0, args=(views, K, dist, R0), method="lm", x_scale="jac")
+    sol = least_squares(_residuals, x0, args=(views, K, dist, R0, bl), method="lm",
+                        x_scale="jac")
     # again about the solution, so the rotation's covariance is about the found frame
     p1, X1 = _unpack(sol.x, R0)
     R0 = X1[:3, :3]
-    x1 = np.concatenate([sol.x[:6], np.zeros(3), sol.x[9:12]])
-    sol = least_squares(_residuals, x1, args=(views, K, dist, R0), method="lm", x_scale="jac")
+    x1 = np.concatenate([sol.x[:6], np.zeros(3), sol.x[9:]])
+    sol = least_squares(_residuals, x1, args=(views, K, dist, R0, bl), method="lm",
+                        x_scale="jac")
     r = sol.fun
     n = len(r)
     p, X = _unpack(sol.x, R0)
@@ -177,18 +301,64 @@ def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams) -> ArmFi
     # residuals are not independent; the flange pose each photo implies, against the
     # model's, is (one 6-vector per photo), with each kind of component's variance found
     # from its own scatter
-    M = np.array([camera_pose(v, K, dist) for v in views])
-    x2 = np.concatenate([sol.x[:6], np.zeros(3), sol.x[9:12]])
-    x3, cov, rms_pose = _pose_level_fit(x2, views, M, R0)
+    M, C_pnp, sigma_px = _view_poses(views, K, dist)
+    x2 = np.concatenate([sol.x[:6], np.zeros(3), sol.x[9:]])
+    x3, cov, rms_pose, lev = _pose_level_fit(x2, views, M, R0, bl)
     p, X = _unpack(x3, R0)          # the estimate the covariance belongs to
-    return ArmFit(p, X, cov, rms_2d(r.reshape(-1, 2)), view_rms, n // 2, rms_pose)
+    e = _pose_residuals(x3, views, M, R0, bl)
+    sig = _floor_terms(x3, views, M, C_pnp, R0, bl)
+    held = e[:, :2] / np.clip(1.0 - lev[:, :2], 1e-3, None)
+    return ArmFit(p, X, cov, rms_2d(r.reshape(-1, 2)), view_rms, n // 2, rms_pose,
+                  e[:, :2].copy(), sig, held, float(lev[:, :2].sum()), sigma_px, bl,
+                  tuple(float(v) for v in x3[12:]))
 
 
-def _pose_residuals(x, views, M, R0) -> np.ndarray:
+def _view_poses(views, K, dist) -> tuple[np.ndarray, np.ndarray, float]:
+    """Per photo ``T_sheet_camera`` from its corners alone (N, 4, 4), the covariance (N, 6, 6)
+    of its ``T_camera_sheet`` (rotation vector rad, translation mm) from the corner noise,
+    and that noise (px, per axis): pooled over the photos (each photo's own pose fit
+    leaves the corner noise alone, robot-free), so one photo's few corners do not make
+    its own figure."""
+    T, C, ssr, dof = [], [], 0.0, 0
+    for v in views:
+        T_cs, _, cov, rms = fit_pose(v.corners_mm, v.corners_px, K, dist, free_f=False)
+        n = len(v.corners_mm)
+        s2 = rms**2 * n / max(2 * n - 6, 1)
+        T.append(np.linalg.inv(T_cs))
+        C.append(cov[:6, :6] / max(s2, 1e-30))
+        ssr += rms**2 * n
+        dof += 2 * n - 6
+    s2 = ssr / max(dof, 1)
+    return np.array(T), np.array(C) * s2, float(np.sqrt(s2))
+
+
+def _floor_terms(x, views, M, C_pnp, R0, bl=()) -> np.ndarray:
+    """(N,) per-axis std of each photo's in-plane flange residual that the corner noise
+    alone gives: its pose covariance ``C_pnp`` carried through the residual (the camera's
+    tilt error times its height above the flange is in it)."""
+    out = np.empty(len(views))
+    for i, v in enumerate(views):
+        T_cs = np.linalg.inv(M[i])
+        p0 = np.concatenate([cv2.Rodrigues(T_cs[:3, :3])[0].ravel(), T_cs[:3, 3]])
+        J = np.empty((2, 6))
+        for k in range(6):
+            step = 1e-6 if k < 3 else 1e-4
+            rows = []
+            for sgn in (1.0, -1.0):
+                pk = p0.copy()
+                pk[k] += sgn * step
+                Mk = np.linalg.inv(homogeneous(cv2.Rodrigues(pk[:3].reshape(3, 1))[0], pk[3:]))
+                rows.append(_pose_residuals(x, [v], Mk[None], R0, bl)[0, :2])
+            J[:, k] = (rows[0] - rows[1]) / (2 * step)
+        out[i] = np.sqrt(max(np.trace(J @ C_pnp[i] @ J.T) / 2.0, 0.0))
+    return out
+
+
+def _pose_residuals(x, views, M, R0, bl=()) -> np.ndarray:
     """(N, 6): per photo the flange pose the photo implies (``M_i inv(X)``) in the model's
     flange frame: translation (mm) and small rotation (rad)."""
     p, X = _unpack(x, R0)
-    P = T_sheet_flange(p, [v.q_deg for v in views], [v.j4_deg for v in views])
+    P = T_sheet_flange(p, _link_commands(x, views, bl), [v.j4_deg for v in views])
     Xi = np.linalg.inv(X)
     out = np.empty((len(views), 6))
     for i in range(len(views)):
@@ -204,28 +374,128 @@ def _pose_residuals(x, views, M, R0) -> np.ndarray:
 _GROUPS = ((0, 1), (2,), (3, 4), (5,))
 
 
-def _pose_level_fit(x, views, M, R0) -> tuple[np.ndarray, np.ndarray, dict]:
+def _pose_level_fit(x, views, M, R0, bl=()) -> tuple[np.ndarray, np.ndarray, dict, np.ndarray]:
     """The parameters refitted on the photo-level residuals with each group's variance as
-    its weight, their covariance (12, 12) and the RMS of each group (mm, deg)."""
+    its weight, their covariance (12, 12), the RMS of each group (mm, deg) and the
+    residuals' leverages (N, 6)."""
     w = np.ones(6)
     n, P = len(views), len(x)
     for _ in range(3):
         def f(z):
-            return (_pose_residuals(z, views, M, R0) * w).ravel()
+            return (_pose_residuals(z, views, M, R0, bl) * w).ravel()
         sol = least_squares(f, x, method="lm", x_scale="jac")
         x = sol.x
-        e = _pose_residuals(x, views, M, R0)
+        e = _pose_residuals(x, views, M, R0, bl)
         var = np.empty(6)
         for g in _GROUPS:
             # each group takes its share of the parameters' degrees of freedom
             dof = max(n * len(g) - P * len(g) / 6.0, 1.0)
             var[list(g)] = max(float(np.sum(e[:, list(g)] ** 2)) / dof, 1e-30)
         w = 1.0 / np.sqrt(var)
-    sol = least_squares(lambda z: (_pose_residuals(z, views, M, R0) * w).ravel(), x,
+    sol = least_squares(lambda z: (_pose_residuals(z, views, M, R0, bl) * w).ravel(), x,
                         method="lm", x_scale="jac")
     cov = lsq_covariance(sol.jac, 1.0)
     x = sol.x
     rms = {"position_mm": float(np.sqrt(var[0])), "height_mm": float(np.sqrt(var[2])),
            "tilt_deg": float(np.degrees(np.sqrt(var[3]))),
            "turn_deg": float(np.degrees(np.sqrt(var[5])))}
-    return x, cov, rms
+    # leverages (the hat matrix's diagonal, per residual component): the parameters each
+    # row consumes, and a row's leave-one-out residual e / (1 - h)
+    Q, _ = np.linalg.qr(sol.jac / np.maximum(np.linalg.norm(sol.jac, axis=0), 1e-300))
+    lev = np.sum(Q**2, axis=1).reshape(n, 6)
+    return x, cov, rms, lev
+
+
+# --------------------------------------------------------------------------- pixel -> robot
+
+def camera_for(doc: dict, index: int, *, joints_deg=None, photo: str | None = None,
+               file: str | None = None) -> FixedCamera:
+    """The camera ``cameras[index]`` of a calibration document as it stood for one photo:
+    a still camera as is; a camera on the arm at commanded ``joints_deg`` ([q1, q2] or
+    [q1, q2, q4], reached with each joint turning counter-clockwise last) or at the command
+    and approach of ``photo`` (one of calibration.json's ``poses``); a fitted
+    ``joint_backlash`` is applied. ``vision_cal.camera.fixed.locate`` then maps its pixels
+    (its std leaves the backlash's own std out)."""
+    cams = doc.get("cameras")
+    entry = cams[index] if isinstance(cams, list) and 0 <= index < len(cams) else None
+    if not isinstance(entry, dict) or "T_flange_camera" not in entry:
+        if joints_deg is not None or photo is not None:
+            camera_of(doc, index, file=file)       # its own error first, if any
+            raise VisionCalError(f"camera {index} stood still: --joints and --photo are for "
+                                 "a camera on the arm", file=file,
+                                 field="--joints" if joints_deg is not None else "--photo")
+        return camera_of(doc, index, file=file)
+    where = f"cameras[{index}]"
+    if (joints_deg is None) == (photo is None):
+        raise VisionCalError("a camera on the arm: give the arm's command for the photo, "
+                             "--joints Q1 Q2 [Q4] or --photo NAME (one of calibration.json "
+                             "poses)", file=file, field="--joints")
+    if photo is not None:
+        pose = next((p for p in doc.get("poses") or [] if p.get("image") == photo), None)
+        if pose is None:
+            raise VisionCalError(f"no pose named {photo!r} in calibration.json poses",
+                                 file=file, field="--photo")
+        q, j4 = pose["joints_deg"], float(pose.get("j4_deg", 0.0))
+        approach = pose.get("approach") or (1, 1)
+    else:
+        approach = (1, 1)
+        if len(joints_deg) not in (2, 3) or not np.all(np.isfinite(joints_deg)):
+            raise VisionCalError("expected Q1 Q2 [Q4], finite degrees", file=file,
+                                 field="--joints")
+        q, j4 = joints_deg[:2], float(joints_deg[2]) if len(joints_deg) == 3 else 0.0
+    if entry.get("mount") == "link2" and j4 != 0.0:
+        raise VisionCalError("this camera is on link 2 and does not turn with joint 4: leave "
+                             "Q4 out", file=file, field="--joints")
+    try:
+        params = ScaraParams.from_json(doc["params"])
+        X = np.asarray(entry["T_flange_camera"], float).reshape(4, 4)
+        K = np.asarray(entry["K"], float).reshape(3, 3)
+        dist = np.asarray(entry["dist"], float).ravel()
+        size = tuple(int(v) for v in entry["size_px"])
+        cov12 = np.asarray(doc["covariance"]["matrix"], float)[:12, :12]
+    except (KeyError, TypeError, ValueError) as e:
+        raise VisionCalError(f"expected params, covariance and {where}'s T_flange_camera, K, "
+                             "dist, size_px", file=file, field=where) from e
+    q = np.array(q[:2], float)
+    for e in doc.get("effects") or []:     # a fitted backlash: the joint lags its approach
+        if isinstance(e, dict) and e.get("name") == "joint_backlash" and e.get("joint") in (1, 2):
+            q[e["joint"] - 1] -= float(approach[e["joint"] - 1]) * float(e["deg"]) / 2.0
+    rep = float((doc.get("verdict") or {}).get("repeatability_mm", 0.0))
+    f_sd = float(entry.get("f_px_std", 0.0))
+    return _camera_at(params, X, cov12, q, j4, K=K, dist=dist, size=size, rep=rep, f_sd=f_sd,
+                      intrinsics=str(entry.get("intrinsics", "declared")),
+                      images=tuple(entry.get("images") or ()))
+
+
+def _camera_at(params: ScaraParams, X, cov12, q, j4, *, K, dist, size, rep, f_sd, intrinsics,
+               images) -> FixedCamera:
+    """The arm camera at command (q, j4) as a :class:`FixedCamera`: ``T_robot_camera`` and
+    its covariance from the fit's (12, 12), the robot's repeatability ``rep`` added to its
+    in-plane place (the arm stands there within it), ``f_sd`` the focal length's std."""
+    R0 = X[:3, :3]
+    x0 = np.concatenate([[params.L1_mm, params.L2_mm, params.z1_deg, params.z2_deg,
+                          params.base_x_mm, params.base_y_mm], np.zeros(3), X[:3, 3]])
+
+    def T_rc(x):
+        p, Xk = _unpack(x, R0)
+        T_sc = T_sheet_flange(p, [q], [j4])[0] @ Xk
+        return np.linalg.inv(T_sheet_robot(p.z1_deg, (p.base_x_mm, p.base_y_mm))) @ T_sc
+
+    T0 = T_rc(x0)
+    J = np.zeros((6, 12))
+    steps = np.array([1e-4, 1e-4, 1e-6, 1e-6, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6, 1e-4, 1e-4, 1e-4])
+    for k in range(12):
+        d = np.zeros(12)
+        d[k] = steps[k]
+        J[:, k] = (_delta(T_rc(x0 + d), T0) - _delta(T_rc(x0 - d), T0)) / (2 * steps[k])
+    cov = np.zeros((7, 7))
+    cov[:6, :6] = J @ cov12 @ J.T
+    s = np.array([np.degrees(1.0)] * 3 + [1.0] * 3)
+    cov[:6, :6] *= np.outer(s, s)
+    cov[3, 3] += rep**2
+    cov[4, 4] += rep**2
+    if f_sd > 0:     # f and the camera's height move together (the fit's cam_z holds it)
+        cov[6, 6] = f_sd**2
+        cov[5, 6] = cov[6, 5] = f_sd**2 * T0[2, 3] / K[0, 0]
+    return FixedCamera(images, size, K, dist, intrinsics, T0, cov, float("nan"), 0,
+                       params.z1_deg, (params.base_x_mm, params.base_y_mm), np.eye(2))

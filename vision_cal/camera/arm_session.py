@@ -14,18 +14,21 @@ that cannot be used is skipped with its reason and the others go on.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from vision_cal.camera.arm import MIN_POSES, ArmView, fit_arm_camera
+from vision_cal.camera.arm import MIN_POSES, ArmView, estimate_lens, fit_arm_camera
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.dataset.photos import PhotoRefused, load_photo, normalise_name
 from vision_cal.dataset.session import FieldReader, read_robot_block, read_sheet_block
+from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams
+from vision_cal.motion import approach_signs
 from vision_cal.measure.aruco import corners_from_edges, edge_points, find_sheet_markers
 
 MOUNTS = ("flange", "link2")
@@ -44,22 +47,8 @@ def read_arm_session(folder):
         r.fail("format", f"expected {FORMAT!r}, got {fmt!r}")
     robot = read_robot_block(r, r.get(raw, "robot", ""), "robot")
     sheet = read_sheet_block(r, r.get(raw, "sheet", ""), "sheet")
-    cam = r.get(raw, "camera", "")
-    if not isinstance(cam, dict):
-        r.fail("camera", "expected an object with size_px, K and dist (a camera on the arm "
-                         "needs its lens declared)")
-    size = r.vector(r.get(cam, "size_px", "camera"), "camera.size_px", 2, lo=1)
-    K_raw = r.list_(r.get(cam, "K", "camera"), "camera.K")
-    if len(K_raw) != 3:
-        r.fail("camera.K", "expected a 3x3 matrix")
-    K = np.array([r.vector(row, f"camera.K[{i}]", 3) for i, row in enumerate(K_raw)])
-    if not (K[0, 0] > 0 and K[1, 1] > 0 and tuple(K[2]) == (0.0, 0.0, 1.0)):
-        r.fail("camera.K", "expected an OpenCV camera matrix [[fx,0,cx],[0,fy,cy],[0,0,1]]")
-    dist_raw = r.list_(r.get(cam, "dist", "camera"), "camera.dist")
-    if len(dist_raw) not in (4, 5, 8, 12, 14):
-        r.fail("camera.dist", f"expected 4, 5, 8, 12 or 14 OpenCV coefficients, got "
-                              f"{len(dist_raw)}")
-    dist = np.array([r.number(v, f"camera.dist[{i}]") for i, v in enumerate(dist_raw)])
+    cam = raw.get("camera")
+    camera = None if cam is None else _read_lens(r, cam)
     mount = raw.get("camera_mount", "flange")
     if mount not in MOUNTS:
         r.fail("camera_mount", f"expected one of {', '.join(MOUNTS)}, got {mount!r}")
@@ -75,12 +64,59 @@ def read_arm_session(folder):
         poses.append((img, np.asarray(q, float), float(j4)))
     nominal = ScaraParams(robot.L1_mm, robot.L2_mm, robot.joint_zero_deg[0],
                           robot.joint_zero_deg[1], robot.base_mm[0], robot.base_mm[1])
-    return folder, sheet, nominal, ((int(size[0]), int(size[1])), K, dist), mount, poses
+    # each joint's approach (the format's rule: its last motion, over every pose in order)
+    signs = approach_signs([q for _, q, _ in poses], robot.home_deg)
+    poses = [(img, q, j4, tuple(float(v) for v in sg)) for (img, q, j4), sg in zip(poses, signs)]
+    return folder, sheet, nominal, camera, mount, poses, robot.repeatability_mm
 
 
-def measure_view(folder, sheet, camera, image: str, q, j4) -> tuple[ArmView | None, dict]:
-    """One photo's corners (sub-pixel) as an :class:`ArmView`, and its ``images[]`` entry."""
-    size, K, dist = camera
+def _read_lens(r: FieldReader, cam) -> tuple:
+    """session.json ``camera``: (size_px, K (3, 3), dist (n,)), every field checked."""
+    if not isinstance(cam, dict):
+        r.fail("camera", "expected an object with size_px, K and dist (or leave it out: the "
+                         "lens is then estimated from the views)")
+    size = r.vector(r.get(cam, "size_px", "camera"), "camera.size_px", 2, lo=1)
+    K_raw = r.list_(r.get(cam, "K", "camera"), "camera.K")
+    if len(K_raw) != 3:
+        r.fail("camera.K", "expected a 3x3 matrix")
+    K = np.array([r.vector(row, f"camera.K[{i}]", 3) for i, row in enumerate(K_raw)])
+    if not (K[0, 0] > 0 and K[1, 1] > 0 and tuple(K[2]) == (0.0, 0.0, 1.0)):
+        r.fail("camera.K", "expected an OpenCV camera matrix [[fx,0,cx],[0,fy,cy],[0,0,1]]")
+    dist_raw = r.list_(r.get(cam, "dist", "camera"), "camera.dist")
+    if len(dist_raw) not in (4, 5, 8, 12, 14):
+        r.fail("camera.dist", f"expected 4, 5, 8, 12 or 14 OpenCV coefficients, got "
+                              f"{len(dist_raw)}")
+    dist = np.array([r.number(v, f"camera.dist[{i}]") for i, v in enumerate(dist_raw)])
+    return (int(size[0]), int(size[1])), K, dist
+
+
+def _reasons(fit, mount: str) -> list[tuple[str, str]]:
+    """(status, sentence) of what the poses leave undetermined."""
+    out = []
+    if fit.not_identifiable:
+        out.append(("not reliable", "the poses do not separate "
+                    + ", ".join(fit.not_identifiable)
+                    + (" from the rest (turn joint 4 between photos: vision-cal design "
+                       "--camera-on-arm)" if mount == "flange" else
+                       " from the rest (a camera on link 2 cannot separate L2 from its own "
+                       "offset along it)")))
+    return out
+
+
+def _pose_table(views, fit) -> list[dict]:
+    """Per photo: its command, the in-plane flange residual and its corner-noise std."""
+    return [{"image": v.file, "joints_deg": [float(a) for a in v.q_deg], "j4_deg": v.j4_deg,
+             "approach": [int(a) for a in v.approach],
+             "residual_mm": [float(a) for a in r], "sigma_mm": float(s),
+             "heldout_residual_mm": [float(a) for a in h]}
+            for v, r, s, h in zip(views, fit.flange_residual_mm, fit.flange_sigma_mm,
+                                  fit.flange_heldout_mm)]
+
+
+def measure_view(folder, sheet, size, image: str, q, j4, approach=(1.0, 1.0)
+                 ) -> tuple[ArmView | None, dict]:
+    """One photo's corners (sub-pixel) as an :class:`ArmView`, and its ``images[]`` entry
+    (``size_px`` of the photo); ``size``: the declared camera's, or None."""
     try:
         bgr, _, _ = load_photo(folder, image, size)
     except PhotoRefused as e:
@@ -95,44 +131,67 @@ def measure_view(folder, sheet, camera, image: str, q, j4) -> tuple[ArmView | No
     corners = corners_from_edges(edges, det.corners_px)
     view = ArmView(image, np.asarray(q, float), float(j4),
                    np.asarray(det.corners_mm, float).reshape(-1, 2),
-                   np.asarray(corners, float).reshape(-1, 2))
-    return view, {"file": image, "status": "ok", "n_markers": int(len(det.ids))}
+                   np.asarray(corners, float).reshape(-1, 2), tuple(approach))
+    return view, {"file": image, "status": "ok", "n_markers": int(len(det.ids)),
+                  "size_px": [int(gray.shape[1]), int(gray.shape[0])]}
 
 
 def calibrate_arm_camera(folder) -> dict:
     """calibration.json (as a dict) of an arm-camera dataset: the robot's base parameters
     with std and covariance, and the ``cameras`` entry with ``T_flange_camera``."""
-    folder, sheet, nominal, camera, mount, poses = read_arm_session(folder)
+    folder, sheet, nominal, camera, mount, poses, rep = read_arm_session(folder)
     views, images = [], []
-    for img, q, j4 in poses:
-        v, entry = measure_view(folder, sheet, camera, img, q, j4)
+    for img, q, j4, sg in poses:
+        v, entry = measure_view(folder, sheet, None if camera is None else camera[0], img, q, j4,
+                                sg)
         images.append(entry)
         if v is not None:
             views.append(v)
+    sizes = {tuple(e["size_px"]) for e in images if e["status"] == "ok"}
+    if camera is None and len(sizes) > 1:
+        raise CalibrationError(f"photos of {len(sizes)} sizes ({', '.join(f'{a}x{b}' for a, b in sorted(sizes))}) "
+                               "and no camera declared: one camera takes photos of one size",
+                               file=str(folder / "session.json"), field="camera")
     if len(views) < MIN_POSES:
         raise CalibrationError(f"{len(views)} of {len(poses)} photos usable: at least "
                                f"{MIN_POSES} are needed", file=str(folder / "session.json"))
-    size, K, dist = camera
+    lens_reason = []
+    if camera is None:
+        size = sizes.pop()
+        lens = estimate_lens(views, size)
+        K, dist, how, f_sd = lens.K, lens.dist, lens.intrinsics, lens.f_px_std
+        if lens.reason:
+            lens_reason = [("check", lens.reason)]
+    else:
+        (size, K, dist), how, f_sd = camera, "declared", 0.0
     fit = fit_arm_camera(views, K, dist, nominal)
+    if how == "estimated":
+        # the focal length's error moves the camera's height with it (f / height is what
+        # the views fix): into T_flange_camera's z
+        cov = fit.cov.copy()
+        cov[11, 11] += (fit.T_flange_camera[2, 3] * f_sd / K[0, 0]) ** 2
+        fit = replace(fit, cov=cov)
     d = fit.to_json()
     for entry, v, rms in zip([e for e in images if e["status"] == "ok"], views, fit.view_rms_px):
         entry["corner_rms_px"] = float(rms)
-    reasons = []
-    if fit.not_identifiable:
-        reasons.append("not identified by these poses: " + ", ".join(fit.not_identifiable)
-                       + (" (turn joint 4 between photos: vision-cal design --camera-on-arm)"
-                          if mount == "flange" else
-                          " (a camera on link 2 cannot separate L2 from its own offset)"))
+    verdict = judge_camera_poses(
+        fit.flange_residual_mm, fit.flange_sigma_mm, fit.flange_heldout_mm,
+        n_params=fit.n_params_xy, repeatability_mm=rep,
+        reasons=_reasons(fit, mount) + lens_reason)
     cam = {"images": [v.file for v in views], "size_px": list(size), "K": K.tolist(),
            "dist": dist.tolist(), "T_flange_camera": d["T_flange_camera"],
            "mount": mount, "T_flange_camera_std": d["T_flange_camera_std"],
            "corner_rms_px": d["corner_rms_px"], "n_corners": d["n_corners"],
-           "status": "check" if reasons else "ok", "reasons": reasons}
+           "corner_sigma_px": fit.corner_sigma_px, "intrinsics": how}
+    if how == "estimated":
+        cam["f_px_std"] = f_sd
     return {"format": "vision-cal/calibration/1", "method": "arm_camera",
             "params": d["params"], "std": d["std"], "covariance": d["covariance"],
-            "nominal": nominal.to_json(), "effects": [], "cameras": [cam],
+            "nominal": nominal.to_json(), "effects": d["effects"], "cameras": [cam],
             "not_identifiable": d["not_identifiable"], "pose_rms": d["pose_rms"],
+            "identifiability": d["identifiability"],
+            "poses": _pose_table(views, fit), "verdict": verdict.to_json(),
             "images": images,
             "notes": ["robot calibrated from the arm camera's views of the marker field (no "
-                      "pen): base model only; joint effects are not looked for in this "
-                      "version"]}
+                      "pen): the base model, and the backlash of a joint reached from both "
+                      "sides; other joint effects are not looked for in this version"]}

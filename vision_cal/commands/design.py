@@ -147,9 +147,9 @@ def _camera_on_arm(args) -> int:
                                 mount=args.mount, trigger=args.trigger,
                                 output_bit=args.trigger_output, seed=args.seed)
     if not args.quiet:
-        print(f"camera poses: {args.n_poses} ({args.mount} mount); add your camera's lens "
-              f"(camera: size_px, K, dist) to {a}, put the photos beside it, then "
-              f"vision-cal handeye {out} --out CAL/")
+        print(f"camera poses: {args.n_poses} ({args.mount} mount); put the photos beside "
+              f"{a} (and your camera's lens in it if you know it: camera: size_px, K, dist), "
+              f"then vision-cal handeye {out} --out CAL/")
         print(f"wrote {a}")
         print(f"wrote {b}")
     return 0

@@ -23,6 +23,7 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     from vision_cal.camera.arm_session import calibrate_arm_camera
     from vision_cal.dataset.io import atomic_write_json, output_dir
+    from vision_cal.diagnose.verdict import Verdict
 
     out = output_dir(args.out, field="--out")
     doc = calibrate_arm_camera(args.folder)
@@ -39,7 +40,12 @@ def run(args) -> int:
               f"{p['base_mm'][1]:.3f} mm")
         t = cam["T_flange_camera"]
         print(f"T_flange_camera: camera at {t[0][3]:.3f} {t[1][3]:.3f} {t[2][3]:.3f} mm in the "
-              f"flange frame (std {', '.join(f'{v:.3f}' for v in cam['T_flange_camera_std']['translation_mm'])})"
-              f"; status {cam['status']}" + (f": {'; '.join(cam['reasons'])}" if cam["reasons"] else ""))
+              f"flange frame (std {', '.join(f'{v:.3f}' for v in cam['T_flange_camera_std']['translation_mm'])})")
+        for e in doc["effects"]:
+            print(f"joint {e['joint']} backlash {e['deg']:.4f} +- {e['std']:.4f} deg")
+        v = Verdict.from_json(doc["verdict"])
+        if v.floor_line:
+            print(v.floor_line)
+        print(v.text)
         print(f"wrote {path}")
     return 0

@@ -3,12 +3,19 @@
 from __future__ import annotations
 
 NAME = "locate"
-HELP = "map a pixel of a still camera (calibration.json cameras) to the robot frame"
+HELP = ("map a pixel of a calibrated camera (calibration.json cameras: still, or on the arm at "
+        "given joints) to the robot frame")
 EXAMPLES = """\
 examples:
   vision-cal locate out/calibration.json --pixel 812.5 433.0
   vision-cal locate out/calibration.json --pixel 812.5 433.0 --z-mm 50 --robot robot.yaml
   vision-cal locate out/calibration.json --csv pixels.csv -o points.csv
+  vision-cal locate arm_cal/calibration.json --pixel 320 240 --joints 30 60 45
+  vision-cal locate arm_cal/calibration.json --pixel 320 240 --photo pose_003.png
+
+A camera on the arm (vision-cal handeye) needs the arm's command when the photo was taken:
+--joints Q1 Q2 [Q4] (deg), or --photo NAME for one of its calibration photos; its std then
+holds the robot's repeatability.
 
 --csv reads id,u_px,v_px (and optionally z_mm) and writes id,u_px,v_px,z_mm,x_mm,y_mm,
 x_std_mm,y_std_mm,sheet_x_mm,sheet_y_mm (+ q1_deg,q2_deg,status with --robot). The std is
@@ -31,6 +38,11 @@ def add_arguments(p) -> None:
                    help="height of the point above the sheet's plane (default 0)")
     p.add_argument("--robot", metavar="ROBOT.yaml", help="robot file: also print the "
                    "compensated joint command (its joint limits)")
+    p.add_argument("--joints", type=float, nargs="+", metavar="Q",
+                   help="a camera on the arm: the commanded joints Q1 Q2 [Q4] (deg) the photo "
+                        "was taken at")
+    p.add_argument("--photo", metavar="NAME", help="a camera on the arm: the command of this "
+                   "calibration photo (calibration.json poses)")
     p.add_argument("--elbow", type=int, choices=(1, -1), default=1,
                    help="elbow solution of the joint command (default +1)")
 
@@ -79,7 +91,8 @@ def _read_pixels(path, z_default: float):
 def run(args) -> int:
     import numpy as np
 
-    from vision_cal.camera.fixed import camera_of, locate
+    from vision_cal.camera.arm import camera_for
+    from vision_cal.camera.fixed import locate
     from vision_cal.dataset.calibration import load_calibration
     from vision_cal.errors import VisionCalError
 
@@ -90,7 +103,8 @@ def run(args) -> int:
     if not np.isfinite(args.z_mm):
         raise VisionCalError("expected a finite height", field="--z-mm")
     model, doc = load_calibration(args.calibration)
-    cam = camera_of(doc, args.camera, file=args.calibration)
+    cam = camera_for(doc, args.camera, joints_deg=args.joints, photo=args.photo,
+                     file=args.calibration)
     if args.csv:
         ids, uv, z = _read_pixels(args.csv, args.z_mm)
     else:

@@ -4,6 +4,8 @@ One owner. :func:`judge` reads a calibration document (calibration.json as a dic
 returns the :class:`Verdict` that calibration.json carries as ``verdict`` (status,
 ``expected_target_error_mm``, ``residual_over_floor``, ``reasons``; docs/format.md); the
 console, the report and other programs read that block and decide nothing themselves.
+:func:`judge_camera_poses` is the same judgement for a calibration from the arm camera's
+photos (``vision-cal handeye``), each photo's flange position standing for a mark.
 
 The noise floor. Each mark's position carries the measurer's per-axis standard deviation
 ``sigma_mm`` (calibration.json ``marks[].sigma_mm``); the robot adds its repeatability
@@ -176,6 +178,18 @@ class Verdict:
         return d
 
 
+def _floor_reasons(floor: FloorTest | None, hfloor: FloorTest | None) -> list[tuple[str, str]]:
+    """(status, sentence) for a fitted and a held-out residual beyond the noise floor."""
+    out = []
+    for name, f in (("final residual", floor), ("held-out residual", hfloor)):
+        if f is not None and f.beyond:
+            out.append(("not reliable" if f.ratio >= NOT_RELIABLE_RATIO else "check",
+                        f"the {name} is {f.ratio:.1f} times the noise floor ({f.rms_mm:.4f} vs "
+                        f"{f.floor_rms_mm:.4f} mm, chi2 = {f.chi2:.0f} on {f.dof} dof, "
+                        f"p = {f.p_value:.2g}): the model misses something"))
+    return out
+
+
 def _finite(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
@@ -242,12 +256,8 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
     elif fitted:
         add(by_design or "check", "the marks carry no measurement noise (measured_mm given): "
                                   "the residual cannot be compared with a noise floor")
-    for name, f in (("final residual", floor), ("held-out residual", hfloor)):
-        if f is not None and f.beyond:
-            add("not reliable" if f.ratio >= NOT_RELIABLE_RATIO else "check",
-                f"the {name} is {f.ratio:.1f} times the noise floor ({f.rms_mm:.4f} vs "
-                f"{f.floor_rms_mm:.4f} mm, chi2 = {f.chi2:.0f} on {f.dof} dof, "
-                f"p = {f.p_value:.2g}): the model misses something")
+    for st, text in _floor_reasons(floor, hfloor):
+        add(st, text)
     unexplained = [e for e in effects if e.get("name") == "unexplained"]
     if unexplained:
         seen = "; ".join(unexplained[0].get("seen", [])) or "structure"
@@ -276,6 +286,37 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
                      "the fitted RMS: the model misses something on new poses")
     status = max((s for s, _ in reasons), key=_RANK.get, default="ready")
     ordered = [t for s, t in sorted(reasons, key=lambda st: -_RANK[st[0]])]
+    return Verdict(status, r95, floor.ratio if floor is not None else None, tuple(ordered),
+                   floor.to_json() if floor is not None else None,
+                   hfloor.to_json() if hfloor is not None else None, rep, source)
+
+
+def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
+                       repeatability_mm: float | None = None,
+                       reasons: list[tuple[str, str]] = ()) -> Verdict:
+    """The verdict of a calibration from the arm camera's photos (``vision-cal handeye``):
+    the same gate, status rule and block as :func:`judge`, its "marks" being the flange
+    positions the photos imply. ``residual_mm`` (N, 2): each photo's in-plane flange
+    position against the model's; ``sigma_mm`` (N,): the per-axis std the marker corners'
+    noise alone gives it (the measurer's noise), the robot's repeatability added as for
+    marks; ``n_params`` the parameters those residuals consume (the hat matrix's trace over
+    them); ``heldout_mm`` (N, 2) leave-one-photo-out residuals, judged against the same
+    floor and giving ``expected_target_error_mm``; ``reasons`` (status, sentence) the
+    caller's own (parameters the poses do not separate, an undetermined lens)."""
+    rep = DEFAULT_REPEATABILITY_MM if repeatability_mm is None else float(repeatability_mm)
+    source = "default" if repeatability_mm is None else "robot block"
+    res = np.asarray(residual_mm, float).reshape(-1, 2)
+    n, p = len(res), int(round(n_params))
+    floor = floor_test(res, sigma_mm, rep, n_params=p)
+    hfloor = floor_test(heldout_mm, sigma_mm, rep, inflate=1.0 + p / max(2 * n, 1))
+    found = list(reasons) + _floor_reasons(floor, hfloor)
+    if 2 * n - p < MIN_SPARE_DOF:
+        found.append(("check", f"{n} photos leave {2 * n - p} degrees of freedom to compare "
+                               "with the noise floor: add poses"))
+    held = np.asarray(heldout_mm, float).reshape(-1, 2)
+    r95 = R95_PER_RMS * float(np.sqrt(np.mean(np.sum(held**2, axis=1)))) if n else None
+    status = max((st for st, _ in found), key=_RANK.get, default="ready")
+    ordered = [t for st, t in sorted(found, key=lambda st: -_RANK[st[0]])]
     return Verdict(status, r95, floor.ratio if floor is not None else None, tuple(ordered),
                    floor.to_json() if floor is not None else None,
                    hfloor.to_json() if hfloor is not None else None, rep, source)

@@ -53,10 +53,11 @@ def T_cam_sheet(robot: TrueRobot, q_deg, j4_deg, T_flange_camera, approach=None)
 
 
 def T_flange_camera_true(rng=None, *, height_mm=(150.0, 250.0), offset_mm: float = 40.0,
-                         tilt_deg: float = 4.0) -> np.ndarray:
+                         tilt_deg=4.0) -> np.ndarray:
     """A camera mount (4, 4) flange -> camera: looking down (camera z along -z of F) from a
     height drawn in ``height_mm``, off the joint-4 axis by up to ``offset_mm``, its axis
-    tilted by up to ``tilt_deg`` and turned about it at random."""
+    tilted by up to ``tilt_deg`` (or by a tilt drawn in a (lo, hi) pair) and turned about
+    it at random."""
     rng = np.random.default_rng(rng)
     down = np.diag([1.0, -1.0, -1.0])                   # camera x = F x, camera z = -F z
     yaw = rng.uniform(-np.pi, np.pi)
@@ -64,7 +65,8 @@ def T_flange_camera_true(rng=None, *, height_mm=(150.0, 250.0), offset_mm: float
     ax = rng.normal(size=3)
     ax[2] = 0.0
     ax /= np.linalg.norm(ax)
-    t = np.radians(rng.uniform(0, tilt_deg))
+    lo, hi = (0.0, tilt_deg) if np.isscalar(tilt_deg) else tilt_deg
+    t = np.radians(rng.uniform(lo, hi))
     Kx = np.array([[0, -ax[2], ax[1]], [ax[2], 0, -ax[0]], [-ax[1], ax[0], 0]])
     Rt = np.eye(3) + np.sin(t) * Kx + (1 - np.cos(t)) * Kx @ Kx
     T = np.eye(4)
@@ -101,58 +103,74 @@ def reachable_poses(robot: TrueRobot, n: int, rng, *, extent_mm, inset_mm: float
     raise ValueError(f"only {len(out)} of {n} poses put the flange over the sheet")
 
 
-def render_arm_dataset(folder, *, truth: dict, nominal: dict, n_poses: int = 16,
-                       size_px=(800, 600), f_px: float = 900.0, seed: int = 0,
-                       px_per_mm: float = 8.0, noise_sigma: float = 1.5,
-                       mount: str = "flange", repeatability_mm: float = 0.01,
-                       photographer=None):
-    """Photos of the marker field by the camera on the true robot: session.json (``poses``,
-    declared lens) and truth.json (``params``, ``T_flange_camera``, per photo
-    ``T_cam_sheet``). ``truth`` / ``nominal``: the format's ``params`` blocks; the flange
-    misses its commanded place by ``repeatability_mm`` (per axis, Gaussian) in each photo."""
-    from pathlib import Path
-
-    from vision_cal.dataset.io import atomic_write_json
+def photograph_poses(folder, robot: TrueRobot, sheet, q, j4, files, X, *, K, size_px, rng,
+                     repeatability_mm: float = 0.01, noise_sigma: float = 1.5,
+                     px_per_mm: float = 8.0, photographer=None, approach=None) -> np.ndarray:
+    """The camera ``X`` (flange -> camera) on the true ``robot`` photographs ``sheet`` at
+    commands ``q`` (N, 2), ``j4`` (N,) into ``folder``/``files``; the flange misses its
+    commanded place by ``repeatability_mm`` (per axis) in each photo; ``approach`` (N, 2)
+    the joints' last motion signs (the robot's backlash), None: +1. Returns the true
+    ``T_cam_sheet`` (N, 4, 4)."""
     from vision_cal.render.dataset import _encode_image
     from vision_cal.render.photo import Photographer
     from vision_cal.render.sheet import sheet_texture
 
+    tex = sheet_texture(sheet, marks_xy_mm=np.zeros((0, 2)), px_per_mm=px_per_mm, rng=rng)
+    own = photographer is None
+    ph = Photographer(size_px=size_px, K=K) if own else photographer
+    # the robot's repeatability: each photo's flange off its commanded place (per axis)
+    T_sf = T_sheet_flange(robot, q, j4, approach)
+    T_sf[:, :2, 3] += rng.normal(0.0, repeatability_mm, (len(q), 2))
+    Ts = np.linalg.inv(T_sf @ np.asarray(X, float))
+    try:
+        for name, T in zip(files, Ts):
+            rgb = ph.photograph(tex, extent_mm=sheet.extent_mm, T_cam_sheet=T,
+                                noise_sigma=noise_sigma, rng=rng)
+            (folder / name).write_bytes(_encode_image(np.asarray(rgb), None))
+    finally:
+        if own:
+            ph.close()
+    return Ts
+
+
+def render_arm_dataset(folder, *, truth: dict, nominal: dict, n_poses: int = 16,
+                       size_px=(800, 600), f_px: float = 900.0, seed: int = 0,
+                       px_per_mm: float = 8.0, noise_sigma: float = 1.5,
+                       mount: str = "flange", repeatability_mm: float = 0.01,
+                       photographer=None, tilt_deg=4.0, declare_lens: bool = True):
+    """Photos of the marker field by the camera on the true robot: session.json (``poses``,
+    declared lens) and truth.json (``params``, ``T_flange_camera``, per photo
+    ``T_cam_sheet``). ``truth`` / ``nominal``: the format's ``params`` blocks; the flange
+    misses its commanded place by ``repeatability_mm`` (per axis, Gaussian) in each photo;
+    the camera's axis is tilted by up to ``tilt_deg``; ``declare_lens=False`` leaves
+    session.json's ``camera`` out."""
+    from pathlib import Path
+
+    from vision_cal.dataset.io import atomic_write_json
+
     rng = np.random.default_rng(seed)
     robot = TrueRobot.from_json(truth)
     sheet = field_sheet()
-    X = T_flange_camera_true(rng)
+    X = T_flange_camera_true(rng, tilt_deg=tilt_deg)
     poses = reachable_poses(robot, n_poses, rng, extent_mm=sheet.extent_mm,
                             turn_j4=(mount == "flange"))
     w, h = size_px
     K = np.array([[f_px, 0, (w - 1) / 2], [0, f_px, (h - 1) / 2], [0, 0, 1.0]])
-    tex = sheet_texture(sheet, marks_xy_mm=np.zeros((0, 2)), px_per_mm=px_per_mm, rng=rng)
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    own = photographer is None
-    ph = Photographer(size_px=size_px, K=K) if own else photographer
     q = np.array([p[0] for p in poses])
     j4 = np.array([p[1] for p in poses])
-    # the robot's repeatability: each photo's flange off its commanded place (per axis)
-    T_sf = T_sheet_flange(robot, q, j4)
-    T_sf[:, :2, 3] += rng.normal(0.0, repeatability_mm, (len(q), 2))
-    Ts = np.linalg.inv(T_sf @ X)
-    files = []
-    try:
-        for i, T in enumerate(Ts):
-            rgb = ph.photograph(tex, extent_mm=sheet.extent_mm, T_cam_sheet=T,
-                                noise_sigma=noise_sigma, rng=rng)
-            name = f"pose_{i:03d}.png"
-            (folder / name).write_bytes(_encode_image(np.asarray(rgb), None))
-            files.append(name)
-    finally:
-        if own:
-            ph.close()
+    files = [f"pose_{i:03d}.png" for i in range(len(q))]
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    Ts = photograph_poses(folder, robot, sheet, q, j4, files, X, K=K, size_px=size_px, rng=rng,
+                          repeatability_mm=repeatability_mm, noise_sigma=noise_sigma,
+                          px_per_mm=px_per_mm, photographer=photographer)
     session = {"format": "vision-cal/1", "sheet": sheet.to_json(),
                "robot": {**nominal, "home_deg": [0.0, 0.0]},
-               "camera": {"size_px": list(size_px), "K": K.tolist(), "dist": [0.0] * 5},
                "camera_mount": mount,
                "poses": [{"image": f, "joints_deg": [float(a), float(b)], "j4_deg": float(c)}
                          for f, (a, b), c in zip(files, q, j4)]}
+    if declare_lens:
+        session["camera"] = {"size_px": list(size_px), "K": K.tolist(), "dist": [0.0] * 5}
     atomic_write_json(folder / "session.json", session)
     atomic_write_json(folder / "truth.json", {
         "params": truth, "T_flange_camera": X.tolist(), "repeatability_mm": repeatability_mm,

@@ -49,7 +49,7 @@ CONTROLLERS = ("smc", "pd", "kinematic")
 SECTIONS = ("robot", "hidden", "camera", "seed")
 HIDDEN = ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "effects", "repeatability_mm",
           "controller")
-CAMERA = ("size_px", "f_px", "photos", "tilt_deg", "vignetting", "noise_sigma")
+CAMERA = ("size_px", "f_px", "photos", "tilt_deg", "vignetting", "noise_sigma", "fixed")
 _GO = re.compile(r"^\s*(?:Go|Jump)\s+JA\(\s*([^,()]+),\s*([^,()]+),\s*([^,()]+),\s*([^,()]+)\)",
                  re.IGNORECASE)
 
@@ -62,6 +62,7 @@ class SimCamera:
     tilt_deg: tuple[float, float] = (0.0, 12.0)
     vignetting: float = 0.15
     noise_sigma: float = 1.5
+    fixed: bool = False             # every photo from the first view: a still camera
 
 
 @dataclass(frozen=True)
@@ -131,7 +132,8 @@ def load_simulated_robot(path) -> SimulatedRobot:
         int(r.number(c.get("photos", d.photos), "camera.photos", lo=1, hi=50)),
         r.vector(c.get("tilt_deg", list(d.tilt_deg)), "camera.tilt_deg", 2, lo=0, hi=60),
         r.number(c.get("vignetting", d.vignetting), "camera.vignetting", lo=0, hi=1),
-        r.number(c.get("noise_sigma", d.noise_sigma), "camera.noise_sigma", lo=0, hi=50))
+        r.number(c.get("noise_sigma", d.noise_sigma), "camera.noise_sigma", lo=0, hi=50),
+        r.boolean(c.get("fixed", d.fixed), "camera.fixed"))
     seed = tree.get("seed")
     if seed is not None:
         seed = int(r.number(seed, "seed", lo=0, hi=2**32 - 1))
@@ -263,6 +265,54 @@ class SimulateResult:
     truth_path: Path
 
 
+def _simulate_arm(session: dict, session_path: Path, sim, out: Path, rng) -> SimulateResult:
+    """A camera-on-arm session (``vision-cal design --camera-on-arm``): the simulated robot
+    stands at each pose and its camera (a mount drawn by the world, looking down, on the
+    flange or link 2 as ``camera_mount`` says) photographs the marker field. The
+    simulated camera's lens is added to session.json when it declares none (what the user
+    adds by hand), and truth.json holds ``T_flange_camera``."""
+    from vision_cal.dataset.io import atomic_write_json
+    from vision_cal.dataset.session import FieldReader, read_sheet_block
+    from vision_cal.render.arm_camera import T_flange_camera_true, photograph_poses
+    from vision_cal.render.camera import camera_matrix
+
+    r = FieldReader(str(session_path))
+    sheet = read_sheet_block(r, r.get(session, "sheet", ""), "sheet")
+    poses = r.list_(session["poses"], "poses", nonempty=True)
+    try:
+        files = [str(p["image"]) for p in poses]
+        q = np.array([p["joints_deg"][:2] for p in poses], float)
+        j4 = np.array([float(p.get("j4_deg", 0.0)) for p in poses])
+    except (KeyError, TypeError, ValueError, IndexError) as e:
+        raise VisionCalError(f"expected image, joints_deg, j4_deg in every pose: {e}",
+                             file=str(session_path), field="poses") from e
+    cam = sim.camera
+    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px), dtype=float)
+    X = T_flange_camera_true(rng)
+    out.mkdir(parents=True, exist_ok=True)
+    # the world's own record of the motion: each joint's last move from the previous pose
+    # (from home for the first), kept when it did not move
+    steps = np.diff(np.vstack([np.asarray(sim.robot.nominal.home_deg, float)[:2], q]), axis=0)
+    approach = np.ones_like(q)
+    for i in range(len(q)):
+        prev = approach[i - 1] if i else np.ones(2)
+        approach[i] = np.where(steps[i] > 0, 1.0, np.where(steps[i] < 0, -1.0, prev))
+    Ts = photograph_poses(out, sim.truth, sheet, q, j4, files, X, K=K, size_px=cam.size_px,
+                          rng=rng, repeatability_mm=sim.repeatability_mm,
+                          noise_sigma=cam.noise_sigma, approach=approach)
+    if "camera" not in session:
+        session = {**session, "camera": {"size_px": list(cam.size_px), "K": K.tolist(),
+                                         "dist": [0.0] * 5}}
+    atomic_write_json(out / "session.json", session)
+    truth = {"params": sim.params, "effects": list(sim.effects), "T_flange_camera": X.tolist(),
+             "repeatability_mm": sim.repeatability_mm, "simulated_robot": str(sim.path),
+             "seed": sim.seed,
+             "camera": {"size_px": list(cam.size_px), "K": K.tolist(), "dist": [0.0] * 5,
+                        "T_cam_sheet": {f: T.tolist() for f, T in zip(files, Ts)}}}
+    truth_path = atomic_write_json(out / "truth.json", truth)
+    return SimulateResult(out, tuple(out / f for f in files), 0, (), (), truth_path)
+
+
 def _plan_marks(plan_dir: Path, session: dict, robot) -> tuple[list[_Mark], str]:
     marks = session.get("marks")
     if not isinstance(marks, list) or not marks:
@@ -350,6 +400,8 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
             raise VisionCalError(f"holds photos already ({photos[0]}, ...): a rehearsal adds "
                                  "its own; choose an empty folder", file=str(out))
     rng = np.random.default_rng(sim.seed if rng is None else rng)
+    if program is None and session.get("poses") and not session.get("marks"):
+        return _simulate_arm(session, session_path, sim, out, rng)
     if program is not None:
         plan = marks_from_program(program, session["marks"], pen_down_mm=sim.robot.pen_down_mm,
                                   pen_bit=sim.robot.program.pen_output_bit)
@@ -390,6 +442,8 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
     tex = printed_texture(printed, marks_xy_mm=all_xy, mark_diameters_mm=dia, rng=rng)
     views = default_views(sheet, n=cam.photos, size_px=cam.size_px, K=K,
                           tilt_deg=cam.tilt_deg, rng=rng, fill=0.96, target_jitter=0.02)
+    if cam.fixed:   # a camera fixed over the work area: one place, several photos
+        views = [views[0]] * len(views)
     from vision_cal.progress import bar as progress_bar
 
     bar = progress_bar(progress, total=len(views), desc=f"simulate {out.name}", unit="photo")
