@@ -27,11 +27,10 @@ import numpy as np
 
 from vision_cal.kinematics import ScaraParams, flange_angle_rad
 from vision_cal.model import JointEffect, RobotModel, Tool
-from vision_cal.motion import JOINT_LIMITS_DEG
+from vision_cal.motion import JOINT4_LIMITS_DEG, JOINT_LIMITS_DEG
 from vision_cal.plan.compensate import PlannedTarget, plan_targets
 
 #: default joint-4 range of a SCARA (commanded, deg)
-JOINT4_LIMITS_DEG = (-360.0, 360.0)
 
 
 @dataclass(frozen=True)
