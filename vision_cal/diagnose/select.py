@@ -101,7 +101,9 @@ def heldout_rms(model: RobotModel, q, xy, app, *, sigma=None, q_val=None, xy_val
                 app_val=None, k_folds: int = 5, rng=None) -> float:
     """Held-out RMS (mm, 2-D): on validation marks if given, else k-fold CV."""
     if q_val is not None and len(q_val) >= 3:
-        f = Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, robust=False)
+        # fitted as the calibration is (robust pass): a mark it leaves out as an outlier
+        # (a mis-associated dot) would pull every model alike and hide what an effect does
+        f = Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, robust=True)
         r = xy_val - f.predict(q_val, app_val)
         return rms_2d(r)
     n = len(q)
