@@ -172,6 +172,7 @@ def render_case(seed: int, *, width_px: int = 1600) -> dict:
     return {"seed": seed, "tool_err_mm": float(np.hypot(*err)), "tool_z": np.abs(err / std),
             "z": z, "missing": [k for k in hidden if k not in z], "extra": extra,
             "pos_mm": pos, "angle_deg": angle, "n_marks": len(plan),
+            "n_measured": len(doc["marks"]), "outliers": len(doc.get("outliers", [])),
             "unexplained": any(e["name"] == "unexplained" for e in doc["effects"])}
 
 
@@ -186,7 +187,8 @@ def main() -> None:
     if a.render:
         for k in range(a.render):
             c = render_case(a.first + 1 + k)
-            print(f"4. rendered photo (seed {c['seed']}, {c['n_marks']} marks): |tool error| "
+            print(f"4. rendered photo (seed {c['seed']}, {c['n_marks']} marks, {c['n_measured']} "
+                  f"measured, {c['outliers']} left out as outliers): |tool error| "
                   f"{c['tool_err_mm']:.4f} mm ({np.round(c['tool_z'], 2).tolist()} std); "
                   + ", ".join(f"{n}(joint {j}) {v:+.2f} std" for (n, j), v in c["z"].items())
                   + (f"; MISSED {c['missing']}" if c["missing"] else "")
