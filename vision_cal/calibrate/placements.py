@@ -345,6 +345,15 @@ def fit_placements(places: list[Placement], *, candidates=None, tool: Tool | Non
     return fit, log
 
 
+def unexplained_seen(log) -> list[str]:
+    """Sentences for the selection rounds where a significant library effect was not
+    claimed because joint-term columns with as many parameters explain significantly more
+    (the structure is there; no library effect says what it is)."""
+    return [f"the residual follows {' + '.join(r['alternative'])} significantly better than "
+            f"{r['effect']} (F = {r['F']:.1f}, p = {r['p_value']:.2g}), which no library "
+            "effect models" for r in log if r.get("alternative")]
+
+
 def robot_frame_json(fit: PlacementsFit, names) -> dict:
     """calibration.json's part for a multi-placement calibration: ``params`` in the robot
     frame R (``joint_zero_deg[0] = 0``, ``base_mm = [0, 0]``), ``std``, ``effects``,
@@ -429,6 +438,9 @@ def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
            "notes": ["one robot from several placements: params in the robot frame R "
                      "(docs/format.md); each placement's sheet-frame calibration in its "
                      "sub-folder"]}
+    seen = unexplained_seen(log)
+    if seen:   # significant structure that a library effect would only stand in for
+        doc["effects"].append({"name": "unexplained", "seen": seen})
     for k, ((session, cal), name) in enumerate(zip(sessions, names)):
         m = fit.model_on(k)
         params = m.params.to_json()
