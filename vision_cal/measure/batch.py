@@ -393,15 +393,20 @@ def _pool_initializer(parent_pid: int) -> None:
     exit_with_parent(parent_pid)
 
 
-def _tool_joints(params, tool_mm, session) -> np.ndarray:
-    """Joints (N, 2) that put the tool-less ``params`` where ``params`` with ``tool_mm``
-    puts each mark (the association predicts with the base model only); the commanded
-    joints where no such pose exists."""
+def _tool_joints(params, tool_mm, session):
+    """(joints (N, 2), the tool-less model they are for): the association predicts with a
+    tool-less model, so each mark gets the joints that put it where ``params`` with
+    ``tool_mm`` puts the pen. That model is ``params`` with L2 lengthened by |tool|, which
+    reaches every pen position (``params`` itself does not reach a mark the tool puts
+    beyond L1 + L2); the commanded joints where no such pose exists."""
+    from dataclasses import replace as _replace
+
     from vision_cal.plan.orient import equivalent_joints
 
+    model = _replace(params, L2_mm=params.L2_mm + float(np.hypot(*tool_mm)))
     q = session.joints_deg
-    eq = equivalent_joints(params, tool_mm, q, session.j4_deg)
-    return np.where(np.isfinite(eq), eq, q)
+    eq = equivalent_joints(params, tool_mm, q, session.j4_deg, solve_with=model)
+    return np.where(np.isfinite(eq), eq, q), model
 
 
 def _with_fitted_tool(a, session, mark_ids, mark_images, groups, ac):
@@ -421,10 +426,9 @@ def _with_fitted_tool(a, session, mark_ids, mark_images, groups, ac):
         tf = fit_tool(session.joints_deg[k], session.j4_deg[k], xy)
     except CalibrationError:
         return a
-    params = tf.fit.params
-    b = assoc.associate(_tool_joints(params, tf.tool_mm, session), mark_ids, mark_images,
-                        groups, params, max_zero_deg=ac.max_zero_deg,
-                        max_base_mm=ac.max_base_mm)
+    q, model = _tool_joints(tf.fit.params, tf.tool_mm, session)
+    b = assoc.associate(q, mark_ids, mark_images, groups, model,
+                        max_zero_deg=ac.max_zero_deg, max_base_mm=ac.max_base_mm)
     return b if len(b.mark_to_group) >= len(a.mark_to_group) else a
 
 
@@ -700,12 +704,13 @@ def associate_dots(session: Session, items: list[_Photo], images: list[ImageResu
             warnings.append(f"{n_off} photo(s) in the folder not used (not of the sheet, "
                             "repeated or unreadable): see images[].reason")
     mark_images = [{i for i in idx_ok if m.id in image_marks[i]} for m in session.marks]
-    q_assoc = session.joints_deg
+    q_assoc, assoc_model = session.joints_deg, session.robot.params
     with_tool = session.uses_joint4 and session.robot.tool_mm is not None   # #21
     if with_tool:
-        q_assoc = _tool_joints(session.robot.params, session.robot.tool_mm, session)
+        q_assoc, assoc_model = _tool_joints(session.robot.params, session.robot.tool_mm,
+                                            session)
     a = assoc.associate(q_assoc, mark_ids, mark_images, groups,
-                        session.robot.params, max_zero_deg=ac.max_zero_deg,
+                        assoc_model, max_zero_deg=ac.max_zero_deg,
                         max_base_mm=ac.max_base_mm)
     if with_tool:
         a = _with_fitted_tool(a, session, mark_ids, mark_images, groups, ac)
