@@ -37,7 +37,8 @@ from vision_cal.config import DEFAULT, AssociationConfig
 from vision_cal.dataset import photos
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.session import Session, load_session
-from vision_cal.errors import VisionCalError
+from vision_cal.calibrate.tool import fit_tool
+from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.measure import associate as assoc
 from vision_cal.measure.aruco import MIN_MARKERS, edge_points, find_sheet_markers
 from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerprint
@@ -399,11 +400,7 @@ def _tool_joints(params, tool_mm, session):
     ``tool_mm`` puts the pen. That model is ``params`` with L2 lengthened by |tool|, which
     reaches every pen position (``params`` itself does not reach a mark the tool puts
     beyond L1 + L2); the commanded joints where no such pose exists."""
-    from dataclasses import replace as _replace
-
-    from vision_cal.plan.orient import equivalent_joints
-
-    model = _replace(params, L2_mm=params.L2_mm + float(np.hypot(*tool_mm)))
+    model = replace(params, L2_mm=params.L2_mm + float(np.hypot(*tool_mm)))
     q = session.joints_deg
     eq = equivalent_joints(params, tool_mm, q, session.j4_deg, solve_with=model)
     return np.where(np.isfinite(eq), eq, q), model
@@ -415,9 +412,6 @@ def _with_fitted_tool(a, session, mark_ids, mark_images, groups, ac):
     least as many marks. The robot file's rough ``tool_mm`` (millimetres off) turns with
     joint 4, which a tool-less model cannot follow: its residual widens the gates until
     marks a dozen millimetres apart are refused or swapped."""
-    from vision_cal.calibrate.tool import fit_tool
-    from vision_cal.errors import CalibrationError
-
     k = [list(mark_ids).index(mid) for mid in a.mark_to_group]
     if len(k) < 8:
         return a
