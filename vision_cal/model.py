@@ -420,6 +420,20 @@ class RobotModel:
         ang = flange_angle_rad(self.params.vector, phi) + self.joint4_rad(q_deg, approach)
         return tool_offset_rad(tool.tool_mm, ang)[0]
 
+    def joint_columns(self, q_deg, approach=None) -> np.ndarray:
+        """(N, 2, 2): the sheet displacement (mm) per radian added to joint 1 (``[..., 0]``)
+        and joint 2 (``[..., 1]``) at the angles the joints really turn to; with a tool, the
+        tool turns with them. The column a joint error's effect is scaled from (diagnosis)."""
+        phi = self.joint_angles_rad(q_deg, approach)
+        p = self.params.vector
+        _, jq = jacobian_rad(p, phi)
+        tool = self.tool
+        if tool is not None:
+            ang = flange_angle_rad(p, phi) + self.joint4_rad(q_deg, approach)
+            d_ang = tool_offset_rad(tool.tool_mm, ang)[1]
+            jq = jq + d_ang[:, :, None]
+        return np.einsum("ij,njk->nik", self.sheet_matrix(), jq)
+
     def sheet_matrix(self) -> np.ndarray:
         m = np.eye(2)
         for e in self.effects:

@@ -24,6 +24,11 @@ import numpy as np
 
 #: [[lo, hi], [lo, hi]] commanded joint range (deg) of the default robot
 JOINT_LIMITS_DEG = ((-170.0, 170.0), (-150.0, 150.0))
+#: [lo, hi] commanded joint-3 travel (mm, the quill's z) when the robot file does not say
+#: (a 200 mm stroke downward from its top, commanded 0: Epson's SCARAs travel 100-420 mm)
+JOINT3_LIMITS_MM = (-200.0, 0.0)
+#: [lo, hi] commanded joint-4 range (deg) when the robot file does not say
+JOINT4_LIMITS_DEG = (-360.0, 360.0)
 #: peak joint speed (deg/s) of the default robot's trajectories, joint 1 then joint 2
 SPEED_DEG_S = (90.0, 120.0)
 #: peak joint acceleration (deg/s^2) of the default robot's trajectories

@@ -42,6 +42,18 @@ class MarkData:
     roles: tuple[str, ...]
     joint4: np.ndarray | None = None  # (N, 2) [j4_deg, approach4] when the session uses joint 4
 
+    @property
+    def q_model(self) -> np.ndarray:
+        """Joints as the model takes them: (N, 2), or (N, 3) ``[q1, q2, q4]`` with joint 4."""
+        return self.q_deg if self.joint4 is None else np.column_stack([self.q_deg,
+                                                                        self.joint4[:, 0]])
+
+    @property
+    def approach_model(self) -> np.ndarray:
+        """Approach signs as the model takes them: (N, 2), or (N, 3) with joint 4's."""
+        return self.approach if self.joint4 is None else np.column_stack([self.approach,
+                                                                          self.joint4[:, 1]])
+
     def select(self, role: str) -> "MarkData":
         k = np.array([r == role for r in self.roles], dtype=bool)
         return MarkData(tuple(i for i, s in zip(self.ids, k) if s), self.q_deg[k],
@@ -179,9 +191,14 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                                                progress=progress, config=config)
     cal, val = data.select("calibration"), data.select("validation")
     if cal.joint4 is not None and len(np.unique(np.round(cal.joint4[:, 0], 6))) > 1:
-        from vision_cal.calibrate.joint4 import fit_joint4  # the tool and joint 4 (#21)
+        from vision_cal.calibrate import joint4  # the tool and joint 4 (#21)
 
-        fitted = _Fitted(*fit_joint4(cal, val, method, session.robot.tool_mm))
+        if method == "paper":
+            fitted = _Fitted(*joint4.fit_joint4_paper(cal, val))
+        else:   # the tool and joint 4's effects first, then the diagnosis with them
+            stage = joint4.joint4_stage(cal)
+            fitted = fit_lsq(session, cal, val, measurement, config, stage.effects)
+            joint4.add_tool(fitted.doc, fitted.diagnosis, stage)
     else:
         fitted = (fit_paper(cal, val) if method == "paper"
                   else fit_lsq(session, cal, val, measurement, config))
@@ -260,8 +277,10 @@ def fit_paper(cal: MarkData, val: MarkData) -> _Fitted:
 
 
 def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
-            config: EstimatorConfig) -> _Fitted:
-    """Least squares, then the diagnosis that adds the effects the base model lacks."""
+            config: EstimatorConfig, base_effects: tuple = ()) -> _Fitted:
+    """Least squares, then the diagnosis that adds the effects the base model lacks.
+    ``base_effects``: the tool and joint-4 effects every model holds (marks at several
+    ``j4_deg``, :mod:`vision_cal.calibrate.joint4`); the joints then carry joint 4."""
     from vision_cal.diagnose.select import diagnose
 
     not_flat = (measurement is not None and measurement.height_map is not None
@@ -279,30 +298,30 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
             from vision_cal.model import JointBacklash
 
             cands = [c for c in cands if isinstance(c.effect, JointBacklash)]
-    diag = diagnose(cal.q_deg, cal.xy_mm, cal.approach, sigma_mm=cal.sigma_mm, ids=cal.ids,
-                    q_val=val.q_deg if len(val.ids) else None,
+    diag = diagnose(cal.q_model, cal.xy_mm, cal.approach_model, sigma_mm=cal.sigma_mm, ids=cal.ids,
+                    q_val=val.q_model if len(val.ids) else None,
                     xy_val=val.xy_mm if len(val.ids) else None,
-                    approach_val=val.approach if len(val.ids) else None,
+                    approach_val=val.approach_model if len(val.ids) else None,
                     alpha=config.selection.alpha, k_folds=config.selection.k_folds,
                     max_effects=config.selection.max_effects,
-                    candidates=cands)
+                    candidates=cands, base_effects=tuple(base_effects))
     traced = None
     if not not_flat:  # a sheet's height would be read as a joint error: not traced then
         from vision_cal.diagnose.discover import trace
 
         t_of = {m.id: i / max(len(session.marks) - 1, 1) for i, m in enumerate(session.marks)}
-        traced = trace(diag, cal.q_deg, cal.xy_mm, cal.approach,
+        traced = trace(diag, cal.q_model, cal.xy_mm, cal.approach_model,
                        np.array([t_of[i] for i in cal.ids]), sigma_mm=cal.sigma_mm,
-                       ids=cal.ids, q_val=val.q_deg if len(val.ids) else None,
+                       ids=cal.ids, q_val=val.q_model if len(val.ids) else None,
                        xy_val=val.xy_mm if len(val.ids) else None,
-                       approach_val=val.approach if len(val.ids) else None,
+                       approach_val=val.approach_model if len(val.ids) else None,
                        alpha=config.selection.alpha, k_folds=config.selection.k_folds)
         diag = traced.diagnosis
     fb, ff = diag.base_fit, diag.final_fit
     final_model = ff.model
     has_val = len(val.ids) >= 3
-    vb = rms_2d(val.xy_mm - fb.predict(val.q_deg, val.approach)) if has_val else diag.heldout_base_mm
-    vf = rms_2d(val.xy_mm - ff.predict(val.q_deg, val.approach)) if has_val else diag.heldout_final_mm
+    vb = rms_2d(val.xy_mm - fb.predict(val.q_model, val.approach_model)) if has_val else diag.heldout_base_mm
+    vf = rms_2d(val.xy_mm - ff.predict(val.q_model, val.approach_model)) if has_val else diag.heldout_final_mm
     doc = dict(
         params=ff.params.to_json(), std=ff.base_std_json, effects=diag.effects_json(),
         residual_rms_mm={"base_model": fb.rms_mm, "final_model": ff.rms_mm},
@@ -329,7 +348,7 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
         if traced.drift is not None:
             doc["effects"].append(traced.drift)
     res_cal = ff.residuals_mm
-    res_val = val.xy_mm - ff.predict(val.q_deg, val.approach)
+    res_val = val.xy_mm - ff.predict(val.q_model, val.approach_model)
     if not_flat:
         doc["notes"].append("sheet_affine not tried: the sheet is not flat (sheet_height); "
                             "its smooth residual is the paper's height"
@@ -352,13 +371,15 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
     residual_all.update({i: r for i, r in zip(val.ids, res_val)})
     residual_base = {i: r for i, r in zip(cal.ids, fb.residuals_mm)}
     residual_base.update({i: r for i, r in zip(
-        val.ids, val.xy_mm - fb.predict(val.q_deg, val.approach))})
+        val.ids, val.xy_mm - fb.predict(val.q_model, val.approach_model))})
     outliers = [i for i, k in zip(cal.ids, ff.inliers) if not k]
     if outliers:
         doc["outliers"] = outliers
-    try:  # circle fits, where the plan has paper-style groups
-        pm = paper_method(cal.q_deg, cal.xy_mm)
-        doc["circles"] = {"base": pm.circle_base.to_json(), "elbow": pm.circle_elbow.to_json()}
+    try:  # circle fits, where the plan has paper-style groups (the tool-less model)
+        if not base_effects:
+            pm = paper_method(cal.q_deg, cal.xy_mm)
+            doc["circles"] = {"base": pm.circle_base.to_json(),
+                              "elbow": pm.circle_elbow.to_json()}
     except CalibrationError:
         pass
     return _Fitted(doc, final_model, residual_all, residual_base, diagnosis=diag)
@@ -374,8 +395,8 @@ def document(doc: dict, session: Session, data: MarkData, missing: list[str], me
     if measurement is not None and diag is not None:
         from vision_cal.diagnose.photos import per_photo_offsets
 
-        qd = dict(zip(data.ids, data.q_deg))
-        ad = dict(zip(data.ids, data.approach))
+        qd = dict(zip(data.ids, data.q_model))
+        ad = dict(zip(data.ids, data.approach_model))
         photos = per_photo_offsets(measurement, diag.final_fit.model, qd, ad)
         doc["diagnosis"]["per_photo_offsets"] = photos
         flagged = [p["file"] for p in photos if p["flagged"]]

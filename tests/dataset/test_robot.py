@@ -47,6 +47,8 @@ def test_minimal_json_takes_defaults(tmp_path):
     ({"elbows": []}, "elbows"),
     ({"pen_up_mm": -10}, "pen_down_mm"),
     ({"pen_up_mm": -10, "pen_down_mm": -10}, "pen_down_mm"),
+    ({"joint3_limits_mm": [0, -100]}, "joint3_limits_mm"),
+    ({"joint3_limits_mm": [-100, 0], "pen_up_mm": -10, "pen_down_mm": -120}, "pen_down_mm"),
     ({"placement_tolerance": {"base_mm": -5}}, "placement_tolerance.base_mm"),
     ({"placement_tolerance": {"joint_zero_deg": [1, float("nan")]}},
      "placement_tolerance.joint_zero_deg[1]"),

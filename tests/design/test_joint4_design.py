@@ -39,3 +39,17 @@ def test_design_turns_joint4_and_marks_stay_on_free_paper(tmp_path, pilot_dir, s
     # the rough tool (1.8 mm off) moves a mark by at most twice that: still clear
     assert sheet_clearance_mm(border_sheet(), drawn).min() >= 0.6
     assert f"{j4[0]:.4f})" in r.program_path.read_text()
+    # the seed paper's joint-4 circles: triples at one joint-1/2 pose, both elbows, and
+    # joint 4 approached from both sides as session.json resolves it
+    from vision_cal.dataset.session import load_session
+
+    ses = load_session(tmp_path / "plan")
+    ids = [m["id"] for m in plan["marks"]]
+    z2 = plan["robot"]["joint_zero_deg"][1]
+    sides, elbows = set(), set()
+    for tri in r.info["joint4_triples"]:
+        k = [ids.index(t) for t in tri]
+        assert len({tuple(q[i]) for i in k}) == 1 and len(set(j4[k])) == 3
+        sides |= {float(ses.approach4[i]) for i in k[1:]}
+        elbows.add(int(np.sign(np.sin(np.radians(q[k[0], 1] + z2)))))
+    assert sides == {1.0, -1.0} and elbows == {1, -1}

@@ -44,9 +44,10 @@ def test_urdf_chain_reproduces_the_model(tmp_path):
     assert yaml.safe_load((tmp_path / "c.yaml").read_text())["params"]["L1_mm"] == SM5.L1_mm
 
 
-def test_urdf_with_a_tool_takes_joint_4_limits_from_the_robot_file(tmp_path):
+def test_urdf_with_a_tool_takes_joint_3_and_4_limits_from_the_robot_file(tmp_path):
     """Issue 21: ``export --robot`` gives the URDF the robot file's ``joint4_limits_deg``
-    (without it, the documented default +-360 deg)."""
+    and ``joint3_limits_mm`` (without them, the documented defaults +-360 deg and
+    -200..0 mm)."""
     import json
 
     doc = {"format": "vision-cal/calibration/1",
@@ -54,16 +55,21 @@ def test_urdf_with_a_tool_takes_joint_4_limits_from_the_robot_file(tmp_path):
     (tmp_path / "c.json").write_text(json.dumps(doc))
     robot = tmp_path / "robot.yaml"
     robot.write_text((ROOT / "fixtures" / "robot_sm5.yaml").read_text()
-                     + "joint4_limits_deg: [-200, 120]\n")
+                     + "joint4_limits_deg: [-200, 120]\njoint3_limits_mm: [-150, 5]\n")
+
+    def limits(urdf, name):
+        j = {j.get("name"): j for j in ET.parse(urdf).getroot().findall("joint")}[name]
+        lim = j.find("limit")
+        return float(lim.get("lower")), float(lim.get("upper"))
 
     def joint4_limits(urdf):
-        j = {j.get("name"): j for j in ET.parse(urdf).getroot().findall("joint")}["joint4"]
-        lim = j.find("limit")
-        return math.degrees(float(lim.get("lower"))), math.degrees(float(lim.get("upper")))
+        return tuple(math.degrees(v) for v in limits(urdf, "joint4"))
 
     assert main(["export", str(tmp_path / "c.json"), "--urdf", str(tmp_path / "d.urdf"),
                  "-q"]) == 0
     assert joint4_limits(tmp_path / "d.urdf") == pytest.approx((-360.0, 360.0), abs=1e-6)
+    assert limits(tmp_path / "d.urdf", "joint3") == pytest.approx((-0.2, 0.0), abs=1e-9)
     assert main(["export", str(tmp_path / "c.json"), "--urdf", str(tmp_path / "r.urdf"),
                  "--robot", str(robot), "-q"]) == 0
     assert joint4_limits(tmp_path / "r.urdf") == pytest.approx((-200.0, 120.0), abs=1e-6)
+    assert limits(tmp_path / "r.urdf", "joint3") == pytest.approx((-0.15, 0.005), abs=1e-9)

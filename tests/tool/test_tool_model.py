@@ -63,3 +63,20 @@ def test_jacobian_matches_finite_differences():
         num[:, :, k] = (m.with_vector(v + h).predict(q, s)
                         - m.with_vector(v - h).predict(q, s)) / 2e-6
     np.testing.assert_allclose(J, num, atol=1e-5)
+
+
+def test_joint_columns_turn_the_tool():
+    """A joint-1/2 error turns the tool with the link (the diagnosis's columns): the
+    columns are the pen's derivative with respect to each commanded joint (no effects)."""
+    m = RobotModel(P, (Tool(tool_mm=(25.0, -15.0)), JointScale(joint=4, scale=0.002)))
+    q = np.array([[10.0, -40.0, 70.0], [70.0, 20.0, -120.0]])
+    h = 1e-4
+    cols = m.joint_columns(q)
+    for j in range(2):
+        d = np.zeros(3)
+        d[j] = h
+        num = (m.predict(q + d) - m.predict(q - d)) / np.radians(2 * h)
+        np.testing.assert_allclose(cols[:, :, j], num, atol=1e-6)
+    # without the tool term the column would miss the tool's own swing (25-30 mm lever)
+    bare = RobotModel(P).joint_columns(q[:, :2])
+    assert np.max(np.abs(cols - bare)) > 10.0

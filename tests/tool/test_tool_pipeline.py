@@ -15,7 +15,7 @@ PARAMS = {"L1_mm": 344.05, "L2_mm": 259.87, "joint_zero_deg": [-2.57, -8.13],
 TOOL = [-18.7, 22.4]
 
 
-def _session(tmp_path, j4, q, effects=(), seed=7, name="ds"):
+def _session(tmp_path, j4, q, effects=(), seed=7, name="ds", approach=None):
     rng = np.random.default_rng(seed)
     truth = TrueRobot.from_json({**PARAMS, "tool_mm": TOOL}, list(effects))
     # the world's own approach side for joint 4: the sign of its last motion (start 0, +1)
@@ -24,10 +24,12 @@ def _session(tmp_path, j4, q, effects=(), seed=7, name="ds"):
         side = np.sign(v - prev) or side
         s4.append(side)
         prev = v
-    s = np.column_stack([np.ones((len(q), 2)), s4])   # no joint-1/2 effects here
+    a12 = np.ones((len(q), 2)) if approach is None else np.asarray(approach, float)
+    s = np.column_stack([a12, s4])
     xy = truth.pen_mm(np.column_stack([q, j4]), s) + rng.normal(0, 0.01, (len(q), 2))
     marks = [{"id": f"c{i:02d}", "joints_deg": list(map(float, qi)), "j4_deg": float(a),
-              "measured_mm": list(map(float, p))} for i, (qi, a, p) in enumerate(zip(q, j4, xy))]
+              "approach": [int(v) for v in ai], "measured_mm": list(map(float, p))}
+             for i, (qi, a, ai, p) in enumerate(zip(q, j4, a12, xy))]
     d = tmp_path / name
     d.mkdir()
     (d / "session.json").write_text(json.dumps({
@@ -52,6 +54,27 @@ def test_lsq_tool_and_joint4_scale_through_the_pipeline(tmp_path):
     assert abs(e["scale"] - 0.004) < 4 * e["std"]
     model, _ = load_calibration(run.out_path)
     np.testing.assert_allclose(model.tool.tool_mm, tool)
+
+
+def test_joint2_backlash_found_while_joint4_turns(tmp_path):
+    """The diagnosis runs with the tool: a hidden joint-2 backlash is named (within 4 std)
+    beside the tool and joint 4's gear error, and nothing else is claimed."""
+    rng = np.random.default_rng(21)
+    n = 60
+    q = np.column_stack([rng.uniform(0, 110, n), rng.uniform(-120, -30, n)])
+    j4 = rng.uniform(-160, 160, n)
+    app = np.where(rng.random((n, 2)) < 0.5, -1, 1)
+    d = _session(tmp_path, j4, q, [{"name": "joint_backlash", "joint": 2, "deg": 0.05},
+                                   {"name": "joint_scale", "joint": 4, "scale": 0.004}],
+                 approach=app)
+    doc = calibrate_dataset(d, out_dir=tmp_path / "out").document
+    tool, std = np.array(doc["params"]["tool_mm"]), np.array(doc["std"]["tool_mm"])
+    assert np.all(np.abs(tool - TOOL) < 4 * std), (tool, std)
+    named = {(e["name"], e["joint"]): e for e in doc["effects"]}
+    assert set(named) == {("joint_backlash", 2), ("joint_scale", 4)}, named
+    b = named[("joint_backlash", 2)]
+    assert abs(b["deg"] - 0.05) < 4 * b["std"], b
+    assert "tool" not in {e["name"] for e in doc["effects"]}
 
 
 def test_paper_method_on_joint4_through_the_pipeline(tmp_path):
@@ -92,7 +115,7 @@ def test_plan_command_with_theta_writes_q4_and_tlset(tmp_path):
     out = tmp_path / "plan.csv"
     assert main(["plan", str(tmp_path / "out" / "calibration.json"), str(targets), "-o",
                  str(out), "--program", "spel", "--robot", "fixtures/robot_sm5.yaml",
-                 "-q"]) == 0
+                 "--force", "-q"]) == 0   # measured_mm: no noise floor, so never "ready"
     text = out.read_text()
     head = text.splitlines()[0].split(",")
     assert "q4_deg" in head and "approach4" in head

@@ -19,9 +19,9 @@ def add_arguments(p) -> None:
                    "effects go to ROBOT.effects.yaml beside it")
     p.add_argument("--yaml", metavar="FILE.yaml", help="parameters, std and effects as YAML")
     p.add_argument("--robot", metavar="ROBOT.yaml",
-                   help="robot file: the URDF's joint limits, joint 4's too (default: "
-                        "calibration.json's joint_limits_deg, which the session's robot file "
-                        "gave)")
+                   help="robot file: the URDF's joint limits, joint 3's travel and joint 4's "
+                        "range (default: calibration.json's joint_limits_deg, which the "
+                        "session's robot file gave; joints 3 and 4: vision_cal.motion's)")
     p.add_argument("--force", action="store_true",
                    help="export even a calibration whose verdict is 'not reliable'")
     p.add_argument("--opencv", metavar="FILE.yaml", help="a still camera as OpenCV FileStorage "
@@ -59,12 +59,13 @@ def run(args) -> int:
         import sys
 
         print(warn, file=sys.stderr)
-    limits, limits4 = doc.get("joint_limits_deg"), None
+    limits, limits4, limits3 = doc.get("joint_limits_deg"), None, None
     if args.robot:
         from vision_cal.dataset.robot import load_robot_file
 
         robot = load_robot_file(args.robot)
         limits, limits4 = robot.joint_limits_deg, robot.joint4_limits_deg
+        limits3 = robot.joint3_limits_mm
     written = []
     with written_together():
         if args.opencv or args.ros:
@@ -76,7 +77,8 @@ def run(args) -> int:
             written += write_ros(args.ros, cam) if args.ros else []
         if args.urdf or args.yaml:
             written = export(doc, urdf=args.urdf, yaml_path=args.yaml,
-                             limits_deg=limits, limits4_deg=limits4) + written
+                             limits_deg=limits, limits4_deg=limits4,
+                             limits3_mm=limits3) + written
     for path in written:
         if not args.quiet:
             print(f"wrote {path}")

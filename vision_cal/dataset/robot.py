@@ -17,6 +17,7 @@ The session's ``robot`` block (``L1_mm``, ``L2_mm``, ``joint_zero_deg``, ``base_
     j4_deg: 0.0                      # joint 4, held still (the marks' default j4_deg)
     tool_mm: [0.0, 0.0]              # the pen in the flange frame at j4 = 0 (rough; docs/format.md)
     joint4_limits_deg: [-360, 360]   # joint 4's commanded range
+    joint3_limits_mm: [-200, 0]      # joint 3's commanded travel (mm; the URDF's limits)
     repeatability_mm: 0.01           # positioning repeatability, one std per axis (the
                                      # noise-floor gate's robot part; default 0.01)
     mark_diameter_mm: 1.2            # the pen's mark (session.json pen block)
@@ -47,7 +48,8 @@ from pathlib import Path
 from vision_cal.dataset.io import read_json, read_yaml
 from vision_cal.dataset.session import NominalRobot, _Reader, read_robot_block
 from vision_cal.errors import VisionCalError
-from vision_cal.motion import ACCEL_DEG_S2, JOINT_LIMITS_DEG, SPEED_DEG_S
+from vision_cal.motion import (ACCEL_DEG_S2, JOINT3_LIMITS_MM, JOINT4_LIMITS_DEG,
+                               JOINT_LIMITS_DEG, SPEED_DEG_S)
 
 log = logging.getLogger(__name__)
 
@@ -92,7 +94,8 @@ class RobotFile:
     mark_diameter_mm: float = 1.2
     overshoot_deg: float = 3.0
     program: ProgramSettings = field(default_factory=ProgramSettings)
-    joint4_limits_deg: tuple[float, float] = (-360.0, 360.0)
+    joint4_limits_deg: tuple[float, float] = JOINT4_LIMITS_DEG
+    joint3_limits_mm: tuple[float, float] = JOINT3_LIMITS_MM
 
     def require_pen_heights(self) -> tuple[float, float]:
         """(pen_up_mm, pen_down_mm); a program cannot be written without them."""
@@ -169,6 +172,11 @@ def load_robot_file(path) -> RobotFile:
         if not lo < hi:
             r.fail("joint4_limits_deg", f"expected lo < hi, got {opt('joint4_limits_deg')!r}")
         kw["joint4_limits_deg"] = (lo, hi)
+    if opt("joint3_limits_mm") is not None:
+        lo, hi = r.vector(opt("joint3_limits_mm"), "joint3_limits_mm", 2)
+        if not lo < hi:
+            r.fail("joint3_limits_mm", f"expected lo < hi, got {opt('joint3_limits_mm')!r}")
+        kw["joint3_limits_mm"] = (lo, hi)
     for key in ("speed_limits_deg_s", "accel_limits_deg_s2"):
         if opt(key) is not None:
             v = r.vector(opt(key), key, 2)
@@ -191,6 +199,11 @@ def load_robot_file(path) -> RobotFile:
         r.fail(missing, "missing: give both pen heights or neither")
     if "pen_up_mm" in kw and kw["pen_up_mm"] == kw["pen_down_mm"]:
         r.fail("pen_down_mm", "must differ from pen_up_mm")
+    lo3, hi3 = kw.get("joint3_limits_mm", JOINT3_LIMITS_MM)
+    for key in ("pen_up_mm", "pen_down_mm"):
+        if key in kw and not lo3 <= kw[key] <= hi3:
+            r.fail(key, f"{kw[key]:g} mm is outside joint 3's travel [{lo3:g}, {hi3:g}] mm "
+                        "(joint3_limits_mm)")
     for key in ("mark_diameter_mm", "overshoot_deg"):
         if opt(key) is not None:
             kw[key] = _positive(r, opt(key), key)

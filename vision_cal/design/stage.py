@@ -27,7 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from vision_cal.dataset.photos import list_photos
+from vision_cal.design.joint4 import circle_triples, joint4_vias, turn_joint4
 from vision_cal.errors import VisionCalError
+from vision_cal.kinematics import forward
 
 log = logging.getLogger(__name__)
 
@@ -259,11 +261,20 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
         info = {"stage": "informative", "pilot_calibration": str(pilot), "safety_mm": safety_mm,
                 "n_calibration": n_calibration, "n_validation": n_validation, "seed": seed}
         if nominal.tool_mm is not None and any(nominal.tool_mm):   # an off-axis tool (#21)
-            from vision_cal.design.joint4 import turn_joint4
-
+            points = forward(p, [m.joints_deg for m in marks])
             marks, joint4 = turn_joint4(marks, p, nominal.tool_mm,
                                         folded_j4_deg=robot.j4_deg,
                                         overshoot_deg=robot.overshoot_deg)
+            if stage != "verify":   # the seed paper's joint-4 circles, both elbows and sides
+                triples, t4 = circle_triples(
+                    p, nominal.tool_mm, sheet, avoid_xy=points, folded_j4_deg=robot.j4_deg,
+                    clearance_mm=robot.mark_diameter_mm / 2 + 3.0 + safety_mm,
+                    joint_limits_deg=robot.joint_limits_deg,
+                    joint4_limits_deg=robot.joint4_limits_deg,
+                    overshoot_deg=robot.overshoot_deg, elbows=robot.elbows, rng=seed)
+                marks, joint4 = list(marks) + triples, {**joint4, **t4}
+                info["joint4_triples"] = [[m.id for m in triples[i:i + 3]]
+                                          for i in range(0, len(triples), 3)]
             info["joint4_turns"] = sorted(set(joint4.values()))
         title = (f"vision-cal calibration plan: {n_calibration} calibration + {n_validation} "
                  "validation marks, both elbows, both approach sides per joint")
@@ -288,8 +299,9 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
     # the robot file's limits travel with the session into calibration.json (plan, export)
     session["robot"]["joint_limits_deg"] = [[float(v) for v in p] for p in robot.joint_limits_deg]
     points = program_points(marks, home_deg=nominal.home_deg, z2_deg=plan_robot.joint_zero_deg[1],
-                            joint4=None if joint4 is None else {
-                                k: (v, v - robot.overshoot_deg) for k, v in joint4.items()})
+                            joint4=None if joint4 is None else joint4_vias(
+                                marks, joint4, start_deg=robot.j4_deg,
+                                overshoot_deg=robot.overshoot_deg))
     preview = preview_png(_params(plan_robot), sheet, marks, paper=paper,
                           title=f"{info['stage']} plan: {len(marks)} marks, robot "
                                 f"{robot.name} ({100 * reach:.0f} % of the paper in reach)")

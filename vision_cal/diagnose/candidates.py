@@ -56,11 +56,7 @@ def joint_residuals_deg(model, q_deg, approach, residual_mm) -> np.ndarray:
     explain it exactly; near the singularity (elbow straight) this is ill-conditioned and
     returns NaN.
     """
-    from vision_cal.kinematics import jacobian_rad
-
-    phi = model.joint_angles_rad(q_deg, approach)
-    _, jq = jacobian_rad(model.params.vector, phi)
-    jq = np.einsum("ij,njk->nik", model.sheet_matrix(), jq)
+    jq = model.joint_columns(q_deg, approach)
     det = np.linalg.det(jq)
     ok = np.abs(det) > 1e-3 * np.max(np.abs(det))
     out = np.full((len(q_deg), 2), np.nan)

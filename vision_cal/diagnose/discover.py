@@ -50,9 +50,8 @@ from vision_cal.calibrate.lsq import Fit
 from vision_cal.diagnose.select import Diagnosis, Evidence, heldout_rms
 from vision_cal.diagnose.structure import sheet_scan
 from vision_cal.errors import CalibrationError
-from vision_cal.kinematics import jacobian_rad
 from vision_cal.model import (JointBacklash, JointCyclic, JointEffect, JointScale, JointTerms,
-                              RobotModel)
+                              RobotModel, SheetAffine)
 
 BASE_PARAMS = ("L1_mm", "L2_mm", "z1_deg", "z2_deg", "base_x_mm", "base_y_mm")
 DRIFT_WORDS = {"L1_mm": "link 1 length", "L2_mm": "link 2 length", "z1_deg": "joint 1 zero",
@@ -84,9 +83,7 @@ def _weights(n, sigma, repeatability_mm=0.0):
 
 def _joint_columns(model: RobotModel, q, app):
     """(N, 2, 2): the sheet displacement per radian of each joint error."""
-    phi = model.joint_angles_rad(q, app)
-    _, jq = jacobian_rad(model.params.vector, phi)
-    return np.einsum("ij,njk->nik", model.sheet_matrix(), jq), phi
+    return model.joint_columns(q, app), model.joint_angles_rad(q, app)
 
 
 def _scan_bases(model: RobotModel, q, app, t) -> dict:
@@ -105,7 +102,7 @@ def _scan_bases(model: RobotModel, q, app, t) -> dict:
                                                 jq[:, :, j] * (q1 * q2)[:, None]], axis=2)
     if np.any(elbow > 0) and np.any(elbow < 0):
         b["elbow"] = jq * elbow[:, None, None]
-    b["approach"] = jq * app[:, None, :]
+    b["approach"] = jq * app[:, None, :2]
     return b
 
 
@@ -176,7 +173,8 @@ def _columns(model: RobotModel, q, app, t):
     cols, names = [], []
     for j in (1, 2):
         for f in jt.DICTIONARY:
-            cols.append(jq[:, :, j - 1] * (jt.evaluate(f, q, app) / jt.unit(f))[:, None])
+            cols.append(jq[:, :, j - 1] * (jt.evaluate(f, q[:, :2], app[:, :2])
+                                           / jt.unit(f))[:, None])
             names.append(("joint", j, f))
     jb = model.jacobian(q, app)[:, :, :6]
     tc = np.asarray(t, float) - 0.5
@@ -348,7 +346,7 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
               "method": "forward stepwise selection, F-test at alpha / columns left and "
                         "k-fold cross-validation (vision_cal.diagnose.discover)",
               "dictionary": list(jt.DICTIONARY), "alpha": alpha}
-    nonjoint = tuple(e for e in final.model.effects if not isinstance(e, JointEffect))
+    nonjoint = tuple(e for e in final.model.effects if not _dictionary_joint(e))
     f0 = refit_with(final.model, nonjoint, q, xy, app, sigma_mm, ids)
     if f0 is None:
         report["decision"] = "not run: the model without joint effects cannot be fitted"
@@ -373,7 +371,7 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
                            app_val=approach_val, k_folds=k_folds)
 
     f1 = refit_with(final.model, nonjoint + new_joint, q, xy, app, sigma_mm, ids) \
-        if new_joint != tuple(e for e in final.model.effects if isinstance(e, JointEffect)) \
+        if new_joint != tuple(e for e in final.model.effects if _dictionary_joint(e)) \
         else None
     if f1 is None:
         report["decision"] = ("drift found; the joint effects kept" if drift else
@@ -384,7 +382,7 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     # a library effect is kept only when it does better than the dictionary's terms with no
     # more parameters: fewer parameters win when the fit's BIC says so and the held-out
     # error is within its own noise (an RMS over a few held-out marks scatters by ~20 %)
-    n_old = sum(len(e.theta) for e in final.model.effects if isinstance(e, JointEffect))
+    n_old = sum(len(e.theta) for e in final.model.effects if _dictionary_joint(e))
     n_new = sum(len(e.theta) for e in new_joint)
     tie = (n_new < n_old and _bic(f1, sigma_mm) <= _bic(final, sigma_mm)
            and h1 <= HELDOUT_TIE * diag.heldout_final_mm)
@@ -431,6 +429,12 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     return Traced(new, drift, report)
 
 
+def _dictionary_joint(e) -> bool:
+    """A joint-1/2 effect (what the dictionary can say); the tool and joint-4 effects are
+    held like the sheet's (joint 4 has no dictionary)."""
+    return isinstance(e, JointEffect) and e.joint in (1, 2)
+
+
 def _rss(fit: Fit, sigma) -> float:
     r = fit.residuals_mm[fit.inliers]
     if sigma is not None:
@@ -442,7 +446,7 @@ def _recheck_nonjoint(f1, nonjoint, new_joint, q, xy, app, sigma, ids, alpha):
     """Drop each non-joint effect whose F-test beside the new joint effects fails at
     ``alpha``; returns (fit, the non-joint effects kept, labels dropped)."""
     gone = []
-    for e in list(nonjoint):
+    for e in [x for x in nonjoint if isinstance(x, SheetAffine)]:
         rest = tuple(x for x in nonjoint if x is not e)
         f2 = refit_with(f1.model, rest + new_joint, q, xy, app, sigma, ids)
         if f2 is None:

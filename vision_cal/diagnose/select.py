@@ -28,7 +28,8 @@ from vision_cal.config import DEFAULT
 from vision_cal.diagnose.candidates import Candidate, default_candidates, joint_residuals_deg
 from vision_cal.diagnose.structure import harmonic_scan, sheet_scan
 from vision_cal.errors import CalibrationError
-from vision_cal.model import JointCyclic, RobotModel, SheetAffine
+from vision_cal.kinematics import ScaraParams
+from vision_cal.model import JointCyclic, RobotModel, SheetAffine, Tool
 from vision_cal.rms import rms, rms_2d
 
 ALPHA = DEFAULT.selection.alpha      # family-wise F-test level (see vision_cal.config)
@@ -77,6 +78,9 @@ class Diagnosis:
         out, k = [], 6
         for e in fit.model.effects:
             n = len(e.theta)
+            if isinstance(e, Tool):   # params.tool_mm, not an effect (contract)
+                k += n
+                continue
             d = e.to_json(fit.std[k:k + n])
             ev = next((a for a in self.accepted if a.label == e.label), None)
             if ev is not None:
@@ -97,7 +101,9 @@ def heldout_rms(model: RobotModel, q, xy, app, *, sigma=None, q_val=None, xy_val
                 app_val=None, k_folds: int = 5, rng=None) -> float:
     """Held-out RMS (mm, 2-D): on validation marks if given, else k-fold CV."""
     if q_val is not None and len(q_val) >= 3:
-        f = Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, robust=False)
+        # fitted as the calibration is (robust pass): a mark it leaves out as an outlier
+        # (a mis-associated dot) would pull every model alike and hide what an effect does
+        f = Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, robust=True)
         r = xy_val - f.predict(q_val, app_val)
         return rms_2d(r)
     n = len(q)
@@ -147,17 +153,26 @@ def residual_analysis(fit: Fit, q, app, *, n_bins: int = 6) -> dict:
 
 def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None, xy_val=None,
              approach_val=None, candidates: list[Candidate] | None = None, alpha: float = ALPHA,
-             k_folds: int = K_FOLDS, max_effects: int = DEFAULT.selection.max_effects, rng=None) -> Diagnosis:
-    """Calibrate the base model, then add the effects the residual asks for."""
-    q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
+             k_folds: int = K_FOLDS, max_effects: int = DEFAULT.selection.max_effects, rng=None,
+             base_effects: tuple = ()) -> Diagnosis:
+    """Calibrate the base model, then add the effects the residual asks for.
+
+    ``base_effects``: effects every model holds and the selection never tests (the tool and
+    joint-4 effects: joints ``(N, 3)`` ``[q1, q2, q4]`` and approach ``(N, 3)``, contract
+    "Joint 4 and the tool"); the tool is reported in ``params``, not among the effects."""
+    q = np.asarray(q_deg, dtype=float)
+    ncol = 3 if q.ndim == 2 and q.shape[-1] == 3 else 2
+    q = q.reshape(-1, ncol)
     xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
-    app = np.ones_like(q) if approach is None else np.asarray(approach, float).reshape(-1, 2)
+    app = np.ones_like(q) if approach is None else np.asarray(approach, float).reshape(-1, ncol)
     sigma = None if sigma_mm is None else np.asarray(sigma_mm, dtype=float)
+    base_model = RobotModel(ScaraParams(1.0, 1.0), tuple(base_effects)) if base_effects else None
+    n_base = len(base_effects)
     if q_val is not None:
-        q_val = np.asarray(q_val, float).reshape(-1, 2)
+        q_val = np.asarray(q_val, float).reshape(-1, ncol)
         xy_val = np.asarray(xy_val, float).reshape(-1, 2)
         approach_val = (np.ones_like(q_val) if approach_val is None
-                        else np.asarray(approach_val, float).reshape(-1, 2))
+                        else np.asarray(approach_val, float).reshape(-1, ncol))
     has_val = q_val is not None and len(q_val) >= 3
     kind = "validation marks" if has_val else f"{min(k_folds, len(q))}-fold cross-validation"
     cands = list(candidates if candidates is not None else default_candidates())
@@ -178,7 +193,7 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
         ss = None if sigma is None else sigma[sub]
         idl = None if ids is None else tuple(np.asarray(ids, dtype=object)[sub])
         held = held_on(sub)
-        b = _fit(None, qs, xs, aps, ss, idl)
+        b = _fit(base_model, qs, xs, aps, ss, idl)
         sl = _select(b, (), cands, qs, xs, aps, ss, idl, held, alpha_each, max_effects)
         # harmonics significant even beside every candidate the plan can fit
         full = sl.fit
@@ -197,7 +212,7 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
 
     everything = np.ones(len(q), dtype=bool)
     held = held_on(everything)
-    base = _fit(None, q, xy, app, sigma, ids)
+    base = _fit(base_model, q, xy, app, sigma, ids)
     sel, found, nuisance = select_on(everything)
     # the sheet map of what is left once the nuisance harmonics are out
     keep = sel.fit.inliers
@@ -221,12 +236,13 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
                                                     "peak_residual_mm", "map")})
     # the reported model: the selected effects only (a nuisance is reported, not fitted),
     # on every mark
-    effects = tuple(sel.fit.model.effects[len(nuisance):])
+    effects = (sel.fit.model.effects[:n_base]
+               + tuple(sel.fit.model.effects[n_base + len(nuisance):]))
     if nuisance or len(sel.fit.residuals_mm) != len(q):
         zero = RobotModel(base.params, tuple(_at_zero(e) for e in effects))
         current = _fit(zero if effects else None, q, xy, app, sigma, ids)
         current_held = held(current.model)
-        base_held = held(RobotModel(base.params))
+        base_held = held(base.model)
     else:
         current, current_held, base_held = sel.fit, sel.held, sel.base_held
     accepted = sel.accepted
@@ -261,7 +277,7 @@ class _Selection:
 
 
 def _at_zero(e):
-    return e.with_theta(np.zeros(len(e.theta)))
+    return e if isinstance(e, Tool) else e.with_theta(np.zeros(len(e.theta)))
 
 
 def _select(base: Fit, nuisance: tuple, cands, q, xy, app, sigma, ids, held, alpha_each,
@@ -269,7 +285,8 @@ def _select(base: Fit, nuisance: tuple, cands, q, xy, app, sigma, ids, held, alp
     """Forward selection from the base model (plus ``nuisance`` effects, fitted but never
     reported: structure no candidate explains)."""
     if nuisance:
-        current = _fit(RobotModel(base.params, nuisance), q, xy, app, sigma, ids)
+        current = _fit(RobotModel(base.params, base.model.effects + nuisance), q, xy, app,
+                       sigma, ids)
     else:
         current = base
     current_held = held(current.model)

@@ -23,7 +23,6 @@ import numpy as np
 from scipy import sparse, stats
 from scipy.spatial import cKDTree
 
-from vision_cal.kinematics import jacobian_rad
 
 
 def _rows(a: np.ndarray) -> np.ndarray:
@@ -34,19 +33,18 @@ def harmonic_scan(model, q_deg, approach, residual_mm, *, weights=None, h_max: i
                   ) -> dict:
     """Periodogram of the residual against each joint angle (see the module docstring).
 
-    ``model``: the fitted ``RobotModel``; ``q_deg``, ``approach`` (N, 2); ``residual_mm``
+    ``model``: the fitted ``RobotModel``; ``q_deg``, ``approach`` (N, 2) (or (N, 3) with
+    joint 4, for a model with a tool); ``residual_mm``
     (N, 2) measured minus predicted; ``weights`` (N,) 1/sigma per mark (None: equal).
     Returns ``{"joint1": [{"harmonic", "amplitude_deg", "F", "p_value"}, ...], ...}``.
     """
-    q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
+    q = np.atleast_2d(np.asarray(q_deg, dtype=float))
     r = np.asarray(residual_mm, dtype=float).reshape(-1, 2)
     n = len(q)
     w = np.ones(n) if weights is None else np.asarray(weights, dtype=float)
     J = model.jacobian(q, approach) * w[:, None, None]              # (N, 2, P)
     Jr = _rows(J)
-    phi = model.joint_angles_rad(q, approach)
-    _, jq = jacobian_rad(model.params.vector, phi)
-    jq = np.einsum("ij,njk->nik", model.sheet_matrix(), jq) * w[:, None, None]
+    jq = model.joint_columns(q, approach) * w[:, None, None]
     rw = (r * w[:, None]).reshape(-1)
     # what the model can absorb: project it out of every basis
     Qm, _ = np.linalg.qr(Jr)

@@ -37,7 +37,8 @@ from vision_cal.config import DEFAULT, AssociationConfig
 from vision_cal.dataset import photos
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.session import Session, load_session
-from vision_cal.errors import VisionCalError
+from vision_cal.calibrate.tool import fit_tool
+from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.measure import associate as assoc
 from vision_cal.measure.aruco import MIN_MARKERS, edge_points, find_sheet_markers
 from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerprint
@@ -393,6 +394,38 @@ def _pool_initializer(parent_pid: int) -> None:
     exit_with_parent(parent_pid)
 
 
+def _tool_joints(params, tool_mm, session):
+    """(joints (N, 2), the tool-less model they are for): the association predicts with a
+    tool-less model, so each mark gets the joints that put it where ``params`` with
+    ``tool_mm`` puts the pen. That model is ``params`` with L2 lengthened by |tool|, which
+    reaches every pen position (``params`` itself does not reach a mark the tool puts
+    beyond L1 + L2); the commanded joints where no such pose exists."""
+    model = replace(params, L2_mm=params.L2_mm + float(np.hypot(*tool_mm)))
+    q = session.joints_deg
+    eq = equivalent_joints(params, tool_mm, q, session.j4_deg, solve_with=model)
+    return np.where(np.isfinite(eq), eq, q), model
+
+
+def _with_fitted_tool(a, session, mark_ids, mark_images, groups, ac):
+    """The association again, predicted from the base model and tool fitted to the marks
+    the first pass matched (robustly: a swapped pair is left out), when that matches at
+    least as many marks. The robot file's rough ``tool_mm`` (millimetres off) turns with
+    joint 4, which a tool-less model cannot follow: its residual widens the gates until
+    marks a dozen millimetres apart are refused or swapped."""
+    k = [list(mark_ids).index(mid) for mid in a.mark_to_group]
+    if len(k) < 8:
+        return a
+    xy = np.array([groups[g].mean_mm for g in a.mark_to_group.values()])
+    try:
+        tf = fit_tool(session.joints_deg[k], session.j4_deg[k], xy)
+    except CalibrationError:
+        return a
+    q, model = _tool_joints(tf.fit.params, tf.tool_mm, session)
+    b = assoc.associate(q, mark_ids, mark_images, groups, model,
+                        max_zero_deg=ac.max_zero_deg, max_base_mm=ac.max_base_mm)
+    return b if len(b.mark_to_group) >= len(a.mark_to_group) else a
+
+
 def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                    progress=None, association: AssociationConfig | None = None) -> Measurement:
     """Measure every photo of a dataset folder and every pen mark on the sheet.
@@ -665,14 +698,16 @@ def associate_dots(session: Session, items: list[_Photo], images: list[ImageResu
             warnings.append(f"{n_off} photo(s) in the folder not used (not of the sheet, "
                             "repeated or unreadable): see images[].reason")
     mark_images = [{i for i in idx_ok if m.id in image_marks[i]} for m in session.marks]
-    q_assoc = session.joints_deg
-    if session.uses_joint4 and session.robot.tool_mm is not None:   # an off-axis tool (#21)
-        eq = equivalent_joints(session.robot.params, session.robot.tool_mm, q_assoc,
-                               session.j4_deg)
-        q_assoc = np.where(np.isfinite(eq), eq, q_assoc)
+    q_assoc, assoc_model = session.joints_deg, session.robot.params
+    with_tool = session.uses_joint4 and session.robot.tool_mm is not None   # #21
+    if with_tool:
+        q_assoc, assoc_model = _tool_joints(session.robot.params, session.robot.tool_mm,
+                                            session)
     a = assoc.associate(q_assoc, mark_ids, mark_images, groups,
-                        session.robot.params, max_zero_deg=ac.max_zero_deg,
+                        assoc_model, max_zero_deg=ac.max_zero_deg,
                         max_base_mm=ac.max_base_mm)
+    if with_tool:
+        a = _with_fitted_tool(a, session, mark_ids, mark_images, groups, ac)
     warnings.extend(a.warnings)
     check_plan_match(session.path, files, images, image_marks, len(groups), len(a.mark_to_group))
     dot_mark = [[""] * len(im.dots_xy_mm) for im in images]

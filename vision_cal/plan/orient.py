@@ -27,11 +27,10 @@ import numpy as np
 
 from vision_cal.kinematics import ScaraParams, flange_angle_rad
 from vision_cal.model import JointEffect, RobotModel, Tool
-from vision_cal.motion import JOINT_LIMITS_DEG
+from vision_cal.motion import JOINT4_LIMITS_DEG, JOINT_LIMITS_DEG
 from vision_cal.plan.compensate import PlannedTarget, plan_targets
 
 #: default joint-4 range of a SCARA (commanded, deg)
-JOINT4_LIMITS_DEG = (-360.0, 360.0)
 
 
 @dataclass(frozen=True)
@@ -169,18 +168,21 @@ def unfold_params(folded: ScaraParams, tool_mm, q4_real_deg: float = 0.0) -> Sca
                        folded.base_x_mm, folded.base_y_mm)
 
 
-def equivalent_joints(params: ScaraParams, tool_mm, q_deg, q4_deg) -> np.ndarray:
-    """Joints (N, 2) deg that put the tool-less model ``params`` where the model with the
-    tool ``tool_mm`` puts the pen at joints ``q_deg`` (N, 2) and joint 4 ``q4_deg`` (N,),
-    same elbow: for code that predicts marks with the base model only (the association of
-    dots to marks). NaN where the point is out of the tool-less model's reach."""
+def equivalent_joints(params: ScaraParams, tool_mm, q_deg, q4_deg,
+                      solve_with: ScaraParams | None = None) -> np.ndarray:
+    """Joints (N, 2) deg that put the tool-less model ``solve_with`` (default ``params``)
+    where ``params`` with the tool ``tool_mm`` puts the pen at joints ``q_deg`` (N, 2) and
+    joint 4 ``q4_deg`` (N,), same elbow: for code that predicts marks with the base model
+    only (the association of dots to marks). NaN where the point is out of the tool-less
+    model's reach (``params`` with L2 lengthened by |tool| reaches every pen position)."""
     from vision_cal.kinematics import forward_tool, inverse
 
+    solve_with = params if solve_with is None else solve_with
     q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
     xy = forward_tool(params, q, np.asarray(q4_deg, dtype=float), tool_mm)
     out = np.full_like(q, np.nan)
     for elbow in (1, -1):
         k = np.sign(np.sin(np.radians(q[:, 1] + params.z2_deg))) == elbow
         if k.any():
-            out[k] = inverse(params, xy[k], elbow=elbow, on_fail="nan")
+            out[k] = inverse(solve_with, xy[k], elbow=elbow, on_fail="nan")
     return out

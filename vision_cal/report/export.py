@@ -11,7 +11,9 @@ With a tool (``params.tool_mm``, contract "Joint 4 and the tool") the chain goes
 link 2 as a SCARA's does: ``link2 -> joint3 (prismatic, z, at L2 along link 2) -> quill ->
 joint4 (revolute about z) -> flange -> tool (fixed, at tool_mm in the flange frame) ->
 pen``, so ``pen`` is the calibrated pen tip for any ``q1, q2, q3, q4`` (joint 3 moves the
-pen vertically only). Without a tool the chain ends at ``pen_tip`` as before.
+pen vertically only). Joint 3's travel and joint 4's range are the robot file's
+``joint3_limits_mm`` and ``joint4_limits_deg`` (``export --robot``), else the defaults of
+:mod:`vision_cal.motion`. Without a tool the chain ends at ``pen_tip`` as before.
 
 Effects a URDF cannot hold (backlash, gear-ratio and cyclic errors, sheet scale) go in a
 side file ``<name>.effects.yaml``: the format's effect names and parameters, in degrees and
@@ -27,7 +29,9 @@ from xml.sax.saxutils import quoteattr
 import yaml
 
 from vision_cal.dataset.io import atomic_write_text
+# the defaults live in vision_cal.motion; report/ reads them through dataset/ (its rule)
 from vision_cal.dataset.robot import DEFAULT_LIMITS_DEG as JOINT_LIMITS_DEG
+from vision_cal.dataset.robot import JOINT3_LIMITS_MM, JOINT4_LIMITS_DEG
 
 EFFECTS_HEADER = """\
 # Effects found by vision-cal that URDF cannot express (see docs/conventions.md).
@@ -39,21 +43,19 @@ EFFECTS_HEADER = """\
 """
 
 
-#: default joint-3 travel (m, commanded) and joint-4 range (deg) when no robot file says
-JOINT3_LIMITS_M = (-0.2, 0.0)
-JOINT4_LIMITS_DEG = (-360.0, 360.0)
 
 
-def _tool_chain(L2: float, tool_mm, limits3_m, limits4_deg) -> str:
+def _tool_chain(L2: float, tool_mm, limits3_mm, limits4_deg) -> str:
     """Joints 3 and 4 and the tool frame (metres, radians), ending at link ``pen``."""
     tx, ty = (v / 1000.0 for v in tool_mm)
+    lo3, hi3 = (v / 1000.0 for v in limits3_mm)
     lo4, hi4 = (math.radians(v) for v in limits4_deg)
     return f"""  <joint name="joint3" type="prismatic">
     <parent link="link2"/>
     <child link="quill"/>
     <origin xyz="{L2:.9f} 0 0" rpy="0 0 0"/>
     <axis xyz="0 0 1"/>
-    <limit lower="{limits3_m[0]:.6f}" upper="{limits3_m[1]:.6f}" effort="100" velocity="1"/>
+    <limit lower="{lo3:.6f}" upper="{hi3:.6f}" effort="100" velocity="1"/>
   </joint>
   <joint name="joint4" type="revolute">
     <parent link="quill"/>
@@ -72,7 +74,7 @@ def _tool_chain(L2: float, tool_mm, limits3_m, limits4_deg) -> str:
 
 
 def urdf_text(doc: dict, *, name: str = "scara_calibrated",
-              limits_deg=JOINT_LIMITS_DEG, limits3_m=JOINT3_LIMITS_M,
+              limits_deg=JOINT_LIMITS_DEG, limits3_mm=JOINT3_LIMITS_MM,
               limits4_deg=JOINT4_LIMITS_DEG) -> str:
     p = doc["params"]
     bx, by = (v / 1000.0 for v in p["base_mm"])
@@ -93,7 +95,7 @@ def urdf_text(doc: dict, *, name: str = "scara_calibrated",
 
     if p.get("tool_mm") is not None:
         extra_links = '  <link name="quill"/>\n  <link name="flange"/>\n'
-        tip = _tool_chain(L2, p["tool_mm"], limits3_m, limits4_deg)
+        tip = _tool_chain(L2, p["tool_mm"], limits3_mm, limits4_deg)
     else:
         extra_links = ""
         tip = f"""  <joint name="pen_tip" type="fixed">
@@ -137,12 +139,13 @@ def effects_path(urdf) -> Path:
 
 
 def export(doc: dict, *, urdf=None, yaml_path=None, limits_deg=None,
-           limits4_deg=None) -> list[Path]:
+           limits4_deg=None, limits3_mm=None) -> list[Path]:
     """``limits_deg``: the URDF's joint limits [[lo, hi], [lo, hi]] (default: the
-    calibration's ``joint_limits_deg``, else a robot file's default,
-    :data:`vision_cal.dataset.robot.DEFAULT_LIMITS_DEG`);
-    ``limits4_deg``: joint 4's [lo, hi] when the URDF has a tool (default
-    :data:`JOINT4_LIMITS_DEG`; the robot file's ``joint4_limits_deg`` via ``export --robot``)."""
+    calibration's ``joint_limits_deg``, else :data:`vision_cal.motion.JOINT_LIMITS_DEG`);
+    ``limits4_deg`` and ``limits3_mm``: joint 4's [lo, hi] (deg) and joint 3's travel
+    (mm) when the URDF has a tool (defaults :data:`vision_cal.motion.JOINT4_LIMITS_DEG`,
+    :data:`vision_cal.motion.JOINT3_LIMITS_MM`; the robot file's ``joint4_limits_deg`` and
+    ``joint3_limits_mm`` via ``export --robot``)."""
     written = []
     if limits_deg is None:
         limits_deg = doc.get("joint_limits_deg") or JOINT_LIMITS_DEG
@@ -150,7 +153,8 @@ def export(doc: dict, *, urdf=None, yaml_path=None, limits_deg=None,
         urdf = Path(urdf)
         written.append(atomic_write_text(urdf, urdf_text(
             doc, name=urdf.stem, limits_deg=limits_deg,
-            limits4_deg=JOINT4_LIMITS_DEG if limits4_deg is None else limits4_deg)))
+            limits4_deg=JOINT4_LIMITS_DEG if limits4_deg is None else limits4_deg,
+            limits3_mm=JOINT3_LIMITS_MM if limits3_mm is None else limits3_mm)))
         side = effects_path(urdf)
         written.append(atomic_write_text(side, effects_yaml(doc)))
     if yaml_path:

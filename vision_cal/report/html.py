@@ -325,6 +325,43 @@ def _marks_html(rep: dict) -> str:
                      rows, sortable=True, tid="marks"))
 
 
+def tool_html(doc: dict) -> str:
+    """The tool's section, from calibration.json's ``tool`` block alone (docs/format.md,
+    "Joint 4, the tool and placements"): ``tool_mm`` with its std when the marks at several
+    ``j4_deg`` identify it, else that it is folded into L2 and z2 and what marks would
+    separate it. "" when the calibration says nothing about a tool."""
+    t = doc.get("tool")
+    if not isinstance(t, dict):
+        return ""
+    out = ["<h2>Tool (the pen off the joint-4 axis)</h2>"]
+    if t.get("identified"):
+        xy = t.get("tool_mm") or [float("nan")] * 2
+        sd = t.get("std_mm") or [float("nan")] * 2
+        out.append(f"<p>tool_mm = [{_f(xy[0])} &plusmn; {_f(sd[0])}, {_f(xy[1])} &plusmn; "
+                   f"{_f(sd[1])}] mm in the flange frame at j4 = 0 (radius "
+                   f"{_f(t.get('radius_mm'))} mm; one standard deviation).</p>")
+        c = t.get("circle_joint4")
+        if isinstance(c, dict):
+            out.append(f"<p class=note>From the joint-4 circle (the seed paper's method): "
+                       f"centre (the flange) ({', '.join(_f(v, 3) for v in c.get('center_mm') or [])}) mm, radius "
+                       f"{_f(c.get('radius_mm'))} mm; base and elbow circles at j4 = "
+                       f"{_f(t.get('folded_q4_deg'), 1)} deg.</p>")
+        corr = [(abs(r), a, b, r) for a, row in (t.get("correlations") or {}).items()
+                for b, r in row.items() if isinstance(r, (int, float)) and abs(r) > 0.9]
+        if corr:
+            out.append("<p class=note>tool correlated above 0.9 with: " + ", ".join(
+                f"{_e(a)} ~ {_e(b)} ({r:+.3f})" for _, a, b, r in sorted(corr)[::-1])
+                + "</p>")
+    else:
+        nom = t.get("tool_mm_nominal") or [0.0, 0.0]
+        out.append(f"<p class=bad>{_e(t.get('statement', 'the tool is folded into L2 and z2'))}"
+                   f" (every mark at j4 = {_f(t.get('j4_deg'), 1)} deg; the robot file's "
+                   f"tool_mm [{_f(nom[0], 1)}, {_f(nom[1], 1)}] mm is not calibrated).</p>"
+                   f"<p>To separate it: {_e(t.get('to_separate', 'draw marks at several j4_deg'))}"
+                   ".</p>")
+    return "".join(out)
+
+
 def render_html(rep: dict) -> str:
     """The page, from report.json's contents alone."""
     doc = rep["calibration"]
@@ -377,6 +414,7 @@ def render_html(rep: dict) -> str:
             parts.append("<p class=note>correlations above 0.9: " + ", ".join(
                 f"{html.escape(c['a'])} ~ {html.escape(c['b'])} ({c['r']:+.3f})" for c in hc)
                 + "</p>")
+    parts.append(tool_html(doc))
     # effects
     parts.append("<h2>Effects</h2>")
     eff = [e for e in doc.get("effects", []) if e["name"] != "unexplained"]
