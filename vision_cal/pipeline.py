@@ -172,7 +172,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     default ``DEFAULT``), recorded in calibration.json's ``config``."""
     if method not in METHODS:
         raise VisionCalError(f"unknown method {method!r} (expected one of {', '.join(METHODS)})")
-    config = _checked(config)
+    config = config or DEFAULT
     session = load_session(folder)
     out_dir = Path(out_dir)
     measurement, data, missing = measure_marks(session, out_dir=out_dir, jobs=jobs,
@@ -183,7 +183,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
 
         fitted = _Fitted(*fit_joint4(cal, val, method, session.robot.tool_mm))
     else:
-        fitted = (fit_paper(cal, val) if method == "paper"
+        fitted = (fit_paper(cal, val, config) if method == "paper"
                   else fit_lsq(session, cal, val, measurement, config))
         if cal.joint4 is not None:   # one j4_deg: the tool is folded into L2 and z2
             from vision_cal.calibrate.tool import folded_statement
@@ -192,7 +192,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                                                   or (0.0, 0.0))
     doc = {"format": "vision-cal/calibration/1", "method": method, "config": config.to_json(),
            **fitted.doc}
-    document(doc, session, data, missing, measurement, fitted, truth=truth)
+    document(doc, session, data, missing, measurement, fitted, truth=truth, config=config)
     add_to_calibration(doc, session)   # what the report draws: it reads only the files
     from vision_cal.calibrate.plausible import check_plausible
 
@@ -208,15 +208,6 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                           fitted.model)
 
 
-def _checked(config: EstimatorConfig | None) -> EstimatorConfig:
-    config = config or DEFAULT
-    if (config.dots != DEFAULT.dots
-            or config.selection.outlier_sigma != DEFAULT.selection.outlier_sigma):
-        raise VisionCalError("the dot thresholds and outlier_sigma are fixed at import in this "
-                             "version: change vision_cal.config.DEFAULT", field="config")
-    return config
-
-
 def measure_marks(session: Session, *, out_dir: Path, jobs: int | None = None,
                   progress: bool = False, config: EstimatorConfig = DEFAULT):
     """(measurement or None, MarkData, missing ids): the photos measured when a mark has
@@ -227,7 +218,7 @@ def measure_marks(session: Session, *, out_dir: Path, jobs: int | None = None,
         from vision_cal.measure.batch import measure_folder
 
         measurement = measure_folder(session, out_dir=out_dir, jobs=jobs, progress=progress,
-                                     association=config.association)
+                                     config=config)
     data, missing = collect_marks(session, measurement)
     n_cal = len(data.select("calibration").ids)
     if n_cal < 3:
@@ -237,12 +228,12 @@ def measure_marks(session: Session, *, out_dir: Path, jobs: int | None = None,
     return measurement, data, missing
 
 
-def fit_paper(cal: MarkData, val: MarkData) -> _Fitted:
+def fit_paper(cal: MarkData, val: MarkData, config: EstimatorConfig = DEFAULT) -> _Fitted:
     """The seed paper's circle method on the calibration marks; validation marks scored."""
     paper = paper_method(cal.q_deg, cal.xy_mm)
     params = paper.params
-    noise_mm = Fit.from_estimate(cal.q_deg, cal.xy_mm, approach=cal.approach,
-                                 robust=False).residual_scale  # unweighted: mm
+    noise_mm = Fit.from_estimate(cal.q_deg, cal.xy_mm, approach=cal.approach, robust=False,
+                                 config=config).or_raise().residual_scale  # unweighted: mm
     std, cov = _paper_std(cal.q_deg, cal.xy_mm, noise_mm)
     res_cal = cal.xy_mm - _predict(params, cal)
     res_val = val.xy_mm - _predict(params, val) if len(val.ids) else np.zeros((0, 2))
@@ -283,9 +274,7 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
                     q_val=val.q_deg if len(val.ids) else None,
                     xy_val=val.xy_mm if len(val.ids) else None,
                     approach_val=val.approach if len(val.ids) else None,
-                    alpha=config.selection.alpha, k_folds=config.selection.k_folds,
-                    max_effects=config.selection.max_effects,
-                    candidates=cands)
+                    candidates=cands, config=config)
     traced = None
     if not not_flat:  # a sheet's height would be read as a joint error: not traced then
         from vision_cal.diagnose.discover import trace
@@ -296,7 +285,8 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
                        ids=cal.ids, q_val=val.q_deg if len(val.ids) else None,
                        xy_val=val.xy_mm if len(val.ids) else None,
                        approach_val=val.approach if len(val.ids) else None,
-                       alpha=config.selection.alpha, k_folds=config.selection.k_folds)
+                       alpha=config.selection.alpha, k_folds=config.selection.k_folds,
+                       config=config)
         diag = traced.diagnosis
     fb, ff = diag.base_fit, diag.final_fit
     final_model = ff.model
@@ -365,7 +355,8 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
 
 
 def document(doc: dict, session: Session, data: MarkData, missing: list[str], measurement,
-             fitted: _Fitted, *, truth: bool = False) -> None:
+             fitted: _Fitted, *, truth: bool = False,
+             config: EstimatorConfig = DEFAULT) -> None:
     """Complete ``doc`` in place: per-photo checks, the model the OLP had, the lens and the
     sheet height found by measurement, every mark with its residuals, images, targets."""
     diag = fitted.diagnosis
@@ -376,7 +367,8 @@ def document(doc: dict, session: Session, data: MarkData, missing: list[str], me
 
         qd = dict(zip(data.ids, data.q_deg))
         ad = dict(zip(data.ids, data.approach))
-        photos = per_photo_offsets(measurement, diag.final_fit.model, qd, ad)
+        photos = per_photo_offsets(measurement, diag.final_fit.model, qd, ad,
+                                   config=config.per_photo_offsets)
         doc["diagnosis"]["per_photo_offsets"] = photos
         flagged = [p["file"] for p in photos if p["flagged"]]
         if flagged:

@@ -164,7 +164,7 @@ def _start(places: list[Placement], tool: Tool | None) -> tuple[ScaraParams, tup
     for p in places:
         model = RobotModel(ScaraParams(1.0, 1.0), (tool,)) if tool is not None else None
         fits.append(Fit.from_estimate(p.q_deg, p.xy_mm, approach=p.approach, model=model,
-                                      sigma_mm=p.sigma_mm, robust=False).params)
+                                      sigma_mm=p.sigma_mm, robust=False).or_raise().params)
     shared = ScaraParams(float(np.mean([f.L1_mm for f in fits])),
                          float(np.mean([f.L2_mm for f in fits])), 0.0,
                          float(np.degrees(np.angle(np.mean(np.exp(1j * np.radians(
