@@ -23,6 +23,11 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, fields
 
 
+#: the calibration methods (``vision-cal --method``, :func:`vision_cal.pipeline.calibrate_dataset`):
+#: least squares with the effect diagnosis, and the seed paper's three-point circles
+METHODS = ("lsq", "paper")
+
+
 @dataclass(frozen=True)
 class MarkerConfig:
     """Photos and the sheet's printed markers (``vision_cal.measure.aruco``,

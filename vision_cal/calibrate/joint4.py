@@ -17,7 +17,7 @@ import numpy as np
 from vision_cal.calibrate.tool import fit_tool, joints_with_q4, paper_tool
 from vision_cal.errors import CalibrationError
 from vision_cal.model import JointBacklash, JointScale
-from vision_cal.plan.uncertainty import covariance_json
+from vision_cal.dataset.covariance import covariance_json
 from vision_cal.rms import rms_2d
 
 #: a joint-4 effect is reported when |estimate| > this many of its std

@@ -260,7 +260,7 @@ def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
     from vision_cal.dataset.io import atomic_write_json
     from vision_cal.dataset.session import load_session
     from vision_cal.pipeline import measure_marks
-    from vision_cal.plan.uncertainty import covariance_json
+    from vision_cal.dataset.covariance import covariance_json
 
     out_dir = Path(out_dir)
     places, sessions = [], []

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from vision_cal.dataset.calibration_result import FORMAT
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.session import MAX_JOINT_DEG, FieldReader
 from vision_cal.errors import VisionCalError
@@ -18,7 +19,6 @@ from vision_cal.joint_terms import check_feature
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import RobotModel, Tool, effect_from_json
 
-FORMAT = "vision-cal/calibration/1"
 ROBOT_EFFECTS = ("joint_backlash", "joint_scale", "joint_cyclic", "sheet_affine", "joint_terms")
 #: effects of the contract that do not act on the robot (the camera's, the paper's height,
 #: what nothing explains): read, never planned with

@@ -198,6 +198,12 @@ def atomic_write_text(path, text: str) -> Path:
     return atomic_write_bytes(path, text.encode("utf-8"))
 
 
+def as_json(obj):
+    """``obj`` exactly as :func:`atomic_write_json` writes it and ``json`` reads it back
+    (non-finite floats None, numpy values Python ones, tuples lists)."""
+    return json.loads(json.dumps(_clean(obj), default=_default, allow_nan=False))
+
+
 def atomic_write_json(path, obj) -> Path:
     text = json.dumps(_clean(obj), indent=2, default=_default, allow_nan=False)
     return atomic_write_text(path, text + "\n")

@@ -214,7 +214,7 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
     else:
         from vision_cal.dataset.calibration import load_calibration
         from vision_cal.plan.calibration_plan import informative_plan
-        from vision_cal.plan.uncertainty import load_covariance
+        from vision_cal.dataset.covariance import load_covariance
 
         model, doc = load_calibration(pilot)
         from vision_cal.dataset.sheet_identity import check_same_sheet
