@@ -190,7 +190,7 @@ def test_yaml_alias_bomb_is_refused_without_building_it(work, capsys):
 
 
 def test_a_huge_value_in_an_error_is_cut_before_it_is_printed():
-    from vision_cal.dataset.session import _short
+    from vision_cal.dataset.fields import _short
 
     big = [[list(range(1000))] * 1000] * 1000  # 10^9 numbers if printed whole
     assert len(_short(big)) <= 60

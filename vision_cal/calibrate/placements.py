@@ -21,16 +21,22 @@ over the candidates, as :mod:`vision_cal.diagnose.select` does), at most ``max_e
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from scipy import stats
 from scipy.optimize import least_squares
 
 from vision_cal.calibrate.lsq import Fit
+from vision_cal.calibrate.tool import joint4_values
 from vision_cal.config import DEFAULT
+from vision_cal.dataset.covariance import covariance_json
+from vision_cal.dataset.io import atomic_write_json
+from vision_cal.dataset.session import load_session
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import Effect, JointBacklash, JointCyclic, JointScale, RobotModel, Tool
+from vision_cal.pipeline import measure_marks
 
 
 @dataclass(frozen=True)
@@ -254,14 +260,6 @@ def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
     and one sheet pose per placement, write ``X/calibration.json`` (robot frame R) and
     ``X/<folder>/calibration.json`` (each placement's sheet frame, for ``plan``).
     Returns the robot-frame document."""
-    from pathlib import Path
-
-    from vision_cal.calibrate.tool import joint4_values
-    from vision_cal.dataset.io import atomic_write_json
-    from vision_cal.dataset.session import load_session
-    from vision_cal.pipeline import measure_marks
-    from vision_cal.dataset.covariance import covariance_json
-
     out_dir = Path(out_dir)
     places, sessions = [], []
     names = [Path(f).resolve().name for f in folders]

@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
-from vision_cal.dataset.session import FieldReader
+from vision_cal.dataset.fields import FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.mapping import undistort_px
 from vision_cal.rms import rms_2d

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vision_cal.kinematics import jacobian_rad
 from vision_cal.model import Effect, JointBacklash, JointCyclic, JointScale, SheetAffine
 
 
@@ -56,8 +57,6 @@ def joint_residuals_deg(model, q_deg, approach, residual_mm) -> np.ndarray:
     explain it exactly; near the singularity (elbow straight) this is ill-conditioned and
     returns NaN.
     """
-    from vision_cal.kinematics import jacobian_rad
-
     phi = model.joint_angles_rad(q_deg, approach)
     _, jq = jacobian_rad(model.params.vector, phi)
     jq = np.einsum("ij,njk->nik", model.sheet_matrix(), jq)
