@@ -140,9 +140,10 @@ class _Textures:
     """
 
     def __init__(self, sheet, xy_mm, diameters_mm, *, px_per_mm, seed, printed=None):
+        texture = sheet_texture
         if printed is not None:  # the printed sheet's own raster (vision_cal.render.printed)
 
-            def sheet_texture(_sheet, **kw):  # noqa: F811 (the printed raster instead)
+            def texture(_sheet, **kw):
                 return printed_texture(printed, **kw)
 
             px_per_mm = printed.px_per_mm
@@ -151,10 +152,10 @@ class _Textures:
         self.d_mm = np.asarray(diameters_mm, float)
         self.ppm = float(px_per_mm)
         self.extent = tuple(float(v) for v in sheet.extent_mm)
-        self.full = sheet_texture(sheet, marks_xy_mm=self.xy_mm, mark_diameters_mm=self.d_mm,
-                                  px_per_mm=self.ppm, rng=np.random.default_rng(seed))
-        self.current = sheet_texture(sheet, marks_xy_mm=np.zeros((0, 2)), mark_diameters_mm=1.0,
-                                     px_per_mm=self.ppm, rng=np.random.default_rng(seed))
+        self.full = texture(sheet, marks_xy_mm=self.xy_mm, mark_diameters_mm=self.d_mm,
+                            px_per_mm=self.ppm, rng=np.random.default_rng(seed))
+        self.current = texture(sheet, marks_xy_mm=np.zeros((0, 2)), mark_diameters_mm=1.0,
+                               px_per_mm=self.ppm, rng=np.random.default_rng(seed))
         self.k = 0
 
     def add_marks(self, k: int) -> np.ndarray:
