@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 import sys
 from dataclasses import dataclass
 
@@ -14,6 +13,7 @@ import numpy as np
 from vision_cal.camera.arm import camera_for
 from vision_cal.camera.fixed import locate
 from vision_cal.dataset.calibration import load_calibration
+from vision_cal.dataset.csvio import number_field
 from vision_cal.dataset.io import atomic_write_text, output_file, read_text
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.errors import VisionCalError
@@ -41,15 +41,7 @@ def _read_pixels(path, z_default: float):
             if k == "z_mm" and not v:
                 vals.append(z_default)
                 continue
-            try:
-                x = float(v)
-            except ValueError as e:
-                raise VisionCalError(f"expected a number, got {v!r}", file=str(path),
-                                     field=f"line {line}: {k}") from e
-            if not math.isfinite(x):
-                raise VisionCalError(f"expected a finite number, got {v!r}", file=str(path),
-                                     field=f"line {line}: {k}")
-            vals.append(x)
+            vals.append(number_field(v, path, line, k))
         ids.append((row.get("id") or "").strip() or f"p{i}")
         uv.append(vals[:2])
         z.append(vals[2])
