@@ -29,3 +29,19 @@ def test_unknown_keys_are_kept():
     r = CalibrationResult.from_json(d)
     assert r.extra == {"from_another_program": {"x": 1}}
     assert r.to_json() == d
+
+
+def test_every_field_is_written_and_read():
+    """A value in every field comes back: no field is left out of to_json or from_json."""
+    from dataclasses import fields
+
+    d = {f.name: {"v": f.name} for f in fields(CalibrationResult) if f.name != "extra"}
+    d.update(format="vision-cal/calibration/1", method="lsq",
+             residual_rms_mm={"base_model": 1.0, "final_model": 0.5},
+             validation_rms_mm={"base_model": 2.0, "final_model": 1.0, "kind": "none"},
+             residual_scale=1.5, noise_floor_mm=0.01)
+    for name in ("effects", "images", "home_deg", "notes", "outliers", "missing_marks",
+                 "targets", "printed_content", "joint_limits_deg", "cameras"):
+        d[name] = [name]
+    r = CalibrationResult.from_json(d)
+    assert r.extra == {} and r.to_json() == d
