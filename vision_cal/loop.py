@@ -191,7 +191,7 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
             else:
                 # the measurement's own reason first (it saw the photo), else where the
                 # calibrated model says the pen landed
-                why = (getattr(m, "refused", None) or {}).get(p.id)
+                why = m.refused.get(p.id)
                 res[p.id] = {"status": "not found",
                              "reason": str(why) if why else landing_note(sheet, calibrated, p)}
             if p.status == "ok":

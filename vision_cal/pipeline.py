@@ -389,7 +389,7 @@ def document(session: Session, data: MarkData, missing: list[str],
     marks, unreliable_notes = _marks_json(session, data, measurement, fitted)
     if measurement is not None:
         notes += unreliable_notes
-    limits = getattr(session.robot, "joint_limits_deg", None)
+    limits = session.robot.joint_limits_deg
     printer = printer_scale(session.sheet, effects, blk["params"])
     cameras, camera_notes = cameras_json(session, measurement, fitted.model,
                                          covariance=blk.get("covariance"), std=blk.get("std"))
@@ -532,7 +532,7 @@ def printer_scale(sheet, effects, params: dict | None = None) -> dict | None:
     printer's part is taken out (paper shrink, a tilted motion plane); ``physical_mm`` the
     calibrated link lengths times ``uniform``. None when the bars were not measured.
     """
-    printed = getattr(sheet, "printed", None) or {}
+    printed = (sheet.printed if sheet is not None else None) or {}
     mb = printed.get("measured_bar_mm")
     if mb is None:
         return None
