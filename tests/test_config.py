@@ -39,6 +39,11 @@ def test_calibration_json_says_how_it_was_obtained(paper_folder, tmp_path):
     assert doc["config"]["selection"] == dict(DEFAULT.to_json()["selection"], alpha=1e-3,
                                               k_folds=3, max_effects=1)
     assert doc["diagnosis"]["heldout"] == "3-fold cross-validation"
+    # a dots setting is taken (it was refused while dots.py copied it at import) and recorded
+    dots = DotConfig(ink_darkening=0.4)
+    calibrate_dataset(paper_folder, out_dir=tmp_path / "e", config=replace(DEFAULT, dots=dots))
+    doc = json.loads((tmp_path / "e" / "calibration.json").read_text())
+    assert EstimatorConfig.from_json(doc["config"]).dots == dots
 
 
 def test_a_dot_threshold_passed_in_changes_the_measurement(tmp_path):
