@@ -80,6 +80,17 @@ def test_calibrated_plan_brings_the_true_robot_to_its_targets(loop):
     assert [e.name for e in model.effects] == ["joint_backlash"]
 
 
+def test_the_loop_calibration_reads_back_unchanged(loop):
+    """calibration.json of a run with photos (lens, images, marks with their photos)
+    round-trips through the typed result."""
+    from vision_cal.dataset.calibration_result import CalibrationResult
+
+    out, doc, run = loop
+    path = next(out.rglob("calibration.json"))
+    written = json.loads(path.read_text())
+    assert written["images"] and CalibrationResult.from_json(written).to_json() == written
+
+
 def test_loop_report_headline_photos_once_and_linked(loop):
     """The report of a loop: the headline carries the loop's target figures and
     calibration.json's RMS; every measured photo is embedded once (within the budget) and

@@ -2,18 +2,43 @@
 calibration.json (field ``config``) so that a result says how it was obtained.
 
 Every threshold the measurement and the selection use is a field below, with its unit and
-why it has its value. The modules read their defaults from :data:`DEFAULT` (``dots``: the
-module constants of :mod:`vision_cal.measure.dots`; ``association``: group tolerance and
-search range of :mod:`vision_cal.measure.associate`; ``selection``: the F-test level,
-cross-validation and outlier rule of :mod:`vision_cal.diagnose.select` and
-:mod:`vision_cal.calibrate.lsq`). :func:`vision_cal.pipeline.calibrate_dataset` takes an
-:class:`EstimatorConfig`; the ``association`` and ``selection`` parts may be changed per
-call, the ``dots`` part is fixed at import (a different one is refused, not ignored).
+why it has its value. No module copies a field at import: each function reads the config it
+is given when it is called (``config=None`` meaning :data:`DEFAULT`), so a config passed to
+:func:`vision_cal.pipeline.calibrate_dataset` (an :class:`EstimatorConfig`) changes every
+stage, and all of it is written to calibration.json ``config`` (the report shows the
+recorded values, not today's defaults). The parts, by key:
+
+- ``markers``: photos and printed markers (:mod:`vision_cal.measure.aruco`,
+  :mod:`vision_cal.measure.batch`);
+- ``dots``: pen-mark detection and centring (:mod:`vision_cal.measure.dots`);
+- ``association``: grouping and matching (:mod:`vision_cal.measure.associate`);
+- ``selection``: the F-test level, cross-validation and outlier rule
+  (:mod:`vision_cal.diagnose.select`, :mod:`vision_cal.calibrate.lsq`);
+- ``fit``: identifiability of a least-squares fit (:mod:`vision_cal.calibrate.lsq`);
+- ``per_photo_offsets``: photos whose marks moved together (:mod:`vision_cal.diagnose.photos`).
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
+
+
+#: the calibration methods (``vision-cal --method``, :func:`vision_cal.pipeline.calibrate_dataset`):
+#: least squares with the effect diagnosis, and the seed paper's three-point circles
+METHODS = ("lsq", "paper")
+
+
+@dataclass(frozen=True)
+class MarkerConfig:
+    """Photos and the sheet's printed markers (``vision_cal.measure.aruco``,
+    ``vision_cal.measure.batch``)."""
+
+    min_markers: int = 4              # markers a photo must show: 4 give 16 corners, twice the
+                                      # 8 a homography needs, so one bad marker is seen
+    min_hull_fraction: float = 0.04   # the markers' convex hull / image area below this: the
+                                      # sheet is too small in the photo to map it well
+    blank_photo_std: float = 2.0      # grey levels: a photo whose std (every 4th pixel) is
+                                      # below has no contrast (lens cap, dark frame), skipped
 
 
 @dataclass(frozen=True)
@@ -72,14 +97,52 @@ class SelectionConfig:
 
 
 @dataclass(frozen=True)
+class FitConfig:
+    """Identifiability of a least-squares fit (``vision_cal.calibrate.lsq``)."""
+
+    condition_number_limit: float = 1e8   # singular values of the column-scaled Jacobian
+                                          # below the largest / this count as zero: a rank
+                                          # below the parameters is a fit that cannot tell
+                                          # them apart (double precision leaves ~1e-8 of a
+                                          # parameter after a 1e8 amplification)
+
+
+@dataclass(frozen=True)
+class PhotoOffsetConfig:
+    """Photos whose marks are shifted together (``vision_cal.diagnose.photos``)."""
+
+    gate_mm: float = 0.5              # a photo's dot belongs to the mark estimate within this
+                                      # distance (marks are >= 3 mm apart, offsets ~0.05 mm)
+    alpha: float = 0.001              # a photo is flagged when the chi-square p of its mean
+                                      # offset is below this (a dozen photos: rarely by chance)
+
+
+@dataclass(frozen=True)
 class EstimatorConfig:
+    """All the knobs, by part; the keys of calibration.json ``config``."""
+
+    markers: MarkerConfig = field(default_factory=MarkerConfig)
     dots: DotConfig = field(default_factory=DotConfig)
     association: AssociationConfig = field(default_factory=AssociationConfig)
     selection: SelectionConfig = field(default_factory=SelectionConfig)
+    fit: FitConfig = field(default_factory=FitConfig)
+    per_photo_offsets: PhotoOffsetConfig = field(default_factory=PhotoOffsetConfig)
 
     def to_json(self) -> dict:
         return asdict(self)
 
+    @classmethod
+    def from_json(cls, d: dict | None) -> "EstimatorConfig":
+        """The recorded config; parts or fields an older file lacks take the defaults."""
+        d = d or {}
+        parts = {}
+        for f in fields(cls):
+            part = f.default_factory
+            known = {g.name for g in fields(part)}
+            parts[f.name] = part(**{k: v for k, v in (d.get(f.name) or {}).items()
+                                    if k in known})
+        return cls(**parts)
 
-#: what every module uses unless told otherwise
+
+#: what every function uses when it is given no config
 DEFAULT = EstimatorConfig()

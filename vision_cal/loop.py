@@ -23,15 +23,29 @@ from __future__ import annotations
 import base64
 import logging
 import os
+import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from vision_cal.calibrate.paper import pilot_params
 from vision_cal.dataset.csvio import write_plan, write_targets
-from vision_cal.dataset.io import atomic_write_json
+from vision_cal.dataset.io import atomic_write_json, read_json
+from vision_cal.dataset.marker_geometry import quiet_boxes_mm
+from vision_cal.dataset.session import load_session
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import ScaraParams, inverse
+from vision_cal.measure.batch import measure_folder
+from vision_cal.model import RobotModel
+from vision_cal.motion import JOINT_LIMITS_DEG
+from vision_cal.pipeline import calibrate_dataset
+from vision_cal.plan.calibration_plan import sheet_clearance_mm
+from vision_cal.plan.compensate import plan_targets, to_planned_marks
+from vision_cal.progress import stage_line
+from vision_cal.render.dataset import render_dataset
+from vision_cal.render.scene import load_scene
+from vision_cal.report.plots import loop_joints, loop_paths
 from vision_cal.report_data import loop_trajectories
 from vision_cal.rms import rms
 
@@ -42,9 +56,6 @@ def default_targets(sheet, params: ScaraParams, *, n_grid: int = 20, n_path: int
                     clearance_mm: float = 8.0, elbow: int = 1, rng=None):
     """Ids and sheet points (N, 2): the origin, a grid over the reachable free paper, and a
     short path (an arc of ``n_path`` points) - all clear of markers and edges."""
-    from vision_cal.plan.calibration_plan import sheet_clearance_mm
-    from vision_cal.motion import JOINT_LIMITS_DEG
-
     rng = np.random.default_rng(0 if rng is None else rng)
     lim = np.array(JOINT_LIMITS_DEG) * 0.95  # a margin for the effects and the overshoot
     x0, y0, x1, y1 = sheet.extent_mm
@@ -97,8 +108,6 @@ def default_targets(sheet, params: ScaraParams, *, n_grid: int = 20, n_path: int
 def landing_note(sheet, model, planned) -> str:
     """Why a planned mark was not measured: where the calibrated ``model`` says the pen
     landed (off the paper, on a printed marker), else a generic reason."""
-    from vision_cal.plan.calibration_plan import sheet_clearance_mm
-
     generic = "not measured on the photo (not found or not associated)"
     if planned.q_deg is None:
         return generic
@@ -109,7 +118,6 @@ def landing_note(sheet, model, planned) -> str:
         return f"off the paper: {where}"
     if sheet_clearance_mm(sheet, xy)[0] <= 0.0:
         return f"on a printed marker: {where}"
-    from vision_cal.dataset.marker_geometry import quiet_boxes_mm
 
     # a dot touching a marker's quiet zone is masked with the marker (measure/dots.py)
     boxes = quiet_boxes_mm(sheet)
@@ -124,24 +132,12 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
              elbow: int = 1, photographer=None):
     """Run the closed loop for a scene file; writes ``DIR/loop.json`` and returns
     ``(loop document, CalibrationRun)``."""
-    from vision_cal.dataset.session import load_session
-    from vision_cal.measure.batch import measure_folder
-    from vision_cal.model import RobotModel
-    from vision_cal.pipeline import calibrate_dataset
-    from vision_cal.plan.compensate import plan_targets, to_planned_marks
-    from vision_cal.render.dataset import render_dataset
-    from vision_cal.render.scene import load_scene
-
     out = Path(out_dir)
     scene = load_scene(scene_path)
     stages = {}
-    import time
-
-    from vision_cal.progress import stage_line
 
     render_jobs = jobs or os.cpu_count() or 1
     t = time.perf_counter()
-    from vision_cal.calibrate.paper import pilot_params
 
     session_dir = render_dataset(scene, out / "session", progress=progress,
                                  photographer=photographer, pilot=pilot_params,
@@ -178,7 +174,6 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
                                    targets_mm=targets, photographer=photographer,
                                    jobs=render_jobs)
         stages[f"simulate + draw + photograph ({name})"] = time.perf_counter() - t
-        from vision_cal.dataset.io import read_json
 
         controller[name] = read_json(sheet_dir / "truth.json").get("controller_report")
         t = time.perf_counter()
@@ -196,7 +191,7 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
             else:
                 # the measurement's own reason first (it saw the photo), else where the
                 # calibrated model says the pen landed
-                why = (getattr(m, "refused", None) or {}).get(p.id)
+                why = m.refused.get(p.id)
                 res[p.id] = {"status": "not found",
                              "reason": str(why) if why else landing_note(sheet, calibrated, p)}
             if p.status == "ok":
@@ -231,7 +226,6 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
     if progress:
         stage_line("loop", sum(stages.values()), note="; ".join(
             f"{k} {v:.1f} s" for k, v in stages.items()))
-    from vision_cal.report.plots import loop_joints, loop_paths
 
     doc["trajectories"] = loop_trajectories(doc)   # what the report's Fig. 10 draws
     doc["paths_png"] = base64.b64encode(loop_paths(doc)).decode("ascii")

@@ -2,32 +2,50 @@
 
 :func:`calibrate_dataset` is what ``vision-cal DIR --out OUT`` runs, one stage a
 function: :func:`measure_marks` -> :func:`fit_lsq` or :func:`fit_paper` -> :func:`document`.
-Statistics go to the calibration document (a dict written as ``OUT/calibration.json``);
-summaries and reports are rendered from that document. A new calibration method is one
-more ``fit_*`` returning ``_Fitted``.
+Each fit method returns its blocks of calibration.json (:class:`_Fitted`, keyed by the
+fields of :class:`vision_cal.dataset.calibration_result.CalibrationResult`);
+:func:`document` builds the one :class:`CalibrationResult` from them and the measurement,
+and it is written once. Summaries and reports are rendered from the written files. A new
+calibration method is one more ``fit_*`` returning ``_Fitted``.
 """
 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
+from vision_cal.calibrate.joint4 import add_tool, fit_joint4_paper, joint4_stage
 from vision_cal.calibrate.lsq import Fit
-from vision_cal.calibrate.paper import paper_method
-from vision_cal.config import DEFAULT, EstimatorConfig
-from vision_cal.dataset.io import atomic_write_json, read_json
+from vision_cal.calibrate.paper import PaperResult, paper_method
+from vision_cal.calibrate.plausible import check_plausible
+from vision_cal.calibrate.tool import folded_statement
+from vision_cal.camera.fixed import cameras_json
+from vision_cal.config import DEFAULT, METHODS, EstimatorConfig
+from vision_cal.dataset.calibration_result import CalibrationResult, ModelRms
+from vision_cal.dataset.covariance import covariance_json
+from vision_cal.dataset.io import as_json, read_json
 from vision_cal.dataset.session import Session, load_session
+from vision_cal.dataset.sheet_identity import sheet_identity
+from vision_cal.diagnose.candidates import default_candidates
+from vision_cal.diagnose.discover import trace
+from vision_cal.diagnose.photos import per_photo_offsets
+from vision_cal.diagnose.select import Diagnosis, diagnose
+from vision_cal.diagnose.sheet import smooth_residual
+from vision_cal.diagnose.verdict import judge
 from vision_cal.errors import CalibrationError, VisionCalError
-from vision_cal.model import RobotModel
-from vision_cal.plan.uncertainty import covariance_json
+from vision_cal.kinematics import forward
+from vision_cal.measure.batch import measure_folder
+from vision_cal.measure.printed import printed_content_json
+from vision_cal.measure.types import Measurement
+from vision_cal.model import JointBacklash, RobotModel, SheetAffine
 from vision_cal.report_data import add_to_calibration
 from vision_cal.rms import rms_2d
 
 log = logging.getLogger(__name__)
-METHODS = ("lsq", "paper")
 
 
 @dataclass(frozen=True)
@@ -65,13 +83,22 @@ class MarkData:
 
 @dataclass(frozen=True)
 class CalibrationRun:
+    """One run in memory: the result as written (``result``; ``document`` its JSON), where,
+    and what only the live run has (the selection's :class:`Diagnosis` for ``lsq``, the
+    circle fits for ``paper``, the photos' measurement, the calibrated model)."""
+
     session: Session
-    document: dict
+    result: CalibrationResult
     out_path: Path
-    diagnosis: object | None = None
-    paper: object | None = None
-    measurement: object | None = None
-    model: RobotModel | None = None   # the calibrated robot (what load_calibration reads back)
+    model: RobotModel                 # the calibrated robot (what load_calibration reads back)
+    diagnosis: Diagnosis | None = None
+    paper: PaperResult | None = None
+    measurement: Measurement | None = None
+
+    @cached_property
+    def document(self) -> dict:
+        """calibration.json as written (``result.to_json()``)."""
+        return self.result.to_json()
 
 
 def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[str]]:
@@ -83,7 +110,7 @@ def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[st
     for i, m in enumerate(session.marks):
         if measurement is not None and m.id in measurement.marks:
             mm = measurement.marks[m.id]
-            if getattr(mm, "status", "ok") != "ok":
+            if mm.status != "ok":
                 continue   # kept in calibration.json with its reason, left out of the fit
             pos = np.asarray(mm.xy_mm, dtype=float)
             s = float(np.sqrt(np.trace(np.asarray(mm.cov_mm2)) / 2))
@@ -163,15 +190,16 @@ def _paper_std(q, xy, sigma_mm: float) -> tuple[dict, np.ndarray]:
 
 @dataclass(frozen=True)
 class _Fitted:
-    """What one calibration method leaves for the document: its part of calibration.json,
-    the final model and each mark's residual under the final and the base model."""
+    """What one calibration method leaves for the document: its blocks of calibration.json
+    (``blocks``: :class:`CalibrationResult` field name -> JSON value), the final model and
+    each mark's residual under the final and the base model."""
 
-    doc: dict
+    blocks: dict
     model: RobotModel
     residual_all: dict
     residual_base: dict
-    diagnosis: object | None = None
-    paper: object | None = None
+    diagnosis: Diagnosis | None = None
+    paper: PaperResult | None = None
 
 
 def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None = None,
@@ -184,67 +212,44 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     default ``DEFAULT``), recorded in calibration.json's ``config``."""
     if method not in METHODS:
         raise VisionCalError(f"unknown method {method!r} (expected one of {', '.join(METHODS)})")
-    config = _checked(config)
+    config = config or DEFAULT
     session = load_session(folder)
     out_dir = Path(out_dir)
     measurement, data, missing = measure_marks(session, out_dir=out_dir, jobs=jobs,
                                                progress=progress, config=config)
     cal, val = data.select("calibration"), data.select("validation")
     if cal.joint4 is not None and len(np.unique(np.round(cal.joint4[:, 0], 6))) > 1:
-        from vision_cal.calibrate import joint4  # the tool and joint 4 (#21)
-
         if method == "paper":
-            fitted = _Fitted(*joint4.fit_joint4_paper(cal, val))
+            fitted = _Fitted(*fit_joint4_paper(cal, val))
         else:   # the tool and joint 4's effects first, then the diagnosis with them
-            stage = joint4.joint4_stage(cal)
+            stage = joint4_stage(cal)
             fitted = fit_lsq(session, cal, val, measurement, config, stage.effects)
-            joint4.add_tool(fitted.doc, fitted.diagnosis, stage)
+            add_tool(fitted.blocks, fitted.diagnosis, stage)
     else:
-        fitted = (fit_paper(cal, val) if method == "paper"
+        fitted = (fit_paper(cal, val, config) if method == "paper"
                   else fit_lsq(session, cal, val, measurement, config))
         if cal.joint4 is not None:   # one j4_deg: the tool is folded into L2 and z2
-            from vision_cal.calibrate.tool import folded_statement
-
-            fitted.doc["tool"] = folded_statement(cal.joint4[:, 0], session.robot.tool_mm
-                                                  or (0.0, 0.0))
-    doc = {"format": "vision-cal/calibration/1", "method": method, "config": config.to_json(),
-           **fitted.doc}
-    document(doc, session, data, missing, measurement, fitted, truth=truth)
-    add_to_calibration(doc, session)   # what the report draws: it reads only the files
-    from vision_cal.calibrate.plausible import check_plausible
-
-    check_plausible(doc, session)  # radians, metres: stop before any calibration.json
-    from vision_cal.dataset.sheet_identity import sheet_identity
-
-    ident = sheet_identity(session.raw.get("sheet"))
-    if ident is not None:  # which printed sheet: design --pilot checks it
-        doc["sheet"] = ident
-    out_path = atomic_write_json(out_dir / "calibration.json", doc)
+            fitted = replace(fitted, blocks={**fitted.blocks, "tool": folded_statement(
+                cal.joint4[:, 0], session.robot.tool_mm or (0.0, 0.0))})
+    result = document(session, data, missing, measurement, fitted, method=method,
+                      config=config, truth=truth)
+    check_plausible(result.to_json(), session)  # radians, metres: stop before any file
+    out_path = result.write(out_dir / "calibration.json")
     log.info("wrote %s", out_path)
-    return CalibrationRun(session, doc, out_path, fitted.diagnosis, fitted.paper, measurement,
-                          fitted.model)
-
-
-def _checked(config: EstimatorConfig | None) -> EstimatorConfig:
-    config = config or DEFAULT
-    if (config.dots != DEFAULT.dots
-            or config.selection.outlier_sigma != DEFAULT.selection.outlier_sigma):
-        raise VisionCalError("the dot thresholds and outlier_sigma are fixed at import in this "
-                             "version: change vision_cal.config.DEFAULT", field="config")
-    return config
+    return CalibrationRun(session, result, out_path, fitted.model, fitted.diagnosis,
+                          fitted.paper, measurement)
 
 
 def measure_marks(session: Session, *, out_dir: Path, jobs: int | None = None,
-                  progress: bool = False, config: EstimatorConfig = DEFAULT):
+                  progress: bool = False, config: EstimatorConfig = DEFAULT
+                  ) -> tuple[Measurement | None, MarkData, list[str]]:
     """(measurement or None, MarkData, missing ids): the photos measured when a mark has
     no ``measured_mm``; fewer than 3 calibration marks is a :class:`CalibrationError` that
     names why photos gave none."""
     measurement = None
     if any(m.measured_mm is None for m in session.marks):
-        from vision_cal.measure.batch import measure_folder
-
         measurement = measure_folder(session, out_dir=out_dir, jobs=jobs, progress=progress,
-                                     association=config.association)
+                                     config=config)
     data, missing = collect_marks(session, measurement)
     n_cal = len(data.select("calibration").ids)
     if n_cal < 3:
@@ -254,26 +259,26 @@ def measure_marks(session: Session, *, out_dir: Path, jobs: int | None = None,
     return measurement, data, missing
 
 
-def fit_paper(cal: MarkData, val: MarkData) -> _Fitted:
+def fit_paper(cal: MarkData, val: MarkData, config: EstimatorConfig = DEFAULT) -> _Fitted:
     """The seed paper's circle method on the calibration marks; validation marks scored."""
     paper = paper_method(cal.q_deg, cal.xy_mm)
     params = paper.params
-    noise_mm = Fit.from_estimate(cal.q_deg, cal.xy_mm, approach=cal.approach,
-                                 robust=False).residual_scale  # unweighted: mm
+    noise_mm = Fit.from_estimate(cal.q_deg, cal.xy_mm, approach=cal.approach, robust=False,
+                                 config=config).or_raise().residual_scale  # unweighted: mm
     std, cov = _paper_std(cal.q_deg, cal.xy_mm, noise_mm)
     res_cal = cal.xy_mm - _predict(params, cal)
     res_val = val.xy_mm - _predict(params, val) if len(val.ids) else np.zeros((0, 2))
-    doc = dict(params=params.to_json(), std=std, effects=[],
-               residual_rms_mm={"base_model": rms_2d(res_cal), "final_model": rms_2d(res_cal)},
-               validation_rms_mm={"base_model": rms_2d(res_val) if len(val.ids) else None,
-                                  "final_model": rms_2d(res_val) if len(val.ids) else None,
-                                  "kind": "validation marks" if len(val.ids) else "none"},
-               circles={"base": paper.circle_base.to_json(),
-                        "elbow": paper.circle_elbow.to_json()},
-               covariance=covariance_json(RobotModel(params).param_labels(), cov))
+    rv = rms_2d(res_val) if len(val.ids) else None
+    blocks = dict(params=params.to_json(), std=std, effects=[],
+                  residual_rms_mm=ModelRms(rms_2d(res_cal), rms_2d(res_cal)),
+                  validation_rms_mm=ModelRms(rv, rv, "validation marks" if len(val.ids)
+                                             else "none"),
+                  circles={"base": paper.circle_base.to_json(),
+                           "elbow": paper.circle_elbow.to_json()},
+                  covariance=covariance_json(RobotModel(params).param_labels(), cov))
     residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
     residual_all.update({i: r for i, r in zip(val.ids, res_val)})
-    return _Fitted(doc, RobotModel(params), residual_all, residual_all, paper=paper)
+    return _Fitted(blocks, RobotModel(params), residual_all, residual_all, paper=paper)
 
 
 def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
@@ -281,41 +286,31 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
     """Least squares, then the diagnosis that adds the effects the base model lacks.
     ``base_effects``: the tool and joint-4 effects every model holds (marks at several
     ``j4_deg``, :mod:`vision_cal.calibrate.joint4`); the joints then carry joint 4."""
-    from vision_cal.diagnose.select import diagnose
-
     not_flat = (measurement is not None and measurement.height_map is not None
                 and measurement.height_map.claimed)
     cands = None
     if not_flat:  # a sheet that is not flat is its height, never an affine sheet
-        from vision_cal.diagnose.candidates import default_candidates
-        from vision_cal.model import SheetAffine
-
         cands = [c for c in default_candidates() if not isinstance(c.effect, SheetAffine)]
         if any(m.reference != "grid" for m in measurement.marks.values()):
             # marks not measured against the paper's own grid keep some of its height:
             # only effects that are not smooth over the sheet (backlash flips with the
             # approach side) can be told from it
-            from vision_cal.model import JointBacklash
-
             cands = [c for c in cands if isinstance(c.effect, JointBacklash)]
     diag = diagnose(cal.q_model, cal.xy_mm, cal.approach_model, sigma_mm=cal.sigma_mm, ids=cal.ids,
                     q_val=val.q_model if len(val.ids) else None,
                     xy_val=val.xy_mm if len(val.ids) else None,
                     approach_val=val.approach_model if len(val.ids) else None,
-                    alpha=config.selection.alpha, k_folds=config.selection.k_folds,
-                    max_effects=config.selection.max_effects,
-                    candidates=cands, base_effects=tuple(base_effects))
+                    candidates=cands, base_effects=tuple(base_effects), config=config)
     traced = None
     if not not_flat:  # a sheet's height would be read as a joint error: not traced then
-        from vision_cal.diagnose.discover import trace
-
         t_of = {m.id: i / max(len(session.marks) - 1, 1) for i, m in enumerate(session.marks)}
         traced = trace(diag, cal.q_model, cal.xy_mm, cal.approach_model,
                        np.array([t_of[i] for i in cal.ids]), sigma_mm=cal.sigma_mm,
                        ids=cal.ids, q_val=val.q_model if len(val.ids) else None,
                        xy_val=val.xy_mm if len(val.ids) else None,
                        approach_val=val.approach_model if len(val.ids) else None,
-                       alpha=config.selection.alpha, k_folds=config.selection.k_folds)
+                       alpha=config.selection.alpha, k_folds=config.selection.k_folds,
+                       config=config)
         diag = traced.diagnosis
     fb, ff = diag.base_fit, diag.final_fit
     final_model = ff.model
@@ -324,8 +319,8 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
     vf = rms_2d(val.xy_mm - ff.predict(val.q_model, val.approach_model)) if has_val else diag.heldout_final_mm
     doc = dict(
         params=ff.params.to_json(), std=ff.base_std_json, effects=diag.effects_json(),
-        residual_rms_mm={"base_model": fb.rms_mm, "final_model": ff.rms_mm},
-        validation_rms_mm={"base_model": vb, "final_model": vf, "kind": diag.heldout_kind},
+        residual_rms_mm=ModelRms(fb.rms_mm, ff.rms_mm),
+        validation_rms_mm=ModelRms(vb, vf, diag.heldout_kind),
         base_model_params=fb.params.to_json(), base_model_std=fb.base_std_json,
         initial_guess={"method": "closed-form linear solve (generalised circle fits)",
                        "params": fb.initial.to_json()},
@@ -356,8 +351,6 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
                                "not tried either: marks not measured against a printed "
                                "grid cannot tell their smooth signature from it"))
     if session.sheet is not None:
-        from vision_cal.diagnose.sheet import smooth_residual
-
         sm = smooth_residual(np.concatenate([cal.xy_mm, val.xy_mm]),
                              np.concatenate([res_cal, res_val]), session.sheet.extent_mm)
         if sm is not None:
@@ -385,89 +378,78 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
     return _Fitted(doc, final_model, residual_all, residual_base, diagnosis=diag)
 
 
-def document(doc: dict, session: Session, data: MarkData, missing: list[str], measurement,
-             fitted: _Fitted, *, truth: bool = False) -> None:
-    """Complete ``doc`` in place: per-photo checks, the model the OLP had, the lens and the
-    sheet height found by measurement, every mark with its residuals, images, targets."""
-    diag = fitted.diagnosis
-    residual_all, residual_base = fitted.residual_all, fitted.residual_base
-    nominal = session.robot.params
-    if measurement is not None and diag is not None:
-        from vision_cal.diagnose.photos import per_photo_offsets
-
-        qd = dict(zip(data.ids, data.q_model))
-        ad = dict(zip(data.ids, data.approach_model))
-        photos = per_photo_offsets(measurement, diag.final_fit.model, qd, ad)
-        doc["diagnosis"]["per_photo_offsets"] = photos
+def document(session: Session, data: MarkData, missing: list[str],
+             measurement: Measurement | None, fitted: _Fitted, *, method: str,
+             config: EstimatorConfig = DEFAULT, truth: bool = False) -> CalibrationResult:
+    """The one :class:`CalibrationResult` of a run: the fit's blocks, per-photo checks, the
+    model the OLP had, the lens and the sheet height found by measurement, every mark with
+    its residuals, images, targets, still cameras, and the verdict judged on all of it."""
+    blk = dict(fitted.blocks)
+    effects = list(blk.pop("effects"))
+    diagnosis = blk.pop("diagnosis", None)
+    notes = blk.pop("notes", None)
+    if measurement is not None:
+        notes = list(notes or [])
+    if measurement is not None and fitted.diagnosis is not None:
+        photos = per_photo_offsets(measurement, fitted.diagnosis.final_fit.model,
+                                   dict(zip(data.ids, data.q_model)),
+                                   dict(zip(data.ids, data.approach_model)),
+                                   config=config.per_photo_offsets)
+        diagnosis = {**diagnosis, "per_photo_offsets": photos}
         flagged = [p["file"] for p in photos if p["flagged"]]
         if flagged:
-            doc["notes"].append("photos whose marks are shifted together beyond the noise "
-                                "(a bad sheet mapping?): " + ", ".join(flagged))
-    doc["nominal"] = nominal.to_json()
-    doc["home_deg"] = [float(v) for v in session.robot.home_deg]  # added: where plans start
-    from vision_cal.measure.printed import printed_content_json
-
-    printed = printed_content_json(session.sheet)
-    if printed:   # added: what the sheet's own print has where, for plan
-        doc["printed_content"] = printed
-    if getattr(session.robot, "joint_limits_deg", None) is not None:   # added: plan, export
-        doc["joint_limits_deg"] = [[float(v) for v in p] for p in session.robot.joint_limits_deg]
+            notes.append("photos whose marks are shifted together beyond the noise "
+                         "(a bad sheet mapping?): " + ", ".join(flagged))
     if measurement is not None and measurement.lens is not None and measurement.lens.kept:
-        doc["effects"] = [measurement.lens.to_effect_json()] + doc["effects"]
+        effects.insert(0, measurement.lens.to_effect_json())
     if measurement is not None and measurement.height_map is not None:
         hm = measurement.height_map
         if hm.claimed:
-            doc["effects"] = doc["effects"] + [hm.to_effect_json()]
-        doc.setdefault("diagnosis", {})["sheet_height"] = hm.to_json()
-    if data.sigma_mm is not None:
-        doc["noise_floor_mm"] = float(np.sqrt(2 * np.mean(data.sigma_mm**2)))
-    marks = {}
-    for i, mid in enumerate(data.ids):
-        entry = {"measured_mm": data.xy_mm[i].tolist(),
-                 **({"j4_deg": float(data.joint4[i, 0])} if data.joint4 is not None else {}),
-                 "residual_mm": np.asarray(residual_all[mid]).tolist(),
-                 "residual_base_mm": np.asarray(residual_base[mid]).tolist(),
-                 "role": data.roles[i], "joints_deg": data.q_deg[i].tolist(),
-                 "approach": data.approach[i].astype(int).tolist()}
-        if data.sigma_mm is not None:
-            entry["sigma_mm"] = float(data.sigma_mm[i])
-        if measurement is not None and mid in measurement.marks:  # added field
-            entry["n_photos"] = int(measurement.marks[mid].n_photos)
-            entry.update(measurement.mark_json(mid))
-        marks[mid] = entry
-    _unreliable_marks(doc, marks, session, measurement)
-    doc["marks"] = marks
-    if missing:
-        doc["missing_marks"] = missing
-    doc["images"] = measurement.images_json() if measurement is not None else []
-    targets = _target_errors(session, data)
-    if targets:
-        doc["targets"] = targets
+            effects.append(hm.to_effect_json())
+        diagnosis = {**(diagnosis or {}), "sheet_height": hm.to_json()}
+    marks, unreliable_notes = _marks_json(session, data, measurement, fitted)
+    if measurement is not None:
+        notes += unreliable_notes
+    limits = session.robot.joint_limits_deg
+    printer = printer_scale(session.sheet, effects, blk["params"])
+    cameras, camera_notes = cameras_json(session, measurement, fitted.model,
+                                         covariance=blk.get("covariance"), std=blk.get("std"))
+    if camera_notes:
+        notes = list(notes or []) + camera_notes
+    result = CalibrationResult(
+        method=method, config=config.to_json(), effects=tuple(effects), diagnosis=diagnosis,
+        notes=None if notes is None else tuple(notes), **blk,
+        nominal=session.robot.params.to_json(),
+        home_deg=tuple(float(v) for v in session.robot.home_deg),  # added: where plans start
+        printed_content=printed_content_json(session.sheet) or None,  # added: for plan
+        joint_limits_deg=(None if limits is None  # added: plan, export
+                          else [[float(v) for v in p] for p in limits]),
+        noise_floor_mm=(None if data.sigma_mm is None
+                        else float(np.sqrt(2 * np.mean(data.sigma_mm**2)))),
+        marks=marks, missing_marks=tuple(missing) or None,
+        images=tuple(measurement.images_json()) if measurement else (),
+        targets=tuple(_target_errors(session, data)) or None,
+        printer_scale=printer,
+        cameras=cameras or None,   # added: still cameras (vision_cal/camera/fixed.py)
+        sheet=sheet_identity(session.raw.get("sheet")))  # which printed sheet: design --pilot
     if truth:
-        doc["truth_comparison"] = compare_truth(session.root / "truth.json", doc)
-    ps = printer_scale(session.sheet, doc.get("effects", []), doc.get("params"))
-    if ps is not None:
-        doc["printer_scale"] = ps
-    if measurement is not None:  # added: still cameras (vision_cal/camera/fixed.py)
-        from vision_cal.camera.fixed import cameras_json
-
-        cameras = cameras_json(session, measurement, fitted.model, doc)
-        if cameras:
-            doc["cameras"] = cameras
-    _judge(doc, session)
+        result = replace(result, truth_comparison=compare_truth(session.root / "truth.json",
+                                                                result.to_json()))
+    doc = _judged(result, session).to_json()
+    add_to_calibration(doc, session)   # what the report draws: it reads only the files
+    # the values exactly as written (NaN as null, numpy as Python): what is read back
+    return CalibrationResult.from_json(as_json(doc))
 
 
-def _judge(doc: dict, session: Session) -> None:
-    """The run's verdict (one owner: :mod:`vision_cal.diagnose.verdict`) into ``doc``; a
-    residual beyond the noise floor is ``unexplained`` with its ratio unless an effect
-    entry already says what is left."""
-    from vision_cal.diagnose.verdict import judge
-
-    v = judge(doc, repeatability_mm=session.robot.repeatability_mm, stage=session.design_stage)
-    doc["verdict"] = v.to_json()
+def _judged(result: CalibrationResult, session: Session) -> CalibrationResult:
+    """The run's verdict (one owner: :mod:`vision_cal.diagnose.verdict`); a residual beyond
+    the noise floor is ``unexplained`` with its ratio unless an effect entry already says
+    what is left."""
+    v = judge(result.to_json(), repeatability_mm=session.robot.repeatability_mm,
+              stage=session.design_stage)
+    effects = [dict(e) for e in result.effects]
     f = v.floor
     if f is not None and f["beyond"]:
-        effects = doc.setdefault("effects", [])
         ex = next((e for e in effects if e["name"] in ("unexplained", "drift")), None)
         line = v.floor_line
         if ex is None:
@@ -477,21 +459,42 @@ def _judge(doc: dict, session: Session) -> None:
             ex["residual_over_floor"] = f["residual_over_floor"]
             if ex["name"] == "unexplained":
                 ex["seen"] = list(ex.get("seen", [])) + [line]
+    return replace(result, effects=tuple(effects), verdict=v.to_json())
 
 
-def _unreliable_marks(doc: dict, marks: dict, session: Session, measurement) -> None:
-    """Marks found but not trusted (docs/format.md, "Marks that could not be trusted"): an
-    entry with ``status`` "unreliable" and the ``reason``, no residual (not fitted), and one
-    note naming them."""
+def _marks_json(session: Session, data: MarkData, measurement: Measurement | None,
+                fitted: _Fitted) -> tuple[dict, list[str]]:
+    """calibration.json's ``marks`` (every fitted mark with its residuals, then the marks
+    found but not trusted) and the notes about the latter."""
+    marks = {}
+    for i, mid in enumerate(data.ids):
+        entry = {"measured_mm": data.xy_mm[i].tolist(),
+                 **({"j4_deg": float(data.joint4[i, 0])} if data.joint4 is not None else {}),
+                 "residual_mm": np.asarray(fitted.residual_all[mid]).tolist(),
+                 "residual_base_mm": np.asarray(fitted.residual_base[mid]).tolist(),
+                 "role": data.roles[i], "joints_deg": data.q_deg[i].tolist(),
+                 "approach": data.approach[i].astype(int).tolist()}
+        if data.sigma_mm is not None:
+            entry["sigma_mm"] = float(data.sigma_mm[i])
+        if measurement is not None and mid in measurement.marks:  # added field
+            entry["n_photos"] = int(measurement.marks[mid].n_photos)
+            entry.update(measurement.mark_json(mid))
+        marks[mid] = entry
     if measurement is None:
-        return
-    # the measurement's finding about the sheet's declaration (measure/grid_declaration.py)
-    doc.setdefault("notes", []).extend(w for w in measurement.warnings
-                                       if w.startswith("sheet.grid.origin_mm"))
+        return marks, []
+    return marks, _unreliable_marks(marks, session, measurement)
+
+
+def _unreliable_marks(marks: dict, session: Session, measurement: Measurement) -> list[str]:
+    """Marks found but not trusted (docs/format.md, "Marks that could not be trusted"): an
+    entry with ``status`` "unreliable" and the ``reason``, no residual (not fitted), added
+    to ``marks``; returns the notes: the measurement's finding about the sheet's grid
+    declaration (measure/grid_declaration.py) and one naming the unreliable marks."""
+    notes = [w for w in measurement.warnings if w.startswith("sheet.grid.origin_mm")]
     bad = []
     for m in session.marks:
         mm = measurement.marks.get(m.id)
-        if mm is None or getattr(mm, "status", "ok") == "ok" or m.id in marks:
+        if mm is None or mm.status == "ok" or m.id in marks:
             continue
         marks[m.id] = {"measured_mm": np.asarray(mm.xy_mm, float).tolist(),
                        "status": mm.status, "reason": mm.reason, "role": m.role,
@@ -499,13 +502,12 @@ def _unreliable_marks(doc: dict, marks: dict, session: Session, measurement) -> 
                        "n_photos": int(mm.n_photos), **measurement.mark_json(m.id)}
         bad.append(f"{m.id} ({mm.reason})")
     if bad:
-        doc.setdefault("notes", []).append(
-            f"{len(bad)} mark(s) left out of the fit as unreliable: " + "; ".join(bad))
+        notes.append(f"{len(bad)} mark(s) left out of the fit as unreliable: "
+                     + "; ".join(bad))
+    return notes
 
 
 def _predict(params, d: MarkData):
-    from vision_cal.kinematics import forward
-
     return forward(params, d.q_deg) if len(d.ids) else np.zeros((0, 2))
 
 
@@ -551,7 +553,7 @@ def printer_scale(sheet, effects, params: dict | None = None) -> dict | None:
     printer's part is taken out (paper shrink, a tilted motion plane); ``physical_mm`` the
     calibrated link lengths times ``uniform``. None when the bars were not measured.
     """
-    printed = getattr(sheet, "printed", None) or {}
+    printed = (sheet.printed if sheet is not None else None) or {}
     mb = printed.get("measured_bar_mm")
     if mb is None:
         return None

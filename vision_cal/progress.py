@@ -15,6 +15,8 @@ from __future__ import annotations
 import sys
 import time
 
+from tqdm import tqdm
+
 PREFIX = "vision-cal: progress: "  # every progress line starts so (errors: "vision-cal: error:")
 
 
@@ -66,8 +68,6 @@ def bar(enabled, *, total: int | None, desc: str, unit: str, note: str = ""):
     if not enabled:
         return _Off()
     if _tty():
-        from tqdm import tqdm
-
         return tqdm(total=total, file=sys.stderr, desc=desc, unit=unit, leave=False)
     return _Line(desc, total, unit, note)
 

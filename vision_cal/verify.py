@@ -35,7 +35,12 @@ from pathlib import Path
 
 import numpy as np
 
+from vision_cal.dataset.calibration import load_calibration
+from vision_cal.dataset.io import atomic_write_json
+from vision_cal.dataset.session import load_session
+from vision_cal.design.iso9283 import ap_rp
 from vision_cal.errors import CalibrationError, VisionCalError
+from vision_cal.pipeline import measure_marks
 from vision_cal.rms import rms_2d
 
 MOVED_SIGMA = 4.0          # a parameter moved when its change exceeds this many std
@@ -166,8 +171,6 @@ def compare(model, cal_doc: dict, ids, q_deg, approach, xy_mm, *,
              for k, mid in enumerate(ids)}
     iso_out = None
     if iso is not None and len(iso[0]):
-        from vision_cal.design.iso9283 import ap_rp
-
         iid, iq, isg, ixy, ipt = iso
         e = np.asarray(ixy, float) - placed.predict(np.asarray(iq, float), np.asarray(isg, float))
         iso_out = {}
@@ -186,11 +189,6 @@ def verify_folder(cal_path, folder, *, out_dir, jobs: int | None = None,
                   progress: bool = False) -> tuple[VerifyResult, Path]:
     """Measure the check's photos in ``folder`` and compare them with ``cal_path``; writes
     ``out_dir/verify.json``."""
-    from vision_cal.dataset.calibration import load_calibration
-    from vision_cal.dataset.io import atomic_write_json
-    from vision_cal.dataset.session import load_session
-    from vision_cal.pipeline import measure_marks
-
     model, doc = load_calibration(cal_path)
     session = load_session(folder)
     out_dir = Path(out_dir)

@@ -1,9 +1,13 @@
+import re
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from tests.conftest import SM5, random_plan
 from vision_cal.calibrate.linear import linear_init
 from vision_cal.calibrate.lsq import Fit
+from vision_cal.config import DEFAULT, FitConfig
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import forward
 from vision_cal.model import JointBacklash, RobotModel
@@ -68,12 +72,25 @@ def test_outlier_is_named_and_left_out():
     (np.array([[0, 0], [20, 30]], float), "at least 3 marks"),
 ])
 def test_degenerate_plans_are_refused(q, words):
+    """A fit that cannot be made is a falsy value with the reason (callers branch on it);
+    ``or_raise`` ends the run with that reason."""
+    f = Fit.from_estimate(q, forward(SM5, q))
+    assert not f and re.search(words, f.reason)
     with pytest.raises(CalibrationError, match=words):
-        Fit.from_estimate(q, forward(SM5, q))
+        f.or_raise()
 
 
 def test_backlash_with_one_approach_is_not_identifiable():
     q, _ = random_plan(20, np.random.default_rng(2))
     model = RobotModel(SM5, (JointBacklash(joint=1),))
-    with pytest.raises(CalibrationError, match=r"z1 ~ joint_backlash\(joint 1\)"):
-        Fit.from_estimate(q, forward(SM5, q), approach=np.ones_like(q), model=model)
+    f = Fit.from_estimate(q, forward(SM5, q), approach=np.ones_like(q), model=model)
+    assert not f and re.search(r"z1 ~ joint_backlash\(joint 1\)", f.reason)
+
+
+def test_the_condition_number_limit_is_read_from_the_config_passed_in():
+    """A limit below the plan's conditioning makes the same fit unidentifiable."""
+    q, _ = random_plan(20, np.random.default_rng(2))
+    f = Fit.from_estimate(q, forward(SM5, q))
+    assert f and f.cond > 2
+    tight = replace(DEFAULT, fit=FitConfig(condition_number_limit=f.cond / 2))
+    assert not Fit.from_estimate(q, forward(SM5, q), config=tight)

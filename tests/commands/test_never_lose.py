@@ -70,7 +70,7 @@ def test_a_program_path_that_is_a_folder_writes_nothing(work, capsys):
 def test_outputs_written_together_or_not_at_all(work, capsys, monkeypatch):
     """A failure while writing the last output (the program) leaves the earlier outputs
     of this command unwritten and the files of an earlier run untouched."""
-    import vision_cal.program as program
+    import vision_cal.actions.plan as action
 
     (work / "p.csv").write_text("earlier\n")
     before = snapshot(work)
@@ -81,7 +81,7 @@ def test_outputs_written_together_or_not_at_all(work, capsys, monkeypatch):
         atomic_write_text(work / "p.prg", "half")
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(program, "write_program", broken)
+    monkeypatch.setattr(action, "write_program", broken)
     with pytest.raises(OSError):
         cli(["plan", work / "cal.json", work / "targets.csv", "-o", work / "p.csv",
              "--program", "spel", "--robot", work / "robot.yaml", "--trajectory",
@@ -190,7 +190,7 @@ def test_yaml_alias_bomb_is_refused_without_building_it(work, capsys):
 
 
 def test_a_huge_value_in_an_error_is_cut_before_it_is_printed():
-    from vision_cal.dataset.session import _short
+    from vision_cal.dataset.fields import _short
 
     big = [[list(range(1000))] * 1000] * 1000  # 10^9 numbers if printed whole
     assert len(_short(big)) <= 60

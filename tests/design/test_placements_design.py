@@ -33,7 +33,7 @@ def test_a_turned_placement_is_the_same_robot_in_the_turned_sheet():
 def test_design_placements_writes_one_design_per_placement(tmp_path, sheet_json, monkeypatch):
     """The wiring: one robot file and one design per placement (the pilot design itself is
     tested in test_pilot.py; here it is replaced by a stub that records its robot file)."""
-    import vision_cal.design.stage as stage
+    import vision_cal.design.placements as placements
     from vision_cal.commands.main import main
 
     seen = []
@@ -45,7 +45,7 @@ def test_design_placements_writes_one_design_per_placement(tmp_path, sheet_json,
         seen.append(load_robot_file(robot_path).nominal.joint_zero_deg)
         return R()
 
-    monkeypatch.setattr(stage, "design_stage", stub)
+    monkeypatch.setattr(placements, "design_stage", stub)
     assert main(["design", str(ROBOT), "--sheet", str(sheet_json), "--out", str(tmp_path),
                  "--placements", "3", "--program", "csv", "-q"]) == 0
     places = json.loads((tmp_path / "placements.json").read_text())["placements"]

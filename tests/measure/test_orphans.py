@@ -25,7 +25,7 @@ CHILD = textwrap.dedent("""
 
     src, pids = Path(sys.argv[1]), Path(sys.argv[2])
 
-    def stuck(data, file, session):          # a photo that takes minutes
+    def stuck(data, file, session, **kw):    # a photo that takes minutes
         (pids / str(os.getpid())).write_text(file)
         time.sleep(600)
 

@@ -89,9 +89,10 @@ def load_session_sheet(a4):
 
 
 def _sheet_of(doc):
-    from vision_cal.dataset.session import _Reader, read_sheet_block
+    from vision_cal.dataset.fields import FieldReader
+    from vision_cal.dataset.session import read_sheet_block
 
-    return read_sheet_block(_Reader("sheet.json"), doc, "")
+    return read_sheet_block(FieldReader("sheet.json"), doc, "")
 
 
 @pytest.mark.parametrize("seed", [5, pytest.param(8, marks=pytest.mark.xfail(

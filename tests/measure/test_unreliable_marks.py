@@ -31,13 +31,12 @@ def test_an_unreliable_mark_is_kept_with_its_reason_and_not_fitted():
     data, missing = collect_marks(session, meas)
     assert bad not in data.ids and bad not in missing
     assert len(data.ids) == len(session.marks) - 1
-    doc, marks = {"notes": []}, {k: {"measured_mm": [0, 0], "residual_mm": [0, 0]}
-                                 for k in data.ids}
-    _unreliable_marks(doc, marks, session, meas)
+    marks = {k: {"measured_mm": [0, 0], "residual_mm": [0, 0]} for k in data.ids}
+    notes = _unreliable_marks(marks, session, meas)
     assert marks[bad]["status"] == "unreliable"
     assert marks[bad]["reason"] == "pen ink on printed ink (x axis)"
     assert "residual_mm" not in marks[bad]
-    assert doc["notes"] == [f"1 mark(s) left out of the fit as unreliable: {bad} "
+    assert notes == [f"1 mark(s) left out of the fit as unreliable: {bad} "
                             "(pen ink on printed ink (x axis))"]
     rows = {r["id"]: r for r in mark_rows({"marks": marks})}
     assert any("unreliable, left out of the fit" in f for f in rows[bad]["flags"])

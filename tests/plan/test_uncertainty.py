@@ -6,7 +6,8 @@ from tests.conftest import SM5, random_plan
 from vision_cal.calibrate.lsq import Fit
 from vision_cal.kinematics import inverse
 from vision_cal.model import JointBacklash, RobotModel
-from vision_cal.plan.uncertainty import covariance_json, load_covariance, predicted_std_mm
+from vision_cal.dataset.covariance import covariance_json, load_covariance
+from vision_cal.plan.uncertainty import predicted_std_mm
 
 
 def test_std_mm_matches_the_spread_of_real_misses():

@@ -20,7 +20,7 @@ import numpy as np
 from vision_cal.calibrate.tool import ToolFit, fit_tool, paper_tool
 from vision_cal.errors import CalibrationError
 from vision_cal.model import JointBacklash, JointScale
-from vision_cal.plan.uncertainty import covariance_json
+from vision_cal.dataset.covariance import covariance_json
 from vision_cal.rms import rms_2d
 
 #: a joint-4 effect is reported when |estimate| > this many of its std

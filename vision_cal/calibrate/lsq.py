@@ -9,11 +9,16 @@
 - a robust pass (soft-L1 loss scaled to the residual spread) names outliers (normalised
   residual above ``outlier_sigma``), which are left out of the final solve;
 - identifiability is checked on the column-scaled Jacobian (rank and condition number)
-  *before* any number is reported: a rank-deficient fit raises
-  :class:`vision_cal.errors.CalibrationError` naming the confounded parameters;
+  *before* any number is reported: a fit that cannot be made (too few marks, a degenerate
+  plan, confounded parameters) is returned as a :class:`FailedFit`, falsy, whose ``reason``
+  names the problem (as ``skimage.measure.fit`` returns a ``FailedEstimation``); callers
+  that branch on it test ``if not fit``, callers that cannot go on raise
+  :class:`vision_cal.errors.CalibrationError` with that reason (:meth:`FailedFit.or_raise`);
 - standard deviations from the covariance scaled by the residual variance
   ``s^2 = SSR / (2N - P)``, and correlations (pairs above 0.9 are flagged).
 
+Thresholds (outlier rule, condition number limit): the ``config`` passed in
+(:class:`vision_cal.config.EstimatorConfig`, default :data:`vision_cal.config.DEFAULT`).
 Weights: ``sigma_mm`` (N,) per-mark measurement standard deviations, if known.
 Joints ``(N, 3)`` carry joint 4 (``[q1, q2, q4]``, for a model with a tool, see
 :mod:`vision_cal.model`); the linear start uses joints 1 and 2 only.
@@ -27,13 +32,26 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from vision_cal.calibrate.linear import explain_degeneracy, linear_init
-from vision_cal.config import DEFAULT
+from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import RobotModel, Tool
 from vision_cal.rms import rms_2d
 
-COND_LIMIT = 1e8
+
+
+@dataclass(frozen=True)
+class FailedFit:
+    """A fit that could not be made, and why. Falsy, so ``if not fit`` branches on it."""
+
+    reason: str
+
+    def __bool__(self) -> bool:
+        return False
+
+    def or_raise(self):
+        """End the run: :class:`CalibrationError` with the reason."""
+        raise CalibrationError(self.reason)
 
 
 @dataclass(frozen=True)
@@ -59,7 +77,12 @@ class Fit:
     @classmethod
     def from_estimate(cls, q_deg, xy_mm, *, approach=None, model: RobotModel | None = None,
                       sigma_mm=None, ids=None, robust: bool = True,
-                      outlier_sigma: float = DEFAULT.selection.outlier_sigma) -> "Fit":
+                      config: EstimatorConfig | None = None) -> "Fit | FailedFit":
+        """The fit, or a :class:`FailedFit` saying why none can be made. Raises
+        :class:`CalibrationError` only for inputs that are wrong (lengths, NaN)."""
+        config = config or DEFAULT
+        outlier_sigma = config.selection.outlier_sigma
+        cond_limit = config.fit.condition_number_limit
         q = np.asarray(q_deg, dtype=float)
         q = q.reshape(-1, 3 if q.ndim == 2 and q.shape[-1] == 3 else 2)  # [q1, q2(, q4)]
         xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
@@ -74,7 +97,7 @@ class Fit:
         w = np.ones(n) if sigma_mm is None else 1.0 / np.asarray(sigma_mm, dtype=float)
         why = explain_degeneracy(q[:, :2])
         if why:
-            raise CalibrationError(why)
+            return FailedFit(why)
         init = linear_init(q[:, :2], xy)
         base = model if model is not None else RobotModel(init)
         start = RobotModel(init, tuple(e if isinstance(e, Tool)  # a tool starts as given
@@ -82,9 +105,11 @@ class Fit:
                                        for e in base.effects))
         P = len(start.vector)
         if 2 * n <= P:
-            raise CalibrationError(f"{n} marks give {2 * n} equations for {P} unknowns "
-                                   f"({', '.join(start.param_labels())}): more marks are needed")
-        _check_identifiable(start, q, s_app, w)
+            return FailedFit(f"{n} marks give {2 * n} equations for {P} unknowns "
+                             f"({', '.join(start.param_labels())}): more marks are needed")
+        J0 = (start.jacobian(q, s_app) * w[:, None, None]).reshape(-1, P)
+        if _conditioning(J0, cond_limit)[1] < P:
+            return FailedFit(_confounded(J0, start.param_labels()))
 
         def fun(v, keep):
             m = start.with_vector(v)
@@ -121,14 +146,18 @@ class Fit:
         dof = int(J.shape[0] - P)
         ssr = float(res_w @ res_w)
         s2 = ssr / dof if dof > 0 else float("nan")
-        cond, rank = _conditioning(J)
+        cond, rank = _conditioning(J, cond_limit)
         if rank < P:
-            raise CalibrationError(_confounded(J, start.param_labels()))
+            return FailedFit(_confounded(J, start.param_labels()))
         cov = np.linalg.pinv(J.T @ J) * (s2 if np.isfinite(s2) else np.nan)
         residuals = xy - fitted.predict(q, s_app)
         return cls(fitted, cov, tuple(start.param_labels()), residuals, keep, ids, cond, rank,
                    float(np.sqrt(s2)) if np.isfinite(s2) else float("nan"), dof, init, P,
                    tuple(notes))
+
+    def or_raise(self) -> "Fit":
+        """This fit (the twin of :meth:`FailedFit.or_raise`)."""
+        return self
 
     # -- results --------------------------------------------------------------------------
     @property
@@ -189,11 +218,11 @@ def _scaled(J):
     return J / norms
 
 
-def _conditioning(J) -> tuple[float, int]:
+def _conditioning(J, cond_limit: float) -> tuple[float, int]:
     s = np.linalg.svd(_scaled(J), compute_uv=False)
     if s[0] == 0:
         return float("inf"), 0
-    rank = int(np.sum(s > s[0] / COND_LIMIT))
+    rank = int(np.sum(s > s[0] / cond_limit))
     cond = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
     return cond, rank
 
@@ -205,10 +234,3 @@ def _confounded(J, labels) -> str:
     big = [labels[i] for i in np.argsort(-np.abs(v)) if abs(v[i]) > 0.2][:4]
     return ("the plan cannot tell these parameters apart (condition number "
             f"{s[0] / max(s[-1], 1e-300):.3g}): {' ~ '.join(big)}")
-
-
-def _check_identifiable(model: RobotModel, q, s_app, w) -> None:
-    J = (model.jacobian(q, s_app) * w[:, None, None]).reshape(-1, len(model.vector))
-    cond, rank = _conditioning(J)
-    if rank < J.shape[1]:
-        raise CalibrationError(_confounded(J, model.param_labels()))

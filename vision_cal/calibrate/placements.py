@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from scipy import stats
@@ -29,11 +30,16 @@ from scipy.optimize import least_squares
 
 from vision_cal import joint_terms as jt
 from vision_cal.calibrate.lsq import Fit
+from vision_cal.calibrate.tool import joint4_values
 from vision_cal.config import DEFAULT
+from vision_cal.dataset.covariance import covariance_json
+from vision_cal.dataset.io import atomic_write_json
+from vision_cal.dataset.session import load_session
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import (Effect, JointBacklash, JointCyclic, JointScale, JointTerms,
                               RobotModel, Tool)
+from vision_cal.pipeline import measure_marks
 from vision_cal.rms import rms_2d
 
 
@@ -180,7 +186,7 @@ def _start(places: list[Placement], tool: Tool | None) -> tuple[ScaraParams, tup
     for p in places:
         model = RobotModel(ScaraParams(1.0, 1.0), (tool,)) if tool is not None else None
         fits.append(Fit.from_estimate(p.q_deg, p.xy_mm, approach=p.approach, model=model,
-                                      sigma_mm=p.sigma_mm, robust=False).params)
+                                      sigma_mm=p.sigma_mm, robust=False).or_raise().params)
     shared = ScaraParams(float(np.mean([f.L1_mm for f in fits])),
                          float(np.mean([f.L2_mm for f in fits])), 0.0,
                          float(np.degrees(np.angle(np.mean(np.exp(1j * np.radians(
@@ -398,14 +404,6 @@ def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
     and one sheet pose per placement, write ``X/calibration.json`` (robot frame R) and
     ``X/<folder>/calibration.json`` (each placement's sheet frame, for ``plan``).
     Returns the robot-frame document."""
-    from pathlib import Path
-
-    from vision_cal.calibrate.tool import joint4_values
-    from vision_cal.dataset.io import atomic_write_json
-    from vision_cal.dataset.session import load_session
-    from vision_cal.pipeline import measure_marks
-    from vision_cal.plan.uncertainty import covariance_json
-
     out_dir = Path(out_dir)
     places, sessions = [], []
     names = [Path(f).resolve().name for f in folders]

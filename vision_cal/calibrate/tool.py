@@ -126,7 +126,7 @@ def fit_tool(q_deg, q4_deg, xy_mm, *, approach=None, effects=(), sigma_mm=None, 
                         robust=robust).fit.model.tool
     model = RobotModel(ScaraParams(1.0, 1.0), (tool,) + tuple(effects))
     fit = Fit.from_estimate(q3, xy_mm, approach=approach, model=model,
-                            sigma_mm=sigma_mm, ids=ids, robust=robust)
+                            sigma_mm=sigma_mm, ids=ids, robust=robust).or_raise()
     return ToolFit(fit)
 
 

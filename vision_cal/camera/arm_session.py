@@ -24,7 +24,8 @@ from vision_cal.camera.arm import MIN_POSES, ArmView, estimate_lens, fit_arm_cam
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.dataset.photos import PhotoRefused, load_photo, normalise_name
-from vision_cal.dataset.session import FieldReader, read_robot_block, read_sheet_block
+from vision_cal.dataset.fields import FieldReader
+from vision_cal.dataset.session import read_robot_block, read_sheet_block
 from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams

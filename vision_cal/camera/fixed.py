@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
-from vision_cal.dataset.session import FieldReader
+from vision_cal.dataset.fields import FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.mapping import undistort_px
 from vision_cal.rms import rms_2d
@@ -336,22 +336,25 @@ def fixed_camera(images, idx, sheet_corners: dict, *, K, dist, free_f: bool, rob
                        (float(robot3[1]), float(robot3[2])), np.asarray(sheet_matrix, float))
 
 
-def cameras_json(session, measurement, model, doc: dict) -> list[dict]:
+def cameras_json(session, measurement, model, *, covariance: dict | None,
+                 std: dict | None) -> tuple[list[dict], list[str]]:
     """calibration.json's ``cameras``: one entry per still camera found in the photos (two
-    or more photos from one pose, or any photo with ``camera.fixed: true`` declared)."""
+    or more photos from one pose, or any photo with ``camera.fixed: true`` declared), and
+    the notes for calibration.json (``covariance``, ``std``: the calibration's blocks)."""
+    notes: list[str] = []
     if measurement is None:
-        return []
+        return [], notes
     sheet_corners = {int(m.id): np.asarray(m.corners_mm, float) for m in session.sheet.markers}
     pts = np.concatenate(list(sheet_corners.values())) if sheet_corners else np.zeros((0, 2))
     images = measurement.images
     cam_raw = session.raw.get("camera")
     declared_fixed = (isinstance(cam_raw, dict) and FieldReader(str(session.path)).boolean(
         cam_raw.get("fixed", False), "camera.fixed"))
-    robot3, cov3, M = robot_block(model, doc.get("covariance"), doc.get("std"))
+    robot3, cov3, M = robot_block(model, covariance, std)
     out = []
     groups = still_groups(images, pts)
     if declared_fixed and len(groups) > 1:
-        doc.setdefault("notes", []).append(
+        notes.append(
             f"camera.fixed is declared but the photos were taken from {len(groups)} places "
             f"(their marker mappings differ by {SAME_POSE_PX} px or more): one camera entry "
             "per place")
@@ -375,11 +378,11 @@ def cameras_json(session, measurement, model, doc: dict) -> list[dict]:
             cam = fixed_camera(images, g, sheet_corners, K=K, dist=dist, free_f=free_f,
                                robot3=robot3, cov3=cov3, sheet_matrix=M, intrinsics=how)
         except VisionCalError as e:
-            doc.setdefault("notes", []).append(
+            notes.append(
                 f"still camera of {images[g[0]].file} (+{len(g) - 1} photos): {e}")
             continue
         out.append(cam.to_json())
-    return out
+    return out, notes
 
 
 # --------------------------------------------------------------------------- pixel -> robot

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from vision_cal.commands import request
+
 NAME = "design"
 HELP = ("design the marks the robot draws on the printed sheet: the pilot (no --pilot) or, "
         "from the pilot's calibration, the informative plan; writes session.json (no images "
@@ -68,88 +70,8 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    from vision_cal.design.stage import design_stage
-    from vision_cal.errors import VisionCalError
+    # imported here, not at the top: every command module is imported to build the parser,
+    # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
+    from vision_cal.actions.design import DesignRequest, design
 
-    if args.camera_on_arm:
-        return _camera_on_arm(args)
-
-    if args.n_calibration < 3 or args.n_validation < 0:
-        raise VisionCalError(f"expected at least 3 calibration and 0 validation marks, got "
-                             f"{args.n_calibration} and {args.n_validation}",
-                             field="--n-calibration")
-    if args.safety_mm is not None and not args.safety_mm >= 0:
-        raise VisionCalError(f"expected a non-negative number, got {args.safety_mm}",
-                             field="--safety-mm")
-    if args.placements is not None:   # several placements (design/placements.py, #21)
-        from vision_cal.design.placements import design_placements
-
-        if args.pilot:
-            raise VisionCalError("--placements designs each placement's pilot; design the "
-                                 "informative plans per placement folder", field="--pilot")
-        places = design_placements(args.robot, args.sheet, args.out, args.placements,
-                                   program=None if args.program == "none" else args.program,
-                                   seed=args.seed)
-        if not args.quiet:
-            for p in places:
-                print(f"{p['folder']}: {p['instruction']}")
-        return 0
-    if args.verify is not None and args.pilot is not None:
-        raise VisionCalError("give either --pilot (the informative plan) or --verify (a check "
-                             "of a calibration), not both", field="--verify")
-    if args.pilot:
-        from vision_cal.dataset.io import read_json
-        from vision_cal.dataset.trust import require_ready_pilot
-
-        require_ready_pilot(read_json(args.pilot), args.pilot)
-    check = args.verify is not None
-    if args.iso9283 and not check or not 0 <= args.iso9283 <= 30:
-        raise VisionCalError(f"expected 1..30 cycles with --verify, got {args.iso9283}",
-                             field="--iso9283")
-    r = design_stage(args.robot, args.sheet, args.out, pilot=args.verify if check else args.pilot,
-                     program=None if args.program == "none" else args.program,
-                     n_calibration=10 if check else args.n_calibration,
-                     n_validation=0 if check else args.n_validation,
-                     safety_mm=args.safety_mm, seed=args.seed,
-                     stage="verify" if check else None,
-                     iso9283_cycles=args.iso9283 if check else 0)
-    import sys
-
-    for w in r.info.get("warnings", []):
-        print(f"vision-cal: warning: {w}", file=sys.stderr)
-    if not args.quiet:
-        print(f"{r.stage} plan: {r.n_marks} marks, {r.duration_s:.1f} s of motion")
-        if r.stage == "pilot":
-            print(f"every mark stays {r.info['worst_case_clearance_mm']:.1f} mm clear of markers "
-                  f"and edges for {r.info['placements_checked']} placements within the "
-                  "robot file's placement_tolerance")
-        elif r.stage == "verify":
-            print(f"a check of {args.verify}: draw it on a fresh sheet, photograph it into "
-                  f"{args.out}, then: vision-cal verify {args.verify} {args.out}")
-        else:
-            print(f"placed with the pilot's model, {r.info['safety_mm']:.1f} mm of safety")
-        for p in (r.session_path, r.trajectory_path, r.program_path):
-            if p is not None:
-                print(f"wrote {p}")
-    return 0
-
-
-def _camera_on_arm(args) -> int:
-    from vision_cal.camera.arm_design import design_camera_on_arm
-    from vision_cal.dataset.io import output_dir, read_json
-    from vision_cal.dataset.robot import load_robot_file
-    from vision_cal.dataset.session import load_sheet_file
-
-    out = output_dir(args.out, field="--out")
-    robot = load_robot_file(args.robot)
-    sheet = load_sheet_file(args.sheet)
-    a, b = design_camera_on_arm(robot, sheet, read_json(args.sheet), out, n_poses=args.n_poses,
-                                mount=args.mount, trigger=args.trigger,
-                                output_bit=args.trigger_output, seed=args.seed)
-    if not args.quiet:
-        print(f"camera poses: {args.n_poses} ({args.mount} mount); put the photos beside "
-              f"{a} (and your camera's lens in it if you know it: camera: size_px, K, dist), "
-              f"then vision-cal handeye {out} --out CAL/")
-        print(f"wrote {a}")
-        print(f"wrote {b}")
-    return 0
+    return design(request(args, DesignRequest))

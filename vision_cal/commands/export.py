@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from vision_cal.commands import request
+
 NAME = "export"
 HELP = "export calibration.json as URDF joint origins (+ effects side file) or YAML"
 EXAMPLES = """\
@@ -33,53 +35,8 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    from vision_cal.dataset.calibration import load_calibration
-    from vision_cal.dataset.io import distinct_outputs, output_file, written_together
-    from vision_cal.errors import VisionCalError
-    from vision_cal.camera.export import transform_path
-    from vision_cal.report.export import effects_path, export
+    # imported here, not at the top: every command module is imported to build the parser,
+    # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
+    from vision_cal.actions.export import ExportRequest, export_calibration
 
-    if not (args.urdf or args.yaml or args.opencv or args.ros):
-        raise VisionCalError("nothing to export: give --urdf, --yaml, --opencv and/or --ros")
-    for opt, path in (("--urdf", args.urdf), ("--yaml", args.yaml), ("--opencv", args.opencv),
-                      ("--ros", args.ros)):
-        if path:
-            output_file(path, field=opt)
-    distinct_outputs([("--urdf", args.urdf),
-                      ("--urdf (its effects)", args.urdf and effects_path(args.urdf)),
-                      ("--yaml", args.yaml), ("--opencv", args.opencv), ("--ros", args.ros),
-                      ("--ros (its transform)",
-                       args.ros and transform_path(args.ros))],
-                     [("CALIBRATION.json", args.calibration)])
-    _, doc = load_calibration(args.calibration)
-    from vision_cal.dataset.trust import refuse_unreliable
-
-    warn = refuse_unreliable(doc, args.calibration, force=args.force)
-    if warn:
-        import sys
-
-        print(warn, file=sys.stderr)
-    limits, limits4, limits3 = doc.get("joint_limits_deg"), None, None
-    if args.robot:
-        from vision_cal.dataset.robot import load_robot_file
-
-        robot = load_robot_file(args.robot)
-        limits, limits4 = robot.joint_limits_deg, robot.joint4_limits_deg
-        limits3 = robot.joint3_limits_mm
-    written = []
-    with written_together():
-        if args.opencv or args.ros:
-            from vision_cal.camera.export import write_opencv, write_ros
-            from vision_cal.camera.fixed import camera_of
-
-            cam = camera_of(doc, args.camera, file=args.calibration)
-            written += [write_opencv(args.opencv, cam)] if args.opencv else []
-            written += write_ros(args.ros, cam) if args.ros else []
-        if args.urdf or args.yaml:
-            written = export(doc, urdf=args.urdf, yaml_path=args.yaml,
-                             limits_deg=limits, limits4_deg=limits4,
-                             limits3_mm=limits3) + written
-    for path in written:
-        if not args.quiet:
-            print(f"wrote {path}")
-    return 0
+    return export_calibration(request(args, ExportRequest))

@@ -21,6 +21,8 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
+    # imported here, not at the top: every command module is imported to build the parser,
+    # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
     from vision_cal.camera.arm_session import calibrate_arm_camera
     from vision_cal.dataset.io import atomic_write_json, output_dir
     from vision_cal.diagnose.verdict import Verdict

@@ -24,6 +24,8 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
+    # imported here, not at the top: every command module is imported to build the parser,
+    # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
     from vision_cal.dataset.io import atomic_write_bytes, atomic_write_text
     from vision_cal.report.history import history_csv, history_png, history_table, read_history
 

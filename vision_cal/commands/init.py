@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from vision_cal.commands import request
+
 NAME = "init"
 HELP = ("complete a planned session.json with the images list found from a folder of photos "
         "(which marks each photo shows), to check or edit it")
@@ -27,51 +29,8 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    import json
-    import sys
-    from pathlib import Path
+    # imported here, not at the top: every command module is imported to build the parser,
+    # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
+    from vision_cal.actions.init import InitSessionRequest, init_session
 
-    from vision_cal.dataset.io import atomic_write_json
-    from vision_cal.errors import VisionCalError
-    from vision_cal.measure.complete import complete_session
-
-    if args.jobs is not None and args.jobs < 1:
-        raise VisionCalError(f"--jobs must be at least 1, got {args.jobs}")
-    if args.out:
-        out = Path(args.out)
-        try:
-            inside = out.resolve().is_relative_to(Path(args.photos).resolve())
-        except (OSError, ValueError) as e:
-            raise VisionCalError(f"not a usable path: {e}", file=str(args.out)) from e
-        if inside:
-            raise VisionCalError("init never writes into the photo folder: write the "
-                                 "session elsewhere", file=str(args.out))
-        if out.is_dir():
-            raise VisionCalError("is a folder, expected a .json file to write",
-                                 file=str(args.out))
-    progress = (not args.quiet) and sys.stderr.isatty()
-    doc, meas = complete_session(args.photos, args.plan, jobs=args.jobs, progress=progress)
-    if not doc["images"]:
-        raise VisionCalError(f"no usable photo of the sheet among {len(meas.images)} image "
-                             "file(s)" + (f" (first: {meas.images[0].file}: "
-                                          f"{meas.images[0].reason})" if meas.images else ""),
-                             file=str(args.photos))
-    for im in meas.images:
-        if im.status != "ok":
-            print(f"vision-cal: warning: {args.photos}/{im.file}: not used: {im.reason}",
-                  file=sys.stderr)
-    for w in meas.warnings:
-        print(f"vision-cal: warning: {w}", file=sys.stderr)
-    if args.out:
-        try:
-            atomic_write_json(args.out, doc)
-        except OSError as e:
-            raise VisionCalError(f"cannot write: {e.strerror or e}", file=str(args.out)) from e
-    else:
-        sys.stdout.write(json.dumps(doc, indent=2) + "\n")
-    if not args.quiet:
-        n = len(doc["images"])
-        print(f"{n} photo(s) of the sheet ({meas.inferred or 'none'}), "
-              f"{len(meas.marks)} of {len(meas.marks) + len(meas.refused)} marks found"
-              + (f" -> {args.out}" if args.out else ""), file=sys.stderr)
-    return 0
+    return init_session(request(args, InitSessionRequest))

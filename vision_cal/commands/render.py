@@ -29,6 +29,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
+    # imported here, not at the top: every command module is imported to build the parser,
+    # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
     from vision_cal.errors import VisionCalError
     from vision_cal.render.dataset import render_dataset
     from vision_cal.render.scene import load_scene

@@ -54,6 +54,8 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
+    # imported here, not at the top: every command module is imported to build the parser,
+    # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
     from vision_cal.sheet import make_layout, write_sheet
 
     if args.size is not None and args.custom is not None:

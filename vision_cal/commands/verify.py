@@ -32,6 +32,8 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
+    # imported here, not at the top: every command module is imported to build the parser,
+    # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
     from pathlib import Path
 
     from vision_cal.errors import VisionCalError

@@ -1,7 +1,7 @@
 """Reading ``calibration.json`` back into a model (the planner's input).
 
 Validated as strictly as ``session.json`` and with the same typed helpers
-(:class:`vision_cal.dataset.session.FieldReader`): a calibration another program wrote, or
+(:class:`vision_cal.dataset.fields.FieldReader`): a calibration another program wrote, or
 one edited by hand, either gives the model it describes or fails with one line naming the
 file and the field. Nothing is silently dropped: an effect the planner cannot honour is an
 error, not a model without it.
@@ -11,14 +11,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from vision_cal.dataset.calibration_result import FORMAT
 from vision_cal.dataset.io import read_json
-from vision_cal.dataset.session import MAX_JOINT_DEG, FieldReader
+from vision_cal.dataset.fields import MAX_JOINT_DEG, FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.joint_terms import check_feature
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import RobotModel, Tool, effect_from_json
 
-FORMAT = "vision-cal/calibration/1"
 ROBOT_EFFECTS = ("joint_backlash", "joint_scale", "joint_cyclic", "sheet_affine", "joint_terms")
 #: effects of the contract that do not act on the robot (the camera's, the paper's height,
 #: what nothing explains): read, never planned with

@@ -68,7 +68,9 @@ def _rows(path: Path, required: tuple[str, ...]) -> list[tuple[int, dict]]:
     return out
 
 
-def _num(v: str, path, line: int, name: str) -> float:
+def number_field(v: str, path, line: int, name: str) -> float:
+    """A finite number from a CSV cell, or one line naming the file, the line and the
+    column."""
     try:
         x = float(v)
     except ValueError as e:
@@ -91,7 +93,7 @@ def read_targets(path) -> tuple[list[str], np.ndarray]:
             raise VisionCalError(f"duplicate id {tid!r}", file=str(path), field=f"line {line}: id")
         seen.add(tid)
         ids.append(tid)
-        xy.append((_num(row["x_mm"], path, line, "x_mm"), _num(row["y_mm"], path, line, "y_mm")))
+        xy.append((number_field(row["x_mm"], path, line, "x_mm"), number_field(row["y_mm"], path, line, "y_mm")))
     if not ids:
         raise VisionCalError("no targets", file=str(path))
     return ids, np.array(xy, dtype=float)
@@ -144,9 +146,9 @@ def read_plan(path) -> tuple[list[str], np.ndarray, np.ndarray]:
         if row.get("status", "ok") not in ("", "ok"):
             continue
         ids.append(row["id"])
-        q.append((_num(row["q1_deg"], path, line, "q1_deg"), _num(row["q2_deg"], path, line, "q2_deg")))
-        a = (_num(row["approach1"], path, line, "approach1"),
-             _num(row["approach2"], path, line, "approach2"))
+        q.append((number_field(row["q1_deg"], path, line, "q1_deg"), number_field(row["q2_deg"], path, line, "q2_deg")))
+        a = (number_field(row["approach1"], path, line, "approach1"),
+             number_field(row["approach2"], path, line, "approach2"))
         if any(v not in (1.0, -1.0) for v in a):
             raise VisionCalError(f"expected +1 or -1, got {a}", file=str(path),
                                  field=f"line {line}: approach")
@@ -160,4 +162,4 @@ def read_target_theta(path) -> np.ndarray | None:
     rows = _rows(path, TARGET_FIELDS)
     if not rows or "theta_deg" not in rows[0][1]:
         return None
-    return np.array([_num(row["theta_deg"], path, line, "theta_deg") for line, row in rows])
+    return np.array([number_field(row["theta_deg"], path, line, "theta_deg") for line, row in rows])

@@ -8,10 +8,13 @@ import errno
 import json
 import math
 import os
+import re
 import tempfile
+from json import decoder, scanner
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from vision_cal.errors import VisionCalError
 
@@ -198,6 +201,12 @@ def atomic_write_text(path, text: str) -> Path:
     return atomic_write_bytes(path, text.encode("utf-8"))
 
 
+def as_json(obj):
+    """``obj`` exactly as :func:`atomic_write_json` writes it and ``json`` reads it back
+    (non-finite floats None, numpy values Python ones, tuples lists)."""
+    return json.loads(json.dumps(_clean(obj), default=_default, allow_nan=False))
+
+
 def atomic_write_json(path, obj) -> Path:
     text = json.dumps(_clean(obj), indent=2, default=_default, allow_nan=False)
     return atomic_write_text(path, text + "\n")
@@ -247,8 +256,6 @@ def _top_keys(s: str, start: int, end: int):
 def _json_duplicate(text: str) -> tuple[str, int, int]:
     """The first key given twice in one object, with its two lines: found again with the
     pure-Python scanner, which tells where each object starts (only run on a duplicate)."""
-    from json import decoder, scanner
-
     found: list = []
 
     def parse_object(s_and_end, *args, **kw):
@@ -315,10 +322,6 @@ _YAML12_FLOAT = r"^[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)[eE][-+]?[0-9]+$"
 
 
 def _yaml_loader():
-    import re
-
-    import yaml
-
     class Loader(yaml.SafeLoader):
         """``safe_load`` plus: a key given twice in one mapping is refused with both lines,
         numbers follow YAML 1.2's core schema for exponents (``1e5`` is 100000.0), and a
@@ -371,8 +374,6 @@ def read_yaml(path, *, what: str = "file"):
     """Read a YAML document with a safe loader (no tags that build objects or run code; see
     :func:`_yaml_loader` for duplicate keys, ``1e5`` and aliases); a malformed file is one
     clear line with the line and column."""
-    import yaml
-
     path = Path(path)
     text = read_text(path, what=what)
     try:

@@ -34,6 +34,7 @@ BORDER_MODULES = 1
 @lru_cache(maxsize=64)
 def bits_per_side(dictionary: str) -> int:
     """The dictionary's data bits per marker side (``markerSize``), from OpenCV."""
+    # OpenCV takes 0.2 s to import: loaded here, when used
     import cv2
 
     return int(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)).markerSize)

@@ -37,10 +37,15 @@ import io
 import os
 import re
 import stat
+import struct
 import warnings
+import zlib
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path, PurePosixPath
+
+import numpy as np
+from PIL import Image, UnidentifiedImageError
 
 PHOTO_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp")
 #: camera formats neither Pillow nor OpenCV reads here (HEIC from phones, raw files):
@@ -216,8 +221,6 @@ def read_header(data: bytes) -> PhotoHeader:
     pixels). Pillow's own bomb guard (``Image.MAX_IMAGE_PIXELS``: a warning above 89 MP,
     an error above twice that) is handled here, explicitly: its warning is silenced and
     its error becomes a reason, because :func:`check_header` applies the limits."""
-    from PIL import Image, UnidentifiedImageError
-
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
@@ -281,9 +284,6 @@ def check_complete(data: bytes) -> None:
     failing its CRC is named here, before libpng prints its own line). JPEG: each segment
     up to the first scan, then the scans up to the end marker ``FFD9``. Other formats are
     left to the decoder."""
-    import struct
-    import zlib
-
     if data[:8] == b"\x89PNG\r\n\x1a\n":
         pos = 8
         while True:
@@ -342,8 +342,8 @@ def check_complete(data: bytes) -> None:
 def decode_photo(data: bytes, *, turned: bool = False):
     """BGR uint8 pixels (OpenCV), in the stored frame unless ``turned``; None if OpenCV
     cannot decode them."""
+    # OpenCV takes 0.2 s to import: loaded here, when used
     import cv2
-    import numpy as np
 
     flags = cv2.IMREAD_COLOR if turned else cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION
     try:

@@ -45,8 +45,9 @@ import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.io import read_json, read_yaml
-from vision_cal.dataset.session import NominalRobot, _Reader, read_robot_block
+from vision_cal.dataset.session import NominalRobot, read_robot_block
 from vision_cal.errors import VisionCalError
 from vision_cal.motion import (ACCEL_DEG_S2, JOINT3_LIMITS_MM, JOINT4_LIMITS_DEG,
                                JOINT_LIMITS_DEG, SPEED_DEG_S)
@@ -117,7 +118,7 @@ def _read_tree(path: Path) -> dict:
     return tree
 
 
-def _positive(r: _Reader, v, where: str, *, zero_ok=False) -> float:
+def _positive(r: FieldReader, v, where: str, *, zero_ok=False) -> float:
     x = r.number(v, where)
     if x < 0 or (x == 0 and not zero_ok):
         r.fail(where, f"expected a {'non-negative' if zero_ok else 'positive'} number, got {v!r}")
@@ -128,7 +129,7 @@ def load_robot_file(path) -> RobotFile:
     """Read and validate a robot file (YAML, or JSON when it ends in .json)."""
     path = Path(path)
     tree = _read_tree(path)
-    r = _Reader(str(path))
+    r = FieldReader(str(path))
     nominal = read_robot_block(r, tree, "")
     kw: dict = {}
 

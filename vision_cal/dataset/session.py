@@ -6,13 +6,13 @@ field (``marks[3].joints_deg[0]``) and what was expected.
 
 from __future__ import annotations
 
-import math
-import reprlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from vision_cal.dataset.fields import (MAX_DIST, MAX_IMAGE_PX, MAX_JOINT_DEG, MAX_K_PX, MAX_MM,
+                                       MAX_PEN_MM, FieldReader, _short)
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.photos import normalise_name
 from vision_cal.errors import VisionCalError
@@ -259,136 +259,13 @@ def resolve_approach(marks, home_deg=(0.0, 0.0)) -> np.ndarray:
                           given=[m.approach for m in marks])
 
 
-#: sanity bounds of a valid file: no sheet, robot or pen mark is 100 m across, and no SCARA
-#: joint is commanded beyond two turns either way
-MAX_MM = 1e5
-MAX_JOINT_DEG = 720.0
-MAX_PEN_MM = 50.0
-MAX_IMAGE_PX = 100_000
-MAX_K_PX = 1e7
-MAX_DIST = 1e3
-
-
-_REPR = reprlib.Repr()
-_REPR.maxlevel, _REPR.maxlist, _REPR.maxdict, _REPR.maxstring, _REPR.maxlong = 3, 4, 4, 60, 40
-
-
-def _short(v, n: int = 60) -> str:
-    """``repr`` of a value from a file, cut to fit in one line of an error."""
-    try:
-        t = _REPR.repr(v)  # bounded: a huge value (a YAML alias bomb) is never printed whole
-    except (RecursionError, ValueError):  # deeply nested, or an int too long to print
-        t = f"<{type(v).__name__}>"
-    return t if len(t) <= n else t[:n - 3] + "..."
-
-
-class FieldReader:
-    """Typed field access that names the file and the field in every error (session.json,
-    calibration.json and the robot file use the same one)."""
-
-    def __init__(self, file: str):
-        self.file = file
-
-    def fail(self, where: str, msg: str):
-        raise VisionCalError(msg, file=self.file, field=where)
-
-    def get(self, obj: dict, key: str, where: str, *, required=True):
-        if not isinstance(obj, dict):
-            self.fail(where, f"expected an object, got {type(obj).__name__}")
-        if key not in obj:
-            if required:
-                self.fail(f"{where}.{key}" if where else key, "missing required field")
-            return None
-        return obj[key]
-
-    def number(self, v, where: str, *, lo: float | None = None, hi: float | None = None,
-               positive: bool = False, what: str = "number") -> float:
-        """A finite JSON number, optionally within [lo, hi] (and > 0 with ``positive``)."""
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            self.fail(where, f"expected a number, got {type(v).__name__} {_short(v)}")
-        try:
-            x = float(v)
-        except OverflowError:
-            x = math.inf
-        if not math.isfinite(x):
-            self.fail(where, f"expected a finite number, got {_short(v)}")
-        if positive and x <= 0:
-            self.fail(where, f"expected a positive {what}, got {_short(v)}")
-        if (lo is not None and x < lo) or (hi is not None and x > hi):
-            self.fail(where, f"expected a {what} between {lo:g} and {hi:g}, got {_short(v)}")
-        return x
-
-    def vector(self, v, where: str, n: int, **limits) -> tuple[float, ...]:
-        if not isinstance(v, list) or len(v) != n:
-            self.fail(where, f"expected a list of {n} numbers, got {_short(v)}")
-        return tuple(self.number(x, f"{where}[{i}]", **limits) for i, x in enumerate(v))
-
-    def length(self, v, where: str, *, positive: bool = False) -> float:
-        """A length in mm: a position or size on a sheet, a link, a pen mark."""
-        return self.number(v, where, lo=-MAX_MM, hi=MAX_MM, positive=positive,
-                           what="length in mm")
-
-    def point(self, v, where: str) -> tuple[float, float]:
-        return self.vector(v, where, 2, lo=-MAX_MM, hi=MAX_MM, what="length in mm")
-
-    def angles(self, v, where: str) -> tuple[float, float]:
-        return self.vector(v, where, 2, lo=-MAX_JOINT_DEG, hi=MAX_JOINT_DEG,
-                           what="joint angle in degrees")
-
-    def string(self, v, where: str) -> str:
-        if not isinstance(v, str) or not v:
-            self.fail(where, f"expected a non-empty string, got {_short(v)}")
-        return v
-
-    def list_(self, v, where: str, *, nonempty=False) -> list:
-        if not isinstance(v, list):
-            self.fail(where, f"expected a list, got {type(v).__name__}")
-        if nonempty and not v:
-            self.fail(where, "expected a non-empty list")
-        return v
-
-    def section(self, obj, where: str, allowed: tuple[str, ...]) -> dict:
-        """An optional mapping (None reads as empty) whose keys must all be ``allowed``."""
-        if obj is None:
-            return {}
-        if not isinstance(obj, dict):
-            self.fail(where, f"expected a mapping, got {type(obj).__name__} {_short(obj)}")
-        for k in obj:
-            if k not in allowed:
-                name = f"{where}.{k}" if where else str(k)
-                self.fail(name, f"unknown field (expected one of: {', '.join(allowed)})")
-        return obj
-
-    def integer(self, v, where: str, *, lo=None, hi=None) -> int:
-        if isinstance(v, bool) or not isinstance(v, int):
-            self.fail(where, f"expected an integer, got {_short(v)}")
-        if lo is not None and v < lo:
-            self.fail(where, f"expected an integer >= {lo}, got {v}")
-        if hi is not None and v > hi:
-            self.fail(where, f"expected an integer <= {hi}, got {v}")
-        return int(v)
-
-    def boolean(self, v, where: str) -> bool:
-        if not isinstance(v, bool):
-            self.fail(where, f"expected true or false, got {_short(v)}")
-        return v
-
-    def choice(self, v, where: str, options: tuple[str, ...]) -> str:
-        if v not in options:
-            self.fail(where, f"expected one of {', '.join(options)}, got {_short(v)}")
-        return v
-
-
-_Reader = FieldReader
-
-
 def _aruco_dictionary_ok(name: str) -> bool:
     import cv2  # heavy import, only when a sheet is read
 
     return name.startswith("DICT_") and isinstance(getattr(cv2.aruco, name, None), int)
 
 
-def read_robot_block(r: _Reader, rob, where: str = "robot") -> NominalRobot:
+def read_robot_block(r: FieldReader, rob, where: str = "robot") -> NominalRobot:
     """The session's ``robot`` block (also the core of a robot file), validated.
 
     ``where`` is the block's path in its file (``"robot"`` in session.json, ``""`` for a
@@ -430,7 +307,7 @@ def read_robot_block(r: _Reader, rob, where: str = "robot") -> NominalRobot:
     return NominalRobot(L1, L2, jz, base, home, limits, rep, tool, j4)
 
 
-def read_sheet_block(r: _Reader, sheet_raw, where: str = "sheet", *,
+def read_sheet_block(r: FieldReader, sheet_raw, where: str = "sheet", *,
                      need_markers: bool = True) -> Sheet:
     """The session's ``sheet`` block (also a whole ``sheet.json``), validated."""
     def w(key):
@@ -480,7 +357,7 @@ def read_sheet_block(r: _Reader, sheet_raw, where: str = "sheet", *,
     return Sheet(d, tuple(mks), size, bl, grid, printed)
 
 
-def _sheet_grid(r: "_Reader", g, where: str = "sheet.grid") -> SheetGrid | None:
+def _sheet_grid(r: FieldReader, g, where: str = "sheet.grid") -> SheetGrid | None:
     """``sheet.grid`` (optional): pitch, bold_every, origin; line widths and extent added."""
     if g is None:
         return None
@@ -520,7 +397,7 @@ def sheet_grid_from_dict(g: dict) -> SheetGrid:
                      None if ext is None else tuple(float(v) for v in ext))
 
 
-def _optional_object(r: _Reader, obj: dict, where: str) -> dict | None:
+def _optional_object(r: FieldReader, obj: dict, where: str) -> dict | None:
     v = obj.get(where.rsplit(".", 1)[-1])
     if v is not None and not isinstance(v, dict):
         r.fail(where, f"expected an object, got {type(v).__name__}")
@@ -530,7 +407,7 @@ def _optional_object(r: _Reader, obj: dict, where: str) -> dict | None:
 def load_sheet_file(path) -> Sheet:
     """Read and validate a ``sheet.json`` (the session's sheet block on its own)."""
     path = Path(path)
-    return read_sheet_block(_Reader(str(path)), read_json(path), "")
+    return read_sheet_block(FieldReader(str(path)), read_json(path), "")
 
 
 def load_session(folder) -> Session:
@@ -544,7 +421,7 @@ def load_session(folder) -> Session:
             raise VisionCalError("folder not found", file=str(folder))
         raise VisionCalError("missing: a dataset folder needs a session.json", file=str(path))
     raw = read_json(path)
-    r = _Reader(str(path))
+    r = FieldReader(str(path))
 
     fmt = r.get(raw, "format", "")
     if fmt != FORMAT:

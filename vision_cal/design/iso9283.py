@@ -22,6 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from vision_cal.errors import VisionCalError
+from vision_cal.plan.compensate import plan_targets, to_planned_marks
+
 PITCH_MM = 6.0
 POINTS = ("P1", "P2", "P3", "P4", "P5")
 
@@ -46,8 +49,6 @@ def offsets_mm(n: int, pitch_mm: float = PITCH_MM) -> np.ndarray:
 def reachable_box(model, box, *, elbow: int = 1, joint_limits_deg=None, margin_mm: float = 10.0):
     """The test plane: ``box`` (x0, y0, x1, y1) shrunk about the centroid of its reachable
     part until P1..P5 (``margin_mm`` around each) can all be planned; None if none can."""
-    from vision_cal.plan.compensate import plan_targets
-
     kw = {} if joint_limits_deg is None else {"joint_limits_deg": joint_limits_deg}
     x0, y0, x1, y1 = (float(v) for v in box)
     X, Y = np.meshgrid(np.linspace(x0, x1, 25), np.linspace(y0, y1, 25))
@@ -75,9 +76,6 @@ def iso_marks(model, box, n_cycles: int, *, elbow: int = 1, overshoot_deg: float
     """``PlannedMark`` list (role ``validation``, ids ``iso_P1_01`` ...) visiting P1..P5
     ``n_cycles`` times each, in ISO's cycle order P1, P5, P4, P3, P2, each visit from the
     +1 side of both joints; and the per-mark info {id: {point, offset_mm, commanded_mm}}."""
-    from vision_cal.errors import VisionCalError
-    from vision_cal.plan.compensate import plan_targets, to_planned_marks
-
     off = offsets_mm(n_cycles)
     plane = reachable_box(model, box, elbow=elbow, joint_limits_deg=joint_limits_deg,
                           margin_mm=float(np.abs(off).max()) + 3.0)

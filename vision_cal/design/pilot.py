@@ -98,6 +98,7 @@ class ClearanceMap:
     overstates the clearance. Points off the grid read as -1 (off the paper)."""
 
     def __init__(self, sheet, *, res_mm: float = 1.0):
+        # OpenCV takes 0.2 s to import: loaded here, when used
         import cv2
 
         x0, y0, x1, y1 = sheet.extent_mm

@@ -14,8 +14,15 @@ where the whole joint-1 range they need is within ``joint_limits_deg``.
 
 from __future__ import annotations
 
-import numpy as np
+from pathlib import Path
 
+import numpy as np
+import yaml
+
+from vision_cal.dataset.io import atomic_write_json, atomic_write_text
+from vision_cal.dataset.robot import _read_tree, load_robot_file
+from vision_cal.dataset.session import load_sheet_file
+from vision_cal.design.stage import design_stage
 from vision_cal.errors import VisionCalError
 
 
@@ -73,15 +80,6 @@ def design_placements(robot_path, sheet_path, out_dir, n: int, *, program: str |
     (``OUT/placeK/``, :func:`vision_cal.design.stage.design_stage`); ``OUT/placements.json``
     lists them. Draw, photograph and calibrate each as the README says, then
     ``vision-cal calibrate OUT/place1 OUT/place2 ... --joint``."""
-    from pathlib import Path
-
-    import yaml
-
-    from vision_cal.dataset.io import atomic_write_json, atomic_write_text
-    from vision_cal.dataset.robot import _read_tree, load_robot_file
-    from vision_cal.dataset.session import load_sheet_file
-    from vision_cal.design.stage import design_stage
-
     robot = load_robot_file(robot_path)
     places = plan_placements(robot, load_sheet_file(sheet_path), n)
     tree = _read_tree(Path(robot_path))

@@ -18,6 +18,8 @@ import io
 
 import numpy as np
 
+from vision_cal.kinematics import forward
+
 REACH_WARN = 0.5
 N_ARMS = 4            # planned poses drawn with both links
 
@@ -48,13 +50,14 @@ def preview_png(params, sheet, marks, *, paper=None, title: str = "") -> bytes:
     """The preview picture as PNG bytes (see the module docstring). ``params``: the model
     the plan was placed with (``ScaraParams``); ``sheet``: the drawable sheet; ``paper``:
     the whole paper (default ``sheet``); ``marks``: ``PlannedMark`` list."""
+    # matplotlib takes 0.2 s to import: loaded here, when used
     import matplotlib
 
     matplotlib.use("Agg")
+    # matplotlib takes 0.2 s to import: loaded here, when used
     import matplotlib.pyplot as plt
+    # matplotlib takes 0.2 s to import: loaded here, when used
     from matplotlib.patches import Circle, Polygon, Rectangle
-
-    from vision_cal.kinematics import forward
 
     paper = paper or sheet
     fig, ax = plt.subplots(figsize=(8.0, 6.0))

@@ -21,15 +21,30 @@ each file is written atomically.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from vision_cal.dataset.calibration import load_calibration
+from vision_cal.dataset.covariance import load_covariance
+from vision_cal.dataset.fields import FieldReader
+from vision_cal.dataset.io import atomic_write_bytes, atomic_write_json, read_json
 from vision_cal.dataset.photos import list_photos
+from vision_cal.dataset.robot import load_robot_file
+from vision_cal.dataset.session import NominalRobot, SheetMarker, load_sheet_file
+from vision_cal.dataset.sheet_identity import check_same_sheet
+from vision_cal.design.iso9283 import PITCH_MM, iso_marks
 from vision_cal.design.joint4 import circle_triples, joint4_vias, turn_joint4
+from vision_cal.design.pilot import design_pilot
+from vision_cal.design.preview import REACH_WARN, preview_png, reach_fraction
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import forward
+from vision_cal.kinematics import ScaraParams, forward
+from vision_cal.measure.printed import printed_reference
+from vision_cal.plan.calibration_plan import informative_plan
+from vision_cal.plan.trajectory import plan_trajectory, write_trajectory_csv
+from vision_cal.plan.uncertainty import predicted_std_mm
+from vision_cal.program import program_path, program_points, write_program
 
 log = logging.getLogger(__name__)
 
@@ -51,8 +66,6 @@ def pilot_safety_mm(model, cov, sheet, *, k_sigma: float = 6.0, floor_mm: float 
                     rng=None) -> float:
     """Safety margin (mm) for marks placed with a pilot model: ``floor_mm`` plus
     ``k_sigma`` times the largest predicted per-axis std over poses landing on the paper."""
-    from vision_cal.plan.uncertainty import predicted_std_mm
-
     rng = np.random.default_rng(0 if rng is None else rng)
     q = rng.uniform([-170, -150], [170, 150], size=(4000, 2))
     xy = model.predict(q)
@@ -68,15 +81,11 @@ def drawable_sheet(sheet, sheet_raw: dict, *, file: str | None = None):
     """The sheet to place marks on: the paper, or only its ``printed.drawable_mm`` box
     ``[x0, y0, x1, y1]`` when the generator says where pen marks may go (clear of scale
     bars, labels and the title block), with the same markers."""
-    from dataclasses import replace
-
-    from vision_cal.dataset.session import _Reader
-
     printed = sheet_raw.get("printed")
     box = printed.get("drawable_mm") if isinstance(printed, dict) else None
     if box is None:
         return sheet
-    x0, y0, x1, y1 = _Reader(file).vector(box, "printed.drawable_mm", 4)
+    x0, y0, x1, y1 = FieldReader(file).vector(box, "printed.drawable_mm", 4)
     px0, py0, px1, py1 = sheet.extent_mm
     if not (px0 <= x0 < x1 <= px1 and py0 <= y0 < y1 <= py1):
         raise VisionCalError(f"expected [x0, y0, x1, y1] inside the paper {list(sheet.extent_mm)}"
@@ -91,11 +100,6 @@ def with_printed_content(sheet):
     A sheet whose print is not described is returned as it is. Used for the informative
     plan (placed with the pilot's model); the pilot's marks may land anywhere within the
     placement tolerance, so print under them is left to the measurement."""
-    from dataclasses import replace
-
-    from vision_cal.dataset.session import SheetMarker
-    from vision_cal.measure.printed import printed_reference
-
     ref = printed_reference(sheet)
     if ref is None:
         return sheet
@@ -116,10 +120,6 @@ def with_drawable_bands(sheet, paper):
     the extent and clear of markers would put marks on the scale bars, labels and title;
     the four bands between the paper edge and the drawable box become rectangles it keeps
     clear of, like markers."""
-    from dataclasses import replace
-
-    from vision_cal.dataset.session import SheetMarker
-
     if sheet.bottom_left_mm is None or sheet is paper:
         return sheet
     px0, py0, px1, py1 = paper.extent_mm
@@ -134,10 +134,6 @@ def with_drawable_bands(sheet, paper):
 def with_pilot_marks(sheet, cal_doc: dict, diameter_mm: float):
     """The sheet with the pilot's measured marks as obstacles (small squares), so that
     the informative plan drawn on the same sheet keeps clear of them."""
-    from dataclasses import replace
-
-    from vision_cal.dataset.session import SheetMarker
-
     extra = []
     for k, m in enumerate((cal_doc.get("marks") or {}).values()):
         xy = m.get("measured_mm") if isinstance(m, dict) else None
@@ -154,12 +150,6 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
                  n_calibration: int = 30, n_validation: int = 8, safety_mm: float | None = None,
                  seed: int = 0, stage: str | None = None,
                  iso9283_cycles: int = 0) -> DesignResult:
-    from vision_cal.dataset.io import atomic_write_json, read_json
-    from vision_cal.dataset.robot import load_robot_file
-    from vision_cal.dataset.session import NominalRobot, load_sheet_file
-    from vision_cal.plan.trajectory import plan_trajectory, write_trajectory_csv
-    from vision_cal.program import program_path, program_points, write_program
-
     robot = load_robot_file(robot_path)
     sheet = load_sheet_file(sheet_path)
     sheet_raw = read_json(sheet_path)
@@ -183,8 +173,6 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
     if pilot is not None:   # the pilot lands anywhere within the tolerance: measured over print
         sheet = with_printed_content(sheet)
     nominal = robot.nominal
-    from vision_cal.design.preview import REACH_WARN, preview_png, reach_fraction
-    from vision_cal.kinematics import ScaraParams
 
     def _params(r) -> ScaraParams:
         return ScaraParams(r.L1_mm, r.L2_mm, r.joint_zero_deg[0], r.joint_zero_deg[1],
@@ -201,8 +189,6 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
         warnings.append(f"{robot_path}: {reach_note}")
     joint4 = None   # mark id -> j4_deg when the plan turns joint 4
     if pilot is None:
-        from vision_cal.design.pilot import design_pilot
-
         try:
             d = design_pilot(robot, sheet)
         except VisionCalError as e:
@@ -214,12 +200,7 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
         title = (f"vision-cal pilot: {len(marks)} marks of the seed paper's pattern, kept on "
                  "free paper for every placement within the robot file's tolerance")
     else:
-        from vision_cal.dataset.calibration import load_calibration
-        from vision_cal.plan.calibration_plan import informative_plan
-        from vision_cal.plan.uncertainty import load_covariance
-
         model, doc = load_calibration(pilot)
-        from vision_cal.dataset.sheet_identity import check_same_sheet
 
         check_same_sheet(doc, sheet_raw, file=str(pilot), sheet_file=str(sheet_path))
         cov = load_covariance(doc, model, file=str(pilot))
@@ -232,11 +213,6 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
         iso_extra, iso = [], None
         if stage == "verify" and iso9283_cycles:
             # ISO 9283's points first; the check's marks keep clear of their patches
-            from dataclasses import replace
-
-            from vision_cal.dataset.session import SheetMarker
-            from vision_cal.design.iso9283 import PITCH_MM, iso_marks
-
             bl, sz = sheet.bottom_left_mm, sheet.size_mm
             box = (bl[0], bl[1], bl[0] + sz[0], bl[1] + sz[1]) if bl is not None \
                 else sheet.extent_mm
@@ -308,7 +284,6 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
     info["reach_fraction"] = reach
     # everything is computed: now write
     session_path = atomic_write_json(out / "session.json", session)
-    from vision_cal.dataset.io import atomic_write_bytes
 
     atomic_write_bytes(out / "preview.png", preview)
     traj_path = write_trajectory_csv(out / "trajectory.csv", traj)

@@ -46,10 +46,11 @@ import numpy as np
 from scipy import stats
 
 from vision_cal import joint_terms as jt
-from vision_cal.calibrate.lsq import Fit
+from vision_cal.calibrate.lsq import FailedFit, Fit
+from vision_cal.config import EstimatorConfig
 from vision_cal.diagnose.select import Diagnosis, Evidence, heldout_rms
 from vision_cal.diagnose.structure import sheet_scan
-from vision_cal.errors import CalibrationError
+from vision_cal.kinematics import jacobian_rad
 from vision_cal.model import (JointBacklash, JointCyclic, JointEffect, JointScale, JointTerms,
                               RobotModel, SheetAffine)
 
@@ -308,14 +309,12 @@ def drift_effect(d: Discovery) -> dict:
                            "warm it up / re-home, then draw again"}
 
 
-def refit_with(fit_model: RobotModel, effects, q, xy, app, sigma, ids) -> Fit | None:
-    """The nonlinear fit of the base model plus ``effects`` (None if not identifiable)."""
-    try:
-        return Fit.from_estimate(q, xy, approach=app, model=RobotModel(fit_model.params,
-                                                                       tuple(effects)),
-                                 sigma_mm=sigma, ids=ids)
-    except CalibrationError:
-        return None
+def refit_with(fit_model: RobotModel, effects, q, xy, app, sigma, ids,
+               config: EstimatorConfig | None = None) -> Fit | FailedFit:
+    """The nonlinear fit of the base model plus ``effects`` (falsy if not identifiable)."""
+    return Fit.from_estimate(q, xy, approach=app, model=RobotModel(fit_model.params,
+                                                                   tuple(effects)),
+                             sigma_mm=sigma, ids=ids, config=config)
 
 
 @dataclass(frozen=True)
@@ -328,7 +327,8 @@ class Traced:
 
 
 def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=None, q_val=None,
-          xy_val=None, approach_val=None, alpha: float = 0.01, k_folds: int = 5) -> Traced:
+          xy_val=None, approach_val=None, alpha: float = 0.01, k_folds: int = 5,
+          config: EstimatorConfig | None = None) -> Traced:
     """Scan the selected model's residual along every axis, run the dictionary selection on
     the model without its joint effects and, when it finds what no library effect says
     (a coupling, a polynomial, a third harmonic, a drift), replace the joint effects by
@@ -347,8 +347,8 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
                         "k-fold cross-validation (vision_cal.diagnose.discover)",
               "dictionary": list(jt.DICTIONARY), "alpha": alpha}
     nonjoint = tuple(e for e in final.model.effects if not _dictionary_joint(e))
-    f0 = refit_with(final.model, nonjoint, q, xy, app, sigma_mm, ids)
-    if f0 is None:
+    f0 = refit_with(final.model, nonjoint, q, xy, app, sigma_mm, ids, config)
+    if not f0:
         report["decision"] = "not run: the model without joint effects cannot be fitted"
         return Traced(diag, None, report)
     d = discover(f0, q, app, t, sigma_mm=sigma_mm, alpha=alpha, k_folds=k_folds)
@@ -368,12 +368,12 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     def held(model):
         return heldout_rms(model, q, xy, app, sigma=sigma_mm,
                            q_val=q_val if has_val else None, xy_val=xy_val,
-                           app_val=approach_val, k_folds=k_folds)
+                           app_val=approach_val, k_folds=k_folds, config=config)
 
-    f1 = refit_with(final.model, nonjoint + new_joint, q, xy, app, sigma_mm, ids) \
+    f1 = refit_with(final.model, nonjoint + new_joint, q, xy, app, sigma_mm, ids, config) \
         if new_joint != tuple(e for e in final.model.effects if _dictionary_joint(e)) \
         else None
-    if f1 is None:
+    if not f1:
         report["decision"] = ("drift found; the joint effects kept" if drift else
                               "the dictionary's terms cannot be fitted: kept")
         return Traced(diag, drift, report)
@@ -393,7 +393,7 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     # a sheet effect selected before the joint terms were known may stand in for them: it
     # stays only if it is still significant beside them
     f1, nonjoint, gone = _recheck_nonjoint(f1, nonjoint, new_joint, q, xy, app, sigma_mm, ids,
-                                           alpha)
+                                           config, alpha)
     if gone:
         report["dropped_beside_joint_terms"] = gone
         h1 = held(f1.model)
@@ -442,14 +442,14 @@ def _rss(fit: Fit, sigma) -> float:
     return float(np.sum(r**2))
 
 
-def _recheck_nonjoint(f1, nonjoint, new_joint, q, xy, app, sigma, ids, alpha):
+def _recheck_nonjoint(f1, nonjoint, new_joint, q, xy, app, sigma, ids, config, alpha):
     """Drop each non-joint effect whose F-test beside the new joint effects fails at
     ``alpha``; returns (fit, the non-joint effects kept, labels dropped)."""
     gone = []
     for e in [x for x in nonjoint if isinstance(x, SheetAffine)]:
         rest = tuple(x for x in nonjoint if x is not e)
-        f2 = refit_with(f1.model, rest + new_joint, q, xy, app, sigma, ids)
-        if f2 is None:
+        f2 = refit_with(f1.model, rest + new_joint, q, xy, app, sigma, ids, config)
+        if not f2:
             continue
         k = len(e.theta)
         dof = max(2 * int(f1.inliers.sum()) - f1.n_params, 1)

@@ -12,13 +12,15 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
-GATE_MM = 0.5   # a dot belongs to the mark estimate within this distance
-ALPHA = 0.001   # a photo is flagged when its mean offset's chi-square p is below this
+from vision_cal.config import DEFAULT, PhotoOffsetConfig
 
 
 def per_photo_offsets(measurement, model, q_by_id: dict, approach_by_id: dict, *,
-                      gate_mm: float = GATE_MM, alpha: float = ALPHA) -> list[dict]:
-    """One entry per measured photo: mean residual (mm), its std, chi2 p-value, flag."""
+                      config: PhotoOffsetConfig | None = None) -> list[dict]:
+    """One entry per measured photo: mean residual (mm), its std, chi2 p-value, flag
+    (``config``: gate and level, default ``vision_cal.config.DEFAULT.per_photo_offsets``)."""
+    cfg = config or DEFAULT.per_photo_offsets
+    gate_mm, alpha = cfg.gate_mm, cfg.alpha
     marks = measurement.marks
     ids = [i for i in marks if i in q_by_id]
     if not ids:

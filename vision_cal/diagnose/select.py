@@ -23,19 +23,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from vision_cal.calibrate.lsq import Fit
-from vision_cal.config import DEFAULT
+from vision_cal.calibrate.lsq import FailedFit, Fit
+from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.diagnose.candidates import Candidate, default_candidates, joint_residuals_deg
 from vision_cal.diagnose.structure import harmonic_scan, sheet_scan
-from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import JointCyclic, RobotModel, SheetAffine, Tool
 from vision_cal.rms import rms, rms_2d
 
-ALPHA = DEFAULT.selection.alpha      # family-wise F-test level (see vision_cal.config)
-K_FOLDS = DEFAULT.selection.k_folds  # cross-validation folds when < 3 validation marks
-MIN_SCAN_DOF = DEFAULT.selection.min_scan_dof        # no structure looked for below
-MIN_SHEET_MARKS = DEFAULT.selection.min_sheet_marks  # no sheet map tested below
 
 
 @dataclass(frozen=True)
@@ -93,17 +88,21 @@ class Diagnosis:
         return out
 
 
-def _fit(model, q, xy, app, sigma, ids):
-    return Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, ids=ids)
+def _fit(model, q, xy, app, sigma, ids, config: EstimatorConfig) -> Fit | FailedFit:
+    return Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, ids=ids,
+                             config=config)
 
 
 def heldout_rms(model: RobotModel, q, xy, app, *, sigma=None, q_val=None, xy_val=None,
-                app_val=None, k_folds: int = 5, rng=None) -> float:
-    """Held-out RMS (mm, 2-D): on validation marks if given, else k-fold CV."""
+                app_val=None, k_folds: int = 5, rng=None,
+                config: EstimatorConfig | None = None) -> float:
+    """Held-out RMS (mm, 2-D): on validation marks if given, else k-fold CV (NaN when a
+    fold's marks cannot fit ``model``: no held-out error can be given then)."""
     if q_val is not None and len(q_val) >= 3:
         # fitted as the calibration is (robust pass): a mark it leaves out as an outlier
         # (a mis-associated dot) would pull every model alike and hide what an effect does
-        f = Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, robust=True)
+        f = Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, robust=True,
+                              config=config).or_raise()
         r = xy_val - f.predict(q_val, app_val)
         return rms_2d(r)
     n = len(q)
@@ -114,10 +113,10 @@ def heldout_rms(model: RobotModel, q, xy, app, *, sigma=None, q_val=None, xy_val
     for idx in folds:
         keep = np.ones(n, dtype=bool)
         keep[idx] = False
-        try:
-            f = Fit.from_estimate(q[keep], xy[keep], approach=app[keep], model=model,
-                                  sigma_mm=None if sigma is None else sigma[keep], robust=False)
-        except CalibrationError:
+        f = Fit.from_estimate(q[keep], xy[keep], approach=app[keep], model=model,
+                              sigma_mm=None if sigma is None else sigma[keep], robust=False,
+                              config=config)
+        if not f:
             return float("nan")
         err.append(xy[idx] - f.predict(q[idx], app[idx]))
     return rms_2d(np.concatenate(err))
@@ -152,14 +151,22 @@ def residual_analysis(fit: Fit, q, app, *, n_bins: int = 6) -> dict:
 
 
 def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None, xy_val=None,
-             approach_val=None, candidates: list[Candidate] | None = None, alpha: float = ALPHA,
-             k_folds: int = K_FOLDS, max_effects: int = DEFAULT.selection.max_effects, rng=None,
-             base_effects: tuple = ()) -> Diagnosis:
-    """Calibrate the base model, then add the effects the residual asks for.
+             approach_val=None, candidates: list[Candidate] | None = None,
+             alpha: float | None = None, k_folds: int | None = None,
+             max_effects: int | None = None, rng=None, base_effects: tuple = (),
+             config: EstimatorConfig | None = None) -> Diagnosis:
+    """Calibrate the base model, then add the effects the residual asks for. Thresholds:
+    ``config`` (default ``vision_cal.config.DEFAULT``); ``alpha``, ``k_folds`` and
+    ``max_effects`` given here win over its ``selection`` part.
 
     ``base_effects``: effects every model holds and the selection never tests (the tool and
     joint-4 effects: joints ``(N, 3)`` ``[q1, q2, q4]`` and approach ``(N, 3)``, contract
     "Joint 4 and the tool"); the tool is reported in ``params``, not among the effects."""
+    config = config or DEFAULT
+    sel_cfg = config.selection
+    alpha = sel_cfg.alpha if alpha is None else alpha
+    k_folds = sel_cfg.k_folds if k_folds is None else k_folds
+    max_effects = sel_cfg.max_effects if max_effects is None else max_effects
     q = np.asarray(q_deg, dtype=float)
     ncol = 3 if q.ndim == 2 and q.shape[-1] == 3 else 2
     q = q.reshape(-1, ncol)
@@ -183,7 +190,7 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
             return heldout_rms(model, q[sub], xy[sub], app[sub],
                                sigma=None if sigma is None else sigma[sub],
                                q_val=q_val if has_val else None, xy_val=xy_val,
-                               app_val=approach_val, k_folds=k_folds, rng=rng)
+                               app_val=approach_val, k_folds=k_folds, rng=rng, config=config)
         return held
 
     def select_on(sub):
@@ -193,31 +200,31 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
         ss = None if sigma is None else sigma[sub]
         idl = None if ids is None else tuple(np.asarray(ids, dtype=object)[sub])
         held = held_on(sub)
-        b = _fit(base_model, qs, xs, aps, ss, idl)
-        sl = _select(b, (), cands, qs, xs, aps, ss, idl, held, alpha_each, max_effects)
+        b = _fit(base_model, qs, xs, aps, ss, idl, config).or_raise()
+        sl = _select(b, (), cands, qs, xs, aps, ss, idl, held, alpha_each, max_effects, config)
         # harmonics significant even beside every candidate the plan can fit
         full = sl.fit
         for c in cands:
             if c.key in {k.key for k in cands if any(k.label == a.label for a in sl.accepted)}:
                 continue
-            try:
-                full = _fit(full.model.with_effect(c.effect), qs, xs, aps, ss, idl)
-            except CalibrationError:
-                continue
-        fnd = _unexplained_harmonics(full, qs, aps, ss, cands, alpha, ids=idl, xy=xs)
+            f = _fit(full.model.with_effect(c.effect), qs, xs, aps, ss, idl, config)
+            full = f or full
+        fnd = _unexplained_harmonics(full, qs, aps, ss, cands, alpha, ids=idl, xy=xs,
+                                     config=config)
         nui = tuple(JointCyclic(joint=h["joint"], harmonic=h["harmonic"]) for h in fnd)
         if nui:
-            sl = _select(b, nui, cands, qs, xs, aps, ss, idl, held, alpha_each, max_effects)
+            sl = _select(b, nui, cands, qs, xs, aps, ss, idl, held, alpha_each, max_effects,
+                         config)
         return sl, fnd, nui
 
     everything = np.ones(len(q), dtype=bool)
     held = held_on(everything)
-    base = _fit(base_model, q, xy, app, sigma, ids)
+    base = _fit(base_model, q, xy, app, sigma, ids, config).or_raise()
     sel, found, nuisance = select_on(everything)
     # the sheet map of what is left once the nuisance harmonics are out
     keep = sel.fit.inliers
     sheet_map = (sheet_scan(xy[keep], sel.fit.residuals_mm[keep])
-                 if keep.sum() >= MIN_SHEET_MARKS else {"p_value": 1.0, "k": 0})
+                 if keep.sum() >= sel_cfg.min_sheet_marks else {"p_value": 1.0, "k": 0})
     sheet_alpha = alpha / 2
     if sheet_map["p_value"] < sheet_alpha:
         # neighbouring marks share a residual: select again without the marks there, so
@@ -240,7 +247,7 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
                + tuple(sel.fit.model.effects[n_base + len(nuisance):]))
     if nuisance or len(sel.fit.residuals_mm) != len(q):
         zero = RobotModel(base.params, tuple(_at_zero(e) for e in effects))
-        current = _fit(zero if effects else None, q, xy, app, sigma, ids)
+        current = _fit(zero if effects else None, q, xy, app, sigma, ids, config).or_raise()
         current_held = held(current.model)
         base_held = held(base.model)
     else:
@@ -281,12 +288,12 @@ def _at_zero(e):
 
 
 def _select(base: Fit, nuisance: tuple, cands, q, xy, app, sigma, ids, held, alpha_each,
-            max_effects) -> _Selection:
+            max_effects, config: EstimatorConfig) -> _Selection:
     """Forward selection from the base model (plus ``nuisance`` effects, fitted but never
     reported: structure no candidate explains)."""
     if nuisance:
         current = _fit(RobotModel(base.params, base.model.effects + nuisance), q, xy, app,
-                       sigma, ids)
+                       sigma, ids, config).or_raise()
     else:
         current = base
     current_held = held(current.model)
@@ -300,11 +307,10 @@ def _select(base: Fit, nuisance: tuple, cands, q, xy, app, sigma, ids, held, alp
             if c.key in used_keys:
                 continue
             model = current.model.with_effect(c.effect)
-            try:
-                f = _fit(model, q, xy, app, sigma, ids)
-            except CalibrationError as e:
+            f = _fit(model, q, xy, app, sigma, ids, config)
+            if not f:
                 if not any(d["label"] == c.label for d in not_ident):
-                    not_ident.append({"label": c.label, "reason": str(e), "fix": c.fix})
+                    not_ident.append({"label": c.label, "reason": f.reason, "fix": c.fix})
                 continue
             rss0, rss1 = _rss_w(current, sigma), _rss_w(f, sigma)
             k = f.n_params - current.n_params
@@ -347,7 +353,7 @@ def _select(base: Fit, nuisance: tuple, cands, q, xy, app, sigma, ids, held, alp
 
 
 def _unexplained_harmonics(fit: Fit, q, app, sigma, cands, alpha, *, ids=None, xy=None,
-                           max_found: int = 3) -> list[dict]:
+                           max_found: int = 3, config: EstimatorConfig) -> list[dict]:
     """Joint harmonics significant in the residual that no candidate offers, at level
     ``alpha`` split over every harmonic scanned. One at a time, strongest first: each found
     one is fitted before the next scan (a strong harmonic of one joint leaks into the
@@ -355,7 +361,7 @@ def _unexplained_harmonics(fit: Fit, q, app, sigma, cands, alpha, *, ids=None, x
     offered = {(c.effect.joint, c.effect.harmonic) for c in cands
                if isinstance(c.effect, JointCyclic)}
     out = []
-    if 2 * int(fit.inliers.sum()) - fit.n_params - 2 < MIN_SCAN_DOF:
+    if 2 * int(fit.inliers.sum()) - fit.n_params - 2 < config.selection.min_scan_dof:
         return out          # too few marks to tell a harmonic from the noise
     for _ in range(max_found):
         keep = fit.inliers
@@ -371,11 +377,10 @@ def _unexplained_harmonics(fit: Fit, q, app, sigma, cands, alpha, *, ids=None, x
             break
         best = max(sig, key=lambda r: r["F"])
         out.append(best)
-        try:
-            fit = _fit(fit.model.with_effect(JointCyclic(joint=best["joint"],
-                                                         harmonic=best["harmonic"])),
-                       q, xy, app, sigma, ids)
-        except CalibrationError:
+        fit = _fit(fit.model.with_effect(JointCyclic(joint=best["joint"],
+                                                     harmonic=best["harmonic"])),
+                   q, xy, app, sigma, ids, config)
+        if not fit:
             break
     return out
 

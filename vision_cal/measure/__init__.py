@@ -5,9 +5,9 @@ Frames and units: sheet frame S (x right, y up, mm) as in the dataset format; im
 
 Public API (imports are lazy so that ``import vision_cal.measure`` stays light)::
 
-    measure_folder(session, *, out_dir, jobs=None, cache_dir=None, progress=None)
+    measure_folder(session, *, out_dir, jobs=None, cache_dir=None, progress=None, config=None)
         -> Measurement(marks={id: MarkMeasurement}, images=[ImageResult], lens, ...)
-    measure_image(path, session, *, lens=None) -> ImageResult
+    measure_image(path, session, *, lens=None, config=None) -> ImageResult
 
 Modules: ``aruco`` (markers, sub-pixel edges), ``mapping`` (lens + homography, lens
 estimate), ``dots`` (ink dots and their centres on the sheet), ``associate`` (dots to

@@ -14,15 +14,13 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
+from vision_cal.config import DEFAULT, MarkerConfig
 from vision_cal.dataset.session import Sheet
 from vision_cal.dataset.marker_geometry import MarkerGeometry
 
 #: dictionaries tried (only after a failure) to tell "another sheet" from "no sheet"
 _PROBE_DICTS = ("DICT_4X4_1000", "DICT_5X5_1000", "DICT_6X6_1000", "DICT_7X7_1000",
                 "DICT_ARUCO_ORIGINAL", "DICT_APRILTAG_36h11")
-
-MIN_MARKERS = 4
-MIN_HULL_FRACTION = 0.04  # convex hull of the markers' corners / image area
 
 
 @lru_cache(maxsize=16)
@@ -63,7 +61,11 @@ class MarkerDetection:
     reason: str | None
 
 
-def find_sheet_markers(gray: np.ndarray, sheet: Sheet) -> MarkerDetection:
+def find_sheet_markers(gray: np.ndarray, sheet: Sheet, *,
+                       config: MarkerConfig | None = None) -> MarkerDetection:
+    """The sheet's markers in a grey photo; ``reason`` set when too few or another sheet's
+    (thresholds: ``config``, default ``vision_cal.config.DEFAULT.markers``)."""
+    cfg = config or DEFAULT.markers
     ids, c = detect_raw(gray, sheet.aruco_dictionary)
     by_id = sheet.corners_by_id()
     keep = np.array([int(i) in by_id for i in ids], dtype=bool)
@@ -79,21 +81,21 @@ def find_sheet_markers(gray: np.ndarray, sheet: Sheet) -> MarkerDetection:
     if n_foreign >= 2 and n_foreign > n:
         reason = (f"wrong sheet: {n_foreign} {sheet.aruco_dictionary} markers are not on this "
                   f"sheet, {n} are")
-    elif n < MIN_MARKERS:
+    elif n < cfg.min_markers:
         other = _probe_other_dictionaries(gray, sheet.aruco_dictionary) if n == 0 else None
         if other:
             reason = f"wrong sheet: {other}, none of this sheet's {sheet.aruco_dictionary}"
         else:
             reason = (f"too few markers: {n} of the sheet's markers found, "
-                      f"at least {MIN_MARKERS} needed")
+                      f"at least {cfg.min_markers} needed")
     else:
         pts = c_k.reshape(-1, 2).astype(np.float32)
         hull = cv2.convexHull(pts)
         area = float(cv2.contourArea(hull))
         frac = area / float(gray.shape[0] * gray.shape[1])
-        if frac < MIN_HULL_FRACTION:
+        if frac < cfg.min_hull_fraction:
             reason = (f"too few markers: the {n} markers found cover {100 * frac:.1f} % of "
-                      f"the image, at least {100 * MIN_HULL_FRACTION:.0f} % needed")
+                      f"the image, at least {100 * cfg.min_hull_fraction:.0f} % needed")
     return MarkerDetection(ids_k, c_k, mm, n_foreign, reason)
 
 

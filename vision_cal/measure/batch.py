@@ -33,14 +33,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vision_cal.config import DEFAULT, AssociationConfig
+from vision_cal.config import DEFAULT, AssociationConfig, EstimatorConfig
 from vision_cal.dataset import photos
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.session import Session, load_session
 from vision_cal.calibrate.tool import fit_tool
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.measure import associate as assoc
-from vision_cal.measure.aruco import MIN_MARKERS, edge_points, find_sheet_markers
+from vision_cal.measure.aruco import edge_points, find_sheet_markers
 from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerprint
 from vision_cal.measure.infer import infer_image_marks
 from vision_cal.dataset.marker_geometry import marker_geometry
@@ -64,7 +64,6 @@ from vision_cal.measure.types import (ImageDetections, ImageResult, MarkMeasurem
 log = logging.getLogger(__name__)
 
 IMAGE_SUFFIXES = set(photos.PHOTO_SUFFIXES)
-BLANK_STD = 2.0
 
 
 # --------------------------------------------------------------------------- stage 1
@@ -90,16 +89,18 @@ def _decode(data: bytes, file: str, camera_size_px=None):
     return img, None  # BGR: the dot stages only use channel max and sum (order-free)
 
 
-def _drop_deformed_markers(d: ImageDetections, K, dist, *, min_px: float = 0.5,
+def _drop_deformed_markers(d: ImageDetections, K, dist, *, min_markers: int | None = None,
+                           min_px: float = 0.5,
                            factor: float = 5.0):
     """Leave out markers whose corners do not fit the sheet's shape (a corner on the arm's
     edge, a marker half hidden): residuals of a homography fitted to all markers, with each
     marker's mean residual removed (so that an undeclared lens, smooth over a marker, does
     not count), above ``max(min_px, factor x median)``. Returns (detections, n dropped)."""
+    min_markers = DEFAULT.markers.min_markers if min_markers is None else min_markers
     n_drop = 0
     for _ in range(3):
         M = len(d.marker_ids)
-        if M < MIN_MARKERS + 1:
+        if M < min_markers + 1:
             break
         c = d.corners_for(K, dist)
         uv = undistort_px(c.reshape(-1, 2), K, dist).reshape(-1, 4, 2)
@@ -119,8 +120,11 @@ def _drop_deformed_markers(d: ImageDetections, K, dist, *, min_px: float = 0.5,
     return d, n_drop
 
 
-def detect_image_bytes(data: bytes, file: str, session: Session) -> ImageDetections:
-    """Stage 1 on one photo's bytes (pure function of its inputs)."""
+def detect_image_bytes(data: bytes, file: str, session: Session, *,
+                       config: EstimatorConfig | None = None) -> ImageDetections:
+    """Stage 1 on one photo's bytes (pure function of its inputs; ``config``: the
+    ``markers`` and ``dots`` thresholds, default ``vision_cal.config.DEFAULT``)."""
+    config = config or DEFAULT
     cam = session.camera
     rgb, why = _decode(data, file, None if cam is None else cam.size_px)
     if rgb is None:
@@ -131,9 +135,9 @@ def detect_image_bytes(data: bytes, file: str, session: Session) -> ImageDetecti
         return _skip(file, f"wrong size: {w}x{h} px, camera.size_px says "
                            f"{cam.size_px[0]}x{cam.size_px[1]}", size)
     gray = cv2.cvtColor(rgb, cv2.COLOR_BGR2GRAY)
-    if float(gray[::4, ::4].std()) < BLANK_STD:
+    if float(gray[::4, ::4].std()) < config.markers.blank_photo_std:
         return _skip(file, "blank image: no contrast", size)
-    det = find_sheet_markers(gray, session.sheet)
+    det = find_sheet_markers(gray, session.sheet, config=config.markers)
     if det.reason:
         return ImageDetections(file, "skipped", det.reason, size, det.ids, det.corners_px,
                                det.corners_mm)
@@ -142,8 +146,8 @@ def detect_image_bytes(data: bytes, file: str, session: Session) -> ImageDetecti
     out = ImageDetections(file, "ok", None, size, det.ids, det.corners_px, det.corners_mm,
                           None, edge_points(gray, det.corners_px,
                                             geometry=marker_geometry(session.sheet)))
-    out, n_bad = _drop_deformed_markers(out, K, dist)
-    if len(out.marker_ids) < MIN_MARKERS:
+    out, n_bad = _drop_deformed_markers(out, K, dist, min_markers=config.markers.min_markers)
+    if len(out.marker_ids) < config.markers.min_markers:
         return _skip(file, f"too few markers: {len(out.marker_ids)} usable after {n_bad} "
                            "deformed ones (partly hidden?) were left out", size)
     try:
@@ -151,7 +155,8 @@ def detect_image_bytes(data: bytes, file: str, session: Session) -> ImageDetecti
                              out.corners_for(K, dist).reshape(-1, 2), K=K, dist=dist)
     except VisionCalError as e:
         return _skip(file, f"no mapping: {e.reason}", size)
-    cand = find_candidates(rgb, approx, session.sheet, dia_mm=session.pen_mark_diameter_mm)
+    cand = find_candidates(rgb, approx, session.sheet, dia_mm=session.pen_mark_diameter_mm,
+                           config=config.dots)
     gp, go = None, None
     if session.sheet.grid_spec is not None and len(cand.uv_px):
         gp, go = _grid_patches(rgb, approx, cand.uv_px)
@@ -180,7 +185,8 @@ def _grid_patches(rgb, mapping, uv_px):
 
 
 def detect_image(path, session: Session, *, root=None, name: str | None = None,
-                 sha256: str | None = None) -> ImageDetections:
+                 sha256: str | None = None,
+                 config: EstimatorConfig | None = None) -> ImageDetections:
     """Stage 1 on one photo file: ``root``/``name`` (``name`` the photo's relative path,
     kept in the result), or ``path`` itself. ``sha256``: the content the caller checked
     (header, cache key); a file that changed since is skipped."""
@@ -193,7 +199,7 @@ def detect_image(path, session: Session, *, root=None, name: str | None = None,
         return _skip(name, e.reason)
     if sha256 is not None and hashlib.sha256(data).hexdigest() != sha256:
         return _skip(name, "changed while being measured: run again")
-    return detect_image_bytes(data, name, session)
+    return detect_image_bytes(data, name, session, config=config)
 
 
 # --------------------------------------------------------------------------- stage 2
@@ -209,8 +215,11 @@ def _lens_of(session: Session, lens: LensEstimate | None, size):
 
 
 def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | None = None,
-                 *, from_cache: bool = False) -> ImageResult:
-    """Stage 2: final mapping and dot centres on the sheet."""
+                 *, from_cache: bool = False,
+                 config: EstimatorConfig | None = None) -> ImageResult:
+    """Stage 2: final mapping and dot centres on the sheet (``config``: the ``dots``
+    thresholds, default ``vision_cal.config.DEFAULT``)."""
+    config = config or DEFAULT
     if det.status != "ok":
         return ImageResult(det.file, det.status, det.reason, n_markers=len(det.marker_ids),
                            size_px=det.size_px, from_cache=from_cache)
@@ -241,14 +250,15 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     grid_blank = blank if pref is None else np.concatenate([blank, pref.ungridded_boxes_mm()])
     for k, (patch, org, x0, uv) in enumerate(zip(c.patches, c.origins, xy0, c.uv_px)):
         r = refine_dot(patch, org, m, x0, dia_mm=dia, noise_sigma=c.noise_sigma,
-                       blank_rects=blank, printed=pref)
+                       blank_rects=blank, printed=pref, config=config.dots)
         if r is None:
             rejected["not measurable"] = rejected.get("not measurable", 0) + 1
             continue
         xy, cov, off, ref = r.xy_mm, r.cov_mm2, np.full(2, np.nan), "markers"
         oc = np.full((2, 2), np.nan)
         if have_grid and not r.printed_under:   # over print, the grid around is interrupted
-            go = _local_grid(det, k, m, r.xy_mm, grid, dia, grid_blank)
+            go = _local_grid(det, k, m, r.xy_mm, grid, dia or config.dots.default_diameter_mm,
+                             grid_blank)
             if go is not None:
                 # the dot against the printed lines around it: the marker mapping's error
                 # (and a raised paper's parallax) cancels, the lines' own noise adds
@@ -279,21 +289,24 @@ def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank):
     """The printed grid's offset around candidate ``k`` (None: not usable)."""
     if k >= len(det.grid_patches):
         return None
-    r_win, _ = _radii_mm(float(dia or DEFAULT.dots.default_diameter_mm), float(mapping.mm_per_px(xy_mm)[0]))
+    r_win, _ = _radii_mm(float(dia), float(mapping.mm_per_px(xy_mm)[0]))
     return grid_offset(det.grid_patches[k], det.grid_origins[k], mapping, xy_mm, grid,
                        exclude_r_mm=r_win, blank_rects=blank)
 
 
-def measure_image(path, session: Session, *, lens: LensEstimate | None = None) -> ImageResult:
+def measure_image(path, session: Session, *, lens: LensEstimate | None = None,
+                  config: EstimatorConfig | None = None) -> ImageResult:
     """Measure one photo (markers, mapping, dots in sheet mm). Pure; the result pickles."""
-    return finish_image(detect_image(path, session), session, lens)
+    return finish_image(detect_image(path, session, config=config), session, lens,
+                        config=config)
 
 
 # --------------------------------------------------------------------------- batch
 
 def _worker(args):
-    root, name, session, sha = args
-    return detect_image(Path(root) / name, session, root=root, name=name, sha256=sha)
+    root, name, session, sha, config = args
+    return detect_image(Path(root) / name, session, root=root, name=name, sha256=sha,
+                        config=config)
 
 
 def _is_inside(a: Path, b: Path) -> bool:
@@ -427,13 +440,13 @@ def _with_fitted_tool(a, session, mark_ids, mark_images, groups, ac):
 
 
 def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
-                   progress=None, association: AssociationConfig | None = None) -> Measurement:
+                   progress=None, config: EstimatorConfig | None = None) -> Measurement:
     """Measure every photo of a dataset folder and every pen mark on the sheet.
 
     ``session``: a :class:`Session` or a folder. ``out_dir``: where results go (never the
     input folder); the cache defaults to ``out_dir/.cache``. ``jobs``: worker processes
     (default ``os.cpu_count()``; 1 runs in this process). ``progress``: a tqdm bar on stderr.
-    ``association``: grouping and matching thresholds (default ``vision_cal.config``).
+    ``config``: the thresholds of every stage (default ``vision_cal.config.DEFAULT``).
     Without ``images`` in session.json every photo in the folder is measured and which
     marks each shows is inferred (:mod:`vision_cal.measure.infer`).
 
@@ -454,18 +467,19 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
         raise VisionCalError("the output folder must not be inside the input folder "
                              "(photos are never written to)", file=str(out_dir))
     cache = DetectionCache(Path(cache_dir) if cache_dir else out_dir / ".cache")
-    ac = association or DEFAULT.association
+    config = config or DEFAULT
+    ac = config.association
 
     items, warnings, notes = photos_to_measure(session)
-    warnings += detect_all(items, session, cache, jobs=jobs, progress=progress)
+    warnings += detect_all(items, session, cache, jobs=jobs, progress=progress, config=config)
     dets = [ph.det for ph in items]
     cached = [ph.cached for ph in items]
     lens, lens_warnings = lens_of_photos(session, dets)
     warnings += lens_warnings
-    images, finish_warnings = finish_all(session, dets, cached, lens)
+    images, finish_warnings = finish_all(session, dets, cached, lens, config)
     warnings += finish_warnings
     files = [ph.file for ph in items]
-    dots = associate_dots(session, items, images, ac)
+    dots = associate_dots(session, items, images, ac, config.dots.default_diameter_mm)
     warnings += dots.warnings
     marks = mark_measurements(dots, images, files, ac)
     heights, hmap, hnote = sheet_height_stage(session, images, marks, dots, lens, ac)
@@ -535,13 +549,15 @@ def photos_to_measure(session: Session) -> tuple[list[_Photo], list[str], list[s
 
 
 def detect_all(items: list[_Photo], session: Session, cache: DetectionCache, *,
-               jobs: int | None = None, progress=None) -> list[str]:
+               jobs: int | None = None, progress=None,
+               config: EstimatorConfig | None = None) -> list[str]:
     """Stage 1 of every photo not skipped yet (``ph.det`` filled): from the cache, else in
     ``jobs`` worker processes (fewer when large photos would not fit
     :data:`MAX_PIXELS_IN_FLIGHT`), with a progress bar. Returns the warnings."""
     root = Path(session.root)
     warnings: list[str] = []
-    fp = session_fingerprint(session)
+    config = config or DEFAULT
+    fp = session_fingerprint(session, config)
     todo = []
     for i, ph in enumerate(items):
         if ph.det is not None:
@@ -568,7 +584,7 @@ def detect_all(items: list[_Photo], session: Session, cache: DetectionCache, *,
                        if todo else "all from the cache")
     if not todo and bar:
         bar.update(n_cached)
-    args = [(root, items[i].file, session, items[i].sha256) for i in todo]
+    args = [(root, items[i].file, session, items[i].sha256, config) for i in todo]
     try:
         if jobs <= 1 or len(todo) <= 1:
             results = (_worker(a) for a in args)
@@ -626,20 +642,21 @@ def lens_of_photos(session: Session, dets: list[ImageDetections]
 
 
 def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool],
-               lens: LensEstimate | None) -> tuple[list[ImageResult], list[str]]:
+               lens: LensEstimate | None, config: EstimatorConfig | None = None
+               ) -> tuple[list[ImageResult], list[str]]:
     """Every photo's final mapping and dots (:func:`finish_image`); the sheet's declaration
     checked (markers that do not fit it stop the run, a misdeclared grid is dropped: the
     markers win) and a photo moved as a whole against the others left out. Returns
     (images, warnings)."""
     warnings: list[str] = []
-    images = [finish_image(d, session, lens, from_cache=c) for d, c in zip(dets, cached)]
+    images = [finish_image(d, session, lens, from_cache=c, config=config) for d, c in zip(dets, cached)]
     _check_sheet_fits(session, images)
     wrong_grid = misdeclared_grid(images, session.sheet.grid_spec)
     if wrong_grid is not None:   # two references disagree by a constant: the markers win
         log.warning(wrong_grid.message)
         warnings.append(wrong_grid.message)
         session = replace(session, sheet=replace(session.sheet, grid=None))
-        images = [finish_image(d, session, lens, from_cache=c) for d, c in zip(dets, cached)]
+        images = [finish_image(d, session, lens, from_cache=c, config=config) for d, c in zip(dets, cached)]
     # a photo moved as a whole against the others is left out, not the marks it shares
     for k, why in disagreeing_photos(images).items():
         log.warning("%s: %s", images[k].file, why)
@@ -673,7 +690,7 @@ class AssociatedDots:
 
 
 def associate_dots(session: Session, items: list[_Photo], images: list[ImageResult],
-                   ac: AssociationConfig) -> AssociatedDots:
+                   ac: AssociationConfig, default_diameter_mm: float) -> AssociatedDots:
     """Stage 3: dots grouped across photos and the groups matched to the planned marks
     (which marks a photo shows: listed, or inferred); photos that do not match the plan
     stop the run (:mod:`vision_cal.measure.plan_match`). Each photo's ``dots_mark`` is set
@@ -682,7 +699,7 @@ def associate_dots(session: Session, items: list[_Photo], images: list[ImageResu
     files = [ph.file for ph in items]
     idx_ok = [i for i, r in enumerate(images) if r.status == "ok"]
     per_image = [(i, images[i].dots_xy_mm, images[i].dots_cov_mm2) for i in idx_ok]
-    dia = session.pen_mark_diameter_mm or DEFAULT.dots.default_diameter_mm
+    dia = session.pen_mark_diameter_mm or default_diameter_mm
     groups = assoc.group_dots(per_image, tol_mm=max(ac.group_tol_diameters * dia,
                                                     ac.group_tol_min_mm))
     mark_ids = [m.id for m in session.marks]

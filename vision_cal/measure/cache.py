@@ -23,10 +23,12 @@ import json
 import logging
 import time
 import zipfile
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
+from vision_cal.config import DEFAULT
 from vision_cal.dataset.io import atomic_write_bytes
 from vision_cal.measure.dots import DotCandidates
 from vision_cal.measure.types import ImageDetections
@@ -41,13 +43,18 @@ MAX_ENTRY_BYTES = 256 * 1024 * 1024
 STALE_TMP_S = 3600.0
 
 
-def session_fingerprint(session) -> str:
+def session_fingerprint(session, config=None) -> str:
+    """What stage 1 depends on besides the photo: the sheet, pen, camera and the
+    ``markers``/``dots`` thresholds of ``config`` (an ``EstimatorConfig``)."""
     cam = session.camera
     parts = {"sheet": session.sheet.to_json() if session.sheet else None,
              "pen": session.pen_mark_diameter_mm,
              "camera": None if cam is None else {"size": list(cam.size_px),
                                                  "K": np.asarray(cam.K).tolist(),
                                                  "dist": np.asarray(cam.dist).tolist()}}
+    if config is not None and (config.markers, config.dots) != (DEFAULT.markers, DEFAULT.dots):
+        # stage 1's thresholds, when not the defaults (default runs keep their old keys)
+        parts["config"] = {"markers": asdict(config.markers), "dots": asdict(config.dots)}
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
 
 

@@ -31,7 +31,7 @@ import cv2
 import numpy as np
 from scipy.ndimage import maximum_filter1d
 
-from vision_cal.config import DEFAULT
+from vision_cal.config import DEFAULT, DotConfig
 from vision_cal.dataset.session import Sheet
 from vision_cal.measure.mapping import SheetMapping
 from vision_cal.measure.printed import BLUR_CANDIDATES_PX
@@ -39,21 +39,6 @@ from vision_cal.dataset.marker_geometry import (marker_boxes_mm, marker_geometry
                                                 quiet_boxes_mm)
 from vision_cal.rms import rms
 
-_CFG = DEFAULT.dots
-# the thresholds live (documented) in vision_cal.config.DotConfig
-INK_DARKENING = _CFG.ink_darkening
-MIN_AREA_RATIO = _CFG.min_area_ratio
-MAX_AREA_RATIO = _CFG.max_area_ratio
-HUGE_AREA_RATIO = _CFG.huge_area_ratio
-MAX_ASPECT = _CFG.max_aspect
-MIN_SOLIDITY = _CFG.min_solidity
-MARKER_MARGIN_MM = _CFG.marker_margin_mm
-FINE_STEP_MM = _CFG.fine_step_mm
-DEFAULT_DIAMETER_MM = _CFG.default_diameter_mm
-MODEL_FLOOR_PX = _CFG.model_floor_px
-UNRELIABLE_BG_RESIDUAL = _CFG.unreliable_bg_residual
-UNRELIABLE_BG_RESIDUAL_SEPARABLE = _CFG.unreliable_bg_residual_separable
-UNRELIABLE_INK_SHIFT_MM = _CFG.unreliable_ink_shift_mm
 
 
 def _radii_mm(dia_mm: float, mm_per_px: float) -> tuple[float, float]:
@@ -146,9 +131,10 @@ def _polygon(mapping: SheetMapping, corners_mm: np.ndarray, n: int = 12) -> np.n
     return mapping.sheet_to_image(pts)
 
 
-def sheet_mask(shape, mapping: SheetMapping, sheet: Sheet, *, border_mm: float = 2.0
-               ) -> np.ndarray:
-    """uint8 (H, W) 255 where pen marks may be: on the paper, off markers and quiet zones."""
+def sheet_mask(shape, mapping: SheetMapping, sheet: Sheet, *, border_mm: float = 2.0,
+               margin_mm: float | None = None) -> np.ndarray:
+    """uint8 (H, W) 255 where pen marks may be: on the paper, off markers and quiet zones
+    (``margin_mm`` around each marker, default ``config.DotConfig.marker_margin_mm``)."""
     H, W = shape[:2]
     mask = np.zeros((H, W), np.uint8)
     x0, y0, x1, y1 = sheet.search_extent_mm
@@ -157,7 +143,8 @@ def sheet_mask(shape, mapping: SheetMapping, sheet: Sheet, *, border_mm: float =
     poly = _polygon(mapping, paper, 24)
     cv2.fillPoly(mask, [np.round(poly * 16).astype(np.int32)], 255, cv2.LINE_8, 4)
     # the quiet zone is blank paper: dots there are measurable
-    for lo0, lo1, hi0, hi1 in marker_boxes_mm(sheet, MARKER_MARGIN_MM):
+    margin = DEFAULT.dots.marker_margin_mm if margin_mm is None else margin_mm
+    for lo0, lo1, hi0, hi1 in marker_boxes_mm(sheet, margin):
         lo, hi = (lo0, lo1), (hi0, hi1)
         sq = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
         poly = _polygon(mapping, sq, 4)
@@ -166,10 +153,13 @@ def sheet_mask(shape, mapping: SheetMapping, sheet: Sheet, *, border_mm: float =
 
 
 def find_candidates(rgb: np.ndarray, mapping: SheetMapping, sheet: Sheet, *,
-                    dia_mm: float | None = None) -> DotCandidates:
+                    dia_mm: float | None = None,
+                    config: DotConfig | None = None) -> DotCandidates:
     """Stage 1 on a whole colour photo (H, W, 3) uint8 (any channel order: only the
-    channels' maximum and sum are used) with an approximate mapping."""
-    dia = float(dia_mm or DEFAULT_DIAMETER_MM)
+    channels' maximum and sum are used) with an approximate mapping. ``config``: the
+    thresholds (default ``vision_cal.config.DEFAULT.dots``)."""
+    cfg = config or DEFAULT.dots
+    dia = float(dia_mm or cfg.default_diameter_mm)
     H, W = rgb.shape[:2]
     x0, y0, x1, y1 = sheet.search_extent_mm
     probe = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1], [(x0 + x1) / 2, (y0 + y1) / 2]])
@@ -179,9 +169,9 @@ def find_candidates(rgb: np.ndarray, mapping: SheetMapping, sheet: Sheet, *,
     k += 1 - k % 2
     V = cv2.max(cv2.max(rgb[:, :, 0], rgb[:, :, 1]), rgb[:, :, 2])
     bg = cv2.morphologyEx(V, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_RECT, (k, k)))
-    thr = cv2.multiply(bg, 1.0 - INK_DARKENING, dtype=cv2.CV_8U)
+    thr = cv2.multiply(bg, 1.0 - cfg.ink_darkening, dtype=cv2.CV_8U)
     ink = cv2.compare(V, thr, cv2.CMP_LT)
-    mask = sheet_mask(rgb.shape, mapping, sheet)
+    mask = sheet_mask(rgb.shape, mapping, sheet, margin_mm=cfg.marker_margin_mm)
     ink = cv2.bitwise_and(ink, mask)
     try:
         n, labels, stats, cents = cv2.connectedComponentsWithStats(ink, connectivity=8,
@@ -207,12 +197,12 @@ def find_candidates(rgb: np.ndarray, mapping: SheetMapping, sheet: Sheet, *,
         for j, lab in enumerate(idx):
             uv = cents[lab]
             r = ratio[j]
-            if r < MIN_AREA_RATIO:
+            if r < cfg.min_area_ratio:
                 continue  # noise, paper texture: not worth a reason
-            if r > HUGE_AREA_RATIO:
+            if r > cfg.huge_area_ratio:
                 reject("too large for a pen mark (arm, shadow or print)", uv)
                 continue
-            if r > MAX_AREA_RATIO:
+            if r > cfg.max_area_ratio:
                 reject("too large for one mark (merged marks or smudge)", uv)
                 continue
             xl, yt, w, h = stats[lab, :4]
@@ -238,7 +228,7 @@ def find_candidates(rgb: np.ndarray, mapping: SheetMapping, sheet: Sheet, *,
             Cm = J[j] @ C @ J[j].T
             ev = np.linalg.eigvalsh(Cm)
             aspect = float(np.sqrt(ev[1] / max(ev[0], 1e-12)))
-            if aspect > MAX_ASPECT:
+            if aspect > cfg.max_aspect:
                 reject("elongated (merged marks or smudge)", uv)
                 continue
             cnts, _ = cv2.findContours(np.pad(crop, 1).astype(np.uint8), cv2.RETR_EXTERNAL,
@@ -246,7 +236,7 @@ def find_candidates(rgb: np.ndarray, mapping: SheetMapping, sheet: Sheet, *,
             cnt = max(cnts, key=len)
             a_c = cv2.contourArea(cnt)
             a_h = cv2.contourArea(cv2.convexHull(cnt))
-            if a_h > 8 and a_c / a_h < MIN_SOLIDITY:
+            if a_h > 8 and a_c / a_h < cfg.min_solidity:
                 reject("irregular shape (smudge)", uv)
                 continue
             mm_px = float(np.sqrt(det[j]))
@@ -317,7 +307,7 @@ def blank_regions(sheet: Sheet) -> np.ndarray:
 def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
                dia_mm: float | None = None, noise_sigma: float = 1.0,
                median_efficiency: float = 1.57, blank_rects=None,
-               printed=None) -> DotMeasurement | None:
+               printed=None, config: DotConfig | None = None) -> DotMeasurement | None:
     """Stage 2: the dot's sheet centre from its raw patch with the final mapping.
 
     ``blank_rects`` (K, 4): sheet rectangles with no plotting grid (see
@@ -326,13 +316,15 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     near the dot (axes, bars, text), the background is that print rendered into the patch
     (:func:`_printed_background`) instead of the separable model. Returns None when the
     dot cannot be measured (patch too small for the mapping, no ink, centroid running away).
+    ``config``: the thresholds (default ``vision_cal.config.DEFAULT.dots``).
     """
-    dia = float(dia_mm or DEFAULT_DIAMETER_MM)
+    cfg = config or DEFAULT.dots
+    dia = float(dia_mm or cfg.default_diameter_mm)
     S = patch_rgb.astype(np.float32).sum(axis=2)
     c = np.asarray(xy0_mm, float).reshape(2)
     mm_px = float(mapping.mm_per_px(c)[0])
     r_win, half = _radii_mm(dia, mm_px)
-    step = min(FINE_STEP_MM, mm_px / 4)
+    step = min(cfg.fine_step_mm, mm_px / 4)
     under = [] if printed is None else printed.content_near(c, half + 0.5)
     background = "separable"
     d_shift = 0.0
@@ -439,7 +431,7 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     gy = np.stack([(wt * dX).sum(axis=1), (wt * dY).sum(axis=1)]) * step  # (2, ny)
     cov_bg = ((gx / np.maximum(Lx, step)) @ gx.T + (gy / np.maximum(Ly, step)) @ gy.T) * step
     cov_noise = sw2 * (cov_pix + median_efficiency * cov_bg) / (M_mm2**2)
-    cov_noise = cov_noise + np.eye(2) * (MODEL_FLOOR_PX * mm_px) ** 2
+    cov_noise = cov_noise + np.eye(2) * (cfg.model_floor_px * mm_px) ** 2
     cov_map = mapping.point_cov_mm2(c)[0]
     # what the separable background leaves unexplained, relative to the noise (diagnostic)
     noise_grid = np.sqrt(sw2) / mm_px  # per-sample std of the relative intensity (upper)
@@ -447,8 +439,8 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     ratio = e_rms / noise_grid
     on = "; ".join(it.label for it in under)
     why = ""
-    limit = (UNRELIABLE_BG_RESIDUAL if background == "printed"
-             else UNRELIABLE_BG_RESIDUAL_SEPARABLE)
+    limit = (cfg.unreliable_bg_residual if background == "printed"
+             else cfg.unreliable_bg_residual_separable)
     if not ratio <= limit:
         what = (f"pen ink on printed ink ({on})" if on else
                 "the ground around the mark is not paper and grid lines (printed ink, a blot "
@@ -457,7 +449,7 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
                else "paper and grid lines")
         why = (f"{what} that could not be separated: {how} leave {ratio:.1f} times the "
                "noise around it")
-    elif background == "printed" and d_shift > UNRELIABLE_INK_SHIFT_MM:
+    elif background == "printed" and d_shift > cfg.unreliable_ink_shift_mm:
         why = (f"pen ink on printed ink ({on}) that could not be separated: the centre "
                f"moves {1000 * d_shift:.0f} um with the ink's assumed darkness (+-20 %)")
     return DotMeasurement(c, cov_noise + cov_map, M_mm2, cov_noise, cov_map,

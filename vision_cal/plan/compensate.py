@@ -22,10 +22,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vision_cal.kinematics import inverse
+from vision_cal.kinematics import ik_failures, inverse
 from vision_cal.model import JointEffect, JointTerms, RobotModel
 from vision_cal.motion import JOINT_LIMITS_DEG, TRAJECTORY_DT_S
 from vision_cal.plan.calibration_plan import PlannedMark
+from vision_cal.plan.trajectory import plan_trajectory, write_trajectory_csv
 
 DEFAULT_LIMITS_DEG = JOINT_LIMITS_DEG  # the old name, kept for callers
 
@@ -89,8 +90,6 @@ def plan_targets(model: RobotModel, ids, targets_mm, *, elbow: int = 1, approach
                  joint_limits_deg=JOINT_LIMITS_DEG, min_sin_q2: float = 0.05
                  ) -> list[PlannedTarget]:
     """Joint commands for every target (N, 2) mm; failures carry their reason."""
-    from vision_cal.kinematics import ik_failures
-
     xy = np.asarray(targets_mm, dtype=float).reshape(-1, 2)
     n = len(xy)
     s = np.broadcast_to(np.asarray(approach, dtype=float), (n, 2))
@@ -144,7 +143,5 @@ def to_planned_marks(planned: list[PlannedTarget], *, overshoot_deg: float = 3.0
 def write_plan_trajectory(path, planned: list[PlannedTarget], *, home_deg=(0.0, 0.0),
                           dt_s: float = TRAJECTORY_DT_S):
     """The joint-space reference trajectory through the planned points (CSV)."""
-    from vision_cal.plan.trajectory import plan_trajectory, write_trajectory_csv
-
     traj = plan_trajectory(to_planned_marks(planned), home_deg=home_deg, dt_s=dt_s)
     return write_trajectory_csv(path, traj)

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vision_cal.kinematics import ScaraParams, flange_angle_rad
+from vision_cal.kinematics import ScaraParams, flange_angle_rad, forward_tool, inverse
 from vision_cal.model import JointEffect, RobotModel, Tool
 from vision_cal.motion import JOINT4_LIMITS_DEG, JOINT_LIMITS_DEG
 from vision_cal.plan.compensate import PlannedTarget, plan_targets
@@ -175,8 +175,6 @@ def equivalent_joints(params: ScaraParams, tool_mm, q_deg, q4_deg,
     joint 4 ``q4_deg`` (N,), same elbow: for code that predicts marks with the base model
     only (the association of dots to marks). NaN where the point is out of the tool-less
     model's reach (``params`` with L2 lengthened by |tool| reaches every pen position)."""
-    from vision_cal.kinematics import forward_tool, inverse
-
     solve_with = params if solve_with is None else solve_with
     q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
     xy = forward_tool(params, q, np.asarray(q4_deg, dtype=float), tool_mm)

@@ -19,7 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
+from vision_cal.dataset.io import atomic_write_text
 from vision_cal.errors import VisionCalError
+from vision_cal.program.csv_list import point_list
+from vision_cal.program.spel import spel_program
 
 KINDS = ("csv", "spel")
 
@@ -77,16 +80,11 @@ def write_program(kind: str, path, points, robot, *, title: str, tool_mm=None) -
     ``tool_mm`` (SPEL+ only): the calibrated tool for a ``TLSet`` definition."""
     robot.require_pen_heights()  # before anything is written
     if kind == "spel":
-        from vision_cal.program.spel import spel_program
-
         text = spel_program(points, robot, title=title, tool_mm=tool_mm)
     elif kind == "csv":
-        from vision_cal.program.csv_list import point_list
-
         text = point_list(points, robot)
     else:
         raise VisionCalError(f"unknown program kind {kind!r} (expected one of "
                              f"{', '.join(KINDS)})", field="--program")
-    from vision_cal.dataset.io import atomic_write_text
 
     return atomic_write_text(path, text)

@@ -16,8 +16,14 @@ transform is returned so that truth.json-like records can hold it.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
+from vision_cal.dataset.io import atomic_write_json
+from vision_cal.render.dataset import _encode_image
+from vision_cal.render.photo import Photographer
+from vision_cal.render.sheet import make_sheet, sheet_texture
 from vision_cal.render.truth_model import TrueRobot
 
 
@@ -80,8 +86,6 @@ def T_flange_camera_true(rng=None, *, height_mm=(150.0, 250.0), offset_mm: float
 def field_sheet(*, size_mm=(594.0, 420.0), bottom_left_mm=(-297.0, -210.0), marker_mm=18.0,
                 grid=(14, 10), margin_mm=12.0, dictionary="DICT_5X5_250"):
     """The marker field an arm camera sees piecewise: a dense ArUco grid over the sheet."""
-    from vision_cal.render.sheet import make_sheet
-
     return make_sheet(size_mm=size_mm, bottom_left_mm=bottom_left_mm, dictionary=dictionary,
                       marker_mm=marker_mm, grid=grid, margin_mm=margin_mm)
 
@@ -111,10 +115,6 @@ def photograph_poses(folder, robot: TrueRobot, sheet, q, j4, files, X, *, K, siz
     commanded place by ``repeatability_mm`` (per axis) in each photo; ``approach`` (N, 2)
     the joints' last motion signs (the robot's backlash), None: +1. Returns the true
     ``T_cam_sheet`` (N, 4, 4)."""
-    from vision_cal.render.dataset import _encode_image
-    from vision_cal.render.photo import Photographer
-    from vision_cal.render.sheet import sheet_texture
-
     tex = sheet_texture(sheet, marks_xy_mm=np.zeros((0, 2)), px_per_mm=px_per_mm, rng=rng)
     own = photographer is None
     ph = Photographer(size_px=size_px, K=K) if own else photographer
@@ -144,10 +144,6 @@ def render_arm_dataset(folder, *, truth: dict, nominal: dict, n_poses: int = 16,
     misses its commanded place by ``repeatability_mm`` (per axis, Gaussian) in each photo;
     the camera's axis is tilted by up to ``tilt_deg``; ``declare_lens=False`` leaves
     session.json's ``camera`` out."""
-    from pathlib import Path
-
-    from vision_cal.dataset.io import atomic_write_json
-
     rng = np.random.default_rng(seed)
     robot = TrueRobot.from_json(truth)
     sheet = field_sheet()

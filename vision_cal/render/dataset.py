@@ -36,18 +36,28 @@ is kept up to date by copying each new mark's small patch into a mark-free textu
 from __future__ import annotations
 
 import logging
+import multiprocessing as mp
 import os
 import shutil
 import tempfile
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from vision_cal.dataset.io import atomic_write_json
+from vision_cal.dataset.marker_geometry import marker_boxes_mm
 from vision_cal.errors import VisionCalError
+from vision_cal.plan import calibration_plan as cp
+from vision_cal.plan.calibration_plan import paper_plan
+from vision_cal.render.camera import camera_matrix, default_views
+from vision_cal.render.photo import Photographer
+from vision_cal.render.printed import load_printed_sheet, printed_texture
 from vision_cal.render.scene import Scene
-from vision_cal.render.world import (WorldMarks, arm_boxes, draw_marks, parking_pose,
-                                     simulated_world)
+from vision_cal.render.sheet import make_sheet, sheet_texture
+from vision_cal.progress import bar as progress_bar
+from vision_cal.render.world import WorldMarks, arm_boxes, draw_marks, parking_pose, simulated_world
 
 log = logging.getLogger(__name__)
 
@@ -86,8 +96,6 @@ def pilot_marks(scene: Scene, *, rng=None) -> tuple[np.ndarray, np.ndarray]:
     """A pilot run: the true robot draws the seed paper's five marks (zero, joint 1 at
     +-20 deg, joint 2 at +-60 deg) on scrap paper, measured to 0.05 mm. Returns the
     commanded joints (5, 2) deg and the measured marks (5, 2) mm."""
-    from vision_cal.plan.calibration_plan import paper_plan
-
     rng = np.random.default_rng(rng)
     pilot = paper_plan()
     w = draw_marks(scene.robot.true_robot, pilot, home_deg=scene.robot.nominal.home_deg,
@@ -103,8 +111,6 @@ def build_plan(scene: Scene, sheet, *, pilot=None, rng=None) -> list:
     world does not import the estimator). The catalogue model misses by tens of
     millimetres (SM5: zeros 2.6 and 8.1 deg off), too much to keep marks off the printed
     markers; the pilot model misses by about a millimetre."""
-    from vision_cal.plan import calibration_plan as cp
-
     if scene.plan.kind == "paper":
         return list(cp.paper_plan())
     if scene.plan.pilot:
@@ -134,12 +140,10 @@ class _Textures:
     """
 
     def __init__(self, sheet, xy_mm, diameters_mm, *, px_per_mm, seed, printed=None):
-        from vision_cal.render.sheet import sheet_texture
-
+        texture = sheet_texture
         if printed is not None:  # the printed sheet's own raster (vision_cal.render.printed)
-            from vision_cal.render.printed import printed_texture
 
-            def sheet_texture(_sheet, **kw):  # noqa: F811 (the printed raster instead)
+            def texture(_sheet, **kw):
                 return printed_texture(printed, **kw)
 
             px_per_mm = printed.px_per_mm
@@ -148,10 +152,10 @@ class _Textures:
         self.d_mm = np.asarray(diameters_mm, float)
         self.ppm = float(px_per_mm)
         self.extent = tuple(float(v) for v in sheet.extent_mm)
-        self.full = sheet_texture(sheet, marks_xy_mm=self.xy_mm, mark_diameters_mm=self.d_mm,
-                                  px_per_mm=self.ppm, rng=np.random.default_rng(seed))
-        self.current = sheet_texture(sheet, marks_xy_mm=np.zeros((0, 2)), mark_diameters_mm=1.0,
-                                     px_per_mm=self.ppm, rng=np.random.default_rng(seed))
+        self.full = texture(sheet, marks_xy_mm=self.xy_mm, mark_diameters_mm=self.d_mm,
+                            px_per_mm=self.ppm, rng=np.random.default_rng(seed))
+        self.current = texture(sheet, marks_xy_mm=np.zeros((0, 2)), mark_diameters_mm=1.0,
+                               px_per_mm=self.ppm, rng=np.random.default_rng(seed))
         self.k = 0
 
     def add_marks(self, k: int) -> np.ndarray:
@@ -214,8 +218,6 @@ def _shoot(job: _PhotoJob, tasks, photographer, bar=None) -> int:
 
 def _render_chunk(job: _PhotoJob, tasks, size_px, K) -> int:
     """A rendering process's share: its own Photographer, then :func:`_shoot`."""
-    from vision_cal.render.photo import Photographer
-
     p = Photographer(size_px=size_px, K=K)
     try:
         return _shoot(job, tasks, p)
@@ -228,6 +230,7 @@ def _render_chunk(job: _PhotoJob, tasks, size_px, K) -> int:
 
 def _encode_image(rgb: np.ndarray, jpeg_quality: int | None) -> bytes:
     """PNG (lossless) or JPEG bytes of an RGB image."""
+    # OpenCV takes 0.2 s to import: loaded here, when used
     import cv2
 
     bgr = np.ascontiguousarray(rgb[:, :, ::-1])
@@ -287,8 +290,6 @@ def lens_effect(scene: Scene) -> dict | None:
 
 def marks_on_markers(world: WorldMarks, sheet, *, pad_mm: float = 0.0) -> list[str]:
     """Ids of the marks that landed on a printed ArUco square (grown by ``pad_mm``)."""
-    from vision_cal.dataset.marker_geometry import marker_boxes_mm
-
     on = np.zeros(len(world.ids), dtype=bool)
     for box in marker_boxes_mm(sheet, pad_mm):
         on |= np.all((world.xy_mm >= box[:2]) & (world.xy_mm <= box[2:]), axis=1)
@@ -314,9 +315,8 @@ def photographer_K(scene: Scene) -> np.ndarray:
     ideal render uses a shorter focal length (same principal point) wide enough to hold
     every undistorted photo corner, and ``photograph(K_dist=K, dist=...)`` maps it back.
     """
+    # OpenCV takes 0.2 s to import: loaded here, when used
     import cv2
-
-    from vision_cal.render.camera import camera_matrix
 
     cam = scene.camera
     # the shortest focal length any photo has (phones: camera.f_scatter)
@@ -367,10 +367,6 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     ``joint4_deg``: mark id -> commanded joint 4 (deg), written as the marks' ``j4_deg``
     (marks not named: 0); the world turns joint 4 there (``robot.tool_mm`` in the scene).
     """
-    from vision_cal.dataset.io import atomic_write_json
-    from vision_cal.render.camera import camera_matrix, default_views
-    from vision_cal.render.sheet import make_sheet
-
     out_dir = Path(out_dir).absolute()
     _prepare_out(out_dir)
     st = _Streams.from_seed(scene.seed)
@@ -378,8 +374,6 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
 
     sh = scene.sheet
     if printed is None and sh.printed is not None:
-        from vision_cal.render.printed import load_printed_sheet
-
         printed = load_printed_sheet(sh.printed)
     sheet = make_sheet(size_mm=sh.size_mm, bottom_left_mm=sh.bottom_left_mm,
                        dictionary=sh.dictionary, marker_mm=sh.marker_mm, grid=sh.grid,
@@ -431,8 +425,6 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     K_ideal = photographer_K(scene)
     own = photographer is None
     if own:
-        from vision_cal.render.photo import Photographer
-
         photographer = Photographer(size_px=cam.size_px, K=K_ideal)
     elif hasattr(photographer, "K") and hasattr(photographer, "size_px"):
         if (tuple(photographer.size_px) != tuple(cam.size_px)
@@ -468,16 +460,11 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
                         dist if any(dist) else None, tmp,
                         printed, height_grid)
         n_jobs = min(int(jobs or 1), len(tasks)) if own else 1
-        from vision_cal.progress import bar as progress_bar
-
         bar = progress_bar(progress, total=len(tasks), desc=f"render {out_dir.name}",
                            unit="photo", note=f"{max(n_jobs, 1)} job(s)")
         if n_jobs <= 1:
             _shoot(job, tasks, photographer, bar)
         else:
-            import multiprocessing as mp
-            from concurrent.futures import ProcessPoolExecutor
-
             chunks = [c for c in np.array_split(np.arange(len(tasks)), n_jobs) if len(c)]
             # spawn: a fresh process per worker, each with its own OpenGL context
             with ProcessPoolExecutor(len(chunks), mp_context=mp.get_context("spawn")) as ex:

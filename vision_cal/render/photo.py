@@ -78,6 +78,7 @@ class _BiasedTexture(pyrender.Texture):
 
     def _add_to_context(self):
         super()._add_to_context()
+        # OpenGL needs the EGL platform set up: loaded here, when rendering
         from OpenGL import GL
 
         GL.glBindTexture(GL.GL_TEXTURE_2D, self._texid)
@@ -114,6 +115,7 @@ class Photographer:
         Ks = self._supersampled(self.K)
         self.K_render = Ks
         self._renderer = pyrender.OffscreenRenderer(w * s, h * s)
+        # OpenGL needs the EGL platform set up: loaded here, when rendering
         from OpenGL import GL
 
         self._renderer._platform.make_current()

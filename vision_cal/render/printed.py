@@ -16,9 +16,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 from vision_cal.dataset.session import Sheet, load_sheet_file
 from vision_cal.errors import VisionCalError
+from vision_cal.render.sheet import PAPER_RGB, _paper_field, ink_marks, texture_shape
 
 
 @dataclass(frozen=True)
@@ -37,10 +39,6 @@ def load_printed_sheet(sheet_json, png=None) -> PrintedSheet:
     The scale comes from ``sheet.printed.png_dpi`` (else the PNG's own dpi); the raster must
     cover the paper with a whole number of pixels (e.g. 254 dpi = 10 px/mm).
     """
-    from PIL import Image
-
-    from vision_cal.render.sheet import texture_shape
-
     sheet_json = Path(sheet_json)
     sheet = load_sheet_file(sheet_json)
     png = Path(png) if png is not None else sheet_json.with_name("sheet.png")
@@ -76,8 +74,6 @@ def printed_texture(printed: PrintedSheet, *, marks_xy_mm, mark_diameters_mm=1.2
 
     ``px_per_mm``, when given, must be the raster's own (the print is not resampled).
     """
-    from vision_cal.render.sheet import PAPER_RGB, _paper_field, ink_marks
-
     ppm = printed.px_per_mm
     if px_per_mm is not None and abs(float(px_per_mm) - ppm) > 1e-9:
         raise VisionCalError(f"the printed raster is {ppm:g} px/mm, not {px_per_mm:g}",

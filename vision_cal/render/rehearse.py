@@ -40,10 +40,24 @@ from pathlib import Path
 
 import numpy as np
 
+from vision_cal.dataset.csvio import read_plan, read_targets
+from vision_cal.dataset.fields import FieldReader
+from vision_cal.dataset.io import (atomic_write_bytes, atomic_write_json, read_json, read_text,
+                                   read_yaml)
 from vision_cal.dataset.photos import list_photos
-from vision_cal.dataset.session import FieldReader
+from vision_cal.dataset.robot import load_robot_file
+from vision_cal.dataset.session import read_sheet_block
 from vision_cal.errors import VisionCalError
+from vision_cal.progress import bar as progress_bar
+from vision_cal.render.arm_camera import T_flange_camera_true, photograph_poses
+from vision_cal.render.camera import camera_matrix, default_views
+from vision_cal.render.dataset import _encode_image, marks_off_paper, marks_on_markers
+from vision_cal.render.photo import Photographer
+from vision_cal.render.printed import PrintedSheet, printed_texture
 from vision_cal.render.truth_model import TrueRobot
+from vision_cal.render.world import draw_marks, simulated_world
+from vision_cal.sheet.png import rasterise
+from vision_cal.sheet.rebuild import layout_from_sheet_json
 
 CONTROLLERS = ("smc", "pd", "kinematic")
 SECTIONS = ("robot", "hidden", "camera", "seed")
@@ -88,9 +102,6 @@ class SimulatedRobot:
 def load_simulated_robot(path) -> SimulatedRobot:
     """Read a simulated robot file (YAML; the template: ``vision-cal robot-template
     --simulated``). Unknown keys are errors (a typo must not fall back to a default)."""
-    from vision_cal.dataset.io import read_yaml
-    from vision_cal.dataset.robot import load_robot_file
-
     path = Path(path)
     tree = read_yaml(path, what="simulated robot file")
     r = FieldReader(str(path))
@@ -162,8 +173,6 @@ def program_moves(path: Path, *, pen_down_mm: float,
     joint 3 is at ``pen_down_mm``, or at ``On pen_bit`` (the robot file's pen output). The neutral point list (``_points.csv``): each ``mark`` row is a
     stop with the pen going down, ``home`` and ``via`` rows are driven through.
     """
-    from vision_cal.dataset.io import read_text
-
     text = read_text(path)
     moves = []
     if path.suffix.lower() == ".csv":
@@ -239,13 +248,8 @@ def marks_from_session(marks: list[dict], overshoot_deg: float) -> list[_Mark]:
 def printed_sheet(sheet_block: dict, *, file: str, size_px, f_px: float):
     """The printed sheet (``PrintedSheet``) rebuilt from a session's sheet block, its raster
     at a whole number of px/mm: at least twice the photos' resolution on the paper."""
-    from vision_cal.dataset.session import _Reader, read_sheet_block
-    from vision_cal.render.printed import PrintedSheet
-    from vision_cal.sheet.png import rasterise
-    from vision_cal.sheet.rebuild import layout_from_sheet_json
-
     layout = layout_from_sheet_json(sheet_block, file=file)
-    sheet = read_sheet_block(_Reader(file), sheet_block, "sheet")
+    sheet = read_sheet_block(FieldReader(file), sheet_block, "sheet")
     w_mm = max(layout.size_mm)
     px_per_mm_photo = max(size_px) / w_mm   # the sheet fills the photo at best
     k = int(np.clip(np.ceil(2.0 * px_per_mm_photo), 4, 16))
@@ -271,11 +275,6 @@ def _simulate_arm(session: dict, session_path: Path, sim, out: Path, rng) -> Sim
     flange or link 2 as ``camera_mount`` says) photographs the marker field. The
     simulated camera's lens is added to session.json when it declares none (what the user
     adds by hand), and truth.json holds ``T_flange_camera``."""
-    from vision_cal.dataset.io import atomic_write_json
-    from vision_cal.dataset.session import FieldReader, read_sheet_block
-    from vision_cal.render.arm_camera import T_flange_camera_true, photograph_poses
-    from vision_cal.render.camera import camera_matrix
-
     r = FieldReader(str(session_path))
     sheet = read_sheet_block(r, r.get(session, "sheet", ""), "sheet")
     poses = r.list_(session["poses"], "poses", nonempty=True)
@@ -334,9 +333,6 @@ def targets_session(program: Path, sim: SimulatedRobot, *, sheet_json, targets=N
     --program``: its marks are the rows of the plan CSV beside it (``PLAN.prg`` ->
     ``PLAN.csv``; joints, approach), with ``target_mm`` from ``targets`` (targets.csv)
     when given; the sheet from ``sheet_json``; the robot block the robot file's."""
-    from vision_cal.dataset.csvio import read_plan, read_targets
-    from vision_cal.dataset.io import read_json
-
     stem = program.with_suffix("") if program.suffix.lower() == ".prg" else \
         program.with_name(program.name.removesuffix("_points.csv"))
     plan_csv = stem.with_suffix(".csv")
@@ -374,13 +370,6 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
     or ``_points.csv``): then ``sheet_json`` says the sheet, ``targets`` (targets.csv) the
     targets, and ``out_dir`` gets a session.json of the drawn targets (calibrate it to
     measure where they landed: calibration.json ``targets``)."""
-    from vision_cal.dataset.io import atomic_write_bytes, atomic_write_json, read_json
-    from vision_cal.render.camera import camera_matrix, default_views
-    from vision_cal.render.dataset import _encode_image, marks_off_paper, marks_on_markers
-    from vision_cal.render.photo import Photographer
-    from vision_cal.render.printed import printed_texture
-    from vision_cal.render.world import draw_marks, simulated_world
-
     plan_dir, out = Path(plan_dir), Path(out_dir)
     sim = load_simulated_robot(truth_path)
     if plan_dir.is_file():
@@ -444,7 +433,6 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
                           tilt_deg=cam.tilt_deg, rng=rng, fill=0.96, target_jitter=0.02)
     if cam.fixed:   # a camera fixed over the work area: one place, several photos
         views = [views[0]] * len(views)
-    from vision_cal.progress import bar as progress_bar
 
     bar = progress_bar(progress, total=len(views), desc=f"simulate {out.name}", unit="photo")
     photographer = Photographer(size_px=cam.size_px, K=K)

@@ -93,11 +93,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from vision_cal.dataset.session import FieldReader
+from vision_cal.dataset.io import read_yaml
+from vision_cal.dataset.fields import FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import Effect, RobotModel, effect_from_json
-from vision_cal.render.truth_model import DRIFT_PARAMS
+from vision_cal.render.height import height_scene_from_dict
+from vision_cal.render.printed import load_printed_sheet
+from vision_cal.render.sheet import make_sheet
+from vision_cal.render.truth_model import DRIFT_PARAMS, TrueRobot
 
 PLAN_KINDS = ("informative", "paper")
 PHOTO_MODES = ("series", "single")
@@ -147,8 +151,6 @@ class RobotScene:
     def true_robot(self):
         """The world's own robot (:mod:`vision_cal.render.truth_model`), built from the
         truth's JSON blocks only."""
-        from vision_cal.render.truth_model import TrueRobot
-
         return TrueRobot.from_json(self.truth_params_json,
                                    [e.to_json() for e in self.effects] + list(self.drift))
 
@@ -242,7 +244,7 @@ class Scene:
 
 
 class _R(FieldReader):
-    """The typed reader of session.json (one owner, :class:`vision_cal.dataset.session.FieldReader`)
+    """The typed reader of session.json (one owner, :class:`vision_cal.dataset.fields.FieldReader`)
     with bounded numbers for scene files; every error names the file and the field."""
 
     def number(self, v, where: str, *, lo=None, hi=None, lo_open=False) -> float:
@@ -346,14 +348,12 @@ def _sheet(r: _R, d) -> SheetScene:
     if 2 * margin + marker > min(size):
         r.fail("sheet.marker_mm", f"a {marker:g} mm marker with {margin:g} mm margins does "
                                   f"not fit on a {size[0]:g} x {size[1]:g} mm sheet")
-    from vision_cal.render.sheet import make_sheet
 
     try:  # the layout's own checks (quiet zones, enough ids in the dictionary)
         make_sheet(size_mm=size, bottom_left_mm=bl, dictionary=dic, marker_mm=marker, grid=grid,
                    margin_mm=margin)
     except VisionCalError as e:
         r.fail(f"sheet.{e.field}" if e.field else "sheet", e.reason)
-    from vision_cal.render.height import height_scene_from_dict
 
     height = height_scene_from_dict(r, d.get("height"))
     return SheetScene(size, bl, dic, marker, grid, margin, height)
@@ -363,8 +363,6 @@ def _printed_sheet(r: _R, d) -> SheetScene:
     """``sheet.printed: path/sheet.json`` (relative to the scene file): the sheet written by
     ``vision-cal sheet --png-dpi N``, photographed through its own ``sheet.png`` (whose dpi
     then sets the texture resolution); the analytic layout keys do not apply."""
-    from vision_cal.render.printed import load_printed_sheet
-
     other = [k for k in ("size_mm", "bottom_left_mm", "dictionary", "marker_mm", "grid",
                          "margin_mm") if k in d]
     if other:
@@ -377,7 +375,6 @@ def _printed_sheet(r: _R, d) -> SheetScene:
         pr = load_printed_sheet(path)
     except VisionCalError as e:
         r.fail("sheet.printed", str(e))
-    from vision_cal.render.height import height_scene_from_dict
 
     return SheetScene(pr.sheet.size_mm, pr.sheet.bottom_left_mm, pr.sheet.aruco_dictionary,
                       height=height_scene_from_dict(r, d.get("height")),
@@ -482,8 +479,6 @@ def scene_from_dict(d: dict | None, *, file: str = "<scene>") -> Scene:
 
 def load_scene(path) -> Scene:
     """Read and validate a scene YAML file."""
-    from vision_cal.dataset.io import read_yaml
-
     path = Path(path)
     tree = read_yaml(path, what="scene file")
     return scene_from_dict(tree, file=str(path))

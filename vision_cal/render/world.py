@@ -29,6 +29,7 @@ import numpy as np
 
 from vision_cal.errors import VisionCalError
 from vision_cal.render.truth_model import TrueRobot
+from vision_cal.simulate.run import simulate_plan
 
 JointSource = Callable[[Sequence, Sequence[float]], tuple[np.ndarray, np.ndarray]]
 
@@ -150,8 +151,6 @@ def simulated_world(truth: TrueRobot, *, controller: str = "smc", rng=None,
     rng = np.random.default_rng(rng)
 
     def source(plan, home_deg):
-        from vision_cal.simulate.run import simulate_plan
-
         r = simulate_plan(plan, home_deg=home_deg, backlash_deg=tuple(band),
                           controller=controller, rng=rng, **sim_kwargs)
         source.report = controller_report(r, controller)

@@ -25,6 +25,7 @@ def load_schema(name: str) -> dict:
 
 def validate(doc, name: str) -> None:
     """Raise ``jsonschema.ValidationError`` if ``doc`` does not follow schema ``name``."""
+    # jsonschema: loaded here, when a schema is checked
     import jsonschema
 
     jsonschema.validate(doc, load_schema(name), cls=jsonschema.Draft202012Validator)

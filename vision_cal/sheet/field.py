@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vision_cal import __version__
 from vision_cal.errors import VisionCalError
 from vision_cal.sheet.layout import (EDGE_MM, QUIET_MODULES, TEXT_MM, GENERATOR, MarkerCells,
                                      Rect, SheetLayout, Text, PAPER_RGB, _dictionary,
@@ -51,8 +52,7 @@ def make_field_layout(*, size: str | None = "A3", landscape: bool | None = None,
                       quiet_modules: float = QUIET_MODULES,
                       version: str | None = None) -> FieldLayout:
     """Markers on a grid over the whole page; ids row by row from the bottom left."""
-    if version is None:
-        from vision_cal import __version__ as version
+    version = __version__ if version is None else version
     page, orientation, (W, H) = page_size_mm(size, landscape=landscape, custom_mm=custom_mm)
     d = _dictionary(dictionary)
     n_cells = int(d.markerSize) + 2

@@ -35,10 +35,11 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from vision_cal import __version__
 from vision_cal.errors import VisionCalError
 
 GENERATOR = "vision-cal sheet"
@@ -269,6 +270,7 @@ def page_size_mm(size: str | None = "A3", *, landscape: bool | None = None,
 
 
 def _dictionary(name: str):
+    # OpenCV takes 0.2 s to import: loaded here, when used
     import cv2
 
     d = getattr(cv2.aruco, str(name), None)
@@ -281,6 +283,7 @@ def _dictionary(name: str):
 def marker_bits(dictionary: str, marker_id: int) -> np.ndarray:
     """(n, n) uint8, 1 = black, of one marker with its one-module black border (row 0 top),
     straight from OpenCV's dictionary (``generateImageMarker`` at one pixel per module)."""
+    # OpenCV takes 0.2 s to import: loaded here, when used
     import cv2
 
     d = _dictionary(dictionary)
@@ -312,8 +315,7 @@ def make_layout(*, size: str | None = "A3", landscape: bool | None = None, custo
     (default 4 marker sides); ``quiet_modules``: the white margin around each marker.
     Refuses (``VisionCalError`` naming the option) what does not fit.
     """
-    if version is None:
-        from vision_cal import __version__ as version
+    version = __version__ if version is None else version
     page, orientation, (W, H) = page_size_mm(size, landscape=landscape, custom_mm=custom_mm)
     d = _dictionary(dictionary)
     n_cells = int(d.markerSize) + 2
@@ -463,6 +465,7 @@ def _label(prims: list, t: Text) -> None:
 
 def text_width_mm(text: str, size_mm: float) -> float:
     """Width of ``text`` in Helvetica (the PDF's font) at em size ``size_mm``."""
+    # reportlab's PDF machinery: loaded here, when a PDF is drawn
     from reportlab.pdfbase.pdfmetrics import stringWidth
 
     return float(stringWidth(text, "Helvetica", size_mm))
@@ -473,6 +476,4 @@ def _fit_size(text: str, width_mm: float) -> float:
 
 
 def _replace_prims(layout: SheetLayout, prims: tuple) -> SheetLayout:
-    from dataclasses import replace
-
     return replace(layout, primitives=prims)

@@ -17,6 +17,7 @@ pixels: up to 0.04 mm per edge on a 600 dpi printer.
 
 from __future__ import annotations
 
+import math
 from io import BytesIO
 
 from vision_cal.sheet.layout import MarkerCells, Poly, Rect, SheetLayout, Text
@@ -29,8 +30,6 @@ def _page_pt(size_mm: float) -> float:
     short of the paper; the drawing itself is at exact scale). Rounded up, a rasteriser
     that fits the page to whole pixels (pdfium) would add a pixel and stretch the page by
     1/N (0.03 % at 6 px/mm on A2)."""
-    import math
-
     return math.floor(size_mm * PT_PER_MM * 100.0 + 1e-9) / 100.0
 
 
@@ -46,6 +45,7 @@ def _runs(prims):
 
 
 def pdf_bytes(layout: SheetLayout) -> bytes:
+    # reportlab's PDF machinery: loaded here, when a PDF is drawn
     from reportlab.pdfgen import canvas
 
     W, H = layout.size_mm

@@ -13,6 +13,7 @@ from __future__ import annotations
 from io import BytesIO
 
 import numpy as np
+from PIL import Image, ImageDraw, ImageFont
 
 from vision_cal.errors import VisionCalError
 from vision_cal.sheet.layout import MarkerCells, Poly, Rect, SheetLayout, Text
@@ -92,6 +93,7 @@ class _Canvas:
             self.blend(rs, cs, cy @ p.bits.astype(float) @ cx.T, (0, 0, 0))
 
     def poly(self, p: Poly, ss: int = 8):
+        # OpenCV takes 0.2 s to import: loaded here, when used
         import cv2
 
         pts = np.column_stack([self.u([q[0] for q in p.points]), self.v([q[1] for q in p.points])])
@@ -107,8 +109,6 @@ class _Canvas:
         self.blend(slice(r0, r1), slice(c0, c1), cov, p.rgb)
 
     def text(self, p: Text):
-        from PIL import Image, ImageDraw, ImageFont
-
         px = p.size_mm * self.ppm
         if px < 5:
             return  # unreadable at this dpi anyway
@@ -145,8 +145,6 @@ def rasterise(layout: SheetLayout, dpi: float) -> np.ndarray:
 
 
 def png_bytes(layout: SheetLayout, dpi: float) -> bytes:
-    from PIL import Image
-
     img = Image.fromarray(rasterise(layout, dpi), "RGB")
     buf = BytesIO()
     img.save(buf, format="PNG", dpi=(dpi, dpi))

@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from vision_cal.errors import VisionCalError
 from vision_cal.simulate.dynamics import ScaraDynamics
 
 
@@ -95,8 +96,6 @@ class PDController:
 
 def make_controller(name, *, model: ScaraDynamics | None = None):
     """``"smc"`` or ``"pd"`` (or a controller object, returned as is)."""
-    from vision_cal.errors import VisionCalError
-
     if not isinstance(name, str):
         if not hasattr(name, "torque"):
             raise VisionCalError(f"controller {name!r} has no torque() method", field="controller")

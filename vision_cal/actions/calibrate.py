@@ -1,0 +1,132 @@
+"""The calibration action (``vision-cal calibrate``): one or several dataset folders
+measured and calibrated (:func:`vision_cal.pipeline.calibrate_dataset`), or one robot from
+several placements (:func:`vision_cal.calibrate.placements.calibrate_placements`), with the
+console summary, the optional report and, for several folders, ``summary.json``."""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from vision_cal.calibrate.placements import calibrate_placements
+from vision_cal.dataset.io import atomic_write_json, output_dir
+from vision_cal.dataset.out_folder import output_names, retire_earlier_run
+from vision_cal.errors import VisionCalError
+from vision_cal.pipeline import calibrate_dataset
+from vision_cal.report.html import write_report
+from vision_cal.report.summary import format_summary
+
+
+@dataclass(frozen=True)
+class CalibrateRequest:
+    """What ``vision-cal calibrate`` was asked (the command's arguments, see its ``--help``)."""
+
+    folders: tuple[str, ...]
+    out: str | None = None        # default out/<folder name>
+    method: str = "lsq"           # one of vision_cal.config.METHODS
+    jobs: int | None = None       # photo measurement processes (default: the cores)
+    truth: bool = False           # compare with truth.json (synthetic data)
+    report: bool = False          # also report.json and report.html
+    joint: bool = False           # the folders are placements of one robot
+    quiet: bool = False
+
+
+def calibrate(req: CalibrateRequest) -> int:
+    """Calibrate each folder of ``req`` (or one robot from all of them, ``req.joint``) and
+    print what was found; exit code 1 when a folder of several failed."""
+    if req.jobs is not None and req.jobs < 1:
+        raise VisionCalError(f"--jobs must be at least 1, got {req.jobs}")
+    progress = not req.quiet  # a bar on a terminal, else one line per stage
+    if req.joint:   # one robot from several placements (calibrate/placements.py)
+        if req.method != "lsq":
+            raise VisionCalError("--joint fits by least squares only", field="--method")
+        out = Path(req.out or "out")
+        output_dir(out, field="--out")
+        doc = calibrate_placements(req.folders, out_dir=out, jobs=req.jobs,
+                                   progress=progress)
+        if not req.quiet:
+            for pl in doc["placements"]:
+                print(f"{pl['folder']}: sheet at {pl['angle_deg']:.3f} deg, base "
+                      f"({pl['base_mm'][0]:.3f}, {pl['base_mm'][1]:.3f}) mm, rms "
+                      f"{pl['residual_rms_mm']:.4f} mm")
+            print("effects: " + (", ".join(e["name"] + f"(joint {e['joint']})"
+                                           for e in doc["effects"]) or "none"))
+        print(f"wrote {out / 'calibration.json'}")
+        return 0
+    several = len(req.folders) > 1
+    output_dir(req.out or "out", field="--out")
+    names = output_names(req.folders)
+    if several and not req.quiet:
+        plain = [Path(f).resolve().name for f in req.folders]
+        if names != plain:  # two folders share a name: say where each one goes
+            print("outputs: " + ", ".join(f"{f} -> {Path(req.out or 'out') / n}"
+                                          for f, n in zip(req.folders, names)))
+    failures = 0
+    rows = []
+    for folder, name in zip(req.folders, names):
+        out = Path(req.out) / name if (req.out and several) else Path(req.out or f"out/{name}")
+        try:
+            # OUT holds one run: an earlier run's results go to OUT/previous/ first, so a
+            # failed or interrupted run leaves nothing that looks current
+            moved = retire_earlier_run(out)
+            if moved and not req.quiet:
+                print(f"moved the earlier results ({', '.join(moved)}) to {out / 'previous'}")
+            result = calibrate_dataset(folder, out_dir=out, method=req.method, jobs=req.jobs,
+                                       progress=progress, truth=req.truth)
+        except VisionCalError as e:
+            if not several:
+                raise
+            failures += 1
+            print(f"vision-cal: error: {folder}: {e}", file=sys.stderr)
+            rows.append({"folder": str(folder), "status": "failed", "reason": str(e)})
+            continue
+        d = result.document
+        rows.append({"folder": str(folder), "status": "ok", "out": str(result.out_path),
+                     "marks": len(d["marks"]),
+                     "skipped_photos": sum(im.get("status") != "ok" for im in d["images"]),
+                     "effects": [e["name"] + (f"(joint {e['joint']})" if "joint" in e else "")
+                                 for e in d["effects"]],
+                     "residual_rms_mm": d["residual_rms_mm"]["final_model"],
+                     "validation_rms_mm": d["validation_rms_mm"]["final_model"]})
+        if not req.quiet:
+            ref = result.session.raw.get("reference")
+            print(format_summary(result.document, reference=ref))
+        for im in result.document.get("images", []):
+            if im.get("status") != "ok":
+                print(f"vision-cal: warning: {folder}/{im['file']}: skipped: {im.get('reason')}",
+                      file=sys.stderr)
+        meas = result.measurement
+        for note in (meas.inferred_notes if meas is not None else ()):  # no images list
+            print(f"vision-cal: warning: {folder}: {note}", file=sys.stderr)
+        if req.report:
+            try:
+                path = write_report(result.out_path, out)
+            except BaseException:  # Ctrl-C or a failure: both report files or neither
+                for n in ("report.json", "report.html"):
+                    (out / n).unlink(missing_ok=True)
+                raise
+            print(f"report: {path} ({path.stat().st_size / 1e6:.1f} MB)")
+        print(f"wrote {result.out_path}")
+    if several:
+        root = Path(req.out or "out")
+        atomic_write_json(root / "summary.json", {"folders": rows})
+        print(_summary_table(rows))
+        print(f"wrote {root / 'summary.json'}")
+    return 1 if failures else 0
+
+
+def _summary_table(rows) -> str:
+    def f(x):
+        return "-" if x is None else f"{x:.4f}"
+
+    lines = [f"{'folder':<28}{'status':<8}{'marks':>6}{'skipped':>8}{'rms [mm]':>10}"
+             f"{'held-out':>10}  effects"]
+    for r in rows:
+        if r["status"] != "ok":
+            lines.append(f"{r['folder'][-28:]:<28}{'failed':<8}  {r['reason']}")
+            continue
+        lines.append(f"{r['folder'][-28:]:<28}{'ok':<8}{r['marks']:>6}{r['skipped_photos']:>8}"
+                     f"{f(r['residual_rms_mm']):>10}{f(r['validation_rms_mm']):>10}  "
+                     f"{', '.join(r['effects']) or 'none'}")
+    return "\n".join(lines)

@@ -1,0 +1,117 @@
+"""The action of ``vision-cal design``: what the robot must draw (the pilot, then the
+informative plan)."""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+
+from vision_cal.camera.arm_design import design_camera_on_arm
+from vision_cal.dataset.io import output_dir, read_json
+from vision_cal.dataset.robot import load_robot_file
+from vision_cal.dataset.session import load_sheet_file
+from vision_cal.dataset.trust import require_ready_pilot
+from vision_cal.design.placements import design_placements
+from vision_cal.design.stage import design_stage
+from vision_cal.errors import VisionCalError
+
+
+@dataclass(frozen=True)
+class DesignRequest:
+    """What ``vision-cal design`` was asked (its arguments; see ``vision-cal design --help``)."""
+
+    robot: str
+    sheet: str
+    out: str
+    quiet: bool = False
+    pilot: str | None = None
+    verify: str | None = None
+    iso9283: int = 0
+    program: str = 'spel'
+    n_calibration: int = 30
+    n_validation: int = 8
+    safety_mm: float | None = None
+    seed: int = 0
+    placements: int | None = None
+    camera_on_arm: bool = False
+    n_poses: int = 24
+    mount: str = 'flange'
+    trigger: str = 'output'
+    trigger_output: int = 8
+
+
+def design(req: DesignRequest) -> int:
+    """The plan of a calibration stage (pilot, informative, verify), several placements, or
+    the camera poses of a camera on the arm."""
+    if req.camera_on_arm:
+        return _camera_on_arm(req)
+
+    if req.n_calibration < 3 or req.n_validation < 0:
+        raise VisionCalError(f"expected at least 3 calibration and 0 validation marks, got "
+                             f"{req.n_calibration} and {req.n_validation}",
+                             field="--n-calibration")
+    if req.safety_mm is not None and not req.safety_mm >= 0:
+        raise VisionCalError(f"expected a non-negative number, got {req.safety_mm}",
+                             field="--safety-mm")
+    if req.placements is not None:   # several placements (design/placements.py, #21)
+
+        if req.pilot:
+            raise VisionCalError("--placements designs each placement's pilot; design the "
+                                 "informative plans per placement folder", field="--pilot")
+        places = design_placements(req.robot, req.sheet, req.out, req.placements,
+                                   program=None if req.program == "none" else req.program,
+                                   seed=req.seed)
+        if not req.quiet:
+            for p in places:
+                print(f"{p['folder']}: {p['instruction']}")
+        return 0
+    if req.verify is not None and req.pilot is not None:
+        raise VisionCalError("give either --pilot (the informative plan) or --verify (a check "
+                             "of a calibration), not both", field="--verify")
+    if req.pilot:
+        require_ready_pilot(read_json(req.pilot), req.pilot)
+    check = req.verify is not None
+    if req.iso9283 and not check or not 0 <= req.iso9283 <= 30:
+        raise VisionCalError(f"expected 1..30 cycles with --verify, got {req.iso9283}",
+                             field="--iso9283")
+    r = design_stage(req.robot, req.sheet, req.out, pilot=req.verify if check else req.pilot,
+                     program=None if req.program == "none" else req.program,
+                     n_calibration=10 if check else req.n_calibration,
+                     n_validation=0 if check else req.n_validation,
+                     safety_mm=req.safety_mm, seed=req.seed,
+                     stage="verify" if check else None,
+                     iso9283_cycles=req.iso9283 if check else 0)
+
+    for w in r.info.get("warnings", []):
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
+    if not req.quiet:
+        print(f"{r.stage} plan: {r.n_marks} marks, {r.duration_s:.1f} s of motion")
+        if r.stage == "pilot":
+            print(f"every mark stays {r.info['worst_case_clearance_mm']:.1f} mm clear of markers "
+                  f"and edges for {r.info['placements_checked']} placements within the "
+                  "robot file's placement_tolerance")
+        elif r.stage == "verify":
+            print(f"a check of {req.verify}: draw it on a fresh sheet, photograph it into "
+                  f"{req.out}, then: vision-cal verify {req.verify} {req.out}")
+        else:
+            print(f"placed with the pilot's model, {r.info['safety_mm']:.1f} mm of safety")
+        for p in (r.session_path, r.trajectory_path, r.program_path):
+            if p is not None:
+                print(f"wrote {p}")
+    return 0
+
+
+def _camera_on_arm(req: DesignRequest) -> int:
+    out = output_dir(req.out, field="--out")
+    robot = load_robot_file(req.robot)
+    sheet = load_sheet_file(req.sheet)
+    a, b = design_camera_on_arm(robot, sheet, read_json(req.sheet), out, n_poses=req.n_poses,
+                                mount=req.mount, trigger=req.trigger,
+                                output_bit=req.trigger_output, seed=req.seed)
+    if not req.quiet:
+        print(f"camera poses: {req.n_poses} ({req.mount} mount); put the photos beside "
+              f"{a} (and your camera's lens in it if you know it: camera: size_px, K, dist), "
+              f"then vision-cal handeye {out} --out CAL/")
+        print(f"wrote {a}")
+        print(f"wrote {b}")
+    return 0

@@ -1,0 +1,72 @@
+"""The action of ``vision-cal export``: a calibration as URDF (plus an effects side file) or
+YAML."""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+
+from vision_cal.camera.export import transform_path, write_opencv, write_ros
+from vision_cal.camera.fixed import camera_of
+from vision_cal.dataset.calibration import load_calibration
+from vision_cal.dataset.io import distinct_outputs, output_file, written_together
+from vision_cal.dataset.robot import load_robot_file
+from vision_cal.dataset.trust import refuse_unreliable
+from vision_cal.errors import VisionCalError
+from vision_cal.report.export import effects_path, export
+
+
+@dataclass(frozen=True)
+class ExportRequest:
+    """What ``vision-cal export`` was asked (its arguments; see ``vision-cal export --help``)."""
+
+    calibration: str
+    quiet: bool = False
+    urdf: str | None = None
+    yaml: str | None = None
+    robot: str | None = None
+    force: bool = False
+    opencv: str | None = None
+    ros: str | None = None
+    camera: int = 0
+
+
+def export_calibration(req: ExportRequest) -> int:
+    """The calibration exported: URDF and its effects, controller YAML, OpenCV and ROS
+    camera files, written together or not at all."""
+    if not (req.urdf or req.yaml or req.opencv or req.ros):
+        raise VisionCalError("nothing to export: give --urdf, --yaml, --opencv and/or --ros")
+    for opt, path in (("--urdf", req.urdf), ("--yaml", req.yaml), ("--opencv", req.opencv),
+                      ("--ros", req.ros)):
+        if path:
+            output_file(path, field=opt)
+    distinct_outputs([("--urdf", req.urdf),
+                      ("--urdf (its effects)", req.urdf and effects_path(req.urdf)),
+                      ("--yaml", req.yaml), ("--opencv", req.opencv), ("--ros", req.ros),
+                      ("--ros (its transform)",
+                       req.ros and transform_path(req.ros))],
+                     [("CALIBRATION.json", req.calibration)])
+    _, doc = load_calibration(req.calibration)
+
+    warn = refuse_unreliable(doc, req.calibration, force=req.force)
+    if warn:
+        print(warn, file=sys.stderr)
+    limits, limits4, limits3 = doc.get("joint_limits_deg"), None, None
+    if req.robot:
+        robot = load_robot_file(req.robot)
+        limits, limits4 = robot.joint_limits_deg, robot.joint4_limits_deg
+        limits3 = robot.joint3_limits_mm
+    written = []
+    with written_together():
+        if req.opencv or req.ros:
+            cam = camera_of(doc, req.camera, file=req.calibration)
+            written += [write_opencv(req.opencv, cam)] if req.opencv else []
+            written += write_ros(req.ros, cam) if req.ros else []
+        if req.urdf or req.yaml:
+            written = export(doc, urdf=req.urdf, yaml_path=req.yaml,
+                             limits_deg=limits, limits4_deg=limits4,
+                             limits3_mm=limits3) + written
+    for path in written:
+        if not req.quiet:
+            print(f"wrote {path}")
+    return 0

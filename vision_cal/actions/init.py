@@ -1,0 +1,68 @@
+"""The action of ``vision-cal init``: the ``images`` list of a session, found from the photos."""
+
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from vision_cal.dataset.io import atomic_write_json
+from vision_cal.errors import VisionCalError
+from vision_cal.measure.complete import complete_session
+
+
+@dataclass(frozen=True)
+class InitSessionRequest:
+    """What ``vision-cal init`` was asked (its arguments; see ``vision-cal init --help``)."""
+
+    photos: str
+    plan: str
+    quiet: bool = False
+    out: str | None = None
+    jobs: int | None = None
+
+
+def init_session(req: InitSessionRequest) -> int:
+    """A session.json completed from photos and a plan: which photo shows which marks,
+    written to OUT or printed."""
+    if req.jobs is not None and req.jobs < 1:
+        raise VisionCalError(f"--jobs must be at least 1, got {req.jobs}")
+    if req.out:
+        out = Path(req.out)
+        try:
+            inside = out.resolve().is_relative_to(Path(req.photos).resolve())
+        except (OSError, ValueError) as e:
+            raise VisionCalError(f"not a usable path: {e}", file=str(req.out)) from e
+        if inside:
+            raise VisionCalError("init never writes into the photo folder: write the "
+                                 "session elsewhere", file=str(req.out))
+        if out.is_dir():
+            raise VisionCalError("is a folder, expected a .json file to write",
+                                 file=str(req.out))
+    progress = (not req.quiet) and sys.stderr.isatty()
+    doc, meas = complete_session(req.photos, req.plan, jobs=req.jobs, progress=progress)
+    if not doc["images"]:
+        raise VisionCalError(f"no usable photo of the sheet among {len(meas.images)} image "
+                             "file(s)" + (f" (first: {meas.images[0].file}: "
+                                          f"{meas.images[0].reason})" if meas.images else ""),
+                             file=str(req.photos))
+    for im in meas.images:
+        if im.status != "ok":
+            print(f"vision-cal: warning: {req.photos}/{im.file}: not used: {im.reason}",
+                  file=sys.stderr)
+    for w in meas.warnings:
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
+    if req.out:
+        try:
+            atomic_write_json(req.out, doc)
+        except OSError as e:
+            raise VisionCalError(f"cannot write: {e.strerror or e}", file=str(req.out)) from e
+    else:
+        sys.stdout.write(json.dumps(doc, indent=2) + "\n")
+    if not req.quiet:
+        n = len(doc["images"])
+        print(f"{n} photo(s) of the sheet ({meas.inferred or 'none'}), "
+              f"{len(meas.marks)} of {len(meas.marks) + len(meas.refused)} marks found"
+              + (f" -> {req.out}" if req.out else ""), file=sys.stderr)
+    return 0

@@ -1,0 +1,140 @@
+"""The action of ``vision-cal locate``: where a pixel of a still camera is, in robot and
+sheet mm."""
+
+from __future__ import annotations
+
+import csv
+import io
+import sys
+from dataclasses import dataclass
+
+import numpy as np
+
+from vision_cal.camera.arm import camera_for
+from vision_cal.camera.fixed import locate
+from vision_cal.dataset.calibration import load_calibration
+from vision_cal.dataset.csvio import number_field
+from vision_cal.dataset.io import atomic_write_text, output_file, read_text
+from vision_cal.dataset.robot import load_robot_file
+from vision_cal.errors import VisionCalError
+from vision_cal.plan.compensate import plan_targets
+
+
+#: the columns PIXELS.csv must have (z_mm optional)
+CSV_IN = ("id", "u_px", "v_px")
+
+
+def _read_pixels(path, z_default: float):
+    reader = csv.DictReader(io.StringIO(read_text(path)))
+    header = [h.strip() for h in (reader.fieldnames or [])]
+    missing = [f for f in CSV_IN if f not in header]
+    if missing:
+        raise VisionCalError(f"header lacks {', '.join(missing)} (expected id,u_px,v_px"
+                             "[,z_mm])", file=str(path), field="line 1")
+    reader.fieldnames = header
+    ids, uv, z = [], [], []
+    for i, row in enumerate(reader):
+        line = i + 2
+        vals = []
+        for k in ("u_px", "v_px", "z_mm"):
+            v = (row.get(k) or "").strip()
+            if k == "z_mm" and not v:
+                vals.append(z_default)
+                continue
+            vals.append(number_field(v, path, line, k))
+        ids.append((row.get("id") or "").strip() or f"p{i}")
+        uv.append(vals[:2])
+        z.append(vals[2])
+    if not ids:
+        raise VisionCalError("no pixels", file=str(path))
+    return ids, uv, z
+
+
+@dataclass(frozen=True)
+class LocateRequest:
+    """What ``vision-cal locate`` was asked (its arguments; see ``vision-cal locate --help``)."""
+
+    calibration: str
+    quiet: bool = False
+    pixel: tuple[float, float] | None = None
+    csv: str | None = None
+    out: str | None = None
+    camera: int = 0
+    z_mm: float = 0.0
+    robot: str | None = None
+    joints: tuple[float, ...] | None = None
+    photo: str | None = None
+    elbow: int = 1
+
+
+def locate_pixels(req: LocateRequest) -> int:
+    """Pixels of a still camera (or the camera on the arm) located in the robot and sheet
+    frames (and the joint commands that reach them, with a robot file); one pixel printed, a
+    CSV of them written."""
+    if (req.pixel is None) == (req.csv is None):
+        raise VisionCalError("give either --pixel U V or --csv PIXELS.csv", field="--pixel")
+    if req.out and not req.csv:
+        raise VisionCalError("-o needs --csv", field="-o")
+    if not np.isfinite(req.z_mm):
+        raise VisionCalError("expected a finite height", field="--z-mm")
+    model, doc = load_calibration(req.calibration)
+    cam = camera_for(doc, req.camera, joints_deg=req.joints, photo=req.photo,
+                     file=req.calibration)
+    if req.csv:
+        ids, uv, z = _read_pixels(req.csv, req.z_mm)
+    else:
+        if not np.all(np.isfinite(req.pixel)):
+            raise VisionCalError("expected finite pixel coordinates", field="--pixel")
+        ids, uv, z = ["pixel"], [req.pixel], [req.z_mm]
+    w, h = cam.size_px
+    for i, (u, v) in zip(ids, uv):
+        if not (-0.5 <= u <= w - 0.5 and -0.5 <= v <= h - 0.5):
+            raise VisionCalError(f"pixel {u:g} {v:g} ({i}) is outside the camera's "
+                                 f"{w}x{h} image", field="--csv" if req.csv else "--pixel")
+    points = [locate(cam, [p], zz)[0] for p, zz in zip(uv, z)]
+    joints = [None] * len(points)
+    if req.robot:
+        robot = load_robot_file(req.robot)
+        joints = plan_targets(model, ids, [p.sheet_mm[:2] for p in points], elbow=req.elbow,
+                              joint_limits_deg=robot.joint_limits_deg)
+    if req.csv:
+        return _write_csv(req, ids, points, joints)
+    p, j = points[0], joints[0]
+    print(f"pixel {p.pixel[0]:g} {p.pixel[1]:g} at z {p.z_mm:g} mm (camera {req.camera})")
+    print(f"  robot frame: x {p.robot_mm[0]:.4f} y {p.robot_mm[1]:.4f} z {p.robot_mm[2]:.4f} mm"
+          f"  (std {p.robot_std_mm[0]:.4f} {p.robot_std_mm[1]:.4f} mm)")
+    print(f"  sheet frame: x {p.sheet_mm[0]:.4f} y {p.sheet_mm[1]:.4f} mm")
+    if j is not None:
+        if j.status == "ok":
+            print(f"  joint command (compensated, elbow {req.elbow:+d}): q1 {j.q_deg[0]:.4f} "
+                  f"q2 {j.q_deg[1]:.4f} deg, approach {j.approach[0]:+d} {j.approach[1]:+d}")
+        else:
+            print(f"  joint command: none ({j.reason})")
+    return 0
+
+
+def _write_csv(req: LocateRequest, ids, points, joints) -> int:
+    buf = io.StringIO()
+    wr = csv.writer(buf, lineterminator="\n")
+    head = ["id", "u_px", "v_px", "z_mm", "x_mm", "y_mm", "x_std_mm", "y_std_mm",
+            "sheet_x_mm", "sheet_y_mm"]
+    if req.robot:
+        head += ["q1_deg", "q2_deg", "approach1", "approach2", "status", "reason"]
+    wr.writerow(head)
+    for i, p, j in zip(ids, points, joints):
+        row = [i, f"{p.pixel[0]:.4f}", f"{p.pixel[1]:.4f}", f"{p.z_mm:g}",
+               f"{p.robot_mm[0]:.5f}", f"{p.robot_mm[1]:.5f}", f"{p.robot_std_mm[0]:.5f}",
+               f"{p.robot_std_mm[1]:.5f}", f"{p.sheet_mm[0]:.5f}", f"{p.sheet_mm[1]:.5f}"]
+        if j is not None:
+            ok = j.status == "ok"
+            row += ([f"{j.q_deg[0]:.5f}", f"{j.q_deg[1]:.5f}"] if ok else ["", ""]) + \
+                   [j.approach[0], j.approach[1], j.status, j.reason]
+        wr.writerow(row)
+    if req.out:
+        output_file(req.out, field="-o")
+        path = atomic_write_text(req.out, buf.getvalue())
+        if not req.quiet:
+            print(f"located {len(points)} pixels -> {path}")
+    else:
+        sys.stdout.write(buf.getvalue())
+    return 0

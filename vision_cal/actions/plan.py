@@ -1,0 +1,214 @@
+"""The planning action (``vision-cal plan``): joint commands that hit sheet targets with a
+calibrated (or the nominal) model, the failed targets' report, and optionally the
+reference trajectory and a robot program, written together or not at all."""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from vision_cal.dataset.calibration import load_calibration
+from vision_cal.dataset.covariance import load_covariance
+from vision_cal.dataset.csvio import (failed_report_path, read_target_theta, read_targets,
+                                      write_failed_targets, write_plan)
+from vision_cal.dataset.io import distinct_outputs, output_file, written_together
+from vision_cal.dataset.robot import load_robot_file
+from vision_cal.dataset.trust import refuse_unreliable
+from vision_cal.errors import VisionCalError
+from vision_cal.measure.printed import targets_on_print
+from vision_cal.motion import JOINT_LIMITS_DEG
+from vision_cal.plan.compensate import plan_targets, to_planned_marks, write_plan_trajectory
+from vision_cal.plan.orient import controller_tool_mm, plan_poses
+from vision_cal.plan.trajectory import check_length
+from vision_cal.plan.uncertainty import predicted_std_mm
+from vision_cal.program import program_path, program_points, write_program
+
+
+@dataclass(frozen=True)
+class PlanRequest:
+    """What ``vision-cal plan`` was asked (the command's arguments, see its ``--help``)."""
+
+    calibration: str                      # calibration.json to plan with
+    targets: str                          # TARGETS.csv: id,x_mm,y_mm (+ theta_deg)
+    out: str                              # PLAN.csv
+    model: str = "calibrated"             # or "nominal" (the 'before' column)
+    elbow: int = 1
+    approach: tuple[int, int] = (1, 1)
+    trajectory: str | None = None         # TRAJ.csv, 16 ms samples
+    program: str | None = None            # "spel" or "csv" (needs robot)
+    home: tuple[float, float] | None = None
+    robot: str | None = None              # ROBOT.yaml
+    force: bool = False                   # plan with a 'not reliable' calibration
+    approach4: int = 1
+    quiet: bool = False
+
+
+def plan(req: PlanRequest) -> int:
+    """Plan ``req.targets`` with the model of ``req.calibration``; write the plan (and the
+    trajectory, the robot program) together or not at all. Exit code: 0, or 1 when no
+    target could be planned."""
+    output_file(req.out, field="-o")
+    if req.trajectory:
+        output_file(req.trajectory, field="--trajectory")
+    prg = None
+    if req.program:
+        prg = program_path(req.program, Path(req.out).with_suffix(""))
+        output_file(prg, field="--program")
+    report = failed_report_path(req.out)
+    distinct_outputs([("-o", req.out), ("-o (its failed targets)", report),
+                      ("--trajectory", req.trajectory), ("--program", prg)],
+                     [("CALIBRATION.json", req.calibration), ("TARGETS.csv", req.targets),
+                      ("--robot", req.robot)])
+    robot = None
+    if req.program and not req.robot:
+        raise VisionCalError("--program needs --robot ROBOT.yaml (pen heights, speeds)",
+                             field="--robot")
+    if req.robot:
+        robot = load_robot_file(req.robot)
+        if req.program:
+            robot.require_pen_heights()
+    model, doc = load_calibration(req.calibration, which=req.model)
+    warn = refuse_unreliable(doc, req.calibration, force=req.force)
+    if warn:
+        print(warn, file=sys.stderr)
+    home_deg = _home_deg(req, doc, robot)
+    ids, xy = read_targets(req.targets)
+    if req.trajectory:  # a million targets: refused before they are planned
+        try:
+            check_length(len(ids))
+        except VisionCalError as e:
+            raise VisionCalError(e.reason, file=str(req.trajectory),
+                                 field="--trajectory") from e
+    limits = {} if robot is None else {"joint_limits_deg": robot.joint_limits_deg}
+    if robot is None and doc.get("joint_limits_deg") is not None:   # recorded by the run
+        limits = {"joint_limits_deg": tuple(tuple(float(v) for v in p)
+                                            for p in doc["joint_limits_deg"])}
+    theta = read_target_theta(req.targets)
+    poses = None
+    if theta is not None or model.tool is not None:   # joint 4 and the tool (plan/orient.py)
+        if robot is not None:
+            limits["joint4_limits_deg"] = robot.joint4_limits_deg
+        poses = plan_poses(model, ids, xy, theta, elbow=req.elbow,
+                           approach=(*req.approach, req.approach4),
+                           q4_deg=robot.j4_deg if robot is not None else 0.0, **limits)
+        planned = [p.target for p in poses]
+        pose_of = {p.target.id: p for p in poses}
+    else:
+        planned = plan_targets(model, ids, xy, elbow=req.elbow, approach=tuple(req.approach),
+                               **limits)
+    cov = load_covariance(doc, model, file=req.calibration) if req.model == "calibrated" \
+        else None
+    ok = [p for p in planned if p.status == "ok"]
+    failed = [p for p in planned if p.status != "ok"]
+    if poses is None:
+        q_ok, a_ok = [p.q_deg for p in ok], [p.approach for p in ok]
+    else:
+        q_ok = [(*p.q_deg, pose_of[p.id].q4_deg) for p in ok]
+        a_ok = [(*p.approach, pose_of[p.id].approach4) for p in ok]
+    std = (predicted_std_mm(model, cov, q_ok, a_ok)
+           if cov is not None and ok else [float("nan")] * len(ok))
+    # every output is written together or not at all (a program path that cannot be
+    # written, a trajectory too long, leave the earlier files as they were)
+    with written_together():
+        # the command file holds only what can be sent to the robot: no NaN, no failed row
+        # (an unknown std, as with the nominal model, is left empty)
+        write_plan(req.out, [dict(p.to_row() if poses is None else pose_of[p.id].to_row(),
+                                   std_mm=float(s) if math.isfinite(s) else "")
+                              for p, s in zip(ok, std)])
+        if failed:
+            write_failed_targets(report, [(p.id, *p.target_mm, p.reason) for p in failed])
+        if req.trajectory and ok:
+            try:
+                write_plan_trajectory(req.trajectory, ok, home_deg=home_deg)
+            except VisionCalError as e:
+                raise VisionCalError(e.reason, file=str(req.trajectory),
+                                     field="--trajectory") from e
+        if req.program and ok:  # no program of nothing (exit 1 below)
+            marks = to_planned_marks(ok, overshoot_deg=robot.overshoot_deg, role="target")
+            joint4, tool = None, None
+            if poses is not None:   # joint 4 turns: its via point on the approach side
+                joint4 = {p.target.id: (p.q4_deg, p.q4_deg - p.approach4 * robot.overshoot_deg)
+                          for p in poses if p.target.status == "ok"}
+                if model.tool is not None:
+                    tool = controller_tool_mm(model.params, model.tool.tool_mm)
+            points = program_points(marks, home_deg=home_deg,
+                                    z2_deg=model.params.z2_deg, joint4=joint4)
+            path = write_program(req.program, prg, points, robot,
+                                 title=f"vision-cal compensated targets: {len(ok)} of "
+                                       f"{len(planned)} targets of {req.targets}, "
+                                       f"{req.model} model", tool_mm=tool)
+            if not req.quiet:
+                print(f"wrote {path}")
+    if failed:
+        if ok:  # when none is planned, the error below says it once
+            print(f"vision-cal: warning: {req.targets}: {summarise_failures(failed)}; "
+                  f"all in {report}", file=sys.stderr)
+    else:
+        report.unlink(missing_ok=True)  # a stale report of an earlier run
+    _say_targets_on_print(req, doc, ok)
+    if not req.quiet:
+        print(f"planned {len(planned) - len(failed)} of {len(planned)} targets "
+              f"with the {req.model} model -> {req.out}")
+    if not ok:
+        print(f"vision-cal: error: {req.targets}: nothing could be planned with the "
+              f"{req.model} model of {req.calibration}: {summarise_failures(failed)}; "
+              f"all in {report}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _say_targets_on_print(req, doc: dict, ok) -> None:
+    """One warning line naming the planned targets that lie on the sheet's printed ink
+    (calibration.json ``printed_content``) and what it costs."""
+    content = doc.get("printed_content") or []
+    if not content or not ok:
+        return
+    on = targets_on_print(content, [p.id for p in ok], [p.target_mm for p in ok], 1.0)
+    if not on:
+        return
+    head = "; ".join(f"{tid} ({', '.join(labels)})" for tid, labels in on[:3])
+    more = f" and {len(on) - 3} more" if len(on) > 3 else ""
+    print(f"vision-cal: warning: {req.targets}: {len(on)} target(s) on the sheet's printed "
+          f"ink: {head}{more}: a pen mark there is measured against the print (0.01-0.02 mm "
+          "less certain) or, where it cannot be separated, left out as unreliable; move the "
+          "target by a few millimetres onto plain paper to check it", file=sys.stderr)
+
+
+def summarise_failures(failed, *, first: int = 3) -> str:
+    """One line for any number of failed targets: counts per kind of reason, the first few."""
+    kinds: dict[str, int] = {}
+    for p in failed:
+        k = next((k for k in ("out of reach", "singularity", "outside its limits",
+                              "could not be inverted") if k in p.reason), "other")
+        kinds[k] = kinds.get(k, 0) + 1
+    counts = ", ".join(f"{n} {k}" for k, n in sorted(kinds.items(), key=lambda kv: -kv[1]))
+    head = "; ".join(f"target {p.id}: {p.reason}" for p in failed[:first])
+    more = f" (and {len(failed) - first} more)" if len(failed) > first else ""
+    return f"{len(failed)} target(s) not planned ({counts}): {head}{more}"
+
+
+def _home_deg(req, doc: dict, robot) -> tuple[float, float]:
+    """Where the planned motion starts: ``--home``, else the robot file's ``home_deg``, else
+    calibration.json's ``home_deg`` (the session's), else (0, 0)."""
+    if req.home is not None:
+        home, where, file = req.home, "--home", None
+        lims = JOINT_LIMITS_DEG if robot is None else robot.joint_limits_deg
+        of = "the default joint limits" if robot is None else f"joint_limits_deg of {req.robot}"
+        for j in range(2):
+            if not (math.isfinite(home[j]) and lims[j][0] <= home[j] <= lims[j][1]):
+                raise VisionCalError(f"joint {j + 1} at {home[j]:g} deg is outside {of} "
+                                     f"{list(lims[j])}", field="--home")
+    elif robot is not None:
+        return tuple(robot.nominal.home_deg)
+    elif "home_deg" in doc:
+        home, where, file = doc["home_deg"], "home_deg", req.calibration
+    else:
+        return (0.0, 0.0)
+    if (not isinstance(home, (list, tuple)) or len(home) != 2
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                       and math.isfinite(v) for v in home)):
+        raise VisionCalError(f"expected two finite joint angles in degrees, got {home!r}",
+                             file=file, field=where)
+    return (float(home[0]), float(home[1]))
