@@ -38,9 +38,11 @@ class DotConfig:
                                       # (clean renders: 0.7-1.1, and 3.2 by two bold lines
                                       # crossing, which the separable model cannot follow)
     unreliable_ink_shift_mm: float = 0.01  # over the sheet's own print: the centre moves more
-                                      # than this when the pen's ink level is taken 20 % darker
-                                      # or lighter (a third of the 0.03 mm a mark must meet):
-                                      # it depends on the ink model, the mark is "unreliable"
+                                      # than this when the pen's ink level is taken anywhere in
+                                      # the spread of the dot's core, or the print's blur one
+                                      # step sharper or softer while the photo cannot tell it
+                                      # (a third of the 0.03 mm a mark must meet): it depends
+                                      # on the model, the mark is "unreliable"
 
 
 @dataclass(frozen=True)

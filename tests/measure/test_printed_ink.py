@@ -94,9 +94,7 @@ def _sheet_of(doc):
     return read_sheet_block(_Reader("sheet.json"), doc, "")
 
 
-@pytest.mark.parametrize("seed", [5, pytest.param(8, marks=pytest.mark.xfail(
-    reason="open: on this view the mark on the x scale bar by the title text measures "
-           "0.032 mm off, unflagged (issue 18)", strict=True))])
+@pytest.mark.parametrize("seed", [5, 8])
 def test_marks_on_print_are_measured_against_the_print(a4, tmp_path, seed):
     res = _measure(a4, tmp_path / "d", seed)
     for k, (err, why, under) in res.items():

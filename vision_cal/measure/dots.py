@@ -324,7 +324,8 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     :func:`blank_regions`). ``printed``: the sheet's own print
     (:class:`vision_cal.measure.printed.PrintedReference`); where it has more than the grid
     near the dot (axes, bars, text), the background is that print rendered into the patch
-    (:func:`_printed_background`) instead of the separable model. Returns None when the
+    (:func:`_printed_background`) instead of the separable model, and the centre is the
+    pen's disk over the sharp print (:func:`_pen_over_print`), which the blur does not move. Returns None when the
     dot cannot be measured (patch too small for the mapping, no ink, centroid running away).
     """
     dia = float(dia_mm or DEFAULT_DIAMETER_MM)
@@ -335,7 +336,8 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     step = min(FINE_STEP_MM, mm_px / 4)
     under = [] if printed is None else printed.content_near(c, half + 0.5)
     background = "separable"
-    d_shift = 0.0
+    d_shift = d_blur = 0.0
+    blur_alts = ()
     for _pass in range(2):
         X, Y, Sg = _resample(S, origin, mapping, c, half, step)
         if np.any(Sg < 0):
@@ -372,21 +374,19 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
             pb = _printed_background(S, origin, mapping, c, half, step, Sg, bgmask, printed,
                                      mm_px, noise_sigma)
             if pb is not None:
-                bg, P, resid = pb
+                bg, P, resid, blur_alts, sharp = pb
                 background = "printed"
         w0 = (bg - Sg) / P            # ink deficit, relative to the paper
         ell = np.clip((P - bg) / P, 0.0, None)
         r_dot = 0.5 * dia
         if background == "printed":
-            # the pen covers the print: the fraction of each sample the ink covers is
-            # (bg - S) / (bg - D), D the ink's own level (its darkest core); nothing of the
-            # print under the dot is then counted as pen, so nothing is given back below
+            # the pen's own level D (its darkest core)
             core = np.hypot(X - c[0], Y - c[1]) <= 0.5 * r_dot
             D = float(np.percentile(Sg[core], 10)) if core.any() else float(Sg.min())
-            w0 = (bg - Sg) / np.maximum(bg - D, 0.25 * (P - D)) * ((P - D) / P)
-            ell = np.zeros_like(ell)
+            # how well the core tells that level: its spread (noise, uneven ink)
+            dD = float(np.percentile(Sg[core], 50)) - D if core.any() else 0.0
         cc = c.copy()
-        for _ in range(8):
+        for _ in range(0 if background == "printed" else 8):   # printed: _pen_over_print
             rc = np.hypot(X - cc[0], Y - cc[1])
             win = (rc <= r_win).astype(float)
             # the opaque dot hides the printed lines under it: give their darkness back
@@ -405,17 +405,25 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
             cc = new
             if moved < 1e-5:
                 break
-        t = Sg / P
         if background == "printed":
-            # how far the centre depends on the ink's own level (the print under the dot
-            # weighs differently with another D): the part of the print the model may miss
-            d_shift = 0.0
-            win_f = (np.hypot(X - cc[0], Y - cc[1]) <= r_win).astype(float)
-            for Dp in (D - 0.2 * (P - D), D + 0.2 * (P - D)):
-                wp = win_f * (bg - Sg) / np.maximum(bg - Dp, 0.25 * (P - Dp))
-                if wp.sum() > 0:
-                    cp = np.array([(wp * X).sum(), (wp * Y).sum()]) / wp.sum()
-                    d_shift = max(d_shift, float(np.hypot(*(cp - cc))))
+            fw = _pen_over_print(bg - Sg, sharp - D, X, Y, c, r_dot, r_win, step)
+            if fw is None:
+                return None
+            cc, win, cover = fw
+            M = cover * float(np.mean((P - D) / P))
+            # how far the centre depends on what the model assumes: the ink's own level
+            # (within the core's spread) and the print's blur (the neighbouring candidates,
+            # which the photo tells apart only by a little)
+            d_shift = d_blur = 0.0
+            for Dp in (D - dD, D + dD):
+                alt = _pen_over_print(bg - Sg, sharp - Dp, X, Y, c, r_dot, r_win, step)
+                if alt is not None:
+                    d_shift = max(d_shift, float(np.hypot(*(alt[0] - cc))))
+            for bg_b, _P_b in blur_alts:
+                alt = _pen_over_print(bg_b - Sg, sharp - D, X, Y, c, r_dot, r_win, step)
+                if alt is not None:
+                    d_blur = max(d_blur, float(np.hypot(*(alt[0] - cc))))
+        t = Sg / P
         shift = np.hypot(*(cc - c))
         c = cc
         if shift < 0.1 * r_win:
@@ -459,9 +467,50 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
                "noise around it")
     elif background == "printed" and d_shift > UNRELIABLE_INK_SHIFT_MM:
         why = (f"pen ink on printed ink ({on}) that could not be separated: the centre "
-               f"moves {1000 * d_shift:.0f} um with the ink's assumed darkness (+-20 %)")
+               f"moves {1000 * d_shift:.0f} um with the ink's level (within the spread "
+               "of the dot's core)")
+    elif background == "printed" and d_blur > UNRELIABLE_INK_SHIFT_MM:
+        why = (f"pen ink on printed ink ({on}) that could not be separated: the centre "
+               f"moves {1000 * d_blur:.0f} um with the print's blur (one step of "
+               "measure.printed.BLUR_CANDIDATES_PX)")
     return DotMeasurement(c, cov_noise + cov_map, M_mm2, cov_noise, cov_map,
                           ratio, on, background, why)
+
+
+def _pen_over_print(F, contrast, X, Y, c0, r_dot: float, r_win: float, step: float):
+    """The centre of a pen dot over the print: (centre (2,), window (h, w), ink cover in
+    samples), None when there is no ink.
+
+    The photo is the blur of ``T (1 - a) + D a`` (``a`` the pen's cover, ``T`` the sharp
+    print, ``D`` the ink's level), so the deficit ``F = bg - S`` is the blur of
+    ``a (T - D)`` and its centroid is the one of ``a (T - D)`` whatever the blur. A disk of
+    the pen's size (scaled to ``F``'s mass) over ``contrast = T - D`` gives how far the
+    print pulls that centroid off the disk's centre; the centre is moved back by as much.
+    """
+    cc = np.asarray(c0, float).copy()
+    k = np.clip(contrast, 0.0, None)
+    for _ in range(12):
+        rc = np.hypot(X - cc[0], Y - cc[1])
+        win = (rc <= r_win).astype(float)
+        MF = float((win * F).sum())
+        if MF <= 0:
+            return None
+        c1 = np.array([(win * F * X).sum(), (win * F * Y).sum()]) / MF
+        disk = np.clip((r_dot - rc) / step + 0.5, 0.0, 1.0)
+        m = win * disk * k
+        r_eff = r_dot * np.sqrt(min(max(MF / max(m.sum(), 1e-9), 0.25), 4.0))
+        disk = np.clip((r_eff - rc) / step + 0.5, 0.0, 1.0)
+        m = win * disk * k
+        if m.sum() <= 0:
+            return None
+        cm = np.array([(m * X).sum(), (m * Y).sum()]) / m.sum()
+        new = c1 - (cm - cc)
+        moved = float(np.hypot(*(new - cc)))
+        cc = new
+        if moved < 1e-5:
+            break
+    cover = MF / max(float(m.sum() / max(disk.sum(), 1e-9)), 1e-9)
+    return cc, win, cover
 
 
 def _printed_background(S, origin, mapping: SheetMapping, c, half, step, Sg, bgmask, printed,
@@ -472,7 +521,7 @@ def _printed_background(S, origin, mapping: SheetMapping, c, half, step, Sg, bgm
     samples (robust: samples 3.5 robust std off are left out, twice). The blur is the one of
     :data:`vision_cal.measure.printed.BLUR_CANDIDATES_PX` that fits best. ``P`` is the bare
     paper's level (every ``T_c`` = 1). None when the fit cannot be made."""
-    best = None
+    fits = []
     y = Sg[bgmask].astype(float)
     if len(y) < 20:
         return None
@@ -487,12 +536,27 @@ def _printed_background(S, origin, mapping: SheetMapping, c, half, step, Sg, bgm
             s = 1.4826 * float(np.median(np.abs(r[keep]))) + 1e-9
             keep = np.abs(r) < 3.5 * max(s, noise_sigma)
         score = float(np.mean(r[keep] ** 2)) * len(y) / max(keep.sum(), 1) ** 1
-        if best is None or score < best[0]:
-            best = (score, coef, Tg, keep)
-    _, coef, Tg, keep = best
-    bg = coef[0] + np.tensordot(coef[1:], Tg, axes=1)
-    P = float(coef.sum())
-    if not np.isfinite(P) or P <= 0 or np.any(bg <= 0):
-        return None
+        fits.append((score, coef, Tg))
+    i = int(np.argmin([f[0] for f in fits]))
+    out = []
+    for j in (i, i - 1, i + 1):
+        if not 0 <= j < len(fits):
+            continue
+        # a neighbouring blur counts when the photo cannot tell it from the best one: its
+        # residual sum of squares exceeds the best's by less than 4 noise variances (2 sigma)
+        if j != i and (fits[j][0] - fits[i][0]) * len(y) > 4.0 * noise_sigma ** 2:
+            continue
+        _, coef, Tg = fits[j]
+        bg = coef[0] + np.tensordot(coef[1:], Tg, axes=1)
+        P = float(coef.sum())
+        if not np.isfinite(P) or P <= 0 or np.any(bg <= 0):
+            if j == i:
+                return None
+            continue
+        out.append((bg, P))
+    bg, P = out[0]
     resid = (np.log(np.maximum(Sg, 1.0)) - np.log(bg))[bgmask]
-    return bg, np.full(Sg.shape, P), resid
+    coef = fits[i][1]
+    X, Y, _ = _resample(S, origin, mapping, c, half, step)
+    sharp = coef[0] + np.tensordot(coef[1:], printed.transmission_at(X, Y), axes=1)
+    return bg, np.full(Sg.shape, P), resid, out[1:], sharp
