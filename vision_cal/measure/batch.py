@@ -281,7 +281,7 @@ def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank):
         return None
     r_win, _ = _radii_mm(float(dia or DEFAULT.dots.default_diameter_mm), float(mapping.mm_per_px(xy_mm)[0]))
     return grid_offset(det.grid_patches[k], det.grid_origins[k], mapping, xy_mm, grid,
-                       exclude_r_mm=r_win, blank_rects=blank)
+                       exclude_r_mm=r_win, blank_rects=blank, dot_dia_mm=dia)
 
 
 def measure_image(path, session: Session, *, lens: LensEstimate | None = None) -> ImageResult:

@@ -30,9 +30,11 @@ import cv2
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
+from vision_cal.config import DEFAULT
 from vision_cal.dataset.session import SheetGrid
 from vision_cal.measure.mapping import SheetMapping, apply_h
 
+DOTS = DEFAULT.dots        # what a pen dot is (size, aspect): other dark ink is print
 GRID_STEP_MM = 0.15       # window sampling (a pixel is 0.2-0.4 mm on the sheet)
 GRID_HALF_MM = 9.0        # window half-size: +-9 mm holds 18 lines at many pixel phases
 MIN_PERIODS = 3.0          # the window must hold this many pitches of usable profile per axis
@@ -109,6 +111,7 @@ def _lens_map(mapping, c, g, half_mm, origin_px):
 
 def grid_offset(patch_rgb: np.ndarray, origin_px, mapping: SheetMapping, centre_mm,
                 grid: SheetGrid, *, exclude_r_mm: float, blank_rects=None,
+                dot_dia_mm: float | None = None,
                 half_mm: float = GRID_HALF_MM, step_mm: float = GRID_STEP_MM) -> GridOffset | None:
     """The printed grid's offset around a dot (see the module docstring), or None when the
     lines cannot be seen well enough (too few in the patch, too faint)."""
@@ -144,6 +147,18 @@ def grid_offset(patch_rgb: np.ndarray, origin_px, mapping: SheetMapping, centre_
     paper = float(np.percentile(Sg[ok], 90))
     dark = ~(Sg > DARK_FRACTION * paper)
     if dark.any():
+        # dark ink that is no pen dot (larger than one, or elongated: a bar, an axis, a
+        # label) away from this dot: printed content the grid does not hold, whose edges
+        # the lines' phase would take for grid; the grid is no reference here
+        dia = float(dot_dia_mm or DOTS.default_diameter_mm)
+        n, _, st, _ = cv2.connectedComponentsWithStats((dark & ok).astype(np.uint8),
+                                                       connectivity=8)
+        for j in range(1, n):
+            area_mm2 = st[j, cv2.CC_STAT_AREA] * step_mm * step_mm
+            long_mm = max(st[j, cv2.CC_STAT_WIDTH], st[j, cv2.CC_STAT_HEIGHT]) * step_mm
+            if area_mm2 > DOTS.max_area_ratio * np.pi * (0.5 * dia) ** 2 or \
+                    long_mm > DOTS.max_aspect * dia:
+                return None
         k = 2 * int(np.ceil(0.5 / step_mm)) + 1
         dark = cv2.dilate(dark.astype(np.uint8), np.ones((k, k), np.uint8)) > 0
         ok &= ~dark
