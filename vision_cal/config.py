@@ -42,7 +42,15 @@ class DotConfig:
                                       # the spread of the dot's core, or the print's blur one
                                       # step sharper or softer while the photo cannot tell it
                                       # (a third of the 0.03 mm a mark must meet): it depends
-                                      # on the model, the mark is "unreliable"
+                                      # on the model, the mark is "unreliable". Paper and
+                                      # grid lines alone: ink the model leaves unexplained
+                                      # beside the window would move the centre more than
+                                      # this (clean marks: <= 7 um; a letter or number
+                                      # touching the window: 14 um and more)
+    unreliable_noise_sigmas: float = 3.5  # ... and more than this many times the std the
+                                      # photo's noise gives that pull (a 2-D pull of noise alone
+                                      # exceeds 3.5 std in 0.2 % of marks; clean marks on
+                                      # renders: up to 2.7 std, at 0.26 mm/px up to 10 um)
 
 
 @dataclass(frozen=True)

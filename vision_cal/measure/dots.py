@@ -54,6 +54,7 @@ MODEL_FLOOR_PX = _CFG.model_floor_px
 UNRELIABLE_BG_RESIDUAL = _CFG.unreliable_bg_residual
 UNRELIABLE_BG_RESIDUAL_SEPARABLE = _CFG.unreliable_bg_residual_separable
 UNRELIABLE_INK_SHIFT_MM = _CFG.unreliable_ink_shift_mm
+UNRELIABLE_NOISE_SIGMAS = _CFG.unreliable_noise_sigmas
 
 
 def _radii_mm(dia_mm: float, mm_per_px: float) -> tuple[float, float]:
@@ -453,6 +454,20 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     noise_grid = np.sqrt(sw2) / mm_px  # per-sample std of the relative intensity (upper)
     e_rms = rms(resid)
     ratio = e_rms / noise_grid
+    ring_shift = ring_sd = 0.0
+    if background == "separable":
+        # ink the model does not explain just outside the window (print it cannot follow:
+        # a letter, a number, the corner of a label) goes on inside it, in the window's
+        # margin around the dot; its pull on the centroid, taken from a ring of the same
+        # width just outside the window
+        rr = np.hypot(X - c[0], Y - c[1])
+        ring = (rr > r_win) & (rr <= 2.0 * r_win - 0.5 * dia)
+        u = np.where(ring, (bg - Sg) / P, 0.0)
+        if M > 0:
+            ring_shift = float(np.hypot((u * dX).sum(), (u * dY).sum()) / M)
+            # ... beyond what the photo's noise alone gives it (per axis)
+            ring_sd = float(np.sqrt(sw2 * np.sum(ring * (dX * dX + dY * dY)) * step**2 / 2)
+                            / M_mm2)
     on = "; ".join(it.label for it in under)
     why = ""
     limit = (UNRELIABLE_BG_RESIDUAL if background == "printed"
@@ -465,6 +480,10 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
                else "paper and grid lines")
         why = (f"{what} that could not be separated: {how} leave {ratio:.1f} times the "
                "noise around it")
+    elif ring_shift > max(UNRELIABLE_INK_SHIFT_MM, UNRELIABLE_NOISE_SIGMAS * ring_sd):
+        why = ("the ground around the mark is not paper and grid lines (printed ink, a blot "
+               "or a neighbouring mark) that could not be separated: the ink beside it the "
+               f"model does not explain would move the centre {1000 * ring_shift:.0f} um")
     elif background == "printed" and d_shift > UNRELIABLE_INK_SHIFT_MM:
         why = (f"pen ink on printed ink ({on}) that could not be separated: the centre "
                f"moves {1000 * d_shift:.0f} um with the ink's level (within the spread "
