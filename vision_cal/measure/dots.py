@@ -13,9 +13,12 @@ parallel before the lens is known:
 2. :func:`refine_dot` (one patch, final mapping including the lens): the patch is resampled
    on a fine grid in *sheet* coordinates (0.05 mm), the background including the plotting
    grid is modelled as separable in log intensity (``log S = a(x) + b(y)``, robust medians
-   outside the dot; grid lines are rows/columns of the sheet), and the centre is the
-   centroid of the ink fraction ``1 - S / bg`` in a disk around the dot. Because it is
-   computed on a uniform sheet grid, perspective and lens do not bias it.
+   outside the dot; grid lines are rows/columns of the sheet), and the centre is found from
+   the centroid of the deficit ``bg - S`` in a disk around the dot: the photo is the blur
+   of ``print (1 - a) + D a`` (``a`` the pen's cover, ``D`` its ink), so that centroid is
+   the one of ``a (print - D)`` whatever the blur, and the pen's disk over the print says
+   how far what it covers pulls it (:func:`_pen_over_print`). Because it is computed on a
+   uniform sheet grid, perspective and lens do not bias it.
 
 Uncertainty: white pixel noise (``sigma`` of the channel sum, estimated from the photo)
 propagated through the centroid and through the background fit, plus the mapping's
@@ -377,41 +380,21 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
             if pb is not None:
                 bg, P, resid, blur_alts, sharp = pb
                 background = "printed"
-        w0 = (bg - Sg) / P            # ink deficit, relative to the paper
-        ell = np.clip((P - bg) / P, 0.0, None)
         r_dot = 0.5 * dia
+        # the pen's own level D (its darkest core) and how well the core tells it (its
+        # spread: noise, uneven ink)
+        core = np.hypot(X - c[0], Y - c[1]) <= 0.5 * r_dot
+        D = float(np.percentile(Sg[core], 10)) if core.any() else float(Sg.min())
+        dD = float(np.percentile(Sg[core], 50)) - D if core.any() else 0.0
+        # what the pen covers: the sharp print where the sheet describes it, else the
+        # background model itself (paper and grid lines, blurred as the photo is)
+        under_pen = sharp if background == "printed" else bg
+        fw = _pen_over_print(bg - Sg, under_pen - D, X, Y, c, r_dot, r_win, step)
+        if fw is None:
+            return None
+        cc, win, cover = fw
+        M = cover * float(np.mean((P - D) / P))
         if background == "printed":
-            # the pen's own level D (its darkest core)
-            core = np.hypot(X - c[0], Y - c[1]) <= 0.5 * r_dot
-            D = float(np.percentile(Sg[core], 10)) if core.any() else float(Sg.min())
-            # how well the core tells that level: its spread (noise, uneven ink)
-            dD = float(np.percentile(Sg[core], 50)) - D if core.any() else 0.0
-        cc = c.copy()
-        for _ in range(0 if background == "printed" else 8):   # printed: _pen_over_print
-            rc = np.hypot(X - cc[0], Y - cc[1])
-            win = (rc <= r_win).astype(float)
-            # the opaque dot hides the printed lines under it: give their darkness back
-            # on a disk of the nominal size, with the dot's contrast (mass / nominal area)
-            disk = np.clip((r_dot - rc) / step + 0.5, 0.0, 1.0)
-            w = w0
-            for _k in range(2):
-                contrast = float((win * w).sum()) * step * step / (np.pi * r_dot**2)
-                w = w0 + disk * ell * min(max(contrast, 0.0), 1.0)
-            ww = win * w
-            M = ww.sum()
-            if M <= 0:
-                return None
-            new = np.array([(ww * X).sum() / M, (ww * Y).sum() / M])
-            moved = np.hypot(*(new - cc))
-            cc = new
-            if moved < 1e-5:
-                break
-        if background == "printed":
-            fw = _pen_over_print(bg - Sg, sharp - D, X, Y, c, r_dot, r_win, step)
-            if fw is None:
-                return None
-            cc, win, cover = fw
-            M = cover * float(np.mean((P - D) / P))
             # how far the centre depends on what the model assumes: the ink's own level
             # (within the core's spread) and the print's blur (the neighbouring candidates,
             # which the photo tells apart only by a little)
