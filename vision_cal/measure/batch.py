@@ -45,6 +45,7 @@ from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerpr
 from vision_cal.measure.infer import infer_image_marks
 from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.measure.dots import _radii_mm, blank_regions, find_candidates, refine_dot
+from vision_cal.measure.previous_photo import previous_photos
 from vision_cal.measure.printed import printed_reference
 from vision_cal.measure.rotated import to_main_px, transposed, turned_lens
 from vision_cal.measure.sheetfit import (LENS_CAUSE, MISFIT, corner_tolerance_mm,
@@ -209,8 +210,9 @@ def _lens_of(session: Session, lens: LensEstimate | None, size):
 
 
 def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | None = None,
-                 *, from_cache: bool = False) -> ImageResult:
-    """Stage 2: final mapping and dot centres on the sheet."""
+                 *, from_cache: bool = False, previous=None) -> ImageResult:
+    """Stage 2: final mapping and dot centres on the sheet. ``previous``: the photo before
+    in a series adding marks (:mod:`vision_cal.measure.previous_photo`)."""
     if det.status != "ok":
         return ImageResult(det.file, det.status, det.reason, n_markers=len(det.marker_ids),
                            size_px=det.size_px, from_cache=from_cache)
@@ -241,7 +243,7 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     grid_blank = blank if pref is None else np.concatenate([blank, pref.ungridded_boxes_mm()])
     for k, (patch, org, x0, uv) in enumerate(zip(c.patches, c.origins, xy0, c.uv_px)):
         r = refine_dot(patch, org, m, x0, dia_mm=dia, noise_sigma=c.noise_sigma,
-                       blank_rects=blank, printed=pref)
+                       blank_rects=blank, printed=pref, previous=previous)
         if r is None:
             rejected["not measurable"] = rejected.get("not measurable", 0) + 1
             continue
@@ -462,7 +464,8 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
     cached = [ph.cached for ph in items]
     lens, lens_warnings = lens_of_photos(session, dets)
     warnings += lens_warnings
-    images, finish_warnings = finish_all(session, dets, cached, lens)
+    images, finish_warnings = finish_all(session, dets, cached, lens,
+                                         listed_marks=[ph.listed_marks for ph in items])
     warnings += finish_warnings
     files = [ph.file for ph in items]
     dots = associate_dots(session, items, images, ac)
@@ -626,11 +629,14 @@ def lens_of_photos(session: Session, dets: list[ImageDetections]
 
 
 def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool],
-               lens: LensEstimate | None) -> tuple[list[ImageResult], list[str]]:
+               lens: LensEstimate | None, *, listed_marks=None
+               ) -> tuple[list[ImageResult], list[str]]:
     """Every photo's final mapping and dots (:func:`finish_image`); the sheet's declaration
     checked (markers that do not fit it stop the run, a misdeclared grid is dropped: the
-    markers win) and a photo moved as a whole against the others left out. Returns
-    (images, warnings)."""
+    markers win), the photo before as the print under new marks (``listed_marks``: per
+    photo the marks session.json lists, None when not listed;
+    :mod:`vision_cal.measure.previous_photo`) and a photo moved as a whole against the
+    others left out. Returns (images, warnings)."""
     warnings: list[str] = []
     images = [finish_image(d, session, lens, from_cache=c) for d, c in zip(dets, cached)]
     _check_sheet_fits(session, images)
@@ -640,6 +646,16 @@ def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool]
         warnings.append(wrong_grid.message)
         session = replace(session, sheet=replace(session.sheet, grid=None))
         images = [finish_image(d, session, lens, from_cache=c) for d, c in zip(dets, cached)]
+
+    # a series adding marks photo by photo, on a sheet whose print is not described: the
+    # photo before shows the print under each new mark
+    if listed_marks is not None and printed_reference(session.sheet) is None:
+        before = previous_photos(session, Path(session.root), [d.file for d in dets],
+                                 listed_marks, images)
+        for k, prev in before.items():
+            images[k] = finish_image(dets[k], session, lens, from_cache=cached[k],
+                                     previous=prev)
+
     # a photo moved as a whole against the others is left out, not the marks it shares
     for k, why in disagreeing_photos(images).items():
         log.warning("%s: %s", images[k].file, why)

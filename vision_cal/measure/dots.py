@@ -283,7 +283,8 @@ class DotMeasurement:
     bg_residual: float = float("nan")  # background-model residual / noise (about 1 if clean)
     #: what is printed under the dot (labels of :class:`vision_cal.measure.printed.PrintedItem`,
     #: "" for bare paper and grid lines) and how the background was modelled: "separable"
-    #: (paper and grid lines) or "printed" (the sheet's own print rendered into the photo)
+    #: (paper and grid lines), "printed" (the sheet's own print rendered into the photo) or
+    #: "previous photo" (the photo before, without the mark: a series adding marks)
     printed_under: str = ""
     background: str = "separable"
     #: why the centre cannot be trusted ("" when it can): the background model leaves more
@@ -321,7 +322,7 @@ def blank_regions(sheet: Sheet) -> np.ndarray:
 def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
                dia_mm: float | None = None, noise_sigma: float = 1.0,
                median_efficiency: float = 1.57, blank_rects=None,
-               printed=None) -> DotMeasurement | None:
+               printed=None, previous=None) -> DotMeasurement | None:
     """Stage 2: the dot's sheet centre from its raw patch with the final mapping.
 
     ``blank_rects`` (K, 4): sheet rectangles with no plotting grid (see
@@ -329,8 +330,12 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     (:class:`vision_cal.measure.printed.PrintedReference`); where it has more than the grid
     near the dot (axes, bars, text), the background is that print rendered into the patch
     (:func:`_printed_background`) instead of the separable model, and the centre is the
-    pen's disk over the sharp print (:func:`_pen_over_print`), which the blur does not move. Returns None when the
-    dot cannot be measured (patch too small for the mapping, no ink, centroid running away).
+    pen's disk over the sharp print (:func:`_pen_over_print`), which the blur does not move.
+    ``previous``: the photo before in a series that adds marks
+    (:class:`vision_cal.measure.previous_photo.PreviousPhoto`); where the print is not
+    described, and that photo shows the place without ink, the background is that photo
+    (:func:`_previous_background`). Returns None when the dot cannot be measured (patch
+    too small for the mapping, no ink, centroid running away).
     """
     dia = float(dia_mm or DEFAULT_DIAMETER_MM)
     S = patch_rgb.astype(np.float32).sum(axis=2)
@@ -380,6 +385,11 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
             if pb is not None:
                 bg, P, resid, blur_alts, sharp = pb
                 background = "printed"
+        elif previous is not None:
+            pv = _previous_background(previous, X, Y, Sg, bgmask, c, dia, noise_sigma)
+            if pv is not None:
+                bg, P, resid = pv
+                background = "previous photo"
         r_dot = 0.5 * dia
         # the pen's own level D (its darkest core) and how well the core tells it (its
         # spread: noise, uneven ink)
@@ -453,14 +463,15 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
                             / M_mm2)
     on = "; ".join(it.label for it in under)
     why = ""
-    limit = (UNRELIABLE_BG_RESIDUAL if background == "printed"
-             else UNRELIABLE_BG_RESIDUAL_SEPARABLE)
+    limit = (UNRELIABLE_BG_RESIDUAL_SEPARABLE if background == "separable"
+             else UNRELIABLE_BG_RESIDUAL)
     if not ratio <= limit:
         what = (f"pen ink on printed ink ({on})" if on else
                 "the ground around the mark is not paper and grid lines (printed ink, a blot "
                 "or a neighbouring mark)")
-        how = ("the sheet's own print rendered into the photo" if background == "printed"
-               else "paper and grid lines")
+        how = {"printed": "the sheet's own print rendered into the photo",
+               "previous photo": "the photo before, without the mark"}.get(
+                   background, "paper and grid lines")
         why = (f"{what} that could not be separated: {how} leave {ratio:.1f} times the "
                "noise around it")
     elif ring_shift > max(UNRELIABLE_INK_SHIFT_MM, UNRELIABLE_NOISE_SIGMAS * ring_sd):
@@ -477,6 +488,37 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
                "measure.printed.BLUR_CANDIDATES_PX)")
     return DotMeasurement(c, cov_noise + cov_map, M_mm2, cov_noise, cov_map,
                           ratio, on, background, why)
+
+
+def _previous_background(previous, X, Y, Sg, bgmask, c, dia: float, noise_sigma: float):
+    """(bg, P, log residual) from the photo before (``previous.sample`` on the dot's sheet
+    grid), fitted as ``S = a + b S_before`` over the background samples (robust, as
+    :func:`_printed_background`); ``P`` the paper's level (the bright end of the fitted
+    background). None when the photo before does not hold the place, or already shows ink
+    at the dot (the mark was there before: not a new mark)."""
+    Sp = previous.sample(X, Y)
+    if np.any(Sp < 0):
+        return None
+    y = Sg[bgmask].astype(float)
+    A = np.column_stack([np.ones(len(y)), Sp[bgmask]])
+    if len(y) < 20:
+        return None
+    keep = np.ones(len(y), bool)
+    for _ in range(3):
+        coef, *_ = np.linalg.lstsq(A[keep], y[keep], rcond=None)
+        r = y - A @ coef
+        s = 1.4826 * float(np.median(np.abs(r[keep]))) + 1e-9
+        keep = np.abs(r) < 3.5 * max(s, noise_sigma)
+    bg = coef[0] + coef[1] * Sp
+    if not coef[1] > 0 or np.any(bg <= 0):
+        return None
+    P = float(np.percentile(bg[bgmask], 95))
+    # ink already there before: the core is as dark in the photo before as in this one
+    core = np.hypot(X - c[0], Y - c[1]) <= 0.25 * dia
+    if not core.any() or float(np.median(bg[core] - Sg[core])) < 0.25 * P:
+        return None
+    resid = (np.log(np.maximum(Sg, 1.0)) - np.log(bg))[bgmask]
+    return bg, np.full(Sg.shape, P), resid
 
 
 def _pen_over_print(F, contrast, X, Y, c0, r_dot: float, r_win: float, step: float):
