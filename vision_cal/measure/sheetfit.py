@@ -10,7 +10,7 @@ phone series, ``bench/phone.py --gate``). So the tolerance is
 
     tol_mm = PRINT_SCALE * marker side + LENS_PX * mm per pixel
 
-(0.3 + 0.9 mm for 30 mm markers photographed at 0.6 mm per pixel). Typing the sheet
+(0.3 + 1.2 mm for 30 mm markers photographed at 0.6 mm per pixel). Typing the sheet
 wrong leaves far more: corners listed in reverse order leave about the marker's side
 (30 mm), markers declared 27 mm when printed 30 mm about 2 mm. A photo beyond the tolerance
 is not measured, and :func:`likely_cause` says why in words a user can act on.
