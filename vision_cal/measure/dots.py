@@ -560,9 +560,8 @@ def _pen_over_print(F, contrast, X, Y, c0, r_dot: float, r_win: float, step: flo
 def _printed_background(S, origin, mapping: SheetMapping, c, half, step, Sg, bgmask, printed,
                         mm_px, noise_sigma):
     """(bg, P, log residual, alternatives, sharp) of the print around a dot: the sheet's own
-    print rendered into
-    the patch's raw pixels (:meth:`PrintedReference.predict_patch`) and resampled like the
-    photo, the photo's level fitted as ``S = a + sum_c b_c T_c`` over the background
+    print rendered into the patch's raw pixels (:meth:`PrintedReference.predict_patch`) and
+    resampled like the photo, the photo's level fitted as ``S = a + sum_c b_c T_c`` over the background
     samples (robust: samples 3.5 robust std off are left out, twice). The blur is the one of
     :data:`vision_cal.measure.printed.BLUR_CANDIDATES_PX` that fits best. ``P`` is the bare
     paper's level (every ``T_c`` = 1); ``alternatives`` the (bg, P) of the neighbouring
