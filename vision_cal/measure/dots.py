@@ -490,6 +490,18 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
                           ratio, on, background, why)
 
 
+def _robust_lstsq(A: np.ndarray, y: np.ndarray, noise_sigma: float):
+    """(coef, residuals, kept) of ``y ~ A coef``: samples 3.5 robust std (at least the
+    noise) off are left out, twice."""
+    keep = np.ones(len(y), bool)
+    for _ in range(3):
+        coef, *_ = np.linalg.lstsq(A[keep], y[keep], rcond=None)
+        r = y - A @ coef
+        s = 1.4826 * float(np.median(np.abs(r[keep]))) + 1e-9
+        keep = np.abs(r) < 3.5 * max(s, noise_sigma)
+    return coef, r, keep
+
+
 def _previous_background(previous, X, Y, Sg, bgmask, c, dia: float, noise_sigma: float):
     """(bg, P, log residual) from the photo before (``previous.sample`` on the dot's sheet
     grid), fitted as ``S = a + b S_before`` over the background samples (robust, as
@@ -503,12 +515,7 @@ def _previous_background(previous, X, Y, Sg, bgmask, c, dia: float, noise_sigma:
     A = np.column_stack([np.ones(len(y)), Sp[bgmask]])
     if len(y) < 20:
         return None
-    keep = np.ones(len(y), bool)
-    for _ in range(3):
-        coef, *_ = np.linalg.lstsq(A[keep], y[keep], rcond=None)
-        r = y - A @ coef
-        s = 1.4826 * float(np.median(np.abs(r[keep]))) + 1e-9
-        keep = np.abs(r) < 3.5 * max(s, noise_sigma)
+    coef, _, _ = _robust_lstsq(A, y, noise_sigma)
     bg = coef[0] + coef[1] * Sp
     if not coef[1] > 0 or np.any(bg <= 0):
         return None
@@ -575,12 +582,7 @@ def _printed_background(S, origin, mapping: SheetMapping, c, half, step, Sg, bgm
         T = printed.predict_patch(mapping, origin, S.shape, c, half, k * mm_px)
         Tg = np.stack([_resample(t, origin, mapping, c, half, step)[2] for t in T])
         A = np.column_stack([np.ones(len(y))] + [t[bgmask] for t in Tg])
-        keep = np.ones(len(y), bool)
-        for _ in range(3):
-            coef, *_ = np.linalg.lstsq(A[keep], y[keep], rcond=None)
-            r = y - A @ coef
-            s = 1.4826 * float(np.median(np.abs(r[keep]))) + 1e-9
-            keep = np.abs(r) < 3.5 * max(s, noise_sigma)
+        coef, r, keep = _robust_lstsq(A, y, noise_sigma)
         score = float(np.mean(r[keep] ** 2)) * len(y) / max(keep.sum(), 1) ** 1
         fits.append((score, coef, Tg))
     i = int(np.argmin([f[0] for f in fits]))
