@@ -104,3 +104,34 @@ def test_the_photo_before_is_one_with_fewer_of_the_same_marks(series, tmp_path):
     got = previous_photos(session, tmp_path, files, listed, [ra] * 4)
     assert sorted(got) == [1]
     assert got[1].file == "a.png" and got[1].S.shape == img_a.shape[:2]
+
+
+def test_a_series_in_a_folder_measures_its_new_marks_against_the_photo_before(series,
+                                                                              tmp_path):
+    """The same two photos as a dataset folder (session.json lists the marks of each):
+    measure_folder finds the photo before by itself; the new marks on print are measured,
+    none unreliable."""
+    from tests.measure import synth_measure as sm
+    from vision_cal.measure.batch import measure_folder
+
+    session, ((img_a, _), (img_b, _)), new = series
+    rng = np.random.default_rng(3)
+    old = np.array(list(OLD.values())) + rng.normal(0, 0.15, (len(OLD), 2))
+    truth = np.vstack([old, new])
+    ids = [f"m{i}" for i in range(len(truth))]
+    doc = json.loads((session.path).read_text())
+    doc["robot"] = sm.NOMINAL
+    doc["marks"] = [{"id": i, "joints_deg": [float(q[0]), float(q[1])]}
+                    for i, q in zip(ids, sm.plan_for(truth))]
+    doc["images"] = [{"file": "a.png", "marks": ids[:len(OLD)]},
+                     {"file": "b.png", "marks": ids}]
+    src = tmp_path / "in"
+    src.mkdir()
+    (src / "session.json").write_text(json.dumps(doc))
+    sm.write_png(src / "a.png", img_a)
+    sm.write_png(src / "b.png", img_b)
+    meas = measure_folder(load_session(src), out_dir=tmp_path / "out", jobs=1)
+    for i, t in zip(ids[len(OLD):], new):
+        m = meas.marks[i]
+        print(i, f"{1000 * np.hypot(*(m.xy_mm - t)):.1f} um", m.status, m.reason)
+        assert m.status == "ok" and np.hypot(*(m.xy_mm - t)) < 0.03, (i, m.status, m.reason)
