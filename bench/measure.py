@@ -163,7 +163,7 @@ def reference_table(scenes: list[str], root: Path, seed: int | None) -> None:
               f"{str(loc[3]):>7s} {'+'.join(loc[4]):10s} {loc[2] / g[2]:.2f}")
 
 
-def printed_table(n_seeds: int) -> None:
+def printed_table(n_seeds: int, first_seed: int = 100) -> None:
     from tests.measure.test_printed_ink import ON_PRINT, PLAIN, _measure
     from vision_cal.sheet import make_layout, write_sheet
 
@@ -173,12 +173,12 @@ def printed_table(n_seeds: int) -> None:
         for describe in (True, False):
             per: dict = {k: [] for k in (*ON_PRINT, *PLAIN)}
             t = time.perf_counter()
-            for s in range(100, 100 + n_seeds):
+            for s in range(first_seed, first_seed + n_seeds):
                 res = _measure(root / "a4", root / f"d{s}{int(describe)}", s, describe=describe)
                 for k, v in res.items():
                     per[k].append(v)
             dt = (time.perf_counter() - t) / n_seeds
-            print(f"sheet.printed {'described' if describe else 'removed'}: {n_seeds} photos "
+            print(f"sheet.printed {'described' if describe else 'removed'}: {n_seeds} photos (seeds {first_seed}-{first_seed + n_seeds - 1}) "
                   f"2000x1500 (0.15 mm/px), {dt:.2f} s per photo")
             print(f"  {'mark on':14s} {'max err um (not flagged)':>24s} {'flagged':>8s}")
             for k, vals in per.items():
@@ -203,9 +203,10 @@ def main() -> int:
     ap.add_argument("--printed", action="store_true",
                     help="only the marks-on-printed-ink table (see the module docstring)")
     ap.add_argument("--seeds", type=int, default=10, help="photos for --printed")
+    ap.add_argument("--first-seed", type=int, default=100, help="first photo seed for --printed")
     a = ap.parse_args()
     if a.printed:
-        printed_table(a.seeds)
+        printed_table(a.seeds, a.first_seed)
         return 0
     if a.reference is not None:
         reference_table(a.reference or ["flat_tilted", "bumped_tilted", "bumped_moving"],

@@ -5,9 +5,10 @@ import json
 from dataclasses import fields, replace
 
 from tests.measure import synth_measure as sm
-from vision_cal.config import DEFAULT, DotConfig, EstimatorConfig, SelectionConfig
+from vision_cal.config import (DEFAULT, DotConfig, EstimatorConfig, SelectionConfig,
+                               SheetFitConfig)
 from vision_cal.dataset.session import load_session
-from vision_cal.measure import dots
+from vision_cal.measure import dots, grid, sheetfit
 from vision_cal.measure.batch import measure_image
 from vision_cal.measure.cache import session_fingerprint
 from vision_cal.pipeline import calibrate_dataset
@@ -17,6 +18,9 @@ def test_no_module_copies_a_threshold_at_import():
     """The dots module has no copy of a DotConfig field (they were module globals)."""
     for f in fields(DotConfig):
         assert not hasattr(dots, f.name.upper()), f.name
+    assert not hasattr(grid, "DOTS")
+    for f in fields(SheetFitConfig):
+        assert not hasattr(sheetfit, f.name.upper()), f.name
 
 
 def test_the_recorded_config_reads_back():
@@ -31,7 +35,7 @@ def test_calibration_json_says_how_it_was_obtained(paper_folder, tmp_path):
     doc = json.loads((tmp_path / "d" / "calibration.json").read_text())
     assert doc["config"] == DEFAULT.to_json()
     assert set(doc["config"]) == {"markers", "dots", "association", "selection", "fit",
-                                  "per_photo_offsets"}
+                                  "per_photo_offsets", "sheet_fit"}
     assert doc["config"]["selection"]["alpha"] == 0.01
     cfg = replace(DEFAULT, selection=SelectionConfig(alpha=1e-3, k_folds=3, max_effects=1))
     calibrate_dataset(paper_folder, out_dir=tmp_path / "c", config=cfg)

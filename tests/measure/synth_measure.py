@@ -125,3 +125,58 @@ def free_targets(sheet, n, *, rng=0, min_sep=8.0, box=(100.0, 75.0)):
 def plan_for(targets, truth=TRUTH):
     """Commanded joints (N, 2) that put the true robot's pen on ``targets``."""
     return inverse(truth, targets, elbow=-1)
+
+
+# --------------------------------------------------------------------------- phone series
+
+def jpeg_bytes(rgb, orientation: int = 1, quality: int = 90) -> bytes:
+    """JPEG of ``rgb`` tagged with EXIF ``orientation``."""
+    import io
+
+    from PIL import Image
+
+    im = Image.fromarray(rgb)
+    ex = im.getexif()
+    ex[0x0112] = orientation
+    b = io.BytesIO()
+    im.save(b, "JPEG", quality=quality, exif=ex.tobytes())
+    return b.getvalue()
+
+
+def phone_series(folder, seed: int, n_photos: int = 12, n_turned: int = 3, n_marks: int = 16):
+    """A hand-held phone series of :func:`small_sheet` (issue 18 section 4): ``n_photos``
+    JPEGs 1008x756 from random views (tilt 3-22 deg, any azimuth and roll), the focal length
+    breathing 1.5 % (std) from photo to photo, a mild lens nobody declares (k1 -0.04..-0.08),
+    ``n_turned`` files stored turned a quarter and tagged EXIF orientation 6. Writes
+    session.json; returns the mark ids and their true sheet positions (n_marks, 2)."""
+    rng = np.random.default_rng(seed)
+    size = (1008, 756)
+    sheet = small_sheet()
+    targets = free_targets(sheet, n_marks, rng=seed, box=(85.0, 62.0))
+    tex = texture(sheet, targets, rng=seed)
+    ids = [f"c{i:02d}" for i in range(n_marks)]
+    k1 = -rng.uniform(0.04, 0.08)
+    dist = [k1, 0.3 * abs(k1), 0.0, 0.0, 0.0]
+    f0 = 820.0
+    turned = set(rng.choice(n_photos, n_turned, replace=False).tolist())
+    folder = Path(folder)
+    folder.mkdir(parents=True)
+    images = []
+    for n in range(n_photos):
+        f = f0 * (1.0 + 0.015 * rng.standard_normal())        # focus breathing
+        roll = rng.uniform(0, 2 * np.pi)
+        K, T = view(tilt_deg=rng.uniform(3, 22), azimuth_deg=rng.uniform(0, 360), f_px=f,
+                    dist_mm=f * rng.uniform(0.27, 0.31), size=size,
+                    target=rng.uniform([-8, -6], [8, 6]),
+                    roll_up=(np.cos(roll), np.sin(roll), 0.0))
+        img = photo(sheet, tex, K=K, T=T, dist=dist, size=size, ppm=8.0, noise=2.5,
+                    blur_mm=0.15, rng=1000 * seed + n)
+        name = f"IMG_{n:04d}.jpg"
+        if n in turned:    # held upright: the sensor's pixels stored turned, tagged 6
+            (folder / name).write_bytes(jpeg_bytes(np.ascontiguousarray(np.rot90(img, 1)), 6))
+        else:
+            (folder / name).write_bytes(jpeg_bytes(img, 1))
+        images.append((name, ids))
+    write_session(folder, session_json(sheet, marks=list(zip(ids, plan_for(targets))),
+                                       images=images, robot=NOMINAL))
+    return ids, targets

@@ -95,9 +95,7 @@ def _sheet_of(doc):
     return read_sheet_block(FieldReader("sheet.json"), doc, "")
 
 
-@pytest.mark.parametrize("seed", [5, pytest.param(8, marks=pytest.mark.xfail(
-    reason="open: on this view the mark on the x scale bar by the title text measures "
-           "0.032 mm off, unflagged (issue 18)", strict=True))])
+@pytest.mark.parametrize("seed", [5, 8])
 def test_marks_on_print_are_measured_against_the_print(a4, tmp_path, seed):
     res = _measure(a4, tmp_path / "d", seed)
     for k, (err, why, under) in res.items():
@@ -111,17 +109,20 @@ def test_marks_on_print_are_measured_against_the_print(a4, tmp_path, seed):
         assert err < 0.03 and not why and not under, (k, err, why, under)
 
 
-def test_a_sheet_nobody_describes_flags_what_it_cannot_separate(a4, tmp_path):
-    """Without the print's description only the photo tells: dense print around the dot
-    (text, the axes' corner, the arrow) is flagged. Open (issue 18): on this view the mark
-    on the axis letter and on a grid number stay unflagged, 0.05-0.12 mm off, and marks on
-    the scale bars are moved by the local grid reference."""
-    res = _measure(a4, tmp_path / "d", 7, describe=False)
+@pytest.mark.parametrize("seed", [7, 200])
+def test_a_sheet_nobody_describes_flags_what_it_cannot_separate(a4, tmp_path, seed):
+    """Without the print's description only the photo tells: every mark on print within
+    0.03 mm or flagged (seed 200: the axis letter and a grid number leave the paper-and-grid
+    model under its residual limit but pull the centre 0.04-0.06 mm; the ink beside the
+    window says so), the scale bars measured against the markers (the printed grid around
+    them is interrupted by the bar), nothing claimed on plain paper."""
+    res = _measure(a4, tmp_path / "d", seed, describe=False)
     for k, (err, why, under) in res.items():
         print(f"{k:12s} {err:.4f} {why!r}")
-    for k in ("origin", "arrow", "origin text", "y number", "title"):
+    for k in ON_PRINT:
         err, why, _ = res[k]
         assert err < 0.03 or why, (k, err)
-    assert sum(bool(res[k][1]) for k in ON_PRINT) >= 4
+    for k in ("x bar", "y bar"):
+        assert res[k][0] < 0.03, k
     for k in PLAIN:
         assert res[k][0] < 0.03 and not res[k][1], k

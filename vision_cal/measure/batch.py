@@ -45,6 +45,7 @@ from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerpr
 from vision_cal.measure.infer import infer_image_marks
 from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.measure.dots import _radii_mm, blank_regions, find_candidates, refine_dot
+from vision_cal.measure.previous_photo import previous_photos
 from vision_cal.measure.printed import printed_reference
 from vision_cal.measure.rotated import to_main_px, transposed, turned_lens
 from vision_cal.measure.sheetfit import (LENS_CAUSE, MISFIT, corner_tolerance_mm,
@@ -215,10 +216,11 @@ def _lens_of(session: Session, lens: LensEstimate | None, size):
 
 
 def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | None = None,
-                 *, from_cache: bool = False,
+                 *, from_cache: bool = False, previous=None,
                  config: EstimatorConfig | None = None) -> ImageResult:
     """Stage 2: final mapping and dot centres on the sheet (``config``: the ``dots``
-    thresholds, default ``vision_cal.config.DEFAULT``)."""
+    thresholds, default ``vision_cal.config.DEFAULT``). ``previous``: the photo before
+    in a series adding marks (:mod:`vision_cal.measure.previous_photo`)."""
     config = config or DEFAULT
     if det.status != "ok":
         return ImageResult(det.file, det.status, det.reason, n_markers=len(det.marker_ids),
@@ -227,12 +229,14 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     corners_px = det.corners_for(K, dist)
     m = fit_mapping(det.corners_mm.reshape(-1, 2), corners_px.reshape(-1, 2), K=K, dist=dist)
     tol = corner_tolerance_mm(det.corners_mm,
-                              float(np.median(m.mm_per_px(det.corners_mm.mean(axis=1)))))
+                              float(np.median(m.mm_per_px(det.corners_mm.mean(axis=1)))),
+                              config.sheet_fit)
     if not m.corner_rms_mm <= tol:  # the markers do not fit the declared sheet
         return ImageResult(det.file, "skipped",
                            misfit_reason(det.corners_mm, corners_px, m.corner_rms_mm, tol,
                                          raw_px=(det.corners_for(None, None)
-                                                 if dist is not None and np.any(dist) else None)),
+                                                 if dist is not None and np.any(dist) else None),
+                                         config=config.sheet_fit),
                            n_markers=len(det.marker_ids), corner_rms_px=m.corner_rms_px,
                            corner_rms_mm=m.corner_rms_mm, size_px=det.size_px,
                            from_cache=from_cache)
@@ -250,7 +254,7 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     grid_blank = blank if pref is None else np.concatenate([blank, pref.ungridded_boxes_mm()])
     for k, (patch, org, x0, uv) in enumerate(zip(c.patches, c.origins, xy0, c.uv_px)):
         r = refine_dot(patch, org, m, x0, dia_mm=dia, noise_sigma=c.noise_sigma,
-                       blank_rects=blank, printed=pref, config=config.dots)
+                       blank_rects=blank, printed=pref, previous=previous, config=config.dots)
         if r is None:
             rejected["not measurable"] = rejected.get("not measurable", 0) + 1
             continue
@@ -258,7 +262,7 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
         oc = np.full((2, 2), np.nan)
         if have_grid and not r.printed_under:   # over print, the grid around is interrupted
             go = _local_grid(det, k, m, r.xy_mm, grid, dia or config.dots.default_diameter_mm,
-                             grid_blank)
+                             grid_blank, config.dots)
             if go is not None:
                 # the dot against the printed lines around it: the marker mapping's error
                 # (and a raised paper's parallax) cancels, the lines' own noise adds
@@ -285,13 +289,13 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
                        np.asarray(ocov).reshape(-1, 2, 2), m, K, tuple(unrel), tuple(under))
 
 
-def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank):
+def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank, dots):
     """The printed grid's offset around candidate ``k`` (None: not usable)."""
     if k >= len(det.grid_patches):
         return None
     r_win, _ = _radii_mm(float(dia), float(mapping.mm_per_px(xy_mm)[0]))
     return grid_offset(det.grid_patches[k], det.grid_origins[k], mapping, xy_mm, grid,
-                       exclude_r_mm=r_win, blank_rects=blank)
+                       exclude_r_mm=r_win, blank_rects=blank, dot_dia_mm=dia, dots=dots)
 
 
 def measure_image(path, session: Session, *, lens: LensEstimate | None = None,
@@ -476,7 +480,8 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
     cached = [ph.cached for ph in items]
     lens, lens_warnings = lens_of_photos(session, dets)
     warnings += lens_warnings
-    images, finish_warnings = finish_all(session, dets, cached, lens, config)
+    images, finish_warnings = finish_all(session, dets, cached, lens, config,
+                                         listed_marks=[ph.listed_marks for ph in items])
     warnings += finish_warnings
     files = [ph.file for ph in items]
     dots = associate_dots(session, items, images, ac, config.dots.default_diameter_mm)
@@ -642,12 +647,15 @@ def lens_of_photos(session: Session, dets: list[ImageDetections]
 
 
 def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool],
-               lens: LensEstimate | None, config: EstimatorConfig | None = None
+               lens: LensEstimate | None, config: EstimatorConfig | None = None, *,
+               listed_marks=None
                ) -> tuple[list[ImageResult], list[str]]:
     """Every photo's final mapping and dots (:func:`finish_image`); the sheet's declaration
     checked (markers that do not fit it stop the run, a misdeclared grid is dropped: the
-    markers win) and a photo moved as a whole against the others left out. Returns
-    (images, warnings)."""
+    markers win), the photo before as the print under new marks (``listed_marks``: per
+    photo the marks session.json lists, None when not listed;
+    :mod:`vision_cal.measure.previous_photo`) and a photo moved as a whole against the
+    others left out. Returns (images, warnings)."""
     warnings: list[str] = []
     images = [finish_image(d, session, lens, from_cache=c, config=config) for d, c in zip(dets, cached)]
     _check_sheet_fits(session, images)
@@ -656,7 +664,18 @@ def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool]
         log.warning(wrong_grid.message)
         warnings.append(wrong_grid.message)
         session = replace(session, sheet=replace(session.sheet, grid=None))
-        images = [finish_image(d, session, lens, from_cache=c, config=config) for d, c in zip(dets, cached)]
+        images = [finish_image(d, session, lens, from_cache=c, config=config)
+                  for d, c in zip(dets, cached)]
+
+    # a series adding marks photo by photo, on a sheet whose print is not described: the
+    # photo before shows the print under each new mark
+    if listed_marks is not None and printed_reference(session.sheet) is None:
+        before = previous_photos(session, Path(session.root), [d.file for d in dets],
+                                 listed_marks, images)
+        for k, prev in before.items():
+            images[k] = finish_image(dets[k], session, lens, from_cache=cached[k],
+                                     previous=prev, config=config)
+
     # a photo moved as a whole against the others is left out, not the marks it shares
     for k, why in disagreeing_photos(images).items():
         log.warning("%s: %s", images[k].file, why)

@@ -13,9 +13,12 @@ parallel before the lens is known:
 2. :func:`refine_dot` (one patch, final mapping including the lens): the patch is resampled
    on a fine grid in *sheet* coordinates (0.05 mm), the background including the plotting
    grid is modelled as separable in log intensity (``log S = a(x) + b(y)``, robust medians
-   outside the dot; grid lines are rows/columns of the sheet), and the centre is the
-   centroid of the ink fraction ``1 - S / bg`` in a disk around the dot. Because it is
-   computed on a uniform sheet grid, perspective and lens do not bias it.
+   outside the dot; grid lines are rows/columns of the sheet), and the centre is found from
+   the centroid of the deficit ``bg - S`` in a disk around the dot: the photo is the blur
+   of ``print (1 - a) + D a`` (``a`` the pen's cover, ``D`` its ink), so that centroid is
+   the one of ``a (print - D)`` whatever the blur, and the pen's disk over the print says
+   how far what it covers pulls it (:func:`_pen_over_print`). Because it is computed on a
+   uniform sheet grid, perspective and lens do not bias it.
 
 Uncertainty: white pixel noise (``sigma`` of the channel sum, estimated from the photo)
 propagated through the centroid and through the background fit, plus the mapping's
@@ -269,7 +272,8 @@ class DotMeasurement:
     bg_residual: float = float("nan")  # background-model residual / noise (about 1 if clean)
     #: what is printed under the dot (labels of :class:`vision_cal.measure.printed.PrintedItem`,
     #: "" for bare paper and grid lines) and how the background was modelled: "separable"
-    #: (paper and grid lines) or "printed" (the sheet's own print rendered into the photo)
+    #: (paper and grid lines), "printed" (the sheet's own print rendered into the photo) or
+    #: "previous photo" (the photo before, without the mark: a series adding marks)
     printed_under: str = ""
     background: str = "separable"
     #: why the centre cannot be trusted ("" when it can): the background model leaves more
@@ -307,15 +311,21 @@ def blank_regions(sheet: Sheet) -> np.ndarray:
 def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
                dia_mm: float | None = None, noise_sigma: float = 1.0,
                median_efficiency: float = 1.57, blank_rects=None,
-               printed=None, config: DotConfig | None = None) -> DotMeasurement | None:
+               printed=None, previous=None,
+               config: DotConfig | None = None) -> DotMeasurement | None:
     """Stage 2: the dot's sheet centre from its raw patch with the final mapping.
 
     ``blank_rects`` (K, 4): sheet rectangles with no plotting grid (see
     :func:`blank_regions`). ``printed``: the sheet's own print
     (:class:`vision_cal.measure.printed.PrintedReference`); where it has more than the grid
     near the dot (axes, bars, text), the background is that print rendered into the patch
-    (:func:`_printed_background`) instead of the separable model. Returns None when the
-    dot cannot be measured (patch too small for the mapping, no ink, centroid running away).
+    (:func:`_printed_background`) instead of the separable model, and the centre is the
+    pen's disk over the sharp print (:func:`_pen_over_print`), which the blur does not move.
+    ``previous``: the photo before in a series that adds marks
+    (:class:`vision_cal.measure.previous_photo.PreviousPhoto`); where the print is not
+    described, and that photo shows the place without ink, the background is that photo
+    (:func:`_previous_background`). Returns None when the dot cannot be measured (patch
+    too small for the mapping, no ink, centroid running away).
     ``config``: the thresholds (default ``vision_cal.config.DEFAULT.dots``).
     """
     cfg = config or DEFAULT.dots
@@ -327,7 +337,8 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     step = min(cfg.fine_step_mm, mm_px / 4)
     under = [] if printed is None else printed.content_near(c, half + 0.5)
     background = "separable"
-    d_shift = 0.0
+    d_shift = d_blur = 0.0
+    blur_alts = ()
     for _pass in range(2):
         X, Y, Sg = _resample(S, origin, mapping, c, half, step)
         if np.any(Sg < 0):
@@ -364,50 +375,41 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
             pb = _printed_background(S, origin, mapping, c, half, step, Sg, bgmask, printed,
                                      mm_px, noise_sigma)
             if pb is not None:
-                bg, P, resid = pb
+                bg, P, resid, blur_alts, sharp = pb
                 background = "printed"
-        w0 = (bg - Sg) / P            # ink deficit, relative to the paper
-        ell = np.clip((P - bg) / P, 0.0, None)
+        elif previous is not None:
+            pv = _previous_background(previous, X, Y, Sg, bgmask, c, dia, noise_sigma)
+            if pv is not None:
+                bg, P, resid = pv
+                background = "previous photo"
         r_dot = 0.5 * dia
+        # the pen's own level D (its darkest core) and how well the core tells it (its
+        # spread: noise, uneven ink)
+        core = np.hypot(X - c[0], Y - c[1]) <= 0.5 * r_dot
+        D = float(np.percentile(Sg[core], 10)) if core.any() else float(Sg.min())
+        dD = float(np.percentile(Sg[core], 50)) - D if core.any() else 0.0
+        # what the pen covers: the sharp print where the sheet describes it, else the
+        # background model itself (paper and grid lines, blurred as the photo is)
+        under_pen = sharp if background == "printed" else bg
+        fw = _pen_over_print(bg - Sg, under_pen - D, X, Y, c, r_dot, r_win, step)
+        if fw is None:
+            return None
+        cc, win, cover = fw
+        M = cover * float(np.mean((P - D) / P))
         if background == "printed":
-            # the pen covers the print: the fraction of each sample the ink covers is
-            # (bg - S) / (bg - D), D the ink's own level (its darkest core); nothing of the
-            # print under the dot is then counted as pen, so nothing is given back below
-            core = np.hypot(X - c[0], Y - c[1]) <= 0.5 * r_dot
-            D = float(np.percentile(Sg[core], 10)) if core.any() else float(Sg.min())
-            w0 = (bg - Sg) / np.maximum(bg - D, 0.25 * (P - D)) * ((P - D) / P)
-            ell = np.zeros_like(ell)
-        cc = c.copy()
-        for _ in range(8):
-            rc = np.hypot(X - cc[0], Y - cc[1])
-            win = (rc <= r_win).astype(float)
-            # the opaque dot hides the printed lines under it: give their darkness back
-            # on a disk of the nominal size, with the dot's contrast (mass / nominal area)
-            disk = np.clip((r_dot - rc) / step + 0.5, 0.0, 1.0)
-            w = w0
-            for _k in range(2):
-                contrast = float((win * w).sum()) * step * step / (np.pi * r_dot**2)
-                w = w0 + disk * ell * min(max(contrast, 0.0), 1.0)
-            ww = win * w
-            M = ww.sum()
-            if M <= 0:
-                return None
-            new = np.array([(ww * X).sum() / M, (ww * Y).sum() / M])
-            moved = np.hypot(*(new - cc))
-            cc = new
-            if moved < 1e-5:
-                break
+            # how far the centre depends on what the model assumes: the ink's own level
+            # (within the core's spread) and the print's blur (the neighbouring candidates,
+            # which the photo tells apart only by a little)
+            d_shift = d_blur = 0.0
+            for Dp in (D - dD, D + dD):
+                alt = _pen_over_print(bg - Sg, sharp - Dp, X, Y, c, r_dot, r_win, step)
+                if alt is not None:
+                    d_shift = max(d_shift, float(np.hypot(*(alt[0] - cc))))
+            for bg_b, _P_b in blur_alts:
+                alt = _pen_over_print(bg_b - Sg, sharp - D, X, Y, c, r_dot, r_win, step)
+                if alt is not None:
+                    d_blur = max(d_blur, float(np.hypot(*(alt[0] - cc))))
         t = Sg / P
-        if background == "printed":
-            # how far the centre depends on the ink's own level (the print under the dot
-            # weighs differently with another D): the part of the print the model may miss
-            d_shift = 0.0
-            win_f = (np.hypot(X - cc[0], Y - cc[1]) <= r_win).astype(float)
-            for Dp in (D - 0.2 * (P - D), D + 0.2 * (P - D)):
-                wp = win_f * (bg - Sg) / np.maximum(bg - Dp, 0.25 * (P - Dp))
-                if wp.sum() > 0:
-                    cp = np.array([(wp * X).sum(), (wp * Y).sum()]) / wp.sum()
-                    d_shift = max(d_shift, float(np.hypot(*(cp - cc))))
         shift = np.hypot(*(cc - c))
         c = cc
         if shift < 0.1 * r_win:
@@ -437,34 +439,134 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     noise_grid = np.sqrt(sw2) / mm_px  # per-sample std of the relative intensity (upper)
     e_rms = rms(resid)
     ratio = e_rms / noise_grid
+    ring_shift = ring_sd = 0.0
+    if background == "separable":
+        # ink the model does not explain just outside the window (print it cannot follow:
+        # a letter, a number, the corner of a label) goes on inside it, in the window's
+        # margin around the dot; its pull on the centroid, taken from a ring of the same
+        # width just outside the window
+        rr = np.hypot(X - c[0], Y - c[1])
+        ring = (rr > r_win) & (rr <= 2.0 * r_win - 0.5 * dia)
+        u = np.where(ring, (bg - Sg) / P, 0.0)
+        if M > 0:
+            ring_shift = float(np.hypot((u * dX).sum(), (u * dY).sum()) / M)
+            # ... beyond what the photo's noise alone gives it (per axis)
+            ring_sd = float(np.sqrt(sw2 * np.sum(ring * (dX * dX + dY * dY)) * step**2 / 2)
+                            / M_mm2)
     on = "; ".join(it.label for it in under)
     why = ""
-    limit = (cfg.unreliable_bg_residual if background == "printed"
-             else cfg.unreliable_bg_residual_separable)
+    limit = (cfg.unreliable_bg_residual_separable if background == "separable"
+             else cfg.unreliable_bg_residual)
     if not ratio <= limit:
         what = (f"pen ink on printed ink ({on})" if on else
                 "the ground around the mark is not paper and grid lines (printed ink, a blot "
                 "or a neighbouring mark)")
-        how = ("the sheet's own print rendered into the photo" if background == "printed"
-               else "paper and grid lines")
+        how = {"printed": "the sheet's own print rendered into the photo",
+               "previous photo": "the photo before, without the mark"}.get(
+                   background, "paper and grid lines")
         why = (f"{what} that could not be separated: {how} leave {ratio:.1f} times the "
                "noise around it")
+    elif ring_shift > max(cfg.unreliable_ink_shift_mm, cfg.unreliable_noise_sigmas * ring_sd):
+        why = ("the ground around the mark is not paper and grid lines (printed ink, a blot "
+               "or a neighbouring mark) that could not be separated: the ink beside it the "
+               f"model does not explain would move the centre {1000 * ring_shift:.0f} um")
     elif background == "printed" and d_shift > cfg.unreliable_ink_shift_mm:
         why = (f"pen ink on printed ink ({on}) that could not be separated: the centre "
-               f"moves {1000 * d_shift:.0f} um with the ink's assumed darkness (+-20 %)")
+               f"moves {1000 * d_shift:.0f} um with the ink's level (within the spread "
+               "of the dot's core)")
+    elif background == "printed" and d_blur > cfg.unreliable_ink_shift_mm:
+        why = (f"pen ink on printed ink ({on}) that could not be separated: the centre "
+               f"moves {1000 * d_blur:.0f} um with the print's blur (one step of "
+               "measure.printed.BLUR_CANDIDATES_PX)")
     return DotMeasurement(c, cov_noise + cov_map, M_mm2, cov_noise, cov_map,
                           ratio, on, background, why)
 
 
+def _robust_lstsq(A: np.ndarray, y: np.ndarray, noise_sigma: float):
+    """(coef, residuals, kept) of ``y ~ A coef``: samples 3.5 robust std (at least the
+    noise) off are left out, twice."""
+    keep = np.ones(len(y), bool)
+    for _ in range(3):
+        coef, *_ = np.linalg.lstsq(A[keep], y[keep], rcond=None)
+        r = y - A @ coef
+        s = 1.4826 * float(np.median(np.abs(r[keep]))) + 1e-9
+        keep = np.abs(r) < 3.5 * max(s, noise_sigma)
+    return coef, r, keep
+
+
+def _previous_background(previous, X, Y, Sg, bgmask, c, dia: float, noise_sigma: float):
+    """(bg, P, log residual) from the photo before (``previous.sample`` on the dot's sheet
+    grid), fitted as ``S = a + b S_before`` over the background samples (robust, as
+    :func:`_printed_background`); ``P`` the paper's level (the bright end of the fitted
+    background). None when the photo before does not hold the place, or already shows ink
+    at the dot (the mark was there before: not a new mark)."""
+    Sp = previous.sample(X, Y)
+    if np.any(Sp < 0):
+        return None
+    y = Sg[bgmask].astype(float)
+    A = np.column_stack([np.ones(len(y)), Sp[bgmask]])
+    if len(y) < 20:
+        return None
+    coef, _, _ = _robust_lstsq(A, y, noise_sigma)
+    bg = coef[0] + coef[1] * Sp
+    if not coef[1] > 0 or np.any(bg <= 0):
+        return None
+    P = float(np.percentile(bg[bgmask], 95))
+    # ink already there before: the core is as dark in the photo before as in this one
+    core = np.hypot(X - c[0], Y - c[1]) <= 0.25 * dia
+    if not core.any() or float(np.median(bg[core] - Sg[core])) < 0.25 * P:
+        return None
+    resid = (np.log(np.maximum(Sg, 1.0)) - np.log(bg))[bgmask]
+    return bg, np.full(Sg.shape, P), resid
+
+
+def _pen_over_print(F, contrast, X, Y, c0, r_dot: float, r_win: float, step: float):
+    """The centre of a pen dot over the print: (centre (2,), window (h, w), ink cover in
+    samples), None when there is no ink.
+
+    The photo is the blur of ``T (1 - a) + D a`` (``a`` the pen's cover, ``T`` the sharp
+    print, ``D`` the ink's level), so the deficit ``F = bg - S`` is the blur of
+    ``a (T - D)`` and its centroid is the one of ``a (T - D)`` whatever the blur. A disk of
+    the pen's size (scaled to ``F``'s mass) over ``contrast = T - D`` gives how far the
+    print pulls that centroid off the disk's centre; the centre is moved back by as much.
+    """
+    cc = np.asarray(c0, float).copy()
+    k = np.clip(contrast, 0.0, None)
+    for _ in range(12):
+        rc = np.hypot(X - cc[0], Y - cc[1])
+        win = (rc <= r_win).astype(float)
+        MF = float((win * F).sum())
+        if MF <= 0:
+            return None
+        c1 = np.array([(win * F * X).sum(), (win * F * Y).sum()]) / MF
+        disk = np.clip((r_dot - rc) / step + 0.5, 0.0, 1.0)
+        m = win * disk * k
+        r_eff = r_dot * np.sqrt(min(max(MF / max(m.sum(), 1e-9), 0.25), 4.0))
+        disk = np.clip((r_eff - rc) / step + 0.5, 0.0, 1.0)
+        m = win * disk * k
+        if m.sum() <= 0:
+            return None
+        cm = np.array([(m * X).sum(), (m * Y).sum()]) / m.sum()
+        new = c1 - (cm - cc)
+        moved = float(np.hypot(*(new - cc)))
+        cc = new
+        if moved < 1e-5:
+            break
+    cover = MF / max(float(m.sum() / max(disk.sum(), 1e-9)), 1e-9)
+    return cc, win, cover
+
+
 def _printed_background(S, origin, mapping: SheetMapping, c, half, step, Sg, bgmask, printed,
                         mm_px, noise_sigma):
-    """(bg, P, log residual) of the print around a dot: the sheet's own print rendered into
-    the patch's raw pixels (:meth:`PrintedReference.predict_patch`) and resampled like the
-    photo, the photo's level fitted as ``S = a + sum_c b_c T_c`` over the background
+    """(bg, P, log residual, alternatives, sharp) of the print around a dot: the sheet's own
+    print rendered into the patch's raw pixels (:meth:`PrintedReference.predict_patch`) and
+    resampled like the photo, the photo's level fitted as ``S = a + sum_c b_c T_c`` over the background
     samples (robust: samples 3.5 robust std off are left out, twice). The blur is the one of
     :data:`vision_cal.measure.printed.BLUR_CANDIDATES_PX` that fits best. ``P`` is the bare
-    paper's level (every ``T_c`` = 1). None when the fit cannot be made."""
-    best = None
+    paper's level (every ``T_c`` = 1); ``alternatives`` the (bg, P) of the neighbouring
+    blurs the photo cannot tell from the best; ``sharp`` the fitted level of the unblurred
+    print (what the pen covers). None when the fit cannot be made."""
+    fits = []
     y = Sg[bgmask].astype(float)
     if len(y) < 20:
         return None
@@ -472,19 +574,29 @@ def _printed_background(S, origin, mapping: SheetMapping, c, half, step, Sg, bgm
         T = printed.predict_patch(mapping, origin, S.shape, c, half, k * mm_px)
         Tg = np.stack([_resample(t, origin, mapping, c, half, step)[2] for t in T])
         A = np.column_stack([np.ones(len(y))] + [t[bgmask] for t in Tg])
-        keep = np.ones(len(y), bool)
-        for _ in range(3):
-            coef, *_ = np.linalg.lstsq(A[keep], y[keep], rcond=None)
-            r = y - A @ coef
-            s = 1.4826 * float(np.median(np.abs(r[keep]))) + 1e-9
-            keep = np.abs(r) < 3.5 * max(s, noise_sigma)
+        coef, r, keep = _robust_lstsq(A, y, noise_sigma)
         score = float(np.mean(r[keep] ** 2)) * len(y) / max(keep.sum(), 1) ** 1
-        if best is None or score < best[0]:
-            best = (score, coef, Tg, keep)
-    _, coef, Tg, keep = best
-    bg = coef[0] + np.tensordot(coef[1:], Tg, axes=1)
-    P = float(coef.sum())
-    if not np.isfinite(P) or P <= 0 or np.any(bg <= 0):
-        return None
+        fits.append((score, coef, Tg))
+    i = int(np.argmin([f[0] for f in fits]))
+    out = []
+    for j in (i, i - 1, i + 1):
+        if not 0 <= j < len(fits):
+            continue
+        # a neighbouring blur counts when the photo cannot tell it from the best one: its
+        # residual sum of squares exceeds the best's by less than 4 noise variances (2 sigma)
+        if j != i and (fits[j][0] - fits[i][0]) * len(y) > 4.0 * noise_sigma ** 2:
+            continue
+        _, coef, Tg = fits[j]
+        bg = coef[0] + np.tensordot(coef[1:], Tg, axes=1)
+        P = float(coef.sum())
+        if not np.isfinite(P) or P <= 0 or np.any(bg <= 0):
+            if j == i:
+                return None
+            continue
+        out.append((bg, P))
+    bg, P = out[0]
     resid = (np.log(np.maximum(Sg, 1.0)) - np.log(bg))[bgmask]
-    return bg, np.full(Sg.shape, P), resid
+    coef = fits[i][1]
+    X, Y, _ = _resample(S, origin, mapping, c, half, step)
+    sharp = coef[0] + np.tensordot(coef[1:], printed.transmission_at(X, Y), axes=1)
+    return bg, np.full(Sg.shape, P), resid, out[1:], sharp

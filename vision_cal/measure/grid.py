@@ -30,6 +30,7 @@ import cv2
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
+from vision_cal.config import DEFAULT, DotConfig
 from vision_cal.dataset.session import SheetGrid
 from vision_cal.measure.mapping import SheetMapping, apply_h
 
@@ -109,9 +110,14 @@ def _lens_map(mapping, c, g, half_mm, origin_px):
 
 def grid_offset(patch_rgb: np.ndarray, origin_px, mapping: SheetMapping, centre_mm,
                 grid: SheetGrid, *, exclude_r_mm: float, blank_rects=None,
-                half_mm: float = GRID_HALF_MM, step_mm: float = GRID_STEP_MM) -> GridOffset | None:
+                dot_dia_mm: float | None = None,
+                half_mm: float = GRID_HALF_MM, step_mm: float = GRID_STEP_MM,
+                dots: DotConfig | None = None) -> GridOffset | None:
     """The printed grid's offset around a dot (see the module docstring), or None when the
-    lines cannot be seen well enough (too few in the patch, too faint)."""
+    lines cannot be seen well enough (too few in the patch, too faint). ``dots``: what a pen
+    dot is (size, aspect; default ``vision_cal.config.DEFAULT.dots``): other dark ink is
+    print."""
+    dot_cfg = dots or DEFAULT.dots
     S = np.asarray(patch_rgb)
     S = S.astype(np.float32).sum(axis=2) if S.ndim == 3 else S.astype(np.float32)
     c = np.asarray(centre_mm, float).reshape(2)
@@ -144,6 +150,18 @@ def grid_offset(patch_rgb: np.ndarray, origin_px, mapping: SheetMapping, centre_
     paper = float(np.percentile(Sg[ok], 90))
     dark = ~(Sg > DARK_FRACTION * paper)
     if dark.any():
+        # dark ink that is no pen dot (larger than one, or elongated: a bar, an axis, a
+        # label) away from this dot: printed content the grid does not hold, whose edges
+        # the lines' phase would take for grid; the grid is no reference here
+        dia = float(dot_dia_mm or dot_cfg.default_diameter_mm)
+        n, _, st, _ = cv2.connectedComponentsWithStats((dark & ok).astype(np.uint8),
+                                                       connectivity=8)
+        for j in range(1, n):
+            area_mm2 = st[j, cv2.CC_STAT_AREA] * step_mm * step_mm
+            long_mm = max(st[j, cv2.CC_STAT_WIDTH], st[j, cv2.CC_STAT_HEIGHT]) * step_mm
+            if area_mm2 > dot_cfg.max_area_ratio * np.pi * (0.5 * dia) ** 2 or \
+                    long_mm > dot_cfg.max_aspect * dia:
+                return None
         k = 2 * int(np.ceil(0.5 / step_mm)) + 1
         dark = cv2.dilate(dark.astype(np.uint8), np.ones((k, k), np.uint8)) > 0
         ok &= ~dark

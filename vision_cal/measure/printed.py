@@ -104,6 +104,18 @@ class PrintedReference:
             cv.draw(p)
         return cv.img.astype(np.float32) / 255.0, wx0, wy1
 
+    def transmission_at(self, X_mm: np.ndarray, Y_mm: np.ndarray) -> np.ndarray:
+        """(3, *X.shape) the sharp print's transmission per channel at sheet points."""
+        X_mm = np.asarray(X_mm, float)
+        Y_mm = np.asarray(Y_mm, float)
+        img, wx0, wy1 = self.window((X_mm.min() - 0.5, Y_mm.min() - 0.5, X_mm.max() + 0.5,
+                                     Y_mm.max() + 0.5))
+        ppm = self.px_per_mm
+        mx = ((X_mm - wx0) * ppm - 0.5).astype(np.float32)
+        my = ((wy1 - Y_mm) * ppm - 0.5).astype(np.float32)
+        out = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return np.moveaxis(out.reshape(*X_mm.shape, 3), -1, 0)
+
     def predict_patch(self, mapping, origin_px, shape_hw, centre_mm, half_mm: float,
                       blur_mm: float) -> np.ndarray | None:
         """(3, h, w) the print's transmission per channel at each raw pixel of a photo patch
