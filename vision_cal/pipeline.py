@@ -418,6 +418,8 @@ def document(doc: dict, session: Session, data: MarkData, missing: list[str], me
         hm = measurement.height_map
         if hm.claimed:
             doc["effects"] = doc["effects"] + [hm.to_effect_json()]
+        elif hm.not_claimed:
+            doc["notes"].append(f"sheet_height not claimed: {hm.not_claimed}")
         doc.setdefault("diagnosis", {})["sheet_height"] = hm.to_json()
     if data.sigma_mm is not None:
         doc["noise_floor_mm"] = float(np.sqrt(2 * np.mean(data.sigma_mm**2)))
