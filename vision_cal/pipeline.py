@@ -424,6 +424,7 @@ def document(doc: dict, session: Session, data: MarkData, missing: list[str], me
     if data.sigma_mm is not None:
         doc["noise_floor_mm"] = float(np.sqrt(2 * np.mean(data.sigma_mm**2)))
     marks = {}
+    repeat_of = {m.id: m.repeat_of for m in session.marks if m.repeat_of is not None}
     for i, mid in enumerate(data.ids):
         entry = {"measured_mm": data.xy_mm[i].tolist(),
                  **({"j4_deg": float(data.joint4[i, 0])} if data.joint4 is not None else {}),
@@ -433,6 +434,8 @@ def document(doc: dict, session: Session, data: MarkData, missing: list[str], me
                  "approach": data.approach[i].astype(int).tolist()}
         if data.sigma_mm is not None:
             entry["sigma_mm"] = float(data.sigma_mm[i])
+        if mid in repeat_of:   # added: a return to another mark's pose (repeatability)
+            entry["repeat_of"] = repeat_of[mid]
         if measurement is not None and mid in measurement.marks:  # added field
             entry["n_photos"] = int(measurement.marks[mid].n_photos)
             entry.update(measurement.mark_json(mid))

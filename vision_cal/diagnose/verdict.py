@@ -148,24 +148,39 @@ MIN_REPEAT_PAIRS = 4        # pairs of marks drawn at the same command to measur
 
 
 def repeatability_from_repeats(marks: dict) -> tuple[float, int] | None:
-    """The robot's repeatability (mm, per axis, one std) from marks drawn more than once at
-    the same command and approach, and the number of pairs; None below
-    :data:`MIN_REPEAT_PAIRS` pairs. Two marks a, b of one command differ by noise of
-    per-axis variance ``sigma_a^2 + sigma_b^2 + 2 r^2``, so
-    ``r^2 = mean(|d|^2 / 2 - sigma_a^2 - sigma_b^2) / 2`` (floored at 0). With n pairs
-    its relative std is about ``1 / sqrt(n)``: 8 pairs give r within about 35 %."""
+    """The robot's repeatability (mm, per axis, one std) from marks drawn twice, and the
+    number of pairs; None below :data:`MIN_REPEAT_PAIRS` pairs.
+
+    A pair is a mark and the one its ``repeat_of`` names (the design returns to a pose a
+    few millimetres off, ``plan.calibration_plan.add_repeats``: their residuals differ by
+    noise alone, the model taking the offset out), or two marks of the same command and
+    approach (their measured positions). Two marks a, b differ by noise of per-axis
+    variance ``sigma_a^2 + sigma_b^2 + 2 r^2``, so
+    ``r^2 = mean(|d|^2 / 2 - sigma_a^2 - sigma_b^2) / 2`` (floored at 0). The floor's
+    variance ``sigma^2 + r^2`` then has a relative std of about ``1 / sqrt(n)`` (its RMS
+    half that): 8 pairs give the floor within about 18 %, inside the gate's tolerance."""
+    def usable(m) -> bool:
+        return (m.get("status", "ok") == "ok" and m.get("sigma_mm") is not None
+                and m.get("joints_deg") is not None)
+
+    pairs = []
+    for k, m in marks.items():
+        twin = marks.get(m.get("repeat_of") or "")
+        if twin is not None and usable(m) and usable(twin) \
+                and m.get("residual_mm") is not None and twin.get("residual_mm") is not None:
+            pairs.append((m, twin, "residual_mm"))
     groups: dict = {}
     for k, m in marks.items():
-        if m.get("status", "ok") != "ok" or m.get("joints_deg") is None \
-                or m.get("measured_mm") is None or m.get("sigma_mm") is None:
+        if not usable(m) or m.get("measured_mm") is None or m.get("repeat_of"):
             continue
         key = (tuple(np.round(m["joints_deg"], 6)), tuple(m.get("approach") or (1, 1)))
         groups.setdefault(key, []).append(m)
-    terms = []
     for ms in groups.values():
-        for a, b in zip(ms[:-1], ms[1:]):
-            d = np.subtract(a["measured_mm"], b["measured_mm"])
-            terms.append(float(d @ d) / 2 - a["sigma_mm"] ** 2 - b["sigma_mm"] ** 2)
+        pairs += [(a, b, "measured_mm") for a, b in zip(ms[:-1], ms[1:])]
+    terms = []
+    for a, b, field in pairs:
+        d = np.subtract(a[field], b[field])
+        terms.append(float(d @ d) / 2 - a["sigma_mm"] ** 2 - b["sigma_mm"] ** 2)
     if len(terms) < MIN_REPEAT_PAIRS:
         return None
     return math.sqrt(max(float(np.mean(terms)) / 2, 0.0)), len(terms)
@@ -264,7 +279,9 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
     by_design = "ready" if pilot else None
     rep = DEFAULT_REPEATABILITY_MM if repeatability_mm is None else float(repeatability_mm)
     source = "default" if repeatability_mm is None else "robot block"
-    measured = repeatability_from_repeats(doc.get("marks") or {})
+    outliers = set(doc.get("outliers") or [])
+    measured = repeatability_from_repeats({k: m for k, m in (doc.get("marks") or {}).items()
+                                           if k not in outliers})
     if measured is not None:   # better than a catalogue figure: this robot, this day
         rep, source = measured[0], f"{measured[1]} pairs of marks drawn at the same command"
     reasons: list[tuple[str, str]] = []     # (status, sentence)
@@ -292,7 +309,6 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
                                 "warm it up / re-home, then draw again")
     # the noise floor
     marks = doc.get("marks") or {}
-    outliers = set(doc.get("outliers") or [])
     n_par = int(ident.get("n_params") or 6)
     fitted_ids = [k for k, m in marks.items() if m.get("role", "calibration") == "calibration"
                   and k not in outliers and m.get("status", "ok") == "ok"]
