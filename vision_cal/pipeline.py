@@ -306,7 +306,11 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
                     max_effects=config.selection.max_effects,
                     candidates=cands, base_effects=tuple(base_effects))
     traced = None
-    if not not_flat:  # a sheet's height would be read as a joint error: not traced then
+    if not_flat:  # a sheet's height would be read as a joint error: not traced then
+        untraced = ("the scans for effects the library lacks (time, polynomial, coupling, "
+                    "elbow, approach) did not run: the sheet is not flat (sheet_height), and "
+                    "a joint error would stand in for its height")
+    else:
         from vision_cal.diagnose.discover import trace
 
         t_of = {m.id: i / max(len(session.marks) - 1, 1) for i, m in enumerate(session.marks)}
@@ -345,6 +349,9 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
     )
     if traced is not None:
         doc["diagnosis"]["discovery"] = traced.report
+    else:   # said, and read by the verdict (diagnose/verdict.judge)
+        doc["diagnosis"]["discovery"] = {"skipped": untraced}
+        doc["notes"].append(untraced)
         if traced.drift is not None:
             doc["effects"].append(traced.drift)
     res_cal = ff.residuals_mm

@@ -133,3 +133,10 @@ def test_unreliable_marks_are_read():
     d["marks"]["c02"]["status"] = "unreliable"
     v = judge(d, repeatability_mm=REP)
     assert v.status == "check" and "c02" in v.text
+
+
+def test_scans_not_run_are_said():
+    d = _fit_doc(seed=8)
+    d["diagnosis"] = {"discovery": {"skipped": "the scans did not run: the sheet is not flat"}}
+    v = judge(d, repeatability_mm=REP)
+    assert v.status == "check" and "sheet is not flat" in v.text

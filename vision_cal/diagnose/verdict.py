@@ -37,8 +37,9 @@ Status: ``not reliable`` when the plan cannot identify the model, the robot drif
 residual is beyond the floor by :data:`NOT_RELIABLE_RATIO` or more; ``check`` for every
 other reason listed (beyond the floor by less, a target error beyond the noise, structure
 left - an ``unexplained`` effect, photos whose marks moved together, a printed grid that
-disagrees with the markers the way a lens error does - outliers or unreliable marks, too
-few marks, no noise known); ``ready`` only with no reason at all.
+disagrees with the markers the way a lens error does - the scans for unnamed effects not
+run, outliers or unreliable marks, too few marks, no noise known); ``ready`` only with no
+reason at all.
 """
 
 from __future__ import annotations
@@ -344,6 +345,9 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
         seen = "; ".join(unexplained[0].get("seen", [])) or "structure"
         add("check", f"structure no candidate explains is left in the residual ({seen})")
     diagnosis = doc.get("diagnosis") or {}
+    skipped = (diagnosis.get("discovery") or {}).get("skipped")
+    if skipped:
+        add("check", skipped)
     moved = [p.get("file", "?") for p in diagnosis.get("per_photo_offsets") or []
              if p.get("flagged")]
     if moved:

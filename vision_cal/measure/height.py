@@ -235,11 +235,11 @@ def _fit_chi2(A, b) -> tuple[float, int, float]:
 
 
 def offset_evidence(obs_by_mark: dict) -> OffsetEvidence | None:
-    """The two fits of the module docstring on the grid observations, one row pair per
-    photo of a mark, whitened by its covariance (plus ``OFFSET_FLOOR_MM``) and by the
-    common part of a mark's photos (``COMMON_FRACTION``); each camera place has its own
-    homography change (the marker mapping absorbs part of any error, and of the markers'
-    own heights).
+    """The two fits of the module docstring on the grid observations: one row pair per mark
+    and camera place (its photos' weighted mean, whose variance keeps the common part of
+    photos from one place, ``COMMON_FRACTION``), whitened by its covariance (each photo's
+    plus ``OFFSET_FLOOR_MM``); each camera place has its own homography change (the marker
+    mapping absorbs part of any error, and of the markers' own heights).
 
     - heights: a height per mark along its parallax direction, plus the homography fields;
     - lens: the two radial lens fields shared by all photos, plus the homography fields.
@@ -248,18 +248,26 @@ def offset_evidence(obs_by_mark: dict) -> OffsetEvidence | None:
     H_img_sheet (3, 3), K (3, 3)). None when fewer marks than the heights fit can test."""
     obs_by_mark = {k: v for k, v in obs_by_mark.items() if v}
     places: list[np.ndarray] = []
-    rows = []
+    groups: dict = {}     # (mark, place) -> [(W, d, v, F)]: one row pair per mark and place
     for m, obs in enumerate(obs_by_mark.values()):
-        infl = 1.0 + COMMON_FRACTION * (len(obs) - 1)
         for C, p, d, cov, H, K in obs:
             k = next((i for i, c in enumerate(places)
                       if np.linalg.norm(C - c) < SAME_PLACE_FRACTION * C[2]), None)
             if k is None:
                 places.append(np.asarray(C, float))
                 k = len(places) - 1
-            Wi = np.linalg.inv(np.asarray(cov, float) + np.eye(2) * OFFSET_FLOOR_MM**2) / infl
-            rows.append((m, k, np.linalg.cholesky(Wi).T, _v(p, C), _lens_fields(p, H, K),
-                         np.asarray(d, float)))
+            W = np.linalg.inv(np.asarray(cov, float) + np.eye(2) * OFFSET_FLOOR_MM**2)
+            groups.setdefault((m, k), []).append((W, np.asarray(d, float), _v(p, C),
+                                                  _lens_fields(p, H, K)))
+    rows = []
+    for (m, k), g in groups.items():   # photos of one place share their pixel phase
+        Ws = sum(W for W, *_ in g)
+        Wi = np.linalg.inv(Ws)
+        d = Wi @ sum(W @ dd for W, dd, _, _ in g)
+        F = Wi @ sum(W @ FF for W, _, _, FF in g)
+        v = np.mean([vv for _, _, vv, _ in g], axis=0)
+        Wm = Ws / (1.0 + COMMON_FRACTION * (len(g) - 1))
+        rows.append((m, k, np.linalg.cholesky(Wm).T, v, F, d))
     n_marks, n_places = len(obs_by_mark), len(places)
     Z = np.zeros((2 * len(rows), n_marks))
     Hm = np.zeros((2 * len(rows), 8 * n_places))
