@@ -355,10 +355,13 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
                      "bad sheet mapping?): " + ", ".join(moved[:5]))
     sh = diagnosis.get("sheet_height") or {}
     if not sh.get("claimed") and "lens" in (sh.get("not_claimed") or ""):
-        add("check", "the printed grid disagrees with the markers' mapping the way a lens "
-                     f"error does (up to {sh.get('max_abs_mark_height_mm', float('nan')):.3f} "
-                     "mm read as height): marks measured against the markers carry that "
-                     "error; declare the camera's lens, or photograph from several places")
+        off = [math.hypot(*m["local_minus_global_mm"]) for m in marks.values()
+               if m.get("local_minus_global_mm") is not None]
+        size = f"by up to {max(off):.3f} mm " if off else ""
+        add("check", f"the printed grid disagrees with the markers' mapping {size}the way a "
+                     "lens error does (not the paper's height): marks measured against the "
+                     "markers carry that error; declare the camera's lens, or photograph "
+                     "from several places")
     if outliers:
         add("check", f"{len(outliers)} mark(s) left out as outliers: "
                      + ", ".join(sorted(outliers)[:5]))
