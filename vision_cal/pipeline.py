@@ -349,11 +349,11 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
     )
     if traced is not None:
         doc["diagnosis"]["discovery"] = traced.report
+        if traced.drift is not None:
+            doc["effects"].append(traced.drift)
     else:   # said, and read by the verdict (diagnose/verdict.judge)
         doc["diagnosis"]["discovery"] = {"skipped": untraced}
         doc["notes"].append(untraced)
-        if traced.drift is not None:
-            doc["effects"].append(traced.drift)
     res_cal = ff.residuals_mm
     res_val = val.xy_mm - ff.predict(val.q_model, val.approach_model)
     if not_flat:
