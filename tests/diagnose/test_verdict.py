@@ -123,7 +123,8 @@ def test_moved_photos_and_a_lens_read_as_height_are_read():
     v = judge(d, repeatability_mm=REP)
     assert v.status == "check" and "img_004.png" in v.text and "img_005.png" not in v.text
     d["diagnosis"] = {"sheet_height": {"claimed": False, "max_abs_mark_height_mm": 0.099,
-                                       "not_claimed": "... what a slightly wrong lens leaves"}}
+                                       "not_claimed": "... what a slightly wrong lens leaves",
+                                       "not_claimed_as": "lens"}}
     d["marks"]["c04"]["local_minus_global_mm"] = [0.03, -0.04]
     v = judge(d, repeatability_mm=REP)
     assert v.status == "check" and "by up to 0.050 mm" in v.text

@@ -51,19 +51,22 @@ def test_a_lens_error_is_not_a_height(k1):
     assert blind.claimed and blind.max_abs_mark_mm > 0.05
     hm = _map(marks, obs, evidence=True)
     assert not hm.claimed
-    assert "lens" in hm.not_claimed
+    assert hm.not_claimed_as == "lens" and "lens" in hm.not_claimed
     assert hm.to_json()["not_claimed"] == hm.not_claimed
 
 
-def test_bumps_are_seen():
+@pytest.mark.parametrize("k1", [0.0, 0.0015])
+def test_bumps_are_seen(k1):
+    """Real bumps are claimed, also through a lens a little off (an estimate from bumped
+    paper is): the heights explain the offsets once the lens field is there too."""
     rng = np.random.default_rng(12)
 
     def bumps(p):
         return (0.6 * np.exp(-np.sum((p - [120, 60]) ** 2) / (2 * 45.0**2))
                 - 0.4 * np.exp(-np.sum((p - [-150, -90]) ** 2) / (2 * 55.0**2)))
 
-    marks, obs = _obs(bumps, dist=None, rng=rng)
+    marks, obs = _obs(bumps, dist=[k1, 0.0, 0.0, 0.0, 0.0], rng=rng)
     hm = _map(marks, obs, evidence=True)
     assert hm.claimed, hm.not_claimed
     ev = hm.evidence
-    assert ev.p_lens < 1e-3 <= ev.p_across
+    assert ev.p_lens < 1e-3 <= ev.p_heights

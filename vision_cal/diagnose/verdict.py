@@ -354,14 +354,16 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
         add("check", f"{len(moved)} photo(s) whose marks moved together beyond the noise (a "
                      "bad sheet mapping?): " + ", ".join(moved[:5]))
     sh = diagnosis.get("sheet_height") or {}
-    if not sh.get("claimed") and "lens" in (sh.get("not_claimed") or ""):
+    as_ = sh.get("not_claimed_as")
+    if not sh.get("claimed") and as_ in ("lens", "mapping"):
         off = [math.hypot(*m["local_minus_global_mm"]) for m in marks.values()
                if m.get("local_minus_global_mm") is not None]
         size = f"by up to {max(off):.3f} mm " if off else ""
-        add("check", f"the printed grid disagrees with the markers' mapping {size}the way a "
-                     "lens error does (not the paper's height): marks measured against the "
-                     "markers carry that error; declare the camera's lens, or photograph "
-                     "from several places")
+        add("check", f"the printed grid disagrees with the markers' mapping {size}the way "
+                     + ("a lens error does" if as_ == "lens" else "a mapping error does")
+                     + " (not the paper's height): marks measured against the markers carry "
+                     "that error; declare the camera's lens, or photograph from several "
+                     "places")
     if outliers:
         add("check", f"{len(outliers)} mark(s) left out as outliers: "
                      + ", ".join(sorted(outliers)[:5]))

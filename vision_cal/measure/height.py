@@ -24,11 +24,11 @@ effect ``sheet_height`` only when the marks' heights are significantly not zero
 (:func:`offset_evidence`, issue 17): a smooth difference between the printed grid and the
 marker mapping is also what a lens the measurement got slightly wrong makes (undeclared
 and estimated, or declared wrong), seen through a tilted camera. A height moves a point
-only along its parallax direction ``v``; so the grid offsets must (1) be explained by a
-height per mark along ``v`` plus the homography change the marker mapping absorbed (its
-chi-square not significant at ``alpha``) and (2) not be explained by the field a lens
-error leaves instead (radial ``r^2``, ``r^4`` about the principal point, mapped to the
-sheet, plus the same homography change; rejected at ``alpha``). Otherwise ``not_claimed``
+only along its parallax direction ``v``; so the grid offsets must (1) not be explained by
+the field a lens error leaves on a flat sheet (radial ``r^2``, ``r^4`` about the principal
+point, mapped to the sheet, plus the homography change the marker mapping absorbed;
+rejected at ``alpha``) and (2) be explained once a height per mark along ``v`` is added
+to that field (its chi-square not significant at ``alpha``). Otherwise ``not_claimed``
 says why and the heights stay reported, unclaimed.
 """
 
@@ -171,39 +171,40 @@ def height_from_parallax(obs, *, min_baseline: float = 0.05) -> MarkHeight | Non
 class OffsetEvidence:
     """Whether the grid offsets are what heights make (module docstring).
 
-    ``across_chi2`` / ``across_dof`` / ``p_across``: the offsets left by heights along the
-    parallax direction and the mapping's homography change; ``lens_chi2`` / ``lens_dof`` /
-    ``p_lens``: those left by a lens field and the homography change instead; ``places``:
-    how many camera places the photos were taken from."""
+    ``lens_chi2`` / ``lens_dof`` / ``p_lens``: the offsets left by a lens field and the
+    mapping's homography change alone (a flat sheet); ``heights_chi2`` / ``heights_dof`` /
+    ``p_heights``: those left once a height per mark along its parallax direction is
+    added; ``places``: how many camera places the photos were taken from."""
 
-    across_chi2: float
-    across_dof: int
-    p_across: float
-    lens_chi2: float | None
-    lens_dof: int | None
-    p_lens: float | None
+    heights_chi2: float
+    heights_dof: int
+    p_heights: float
+    lens_chi2: float
+    lens_dof: int
+    p_lens: float
     places: int
 
-    def not_claimed(self, alpha: float) -> str | None:
-        """Why heights that are significant are still not claimed (None: they are seen)."""
-        if self.p_across < alpha:
-            return ("the printed grid's offsets from the marker mapping do not point along "
-                    f"the parallax direction a height moves a point (chi2 across "
-                    f"{self.across_chi2:.1f} on {self.across_dof}, p = "
-                    f"{self.p_across:.2g}): a lens or mapping error, not the paper's height")
-        if self.p_lens is not None and self.p_lens >= alpha:
-            return ("the grid's offsets from the marker mapping are what a slightly wrong "
+    def not_claimed(self, alpha: float) -> tuple[str, str] | None:
+        """Why heights that are significant are still not claimed: (``lens`` | ``mapping``,
+        a sentence); None: they are seen."""
+        if self.p_lens >= alpha:
+            return "lens", ("the grid's offsets from the marker mapping are what a slightly wrong "
                     f"lens leaves (lens field chi2 {self.lens_chi2:.1f} on {self.lens_dof}, "
                     f"p = {self.p_lens:.2g}): a height cannot be told from the lens"
                     + ("; photograph from two or more places to see it" if self.places == 1
                        else ""))
+        if self.p_heights < alpha:
+            return "mapping", ("the printed grid's offsets from the marker mapping are neither a lens "
+                    "error nor heights along the parallax direction (chi2 "
+                    f"{self.heights_chi2:.1f} on {self.heights_dof}, p = "
+                    f"{self.p_heights:.2g}): a mapping error, not the paper's height")
         return None
 
     def to_json(self) -> dict:
-        return {"heights_fit": {"chi2": self.across_chi2, "dof": self.across_dof,
-                                "p_value": self.p_across},
-                "lens_field_fit": {"chi2": self.lens_chi2, "dof": self.lens_dof,
+        return {"lens_field_fit": {"chi2": self.lens_chi2, "dof": self.lens_dof,
                                    "p_value": self.p_lens},
+                "heights_fit": {"chi2": self.heights_chi2, "dof": self.heights_dof,
+                                "p_value": self.p_heights},
                 "camera_places": self.places}
 
 
@@ -241,8 +242,10 @@ def offset_evidence(obs_by_mark: dict) -> OffsetEvidence | None:
     plus ``OFFSET_FLOOR_MM``); each camera place has its own homography change (the marker
     mapping absorbs part of any error, and of the markers' own heights).
 
-    - heights: a height per mark along its parallax direction, plus the homography fields;
-    - lens: the two radial lens fields shared by all photos, plus the homography fields.
+    - lens (the sheet flat): the two radial lens fields shared by all photos, plus the
+      homography fields;
+    - heights: a height per mark along its parallax direction, plus the lens and the
+      homography fields (a lens estimated from bumped paper is a little off too).
 
     ``obs_by_mark``: mark id -> list of (C (3,), p_mm (2,), d_mm (2,), cov_d (2, 2),
     H_img_sheet (3, 3), K (3, 3)). None when fewer marks than the heights fit can test."""
@@ -279,7 +282,7 @@ def offset_evidence(obs_by_mark: dict) -> OffsetEvidence | None:
         Hm[sl, 8 * k:8 * k + 8] = L @ F[:, 2:]
         Ln[sl] = L @ F[:, :2]
         y[sl] = L @ d
-    h_chi2, h_dof, p_h = _fit_chi2(np.hstack([Z, Hm]), y)
+    h_chi2, h_dof, p_h = _fit_chi2(np.hstack([Z, Ln, Hm]), y)
     if h_dof < 3:
         return None
     l_chi2, l_dof, p_l = _fit_chi2(np.hstack([Ln, Hm]), y)
@@ -304,7 +307,8 @@ class HeightMap:
     claimed: bool
     marks: dict = field(default_factory=dict)
     evidence: OffsetEvidence | None = None
-    not_claimed: str | None = None
+    not_claimed: str | None = None       # why significant heights are not claimed
+    not_claimed_as: str | None = None    # what the offsets are instead: lens | mapping
 
     @classmethod
     def from_estimate(cls, xy_mm, z_mm, std_mm, extent_mm, *, ids=(), alpha: float = 1e-3,
@@ -346,11 +350,12 @@ class HeightMap:
         max_abs = float(np.max(np.abs(z)))
         significant = bool(p < alpha and max_abs > MIN_CLAIM_MM)
         why = evidence.not_claimed(alpha) if significant and evidence is not None else None
+        kind, why = why if why is not None else (None, None)
         marks = {str(i): {"xy_mm": xy[k].tolist(), "height_mm": float(z[k]),
                           "height_std_mm": float(sd[k])} for k, i in enumerate(ids)}
         return cls(xs, ys, mean.reshape(X.shape), np.sqrt(var).reshape(X.shape), ell, amp,
                    chi2, len(z), p, max_abs, significant and why is None, marks, evidence,
-                   why)
+                   why, kind)
 
     def at(self, xy_mm) -> np.ndarray:
         """The map's height (N,) at sheet points (bilinear in the grid)."""
@@ -373,7 +378,8 @@ class HeightMap:
                 "smoothness": {"length_mm": self.length_mm, "amplitude_mm": self.amplitude_mm},
                 "marks": self.marks,
                 **({} if self.evidence is None else {"evidence": self.evidence.to_json()}),
-                **({} if self.not_claimed is None else {"not_claimed": self.not_claimed})}
+                **({} if self.not_claimed is None else {"not_claimed": self.not_claimed,
+                                                         "not_claimed_as": self.not_claimed_as})}
 
     @classmethod
     def from_json(cls, d: dict) -> "HeightMap":
