@@ -1,6 +1,6 @@
 """Diagnosis hit rate and false-claim rate over the full grid of effects, sizes and seeds.
 
-Usage: .venv/bin/python bench/diagnose.py [--seeds 10] [--sigma 0.012]
+Usage: .venv/bin/python bench/diagnose.py [--seeds 10] [--sigma 0.012] [--first-seed 1000]
        .venv/bin/python bench/diagnose.py --scans [--clean 200]   (bench/discover.py)
        .venv/bin/python bench/diagnose.py --render [--seeds 2] [--width 1600]
 
@@ -155,6 +155,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--sigma", type=float, default=0.012, help="mark noise per axis, mm")
+    ap.add_argument("--first-seed", type=int, default=1000,
+                    help="seeds first-seed .. first-seed + seeds - 1 (default: the grid's own)")
     ap.add_argument("--render", action="store_true", help="render, measure and calibrate "
                     "each case from a photograph")
     ap.add_argument("--width", type=int, default=1600, help="--render: photo width, px")
@@ -166,7 +168,9 @@ def main() -> None:
         import runpy
         import sys
 
-        sys.argv = [sys.argv[0]] + rest
+        given = any(v.startswith("--first-seed") for v in sys.argv)
+        sys.argv = ([sys.argv[0]] + rest
+                    + (["--first-seed", str(a.first_seed)] if given else []))
         runpy.run_path(str(Path(__file__).with_name("discover.py")), run_name="__main__")
         return
     if a.render:
@@ -179,7 +183,7 @@ def main() -> None:
     for name, effect, key, size in cases:
         hits = 0
         for seed in range(a.seeds):
-            rng = np.random.default_rng(1000 + seed)
+            rng = np.random.default_rng(a.first_seed + seed)
             q, s = plan(rng)
             # the world's own robot (not the estimator's model), from the JSON blocks
             truth = TrueRobot.from_json(TRUTH.to_json(),
@@ -210,7 +214,8 @@ def main() -> None:
                 err = d.final_fit.params.vector - TRUTH.vector
                 z_base.append(np.max(np.abs(err) / d.final_fit.std[:6]))
         rows.append((name, hits, a.seeds))
-    print(f"diagnosis grid: {len(cases)} cases x {a.seeds} seeds, sigma {a.sigma} mm per axis")
+    print(f"diagnosis grid: {len(cases)} cases x {a.seeds} seeds ({a.first_seed}..), "
+          f"sigma {a.sigma} mm per axis")
     for name, h, n in rows:
         print(f"  {name:<28} {h:>3}/{n}")
     total = sum(h for nm, h, n in rows if nm != "clean")

@@ -10,6 +10,16 @@ the target (mm). Baseline in the same run: the nominal model's plan.
 Usage::
 
     .venv/bin/python bench/sheet_height.py DIR [DIR ...]
+    .venv/bin/python bench/sheet_height.py --false-claims [--seeds 301-310] [--only TEXT]
+
+``--false-claims`` (issue 17) renders small flat sheets (kinematic robot, 240 x 180 mm,
+900 x 680 px, a fixed camera) over the seeds, each in five worlds: a camera tilted 0, 11
+and 15 deg with a mild undeclared lens (k1 -0.06 or +0.04, estimated by the measurement),
+and tilted 11 deg with a declared lens 5 or 10 % wrong (what an estimate a little off
+leaves);
+it measures each (no fit is needed: the claim is the measurement's) and prints how often
+``sheet_height`` is claimed. The same seeds with two bumps (1.2 / -0.8 mm, tilt 15 deg)
+give the rate at which a real non-flat sheet is found.
 
 (render the folders first, e.g. ``vision-cal render renders/bumped_tilted.yaml --out DIR
 --seed 31``, or let ``bench/measure.py --reference`` render them).
@@ -48,7 +58,61 @@ def plan_miss_mm(model, truth_model, extent_mm) -> float:
     return float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
 
 
+def _flat_scene(seed: int, tilt_deg: float, k1: float, *, bumps: bool, declared: bool):
+    """tests/render/test_bumped.py's small world, its camera tilted and its lens set."""
+    from tests.render.test_bumped import BUMPS, scene_dict
+    from vision_cal.render.scene import scene_from_dict
+
+    d = scene_dict(BUMPS if bumps else None, seed=seed)
+    d["plan"]["n_calibration"] = 14
+    d["camera"].update(tilt_deg=[tilt_deg, tilt_deg], dist=[k1, 0.3 * abs(k1), 0, 0, 0],
+                       declared=declared)
+    return scene_from_dict(d)
+
+
+def false_claims(seeds, only: str | None = None) -> int:
+    """The flat-sheet false-claim rate and the bumped detection rate (module docstring);
+    ``only``: the worlds whose name holds it."""
+    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.measure.batch import measure_folder
+    from vision_cal.render.dataset import render_dataset
+
+    worlds = [("flat, tilt 0, undeclared k1 -0.06", 0.0, -0.06, False, None),
+              ("flat, tilt 11, undeclared k1 -0.06", 11.0, -0.06, False, None),
+              ("flat, tilt 15, undeclared k1 +0.04", 15.0, 0.04, False, None),
+              ("flat, tilt 11, declared lens 5 % wrong", 11.0, -0.06, True, 0.95),
+              ("flat, tilt 11, declared lens 10 % wrong", 11.0, -0.06, True, 0.90),
+              ("bumped, tilt 15, undeclared k1 -0.06", 15.0, -0.06, False, None)]
+    tmp = Path(tempfile.mkdtemp(prefix="bench-sheet-height-"))
+    print(f"{'world':40s} {'claimed':>8s} {'of':>4s}  max mark height (mm) per seed")
+    for name, tilt, k1, declared, frac in worlds:
+        if only is not None and only not in name:
+            continue
+        claimed, hs = 0, []
+        for seed in seeds:
+            folder = render_dataset(_flat_scene(seed, tilt, k1, bumps=name.startswith("bumped"),
+                                                declared=declared),
+                                    tmp / f"{seed}-{tilt}-{k1}-{declared}", pilot=pilot_params)
+            if frac is not None:   # declare the lens a little wrong
+                s = json.loads((folder / "session.json").read_text())
+                s["camera"]["dist"] = [frac * v for v in s["camera"]["dist"]]
+                (folder / "session.json").write_text(json.dumps(s))
+            meas = measure_folder(folder, out_dir=folder.with_name(folder.name + "-out"),
+                                  jobs=1)
+            hm = meas.height_map
+            claimed += int(hm is not None and hm.claimed)
+            hs.append(np.nan if hm is None else hm.max_abs_mark_mm)
+        print(f"{name:40s} {claimed:8d} {len(seeds):4d}  "
+              + " ".join(f"{h:.2f}" for h in hs), flush=True)
+    return 0
+
+
 def main() -> int:
+    if sys.argv[1:2] == ["--false-claims"]:
+        spec = sys.argv[sys.argv.index("--seeds") + 1] if "--seeds" in sys.argv else "301-310"
+        lo, hi = (int(v) for v in spec.split("-"))
+        only = sys.argv[sys.argv.index("--only") + 1] if "--only" in sys.argv else None
+        return false_claims(range(lo, hi + 1), only)
     from vision_cal.dataset.calibration import load_calibration
     from vision_cal.kinematics import ScaraParams
     from vision_cal.model import RobotModel, effect_from_json

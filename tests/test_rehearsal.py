@@ -82,6 +82,16 @@ def test_rehearsal_calibrates_the_hidden_robot(rehearsal):
         assert abs(p["base_mm"][i] - truth["base_mm"][i]) < 4 * s["base_mm"][i] + 0.01
     bl = [e for e in cal["effects"] if e["name"] == "joint_backlash" and e["joint"] == 2]
     assert bl and abs(bl[0]["deg"] - 0.1) < 4 * bl[0]["std"] + 0.002
+    # the designed plan drew 8 marks twice: the floor's repeatability is measured from them
+    # (the world's is truth.json repeatability_mm; 8 pairs know r within about
+    # (sigma^2 + r^2) / (2 r sqrt 8), a few micrometres: 4 of them, plus the measurer's
+    # own sigma as the bias its estimate can leave)
+    v = cal["verdict"]
+    r_true = json.loads((tmp / "plan" / "truth.json").read_text())["repeatability_mm"]
+    assert v["repeatability_source"].startswith("8 pairs"), v["repeatability_source"]
+    sig = max(m["sigma_mm"] for m in cal["marks"].values() if "sigma_mm" in m)
+    assert abs(v["repeatability_mm"] - r_true) < 4 * (sig**2 + r_true**2) / (
+        2 * r_true * 8**0.5) + sig, (v["repeatability_mm"], r_true, sig)
     assert (tmp / "cal" / "report.html").exists()
     assert (tmp / "targets_plan.prg").exists()
     # nobody wrote an images list: the photos were found in the folder

@@ -302,7 +302,11 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
                     approach_val=val.approach_model if len(val.ids) else None,
                     candidates=cands, base_effects=tuple(base_effects), config=config)
     traced = None
-    if not not_flat:  # a sheet's height would be read as a joint error: not traced then
+    if not_flat:  # a sheet's height would be read as a joint error: not traced then
+        untraced = ("the scans for effects the library lacks (time, polynomial, coupling, "
+                    "elbow, approach) did not run: the sheet is not flat (sheet_height), and "
+                    "a joint error would stand in for its height")
+    else:
         t_of = {m.id: i / max(len(session.marks) - 1, 1) for i, m in enumerate(session.marks)}
         traced = trace(diag, cal.q_model, cal.xy_mm, cal.approach_model,
                        np.array([t_of[i] for i in cal.ids]), sigma_mm=cal.sigma_mm,
@@ -342,6 +346,9 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
         doc["diagnosis"]["discovery"] = traced.report
         if traced.drift is not None:
             doc["effects"].append(traced.drift)
+    else:   # said, and read by the verdict (diagnose/verdict.judge)
+        doc["diagnosis"]["discovery"] = {"skipped": untraced}
+        doc["notes"].append(untraced)
     res_cal = ff.residuals_mm
     res_val = val.xy_mm - ff.predict(val.q_model, val.approach_model)
     if not_flat:
@@ -406,6 +413,8 @@ def document(session: Session, data: MarkData, missing: list[str],
         hm = measurement.height_map
         if hm.claimed:
             effects.append(hm.to_effect_json())
+        elif hm.not_claimed:
+            notes.append(f"sheet_height not claimed: {hm.not_claimed}")
         diagnosis = {**(diagnosis or {}), "sheet_height": hm.to_json()}
     marks, unreliable_notes = _marks_json(session, data, measurement, fitted)
     if measurement is not None:
@@ -467,6 +476,7 @@ def _marks_json(session: Session, data: MarkData, measurement: Measurement | Non
     """calibration.json's ``marks`` (every fitted mark with its residuals, then the marks
     found but not trusted) and the notes about the latter."""
     marks = {}
+    repeat_of = {m.id: m.repeat_of for m in session.marks if m.repeat_of is not None}
     for i, mid in enumerate(data.ids):
         entry = {"measured_mm": data.xy_mm[i].tolist(),
                  **({"j4_deg": float(data.joint4[i, 0])} if data.joint4 is not None else {}),
@@ -476,6 +486,8 @@ def _marks_json(session: Session, data: MarkData, measurement: Measurement | Non
                  "approach": data.approach[i].astype(int).tolist()}
         if data.sigma_mm is not None:
             entry["sigma_mm"] = float(data.sigma_mm[i])
+        if mid in repeat_of:   # added: a return to another mark's pose (repeatability)
+            entry["repeat_of"] = repeat_of[mid]
         if measurement is not None and mid in measurement.marks:  # added field
             entry["n_photos"] = int(measurement.marks[mid].n_photos)
             entry.update(measurement.mark_json(mid))

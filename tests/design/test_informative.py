@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from tests.design.conftest import ROBOT, border_sheet
+from vision_cal.design.stage import DESIGN_REPEATS
 from vision_cal.plan.calibration_plan import sheet_clearance_mm
 from vision_cal.render.truth_model import TrueRobot
 
@@ -59,9 +60,11 @@ def test_informative_marks_keep_clear_of_the_pilots_marks(informative):
 def test_informative_plan_has_both_elbows_sides_and_roles(informative):
     r, s, _ = informative
     marks = s["marks"]
-    assert len(marks) == 38 and "images" not in s and s["design"]["stage"] == "informative"
+    n_rep = DESIGN_REPEATS   # calibration marks drawn twice (tests/design/test_repeats.py)
+    assert len(marks) == 38 + n_rep and "images" not in s
+    assert s["design"]["stage"] == "informative"
     roles = [m["role"] for m in marks]
-    assert roles.count("calibration") == 30 and roles.count("validation") == 8
+    assert roles.count("calibration") == 30 + n_rep and roles.count("validation") == 8
     a = np.array([m["approach"] for m in marks])
     assert set(a[:, 0]) == {1, -1} and set(a[:, 1]) == {1, -1}
     q = np.array([m["joints_deg"] for m in marks])

@@ -92,3 +92,53 @@ def test_repeatability_measured_from_marks_drawn_twice():
     # about 8 of them (the relative std 1 / sqrt(n) the docstring promises, times 4)
     assert abs(r - r_true) < 4 * r_true / np.sqrt(n)
     assert repeatability_from_repeats(dict(list(marks.items())[:6])) is None   # 3 pairs
+
+
+def test_one_target_far_off_is_read_though_the_rms_hides_it():
+    # 200 fitted marks, one 0.09 mm off (7.7 times its 2-D noise RMS of 0.0117 mm): the
+    # chi-square of all of them moves by ~60 on ~394 dof (ratio ~1.07, within the floor)
+    d = _fit_doc(seed=5, n=200)
+    d["validation_rms_mm"] = {"final_model": d["residual_rms_mm"]["final_model"]}
+    v = judge(d, repeatability_mm=REP)
+    assert v.status == "ready", v.reasons
+    assert v.max_target_error["of"] == "fitted" and not v.max_target_error["beyond"]
+    r = np.asarray(d["marks"]["c17"]["residual_mm"])
+    d["marks"]["c17"]["residual_mm"] = (r / np.hypot(*r) * 0.09).tolist()
+    v = judge(d, repeatability_mm=REP)
+    assert not v.floor["beyond"]
+    assert v.status == "check" and "c17" in v.text and "largest" in v.text
+    m = v.max_target_error
+    assert m["mark"] == "c17" and m["error_mm"] == pytest.approx(0.09) and m["beyond"]
+    assert Verdict.from_json(v.to_json()).max_target_error == m
+    # held-out marks, when there are, are the targets judged
+    d["marks"]["c17"]["role"] = "validation"
+    assert judge(d, repeatability_mm=REP).max_target_error["of"] == "held-out"
+
+
+def test_moved_photos_and_a_lens_read_as_height_are_read():
+    d = _fit_doc(seed=6)
+    assert judge(d, repeatability_mm=REP).status == "ready"
+    d["diagnosis"] = {"per_photo_offsets": [{"file": "img_004.png", "flagged": True},
+                                            {"file": "img_005.png", "flagged": False}]}
+    v = judge(d, repeatability_mm=REP)
+    assert v.status == "check" and "img_004.png" in v.text and "img_005.png" not in v.text
+    d["diagnosis"] = {"sheet_height": {"claimed": False, "max_abs_mark_height_mm": 0.099,
+                                       "not_claimed": "... what a slightly wrong lens leaves",
+                                       "not_claimed_as": "lens"}}
+    d["marks"]["c04"]["local_minus_global_mm"] = [0.03, -0.04]
+    v = judge(d, repeatability_mm=REP)
+    assert v.status == "check" and "by up to 0.050 mm" in v.text
+
+
+def test_unreliable_marks_are_read():
+    d = _fit_doc(seed=7)
+    d["marks"]["c02"]["status"] = "unreliable"
+    v = judge(d, repeatability_mm=REP)
+    assert v.status == "check" and "c02" in v.text
+
+
+def test_scans_not_run_are_said():
+    d = _fit_doc(seed=8)
+    d["diagnosis"] = {"discovery": {"skipped": "the scans did not run: the sheet is not flat"}}
+    v = judge(d, repeatability_mm=REP)
+    assert v.status == "check" and "sheet is not flat" in v.text

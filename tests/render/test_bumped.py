@@ -10,9 +10,8 @@ import pytest
 pytestmark = pytest.mark.render
 
 
-def _scene(height, *, seed=5, moving=False):
-    from vision_cal.render.scene import scene_from_dict
-
+def scene_dict(height, *, seed=5, moving=False) -> dict:
+    """The small world of these tests (also bench/sheet_height.py --false-claims)."""
     d = {"seed": seed,
          "robot": {"controller": "kinematic",
                    "nominal": {"L1_mm": 344.0, "L2_mm": 260.0, "joint_zero_deg": [-2.5, -8.0],
@@ -26,7 +25,13 @@ def _scene(height, *, seed=5, moving=False):
          "photos": {"mode": "series", "texture_px_per_mm": 8.0, "vignetting": 0.1}}
     if height is not None:
         d["sheet"]["height"] = height
-    return scene_from_dict(d)
+    return d
+
+
+def _scene(height, *, seed=5, moving=False):
+    from vision_cal.render.scene import scene_from_dict
+
+    return scene_from_dict(scene_dict(height, seed=seed, moving=moving))
 
 
 BUMPS = {"bumps": [{"centre_mm": [40.0, 20.0], "sigma_mm": 35.0, "height_mm": 1.2},

@@ -174,6 +174,7 @@ class Mark:
     target_mm: tuple[float, float] | None = None
     measured_mm: tuple[float, float] | None = None
     j4_deg: float | None = None   # commanded joint 4 (contract "Joint 4 and the tool")
+    repeat_of: str | None = None  # the mark whose pose this one returns to (docs/format.md)
 
 
 @dataclass(frozen=True)
@@ -456,7 +457,20 @@ def load_session(folder) -> Session:
         j4 = m.get("j4_deg")
         j4 = r.number(j4, f"{w}.j4_deg", lo=-MAX_JOINT_DEG, hi=MAX_JOINT_DEG) \
             if j4 is not None else None
-        marks.append(Mark(mid, q, role, appr, tgt, meas, j4))
+        rep = m.get("repeat_of")
+        rep = r.string(rep, f"{w}.repeat_of") if rep is not None else None
+        marks.append(Mark(mid, q, role, appr, tgt, meas, j4, rep))
+    by_id = {mk.id: mk for mk in marks}
+    for i, mk in enumerate(marks):   # a repeat returns to another mark's pose, same side
+        if mk.repeat_of is None:
+            continue
+        twin = by_id.get(mk.repeat_of)
+        if twin is None or twin.id == mk.id:
+            r.fail(f"marks[{i}].repeat_of", f"names {mk.repeat_of!r}, which is not another mark")
+        if mk.approach != twin.approach:
+            r.fail(f"marks[{i}].repeat_of", f"{mk.id!r} approaches from {mk.approach}, its twin "
+                                            f"{twin.id!r} from {twin.approach}: a repeat comes "
+                                            "from the same side")
 
     # images (absent: every photo in the folder, marks found from the photos)
     images_listed = "images" in raw

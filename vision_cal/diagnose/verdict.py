@@ -25,10 +25,21 @@ passed unless the p-value is below :data:`FLOOR_ALPHA` *and* the ratio above
 noise). Held-out marks are judged against the same floor, their variance raised by the
 model's own prediction error, on average ``P / (2 N)`` of the noise (the mean leverage).
 
+The largest target error. An RMS can hide one target far off (a local error: a fold in the
+paper, a bad mark, a pose the model misses). The largest error over the held-out marks
+(the fitted marks when none are held out) is judged against the same noise: each mark's
+``t = |r|^2 / var`` is chi-square with 2 dof, so the largest of N exceeds ``t_max`` by noise
+alone with probability ``1 - (1 - exp(-t_max / 2))^N``, computed with the variance raised
+by ``FLOOR_RATIO_TOL^2`` (the noise is known only that well); below :data:`FLOOR_ALPHA`
+it is a reason (``check``), and ``max_target_error`` is in the block either way.
+
 Status: ``not reliable`` when the plan cannot identify the model, the robot drifted, or the
 residual is beyond the floor by :data:`NOT_RELIABLE_RATIO` or more; ``check`` for every
-other reason listed (beyond the floor by less, structure left, outliers or unreliable
-marks, too few marks, no noise known); ``ready`` only with no reason at all.
+other reason listed (beyond the floor by less, a target error beyond the noise, structure
+left - an ``unexplained`` effect, photos whose marks moved together, a printed grid that
+disagrees with the markers the way a lens error does - the scans for unnamed effects not
+run, outliers or unreliable marks, too few marks, no noise known); ``ready`` only with no
+reason at all.
 """
 
 from __future__ import annotations
@@ -95,28 +106,82 @@ def floor_test(residual_mm, sigma_mm, repeatability_mm: float = DEFAULT_REPEATAB
                      float(np.sqrt(2 * np.mean(var[ok]) * dof / (2 * n))))
 
 
+@dataclass(frozen=True)
+class MaxErrorTest:
+    """The largest error of some marks against the noise (module docstring)."""
+
+    mark: str
+    error_mm: float         # |r| of the worst mark
+    over_noise: float       # |r| / sqrt(2 var): its error over its own 2-D noise RMS
+    p_value: float          # the largest of n noise-only errors this large (tolerant)
+    n_marks: int
+    of: str                 # held-out | fitted
+
+    @property
+    def beyond(self) -> bool:
+        return self.p_value < FLOOR_ALPHA
+
+    def to_json(self) -> dict:
+        return {"mark": self.mark, "error_mm": self.error_mm, "over_noise": self.over_noise,
+                "p_value": self.p_value, "n_marks": self.n_marks, "of": self.of,
+                "beyond": self.beyond}
+
+
+def max_error_test(ids, residual_mm, sigma_mm, repeatability_mm: float, *, of: str,
+                   inflate: float = 1.0) -> MaxErrorTest | None:
+    """The largest of the residuals (N, 2) of marks ``ids`` against their per-axis noise
+    ``sigma_mm`` (N,) plus ``repeatability_mm`` (variance times ``inflate``). None: no mark."""
+    r = np.asarray(residual_mm, dtype=float).reshape(-1, 2)
+    var = (np.asarray(sigma_mm, dtype=float).reshape(-1) ** 2 + repeatability_mm**2) * inflate
+    ok = np.all(np.isfinite(r), axis=1) & np.isfinite(var) & (var > 0)
+    if not ok.any():
+        return None
+    t = np.where(ok, np.sum(r**2, axis=1) / np.where(ok, var, 1.0), -np.inf)
+    k = int(np.argmax(t))
+    n = int(ok.sum())
+    # P(max of n chi2(2) >= t): 1 - (1 - e^{-t/2})^n, in a form exact for tiny tails
+    tail = -np.expm1(n * np.log1p(-math.exp(-t[k] / (2 * FLOOR_RATIO_TOL**2))))
+    return MaxErrorTest(str(ids[k]), float(np.hypot(*r[k])), float(math.sqrt(t[k] / 2)),
+                        float(tail), n, of)
+
+
 MIN_REPEAT_PAIRS = 4        # pairs of marks drawn at the same command to measure repeatability
 
 
 def repeatability_from_repeats(marks: dict) -> tuple[float, int] | None:
-    """The robot's repeatability (mm, per axis, one std) from marks drawn more than once at
-    the same command and approach, and the number of pairs; None below
-    :data:`MIN_REPEAT_PAIRS` pairs. Two marks a, b of one command differ by noise of
-    per-axis variance ``sigma_a^2 + sigma_b^2 + 2 r^2``, so
-    ``r^2 = mean(|d|^2 / 2 - sigma_a^2 - sigma_b^2) / 2`` (floored at 0). With n pairs
-    its relative std is about ``1 / sqrt(n)``: 8 pairs give r within about 35 %."""
+    """The robot's repeatability (mm, per axis, one std) from marks drawn twice, and the
+    number of pairs; None below :data:`MIN_REPEAT_PAIRS` pairs.
+
+    A pair is a mark and the one its ``repeat_of`` names (the design returns to a pose a
+    few millimetres off, ``plan.calibration_plan.add_repeats``: their residuals differ by
+    noise alone, the model taking the offset out), or two marks of the same command and
+    approach (their measured positions). Two marks a, b differ by noise of per-axis
+    variance ``sigma_a^2 + sigma_b^2 + 2 r^2``, so
+    ``r^2 = mean(|d|^2 / 2 - sigma_a^2 - sigma_b^2) / 2`` (floored at 0). The floor's
+    variance ``sigma^2 + r^2`` then has a relative std of about ``1 / sqrt(n)`` (its RMS
+    half that): 8 pairs give the floor within about 18 %, inside the gate's tolerance."""
+    def usable(m) -> bool:
+        return (m.get("status", "ok") == "ok" and m.get("sigma_mm") is not None
+                and m.get("joints_deg") is not None)
+
+    pairs = []
+    for k, m in marks.items():
+        twin = marks.get(m.get("repeat_of") or "")
+        if twin is not None and usable(m) and usable(twin) \
+                and m.get("residual_mm") is not None and twin.get("residual_mm") is not None:
+            pairs.append((m, twin, "residual_mm"))
     groups: dict = {}
     for k, m in marks.items():
-        if m.get("status", "ok") != "ok" or m.get("joints_deg") is None \
-                or m.get("measured_mm") is None or m.get("sigma_mm") is None:
+        if not usable(m) or m.get("measured_mm") is None or m.get("repeat_of"):
             continue
         key = (tuple(np.round(m["joints_deg"], 6)), tuple(m.get("approach") or (1, 1)))
         groups.setdefault(key, []).append(m)
-    terms = []
     for ms in groups.values():
-        for a, b in zip(ms[:-1], ms[1:]):
-            d = np.subtract(a["measured_mm"], b["measured_mm"])
-            terms.append(float(d @ d) / 2 - a["sigma_mm"] ** 2 - b["sigma_mm"] ** 2)
+        pairs += [(a, b, "measured_mm") for a, b in zip(ms[:-1], ms[1:])]
+    terms = []
+    for a, b, field in pairs:
+        d = np.subtract(a[field], b[field])
+        terms.append(float(d @ d) / 2 - a["sigma_mm"] ** 2 - b["sigma_mm"] ** 2)
     if len(terms) < MIN_REPEAT_PAIRS:
         return None
     return math.sqrt(max(float(np.mean(terms)) / 2, 0.0)), len(terms)
@@ -134,6 +199,7 @@ class Verdict:
     heldout_floor: dict | None = None    # FloorTest.to_json of the validation marks
     repeatability_mm: float = DEFAULT_REPEATABILITY_MM
     repeatability_source: str = "default"
+    max_target_error: dict | None = None  # MaxErrorTest.to_json
 
     @property
     def text(self) -> str:
@@ -164,7 +230,7 @@ class Verdict:
         return cls(d["status"], d.get("expected_target_error_mm"), d.get("residual_over_floor"),
                    tuple(d.get("reasons") or ()), d.get("floor"), d.get("heldout_floor"),
                    d.get("repeatability_mm", DEFAULT_REPEATABILITY_MM),
-                   d.get("repeatability_source", "default"))
+                   d.get("repeatability_source", "default"), d.get("max_target_error"))
 
     def to_json(self) -> dict:
         d = {"status": self.status, "expected_target_error_mm": self.expected_target_error_mm,
@@ -175,6 +241,8 @@ class Verdict:
             d["floor"] = self.floor
         if self.heldout_floor is not None:
             d["heldout_floor"] = self.heldout_floor
+        if self.max_target_error is not None:
+            d["max_target_error"] = self.max_target_error
         return d
 
 
@@ -212,7 +280,9 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
     by_design = "ready" if pilot else None
     rep = DEFAULT_REPEATABILITY_MM if repeatability_mm is None else float(repeatability_mm)
     source = "default" if repeatability_mm is None else "robot block"
-    measured = repeatability_from_repeats(doc.get("marks") or {})
+    outliers = set(doc.get("outliers") or [])
+    measured = repeatability_from_repeats({k: m for k, m in (doc.get("marks") or {}).items()
+                                           if k not in outliers})
     if measured is not None:   # better than a catalogue figure: this robot, this day
         rep, source = measured[0], f"{measured[1]} pairs of marks drawn at the same command"
     reasons: list[tuple[str, str]] = []     # (status, sentence)
@@ -240,28 +310,60 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
                                 "warm it up / re-home, then draw again")
     # the noise floor
     marks = doc.get("marks") or {}
-    outliers = set(doc.get("outliers") or [])
     n_par = int(ident.get("n_params") or 6)
-    fitted = [m for k, m in marks.items() if m.get("role", "calibration") == "calibration"
-              and k not in outliers and m.get("status", "ok") == "ok"]
-    held = [m for m in marks.values() if m.get("role") == "validation"
-            and m.get("status", "ok") == "ok"]
-    floor = hfloor = None
+    fitted_ids = [k for k, m in marks.items() if m.get("role", "calibration") == "calibration"
+                  and k not in outliers and m.get("status", "ok") == "ok"]
+    held_ids = [k for k, m in marks.items() if m.get("role") == "validation"
+                and m.get("status", "ok") == "ok"]
+    fitted = [marks[k] for k in fitted_ids]
+    held = [marks[k] for k in held_ids]
+    floor = hfloor = worst = None
     if fitted and all(m.get("sigma_mm") is not None for m in fitted):
         floor = floor_test([m["residual_mm"] for m in fitted],
                            [m["sigma_mm"] for m in fitted], rep, n_params=n_par)
+        worst = max_error_test(fitted_ids, [m["residual_mm"] for m in fitted],
+                               [m["sigma_mm"] for m in fitted], rep, of="fitted")
         if held and all(m.get("sigma_mm") is not None for m in held):
+            inflate = 1.0 + n_par / max(2 * len(fitted), 1)
             hfloor = floor_test([m["residual_mm"] for m in held], [m["sigma_mm"] for m in held],
-                                rep, inflate=1.0 + n_par / max(2 * len(fitted), 1))
+                                rep, inflate=inflate)
+            worst = max_error_test(held_ids, [m["residual_mm"] for m in held],
+                                   [m["sigma_mm"] for m in held], rep, of="held-out",
+                                   inflate=inflate)
     elif fitted:
         add(by_design or "check", "the marks carry no measurement noise (measured_mm given): "
                                   "the residual cannot be compared with a noise floor")
     for st, text in _floor_reasons(floor, hfloor):
         add(st, text)
+    if worst is not None and worst.beyond:
+        add("check", f"the largest {worst.of} target error, {worst.error_mm:.4f} mm at mark "
+                     f"{worst.mark}, is {worst.over_noise:.1f} times its noise (p = "
+                     f"{worst.p_value:.2g} for the largest of {worst.n_marks}): a local error "
+                     "the RMS hides; look at that mark and the paper around it")
     unexplained = [e for e in effects if e.get("name") == "unexplained"]
     if unexplained:
         seen = "; ".join(unexplained[0].get("seen", [])) or "structure"
         add("check", f"structure no candidate explains is left in the residual ({seen})")
+    diagnosis = doc.get("diagnosis") or {}
+    skipped = (diagnosis.get("discovery") or {}).get("skipped")
+    if skipped:
+        add("check", skipped)
+    moved = [p.get("file", "?") for p in diagnosis.get("per_photo_offsets") or []
+             if p.get("flagged")]
+    if moved:
+        add("check", f"{len(moved)} photo(s) whose marks moved together beyond the noise (a "
+                     "bad sheet mapping?): " + ", ".join(moved[:5]))
+    sh = diagnosis.get("sheet_height") or {}
+    as_ = sh.get("not_claimed_as")
+    if not sh.get("claimed") and as_ in ("lens", "mapping"):
+        off = [math.hypot(*m["local_minus_global_mm"]) for m in marks.values()
+               if m.get("local_minus_global_mm") is not None]
+        size = f"by up to {max(off):.3f} mm " if off else ""
+        add("check", f"the printed grid disagrees with the markers' mapping {size}the way "
+                     + ("a lens error does" if as_ == "lens" else "a mapping error does")
+                     + " (not the paper's height): marks measured against the markers carry "
+                     "that error; declare the camera's lens, or photograph from several "
+                     "places")
     if outliers:
         add("check", f"{len(outliers)} mark(s) left out as outliers: "
                      + ", ".join(sorted(outliers)[:5]))
@@ -288,7 +390,8 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
     ordered = [t for s, t in sorted(reasons, key=lambda st: -_RANK[st[0]])]
     return Verdict(status, r95, floor.ratio if floor is not None else None, tuple(ordered),
                    floor.to_json() if floor is not None else None,
-                   hfloor.to_json() if hfloor is not None else None, rep, source)
+                   hfloor.to_json() if hfloor is not None else None, rep, source,
+                   worst.to_json() if worst is not None else None)
 
 
 def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,

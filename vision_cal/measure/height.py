@@ -20,7 +20,16 @@ mapping fits, which is what ``sheet_height`` means ("above the plane of the mark
 kernel, length and amplitude by maximum marginal likelihood over a small grid, each mark's
 own std as noise): a grid of heights and their std over the paper. It is claimed as the
 effect ``sheet_height`` only when the marks' heights are significantly not zero
-(chi-square against their std, ``alpha``) and larger than ``MIN_CLAIM_MM``.
+(chi-square against their std, ``alpha``), larger than ``MIN_CLAIM_MM``, and *seen*
+(:func:`offset_evidence`, issue 17): a smooth difference between the printed grid and the
+marker mapping is also what a lens the measurement got slightly wrong makes (undeclared
+and estimated, or declared wrong), seen through a tilted camera. A height moves a point
+only along its parallax direction ``v``; so the grid offsets must (1) not be explained by
+the field a lens error leaves on a flat sheet (radial ``r^2``, ``r^4`` about the principal
+point, mapped to the sheet, plus the homography change the marker mapping absorbed;
+rejected at ``alpha``) and (2) be explained once a height per mark along ``v`` is added
+to that field (its chi-square not significant at ``alpha``). Otherwise ``not_claimed``
+says why and the heights stay reported, unclaimed.
 """
 
 from __future__ import annotations
@@ -41,6 +50,8 @@ OFFSET_FLOOR_MM = 0.008
 COMMON_FRACTION = 0.5
 MIN_CLAIM_MM = 0.05          # a height map whose marks all stay below this is called flat
 MAP_STEP_MM = 20.0
+#: camera centres closer than this fraction of their height are one place (a fixed camera)
+SAME_PLACE_FRACTION = 0.02
 
 
 def camera_centre_mm(H_img_sheet, K) -> np.ndarray:
@@ -157,6 +168,128 @@ def height_from_parallax(obs, *, min_baseline: float = 0.05) -> MarkHeight | Non
 
 
 @dataclass(frozen=True)
+class OffsetEvidence:
+    """Whether the grid offsets are what heights make (module docstring).
+
+    ``lens_chi2`` / ``lens_dof`` / ``p_lens``: the offsets left by a lens field and the
+    mapping's homography change alone (a flat sheet); ``heights_chi2`` / ``heights_dof`` /
+    ``p_heights``: those left once a height per mark along its parallax direction is
+    added; ``places``: how many camera places the photos were taken from."""
+
+    heights_chi2: float
+    heights_dof: int
+    p_heights: float
+    lens_chi2: float
+    lens_dof: int
+    p_lens: float
+    places: int
+
+    def not_claimed(self, alpha: float) -> tuple[str, str] | None:
+        """Why heights that are significant are still not claimed: (``lens`` | ``mapping``,
+        a sentence); None: they are seen."""
+        if self.p_lens >= alpha:
+            return "lens", ("the grid's offsets from the marker mapping are what a slightly wrong "
+                    f"lens leaves (lens field chi2 {self.lens_chi2:.1f} on {self.lens_dof}, "
+                    f"p = {self.p_lens:.2g}): a height cannot be told from the lens"
+                    + ("; photograph from two or more places to see it" if self.places == 1
+                       else ""))
+        if self.p_heights < alpha:
+            return "mapping", ("the printed grid's offsets from the marker mapping are neither a lens "
+                    "error nor heights along the parallax direction (chi2 "
+                    f"{self.heights_chi2:.1f} on {self.heights_dof}, p = "
+                    f"{self.p_heights:.2g}): a mapping error, not the paper's height")
+        return None
+
+    def to_json(self) -> dict:
+        return {"lens_field_fit": {"chi2": self.lens_chi2, "dof": self.lens_dof,
+                                   "p_value": self.p_lens},
+                "heights_fit": {"chi2": self.heights_chi2, "dof": self.heights_dof,
+                                "p_value": self.p_heights},
+                "camera_places": self.places}
+
+
+def _lens_fields(p, H, K) -> np.ndarray:
+    """(2, 10) sheet-mm displacement fields at sheet point ``p`` of a photo (H: sheet mm ->
+    ideal px, K): radial r^2, r^4 about the principal point, then a homography change."""
+    H = np.asarray(H, float)
+    K = np.asarray(K, float)
+    x, y = (float(c) for c in p)
+    w = H @ [x, y, 1.0]
+    u = w[:2] / w[2]
+    J = (H[:2, :2] - np.outer(u, H[2, :2])) / w[2]      # d(ideal px) / d(sheet mm)
+    f = np.array([K[0, 0], K[1, 1]])
+    n = (u - K[:2, 2]) / f
+    r2 = float(n @ n)
+    Jinv = np.linalg.inv(J)
+    lens = [Jinv @ (f * n * r2), Jinv @ (f * n * r2**2)]
+    a, b = x / 100.0, y / 100.0        # 100 mm units: columns of similar size
+    hom = [[1, 0], [0, 1], [a, 0], [b, 0], [0, a], [0, b], [a * a, a * b], [a * b, b * b]]
+    return np.column_stack([*lens, *np.asarray(hom, float)])
+
+
+def _fit_chi2(A, b) -> tuple[float, int, float]:
+    """Weighted (already whitened) least squares: chi-square, its dof and p-value."""
+    sol, *_ = np.linalg.lstsq(A, b, rcond=None)
+    chi2 = float(np.sum((b - A @ sol) ** 2))
+    dof = int(len(b) - np.linalg.matrix_rank(A))
+    return chi2, dof, float(stats.chi2.sf(chi2, dof)) if dof > 0 else float("nan")
+
+
+def offset_evidence(obs_by_mark: dict) -> OffsetEvidence | None:
+    """The two fits of the module docstring on the grid observations: one row pair per mark
+    and camera place (its photos' weighted mean, whose variance keeps the common part of
+    photos from one place, ``COMMON_FRACTION``), whitened by its covariance (each photo's
+    plus ``OFFSET_FLOOR_MM``); each camera place has its own homography change (the marker
+    mapping absorbs part of any error, and of the markers' own heights).
+
+    - lens (the sheet flat): the two radial lens fields shared by all photos, plus the
+      homography fields;
+    - heights: a height per mark along its parallax direction, plus the lens and the
+      homography fields (a lens estimated from bumped paper is a little off too).
+
+    ``obs_by_mark``: mark id -> list of (C (3,), p_mm (2,), d_mm (2,), cov_d (2, 2),
+    H_img_sheet (3, 3), K (3, 3)). None when fewer marks than the heights fit can test."""
+    obs_by_mark = {k: v for k, v in obs_by_mark.items() if v}
+    places: list[np.ndarray] = []
+    groups: dict = {}     # (mark, place) -> [(W, d, v, F)]: one row pair per mark and place
+    for m, obs in enumerate(obs_by_mark.values()):
+        for C, p, d, cov, H, K in obs:
+            k = next((i for i, c in enumerate(places)
+                      if np.linalg.norm(C - c) < SAME_PLACE_FRACTION * C[2]), None)
+            if k is None:
+                places.append(np.asarray(C, float))
+                k = len(places) - 1
+            W = np.linalg.inv(np.asarray(cov, float) + np.eye(2) * OFFSET_FLOOR_MM**2)
+            groups.setdefault((m, k), []).append((W, np.asarray(d, float), _v(p, C),
+                                                  _lens_fields(p, H, K)))
+    rows = []
+    for (m, k), g in groups.items():   # photos of one place share their pixel phase
+        Ws = sum(W for W, *_ in g)
+        Wi = np.linalg.inv(Ws)
+        d = Wi @ sum(W @ dd for W, dd, _, _ in g)
+        F = Wi @ sum(W @ FF for W, _, _, FF in g)
+        v = np.mean([vv for _, _, vv, _ in g], axis=0)
+        Wm = Ws / (1.0 + COMMON_FRACTION * (len(g) - 1))
+        rows.append((m, k, np.linalg.cholesky(Wm).T, v, F, d))
+    n_marks, n_places = len(obs_by_mark), len(places)
+    Z = np.zeros((2 * len(rows), n_marks))
+    Hm = np.zeros((2 * len(rows), 8 * n_places))
+    Ln = np.zeros((2 * len(rows), 2))
+    y = np.zeros(2 * len(rows))
+    for r, (m, k, L, v, F, d) in enumerate(rows):
+        sl = slice(2 * r, 2 * r + 2)
+        Z[sl, m] = L @ v
+        Hm[sl, 8 * k:8 * k + 8] = L @ F[:, 2:]
+        Ln[sl] = L @ F[:, :2]
+        y[sl] = L @ d
+    h_chi2, h_dof, p_h = _fit_chi2(np.hstack([Z, Ln, Hm]), y)
+    if h_dof < 3:
+        return None
+    l_chi2, l_dof, p_l = _fit_chi2(np.hstack([Ln, Hm]), y)
+    return OffsetEvidence(h_chi2, h_dof, p_h, l_chi2, l_dof, p_l, n_places)
+
+
+@dataclass(frozen=True)
 class HeightMap:
     """Heights over the paper: ``z_mm`` / ``std_mm`` (ny, nx) at ``x_mm`` (nx,), ``y_mm``
     (ny,); the marks it was fitted to; the chi-square test that the sheet is flat."""
@@ -173,10 +306,16 @@ class HeightMap:
     max_abs_mark_mm: float
     claimed: bool
     marks: dict = field(default_factory=dict)
+    evidence: OffsetEvidence | None = None
+    not_claimed: str | None = None       # why significant heights are not claimed
+    not_claimed_as: str | None = None    # what the offsets are instead: lens | mapping
 
     @classmethod
     def from_estimate(cls, xy_mm, z_mm, std_mm, extent_mm, *, ids=(), alpha: float = 1e-3,
-                      step_mm: float = MAP_STEP_MM) -> "HeightMap":
+                      step_mm: float = MAP_STEP_MM,
+                      evidence: OffsetEvidence | None = None) -> "HeightMap":
+        """``evidence``: :func:`offset_evidence` of the grid offsets the heights came from
+        (None: heights from parallax between places, their own evidence)."""
         xy = np.asarray(xy_mm, float).reshape(-1, 2)
         z = np.asarray(z_mm, float).ravel()
         sd = np.asarray(std_mm, float).ravel()
@@ -209,11 +348,14 @@ class HeightMap:
         chi2 = float(np.sum((z / sd) ** 2))
         p = float(stats.chi2.sf(chi2, len(z)))
         max_abs = float(np.max(np.abs(z)))
-        claimed = bool(p < alpha and max_abs > MIN_CLAIM_MM)
+        significant = bool(p < alpha and max_abs > MIN_CLAIM_MM)
+        why = evidence.not_claimed(alpha) if significant and evidence is not None else None
+        kind, why = why if why is not None else (None, None)
         marks = {str(i): {"xy_mm": xy[k].tolist(), "height_mm": float(z[k]),
                           "height_std_mm": float(sd[k])} for k, i in enumerate(ids)}
         return cls(xs, ys, mean.reshape(X.shape), np.sqrt(var).reshape(X.shape), ell, amp,
-                   chi2, len(z), p, max_abs, claimed, marks)
+                   chi2, len(z), p, max_abs, significant and why is None, marks, evidence,
+                   why, kind)
 
     def at(self, xy_mm) -> np.ndarray:
         """The map's height (N,) at sheet points (bilinear in the grid)."""
@@ -234,7 +376,10 @@ class HeightMap:
                 "flat_test": {"chi2": self.chi2, "dof": self.dof, "p_value": self.p_flat},
                 "max_abs_mark_height_mm": self.max_abs_mark_mm,
                 "smoothness": {"length_mm": self.length_mm, "amplitude_mm": self.amplitude_mm},
-                "marks": self.marks}
+                "marks": self.marks,
+                **({} if self.evidence is None else {"evidence": self.evidence.to_json()}),
+                **({} if self.not_claimed is None else {"not_claimed": self.not_claimed,
+                                                         "not_claimed_as": self.not_claimed_as})}
 
     @classmethod
     def from_json(cls, d: dict) -> "HeightMap":
@@ -275,7 +420,7 @@ def sheet_heights(images, marks: dict, groups_of: dict, extent_mm, *, K_fallback
             continue
     if not centres:
         return {}, None, "no camera pose: the lens is unknown, heights are not observable"
-    heights = {}
+    heights, evidence_obs = {}, {}
     for mid, pairs in groups_of.items():
         grid_obs, par_obs = [], []
         for k, j in pairs:
@@ -287,6 +432,9 @@ def sheet_heights(images, marks: dict, groups_of: dict, extent_mm, *, K_fallback
             if im.dots_reference[j] == "grid":
                 grid_obs.append((C, im.dots_xy_mm[j], im.dots_grid_offset_mm[j],
                                  im.dots_grid_offset_cov_mm2[j]))
+                evidence_obs.setdefault(mid, []).append(
+                    (*grid_obs[-1], im.mapping.H_img_sheet,
+                     im.K if im.K is not None else K_fallback))
         h = height_from_grid(grid_obs) if grid_obs else height_from_parallax(par_obs)
         if h is not None:
             heights[mid] = h
@@ -295,6 +443,9 @@ def sheet_heights(images, marks: dict, groups_of: dict, extent_mm, *, K_fallback
                                "(no printed grid and a camera that did not move?)")
     ids = sorted(heights)
     xy = [heights[i].xy_mm if heights[i].xy_mm is not None else marks[i].xy_mm for i in ids]
+    grid_ids = [i for i in ids if heights[i].how == "grid"]
+    evidence = offset_evidence({i: evidence_obs[i] for i in grid_ids})
     hm = HeightMap.from_estimate(xy, [heights[i].z_mm for i in ids],
-                                 [heights[i].std_mm for i in ids], extent_mm, ids=ids)
+                                 [heights[i].std_mm for i in ids], extent_mm, ids=ids,
+                                 evidence=evidence)
     return heights, hm, None

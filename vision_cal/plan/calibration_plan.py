@@ -7,7 +7,9 @@ that each joint arrives from the side ``approach`` says (the sign of its last mo
 - :func:`informative_plan`: many marks spread over the reachable sheet in both elbows,
   each joint approaching from + on half of them and from - on the other half, one
   overshoot via point per mark; identifies backlash, gear scale and cyclic errors (see
-  docs/plans.md). Sheet positions use the nominal model (mm, sheet frame).
+  docs/plans.md). Sheet positions use the nominal model (mm, sheet frame). With
+  ``n_repeats`` it also returns to a few of its poses (:func:`add_repeats`): the robot's
+  repeatability measured, not assumed.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import forward
+from vision_cal.kinematics import forward, inverse
 from vision_cal.motion import JOINT_LIMITS_DEG, SPEED_DEG_S, approach_signs
 
 
@@ -28,11 +30,86 @@ class PlannedMark:
     role: str = "calibration"
     approach: tuple[int, int] = (1, 1)
     via_deg: tuple[tuple[float, float], ...] = ()
+    repeat_of: str | None = None   # the mark whose pose this one returns to (add_repeats)
 
     def to_json(self) -> dict:
         """The mark's entry of session.json (what a real user knows)."""
-        return {"id": self.id, "joints_deg": [float(self.joints_deg[0]), float(self.joints_deg[1])],
-                "approach": [int(self.approach[0]), int(self.approach[1])], "role": self.role}
+        d = {"id": self.id, "joints_deg": [float(self.joints_deg[0]), float(self.joints_deg[1])],
+             "approach": [int(self.approach[0]), int(self.approach[1])], "role": self.role}
+        if self.repeat_of is not None:
+            d["repeat_of"] = self.repeat_of
+        return d
+
+
+#: how far a repeated mark lands from its twin (mm): two dots of a pen cannot share a spot,
+#: so the return is commanded this far off (as ISO 9283's visits in design/iso9283.py); over
+#: it the joints differ by about 0.6 deg, over which a systematic error barely changes
+REPEAT_SHIFT_MM = 6.0
+#: marks drawn later than their twin (in drawing order): the arm leaves and comes back
+REPEAT_GAP = 3
+
+
+def add_repeats(plan: list[PlannedMark], nominal, sheet, n_repeats: int, *,
+                min_separation_mm: float = 10.0,
+                clearance_mm: float = 18.6, overshoot_deg: float = 3.0,
+                joint_limits_deg=((-150.0, 150.0), (-150.0, 150.0))) -> list[PlannedMark]:
+    """The plan with ``n_repeats`` calibration marks drawn a second time (docs/plans.md).
+
+    Twins are spread along the drawing order; each repeat ``r00..`` returns to its twin's
+    pose, from the same side (same approach and overshoot), ``REPEAT_SHIFT_MM`` off so the
+    two dots are apart (the first of eight directions whose spot keeps ``clearance_mm`` from
+    the edges and markers and ``min_separation_mm`` from every other mark), and is drawn
+    ``REPEAT_GAP`` marks after it. Its ``repeat_of`` names the twin: the pair's residuals
+    differ by measurement noise and twice the robot's repeatability alone
+    (``vision_cal.diagnose.verdict.repeatability_from_repeats``). A twin with no such spot
+    is replaced by another calibration mark; fewer than asked come back only when none is
+    left."""
+    if n_repeats <= 0:
+        return list(plan)
+    # twins with REPEAT_GAP marks after them first (then the last ones, returned to at the end)
+    cal = [k for k, m in enumerate(plan) if m.role == "calibration" and m.repeat_of is None]
+    cal = ([k for k in cal if k < len(plan) - REPEAT_GAP]
+           + [k for k in cal if k >= len(plan) - REPEAT_GAP])
+    if not cal:
+        return list(plan)
+    early = sum(k < len(plan) - REPEAT_GAP for k in cal) or len(cal)
+    spread = [cal[int(i)] for i in np.unique(
+        np.linspace(0, early - 1, min(n_repeats, early)).round().astype(int))]
+    picks = spread + [k for k in cal if k not in spread]   # the rest stand in for a skipped one
+    lim = np.asarray(joint_limits_deg, dtype=float).reshape(2, 2)
+    taken = forward(nominal, np.array([m.joints_deg for m in plan]))
+    out = list(plan)
+    n_done = 0
+    for k in picks:
+        if n_done == n_repeats:
+            break
+        m = plan[k]
+        q = np.asarray(m.joints_deg, float)
+        p = forward(nominal, q[None])[0]
+        elbow = 1 if np.sin(np.radians(q[1] + nominal.z2_deg)) > 0 else -1
+        for a in np.radians(np.arange(0.0, 360.0, 45.0)):
+            xy = p + REPEAT_SHIFT_MM * np.array([np.cos(a), np.sin(a)])
+            others = np.delete(taken, k, axis=0)
+            if sheet_clearance_mm(sheet, xy[None])[0] < clearance_mm or (
+                    len(others) and np.min(np.linalg.norm(others - xy, axis=1))
+                    < min_separation_mm):
+                continue
+            q2 = inverse(nominal, xy[None], elbow=elbow, on_fail="nan")[0]
+            q2 = q2 + 360.0 * np.round((q - q2) / 360.0)     # the same turn as the twin
+            if not np.all(np.isfinite(q2)) or np.any(np.abs(q2 - q) > 5.0) or np.any(
+                    q2 - overshoot_deg - 1.0 < lim[:, 0]) or np.any(
+                    q2 + overshoot_deg + 1.0 > lim[:, 1]):
+                continue
+            s = m.approach
+            via = (float(q2[0] - s[0] * overshoot_deg), float(q2[1] - s[1] * overshoot_deg))
+            rep = PlannedMark(f"r{n_done:02d}", (float(q2[0]), float(q2[1])), "calibration", s,
+                              (via,), repeat_of=m.id)
+            at = min(out.index(m) + REPEAT_GAP, len(out))
+            out.insert(at, rep)
+            taken = np.vstack([taken, xy])
+            n_done += 1
+            break
+    return out
 
 
 def paper_plan() -> list[PlannedMark]:
@@ -110,7 +187,7 @@ def informative_plan(nominal, sheet, *, n_calibration: int = 30, n_validation: i
                      margin_mm: float = 3.0, safety_mm: float = 15.0,
                      overshoot_deg: float = 3.0, min_sin_elbow: float = 0.2,
                      home_deg=(0.0, 0.0), n_candidates: int = 40000, elbows=(1, -1),
-                     speed_deg_s=SPEED_DEG_S) -> list[PlannedMark]:
+                     speed_deg_s=SPEED_DEG_S, n_repeats: int = 0) -> list[PlannedMark]:
     """A plan that identifies the base model *and* backlash, gear scale and cyclic errors.
 
     Poses are drawn uniformly in joint space, kept where the pen (nominal model) lands on
@@ -133,8 +210,9 @@ def informative_plan(nominal, sheet, *, n_calibration: int = 30, n_validation: i
     ``speed_deg_s`` are the joint speeds the drawing order is timed with.
 
     Marks are drawn in a nearest-neighbour tour (in joint travel time) from ``home_deg``;
-    ids are ``c00..`` and ``v00..`` in drawing order. Deterministic for a given ``rng``.
-    Raises :class:`VisionCalError` when the sheet does not hold enough such poses.
+    ids are ``c00..`` and ``v00..`` in drawing order. ``n_repeats``: that many calibration
+    marks drawn again (:func:`add_repeats`, ids ``r00..``). Deterministic for a given
+    ``rng``. Raises :class:`VisionCalError` when the sheet does not hold enough such poses.
     """
     rng = np.random.default_rng(rng)
     n_total = int(n_calibration) + int(n_validation)
@@ -232,4 +310,6 @@ def informative_plan(nominal, sheet, *, n_calibration: int = 30, n_validation: i
         s = (int(signs[k, 0]), int(signs[k, 1]))
         via = (float(qk[0] - s[0] * overshoot_deg), float(qk[1] - s[1] * overshoot_deg))
         out.append(PlannedMark(mid, qk, r, s, (via,)))
-    return out
+    return add_repeats(out, nominal, sheet, n_repeats, min_separation_mm=min_separation_mm,
+                       clearance_mm=clearance,
+                       overshoot_deg=overshoot_deg, joint_limits_deg=lim)
