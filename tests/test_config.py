@@ -1,26 +1,61 @@
 """The estimator's configuration: one documented object, read when used, recorded in
 calibration.json."""
 
+import ast
+import inspect
 import json
 from dataclasses import fields, replace
 
+import numpy as np
+
+from tests.diagnose.test_discover import _world
+from tests.diagnose.test_verdict import REP, _fit_doc
 from tests.measure import synth_measure as sm
-from vision_cal.config import (DEFAULT, DotConfig, EstimatorConfig, SelectionConfig,
-                               SheetFitConfig)
+from tests.measure.test_measure_grid import _mapping_shifted
+from vision_cal.calibrate import joint4
+from vision_cal.config import (DEFAULT, DiscoveryConfig, DotConfig, EstimatorConfig,
+                               GridConfig, Joint4Config, SelectionConfig, SheetFitConfig, VerdictConfig)
+from vision_cal.diagnose import discover, verdict
+from vision_cal.diagnose.select import diagnose
 from vision_cal.dataset.session import load_session
 from vision_cal.measure import dots, grid, sheetfit
 from vision_cal.measure.batch import measure_image
 from vision_cal.measure.cache import session_fingerprint
-from vision_cal.pipeline import calibrate_dataset
+from vision_cal.pipeline import MarkData, calibrate_dataset
+from vision_cal.render.camera import project
+from vision_cal.render.truth_model import TrueRobot
+
+#: the modules whose thresholds moved into config.py, and the module-level numbers they may
+#: still keep (physical, format or statistical constants, not thresholds)
+CONFIGURED = {dots: (), grid: (), sheetfit: (), discover: (), joint4: (),
+              verdict: ("R95_PER_RMS",)}
+
+
+def _module_numbers(module) -> set[str]:
+    """UPPER_CASE module-level names bound to a number or to a read of ``DEFAULT``."""
+    out = set()
+    for node in ast.parse(inspect.getsource(module)).body:
+        targets = node.targets if isinstance(node, ast.Assign) else (
+            [node.target] if isinstance(node, ast.AnnAssign) and node.value else [])
+        for t in targets:
+            if not (isinstance(t, ast.Name) and t.id.isupper()):
+                continue
+            src = ast.unparse(node.value)
+            if (isinstance(node.value, ast.Constant) and isinstance(node.value.value, (int, float))
+                    or "DEFAULT" in src):
+                out.add(t.id)
+    return out
 
 
 def test_no_module_copies_a_threshold_at_import():
-    """The dots module has no copy of a DotConfig field (they were module globals)."""
-    for f in fields(DotConfig):
-        assert not hasattr(dots, f.name.upper()), f.name
+    """No configured module keeps a module-level number or a copy of ``DEFAULT`` (they were
+    module globals, frozen at import), nor a global named after a config field."""
+    names = {f.name.upper() for part in fields(EstimatorConfig)
+             for f in fields(part.default_factory)}
+    for module, allowed in CONFIGURED.items():
+        assert _module_numbers(module) <= set(allowed), module.__name__
+        assert not names & set(vars(module)), module.__name__
     assert not hasattr(grid, "DOTS")
-    for f in fields(SheetFitConfig):
-        assert not hasattr(sheetfit, f.name.upper()), f.name
 
 
 def test_the_recorded_config_reads_back():
@@ -35,7 +70,8 @@ def test_calibration_json_says_how_it_was_obtained(paper_folder, tmp_path):
     doc = json.loads((tmp_path / "d" / "calibration.json").read_text())
     assert doc["config"] == DEFAULT.to_json()
     assert set(doc["config"]) == {"markers", "dots", "association", "selection", "fit",
-                                  "per_photo_offsets", "sheet_fit"}
+                                  "per_photo_offsets", "sheet_fit", "grid", "discovery", "joint4",
+                                  "verdict"}
     assert doc["config"]["selection"]["alpha"] == 0.01
     cfg = replace(DEFAULT, selection=SelectionConfig(alpha=1e-3, k_folds=3, max_effects=1))
     calibrate_dataset(paper_folder, out_dir=tmp_path / "c", config=cfg)
@@ -72,3 +108,68 @@ def test_a_dot_threshold_passed_in_changes_the_measurement(tmp_path):
     assert im.status == "ok" and im.n_dots == 0
     assert session_fingerprint(session, cfg) != session_fingerprint(session, DEFAULT)
     assert EstimatorConfig.from_json(json.loads(json.dumps(cfg.to_json()))) == cfg
+
+
+def test_the_verdict_judges_by_the_thresholds_the_file_recorded():
+    """A missing coupling leaves ~6x the floor: "not reliable" by the default thresholds;
+    the same document recording a larger ``not_reliable_ratio`` is "check", one recording a
+    tolerance beyond its ratio passes the gate (judge reads ``doc["config"]``)."""
+    eff = [{"name": "joint_terms", "joint": 2, "terms": [{"feature": "q1*q2", "coef": 2e-5}]}]
+    doc = _fit_doc(eff, seed=11)
+    v = verdict.judge(doc, repeatability_mm=REP)
+    assert v.status == "not reliable" and 2 < v.residual_over_floor < 50
+    doc["config"] = replace(DEFAULT, verdict=VerdictConfig(not_reliable_ratio=100.0)).to_json()
+    assert verdict.judge(doc, repeatability_mm=REP).status == "check"
+    doc["config"] = replace(DEFAULT, verdict=VerdictConfig(floor_ratio_tol=100.0)).to_json()
+    assert not verdict.judge(doc, repeatability_mm=REP).floor["beyond"]
+
+
+def test_a_discovery_setting_passed_in_changes_the_search():
+    """A coupling discovery names by default (tests/diagnose/test_discover.py) is not
+    searched for with ``max_terms = 0``, and the scans' level follows ``scan_level``."""
+    _, q, s, t, xy = _world([{"name": "joint_terms", "joint": 2,
+                              "terms": [{"feature": "q1", "coef": 0.003}]}], seed=7)
+    sig = np.full(len(q), 0.0104)
+    d = diagnose(q, xy, s, sigma_mm=sig)
+    assert discover.trace(d, q, xy, s, t, sigma_mm=sig).report["steps"]
+    cfg = replace(DEFAULT, discovery=DiscoveryConfig(max_terms=0, scan_level=0.25))
+    tr = discover.trace(d, q, xy, s, t, sigma_mm=sig, alpha=0.01, config=cfg)
+    assert not tr.report.get("steps") and tr.report["alpha"] == 0.0025
+
+
+def test_a_joint4_setting_passed_in_changes_what_is_kept():
+    """A 0.4 % joint-4 gear-ratio error is kept at the default 4 std, not at 1e6 std, and
+    the threshold used is what ``diagnosis.joint4`` records."""
+    rng = np.random.default_rng(11)
+    n = 36
+    q = np.column_stack([rng.uniform(10, 100, n), rng.uniform(-110, -40, n)])
+    j4 = rng.uniform(-160, 160, n)
+    truth = TrueRobot.from_json({"L1_mm": 344.05, "L2_mm": 259.87,
+                                 "joint_zero_deg": [-2.57, -8.13], "base_mm": [-424.26, -230.35],
+                                 "tool_mm": [-18.7, 22.4]},
+                                [{"name": "joint_scale", "joint": 4, "scale": 0.004}])
+    s = np.ones((n, 3))
+    xy = truth.pen_mm(np.column_stack([q, j4]), s) + rng.normal(0, 0.01, (n, 2))
+    cal = MarkData(tuple(f"c{i:02d}" for i in range(n)), q, np.ones((n, 2)), xy, None,
+                   ("calibration",) * n, np.column_stack([j4, np.ones(n)]))
+    assert [e for e, _ in joint4.joint4_stage(cal).accepted] != []
+    st = joint4.joint4_stage(cal, replace(DEFAULT, joint4=Joint4Config(accept_sigma=1e6)))
+    assert not st.accepted and st.rejected and st.to_json()["accept_sigma"] == 1e6
+
+
+def test_a_grid_setting_passed_in_changes_what_is_read():
+    """The printed lines around a dot are read at the default contrast; demanding twice the
+    contrast they show, or more pitches than the window holds, refuses them."""
+    sheet = sm.small_sheet()
+    marks = sm.free_targets(sheet, 12, rng=5)
+    K, T = sm.view(tilt_deg=15.0)
+    img = sm.photo(sheet, sm.texture(sheet, marks, rng=3), K=K, T=T, noise=2.0, rng=4)
+    m = _mapping_shifted(K, T, np.zeros(2))
+    (u, v), = project(marks[:1], K=K, T_cam_sheet=T)
+    u0, v0 = int(round(u)) - 60, int(round(v)) - 60
+    patch = img[v0:v0 + 121, u0:u0 + 121]
+    go = grid.grid_offset(patch, (u0, v0), m, marks[0], sheet.grid_spec, exclude_r_mm=1.2)
+    assert go is not None
+    for cfg in (GridConfig(min_contrast=2 * float(np.min(go.snr))), GridConfig(min_periods=40.0)):
+        assert grid.grid_offset(patch, (u0, v0), m, marks[0], sheet.grid_spec,
+                                exclude_r_mm=1.2, config=cfg) is None, cfg

@@ -15,7 +15,13 @@ recorded values, not today's defaults). The parts, by key:
 - ``selection``: the F-test level, cross-validation and outlier rule
   (:mod:`vision_cal.diagnose.select`, :mod:`vision_cal.calibrate.lsq`);
 - ``fit``: identifiability of a least-squares fit (:mod:`vision_cal.calibrate.lsq`);
-- ``per_photo_offsets``: photos whose marks moved together (:mod:`vision_cal.diagnose.photos`).
+- ``per_photo_offsets``: photos whose marks moved together (:mod:`vision_cal.diagnose.photos`);
+- ``sheet_fit``: the marker-corner gate of a photo (:mod:`vision_cal.measure.sheetfit`);
+- ``grid``: the printed grid read around each dot (:mod:`vision_cal.measure.grid`);
+- ``discovery``: the scans for effects no candidate names (:mod:`vision_cal.diagnose.discover`);
+- ``joint4``: the joint-4 (tool offset) stage (:mod:`vision_cal.calibrate.joint4`);
+- ``verdict``: the noise-floor gate and the status rule (:mod:`vision_cal.diagnose.verdict`,
+  which judges a calibration.json with the config that file recorded).
 """
 
 from __future__ import annotations
@@ -149,6 +155,60 @@ class SheetFitConfig:
 
 
 @dataclass(frozen=True)
+class GridConfig:
+    """The printed grid read around each dot (``vision_cal.measure.grid``)."""
+
+    window_step_mm: float = 0.15      # window sampling (a pixel is 0.2-0.4 mm on the sheet)
+    window_half_mm: float = 9.0       # window half-size: +-9 mm holds 18 lines at many pixel
+                                      # phases (the photo's patches are cut this wide)
+    min_periods: float = 3.0          # the window must hold this many pitches of usable
+                                      # profile per axis (fewer: the phase is not defined)
+    dark_fraction: float = 0.7        # samples below this fraction of the paper level are
+                                      # not grid (pen, marker, text)
+    min_contrast: float = 6.0         # |Fourier amplitude| / its noise below this: the lines
+                                      # are not seen (the phase's std would exceed pitch / 38)
+
+
+@dataclass(frozen=True)
+class DiscoveryConfig:
+    """The scans for effects no candidate names (``vision_cal.diagnose.discover``)."""
+
+    max_terms: int = 4                # joint-polynomial terms discovery adds at most (each
+                                      # costs a parameter; 4 keep the pilot's dof for the test)
+    scan_level: float = 0.5           # scans and discovery run at this share of the
+                                      # selection's alpha (the rest is the named candidates')
+    heldout_tie: float = 1.25         # held-out RMS ratio within which fewer parameters win
+                                      # (the held-out RMS of ~30 marks is known to ~13 %, 2 std)
+
+
+@dataclass(frozen=True)
+class Joint4Config:
+    """The joint-4 stage: the tool's offset from the joint-4 axis (``vision_cal.calibrate.joint4``)."""
+
+    accept_sigma: float = 4.0         # an offset term is kept only when its estimate exceeds
+                                      # this many reported std (two terms tested: by chance
+                                      # below 1e-4)
+
+
+@dataclass(frozen=True)
+class VerdictConfig:
+    """The noise-floor gate and the status rule (``vision_cal.diagnose.verdict``)."""
+
+    default_repeatability_mm: float = 0.01  # the robot's repeatability (mm, per axis, one std)
+                                      # when neither repeated marks nor the robot block give
+                                      # it: a SCARA catalogue's +-0.01 mm read as one std
+                                      # (conservative: catalogues quote more)
+    floor_alpha: float = 1e-3         # chi-square level of the gate (and of the largest error)
+    floor_ratio_tol: float = 1.25     # residual / floor below this passes at any p: within how
+                                      # well a measurer knows its own noise (its sigma to ~25 %)
+    not_reliable_ratio: float = 2.0   # beyond the floor by this much: do not plan with the model
+    heldout_warn_ratio: float = 3.0   # held-out RMS above this many times the fitted RMS: check
+    min_spare_dof: int = 8            # 2 N - P below this: too few marks to test any effect
+    min_repeat_pairs: int = 4         # pairs of marks drawn at the same command needed to
+                                      # measure repeatability (fewer: the robot block's figure)
+
+
+@dataclass(frozen=True)
 class EstimatorConfig:
     """All the knobs, by part; the keys of calibration.json ``config``."""
 
@@ -159,6 +219,10 @@ class EstimatorConfig:
     fit: FitConfig = field(default_factory=FitConfig)
     per_photo_offsets: PhotoOffsetConfig = field(default_factory=PhotoOffsetConfig)
     sheet_fit: SheetFitConfig = field(default_factory=SheetFitConfig)
+    grid: GridConfig = field(default_factory=GridConfig)
+    discovery: DiscoveryConfig = field(default_factory=DiscoveryConfig)
+    joint4: Joint4Config = field(default_factory=Joint4Config)
+    verdict: VerdictConfig = field(default_factory=VerdictConfig)
 
     def to_json(self) -> dict:
         return asdict(self)

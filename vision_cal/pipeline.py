@@ -222,7 +222,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         if method == "paper":
             fitted = _Fitted(*fit_joint4_paper(cal, val))
         else:   # the tool and joint 4's effects first, then the diagnosis with them
-            stage = joint4_stage(cal)
+            stage = joint4_stage(cal, config)
             fitted = fit_lsq(session, cal, val, measurement, config, stage.effects)
             add_tool(fitted.blocks, fitted.diagnosis, stage)
     else:

@@ -3,7 +3,7 @@ branch for the tool and joint 4; contract "Joint 4 and the tool", docs/format.md
 
 Least squares: :func:`joint4_stage` fits the base model with ``tool_mm``
 (:func:`vision_cal.calibrate.tool.fit_tool`), then joint 4's backlash and gear-ratio
-error, each kept only when its estimate exceeds ``JOINT4_ACCEPT_SIGMA`` reported std
+error, each kept only when its estimate exceeds ``joint4.accept_sigma`` (config) reported std
 (clean data claims nothing); :func:`vision_cal.pipeline.fit_lsq` then runs the usual
 diagnosis (joint-1/2 effects, sheet, scans, discovery) with those held in every model, and
 :func:`add_tool` writes the tool's part. The paper method (:func:`fit_joint4_paper`):
@@ -18,13 +18,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from vision_cal.calibrate.tool import ToolFit, fit_tool, paper_tool
+from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.errors import CalibrationError
 from vision_cal.model import JointBacklash, JointScale
 from vision_cal.dataset.covariance import covariance_json
 from vision_cal.rms import rms_2d
 
-#: a joint-4 effect is reported when |estimate| > this many of its std
-JOINT4_ACCEPT_SIGMA = 4.0
 
 
 def _std_json(std_base: np.ndarray, std_tool) -> dict:
@@ -43,17 +42,19 @@ class Joint4Stage:
     accepted: tuple      # ((label, z), ...)
     rejected: tuple
     notes: tuple
+    accept_sigma: float  # the acceptance threshold used (config ``joint4.accept_sigma``)
 
     def to_json(self) -> dict:
-        return {"accept_sigma": JOINT4_ACCEPT_SIGMA,
+        return {"accept_sigma": self.accept_sigma,
                 "accepted": [{"effect": e, "z": z} for e, z in self.accepted],
                 "rejected": [{"effect": e, "z": z} for e, z in self.rejected]}
 
 
-def joint4_stage(cal) -> Joint4Stage:
+def joint4_stage(cal, config: EstimatorConfig | None = None) -> Joint4Stage:
     """Least squares of the base model with ``tool_mm``, then joint 4's backlash (when
     joint 4 is approached from both sides) and gear-ratio error, each kept when its estimate
-    exceeds ``JOINT4_ACCEPT_SIGMA`` reported std. ``cal``: marks with ``joint4``."""
+    exceeds ``config.joint4.accept_sigma`` reported std. ``cal``: marks with ``joint4``."""
+    accept = (config or DEFAULT).joint4.accept_sigma
     q4, app = cal.joint4[:, 0], cal.approach_model
     base = fit_tool(cal.q_deg, q4, cal.xy_mm, approach=app, sigma_mm=cal.sigma_mm,
                     ids=cal.ids)
@@ -67,12 +68,12 @@ def joint4_stage(cal) -> Joint4Stage:
                          sigma_mm=cal.sigma_mm, ids=cal.ids)
         for e in trial.joint4_effects:
             z = float(np.max(np.abs(e.theta) / trial.effect_std(e)))
-            (accepted if z > JOINT4_ACCEPT_SIGMA else rejected).append((e.label, z))
-            if z > JOINT4_ACCEPT_SIGMA:
+            (accepted if z > accept else rejected).append((e.label, z))
+            if z > accept:
                 effects += (type(e)(joint=4),)
     except CalibrationError as err:
         notes.append(f"joint-4 effects not identifiable from these marks: {err}")
-    return Joint4Stage(effects, tuple(accepted), tuple(rejected), tuple(notes))
+    return Joint4Stage(effects, tuple(accepted), tuple(rejected), tuple(notes), accept)
 
 
 def add_tool(doc: dict, diagnosis, stage: Joint4Stage) -> None:

@@ -50,7 +50,7 @@ from vision_cal.measure.printed import printed_reference
 from vision_cal.measure.rotated import to_main_px, transposed, turned_lens
 from vision_cal.measure.sheetfit import (LENS_CAUSE, MISFIT, corner_tolerance_mm,
                                          misfit_reason)
-from vision_cal.measure.grid import GRID_HALF_MM, grid_offset
+from vision_cal.measure.grid import grid_offset
 from vision_cal.measure.grid_declaration import misdeclared_grid
 from vision_cal.measure.height import sheet_heights
 from vision_cal.measure.mapping import LensEstimate, estimate_lens, fit_mapping, undistort_px
@@ -160,7 +160,7 @@ def detect_image_bytes(data: bytes, file: str, session: Session, *,
                            config=config.dots)
     gp, go = None, None
     if session.sheet.grid_spec is not None and len(cand.uv_px):
-        gp, go = _grid_patches(rgb, approx, cand.uv_px)
+        gp, go = _grid_patches(rgb, approx, cand.uv_px, config.grid.window_half_mm)
     out = out.with_candidates(cand)
     if gp is None:
         return out
@@ -169,14 +169,15 @@ def detect_image_bytes(data: bytes, file: str, session: Session, *,
     return out2
 
 
-def _grid_patches(rgb, mapping, uv_px):
-    """uint16 R+G+B patches around each candidate wide enough for the local grid window."""
+def _grid_patches(rgb, mapping, uv_px, half_mm: float):
+    """uint16 R+G+B patches around each candidate wide enough for the local grid window
+    (``half_mm``: its half-size, config ``grid.window_half_mm``)."""
     H, W = rgb.shape[:2]
     xy = mapping.image_to_sheet(uv_px)
     mmpp = mapping.mm_per_px(xy)
     patches, origins = [], []
     for (u, v), mpp in zip(uv_px, mmpp):
-        hp = int(np.ceil(1.2 * (GRID_HALF_MM + 0.5) / max(float(mpp), 1e-6))) + 2
+        hp = int(np.ceil(1.2 * (half_mm + 0.5) / max(float(mpp), 1e-6))) + 2
         cu, cv_ = int(round(u)), int(round(v))
         c0, r0 = max(cu - hp, 0), max(cv_ - hp, 0)
         c1, r1 = min(cu + hp + 1, W), min(cv_ + hp + 1, H)
@@ -262,7 +263,7 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
         oc = np.full((2, 2), np.nan)
         if have_grid and not r.printed_under:   # over print, the grid around is interrupted
             go = _local_grid(det, k, m, r.xy_mm, grid, dia or config.dots.default_diameter_mm,
-                             grid_blank, config.dots)
+                             grid_blank, config)
             if go is not None:
                 # the dot against the printed lines around it: the marker mapping's error
                 # (and a raised paper's parallax) cancels, the lines' own noise adds
@@ -289,13 +290,14 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
                        np.asarray(ocov).reshape(-1, 2, 2), m, K, tuple(unrel), tuple(under))
 
 
-def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank, dots):
+def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank, config):
     """The printed grid's offset around candidate ``k`` (None: not usable)."""
     if k >= len(det.grid_patches):
         return None
     r_win, _ = _radii_mm(float(dia), float(mapping.mm_per_px(xy_mm)[0]))
     return grid_offset(det.grid_patches[k], det.grid_origins[k], mapping, xy_mm, grid,
-                       exclude_r_mm=r_win, blank_rects=blank, dot_dia_mm=dia, dots=dots)
+                       exclude_r_mm=r_win, blank_rects=blank, dot_dia_mm=dia,
+                       dots=config.dots, config=config.grid)
 
 
 def measure_image(path, session: Session, *, lens: LensEstimate | None = None,
