@@ -2,23 +2,31 @@
 calibration.json."""
 
 import ast
+from types import SimpleNamespace
 import inspect
 import json
 from dataclasses import fields, replace
 
 import numpy as np
+import pytest
 
 from tests.diagnose.test_discover import _world
 from tests.diagnose.test_verdict import REP, _fit_doc
 from tests.measure import synth_measure as sm
 from tests.measure.test_measure_grid import _mapping_shifted
 from vision_cal.calibrate import joint4
+from vision_cal.calibrate import placements
 from vision_cal.config import (DEFAULT, DiscoveryConfig, DotConfig, EstimatorConfig,
-                               GridConfig, Joint4Config, SelectionConfig, SheetFitConfig, VerdictConfig)
-from vision_cal.diagnose import discover, verdict
+                               GridConfig, GridDeclarationConfig, Joint4Config,
+                               PhotoAgreementConfig, PlanMatchConfig, SelectionConfig,
+                               SheetHeightConfig, SmoothResidualConfig, VerdictConfig)
+from vision_cal.dataset.session import SheetGrid
+from vision_cal.diagnose import discover, sheet, verdict
+from vision_cal.errors import CalibrationError
 from vision_cal.diagnose.select import diagnose
 from vision_cal.dataset.session import load_session
-from vision_cal.measure import dots, grid, sheetfit
+from vision_cal.measure import (associate, dots, grid, grid_declaration, height,
+                                photo_agreement, plan_match, sheetfit)
 from vision_cal.measure.batch import measure_image
 from vision_cal.measure.cache import session_fingerprint
 from vision_cal.pipeline import MarkData, calibrate_dataset
@@ -28,7 +36,10 @@ from vision_cal.render.truth_model import TrueRobot
 #: the modules whose thresholds moved into config.py, and the module-level numbers they may
 #: still keep (physical, format or statistical constants, not thresholds)
 CONFIGURED = {dots: (), grid: (), sheetfit: (), discover: (), joint4: (),
-              verdict: ("R95_PER_RMS",)}
+              verdict: ("R95_PER_RMS",), associate: (), height: (), plan_match: (),
+              photo_agreement: (), grid_declaration: (), placements: (),
+              # the smoother's cost bounds (not judgements: the test stays exact)
+              sheet: ("EXACT_MAX_MARKS", "GRID_PER_LENGTH", "MAX_GRID_CELLS")}
 
 
 def _module_numbers(module) -> set[str]:
@@ -70,8 +81,9 @@ def test_calibration_json_says_how_it_was_obtained(paper_folder, tmp_path):
     doc = json.loads((tmp_path / "d" / "calibration.json").read_text())
     assert doc["config"] == DEFAULT.to_json()
     assert set(doc["config"]) == {"markers", "dots", "association", "selection", "fit",
-                                  "per_photo_offsets", "sheet_fit", "grid", "discovery", "joint4",
-                                  "verdict"}
+                                  "per_photo_offsets", "sheet_fit", "grid", "sheet_height",
+                                  "plan_match", "photo_agreement", "grid_declaration",
+                                  "smooth_residual", "discovery", "joint4", "verdict"}
     assert doc["config"]["selection"]["alpha"] == 0.01
     cfg = replace(DEFAULT, selection=SelectionConfig(alpha=1e-3, k_folds=3, max_effects=1))
     calibrate_dataset(paper_folder, out_dir=tmp_path / "c", config=cfg)
@@ -173,3 +185,90 @@ def test_a_grid_setting_passed_in_changes_what_is_read():
     for cfg in (GridConfig(min_contrast=2 * float(np.min(go.snr))), GridConfig(min_periods=40.0)):
         assert grid.grid_offset(patch, (u0, v0), m, marks[0], sheet.grid_spec,
                                 exclude_r_mm=1.2, config=cfg) is None, cfg
+
+
+def test_a_sheet_height_setting_passed_in_changes_the_claim():
+    """A 0.5 mm bump is claimed by default, not when the claim needs 1 mm; the grid step
+    of the map follows ``map_step_mm``; the offset floor widens a height's std."""
+    rng = np.random.default_rng(2)
+    xy = rng.uniform([-250, -180], [250, 180], (40, 2))
+    bump = 0.5 * np.exp(-np.sum((xy - [50, 20]) ** 2, axis=1) / (2 * 60.0**2))
+    z, sd, ext = bump + rng.normal(0, 0.02, 40), np.full(40, 0.02), (-297, -210, 297, 210)
+    hm = height.HeightMap.from_estimate(xy, z, sd, ext)
+    assert hm.claimed and np.allclose(np.diff(hm.x_mm), 20.0)
+    cfg = replace(DEFAULT, sheet_height=SheetHeightConfig(min_claim_mm=1.0, map_step_mm=50.0))
+    hm = height.HeightMap.from_estimate(xy, z, sd, ext, config=cfg)
+    assert not hm.claimed and np.allclose(np.diff(hm.x_mm), 50.0)
+    C, p = np.array([60.0, -150.0, 700.0]), np.array([120.0, 80.0])
+    obs = [(C, p, 0.4 * (p - C[:2]) / C[2], np.eye(2) * 1e-6)]
+    h0 = height.height_from_grid(obs)
+    h1 = height.height_from_grid(obs, replace(DEFAULT, sheet_height=SheetHeightConfig(
+        offset_floor_mm=0.08)))
+    assert h1.std_mm == pytest.approx(10 * h0.std_mm, rel=0.01)
+
+
+def _photos(n_dots, shift_mm=(0.0, 0.0), grid_offset_mm=None):
+    """Three photos of the same 6 dots (the last shifted by ``shift_mm``)."""
+    xy = np.array([[10.0 * i, 5.0 * i] for i in range(6)])
+    out = []
+    for k in range(3):
+        d = xy + (np.asarray(shift_mm) if k == 2 else 0.0)
+        off = np.full((6, 2), np.nan) if grid_offset_mm is None else np.tile(grid_offset_mm, (6, 1))
+        out.append(SimpleNamespace(status="ok", n_dots=n_dots, dots_xy_mm=d,
+                                   dots_grid_offset_mm=off))
+    return out
+
+
+def test_a_plan_match_setting_passed_in_changes_what_is_refused():
+    """Photos showing 20 dots where 2 marks should be are another sheet (refused); allowed
+    20 dots per mark they are not."""
+    images, marks = _photos(20), [["a", "b"]] * 3
+    with pytest.raises(CalibrationError, match="do not match the plan"):
+        plan_match.check_plan_match("s.json", ["1", "2", "3"], images, marks, 2, 2)
+    plan_match.check_plan_match("s.json", ["1", "2", "3"], images, marks, 2, 2,
+                                PlanMatchConfig(max_dots_per_mark=20.0))
+
+
+def test_a_photo_agreement_setting_passed_in_changes_what_is_left_out():
+    """A photo whose dots all sit 0.5 mm off is left out; allowed 1 mm it stays."""
+    images = _photos(6, shift_mm=(0.5, 0.0))
+    assert list(photo_agreement.disagreeing_photos(images)) == [2]
+    assert photo_agreement.disagreeing_photos(
+        images, PhotoAgreementConfig(max_offset_mm=1.0)) == {}
+
+
+def test_a_grid_declaration_setting_passed_in_changes_the_finding():
+    """Lines 0.2 mm off everywhere are a misdeclared grid; demanding 0.3 mm they are not."""
+    images, g = _photos(6, grid_offset_mm=(0.2, -0.2)), SheetGrid(1.0, 10, (0.0, 0.0))
+    found = grid_declaration.misdeclared_grid(images, g)
+    assert found is not None and np.allclose(found.offset_mm, (0.2, -0.2))
+    assert grid_declaration.misdeclared_grid(
+        images, g, GridDeclarationConfig(min_offset_mm=0.3)) is None
+
+
+def test_a_smooth_residual_setting_passed_in_changes_the_test():
+    """A smooth field is reported at the default level, on a map of the configured step;
+    below the smallest p its permutations resolve (1 / 2000) it cannot be."""
+    rng = np.random.default_rng(0)
+    xy = rng.uniform([-260, -180], [260, 180], (38, 2))
+    z = 0.6 * np.exp(-np.sum((xy - [60, 40]) ** 2, axis=1) / (2 * 70.0**2))
+    r = z[:, None] * (xy - [100.0, -150.0]) / 700.0 + rng.normal(0, 0.01, xy.shape)
+    ext = (-297.0, -210.0, 297.0, 210.0)
+    out = sheet.smooth_residual(xy, r, ext, config=SmoothResidualConfig(map_step_mm=100.0))
+    assert out is not None and np.allclose(np.diff(out["map"]["x_mm"]), 100.0)
+    assert sheet.smooth_residual(xy, r, ext, config=SmoothResidualConfig(alpha=1e-4)) is None
+
+
+def test_a_selection_setting_passed_in_changes_the_placements_fit():
+    """The joint fit of several placements reads ``selection`` from the config passed in:
+    a once-per-turn error it names by default is not added with ``max_effects = 0``."""
+    from tests.tool.test_placements import _kinematic_places
+
+    def cyclic(rng):
+        return rng, {"name": "joint_cyclic", "joint": 1, "harmonic": 1, "deg": 0.003,
+                     "phase_deg": float(rng.uniform(-180, 180))}
+
+    places = _kinematic_places(1502, cyclic)
+    assert placements.fit_placements(places)[0].effects
+    cfg = replace(DEFAULT, selection=SelectionConfig(max_effects=0))
+    assert not placements.fit_placements(places, config=cfg)[0].effects

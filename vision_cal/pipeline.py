@@ -359,7 +359,8 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
                                "grid cannot tell their smooth signature from it"))
     if session.sheet is not None:
         sm = smooth_residual(np.concatenate([cal.xy_mm, val.xy_mm]),
-                             np.concatenate([res_cal, res_val]), session.sheet.extent_mm)
+                             np.concatenate([res_cal, res_val]), session.sheet.extent_mm,
+                             config=config.smooth_residual)
         if sm is not None:
             ex = next((e for e in doc["effects"] if e["name"] == "unexplained"), None)
             if ex is None:

@@ -78,21 +78,19 @@ def group_dots(per_image, *, tol_mm: float) -> list[DotGroup]:
             for g in groups]
 
 
-#: fraction of a photo's error variance that repeats in every photo of the same dot (the
-#: printed grid under the dot, the paper grain, each marker's own corner bias): measured on
-#: synthetic series, where averaging n views shrank the error far less than 1/n
-COMMON_FRACTION = DEFAULT.association.common_fraction  # see vision_cal.config
-
-
-def combine(group: DotGroup, *, common_fraction: float = COMMON_FRACTION
+def combine(group: DotGroup, *, common_fraction: float | None = None
             ) -> tuple[np.ndarray, np.ndarray, float]:
     """Weighted mean (2,), its covariance (2, 2) and the spread (RMS distance of the
     photos' estimates to the mean, mm).
 
     The covariance of the mean of n photos is ``inv(sum C_i^-1) * (1 + rho (n - 1))``
     (errors correlated by ``rho = common_fraction`` between photos), inflated further when
-    the photos disagree more than their covariances say.
+    the photos disagree more than their covariances say. ``common_fraction`` None: config
+    ``association.common_fraction`` (the share of a photo's error variance that repeats in
+    every photo of the same dot) of ``DEFAULT``.
     """
+    if common_fraction is None:
+        common_fraction = DEFAULT.association.common_fraction
     W = np.array([np.linalg.inv(c + np.eye(2) * 1e-12) for c in group.cov_mm2])
     Wsum = W.sum(axis=0)
     n = len(group.cov_mm2)

@@ -33,7 +33,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vision_cal.config import DEFAULT, AssociationConfig, EstimatorConfig
+from vision_cal.config import DEFAULT, AssociationConfig, EstimatorConfig, PlanMatchConfig
 from vision_cal.dataset import photos
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.session import Session, load_session
@@ -486,10 +486,11 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                                          listed_marks=[ph.listed_marks for ph in items])
     warnings += finish_warnings
     files = [ph.file for ph in items]
-    dots = associate_dots(session, items, images, ac, config.dots.default_diameter_mm)
+    dots = associate_dots(session, items, images, ac, config.dots.default_diameter_mm,
+                          config.plan_match)
     warnings += dots.warnings
     marks = mark_measurements(dots, images, files, ac)
-    heights, hmap, hnote = sheet_height_stage(session, images, marks, dots, lens, ac)
+    heights, hmap, hnote = sheet_height_stage(session, images, marks, dots, lens, config)
     for r in images:
         if r.status != "ok":
             log.info("skipped %s: %s", r.file, r.reason)
@@ -661,7 +662,7 @@ def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool]
     warnings: list[str] = []
     images = [finish_image(d, session, lens, from_cache=c, config=config) for d, c in zip(dets, cached)]
     _check_sheet_fits(session, images)
-    wrong_grid = misdeclared_grid(images, session.sheet.grid_spec)
+    wrong_grid = misdeclared_grid(images, session.sheet.grid_spec, config.grid_declaration)
     if wrong_grid is not None:   # two references disagree by a constant: the markers win
         log.warning(wrong_grid.message)
         warnings.append(wrong_grid.message)
@@ -679,7 +680,7 @@ def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool]
                                      previous=prev, config=config)
 
     # a photo moved as a whole against the others is left out, not the marks it shares
-    for k, why in disagreeing_photos(images).items():
+    for k, why in disagreeing_photos(images, config.photo_agreement).items():
         log.warning("%s: %s", images[k].file, why)
         warnings.append(f"{images[k].file}: {why}")
         images[k] = replace(images[k], status="skipped", reason=why)
@@ -711,7 +712,8 @@ class AssociatedDots:
 
 
 def associate_dots(session: Session, items: list[_Photo], images: list[ImageResult],
-                   ac: AssociationConfig, default_diameter_mm: float) -> AssociatedDots:
+                   ac: AssociationConfig, default_diameter_mm: float,
+                   plan_match: PlanMatchConfig | None = None) -> AssociatedDots:
     """Stage 3: dots grouped across photos and the groups matched to the planned marks
     (which marks a photo shows: listed, or inferred); photos that do not match the plan
     stop the run (:mod:`vision_cal.measure.plan_match`). Each photo's ``dots_mark`` is set
@@ -747,7 +749,8 @@ def associate_dots(session: Session, items: list[_Photo], images: list[ImageResu
     if with_tool:
         a = _with_fitted_tool(a, session, mark_ids, mark_images, groups, ac)
     warnings.extend(a.warnings)
-    check_plan_match(session.path, files, images, image_marks, len(groups), len(a.mark_to_group))
+    check_plan_match(session.path, files, images, image_marks, len(groups), len(a.mark_to_group),
+                     plan_match)
     dot_mark = [[""] * len(im.dots_xy_mm) for im in images]
     for mid, gi in a.mark_to_group.items():
         for k, j in zip(groups[gi].images, groups[gi].dot_index):
@@ -803,7 +806,8 @@ def mark_measurements(dots: AssociatedDots, images: list[ImageResult], files: li
 
 
 def sheet_height_stage(session: Session, images: list[ImageResult], marks: dict,
-                       dots: AssociatedDots, lens: LensEstimate | None, ac: AssociationConfig):
+                       dots: AssociatedDots, lens: LensEstimate | None,
+                       config: EstimatorConfig):
     """Stage 4: the sheet's height (parallax against the grid or between camera places).
     A paper that is not flat moves the marks seen through the marker mapping alone to the
     position parallax found; a flat one puts the grid-referenced marks back on the marker
@@ -813,7 +817,8 @@ def sheet_height_stage(session: Session, images: list[ImageResult], marks: dict,
     heights, hmap, hnote = {}, None, None
     try:
         heights, hmap, hnote = sheet_heights(images, marks, groups_of, session.sheet.extent_mm,
-                                             K_fallback=None if lens is None else lens.K)
+                                             K_fallback=None if lens is None else lens.K,
+                                             config=config)
     except (VisionCalError, np.linalg.LinAlgError) as e:
         hnote = f"no height map: {e}"
     if hmap is not None and hmap.claimed:
@@ -832,7 +837,8 @@ def sheet_height_stage(session: Session, images: list[ImageResult], marks: dict,
                 np.array([images[k].dots_global_xy_mm[j] for k, j in zip(g.images, g.dot_index)]),
                 np.array([images[k].dots_global_cov_mm2[j]
                           for k, j in zip(g.images, g.dot_index)]), g.images, g.dot_index)
-            xy, cov, spread = assoc.combine(gg, common_fraction=ac.common_fraction)
+            xy, cov, spread = assoc.combine(gg,
+                                            common_fraction=config.association.common_fraction)
             marks[mid] = replace(mm, xy_mm=xy, cov_mm2=cov, spread_mm=spread,
                                  reference="markers (sheet flat)")
     return heights, hmap, hnote
