@@ -19,7 +19,6 @@ import numpy as np
 
 from vision_cal.calibrate.tool import ToolFit, fit_tool, paper_tool
 from vision_cal.config import DEFAULT, EstimatorConfig
-from vision_cal.errors import CalibrationError
 from vision_cal.model import JointBacklash, JointScale
 from vision_cal.dataset.covariance import covariance_json
 from vision_cal.rms import rms_2d
@@ -57,22 +56,21 @@ def joint4_stage(cal, config: EstimatorConfig | None = None) -> Joint4Stage:
     accept = (config or DEFAULT).joint4.accept_sigma
     q4, app = cal.joint4[:, 0], cal.approach_model
     base = fit_tool(cal.q_deg, q4, cal.xy_mm, approach=app, sigma_mm=cal.sigma_mm,
-                    ids=cal.ids)
+                    ids=cal.ids).or_raise()   # no tool fit: the run ends
     cands = [JointScale(joint=4)]
     if len(np.unique(app[:, 2])) > 1:
         cands.append(JointBacklash(joint=4))
     accepted, rejected, notes = [], [], []
     effects = (base.fit.model.tool,)
-    try:
-        trial = fit_tool(cal.q_deg, q4, cal.xy_mm, approach=app, effects=tuple(cands),
-                         sigma_mm=cal.sigma_mm, ids=cal.ids)
-        for e in trial.joint4_effects:
-            z = float(np.max(np.abs(e.theta) / trial.effect_std(e)))
-            (accepted if z > accept else rejected).append((e.label, z))
-            if z > accept:
-                effects += (type(e)(joint=4),)
-    except CalibrationError as err:
-        notes.append(f"joint-4 effects not identifiable from these marks: {err}")
+    trial = fit_tool(cal.q_deg, q4, cal.xy_mm, approach=app, effects=tuple(cands),
+                     sigma_mm=cal.sigma_mm, ids=cal.ids)
+    if not trial:
+        notes.append(f"joint-4 effects not identifiable from these marks: {trial.reason}")
+    for e in trial.joint4_effects if trial else ():
+        z = float(np.max(np.abs(e.theta) / trial.effect_std(e)))
+        (accepted if z > accept else rejected).append((e.label, z))
+        if z > accept:
+            effects += (type(e)(joint=4),)
     return Joint4Stage(effects, tuple(accepted), tuple(rejected), tuple(notes), accept)
 
 
@@ -102,11 +100,10 @@ def fit_joint4_paper(cal, val):
                                                                    np.zeros((0, 3)))
     pt = paper_tool(cal.q_deg, cal.joint4[:, 0], cal.xy_mm)
     model = base_model = pt.model
-    try:   # the mark noise, as fit_paper takes it: the least-squares residual scale
-        noise = fit_tool(cal.q_deg, cal.joint4[:, 0], cal.xy_mm, approach=app,
-                         robust=False).fit.residual_scale
-    except CalibrationError:
-        noise = float("nan")
+    # the mark noise, as fit_paper takes it: the least-squares residual scale (NaN, and so
+    # NaN std, when that fit cannot be made)
+    lsq = fit_tool(cal.q_deg, cal.joint4[:, 0], cal.xy_mm, approach=app, robust=False)
+    noise = lsq.fit.residual_scale if lsq else float("nan")
     G = np.zeros((8, cal.xy_mm.size))
     h = 1e-4
     for k in range(cal.xy_mm.size):

@@ -38,7 +38,7 @@ from vision_cal.dataset import photos
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.session import Session, load_session
 from vision_cal.calibrate.tool import fit_tool
-from vision_cal.errors import CalibrationError, VisionCalError
+from vision_cal.errors import VisionCalError
 from vision_cal.measure import associate as assoc
 from vision_cal.measure.aruco import edge_points, find_sheet_markers
 from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerprint
@@ -435,9 +435,8 @@ def _with_fitted_tool(a, session, mark_ids, mark_images, groups, ac):
     if len(k) < 8:
         return a
     xy = np.array([groups[g].mean_mm for g in a.mark_to_group.values()])
-    try:
-        tf = fit_tool(session.joints_deg[k], session.j4_deg[k], xy)
-    except CalibrationError:
+    tf = fit_tool(session.joints_deg[k], session.j4_deg[k], xy)
+    if not tf:
         return a
     q, model = _tool_joints(tf.fit.params, tf.tool_mm, session)
     b = assoc.associate(q, mark_ids, mark_images, groups, model,
