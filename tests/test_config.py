@@ -14,6 +14,7 @@ from tests.diagnose.test_discover import _world
 from tests.diagnose.test_verdict import REP, _fit_doc
 from tests.measure import synth_measure as sm
 from tests.measure.test_measure_grid import _mapping_shifted
+from tests.tool.test_placements import _kinematic_places
 from vision_cal.calibrate import joint4
 from vision_cal.calibrate import placements
 from vision_cal.config import (DEFAULT, DiscoveryConfig, DotConfig, EstimatorConfig,
@@ -31,6 +32,7 @@ from vision_cal.measure.batch import measure_image
 from vision_cal.measure.cache import session_fingerprint
 from vision_cal.pipeline import MarkData, calibrate_dataset
 from vision_cal.render.camera import project
+from vision_cal.report.headline import configuration
 from vision_cal.render.truth_model import TrueRobot
 
 #: the modules whose thresholds moved into config.py, and the module-level numbers they may
@@ -262,8 +264,6 @@ def test_a_smooth_residual_setting_passed_in_changes_the_test():
 def test_a_selection_setting_passed_in_changes_the_placements_fit():
     """The joint fit of several placements reads ``selection`` from the config passed in:
     a once-per-turn error it names by default is not added with ``max_effects = 0``."""
-    from tests.tool.test_placements import _kinematic_places
-
     def cyclic(rng):
         return rng, {"name": "joint_cyclic", "joint": 1, "harmonic": 1, "deg": 0.003,
                      "phase_deg": float(rng.uniform(-180, 180))}
@@ -272,3 +272,11 @@ def test_a_selection_setting_passed_in_changes_the_placements_fit():
     assert placements.fit_placements(places)[0].effects
     cfg = replace(DEFAULT, selection=SelectionConfig(max_effects=0))
     assert not placements.fit_placements(places, config=cfg)[0].effects
+
+
+def test_the_report_shows_the_recorded_verdict_thresholds():
+    """The report's configuration is the file's: a recorded non-default gate level is
+    shown, a file without the part shows none (not today's defaults)."""
+    cfg = replace(DEFAULT, verdict=VerdictConfig(floor_alpha=1e-4)).to_json()
+    assert configuration({"config": cfg})["verdict"]["floor_alpha"] == 1e-4
+    assert configuration({"config": {"dots": {}}})["verdict"] == {}
