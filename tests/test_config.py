@@ -14,10 +14,11 @@ from tests.diagnose.test_discover import _world
 from tests.diagnose.test_verdict import REP, _fit_doc
 from tests.measure import synth_measure as sm
 from tests.measure.test_measure_grid import _mapping_shifted
+from tests.measure.test_measure_no_images import _groups
 from tests.tool.test_placements import _kinematic_places
 from vision_cal.calibrate import joint4
 from vision_cal.calibrate import placements
-from vision_cal.config import (DEFAULT, DiscoveryConfig, DotConfig, EstimatorConfig,
+from vision_cal.config import (DEFAULT, AssociationConfig, DiscoveryConfig, DotConfig, EstimatorConfig,
                                GridConfig, GridDeclarationConfig, Joint4Config,
                                PhotoAgreementConfig, PlanMatchConfig, SelectionConfig,
                                SheetHeightConfig, SmoothResidualConfig, VerdictConfig)
@@ -26,7 +27,7 @@ from vision_cal.diagnose import discover, sheet, verdict
 from vision_cal.errors import CalibrationError
 from vision_cal.diagnose.select import diagnose
 from vision_cal.dataset.session import load_session
-from vision_cal.measure import (associate, dots, grid, grid_declaration, height,
+from vision_cal.measure import (associate, dots, grid, grid_declaration, height, infer,
                                 photo_agreement, plan_match, sheetfit)
 from vision_cal.measure.batch import measure_image
 from vision_cal.measure.cache import session_fingerprint
@@ -39,7 +40,7 @@ from vision_cal.render.truth_model import TrueRobot
 #: still keep (physical, format or statistical constants, not thresholds)
 CONFIGURED = {dots: (), grid: (), sheetfit: (), discover: (), joint4: (),
               verdict: ("R95_PER_RMS",), associate: (), height: (), plan_match: (),
-              photo_agreement: (), grid_declaration: (), placements: (),
+              photo_agreement: (), grid_declaration: (), placements: (), infer: (),
               # the smoother's cost bounds (not judgements: the test stays exact)
               sheet: ("EXACT_MAX_MARKS", "GRID_PER_LENGTH", "MAX_GRID_CELLS")}
 
@@ -280,3 +281,14 @@ def test_the_report_shows_the_recorded_verdict_thresholds():
     cfg = replace(DEFAULT, verdict=VerdictConfig(floor_alpha=1e-4)).to_json()
     assert configuration({"config": cfg})["verdict"]["floor_alpha"] == 1e-4
     assert configuration({"config": {"dots": {}}})["verdict"] == {}
+
+
+def test_an_association_setting_passed_in_changes_the_inferred_photos():
+    """Two photos, the second seeing 3 of the 4 dots (75 %): the finished sheet twice by
+    default (>= 70 %), a series when the finished sheet needs 80 %."""
+    ids, files = ["a", "b", "c", "d"], ["p0", "p1"]
+    seen = [{0, 1}, {0, 1}, {0, 1}, {0}]
+    assert infer.infer_image_marks(2, [0, 1], _groups(seen), ids, files).mode == "finished"
+    got = infer.infer_image_marks(2, [0, 1], _groups(seen), ids, files,
+                                  AssociationConfig(finished_fraction=0.8))
+    assert got.mode == "series"

@@ -101,6 +101,9 @@ class AssociationConfig:
                                       # (the sheet mapping's error), not averaged away
     max_zero_deg: float = 10.0        # how far the nominal joint zeros may be off (search range)
     max_base_mm: float = 100.0        # how far the nominal base may be off (search range)
+    finished_fraction: float = 0.7    # with no images list: every usable photo sees at least
+                                      # this share of the persistent dots, so each shows the
+                                      # finished sheet (else a series; vision_cal.measure.infer)
 
 
 @dataclass(frozen=True)

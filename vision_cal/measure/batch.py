@@ -729,7 +729,7 @@ def associate_dots(session: Session, items: list[_Photo], images: list[ImageResu
         image_marks = [tuple(ph.listed_marks) for ph in items]
         inferred = None
     else:
-        inferred = infer_image_marks(len(items), idx_ok, groups, mark_ids, files)
+        inferred = infer_image_marks(len(items), idx_ok, groups, mark_ids, files, ac)
         image_marks = list(inferred.marks)
         warnings.extend(inferred.warnings)
         n_off = sum(1 for r in images if r.status != "ok")
