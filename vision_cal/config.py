@@ -11,7 +11,8 @@ recorded values, not today's defaults). The parts, by key:
 - ``markers``: photos and printed markers (:mod:`vision_cal.measure.aruco`,
   :mod:`vision_cal.measure.batch`);
 - ``dots``: pen-mark detection and centring (:mod:`vision_cal.measure.dots`);
-- ``association``: grouping and matching (:mod:`vision_cal.measure.associate`);
+- ``association``: grouping and matching (:mod:`vision_cal.measure.associate`,
+  :mod:`vision_cal.measure.infer`);
 - ``selection``: the F-test level, cross-validation and outlier rule
   (:mod:`vision_cal.diagnose.select`, :mod:`vision_cal.calibrate.lsq`);
 - ``fit``: identifiability of a least-squares fit (:mod:`vision_cal.calibrate.lsq`);
