@@ -2,39 +2,39 @@
 calibration.json."""
 
 import ast
-from types import SimpleNamespace
 import inspect
 import json
 from dataclasses import fields, replace
+from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+import vision_cal
 from tests.diagnose.test_discover import _world
 from tests.diagnose.test_verdict import REP, _fit_doc
 from tests.measure import synth_measure as sm
 from tests.measure.test_measure_grid import _mapping_shifted
 from tests.measure.test_measure_no_images import _groups
 from tests.tool.test_placements import _kinematic_places
-from vision_cal.calibrate import joint4
-from vision_cal.calibrate import placements
-from vision_cal.config import (DEFAULT, AssociationConfig, DiscoveryConfig, DotConfig, EstimatorConfig,
-                               GridConfig, GridDeclarationConfig, Joint4Config,
+from vision_cal.calibrate import joint4, placements
+from vision_cal.config import (DEFAULT, AssociationConfig, DiscoveryConfig, DotConfig,
+                               EstimatorConfig, GridConfig, GridDeclarationConfig, Joint4Config,
                                PhotoAgreementConfig, PlanMatchConfig, SelectionConfig,
                                SheetHeightConfig, SmoothResidualConfig, VerdictConfig)
-from vision_cal.dataset.session import SheetGrid
+from vision_cal.dataset.session import SheetGrid, load_session
 from vision_cal.diagnose import discover, sheet, verdict
-from vision_cal.errors import CalibrationError
 from vision_cal.diagnose.select import diagnose
-from vision_cal.dataset.session import load_session
+from vision_cal.errors import CalibrationError
 from vision_cal.measure import (associate, dots, grid, grid_declaration, height, infer,
                                 photo_agreement, plan_match, sheetfit)
 from vision_cal.measure.batch import measure_image
 from vision_cal.measure.cache import session_fingerprint
 from vision_cal.pipeline import MarkData, calibrate_dataset
 from vision_cal.render.camera import project
-from vision_cal.report.headline import configuration
 from vision_cal.render.truth_model import TrueRobot
+from vision_cal.report.headline import configuration
 
 #: the modules whose thresholds moved into config.py, and the module-level numbers they may
 #: still keep (physical, format or statistical constants, not thresholds)
@@ -59,6 +59,20 @@ def _module_numbers(module) -> set[str]:
                     or "DEFAULT" in src):
                 out.add(t.id)
     return out
+
+
+def test_no_default_argument_reads_the_config_at_import():
+    """A default argument is evaluated once, at import: none reads a field of ``DEFAULT``
+    (``None`` there, the config read in the body)."""
+    root = Path(vision_cal.__file__).parent
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                for d in node.args.defaults + [d for d in node.args.kw_defaults if d]:
+                    if "DEFAULT." in ast.unparse(d):
+                        found.append(f"{path.relative_to(root)}:{node.lineno} {node.name}")
+    assert not found, found
 
 
 def test_no_module_copies_a_threshold_at_import():

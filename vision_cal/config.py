@@ -268,7 +268,8 @@ class DiscoveryConfig:
 
 @dataclass(frozen=True)
 class Joint4Config:
-    """The joint-4 stage: the tool's offset from the joint-4 axis (``vision_cal.calibrate.joint4``)."""
+    """The joint-4 stage: the tool's offset from the joint-4 axis
+    (``vision_cal.calibrate.joint4``)."""
 
     accept_sigma: float = 4.0         # an offset term is kept only when its estimate exceeds
                                       # this many reported std (two terms tested: by chance

@@ -385,7 +385,8 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
         add(by_design or "check",
             f"{n_fit} fitted marks leave {2 * n_fit - n_par} degrees of freedom, too few to "
             "test for backlash, gear-ratio or sheet effects")
-    if r95 is not None and _finite(fit_rms) and fit_rms > 0 and held_rms > cfg.heldout_warn_ratio * fit_rms:
+    if (r95 is not None and _finite(fit_rms) and fit_rms > 0
+            and held_rms > cfg.heldout_warn_ratio * fit_rms):
         add("check", f"the held-out RMS ({held_rms:.4f} mm) is {held_rms / fit_rms:.1f} times "
                      "the fitted RMS: the model misses something on new poses")
     status = max((s for s, _ in reasons), key=_RANK.get, default="ready")

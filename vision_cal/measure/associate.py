@@ -198,15 +198,18 @@ def clean_anchors(q_deg, dots_mm, anchors, *, tol_mm: float = 3.0) -> list:
 
 
 def match_to_plan(q_deg, dots_mm, nominal: ScaraParams, *, allowed=None, anchors=(),
-                  max_zero_deg: float = DEFAULT.association.max_zero_deg,
-                  max_base_mm: float = DEFAULT.association.max_base_mm,
+                  max_zero_deg: float | None = None, max_base_mm: float | None = None,
                   zero_step_deg: float = 0.5, bin_mm: float = 5.0):
     """Assign dots (M, 2) to planned marks at ``q_deg`` (N, 2) through the robot model.
 
     ``allowed`` (N, M) bool: pairs permitted by the photo series; ``anchors``: (mark, dot)
     pairs already known. Returns ``(pairs, params, rms_mm, reason)``: ``pairs`` a tuple of
     (mark index, dot index) or None with ``reason`` saying why it refuses.
+    ``max_zero_deg`` / ``max_base_mm`` None: config ``association`` of ``DEFAULT``.
     """
+    ac = DEFAULT.association
+    max_zero_deg = ac.max_zero_deg if max_zero_deg is None else max_zero_deg
+    max_base_mm = ac.max_base_mm if max_base_mm is None else max_base_mm
     q = np.asarray(q_deg, float).reshape(-1, 2)
     dots = np.asarray(dots_mm, float).reshape(-1, 2)
     N, M = len(q), len(dots)
@@ -283,12 +286,13 @@ def match_to_plan(q_deg, dots_mm, nominal: ScaraParams, *, allowed=None, anchors
 
 
 def associate(q_deg, mark_ids, mark_images, groups: list[DotGroup], nominal: ScaraParams,
-              *, max_zero_deg=DEFAULT.association.max_zero_deg,
-              max_base_mm=DEFAULT.association.max_base_mm) -> Assignment:
+              *, max_zero_deg: float | None = None,
+              max_base_mm: float | None = None) -> Assignment:
     """Assign dot groups to marks.
 
     ``q_deg`` (N, 2) commanded joints, ``mark_ids`` (N,), ``mark_images``: for each mark the
-    set of usable image indices whose ``marks`` list it (empty: never photographed).
+    set of usable image indices whose ``marks`` list it (empty: never photographed);
+    ``max_zero_deg`` / ``max_base_mm`` None: config ``association`` of ``DEFAULT``.
     """
     q = np.asarray(q_deg, float).reshape(-1, 2)
     N, G = len(q), len(groups)

@@ -238,8 +238,9 @@ def offset_evidence(obs_by_mark: dict,
     """The two fits of the module docstring on the grid observations: one row pair per mark
     and camera place (its photos' weighted mean, whose variance keeps the common part of
     photos from one place, config ``association.common_fraction``), whitened by its
-    covariance (each photo's plus ``sheet_height.offset_floor_mm``); each camera place has its own homography change (the marker
-    mapping absorbs part of any error, and of the markers' own heights).
+    covariance (each photo's plus ``sheet_height.offset_floor_mm``); each camera place has
+    its own homography change (the marker mapping absorbs part of any error, and of the
+    markers' own heights).
 
     - lens (the sheet flat): the two radial lens fields shared by all photos, plus the
       homography fields;
