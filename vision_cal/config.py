@@ -11,11 +11,24 @@ recorded values, not today's defaults). The parts, by key:
 - ``markers``: photos and printed markers (:mod:`vision_cal.measure.aruco`,
   :mod:`vision_cal.measure.batch`);
 - ``dots``: pen-mark detection and centring (:mod:`vision_cal.measure.dots`);
-- ``association``: grouping and matching (:mod:`vision_cal.measure.associate`);
+- ``association``: grouping and matching (:mod:`vision_cal.measure.associate`,
+  :mod:`vision_cal.measure.infer`);
 - ``selection``: the F-test level, cross-validation and outlier rule
   (:mod:`vision_cal.diagnose.select`, :mod:`vision_cal.calibrate.lsq`);
 - ``fit``: identifiability of a least-squares fit (:mod:`vision_cal.calibrate.lsq`);
-- ``per_photo_offsets``: photos whose marks moved together (:mod:`vision_cal.diagnose.photos`).
+- ``per_photo_offsets``: photos whose marks moved together (:mod:`vision_cal.diagnose.photos`);
+- ``sheet_fit``: the marker-corner gate of a photo (:mod:`vision_cal.measure.sheetfit`);
+- ``grid``: the printed grid read around each dot (:mod:`vision_cal.measure.grid`);
+- ``sheet_height``: the paper's height from parallax (:mod:`vision_cal.measure.height`);
+- ``plan_match``: photos that do not belong to the session (:mod:`vision_cal.measure.plan_match`);
+- ``photo_agreement``: a photo moved as a whole (:mod:`vision_cal.measure.photo_agreement`);
+- ``grid_declaration``: a printed grid not where declared
+  (:mod:`vision_cal.measure.grid_declaration`);
+- ``smooth_residual``: a spatially smooth residual (:mod:`vision_cal.diagnose.sheet`);
+- ``discovery``: the scans for effects no candidate names (:mod:`vision_cal.diagnose.discover`);
+- ``joint4``: the joint-4 (tool offset) stage (:mod:`vision_cal.calibrate.joint4`);
+- ``verdict``: the noise-floor gate and the status rule (:mod:`vision_cal.diagnose.verdict`,
+  which judges a calibration.json with the config that file recorded).
 """
 
 from __future__ import annotations
@@ -89,6 +102,9 @@ class AssociationConfig:
                                       # (the sheet mapping's error), not averaged away
     max_zero_deg: float = 10.0        # how far the nominal joint zeros may be off (search range)
     max_base_mm: float = 100.0        # how far the nominal base may be off (search range)
+    finished_fraction: float = 0.7    # with no images list: every usable photo sees at least
+                                      # this share of the persistent dots, so each shows the
+                                      # finished sheet (else a series; vision_cal.measure.infer)
 
 
 @dataclass(frozen=True)
@@ -149,6 +165,136 @@ class SheetFitConfig:
 
 
 @dataclass(frozen=True)
+class GridConfig:
+    """The printed grid read around each dot (``vision_cal.measure.grid``)."""
+
+    window_step_mm: float = 0.15      # window sampling (a pixel is 0.2-0.4 mm on the sheet)
+    window_half_mm: float = 9.0       # window half-size: +-9 mm holds 18 lines at many pixel
+                                      # phases (the photo's patches are cut this wide)
+    min_periods: float = 3.0          # the window must hold this many pitches of usable
+                                      # profile per axis (fewer: the phase is not defined)
+    dark_fraction: float = 0.7        # samples below this fraction of the paper level are
+                                      # not grid (pen, marker, text)
+    min_contrast: float = 6.0         # |Fourier amplitude| / its noise below this: the lines
+                                      # are not seen (the phase's std would exceed pitch / 38)
+
+
+@dataclass(frozen=True)
+class SheetHeightConfig:
+    """The paper's height from parallax and its map (``vision_cal.measure.height``; the
+    share of a photo's error common to its other photos is ``association.common_fraction``)."""
+
+    offset_floor_mm: float = 0.008    # per-photo floor on a grid offset's std: what the Fourier
+                                      # phase cannot resolve of the printed lines (aliasing of
+                                      # their sharp profile), seen as 5-8 um on rendered photos
+    alpha: float = 1e-3               # level of the flat-sheet chi-square test and of the
+                                      # evidence that the offsets are heights (lens, mapping)
+    min_claim_mm: float = 0.05        # a height map whose marks all stay below this is flat
+                                      # (well under the 0.1 mm a raised paper makes matter)
+    map_step_mm: float = 20.0         # the height map's grid step (the GP's length >= 30 mm)
+    same_place_fraction: float = 0.02  # camera centres closer than this fraction of their
+                                      # height are one place (a fixed camera)
+    min_parallax_baseline: float = 0.05  # spread of the parallax directions v (mm per mm of
+                                      # height) below which height and position are not
+                                      # separable between places (the same view every time)
+
+
+@dataclass(frozen=True)
+class PlanMatchConfig:
+    """Photos that do not belong to the session (``vision_cal.measure.plan_match``)."""
+
+    max_dots_per_mark: float = 2.0    # a photo showing more than this many dots per mark it
+                                      # should show (plus ``spare_dots``) is crowded: in most
+                                      # photos, another, finished sheet
+    spare_dots: int = 3               # dots allowed beyond that (blemishes, a pilot's marks)
+    min_matched_fraction: float = 0.5  # fewer planned marks matched to a dot: the dots are
+                                      # not where the plan and the robot model put them
+    min_marks_judged: int = 6         # marks the photos should show before that is judged
+                                      # (a reversed series of three photos is a wrong order)
+
+
+@dataclass(frozen=True)
+class PhotoAgreementConfig:
+    """A photo whose dots all sit away from where the others see them
+    (``vision_cal.measure.photo_agreement``)."""
+
+    min_photos: int = 3               # usable photos needed, so that "the others" agree
+    min_dots: int = 3                 # dots a photo shares with the others to be judged
+    search_mm: float = 3.0            # a dot's nearest dot of another photo within this is
+                                      # the same dot (marks are >= 3 mm apart)
+    max_offset_mm: float = 0.25       # median displacement beyond this: the photo moved as a
+                                      # whole (far beyond a mapping's error of hundredths of a
+                                      # mm, far below the spacing of marks)
+    spread_factor: float = 3.0        # ... and beyond this many times the displacements'
+                                      # own robust scatter (not dots that happen to be near)
+
+
+@dataclass(frozen=True)
+class GridDeclarationConfig:
+    """A printed grid that is not where ``sheet.grid`` declares it
+    (``vision_cal.measure.grid_declaration``)."""
+
+    min_dots: int = 3                 # dots with a grid offset needed to judge
+    min_agreement: float = 0.9        # mean resultant length of the lines' phase over the dots
+                                      # above this: one constant offset everywhere
+    min_offset_mm: float = 0.05       # its mean beyond this (a raised paper moves the lines
+                                      # by parallax, differently at each place) ...
+    min_offset_sigmas: float = 5.0    # ... and beyond this many standard errors
+
+
+@dataclass(frozen=True)
+class SmoothResidualConfig:
+    """The test for a spatially smooth residual over the sheet (``vision_cal.diagnose.sheet``)."""
+
+    alpha: float = 1e-3               # permutation-test level: the smoothed residual agrees
+                                      # with the residual more than shuffled marks do
+    length_mm: float = 60.0           # Gaussian smoothing length (a fold or curl of the paper
+                                      # spans several cm; the marks are ~20-40 mm apart)
+    map_step_mm: float = 40.0         # the reported map's grid step
+    n_permutations: int = 1999        # permutations of the test (p resolved to 5e-4)
+
+
+@dataclass(frozen=True)
+class DiscoveryConfig:
+    """The scans for effects no candidate names (``vision_cal.diagnose.discover``)."""
+
+    max_terms: int = 4                # joint-polynomial terms discovery adds at most (each
+                                      # costs a parameter; 4 keep the pilot's dof for the test)
+    scan_level: float = 0.5           # scans and discovery run at this share of the
+                                      # selection's alpha (the rest is the named candidates')
+    heldout_tie: float = 1.25         # held-out RMS ratio within which fewer parameters win
+                                      # (the held-out RMS of ~30 marks is known to ~13 %, 2 std)
+
+
+@dataclass(frozen=True)
+class Joint4Config:
+    """The joint-4 stage: the tool's offset from the joint-4 axis
+    (``vision_cal.calibrate.joint4``)."""
+
+    accept_sigma: float = 4.0         # an offset term is kept only when its estimate exceeds
+                                      # this many reported std (two terms tested: by chance
+                                      # below 1e-4)
+
+
+@dataclass(frozen=True)
+class VerdictConfig:
+    """The noise-floor gate and the status rule (``vision_cal.diagnose.verdict``)."""
+
+    default_repeatability_mm: float = 0.01  # the robot's repeatability (mm, per axis, one std)
+                                      # when neither repeated marks nor the robot block give
+                                      # it: a SCARA catalogue's +-0.01 mm read as one std
+                                      # (conservative: catalogues quote more)
+    floor_alpha: float = 1e-3         # chi-square level of the gate (and of the largest error)
+    floor_ratio_tol: float = 1.25     # residual / floor below this passes at any p: within how
+                                      # well a measurer knows its own noise (its sigma to ~25 %)
+    not_reliable_ratio: float = 2.0   # beyond the floor by this much: do not plan with the model
+    heldout_warn_ratio: float = 3.0   # held-out RMS above this many times the fitted RMS: check
+    min_spare_dof: int = 8            # 2 N - P below this: too few marks to test any effect
+    min_repeat_pairs: int = 4         # pairs of marks drawn at the same command needed to
+                                      # measure repeatability (fewer: the robot block's figure)
+
+
+@dataclass(frozen=True)
 class EstimatorConfig:
     """All the knobs, by part; the keys of calibration.json ``config``."""
 
@@ -159,6 +305,15 @@ class EstimatorConfig:
     fit: FitConfig = field(default_factory=FitConfig)
     per_photo_offsets: PhotoOffsetConfig = field(default_factory=PhotoOffsetConfig)
     sheet_fit: SheetFitConfig = field(default_factory=SheetFitConfig)
+    grid: GridConfig = field(default_factory=GridConfig)
+    sheet_height: SheetHeightConfig = field(default_factory=SheetHeightConfig)
+    plan_match: PlanMatchConfig = field(default_factory=PlanMatchConfig)
+    photo_agreement: PhotoAgreementConfig = field(default_factory=PhotoAgreementConfig)
+    grid_declaration: GridDeclarationConfig = field(default_factory=GridDeclarationConfig)
+    smooth_residual: SmoothResidualConfig = field(default_factory=SmoothResidualConfig)
+    discovery: DiscoveryConfig = field(default_factory=DiscoveryConfig)
+    joint4: Joint4Config = field(default_factory=Joint4Config)
+    verdict: VerdictConfig = field(default_factory=VerdictConfig)
 
     def to_json(self) -> dict:
         return asdict(self)

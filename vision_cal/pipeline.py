@@ -179,8 +179,8 @@ def _paper_std(q, xy, sigma_mm: float) -> tuple[dict, np.ndarray]:
     for k in range(xy.size):
         d = np.zeros(xy.size)
         d[k] = h
-        vp = paper_method(q, xy + d.reshape(xy.shape)).params.vector
-        vm = paper_method(q, xy - d.reshape(xy.shape)).params.vector
+        vp = paper_method(q, xy + d.reshape(xy.shape)).or_raise().params.vector
+        vm = paper_method(q, xy - d.reshape(xy.shape)).or_raise().params.vector
         G[:, k] = (vp - vm) / (2 * h)
     cov = G @ G.T * sigma_mm**2 if np.isfinite(sigma_mm) else np.full((6, 6), np.nan)
     s = np.sqrt(np.diag(cov))
@@ -222,7 +222,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         if method == "paper":
             fitted = _Fitted(*fit_joint4_paper(cal, val))
         else:   # the tool and joint 4's effects first, then the diagnosis with them
-            stage = joint4_stage(cal)
+            stage = joint4_stage(cal, config)
             fitted = fit_lsq(session, cal, val, measurement, config, stage.effects)
             add_tool(fitted.blocks, fitted.diagnosis, stage)
     else:
@@ -261,7 +261,7 @@ def measure_marks(session: Session, *, out_dir: Path, jobs: int | None = None,
 
 def fit_paper(cal: MarkData, val: MarkData, config: EstimatorConfig = DEFAULT) -> _Fitted:
     """The seed paper's circle method on the calibration marks; validation marks scored."""
-    paper = paper_method(cal.q_deg, cal.xy_mm)
+    paper = paper_method(cal.q_deg, cal.xy_mm).or_raise()   # no circles: the run ends
     params = paper.params
     noise_mm = Fit.from_estimate(cal.q_deg, cal.xy_mm, approach=cal.approach, robust=False,
                                  config=config).or_raise().residual_scale  # unweighted: mm
@@ -359,7 +359,8 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
                                "grid cannot tell their smooth signature from it"))
     if session.sheet is not None:
         sm = smooth_residual(np.concatenate([cal.xy_mm, val.xy_mm]),
-                             np.concatenate([res_cal, res_val]), session.sheet.extent_mm)
+                             np.concatenate([res_cal, res_val]), session.sheet.extent_mm,
+                             config=config.smooth_residual)
         if sm is not None:
             ex = next((e for e in doc["effects"] if e["name"] == "unexplained"), None)
             if ex is None:
@@ -375,13 +376,10 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
     outliers = [i for i, k in zip(cal.ids, ff.inliers) if not k]
     if outliers:
         doc["outliers"] = outliers
-    try:  # circle fits, where the plan has paper-style groups (the tool-less model)
-        if not base_effects:
-            pm = paper_method(cal.q_deg, cal.xy_mm)
-            doc["circles"] = {"base": pm.circle_base.to_json(),
-                              "elbow": pm.circle_elbow.to_json()}
-    except CalibrationError:
-        pass
+    # circle fits, where the plan has paper-style groups (the tool-less model)
+    pm = paper_method(cal.q_deg, cal.xy_mm) if not base_effects else None
+    if pm:
+        doc["circles"] = {"base": pm.circle_base.to_json(), "elbow": pm.circle_elbow.to_json()}
     return _Fitted(doc, final_model, residual_all, residual_base, diagnosis=diag)
 
 

@@ -11,10 +11,16 @@ def test_three_point_circle_is_exact():
 
 
 def test_collinear_points_refused():
+    """A failure is a falsy value with the reason; ``or_raise`` ends the run with it."""
+    c = Circle.from_three_points([[0, 0], [1, 1], [2, 2]])
+    assert not c and "collinear" in c.reason
     with pytest.raises(CalibrationError, match="collinear"):
-        Circle.from_three_points([[0, 0], [1, 1], [2, 2]])
-    with pytest.raises(CalibrationError, match="at least 3"):
-        Circle.from_estimate([[0, 0], [1, 1]])
+        c.or_raise()
+    c = Circle.from_estimate([[0, 0], [1, 1]])
+    assert not c and "at least 3" in c.reason
+    c = Circle.from_estimate([[0, 0], [1, 1], [2, 2], [3, 3]])
+    assert not c and "collinear" in c.reason
+    assert Circle.from_estimate([[1, 0], [0, 1], [-1, 0], [0, -1]])   # a circle is truthy
 
 
 def test_hyper_is_unbiased_on_short_arcs_where_kasa_is_not():

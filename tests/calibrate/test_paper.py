@@ -67,5 +67,7 @@ def test_table3_sheet_origin(result):
 
 
 def test_missing_circle_group_is_explained():
+    r = paper_method(PAPER_Q[:3], PAPER_XY[:3])
+    assert not r and "elbow circle" in r.reason        # a value the caller branches on
     with pytest.raises(CalibrationError, match="elbow circle"):
-        paper_method(PAPER_Q[:3], PAPER_XY[:3])
+        r.or_raise()                                    # or the end of the run

@@ -35,8 +35,10 @@ def test_paper_circle_on_joint4_by_hand():
 
 
 def test_one_j4_is_folded_not_fitted():
+    r = fit_tool([[0, 10], [20, 30], [40, -50], [60, 20]], 15.0, np.zeros((4, 2)))
+    assert not r and "folded into L2 and z2" in r.reason
     with pytest.raises(CalibrationError, match="folded into L2 and z2"):
-        fit_tool([[0, 10], [20, 30], [40, -50], [60, 20]], 15.0, np.zeros((4, 2)))
+        r.or_raise()
     assert folded_statement([15.0, 15.0])["identified"] is False
 
 

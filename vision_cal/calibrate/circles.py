@@ -12,6 +12,11 @@ distance) fit, with the covariance of (cx, cy, r) from the residual variance.
 Arc span limits a circle fit: over an arc of span ``s`` (rad) the centre's uncertainty
 along the arc's bisector grows roughly like ``sigma / (1 - cos(s/2))``, so the paper's
 +-20 deg arc (s = 40 deg) amplifies the mark noise about 16x in the base position.
+
+Points that no circle fits (fewer than three, collinear, coincident) give a
+:class:`vision_cal.calibrate.lsq.FailedFit`, falsy, with the reason (as
+``skimage.measure.CircleModel.from_estimate`` gives a ``FailedEstimation``): a caller that
+branches tests ``if not circle``, one that cannot go on calls ``.or_raise()``.
 """
 
 from __future__ import annotations
@@ -22,7 +27,7 @@ import numpy as np
 from scipy.linalg import eig
 from scipy.optimize import least_squares
 
-from vision_cal.errors import CalibrationError
+from vision_cal.calibrate.lsq import FailedFit
 from vision_cal.rms import rms
 
 
@@ -45,16 +50,17 @@ class Circle:
         return np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
 
     @classmethod
-    def from_three_points(cls, xy_mm) -> "Circle":
-        """The circumcircle of three points (the paper's eqs 1-9)."""
+    def from_three_points(cls, xy_mm) -> "Circle | FailedFit":
+        """The circumcircle of three points (the paper's eqs 1-9); a :class:`FailedFit`
+        when there is none."""
         p = np.asarray(xy_mm, dtype=float)
         if p.shape != (3, 2):
-            raise CalibrationError(f"a three-point circle needs 3 points, got {p.shape[0]}")
+            return FailedFit(f"a three-point circle needs 3 points, got {p.shape[0]}")
         (x1, y1), (x2, y2), (x3, y3) = p
         d = 2.0 * (x1 * (y2 - y3) + x2 * (y3 - y1) + x3 * (y1 - y2))
         scale = np.ptp(p, axis=0).max() ** 2
         if abs(d) < 1e-12 * max(scale, 1e-300):
-            raise CalibrationError("the three points are collinear: no circle passes through them")
+            return FailedFit("the three points are collinear: no circle passes through them")
         s1, s2, s3 = x1**2 + y1**2, x2**2 + y2**2, x3**2 + y3**2
         cx = (s1 * (y2 - y3) + s2 * (y3 - y1) + s3 * (y1 - y2)) / d
         cy = (s1 * (x3 - x2) + s2 * (x1 - x3) + s3 * (x2 - x1)) / d
@@ -62,15 +68,18 @@ class Circle:
         return cls((float(cx), float(cy)), r, None, arc_span_deg(p, (cx, cy)), 0.0, 3)
 
     @classmethod
-    def from_estimate(cls, xy_mm, *, refine: bool = True) -> "Circle":
-        """Hyper algebraic fit, then (``refine``) the geometric fit with covariance."""
+    def from_estimate(cls, xy_mm, *, refine: bool = True) -> "Circle | FailedFit":
+        """Hyper algebraic fit, then (``refine``) the geometric fit with covariance; a
+        :class:`FailedFit` when no circle fits the points."""
         p = np.asarray(xy_mm, dtype=float)
         if p.ndim != 2 or p.shape[1] != 2 or len(p) < 3:
-            raise CalibrationError(f"a circle fit needs at least 3 points, got {len(p)}")
+            return FailedFit(f"a circle fit needs at least 3 points, got {len(p)}")
         if len(p) == 3:
-            c = cls.from_three_points(p)
-            return c
-        cx, cy, r = _hyper(p)
+            return cls.from_three_points(p)
+        h = _hyper(p)
+        if not h:
+            return h
+        cx, cy, r = h
         if not refine:
             return cls((cx, cy), r, None, arc_span_deg(p, (cx, cy)), rms(_dist(p, (cx, cy, r))), len(p))
         sol = least_squares(lambda v: _dist(p, v), np.array([cx, cy, r]),
@@ -88,6 +97,10 @@ class Circle:
                 cov = None
         return cls((float(v[0]), float(v[1])), float(abs(v[2])), cov,
                    arc_span_deg(p, v[:2]), rms(res), len(p))
+
+    def or_raise(self) -> "Circle":
+        """This circle (the twin of :meth:`FailedFit.or_raise`)."""
+        return self
 
     def residuals(self, xy_mm) -> np.ndarray:
         """Signed distance (N,) of each point from the circle, mm."""
@@ -123,13 +136,13 @@ def _dist_jac(p, v):
     return np.stack([-(p[:, 0] - v[0]) / d, -(p[:, 1] - v[1]) / d, -np.ones(len(p))], axis=1)
 
 
-def _hyper(p: np.ndarray) -> tuple[float, float, float]:
-    """Hyper fit (Al-Sharadqah & Chernov 2009) on centred, scaled data."""
+def _hyper(p: np.ndarray) -> tuple[float, float, float] | FailedFit:
+    """Hyper fit (Al-Sharadqah & Chernov 2009) on centred, scaled data: (cx, cy, r)."""
     m = p.mean(axis=0)
     q = p - m
     s = np.sqrt(np.mean(np.sum(q**2, axis=1)))
     if s == 0:
-        raise CalibrationError("all points coincide: no circle can be fitted")
+        return FailedFit("all points coincide: no circle can be fitted")
     q = q / s
     z = np.sum(q**2, axis=1)
     Z = np.stack([z, q[:, 0], q[:, 1], np.ones(len(q))], axis=1)
@@ -140,11 +153,11 @@ def _hyper(p: np.ndarray) -> tuple[float, float, float]:
     w = np.real(w)
     ok = np.isfinite(w) & (w > -1e-12)
     if not ok.any():
-        raise CalibrationError("the circle fit found no solution (points nearly collinear?)")
+        return FailedFit("the circle fit found no solution (points nearly collinear?)")
     k = np.flatnonzero(ok)[np.argmin(w[ok])]
     A, B, C, D = np.real(V[:, k])
     if abs(A) < 1e-14:
-        raise CalibrationError("the points are collinear: no circle fits them")
+        return FailedFit("the points are collinear: no circle fits them")
     cx, cy = -B / (2 * A), -C / (2 * A)
     r = np.sqrt(max(B * B + C * C - 4 * A * D, 0.0)) / (2 * abs(A))
     return float(cx * s + m[0]), float(cy * s + m[1]), float(r * s)

@@ -3,7 +3,7 @@ branch for the tool and joint 4; contract "Joint 4 and the tool", docs/format.md
 
 Least squares: :func:`joint4_stage` fits the base model with ``tool_mm``
 (:func:`vision_cal.calibrate.tool.fit_tool`), then joint 4's backlash and gear-ratio
-error, each kept only when its estimate exceeds ``JOINT4_ACCEPT_SIGMA`` reported std
+error, each kept only when its estimate exceeds ``joint4.accept_sigma`` (config) reported std
 (clean data claims nothing); :func:`vision_cal.pipeline.fit_lsq` then runs the usual
 diagnosis (joint-1/2 effects, sheet, scans, discovery) with those held in every model, and
 :func:`add_tool` writes the tool's part. The paper method (:func:`fit_joint4_paper`):
@@ -18,13 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from vision_cal.calibrate.tool import ToolFit, fit_tool, paper_tool
-from vision_cal.errors import CalibrationError
+from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.model import JointBacklash, JointScale
 from vision_cal.dataset.covariance import covariance_json
 from vision_cal.rms import rms_2d
 
-#: a joint-4 effect is reported when |estimate| > this many of its std
-JOINT4_ACCEPT_SIGMA = 4.0
 
 
 def _std_json(std_base: np.ndarray, std_tool) -> dict:
@@ -43,36 +41,37 @@ class Joint4Stage:
     accepted: tuple      # ((label, z), ...)
     rejected: tuple
     notes: tuple
+    accept_sigma: float  # the acceptance threshold used (config ``joint4.accept_sigma``)
 
     def to_json(self) -> dict:
-        return {"accept_sigma": JOINT4_ACCEPT_SIGMA,
+        return {"accept_sigma": self.accept_sigma,
                 "accepted": [{"effect": e, "z": z} for e, z in self.accepted],
                 "rejected": [{"effect": e, "z": z} for e, z in self.rejected]}
 
 
-def joint4_stage(cal) -> Joint4Stage:
+def joint4_stage(cal, config: EstimatorConfig | None = None) -> Joint4Stage:
     """Least squares of the base model with ``tool_mm``, then joint 4's backlash (when
     joint 4 is approached from both sides) and gear-ratio error, each kept when its estimate
-    exceeds ``JOINT4_ACCEPT_SIGMA`` reported std. ``cal``: marks with ``joint4``."""
+    exceeds ``config.joint4.accept_sigma`` reported std. ``cal``: marks with ``joint4``."""
+    accept = (config or DEFAULT).joint4.accept_sigma
     q4, app = cal.joint4[:, 0], cal.approach_model
     base = fit_tool(cal.q_deg, q4, cal.xy_mm, approach=app, sigma_mm=cal.sigma_mm,
-                    ids=cal.ids)
+                    ids=cal.ids).or_raise()   # no tool fit: the run ends
     cands = [JointScale(joint=4)]
     if len(np.unique(app[:, 2])) > 1:
         cands.append(JointBacklash(joint=4))
     accepted, rejected, notes = [], [], []
     effects = (base.fit.model.tool,)
-    try:
-        trial = fit_tool(cal.q_deg, q4, cal.xy_mm, approach=app, effects=tuple(cands),
-                         sigma_mm=cal.sigma_mm, ids=cal.ids)
-        for e in trial.joint4_effects:
-            z = float(np.max(np.abs(e.theta) / trial.effect_std(e)))
-            (accepted if z > JOINT4_ACCEPT_SIGMA else rejected).append((e.label, z))
-            if z > JOINT4_ACCEPT_SIGMA:
-                effects += (type(e)(joint=4),)
-    except CalibrationError as err:
-        notes.append(f"joint-4 effects not identifiable from these marks: {err}")
-    return Joint4Stage(effects, tuple(accepted), tuple(rejected), tuple(notes))
+    trial = fit_tool(cal.q_deg, q4, cal.xy_mm, approach=app, effects=tuple(cands),
+                     sigma_mm=cal.sigma_mm, ids=cal.ids)
+    if not trial:
+        notes.append(f"joint-4 effects not identifiable from these marks: {trial.reason}")
+    for e in trial.joint4_effects if trial else ():
+        z = float(np.max(np.abs(e.theta) / trial.effect_std(e)))
+        (accepted if z > accept else rejected).append((e.label, z))
+        if z > accept:
+            effects += (type(e)(joint=4),)
+    return Joint4Stage(effects, tuple(accepted), tuple(rejected), tuple(notes), accept)
 
 
 def add_tool(doc: dict, diagnosis, stage: Joint4Stage) -> None:
@@ -101,11 +100,10 @@ def fit_joint4_paper(cal, val):
                                                                    np.zeros((0, 3)))
     pt = paper_tool(cal.q_deg, cal.joint4[:, 0], cal.xy_mm)
     model = base_model = pt.model
-    try:   # the mark noise, as fit_paper takes it: the least-squares residual scale
-        noise = fit_tool(cal.q_deg, cal.joint4[:, 0], cal.xy_mm, approach=app,
-                         robust=False).fit.residual_scale
-    except CalibrationError:
-        noise = float("nan")
+    # the mark noise, as fit_paper takes it: the least-squares residual scale (NaN, and so
+    # NaN std, when that fit cannot be made)
+    lsq = fit_tool(cal.q_deg, cal.joint4[:, 0], cal.xy_mm, approach=app, robust=False)
+    noise = lsq.fit.residual_scale if lsq else float("nan")
     G = np.zeros((8, cal.xy_mm.size))
     h = 1e-4
     for k in range(cal.xy_mm.size):

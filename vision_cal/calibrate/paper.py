@@ -10,7 +10,9 @@ printed eqs 12-13 swap x and y)::
     z2 = atan2(pen - c_elbow) - z1 - q1_e - q2   (at the elbow group's mark nearest q2 = 0,
                                                   the zero-return mark, as the paper does)
 
-The paper's a and b are |z1| and |z2|.
+The paper's a and b are |z1| and |z2|. Marks without both circles give a
+:class:`vision_cal.calibrate.lsq.FailedFit` (falsy, with the reason), not an exception:
+the least-squares run adds the circles only where the plan has them.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vision_cal.calibrate.circles import Circle
-from vision_cal.errors import CalibrationError
+from vision_cal.calibrate.lsq import FailedFit
 from vision_cal.kinematics import ScaraParams
 
 
@@ -31,6 +33,10 @@ class PaperResult:
     circle_elbow: Circle
     base_group: tuple[int, ...]   # indices of the marks on the base circle
     elbow_group: tuple[int, ...]  # indices of the marks on the elbow circle
+
+    def or_raise(self) -> "PaperResult":
+        """This result (the twin of :meth:`FailedFit.or_raise`)."""
+        return self
 
 
 def _groups(values: np.ndarray, others: np.ndarray, tol: float = 1e-6) -> list[np.ndarray]:
@@ -43,21 +49,24 @@ def _groups(values: np.ndarray, others: np.ndarray, tol: float = 1e-6) -> list[n
     return sorted(out, key=lambda g: (-len(g), -np.ptp(others[g])))
 
 
-def paper_method(q_deg, xy_mm) -> PaperResult:
-    """Calibrate the base model from marks (N, 2) at commanded joints (N, 2) deg."""
+def paper_method(q_deg, xy_mm) -> PaperResult | FailedFit:
+    """Calibrate the base model from marks (N, 2) at commanded joints (N, 2) deg; a
+    :class:`FailedFit` naming the missing circle when the marks do not have it."""
     q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
     p = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
     gb = _groups(q[:, 1], q[:, 0])
     ge = _groups(q[:, 0], q[:, 1])
     if not gb:
-        raise CalibrationError("the paper's method needs 3 marks at one joint-2 angle and three "
-                               "joint-1 angles (the base circle): none found")
+        return FailedFit("the paper's method needs 3 marks at one joint-2 angle and three "
+                         "joint-1 angles (the base circle): none found")
     if not ge:
-        raise CalibrationError("the paper's method needs 3 marks at one joint-1 angle and three "
-                               "joint-2 angles (the elbow circle): none found")
+        return FailedFit("the paper's method needs 3 marks at one joint-1 angle and three "
+                         "joint-2 angles (the elbow circle): none found")
     b, e = gb[0], ge[0]
     cb = Circle.from_estimate(p[b])
     ce = Circle.from_estimate(p[e])
+    if not cb or not ce:
+        return cb if not cb else ce
     d = np.subtract(ce.center_mm, cb.center_mm)
     L1 = float(np.hypot(*d))
     q1e = float(q[e[0], 0])
@@ -73,5 +82,6 @@ def paper_method(q_deg, xy_mm) -> PaperResult:
 
 
 def pilot_params(q_deg, xy_mm) -> ScaraParams:
-    """The base model from a pilot run's marks (the renderer's ``pilot`` calibrator)."""
-    return paper_method(q_deg, xy_mm).params
+    """The base model from a pilot run's marks (the renderer's ``pilot`` calibrator);
+    :class:`vision_cal.errors.CalibrationError` when the marks have no circles."""
+    return paper_method(q_deg, xy_mm).or_raise().params

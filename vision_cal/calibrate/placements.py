@@ -31,7 +31,7 @@ from scipy.optimize import least_squares
 from vision_cal import joint_terms as jt
 from vision_cal.calibrate.lsq import Fit
 from vision_cal.calibrate.tool import joint4_values
-from vision_cal.config import DEFAULT
+from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.covariance import covariance_json
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.session import load_session
@@ -137,7 +137,8 @@ def _full_jacobian(places: list[Placement], models: list[RobotModel], w) -> np.n
     return np.concatenate(rows)
 
 
-def _solve(places: list[Placement], shared, poses, effects) -> PlacementsFit:
+def _solve(places: list[Placement], shared, poses, effects,
+           condition_limit: float) -> PlacementsFit:
     n_place = len(places)
     w = _weights(places)
     n_eff = sum(len(e.theta) for e in effects)
@@ -165,7 +166,7 @@ def _solve(places: list[Placement], shared, poses, effects) -> PlacementsFit:
                                f"equations for {P} unknowns: more marks are needed")
     s = np.linalg.svd(J / np.where(np.linalg.norm(J, axis=0) > 0,
                                    np.linalg.norm(J, axis=0), 1.0), compute_uv=False)
-    if s[-1] < s[0] * 1e-8:
+    if s[-1] * condition_limit < s[0]:   # config fit.condition_number_limit
         raise CalibrationError("the placements cannot tell the shared parameters apart")
     ssr = float(r @ r)
     cov = np.linalg.pinv(J.T @ J) * ssr / dof
@@ -256,6 +257,7 @@ def best_alternative(places: list[Placement], fit: PlacementsFit, effect: Effect
 
 
 def _cv_rms(places: list[Placement], fit: PlacementsFit, effects, k_folds: int,
+            condition_limit: float,
             rng_seed: int = 0) -> float:
     """k-fold cross-validated RMS (mm, 2-D) of the shared model with ``effects``: the marks
     of every placement split into ``k_folds`` folds (fixed seed: the same data calibrate the
@@ -268,7 +270,7 @@ def _cv_rms(places: list[Placement], fit: PlacementsFit, effects, k_folds: int,
                            None if p.sigma_mm is None else p.sigma_mm[fo != f])
                  for p, fo in zip(places, fold_of)]
         try:
-            t = _solve(train, fit.shared, fit.poses, effects)
+            t = _solve(train, fit.shared, fit.poses, effects, condition_limit)
         except CalibrationError:
             return float("nan")
         for k, (p, fo) in enumerate(zip(places, fold_of)):
@@ -279,12 +281,11 @@ def _cv_rms(places: list[Placement], fit: PlacementsFit, effects, k_folds: int,
 
 
 def fit_placements(places: list[Placement], *, candidates=None, tool: Tool | None = None,
-                   alpha: float = DEFAULT.selection.alpha,
-                   max_effects: int = DEFAULT.selection.max_effects,
-                   k_folds: int = DEFAULT.selection.k_folds) -> tuple[PlacementsFit, list]:
+                   config: EstimatorConfig | None = None) -> tuple[PlacementsFit, list]:
     """The shared robot from every placement, effects chosen by forward selection with the
     single-sheet diagnosis's rule (:mod:`vision_cal.diagnose.select`): a candidate is kept
-    when its F-test passes at ``alpha / n_candidates``, the BIC drops *and* the k-fold
+    when its F-test passes at ``alpha / n_candidates`` (``alpha``, ``max_effects`` and
+    ``k_folds``: ``config.selection``, default ``DEFAULT``), the BIC drops *and* the k-fold
     cross-validated error over the marks of every placement goes down; among those that
     pass, the one with the lowest cross-validated error. An F-test alone claimed an extra
     ``joint_scale`` beside a true once-per-turn error in about 1 of 200 clean-noise
@@ -294,9 +295,13 @@ def fit_placements(places: list[Placement], *, candidates=None, tool: Tool | Non
     delta BIC, cross-validated RMS before and after)."""
     if len(places) < 1:
         raise CalibrationError("no placement given")
+    config = config or DEFAULT
+    alpha, max_effects, k_folds = (config.selection.alpha, config.selection.max_effects,
+                                   config.selection.k_folds)
+    limit = config.fit.condition_number_limit
     shared, poses = _start(places, tool)
     base_effects = (tool,) if tool is not None else ()
-    fit = _solve(places, shared, poses, base_effects)
+    fit = _solve(places, shared, poses, base_effects, limit)
     cands = list(default_candidates() if candidates is None else candidates)
     # claimed against every column of the joint-term dictionary, so tested at the level the
     # dictionary's own selection uses (alpha split over its columns, vision_cal.diagnose.
@@ -304,13 +309,13 @@ def fit_placements(places: list[Placement], *, candidates=None, tool: Tool | Non
     # q1*q2 explain as well (1 in 200 datasets, bench/tool_joint4.py seed 1502)
     alpha_each = alpha / max(len(cands), 2 * len(jt.DICTIONARY))
     n_obs = 2 * sum(len(p.xy_mm) for p in places)
-    cv_cur = _cv_rms(places, fit, fit.effects, k_folds)
+    cv_cur = _cv_rms(places, fit, fit.effects, k_folds, limit)
     log = []
     while cands and len(fit.effects) - len(base_effects) < max_effects:
         trials = []
         for c in cands:
             try:
-                t = _solve(places, fit.shared, fit.poses, fit.effects + (c,))
+                t = _solve(places, fit.shared, fit.poses, fit.effects + (c,), limit)
             except CalibrationError:
                 continue
             k = len(c.theta)
@@ -321,7 +326,7 @@ def fit_placements(places: list[Placement], *, candidates=None, tool: Tool | Non
         if not trials:
             break
         trials.sort(key=lambda x: (x[0], x[1]))
-        passed = [(_cv_rms(places, t, t.effects, k_folds), tr)
+        passed = [(_cv_rms(places, t, t.effects, k_folds, limit), tr)
                   for tr in trials for t in [tr[3]] if tr[0] < alpha_each and tr[4] < 0]
         passed = sorted((x for x in passed if np.isfinite(x[0]) and x[0] < cv_cur),
                         key=lambda x: x[0])
@@ -399,11 +404,14 @@ def placement_cov(fit: PlacementsFit, k: int) -> np.ndarray:
 
 
 def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
-                         progress: bool = False) -> dict:
+                         progress: bool = False,
+                         config: EstimatorConfig | None = None) -> dict:
     """``vision-cal calibrate A/ B/ C/ --joint --out X``: measure each folder, fit one robot
     and one sheet pose per placement, write ``X/calibration.json`` (robot frame R) and
     ``X/<folder>/calibration.json`` (each placement's sheet frame, for ``plan``).
-    Returns the robot-frame document."""
+    Returns the robot-frame document. ``config``: the thresholds (default ``DEFAULT``),
+    recorded as its ``config``."""
+    config = config or DEFAULT
     out_dir = Path(out_dir)
     places, sessions = [], []
     names = [Path(f).resolve().name for f in folders]
@@ -412,7 +420,8 @@ def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
                                + ", ".join(sorted({n for n in names if names.count(n) > 1})))
     for folder, name in zip(folders, names):
         session = load_session(folder)
-        _, data, _ = measure_marks(session, out_dir=out_dir / name, jobs=jobs, progress=progress)
+        _, data, _ = measure_marks(session, out_dir=out_dir / name, jobs=jobs, progress=progress,
+                                   config=config)
         cal = data.select("calibration")
         q, a = cal.q_deg, cal.approach
         if cal.joint4 is not None:
@@ -427,11 +436,12 @@ def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
     tool = None
     if with_j4 and len(joint4_values(np.concatenate([p.q_deg[:, 2] for p in places]))) > 1:
         tool = Tool()
-    fit, log = fit_placements(places, tool=tool)
+    fit, log = fit_placements(places, tool=tool, config=config)
     doc = {"format": "vision-cal/calibration/1", "method": "lsq-placements",
            **robot_frame_json(fit, names),
            "diagnosis": {"selection": log,
-                         "alpha": DEFAULT.selection.alpha},
+                         "alpha": config.selection.alpha},
+           "config": config.to_json(),
            "covariance": covariance_json(list(fit.labels), fit.cov),
            "notes": ["one robot from several placements: params in the robot frame R "
                      "(docs/format.md); each placement's sheet-frame calibration in its "

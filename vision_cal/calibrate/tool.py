@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vision_cal.calibrate.circles import Circle
-from vision_cal.calibrate.lsq import Fit
+from vision_cal.calibrate.lsq import FailedFit, Fit
 from vision_cal.calibrate.paper import paper_method
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams
@@ -59,6 +59,10 @@ class ToolFit:
     """A least-squares fit with the tool. ``fit.model`` holds the :class:`Tool` effect."""
 
     fit: Fit
+
+    def or_raise(self) -> "ToolFit":
+        """This fit (the twin of :meth:`FailedFit.or_raise`)."""
+        return self
 
     def _index(self, label: str) -> int:
         return self.fit.labels.index(label)
@@ -110,24 +114,28 @@ def joints_with_q4(q_deg, q4_deg) -> np.ndarray:
 
 
 def fit_tool(q_deg, q4_deg, xy_mm, *, approach=None, effects=(), sigma_mm=None, ids=None,
-             robust: bool = True) -> ToolFit:
+             robust: bool = True) -> ToolFit | FailedFit:
     """Least squares of the base model, ``tool_mm`` and ``effects`` (joint-4 ones included,
     e.g. ``JointScale(joint=4)``) from marks (N, 2) at joints (N, 2), joint 4 (N,) deg;
-    ``approach`` (N, 2) or (N, 3) (joint 4's side third). Raises
-    :class:`CalibrationError` when the marks do not identify the tool (one ``j4_deg``)."""
+    ``approach`` (N, 2) or (N, 3) (joint 4's side third). A :class:`FailedFit` (falsy, with
+    the reason) when the marks do not identify the tool (one ``j4_deg``) or the fit cannot
+    be made: callers that branch test ``if not fit``, the others call ``.or_raise()``."""
     q4 = np.broadcast_to(np.asarray(q4_deg, dtype=float), (len(np.atleast_2d(q_deg)),))
     if len(joint4_values(q4)) < 2:
-        raise CalibrationError(folded_statement(q4)["statement"] + "; "
-                               + folded_statement(q4)["to_separate"])
+        return FailedFit(folded_statement(q4)["statement"] + "; "
+                         + folded_statement(q4)["to_separate"])
     q3 = joints_with_q4(q_deg, q4)
     tool = Tool()
     if effects:   # joint-4 effects act through the tool: start them from a fitted tool
-        tool = fit_tool(q_deg, q4, xy_mm, approach=approach, sigma_mm=sigma_mm, ids=ids,
-                        robust=robust).fit.model.tool
+        start = fit_tool(q_deg, q4, xy_mm, approach=approach, sigma_mm=sigma_mm, ids=ids,
+                         robust=robust)
+        if not start:
+            return start
+        tool = start.fit.model.tool
     model = RobotModel(ScaraParams(1.0, 1.0), (tool,) + tuple(effects))
     fit = Fit.from_estimate(q3, xy_mm, approach=approach, model=model,
-                            sigma_mm=sigma_mm, ids=ids, robust=robust).or_raise()
-    return ToolFit(fit)
+                            sigma_mm=sigma_mm, ids=ids, robust=robust)
+    return ToolFit(fit) if fit else fit
 
 
 @dataclass(frozen=True)
@@ -176,8 +184,8 @@ def paper_tool(q_deg, q4_deg, xy_mm) -> PaperTool:
     values, counts = np.unique(np.round(q4, 6), return_counts=True)
     q4c = float(values[np.argmax(counts)])
     base_marks = np.flatnonzero(np.abs(q4 - q4c) <= 1e-6)
-    base = paper_method(q[base_marks], p[base_marks]).params   # tool folded at q4c
-    c4 = Circle.from_estimate(p[g4])
+    base = paper_method(q[base_marks], p[base_marks]).or_raise().params  # tool folded at q4c
+    c4 = Circle.from_estimate(p[g4]).or_raise()
     flange = np.array(c4.center_mm)
     phi1 = np.radians(q[g4[0], 0] + base.z1_deg)
     elbow = np.array(base.base_mm) + base.L1_mm * np.array([np.cos(phi1), np.sin(phi1)])

@@ -18,8 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-LENGTH_MM = 60.0
-MAP_STEP_MM = 40.0
+from vision_cal.config import DEFAULT, SmoothResidualConfig
 
 
 #: up to this many marks the kernel is exact (a dense N x N matrix, built once); above, each
@@ -104,12 +103,19 @@ def _agreement(r, pred):
     return float(np.sum(r * pred) / den) if den > 0 else 0.0
 
 
-def smooth_residual(xy_mm, residual_mm, extent_mm, *, alpha: float = 1e-3,
-                    length_mm: float = LENGTH_MM, n_perm: int = 1999, rng=None) -> dict | None:
+def smooth_residual(xy_mm, residual_mm, extent_mm, *, alpha: float | None = None,
+                    length_mm: float | None = None, n_perm: int | None = None, rng=None,
+                    config: SmoothResidualConfig | None = None) -> dict | None:
     """The ``unexplained`` entry for a spatially smooth residual, or None.
 
-    ``xy_mm`` (N, 2) mark positions, ``residual_mm`` (N, 2) after the final model.
+    ``xy_mm`` (N, 2) mark positions, ``residual_mm`` (N, 2) after the final model;
+    ``config`` the test's level, length, map step and permutations (default
+    ``DEFAULT.smooth_residual``; ``alpha``, ``length_mm``, ``n_perm`` override it).
     """
+    cfg = config or DEFAULT.smooth_residual
+    alpha = cfg.alpha if alpha is None else alpha
+    length_mm = cfg.length_mm if length_mm is None else length_mm
+    n_perm = cfg.n_permutations if n_perm is None else n_perm
     xy = np.asarray(xy_mm, float).reshape(-1, 2)
     r = np.asarray(residual_mm, float).reshape(-1, 2)
     ok = np.all(np.isfinite(r), axis=1)
@@ -128,8 +134,8 @@ def smooth_residual(xy_mm, residual_mm, extent_mm, *, alpha: float = 1e-3,
     if p >= alpha:
         return None
     x0, y0, x1, y1 = (float(v) for v in extent_mm)
-    xs = np.arange(x0, x1 + 1e-9, MAP_STEP_MM)
-    ys = np.arange(y0, y1 + 1e-9, MAP_STEP_MM)
+    xs = np.arange(x0, x1 + 1e-9, cfg.map_step_mm)
+    ys = np.arange(y0, y1 + 1e-9, cfg.map_step_mm)
     X, Y = np.meshgrid(xs, ys)
     P = np.column_stack([X.ravel(), Y.ravel()])
     field = np.full((len(P), 2), np.nan)

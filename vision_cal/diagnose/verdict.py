@@ -10,8 +10,8 @@ photos (``vision-cal handeye``), each photo's flange position standing for a mar
 The noise floor. Each mark's position carries the measurer's per-axis standard deviation
 ``sigma_mm`` (calibration.json ``marks[].sigma_mm``); the robot adds its repeatability
 ``r`` (measured from marks drawn twice at the same command when there are at least
-:data:`MIN_REPEAT_PAIRS` such pairs, else the robot block's ``repeatability_mm``, one
-standard deviation per axis, else :data:`DEFAULT_REPEATABILITY_MM`; the synthetic world
+``verdict.min_repeat_pairs`` such pairs, else the robot block's ``repeatability_mm``, one
+standard deviation per axis, else ``verdict.default_repeatability_mm``; the synthetic world
 uses the same meaning). If the model
 is right, the fitted residuals are that noise alone::
 
@@ -20,8 +20,8 @@ is right, the fitted residuals are that noise alone::
 
 is chi-square with ``dof`` degrees of freedom; ``residual_over_floor = sqrt(chi2 / dof)``
 (1 where noise explains it all) and its p-value is ``chi2.sf(chi2, dof)``. The gate is
-passed unless the p-value is below :data:`FLOOR_ALPHA` *and* the ratio above
-:data:`FLOOR_RATIO_TOL` (a ratio that small is within how well a measurer knows its own
+passed unless the p-value is below ``verdict.floor_alpha`` *and* the ratio above
+``verdict.floor_ratio_tol`` (a ratio that small is within how well a measurer knows its own
 noise). Held-out marks are judged against the same floor, their variance raised by the
 model's own prediction error, on average ``P / (2 N)`` of the noise (the mean leverage).
 
@@ -30,16 +30,20 @@ paper, a bad mark, a pose the model misses). The largest error over the held-out
 (the fitted marks when none are held out) is judged against the same noise: each mark's
 ``t = |r|^2 / var`` is chi-square with 2 dof, so the largest of N exceeds ``t_max`` by noise
 alone with probability ``1 - (1 - exp(-t_max / 2))^N``, computed with the variance raised
-by ``FLOOR_RATIO_TOL^2`` (the noise is known only that well); below :data:`FLOOR_ALPHA`
+by ``floor_ratio_tol^2`` (the noise is known only that well); below ``floor_alpha``
 it is a reason (``check``), and ``max_target_error`` is in the block either way.
 
 Status: ``not reliable`` when the plan cannot identify the model, the robot drifted, or the
-residual is beyond the floor by :data:`NOT_RELIABLE_RATIO` or more; ``check`` for every
+residual is beyond the floor by ``verdict.not_reliable_ratio`` or more; ``check`` for every
 other reason listed (beyond the floor by less, a target error beyond the noise, structure
 left - an ``unexplained`` effect, photos whose marks moved together, a printed grid that
 disagrees with the markers the way a lens error does - the scans for unnamed effects not
 run, outliers or unreliable marks, too few marks, no noise known); ``ready`` only with no
 reason at all.
+
+The thresholds are calibration.json ``config.verdict`` (:class:`vision_cal.config.VerdictConfig`):
+:func:`judge` reads the ones the document recorded (the defaults for a file without them),
+so a calibration judged again is judged by its own rules.
 """
 
 from __future__ import annotations
@@ -50,14 +54,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-#: the robot's repeatability when the robot block does not give it (mm, per axis, one std):
-#: a SCARA catalogue's +-0.01 mm read as one std (conservative: catalogues quote more)
-DEFAULT_REPEATABILITY_MM = 0.01
-FLOOR_ALPHA = 1e-3          # chi-square level of the gate
-FLOOR_RATIO_TOL = 1.25      # residual / floor below this: within how well the noise is known
-NOT_RELIABLE_RATIO = 2.0    # beyond the gate by this much: do not plan with the model
-HELDOUT_WARN_RATIO = 3.0    # held-out RMS above this many times the fitted RMS: check
-MIN_SPARE_DOF = 8           # 2 N - P below this: too few marks to test any effect
+from vision_cal.config import DEFAULT, EstimatorConfig, VerdictConfig
+
 #: radius holding 95 % of a circular normal 2-D error per unit of its RMS
 R95_PER_RMS = math.sqrt(-2.0 * math.log(0.05)) / math.sqrt(2.0)
 
@@ -75,10 +73,7 @@ class FloorTest:
     ratio: float            # sqrt(chi2 / dof): residual over floor
     rms_mm: float           # 2-D RMS of the residuals
     floor_rms_mm: float     # 2-D RMS the noise alone gives
-
-    @property
-    def beyond(self) -> bool:
-        return self.p_value < FLOOR_ALPHA and self.ratio > FLOOR_RATIO_TOL
+    beyond: bool            # p below the gate's level and the ratio above its tolerance
 
     def to_json(self) -> dict:
         return {"n_marks": self.n_marks, "dof": self.dof, "chi2": self.chi2,
@@ -87,11 +82,16 @@ class FloorTest:
                 "beyond": self.beyond}
 
 
-def floor_test(residual_mm, sigma_mm, repeatability_mm: float = DEFAULT_REPEATABILITY_MM, *,
-               n_params: int = 0, inflate: float = 1.0) -> FloorTest | None:
+def floor_test(residual_mm, sigma_mm, repeatability_mm: float | None = None, *,
+               n_params: int = 0, inflate: float = 1.0,
+               config: VerdictConfig | None = None) -> FloorTest | None:
     """Chi-square of residuals (N, 2) against per-mark per-axis noise ``sigma_mm`` (N,)
-    plus ``repeatability_mm``; ``n_params`` fitted parameters (0 for held-out marks);
-    ``inflate`` multiplies the variance (held-out marks: 1 + P / 2N). None if no dof."""
+    plus ``repeatability_mm`` (None: ``config.default_repeatability_mm``); ``n_params``
+    fitted parameters (0 for held-out marks); ``inflate`` multiplies the variance (held-out
+    marks: 1 + P / 2N); ``config`` the gate's thresholds. None if no dof."""
+    config = config or DEFAULT.verdict
+    if repeatability_mm is None:
+        repeatability_mm = config.default_repeatability_mm
     r = np.asarray(residual_mm, dtype=float).reshape(-1, 2)
     s = np.asarray(sigma_mm, dtype=float).reshape(-1)
     var = (s**2 + float(repeatability_mm) ** 2) * inflate
@@ -101,9 +101,11 @@ def floor_test(residual_mm, sigma_mm, repeatability_mm: float = DEFAULT_REPEATAB
     if dof <= 0:
         return None
     chi2 = float(np.sum(r[ok] ** 2 / var[ok, None]))
-    return FloorTest(n, dof, chi2, float(stats.chi2.sf(chi2, dof)), math.sqrt(chi2 / dof),
+    p, ratio = float(stats.chi2.sf(chi2, dof)), math.sqrt(chi2 / dof)
+    return FloorTest(n, dof, chi2, p, ratio,
                      float(np.sqrt(np.mean(np.sum(r[ok] ** 2, axis=1)))),
-                     float(np.sqrt(2 * np.mean(var[ok]) * dof / (2 * n))))
+                     float(np.sqrt(2 * np.mean(var[ok]) * dof / (2 * n))),
+                     bool(p < config.floor_alpha and ratio > config.floor_ratio_tol))
 
 
 @dataclass(frozen=True)
@@ -116,10 +118,7 @@ class MaxErrorTest:
     p_value: float          # the largest of n noise-only errors this large (tolerant)
     n_marks: int
     of: str                 # held-out | fitted
-
-    @property
-    def beyond(self) -> bool:
-        return self.p_value < FLOOR_ALPHA
+    beyond: bool            # p below the gate's level
 
     def to_json(self) -> dict:
         return {"mark": self.mark, "error_mm": self.error_mm, "over_noise": self.over_noise,
@@ -128,9 +127,12 @@ class MaxErrorTest:
 
 
 def max_error_test(ids, residual_mm, sigma_mm, repeatability_mm: float, *, of: str,
-                   inflate: float = 1.0) -> MaxErrorTest | None:
+                   inflate: float = 1.0,
+                   config: VerdictConfig | None = None) -> MaxErrorTest | None:
     """The largest of the residuals (N, 2) of marks ``ids`` against their per-axis noise
-    ``sigma_mm`` (N,) plus ``repeatability_mm`` (variance times ``inflate``). None: no mark."""
+    ``sigma_mm`` (N,) plus ``repeatability_mm`` (variance times ``inflate``); ``config``
+    the gate's thresholds. None: no mark."""
+    config = config or DEFAULT.verdict
     r = np.asarray(residual_mm, dtype=float).reshape(-1, 2)
     var = (np.asarray(sigma_mm, dtype=float).reshape(-1) ** 2 + repeatability_mm**2) * inflate
     ok = np.all(np.isfinite(r), axis=1) & np.isfinite(var) & (var > 0)
@@ -140,17 +142,15 @@ def max_error_test(ids, residual_mm, sigma_mm, repeatability_mm: float, *, of: s
     k = int(np.argmax(t))
     n = int(ok.sum())
     # P(max of n chi2(2) >= t): 1 - (1 - e^{-t/2})^n, in a form exact for tiny tails
-    tail = -np.expm1(n * np.log1p(-math.exp(-t[k] / (2 * FLOOR_RATIO_TOL**2))))
+    tail = -np.expm1(n * np.log1p(-math.exp(-t[k] / (2 * config.floor_ratio_tol**2))))
     return MaxErrorTest(str(ids[k]), float(np.hypot(*r[k])), float(math.sqrt(t[k] / 2)),
-                        float(tail), n, of)
+                        float(tail), n, of, bool(tail < config.floor_alpha))
 
 
-MIN_REPEAT_PAIRS = 4        # pairs of marks drawn at the same command to measure repeatability
-
-
-def repeatability_from_repeats(marks: dict) -> tuple[float, int] | None:
+def repeatability_from_repeats(marks: dict, config: VerdictConfig | None = None
+                               ) -> tuple[float, int] | None:
     """The robot's repeatability (mm, per axis, one std) from marks drawn twice, and the
-    number of pairs; None below :data:`MIN_REPEAT_PAIRS` pairs.
+    number of pairs; None below ``config.min_repeat_pairs`` pairs.
 
     A pair is a mark and the one its ``repeat_of`` names (the design returns to a pose a
     few millimetres off, ``plan.calibration_plan.add_repeats``: their residuals differ by
@@ -182,7 +182,7 @@ def repeatability_from_repeats(marks: dict) -> tuple[float, int] | None:
     for a, b, field in pairs:
         d = np.subtract(a[field], b[field])
         terms.append(float(d @ d) / 2 - a["sigma_mm"] ** 2 - b["sigma_mm"] ** 2)
-    if len(terms) < MIN_REPEAT_PAIRS:
+    if len(terms) < (config or DEFAULT.verdict).min_repeat_pairs:
         return None
     return math.sqrt(max(float(np.mean(terms)) / 2, 0.0)), len(terms)
 
@@ -197,7 +197,7 @@ class Verdict:
     reasons: tuple[str, ...]
     floor: dict | None = None            # FloorTest.to_json of the fitted marks
     heldout_floor: dict | None = None    # FloorTest.to_json of the validation marks
-    repeatability_mm: float = DEFAULT_REPEATABILITY_MM
+    repeatability_mm: float | None = None   # None: not said (an old block)
     repeatability_source: str = "default"
     max_target_error: dict | None = None  # MaxErrorTest.to_json
 
@@ -229,7 +229,7 @@ class Verdict:
         """Back from calibration.json's ``verdict`` block (what readers print)."""
         return cls(d["status"], d.get("expected_target_error_mm"), d.get("residual_over_floor"),
                    tuple(d.get("reasons") or ()), d.get("floor"), d.get("heldout_floor"),
-                   d.get("repeatability_mm", DEFAULT_REPEATABILITY_MM),
+                   d.get("repeatability_mm"),
                    d.get("repeatability_source", "default"), d.get("max_target_error"))
 
     def to_json(self) -> dict:
@@ -246,12 +246,13 @@ class Verdict:
         return d
 
 
-def _floor_reasons(floor: FloorTest | None, hfloor: FloorTest | None) -> list[tuple[str, str]]:
+def _floor_reasons(floor: FloorTest | None, hfloor: FloorTest | None,
+                   config: VerdictConfig) -> list[tuple[str, str]]:
     """(status, sentence) for a fitted and a held-out residual beyond the noise floor."""
     out = []
     for name, f in (("final residual", floor), ("held-out residual", hfloor)):
         if f is not None and f.beyond:
-            out.append(("not reliable" if f.ratio >= NOT_RELIABLE_RATIO else "check",
+            out.append(("not reliable" if f.ratio >= config.not_reliable_ratio else "check",
                         f"the {name} is {f.ratio:.1f} times the noise floor ({f.rms_mm:.4f} vs "
                         f"{f.floor_rms_mm:.4f} mm, chi2 = {f.chi2:.0f} on {f.dof} dof, "
                         f"p = {f.p_value:.2g}): the model misses something"))
@@ -275,14 +276,15 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
     model for designing the informative plan: what its nine marks cannot do by design
     (test effects, compare marks given as ``measured_mm`` with a noise floor) is said among
     the reasons at the ``ready`` level, so it does not hold the pilot back; the informative
-    plan tests the effects."""
+    plan tests the effects. The thresholds: the document's own ``config.verdict``."""
+    cfg = EstimatorConfig.from_json(doc.get("config")).verdict
     pilot = stage == "pilot"
     by_design = "ready" if pilot else None
-    rep = DEFAULT_REPEATABILITY_MM if repeatability_mm is None else float(repeatability_mm)
+    rep = cfg.default_repeatability_mm if repeatability_mm is None else float(repeatability_mm)
     source = "default" if repeatability_mm is None else "robot block"
     outliers = set(doc.get("outliers") or [])
     measured = repeatability_from_repeats({k: m for k, m in (doc.get("marks") or {}).items()
-                                           if k not in outliers})
+                                           if k not in outliers}, cfg)
     if measured is not None:   # better than a catalogue figure: this robot, this day
         rep, source = measured[0], f"{measured[1]} pairs of marks drawn at the same command"
     reasons: list[tuple[str, str]] = []     # (status, sentence)
@@ -320,20 +322,20 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
     floor = hfloor = worst = None
     if fitted and all(m.get("sigma_mm") is not None for m in fitted):
         floor = floor_test([m["residual_mm"] for m in fitted],
-                           [m["sigma_mm"] for m in fitted], rep, n_params=n_par)
+                           [m["sigma_mm"] for m in fitted], rep, n_params=n_par, config=cfg)
         worst = max_error_test(fitted_ids, [m["residual_mm"] for m in fitted],
-                               [m["sigma_mm"] for m in fitted], rep, of="fitted")
+                               [m["sigma_mm"] for m in fitted], rep, of="fitted", config=cfg)
         if held and all(m.get("sigma_mm") is not None for m in held):
             inflate = 1.0 + n_par / max(2 * len(fitted), 1)
             hfloor = floor_test([m["residual_mm"] for m in held], [m["sigma_mm"] for m in held],
-                                rep, inflate=inflate)
+                                rep, inflate=inflate, config=cfg)
             worst = max_error_test(held_ids, [m["residual_mm"] for m in held],
                                    [m["sigma_mm"] for m in held], rep, of="held-out",
-                                   inflate=inflate)
+                                   inflate=inflate, config=cfg)
     elif fitted:
         add(by_design or "check", "the marks carry no measurement noise (measured_mm given): "
                                   "the residual cannot be compared with a noise floor")
-    for st, text in _floor_reasons(floor, hfloor):
+    for st, text in _floor_reasons(floor, hfloor, cfg):
         add(st, text)
     if worst is not None and worst.beyond:
         add("check", f"the largest {worst.of} target error, {worst.error_mm:.4f} mm at mark "
@@ -379,11 +381,12 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
                      f"{fit_rms:.4f} mm understates the error on new targets"
             if _finite(fit_rms) else "no accuracy figure")
     n_fit = sum(m.get("role", "calibration") == "calibration" for m in marks.values())
-    if marks and 2 * n_fit - n_par < MIN_SPARE_DOF:
+    if marks and 2 * n_fit - n_par < cfg.min_spare_dof:
         add(by_design or "check",
             f"{n_fit} fitted marks leave {2 * n_fit - n_par} degrees of freedom, too few to "
             "test for backlash, gear-ratio or sheet effects")
-    if r95 is not None and _finite(fit_rms) and fit_rms > 0 and held_rms > HELDOUT_WARN_RATIO * fit_rms:
+    if (r95 is not None and _finite(fit_rms) and fit_rms > 0
+            and held_rms > cfg.heldout_warn_ratio * fit_rms):
         add("check", f"the held-out RMS ({held_rms:.4f} mm) is {held_rms / fit_rms:.1f} times "
                      "the fitted RMS: the model misses something on new poses")
     status = max((s for s, _ in reasons), key=_RANK.get, default="ready")
@@ -396,7 +399,8 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
 
 def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
                        repeatability_mm: float | None = None,
-                       reasons: list[tuple[str, str]] = ()) -> Verdict:
+                       reasons: list[tuple[str, str]] = (),
+                       config: VerdictConfig | None = None) -> Verdict:
     """The verdict of a calibration from the arm camera's photos (``vision-cal handeye``):
     the same gate, status rule and block as :func:`judge`, its "marks" being the flange
     positions the photos imply. ``residual_mm`` (N, 2): each photo's in-plane flange
@@ -405,15 +409,17 @@ def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
     marks; ``n_params`` the parameters those residuals consume (the hat matrix's trace over
     them); ``heldout_mm`` (N, 2) leave-one-photo-out residuals, judged against the same
     floor and giving ``expected_target_error_mm``; ``reasons`` (status, sentence) the
-    caller's own (parameters the poses do not separate, an undetermined lens)."""
-    rep = DEFAULT_REPEATABILITY_MM if repeatability_mm is None else float(repeatability_mm)
+    caller's own (parameters the poses do not separate, an undetermined lens); ``config``
+    the gate's thresholds (default ``DEFAULT.verdict``)."""
+    cfg = config or DEFAULT.verdict
+    rep = cfg.default_repeatability_mm if repeatability_mm is None else float(repeatability_mm)
     source = "default" if repeatability_mm is None else "robot block"
     res = np.asarray(residual_mm, float).reshape(-1, 2)
     n, p = len(res), int(round(n_params))
-    floor = floor_test(res, sigma_mm, rep, n_params=p)
-    hfloor = floor_test(heldout_mm, sigma_mm, rep, inflate=1.0 + p / max(2 * n, 1))
-    found = list(reasons) + _floor_reasons(floor, hfloor)
-    if 2 * n - p < MIN_SPARE_DOF:
+    floor = floor_test(res, sigma_mm, rep, n_params=p, config=cfg)
+    hfloor = floor_test(heldout_mm, sigma_mm, rep, inflate=1.0 + p / max(2 * n, 1), config=cfg)
+    found = list(reasons) + _floor_reasons(floor, hfloor, cfg)
+    if 2 * n - p < cfg.min_spare_dof:
         found.append(("check", f"{n} photos leave {2 * n - p} degrees of freedom to compare "
                                "with the noise floor: add poses"))
     held = np.asarray(heldout_mm, float).reshape(-1, 2)

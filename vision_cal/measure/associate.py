@@ -78,21 +78,19 @@ def group_dots(per_image, *, tol_mm: float) -> list[DotGroup]:
             for g in groups]
 
 
-#: fraction of a photo's error variance that repeats in every photo of the same dot (the
-#: printed grid under the dot, the paper grain, each marker's own corner bias): measured on
-#: synthetic series, where averaging n views shrank the error far less than 1/n
-COMMON_FRACTION = DEFAULT.association.common_fraction  # see vision_cal.config
-
-
-def combine(group: DotGroup, *, common_fraction: float = COMMON_FRACTION
+def combine(group: DotGroup, *, common_fraction: float | None = None
             ) -> tuple[np.ndarray, np.ndarray, float]:
     """Weighted mean (2,), its covariance (2, 2) and the spread (RMS distance of the
     photos' estimates to the mean, mm).
 
     The covariance of the mean of n photos is ``inv(sum C_i^-1) * (1 + rho (n - 1))``
     (errors correlated by ``rho = common_fraction`` between photos), inflated further when
-    the photos disagree more than their covariances say.
+    the photos disagree more than their covariances say. ``common_fraction`` None: config
+    ``association.common_fraction`` (the share of a photo's error variance that repeats in
+    every photo of the same dot) of ``DEFAULT``.
     """
+    if common_fraction is None:
+        common_fraction = DEFAULT.association.common_fraction
     W = np.array([np.linalg.inv(c + np.eye(2) * 1e-12) for c in group.cov_mm2])
     Wsum = W.sum(axis=0)
     n = len(group.cov_mm2)
@@ -200,15 +198,18 @@ def clean_anchors(q_deg, dots_mm, anchors, *, tol_mm: float = 3.0) -> list:
 
 
 def match_to_plan(q_deg, dots_mm, nominal: ScaraParams, *, allowed=None, anchors=(),
-                  max_zero_deg: float = DEFAULT.association.max_zero_deg,
-                  max_base_mm: float = DEFAULT.association.max_base_mm,
+                  max_zero_deg: float | None = None, max_base_mm: float | None = None,
                   zero_step_deg: float = 0.5, bin_mm: float = 5.0):
     """Assign dots (M, 2) to planned marks at ``q_deg`` (N, 2) through the robot model.
 
     ``allowed`` (N, M) bool: pairs permitted by the photo series; ``anchors``: (mark, dot)
     pairs already known. Returns ``(pairs, params, rms_mm, reason)``: ``pairs`` a tuple of
     (mark index, dot index) or None with ``reason`` saying why it refuses.
+    ``max_zero_deg`` / ``max_base_mm`` None: config ``association`` of ``DEFAULT``.
     """
+    ac = DEFAULT.association
+    max_zero_deg = ac.max_zero_deg if max_zero_deg is None else max_zero_deg
+    max_base_mm = ac.max_base_mm if max_base_mm is None else max_base_mm
     q = np.asarray(q_deg, float).reshape(-1, 2)
     dots = np.asarray(dots_mm, float).reshape(-1, 2)
     N, M = len(q), len(dots)
@@ -285,12 +286,13 @@ def match_to_plan(q_deg, dots_mm, nominal: ScaraParams, *, allowed=None, anchors
 
 
 def associate(q_deg, mark_ids, mark_images, groups: list[DotGroup], nominal: ScaraParams,
-              *, max_zero_deg=DEFAULT.association.max_zero_deg,
-              max_base_mm=DEFAULT.association.max_base_mm) -> Assignment:
+              *, max_zero_deg: float | None = None,
+              max_base_mm: float | None = None) -> Assignment:
     """Assign dot groups to marks.
 
     ``q_deg`` (N, 2) commanded joints, ``mark_ids`` (N,), ``mark_images``: for each mark the
-    set of usable image indices whose ``marks`` list it (empty: never photographed).
+    set of usable image indices whose ``marks`` list it (empty: never photographed);
+    ``max_zero_deg`` / ``max_base_mm`` None: config ``association`` of ``DEFAULT``.
     """
     q = np.asarray(q_deg, float).reshape(-1, 2)
     N, G = len(q), len(groups)

@@ -33,12 +33,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vision_cal.config import DEFAULT, AssociationConfig, EstimatorConfig
+from vision_cal.config import DEFAULT, AssociationConfig, EstimatorConfig, PlanMatchConfig
 from vision_cal.dataset import photos
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.session import Session, load_session
 from vision_cal.calibrate.tool import fit_tool
-from vision_cal.errors import CalibrationError, VisionCalError
+from vision_cal.errors import VisionCalError
 from vision_cal.measure import associate as assoc
 from vision_cal.measure.aruco import edge_points, find_sheet_markers
 from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerprint
@@ -50,7 +50,7 @@ from vision_cal.measure.printed import printed_reference
 from vision_cal.measure.rotated import to_main_px, transposed, turned_lens
 from vision_cal.measure.sheetfit import (LENS_CAUSE, MISFIT, corner_tolerance_mm,
                                          misfit_reason)
-from vision_cal.measure.grid import GRID_HALF_MM, grid_offset
+from vision_cal.measure.grid import grid_offset
 from vision_cal.measure.grid_declaration import misdeclared_grid
 from vision_cal.measure.height import sheet_heights
 from vision_cal.measure.mapping import LensEstimate, estimate_lens, fit_mapping, undistort_px
@@ -160,7 +160,7 @@ def detect_image_bytes(data: bytes, file: str, session: Session, *,
                            config=config.dots)
     gp, go = None, None
     if session.sheet.grid_spec is not None and len(cand.uv_px):
-        gp, go = _grid_patches(rgb, approx, cand.uv_px)
+        gp, go = _grid_patches(rgb, approx, cand.uv_px, config.grid.window_half_mm)
     out = out.with_candidates(cand)
     if gp is None:
         return out
@@ -169,14 +169,15 @@ def detect_image_bytes(data: bytes, file: str, session: Session, *,
     return out2
 
 
-def _grid_patches(rgb, mapping, uv_px):
-    """uint16 R+G+B patches around each candidate wide enough for the local grid window."""
+def _grid_patches(rgb, mapping, uv_px, half_mm: float):
+    """uint16 R+G+B patches around each candidate wide enough for the local grid window
+    (``half_mm``: its half-size, config ``grid.window_half_mm``)."""
     H, W = rgb.shape[:2]
     xy = mapping.image_to_sheet(uv_px)
     mmpp = mapping.mm_per_px(xy)
     patches, origins = [], []
     for (u, v), mpp in zip(uv_px, mmpp):
-        hp = int(np.ceil(1.2 * (GRID_HALF_MM + 0.5) / max(float(mpp), 1e-6))) + 2
+        hp = int(np.ceil(1.2 * (half_mm + 0.5) / max(float(mpp), 1e-6))) + 2
         cu, cv_ = int(round(u)), int(round(v))
         c0, r0 = max(cu - hp, 0), max(cv_ - hp, 0)
         c1, r1 = min(cu + hp + 1, W), min(cv_ + hp + 1, H)
@@ -262,7 +263,7 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
         oc = np.full((2, 2), np.nan)
         if have_grid and not r.printed_under:   # over print, the grid around is interrupted
             go = _local_grid(det, k, m, r.xy_mm, grid, dia or config.dots.default_diameter_mm,
-                             grid_blank, config.dots)
+                             grid_blank, config)
             if go is not None:
                 # the dot against the printed lines around it: the marker mapping's error
                 # (and a raised paper's parallax) cancels, the lines' own noise adds
@@ -289,13 +290,14 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
                        np.asarray(ocov).reshape(-1, 2, 2), m, K, tuple(unrel), tuple(under))
 
 
-def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank, dots):
+def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank, config):
     """The printed grid's offset around candidate ``k`` (None: not usable)."""
     if k >= len(det.grid_patches):
         return None
     r_win, _ = _radii_mm(float(dia), float(mapping.mm_per_px(xy_mm)[0]))
     return grid_offset(det.grid_patches[k], det.grid_origins[k], mapping, xy_mm, grid,
-                       exclude_r_mm=r_win, blank_rects=blank, dot_dia_mm=dia, dots=dots)
+                       exclude_r_mm=r_win, blank_rects=blank, dot_dia_mm=dia,
+                       dots=config.dots, config=config.grid)
 
 
 def measure_image(path, session: Session, *, lens: LensEstimate | None = None,
@@ -433,9 +435,8 @@ def _with_fitted_tool(a, session, mark_ids, mark_images, groups, ac):
     if len(k) < 8:
         return a
     xy = np.array([groups[g].mean_mm for g in a.mark_to_group.values()])
-    try:
-        tf = fit_tool(session.joints_deg[k], session.j4_deg[k], xy)
-    except CalibrationError:
+    tf = fit_tool(session.joints_deg[k], session.j4_deg[k], xy)
+    if not tf:
         return a
     q, model = _tool_joints(tf.fit.params, tf.tool_mm, session)
     b = assoc.associate(q, mark_ids, mark_images, groups, model,
@@ -484,10 +485,11 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                                          listed_marks=[ph.listed_marks for ph in items])
     warnings += finish_warnings
     files = [ph.file for ph in items]
-    dots = associate_dots(session, items, images, ac, config.dots.default_diameter_mm)
+    dots = associate_dots(session, items, images, ac, config.dots.default_diameter_mm,
+                          config.plan_match)
     warnings += dots.warnings
     marks = mark_measurements(dots, images, files, ac)
-    heights, hmap, hnote = sheet_height_stage(session, images, marks, dots, lens, ac)
+    heights, hmap, hnote = sheet_height_stage(session, images, marks, dots, lens, config)
     for r in images:
         if r.status != "ok":
             log.info("skipped %s: %s", r.file, r.reason)
@@ -659,7 +661,7 @@ def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool]
     warnings: list[str] = []
     images = [finish_image(d, session, lens, from_cache=c, config=config) for d, c in zip(dets, cached)]
     _check_sheet_fits(session, images)
-    wrong_grid = misdeclared_grid(images, session.sheet.grid_spec)
+    wrong_grid = misdeclared_grid(images, session.sheet.grid_spec, config.grid_declaration)
     if wrong_grid is not None:   # two references disagree by a constant: the markers win
         log.warning(wrong_grid.message)
         warnings.append(wrong_grid.message)
@@ -677,7 +679,7 @@ def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool]
                                      previous=prev, config=config)
 
     # a photo moved as a whole against the others is left out, not the marks it shares
-    for k, why in disagreeing_photos(images).items():
+    for k, why in disagreeing_photos(images, config.photo_agreement).items():
         log.warning("%s: %s", images[k].file, why)
         warnings.append(f"{images[k].file}: {why}")
         images[k] = replace(images[k], status="skipped", reason=why)
@@ -709,7 +711,8 @@ class AssociatedDots:
 
 
 def associate_dots(session: Session, items: list[_Photo], images: list[ImageResult],
-                   ac: AssociationConfig, default_diameter_mm: float) -> AssociatedDots:
+                   ac: AssociationConfig, default_diameter_mm: float,
+                   plan_match: PlanMatchConfig | None = None) -> AssociatedDots:
     """Stage 3: dots grouped across photos and the groups matched to the planned marks
     (which marks a photo shows: listed, or inferred); photos that do not match the plan
     stop the run (:mod:`vision_cal.measure.plan_match`). Each photo's ``dots_mark`` is set
@@ -726,7 +729,7 @@ def associate_dots(session: Session, items: list[_Photo], images: list[ImageResu
         image_marks = [tuple(ph.listed_marks) for ph in items]
         inferred = None
     else:
-        inferred = infer_image_marks(len(items), idx_ok, groups, mark_ids, files)
+        inferred = infer_image_marks(len(items), idx_ok, groups, mark_ids, files, ac)
         image_marks = list(inferred.marks)
         warnings.extend(inferred.warnings)
         n_off = sum(1 for r in images if r.status != "ok")
@@ -745,7 +748,8 @@ def associate_dots(session: Session, items: list[_Photo], images: list[ImageResu
     if with_tool:
         a = _with_fitted_tool(a, session, mark_ids, mark_images, groups, ac)
     warnings.extend(a.warnings)
-    check_plan_match(session.path, files, images, image_marks, len(groups), len(a.mark_to_group))
+    check_plan_match(session.path, files, images, image_marks, len(groups), len(a.mark_to_group),
+                     plan_match)
     dot_mark = [[""] * len(im.dots_xy_mm) for im in images]
     for mid, gi in a.mark_to_group.items():
         for k, j in zip(groups[gi].images, groups[gi].dot_index):
@@ -801,7 +805,8 @@ def mark_measurements(dots: AssociatedDots, images: list[ImageResult], files: li
 
 
 def sheet_height_stage(session: Session, images: list[ImageResult], marks: dict,
-                       dots: AssociatedDots, lens: LensEstimate | None, ac: AssociationConfig):
+                       dots: AssociatedDots, lens: LensEstimate | None,
+                       config: EstimatorConfig):
     """Stage 4: the sheet's height (parallax against the grid or between camera places).
     A paper that is not flat moves the marks seen through the marker mapping alone to the
     position parallax found; a flat one puts the grid-referenced marks back on the marker
@@ -811,7 +816,8 @@ def sheet_height_stage(session: Session, images: list[ImageResult], marks: dict,
     heights, hmap, hnote = {}, None, None
     try:
         heights, hmap, hnote = sheet_heights(images, marks, groups_of, session.sheet.extent_mm,
-                                             K_fallback=None if lens is None else lens.K)
+                                             K_fallback=None if lens is None else lens.K,
+                                             config=config)
     except (VisionCalError, np.linalg.LinAlgError) as e:
         hnote = f"no height map: {e}"
     if hmap is not None and hmap.claimed:
@@ -830,7 +836,8 @@ def sheet_height_stage(session: Session, images: list[ImageResult], marks: dict,
                 np.array([images[k].dots_global_xy_mm[j] for k, j in zip(g.images, g.dot_index)]),
                 np.array([images[k].dots_global_cov_mm2[j]
                           for k, j in zip(g.images, g.dot_index)]), g.images, g.dot_index)
-            xy, cov, spread = assoc.combine(gg, common_fraction=ac.common_fraction)
+            xy, cov, spread = assoc.combine(gg,
+                                            common_fraction=config.association.common_fraction)
             marks[mid] = replace(mm, xy_mm=xy, cov_mm2=cov, spread_mm=spread,
                                  reference="markers (sheet flat)")
     return heights, hmap, hnote

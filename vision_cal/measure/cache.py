@@ -45,16 +45,18 @@ STALE_TMP_S = 3600.0
 
 def session_fingerprint(session, config=None) -> str:
     """What stage 1 depends on besides the photo: the sheet, pen, camera and the
-    ``markers``/``dots`` thresholds of ``config`` (an ``EstimatorConfig``)."""
+    ``markers``/``dots``/``grid`` thresholds of ``config`` (an ``EstimatorConfig``)."""
     cam = session.camera
     parts = {"sheet": session.sheet.to_json() if session.sheet else None,
              "pen": session.pen_mark_diameter_mm,
              "camera": None if cam is None else {"size": list(cam.size_px),
                                                  "K": np.asarray(cam.K).tolist(),
                                                  "dist": np.asarray(cam.dist).tolist()}}
-    if config is not None and (config.markers, config.dots) != (DEFAULT.markers, DEFAULT.dots):
+    if config is not None and (config.markers, config.dots, config.grid) != (
+            DEFAULT.markers, DEFAULT.dots, DEFAULT.grid):
         # stage 1's thresholds, when not the defaults (default runs keep their old keys)
-        parts["config"] = {"markers": asdict(config.markers), "dots": asdict(config.dots)}
+        parts["config"] = {"markers": asdict(config.markers), "dots": asdict(config.dots),
+                           "grid": asdict(config.grid)}
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
 
 

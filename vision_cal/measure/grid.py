@@ -30,15 +30,10 @@ import cv2
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
-from vision_cal.config import DEFAULT, DotConfig
+from vision_cal.config import DEFAULT, DotConfig, GridConfig
 from vision_cal.dataset.session import SheetGrid
 from vision_cal.measure.mapping import SheetMapping, apply_h
 
-GRID_STEP_MM = 0.15       # window sampling (a pixel is 0.2-0.4 mm on the sheet)
-GRID_HALF_MM = 9.0        # window half-size: +-9 mm holds 18 lines at many pixel phases
-MIN_PERIODS = 3.0          # the window must hold this many pitches of usable profile per axis
-DARK_FRACTION = 0.7       # samples below this fraction of the paper level are not grid
-MIN_CONTRAST = 6.0         # |Fourier amplitude| / its noise: below, the lines are not seen
 
 
 @dataclass(frozen=True)
@@ -53,12 +48,13 @@ class GridOffset:
 
 
 def _phase(profile: np.ndarray, coord: np.ndarray, ok: np.ndarray, sigma: np.ndarray,
-           pitch: float, origin: float, corr_len: float):
+           pitch: float, origin: float, corr_len: float, min_periods: float):
     """Line offset d (mm), its std and snr of a 1-D log profile with dark lines at
     origin + k pitch + d. ``sigma`` (n,): noise of each profile sample; ``corr_len``: the
-    correlation length of neighbouring samples (a pixel on the sheet)."""
+    correlation length of neighbouring samples (a pixel on the sheet); ``min_periods``
+    pitches of usable profile at least (config ``grid.min_periods``)."""
     x, a, sg = coord[ok], profile[ok], sigma[ok]
-    if len(x) < 8 or np.ptp(x) < MIN_PERIODS * pitch:
+    if len(x) < 8 or np.ptp(x) < min_periods * pitch:
         return None
     # Hann taper over the usable span, mean and linear trend removed (shading)
     t = (x - x.min()) / max(np.ptp(x), 1e-9)
@@ -111,13 +107,18 @@ def _lens_map(mapping, c, g, half_mm, origin_px):
 def grid_offset(patch_rgb: np.ndarray, origin_px, mapping: SheetMapping, centre_mm,
                 grid: SheetGrid, *, exclude_r_mm: float, blank_rects=None,
                 dot_dia_mm: float | None = None,
-                half_mm: float = GRID_HALF_MM, step_mm: float = GRID_STEP_MM,
-                dots: DotConfig | None = None) -> GridOffset | None:
+                half_mm: float | None = None, step_mm: float | None = None,
+                dots: DotConfig | None = None, config: GridConfig | None = None
+                ) -> GridOffset | None:
     """The printed grid's offset around a dot (see the module docstring), or None when the
     lines cannot be seen well enough (too few in the patch, too faint). ``dots``: what a pen
     dot is (size, aspect; default ``vision_cal.config.DEFAULT.dots``): other dark ink is
-    print."""
+    print. ``config``: the window and the thresholds (default ``DEFAULT.grid``; ``half_mm``
+    and ``step_mm`` None: its window)."""
     dot_cfg = dots or DEFAULT.dots
+    cfg = config or DEFAULT.grid
+    half_mm = cfg.window_half_mm if half_mm is None else half_mm
+    step_mm = cfg.window_step_mm if step_mm is None else step_mm
     S = np.asarray(patch_rgb)
     S = S.astype(np.float32).sum(axis=2) if S.ndim == 3 else S.astype(np.float32)
     c = np.asarray(centre_mm, float).reshape(2)
@@ -148,7 +149,7 @@ def grid_offset(patch_rgb: np.ndarray, origin_px, mapping: SheetMapping, centre_
     # not the printed grid: other ink, the arm, shadows, anything far darker than the
     # paper (the lines darken it by a few per cent), with a margin of half a millimetre
     paper = float(np.percentile(Sg[ok], 90))
-    dark = ~(Sg > DARK_FRACTION * paper)
+    dark = ~(Sg > cfg.dark_fraction * paper)
     if dark.any():
         # dark ink that is no pen dot (larger than one, or elongated: a bar, an axis, a
         # label) away from this dot: printed content the grid does not hold, whose edges
@@ -185,10 +186,11 @@ def grid_offset(patch_rgb: np.ndarray, origin_px, mapping: SheetMapping, centre_
     n_col = np.maximum(ok.sum(axis=0) / np.sqrt(per_px), 1.0)   # along a column: 1-D
     n_row = np.maximum(ok.sum(axis=1) / np.sqrt(per_px), 1.0)
     sig_a, sig_b = 1.25 * s_L / np.sqrt(n_col), 1.25 * s_L / np.sqrt(n_row)
-    px = _phase(np.nan_to_num(a), X[0], col_ok, sig_a, grid.pitch_mm, grid.origin_mm[0], mm_px)
+    px = _phase(np.nan_to_num(a), X[0], col_ok, sig_a, grid.pitch_mm, grid.origin_mm[0], mm_px,
+                cfg.min_periods)
     py = _phase(np.nan_to_num(b), Y[:, 0], row_ok, sig_b, grid.pitch_mm, grid.origin_mm[1],
-                mm_px)
-    if px is None or py is None or min(px[2], py[2]) < MIN_CONTRAST:
+                mm_px, cfg.min_periods)
+    if px is None or py is None or min(px[2], py[2]) < cfg.min_contrast:
         return None
     return GridOffset(np.array([px[0], py[0]]), np.diag([px[1] ** 2, py[1] ** 2]),
                       np.array([px[2], py[2]]))

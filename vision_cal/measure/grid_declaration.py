@@ -7,9 +7,10 @@ differently at each place and from each camera place (parallax); a grid printed 
 than declared (another program's sheet, a hand-edited ``origin_mm``) moves them by the same
 amount everywhere, in every photo. When the offsets, taken modulo the pitch (the phase of
 the lines is all a window sees), agree over the dots (mean resultant length of the phase
-above :data:`MIN_AGREEMENT`) and their mean is beyond :data:`MIN_OFFSET_MM` and
-:data:`MIN_OFFSET_SIGMAS` standard errors, the declaration is wrong: the run says so in one
-line naming ``sheet.grid.origin_mm`` and measures against the markers.
+above ``min_agreement``) and their mean is beyond ``min_offset_mm`` and
+``min_offset_sigmas`` standard errors, the declaration is wrong: the run says so in one
+line naming ``sheet.grid.origin_mm`` and measures against the markers. The thresholds are
+config ``grid_declaration`` (:class:`vision_cal.config.GridDeclarationConfig`).
 """
 
 from __future__ import annotations
@@ -18,10 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-MIN_DOTS = 3
-MIN_AGREEMENT = 0.9
-MIN_OFFSET_MM = 0.05
-MIN_OFFSET_SIGMAS = 5.0
+from vision_cal.config import DEFAULT, GridDeclarationConfig
 
 
 @dataclass(frozen=True)
@@ -33,17 +31,19 @@ class GridMisdeclared:
     message: str
 
 
-def misdeclared_grid(images, grid) -> GridMisdeclared | None:
+def misdeclared_grid(images, grid, config: GridDeclarationConfig | None = None
+                     ) -> GridMisdeclared | None:
     """``images``: photo results (``dots_grid_offset_mm`` (K, 2), NaN where the grid was not
     used); ``grid``: the declared :class:`SheetGrid`. None when the grid is where declared
-    (or cannot tell)."""
+    (or cannot tell). ``config``: the thresholds (default ``DEFAULT.grid_declaration``)."""
+    cfg = config or DEFAULT.grid_declaration
     if grid is None:
         return None
     offs = [np.asarray(im.dots_grid_offset_mm, float).reshape(-1, 2) for im in images
             if im.status == "ok" and len(getattr(im, "dots_grid_offset_mm", ()))]
     d = np.concatenate(offs) if offs else np.zeros((0, 2))
     d = d[np.all(np.isfinite(d), axis=1)]
-    if len(d) < MIN_DOTS:
+    if len(d) < cfg.min_dots:
         return None
     p = float(grid.pitch_mm)
     z = np.exp(2j * np.pi * d / p)            # (n, 2) phases of the lines
@@ -53,8 +53,8 @@ def misdeclared_grid(images, grid) -> GridMisdeclared | None:
     # standard error of a circular mean from its scatter
     spread = np.sqrt(np.maximum(-2.0 * np.log(np.maximum(agree, 1e-12)), 0.0)) * p / (2 * np.pi)
     se = spread / np.sqrt(len(d))
-    off = np.where((agree >= MIN_AGREEMENT) & (np.abs(mean) > MIN_OFFSET_MM)
-                   & (np.abs(mean) > MIN_OFFSET_SIGMAS * se), mean, 0.0)
+    off = np.where((agree >= cfg.min_agreement) & (np.abs(mean) > cfg.min_offset_mm)
+                   & (np.abs(mean) > cfg.min_offset_sigmas * se), mean, 0.0)
     if not np.any(off):
         return None
     ox, oy = (float(v) for v in off)

@@ -20,7 +20,7 @@ mapping fits, which is what ``sheet_height`` means ("above the plane of the mark
 kernel, length and amplitude by maximum marginal likelihood over a small grid, each mark's
 own std as noise): a grid of heights and their std over the paper. It is claimed as the
 effect ``sheet_height`` only when the marks' heights are significantly not zero
-(chi-square against their std, ``alpha``), larger than ``MIN_CLAIM_MM``, and *seen*
+(chi-square against their std, ``alpha``), larger than ``min_claim_mm``, and *seen*
 (:func:`offset_evidence`, issue 17): a smooth difference between the printed grid and the
 marker mapping is also what a lens the measurement got slightly wrong makes (undeclared
 and estimated, or declared wrong), seen through a tilted camera. A height moves a point
@@ -30,6 +30,9 @@ point, mapped to the sheet, plus the homography change the marker mapping absorb
 rejected at ``alpha``) and (2) be explained once a height per mark along ``v`` is added
 to that field (its chi-square not significant at ``alpha``). Otherwise ``not_claimed``
 says why and the heights stay reported, unclaimed.
+
+The thresholds are config ``sheet_height`` (:class:`vision_cal.config.SheetHeightConfig`),
+read from the config each function is given (default ``vision_cal.config.DEFAULT``).
 """
 
 from __future__ import annotations
@@ -40,18 +43,8 @@ import numpy as np
 from scipy import stats
 from scipy.interpolate import RegularGridInterpolator
 
+from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.errors import VisionCalError
-
-#: per-photo floor on a grid offset's std (mm): what the Fourier phase cannot resolve of
-#: the printed lines (aliasing of their sharp profile), seen as 5-8 um on rendered photos
-OFFSET_FLOOR_MM = 0.008
-#: fraction of a photo's error that repeats in every photo of the same mark (same camera:
-#: same pixel phase); as ``associate.COMMON_FRACTION``
-COMMON_FRACTION = 0.5
-MIN_CLAIM_MM = 0.05          # a height map whose marks all stay below this is called flat
-MAP_STEP_MM = 20.0
-#: camera centres closer than this fraction of their height are one place (a fixed camera)
-SAME_PLACE_FRACTION = 0.02
 
 
 def camera_centre_mm(H_img_sheet, K) -> np.ndarray:
@@ -110,15 +103,17 @@ def _v(p, C):
     return (np.asarray(p, float) - C[:2]) / C[2]
 
 
-def height_from_grid(obs) -> MarkHeight | None:
+def height_from_grid(obs, config: EstimatorConfig | None = None) -> MarkHeight | None:
     """``obs``: list of (C (3,), p_mm (2,), d_mm (2,), cov_d (2, 2)) of one mark."""
+    config = config or DEFAULT
+    floor, rho = config.sheet_height.offset_floor_mm, config.association.common_fraction
     zs, ws = [], []
     for C, p, d, cov in obs:
         v = _v(p, C)
         vv = float(v @ v)
         if vv < 1e-6:
             continue  # straight below the camera: no parallax
-        var_d = float(v @ cov @ v) / vv + OFFSET_FLOOR_MM**2
+        var_d = float(v @ cov @ v) / vv + floor**2
         zs.append(float(v @ d) / vv)
         ws.append(vv / var_d)
     if not zs:
@@ -126,16 +121,19 @@ def height_from_grid(obs) -> MarkHeight | None:
     zs, ws = np.array(zs), np.array(ws)
     z = float(np.sum(ws * zs) / ws.sum())
     n = len(zs)
-    var = (1.0 + COMMON_FRACTION * (n - 1)) / ws.sum()
+    var = (1.0 + rho * (n - 1)) / ws.sum()
     if n > 1:
         chi2 = float(np.sum(ws * (zs - z) ** 2))
         var *= max(chi2 / (n - 1), 1.0)
     return MarkHeight(z, float(np.sqrt(var)), n, "grid")
 
 
-def height_from_parallax(obs, *, min_baseline: float = 0.05) -> MarkHeight | None:
+def height_from_parallax(obs, config: EstimatorConfig | None = None) -> MarkHeight | None:
     """``obs``: list of (C (3,), a_mm (2,), cov_a (2, 2)) of one mark seen through the marker
     mapping from different places: p and z by weighted least squares (a_k = p + z v_k)."""
+    config = config or DEFAULT
+    min_baseline, rho = (config.sheet_height.min_parallax_baseline,
+                         config.association.common_fraction)
     if len(obs) < 2:
         return None
     p = np.mean([a for _, a, _ in obs], axis=0)
@@ -161,8 +159,8 @@ def height_from_parallax(obs, *, min_baseline: float = 0.05) -> MarkHeight | Non
     res = [bi - Ai @ sol for Ai, bi in zip(A, b)]
     chi2 = float(sum(ri @ Wi @ ri for ri, Wi in zip(res, W)))
     f = max(chi2 / max(2 * n - 3, 1), 1.0)
-    var = Ninv[2, 2] * f * (1.0 + COMMON_FRACTION * (n - 1))
-    infl = f * (1.0 + COMMON_FRACTION * (n - 1))
+    var = Ninv[2, 2] * f * (1.0 + rho * (n - 1))
+    infl = f * (1.0 + rho * (n - 1))
     return MarkHeight(float(sol[2]), float(np.sqrt(var)), n, "parallax", sol[:2].copy(),
                       Ninv[:2, :2] * infl)
 
@@ -235,12 +233,14 @@ def _fit_chi2(A, b) -> tuple[float, int, float]:
     return chi2, dof, float(stats.chi2.sf(chi2, dof)) if dof > 0 else float("nan")
 
 
-def offset_evidence(obs_by_mark: dict) -> OffsetEvidence | None:
+def offset_evidence(obs_by_mark: dict,
+                    config: EstimatorConfig | None = None) -> OffsetEvidence | None:
     """The two fits of the module docstring on the grid observations: one row pair per mark
     and camera place (its photos' weighted mean, whose variance keeps the common part of
-    photos from one place, ``COMMON_FRACTION``), whitened by its covariance (each photo's
-    plus ``OFFSET_FLOOR_MM``); each camera place has its own homography change (the marker
-    mapping absorbs part of any error, and of the markers' own heights).
+    photos from one place, config ``association.common_fraction``), whitened by its
+    covariance (each photo's plus ``sheet_height.offset_floor_mm``); each camera place has
+    its own homography change (the marker mapping absorbs part of any error, and of the
+    markers' own heights).
 
     - lens (the sheet flat): the two radial lens fields shared by all photos, plus the
       homography fields;
@@ -249,17 +249,19 @@ def offset_evidence(obs_by_mark: dict) -> OffsetEvidence | None:
 
     ``obs_by_mark``: mark id -> list of (C (3,), p_mm (2,), d_mm (2,), cov_d (2, 2),
     H_img_sheet (3, 3), K (3, 3)). None when fewer marks than the heights fit can test."""
+    config = config or DEFAULT
+    hc, rho = config.sheet_height, config.association.common_fraction
     obs_by_mark = {k: v for k, v in obs_by_mark.items() if v}
     places: list[np.ndarray] = []
     groups: dict = {}     # (mark, place) -> [(W, d, v, F)]: one row pair per mark and place
     for m, obs in enumerate(obs_by_mark.values()):
         for C, p, d, cov, H, K in obs:
             k = next((i for i, c in enumerate(places)
-                      if np.linalg.norm(C - c) < SAME_PLACE_FRACTION * C[2]), None)
+                      if np.linalg.norm(C - c) < hc.same_place_fraction * C[2]), None)
             if k is None:
                 places.append(np.asarray(C, float))
                 k = len(places) - 1
-            W = np.linalg.inv(np.asarray(cov, float) + np.eye(2) * OFFSET_FLOOR_MM**2)
+            W = np.linalg.inv(np.asarray(cov, float) + np.eye(2) * hc.offset_floor_mm**2)
             groups.setdefault((m, k), []).append((W, np.asarray(d, float), _v(p, C),
                                                   _lens_fields(p, H, K)))
     rows = []
@@ -269,7 +271,7 @@ def offset_evidence(obs_by_mark: dict) -> OffsetEvidence | None:
         d = Wi @ sum(W @ dd for W, dd, _, _ in g)
         F = Wi @ sum(W @ FF for W, _, _, FF in g)
         v = np.mean([vv for _, _, vv, _ in g], axis=0)
-        Wm = Ws / (1.0 + COMMON_FRACTION * (len(g) - 1))
+        Wm = Ws / (1.0 + rho * (len(g) - 1))
         rows.append((m, k, np.linalg.cholesky(Wm).T, v, F, d))
     n_marks, n_places = len(obs_by_mark), len(places)
     Z = np.zeros((2 * len(rows), n_marks))
@@ -311,11 +313,14 @@ class HeightMap:
     not_claimed_as: str | None = None    # what the offsets are instead: lens | mapping
 
     @classmethod
-    def from_estimate(cls, xy_mm, z_mm, std_mm, extent_mm, *, ids=(), alpha: float = 1e-3,
-                      step_mm: float = MAP_STEP_MM,
-                      evidence: OffsetEvidence | None = None) -> "HeightMap":
+    def from_estimate(cls, xy_mm, z_mm, std_mm, extent_mm, *, ids=(),
+                      evidence: OffsetEvidence | None = None,
+                      config: EstimatorConfig | None = None) -> "HeightMap":
         """``evidence``: :func:`offset_evidence` of the grid offsets the heights came from
-        (None: heights from parallax between places, their own evidence)."""
+        (None: heights from parallax between places, their own evidence); ``config``: its
+        ``sheet_height`` level, claim size and grid step (default ``DEFAULT``)."""
+        hc = (config or DEFAULT).sheet_height
+        alpha, step_mm = hc.alpha, hc.map_step_mm
         xy = np.asarray(xy_mm, float).reshape(-1, 2)
         z = np.asarray(z_mm, float).ravel()
         sd = np.asarray(std_mm, float).ravel()
@@ -348,7 +353,7 @@ class HeightMap:
         chi2 = float(np.sum((z / sd) ** 2))
         p = float(stats.chi2.sf(chi2, len(z)))
         max_abs = float(np.max(np.abs(z)))
-        significant = bool(p < alpha and max_abs > MIN_CLAIM_MM)
+        significant = bool(p < alpha and max_abs > hc.min_claim_mm)
         why = evidence.not_claimed(alpha) if significant and evidence is not None else None
         kind, why = why if why is not None else (None, None)
         marks = {str(i): {"xy_mm": xy[k].tolist(), "height_mm": float(z[k]),
@@ -400,13 +405,16 @@ class HeightMap:
                 "reference": "the plane of the markers (z up towards the camera)"}
 
 
-def sheet_heights(images, marks: dict, groups_of: dict, extent_mm, *, K_fallback=None):
+def sheet_heights(images, marks: dict, groups_of: dict, extent_mm, *, K_fallback=None,
+                  config: EstimatorConfig | None = None):
     """Heights of the measured marks and the map between them.
 
     ``images``: the measured :class:`ImageResult` list; ``marks``: id -> MarkMeasurement;
     ``groups_of``: id -> list of (image index, dot index). Returns (heights: id ->
-    MarkHeight, HeightMap or None, note or None).
+    MarkHeight, HeightMap or None, note or None). ``config``: the thresholds (default
+    ``vision_cal.config.DEFAULT``).
     """
+    config = config or DEFAULT
     centres = {}
     for k, im in enumerate(images):
         if im.status != "ok" or im.mapping is None:
@@ -435,7 +443,8 @@ def sheet_heights(images, marks: dict, groups_of: dict, extent_mm, *, K_fallback
                 evidence_obs.setdefault(mid, []).append(
                     (*grid_obs[-1], im.mapping.H_img_sheet,
                      im.K if im.K is not None else K_fallback))
-        h = height_from_grid(grid_obs) if grid_obs else height_from_parallax(par_obs)
+        h = (height_from_grid(grid_obs, config) if grid_obs
+             else height_from_parallax(par_obs, config))
         if h is not None:
             heights[mid] = h
     if len(heights) < 3:
@@ -444,8 +453,8 @@ def sheet_heights(images, marks: dict, groups_of: dict, extent_mm, *, K_fallback
     ids = sorted(heights)
     xy = [heights[i].xy_mm if heights[i].xy_mm is not None else marks[i].xy_mm for i in ids]
     grid_ids = [i for i in ids if heights[i].how == "grid"]
-    evidence = offset_evidence({i: evidence_obs[i] for i in grid_ids})
+    evidence = offset_evidence({i: evidence_obs[i] for i in grid_ids}, config)
     hm = HeightMap.from_estimate(xy, [heights[i].z_mm for i in ids],
                                  [heights[i].std_mm for i in ids], extent_mm, ids=ids,
-                                 evidence=evidence)
+                                 evidence=evidence, config=config)
     return heights, hm, None

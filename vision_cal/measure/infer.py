@@ -7,7 +7,7 @@ the dot groups:
 
 - *persistent* groups are the ones seen in at least half of the usable photos from their
   first one on (a dot seen once and never again is noise or a reflection, not ink);
-- **finished sheet**: every usable photo sees most (:data:`FINISHED_FRACTION`) of the
+- **finished sheet**: every usable photo sees most (config ``association.finished_fraction``) of the
   persistent groups: each photo shows every mark of the plan;
 - **series**: otherwise. Photo k shows the first ``n_k`` marks of the plan, ``n_k`` the
   number of persistent groups first seen in photos up to k (capped at the plan's length),
@@ -27,8 +27,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-#: a photo of the finished sheet sees at least this fraction of the persistent dots
-FINISHED_FRACTION = 0.7
+from vision_cal.config import DEFAULT, AssociationConfig
 
 
 @dataclass(frozen=True)
@@ -41,10 +40,12 @@ class Inferred:
     warnings: tuple[str, ...] = ()
 
 
-def infer_image_marks(n_images: int, usable: list[int], groups, mark_ids, files
-                      ) -> Inferred:
+def infer_image_marks(n_images: int, usable: list[int], groups, mark_ids, files,
+                      config: AssociationConfig | None = None) -> Inferred:
     """``usable``: indices of usable photos in capture order; ``groups``: DotGroups over
-    them; ``mark_ids``: the plan's ids in drawing order; ``files``: names for messages."""
+    them; ``mark_ids``: the plan's ids in drawing order; ``files``: names for messages;
+    ``config``: the finished-sheet share (default ``DEFAULT.association``)."""
+    finished_fraction = (config or DEFAULT.association).finished_fraction
     mark_ids = [str(m) for m in mark_ids]
     N = len(mark_ids)
     empty = [()] * n_images
@@ -65,7 +66,7 @@ def infer_image_marks(n_images: int, usable: list[int], groups, mark_ids, files
     first_of = {gi: min(pos[k] for k in seen_by[gi]) for gi in persistent}
     frac = [sum(k in seen_by[gi] for gi in persistent) / P for k in usable]
     out = list(empty)
-    if min(frac) >= FINISHED_FRACTION:
+    if min(frac) >= finished_fraction:
         mode = "finished"
         for k in usable:
             out[k] = tuple(mark_ids)

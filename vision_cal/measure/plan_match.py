@@ -3,26 +3,23 @@
 After the association (``associate.associate``) the dots seen are compared with the plan:
 
 - a photo showing far more dots than the marks it should show (more than
-  :data:`MAX_DOTS_PER_MARK` times as many, plus :data:`SPARE_DOTS` for blemishes and an
+  ``max_dots_per_mark`` times as many, plus ``spare_dots`` for blemishes and an
   earlier pilot's marks), in most of the usable photos: another, finished sheet;
-- fewer than :data:`MIN_MATCHED_FRACTION` of the marks the photos should show matched to a
+- fewer than ``min_matched_fraction`` of the marks the photos should show matched to a
   dot, while at least as many dots as those marks were seen and the photos should show
-  at least :data:`MIN_MARKS_JUDGED` marks (fewer say little: a reversed series of three
+  at least ``min_marks_judged`` marks (fewer say little: a reversed series of three
   photos is a wrong order, reported by the inference): the dots are not where the plan and
   the robot model put them (another session's photos, another robot).
 
 Either stops the run with a :class:`vision_cal.errors.CalibrationError` (exit 1) naming the
 photos and what was seen, instead of calibrating with marks assigned to the wrong places.
+The thresholds are config ``plan_match`` (:class:`vision_cal.config.PlanMatchConfig`).
 """
 
 from __future__ import annotations
 
+from vision_cal.config import DEFAULT, PlanMatchConfig
 from vision_cal.errors import CalibrationError
-
-MAX_DOTS_PER_MARK = 2.0
-SPARE_DOTS = 3
-MIN_MATCHED_FRACTION = 0.5
-MIN_MARKS_JUDGED = 6
 
 
 def _names(files) -> str:
@@ -31,17 +28,19 @@ def _names(files) -> str:
 
 
 def check_plan_match(session_path, files, images, image_marks, n_groups: int,
-                     matched: int) -> None:
+                     matched: int, config: PlanMatchConfig | None = None) -> None:
     """Raise when the photos do not match the plan (see the module docstring).
 
     ``images``: per photo an ``ImageResult`` (``status``, ``n_dots``); ``image_marks``: per
     photo the marks it should show; ``n_groups``: physical dots found over the photos;
-    ``matched``: marks assigned to a dot."""
+    ``matched``: marks assigned to a dot; ``config`` the thresholds (default
+    ``DEFAULT.plan_match``)."""
+    cfg = config or DEFAULT.plan_match
     ok = [k for k, im in enumerate(images) if im.status == "ok"]
     if not ok:
         return
     crowded = [k for k in ok
-               if images[k].n_dots > MAX_DOTS_PER_MARK * len(image_marks[k]) + SPARE_DOTS]
+               if images[k].n_dots > cfg.max_dots_per_mark * len(image_marks[k]) + cfg.spare_dots]
     expected = {m for k in ok for m in image_marks[k]}
     if 2 * len(crowded) > len(ok):
         k = crowded[0]
@@ -51,7 +50,8 @@ def check_plan_match(session_path, files, images, image_marks, n_groups: int,
             f"({matched} of {len(expected)} marks could be matched): photos of another "
             "sheet or another session? Put the photos of this plan in the folder",
             file=str(session_path), field="images")
-    if len(expected) >= MIN_MARKS_JUDGED and n_groups >= len(expected) and matched < MIN_MATCHED_FRACTION * len(expected):
+    if (len(expected) >= cfg.min_marks_judged and n_groups >= len(expected)
+            and matched < cfg.min_matched_fraction * len(expected)):
         raise CalibrationError(
             f"the photos do not match the plan: only {matched} of {len(expected)} planned "
             f"marks could be matched to the {n_groups} dots seen on "

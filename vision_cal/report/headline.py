@@ -208,6 +208,8 @@ def configuration(doc: dict) -> dict:
         "diagnosis": (doc.get("diagnosis") or {}).get("thresholds"),
         "per_photo_offsets": {"gate_mm": p.get("gate_mm"), "alpha": p.get("alpha")},
         "fit": {"condition_number_limit": part("fit").get("condition_number_limit")},
+        # the thresholds the verdict was judged with (empty for a file that has none)
+        "verdict": dict(part("verdict")),
         "measurement": {
             "min_markers_per_photo": m.get("min_markers"),
             "min_marker_hull_fraction": m.get("min_hull_fraction"),
