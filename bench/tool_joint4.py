@@ -98,11 +98,12 @@ def placements_case(seed: int, sigma: float, amp_deg: float = 0.003):
     return bool(found), float(z), alone, [e.label for e in fit.effects]
 
 
-def render_case(seed: int, *, width_px: int = 1600) -> dict:
+def render_case(seed: int, *, width_px: int = 1600, keep: Path | None = None) -> dict:
     """One rendered dataset (one photo, ``width_px`` wide, 30 + 6 informative marks turned
     over six joint-4 angles plus the design's four joint-4 circles: 48 marks) of a true
     robot with a tool, a joint-4 gear error and a joint-2 backlash; calibrated from the
-    photo. Returns the tool error, each hidden effect's error in its reported std, the
+    photo (the dataset and its calibration kept in ``keep``/seed when given). Returns the
+    tool error, each hidden effect's error in its reported std, the
     effects claimed that are not there, and a plan with orientation (10 targets) driven
     on the true robot."""
     import copy
@@ -147,6 +148,7 @@ def render_case(seed: int, *, width_px: int = 1600) -> dict:
                              clearance_mm=sc.robot.pen_diameter_mm / 2 + 3.0 + 3.0)
     plan, j4 = list(plan) + tri, {**j4, **t4}
     with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp) if keep is None else Path(keep) / str(seed)
         folder = ds.render_dataset(sc, Path(tmp) / "data", plan=plan, joint4_deg=j4)
         run = calibrate_dataset(folder, out_dir=Path(tmp) / "out")
         truth_doc = json.loads((folder / "truth.json").read_text())
@@ -173,20 +175,23 @@ def render_case(seed: int, *, width_px: int = 1600) -> dict:
             "z": z, "missing": [k for k in hidden if k not in z], "extra": extra,
             "pos_mm": pos, "angle_deg": angle, "n_marks": len(plan),
             "n_measured": len(doc["marks"]), "outliers": len(doc.get("outliers", [])),
-            "unexplained": any(e["name"] == "unexplained" for e in doc["effects"])}
+            "unexplained": any(e["name"] == "unexplained" for e in doc["effects"]),
+            "verdict": doc.get("verdict", {}).get("status"),
+            "reasons": doc.get("verdict", {}).get("reasons", [])}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--seeds", type=int, default=10, help="0: the rendered cases only")
     ap.add_argument("--first", type=int, default=1000)
     ap.add_argument("--sigma", type=float, default=0.01)
     ap.add_argument("--render", type=int, default=0, metavar="N",
                     help="also N rendered cases (seeds first+1 ..)")
+    ap.add_argument("--keep", type=Path, help="keep the rendered datasets here (KEEP/seed)")
     a = ap.parse_args()
     if a.render:
         for k in range(a.render):
-            c = render_case(a.first + 1 + k)
+            c = render_case(a.first + 1 + k, keep=a.keep)
             print(f"4. rendered photo (seed {c['seed']}, {c['n_marks']} marks, {c['n_measured']} "
                   f"measured, {c['outliers']} left out as outliers): |tool error| "
                   f"{c['tool_err_mm']:.4f} mm ({np.round(c['tool_z'], 2).tolist()} std); "
@@ -196,7 +201,11 @@ def main() -> None:
                   + ("; unexplained reported" if c["unexplained"] else "")
                   + f"; plan with orientation on the true robot: position max "
                   f"{c['pos_mm'].max():.4f} mm, orientation max "
-                  f"{np.abs(c['angle_deg']).max():.4f} deg", flush=True)
+                  f"{np.abs(c['angle_deg']).max():.4f} deg"
+                  + f"; verdict {c['verdict']}"
+                  + "".join(f"\n     - {r}" for r in c["reasons"]), flush=True)
+        if not a.seeds:
+            return
     seeds = range(a.first, a.first + a.seeds)
     print(f"1-2. tool_mm, joint-4 effects, plan with orientation ({a.seeds} seeds, sigma "
           f"{a.sigma} mm)")
