@@ -85,14 +85,20 @@ def tool_case(seed: int, sigma: float):
     return float(np.hypot(*(f.tool_mm - tool))), float(z_scale), float(z_band), pos, ang
 
 
-def placements_case(seed: int, sigma: float, amp_deg: float = 0.003):
-    rng = np.random.default_rng(seed)
+def _placement_truths(rng, amp_deg: float) -> list:
+    """(k, joint-1 centre, z1, base, the true robot in that sheet's frame) per placement of
+    :data:`PLACES`, with a once-per-turn joint-1 error of ``amp_deg`` (phase: rng's draw)."""
     cyc = {"name": "joint_cyclic", "joint": 1, "harmonic": 1, "deg": amp_deg,
            "phase_deg": float(rng.uniform(-180, 180))}
+    return [(k, c, a, b, TrueRobot.from_json({**SM5, "joint_zero_deg": [a, -8.13],
+                                              "base_mm": list(b)}, [cyc]))
+            for k, (c, a, b) in enumerate(PLACES)]
+
+
+def placements_case(seed: int, sigma: float, amp_deg: float = 0.003):
+    rng = np.random.default_rng(seed)
     places = []
-    for k, (c, a, b) in enumerate(PLACES):
-        truth = TrueRobot.from_json({**SM5, "joint_zero_deg": [a, -8.13], "base_mm": list(b)},
-                                    [cyc])
+    for k, c, a, b, truth in _placement_truths(rng, amp_deg):
         q = np.column_stack([rng.uniform(c - 67, c + 67, 40), rng.uniform(-120, -30, 40)])
         places.append(Placement(f"p{k}", q, truth.pen_mm(q) + rng.normal(0, sigma, (40, 2)),
                                 np.ones((40, 2))))
@@ -113,12 +119,8 @@ def alone_case(seed: int, sigma: float, amp_deg: float = 0.003) -> list[dict]:
     error on the true robot over each placement's joint-1 range (its own and the two it
     never saw)."""
     rng = np.random.default_rng(seed)
-    cyc = {"name": "joint_cyclic", "joint": 1, "harmonic": 1, "deg": amp_deg,
-           "phase_deg": float(rng.uniform(-180, 180))}
     out = []
-    for k, (c, a, b) in enumerate(PLACES):
-        truth = TrueRobot.from_json({**SM5, "joint_zero_deg": [a, -8.13], "base_mm": list(b)},
-                                    [cyc])
+    for k, c, a, b, truth in _placement_truths(rng, amp_deg):
         q = np.column_stack([rng.uniform(c - 67, c + 67, 40), rng.uniform(-120, -30, 40)])
         ap = np.where(rng.random((40, 2)) < 0.5, -1.0, 1.0)
         xy = truth.pen_mm(q, ap) + rng.normal(0, sigma, (40, 2))
