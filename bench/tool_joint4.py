@@ -1,7 +1,7 @@
 """Issue #21 figures: the tool and joint 4, the plan with orientation, three placements.
 
 Usage: .venv/bin/python bench/tool_joint4.py [--seeds 10] [--first 1000] [--sigma 0.01]
-       [--render N]
+       [--render N] [--keep DIR] [--alone]
 
 Seeds ``first .. first + seeds - 1`` (the tests use 2024, 77, 100, 5, 7, 11, 21: not these).
 Marks come from the world's own truth model (render/truth_model.py) with isotropic noise
@@ -19,6 +19,9 @@ measured from a rendered photograph (:func:`render_case`, seeds ``first + 1 ..``
    joint calibration names it (and its amplitude error in std), how often a placement
    alone does, with the same selection rule, and how often an effect that is not there is
    claimed (beside the true one, and on clean seeds ``+700`` with no error at all).
+3b. ``--alone``: each placement of 3 (both approach directions) calibrated alone by the
+   single-folder run: the effects it names, its verdict and expected target error, and the
+   largest error on the true robot over its own joint-1 range and the others'.
 4. Rendered (``--render``): a 1600 x 1200 photo of 48 marks (30 + 6 informative turned
    over six joint-4 angles, four joint-4 circles of the design) of a robot with a tool
    (15-35 mm, the robot file's guess 2 mm off), a joint-4 gear error 0.003 and a joint-2
@@ -30,7 +33,9 @@ measured from a rendered photograph (:func:`render_case`, seeds ``first + 1 ..``
 from __future__ import annotations
 
 import argparse
+import json
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +45,9 @@ sys.path.insert(0, str(ROOT))
 
 from vision_cal.calibrate.placements import Placement, fit_placements
 from vision_cal.calibrate.tool import fit_tool
+from vision_cal.diagnose.verdict import judge
 from vision_cal.model import JointBacklash, JointScale
+from vision_cal.pipeline import calibrate_dataset
 from vision_cal.plan.orient import plan_poses
 from vision_cal.render.truth_model import TrueRobot
 
@@ -78,14 +85,20 @@ def tool_case(seed: int, sigma: float):
     return float(np.hypot(*(f.tool_mm - tool))), float(z_scale), float(z_band), pos, ang
 
 
-def placements_case(seed: int, sigma: float, amp_deg: float = 0.003):
-    rng = np.random.default_rng(seed)
+def _placement_truths(rng, amp_deg: float) -> list:
+    """(k, joint-1 centre, z1, base, the true robot in that sheet's frame) per placement of
+    :data:`PLACES`, with a once-per-turn joint-1 error of ``amp_deg`` (phase: rng's draw)."""
     cyc = {"name": "joint_cyclic", "joint": 1, "harmonic": 1, "deg": amp_deg,
            "phase_deg": float(rng.uniform(-180, 180))}
+    return [(k, c, a, b, TrueRobot.from_json({**SM5, "joint_zero_deg": [a, -8.13],
+                                              "base_mm": list(b)}, [cyc]))
+            for k, (c, a, b) in enumerate(PLACES)]
+
+
+def placements_case(seed: int, sigma: float, amp_deg: float = 0.003):
+    rng = np.random.default_rng(seed)
     places = []
-    for k, (c, a, b) in enumerate(PLACES):
-        truth = TrueRobot.from_json({**SM5, "joint_zero_deg": [a, -8.13], "base_mm": list(b)},
-                                    [cyc])
+    for k, c, a, b, truth in _placement_truths(rng, amp_deg):
         q = np.column_stack([rng.uniform(c - 67, c + 67, 40), rng.uniform(-120, -30, 40)])
         places.append(Placement(f"p{k}", q, truth.pen_mm(q) + rng.normal(0, sigma, (40, 2)),
                                 np.ones((40, 2))))
@@ -98,23 +111,61 @@ def placements_case(seed: int, sigma: float, amp_deg: float = 0.003):
     return bool(found), float(z), alone, [e.label for e in fit.effects]
 
 
-def render_case(seed: int, *, width_px: int = 1600) -> dict:
+def alone_case(seed: int, sigma: float, amp_deg: float = 0.003) -> list[dict]:
+    """Each of :func:`placements_case`'s three placements (both approach directions here, so
+    the plan identifies backlash) calibrated alone by the user's single-folder run
+    (``calibrate_dataset``, 8 of 40 marks held out; the marks' ``sigma_mm`` set to the
+    noise, as a measurement states it): the effects it names, its verdict, and the largest
+    error on the true robot over each placement's joint-1 range (its own and the two it
+    never saw)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for k, c, a, b, truth in _placement_truths(rng, amp_deg):
+        q = np.column_stack([rng.uniform(c - 67, c + 67, 40), rng.uniform(-120, -30, 40)])
+        ap = np.where(rng.random((40, 2)) < 0.5, -1.0, 1.0)
+        xy = truth.pen_mm(q, ap) + rng.normal(0, sigma, (40, 2))
+        nominal = {"L1_mm": 350.0, "L2_mm": 260.0, "joint_zero_deg": [a + 2, 0.0],
+                   "base_mm": [b[0] + 20, b[1] - 10], "home_deg": [float(c), -60.0]}
+        marks = [{"id": f"m{i:02d}", "joints_deg": qi.tolist(), "approach": si.tolist(),
+                  "measured_mm": p.tolist(), **({"role": "validation"} if i % 5 == 4 else {})}
+                 for i, (qi, p, si) in enumerate(zip(q, xy, ap))]
+        with tempfile.TemporaryDirectory() as tmp:
+            d = Path(tmp)
+            (d / "session.json").write_text(json.dumps({"format": "vision-cal/1",
+                                                        "robot": nominal, "marks": marks}))
+            run = calibrate_dataset(d, out_dir=d / "out")
+        doc = run.document
+        for m in doc["marks"].values():
+            m["sigma_mm"] = sigma
+        v = judge(doc, repeatability_mm=0.0)
+        g = np.random.default_rng(1)
+        worst = []
+        for cc, _, _ in PLACES:
+            qq = np.column_stack([g.uniform(cc - 67, cc + 67, 400), g.uniform(-120, -30, 400)])
+            worst.append(float(np.hypot(*(run.model.predict(qq, np.ones((400, 2)))
+                                          - truth.pen_mm(qq)).T).max()))
+        out.append({"placement": k, "effects": [e["name"] + (f"({e['joint']})" if "joint" in e
+                                                             else "") for e in doc["effects"]],
+                    "status": v.status, "expected_mm": v.expected_target_error_mm,
+                    "own_mm": worst[k], "other_mm": max(w for i, w in enumerate(worst) if i != k)})
+    return out
+
+
+def render_case(seed: int, *, width_px: int = 1600, keep: Path | None = None) -> dict:
     """One rendered dataset (one photo, ``width_px`` wide, 30 + 6 informative marks turned
     over six joint-4 angles plus the design's four joint-4 circles: 48 marks) of a true
     robot with a tool, a joint-4 gear error and a joint-2 backlash; calibrated from the
-    photo. Returns the tool error, each hidden effect's error in its reported std, the
+    photo (the dataset and its calibration kept in ``keep``/seed when given). Returns the
+    tool error, each hidden effect's error in its reported std, the
     effects claimed that are not there, and a plan with orientation (10 targets) driven
     on the true robot."""
     import copy
-    import json
-    import tempfile
 
     import yaml
 
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.design.joint4 import circle_triples, turn_joint4
     from vision_cal.kinematics import forward
-    from vision_cal.pipeline import calibrate_dataset
     from vision_cal.render import dataset as ds
     from vision_cal.render.scene import scene_from_dict
     from vision_cal.render.sheet import make_sheet
@@ -147,6 +198,7 @@ def render_case(seed: int, *, width_px: int = 1600) -> dict:
                              clearance_mm=sc.robot.pen_diameter_mm / 2 + 3.0 + 3.0)
     plan, j4 = list(plan) + tri, {**j4, **t4}
     with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp) if keep is None else Path(keep) / str(seed)
         folder = ds.render_dataset(sc, Path(tmp) / "data", plan=plan, joint4_deg=j4)
         run = calibrate_dataset(folder, out_dir=Path(tmp) / "out")
         truth_doc = json.loads((folder / "truth.json").read_text())
@@ -173,20 +225,36 @@ def render_case(seed: int, *, width_px: int = 1600) -> dict:
             "z": z, "missing": [k for k in hidden if k not in z], "extra": extra,
             "pos_mm": pos, "angle_deg": angle, "n_marks": len(plan),
             "n_measured": len(doc["marks"]), "outliers": len(doc.get("outliers", [])),
-            "unexplained": any(e["name"] == "unexplained" for e in doc["effects"])}
+            "unexplained": any(e["name"] == "unexplained" for e in doc["effects"]),
+            "verdict": doc.get("verdict", {}).get("status"),
+            "reasons": doc.get("verdict", {}).get("reasons", [])}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--seeds", type=int, default=10, help="0: the rendered cases only")
     ap.add_argument("--first", type=int, default=1000)
     ap.add_argument("--sigma", type=float, default=0.01)
     ap.add_argument("--render", type=int, default=0, metavar="N",
                     help="also N rendered cases (seeds first+1 ..)")
+    ap.add_argument("--keep", type=Path, help="keep the rendered datasets here (KEEP/seed)")
+    ap.add_argument("--alone", action="store_true",
+                    help="3b only: each placement calibrated alone by the single-folder run")
     a = ap.parse_args()
+    if a.alone:
+        print(f"3b. one placement alone (single-folder run), joint-1 once-per-turn 0.003 deg "
+              f"(seeds {a.first + 500}-{a.first + 499 + a.seeds}): verdict, expected target "
+              "error, largest error on the true robot over its own and the other joint-1 ranges")
+        for s in range(a.first + 500, a.first + 500 + a.seeds):
+            for c in alone_case(s, a.sigma):
+                print(f"   seed {s} placement {c['placement']}: {', '.join(c['effects']) or 'none'};"
+                      f" {c['status']}, expected {c['expected_mm']:.4f} mm; on the true robot "
+                      f"own range {c['own_mm']:.4f} mm, other ranges {c['other_mm']:.4f} mm",
+                      flush=True)
+        return
     if a.render:
         for k in range(a.render):
-            c = render_case(a.first + 1 + k)
+            c = render_case(a.first + 1 + k, keep=a.keep)
             print(f"4. rendered photo (seed {c['seed']}, {c['n_marks']} marks, {c['n_measured']} "
                   f"measured, {c['outliers']} left out as outliers): |tool error| "
                   f"{c['tool_err_mm']:.4f} mm ({np.round(c['tool_z'], 2).tolist()} std); "
@@ -196,7 +264,11 @@ def main() -> None:
                   + ("; unexplained reported" if c["unexplained"] else "")
                   + f"; plan with orientation on the true robot: position max "
                   f"{c['pos_mm'].max():.4f} mm, orientation max "
-                  f"{np.abs(c['angle_deg']).max():.4f} deg", flush=True)
+                  f"{np.abs(c['angle_deg']).max():.4f} deg"
+                  + f"; verdict {c['verdict']}"
+                  + "".join(f"\n     - {r}" for r in c["reasons"]), flush=True)
+        if not a.seeds:
+            return
     seeds = range(a.first, a.first + a.seeds)
     print(f"1-2. tool_mm, joint-4 effects, plan with orientation ({a.seeds} seeds, sigma "
           f"{a.sigma} mm)")

@@ -7,7 +7,8 @@ from scipy import stats
 
 from tests.conftest import SM5, random_plan
 from vision_cal.calibrate.lsq import Fit
-from vision_cal.diagnose.verdict import Verdict, floor_test, judge, repeatability_from_repeats
+from vision_cal.diagnose.verdict import (Verdict, floor_test, judge, judge_camera_poses,
+                                        repeatability_from_repeats)
 from vision_cal.render.truth_model import TrueRobot
 
 SIGMA = 0.006   # measurer's per-axis std
@@ -113,6 +114,28 @@ def test_one_target_far_off_is_read_though_the_rms_hides_it():
     # held-out marks, when there are, are the targets judged
     d["marks"]["c17"]["role"] = "validation"
     assert judge(d, repeatability_mm=REP).max_target_error["of"] == "held-out"
+
+
+def test_the_arm_camera_verdict_reads_one_photo_far_off():
+    """The arm camera's verdict reads the largest held-out error as the marks' does: 200
+    photos, one whose leave-one-out flange error is 0.09 mm (7.7 times its 2-D noise RMS):
+    the held-out floor moves by ~60 on ~400 dof (within it), the largest error is a reason."""
+    rng = np.random.default_rng(7)
+    n, p = 200, 12
+    sd = np.hypot(SIGMA, REP)
+    res = rng.normal(0, sd, (n, 2)) * np.sqrt(1 - p / (2 * n))
+    held = res / (1 - p / (2 * n))
+    names = [f"pose_{i:03d}.png" for i in range(n)]
+    v = judge_camera_poses(res, np.full(n, SIGMA), held, n_params=p, repeatability_mm=REP,
+                           ids=names)
+    assert v.status == "ready", v.reasons
+    assert v.max_target_error["of"] == "held-out" and not v.max_target_error["beyond"]
+    held[17] *= 0.09 / np.hypot(*held[17])
+    v = judge_camera_poses(res, np.full(n, SIGMA), held, n_params=p, repeatability_mm=REP,
+                           ids=names)
+    assert not v.heldout_floor["beyond"] and not v.floor["beyond"]
+    assert v.status == "check" and "pose_017.png" in v.text and "largest" in v.text
+    assert v.max_target_error["mark"] == "pose_017.png" and v.max_target_error["beyond"]
 
 
 def test_moved_photos_and_a_lens_read_as_height_are_read():

@@ -69,4 +69,23 @@ def test_bumps_are_seen(k1):
     hm = _map(marks, obs, evidence=True)
     assert hm.claimed, hm.not_claimed
     ev = hm.evidence
-    assert ev.p_lens < 1e-3 <= ev.p_heights
+    assert ev.p_lens < 1e-3 <= ev.p_heights and ev.p_gain < 1e-3
+
+
+def test_offsets_noisier_than_stated_are_not_heights():
+    """A flat sheet, the lens right, one photo whose grid offsets are 1.4 times noisier
+    than their stated std (12 um added to the stated 4 um and the 8 um floor; seed 4202 of
+    bench/tool_joint4.py --render showed 1.38): the flat null is rejected and a height per
+    mark takes each offset's part along its parallax, so (1) and (2) alone would claim;
+    the heights explain no more than a larger noise does (F ~ 1)."""
+    rng = np.random.default_rng(1)
+    marks, obs = _obs(lambda p: 0.0, dist=[0.0] * 5, rng=rng, n_photos=1)
+    extra = np.random.default_rng(101)
+    obs = {k: [(c, p, d + extra.normal(0, 0.012, 2), cov, H, KK) for c, p, d, cov, H, KK in v]
+           for k, v in obs.items()}
+    assert _map(marks, obs, evidence=False).claimed
+    hm = _map(marks, obs, evidence=True)
+    ev = hm.evidence
+    assert ev.p_lens < 1e-3 <= ev.p_heights      # what (1) and (2) alone would claim on
+    assert not hm.claimed and hm.not_claimed_as == "noise", hm.not_claimed
+    assert hm.evidence.gain_f < 2 and "noise" in hm.to_json()["not_claimed"]

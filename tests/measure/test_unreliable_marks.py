@@ -1,9 +1,14 @@
 """A mark that cannot be trusted stays in calibration.json with its reason, out of the fit
 (docs/format.md "Marks that could not be trusted"), and the report names it."""
 
+from types import SimpleNamespace
+
 import numpy as np
 
+from vision_cal.config import DEFAULT
 from vision_cal.dataset.session import load_session
+from vision_cal.measure import batch
+from vision_cal.measure.associate import DotGroup
 from vision_cal.measure.batch import Measurement, MarkMeasurement
 from vision_cal.pipeline import _unreliable_marks, collect_marks
 from vision_cal.report.headline import mark_rows
@@ -40,3 +45,31 @@ def test_an_unreliable_mark_is_kept_with_its_reason_and_not_fitted():
                             "(pen ink on printed ink (x axis))"]
     rows = {r["id"]: r for r in mark_rows({"marks": marks})}
     assert any("unreliable, left out of the fit" in f for f in rows[bad]["flags"])
+
+
+def test_dots_that_cannot_be_trusted_are_no_height_evidence(monkeypatch):
+    """The sheet's height is read from the marks' grid offsets: a dot flagged unreliable (ink
+    beside it moves its centre, hence its offset) and a mark none of whose dots could be
+    trusted give none (seed 4202 of bench/tool_joint4.py --render: the flagged mark had the
+    largest height)."""
+    seen = {}
+
+    def heights(images, marks, groups_of, extent_mm, **kw):
+        seen.update(groups_of)
+        return {}, None, None
+
+    monkeypatch.setattr(batch, "sheet_heights", heights)
+    images = [SimpleNamespace(dots_unreliable=("", "ink beside it", "")),
+              SimpleNamespace(dots_unreliable=("", "", "ink beside it"))]
+    groups = [DotGroup(np.zeros((2, 2)), np.zeros((2, 2, 2)), (0, 1), (0, 0)),
+              DotGroup(np.zeros((2, 2)), np.zeros((2, 2, 2)), (0, 1), (1, 1)),
+              DotGroup(np.zeros((1, 2)), np.zeros((1, 2, 2)), (1,), (2,))]
+    marks = {"a": MarkMeasurement(np.zeros(2), np.eye(2), 2, 0.0),
+             "b": MarkMeasurement(np.zeros(2), np.eye(2), 1, 0.0),
+             "c": MarkMeasurement(np.zeros(2), np.eye(2), 1, 0.0, status="unreliable",
+                                  reason="ink beside it")}
+    dots = batch.AssociatedDots(groups, SimpleNamespace(mark_to_group={"a": 0, "b": 1, "c": 2}),
+                                [], None, [])
+    session = SimpleNamespace(sheet=SimpleNamespace(extent_mm=(0, 0, 1, 1)))
+    batch.sheet_height_stage(session, images, marks, dots, None, DEFAULT)
+    assert seen == {"a": [(0, 0), (1, 0)], "b": [(1, 1)]}

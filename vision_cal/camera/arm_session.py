@@ -178,7 +178,7 @@ def calibrate_arm_camera(folder) -> dict:
     verdict = judge_camera_poses(
         fit.flange_residual_mm, fit.flange_sigma_mm, fit.flange_heldout_mm,
         n_params=fit.n_params_xy, repeatability_mm=rep,
-        reasons=_reasons(fit, mount) + lens_reason)
+        reasons=_reasons(fit, mount) + lens_reason, ids=[v.file for v in views])
     cam = {"images": [v.file for v in views], "size_px": list(size), "K": K.tolist(),
            "dist": dist.tolist(), "T_flange_camera": d["T_flange_camera"],
            "mount": mount, "T_flange_camera_std": d["T_flange_camera_std"],

@@ -259,6 +259,18 @@ def _floor_reasons(floor: FloorTest | None, hfloor: FloorTest | None,
     return out
 
 
+def _max_error_reasons(worst: MaxErrorTest | None, item: str,
+                       hint: str) -> list[tuple[str, str]]:
+    """(status, sentence) for the largest target error beyond the noise (module docstring);
+    ``item`` names what was measured (a mark, a photo), ``hint`` what to look at."""
+    if worst is None or not worst.beyond:
+        return []
+    return [("check", f"the largest {worst.of} target error, {worst.error_mm:.4f} mm at "
+                      f"{item} {worst.mark}, is {worst.over_noise:.1f} times its noise (p = "
+                      f"{worst.p_value:.2g} for the largest of {worst.n_marks}): a local error "
+                      f"the RMS hides; {hint}")]
+
+
 def _finite(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
@@ -337,11 +349,7 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
                                   "the residual cannot be compared with a noise floor")
     for st, text in _floor_reasons(floor, hfloor, cfg):
         add(st, text)
-    if worst is not None and worst.beyond:
-        add("check", f"the largest {worst.of} target error, {worst.error_mm:.4f} mm at mark "
-                     f"{worst.mark}, is {worst.over_noise:.1f} times its noise (p = "
-                     f"{worst.p_value:.2g} for the largest of {worst.n_marks}): a local error "
-                     "the RMS hides; look at that mark and the paper around it")
+    reasons += _max_error_reasons(worst, "mark", "look at that mark and the paper around it")
     unexplained = [e for e in effects if e.get("name") == "unexplained"]
     if unexplained:
         seen = "; ".join(unexplained[0].get("seen", [])) or "structure"
@@ -400,7 +408,7 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
 def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
                        repeatability_mm: float | None = None,
                        reasons: list[tuple[str, str]] = (),
-                       config: VerdictConfig | None = None) -> Verdict:
+                       config: VerdictConfig | None = None, ids=None) -> Verdict:
     """The verdict of a calibration from the arm camera's photos (``vision-cal handeye``):
     the same gate, status rule and block as :func:`judge`, its "marks" being the flange
     positions the photos imply. ``residual_mm`` (N, 2): each photo's in-plane flange
@@ -410,15 +418,21 @@ def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
     them); ``heldout_mm`` (N, 2) leave-one-photo-out residuals, judged against the same
     floor and giving ``expected_target_error_mm``; ``reasons`` (status, sentence) the
     caller's own (parameters the poses do not separate, an undetermined lens); ``config``
-    the gate's thresholds (default ``DEFAULT.verdict``)."""
+    the gate's thresholds (default ``DEFAULT.verdict``); ``ids`` (N,) the photos' names
+    (default their indices), naming the largest held-out error, judged as :func:`judge`
+    judges a mark's (``max_target_error``)."""
     cfg = config or DEFAULT.verdict
     rep = cfg.default_repeatability_mm if repeatability_mm is None else float(repeatability_mm)
     source = "default" if repeatability_mm is None else "robot block"
     res = np.asarray(residual_mm, float).reshape(-1, 2)
     n, p = len(res), int(round(n_params))
     floor = floor_test(res, sigma_mm, rep, n_params=p, config=cfg)
-    hfloor = floor_test(heldout_mm, sigma_mm, rep, inflate=1.0 + p / max(2 * n, 1), config=cfg)
-    found = list(reasons) + _floor_reasons(floor, hfloor, cfg)
+    inflate = 1.0 + p / max(2 * n, 1)
+    hfloor = floor_test(heldout_mm, sigma_mm, rep, inflate=inflate, config=cfg)
+    worst = max_error_test(list(range(n)) if ids is None else list(ids), heldout_mm, sigma_mm,
+                           rep, of="held-out", inflate=inflate, config=cfg)
+    found = list(reasons) + _floor_reasons(floor, hfloor, cfg) + _max_error_reasons(
+        worst, "photo", "look at that photo's markers and the pose it was taken at")
     if 2 * n - p < cfg.min_spare_dof:
         found.append(("check", f"{n} photos leave {2 * n - p} degrees of freedom to compare "
                                "with the noise floor: add poses"))
@@ -428,4 +442,5 @@ def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
     ordered = [t for st, t in sorted(found, key=lambda st: -_RANK[st[0]])]
     return Verdict(status, r95, floor.ratio if floor is not None else None, tuple(ordered),
                    floor.to_json() if floor is not None else None,
-                   hfloor.to_json() if hfloor is not None else None, rep, source)
+                   hfloor.to_json() if hfloor is not None else None, rep, source,
+                   worst.to_json() if worst is not None else None)

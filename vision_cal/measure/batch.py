@@ -704,11 +704,6 @@ class AssociatedDots:
         return [{"xy_mm": g.mean_mm.tolist(), "files": [files[k] for k in g.images]}
                 for gi, g in enumerate(self.groups) if gi not in used]
 
-    def members(self, mid: str) -> list[tuple[int, int]]:
-        """(photo index, dot index) of each dot of mark ``mid``."""
-        g = self.groups[self.assoc.mark_to_group[mid]]
-        return list(zip(g.images, g.dot_index))
-
 
 def associate_dots(session: Session, items: list[_Photo], images: list[ImageResult],
                    ac: AssociationConfig, default_diameter_mm: float,
@@ -811,8 +806,15 @@ def sheet_height_stage(session: Session, images: list[ImageResult], marks: dict,
     A paper that is not flat moves the marks seen through the marker mapping alone to the
     position parallax found; a flat one puts the grid-referenced marks back on the marker
     mapping (the line phase adds its own few micrometres; the grid's difference stays
-    reported). ``marks`` is updated; returns (heights, height map or None, note or None)."""
-    groups_of = {mid: dots.members(mid) for mid in dots.assoc.mark_to_group}
+    reported). Dots that could not be separated from the print under them, and marks none
+    of whose dots could, are no evidence of heights either (their grid offsets carry the
+    ink beside them). ``marks`` is updated; returns (heights, height map or None, note or
+    None)."""
+    groups_of = {}
+    for mid, gi in dots.assoc.mark_to_group.items():
+        if marks[mid].status == "ok":
+            g = _without_flagged(dots.groups[gi], images)
+            groups_of[mid] = list(zip(g.images, g.dot_index))
     heights, hmap, hnote = {}, None, None
     try:
         heights, hmap, hnote = sheet_heights(images, marks, groups_of, session.sheet.extent_mm,

@@ -27,9 +27,14 @@ and estimated, or declared wrong), seen through a tilted camera. A height moves 
 only along its parallax direction ``v``; so the grid offsets must (1) not be explained by
 the field a lens error leaves on a flat sheet (radial ``r^2``, ``r^4`` about the principal
 point, mapped to the sheet, plus the homography change the marker mapping absorbed;
-rejected at ``alpha``) and (2) be explained once a height per mark along ``v`` is added
-to that field (its chi-square not significant at ``alpha``). Otherwise ``not_claimed``
-says why and the heights stay reported, unclaimed.
+rejected at ``alpha``), (2) be explained once a height per mark along ``v`` is added
+to that field (its chi-square not significant at ``alpha``), and (3) be explained by the
+heights better than by a larger noise: a height per mark takes the part of each offset
+along ``v`` whatever it is, so offsets merely noisier than their stated std (a flat sheet,
+the lens and mapping right) pass (1) and (2); the F ratio of the chi-square the heights
+remove per parameter to what is left per dof (free of the noise's scale) must be
+significant at ``alpha``. Otherwise ``not_claimed`` says why and the heights stay
+reported, unclaimed.
 
 The thresholds are config ``sheet_height`` (:class:`vision_cal.config.SheetHeightConfig`),
 read from the config each function is given (default ``vision_cal.config.DEFAULT``).
@@ -172,7 +177,9 @@ class OffsetEvidence:
     ``lens_chi2`` / ``lens_dof`` / ``p_lens``: the offsets left by a lens field and the
     mapping's homography change alone (a flat sheet); ``heights_chi2`` / ``heights_dof`` /
     ``p_heights``: those left once a height per mark along its parallax direction is
-    added; ``places``: how many camera places the photos were taken from."""
+    added; ``places``: how many camera places the photos were taken from; ``gain_f`` /
+    ``p_gain``: the F ratio of the chi-square the heights remove per parameter over what
+    they leave per dof, and its p-value (module docstring, (3))."""
 
     heights_chi2: float
     heights_dof: int
@@ -182,9 +189,23 @@ class OffsetEvidence:
     p_lens: float
     places: int
 
+    @property
+    def gain_f(self) -> float:
+        k = self.lens_dof - self.heights_dof
+        if k <= 0 or self.heights_dof <= 0:
+            return float("nan")
+        return ((self.lens_chi2 - self.heights_chi2) / k) / max(
+            self.heights_chi2 / self.heights_dof, 1e-300)
+
+    @property
+    def p_gain(self) -> float:
+        f = self.gain_f
+        return (float(stats.f.sf(f, self.lens_dof - self.heights_dof, self.heights_dof))
+                if np.isfinite(f) else float("nan"))
+
     def not_claimed(self, alpha: float) -> tuple[str, str] | None:
-        """Why heights that are significant are still not claimed: (``lens`` | ``mapping``,
-        a sentence); None: they are seen."""
+        """Why heights that are significant are still not claimed: (``lens`` | ``mapping``
+        | ``noise``, a sentence); None: they are seen."""
         if self.p_lens >= alpha:
             return "lens", ("the grid's offsets from the marker mapping are what a slightly wrong "
                     f"lens leaves (lens field chi2 {self.lens_chi2:.1f} on {self.lens_dof}, "
@@ -196,6 +217,12 @@ class OffsetEvidence:
                     "error nor heights along the parallax direction (chi2 "
                     f"{self.heights_chi2:.1f} on {self.heights_dof}, p = "
                     f"{self.p_heights:.2g}): a mapping error, not the paper's height")
+        if not self.p_gain < alpha:
+            return "noise", ("the printed grid's offsets from the marker mapping are beyond "
+                    "their stated noise, but heights along the parallax direction explain "
+                    f"no more of them than a larger noise does (F = {self.gain_f:.2f} on "
+                    f"{self.lens_dof - self.heights_dof} and {self.heights_dof} dof, p = "
+                    f"{self.p_gain:.2g}): the offsets' noise, not the paper's height")
         return None
 
     def to_json(self) -> dict:
@@ -203,6 +230,7 @@ class OffsetEvidence:
                                    "p_value": self.p_lens},
                 "heights_fit": {"chi2": self.heights_chi2, "dof": self.heights_dof,
                                 "p_value": self.p_heights},
+                "heights_gain": {"F": self.gain_f, "p_value": self.p_gain},
                 "camera_places": self.places}
 
 
@@ -310,7 +338,7 @@ class HeightMap:
     marks: dict = field(default_factory=dict)
     evidence: OffsetEvidence | None = None
     not_claimed: str | None = None       # why significant heights are not claimed
-    not_claimed_as: str | None = None    # what the offsets are instead: lens | mapping
+    not_claimed_as: str | None = None    # what the offsets are instead: lens | mapping | noise
 
     @classmethod
     def from_estimate(cls, xy_mm, z_mm, std_mm, extent_mm, *, ids=(),
