@@ -9,7 +9,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from vision_cal.dataset.calibration import load_calibration
+from vision_cal.dataset.calibration import joints_covered_deg, load_calibration
 from vision_cal.dataset.covariance import load_covariance
 from vision_cal.dataset.csvio import (failed_report_path, read_target_theta, read_targets,
                                       write_failed_targets, write_plan)
@@ -148,6 +148,7 @@ def plan(req: PlanRequest) -> int:
     else:
         report.unlink(missing_ok=True)  # a stale report of an earlier run
     _say_targets_on_print(req, doc, ok)
+    _say_targets_outside_range(req, doc, ok)
     if not req.quiet:
         print(f"planned {len(planned) - len(failed)} of {len(planned)} targets "
               f"with the {req.model} model -> {req.out}")
@@ -174,6 +175,30 @@ def _say_targets_on_print(req, doc: dict, ok) -> None:
           f"ink: {head}{more}: a pen mark there is measured against the print (0.01-0.02 mm "
           "less certain) or, where it cannot be separated, left out as unreliable; move the "
           "target by a few millimetres onto plain paper to check it", file=sys.stderr)
+
+
+#: a target within this of the calibration's joint range (deg) is inside it
+RANGE_SLACK_DEG = 1.0
+
+
+def _say_targets_outside_range(req, doc: dict, ok) -> None:
+    """One warning line naming the planned targets whose joints 1 or 2 lie outside the range
+    the calibration's marks covered (:func:`vision_cal.dataset.calibration.joints_covered_deg`):
+    there the error is extrapolated, not measured."""
+    covered = joints_covered_deg(doc)
+    if covered is None or not ok:
+        return
+    out = [p.id for p in ok
+           if any(not covered[j][0] - RANGE_SLACK_DEG <= p.q_deg[j] <= covered[j][1]
+                  + RANGE_SLACK_DEG for j in range(2))]
+    if not out:
+        return
+    head = ", ".join(out[:3]) + (f" and {len(out) - 3} more" if len(out) > 3 else "")
+    print(f"vision-cal: warning: {req.targets}: {len(out)} target(s) outside the joints the "
+          f"calibration's marks covered (joint 1 {covered[0][0]:.1f}..{covered[0][1]:.1f} deg, "
+          f"joint 2 {covered[1][0]:.1f}..{covered[1][1]:.1f} deg): {head}: the model is "
+          "extrapolated there and its expected error does not hold; draw marks there, or "
+          "calibrate several placements together (calibrate --joint)", file=sys.stderr)
 
 
 def summarise_failures(failed, *, first: int = 3) -> str:

@@ -143,3 +143,19 @@ def load_calibration(path, *, which: str = "calibrated") -> tuple[RobotModel, di
     if which == "calibrated":
         return RobotModel(params, tuple(effects)), doc
     return RobotModel(nominal, ()), doc
+
+
+def joints_covered_deg(doc: dict) -> list[tuple[float, float]] | None:
+    """The commanded range ``[(lo, hi), (lo, hi)]`` (deg) of joints 1 and 2 over the marks a
+    calibration fitted or held out (calibration.json ``marks[].joints_deg``; unreliable marks
+    left out), or None when the document does not say. The model is measured inside it and
+    extrapolated outside: an error once per turn of joint 1 looks like a gear-ratio error
+    over the 135 deg one sheet spans, and a plan beyond the range meets the difference
+    (``bench/tool_joint4.py --alone``: 0.16-0.21 mm where the range itself gave 0.02)."""
+    q = [m["joints_deg"][:2] for m in (doc.get("marks") or {}).values()
+         if isinstance(m, dict) and m.get("joints_deg") is not None
+         and m.get("status", "ok") == "ok"]
+    if not q:
+        return None
+    return [(min(v[j] for v in q), max(v[j] for v in q)) for j in range(2)]
+
