@@ -397,12 +397,7 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
             and held_rms > cfg.heldout_warn_ratio * fit_rms):
         add("check", f"the held-out RMS ({held_rms:.4f} mm) is {held_rms / fit_rms:.1f} times "
                      "the fitted RMS: the model misses something on new poses")
-    status = max((s for s, _ in reasons), key=_RANK.get, default="ready")
-    ordered = [t for s, t in sorted(reasons, key=lambda st: -_RANK[st[0]])]
-    return Verdict(status, r95, floor.ratio if floor is not None else None, tuple(ordered),
-                   floor.to_json() if floor is not None else None,
-                   hfloor.to_json() if hfloor is not None else None, rep, source,
-                   worst.to_json() if worst is not None else None)
+    return _verdict(reasons, r95, floor, hfloor, rep, source, worst)
 
 
 def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
@@ -438,8 +433,14 @@ def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
                                "with the noise floor: add poses"))
     held = np.asarray(heldout_mm, float).reshape(-1, 2)
     r95 = R95_PER_RMS * float(np.sqrt(np.mean(np.sum(held**2, axis=1)))) if n else None
-    status = max((st for st, _ in found), key=_RANK.get, default="ready")
-    ordered = [t for st, t in sorted(found, key=lambda st: -_RANK[st[0]])]
+    return _verdict(found, r95, floor, hfloor, rep, source, worst)
+
+
+def _verdict(reasons, r95, floor, hfloor, rep, source, worst) -> Verdict:
+    """The block from the (status, sentence) reasons found: the worst status wins (``ready``
+    when none), its sentences first."""
+    status = max((st for st, _ in reasons), key=_RANK.get, default="ready")
+    ordered = [t for st, t in sorted(reasons, key=lambda st: -_RANK[st[0]])]
     return Verdict(status, r95, floor.ratio if floor is not None else None, tuple(ordered),
                    floor.to_json() if floor is not None else None,
                    hfloor.to_json() if hfloor is not None else None, rep, source,
