@@ -672,8 +672,12 @@ def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool]
     # a series adding marks photo by photo, on a sheet whose print is not described: the
     # photo before shows the print under each new mark
     if listed_marks is not None and printed_reference(session.sheet) is None:
+        # refine_dot uses it only for dots paper and grid lines leave unreliable or not
+        # measurable: the other photos are neither decoded again nor finished twice
+        need = {k for k, im in enumerate(images)
+                if any(im.dots_unreliable) or im.rejected.get("not measurable")}
         before = previous_photos(session, Path(session.root), [d.file for d in dets],
-                                 listed_marks, images)
+                                 listed_marks, images, only=need)
         for k, prev in before.items():
             images[k] = finish_image(dets[k], session, lens, from_cache=cached[k],
                                      previous=prev, config=config)

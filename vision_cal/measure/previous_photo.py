@@ -41,15 +41,19 @@ class PreviousPhoto:
                          borderValue=-1.0)
 
 
-def previous_photos(session, root, files, listed_marks, results) -> dict[int, PreviousPhoto]:
+def previous_photos(session, root, files, listed_marks, results,
+                    only=None) -> dict[int, PreviousPhoto]:
     """{k: the photo before photo ``k``} for a series adding marks photo by photo: photo
     ``k - 1`` (in the listed order) was measured, and its listed marks are fewer than and all
     among photo ``k``'s. ``files`` and ``listed_marks`` per photo (None: not listed),
     ``results`` their :class:`vision_cal.measure.batch.ImageResult`. A photo that cannot be
-    read again is no reference (nothing else changes)."""
+    read again is no reference (nothing else changes). ``only``: the photos to look at
+    (default all)."""
     out = {}
     cam = session.camera
     for k in range(1, len(files)):
+        if only is not None and k not in only:
+            continue
         before, now = listed_marks[k - 1], listed_marks[k]
         prev = results[k - 1]
         if before is None or now is None or prev.status != "ok" or prev.mapping is None:
