@@ -12,7 +12,7 @@ calibration method is one more ``fit_*`` returning ``_Fitted``.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
 

@@ -10,7 +10,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vision_cal.kinematics import jacobian_rad
 from vision_cal.model import Effect, JointBacklash, JointCyclic, JointScale, SheetAffine
 
 

@@ -50,7 +50,6 @@ from vision_cal.calibrate.lsq import FailedFit, Fit
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.diagnose.select import Diagnosis, Evidence, heldout_rms
 from vision_cal.diagnose.structure import sheet_scan
-from vision_cal.kinematics import jacobian_rad
 from vision_cal.model import (JointBacklash, JointCyclic, JointEffect, JointScale, JointTerms,
                               RobotModel, SheetAffine)
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import forward, inverse
-from vision_cal.motion import JOINT_LIMITS_DEG, SPEED_DEG_S, approach_signs
+from vision_cal.motion import SPEED_DEG_S, approach_signs
 
 
 @dataclass(frozen=True)

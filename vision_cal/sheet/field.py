@@ -19,7 +19,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
 
 from vision_cal import __version__
 from vision_cal.errors import VisionCalError
