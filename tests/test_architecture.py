@@ -139,3 +139,17 @@ def test_the_checks_see_what_they_guard(tmp_path):
     g = import_graph(pkg)
     assert report_violations(g) == {"vision_cal.report.plots": ["vision_cal.measure.batch"]}
     assert circles(g) == [["vision_cal.measure.batch", "vision_cal.measure.cache"]]
+
+
+def test_every_command_is_on_the_command_line():
+    """A command whose import breaks must fail loudly, never vanish from the CLI: the
+    parser holds every name ``SUBCOMMANDS`` lists, and main.py catches no import error."""
+    from vision_cal.commands import main as cli
+
+    parser = cli.build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    assert set(cli.SUBCOMMANDS) <= set(sub.choices)
+    tree = ast.parse((PACKAGE / "commands" / "main.py").read_text())
+    caught = {ast.unparse(h.type) for h in ast.walk(tree)
+              if isinstance(h, ast.ExceptHandler) and h.type is not None}
+    assert not caught & {"ModuleNotFoundError", "ImportError"}, caught

@@ -14,6 +14,7 @@ import pytest
 import yaml
 
 from vision_cal.dataset.session import load_session
+from vision_cal import sheet as sheet_pkg
 from vision_cal.errors import VisionCalError
 from vision_cal.schema import NAMES, load_schema, validate
 
@@ -72,8 +73,7 @@ def test_paper_calibration_validates(tmp_path, paper_folder):
 
 
 def test_sheet_json_from_the_sheet_command_validates(tmp_path):
-    sheet = pytest.importorskip("vision_cal.sheet")
-    paths = sheet.write_sheet(sheet.make_layout(), tmp_path)
+    paths = sheet_pkg.write_sheet(sheet_pkg.make_layout(), tmp_path)
     doc = json.loads(Path(paths["json"]).read_text())
     validate(doc, "sheet")
     validate(doc, "sheet")

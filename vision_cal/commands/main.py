@@ -41,10 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"vision-cal {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in SUBCOMMANDS:
-        try:
-            mod = _module(name)
-        except ModuleNotFoundError:
-            continue
+        mod = _module(name)  # an import error is a bug: never hide a command
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP,
                            epilog=getattr(mod, "EXAMPLES", None),
                            formatter_class=argparse.RawDescriptionHelpFormatter)
