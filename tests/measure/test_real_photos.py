@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
+from vision_cal.config import DEFAULT
 from vision_cal.dataset.session import load_session
 from vision_cal.measure.batch import detect_image, finish_image, measure_folder
 from vision_cal.measure.sheetfit import MISFIT
@@ -90,6 +92,21 @@ def test_every_photo_measured_markers_and_residual_against_opencv(measured):
         # measured: vision-cal 0.38-0.56 px (a homography, no lens), OpenCV 0.73-0.92 px
         # (a fitted 5-term lens, sub-pixel corners); no margin needed
         assert im.corner_rms_px <= rms_cv[f], (f, im.corner_rms_px, rms_cv[f])
+
+
+def test_forced_refusal_names_no_false_cause(measured):
+    """With the allowance set to nothing every photo is refused: the cause must not be the
+    declared markers (ids, dictionary and size agree), but a size the print, the paper or
+    the lens would explain."""
+    folder, session, _ = measured
+    strict = replace(DEFAULT, sheet_fit=replace(DEFAULT.sheet_fit, print_scale=0.0,
+                                                lens_px=0.0))
+    for f in PHOTOS:
+        det = detect_image(folder / f, session)
+        r = finish_image(det, session, None, config=strict)
+        assert r.status == "skipped" and r.reason.startswith(MISFIT), (f, r.reason)
+        assert WRONG_PLACE not in r.reason and "marker size" not in r.reason, (f, r.reason)
+        assert any(w in r.reason for w in ("print", "paper", "lens")), (f, r.reason)
 
 
 def test_wrong_declarations_on_real_photos_are_named(tmp_path):
