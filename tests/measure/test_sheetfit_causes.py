@@ -131,3 +131,15 @@ def test_the_split_is_read_from_the_config_when_called():
     cfg = replace(DEFAULT.sheet_fit, smooth_min_markers=61)
     assert misfit_parts(mm, px, size_px=SIZE).smooth_fitted
     assert not misfit_parts(mm, px, size_px=SIZE, config=cfg).smooth_fitted
+
+
+def test_a_lens_applied_is_a_claim_not_absorbed():
+    """The same photo with a lens applied that does not undo the real one (``raw_px``
+    given: a declared or estimated lens): the lens terms may not absorb it; refused and
+    blamed on camera.dist, not on the sheet."""
+    mm = sheet_60()
+    px = photo(mm, dist=PHONE_LENS, printed=0.17, noise=0.5, seed=1)
+    rms, mmpp, why = _gate(mm, px)
+    assert why is None
+    why = sheet_misfit(mm, px, rms, mmpp, size_px=SIZE, raw_px=px)
+    assert why is not None and "likely cause: camera.dist" in why, why

@@ -71,7 +71,8 @@ def _rms_mm(corners_mm: np.ndarray, corners_px: np.ndarray) -> float:
 
 
 def likely_cause(corners_mm, corners_px, tol_mm: float,
-                 config: SheetFitConfig | None = None, parts: "MisfitParts | None" = None) -> str:
+                 config: SheetFitConfig | None = None, parts: "MisfitParts | None" = None,
+                 size_px=None) -> str:
     """Which typing mistake in ``sheet.markers`` explains the misfit (one phrase).
 
     Tried in turn: the four corners listed in another order (reversed, or starting at
@@ -79,9 +80,11 @@ def likely_cause(corners_mm, corners_px, tol_mm: float,
     marker centres alone, which do not depend on the size), then what :func:`misfit_parts`
     leaves: beyond ``wrong_place_side`` of the marker side, markers that are not where the
     sheet puts them (other ids, another dictionary or layout); else the print or the paper
-    (``parts``: the split, computed when not given). The alternatives are judged by what
-    they leave after the lens and the smooth field, so a lens nobody declared does not hide
-    a typing mistake."""
+    (``parts``: the split, computed when not given; ``size_px``: the photo's size, whose
+    centre the lens terms turn about). The alternatives are judged by what they leave
+    after the lens and the smooth field, so a lens nobody declared does not hide a typing
+    mistake. A misfit that the lens terms alone take out (with a lens applied: a claim,
+    :func:`sheet_misfit`) is blamed on ``camera.dist``."""
     mm = np.asarray(corners_mm, float).reshape(-1, 4, 2)
     px = np.asarray(corners_px, float).reshape(-1, 4, 2)
     if len(mm) < 2:
@@ -91,7 +94,7 @@ def likely_cause(corners_mm, corners_px, tol_mm: float,
         order = [(start + (-k if rev else k)) % 4 for k in range(4)]
         if order == [0, 1, 2, 3]:
             continue
-        rms = misfit_parts(mm[:, order], px, config=config).left_mm
+        rms = misfit_parts(mm[:, order], px, size_px=size_px, config=config).left_mm
         if best is None or rms < best[0]:
             best = (rms, order)
     if best is not None and best[0] <= tol_mm:
@@ -111,11 +114,12 @@ def likely_cause(corners_mm, corners_px, tol_mm: float,
             ratio = marker_side_mm(seen) / max(marker_side_mm(mm), 1e-9)
             rescaled = centres_mm[:, None] + (mm - centres_mm[:, None]) * ratio
             if (abs(ratio - 1) > (config or DEFAULT.sheet_fit).print_scale
-                    and misfit_parts(rescaled, px, config=config).left_mm <= tol_mm):
+                    and misfit_parts(rescaled, px, size_px=size_px,
+                                     config=config).left_mm <= tol_mm):
                 return (f"marker size: printed about {marker_side_mm(seen):.1f} mm, declared "
                         f"{marker_side_mm(mm):.1f} mm")
     cfg = config or DEFAULT.sheet_fit
-    parts = parts or misfit_parts(mm, px, config=cfg)
+    parts = parts or misfit_parts(mm, px, size_px=size_px, config=cfg)
     side = marker_side_mm(mm)
     if parts.left_mm > cfg.wrong_place_side * side:
         return ("markers not where sheet.markers puts them (other ids, another dictionary or "
@@ -126,6 +130,9 @@ def likely_cause(corners_mm, corners_px, tol_mm: float,
         return (f"the print or the paper: {parts.left_mm:.2g} mm that neither a lens nor a "
                 "smooth print or paper field explains (a fold or crease in the paper, a "
                 "sheet not lying flat in patches, markers printed off the layout one by one)")
+    if parts.smooth_mm <= cfg.smooth_max_mm:
+        return (f"{LENS_CAUSE}: the lens applied is off (lens terms would still take out "
+                f"{parts.lens_mm:.2g} mm)")
     return (f"the print or the paper: a smooth field of {parts.smooth_mm:.2g} mm over the "
             f"sheet (more than {cfg.smooth_max_mm:g} mm: the paper not flat, or printed "
             "off its layout), the lens explaining "
@@ -154,7 +161,7 @@ def misfit_reason(corners_mm, corners_px, rms_mm: float, tol_mm: float, *,
             cause = (f"{LENS_CAUSE}: the declared lens distortion is wrong (without it the "
                      f"markers fit to {raw:.3g} mm)")
     if cause is None:
-        cause = likely_cause(mm, px, tol_mm, config, parts)
+        cause = likely_cause(mm, px, tol_mm, config, parts, size_px)
     return (f"{MISFIT}: corner RMS {rms_mm:.3g} mm, a printer and lens explain "
             f"{tol_mm:.2g} mm ({parts.describe()}); likely cause: {cause}")
 

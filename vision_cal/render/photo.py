@@ -37,11 +37,16 @@ Conventions
   the terms beyond k1 k2 (decentring and thin prism, what a phone's stacked plastic
   elements add) from their size in pixels at the image corner.
 - Real photos (issue 28, ``bench/real_photos.py --fixture``): OpenCV's ChArUco photos
-  (fixtures/real_charuco_opencv, 640 x 480, JPEG quality 95 from its quantisation
+  (fixtures/real_charuco_opencv, 640 x 480, JPEG quality 95 by their quantisation
   tables) leave 0.34-0.54 px per view after OpenCV's 5-term lens on vision-cal's corners
-  (0.73-1.0 px on OpenCV's own corners); the tangential and thin-prism terms there take
-  0.1 px RMS of it (0.417 px with k1 k2 k3 only, 0.401 with 12 terms), which
-  ``PHONE_TANGENTIAL_PX`` and ``PHONE_PRISM_PX`` scale to a phone's frame.
+  (0.73-1.0 px on OpenCV's own corners; 0.38-0.56 px after vision-cal's homography alone);
+  the tangential and thin-prism terms take 0.11 px RMS of it (0.417 px with k1 k2 k3
+  only, 0.401 with 12 terms). Those corners reach about 60 % of the 400 px
+  half-diagonal; terms growing with r^2 then give about 0.11 / 0.6^2 = 0.3 px at the
+  corner, 0.2 px for each family: ``PHONE_TANGENTIAL_PX`` and ``PHONE_PRISM_PX`` (0.6 px
+  per 1000 px of half-diagonal each) scale that to another frame. Five photos of one
+  board do not pin the terms themselves (the 12-term fit trades them against the focal
+  length), only their share of the residual.
 """
 
 from __future__ import annotations
@@ -67,9 +72,8 @@ from vision_cal.errors import VisionCalError  # noqa: E402
 from vision_cal.render.camera import distort_image  # noqa: E402
 
 #: sizes (px at the image corner, per 1000 px of image half-diagonal) of the lens terms
-#: beyond k1 k2 in a real photo (module docstring: 0.1 px RMS on the 400 px half-diagonal
-#: of fixtures/real_charuco_opencv, where the board covers the middle of the frame: about
-#: 0.25 px at its corner, 0.6 px per 1000 px)
+#: beyond k1 k2 in a real photo (module docstring: 0.2 px each at the corner of the 400 px
+#: half-diagonal of fixtures/real_charuco_opencv, 0.5 per 1000 px, rounded up)
 PHONE_TANGENTIAL_PX = 0.6
 PHONE_PRISM_PX = 0.6
 #: the JPEG quality of the real photos kept (fixtures/real_charuco_opencv: 95)
