@@ -7,6 +7,8 @@ mistake names the print, the paper or the lens with the size each explains."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import cv2
 import numpy as np
 import pytest
@@ -125,7 +127,6 @@ def test_the_sizes_named_are_what_each_cause_leaves(what):
 
 def test_the_split_is_read_from_the_config_when_called():
     """Too few markers for the field by the config passed: no field is fitted."""
-    from dataclasses import replace
     mm = sheet_60()
     px = photo(mm, printed=0.17, noise=0.5, seed=6)
     cfg = replace(DEFAULT.sheet_fit, smooth_min_markers=61)
