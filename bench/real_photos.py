@@ -92,7 +92,7 @@ def fixture_table() -> int:
         "format": "vision-cal/1", "sheet": sheet,
         "robot": {"L1_mm": 350.0, "L2_mm": 260.0, "joint_zero_deg": [0.0, 0.0],
                   "base_mm": [-250.0, 210.0]},
-        "pen": {"mark_diameter_mm": 1.2}, "marks": [{"id": "c00", "joints_deg": [0, 0]}],
+        "pen": {"mark_diameter_mm": 0.4}, "marks": [{"id": "c00", "joints_deg": [0, 0]}],
         "images": [{"file": f, "marks": []} for f in PHOTOS]}))
     session = load_session(folder)
     meas = measure_folder(session, out_dir=tmp / "out", jobs=1)
