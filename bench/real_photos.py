@@ -42,6 +42,7 @@ Usage::
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import sys
 import tempfile
@@ -53,6 +54,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 FIXTURE = ROOT / "fixtures" / "real_charuco_opencv"
+#: the photos themselves are not in the repository (fixtures/real_charuco_opencv/README.md)
+PHOTOS_DIR = Path(os.environ.get("VISION_CAL_REAL_PHOTOS")
+                  or ROOT.parent / "shared" / "real_photos" / "real_charuco_opencv")
 PHOTOS = ["img_00.jpg", "img_01.jpg", "img_02.jpg", "img_03.jpg", "chocclusion_original.jpg"]
 
 
@@ -87,7 +91,7 @@ def fixture_table() -> int:
     folder = tmp / "photos"
     folder.mkdir()
     for f in PHOTOS:
-        shutil.copy(FIXTURE / f, folder / f)
+        shutil.copy(PHOTOS_DIR / f, folder / f)
     (folder / "session.json").write_text(json.dumps({
         "format": "vision-cal/1", "sheet": sheet,
         "robot": {"L1_mm": 350.0, "L2_mm": 260.0, "joint_zero_deg": [0.0, 0.0],
@@ -116,7 +120,7 @@ def fixture_table() -> int:
         im = by[f]
         print(f"{f:26s} {im.status:7s} {im.n_markers:7d} {im.corner_rms_px:6.3f} "
               + " ".join(f"{fits[n][1][k]:10.3f}" for n in fits)
-              + f"  {_jpeg_quality(FIXTURE / f)}")
+              + f"  {_jpeg_quality(PHOTOS_DIR / f)}")
     print("overall calibrateCamera RMS: "
           + ", ".join(f"{n} {v[0]:.3f} px" for n, v in fits.items()))
     a, b = fits["k1k2k3"][0], fits["12-term"][0]

@@ -7,6 +7,7 @@ on the same views, and a gate forced to refuse must not blame the declared marke
 from __future__ import annotations
 
 import json
+import os
 import shutil
 from dataclasses import replace
 from pathlib import Path
@@ -20,9 +21,29 @@ from vision_cal.dataset.session import load_session
 from vision_cal.measure.batch import detect_image, finish_image, measure_folder
 from vision_cal.measure.sheetfit import MISFIT
 
-FIXTURE = Path(__file__).resolve().parents[2] / "fixtures" / "real_charuco_opencv"
+ROOT = Path(__file__).resolve().parents[2]
+FIXTURE = ROOT / "fixtures" / "real_charuco_opencv"
 PHOTOS = ["img_00.jpg", "img_01.jpg", "img_02.jpg", "img_03.jpg",
           "chocclusion_original.jpg"]
+
+
+def photo_dir() -> Path | None:
+    """Where the photos are: the project keeps the board's description, not the photos
+    (fetched data files live in the steering repo's shared/, not in this repository;
+    fixtures/real_charuco_opencv/README.md). ``$VISION_CAL_REAL_PHOTOS``, then
+    ``../shared/real_photos/real_charuco_opencv``, then the fixture folder itself."""
+    for d in (os.environ.get("VISION_CAL_REAL_PHOTOS"),
+              ROOT.parent / "shared" / "real_photos" / "real_charuco_opencv", FIXTURE):
+        if d and all((Path(d) / f).is_file() for f in PHOTOS):
+            return Path(d)
+    return None
+
+
+PHOTO_DIR = photo_dir()
+pytestmark = pytest.mark.skipif(
+    PHOTO_DIR is None, reason="the real photos are not on this machine (set "
+    "VISION_CAL_REAL_PHOTOS or place them in ../shared/real_photos/real_charuco_opencv; "
+    "fixtures/real_charuco_opencv/README.md names them and their source)")
 WRONG_PLACE = "markers not where sheet.markers puts them"
 
 
@@ -32,7 +53,7 @@ def _session_folder(folder: Path, sheet: dict) -> Path:
     costs 4 times the time at 1.2 mm and changes no corner)."""
     folder.mkdir()
     for f in PHOTOS:
-        shutil.copy(FIXTURE / f, folder / f)
+        shutil.copy(PHOTO_DIR / f, folder / f)
     s = {"format": "vision-cal/1", "sheet": sheet,
          "robot": {"L1_mm": 350.0, "L2_mm": 260.0, "joint_zero_deg": [0.0, 0.0],
                    "base_mm": [-250.0, 210.0]},
@@ -64,7 +85,7 @@ def _opencv(sheet: dict):
         params)
     ids_of, obj, img, size = {}, [], [], None
     for f in PHOTOS:
-        im = cv2.imread(str(FIXTURE / f))
+        im = cv2.imread(str(PHOTO_DIR / f))
         size = im.shape[1::-1]
         corners, ids, _ = det.detectMarkers(im)
         ids = [int(i) for i in np.asarray(ids).ravel()]
