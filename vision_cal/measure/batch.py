@@ -48,8 +48,7 @@ from vision_cal.measure.dots import _radii_mm, blank_regions, find_candidates, r
 from vision_cal.measure.previous_photo import previous_photos
 from vision_cal.measure.printed import printed_reference
 from vision_cal.measure.rotated import to_main_px, transposed, turned_lens
-from vision_cal.measure.sheetfit import (LENS_CAUSE, MISFIT, corner_tolerance_mm,
-                                         misfit_reason)
+from vision_cal.measure.sheetfit import LENS_CAUSE, MISFIT, sheet_misfit
 from vision_cal.measure.grid import grid_offset
 from vision_cal.measure.grid_declaration import misdeclared_grid
 from vision_cal.measure.height import sheet_heights
@@ -229,15 +228,17 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     K, dist = _lens_of(session, lens, det.size_px)
     corners_px = det.corners_for(K, dist)
     m = fit_mapping(det.corners_mm.reshape(-1, 2), corners_px.reshape(-1, 2), K=K, dist=dist)
-    tol = corner_tolerance_mm(det.corners_mm,
-                              float(np.median(m.mm_per_px(det.corners_mm.mean(axis=1)))),
-                              config.sheet_fit)
-    if not m.corner_rms_mm <= tol:  # the markers do not fit the declared sheet
-        return ImageResult(det.file, "skipped",
-                           misfit_reason(det.corners_mm, corners_px, m.corner_rms_mm, tol,
-                                         raw_px=(det.corners_for(None, None)
-                                                 if dist is not None and np.any(dist) else None),
-                                         config=config.sheet_fit),
+    # the gate judges the corners where the mapping fits them: in ideal pixels
+    ideal_px = (corners_px if K is None else
+                undistort_px(corners_px.reshape(-1, 2), K, dist).reshape(corners_px.shape))
+    misfit = sheet_misfit(det.corners_mm, ideal_px, m.corner_rms_mm,
+                          float(np.median(m.mm_per_px(det.corners_mm.mean(axis=1)))),
+                          size_px=det.size_px,
+                          raw_px=((lambda: det.corners_for(None, None))
+                                  if dist is not None and np.any(dist) else None),
+                          config=config.sheet_fit)
+    if misfit is not None:  # the markers do not fit the declared sheet
+        return ImageResult(det.file, "skipped", misfit,
                            n_markers=len(det.marker_ids), corner_rms_px=m.corner_rms_px,
                            corner_rms_mm=m.corner_rms_mm, size_px=det.size_px,
                            from_cache=from_cache)

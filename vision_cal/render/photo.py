@@ -32,6 +32,21 @@ Conventions
   light lost in the image corners), sensor noise (Gaussian, std ``noise_sigma *
   sqrt(0.25 + 0.75 I/255)`` grey levels: signal-dependent like shot noise) and an optional
   JPEG round trip, in that order.
+- Lenses: ``dist`` is any of OpenCV's models (4, 5, 8, 12 or 14 coefficients: radial k1 k2
+  k3 [k4 k5 k6], tangential p1 p2, thin prism s1 s2 s3 s4, tilt); :func:`phone_lens` builds
+  the terms beyond k1 k2 (decentring and thin prism, what a phone's stacked plastic
+  elements add) from their size in pixels at the image corner.
+- Real photos (issue 28, ``bench/real_photos.py --fixture``): OpenCV's ChArUco photos
+  (fixtures/real_charuco_opencv, 640 x 480, JPEG quality 95 by their quantisation
+  tables) leave 0.34-0.54 px per view after OpenCV's 5-term lens on vision-cal's corners
+  (0.73-1.0 px on OpenCV's own corners; 0.38-0.56 px after vision-cal's homography alone);
+  the tangential and thin-prism terms take 0.11 px RMS of it (0.417 px with k1 k2 k3
+  only, 0.401 with 12 terms). Those corners reach about 60 % of the 400 px
+  half-diagonal; terms growing with r^2 then give about 0.11 / 0.6^2 = 0.3 px at the
+  corner, 0.2 px for each family: ``PHONE_TANGENTIAL_PX`` and ``PHONE_PRISM_PX`` (0.6 px
+  per 1000 px of half-diagonal each) scale that to another frame. Five photos of one
+  board do not pin the terms themselves (the 12-term fit trades them against the focal
+  length), only their share of the residual.
 """
 
 from __future__ import annotations
@@ -55,6 +70,14 @@ import trimesh  # noqa: E402
 
 from vision_cal.errors import VisionCalError  # noqa: E402
 from vision_cal.render.camera import distort_image  # noqa: E402
+
+#: sizes (px at the image corner, per 1000 px of image half-diagonal) of the lens terms
+#: beyond k1 k2 in a real photo (module docstring: 0.2 px each at the corner of the 400 px
+#: half-diagonal of fixtures/real_charuco_opencv, 0.5 per 1000 px, rounded up)
+PHONE_TANGENTIAL_PX = 0.6
+PHONE_PRISM_PX = 0.6
+#: the JPEG quality of the real photos kept (fixtures/real_charuco_opencv: 95)
+PHONE_JPEG_QUALITY = 95
 
 BACKGROUND_RGB = (70, 66, 60)        # the table around the sheet
 ARM_RGB = (0.62, 0.64, 0.68)         # link boxes (albedo)
@@ -401,6 +424,43 @@ class Photographer:
         timing["total_s"] += post
         self.last_timing = timing
         return img
+
+
+def phone_lens(*, f_px: float, size_px, k1: float = 0.0, k2: float = 0.0,
+               tangential_px: float | None = None, prism_px: float | None = None,
+               rng=None) -> tuple[float, ...]:
+    """OpenCV's 12 lens coefficients (k1 k2 p1 p2 k3 k4 k5 k6 s1 s2 s3 s4): radial ``k1``
+    ``k2`` and tangential and thin-prism terms that move the image corner by
+    ``tangential_px`` and ``prism_px`` pixels each (default: ``PHONE_TANGENTIAL_PX`` and
+    ``PHONE_PRISM_PX`` per 1000 px of the image's half-diagonal), in directions drawn
+    from ``rng`` (a seed or a Generator)."""
+    rng = np.random.default_rng(rng)
+    half = float(np.hypot(*size_px)) / 2.0
+    tangential_px = PHONE_TANGENTIAL_PX * half / 1000.0 if tangential_px is None else tangential_px
+    prism_px = PHONE_PRISM_PX * half / 1000.0 if prism_px is None else prism_px
+    # the corner of an image of aspect w:h, in normalised units; each family's shape is drawn
+    # at random, then scaled so that its largest shift over the four corners is the size
+    x, y = size_px[0] / 2.0 / float(f_px), size_px[1] / 2.0 / float(f_px)
+    a = rng.uniform(0, 2 * np.pi)
+    p = np.array([np.cos(a), np.sin(a)])
+    s = rng.standard_normal(4)
+    d_t = _corner_shift((0, 0, p[0], p[1], 0, 0, 0, 0, 0, 0, 0, 0), x, y)
+    d_s = _corner_shift((0, 0, 0, 0, 0, 0, 0, 0, *s), x, y)
+    p = p * (tangential_px / f_px / max(d_t, 1e-12))
+    s = s * (prism_px / f_px / max(d_s, 1e-12))
+    return (float(k1), float(k2), float(p[0]), float(p[1]), 0.0, 0.0, 0.0, 0.0,
+            *(float(v) for v in s))
+
+
+def _corner_shift(dist, x: float, y: float) -> float:
+    """Largest shift (normalised units) the non-radial ``dist`` terms give over the four
+    image corners (+-x, +-y)."""
+    out = 0.0
+    for sx, sy in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+        P = np.array([[sx * x, sy * y, 1.0]])
+        q, _ = cv2.projectPoints(P, np.zeros(3), np.zeros(3), np.eye(3), np.asarray(dist, float))
+        out = max(out, float(np.hypot(*(q.ravel() - P[0, :2]))))
+    return out
 
 
 def _height_mesh(xs, ys, Z, extent_mm):

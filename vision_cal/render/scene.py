@@ -57,7 +57,10 @@ Sections and fields::
     camera:
       size_px: [2400, 1800]
       f_px: 2600.0
-      dist: [0, 0, 0, 0, 0]       # true lens, OpenCV k1 k2 p1 p2 k3
+      dist: [0, 0, 0, 0, 0]       # true lens, OpenCV k1 k2 p1 p2 k3 (4, 5, 8, 12 or 14
+                                  # numbers: + k4 k5 k6, + thin prism s1 s2 s3 s4, + tilt
+                                  # tx ty; render.photo.phone_lens builds p and s terms
+                                  # from their size in pixels)
       declared: true              # write K and dist into session.json (false: unknown lens)
       n_views: 4                  # distinct camera poses
       tilt_deg: [0.0, 12.0]       # views tilt from looking straight down by an angle
@@ -188,7 +191,7 @@ class PlanScene:
 class CameraScene:
     size_px: tuple[int, int] = (2400, 1800)
     f_px: float = 2600.0
-    dist: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    dist: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)   # OpenCV's 4/5/8/12/14 terms
     declared: bool = True
     n_views: int = 4
     tilt_deg: tuple[float, float] = (0.0, 12.0)
@@ -405,7 +408,11 @@ def _camera(r: _R, d) -> CameraScene:
         r.fail("camera.size_px", f"expected [width, height] in pixels, got {size!r}")
     size = tuple(r.integer(v, f"camera.size_px[{i}]", lo=16, hi=16384) for i, v in enumerate(size))
     f = r.number(d.get("f_px", dflt.f_px), "camera.f_px", lo=0, lo_open=True)
-    dist = r.vector(d.get("dist", list(dflt.dist)), "camera.dist", 5)
+    dist_raw = d.get("dist", list(dflt.dist))
+    if not isinstance(dist_raw, (list, tuple)) or len(dist_raw) not in (4, 5, 8, 12, 14):
+        r.fail("camera.dist", "expected 4, 5, 8, 12 or 14 OpenCV coefficients (k1 k2 p1 p2 "
+                              f"k3 [k4 k5 k6 [s1 s2 s3 s4 [tx ty]]]), got {dist_raw!r}")
+    dist = r.vector(dist_raw, "camera.dist", len(dist_raw))
     declared = r.boolean(d.get("declared", dflt.declared), "camera.declared")
     nv = r.integer(d.get("n_views", dflt.n_views), "camera.n_views", lo=1)
     tilt_raw = d.get("tilt_deg", list(dflt.tilt_deg))
