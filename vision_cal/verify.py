@@ -20,7 +20,8 @@ the robot draws them on a sheet (a new one, anywhere within reach), and
      the check's own measurement noise when that is larger);
    - ``re-zero joint 2 by +0.040 deg``: only ``z2`` moved and refitting it alone brings the
      marks back within that bound (the sign: the joint's zero offset grew by that much;
-     enter ``z2 + delta`` in the OLP, or re-zero the joint so that it reads the old value);
+     enter ``z2 + delta`` in the OLP, or add ``-delta`` to the controller's joint offset:
+     ``vision_cal.dataset.nominal.rezero_text``, in its one sign convention);
    - ``recalibrate``: anything else (a link, several parameters, or errors no single zero
      explains: a changed backlash, a bent link).
 
@@ -37,6 +38,7 @@ import numpy as np
 
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.io import atomic_write_json
+from vision_cal.dataset.nominal import SIGN_CONVENTION, rezero_text
 from vision_cal.dataset.session import load_session
 from vision_cal.design.iso9283 import ap_rp
 from vision_cal.errors import CalibrationError, VisionCalError
@@ -144,8 +146,8 @@ def compare(model, cal_doc: dict, ids, q_deg, approach, xy_mm, *,
             verdict = f"re-zero joint 2 by {d:+.3f} deg"
             reasons.append(f"joint 2's zero moved by {d:+.4f} deg ({changes['z2_deg']['sigmas']:.1f}"
                            f" std); with it the marks miss by {rms_2d(res_z):.4f} mm RMS, within "
-                           f"{bound:.4f} mm: enter z2 = {model.params.z2_deg + d:.4f} deg in "
-                           "the OLP, or re-zero joint 2 so that it reads the calibrated value")
+                           f"{bound:.4f} mm: " + rezero_text(2, d, model.params.z2_deg)
+                           + f" ({SIGN_CONVENTION})")
         else:
             verdict = "recalibrate"
             reasons.append(f"joint 2's zero moved by {d:+.4f} deg, but the marks still miss by "

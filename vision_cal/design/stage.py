@@ -270,7 +270,9 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
     traj = plan_trajectory(marks, home_deg=nominal.home_deg, vmax_deg_s=robot.speed_limits_deg_s,
                            amax_deg_s2=robot.accel_limits_deg_s2,
                            dwell_s=robot.program.settle_s)
-    info["nominal_robot"] = nominal.to_json()
+    info["nominal_robot"] = nominal.to_json()   # the robot file: every "nominal" (dataset/nominal)
+    if robot.pen_down_mm is not None:   # the height the marks are drawn at (valid_for)
+        info["pen_down_mm"] = robot.pen_down_mm
     if warnings:
         info["warnings"] = warnings
     info["trajectory_s"] = traj.duration_s
