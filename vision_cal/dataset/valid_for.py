@@ -184,17 +184,24 @@ def _names(ids, first: int = 3) -> str:
 
 def check(vf: dict | None, *, cal: str = "CAL.json", ids=(), joints_deg=None,
           approach=None, joint4_deg=None, heights_mm=None, pen_down_mm=None,
-          camera: int | None = None) -> list[Outside]:
+          camera: int | None = None, whole_model: bool = False) -> list[Outside]:
     """What of a request lies outside ``vf`` (empty: all inside, or ``vf`` None: an old file
     that does not say). ``ids`` names the request's items; per item ``joints_deg`` (q1, q2),
     ``approach`` (s1, s2[, s4]), ``joint4_deg``; ``heights_mm`` the heights asked (locate's
-    ``--z-mm``) of ``camera`` (else the marks' heights); ``pen_down_mm`` the program's."""
+    ``--z-mm``) of ``camera`` (else the marks' heights); ``pen_down_mm`` the program's;
+    ``whole_model`` (``export``: the model for every pose) each effect not identified."""
     if not vf:
         return []
     ids = list(ids)
     out: list[Outside] = []
     tool_note = ", joint 4 turned" if vf.get("tool_identified") is False else ""
     informative = INFORMATIVE.format(cal=cal, tool=tool_note)
+    if whole_model:
+        for d in vf.get("not_identified") or []:
+            out.append(Outside(
+                "not_identified", f"{d['label']} is not identified ({d.get('reason', '')}): "
+                f"the exported model is wrong for {d.get('excited_by', 'where it acts')}",
+                f"{d.get('fix', '')}: {informative}"))
     rng = vf.get("joints_deg")
     if joints_deg is not None and rng:
         bad = [i for i, q in zip(ids, joints_deg)
