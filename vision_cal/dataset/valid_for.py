@@ -64,6 +64,8 @@ def build(doc: dict, *, pen_down_mm: float | None = None) -> dict | None:
     j4 = sorted({round(float(m["j4_deg"]), 6) for m in ms if _num(m.get("j4_deg"))})
     tool = doc.get("tool") if isinstance(doc.get("tool"), dict) else None
     tool_identified = None if tool is None else bool(tool.get("identified"))
+    if doc.get("method") == "arm_camera":   # the camera's mount is the tool: turned or not
+        tool_identified = len(j4) >= 2
     if not j4:   # the format's default: the robot block's j4_deg, else 0
         j4 = [float(tool["j4_deg"]) if tool is not None and _num(tool.get("j4_deg")) else 0.0]
     sides: dict[str, list[int]] = {}
@@ -119,8 +121,9 @@ def build(doc: dict, *, pen_down_mm: float | None = None) -> dict | None:
     for c in doc.get("cameras") or []:
         if not isinstance(c, dict):
             continue
-        T = c.get("T_robot_camera")
-        h = float(T[2][3]) if isinstance(T, list) and len(T) == 4 and _num(T[2][3]) else None
+        T = c.get("T_robot_camera") or c.get("T_flange_camera")   # still, or on the arm
+        h = (float(T[2][3]) if isinstance(T, list) and len(T) == 4 and isinstance(T[2], list)
+             and len(T[2]) == 4 and _num(T[2][3]) else None)
         how = c.get("intrinsics", "declared")
         if how == "focal length undetermined" or h is None:
             loc = [0.0, 0.0]
@@ -194,7 +197,8 @@ def check(vf: dict | None, *, cal: str = "CAL.json", ids=(), joints_deg=None,
         return []
     ids = list(ids)
     out: list[Outside] = []
-    tool_note = ", joint 4 turned" if vf.get("tool_identified") is False else ""
+    tool_note = (", joint 4 turned" if any(d.get("effect") == "tool"
+                                           for d in vf.get("not_identified") or []) else "")
     informative = INFORMATIVE.format(cal=cal, tool=tool_note)
     if whole_model:
         for d in vf.get("not_identified") or []:
