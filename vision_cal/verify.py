@@ -205,7 +205,8 @@ def verify_folder(cal_path, folder, *, out_dir, jobs: int | None = None,
         raise VisionCalError("is the check's folder: the input folder is never written to",
                              file=str(out_dir), field="--out")
     outside = check_valid_for(
-        valid_for_of(doc), cal=str(cal_path), ids=[m.id for m in session.marks],
+        valid_for_of(doc, file=str(cal_path)), cal=str(cal_path),
+        ids=[m.id for m in session.marks],
         joints_deg=session.joints_deg.tolist(),
         approach=session.approach.astype(int).tolist(),
         joint4_deg=session.j4_deg.tolist() if session.uses_joint4 else None)

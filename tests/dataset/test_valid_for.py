@@ -228,3 +228,16 @@ def test_verify_refuses_a_check_drawn_from_a_side_never_calibrated(paper, tmp_pa
 
 def test_check_is_empty_for_an_old_file_that_does_not_say():
     assert vf_mod.check(None, ids=["a"], joints_deg=[[500.0, 0.0]]) == []
+
+
+@pytest.mark.parametrize("field,value", [
+    ("joints_deg", [[10.0, -10.0], [0.0, 1.0]]), ("approach_sides", {"2": [0]}),
+    ("joint4_deg", "x"), ("not_identified", [{"joint": 2}]), ("heights_mm", [0.0])])
+def test_a_bad_valid_for_is_one_line_naming_the_field(paper, tmp_path, capsys, field, value):
+    d = copy.deepcopy(paper)
+    d["valid_for"][field] = value
+    cal = _write(tmp_path, d)
+    assert main(["plan", str(cal), str(_inside_targets(tmp_path, paper)), "-o",
+                 str(tmp_path / "p.csv"), "-q"]) == 2
+    (line,) = _err_lines(capsys)
+    assert f"{cal}: valid_for.{field}" in line, line

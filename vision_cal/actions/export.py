@@ -56,8 +56,8 @@ def export_calibration(req: ExportRequest) -> int:
         print(warn, file=sys.stderr)
     said = []
     if req.urdf or req.yaml:   # the robot model for every pose: what it could not identify
-        outside = check_valid_for(valid_for_of(doc), cal=str(req.calibration),
-                                  whole_model=True)
+        outside = check_valid_for(valid_for_of(doc, file=str(req.calibration)),
+                                  cal=str(req.calibration), whole_model=True)
         said = enforce_valid_for(outside, file=str(req.calibration), force=req.force,
                                  what="--urdf/--yaml")
     limits, limits4, limits3 = doc.get("joint_limits_deg"), None, None

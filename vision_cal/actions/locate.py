@@ -131,7 +131,7 @@ def _outside_valid_for(req: LocateRequest, doc: dict, ids, z, joints) -> list:
     (:func:`vision_cal.dataset.valid_for.check`): heights the camera cannot locate at, the
     arm's ``--joints`` beyond the poses' range or side, joint commands (``--robot``) beyond
     the joints the calibration covered."""
-    vf = valid_for_of(doc)
+    vf = valid_for_of(doc, file=str(req.calibration))
     cal = str(req.calibration)
     out = check_valid_for(vf, cal=cal, ids=ids, heights_mm=z, camera=req.camera)
     if req.joints is not None:

@@ -204,7 +204,8 @@ def _outside_valid_for(req, doc: dict, ok, pose_of, robot) -> list:
                 for p in ok]
     q4 = [pose_of[p.id].q4_deg for p in ok] if pose_of else None
     pen = robot.pen_down_mm if (robot is not None and req.program) else None
-    return check_valid_for(valid_for_of(doc), cal=str(req.calibration), ids=ids,
+    return check_valid_for(valid_for_of(doc, file=str(req.calibration)),
+                           cal=str(req.calibration), ids=ids,
                            joints_deg=[p.q_deg for p in ok], approach=approach,
                            joint4_deg=q4, pen_down_mm=pen)
 

@@ -40,29 +40,37 @@ def _num(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
+def _usable(m) -> bool:
+    q = m.get("joints_deg") if isinstance(m, dict) else None
+    return (isinstance(q, (list, tuple)) and len(q) >= 2 and all(_num(v) for v in q[:2])
+            and m.get("status", "ok") == "ok")
+
+
 def _entries(doc: dict) -> list[dict]:
-    """The marks (or an arm camera's poses) the calibration measured: joints, approach, j4."""
-    out = []
-    for m in (doc.get("marks") or {}).values():
-        if isinstance(m, dict) and m.get("status", "ok") == "ok" and m.get("joints_deg"):
-            out.append(m)
-    for p in doc.get("poses") or []:
-        if isinstance(p, dict) and p.get("joints_deg"):
-            out.append(p)
-    return out
+    """The marks (or an arm camera's poses) the calibration measured: joints, approach, j4
+    (entries without usable joints left out: the file's reader names those)."""
+    marks = doc.get("marks")
+    poses = doc.get("poses")
+    return ([m for m in (marks.values() if isinstance(marks, dict) else []) if _usable(m)]
+            + [p for p in (poses if isinstance(poses, list) else []) if _usable(p)])
 
 
 def build(doc: dict, *, pen_down_mm: float | None = None) -> dict | None:
     """calibration.json's ``valid_for`` from the document's marks (or poses), ``tool``,
     ``identifiability``, ``effects`` and ``cameras``; None when it has no joints to say it
     from (marks given without ``joints_deg``)."""
+    if not isinstance(doc, dict):
+        return None
     ms = _entries(doc)
-    q = [m["joints_deg"] for m in ms if all(_num(v) for v in m["joints_deg"][:2])]
+    q = [m["joints_deg"] for m in ms]
     if not q:
         return None
     joints = [[float(min(v[j] for v in q)), float(max(v[j] for v in q))] for j in range(2)]
     j4 = sorted({round(float(m["j4_deg"]), 6) for m in ms if _num(m.get("j4_deg"))})
     tool = doc.get("tool") if isinstance(doc.get("tool"), dict) else None
+    nominal_tool = (tool or {}).get("tool_mm_nominal")
+    if not (isinstance(nominal_tool, list) and all(_num(v) for v in nominal_tool)):
+        nominal_tool = [0.0, 0.0]
     tool_identified = None if tool is None else bool(tool.get("identified"))
     if doc.get("method") == "arm_camera":   # the camera's mount is the tool: turned or not
         tool_identified = len(j4) >= 2
@@ -90,8 +98,7 @@ def build(doc: dict, *, pen_down_mm: float | None = None) -> dict | None:
                 "excited_by": f"approach {other:+d} on joint {name}",
                 "fix": f"draw marks reaching joint {name} from both directions (overshoot "
                        "via points)"})
-    if tool_identified is False and any(abs(float(v)) > 0 for v in
-                                        (tool.get("tool_mm_nominal") or [0.0, 0.0])):
+    if tool_identified is False and any(abs(float(v)) > 0 for v in nominal_tool):
         not_identified.append({
             "effect": "tool", "label": "tool_mm",
             "reason": f"every mark was drawn at joint 4 = {j4[0] if j4 else 0:g} deg: the "
@@ -101,14 +108,17 @@ def build(doc: dict, *, pen_down_mm: float | None = None) -> dict | None:
             "fix": "turn joint 4 between marks (the robot file's tool_mm set, the "
                    "informative plan adds joint-4 circles)"})
     labels = {d["label"] for d in not_identified}
-    for d in (doc.get("identifiability") or {}).get("not_identifiable") or []:
-        if isinstance(d, dict) and d.get("label") and d["label"] not in labels:
+    ident = doc.get("identifiability") if isinstance(doc.get("identifiability"), dict) else {}
+    ni = ident.get("not_identifiable") if isinstance(ident.get("not_identifiable"), list) else []
+    for d in ni:
+        if isinstance(d, dict) and isinstance(d.get("label"), str) and d["label"] not in labels:
             not_identified.append({"effect": str(d["label"]).split("(")[0],
                                    "label": d["label"], "reason": d.get("reason", ""),
                                    "excited_by": "targets where it acts",
                                    "fix": d.get("fix", "")})
     heights = [0.0, 0.0]
-    for e in doc.get("effects") or []:
+    effects = doc.get("effects") if isinstance(doc.get("effects"), list) else []
+    for e in effects:
         if isinstance(e, dict) and e.get("name") == "sheet_height":
             h = e.get("max_abs_mark_height_mm")
             if _num(h):   # the paper is not flat: marks were seen this far off its plane
@@ -118,7 +128,7 @@ def build(doc: dict, *, pen_down_mm: float | None = None) -> dict | None:
            "heights_mm": heights, "pen_down_mm": pen_down_mm,
            "not_identified": not_identified}
     cams = []
-    for c in doc.get("cameras") or []:
+    for c in doc.get("cameras") if isinstance(doc.get("cameras"), list) else []:
         if not isinstance(c, dict):
             continue
         T = c.get("T_robot_camera") or c.get("T_flange_camera")   # still, or on the arm
@@ -136,11 +146,70 @@ def build(doc: dict, *, pen_down_mm: float | None = None) -> dict | None:
     return out
 
 
-def of(doc: dict) -> dict | None:
-    """A calibration document's ``valid_for``; built from its marks for a file written
-    before the block existed."""
-    vf = doc.get("valid_for") if isinstance(doc, dict) else None
-    return vf if isinstance(vf, dict) else build(doc)
+def of(doc: dict, *, file: str | None = None) -> dict | None:
+    """A calibration document's ``valid_for``, every field a check reads validated (a bad
+    one raises :class:`VisionCalError` naming ``file`` and ``valid_for.<field>``); built
+    from its marks for a file written before the block existed."""
+    if not isinstance(doc, dict):
+        return None
+    if "valid_for" not in doc:
+        return build(doc)
+    vf = doc["valid_for"]
+    if vf is None:
+        return None
+
+    def bad(field, why):
+        raise VisionCalError(why, file=file, field=f"valid_for{field}")
+
+    if not isinstance(vf, dict):
+        bad("", f"expected an object, got {type(vf).__name__}")
+
+    def pair(v, field, *, nullable=False):
+        if v is None and nullable:
+            return
+        if not (isinstance(v, list) and len(v) == 2 and all(_num(x) for x in v)
+                and v[0] <= v[1]):
+            bad(field, f"expected [lo, hi], two finite numbers, got {v!r}")
+
+    j = vf.get("joints_deg")
+    if j is not None:
+        if not (isinstance(j, list) and len(j) == 2):
+            bad(".joints_deg", f"expected [[lo, hi], [lo, hi]], got {j!r}")
+        for k, r in enumerate(j):
+            pair(r, f".joints_deg[{k}]")
+    sides = vf.get("approach_sides")
+    if sides is not None:
+        if not isinstance(sides, dict):
+            bad(".approach_sides", f"expected an object, got {sides!r}")
+        for k, v in sides.items():
+            if k not in ("1", "2", "4") or not (isinstance(v, list) and v and all(
+                    x in (1, -1) and not isinstance(x, bool) for x in v)):
+                bad(f".approach_sides.{k}", f"expected a list of +1/-1, got {v!r}")
+    j4 = vf.get("joint4_deg")
+    if j4 is not None and not (isinstance(j4, list) and j4 and all(_num(x) for x in j4)):
+        bad(".joint4_deg", f"expected a list of angles in degrees, got {j4!r}")
+    if vf.get("tool_identified") not in (None, True, False):
+        bad(".tool_identified", f"expected true, false or null, got {vf['tool_identified']!r}")
+    pair(vf.get("heights_mm"), ".heights_mm", nullable=True)
+    pd = vf.get("pen_down_mm")
+    if pd is not None and not _num(pd):
+        bad(".pen_down_mm", f"expected a number of mm or null, got {pd!r}")
+    ni = vf.get("not_identified")
+    if ni is not None:
+        if not isinstance(ni, list):
+            bad(".not_identified", f"expected a list, got {ni!r}")
+        for k, d in enumerate(ni):
+            if not (isinstance(d, dict) and isinstance(d.get("label"), str)):
+                bad(f".not_identified[{k}]", f"expected an object with a label, got {d!r}")
+    cams = vf.get("cameras")
+    if cams is not None:
+        if not isinstance(cams, list):
+            bad(".cameras", f"expected a list, got {cams!r}")
+        for k, c in enumerate(cams):
+            if not isinstance(c, dict):
+                bad(f".cameras[{k}]", f"expected an object, got {c!r}")
+            pair(c.get("locate_heights_mm"), f".cameras[{k}].locate_heights_mm")
+    return vf
 
 
 def _side(s: int) -> str:

@@ -319,7 +319,8 @@ def _against_valid_for(doc: dict, cal, marks, home_deg, joint4, stage, info: dic
     ids = [m.id for m in marks]
     q = [list(m.joints_deg) for m in marks]
     a = resolve_approach(marks, home_deg).astype(int).tolist()
-    outside = check_valid_for(valid_for_of(doc), cal=str(cal), ids=ids, joints_deg=q,
+    outside = check_valid_for(valid_for_of(doc, file=str(cal)), cal=str(cal), ids=ids,
+                              joints_deg=q,
                               approach=a, joint4_deg=None if not joint4 else
                               [joint4.get(i) for i in ids])
     if not outside:
