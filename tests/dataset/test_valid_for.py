@@ -241,3 +241,39 @@ def test_a_bad_valid_for_is_one_line_naming_the_field(paper, tmp_path, capsys, f
                  str(tmp_path / "p.csv"), "-q"]) == 2
     (line,) = _err_lines(capsys)
     assert f"{cal}: valid_for.{field}" in line, line
+
+
+def test_plan_refuses_a_program_drawn_at_another_height(paper, tmp_path, capsys):
+    """The marks were drawn at the robot file's pen_down_mm (session.json
+    design.pen_down_mm); a program lowering joint 3 elsewhere puts the tool elsewhere."""
+    robot = ROOT / "fixtures" / "robot_sm5.yaml"
+    pen = yaml.safe_load(robot.read_text())["pen_down_mm"]
+    d = copy.deepcopy(paper)
+    d["valid_for"]["pen_down_mm"] = pen + 5.0
+    cal = _write(tmp_path, d)
+    argv = ["plan", str(cal), str(_inside_targets(tmp_path, paper)), "-o",
+            str(tmp_path / "p.csv"), "--program", "spel", "--robot", str(robot), "-q"]
+    assert main(argv) == 2
+    (line,) = _err_lines(capsys)
+    assert "valid_for.pen_down_mm" in line and f"{pen:g}" in line, line
+    d["valid_for"]["pen_down_mm"] = pen
+    _write(tmp_path, d)
+    assert main(argv) == 0
+
+
+def test_an_arm_cameras_poses_are_what_it_was_calibrated_for():
+    """A handeye calibration (no marks): its poses give the joints and sides, joint 4 turned
+    identifies the mount, T_flange_camera's z the camera's height above the sheet."""
+    T = np.eye(4)
+    T[2, 3] = 205.0
+    doc = {"method": "arm_camera", "cameras": [{"T_flange_camera": T.tolist(),
+                                                 "intrinsics": "declared"}],
+           "poses": [{"joints_deg": [q1, q2], "approach": [s, -s], "j4_deg": j4}
+                     for q1, q2, s, j4 in ((-30, 60, 1, 0), (40, -80, -1, 90), (10, 100, 1, 45))]}
+    vf = vf_mod.build(doc)
+    assert vf["joints_deg"] == [[-30.0, 40.0], [-80.0, 100.0]]
+    assert vf["approach_sides"] == {"1": [-1, 1], "2": [-1, 1]}
+    assert vf["tool_identified"] is True
+    assert vf["cameras"][0]["locate_heights_mm"] == [0.0, 205.0]
+    out = vf_mod.check(vf, ids=["--joints"], joints_deg=[[60.0, 0.0]], approach=[(1, 1)])
+    assert [o.field for o in out] == ["joints"]
