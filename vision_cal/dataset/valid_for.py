@@ -138,7 +138,7 @@ def build(doc: dict, *, pen_down_mm: float | None = None) -> dict | None:
         if how == "focal length undetermined" or h is None:
             loc = [0.0, 0.0]
         else:   # between the sheet and the camera: the ray's model, its std holding f
-            loc = [0.0, h]
+            loc = sorted([0.0, h])
         cams.append({"camera_height_mm": h, "heights_seen_mm": list(heights),
                      "locate_heights_mm": loc, "intrinsics": how})
     if cams:
