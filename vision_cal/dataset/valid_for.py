@@ -227,7 +227,9 @@ def verdict_reasons(vf: dict | None, *, skip_labels=()) -> list[tuple[str, str]]
         out.append(("check", f"not identified: {d['label']} ({d.get('reason', '')}); "
                              f"targets with {d.get('excited_by', 'it')} are outside what was "
                              f"calibrated (plan refuses them); to identify it, "
-                             f"{d.get('fix', 'draw the informative plan')}"))
+                             f"{d.get('fix', 'draw the informative plan')} (the informative "
+                             "plan does: vision-cal design ROBOT.yaml --sheet SHEET.json "
+                             "--pilot THIS/calibration.json)"))
     return out
 
 
