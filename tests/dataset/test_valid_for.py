@@ -155,10 +155,13 @@ def test_plan_refuses_orientations_with_a_tool_never_turned(paper, tmp_path, cap
 
 # --------------------------------------------------------------------------- locate
 
-def _with_camera(doc: dict, height_mm: float, intrinsics: str = "estimated") -> dict:
+def _with_camera(doc: dict, height_mm: float, intrinsics: str = "estimated",
+                 over_mm=(400.0, 0.0)) -> dict:
+    """The document with a still camera looking straight down from ``height_mm`` over the
+    robot-frame point ``over_mm`` (the robot frame is the sheet's here: z1 0, base 0)."""
     d = copy.deepcopy(doc)
     T = np.diag([1.0, -1.0, -1.0, 1.0])            # looking straight down
-    T[:3, 3] = [400.0, 0.0, height_mm]
+    T[:3, 3] = [*over_mm, height_mm]
     d["cameras"] = [{"images": ["a.png"], "size_px": [1200, 900],
                      "K": [[1000.0, 0, 599.5], [0, 1000.0, 449.5], [0, 0, 1]],
                      "dist": [0.0] * 5, "T_robot_camera": T.tolist(), "intrinsics": intrinsics,
@@ -179,6 +182,22 @@ def test_locate_refuses_heights_the_camera_cannot_locate(paper, tmp_path, capsys
     assert "valid_for.heights" in line and "-30" in line, line
     assert main(["locate", str(cal), "--pixel", "600", "450", "--z-mm", "-30", "--force"]) == 0
     assert any("valid_for" in ln for ln in _err_lines(capsys))
+
+
+def test_locate_refuses_a_joint_command_beyond_the_marks(paper, tmp_path, capsys):
+    """--robot: the compensated command of the located point, checked as plan's targets."""
+    from vision_cal.kinematics import ScaraParams, forward
+
+    p = ScaraParams.from_json(paper["params"])
+    robot = ROOT / "fixtures" / "robot_sm5.yaml"
+    for q, rc in (([5.0, 30.0], 0), ([45.0, 30.0], 2)):    # joint 1 covered -20..20 deg
+        over = forward(p, np.array([q]))[0]
+        cal = _write(tmp_path, _with_camera(paper, 600.0, over_mm=over))
+        capsys.readouterr()
+        assert main(["locate", str(cal), "--pixel", "599.5", "449.5", "--robot", str(robot),
+                     "-q"]) == rc
+    (line,) = _err_lines(capsys)
+    assert "valid_for.joints" in line and "joint 1 -20.0..20.0 deg" in line, line
 
 
 # --------------------------------------------------------------------------- export
