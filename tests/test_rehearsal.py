@@ -144,3 +144,28 @@ def test_the_compensated_targets_program_hits_its_targets(rehearsal):
     assert float(np.sqrt(np.mean(np.sum(true_miss**2, axis=1)))) < 0.05
     seen = np.array([r["error_mm"] for r in rows])
     assert np.all(np.hypot(*(seen - true_miss).T) < 0.05), (seen, true_miss)
+
+
+def test_the_report_tells_the_controller_the_robot_files_offsets(rehearsal):
+    """Issue 29 section 1: the informative plan was placed with the pilot's model, yet
+    every "nominal" and "add to the controller" is the robot file's (the controller runs
+    it): the report's offsets are the robot file's zeros minus the calibrated ones, within
+    0.01 deg of the robot file's minus the true zeros (the simulated robot's), and the
+    pilot's model is named the plan's starting model."""
+    tmp, _ = rehearsal
+    robot = yaml.safe_load((tmp / "robot.yaml").read_text())
+    truth = json.loads((tmp / "plan" / "truth.json").read_text())["params"]
+    cal = json.loads((tmp / "cal" / "calibration.json").read_text())
+    pilot = json.loads((tmp / "pilot_cal" / "calibration.json").read_text())
+    assert cal["nominal"]["joint_zero_deg"] == robot["joint_zero_deg"]
+    assert cal["starting_model"]["joint_zero_deg"] == pilot["params"]["joint_zero_deg"]
+    report = json.loads((tmp / "cal" / "report.json").read_text())
+    offsets = {o["joint"]: o["add_to_offset_deg"]
+               for o in report["actions"]["controller_offsets"]}
+    for j in (1, 2):
+        want = robot["joint_zero_deg"][j - 1] - truth["joint_zero_deg"][j - 1]
+        assert abs(offsets[j] - want) < 0.01, (j, offsets[j], want)
+        assert f"joint {j}: {offsets[j]:+.4f} deg" in report["actions"]["controller_offsets_text"]
+    assert "robot file" in report["actions"]["controller_offsets_text"]
+    html = (tmp / "cal" / "report.html").read_text()
+    assert f"{offsets[2]:+.4f}" in html and "starting model" in html

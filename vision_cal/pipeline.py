@@ -28,8 +28,10 @@ from vision_cal.config import DEFAULT, METHODS, EstimatorConfig
 from vision_cal.dataset.calibration_result import CalibrationResult, ModelRms
 from vision_cal.dataset.covariance import covariance_json
 from vision_cal.dataset.io import as_json, read_json
+from vision_cal.dataset.nominal import nominal_blocks
 from vision_cal.dataset.session import Session, load_session
 from vision_cal.dataset.sheet_identity import sheet_identity
+from vision_cal.dataset.valid_for import build as valid_for_block
 from vision_cal.diagnose.candidates import default_candidates
 from vision_cal.diagnose.discover import trace
 from vision_cal.diagnose.photos import per_photo_offsets
@@ -426,7 +428,7 @@ def document(session: Session, data: MarkData, missing: list[str],
     result = CalibrationResult(
         method=method, config=config.to_json(), effects=tuple(effects), diagnosis=diagnosis,
         notes=None if notes is None else tuple(notes), **blk,
-        nominal=session.robot.params.to_json(),
+        **nominal_blocks(session.raw, session.robot.params.to_json()),  # the robot file
         home_deg=tuple(float(v) for v in session.robot.home_deg),  # added: where plans start
         printed_content=printed_content_json(session.sheet) or None,  # added: for plan
         joint_limits_deg=(None if limits is None  # added: plan, export
@@ -442,6 +444,10 @@ def document(session: Session, data: MarkData, missing: list[str],
     if truth:
         result = replace(result, truth_comparison=compare_truth(session.root / "truth.json",
                                                                 result.to_json()))
+    design = session.raw.get("design") if isinstance(session.raw, dict) else None
+    pen = (design or {}).get("pen_down_mm") if isinstance(design, dict) else None
+    result = replace(result, valid_for=valid_for_block(
+        result.to_json(), pen_down_mm=pen if isinstance(pen, (int, float)) else None))
     doc = _judged(result, session).to_json()
     add_to_calibration(doc, session)   # what the report draws: it reads only the files
     # the values exactly as written (NaN as null, numpy as Python): what is read back

@@ -20,7 +20,8 @@ the robot draws them on a sheet (a new one, anywhere within reach), and
      the check's own measurement noise when that is larger);
    - ``re-zero joint 2 by +0.040 deg``: only ``z2`` moved and refitting it alone brings the
      marks back within that bound (the sign: the joint's zero offset grew by that much;
-     enter ``z2 + delta`` in the OLP, or re-zero the joint so that it reads the old value);
+     enter ``z2 + delta`` in the OLP, or add ``-delta`` to the controller's joint offset:
+     ``vision_cal.dataset.nominal.rezero_text``, in its one sign convention);
    - ``recalibrate``: anything else (a link, several parameters, or errors no single zero
      explains: a changed backlash, a bent link).
 
@@ -37,7 +38,11 @@ import numpy as np
 
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.io import atomic_write_json
+from vision_cal.dataset.nominal import SIGN_CONVENTION, rezero_text
 from vision_cal.dataset.session import load_session
+from vision_cal.dataset.valid_for import check as check_valid_for
+from vision_cal.dataset.valid_for import enforce as enforce_valid_for
+from vision_cal.dataset.valid_for import of as valid_for_of
 from vision_cal.design.iso9283 import ap_rp
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.pipeline import measure_marks
@@ -144,8 +149,8 @@ def compare(model, cal_doc: dict, ids, q_deg, approach, xy_mm, *,
             verdict = f"re-zero joint 2 by {d:+.3f} deg"
             reasons.append(f"joint 2's zero moved by {d:+.4f} deg ({changes['z2_deg']['sigmas']:.1f}"
                            f" std); with it the marks miss by {rms_2d(res_z):.4f} mm RMS, within "
-                           f"{bound:.4f} mm: enter z2 = {model.params.z2_deg + d:.4f} deg in "
-                           "the OLP, or re-zero joint 2 so that it reads the calibrated value")
+                           f"{bound:.4f} mm: " + rezero_text(2, d, model.params.z2_deg)
+                           + f" ({SIGN_CONVENTION})")
         else:
             verdict = "recalibrate"
             reasons.append(f"joint 2's zero moved by {d:+.4f} deg, but the marks still miss by "
@@ -186,15 +191,27 @@ def compare(model, cal_doc: dict, ids, q_deg, approach, xy_mm, *,
 
 
 def verify_folder(cal_path, folder, *, out_dir, jobs: int | None = None,
-                  progress: bool = False) -> tuple[VerifyResult, Path]:
+                  progress: bool = False, force: bool = False
+                  ) -> tuple[VerifyResult, Path, list[str]]:
     """Measure the check's photos in ``folder`` and compare them with ``cal_path``; writes
-    ``out_dir/verify.json``."""
+    ``out_dir/verify.json``. The check's marks are first checked against the calibration's
+    ``valid_for`` (:mod:`vision_cal.dataset.valid_for`): a mark outside it compares the
+    check with an extrapolation, refused unless ``force`` (then said in verify.json
+    ``outside_valid_for`` and in the lines returned, for the console)."""
     model, doc = load_calibration(cal_path)
     session = load_session(folder)
     out_dir = Path(out_dir)
     if out_dir.resolve() == Path(folder).resolve():
         raise VisionCalError("is the check's folder: the input folder is never written to",
                              file=str(out_dir), field="--out")
+    outside = check_valid_for(
+        valid_for_of(doc, file=str(cal_path)), cal=str(cal_path),
+        ids=[m.id for m in session.marks],
+        joints_deg=session.joints_deg.tolist(),
+        approach=session.approach.astype(int).tolist(),
+        joint4_deg=session.j4_deg.tolist() if session.uses_joint4 else None)
+    said = enforce_valid_for(outside, file=str(cal_path), force=force,
+                             what=f"{folder}/session.json marks")
     measurement, data, missing = measure_marks(session, out_dir=out_dir, jobs=jobs,
                                                progress=progress)
     noise = (float(np.sqrt(2 * np.mean(data.sigma_mm**2)))
@@ -212,5 +229,7 @@ def verify_folder(cal_path, folder, *, out_dir, jobs: int | None = None,
     out = r.to_json()
     out.update(calibration=str(cal_path), folder=str(folder), missing_marks=missing,
                noise_floor_mm=noise)
+    if outside:   # written because of force: the extrapolation stated in the file
+        out["outside_valid_for"] = [o.to_json() for o in outside]
     path = atomic_write_json(out_dir / "verify.json", out)
-    return r, path
+    return r, path, said

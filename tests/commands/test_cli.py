@@ -70,7 +70,7 @@ def test_plan_command_writes_plan_and_trajectory(paper_folder, tmp_path, capsys)
     assert main([str(paper_folder), "--method", "paper", "--out", str(tmp_path), "-q"]) == 0
     cal = tmp_path / "calibration.json"
     assert main(["plan", str(cal), str(targets), "-o", str(tmp_path / "plan.csv"),
-                 "--trajectory", str(tmp_path / "traj.csv")]) == 0
+                 "--trajectory", str(tmp_path / "traj.csv"), "--force"]) == 0   # valid_for
     err = capsys.readouterr().err
     assert "target far" in err and "out of reach" in err
     ids, q, s = read_plan(tmp_path / "plan.csv")
@@ -133,7 +133,7 @@ def test_plan_trajectory_starts_at_home(paper_folder, tmp_path):
     def first_pose(*extra):
         traj = tmp_path / "traj.csv"
         assert main(["plan", str(cal), str(targets), "-o", str(tmp_path / "plan.csv"), "-q",
-                     "--trajectory", str(traj), *extra]) == 0
+                     "--trajectory", str(traj), "--force", *extra]) == 0   # valid_for
         row = traj.read_text().splitlines()[1].split(",")
         return float(row[1]), float(row[2])
 

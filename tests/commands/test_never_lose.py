@@ -85,7 +85,7 @@ def test_outputs_written_together_or_not_at_all(work, capsys, monkeypatch):
     with pytest.raises(OSError):
         cli(["plan", work / "cal.json", work / "targets.csv", "-o", work / "p.csv",
              "--program", "spel", "--robot", work / "robot.yaml", "--trajectory",
-             work / "t.csv", "-q"], capsys)
+             work / "t.csv", "-q", "--force"], capsys)   # --force: the paper's valid_for
     assert snapshot(work) == before
     assert not [p for p in work.iterdir() if p.name.endswith(".tmp")]
 

@@ -20,12 +20,12 @@ def test_a_target_on_printed_ink_is_named(tmp_path, capsys):
     assert {"axis", "arrow", "text", "number", "scale bar", "title"} <= {c["kind"] for c in content}
     cal = tmp_path / "c" / "calibration.json"
     capsys.readouterr()
-    main(["plan", str(cal), str(TARGETS), "-o", str(tmp_path / "a.csv"), "-q"])
+    main(["plan", str(cal), str(TARGETS), "-o", str(tmp_path / "a.csv"), "-q", "--force"])
     assert "printed ink" not in capsys.readouterr().err      # no sheet described: nothing said
     doc = json.loads(cal.read_text())
     doc["printed_content"] = content
     cal.write_text(json.dumps(doc))
-    main(["plan", str(cal), str(TARGETS), "-o", str(tmp_path / "p.csv"), "-q"])
+    main(["plan", str(cal), str(TARGETS), "-o", str(tmp_path / "p.csv"), "-q", "--force"])
     err = [ln for ln in capsys.readouterr().err.splitlines() if "printed ink" in ln]
     assert len(err) == 1, err
     assert "1 target(s) on the sheet's printed ink: origin (x axis, y axis)" in err[0]

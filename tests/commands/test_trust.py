@@ -171,7 +171,8 @@ def test_write_failure_midway_is_one_line(tmp_path, capsys, monkeypatch, calibra
 
     mod, name = call.split(".")
     monkeypatch.setattr(importlib.import_module(mod), name, refuse)
-    rc, _, err = cli(["plan", calibration, TARGETS, "-o", tmp_path / "plan.csv"], capsys)
+    rc, _, err = cli(["plan", calibration, TARGETS, "-o", tmp_path / "plan.csv", "--force"],
+                     capsys)
     assert rc == 2
     assert "read-only file system" in assert_one_line(err, tmp_path / "plan.csv")
     assert sorted(p.name for p in tmp_path.iterdir()) == []  # no temporary file left
@@ -195,7 +196,8 @@ def test_export_into_a_path_under_a_file(tmp_path, capsys, calibration):
 def test_targets_saved_by_excel_as_csv_utf8(tmp_path, capsys, calibration):
     t = tmp_path / "targets.csv"
     t.write_bytes(b"\xef\xbb\xbfid,x_mm,y_mm\r\norigin,0,0\r\np1,50,-150\r\n")
-    rc, _, err = cli(["plan", calibration, t, "-o", tmp_path / "plan.csv", "-q"], capsys)
+    rc, _, err = cli(["plan", calibration, t, "-o", tmp_path / "plan.csv", "-q", "--force"],
+                     capsys)
     assert rc == 0, err
     from vision_cal.dataset.csvio import read_plan
 
@@ -243,9 +245,9 @@ def test_plan_failures_are_summarised_not_listed(tmp_path, capsys, calibration):
     t = tmp_path / "many.csv"
     t.write_text("id,x_mm,y_mm\n" + "".join(f"t{i},{x},{y}\n" for i, (x, y) in enumerate(xy)))
     out = tmp_path / "plan.csv"
-    rc, _, err = cli(["plan", calibration, t, "-o", out, "-q"], capsys)
+    rc, _, err = cli(["plan", calibration, t, "-o", out, "-q", "--force"], capsys)
     assert rc == 0
-    # the targets planned beyond the marks' joints are named in a line of their own
+    # the targets planned beyond the marks' joints (valid_for, --force) in a line of their own
     beyond = [ln for ln in err.splitlines() if "outside the joints the calibration" in ln]
     assert len(beyond) == 1 and "more" in beyond[0], err
     line = assert_one_line("\n".join(ln for ln in err.splitlines() if ln not in beyond), t,

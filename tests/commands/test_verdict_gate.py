@@ -28,6 +28,15 @@ def _with_verdict(cal, tmp_path, status):
     return p
 
 
+def _inside(cal, tmp_path):
+    """Targets where the paper's marks are (inside its valid_for: the joints they covered)."""
+    marks = json.loads(cal.read_text())["marks"]
+    t = tmp_path / "inside.csv"
+    t.write_text("id,x_mm,y_mm\n" + "".join(f"{k},{m['measured_mm'][0]},{m['measured_mm'][1]}\n"
+                                            for k, m in list(marks.items())[:2]))
+    return t
+
+
 def _run(argv, capsys):
     rc = main([str(a) for a in argv])
     return rc, capsys.readouterr().err
@@ -36,7 +45,7 @@ def _run(argv, capsys):
 @pytest.mark.parametrize("sub", ["plan", "export"])
 def test_not_reliable_is_refused_unless_forced(cal, tmp_path, capsys, sub):
     bad = _with_verdict(cal, tmp_path, "not reliable")
-    args = ([TARGETS, "-o", tmp_path / "p.csv"] if sub == "plan"
+    args = ([_inside(cal, tmp_path), "-o", tmp_path / "p.csv"] if sub == "plan"
             else ["--yaml", tmp_path / "c.yaml"])
     rc, err = _run([sub, bad, *args, "-q"], capsys)
     assert rc == 2

@@ -95,6 +95,12 @@ def design(req: DesignRequest) -> int:
                   f"{req.out}, then: vision-cal verify {req.verify} {req.out}")
         else:
             print(f"placed with the pilot's model, {r.info['safety_mm']:.1f} mm of safety")
+            beyond = r.info.get("beyond_valid_for") or []
+            if beyond:   # by design: the informative plan identifies what the pilot could not
+                print("the pilot's model is this plan's starting model (not the nominal: "
+                      "that stays the robot file); the plan goes beyond what the pilot saw, "
+                      "by design (" + ", ".join(o["field"] for o in beyond) + "): its "
+                      "calibration identifies them (session.json design.beyond_valid_for)")
         for p in (r.session_path, r.trajectory_path, r.program_path):
             if p is not None:
                 print(f"wrote {p}")

@@ -12,6 +12,9 @@ from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.io import distinct_outputs, output_file, written_together
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.dataset.trust import refuse_unreliable
+from vision_cal.dataset.valid_for import check as check_valid_for
+from vision_cal.dataset.valid_for import enforce as enforce_valid_for
+from vision_cal.dataset.valid_for import of as valid_for_of
 from vision_cal.errors import VisionCalError
 from vision_cal.report.export import effects_path, export
 
@@ -51,6 +54,12 @@ def export_calibration(req: ExportRequest) -> int:
     warn = refuse_unreliable(doc, req.calibration, force=req.force)
     if warn:
         print(warn, file=sys.stderr)
+    said = []
+    if req.urdf or req.yaml:   # the robot model for every pose: what it could not identify
+        outside = check_valid_for(valid_for_of(doc, file=str(req.calibration)),
+                                  cal=str(req.calibration), whole_model=True)
+        said = enforce_valid_for(outside, file=str(req.calibration), force=req.force,
+                                 what="--urdf/--yaml")
     limits, limits4, limits3 = doc.get("joint_limits_deg"), None, None
     if req.robot:
         robot = load_robot_file(req.robot)
@@ -65,7 +74,9 @@ def export_calibration(req: ExportRequest) -> int:
         if req.urdf or req.yaml:
             written = export(doc, urdf=req.urdf, yaml_path=req.yaml,
                              limits_deg=limits, limits4_deg=limits4,
-                             limits3_mm=limits3) + written
+                             limits3_mm=limits3, extrapolated=said) + written
+    for w in said:
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
     for path in written:
         if not req.quiet:
             print(f"wrote {path}")

@@ -16,6 +16,9 @@ from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.csvio import number_field
 from vision_cal.dataset.io import atomic_write_text, output_file, read_text
 from vision_cal.dataset.robot import load_robot_file
+from vision_cal.dataset.valid_for import check as check_valid_for
+from vision_cal.dataset.valid_for import enforce as enforce_valid_for
+from vision_cal.dataset.valid_for import of as valid_for_of
 from vision_cal.errors import VisionCalError
 from vision_cal.plan.compensate import plan_targets
 
@@ -65,6 +68,7 @@ class LocateRequest:
     joints: tuple[float, ...] | None = None
     photo: str | None = None
     elbow: int = 1
+    force: bool = False   # locate outside valid_for, the extrapolation stated
 
 
 def locate_pixels(req: LocateRequest) -> int:
@@ -97,8 +101,17 @@ def locate_pixels(req: LocateRequest) -> int:
         robot = load_robot_file(req.robot)
         joints = plan_targets(model, ids, [p.sheet_mm[:2] for p in points], elbow=req.elbow,
                               joint_limits_deg=robot.joint_limits_deg)
+    outside = _outside_valid_for(req, doc, ids, z, joints)
+    said = enforce_valid_for(outside, file=str(req.calibration), force=req.force,
+                             what="--csv" if req.csv else "--pixel")
+    for w in said:   # --force: the extrapolation on the console (and in the CSV)
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
     if req.csv:
-        return _write_csv(req, ids, points, joints)
+        flagged: dict = {}
+        for o in outside:
+            for i in o.ids:
+                flagged[i] = (flagged.get(i, "") + " " + o.field).strip()
+        return _write_csv(req, ids, points, joints, flagged if said else None)
     p, j = points[0], joints[0]
     print(f"pixel {p.pixel[0]:g} {p.pixel[1]:g} at z {p.z_mm:g} mm (camera {req.camera})")
     print(f"  robot frame: x {p.robot_mm[0]:.4f} y {p.robot_mm[1]:.4f} z {p.robot_mm[2]:.4f} mm"
@@ -113,13 +126,36 @@ def locate_pixels(req: LocateRequest) -> int:
     return 0
 
 
-def _write_csv(req: LocateRequest, ids, points, joints) -> int:
+def _outside_valid_for(req: LocateRequest, doc: dict, ids, z, joints) -> list:
+    """What of the request lies outside calibration.json ``valid_for``
+    (:func:`vision_cal.dataset.valid_for.check`): heights the camera cannot locate at, the
+    arm's ``--joints`` beyond the poses' range or side, joint commands (``--robot``) beyond
+    the joints the calibration covered."""
+    vf = valid_for_of(doc, file=str(req.calibration))
+    cal = str(req.calibration)
+    out = check_valid_for(vf, cal=cal, ids=ids, heights_mm=z, camera=req.camera)
+    if req.joints is not None:
+        q = list(req.joints)
+        out += check_valid_for(vf, cal=cal, ids=["--joints"], joints_deg=[q[:2]],
+                               approach=[(1, 1)],
+                               joint4_deg=[q[2]] if len(q) == 3 else None)
+    ok = [(i, j) for i, j in zip(ids, joints) if j is not None and j.status == "ok"]
+    if ok:
+        out += check_valid_for(vf, cal=cal, ids=[i for i, _ in ok],
+                               joints_deg=[j.q_deg for _, j in ok],
+                               approach=[j.approach for _, j in ok])
+    return out
+
+
+def _write_csv(req: LocateRequest, ids, points, joints, flagged=None) -> int:
     buf = io.StringIO()
     wr = csv.writer(buf, lineterminator="\n")
     head = ["id", "u_px", "v_px", "z_mm", "x_mm", "y_mm", "x_std_mm", "y_std_mm",
             "sheet_x_mm", "sheet_y_mm"]
     if req.robot:
         head += ["q1_deg", "q2_deg", "approach1", "approach2", "status", "reason"]
+    if flagged is not None:   # written with --force: what lies outside valid_for
+        head += ["outside_valid_for"]
     wr.writerow(head)
     for i, p, j in zip(ids, points, joints):
         row = [i, f"{p.pixel[0]:.4f}", f"{p.pixel[1]:.4f}", f"{p.z_mm:g}",
@@ -129,6 +165,8 @@ def _write_csv(req: LocateRequest, ids, points, joints) -> int:
             ok = j.status == "ok"
             row += ([f"{j.q_deg[0]:.5f}", f"{j.q_deg[1]:.5f}"] if ok else ["", ""]) + \
                    [j.approach[0], j.approach[1], j.status, j.reason]
+        if flagged is not None:
+            row.append(flagged.get(i, ""))
         wr.writerow(row)
     if req.out:
         output_file(req.out, field="-o")

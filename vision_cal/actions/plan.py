@@ -9,13 +9,16 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from vision_cal.dataset.calibration import joints_covered_deg, load_calibration
+from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.covariance import load_covariance
 from vision_cal.dataset.csvio import (failed_report_path, read_target_theta, read_targets,
                                       write_failed_targets, write_plan)
 from vision_cal.dataset.io import distinct_outputs, output_file, written_together
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.dataset.trust import refuse_unreliable
+from vision_cal.dataset.valid_for import check as check_valid_for
+from vision_cal.dataset.valid_for import enforce as enforce_valid_for
+from vision_cal.dataset.valid_for import of as valid_for_of
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.printed import targets_on_print
 from vision_cal.motion import JOINT_LIMITS_DEG
@@ -109,13 +112,21 @@ def plan(req: PlanRequest) -> int:
         a_ok = [(*p.approach, pose_of[p.id].approach4) for p in ok]
     std = (predicted_std_mm(model, cov, q_ok, a_ok)
            if cov is not None and ok else [float("nan")] * len(ok))
+    # the request against what the calibration was calibrated for, before anything is
+    # written: refused, or with --force written with the extrapolation stated
+    outside = _outside_valid_for(req, doc, ok, pose_of if poses is not None else None, robot)
+    said = enforce_valid_for(outside, file=str(req.calibration), force=req.force,
+                             what=str(req.targets))
+    flagged = _flagged_targets(outside)
     # every output is written together or not at all (a program path that cannot be
     # written, a trajectory too long, leave the earlier files as they were)
     with written_together():
         # the command file holds only what can be sent to the robot: no NaN, no failed row
         # (an unknown std, as with the nominal model, is left empty)
         write_plan(req.out, [dict(p.to_row() if poses is None else pose_of[p.id].to_row(),
-                                   std_mm=float(s) if math.isfinite(s) else "")
+                                   std_mm=float(s) if math.isfinite(s) else "",
+                                   **({"outside_valid_for": flagged.get(p.id, "")}
+                                      if said else {}))
                               for p, s in zip(ok, std)])
         if failed:
             write_failed_targets(report, [(p.id, *p.target_mm, p.reason) for p in failed])
@@ -138,7 +149,9 @@ def plan(req: PlanRequest) -> int:
             path = write_program(req.program, prg, points, robot,
                                  title=f"vision-cal compensated targets: {len(ok)} of "
                                        f"{len(planned)} targets of {req.targets}, "
-                                       f"{req.model} model", tool_mm=tool)
+                                       f"{req.model} model" + "".join(
+                                           f"; EXTRAPOLATED: {w}" for w in said),
+                                 tool_mm=tool)
             if not req.quiet:
                 print(f"wrote {path}")
     if failed:
@@ -148,7 +161,8 @@ def plan(req: PlanRequest) -> int:
     else:
         report.unlink(missing_ok=True)  # a stale report of an earlier run
     _say_targets_on_print(req, doc, ok)
-    _say_targets_outside_range(req, doc, ok)
+    for w in said:
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
     if not req.quiet:
         print(f"planned {len(planned) - len(failed)} of {len(planned)} targets "
               f"with the {req.model} model -> {req.out}")
@@ -177,28 +191,32 @@ def _say_targets_on_print(req, doc: dict, ok) -> None:
           "target by a few millimetres onto plain paper to check it", file=sys.stderr)
 
 
-#: a target within this of the calibration's joint range (deg) is inside it
-RANGE_SLACK_DEG = 1.0
+def _outside_valid_for(req, doc: dict, ok, pose_of, robot) -> list:
+    """What of the planned targets lies outside calibration.json ``valid_for``
+    (:func:`vision_cal.dataset.valid_for.check`): joints beyond the range the marks covered,
+    an approach side never seen, joint 4 turned with a tool never identified, a program
+    drawing at another height. The nominal model (``--model nominal``) is not a
+    calibration: nothing to check."""
+    if req.model != "calibrated" or not ok:
+        return []
+    ids = [p.id for p in ok]
+    approach = [tuple(p.approach) + ((pose_of[p.id].approach4,) if pose_of else ())
+                for p in ok]
+    q4 = [pose_of[p.id].q4_deg for p in ok] if pose_of else None
+    pen = robot.pen_down_mm if (robot is not None and req.program) else None
+    return check_valid_for(valid_for_of(doc, file=str(req.calibration)),
+                           cal=str(req.calibration), ids=ids,
+                           joints_deg=[p.q_deg for p in ok], approach=approach,
+                           joint4_deg=q4, pen_down_mm=pen)
 
 
-def _say_targets_outside_range(req, doc: dict, ok) -> None:
-    """One warning line naming the planned targets whose joints 1 or 2 lie outside the range
-    the calibration's marks covered (:func:`vision_cal.dataset.calibration.joints_covered_deg`):
-    there the error is extrapolated, not measured."""
-    covered = joints_covered_deg(doc)
-    if covered is None or not ok:
-        return
-    out = [p.id for p in ok
-           if any(not covered[j][0] - RANGE_SLACK_DEG <= p.q_deg[j] <= covered[j][1]
-                  + RANGE_SLACK_DEG for j in range(2))]
-    if not out:
-        return
-    head = ", ".join(out[:3]) + (f" and {len(out) - 3} more" if len(out) > 3 else "")
-    print(f"vision-cal: warning: {req.targets}: {len(out)} target(s) outside the joints the "
-          f"calibration's marks covered (joint 1 {covered[0][0]:.1f}..{covered[0][1]:.1f} deg, "
-          f"joint 2 {covered[1][0]:.1f}..{covered[1][1]:.1f} deg): {head}: the model is "
-          "extrapolated there and its expected error does not hold; draw marks there, or "
-          "calibrate several placements together (calibrate --joint)", file=sys.stderr)
+def _flagged_targets(outside) -> dict:
+    """target id -> the fields of valid_for it lies outside (plan.csv ``outside_valid_for``)."""
+    out: dict = {}
+    for o in outside:
+        for tid in o.ids:
+            out[tid] = (out.get(tid, "") + " " + o.field).strip()
+    return out
 
 
 def summarise_failures(failed, *, first: int = 3) -> str:

@@ -34,7 +34,9 @@ from vision_cal.calibrate.tool import joint4_values
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.covariance import covariance_json
 from vision_cal.dataset.io import atomic_write_json
+from vision_cal.dataset.nominal import nominal_blocks
 from vision_cal.dataset.session import load_session
+from vision_cal.dataset.valid_for import build as valid_for_block
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import (Effect, JointBacklash, JointCyclic, JointScale, JointTerms,
@@ -459,12 +461,19 @@ def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
                "effects": [e.to_json(fit.effect_std(i)) for i, e in enumerate(fit.effects)
                            if not isinstance(e, Tool)],
                "covariance": covariance_json(m.param_labels(), placement_cov(fit, k)),
-               "nominal": session.robot.params.to_json(),
+               # the robot file the controller runs (dataset/nominal), not the pilot's model
+               **nominal_blocks(session.raw, session.robot.params.to_json()),
                "home_deg": [float(v) for v in session.robot.home_deg],
                "placement": doc["placements"][k],
                "residual_rms_mm": {"final_model": doc["placements"][k]["residual_rms_mm"]},
-               "marks": {i: {"measured_mm": xy.tolist(), "residual_mm": r.tolist()}
-                         for i, xy, r in zip(cal.ids, cal.xy_mm, fit.residuals_mm[k])}}
+               "marks": {i: {"measured_mm": xy.tolist(), "residual_mm": r.tolist(),
+                             "joints_deg": q.tolist(), "approach": a.astype(int).tolist(),
+                             **({"j4_deg": float(cal.joint4[n, 0])}
+                                if cal.joint4 is not None else {})}
+                         for n, (i, xy, r, q, a) in enumerate(zip(
+                             cal.ids, cal.xy_mm, fit.residuals_mm[k], cal.q_deg,
+                             cal.approach))}}
+        sub["valid_for"] = valid_for_block(sub)   # what plan checks its targets against
         atomic_write_json(out_dir / name / "calibration.json", sub)
     atomic_write_json(out_dir / "calibration.json", doc)
     return doc

@@ -25,7 +25,10 @@ def add_arguments(p) -> None:
                         "range (default: calibration.json's joint_limits_deg, which the "
                         "session's robot file gave; joints 3 and 4: vision_cal.motion's)")
     p.add_argument("--force", action="store_true",
-                   help="export even a calibration whose verdict is 'not reliable'")
+                   help="export even a calibration whose verdict is 'not reliable', or a "
+                        "robot model with an effect it could not identify (calibration.json "
+                        "valid_for: a backlash seen from one side, a tool never turned), the "
+                        "extrapolation stated in the files written and on the console")
     p.add_argument("--opencv", metavar="FILE.yaml", help="a still camera as OpenCV FileStorage "
                    "YAML: camera_matrix, distortion_coefficients, T_robot_camera (mm)")
     p.add_argument("--ros", metavar="FILE.yaml", help="a still camera as ROS camera_info YAML, "

@@ -45,6 +45,11 @@ def add_arguments(p) -> None:
                    "calibration photo (calibration.json poses)")
     p.add_argument("--elbow", type=int, choices=(1, -1), default=1,
                    help="elbow solution of the joint command (default +1)")
+    p.add_argument("--force", action="store_true",
+                   help="locate even outside what the calibration was calibrated for "
+                        "(calibration.json valid_for: the heights the camera can locate at, "
+                        "the joints and approach sides it saw), the extrapolation stated on "
+                        "the console and in the CSV (outside_valid_for)")
 
 
 def run(args) -> int:

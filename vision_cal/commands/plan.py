@@ -36,7 +36,11 @@ def add_arguments(p) -> None:
     p.add_argument("--robot", metavar="ROBOT.yaml",
                    help="robot file: joint limits, speeds, pen heights for --program")
     p.add_argument("--force", action="store_true",
-                   help="plan even with a calibration whose verdict is 'not reliable'")
+                   help="plan even with a calibration whose verdict is 'not reliable', or "
+                        "targets outside what it was calibrated for (calibration.json "
+                        "valid_for: joint ranges, approach sides, joint 4 with a tool never "
+                        "turned), the extrapolation stated in PLAN.csv (outside_valid_for), "
+                        "the program and on the console")
     p.add_argument("--approach4", type=int, choices=(1, -1), default=1,
                    help="approach sign of joint 4 when the plan turns it (default: 1)")
 

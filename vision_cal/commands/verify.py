@@ -27,6 +27,10 @@ def add_arguments(p) -> None:
     p.add_argument("-o", "--out", metavar="DIR", default=None,
                    help="folder for verify.json and the measurement cache (default: "
                         "PHOTOS_verify beside the photos; the photos' folder is never written)")
+    p.add_argument("--force", action="store_true",
+                   help="check even marks outside what the calibration was calibrated for "
+                        "(calibration.json valid_for: joint ranges, approach sides, joint 4), "
+                        "the extrapolation stated in verify.json and on the console")
     p.add_argument("-j", "--jobs", type=int, default=None, metavar="N",
                    help="processes that measure photos (default: every core)")
 
@@ -34,6 +38,7 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
+    import sys
     from pathlib import Path
 
     from vision_cal.errors import VisionCalError
@@ -44,8 +49,10 @@ def run(args) -> int:
     folder = Path(args.folder)
     here = folder.resolve()
     out = Path(args.out) if args.out else here.with_name(here.name + "_verify")
-    r, path = verify_folder(args.calibration, folder, out_dir=out, jobs=args.jobs,
-                            progress=not args.quiet)
+    r, path, said = verify_folder(args.calibration, folder, out_dir=out, jobs=args.jobs,
+                                  progress=not args.quiet, force=args.force)
+    for w in said:   # --force: the check compared beyond what was calibrated
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
     if not args.quiet:
         print(f"{'mark':<8}{'error x':>10}{'error y':>10}{'|error|':>10}  [mm, the sheet's "
               "placement taken out]")

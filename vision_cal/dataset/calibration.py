@@ -13,6 +13,7 @@ from pathlib import Path
 
 from vision_cal.dataset.calibration_result import FORMAT
 from vision_cal.dataset.io import read_json
+from vision_cal.dataset.valid_for import build as build_valid_for
 from vision_cal.dataset.fields import MAX_JOINT_DEG, FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.joint_terms import check_feature
@@ -152,10 +153,6 @@ def joints_covered_deg(doc: dict) -> list[tuple[float, float]] | None:
     extrapolated outside: an error once per turn of joint 1 looks like a gear-ratio error
     over the 135 deg one sheet spans, and a plan beyond the range meets the difference
     (``bench/tool_joint4.py --alone``: 0.16-0.21 mm where the range itself gave 0.02)."""
-    q = [m["joints_deg"][:2] for m in (doc.get("marks") or {}).values()
-         if isinstance(m, dict) and m.get("joints_deg") is not None
-         and m.get("status", "ok") == "ok"]
-    if not q:
-        return None
-    return [(min(v[j] for v in q), max(v[j] for v in q)) for j in range(2)]
+    vf = build_valid_for(doc)   # one owner: calibration.json valid_for.joints_deg
+    return None if vf is None else [tuple(r) for r in vf["joints_deg"]]
 

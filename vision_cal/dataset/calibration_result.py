@@ -80,6 +80,8 @@ class CalibrationResult:
     cameras: list | None = None
     sheet: dict | None = None                 # which printed sheet (sheet_identity)
     dataset: str | None = None                # the input folder (report_data, for the report)
+    starting_model: dict | None = None        # the model the plan was placed with (a pilot's)
+    valid_for: dict | None = None             # what it was calibrated for (dataset/valid_for)
     extra: dict = field(default_factory=dict)  # keys this version does not know
     format: str = FORMAT
 
@@ -87,10 +89,10 @@ class CalibrationResult:
     _ORDER = ("format", "method", "config", "params", "std", "effects", "residual_rms_mm",
               "validation_rms_mm", "base_model_params", "base_model_std", "initial_guess",
               "identifiability", "diagnosis", "notes", "residual_scale", "covariance",
-              "outliers", "circles", "tool", "nominal", "home_deg", "printed_content",
+              "outliers", "circles", "tool", "nominal", "starting_model", "home_deg", "printed_content",
               "joint_limits_deg", "noise_floor_mm", "marks", "missing_marks", "images",
-              "targets", "truth_comparison", "printer_scale", "cameras", "verdict", "dataset",
-              "sheet")
+              "targets", "truth_comparison", "printer_scale", "cameras", "valid_for", "verdict",
+              "dataset", "sheet")
 
     def __post_init__(self):
         # JSON lists and blocks as written are taken as the typed values

@@ -1,7 +1,9 @@
 """Whether a calibration.json may be used: its own ``verdict`` (docs/format.md), read, never
 recomputed here.
 
-``design --pilot`` needs a pilot whose verdict is ``ready``; ``plan`` and ``export`` refuse
+``design --pilot`` needs a pilot whose verdict is ``ready``, or ``check`` only for what
+it could not identify (``verdict.within_valid_for`` ``ready``: the informative plan is
+designed to identify it); ``plan`` and ``export`` refuse
 one whose verdict is ``not reliable`` unless ``--force``. A calibration.json without a
 ``verdict`` block (written before it existed) is accepted.
 """
@@ -27,6 +29,9 @@ def _why(reasons: list[str]) -> str:
 def require_ready_pilot(doc: dict, path) -> None:
     """Refuse (``VisionCalError``, exit 2) a pilot calibration whose verdict is not ready."""
     status, reasons = verdict_of(doc)
+    v = doc.get("verdict") if isinstance(doc, dict) else None
+    if status == "check" and isinstance(v, dict) and v.get("within_valid_for") == "ready":
+        return   # ready inside its valid_for: the informative plan identifies the rest
     if status is not None and status != "ready":
         raise VisionCalError(f"the pilot calibration's verdict is {status!r}, not 'ready'"
                              f"{_why(reasons)}; calibrate the pilot again (more photos, marks "

@@ -32,7 +32,10 @@ from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.io import atomic_write_bytes, atomic_write_json, read_json
 from vision_cal.dataset.photos import list_photos
 from vision_cal.dataset.robot import load_robot_file
-from vision_cal.dataset.session import NominalRobot, SheetMarker, load_sheet_file
+from vision_cal.dataset.session import (NominalRobot, SheetMarker, load_sheet_file,
+                                        resolve_approach)
+from vision_cal.dataset.valid_for import check as check_valid_for
+from vision_cal.dataset.valid_for import of as valid_for_of
 from vision_cal.dataset.sheet_identity import check_same_sheet
 from vision_cal.design.iso9283 import PITCH_MM, iso_marks
 from vision_cal.design.joint4 import circle_triples, joint4_vias, turn_joint4
@@ -267,10 +270,14 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
                 info["iso9283"] = {"cycles": iso9283_cycles, "marks": iso}
             title = (f"vision-cal check of {Path(pilot).name}: {n_calibration} marks, both "
                      "elbows, both approach sides (then: vision-cal verify)")
+    if pilot is not None:   # the plan against what the calibration it was placed with saw
+        _against_valid_for(doc, pilot, marks, nominal.home_deg, joint4, stage, info, warnings)
     traj = plan_trajectory(marks, home_deg=nominal.home_deg, vmax_deg_s=robot.speed_limits_deg_s,
                            amax_deg_s2=robot.accel_limits_deg_s2,
                            dwell_s=robot.program.settle_s)
-    info["nominal_robot"] = nominal.to_json()
+    info["nominal_robot"] = nominal.to_json()   # the robot file: every "nominal" (dataset/nominal)
+    if robot.pen_down_mm is not None:   # the height the marks are drawn at (valid_for)
+        info["pen_down_mm"] = robot.pen_down_mm
     if warnings:
         info["warnings"] = warnings
     info["trajectory_s"] = traj.duration_s
@@ -299,3 +306,27 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
                                   title=title)
     return DesignResult(info["stage"], session_path, traj_path, prog_path, len(marks),
                         traj.duration_s, info)
+
+
+def _against_valid_for(doc: dict, cal, marks, home_deg, joint4, stage, info: dict,
+                       warnings: list) -> None:
+    """The designed marks against the ``valid_for`` of the calibration they were placed
+    with (:mod:`vision_cal.dataset.valid_for`). An informative plan goes beyond its pilot's
+    by design (both approach sides, the whole sheet, joint 4 turned): the pilot's model is
+    its starting model, its safety margin covers the extrapolation, and session.json
+    ``design.beyond_valid_for`` says where. A check (``--verify``) beyond its calibration
+    compares with an extrapolation: a warning (``verify`` refuses it without --force)."""
+    ids = [m.id for m in marks]
+    q = [list(m.joints_deg) for m in marks]
+    a = resolve_approach(marks, home_deg).astype(int).tolist()
+    outside = check_valid_for(valid_for_of(doc, file=str(cal)), cal=str(cal), ids=ids,
+                              joints_deg=q,
+                              approach=a, joint4_deg=None if not joint4 else
+                              [joint4.get(i) for i in ids])
+    if not outside:
+        return
+    info["beyond_valid_for"] = [o.to_json() for o in outside]
+    if stage == "verify":
+        warnings.append(f"{cal}: the check goes beyond what it calibrated: "
+                        + "; ".join(o.reason for o in outside)
+                        + " (vision-cal verify refuses such marks without --force)")

@@ -49,12 +49,13 @@ so a calibration judged again is judged by its own rules.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import stats
 
 from vision_cal.config import DEFAULT, EstimatorConfig, VerdictConfig
+from vision_cal.dataset.valid_for import verdict_reasons as valid_for_reasons
 
 #: radius holding 95 % of a circular normal 2-D error per unit of its RMS
 R95_PER_RMS = math.sqrt(-2.0 * math.log(0.05)) / math.sqrt(2.0)
@@ -200,6 +201,9 @@ class Verdict:
     repeatability_mm: float | None = None   # None: not said (an old block)
     repeatability_source: str = "default"
     max_target_error: dict | None = None  # MaxErrorTest.to_json
+    #: the status inside calibration.json ``valid_for`` when what it could not identify
+    #: holds it back (None: nothing does)
+    within_valid_for: str | None = None
 
     @property
     def text(self) -> str:
@@ -230,7 +234,8 @@ class Verdict:
         return cls(d["status"], d.get("expected_target_error_mm"), d.get("residual_over_floor"),
                    tuple(d.get("reasons") or ()), d.get("floor"), d.get("heldout_floor"),
                    d.get("repeatability_mm"),
-                   d.get("repeatability_source", "default"), d.get("max_target_error"))
+                   d.get("repeatability_source", "default"), d.get("max_target_error"),
+                   d.get("within_valid_for"))
 
     def to_json(self) -> dict:
         d = {"status": self.status, "expected_target_error_mm": self.expected_target_error_mm,
@@ -243,6 +248,8 @@ class Verdict:
             d["heldout_floor"] = self.heldout_floor
         if self.max_target_error is not None:
             d["max_target_error"] = self.max_target_error
+        if self.within_valid_for is not None:
+            d["within_valid_for"] = self.within_valid_for
         return d
 
 
@@ -310,12 +317,20 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
                             f"{ident['n_params']} parameters; add marks that spread both "
                             "joints and both approach directions")
     ni = ident.get("not_identifiable") or []
+    vf = doc.get("valid_for") if isinstance(doc.get("valid_for"), dict) else None
+    vf_labels = {d.get("label") for d in (vf or {}).get("not_identified") or []}
+    if pilot:   # said once, by valid_for below, at its own level (check, never ready)
+        ni = [d for d in ni if d.get("label") not in vf_labels]
     if ni:
         d = ni[0]
         more = f" (and {len(ni) - 1} more, listed below)" if len(ni) > 1 else ""
         add(by_design or "not reliable",
             f"the plan cannot separate {d['label']} from the base model{more}; {d['fix']}"
             + ("; a pilot leaves that to the informative plan" if pilot else ""))
+    # what the calibration could not identify and a user's targets excite: never "ready"
+    # (dataset/valid_for: plan and the other consumers refuse requests outside it)
+    outside = valid_for_reasons(vf, skip_labels={d.get("label") for d in ni})
+    reasons += outside
     effects = doc.get("effects") or []
     for e in effects:
         if e.get("name") == "drift":
@@ -397,7 +412,12 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
             and held_rms > cfg.heldout_warn_ratio * fit_rms):
         add("check", f"the held-out RMS ({held_rms:.4f} mm) is {held_rms / fit_rms:.1f} times "
                      "the fitted RMS: the model misses something on new poses")
-    return _verdict(reasons, r95, floor, hfloor, rep, source, worst)
+    v = _verdict(reasons, r95, floor, hfloor, rep, source, worst)
+    if outside:   # the status inside valid_for (design --pilot accepts a pilot "ready" there)
+        inner = _verdict([r for r in reasons if r not in outside], r95, floor, hfloor, rep,
+                         source, worst)
+        v = replace(v, within_valid_for=inner.status)
+    return v
 
 
 def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,

@@ -29,6 +29,7 @@ from xml.sax.saxutils import quoteattr
 import yaml
 
 from vision_cal.dataset.io import atomic_write_text
+from vision_cal.dataset.nominal import SIGN_CONVENTION, controller_offsets, offsets_text
 # the defaults live in vision_cal.motion; report/ reads them through dataset/ (its rule)
 from vision_cal.dataset.robot import DEFAULT_LIMITS_DEG as JOINT_LIMITS_DEG
 from vision_cal.dataset.robot import JOINT3_LIMITS_MM, JOINT4_LIMITS_DEG
@@ -120,15 +121,36 @@ def _effects(doc: dict) -> list[dict]:
     return [{k: v for k, v in e.items() if k != "evidence"} for e in doc.get("effects", [])]
 
 
-def effects_yaml(doc: dict) -> str:
-    return EFFECTS_HEADER + yaml.safe_dump({"effects": _effects(doc)}, sort_keys=False)
+def _where(doc: dict, extrapolated=()) -> dict:
+    """Where the model holds (calibration.json ``valid_for``) and, written with --force,
+    the extrapolation the export was asked for (``extrapolated``)."""
+    out = {}
+    if isinstance(doc.get("valid_for"), dict):
+        out["valid_for"] = doc["valid_for"]
+    if extrapolated:
+        out["extrapolated"] = list(extrapolated)
+    return out
 
 
-def calibration_yaml(doc: dict) -> str:
+def effects_yaml(doc: dict, extrapolated=()) -> str:
+    return EFFECTS_HEADER + yaml.safe_dump({"effects": _effects(doc),
+                                            **_where(doc, extrapolated)}, sort_keys=False)
+
+
+def calibration_yaml(doc: dict, extrapolated=()) -> str:
+    """The controller's YAML: the model, and the offsets relative to the robot file (the
+    nominal: vision_cal.dataset.nominal, its one sign convention)."""
     out = {"params": doc["params"], "std": doc.get("std"),
            "effects": _effects(doc),
            "residual_rms_mm": doc.get("residual_rms_mm"),
            "validation_rms_mm": doc.get("validation_rms_mm")}
+    offsets = controller_offsets(doc)
+    if offsets:
+        out["nominal"] = doc.get("nominal")   # the robot file the controller runs
+        out["controller_offsets"] = {"add_to_offset_deg": {
+            f"joint{o['joint']}": o["add_to_offset_deg"] for o in offsets},
+            "text": offsets_text(offsets), "sign_convention": SIGN_CONVENTION}
+    out.update(_where(doc, extrapolated))
     return EFFECTS_HEADER + yaml.safe_dump(out, sort_keys=False)
 
 
@@ -139,13 +161,15 @@ def effects_path(urdf) -> Path:
 
 
 def export(doc: dict, *, urdf=None, yaml_path=None, limits_deg=None,
-           limits4_deg=None, limits3_mm=None) -> list[Path]:
+           limits4_deg=None, limits3_mm=None, extrapolated=()) -> list[Path]:
     """``limits_deg``: the URDF's joint limits [[lo, hi], [lo, hi]] (default: the
     calibration's ``joint_limits_deg``, else :data:`vision_cal.motion.JOINT_LIMITS_DEG`);
     ``limits4_deg`` and ``limits3_mm``: joint 4's [lo, hi] (deg) and joint 3's travel
     (mm) when the URDF has a tool (defaults :data:`vision_cal.motion.JOINT4_LIMITS_DEG`,
     :data:`vision_cal.motion.JOINT3_LIMITS_MM`; the robot file's ``joint4_limits_deg`` and
-    ``joint3_limits_mm`` via ``export --robot``)."""
+    ``joint3_limits_mm`` via ``export --robot``); ``extrapolated``: the lines saying what
+    the export goes beyond calibration.json ``valid_for`` with (``--force``), written into
+    the effects file and the YAML."""
     written = []
     if limits_deg is None:
         limits_deg = doc.get("joint_limits_deg") or JOINT_LIMITS_DEG
@@ -156,7 +180,7 @@ def export(doc: dict, *, urdf=None, yaml_path=None, limits_deg=None,
             limits4_deg=JOINT4_LIMITS_DEG if limits4_deg is None else limits4_deg,
             limits3_mm=JOINT3_LIMITS_MM if limits3_mm is None else limits3_mm)))
         side = effects_path(urdf)
-        written.append(atomic_write_text(side, effects_yaml(doc)))
+        written.append(atomic_write_text(side, effects_yaml(doc, extrapolated)))
     if yaml_path:
-        written.append(atomic_write_text(yaml_path, calibration_yaml(doc)))
+        written.append(atomic_write_text(yaml_path, calibration_yaml(doc, extrapolated)))
     return written

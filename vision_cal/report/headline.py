@@ -16,15 +16,12 @@ from __future__ import annotations
 import math
 
 import vision_cal
+from vision_cal.dataset.nominal import (SIGN_CONVENTION, controller_offsets, offsets_text)
 from vision_cal.report.summary import describe_effect, verdict_block
 
-# the effects a controller takes as parameters, and how (the rest need the planner)
-CONTROLLER_SIGN_CONVENTION = (
-    "Joint angles are positive counter-clockwise seen from above (the pen side of the "
-    "sheet). A controller joint offset c is added to every command before it reaches the "
-    "joint: the joint turns to q + c. The calibrated zero z is the angle of the link at "
-    "commanded zero (joint 1: from the sheet x axis, so z1 also holds the rotation "
-    "between robot and sheet; joint 2: from link 1).")
+# the sign convention of zeros and controller offsets: one sentence, one owner
+# (vision_cal.dataset.nominal); the name is kept for readers of this module
+CONTROLLER_SIGN_CONVENTION = SIGN_CONVENTION
 
 
 def headline(doc: dict, loop: dict | None = None) -> dict:
@@ -98,7 +95,7 @@ def actions(doc: dict, *, calibration_path: str = "OUT/calibration.json") -> dic
         v = d.get(key) if d else None
         return v[k] if (v is not None and k is not None) else v
 
-    olp = []
+    olp = []   # "nominal": the robot file the controller runs (dataset/nominal)
     for label, key, k, unit in (("L1 (link 1 length)", "L1_mm", None, "mm"),
                                 ("L2 (link 2 length)", "L2_mm", None, "mm"),
                                 ("z1 (joint 1 zero, link 1 angle from sheet x)",
@@ -109,13 +106,7 @@ def actions(doc: dict, *, calibration_path: str = "OUT/calibration.json") -> dic
                                 ("base y (joint 1 axis, sheet frame)", "base_mm", 1, "mm")):
         olp.append({"name": label, "unit": unit, "nominal": g(n, key, k),
                     "calibrated": g(p, key, k), "std": g(s, key, k)})
-    offsets = []
-    for j in (0, 1):
-        zc, zn = g(p, "joint_zero_deg", j), g(n, "joint_zero_deg", j)
-        if zc is None or zn is None:
-            continue
-        offsets.append({"joint": j + 1, "add_to_offset_deg": zn - zc,
-                        "std_deg": g(s, "joint_zero_deg", j)})
+    offsets = controller_offsets(doc)   # relative to the robot file (dataset/nominal)
     controller_effects, planner_effects = [], []
     for e in doc.get("effects", []):
         if e["name"] == "joint_scale":
@@ -132,12 +123,9 @@ def actions(doc: dict, *, calibration_path: str = "OUT/calibration.json") -> dic
         "olp_model": olp,
         "sign_convention": CONTROLLER_SIGN_CONVENTION,
         "controller_offsets": offsets,
-        "controller_offsets_text": (
-            "Either enter the calibrated model above in the OLP (and leave the controller "
-            "alone), or keep the OLP's nominal model and add these to the controller's joint "
-            "offsets so that the nominal model is true: "
-            + ", ".join(f"joint {o['joint']}: {o['add_to_offset_deg']:+.4f} deg"
-                        for o in offsets) + "."),
+        "nominal_is": "the robot file",
+        "starting_model": doc.get("starting_model"),
+        "controller_offsets_text": offsets_text(offsets),
         "controller_effects": controller_effects,
         "planner_effects": planner_effects,
         "commands": [

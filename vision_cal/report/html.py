@@ -246,13 +246,26 @@ def _headline_html(rep: dict) -> str:
             + "</div>")
 
 
+def _starting_model_note(sm) -> str:
+    """The model the plan was placed with (a pilot's), named as such: never the nominal."""
+    if not isinstance(sm, dict):
+        return ""
+    z = sm.get("joint_zero_deg") or [None, None]
+    return (f"<p class=note>The plan was placed with a starting model, {_e(sm.get('source', ''))}"
+            f" (L1 {_f(sm.get('L1_mm'), 3)} mm, L2 {_f(sm.get('L2_mm'), 3)} mm, z1 {_f(z[0], 4)}"
+            f", z2 {_f(z[1], 4)} deg): the nominal above and the offsets below are the robot "
+            "file's, which the controller runs.</p>")
+
+
 def _actions_html(rep: dict) -> str:
     a = rep["actions"]
     rows = [[_e(r["name"]), _f(r["nominal"], 3), f"<b>{_f(r['calibrated'], 4)}</b>",
              "&plusmn;" + _f(r["std"], 4), r["unit"]] for r in a["olp_model"]]
     out = ["<h2>What to do with it</h2>",
            "<h3>1. Enter the calibrated model in the OLP</h3>",
-           _table(["parameter", "nominal", "calibrated", "std (1 sigma)", "unit"], rows),
+           _table(["parameter", "nominal (robot file)", "calibrated", "std (1 sigma)",
+                   "unit"], rows),
+           _starting_model_note(a.get("starting_model")),
            f"<p class=note><b>Sign convention.</b> {_e(a['sign_convention'])}</p>",
            "<h3>2. Or correct the controller's joint offsets</h3>",
            f"<p>{_e(a['controller_offsets_text'])}</p>",
@@ -388,7 +401,7 @@ def render_html(rep: dict) -> str:
         if ref:
             row.append(_f(g(ref), 1))
         rows.append(row)
-    head = ["parameter", "nominal", "calibrated", "std (1 sigma)"]
+    head = ["parameter", "nominal (robot file)", "calibrated", "std (1 sigma)"]
     if ref:
         head.append(html.escape((rep.get("reference") or {}).get("label", "reference")))
     # "What to do with it" already lists the parameters; repeat them only beside published

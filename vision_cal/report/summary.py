@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 
+from vision_cal.dataset.nominal import controller_offsets, offsets_text
+
 
 def _f(x, nd=3) -> str:
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
@@ -35,7 +37,7 @@ def _rows(doc: dict):
 def format_summary(doc: dict, *, reference: dict | None = None) -> str:
     """Table-2 style comparison, effects with evidence, RMS against the noise floor."""
     ref = (reference or {}).get("params")
-    head = f"{'parameter':<12}{'nominal':>11}{'calibrated':>13}{'std':>10}"
+    head = f"{'parameter':<12}{'robot file':>11}{'calibrated':>13}{'std':>10}"
     if ref:
         head += f"{(reference.get('label') or 'reference'):>16}"
     lines = [f"calibration ({doc.get('method', 'lsq')}): "
@@ -49,6 +51,14 @@ def format_summary(doc: dict, *, reference: dict | None = None) -> str:
         lines.append(row)
     if ref and "note" in reference:
         lines.append(f"  ({reference['note']})")
+    sm = doc.get("starting_model")
+    if isinstance(sm, dict):
+        lines.append(f"  (the plan was placed with a starting model, {sm.get('source', '')}: "
+                     f"z1 {_f(sm['joint_zero_deg'][0], 4)}, z2 {_f(sm['joint_zero_deg'][1], 4)} "
+                     "deg; every nominal and offset here is the robot file's)")
+    offsets = controller_offsets(doc)
+    if offsets:
+        lines.append("controller: " + offsets_text(offsets))
     effects = [e for e in doc.get("effects", []) if e["name"] != "unexplained"]
     if effects:
         lines.append("effects found:")
