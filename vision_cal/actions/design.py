@@ -43,6 +43,7 @@ class DesignRequest:
 def design(req: DesignRequest) -> int:
     """The plan of a calibration stage (pilot, informative, verify), several placements, or
     the camera poses of a camera on the arm."""
+    _refuse_conflicts(req)
     if req.camera_on_arm:
         return _camera_on_arm(req)
 
@@ -99,6 +100,47 @@ def design(req: DesignRequest) -> int:
             if p is not None:
                 print(f"wrote {p}")
     return 0
+
+
+#: options that contradict each other: (a, b, why); ``a`` and ``b`` name an option given
+#: (a request field whose value differs from its default, or ``--program csv``)
+_CONFLICTS = (
+    ("--verify", "--camera-on-arm", "a check of a pen calibration draws marks, the camera on "
+     "the arm photographs a marker field"),
+    ("--verify", "--placements", "a check verifies one calibration on one sheet, placements "
+     "design a joint calibration"),
+    ("--pilot", "--camera-on-arm", "the camera on the arm plans its poses without a pilot"),
+    ("--camera-on-arm", "--program csv", "the camera poses are written as a SPEL+ program "
+     "with its camera trigger only"),
+    ("--camera-on-arm", "--program none", "the camera poses are written as a SPEL+ program "
+     "with its camera trigger only"),
+)
+
+
+def _given(req: DesignRequest) -> set[str]:
+    """The options of ``_CONFLICTS`` the user gave."""
+    given = set()
+    if req.verify is not None:
+        given.add("--verify")
+    if req.pilot is not None:
+        given.add("--pilot")
+    if req.placements is not None:
+        given.add("--placements")
+    if req.camera_on_arm:
+        given.add("--camera-on-arm")
+    if req.program != "spel":
+        given.add(f"--program {req.program}")
+    return given
+
+
+def _refuse_conflicts(req: DesignRequest) -> None:
+    """Options that contradict each other are refused, naming both (never one silently
+    ignored)."""
+    given = _given(req)
+    for a, b, why in _CONFLICTS:
+        if a in given and b in given:
+            raise VisionCalError(f"{a} and {b} contradict each other ({why}): give one",
+                                 field=a)
 
 
 def _camera_on_arm(req: DesignRequest) -> int:
