@@ -37,6 +37,7 @@ import numpy as np
 
 from vision_cal.calibrate.plausible import LINK_RATIO
 from vision_cal.dataset.calibration import load_calibration
+from vision_cal.dataset.camera_block import check_cameras
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.session import load_session
@@ -238,6 +239,7 @@ def check_verifiable(model, doc: dict, path, session) -> None:
                                      + ("lengths in metres?" if 5e-4 < ratio < 2e-3 else
                                         "not this robot's calibration, or not in mm"))
     _check_own_marks(model, doc, r)
+    check_cameras(doc, str(path))          # a still camera it carries: the one validator
 
 
 def _check_own_marks(model, doc: dict, r: FieldReader) -> None:

@@ -35,6 +35,7 @@ from scipy.optimize import least_squares
 
 from vision_cal.camera.fixed import (F_REL_STD_MAX, UNDETERMINED, FixedCamera, T_sheet_robot,
                                      _delta, camera_of, fit_pose, homogeneous, lsq_covariance)
+from vision_cal.dataset.camera_block import check_camera_entry
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.kinematics import ScaraParams, flange_angle_rad, forward
 from vision_cal.rms import rms_2d
@@ -426,6 +427,8 @@ def camera_for(doc: dict, index: int, *, joints_deg=None, photo: str | None = No
                                  field="--joints" if joints_deg is not None else "--photo")
         return camera_of(doc, index, file=file)
     where = f"cameras[{index}]"
+    # the one validator of a camera block (K, dist, a rotation in mm, the covariance)
+    check_camera_entry(entry, where, file or "calibration.json", doc=doc)
     if (joints_deg is None) == (photo is None):
         raise VisionCalError("a camera on the arm: give the arm's command for the photo, "
                              "--joints Q1 Q2 [Q4] or --photo NAME (one of calibration.json "

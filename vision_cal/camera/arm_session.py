@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 
 from vision_cal.camera.arm import MIN_POSES, ArmView, estimate_lens, fit_arm_camera
+from vision_cal.dataset.camera_block import read_lens
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.dataset.photos import PhotoRefused, load_photo, normalise_name
@@ -49,7 +50,7 @@ def read_arm_session(folder):
     robot = read_robot_block(r, r.get(raw, "robot", ""), "robot")
     sheet = read_sheet_block(r, r.get(raw, "sheet", ""), "sheet")
     cam = raw.get("camera")
-    camera = None if cam is None else _read_lens(r, cam)
+    camera = None if cam is None else read_lens(r, cam, "camera")  # the one validator
     mount = raw.get("camera_mount", "flange")
     if mount not in MOUNTS:
         r.fail("camera_mount", f"expected one of {', '.join(MOUNTS)}, got {mount!r}")
@@ -69,26 +70,6 @@ def read_arm_session(folder):
     signs = approach_signs([q for _, q, _ in poses], robot.home_deg)
     poses = [(img, q, j4, tuple(float(v) for v in sg)) for (img, q, j4), sg in zip(poses, signs)]
     return folder, sheet, nominal, camera, mount, poses, robot.repeatability_mm
-
-
-def _read_lens(r: FieldReader, cam) -> tuple:
-    """session.json ``camera``: (size_px, K (3, 3), dist (n,)), every field checked."""
-    if not isinstance(cam, dict):
-        r.fail("camera", "expected an object with size_px, K and dist (or leave it out: the "
-                         "lens is then estimated from the views)")
-    size = r.vector(r.get(cam, "size_px", "camera"), "camera.size_px", 2, lo=1)
-    K_raw = r.list_(r.get(cam, "K", "camera"), "camera.K")
-    if len(K_raw) != 3:
-        r.fail("camera.K", "expected a 3x3 matrix")
-    K = np.array([r.vector(row, f"camera.K[{i}]", 3) for i, row in enumerate(K_raw)])
-    if not (K[0, 0] > 0 and K[1, 1] > 0 and tuple(K[2]) == (0.0, 0.0, 1.0)):
-        r.fail("camera.K", "expected an OpenCV camera matrix [[fx,0,cx],[0,fy,cy],[0,0,1]]")
-    dist_raw = r.list_(r.get(cam, "dist", "camera"), "camera.dist")
-    if len(dist_raw) not in (4, 5, 8, 12, 14):
-        r.fail("camera.dist", f"expected 4, 5, 8, 12 or 14 OpenCV coefficients, got "
-                              f"{len(dist_raw)}")
-    dist = np.array([r.number(v, f"camera.dist[{i}]") for i, v in enumerate(dist_raw)])
-    return (int(size[0]), int(size[1])), K, dist
 
 
 def _reasons(fit, mount: str) -> list[tuple[str, str]]:
