@@ -46,8 +46,9 @@ from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.pipeline import measure_marks
 from vision_cal.rms import rms_2d
 
-#: the calibrations verify can check: pen marks fitted in one sheet's frame
-CHECKABLE_METHODS = ("lsq", "paper")
+#: the calibrations verify can check: pen marks fitted in one sheet's frame (a joint
+#: calibration's placements too: OUT/<folder>/calibration.json)
+CHECKABLE_METHODS = ("lsq", "paper", "lsq-placements")
 #: a calibration's own marks lie where its parameters put them within this (mm) plus
 #: ``SELF_RMS_FACTOR`` x its residual RMS: a file in metres or radians is hundreds or tens
 #: of mm off (L1 0.344 puts every mark near the base; z2 in radians turns link 2 by 8 deg,
