@@ -20,7 +20,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vision_cal.camera.arm import MIN_POSES, ArmView, estimate_lens, fit_arm_camera
+from vision_cal.camera.arm import (MIN_POSES, ArmView, check_declared_lens, estimate_lens,
+                                   fit_arm_camera)
+from vision_cal.camera.fixed import UNDETERMINED
 from vision_cal.dataset.camera_block import read_lens
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.marker_geometry import marker_geometry
@@ -72,12 +74,14 @@ def read_arm_session(folder):
     return folder, sheet, nominal, camera, mount, poses, robot.repeatability_mm
 
 
-def _reasons(fit, mount: str) -> list[tuple[str, str]]:
-    """(status, sentence) of what the poses leave undetermined."""
+def _reasons(fit, mount: str, *, undetermined: bool = False) -> list[tuple[str, str]]:
+    """(status, sentence) of what the poses leave undetermined (the camera's height, with a
+    lens whose focal length the views cannot tell, is the lens's sentence)."""
     out = []
-    if fit.not_identifiable:
+    ni = [n for n in fit.not_identifiable if not (undetermined and n == "cam_z_mm")]
+    if ni:
         out.append(("not reliable", "the poses do not separate "
-                    + ", ".join(fit.not_identifiable)
+                    + ", ".join(ni)
                     + (" from the rest (turn joint 4 between photos: vision-cal design "
                        "--camera-on-arm)" if mount == "flange" else
                        " from the rest (a camera on link 2 cannot separate L2 from its own "
@@ -138,6 +142,7 @@ def calibrate_arm_camera(folder) -> dict:
         raise CalibrationError(f"{len(views)} of {len(poses)} photos usable: at least "
                                f"{MIN_POSES} are needed", file=str(folder / "session.json"))
     lens_reason = []
+    check = None
     if camera is None:
         size = sizes.pop()
         lens = estimate_lens(views, size)
@@ -146,12 +151,18 @@ def calibrate_arm_camera(folder) -> dict:
             lens_reason = [("check", lens.reason)]
     else:
         (size, K, dist), how, f_sd = camera, "declared", 0.0
-    fit = fit_arm_camera(views, K, dist, nominal)
-    if how == "estimated":
+        # the declared lens against the views' own: a focal length or a distortion they
+        # contradict is named; the floor is the corners' noise with the views' lens
+        check = check_declared_lens(views, size, K, dist)
+        lens_reason = list(check.reasons)
+    fit = fit_arm_camera(views, K, dist, nominal,
+                         corner_sigma_px=None if check is None else check.corner_sigma_px)
+    if how != "declared" and f_sd > 0:
         # the focal length's error moves the camera's height with it (f / height is what
-        # the views fix): into T_flange_camera's z
+        # the views fix): into T_flange_camera's z; a focal length the views cannot tell
+        # leaves the height not identifiable, with that std
         cov = fit.cov.copy()
-        cov[11, 11] += (fit.T_flange_camera[2, 3] * f_sd / K[0, 0]) ** 2
+        cov[11, 11] += (fit.T_flange_camera[2, 3] * min(f_sd, 1e6) / K[0, 0]) ** 2
         fit = replace(fit, cov=cov)
     d = fit.to_json()
     for entry, v, rms in zip([e for e in images if e["status"] == "ok"], views, fit.view_rms_px):
@@ -159,14 +170,17 @@ def calibrate_arm_camera(folder) -> dict:
     verdict = judge_camera_poses(
         fit.flange_residual_mm, fit.flange_sigma_mm, fit.flange_heldout_mm,
         n_params=fit.n_params_xy, repeatability_mm=rep,
-        reasons=_reasons(fit, mount) + lens_reason, ids=[v.file for v in views])
+        reasons=_reasons(fit, mount, undetermined=(how == UNDETERMINED)) + lens_reason,
+        ids=[v.file for v in views])
     cam = {"images": [v.file for v in views], "size_px": list(size), "K": K.tolist(),
            "dist": dist.tolist(), "T_flange_camera": d["T_flange_camera"],
            "mount": mount, "T_flange_camera_std": d["T_flange_camera_std"],
            "corner_rms_px": d["corner_rms_px"], "n_corners": d["n_corners"],
            "corner_sigma_px": fit.corner_sigma_px, "intrinsics": how}
-    if how == "estimated":
-        cam["f_px_std"] = f_sd
+    if how != "declared":
+        cam["f_px_std"] = f_sd if np.isfinite(f_sd) else None
+    if check is not None:
+        cam["lens_check"] = check.to_json()
     return {"format": "vision-cal/calibration/1", "method": "arm_camera",
             "params": d["params"], "std": d["std"], "covariance": d["covariance"],
             "nominal": nominal.to_json(), "effects": d["effects"], "cameras": [cam],
