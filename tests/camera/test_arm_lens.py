@@ -102,3 +102,66 @@ def test_the_declared_lens_residual_would_hide_the_missing_distortion(seen):
     v = judge_camera_poses(fit.flange_residual_mm, fit.flange_sigma_mm, fit.flange_heldout_mm,
                            n_params=fit.n_params_xy, repeatability_mm=0.01)
     assert not v.floor["beyond"]
+
+
+def test_locate_above_the_sheet_carries_the_focal_lengths_std(tmp_path, capsys):
+    """A declared lens the views confirm within f_std: a pixel at the sheet's plane keeps
+    its std, one 50 mm above it gets about 50 mm x (its ray's slope) x f_std / f more."""
+    import json
+
+    from tests.camera.test_camera_block import _arm
+    from vision_cal.commands.main import main
+
+    def std(doc, z):
+        p = tmp_path / "cal.json"
+        p.write_text(json.dumps(doc))
+        assert main(["locate", str(p), "--pixel", "1100", "800", "--joints", "10", "20",
+                     "--z-mm", str(z)]) == 0
+        line = next(ln for ln in capsys.readouterr().out.splitlines() if "robot frame" in ln)
+        return np.array([float(v) for v in line.split("(std")[1].split("mm")[0].split()])
+
+    doc = _arm()
+    plain = std(doc, 0.0), std(doc, 50.0)
+    doc["cameras"][0]["lens_check"] = {"f_std_px": 7.0, "contradicted": False}
+    checked = std(doc, 0.0), std(doc, 50.0)
+    slope = np.hypot(1100 - 599.5, 800 - 449.5) / 1300.0
+    assert np.allclose(checked[0], plain[0], atol=2e-3), (plain, checked)
+    extra = np.sqrt(np.sum(checked[1] ** 2) - np.sum(plain[1] ** 2))
+    assert 0.5 < extra / (50.0 * slope * 7.0 / 1300.0) < 1.5, (extra, plain, checked)
+
+
+def test_held_out_photos_are_judged_with_their_own_leverage():
+    """A leave-one-photo-out residual e / (1 - h) has variance sigma^2 / (1 - h): judged
+    with the mean leverage's 1 + P / 2N instead, photos the fit leans on read as beyond the
+    floor where nothing is missing (here 1.13 times it on 800 rows). With each photo's own
+    factor the ratio is 1 within its spread (1 / sqrt(2 dof) = 0.025: 4 of it)."""
+    rng = np.random.default_rng(7)
+    n, sig = 400, 0.01
+    h = rng.uniform(0.05, 0.7, n)
+    held = rng.normal(0, 1, (n, 2)) * (np.sqrt(sig**2 / (1 - h)))[:, None]
+    fitted = rng.normal(0, sig, (n, 2)) * np.sqrt(1 - h)[:, None]
+    kw = dict(n_params=2 * h.sum(), repeatability_mm=0.0)
+    own = judge_camera_poses(fitted, np.full(n, sig), held, heldout_inflate=1 / (1 - h), **kw)
+    mean = judge_camera_poses(fitted, np.full(n, sig), held, **kw)
+    assert abs(own.heldout_floor["residual_over_floor"] - 1.0) < 0.1, own.heldout_floor
+    assert mean.heldout_floor["residual_over_floor"] > 1.08, mean.heldout_floor
+
+
+def test_corners_are_found_in_the_declared_lenss_ideal_pixels():
+    """A marker's straight border is curved in a photo with k1 -0.045; lines fitted to it
+    there put the corner off by a few hundredths of a pixel (a bias that changes across the
+    image, which no pose absorbs). Fitted in the lens's ideal pixels, the corners are where
+    the lens puts them."""
+    from vision_cal.camera.arm_session import corners_in_lens
+    from vision_cal.measure.mapping import distort_px
+
+    ideal = np.array([[1000.0, 750.0], [1120.0, 750.0], [1120.0, 870.0], [1000.0, 870.0]])
+    t = np.linspace(0.15, 0.85, 24)
+    sides = [ideal[k] + t[:, None] * (ideal[(k + 1) % 4] - ideal[k]) for k in range(4)]
+    edges = np.array([distort_px(s, K, DIST) for s in sides])[None]      # (1, 4, n, 2)
+    truth = distort_px(ideal, K, DIST)
+    start = truth + 0.5                                                   # the detector's
+    raw = corners_in_lens(edges, start[None])[0]
+    lens = corners_in_lens(edges, start[None], K, DIST)[0]
+    assert np.max(np.hypot(*(lens - truth).T)) < 1e-3
+    assert np.max(np.hypot(*(raw - truth).T)) > 0.02

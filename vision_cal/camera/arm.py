@@ -61,6 +61,10 @@ class ArmView:
     corners_mm: np.ndarray
     corners_px: np.ndarray
     approach: tuple[float, float] = (1.0, 1.0)   # each joint's last motion sign
+    #: the markers' border edge points (M, 4, n, 2) raw px and the detector's corners
+    #: (M, 4, 2), kept to find the corners again in another lens's ideal pixels
+    edges_px: np.ndarray | None = None
+    detected_px: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -83,6 +87,9 @@ class ArmFit:
     flange_heldout_mm: np.ndarray | None = None
     n_params_xy: float = 0.0
     corner_sigma_px: float = float("nan")
+    #: per photo the variance factor of its leave-one-out residual, 1 / (1 - leverage)
+    #: (averaged over x and y): a photo the fit leans on is predicted less well without it
+    flange_heldout_inflate: np.ndarray | None = None
     #: joints (1, 2) whose backlash was fitted: parameters 12, 13 ... (full band, deg)
     backlash_joints: tuple[int, ...] = ()
     backlash_band_deg: tuple[float, ...] = ()
@@ -467,10 +474,11 @@ def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams, *,
     p, X = _unpack(x3, R0)          # the estimate the covariance belongs to
     e = _pose_residuals(x3, views, M, R0, bl)
     sig = _floor_terms(x3, views, M, C_pnp, R0, bl)
-    held = e[:, :2] / np.clip(1.0 - lev[:, :2], 1e-3, None)
+    keep = np.clip(1.0 - lev[:, :2], 1e-3, None)
+    held = e[:, :2] / keep
     return ArmFit(p, X, cov, rms_2d(r.reshape(-1, 2)), view_rms, n // 2, rms_pose,
-                  e[:, :2].copy(), sig, held, float(lev[:, :2].sum()), sigma_px, bl,
-                  tuple(float(v) for v in x3[12:]))
+                  e[:, :2].copy(), sig, held, float(lev[:, :2].sum()), sigma_px,
+                  np.mean(1.0 / keep, axis=1), bl, tuple(float(v) for v in x3[12:]))
 
 
 def _view_poses(views, K, dist) -> tuple[np.ndarray, np.ndarray, float]:
@@ -624,16 +632,25 @@ def camera_for(doc: dict, index: int, *, joints_deg=None, photo: str | None = No
             q[e["joint"] - 1] -= float(approach[e["joint"] - 1]) * float(e["deg"]) / 2.0
     rep = float((doc.get("verdict") or {}).get("repeatability_mm", 0.0))
     f_sd = float(entry.get("f_px_std") or 0.0)
-    return _camera_at(params, X, cov12, q, j4, K=K, dist=dist, size=size, rep=rep, f_sd=f_sd,
+    lens_f_sd = 0.0
+    chk = entry.get("lens_check")
+    if not f_sd and isinstance(chk, dict) and chk.get("f_std_px"):
+        # a declared lens the views confirmed within their std: heights off the sheet's
+        # plane carry that std (the calibration's height rests on the declared f)
+        lens_f_sd = float(chk["f_std_px"])
+    return _camera_at(params, X, cov12, q, j4, K=K, dist=dist, size=size, rep=rep,
+                      f_sd=f_sd or lens_f_sd, add_height=bool(lens_f_sd),
                       intrinsics=str(entry.get("intrinsics", "declared")),
                       images=tuple(entry.get("images") or ()))
 
 
 def _camera_at(params: ScaraParams, X, cov12, q, j4, *, K, dist, size, rep, f_sd, intrinsics,
-               images) -> FixedCamera:
+               images, add_height: bool = False) -> FixedCamera:
     """The arm camera at command (q, j4) as a :class:`FixedCamera`: ``T_robot_camera`` and
     its covariance from the fit's (12, 12), the robot's repeatability ``rep`` added to its
-    in-plane place (the arm stands there within it), ``f_sd`` the focal length's std."""
+    in-plane place (the arm stands there within it), ``f_sd`` the focal length's std
+    (``add_height``: the fit's covariance does not hold it yet, so the camera's height
+    takes it too: f and the height move together, the sheet's plane stays)."""
     R0 = X[:3, :3]
     x0 = np.concatenate([[params.L1_mm, params.L2_mm, params.z1_deg, params.z2_deg,
                           params.base_x_mm, params.base_y_mm], np.zeros(3), X[:3, 3]])
@@ -657,6 +674,8 @@ def _camera_at(params: ScaraParams, X, cov12, q, j4, *, K, dist, size, rep, f_sd
     cov[3, 3] += rep**2
     cov[4, 4] += rep**2
     if f_sd > 0:     # f and the camera's height move together (the fit's cam_z holds it)
+        if add_height:
+            cov[5, 5] += (T0[2, 3] * f_sd / K[0, 0]) ** 2
         cov[6, 6] = f_sd**2
         cov[5, 6] = cov[6, 5] = f_sd**2 * T0[2, 3] / K[0, 0]
     return FixedCamera(images, size, K, dist, intrinsics, T0, cov, float("nan"), 0,

@@ -403,7 +403,8 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
 def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
                        repeatability_mm: float | None = None,
                        reasons: list[tuple[str, str]] = (),
-                       config: VerdictConfig | None = None, ids=None) -> Verdict:
+                       config: VerdictConfig | None = None, ids=None,
+                       heldout_inflate=None) -> Verdict:
     """The verdict of a calibration from the arm camera's photos (``vision-cal handeye``):
     the same gate, status rule and block as :func:`judge`, its "marks" being the flange
     positions the photos imply. ``residual_mm`` (N, 2): each photo's in-plane flange
@@ -415,14 +416,18 @@ def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
     caller's own (parameters the poses do not separate, an undetermined lens); ``config``
     the gate's thresholds (default ``DEFAULT.verdict``); ``ids`` (N,) the photos' names
     (default their indices), naming the largest held-out error, judged as :func:`judge`
-    judges a mark's (``max_target_error``)."""
+    judges a mark's (``max_target_error``). ``heldout_inflate`` (N,): each leave-one-out
+    residual's variance factor, 1 / (1 - leverage) (None: the mean leverage's
+    1 + P / 2N, which a pose the fit leans on exceeds: its held-out residual was judged
+    too large against the floor)."""
     cfg = config or DEFAULT.verdict
     rep = cfg.default_repeatability_mm if repeatability_mm is None else float(repeatability_mm)
     source = "default" if repeatability_mm is None else "robot block"
     res = np.asarray(residual_mm, float).reshape(-1, 2)
     n, p = len(res), int(round(n_params))
     floor = floor_test(res, sigma_mm, rep, n_params=p, config=cfg)
-    inflate = 1.0 + p / max(2 * n, 1)
+    inflate = (1.0 + p / max(2 * n, 1) if heldout_inflate is None
+               else np.asarray(heldout_inflate, float).reshape(-1))
     hfloor = floor_test(heldout_mm, sigma_mm, rep, inflate=inflate, config=cfg)
     worst = max_error_test(list(range(n)) if ids is None else list(ids), heldout_mm, sigma_mm,
                            rep, of="held-out", inflate=inflate, config=cfg)
