@@ -165,3 +165,22 @@ def test_corners_are_found_in_the_declared_lenss_ideal_pixels():
     lens = corners_in_lens(edges, start[None], K, DIST)[0]
     assert np.max(np.hypot(*(lens - truth).T)) < 1e-3
     assert np.max(np.hypot(*(raw - truth).T)) > 0.02
+
+
+def test_one_bad_photo_does_not_raise_every_photos_floor(seen):
+    """One photo whose corners are 2.5 px off (a rendered series had one): the corners'
+    noise stays the median photo's, so the floor does not grow tenfold and hide it; the
+    photo shows beyond the noise."""
+    import dataclasses
+
+    views, _ = seen
+    rng = np.random.default_rng(3)
+    bad = views[5]
+    views = list(views)
+    views[5] = dataclasses.replace(bad, corners_px=bad.corners_px
+                                   + rng.normal(0, 2.5, bad.corners_px.shape))
+    chk, fit, v = _judge(views, K, DIST)
+    assert fit.corner_sigma_px < 1.5 * NOISE_PX and chk.corner_sigma_px < 1.5 * NOISE_PX
+    assert v.status != "ready", v.reasons
+    # the photos' own pose fits (an undeclared lens's path) give the median photo's too
+    assert fit_arm_camera(views, K, DIST, NOMINAL).corner_sigma_px < 1.5 * NOISE_PX

@@ -214,15 +214,17 @@ def estimate_lens(views: list["ArmView"], size_px) -> Lens:
 
 def _lens_cov(obj, img, K, dist, rvecs, tvecs) -> tuple[np.ndarray, float, int]:
     """Covariance (3, 3) of (f px, k1, k2) at a ``calibrateCamera`` solution, every view's
-    pose profiled out (Schur complement), scaled by the residual variance; that variance
-    (px^2 per axis) and the corners' rows."""
+    pose profiled out (Schur complement), scaled by the residual variance (pooled: a bad
+    view widens it); the median view's residual variance (px^2 per axis: the corners'
+    noise) and the corners' rows."""
     S = np.zeros((3, 3))
-    ssr, n_rows = 0.0, 0
+    ssr, n_rows, per_view = 0.0, 0, []
     for o, m, rv, tv in zip(obj, img, rvecs, tvecs):
         uv, J = cv2.projectPoints(o.reshape(-1, 1, 3).astype(np.float64), rv, tv, K, dist)
         r = (uv.reshape(-1, 2) - m.reshape(-1, 2)).ravel()
         ssr += float(r @ r)
         n_rows += len(r)
+        per_view.append(float(r @ r) / max(len(r) - 6, 1))
         A = np.column_stack([J[:, 6] + J[:, 7], J[:, 10], J[:, 11]])   # f, k1, k2
         B = J[:, :6]                                                    # rvec, tvec
         S += A.T @ A - A.T @ B @ np.linalg.solve(B.T @ B, B.T @ A)
@@ -231,7 +233,7 @@ def _lens_cov(obj, img, K, dist, rvecs, tvecs) -> tuple[np.ndarray, float, int]:
         cov = np.linalg.inv(S) * s2
     except np.linalg.LinAlgError:
         cov = np.full((3, 3), np.inf)
-    return cov, s2, n_rows
+    return cov, float(np.median(per_view)) if per_view else s2, n_rows
 
 
 @dataclass(frozen=True)
@@ -484,19 +486,19 @@ def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams, *,
 def _view_poses(views, K, dist) -> tuple[np.ndarray, np.ndarray, float]:
     """Per photo ``T_sheet_camera`` from its corners alone (N, 4, 4), the covariance (N, 6, 6)
     of its ``T_camera_sheet`` (rotation vector rad, translation mm) from the corner noise,
-    and that noise (px, per axis): pooled over the photos (each photo's own pose fit
-    leaves the corner noise alone, robot-free), so one photo's few corners do not make
-    its own figure."""
-    T, C, ssr, dof = [], [], 0.0, 0
+    and that noise (px, per axis): the median photo's (each photo's own pose fit leaves
+    the corner noise alone, robot-free), so one photo's few corners do not make its own
+    figure, and one bad photo (a corner 2.5 px off in a rendered series) does not raise
+    every photo's floor tenfold and hide what the others show."""
+    T, C, s2s = [], [], []
     for v in views:
         T_cs, _, cov, rms = fit_pose(v.corners_mm, v.corners_px, K, dist, free_f=False)
         n = len(v.corners_mm)
         s2 = rms**2 * n / max(2 * n - 6, 1)
         T.append(np.linalg.inv(T_cs))
         C.append(cov[:6, :6] / max(s2, 1e-30))
-        ssr += rms**2 * n
-        dof += 2 * n - 6
-    s2 = ssr / max(dof, 1)
+        s2s.append(s2)
+    s2 = float(np.median(s2s))
     return np.array(T), np.array(C) * s2, float(np.sqrt(s2))
 
 
