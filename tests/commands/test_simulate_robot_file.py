@@ -195,3 +195,32 @@ def test_simulate_draws_with_the_robot_files_tool_and_joint_4(tmp_path, monkeypa
     ang = np.radians(q.sum(axis=1) + [0.0, 90.0]) + z.sum()   # link 2's direction + joint 4
     assert np.allclose(got - flange, 25.0 * np.column_stack([np.cos(ang), np.sin(ang)]),
                        atol=1e-6), got - flange
+
+
+def test_the_robot_files_speed_limits_shape_the_simulated_motion(tmp_path, monkeypatch):
+    """The simulated controller follows a trajectory planned with the robot file's speed
+    and acceleration limits, not the defaults."""
+    import vision_cal.render.rehearse as rehearse
+
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def world(truth, **kw):
+        seen.update(kw)
+        raise Stop
+
+    monkeypatch.setattr(rehearse, "simulated_world", world)
+    robot_path = _robot(tmp_path, speed_limits_deg_s=[30.0, 45.0],
+                        accel_limits_deg_s2=[100.0, 150.0])
+    prg, _ = _program(tmp_path, _plan(), robot_path, name="targets_plan.prg")
+    (tmp_path / "targets_plan.csv").write_text(
+        "id,q1_deg,q2_deg,approach1,approach2\na,10,20,1,-1\nb,-5,40,-1,1\n")
+    sim = yaml.safe_load(_simulated(tmp_path).read_text())
+    sim["hidden"]["controller"] = "smc"
+    (tmp_path / "true.yaml").write_text(yaml.safe_dump(sim))
+    with pytest.raises(Stop):
+        rehearse.simulate_session(prg, tmp_path / "true.yaml", tmp_path / "out",
+                                  sheet_json=_sheet(tmp_path))
+    assert seen["vmax_deg_s"] == (30.0, 45.0) and seen["amax_deg_s2"] == (100.0, 150.0)

@@ -515,7 +515,10 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
     if sim.controller == "kinematic":
         source, model = None, sim.truth
     else:
-        source, model = simulated_world(sim.truth, controller=sim.controller, rng=rng)
+        # the robot file's speed and acceleration limits shape the trajectory it follows
+        source, model = simulated_world(sim.truth, controller=sim.controller, rng=rng,
+                                        vmax_deg_s=tuple(sim.robot.speed_limits_deg_s),
+                                        amax_deg_s2=tuple(sim.robot.accel_limits_deg_s2))
     # joint 4 as the program commands it: the robot file's tool turns with it
     world = draw_marks(model, plan, home_deg=home, repeatability_mm=sim.repeatability_mm,
                        joint_source=source, rng=rng,
