@@ -184,3 +184,33 @@ def test_one_bad_photo_does_not_raise_every_photos_floor(seen):
     assert v.status != "ready", v.reasons
     # the photos' own pose fits (an undeclared lens's path) give the median photo's too
     assert fit_arm_camera(views, K, DIST, NOMINAL).corner_sigma_px < 1.5 * NOISE_PX
+
+
+def test_repeated_poses_measure_the_robots_repeatability():
+    """A robot 1.4 times less repeatable (0.014 mm) than the default figure (0.01 mm) and
+    nothing else missing: the floor is almost all repeatability, so the residual reads
+    about 1.4 times it (the issue's false alarm). Eight poses taken twice measure it, and
+    the residual sits on the floor."""
+    from tests.camera.test_arm import K as K0
+    from tests.camera.test_arm import _views as views0
+    from vision_cal.camera.arm_session import repeat_pairs
+
+    rng = np.random.default_rng(21)
+    X = world.T_flange_camera_true(rng)
+    plan = _plan(24, rng)
+    plan = plan + plan[:8]                                  # eight commands again
+    views = views0(plan, X, rng, repeatability_mm=0.014)
+    fit = fit_arm_camera(views, K0, None, NOMINAL)
+    kw = dict(n_params=fit.n_params_xy, heldout_inflate=fit.flange_heldout_inflate)
+    assumed = judge_camera_poses(fit.flange_residual_mm, fit.flange_sigma_mm,
+                                 fit.flange_heldout_mm, **kw)
+    pairs = repeat_pairs(views)
+    assert pairs == [(i, 24 + i) for i in range(8)]
+    measured = judge_camera_poses(fit.flange_residual_mm, fit.flange_sigma_mm,
+                                  fit.flange_heldout_mm, repeat_pairs=pairs, **kw)
+    assert assumed.residual_over_floor > 1.2, assumed.floor
+    assert measured.repeatability_source.startswith("8 pairs of photos")
+    # 8 pairs know r to about r / sqrt(2 * 8) (per axis, two axes): 4 of that
+    assert abs(measured.repeatability_mm - 0.014) < 4 * 0.014 / np.sqrt(16)
+    assert 0.6 < measured.residual_over_floor < 1.3 and measured.status == "ready", \
+        measured.reasons

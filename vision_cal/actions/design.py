@@ -38,6 +38,7 @@ class DesignRequest:
     mount: str = 'flange'
     trigger: str = 'output'
     trigger_output: int = 8
+    repeats: int = 6
 
 
 def design(req: DesignRequest) -> int:
@@ -144,14 +145,19 @@ def _refuse_conflicts(req: DesignRequest) -> None:
 
 
 def _camera_on_arm(req: DesignRequest) -> int:
+    if not 0 <= req.repeats <= req.n_poses:
+        raise VisionCalError(f"expected 0..{req.n_poses} (--n-poses), got {req.repeats}",
+                             field="--repeats")
     out = output_dir(req.out, field="--out")
     robot = load_robot_file(req.robot)
     sheet = load_sheet_file(req.sheet)
     a, b = design_camera_on_arm(robot, sheet, read_json(req.sheet), out, n_poses=req.n_poses,
                                 mount=req.mount, trigger=req.trigger,
-                                output_bit=req.trigger_output, seed=req.seed)
+                                output_bit=req.trigger_output, seed=req.seed,
+                                repeats=req.repeats)
     if not req.quiet:
-        print(f"camera poses: {req.n_poses} ({req.mount} mount); put the photos beside "
+        print(f"camera poses: {req.n_poses}, {req.repeats} of them taken twice (the robot's "
+              f"repeatability, measured) ({req.mount} mount); put the photos beside "
               f"{a} (and your camera's lens in it if you know it: camera: size_px, K, dist), "
               f"then vision-cal handeye {out} --out CAL/")
         print(f"wrote {a}")

@@ -75,6 +75,21 @@ def read_arm_session(folder):
     return folder, sheet, nominal, camera, mount, poses, robot.repeatability_mm
 
 
+def repeat_pairs(views) -> list[tuple[int, int]]:
+    """(i, j) of photos taken at the same command (joints 1, 2 and 4) reached from the same
+    sides, each with the one before it at that command: what the robot's repeatability
+    alone moves apart."""
+    last: dict[tuple, int] = {}
+    out = []
+    for k, v in enumerate(views):
+        key = (tuple(np.round(np.asarray(v.q_deg, float), 6)), round(float(v.j4_deg), 6),
+               tuple(v.approach))
+        if key in last:
+            out.append((last[key], k))
+        last[key] = k
+    return out
+
+
 def _reasons(fit, mount: str, *, undetermined: bool = False) -> list[tuple[str, str]]:
     """(status, sentence) of what the poses leave undetermined (the camera's height, with a
     lens whose focal length the views cannot tell, is the lens's sentence)."""
@@ -205,7 +220,8 @@ def calibrate_arm_camera(folder) -> dict:
         fit.flange_residual_mm, fit.flange_sigma_mm, fit.flange_heldout_mm,
         n_params=fit.n_params_xy, repeatability_mm=rep,
         reasons=_reasons(fit, mount, undetermined=(how == UNDETERMINED)) + lens_reason,
-        ids=[v.file for v in views], heldout_inflate=fit.flange_heldout_inflate)
+        ids=[v.file for v in views], heldout_inflate=fit.flange_heldout_inflate,
+        repeat_pairs=repeat_pairs(views))
     cam = {"images": [v.file for v in views], "size_px": list(size), "K": K.tolist(),
            "dist": dist.tolist(), "T_flange_camera": d["T_flange_camera"],
            "mount": mount, "T_flange_camera_std": d["T_flange_camera_std"],
