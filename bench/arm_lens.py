@@ -13,16 +13,14 @@ import argparse
 import cv2
 import numpy as np
 
-from vision_cal.camera.arm import check_declared_lens, estimate_lens, fit_arm_camera
+from vision_cal.camera.arm import ArmView, check_declared_lens, estimate_lens, fit_arm_camera
 from vision_cal.camera.arm_session import _reasons
-from vision_cal.camera.fixed import UNDETERMINED
 from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.kinematics import ScaraParams
 from vision_cal.render import arm_camera as world
 from vision_cal.render.sheet import make_sheet
 from vision_cal.render.truth_model import TrueRobot
 
-from vision_cal.camera.arm import ArmView
 
 SIZE = (1280, 960)
 F = 1100.0
@@ -82,6 +80,7 @@ def run(case, seed, tilt, n=24):
     else:
         lens = estimate_lens(vs, SIZE)
         Kd, dd = lens.K, lens.dist
+    f_sd = lens.f_px_std if case == "none" else 0.0
     chk = check_declared_lens(vs, SIZE, Kd, dd) if case != "none" else None
     extra = list(chk.reasons) if chk else []
     if chk:
@@ -93,7 +92,8 @@ def run(case, seed, tilt, n=24):
     v = judge_camera_poses(fit.flange_residual_mm, fit.flange_sigma_mm, fit.flange_heldout_mm,
                            n_params=fit.n_params_xy, repeatability_mm=0.01,
                            reasons=_reasons(fit, "flange") + extra)
-    z, zs = fit.T_flange_camera[2, 3], fit.std[11]
+    z = fit.T_flange_camera[2, 3]
+    zs = float(np.hypot(fit.std[11], z * f_sd / Kd[0, 0]))   # as handeye: f's std in z
     print(f"{case:8s} seed {seed}: {v.status:12s} floor x{v.residual_over_floor:.2f} "
           f"height {z:.3f} +- {zs:.4f} (truth {X[2, 3]:.3f}, {abs(z - X[2, 3]) / zs:.0f} std) "
           f"corners {fit.corner_sigma_px:.3f} px | {'; '.join(v.reasons)[:120]}")
