@@ -308,6 +308,12 @@ class VerdictConfig:
     min_spare_dof: int = 8            # 2 N - P below this: too few marks to test any effect
     min_repeat_pairs: int = 4         # pairs of marks drawn at the same command needed to
                                       # measure repeatability (fewer: the robot block's figure)
+    # a declared arm-camera lens against the views' own (camera/arm.check_declared_lens):
+    # contradicted beyond lens_sigma of the views' std *and* a difference that matters
+    lens_sigma: float = 4.0           # std of the views' estimate
+    lens_min_f_rel: float = 0.005     # focal length: 0.5 % (1 mm of height at 200 mm)
+    lens_min_px: float = 0.1          # distortion at the farthest corner seen: 0.1 px (the
+                                      # sub-pixel corners' own scale)
 
 
 @dataclass(frozen=True)

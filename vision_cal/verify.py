@@ -36,7 +36,10 @@ from pathlib import Path
 
 import numpy as np
 
+from vision_cal.calibrate.plausible import LINK_RATIO
 from vision_cal.dataset.calibration import load_calibration
+from vision_cal.dataset.camera_block import check_cameras
+from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.nominal import SIGN_CONVENTION, rezero_text
 from vision_cal.dataset.session import load_session
@@ -48,6 +51,15 @@ from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.pipeline import measure_marks
 from vision_cal.rms import rms_2d
 
+#: the calibrations verify can check: pen marks fitted in one sheet's frame (a joint
+#: calibration's placements too: OUT/<folder>/calibration.json)
+CHECKABLE_METHODS = ("lsq", "paper", "lsq-placements")
+#: a calibration's own marks lie where its parameters put them within this (mm) plus
+#: ``SELF_RMS_FACTOR`` x its residual RMS: a file in metres or radians is hundreds or tens
+#: of mm off (L1 0.344 puts every mark near the base; z2 in radians turns link 2 by 8 deg,
+#: 36 mm at 260 mm), a drift the model does not hold a fraction of a mm
+SELF_TOLERANCE_MM = 1.0
+SELF_RMS_FACTOR = 10.0
 MOVED_SIGMA = 4.0          # a parameter moved when its change exceeds this many std
 TOLERANCE_FACTOR = 2.0     # still good: RMS within this factor of the promised error
 PLACEMENT = (2, 4, 5)      # z1, base x, base y: where the sheet lies (always refitted)
@@ -190,6 +202,88 @@ def compare(model, cal_doc: dict, ids, q_deg, approach, xy_mm, *,
     return VerifyResult(marks, rms, changes, float(bound), verdict, tuple(reasons), iso_out)
 
 
+def check_verifiable(model, doc: dict, path, session) -> None:
+    """Refuse (one line naming ``path`` and the field, exit 2) a calibration verify cannot
+    check a drawn check against: another ``method`` (a camera on the arm: no marks to
+    compare), another ``frame`` (a joint calibration of several placements is in the robot
+    frame), units that are not mm and degrees (its links beyond x0.7..x1.4 of the check's
+    robot block, or its own marks not where its parameters put them), a verdict of ``not
+    reliable`` or none it knows, or no promised error to hold the check to."""
+    r = FieldReader(str(path))
+    method = doc.get("method")
+    if method not in CHECKABLE_METHODS:
+        r.fail("method", f"{method!r}: verify checks a pen-mark calibration (method "
+                         f"{' or '.join(CHECKABLE_METHODS)}) against marks drawn with design "
+                         "--verify" + ("; check a camera on the arm with a new handeye run"
+                                       if method == "arm_camera" else ""))
+    frame = doc.get("frame", "sheet")
+    if frame != "sheet":
+        r.fail("frame", f"{frame!r}: verify checks a calibration in its sheet's frame; for a "
+                        "joint calibration of several placements, verify one placement's "
+                        "own calibration.json (OUT/<folder>/calibration.json)")
+    v = doc.get("verdict")
+    if v is not None:
+        status = v.get("status") if isinstance(v, dict) else None
+        if status == "not reliable":
+            why = "; ".join(str(x) for x in (v.get("reasons") or [])[:2])
+            r.fail("verdict.status", "'not reliable': there is no promise to check"
+                                     + (f" ({why})" if why else "") + "; calibrate again")
+        if status not in ("ready", "check"):
+            r.fail("verdict.status", f"expected ready, check or not reliable, got {status!r}")
+    promised = [((doc.get(k) or {}).get("final_model") if isinstance(doc.get(k), dict) else None)
+                for k in ("validation_rms_mm", "residual_rms_mm")]
+    if not any(isinstance(x, (int, float)) and x > 0 for x in promised):
+        r.fail("residual_rms_mm", "missing: the calibration promises no error (no "
+                                  "validation_rms_mm or residual_rms_mm final_model) to hold "
+                                  "the check to")
+    p, nom = model.params, session.robot
+    for name, got, want in (("L1_mm", p.L1_mm, nom.L1_mm), ("L2_mm", p.L2_mm, nom.L2_mm)):
+        ratio = got / want
+        if not LINK_RATIO[0] <= ratio <= LINK_RATIO[1]:
+            r.fail(f"params.{name}", f"{got:.6g} mm against the check's robot block {want:g} mm "
+                                     f"({ratio:.3g}x, {session.path}): "
+                                     + ("lengths in metres?" if 5e-4 < ratio < 2e-3 else
+                                        "not this robot's calibration, or not in mm"))
+    _check_own_marks(model, doc, r)
+    check_cameras(doc, str(path))          # a still camera it carries: the one validator
+
+
+def _check_own_marks(model, doc: dict, r: FieldReader) -> None:
+    """The calibration's own marks lie where its parameters put them (its units are the
+    marks': mm and degrees), within ``SELF_TOLERANCE_MM`` + ``SELF_RMS_FACTOR`` x its
+    residual RMS."""
+    marks = doc.get("marks")
+    if not isinstance(marks, dict):
+        return
+    q, s, xy = [], [], []
+    for m in marks.values():
+        if not (isinstance(m, dict) and m.get("status", "ok") == "ok" and m.get("role")
+                in ("calibration", "validation", None)):
+            continue
+        try:
+            qq = [float(x) for x in m["joints_deg"][:2]] + [float(m.get("j4_deg") or 0.0)]
+            ss = [float(x) for x in (m.get("approach") or [1, 1])[:2]] + [1.0]
+            pt = [float(x) for x in m["measured_mm"][:2]]
+        except (KeyError, TypeError, ValueError, IndexError):
+            continue
+        if len(qq) == 3 and len(ss) == 3 and len(pt) == 2:
+            q.append(qq), s.append(ss), xy.append(pt)
+    if len(q) < 3:
+        return
+    q, s, xy = np.array(q), np.array(s), np.array(xy)
+    off = rms_2d(xy - model.predict(q if model.tool is not None else q[:, :2],
+                                    s if model.tool is not None else s[:, :2]))
+    res = (doc.get("residual_rms_mm") or {}).get("final_model")
+    res = float(res) if isinstance(res, (int, float)) else 0.0
+    bound = SELF_TOLERANCE_MM + SELF_RMS_FACTOR * res
+    if not off <= bound:
+        jz = model.params.z1_deg, model.params.z2_deg
+        hint = ("joint_zero_deg in radians?" if max(map(abs, jz)) <= 2 * np.pi
+                and max(map(abs, jz)) > 0 else "params not in mm and degrees?")
+        r.fail("params", f"its own marks lie {off:.3g} mm RMS from where its parameters put "
+                         f"them (it fitted {res:.3g} mm): {hint} verify reads mm and degrees")
+
+
 def verify_folder(cal_path, folder, *, out_dir, jobs: int | None = None,
                   progress: bool = False, force: bool = False
                   ) -> tuple[VerifyResult, Path, list[str]]:
@@ -200,6 +294,7 @@ def verify_folder(cal_path, folder, *, out_dir, jobs: int | None = None,
     ``outside_valid_for`` and in the lines returned, for the console)."""
     model, doc = load_calibration(cal_path)
     session = load_session(folder)
+    check_verifiable(model, doc, cal_path, session)
     out_dir = Path(out_dir)
     if out_dir.resolve() == Path(folder).resolve():
         raise VisionCalError("is the check's folder: the input folder is never written to",

@@ -157,6 +157,12 @@ def test_an_undeclared_lens_seen_square_is_said_undetermined(tmp_path, capsys):
     assert doc["cameras"][0]["intrinsics"] == UNDETERMINED
     assert doc["verdict"]["status"] == "check"
     assert any("focal length" in r for r in doc["verdict"]["reasons"])
+    # the height the views cannot fix: not identifiable, with the std the focal length's
+    # own gives it (issue 29), and the truth within it
+    assert "cam_z_mm" in doc["not_identifiable"]
+    X = np.array(read_json(data / "truth.json")["T_flange_camera"])
+    z_sd = doc["cameras"][0]["T_flange_camera_std"]["translation_mm"][2]
+    assert z_sd > 1.0 and abs(doc["cameras"][0]["T_flange_camera"][2][3] - X[2, 3]) < N_STD * z_sd
     _params_within_std(doc)
     cal = str(tmp_path / "out" / "calibration.json")
     assert main(["locate", cal, "--pixel", "100", "80", "--photo", "pose_001.png",

@@ -33,7 +33,7 @@ def _rehearse(tmp, effects):
     (tmp / "true_robot.yaml").write_text(yaml.safe_dump(t))
     cli("sheet", "--size", "A2", "--field", "--out", tmp / "field", "-q")
     cli("design", tmp / "robot.yaml", "--sheet", tmp / "field" / "sheet.json",
-        "--camera-on-arm", "--n-poses", "10", "--out", tmp / "arm", "-q")
+        "--camera-on-arm", "--n-poses", "10", "--repeats", "4", "--out", tmp / "arm", "-q")
     cli("simulate", tmp / "arm", "--truth", tmp / "true_robot.yaml", "--out", tmp / "arm", "-q")
     cli("handeye", tmp / "arm", "--out", tmp / "arm_cal", "-q")
     return read_json(tmp / "arm_cal" / "calibration.json"), read_json(tmp / "arm" / "truth.json")
@@ -49,6 +49,8 @@ def test_arm_camera_rehearsal_finds_the_robot_and_the_mount(tmp_path, capsys):
     dt = np.array(cam["T_flange_camera"])[:3, 3] - np.array(truth["T_flange_camera"])[:3, 3]
     assert np.all(np.abs(dt) < N_STD * np.asarray(cam["T_flange_camera_std"]["translation_mm"]))
     assert doc["verdict"]["status"] in ("ready", "check"), doc["verdict"]["reasons"]
+    # four poses photographed twice: the robot's repeatability measured from them
+    assert doc["verdict"]["repeatability_source"] == "4 pairs of photos taken at the same command"
     capsys.readouterr()
     assert main(["locate", str(tmp_path / "arm_cal" / "calibration.json"), "--pixel", "320",
                  "240", "--joints", "30", "60", "45"]) == 0

@@ -73,8 +73,10 @@ def test_pose_with_declared_lens_has_no_focal_std():
 
 
 def _entry():
+    down = np.diag([1.0, -1.0, -1.0, 1.0])          # looking down at the sheet from 800 mm
+    down[2, 3] = 800.0
     return {"images": ["a.png"], "size_px": [1200, 900], "K": K.tolist(), "dist": [0] * 5,
-            "T_robot_camera": np.eye(4).tolist(),
+            "T_robot_camera": down.tolist(),
             "robot_to_sheet": {"z1_deg": 1.0, "base_mm": [1.0, 2.0],
                                "sheet_matrix": np.eye(2).tolist()}}
 

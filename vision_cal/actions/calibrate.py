@@ -11,6 +11,7 @@ from pathlib import Path
 
 from vision_cal.calibrate.placements import calibrate_placements
 from vision_cal.dataset.io import atomic_write_json, output_dir
+from vision_cal.diagnose.verdict import Verdict
 from vision_cal.dataset.out_folder import output_names, retire_earlier_run
 from vision_cal.errors import VisionCalError
 from vision_cal.pipeline import calibrate_dataset
@@ -50,8 +51,12 @@ def calibrate(req: CalibrateRequest) -> int:
                 print(f"{pl['folder']}: sheet at {pl['angle_deg']:.3f} deg, base "
                       f"({pl['base_mm'][0]:.3f}, {pl['base_mm'][1]:.3f}) mm, rms "
                       f"{pl['residual_rms_mm']:.4f} mm")
-            print("effects: " + (", ".join(e["name"] + f"(joint {e['joint']})"
+            print("effects: " + (", ".join(e["name"] + (f"(joint {e['joint']})"
+                                                         if "joint" in e else "")
                                            for e in doc["effects"]) or "none"))
+            for pl in doc["placements"]:
+                print(f"{pl['folder']}: {Verdict.from_json(pl['verdict']).text}")
+            print(f"verdict: {Verdict.from_json(doc['verdict']).text}")
         print(f"wrote {out / 'calibration.json'}")
         return 0
     several = len(req.folders) > 1

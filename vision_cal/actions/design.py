@@ -38,11 +38,13 @@ class DesignRequest:
     mount: str = 'flange'
     trigger: str = 'output'
     trigger_output: int = 8
+    repeats: int = 6
 
 
 def design(req: DesignRequest) -> int:
     """The plan of a calibration stage (pilot, informative, verify), several placements, or
     the camera poses of a camera on the arm."""
+    _refuse_conflicts(req)
     if req.camera_on_arm:
         return _camera_on_arm(req)
 
@@ -107,15 +109,61 @@ def design(req: DesignRequest) -> int:
     return 0
 
 
+#: options that contradict each other: (a, b, why); ``a`` and ``b`` name an option given
+#: (a request field whose value differs from its default, or ``--program csv``)
+_CONFLICTS = (
+    ("--verify", "--camera-on-arm", "a check of a pen calibration draws marks, the camera on "
+     "the arm photographs a marker field"),
+    ("--verify", "--placements", "a check verifies one calibration on one sheet, placements "
+     "design a joint calibration"),
+    ("--pilot", "--camera-on-arm", "the camera on the arm plans its poses without a pilot"),
+    ("--camera-on-arm", "--program csv", "the camera poses are written as a SPEL+ program "
+     "with its camera trigger only"),
+    ("--camera-on-arm", "--program none", "the camera poses are written as a SPEL+ program "
+     "with its camera trigger only"),
+)
+
+
+def _given(req: DesignRequest) -> set[str]:
+    """The options of ``_CONFLICTS`` the user gave."""
+    given = set()
+    if req.verify is not None:
+        given.add("--verify")
+    if req.pilot is not None:
+        given.add("--pilot")
+    if req.placements is not None:
+        given.add("--placements")
+    if req.camera_on_arm:
+        given.add("--camera-on-arm")
+    if req.program != "spel":
+        given.add(f"--program {req.program}")
+    return given
+
+
+def _refuse_conflicts(req: DesignRequest) -> None:
+    """Options that contradict each other are refused, naming both (never one silently
+    ignored)."""
+    given = _given(req)
+    for a, b, why in _CONFLICTS:
+        if a in given and b in given:
+            raise VisionCalError(f"{a} and {b} contradict each other ({why}): give one",
+                                 field=a)
+
+
 def _camera_on_arm(req: DesignRequest) -> int:
+    if not 0 <= req.repeats <= req.n_poses:
+        raise VisionCalError(f"expected 0..{req.n_poses} (--n-poses), got {req.repeats}",
+                             field="--repeats")
     out = output_dir(req.out, field="--out")
     robot = load_robot_file(req.robot)
     sheet = load_sheet_file(req.sheet)
     a, b = design_camera_on_arm(robot, sheet, read_json(req.sheet), out, n_poses=req.n_poses,
                                 mount=req.mount, trigger=req.trigger,
-                                output_bit=req.trigger_output, seed=req.seed)
+                                output_bit=req.trigger_output, seed=req.seed,
+                                repeats=req.repeats)
     if not req.quiet:
-        print(f"camera poses: {req.n_poses} ({req.mount} mount); put the photos beside "
+        print(f"camera poses: {req.n_poses}, {req.repeats} of them taken twice (the robot's "
+              f"repeatability, measured) ({req.mount} mount); put the photos beside "
               f"{a} (and your camera's lens in it if you know it: camera: size_px, K, dist), "
               f"then vision-cal handeye {out} --out CAL/")
         print(f"wrote {a}")

@@ -20,6 +20,7 @@ the cross-validated error down, at most ``max_effects``.
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,8 +36,10 @@ from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.covariance import covariance_json
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.nominal import nominal_blocks
+from vision_cal.dataset.photos import list_photos
 from vision_cal.dataset.session import load_session
 from vision_cal.dataset.valid_for import build as valid_for_block
+from vision_cal.diagnose.verdict import judge_placements
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import (Effect, JointBacklash, JointCyclic, JointScale, JointTerms,
@@ -258,15 +261,15 @@ def best_alternative(places: list[Placement], fit: PlacementsFit, effect: Effect
     return tuple(names[i] for i in best), best_drop, lib_drop
 
 
-def _cv_rms(places: list[Placement], fit: PlacementsFit, effects, k_folds: int,
-            condition_limit: float,
-            rng_seed: int = 0) -> float:
-    """k-fold cross-validated RMS (mm, 2-D) of the shared model with ``effects``: the marks
-    of every placement split into ``k_folds`` folds (fixed seed: the same data calibrate the
-    same way), each fold predicted by the fit on the others (started from ``fit``)."""
+def _cv_residuals(places: list[Placement], fit: PlacementsFit, effects, k_folds: int,
+                  condition_limit: float, rng_seed: int = 0) -> list[np.ndarray] | None:
+    """k-fold cross-validated residuals (per placement (N_k, 2), mm) of the shared model
+    with ``effects``: the marks of every placement split into ``k_folds`` folds (fixed
+    seed: the same data calibrate the same way), each fold predicted by the fit on the
+    others (started from ``fit``). None when a fold cannot be fitted."""
     rng = np.random.default_rng(rng_seed)
     fold_of = [rng.permutation(len(p.xy_mm)) % k_folds for p in places]
-    err = []
+    out = [np.full((len(p.xy_mm), 2), np.nan) for p in places]
     for f in range(k_folds):
         train = [Placement(p.name, p.q_deg[fo != f], p.xy_mm[fo != f], p.approach[fo != f],
                            None if p.sigma_mm is None else p.sigma_mm[fo != f])
@@ -274,12 +277,21 @@ def _cv_rms(places: list[Placement], fit: PlacementsFit, effects, k_folds: int,
         try:
             t = _solve(train, fit.shared, fit.poses, effects, condition_limit)
         except CalibrationError:
-            return float("nan")
+            return None
         for k, (p, fo) in enumerate(zip(places, fold_of)):
             if np.any(fo == f):
-                err.append(p.xy_mm[fo == f] - t.model_on(k).predict(p.q_deg[fo == f],
-                                                                    p.approach[fo == f]))
-    return rms_2d(np.concatenate(err))
+                out[k][fo == f] = p.xy_mm[fo == f] - t.model_on(k).predict(
+                    p.q_deg[fo == f], p.approach[fo == f])
+    return out
+
+
+def _cv_rms(places: list[Placement], fit: PlacementsFit, effects, k_folds: int,
+            condition_limit: float,
+            rng_seed: int = 0) -> float:
+    """k-fold cross-validated RMS (mm, 2-D) of the shared model with ``effects``
+    (:func:`_cv_residuals`); NaN when a fold cannot be fitted."""
+    res = _cv_residuals(places, fit, effects, k_folds, condition_limit, rng_seed)
+    return float("nan") if res is None else rms_2d(np.concatenate(res))
 
 
 def fit_placements(places: list[Placement], *, candidates=None, tool: Tool | None = None,
@@ -405,6 +417,71 @@ def placement_cov(fit: PlacementsFit, k: int) -> np.ndarray:
     return fit.cov[np.ix_(idx, idx)]
 
 
+def _mark_json(place: Placement, j: int, xy, r) -> dict:
+    """A placement calibration's ``marks`` entry: where it was measured, its residual under
+    the shared robot, its command and approach, its noise when measured by camera."""
+    d = {"measured_mm": xy.tolist(), "residual_mm": r.tolist(), "role": "calibration",
+         "joints_deg": [float(v) for v in place.q_deg[j, :2]],
+         "approach": [int(v) for v in place.approach[j, :2]]}
+    if place.q_deg.shape[1] == 3:
+        d["j4_deg"] = float(place.q_deg[j, 2])
+    if place.sigma_mm is not None:
+        d["sigma_mm"] = float(place.sigma_mm[j])
+    return d
+
+
+def _verdicts(places: list[Placement], sessions, fit: PlacementsFit, log,
+              config: EstimatorConfig):
+    """The contract's verdict of the joint fit and of each placement, and each placement's
+    agreement with the others (:func:`vision_cal.diagnose.verdict.judge_placements`): the
+    residuals under the shared robot, the k-fold held-out ones, the robot block's
+    repeatability (the first session that gives one)."""
+    held = _cv_residuals(places, fit, fit.effects, config.selection.k_folds,
+                         config.fit.condition_number_limit)
+    if held is None:
+        held = [np.full((len(p.xy_mm), 2), np.nan) for p in places]
+    rep = next((s.robot.repeatability_mm for s, _ in sessions
+                if s.robot.repeatability_mm is not None), None)
+    seen = unexplained_seen(log)
+    reasons = [("check", "structure no candidate explains is left in the residual ("
+                + "; ".join(seen) + ")")] if seen else []
+    return judge_placements([p.name for p in places], list(fit.residuals_mm),
+                            [p.sigma_mm for p in places], held, n_params=len(fit.cov),
+                            repeatability_mm=rep, reasons=reasons, config=config.verdict)
+
+
+def refuse_same_evidence(sessions) -> None:
+    """Refuse placements that share a photo (the same content, whatever its name) or whose
+    marks are the same measurements: one placement counted twice shrinks every std by
+    sqrt 2 and tests nothing (the same photos under two names took L1's std from 0.0043 to
+    0.0030 mm)."""
+    seen: dict[str, tuple[Path, Path]] = {}     # content hash -> (folder, photo)
+    marks_seen: dict[str, Path] = {}
+    for s in sessions:
+        root = Path(s.root)
+        files = ([im.file for im in s.images] if s.images_listed and s.images
+                 else list_photos(root) if root.is_dir() else [])
+        for f in files:
+            p = root / f
+            try:
+                h = hashlib.sha256(p.read_bytes()).hexdigest()
+            except OSError:
+                continue        # the measurement says why it cannot read it
+            if h in seen and seen[h][0].resolve() != root.resolve():
+                raise CalibrationError(f"{p} and {seen[h][1]} are the same photo (same "
+                                       "content): each placement is a sheet placed and "
+                                       "photographed on its own; give each folder once")
+            seen.setdefault(h, (root, p))
+        given = [(m.joints_deg, m.measured_mm) for m in s.marks if m.measured_mm is not None]
+        if given:
+            h = hashlib.sha256(repr(sorted(given)).encode()).hexdigest()
+            if h in marks_seen:
+                raise CalibrationError(f"{s.path} and {marks_seen[h]} give the same marks "
+                                       "(same commands, same measured_mm): one placement "
+                                       "given twice; give each folder once")
+            marks_seen[h] = s.path
+
+
 def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
                          progress: bool = False,
                          config: EstimatorConfig | None = None) -> dict:
@@ -420,8 +497,9 @@ def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
     if len(set(names)) != len(names):
         raise CalibrationError("two placement folders have the same name: "
                                + ", ".join(sorted({n for n in names if names.count(n) > 1})))
-    for folder, name in zip(folders, names):
-        session = load_session(folder)
+    loaded = [load_session(folder) for folder in folders]
+    refuse_same_evidence(loaded)
+    for session, name in zip(loaded, names):
         _, data, _ = measure_marks(session, out_dir=out_dir / name, jobs=jobs, progress=progress,
                                    config=config)
         cal = data.select("calibration")
@@ -439,6 +517,7 @@ def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
     if with_j4 and len(joint4_values(np.concatenate([p.q_deg[:, 2] for p in places]))) > 1:
         tool = Tool()
     fit, log = fit_placements(places, tool=tool, config=config)
+    joint_v, place_v, agree = _verdicts(places, sessions, fit, log, config)
     doc = {"format": "vision-cal/calibration/1", "method": "lsq-placements",
            **robot_frame_json(fit, names),
            "diagnosis": {"selection": log,
@@ -451,6 +530,11 @@ def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
     seen = unexplained_seen(log)
     if seen:   # significant structure that a library effect would only stand in for
         doc["effects"].append({"name": "unexplained", "seen": seen})
+    doc["verdict"] = joint_v.to_json()
+    for pl, v, a in zip(doc["placements"], place_v, agree):
+        pl["verdict"] = v.to_json()
+        if a is not None:
+            pl["agreement"] = a.to_json()
     for k, ((session, cal), name) in enumerate(zip(sessions, names)):
         m = fit.model_on(k)
         params = m.params.to_json()
@@ -466,13 +550,10 @@ def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
                "home_deg": [float(v) for v in session.robot.home_deg],
                "placement": doc["placements"][k],
                "residual_rms_mm": {"final_model": doc["placements"][k]["residual_rms_mm"]},
-               "marks": {i: {"measured_mm": xy.tolist(), "residual_mm": r.tolist(),
-                             "joints_deg": q.tolist(), "approach": a.astype(int).tolist(),
-                             **({"j4_deg": float(cal.joint4[n, 0])}
-                                if cal.joint4 is not None else {})}
-                         for n, (i, xy, r, q, a) in enumerate(zip(
-                             cal.ids, cal.xy_mm, fit.residuals_mm[k], cal.q_deg,
-                             cal.approach))}}
+               "verdict": place_v[k].to_json(),
+               "marks": {i: _mark_json(places[k], j, xy, r)
+                         for j, (i, xy, r) in enumerate(zip(cal.ids, cal.xy_mm,
+                                                            fit.residuals_mm[k]))}}
         sub["valid_for"] = valid_for_block(sub)   # what plan checks its targets against
         atomic_write_json(out_dir / name / "calibration.json", sub)
     atomic_write_json(out_dir / "calibration.json", doc)

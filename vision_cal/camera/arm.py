@@ -35,6 +35,8 @@ from scipy.optimize import least_squares
 
 from vision_cal.camera.fixed import (F_REL_STD_MAX, UNDETERMINED, FixedCamera, T_sheet_robot,
                                      _delta, camera_of, fit_pose, homogeneous, lsq_covariance)
+from vision_cal.config import DEFAULT, VerdictConfig
+from vision_cal.dataset.camera_block import check_camera_entry
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.kinematics import ScaraParams, flange_angle_rad, forward
 from vision_cal.rms import rms_2d
@@ -59,6 +61,10 @@ class ArmView:
     corners_mm: np.ndarray
     corners_px: np.ndarray
     approach: tuple[float, float] = (1.0, 1.0)   # each joint's last motion sign
+    #: the markers' border edge points (M, 4, n, 2) raw px and the detector's corners
+    #: (M, 4, 2), kept to find the corners again in another lens's ideal pixels
+    edges_px: np.ndarray | None = None
+    detected_px: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -81,6 +87,9 @@ class ArmFit:
     flange_heldout_mm: np.ndarray | None = None
     n_params_xy: float = 0.0
     corner_sigma_px: float = float("nan")
+    #: per photo the variance factor of its leave-one-out residual, 1 / (1 - leverage)
+    #: (averaged over x and y): a photo the fit leans on is predicted less well without it
+    flange_heldout_inflate: np.ndarray | None = None
     #: joints (1, 2) whose backlash was fitted: parameters 12, 13 ... (full band, deg)
     backlash_joints: tuple[int, ...] = ()
     backlash_band_deg: tuple[float, ...] = ()
@@ -194,13 +203,164 @@ def estimate_lens(views: list["ArmView"], size_px) -> Lens:
     out = cv2.calibrateCameraExtended(obj, img, (w, h), K0.copy(), np.zeros(5),
                                       flags=flags | cv2.CALIB_FIX_FOCAL_LENGTH)
     return Lens(np.asarray(out[1], float), np.asarray(out[2], float).ravel()[:5], UNDETERMINED,
-                float("nan"),
+                f_sd if np.isfinite(f_sd) else float("inf"),
                 f"the lens was not declared and the views (all at the same tilt to the sheet, "
                 f"{f_sd / max(K[0, 0], 1e-9):.0%} relative std of the focal length) cannot "
                 "tell its focal length from the camera's height: T_flange_camera's z and "
                 "heights off the sheet's plane are unknown (the robot and the sheet's plane "
                 "are not affected); declare camera K in session.json, or tilt the camera "
                 "15 deg or more")
+
+
+def _lens_cov(obj, img, K, dist, rvecs, tvecs) -> tuple[np.ndarray, float, int]:
+    """Covariance (3, 3) of (f px, k1, k2) at a ``calibrateCamera`` solution, every view's
+    pose profiled out (Schur complement), scaled by the residual variance (pooled: a bad
+    view widens it); the median view's residual variance (px^2 per axis: the corners'
+    noise) and the corners' rows."""
+    S = np.zeros((3, 3))
+    ssr, n_rows, per_view = 0.0, 0, []
+    for o, m, rv, tv in zip(obj, img, rvecs, tvecs):
+        uv, J = cv2.projectPoints(o.reshape(-1, 1, 3).astype(np.float64), rv, tv, K, dist)
+        r = (uv.reshape(-1, 2) - m.reshape(-1, 2)).ravel()
+        ssr += float(r @ r)
+        n_rows += len(r)
+        per_view.append(float(r @ r) / max(len(r) - 6, 1))
+        A = np.column_stack([J[:, 6] + J[:, 7], J[:, 10], J[:, 11]])   # f, k1, k2
+        B = J[:, :6]                                                    # rvec, tvec
+        S += A.T @ A - A.T @ B @ np.linalg.solve(B.T @ B, B.T @ A)
+    s2 = ssr / max(n_rows - 6 * len(obj) - 3, 1)
+    try:
+        cov = np.linalg.inv(S) * s2
+    except np.linalg.LinAlgError:
+        cov = np.full((3, 3), np.inf)
+    return cov, float(np.median(per_view)) if per_view else s2, n_rows
+
+
+@dataclass(frozen=True)
+class LensCheck:
+    """A declared lens against what the views measure (:func:`check_declared_lens`).
+
+    ``f_views_px`` and ``f_std_px``: the focal length the views give with the declared
+    principal point (NaN std: the views cannot tell it from the camera's height);
+    ``f_sigmas``: declared minus views in their std; ``dist_px``: how much further the
+    declared distortion moves the farthest corner seen than the views' (k1, k2), with
+    ``dist_std_px``; ``corner_sigma_px``: the corners' noise per axis with the views' own
+    lens (what the detector does, whatever the declaration); ``reasons``: (status,
+    sentence) when the views contradict the declaration."""
+
+    f_declared_px: float
+    f_views_px: float
+    f_std_px: float
+    f_sigmas: float
+    dist_px: float
+    dist_std_px: float
+    corner_sigma_px: float
+    reasons: tuple[tuple[str, str], ...] = ()
+
+    def to_json(self) -> dict:
+        def num(x):
+            return float(x) if np.isfinite(x) else None
+        return {"f_declared_px": num(self.f_declared_px), "f_views_px": num(self.f_views_px),
+                "f_std_px": num(self.f_std_px), "f_sigmas": num(self.f_sigmas),
+                "distortion_difference_px": num(self.dist_px),
+                "distortion_difference_std_px": num(self.dist_std_px),
+                "corner_sigma_px": num(self.corner_sigma_px),
+                "contradicted": bool(self.reasons)}
+
+
+_FIX_HIGHER = (cv2.CALIB_FIX_K3 | cv2.CALIB_FIX_K4 | cv2.CALIB_FIX_K5 | cv2.CALIB_FIX_K6
+               | cv2.CALIB_FIX_S1_S2_S3_S4 | cv2.CALIB_FIX_TAUX_TAUY)
+
+
+def check_declared_lens(views: list["ArmView"], size_px, K, dist,
+                        config: VerdictConfig | None = None) -> LensCheck:
+    """The declared lens (``K``, ``dist``) against the views' own: ``calibrateCamera`` from
+    the declared lens with its principal point and aspect held, the focal length, k1 and
+    k2 free (the declared higher terms held), their covariance with every view's pose
+    profiled out. The declaration is contradicted (``not reliable``) when its focal length
+    is more than ``config.lens_sigma`` std *and* ``config.lens_min_f_rel`` of itself from
+    the views', or its distortion moves the farthest corner seen more than ``lens_sigma``
+    std *and* ``lens_min_px`` from where the views' does. When the views cannot tell the
+    focal length (all at one tilt, nearly square to the sheet: std above
+    ``F_REL_STD_MAX``), the distortion is compared at the declared focal length."""
+    cfg = config or DEFAULT.verdict
+    w, h = (int(v) for v in size_px)
+    K = np.asarray(K, float)
+    d = np.asarray(dist, float).ravel()
+    d_full = np.zeros(max(len(d), 5))
+    d_full[:len(d)] = d
+    obj = [np.column_stack([v.corners_mm, np.zeros(len(v.corners_mm))]).astype(np.float32)
+           for v in views]
+    img = [np.asarray(v.corners_px, np.float32).reshape(-1, 1, 2) for v in views]
+    flags = (cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_FIX_PRINCIPAL_POINT
+             | cv2.CALIB_FIX_ASPECT_RATIO | cv2.CALIB_FIX_TANGENT_DIST | _FIX_HIGHER)
+    if len(d_full) >= 8:
+        flags |= cv2.CALIB_RATIONAL_MODEL
+    if len(d_full) >= 12:
+        flags |= cv2.CALIB_THIN_PRISM_MODEL
+    if len(d_full) >= 14:
+        flags |= cv2.CALIB_TILTED_MODEL
+    d0 = d_full.copy()
+
+    def calibrate(extra):
+        try:
+            out = cv2.calibrateCameraExtended(obj, img, (w, h), K.copy(), d0.copy(),
+                                              flags=flags | extra)
+        except cv2.error as e:
+            raise CalibrationError(f"the declared lens could not be checked against the "
+                                   f"views: {e}") from e
+        Kv, dv = np.asarray(out[1], float), np.asarray(out[2], float).ravel()
+        cov, s2, _ = _lens_cov(obj, img, Kv, dv, out[3], out[4])
+        return Kv, dv, cov, s2
+
+    Kv, dv, cov, s2 = calibrate(0)
+    f_v, f_sd = float(Kv[0, 0]), float(np.sqrt(max(cov[0, 0], 0.0)))
+    f_known = np.isfinite(f_sd) and 0 < f_sd < F_REL_STD_MAX * f_v
+    if not f_known:   # the views cannot tell f: compare the distortion at the declared f
+        Kv, dv, cov, s2 = calibrate(cv2.CALIB_FIX_FOCAL_LENGTH)
+        f_sd = float("nan")
+    f_d = float(K[0, 0])
+    z_f = (f_d - f_v) / f_sd if f_known else float("nan")
+    # the farthest corner seen, normalised by the focal length, and the radial displacement
+    # there: f (k1 r^3 + k2 r^5)
+    c = np.array([K[0, 2], K[1, 2]])
+    r_px = max(float(np.max(np.hypot(*(np.asarray(v.corners_px) - c).T))) for v in views)
+    rn = r_px / f_d
+    g = f_d * np.array([rn**3, rn**5])
+    dd = float(g @ (d_full[:2] - dv[:2]))
+    ck = cov[1:, 1:] if f_known else _lens_cov_k(cov)
+    dd_sd = float(np.sqrt(max(g @ ck @ g, 0.0)))
+    reasons = []
+    if f_known and abs(z_f) > cfg.lens_sigma and abs(f_d - f_v) > cfg.lens_min_f_rel * f_v:
+        reasons.append(("not reliable",
+                        f"the declared lens disagrees with the views: its focal length "
+                        f"{f_d:.1f} px, the views measure {f_v:.1f} +- {f_sd:.1f} px "
+                        f"({abs(z_f):.0f} std, {100 * (f_d / f_v - 1):+.1f} %): heights and "
+                        "T_flange_camera's z scale with it; declare the lens the views "
+                        "measure or calibrate the lens again"))
+    if (dd_sd > 0 and abs(dd) > cfg.lens_sigma * dd_sd and abs(dd) > cfg.lens_min_px) or (
+            dd_sd == 0 and abs(dd) > cfg.lens_min_px):
+        reasons.append(("not reliable",
+                        f"the declared lens's distortion disagrees with the views: at the "
+                        f"farthest corner seen ({r_px:.0f} px from the centre) it moves the "
+                        f"image {dd:+.2f} px more than the views' (k1 {dv[0]:.4f}, k2 "
+                        f"{dv[1]:.4f} against the declared {d_full[0]:.4f}, {d_full[1]:.4f}; "
+                        + (f"{abs(dd) / dd_sd:.0f} std" if dd_sd > 0 else "exact")
+                        + "): declare the lens's distortion"))
+    return LensCheck(f_d, f_v, f_sd, z_f, dd, dd_sd, float(np.sqrt(s2)), tuple(reasons))
+
+
+def _lens_cov_k(cov: np.ndarray) -> np.ndarray:
+    """(k1, k2) covariance of a fit with the focal length held: the (f, k1, k2) covariance
+    conditioned on f (its information matrix without f's row and column)."""
+    try:
+        info = np.linalg.inv(cov)
+    except np.linalg.LinAlgError:
+        return np.full((2, 2), np.inf)
+    try:
+        return np.linalg.inv(info[1:, 1:])
+    except np.linalg.LinAlgError:
+        return np.full((2, 2), np.inf)
 
 
 def T_sheet_flange(params: ScaraParams, q_deg, j4_deg) -> np.ndarray:
@@ -266,11 +426,17 @@ def camera_pose(view: ArmView, K, dist) -> np.ndarray:
     return np.linalg.inv(homogeneous(cv2.Rodrigues(rvec)[0], tvec))
 
 
-def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams) -> ArmFit:
+def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams, *,
+                   corner_sigma_px: float | None = None) -> ArmFit:
     """Robot and ``T_flange_camera`` from photos taken by the arm's camera (``K``, ``dist``
     declared); starts from ``nominal`` and the first photo's pose. A joint reached from
     both sides in the photos (their ``approach``) has its backlash fitted as well (the
-    contract's ``joint_backlash``; from one side only it is part of the joint's zero)."""
+    contract's ``joint_backlash``; from one side only it is part of the joint's zero).
+
+    ``corner_sigma_px``: the corners' noise (px, per axis) the noise floor is built from,
+    what the detector does (the views' own lens: :func:`check_declared_lens`); None: the
+    photos' own pose fits with ``K`` and ``dist`` (a wrong declared lens then inflates it
+    and hides itself)."""
     bl = tuple(j for j in (1, 2) if len({v.approach[j - 1] for v in views}) > 1)
     if len(views) < MIN_POSES:
         raise CalibrationError(f"{len(views)} usable photos: at least {MIN_POSES} are needed "
@@ -302,33 +468,37 @@ def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams) -> ArmFi
     # model's, is (one 6-vector per photo), with each kind of component's variance found
     # from its own scatter
     M, C_pnp, sigma_px = _view_poses(views, K, dist)
+    if corner_sigma_px is not None and np.isfinite(corner_sigma_px) and corner_sigma_px > 0:
+        C_pnp = C_pnp * (corner_sigma_px / max(sigma_px, 1e-12)) ** 2
+        sigma_px = float(corner_sigma_px)
     x2 = np.concatenate([sol.x[:6], np.zeros(3), sol.x[9:]])
     x3, cov, rms_pose, lev = _pose_level_fit(x2, views, M, R0, bl)
     p, X = _unpack(x3, R0)          # the estimate the covariance belongs to
     e = _pose_residuals(x3, views, M, R0, bl)
     sig = _floor_terms(x3, views, M, C_pnp, R0, bl)
-    held = e[:, :2] / np.clip(1.0 - lev[:, :2], 1e-3, None)
+    keep = np.clip(1.0 - lev[:, :2], 1e-3, None)
+    held = e[:, :2] / keep
     return ArmFit(p, X, cov, rms_2d(r.reshape(-1, 2)), view_rms, n // 2, rms_pose,
-                  e[:, :2].copy(), sig, held, float(lev[:, :2].sum()), sigma_px, bl,
-                  tuple(float(v) for v in x3[12:]))
+                  e[:, :2].copy(), sig, held, float(lev[:, :2].sum()), sigma_px,
+                  np.mean(1.0 / keep, axis=1), bl, tuple(float(v) for v in x3[12:]))
 
 
 def _view_poses(views, K, dist) -> tuple[np.ndarray, np.ndarray, float]:
     """Per photo ``T_sheet_camera`` from its corners alone (N, 4, 4), the covariance (N, 6, 6)
     of its ``T_camera_sheet`` (rotation vector rad, translation mm) from the corner noise,
-    and that noise (px, per axis): pooled over the photos (each photo's own pose fit
-    leaves the corner noise alone, robot-free), so one photo's few corners do not make
-    its own figure."""
-    T, C, ssr, dof = [], [], 0.0, 0
+    and that noise (px, per axis): the median photo's (each photo's own pose fit leaves
+    the corner noise alone, robot-free), so one photo's few corners do not make its own
+    figure, and one bad photo (a corner 2.5 px off in a rendered series) does not raise
+    every photo's floor tenfold and hide what the others show."""
+    T, C, s2s = [], [], []
     for v in views:
         T_cs, _, cov, rms = fit_pose(v.corners_mm, v.corners_px, K, dist, free_f=False)
         n = len(v.corners_mm)
         s2 = rms**2 * n / max(2 * n - 6, 1)
         T.append(np.linalg.inv(T_cs))
         C.append(cov[:6, :6] / max(s2, 1e-30))
-        ssr += rms**2 * n
-        dof += 2 * n - 6
-    s2 = ssr / max(dof, 1)
+        s2s.append(s2)
+    s2 = float(np.median(s2s))
     return np.array(T), np.array(C) * s2, float(np.sqrt(s2))
 
 
@@ -426,6 +596,8 @@ def camera_for(doc: dict, index: int, *, joints_deg=None, photo: str | None = No
                                  field="--joints" if joints_deg is not None else "--photo")
         return camera_of(doc, index, file=file)
     where = f"cameras[{index}]"
+    # the one validator of a camera block (K, dist, a rotation in mm, the covariance)
+    check_camera_entry(entry, where, file or "calibration.json", doc=doc)
     if (joints_deg is None) == (photo is None):
         raise VisionCalError("a camera on the arm: give the arm's command for the photo, "
                              "--joints Q1 Q2 [Q4] or --photo NAME (one of calibration.json "
@@ -461,17 +633,26 @@ def camera_for(doc: dict, index: int, *, joints_deg=None, photo: str | None = No
         if isinstance(e, dict) and e.get("name") == "joint_backlash" and e.get("joint") in (1, 2):
             q[e["joint"] - 1] -= float(approach[e["joint"] - 1]) * float(e["deg"]) / 2.0
     rep = float((doc.get("verdict") or {}).get("repeatability_mm", 0.0))
-    f_sd = float(entry.get("f_px_std", 0.0))
-    return _camera_at(params, X, cov12, q, j4, K=K, dist=dist, size=size, rep=rep, f_sd=f_sd,
+    f_sd = float(entry.get("f_px_std") or 0.0)
+    lens_f_sd = 0.0
+    chk = entry.get("lens_check")
+    if not f_sd and isinstance(chk, dict) and chk.get("f_std_px"):
+        # a declared lens the views confirmed within their std: heights off the sheet's
+        # plane carry that std (the calibration's height rests on the declared f)
+        lens_f_sd = float(chk["f_std_px"])
+    return _camera_at(params, X, cov12, q, j4, K=K, dist=dist, size=size, rep=rep,
+                      f_sd=f_sd or lens_f_sd, add_height=bool(lens_f_sd),
                       intrinsics=str(entry.get("intrinsics", "declared")),
                       images=tuple(entry.get("images") or ()))
 
 
 def _camera_at(params: ScaraParams, X, cov12, q, j4, *, K, dist, size, rep, f_sd, intrinsics,
-               images) -> FixedCamera:
+               images, add_height: bool = False) -> FixedCamera:
     """The arm camera at command (q, j4) as a :class:`FixedCamera`: ``T_robot_camera`` and
     its covariance from the fit's (12, 12), the robot's repeatability ``rep`` added to its
-    in-plane place (the arm stands there within it), ``f_sd`` the focal length's std."""
+    in-plane place (the arm stands there within it), ``f_sd`` the focal length's std
+    (``add_height``: the fit's covariance does not hold it yet, so the camera's height
+    takes it too: f and the height move together, the sheet's plane stays)."""
     R0 = X[:3, :3]
     x0 = np.concatenate([[params.L1_mm, params.L2_mm, params.z1_deg, params.z2_deg,
                           params.base_x_mm, params.base_y_mm], np.zeros(3), X[:3, 3]])
@@ -495,6 +676,8 @@ def _camera_at(params: ScaraParams, X, cov12, q, j4, *, K, dist, size, rep, f_sd
     cov[3, 3] += rep**2
     cov[4, 4] += rep**2
     if f_sd > 0:     # f and the camera's height move together (the fit's cam_z holds it)
+        if add_height:
+            cov[5, 5] += (T0[2, 3] * f_sd / K[0, 0]) ** 2
         cov[6, 6] = f_sd**2
         cov[5, 6] = cov[6, 5] = f_sd**2 * T0[2, 3] / K[0, 0]
     return FixedCamera(images, size, K, dist, intrinsics, T0, cov, float("nan"), 0,

@@ -20,9 +20,54 @@ import numpy as np
 from vision_cal.dataset.io import atomic_write_json, atomic_write_text
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import forward
+from vision_cal.motion import approach_signs
 from vision_cal.program.spel import _comment, _ja
 
 TRIGGERS = ("output", "wait")
+#: how far before a repeated pose its via point lies (deg, each joint on its approach side)
+REPEAT_VIA_DEG = 5.0
+
+
+def add_repeats(poses: list[dict], n_repeats: int, home_deg=(0.0, 0.0),
+                j4_start: float = 0.0, limits_deg=None, j4_limits_deg=None) -> list[dict]:
+    """``poses`` with ``n_repeats`` of them (spread over the order) taken twice: right after
+    the first photo the arm leaves through a via point ``REPEAT_VIA_DEG`` before the pose
+    on each joint's approach side (``via_deg``: program only, no photo) and comes back, so
+    the second photo (``repeat_of``) is reached from the same sides after a real move: the
+    two differ by the robot's repeatability alone, which the verdict then measures
+    (``diagnose/verdict.judge_camera_poses``). Images renumbered in driving order."""
+    if n_repeats <= 0:
+        return poses
+    q = np.array([p["joints_deg"] for p in poses], float)
+    j4 = np.array([p["j4_deg"] for p in poses], float)
+    s = approach_signs(q, home_deg)
+    s4 = approach_signs(np.column_stack([j4, j4]), (j4_start, j4_start))[:, 0]
+    lim = np.asarray(limits_deg if limits_deg is not None else [[-1e9, 1e9]] * 2, float)
+    lim4 = np.asarray(j4_limits_deg if j4_limits_deg is not None else [-1e9, 1e9], float)
+    vias = np.column_stack([q - s * REPEAT_VIA_DEG, j4 - s4 * REPEAT_VIA_DEG])
+    ok = [k for k in range(len(poses))
+          if np.all((vias[k, :2] >= lim[:, 0]) & (vias[k, :2] <= lim[:, 1]))
+          and lim4[0] <= vias[k, 2] <= lim4[1]]
+    pick = set()
+    for want in np.linspace(0, len(poses) - 1, min(n_repeats, len(ok))):
+        free = [k for k in ok if k not in pick]
+        if free:
+            pick.add(min(free, key=lambda k: abs(k - want)))
+    out = []
+    for k, p in enumerate(poses):
+        out.append(dict(p))
+        if k in pick:
+            via = [round(float(v), 4) for v in vias[k]]
+            out.append({**p, "repeat_of": None, "via_deg": via})
+    names = {}
+    for i, p in enumerate(out):
+        new = f"pose_{i:03d}.png"
+        if "via_deg" in p:
+            p["repeat_of"] = names[p["image"]]
+        else:
+            names[p["image"]] = new
+        p["image"] = new
+    return out
 
 
 def plan_poses(robot, sheet, *, n_poses: int = 24, margin_mm: float = 60.0,
@@ -90,6 +135,10 @@ def spel_camera_program(poses, robot, *, trigger: str = "output", output_bit: in
              f"    Accel {prog.accel_percent[0]:g}, {prog.accel_percent[1]:g}"]
     for k, p in enumerate(poses):
         lines.append(f"    Print \"pose {k + 1} of {len(poses)}: {p['image']}\"")
+        if p.get("via_deg") is not None:   # a repeat: away and back from the same sides
+            v = p["via_deg"]
+            lines.append(f"    Go {_ja(v[:2], up, v[2])}  ' away, then back to "
+                         f"{p['repeat_of']}'s pose")
         lines.append(f"    Go {_ja(p['joints_deg'], up, p['j4_deg'])}")
         if prog.settle_s > 0:
             lines.append(f"    Wait {prog.settle_s:g}")
@@ -104,14 +153,26 @@ def spel_camera_program(poses, robot, *, trigger: str = "output", output_bit: in
 
 def design_camera_on_arm(robot, sheet, sheet_json: dict, out, *, n_poses: int = 24,
                          mount: str = "flange", trigger: str = "output", output_bit: int = 8,
-                         seed: int = 0) -> tuple[Path, Path]:
-    """session.json (poses, no camera yet) and program.prg in ``out``."""
+                         seed: int = 0, repeats: int = 0) -> tuple[Path, Path]:
+    """session.json (poses, no camera yet) and program.prg in ``out``; ``repeats`` of the
+    poses taken twice (:func:`add_repeats`)."""
     if trigger not in TRIGGERS:
         raise VisionCalError(f"expected one of {', '.join(TRIGGERS)}", field="--trigger")
     if n_poses < 8:
         raise VisionCalError(f"expected at least 8 poses (12 parameters, and both elbows), got "
                              f"{n_poses}", field="--n-poses")
     poses = plan_poses(robot, sheet, n_poses=n_poses, mount=mount, rng=seed)
+    if mount != "flange" and repeats:
+        poses = add_repeats(poses, repeats, robot.nominal.home_deg,
+                            limits_deg=robot.joint_limits_deg)
+        for p in poses:       # a camera on link 2 never turns joint 4: its via stays at 0
+            if p.get("via_deg") is not None:
+                p["via_deg"][2] = 0.0
+    elif repeats:
+        poses = add_repeats(poses, repeats, robot.nominal.home_deg,
+                            robot.j4_deg if robot.j4_deg is not None else 0.0,
+                            limits_deg=robot.joint_limits_deg,
+                            j4_limits_deg=robot.joint4_limits_deg)
     prg = spel_camera_program(poses, robot, trigger=trigger, output_bit=output_bit)
     out = Path(out)
     session = {"format": "vision-cal/1", "sheet": sheet_json,

@@ -20,7 +20,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vision_cal.camera.arm import MIN_POSES, ArmView, estimate_lens, fit_arm_camera
+from vision_cal.camera.arm import (MIN_POSES, ArmView, check_declared_lens, estimate_lens,
+                                   fit_arm_camera)
+from vision_cal.camera.fixed import UNDETERMINED
+from vision_cal.dataset.camera_block import read_lens
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.dataset.photos import PhotoRefused, load_photo, normalise_name
@@ -31,6 +34,7 @@ from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.motion import approach_signs
 from vision_cal.measure.aruco import corners_from_edges, edge_points, find_sheet_markers
+from vision_cal.measure.mapping import distort_px, undistort_px
 
 MOUNTS = ("flange", "link2")
 FORMAT = "vision-cal/1"
@@ -49,7 +53,7 @@ def read_arm_session(folder):
     robot = read_robot_block(r, r.get(raw, "robot", ""), "robot")
     sheet = read_sheet_block(r, r.get(raw, "sheet", ""), "sheet")
     cam = raw.get("camera")
-    camera = None if cam is None else _read_lens(r, cam)
+    camera = None if cam is None else read_lens(r, cam, "camera")  # the one validator
     mount = raw.get("camera_mount", "flange")
     if mount not in MOUNTS:
         r.fail("camera_mount", f"expected one of {', '.join(MOUNTS)}, got {mount!r}")
@@ -71,32 +75,29 @@ def read_arm_session(folder):
     return folder, sheet, nominal, camera, mount, poses, robot.repeatability_mm
 
 
-def _read_lens(r: FieldReader, cam) -> tuple:
-    """session.json ``camera``: (size_px, K (3, 3), dist (n,)), every field checked."""
-    if not isinstance(cam, dict):
-        r.fail("camera", "expected an object with size_px, K and dist (or leave it out: the "
-                         "lens is then estimated from the views)")
-    size = r.vector(r.get(cam, "size_px", "camera"), "camera.size_px", 2, lo=1)
-    K_raw = r.list_(r.get(cam, "K", "camera"), "camera.K")
-    if len(K_raw) != 3:
-        r.fail("camera.K", "expected a 3x3 matrix")
-    K = np.array([r.vector(row, f"camera.K[{i}]", 3) for i, row in enumerate(K_raw)])
-    if not (K[0, 0] > 0 and K[1, 1] > 0 and tuple(K[2]) == (0.0, 0.0, 1.0)):
-        r.fail("camera.K", "expected an OpenCV camera matrix [[fx,0,cx],[0,fy,cy],[0,0,1]]")
-    dist_raw = r.list_(r.get(cam, "dist", "camera"), "camera.dist")
-    if len(dist_raw) not in (4, 5, 8, 12, 14):
-        r.fail("camera.dist", f"expected 4, 5, 8, 12 or 14 OpenCV coefficients, got "
-                              f"{len(dist_raw)}")
-    dist = np.array([r.number(v, f"camera.dist[{i}]") for i, v in enumerate(dist_raw)])
-    return (int(size[0]), int(size[1])), K, dist
-
-
-def _reasons(fit, mount: str) -> list[tuple[str, str]]:
-    """(status, sentence) of what the poses leave undetermined."""
+def repeat_pairs(views) -> list[tuple[int, int]]:
+    """(i, j) of photos taken at the same command (joints 1, 2 and 4) reached from the same
+    sides, each with the one before it at that command: what the robot's repeatability
+    alone moves apart."""
+    last: dict[tuple, int] = {}
     out = []
-    if fit.not_identifiable:
+    for k, v in enumerate(views):
+        key = (tuple(np.round(np.asarray(v.q_deg, float), 6)), round(float(v.j4_deg), 6),
+               tuple(v.approach))
+        if key in last:
+            out.append((last[key], k))
+        last[key] = k
+    return out
+
+
+def _reasons(fit, mount: str, *, undetermined: bool = False) -> list[tuple[str, str]]:
+    """(status, sentence) of what the poses leave undetermined (the camera's height, with a
+    lens whose focal length the views cannot tell, is the lens's sentence)."""
+    out = []
+    ni = [n for n in fit.not_identifiable if not (undetermined and n == "cam_z_mm")]
+    if ni:
         out.append(("not reliable", "the poses do not separate "
-                    + ", ".join(fit.not_identifiable)
+                    + ", ".join(ni)
                     + (" from the rest (turn joint 4 between photos: vision-cal design "
                        "--camera-on-arm)" if mount == "flange" else
                        " from the rest (a camera on link 2 cannot separate L2 from its own "
@@ -114,10 +115,38 @@ def _pose_table(views, fit) -> list[dict]:
                                   fit.flange_heldout_mm)]
 
 
-def measure_view(folder, sheet, size, image: str, q, j4, approach=(1.0, 1.0)
+def corners_in_lens(edges, fallback, K=None, dist=None) -> np.ndarray:
+    """Marker corners (M, 4, 2) in raw px: the border edges fitted as straight lines in
+    the lens's ideal pixels, as the pen measurement does
+    (``measure/types.ImageDetections.corners_for``). A marker's straight edge is curved in
+    a distorted photo; a straight line fitted to it there biases the corner by a few
+    hundredths of a pixel, differently across the image: with k1 -0.045 declared and
+    nothing else missing, that bias put the arm camera's residual 1.4 times its floor."""
+    fallback = np.asarray(fallback, float).reshape(-1, 4, 2)
+    if edges is None:
+        return fallback
+    if K is None or dist is None or not np.any(np.asarray(dist, float)):
+        return corners_from_edges(edges, fallback)
+    e = np.asarray(edges, float)
+    ideal = undistort_px(e.reshape(-1, 2), K, dist).reshape(e.shape)
+    c0 = undistort_px(fallback.reshape(-1, 2), K, dist).reshape(-1, 4, 2)
+    c = corners_from_edges(ideal, c0)
+    return distort_px(c.reshape(-1, 2), K, dist).reshape(-1, 4, 2)
+
+
+def in_lens(view: ArmView, K, dist) -> ArmView:
+    """The view with its corners found again in the lens ``(K, dist)``'s ideal pixels."""
+    if view.edges_px is None:
+        return view
+    c = corners_in_lens(view.edges_px, view.detected_px, K, dist)
+    return replace(view, corners_px=np.asarray(c, float).reshape(-1, 2))
+
+
+def measure_view(folder, sheet, size, image: str, q, j4, approach=(1.0, 1.0), lens=None
                  ) -> tuple[ArmView | None, dict]:
     """One photo's corners (sub-pixel) as an :class:`ArmView`, and its ``images[]`` entry
-    (``size_px`` of the photo); ``size``: the declared camera's, or None."""
+    (``size_px`` of the photo); ``size``: the declared camera's, or None; ``lens``: its
+    ``(K, dist)`` when declared (the corners are then found in its ideal pixels)."""
     try:
         bgr, _, _ = load_photo(folder, image, size)
     except PhotoRefused as e:
@@ -129,10 +158,12 @@ def measure_view(folder, sheet, size, image: str, q, j4, approach=(1.0, 1.0)
     if det.reason:
         return None, {"file": image, "status": "skipped", "reason": det.reason}
     edges = edge_points(gray, det.corners_px, geometry=marker_geometry(sheet))
-    corners = corners_from_edges(edges, det.corners_px)
+    K, dist = lens if lens is not None else (None, None)
+    corners = corners_in_lens(edges, det.corners_px, K, dist)
     view = ArmView(image, np.asarray(q, float), float(j4),
                    np.asarray(det.corners_mm, float).reshape(-1, 2),
-                   np.asarray(corners, float).reshape(-1, 2), tuple(approach))
+                   np.asarray(corners, float).reshape(-1, 2), tuple(approach),
+                   np.asarray(edges, float), np.asarray(det.corners_px, float).reshape(-1, 4, 2))
     return view, {"file": image, "status": "ok", "n_markers": int(len(det.ids)),
                   "size_px": [int(gray.shape[1]), int(gray.shape[0])]}
 
@@ -144,7 +175,7 @@ def calibrate_arm_camera(folder) -> dict:
     views, images = [], []
     for img, q, j4, sg in poses:
         v, entry = measure_view(folder, sheet, None if camera is None else camera[0], img, q, j4,
-                                sg)
+                                sg, lens=None if camera is None else camera[1:])
         images.append(entry)
         if v is not None:
             views.append(v)
@@ -157,20 +188,30 @@ def calibrate_arm_camera(folder) -> dict:
         raise CalibrationError(f"{len(views)} of {len(poses)} photos usable: at least "
                                f"{MIN_POSES} are needed", file=str(folder / "session.json"))
     lens_reason = []
+    check = None
     if camera is None:
         size = sizes.pop()
         lens = estimate_lens(views, size)
+        if np.any(lens.dist):   # the corners again in the estimated lens's ideal pixels
+            views = [in_lens(v, lens.K, lens.dist) for v in views]
+            lens = estimate_lens(views, size)
         K, dist, how, f_sd = lens.K, lens.dist, lens.intrinsics, lens.f_px_std
         if lens.reason:
             lens_reason = [("check", lens.reason)]
     else:
         (size, K, dist), how, f_sd = camera, "declared", 0.0
-    fit = fit_arm_camera(views, K, dist, nominal)
-    if how == "estimated":
+        # the declared lens against the views' own: a focal length or a distortion they
+        # contradict is named; the floor is the corners' noise with the views' lens
+        check = check_declared_lens(views, size, K, dist)
+        lens_reason = list(check.reasons)
+    fit = fit_arm_camera(views, K, dist, nominal,
+                         corner_sigma_px=None if check is None else check.corner_sigma_px)
+    if how != "declared" and f_sd > 0:
         # the focal length's error moves the camera's height with it (f / height is what
-        # the views fix): into T_flange_camera's z
+        # the views fix): into T_flange_camera's z; a focal length the views cannot tell
+        # leaves the height not identifiable, with that std
         cov = fit.cov.copy()
-        cov[11, 11] += (fit.T_flange_camera[2, 3] * f_sd / K[0, 0]) ** 2
+        cov[11, 11] += (fit.T_flange_camera[2, 3] * min(f_sd, 1e6) / K[0, 0]) ** 2
         fit = replace(fit, cov=cov)
     d = fit.to_json()
     for entry, v, rms in zip([e for e in images if e["status"] == "ok"], views, fit.view_rms_px):
@@ -178,14 +219,18 @@ def calibrate_arm_camera(folder) -> dict:
     verdict = judge_camera_poses(
         fit.flange_residual_mm, fit.flange_sigma_mm, fit.flange_heldout_mm,
         n_params=fit.n_params_xy, repeatability_mm=rep,
-        reasons=_reasons(fit, mount) + lens_reason, ids=[v.file for v in views])
+        reasons=_reasons(fit, mount, undetermined=(how == UNDETERMINED)) + lens_reason,
+        ids=[v.file for v in views], heldout_inflate=fit.flange_heldout_inflate,
+        repeat_pairs=repeat_pairs(views))
     cam = {"images": [v.file for v in views], "size_px": list(size), "K": K.tolist(),
            "dist": dist.tolist(), "T_flange_camera": d["T_flange_camera"],
            "mount": mount, "T_flange_camera_std": d["T_flange_camera_std"],
            "corner_rms_px": d["corner_rms_px"], "n_corners": d["n_corners"],
            "corner_sigma_px": fit.corner_sigma_px, "intrinsics": how}
-    if how == "estimated":
-        cam["f_px_std"] = f_sd
+    if how != "declared":
+        cam["f_px_std"] = f_sd if np.isfinite(f_sd) else None
+    if check is not None:
+        cam["lens_check"] = check.to_json()
     return {"format": "vision-cal/calibration/1", "method": "arm_camera",
             "params": d["params"], "std": d["std"], "covariance": d["covariance"],
             "nominal": nominal.to_json(), "effects": d["effects"], "cameras": [cam],

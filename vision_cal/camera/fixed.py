@@ -32,6 +32,7 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
+from vision_cal.dataset.camera_block import check_camera_entry
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.mapping import undistort_px
@@ -458,4 +459,6 @@ def camera_of(doc: dict, index: int, *, file: str | None = None) -> FixedCamera:
     if not 0 <= index < len(cams):
         raise VisionCalError(f"camera {index} does not exist (cameras holds {len(cams)}: "
                              f"0..{len(cams) - 1})", file=file, field="--camera")
+    # the one validator of a camera block (K, dist, a rotation in mm, covariances)
+    check_camera_entry(cams[index], f"cameras[{index}]", file or "calibration.json", doc=doc)
     return camera_from_json(cams[index], where=f"cameras[{index}]", file=file)

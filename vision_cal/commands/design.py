@@ -61,6 +61,10 @@ def add_arguments(p) -> None:
                         "instead of pen marks: session.json poses and program.prg")
     c.add_argument("--n-poses", type=int, default=24, metavar="N",
                    help="camera poses (default 24)")
+    c.add_argument("--repeats", type=int, default=6, metavar="N",
+                   help="poses photographed twice, leaving and coming back from the same "
+                        "sides: the verdict measures the robot's repeatability from them "
+                        "(default 6; 0: none, the robot block's repeatability_mm is taken)")
     c.add_argument("--mount", choices=("flange", "link2"), default="flange",
                    help="the camera turns with joint 4 (flange, default) or not (link2)")
     c.add_argument("--trigger", choices=("output", "wait"), default="output",

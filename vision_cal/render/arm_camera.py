@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from vision_cal.dataset.io import atomic_write_json
+from vision_cal.render.camera import distort_image
 from vision_cal.render.dataset import _encode_image
 from vision_cal.render.photo import Photographer
 from vision_cal.render.sheet import make_sheet, sheet_texture
@@ -109,12 +110,14 @@ def reachable_poses(robot: TrueRobot, n: int, rng, *, extent_mm, inset_mm: float
 
 def photograph_poses(folder, robot: TrueRobot, sheet, q, j4, files, X, *, K, size_px, rng,
                      repeatability_mm: float = 0.01, noise_sigma: float = 1.5,
-                     px_per_mm: float = 8.0, photographer=None, approach=None) -> np.ndarray:
+                     px_per_mm: float = 8.0, photographer=None, approach=None,
+                     dist=None) -> np.ndarray:
     """The camera ``X`` (flange -> camera) on the true ``robot`` photographs ``sheet`` at
     commands ``q`` (N, 2), ``j4`` (N,) into ``folder``/``files``; the flange misses its
     commanded place by ``repeatability_mm`` (per axis) in each photo; ``approach`` (N, 2)
-    the joints' last motion signs (the robot's backlash), None: +1. Returns the true
-    ``T_cam_sheet`` (N, 4, 4)."""
+    the joints' last motion signs (the robot's backlash), None: +1; ``dist`` the lens's
+    distortion (OpenCV coefficients, None: a pinhole), the ideal render warped through it.
+    Returns the true ``T_cam_sheet`` (N, 4, 4)."""
     tex = sheet_texture(sheet, marks_xy_mm=np.zeros((0, 2)), px_per_mm=px_per_mm, rng=rng)
     own = photographer is None
     ph = Photographer(size_px=size_px, K=K) if own else photographer
@@ -126,6 +129,8 @@ def photograph_poses(folder, robot: TrueRobot, sheet, q, j4, files, X, *, K, siz
         for name, T in zip(files, Ts):
             rgb = ph.photograph(tex, extent_mm=sheet.extent_mm, T_cam_sheet=T,
                                 noise_sigma=noise_sigma, rng=rng)
+            if dist is not None and np.any(dist):
+                rgb = distort_image(np.asarray(rgb), K=K, dist=dist)
             (folder / name).write_bytes(_encode_image(np.asarray(rgb), None))
     finally:
         if own:
@@ -137,17 +142,20 @@ def render_arm_dataset(folder, *, truth: dict, nominal: dict, n_poses: int = 16,
                        size_px=(800, 600), f_px: float = 900.0, seed: int = 0,
                        px_per_mm: float = 8.0, noise_sigma: float = 1.5,
                        mount: str = "flange", repeatability_mm: float = 0.01,
-                       photographer=None, tilt_deg=4.0, declare_lens: bool = True):
+                       photographer=None, tilt_deg=4.0, declare_lens: bool = True,
+                       dist=None, height_mm=(150.0, 250.0)):
     """Photos of the marker field by the camera on the true robot: session.json (``poses``,
     declared lens) and truth.json (``params``, ``T_flange_camera``, per photo
     ``T_cam_sheet``). ``truth`` / ``nominal``: the format's ``params`` blocks; the flange
     misses its commanded place by ``repeatability_mm`` (per axis, Gaussian) in each photo;
     the camera's axis is tilted by up to ``tilt_deg``; ``declare_lens=False`` leaves
-    session.json's ``camera`` out."""
+    session.json's ``camera`` out; ``dist`` the lens's distortion (declared as it is),
+    ``height_mm`` the range the camera's height above the flange is drawn from."""
     rng = np.random.default_rng(seed)
+    dist5 = [0.0] * 5 if dist is None else [float(v) for v in dist]
     robot = TrueRobot.from_json(truth)
     sheet = field_sheet()
-    X = T_flange_camera_true(rng, tilt_deg=tilt_deg)
+    X = T_flange_camera_true(rng, tilt_deg=tilt_deg, height_mm=height_mm)
     poses = reachable_poses(robot, n_poses, rng, extent_mm=sheet.extent_mm,
                             turn_j4=(mount == "flange"))
     w, h = size_px
@@ -159,17 +167,17 @@ def render_arm_dataset(folder, *, truth: dict, nominal: dict, n_poses: int = 16,
     folder.mkdir(parents=True, exist_ok=True)
     Ts = photograph_poses(folder, robot, sheet, q, j4, files, X, K=K, size_px=size_px, rng=rng,
                           repeatability_mm=repeatability_mm, noise_sigma=noise_sigma,
-                          px_per_mm=px_per_mm, photographer=photographer)
+                          px_per_mm=px_per_mm, photographer=photographer, dist=dist)
     session = {"format": "vision-cal/1", "sheet": sheet.to_json(),
                "robot": {**nominal, "home_deg": [0.0, 0.0]},
                "camera_mount": mount,
                "poses": [{"image": f, "joints_deg": [float(a), float(b)], "j4_deg": float(c)}
                          for f, (a, b), c in zip(files, q, j4)]}
     if declare_lens:
-        session["camera"] = {"size_px": list(size_px), "K": K.tolist(), "dist": [0.0] * 5}
+        session["camera"] = {"size_px": list(size_px), "K": K.tolist(), "dist": dist5}
     atomic_write_json(folder / "session.json", session)
     atomic_write_json(folder / "truth.json", {
         "params": truth, "T_flange_camera": X.tolist(), "repeatability_mm": repeatability_mm,
-        "camera": {"K": K.tolist(), "dist": [0.0] * 5,
+        "camera": {"K": K.tolist(), "dist": dist5,
                    "T_cam_sheet": {f: T.tolist() for f, T in zip(files, Ts)}}})
     return folder

@@ -11,8 +11,10 @@ robot's part of the README walkthrough (draw the program, photograph the sheet):
 - it follows the **robot program** in PLAN_DIR (``program.prg``, SPEL+, or
   ``program_points.csv``) as a controller would: every ``Go``, with the pen down where
   joint 3 goes to the pen-down height (the marks are matched in order to session.json's
-  marks); without a program (a robot file without pen heights) it follows session.json's
-  marks through the robot file's overshoot via points;
+  marks), joint 4 where the program turns it (the robot file's ``tool_mm`` turns with it);
+  a statement it does not know, a point beyond the robot file's joint limits, a folder
+  without a program and targets whose ids are not the plan's are refused (the rehearsal
+  runs what the robot will run, or nothing);
 - the **sheet** is the printed one: its raster is rebuilt from the session's sheet block
   (``vision_cal.sheet.rebuild``: the same layout ``vision-cal sheet`` printed, checked by
   its ``sheet_id``), so no ``sheet.png`` is needed; marks drawn before on the same sheet
@@ -61,11 +63,11 @@ from vision_cal.sheet.rebuild import layout_from_sheet_json
 
 CONTROLLERS = ("smc", "pd", "kinematic")
 SECTIONS = ("robot", "hidden", "camera", "seed")
-HIDDEN = ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "effects", "repeatability_mm",
-          "controller")
+HIDDEN = ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "tool_mm", "effects",
+          "repeatability_mm", "controller")
 CAMERA = ("size_px", "f_px", "photos", "tilt_deg", "vignetting", "noise_sigma", "fixed")
-_GO = re.compile(r"^\s*(?:Go|Jump)\s+JA\(\s*([^,()]+),\s*([^,()]+),\s*([^,()]+),\s*([^,()]+)\)",
-                 re.IGNORECASE)
+#: the programs a designed folder may hold, in the order they are looked for
+PROGRAMS = ("program.prg", "program_points.csv")
 
 
 @dataclass(frozen=True)
@@ -115,9 +117,13 @@ def load_simulated_robot(path) -> SimulatedRobot:
     db = r.vector(h.get("base_mm", [0.0, 0.0]), "hidden.base_mm", 2, lo=-1000, hi=1000)
     dl1 = r.number(h.get("L1_mm", 0.0), "hidden.L1_mm", lo=-100, hi=100)
     dl2 = r.number(h.get("L2_mm", 0.0), "hidden.L2_mm", lo=-100, hi=100)
+    dt = r.vector(h.get("tool_mm", [0.0, 0.0]), "hidden.tool_mm", 2, lo=-100, hi=100)
+    tool = n.tool_mm if n.tool_mm is not None else (0.0, 0.0)
     params = {"L1_mm": n.L1_mm + dl1, "L2_mm": n.L2_mm + dl2,
               "joint_zero_deg": [n.joint_zero_deg[0] + dz[0], n.joint_zero_deg[1] + dz[1]],
-              "base_mm": [n.base_mm[0] + db[0], n.base_mm[1] + db[1]]}
+              "base_mm": [n.base_mm[0] + db[0], n.base_mm[1] + db[1]],
+              # the pen in the flange frame: the robot file's tool (its joint 4 turns it)
+              "tool_mm": [tool[0] + dt[0], tool[1] + dt[1]]}
     if not (params["L1_mm"] > 0 and params["L2_mm"] > 0):
         r.fail("hidden.L1_mm", "the true link lengths must stay positive")
     effects = r.list_(h.get("effects") or [], "hidden.effects")
@@ -163,15 +169,41 @@ class _Mark:
     via_deg: tuple[tuple[float, float], ...]
     role: str = "calibration"
     approach: tuple[int, int] = (1, 1)
+    j4_deg: float = 0.0             # joint 4's command while the pen is down
+
+
+@dataclass(frozen=True)
+class _Move:
+    """One commanded point of a robot program: joints 1, 2 (deg), joint 3 (mm, None: not
+    given), joint 4 (deg), the pen down there, and the program's line (row) it came from."""
+
+    q: tuple[float, float]
+    down: bool
+    j3_mm: float | None
+    j4_deg: float
+    line: int
+
+
+#: the SPEL+ statements a vision-cal program holds (program/spel.py, camera/arm_design.py);
+#: anything else is refused, never skipped: the simulated robot runs what the real one would
+_SPEL_KNOWN = re.compile(
+    r"^\s*(?:$|Function\s+\w+\s*$|Fend\s*$|Motor\s+(?:On|Off)\s*$|Power\s+(?:Low|High)\s*$"
+    r"|Speed\s+[\d.]+\s*$|Accel\s+[\d.]+\s*,\s*[\d.]+\s*$|Print\s+\"[^\"]*\"\s*$"
+    r"|Wait\s+[\d.]+\s*$|(?:On|Off)\s+\d+\s*$|TLSet\s+1\s*,\s*XY\([^()]*\)\s*$)",
+    re.IGNORECASE)
+_GO_FULL = re.compile(r"^\s*(?:Go|Jump)\s+JA\(\s*([^,()]+),\s*([^,()]+),\s*([^,()]+),"
+                      r"\s*([^,()]+)\)\s*(?:LimZ\s+(-?[\d.]+)\s*)?$", re.IGNORECASE)
 
 
 def program_moves(path: Path, *, pen_down_mm: float,
-                  pen_bit: int | None = None) -> list[tuple[tuple[float, float], bool]]:
-    """The joint moves of a robot program, in order: ((j1, j2) deg, pen down?).
+                  pen_bit: int | None = None) -> list[_Move]:
+    """The joint moves of a robot program, in order (:class:`_Move`).
 
     SPEL+ (``.prg``): every ``Go``/``Jump JA(j1, j2, j3, j4)`` line; the pen is down where
-    joint 3 is at ``pen_down_mm``, or at ``On pen_bit`` (the robot file's pen output). The neutral point list (``_points.csv``): each ``mark`` row is a
-    stop with the pen going down, ``home`` and ``via`` rows are driven through.
+    joint 3 is at ``pen_down_mm``, or at ``On pen_bit`` (the robot file's pen output). A
+    statement a vision-cal program does not hold is refused with its line. The neutral
+    point list (``_points.csv``): each ``mark`` row is a stop with the pen going down,
+    ``home`` and ``via`` rows are driven through.
     """
     text = read_text(path)
     moves = []
@@ -180,37 +212,89 @@ def program_moves(path: Path, *, pen_down_mm: float,
             try:
                 q = (float(row["j1_deg"]), float(row["j2_deg"]))
                 kind = row["kind"]
+                j3 = float(row["j3_mm"]) if row.get("j3_mm") not in (None, "") else None
+                j4 = float(row["j4_deg"]) if row.get("j4_deg") not in (None, "") else 0.0
             except (KeyError, TypeError, ValueError) as e:
                 raise VisionCalError(f"row {i + 2}: unreadable point ({e})", file=str(path)) from e
-            moves.append((q, False))
+            if kind not in ("home", "via", "mark"):
+                raise VisionCalError(f"row {i + 2}: unknown kind {kind!r} (expected home, via "
+                                     "or mark)", file=str(path))
+            moves.append(_Move(q, False, j3, j4, i + 2))
             if kind == "mark":
-                moves.append((q, True))
+                moves.append(_Move(q, True, pen_down_mm, j4, i + 2))
         return moves
     on = re.compile(rf"^\s*On\s+{pen_bit}\s*$", re.IGNORECASE) if pen_bit is not None else None
     for ln, line in enumerate(text.splitlines(), 1):
-        code = line.split("'")[0]
+        code = _strip_comment(line)
         if on is not None and on.match(code) and moves:
-            moves.append((moves[-1][0], True))
+            last = moves[-1]
+            moves.append(_Move(last.q, True, last.j3_mm, last.j4_deg, ln))
             continue
-        m = _GO.match(code)
+        m = _GO_FULL.match(code)
         if not m:
+            if not _SPEL_KNOWN.match(code):
+                raise VisionCalError(f"line {ln}: {code.strip()[:60]!r} is a statement the "
+                                     "simulated robot does not know (it runs only what "
+                                     "vision-cal writes: Go/Jump JA, On/Off, Wait, Speed, "
+                                     "Accel, Power, Motor, Print, TLSet)", file=str(path))
             continue
         try:
-            j1, j2, j3, _ = (float(v) for v in m.groups())
+            j1, j2, j3, j4 = (float(v) for v in m.groups()[:4])
         except ValueError as e:
             raise VisionCalError(f"line {ln}: unreadable JA point ({e})", file=str(path)) from e
-        moves.append(((j1, j2), abs(j3 - pen_down_mm) < 1e-3))
+        moves.append(_Move((j1, j2), abs(j3 - pen_down_mm) < 1e-3, j3, j4, ln))
     return moves
 
 
+def _strip_comment(line: str) -> str:
+    """A SPEL+ line without its ``'`` comment (a ``'`` inside a string is not one)."""
+    inside = False
+    for i, c in enumerate(line):
+        if c == '"':
+            inside = not inside
+        elif c == "'" and not inside:
+            return line[:i]
+    return line
+
+
+def check_moves_in_limits(moves: list[_Move], robot, path: Path) -> None:
+    """Every commanded point within the robot file's joint limits (joints 1, 2, 3 and 4),
+    or one line naming the program's line and the limit: the simulated robot is the robot
+    file, and a real controller would stop there."""
+    where = "line" if path.suffix.lower() != ".csv" else "row"
+    lim = robot.joint_limits_deg
+    for mv in moves:
+        for j in range(2):
+            lo, hi = lim[j]
+            if not lo <= mv.q[j] <= hi:
+                raise VisionCalError(f"{where} {mv.line}: joint {j + 1} at {mv.q[j]:g} deg is "
+                                     f"beyond the robot file's limits [{lo:g}, {hi:g}] "
+                                     f"({robot.path}: joint_limits_deg)", file=str(path))
+        lo, hi = robot.joint4_limits_deg
+        if not lo <= mv.j4_deg <= hi:
+            raise VisionCalError(f"{where} {mv.line}: joint 4 at {mv.j4_deg:g} deg is beyond "
+                                 f"the robot file's limits [{lo:g}, {hi:g}] ({robot.path}: "
+                                 "joint4_limits_deg)", file=str(path))
+        lo, hi = robot.joint3_limits_mm
+        if mv.j3_mm is not None and not lo <= mv.j3_mm <= hi:
+            raise VisionCalError(f"{where} {mv.line}: joint 3 at {mv.j3_mm:g} mm is beyond "
+                                 f"the robot file's travel [{lo:g}, {hi:g}] ({robot.path}: "
+                                 "joint3_limits_mm)", file=str(path))
+
+
 def marks_from_program(path: Path, marks: list[dict], *, pen_down_mm: float,
-                       pen_bit: int | None = None) -> list[_Mark]:
+                       pen_bit: int | None = None, robot=None) -> list[_Mark]:
     """The program's pen-down points matched in order to session.json's ``marks``, each
-    with the points driven through since the previous pen-down (its via points)."""
+    with the points driven through since the previous pen-down (its via points) and the
+    joint 4 it was drawn at. With ``robot`` (a ``RobotFile``), every point is checked
+    against its joint limits first."""
     moves = program_moves(path, pen_down_mm=pen_down_mm, pen_bit=pen_bit)
+    if robot is not None:
+        check_moves_in_limits(moves, robot, path)
     out, path_q, last = [], [], None
-    for q, down in moves:
-        if down:
+    for mv in moves:
+        q = mv.q
+        if mv.down:
             k = len(out)
             if k >= len(marks):
                 raise VisionCalError(f"puts the pen down more often than session.json has "
@@ -221,24 +305,13 @@ def marks_from_program(path: Path, marks: list[dict], *, pen_down_mm: float,
                                      f"session.json's mark {marks[k]['id']} at {want} deg: the "
                                      "program is not this plan's", file=str(path))
             vias = [p for p in path_q if p != q and p != last]
-            out.append(_Mark(str(marks[k]["id"]), q, tuple(vias)))
+            out.append(_Mark(str(marks[k]["id"]), q, tuple(vias), j4_deg=mv.j4_deg))
             path_q, last = [], q
         elif not path_q or path_q[-1] != q:
             path_q.append(q)
     if len(out) != len(marks):
         raise VisionCalError(f"draws {len(out)} marks, session.json plans {len(marks)}",
                              file=str(path))
-    return out
-
-
-def marks_from_session(marks: list[dict], overshoot_deg: float) -> list[_Mark]:
-    """session.json's marks through an overshoot via point on their approach side."""
-    out = []
-    for m in marks:
-        q = (float(m["joints_deg"][0]), float(m["joints_deg"][1]))
-        s = m.get("approach") or [1, 1]
-        via = (q[0] - s[0] * overshoot_deg, q[1] - s[1] * overshoot_deg)
-        out.append(_Mark(str(m["id"]), q, (via,)))
     return out
 
 
@@ -313,19 +386,24 @@ def _simulate_arm(session: dict, session_path: Path, sim, out: Path, rng) -> Sim
 
 
 def _plan_marks(plan_dir: Path, session: dict, robot) -> tuple[list[_Mark], str]:
+    """The marks of a designed folder as its program draws them; a folder without a program
+    is refused (the rehearsal runs the program the robot will run, never session.json)."""
     marks = session.get("marks")
     if not isinstance(marks, list) or not marks:
         raise VisionCalError("no marks to draw", file=str(plan_dir / "session.json"),
                              field="marks")
-    for name in ("program.prg", "program_points.csv"):
+    for name in PROGRAMS:
         p = plan_dir / name
         if p.is_file():
             if robot.pen_down_mm is None:
                 raise VisionCalError("missing: the simulated robot follows the program's "
                                      "pen-down height", file=str(robot.path), field="pen_down_mm")
             return marks_from_program(p, marks, pen_down_mm=robot.pen_down_mm,
-                                      pen_bit=robot.program.pen_output_bit), name
-    return marks_from_session(marks, robot.overshoot_deg), "session.json (no program)"
+                                      pen_bit=robot.program.pen_output_bit, robot=robot), name
+    raise VisionCalError(f"no robot program ({' or '.join(PROGRAMS)}) to run: the simulated "
+                         "robot runs the program the robot will run, never session.json's "
+                         "marks; write it with vision-cal design --program spel (the robot "
+                         "file needs pen_up_mm and pen_down_mm)", file=str(plan_dir))
 
 
 def targets_session(program: Path, sim: SimulatedRobot, *, sheet_json, targets=None) -> dict:
@@ -344,6 +422,7 @@ def targets_session(program: Path, sim: SimulatedRobot, *, sheet_json, targets=N
     if targets is not None:
         tid, txy = read_targets(targets)
         want = dict(zip(tid, txy))
+        _same_ids(list(ids), list(tid), plan_csv, Path(targets))
     n = sim.robot.nominal
     marks = []
     for i, mid in enumerate(ids):
@@ -360,6 +439,23 @@ def targets_session(program: Path, sim: SimulatedRobot, *, sheet_json, targets=N
             "design": {"stage": "targets", "program": str(program)}}
 
 
+def _same_ids(plan_ids: list, target_ids: list, plan_csv: Path, targets: Path) -> None:
+    """The targets and the plan name the same marks, or one line naming what differs (a
+    target dropped or never planned is a rehearsal of another job)."""
+    missing = [t for t in target_ids if t not in set(plan_ids)]
+    extra = [p for p in plan_ids if p not in set(target_ids)]
+    if missing or extra:
+        parts = []
+        if missing:
+            parts.append(f"targets not in the plan ({plan_csv}): {', '.join(missing[:5])}"
+                         + (" ..." if len(missing) > 5 else ""))
+        if extra:
+            parts.append(f"planned marks not among the targets: {', '.join(extra[:5])}"
+                         + (" ..." if len(extra) > 5 else ""))
+        raise VisionCalError(f"the ids do not match the plan's: {'; '.join(parts)}",
+                             file=str(targets))
+
+
 def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool = False,
                      rng=None, sheet_json=None, targets=None) -> SimulateResult:
     """The simulated robot of ``truth_path`` draws the plan in ``plan_dir`` on the printed
@@ -372,6 +468,9 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
     measure where they landed: calibration.json ``targets``)."""
     plan_dir, out = Path(plan_dir), Path(out_dir)
     sim = load_simulated_robot(truth_path)
+    if not plan_dir.exists():
+        raise VisionCalError("no such program or folder: the simulated robot runs the program "
+                             "you give it", file=str(plan_dir))
     if plan_dir.is_file():
         program = plan_dir
         session = targets_session(program, sim, sheet_json=sheet_json, targets=targets)
@@ -393,7 +492,7 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
         return _simulate_arm(session, session_path, sim, out, rng)
     if program is not None:
         plan = marks_from_program(program, session["marks"], pen_down_mm=sim.robot.pen_down_mm,
-                                  pen_bit=sim.robot.program.pen_output_bit)
+                                  pen_bit=sim.robot.program.pen_output_bit, robot=sim.robot)
         source_name = program.name
     else:
         plan, source_name = _plan_marks(plan_dir, session, sim.robot)
@@ -416,9 +515,14 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
     if sim.controller == "kinematic":
         source, model = None, sim.truth
     else:
-        source, model = simulated_world(sim.truth, controller=sim.controller, rng=rng)
+        # the robot file's speed and acceleration limits shape the trajectory it follows
+        source, model = simulated_world(sim.truth, controller=sim.controller, rng=rng,
+                                        vmax_deg_s=tuple(sim.robot.speed_limits_deg_s),
+                                        amax_deg_s2=tuple(sim.robot.accel_limits_deg_s2))
+    # joint 4 as the program commands it: the robot file's tool turns with it
     world = draw_marks(model, plan, home_deg=home, repeatability_mm=sim.repeatability_mm,
-                       joint_source=source, rng=rng)
+                       joint_source=source, rng=rng,
+                       joint4_deg=np.array([m.j4_deg for m in plan], dtype=float))
     sheet = printed.sheet
     off = marks_off_paper(world, sheet)
     on = marks_on_markers(world, sheet)
