@@ -14,7 +14,7 @@ import pytest
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.errors import VisionCalError
 from vision_cal.plan.calibration_plan import PlannedMark
-from vision_cal.program import KINDS, program_path, program_points, write_program
+from vision_cal.program import KINDS, WRITERS, program_path, program_points, write_program
 
 ROBOT = Path(__file__).resolve().parents[2] / "fixtures" / "robot_sm5.yaml"
 NUM = r"\s*(-?\d+(?:\.\d+)?)\s*"
@@ -172,13 +172,17 @@ def robot_with(**program):
 
 def plan(seed=7, n=6):
     """Marks at random joints (more decimals than any dialect writes), their via points
-    3 deg before on the approach side; joint 4 turned on half of them."""
+    3 deg before on the approach side (the first mark: two, 6 and 3 deg before); joint 4
+    turned on half of them."""
     rng = np.random.default_rng(seed)
     marks, joint4 = [], {}
     for i in range(n):
         q = (rng.uniform(-120, 120), rng.uniform(-130, 130))
         s = tuple(int(v) for v in rng.choice([-1, 1], 2))
-        marks.append(PlannedMark(f"m{i}", q, "target", s, ((q[0] - 3 * s[0], q[1] - 3 * s[1]),)))
+        via = ((q[0] - 3 * s[0], q[1] - 3 * s[1]),)
+        if i == 0:   # two via points: the farther first
+            via = ((q[0] - 6 * s[0], q[1] - 6 * s[1]), *via)
+        marks.append(PlannedMark(f"m{i}", q, "target", s, via))
         if i % 2:
             q4 = rng.uniform(-90, 90)
             joint4[f"m{i}"] = (q4, q4 - 3.0)
@@ -223,7 +227,7 @@ def test_joints_read_back_equal_the_plan(tmp_path, kind, by_output):
         q4, q4_via = joint4.get(m.id, (robot.j4_deg, robot.j4_deg))
         z = up if by_output else down
         assert np.all(np.abs(np.subtract(q, (*m.joints_deg, z, q4))) <= tol), (m.id, q)
-        assert np.all(np.abs(np.subtract(b, (*m.via_deg[0], up, q4_via))) <= tol), (m.id, b)
+        assert np.all(np.abs(np.subtract(b, (*m.via_deg[-1], up, q4_via))) <= tol), (m.id, b)
     for q in (moves[0], moves[-1]):
         assert np.all(np.abs(np.subtract(q, (5.0, -7.0, up, robot.j4_deg))) <= tol)
     # pen down only on a mark, up before the arm moves on; settle before, dwell while down
@@ -248,7 +252,7 @@ def test_safe_height_travel_keeps_the_last_move_onto_each_mark(tmp_path, kind):
     assert len(rises) == 2 * (len(marks) + 2) - 1   # the start has no known place to rise
     pen_at, before, _ = drawn(ops, robot.pen_up_mm, robot.pen_down_mm, False)
     for m, b in zip(marks, before):
-        assert abs(b[0] - m.via_deg[0][0]) < 1e-3 and abs(b[2] - robot.pen_up_mm) < 1e-6
+        assert abs(b[0] - m.via_deg[-1][0]) < 1e-3 and abs(b[2] - robot.pen_up_mm) < 1e-6
 
 
 @pytest.mark.parametrize("kind, program, field", [
@@ -264,6 +268,15 @@ def test_refuses_what_the_dialect_cannot_express(tmp_path, kind, program, field)
         write_program(kind, target, program_points(marks), robot, title="t")
     assert e.value.field == field and e.value.file == str(robot.path)
     assert not target.exists()
+
+
+@pytest.mark.parametrize("kind, program", [("rapid", {"pen_output_bit": 9}),
+                                           ("evplus", {"pen_output_bit": 0}),
+                                           ("tp", {"pen_output_bit": 0})])
+def test_each_writer_refuses_on_its_own(kind, program):
+    """Called directly (not through write_program), a writer still refuses."""
+    with pytest.raises(VisionCalError):
+        WRITERS[kind][0](program_points(plan(n=1)[0]), robot_with(**program), title="t")
 
 
 def test_pen_signal_is_read_and_checked(tmp_path):
