@@ -6,6 +6,7 @@ the mark, the pen down on the mark's planned joints, to the written precision.
 
 import dataclasses
 import re
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +20,7 @@ from vision_cal.program import KINDS, WRITERS, program_path, program_points, wri
 ROBOT = Path(__file__).resolve().parents[2] / "fixtures" / "robot_sm5.yaml"
 NUM = r"\s*(-?\d+(?:\.\d+)?)\s*"
 # written precision: joints 1, 2, 4 to 4 decimals (TP: 3), joint 3 to 3
-TOL = {"rapid": (0.5e-4, 0.5e-3), "evplus": (0.5e-4, 0.5e-3), "pacscript": (0.5e-4, 0.5e-3),
+TOL = {"rapid": (0.5e-4, 0.5e-3), "val3": (0.5e-4, 0.5e-3), "evplus": (0.5e-4, 0.5e-3), "pacscript": (0.5e-4, 0.5e-3),
        "tp": (0.5e-3, 0.5e-3)}
 TOOL = (12.34567, -3.21)
 
@@ -63,6 +64,45 @@ def parse_rapid(text):
             raise AssertionError(f"unexpected statement {code!r}")
     assert not inside, "no ENDPROC"
     assert tool_name == ("tool0" if tool is None else "tVisionCal")
+    return ops, tool
+
+
+def parse_val3(text, name="program"):
+    ns = {"v": "http://www.staubli.com/robotics/VAL3/Program/2"}
+    root = ET.fromstring(text.encode("utf-8"))
+    (prog,) = root.findall("v:Program", ns)
+    assert prog.get("name") == name
+    locals_ = {loc.get("name"): loc.get("type") for loc in prog.find("v:Locals", ns)}
+    assert locals_ == {"l_j": "joint", "l_m": "mdesc"}
+    lines = prog.find("v:Code", ns).text.split("\n")
+    assert lines[0] == "begin" and lines[-1] == "end"
+    ops, tool, j, waiting = [], None, {}, False
+    for raw in lines[1:-1]:
+        code, _, comment = raw.partition("//")
+        code = code.strip()
+        if m := re.match(rf"^The calibrated tool: x{NUM}mm, y{NUM}mm", comment.strip()):
+            tool = (float(m[1]), float(m[2]))
+        if not code:
+            continue
+        assert not waiting or code == "waitEndMove()", f"movej without waitEndMove: {code!r}"
+        if m := re.match(rf"^l_j\.j([1-4]) ={NUM}$", code):
+            j[int(m[1])] = float(m[2])
+        elif code == "movej(l_j, flange, l_m)":
+            assert sorted(j) == [1, 2, 3, 4], "a joint not set before movej"
+            ops.append(("move", (j[1], j[2], j[3], j[4])))
+            j, waiting = {}, True
+        elif code == "waitEndMove()":
+            waiting = False
+        elif m := re.match(r"^doPen = (true|false)$", code):
+            ops.append(("pen", m[1] == "true"))
+        elif m := re.match(rf"^delay\({NUM}\)$", code):
+            ops.append(("wait", float(m[1])))
+        elif m := re.match(r'^putln\("([^"]*)"\)$', code):
+            ops.append(("say", m[1]))
+        elif not re.match(rf"^(l_m\.(vel|accel|decel) ={NUM}|l_m\.blend = off|disablePower\(\))$",
+                          code):
+            raise AssertionError(f"unexpected statement {code!r}")
+    assert not waiting
     return ops, tool
 
 
@@ -159,7 +199,7 @@ def parse_tp(text):
     return ops, tool
 
 
-PARSERS = {"rapid": parse_rapid, "evplus": parse_evplus, "pacscript": parse_pacscript,
+PARSERS = {"rapid": parse_rapid, "val3": parse_val3, "evplus": parse_evplus, "pacscript": parse_pacscript,
            "tp": parse_tp}
 
 
@@ -243,7 +283,8 @@ def test_safe_height_travel_keeps_the_last_move_onto_each_mark(tmp_path, kind):
     robot = robot_with(safe_z_mm=-2.0)
     marks, joint4 = plan(seed=11, n=3)
     points = program_points(marks, joint4=joint4)
-    path = write_program(kind, program_path(kind, tmp_path / "p"), points, robot, title="t")
+    path = write_program(kind, program_path(kind, tmp_path / "program"), points, robot,
+                         title="t")
     ops, tool = PARSERS[kind](path.read_bytes().decode("ascii"))
     moves = [a for op, a in ops if op == "move"]
     assert tool is None
@@ -257,6 +298,7 @@ def test_safe_height_travel_keeps_the_last_move_onto_each_mark(tmp_path, kind):
 
 @pytest.mark.parametrize("kind, program, field", [
     ("rapid", {"pen_output_bit": 9}, "program.pen_signal"),
+    ("val3", {"pen_output_bit": 9}, "program.pen_signal"),
     ("evplus", {"pen_output_bit": 0}, "program.pen_output_bit"),
     ("tp", {"pen_output_bit": 0}, "program.pen_output_bit"),
 ])
@@ -271,12 +313,24 @@ def test_refuses_what_the_dialect_cannot_express(tmp_path, kind, program, field)
 
 
 @pytest.mark.parametrize("kind, program", [("rapid", {"pen_output_bit": 9}),
+                                           ("val3", {"pen_output_bit": 9}),
                                            ("evplus", {"pen_output_bit": 0}),
                                            ("tp", {"pen_output_bit": 0})])
 def test_each_writer_refuses_on_its_own(kind, program):
     """Called directly (not through write_program), a writer still refuses."""
     with pytest.raises(VisionCalError):
         WRITERS[kind][0](program_points(plan(n=1)[0]), robot_with(**program), title="t")
+
+
+def test_val3_program_is_named_after_its_file(tmp_path):
+    marks, _ = plan(n=1)
+    path = write_program("val3", tmp_path / "draw_1.pgx", program_points(marks),
+                         robot_with(), title="t")
+    parse_val3(path.read_text(), name="draw_1")
+    with pytest.raises(VisionCalError) as e:
+        write_program("val3", tmp_path / "1-draw.pgx", program_points(marks), robot_with(),
+                      title="t")
+    assert e.value.field == "--program" and not (tmp_path / "1-draw.pgx").exists()
 
 
 def test_pen_signal_is_read_and_checked(tmp_path):
@@ -294,4 +348,4 @@ def test_pen_signal_is_read_and_checked(tmp_path):
 def test_every_kind_has_a_file_beside_the_plan(tmp_path):
     paths = {program_path(k, tmp_path / "plan") for k in KINDS}
     assert len(paths) == len(KINDS)
-    assert {"rapid", "evplus", "pacscript", "tp"} <= set(KINDS)
+    assert {"rapid", "val3", "evplus", "pacscript", "tp"} <= set(KINDS)

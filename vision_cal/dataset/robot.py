@@ -33,7 +33,8 @@ The session's ``robot`` block (``L1_mm``, ``L2_mm``, ``joint_zero_deg``, ``base_
       safe_z_mm: -5.0                #   optional: travel with Jump ... LimZ at this height
       motor_off: true                #   optional: Motor Off at the end (default false)
       pen_signal: doPen              #   optional: the pen output's name where signals have
-                                     #   names (RAPID SetDO doPen); see docs/controllers.md
+                                     #   names (RAPID SetDO doPen, VAL3
+                                     #   doPen = true); see docs/controllers.md
 
 Every malformed field is one line naming the file and the field (the typed readers of
 :mod:`vision_cal.dataset.session`); unknown fields are logged and ignored, so files

@@ -8,6 +8,7 @@ via points and the mark, then home again. Writers:
   controller's import can take;
 - :mod:`vision_cal.program.spel` (``--program spel``): an Epson SPEL+ program;
 - :mod:`vision_cal.program.rapid` (``--program rapid``): an ABB RAPID module;
+- :mod:`vision_cal.program.val3` (``--program val3``): a Staubli VAL3 program (``.pgx``);
 - :mod:`vision_cal.program.evplus` (``--program evplus``): an Omron/Adept eV+ program;
 - :mod:`vision_cal.program.pacscript` (``--program pacscript``): a Denso PacScript program;
 - :mod:`vision_cal.program.fanuc_tp` (``--program tp``): a Fanuc TP program (ASCII ``.ls``).
@@ -29,20 +30,23 @@ import numpy as np
 from vision_cal.dataset.io import atomic_write_text
 from vision_cal.errors import VisionCalError
 from vision_cal.program.csv_list import point_list
-from vision_cal.program import evplus, fanuc_tp, rapid
+from vision_cal.program import evplus, fanuc_tp, rapid, val3
 from vision_cal.program.evplus import evplus_program
 from vision_cal.program.fanuc_tp import tp_program
 from vision_cal.program.pacscript import pacscript_program
 from vision_cal.program.rapid import rapid_program
 from vision_cal.program.spel import spel_program
+from vision_cal.program.val3 import val3_program
 
 # kind -> (writer, suffix of the program file); csv is a point list, not a program
 WRITERS = {"spel": (spel_program, ".prg"), "rapid": (rapid_program, ".mod"),
+           "val3": (val3_program, ".pgx"),
            "evplus": (evplus_program, ".pg"), "pacscript": (pacscript_program, ".pcs"),
            "tp": (tp_program, ".ls")}
 KINDS = ("csv", *WRITERS)
 # kind -> its refusal of robot files it cannot express (before anything is written)
-CHECKS = {"rapid": rapid.check, "evplus": evplus.check, "tp": fanuc_tp.check}
+CHECKS = {"rapid": rapid.check, "val3": val3.check, "evplus": evplus.check,
+          "tp": fanuc_tp.check}
 
 
 def check_program(kind: str, robot) -> None:
@@ -109,7 +113,9 @@ def write_program(kind: str, path, points, robot, *, title: str, tool_mm=None) -
     written."""
     check_program(kind, robot)  # before anything is written
     if kind in WRITERS:
-        text = WRITERS[kind][0](points, robot, title=title, tool_mm=tool_mm)
+        # a VAL3 program is named after its file
+        named = {"name": Path(path).stem} if kind == "val3" else {}
+        text = WRITERS[kind][0](points, robot, title=title, tool_mm=tool_mm, **named)
     elif kind == "csv":
         text = point_list(points, robot)
     else:
