@@ -20,7 +20,8 @@ from vision_cal.program import KINDS, WRITERS, program_path, program_points, wri
 ROBOT = Path(__file__).resolve().parents[2] / "fixtures" / "robot_sm5.yaml"
 NUM = r"\s*(-?\d+(?:\.\d+)?)\s*"
 # written precision: joints 1, 2, 4 to 4 decimals (TP: 3), joint 3 to 3
-TOL = {"rapid": (0.5e-4, 0.5e-3), "val3": (0.5e-4, 0.5e-3), "evplus": (0.5e-4, 0.5e-3), "pacscript": (0.5e-4, 0.5e-3),
+TOL = {"rapid": (0.5e-4, 0.5e-3), "val3": (0.5e-4, 0.5e-3), "evplus": (0.5e-4, 0.5e-3),
+       "pacscript": (0.5e-4, 0.5e-3),
        "tp": (0.5e-3, 0.5e-3)}
 TOOL = (12.34567, -3.21)
 
@@ -199,7 +200,8 @@ def parse_tp(text):
     return ops, tool
 
 
-PARSERS = {"rapid": parse_rapid, "val3": parse_val3, "evplus": parse_evplus, "pacscript": parse_pacscript,
+PARSERS = {"rapid": parse_rapid, "val3": parse_val3, "evplus": parse_evplus,
+           "pacscript": parse_pacscript,
            "tp": parse_tp}
 
 

@@ -10,10 +10,10 @@ The pen output is ``DO[n]=ON`` / ``DO[n]=OFF`` (``DO[0]`` does not exist: refuse
 ``WAIT x.xx(sec)`` settles and dwells; the joint speed is ``speed_percent`` %. Remarks
 (``!``) are cut to 32 characters. ``UFRAME_NUM=0`` and ``UTOOL_NUM=1`` are selected and
 recorded with every point (a joint position does not depend on them). The calibrated tool
-(``tool_mm``) is written as a remark only (``!UTOOL[1] x ... y ...``, mm, 3 decimals): set it as UTOOL[1] on the pendant (a TP program
-can only set a tool frame through a position register, which would overwrite the user's
-data). ``motor_off``, ``power`` and ``accel_percent`` have no TP counterpart and are
-ignored. Syntax after Fanuc's TP ASCII (``.ls``) format and RoboDK's Fanuc R-30iA
+(``tool_mm``) is written as a remark only (``!UTOOL[1] x ... y ...``, mm, 3 decimals): set
+it as UTOOL[1] on the pendant (a TP program can only set a tool frame through a position
+register, which would overwrite the user's data). ``motor_off``, ``power`` and
+``accel_percent`` have no TP counterpart and are ignored. Syntax after Fanuc's TP ASCII (``.ls``) format and RoboDK's Fanuc R-30iA
 post-processor; see docs/controllers.md.
 """
 
