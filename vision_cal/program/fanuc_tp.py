@@ -13,8 +13,8 @@ recorded with every point (a joint position does not depend on them). The calibr
 (``tool_mm``) is written as a remark only (``!UTOOL[1] x ... y ...``, mm, 3 decimals): set
 it as UTOOL[1] on the pendant (a TP program can only set a tool frame through a position
 register, which would overwrite the user's data). ``motor_off``, ``power`` and
-``accel_percent`` have no TP counterpart and are ignored. Syntax after Fanuc's TP ASCII (``.ls``) format and RoboDK's Fanuc R-30iA
-post-processor; see docs/controllers.md.
+``accel_percent`` have no TP counterpart and are ignored. Syntax after Fanuc's TP ASCII
+(``.ls``) format and RoboDK's Fanuc R-30iA post-processor; see docs/controllers.md.
 """
 
 from __future__ import annotations
