@@ -29,7 +29,6 @@ class Move:
     q: tuple[float, float, float, float]   # j1 deg, j2 deg, j3 mm, j4 deg
     note: str                              # "home", "A3 via", "A3 mark", "A3 pen down", ...
     kind: str                              # "home" | "via" | "mark" | "pen" | "travel"
-    point: int = -1                        # index in the point list (-1: a travel/pen move)
 
 
 @dataclass(frozen=True)
@@ -66,7 +65,7 @@ def program_steps(points, robot) -> list:
     here = None          # (j1, j2, j4) where the arm is, once known
     announced, k, first = None, 0, True
 
-    def travel(q4, p, i, note):
+    def travel(q4, p, note):
         nonlocal here
         if safe is not None:
             if here is not None:
@@ -74,26 +73,26 @@ def program_steps(points, robot) -> list:
                                 "height", "travel"))
             out.append(Move((p.q_deg[0], p.q_deg[1], float(safe), q4), f"{note} at the safe "
                             "height", "travel"))
-        out.append(Move((p.q_deg[0], p.q_deg[1], up, q4), note, p.kind, i))
+        out.append(Move((p.q_deg[0], p.q_deg[1], up, q4), note, p.kind))
 
-    for i, p in enumerate(points):
+    for p in points:
         q4 = robot.j4_deg if p.q4_deg is None else float(p.q4_deg)
         if p.kind != "home" and p.id != announced:
             announced, first = p.id, True
             k += 1
             out.append(Say(f"mark {p.id} ({k} of {n_marks})"))
         if p.kind == "home":
-            travel(q4, p, i, "home")
+            travel(q4, p, "home")
         elif p.kind == "via":
             if first:
-                travel(q4, p, i, f"{p.id} via")
+                travel(q4, p, f"{p.id} via")
             else:
-                out.append(Move((p.q_deg[0], p.q_deg[1], up, q4), f"{p.id} via", "via", i))
+                out.append(Move((p.q_deg[0], p.q_deg[1], up, q4), f"{p.id} via", "via"))
             first = False
         else:
             a = p.approach or (0, 0)
             out.append(Move((p.q_deg[0], p.q_deg[1], up, q4), f"{p.id} mark, approach "
-                            f"{a[0]:+d} {a[1]:+d}, elbow {p.elbow:+d}", "mark", i))
+                            f"{a[0]:+d} {a[1]:+d}, elbow {p.elbow:+d}", "mark"))
             if prog.settle_s > 0:
                 out.append(Wait(prog.settle_s))
             if bit is None:
@@ -109,10 +108,6 @@ def program_steps(points, robot) -> list:
         here = (p.q_deg[0], p.q_deg[1], q4)
     out.append(Say(f"done: {n_marks} marks"))
     return out
-
-
-def moves(steps) -> list[Move]:
-    return [s for s in steps if isinstance(s, Move)]
 
 
 def header_lines(points, robot, *, title: str, version: str, joints: str, tool: str) -> list[str]:
