@@ -351,3 +351,19 @@ def test_every_kind_has_a_file_beside_the_plan(tmp_path):
     paths = {program_path(k, tmp_path / "plan") for k in KINDS}
     assert len(paths) == len(KINDS)
     assert {"rapid", "val3", "evplus", "pacscript", "tp"} <= set(KINDS)
+
+
+@pytest.mark.parametrize("kind", sorted(PARSERS))
+def test_a_mark_id_cannot_break_the_program(tmp_path, kind):
+    """Ids come from the user's targets.csv: quotes, comment and statement characters, a
+    line break, XML and non-ASCII text stay inside the message or the comment."""
+    marks, _ = plan(n=2)
+    marks = [dataclasses.replace(m, id=f'a"b;c!d\'e//f\\g]]>h<&i\nj é{k}')
+             for k, m in enumerate(marks)]
+    robot = robot_with(pen_output_bit=9, pen_signal="doPen")
+    path = write_program(kind, program_path(kind, tmp_path / "program"), program_points(marks),
+                         robot, title='title "with" ; quotes', tool_mm=TOOL)
+    text = path.read_bytes().decode("ascii")
+    ops, _ = PARSERS[kind](text)
+    assert sum(1 for op, a in ops if op == "pen" and a) == 2
+    assert len([1 for op, _ in ops if op == "move"]) == 2 + sum(len(m.via_deg) + 1 for m in marks)

@@ -59,7 +59,7 @@ def evplus_program(points, robot, *, title: str, tool_mm=None) -> str:
         elif isinstance(s, Pen):
             lines.append(f"    SIGNAL {bit if s.down else -bit}    ; {safe_text(s.note)}")
         elif isinstance(s, Say):
-            lines.append(f"    TYPE \"{safe_text(s.text)}\"")
+            lines.append(f"    TYPE \"{safe_text(s.text, banned=chr(34) + ';')}\"")
     if prog.motor_off:
         lines.append("    DISABLE POWER")
     lines.append(".END")

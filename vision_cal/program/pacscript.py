@@ -51,7 +51,7 @@ def pacscript_program(points, robot, *, title: str, tool_mm=None) -> str:
         elif isinstance(s, Pen):
             lines.append(f"    {'Set' if s.down else 'Reset'} IO[{bit}]  ' {safe_text(s.note)}")
         elif isinstance(s, Say):
-            lines.append(f"    PrintDbg \"{safe_text(s.text)}\"")
+            lines.append(f"    PrintDbg \"{safe_text(s.text, banned=chr(34) + chr(39))}\"")
     if prog.motor_off:
         lines.append("    Motor Off")
     lines += ["    GiveArm", "End Sub"]

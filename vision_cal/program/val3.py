@@ -75,7 +75,7 @@ def val3_program(points, robot, *, title: str, tool_mm=None, name: str = "vision
             code.append(f"  {prog.pen_signal} = {'true' if s.down else 'false'}"
                         f"  // {safe_text(s.note, banned=BANNED)}")
         elif isinstance(s, Say):
-            code.append(f"  putln(\"{safe_text(s.text, banned=BANNED)}\")")
+            code.append(f"  putln(\"{safe_text(s.text, banned=BANNED + '/')}\")")
     if prog.motor_off:
         code.append("  disablePower()")
     code.append("end")
