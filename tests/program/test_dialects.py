@@ -4,6 +4,7 @@ it drives compared with the plan's: home first and last, each mark's via point j
 the mark, the pen down on the mark's planned joints, to the written precision.
 """
 
+import argparse
 import dataclasses
 import re
 import xml.etree.ElementTree as ET
@@ -12,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from vision_cal.commands import design as design_cmd
+from vision_cal.commands import plan as plan_cmd
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.errors import VisionCalError
 from vision_cal.plan.calibration_plan import PlannedMark
@@ -367,3 +370,13 @@ def test_a_mark_id_cannot_break_the_program(tmp_path, kind):
     ops, _ = PARSERS[kind](text)
     assert sum(1 for op, a in ops if op == "pen" and a) == 2
     assert len([1 for op, _ in ops if op == "move"]) == 2 + sum(len(m.via_deg) + 1 for m in marks)
+
+
+def test_the_commands_offer_every_kind():
+    """`plan` and `design` list the kinds themselves (no import of the writers at startup):
+    a new dialect cannot be left out of either."""
+    for module, extra in ((plan_cmd, set()), (design_cmd, {"none"})):
+        p = argparse.ArgumentParser()
+        module.add_arguments(p)
+        (action,) = [a for a in p._actions if "--program" in a.option_strings]
+        assert set(action.choices) == set(KINDS) | extra
