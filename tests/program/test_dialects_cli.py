@@ -15,7 +15,7 @@ from tests.commands.test_trust import (ROOT, TARGETS, assert_one_line, calibrati
 from tests.program.test_dialects import PARSERS
 
 ROBOT = ROOT / "fixtures" / "robot_sm5.yaml"
-SUFFIX = {"rapid": ".mod", "evplus": ".pg", "pacscript": ".pcs", "tp": ".ls"}
+SUFFIX = {"rapid": ".mod", "evplus": ".v2", "pacscript": ".pcs", "tp": ".ls"}
 
 
 @pytest.fixture()

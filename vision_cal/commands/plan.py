@@ -31,7 +31,7 @@ def add_arguments(p) -> None:
                                           "tp"), default=None,
                    help="also write a robot program beside PLAN.csv: spel (PLAN.prg, Epson "
                         "SPEL+), csv (PLAN_points.csv), rapid (PLAN.mod, ABB), val3 (PLAN.pgx, "
-                        "Staubli), evplus (PLAN.pg, Omron/Adept), pacscript (PLAN.pcs, Denso) "
+                        "Staubli), evplus (PLAN.v2, Omron/Adept), pacscript (PLAN.pcs, Denso) "
                         "or tp (PLAN.ls, Fanuc); joint targets only (docs/controllers.md); "
                         "needs --robot")
     p.add_argument("--home", type=float, nargs=2, metavar=("Q1", "Q2"), default=None,

@@ -41,7 +41,7 @@ from vision_cal.program.val3 import val3_program
 # kind -> (writer, suffix of the program file); csv is a point list, not a program
 WRITERS = {"spel": (spel_program, ".prg"), "rapid": (rapid_program, ".mod"),
            "val3": (val3_program, ".pgx"),
-           "evplus": (evplus_program, ".pg"), "pacscript": (pacscript_program, ".pcs"),
+           "evplus": (evplus_program, ".v2"), "pacscript": (pacscript_program, ".pcs"),
            "tp": (tp_program, ".ls")}
 KINDS = ("csv", *WRITERS)
 # kind -> its refusal of robot files it cannot express (before anything is written)

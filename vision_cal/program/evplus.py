@@ -1,4 +1,5 @@
-"""``--program evplus``: an Omron/Adept eV+ (V+) program (``.pg``) for a Cobra-type SCARA.
+"""``--program evplus``: an Omron/Adept eV+ (V+) program for a Cobra-type SCARA (``.v2``,
+the default extension of ``LOAD`` and ``STORE``).
 
 Every point is a precision point, ``MOVE #PPOINT(j1, j2, j3, j4)`` (joint values: j1, j2,
 j4 in degrees, joint 3 in mm), a joint-interpolated move that no inverse kinematics

@@ -70,7 +70,8 @@ def rapid_program(points, robot, *, title: str, tool_mm=None) -> str:
             lines.append(f"        SetDO {prog.pen_signal}, {1 if s.down else 0};"
                          f"  ! {safe_text(s.note)}")
         elif isinstance(s, Say):
-            lines.append(f"        TPWrite \"{safe_text(s.text, banned=chr(34) + chr(92) + '!')[:70]}\";")
+            text = safe_text(s.text, banned='"\\!')[:70]
+            lines.append(f"        TPWrite \"{text}\";")
     if prog.motor_off:
         lines.append("        ! motor_off: RAPID cannot switch the motors off; do it on the "
                      "FlexPendant")
