@@ -26,7 +26,7 @@ from vision_cal.plan.compensate import plan_targets, to_planned_marks, write_pla
 from vision_cal.plan.orient import controller_tool_mm, plan_poses
 from vision_cal.plan.trajectory import check_length
 from vision_cal.plan.uncertainty import predicted_std_mm
-from vision_cal.program import program_path, program_points, write_program
+from vision_cal.program import check_program, program_path, program_points, write_program
 
 
 @dataclass(frozen=True)
@@ -40,7 +40,7 @@ class PlanRequest:
     elbow: int = 1
     approach: tuple[int, int] = (1, 1)
     trajectory: str | None = None         # TRAJ.csv, 16 ms samples
-    program: str | None = None            # "spel" or "csv" (needs robot)
+    program: str | None = None            # one of vision_cal.program.KINDS (needs robot)
     home: tuple[float, float] | None = None
     robot: str | None = None              # ROBOT.yaml
     force: bool = False                   # plan with a 'not reliable' calibration
@@ -71,7 +71,7 @@ def plan(req: PlanRequest) -> int:
     if req.robot:
         robot = load_robot_file(req.robot)
         if req.program:
-            robot.require_pen_heights()
+            check_program(req.program, robot)
     model, doc = load_calibration(req.calibration, which=req.model)
     warn = refuse_unreliable(doc, req.calibration, force=req.force)
     if warn:

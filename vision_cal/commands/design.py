@@ -40,9 +40,13 @@ def add_arguments(p) -> None:
                    help="with --verify: also visit ISO 9283's five points N times each (small "
                         "known offsets keep the dots apart) for positioning accuracy AP and "
                         "repeatability RP")
-    p.add_argument("--program", choices=("spel", "csv", "none"), default="spel",
+    p.add_argument("--program", choices=("spel", "csv", "rapid", "val3", "evplus", "pacscript",
+                                          "tp", "none"), default="spel",
                    help="robot program: spel (Epson SPEL+ program.prg, default), csv (neutral "
-                        "point list program_points.csv) or none")
+                        "point list program_points.csv), rapid (ABB program.mod), val3 "
+                        "(Staubli program.pgx), evplus (Omron/Adept program.v2), pacscript "
+                        "(Denso program.pcs), tp (Fanuc program.ls; docs/controllers.md) or "
+                        "none")
     p.add_argument("--n-calibration", type=int, default=30, metavar="N",
                    help="informative plan: calibration marks (default 30)")
     p.add_argument("--n-validation", type=int, default=8, metavar="N",

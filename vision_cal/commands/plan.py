@@ -27,9 +27,13 @@ def add_arguments(p) -> None:
                    metavar=("S1", "S2"), help="approach sign of each joint (default: 1 1)")
     p.add_argument("--trajectory", metavar="TRAJ.csv",
                    help="also write the joint-space reference trajectory (0.016 s samples)")
-    p.add_argument("--program", choices=("spel", "csv"), default=None,
+    p.add_argument("--program", choices=("spel", "csv", "rapid", "val3", "evplus", "pacscript",
+                                          "tp"), default=None,
                    help="also write a robot program beside PLAN.csv: spel (PLAN.prg, Epson "
-                        "SPEL+) or csv (PLAN_points.csv); needs --robot")
+                        "SPEL+), csv (PLAN_points.csv), rapid (PLAN.mod, ABB), val3 (PLAN.pgx, "
+                        "Staubli), evplus (PLAN.v2, Omron/Adept), pacscript (PLAN.pcs, Denso) "
+                        "or tp (PLAN.ls, Fanuc); joint targets only (docs/controllers.md); "
+                        "needs --robot")
     p.add_argument("--home", type=float, nargs=2, metavar=("Q1", "Q2"), default=None,
                    help="joints (deg) the arm starts from (default: the robot file's "
                         "home_deg, else calibration.json's, which the session gave)")

@@ -32,6 +32,9 @@ The session's ``robot`` block (``L1_mm``, ``L2_mm``, ``joint_zero_deg``, ``base_
                                      #   instead of by joint 3
       safe_z_mm: -5.0                #   optional: travel with Jump ... LimZ at this height
       motor_off: true                #   optional: Motor Off at the end (default false)
+      pen_signal: doPen              #   optional: the pen output's name where signals have
+                                     #   names (RAPID SetDO doPen, VAL3
+                                     #   doPen = true); see docs/controllers.md
 
 Every malformed field is one line naming the file and the field (the typed readers of
 :mod:`vision_cal.dataset.session`); unknown fields are logged and ignored, so files
@@ -42,6 +45,7 @@ tags, nothing read can run code).
 from __future__ import annotations
 
 import logging
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -77,6 +81,8 @@ class ProgramSettings:
     pen_output_bit: int | None = None   # SPEL+ On/Off output that lowers the pen
     safe_z_mm: float | None = None      # travel height of Jump ... LimZ (joint 3, mm)
     motor_off: bool = False             # Motor Off at the end of the program
+    pen_signal: str | None = None       # the pen output's name, for controllers that name
+    #                                     signals (RAPID ``SetDO name``), issue 32
 
 
 @dataclass(frozen=True)
@@ -238,11 +244,16 @@ def load_robot_file(path) -> RobotFile:
         moff = p.get("motor_off", False)
         if not isinstance(moff, bool):
             r.fail("program.motor_off", f"expected true or false, got {moff!r}")
+        sig = p.get("pen_signal")
+        if sig is not None and not (isinstance(sig, str)
+                                    and re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,31}", sig)):
+            r.fail("program.pen_signal", f"expected a signal name (a letter, then letters, "
+                                         f"digits or _, at most 32), got {sig!r}")
         extra = set(p) - {"power", "speed_percent", "accel_percent", "settle_s", "pen_dwell_s",
-                          "pen_output_bit", "safe_z_mm", "motor_off"}
+                          "pen_output_bit", "safe_z_mm", "motor_off", "pen_signal"}
         if extra:
             log.warning("%s: program: ignoring unknown fields %s", path, ", ".join(sorted(extra)))
-        kw["program"] = ProgramSettings(power, sp, ac, settle, dwell, bit, safe, moff)
+        kw["program"] = ProgramSettings(power, sp, ac, settle, dwell, bit, safe, moff, sig)
     known = set(ROBOT_BLOCK) | {f for f in RobotFile.__dataclass_fields__} | {
         "placement_tolerance", "tool_mm"}
     extra = set(tree) - known

@@ -47,7 +47,7 @@ from vision_cal.measure.printed import printed_reference
 from vision_cal.plan.calibration_plan import informative_plan
 from vision_cal.plan.trajectory import plan_trajectory, write_trajectory_csv
 from vision_cal.plan.uncertainty import predicted_std_mm
-from vision_cal.program import program_path, program_points, write_program
+from vision_cal.program import check_program, program_path, program_points, write_program
 
 log = logging.getLogger(__name__)
 
@@ -175,6 +175,8 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
                         "was written (session.json and trajectory.csv were); add both heights "
                         "(joint 3, mm; docs/robot-file.md) and run design again")
         program = None
+    if program is not None:   # what the dialect cannot express, before anything is written
+        check_program(program, robot)
     paper = sheet
     sheet = drawable_sheet(sheet, sheet_raw, file=str(sheet_path))
     if pilot is not None:   # the pilot lands anywhere within the tolerance: measured over print

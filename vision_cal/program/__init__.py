@@ -6,7 +6,15 @@ via points and the mark, then home again. Writers:
 
 - :mod:`vision_cal.program.csv_list` (``--program csv``): a neutral point list any
   controller's import can take;
-- :mod:`vision_cal.program.spel` (``--program spel``): an Epson SPEL+ program.
+- :mod:`vision_cal.program.spel` (``--program spel``): an Epson SPEL+ program;
+- :mod:`vision_cal.program.rapid` (``--program rapid``): an ABB RAPID module;
+- :mod:`vision_cal.program.val3` (``--program val3``): a Staubli VAL3 program (``.pgx``);
+- :mod:`vision_cal.program.evplus` (``--program evplus``): an Omron/Adept eV+ program;
+- :mod:`vision_cal.program.pacscript` (``--program pacscript``): a Denso PacScript program;
+- :mod:`vision_cal.program.fanuc_tp` (``--program tp``): a Fanuc TP program (ASCII ``.ls``).
+
+The other controllers' writers share the steps of :mod:`vision_cal.program.steps`; each
+writes joint targets only (docs/controllers.md).
 
 Joint 3 (the vertical axis of a SCARA) is in millimetres, joints 1, 2 and 4 in degrees.
 The pen travels at ``pen_up_mm`` and marks at ``pen_down_mm`` (the robot file).
@@ -22,9 +30,31 @@ import numpy as np
 from vision_cal.dataset.io import atomic_write_text
 from vision_cal.errors import VisionCalError
 from vision_cal.program.csv_list import point_list
+from vision_cal.program import evplus, fanuc_tp, rapid, val3
+from vision_cal.program.evplus import evplus_program
+from vision_cal.program.fanuc_tp import tp_program
+from vision_cal.program.pacscript import pacscript_program
+from vision_cal.program.rapid import rapid_program
 from vision_cal.program.spel import spel_program
+from vision_cal.program.val3 import val3_program
 
-KINDS = ("csv", "spel")
+# kind -> (writer, suffix of the program file); csv is a point list, not a program
+WRITERS = {"spel": (spel_program, ".prg"), "rapid": (rapid_program, ".mod"),
+           "val3": (val3_program, ".pgx"),
+           "evplus": (evplus_program, ".v2"), "pacscript": (pacscript_program, ".pcs"),
+           "tp": (tp_program, ".ls")}
+KINDS = ("csv", *WRITERS)
+# kind -> its refusal of robot files it cannot express (before anything is written)
+CHECKS = {"rapid": rapid.check, "val3": val3.check, "evplus": evplus.check,
+          "tp": fanuc_tp.check}
+
+
+def check_program(kind: str, robot) -> None:
+    """Everything a program of ``kind`` needs from the robot file, checked before any output
+    is written: the pen heights, and what the dialect can express (its ``check``)."""
+    robot.require_pen_heights()
+    if kind in CHECKS:
+        CHECKS[kind](robot)
 
 
 @dataclass(frozen=True)
@@ -67,8 +97,8 @@ def program_points(marks, *, home_deg=(0.0, 0.0), z2_deg: float = 0.0,
 def program_path(kind: str, stem) -> Path:
     """Where a program of ``kind`` goes, beside ``stem`` (a path without its suffix)."""
     stem = Path(stem)
-    if kind == "spel":
-        return stem.with_suffix(".prg")
+    if kind in WRITERS:
+        return stem.with_suffix(WRITERS[kind][1])
     if kind == "csv":
         return stem.with_name(stem.name + "_points.csv")
     raise VisionCalError(f"unknown program kind {kind!r} (expected one of {', '.join(KINDS)})",
@@ -76,11 +106,16 @@ def program_path(kind: str, stem) -> Path:
 
 
 def write_program(kind: str, path, points, robot, *, title: str, tool_mm=None) -> Path:
-    """Write the program of ``kind`` ("csv" or "spel") for ``points`` to ``path``;
-    ``tool_mm`` (SPEL+ only): the calibrated tool for a ``TLSet`` definition."""
-    robot.require_pen_heights()  # before anything is written
-    if kind == "spel":
-        text = spel_program(points, robot, title=title, tool_mm=tool_mm)
+    """Write the program of ``kind`` (one of :data:`KINDS`) for ``points`` to ``path``;
+    ``tool_mm`` (programs, not csv): the calibrated tool, defined as the controller's tool
+    (SPEL+ ``TLSet``, RAPID ``tooldata``, ...). A program a dialect cannot express is
+    refused (:class:`VisionCalError` naming the robot file's field) before anything is
+    written."""
+    check_program(kind, robot)  # before anything is written
+    if kind in WRITERS:
+        # a VAL3 program is named after its file
+        named = {"name": Path(path).stem} if kind == "val3" else {}
+        text = WRITERS[kind][0](points, robot, title=title, tool_mm=tool_mm, **named)
     elif kind == "csv":
         text = point_list(points, robot)
     else:
