@@ -31,7 +31,8 @@ def work(tmp_path, calibration):  # noqa: F811
 @pytest.mark.parametrize("kind", ["rapid", "tp"])
 def test_plan_writes_the_program_of_the_plan_joints(work, capsys, kind):
     rc, _, err = cli(["plan", work / "cal.json", work / "targets.csv", "-o", work / "p.csv",
-                      "--program", kind, "--robot", work / "robot.yaml", "-q"], capsys)
+                      "--program", kind, "--robot", work / "robot.yaml", "--force", "-q"],
+                     capsys)   # the paper's marks cover joint 1 -20..20 only (valid_for)
     assert rc == 0, err
     ops, _ = PARSERS[kind]((work / f"p{SUFFIX[kind]}").read_bytes().decode("ascii"))
     with open(work / "p.csv", newline="") as f:
@@ -51,7 +52,7 @@ def test_plan_refuses_a_pen_output_rapid_cannot_name(work, capsys):
                                                "  pen_dwell_s: 0.2\n  pen_output_bit: 9"))
     before = snapshot(work)
     rc, _, err = cli(["plan", work / "cal.json", work / "targets.csv", "-o", work / "p.csv",
-                      "--program", "rapid", "--robot", robot, "-q"], capsys)
+                      "--program", "rapid", "--robot", robot, "--force", "-q"], capsys)
     assert rc == 2
     assert_one_line(err, robot, "program.pen_signal")
     assert snapshot(work) == before
