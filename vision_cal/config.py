@@ -244,7 +244,15 @@ class GridDeclarationConfig:
                                       # above this: one constant offset everywhere
     min_offset_mm: float = 0.05       # its mean beyond this (a raised paper moves the lines
                                       # by parallax, differently at each place) ...
-    min_offset_sigmas: float = 5.0    # ... and beyond this many standard errors
+    min_offset_sigmas: float = 5.0    # ... and beyond this many standard errors (of the
+                                      # marks and camera places, not of the photos: a
+                                      # series repeats each mark from one place)
+    alpha: float = 1e-3               # a height per mark along its parallax direction that
+                                      # explains the offsets better than the constant alone
+                                      # (F test at this level) makes them a raised paper,
+                                      # not a wrong declaration (issue 28: a bumped sheet
+                                      # under a fixed camera tilted 15 deg)
+    same_mark_mm: float = 1.0         # dots of different photos this close are one mark
 
 
 @dataclass(frozen=True)

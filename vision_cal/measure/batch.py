@@ -661,7 +661,8 @@ def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool]
     warnings: list[str] = []
     images = [finish_image(d, session, lens, from_cache=c, config=config) for d, c in zip(dets, cached)]
     _check_sheet_fits(session, images)
-    wrong_grid = misdeclared_grid(images, session.sheet.grid_spec, config.grid_declaration)
+    wrong_grid = misdeclared_grid(images, session.sheet.grid_spec, config.grid_declaration,
+                                  height_config=config.sheet_height)
     if wrong_grid is not None:   # two references disagree by a constant: the markers win
         log.warning(wrong_grid.message)
         warnings.append(wrong_grid.message)
