@@ -89,6 +89,13 @@ class DotConfig:
                                       # photo's noise gives that pull (a 2-D pull of noise alone
                                       # exceeds 3.5 std in 0.2 % of marks; clean marks on
                                       # renders: up to 2.7 std, at 0.26 mm/px up to 10 um)
+    ground_min_dots: int = 8          # dots on plain ground (paper and grid lines) a series
+                                      # needs before its own ground level (a low quantile
+                                      # of their background residuals) replaces the blank
+                                      # paper's noise in the tests above (JPEG, low
+                                      # resolution: issue 28)
+    ground_quantile: float = 0.25     # that quantile: ink under up to 3/4 of the dots (a
+                                      # sheet nobody describes) does not raise it
 
 
 @dataclass(frozen=True)
