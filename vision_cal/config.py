@@ -89,6 +89,11 @@ class DotConfig:
                                       # photo's noise gives that pull (a 2-D pull of noise alone
                                       # exceeds 3.5 std in 0.2 % of marks; clean marks on
                                       # renders: up to 2.7 std, at 0.26 mm/px up to 10 um)
+    printed_edge_mm: float = 0.05     # over the sheet's own print: how far its edges may be
+                                      # from where the layout puts them (half a pixel of the
+                                      # 254 dpi raster another rasteriser draws; toner spreads
+                                      # 0.03-0.06 mm): a centre moving more than
+                                      # unreliable_ink_shift_mm with them is "unreliable"
     ground_min_dots: int = 8          # dots on plain ground (paper and grid lines) a series
                                       # needs before its own ground level (a low quantile
                                       # of their background residuals) replaces the blank

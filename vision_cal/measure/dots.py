@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
-from scipy.ndimage import maximum_filter1d
+from scipy.ndimage import gaussian_filter, grey_dilation, grey_erosion, maximum_filter1d
 
 from vision_cal.config import DEFAULT, DotConfig
 from vision_cal.dataset.session import Sheet
@@ -358,7 +358,7 @@ def _refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     step = min(cfg.fine_step_mm, mm_px / 4)
     under = [] if printed is None else printed.content_near(c, half + 0.5)
     background = "separable"
-    d_shift = d_blur = 0.0
+    d_shift = d_blur = d_edge = 0.0
     blur_alts = ()
     for _pass in range(2):
         X, Y, Sg = _resample(S, origin, mapping, c, half, step)
@@ -396,7 +396,7 @@ def _refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
             pb = _printed_background(S, origin, mapping, c, half, step, Sg, bgmask, printed,
                                      mm_px, noise_sigma)
             if pb is not None:
-                bg, P, resid, blur_alts, sharp = pb
+                bg, P, resid, blur_alts, sharp, blur_mm = pb
                 background = "printed"
         elif previous is not None:
             pv = _previous_background(previous, X, Y, Sg, bgmask, c, dia, noise_sigma)
@@ -430,6 +430,8 @@ def _refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
                 alt = _pen_over_print(bg_b - Sg, sharp - D, X, Y, c, r_dot, r_win, step)
                 if alt is not None:
                     d_blur = max(d_blur, float(np.hypot(*(alt[0] - cc))))
+            d_edge = _edge_shift(Sg, bg, sharp, D, X, Y, c, cc, r_dot, r_win, step, blur_mm,
+                                 cfg)
         t = Sg / P
         shift = np.hypot(*(cc - c))
         c = cc
@@ -500,6 +502,10 @@ def _refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
         why = (f"pen ink on printed ink ({on}) that could not be separated: the centre "
                f"moves {1000 * d_blur:.0f} um with the print's blur (one step of "
                "measure.printed.BLUR_CANDIDATES_PX)")
+    elif background == "printed" and d_edge > cfg.unreliable_ink_shift_mm:
+        why = (f"pen ink on printed ink ({on}) that could not be separated: the centre "
+               f"moves {1000 * d_edge:.0f} um when the print's edges move "
+               f"{1000 * cfg.printed_edge_mm:.0f} um (another rasteriser, toner)")
     return DotMeasurement(c, cov_noise + cov_map, M_mm2, cov_noise, cov_map,
                           ratio, on, background, why)
 
@@ -600,9 +606,31 @@ def _pen_over_print(F, contrast, X, Y, c0, r_dot: float, r_win: float, step: flo
     return cc, win, cover
 
 
+def _edge_shift(Sg, bg, sharp, D, X, Y, c, cc, r_dot, r_win, step, blur_mm,
+                cfg: DotConfig) -> float:
+    """How far the centre moves when the print's edges are ``cfg.printed_edge_mm`` from
+    where the layout puts them (its ink grown or thinned: another rasteriser of the same
+    PDF, toner, a font drawn by other code): the sharp print grown or thinned by that much,
+    the blurred print moved with it (the fitted blur). The print is not known that well
+    and its fit around the dot cannot tell it (the model's own misfit there is larger than
+    what such a move changes), so a centre that depends on it that much is unreliable (issue
+    28 section 4: on photos of a rendering of the project's PDF, a mark on a bar's edge
+    35 um off and marks on letters and numbers 40-60 um off, none flagged)."""
+    n = max(1, int(round(cfg.printed_edge_mm / step)))
+    size = (2 * n + 1, 2 * n + 1)
+    out = 0.0
+    for op in (grey_erosion, grey_dilation):
+        sharp_e = op(sharp, size=size)
+        bg_e = bg + gaussian_filter(sharp_e - sharp, blur_mm / step, mode="nearest")
+        alt = _pen_over_print(bg_e - Sg, sharp_e - D, X, Y, c, r_dot, r_win, step)
+        if alt is not None:
+            out = max(out, float(np.hypot(*(alt[0] - cc))))
+    return out
+
+
 def _printed_background(S, origin, mapping: SheetMapping, c, half, step, Sg, bgmask, printed,
                         mm_px, noise_sigma):
-    """(bg, P, log residual, alternatives, sharp) of the print around a dot: the sheet's own
+    """(bg, P, log residual, alternatives, sharp, blur mm) of the print around a dot: the sheet's own
     print rendered into the patch's raw pixels (:meth:`PrintedReference.predict_patch`) and
     resampled like the photo, the photo's level fitted as ``S = a + sum_c b_c T_c`` over the background
     samples (robust: samples 3.5 robust std off are left out, twice). The blur is the one of
@@ -643,4 +671,4 @@ def _printed_background(S, origin, mapping: SheetMapping, c, half, step, Sg, bgm
     coef = fits[i][1]
     X, Y, _ = _resample(S, origin, mapping, c, half, step)
     sharp = coef[0] + np.tensordot(coef[1:], printed.transmission_at(X, Y), axes=1)
-    return bg, np.full(Sg.shape, P), resid, out[1:], sharp
+    return bg, np.full(Sg.shape, P), resid, out[1:], sharp, BLUR_CANDIDATES_PX[i] * mm_px
