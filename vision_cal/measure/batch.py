@@ -247,7 +247,7 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     dia = session.pen_mark_diameter_mm
     xy0 = m.image_to_sheet(c.uv_px) if len(c.uv_px) else np.zeros((0, 2))
     xs, covs, uvs, xg, offs, refs, gcov, ocov = [], [], [], [], [], [], [], []
-    unrel, under, bgr, bgk = [], [], [], []
+    unrel, under, bgr, bgk, sus = [], [], [], [], []
     rejected = dict(c.rejected)
     blank = blank_regions(session.sheet)
     grid = session.sheet.grid_spec
@@ -285,6 +285,7 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
         under.append(r.printed_under)
         bgr.append(float(r.bg_residual))
         bgk.append(r.background)
+        sus.append(r.suspect)
     return replace(ImageResult(det.file, "ok", None, len(det.marker_ids), m.corner_rms_px,
                        m.corner_rms_mm, len(xs), np.asarray(xs).reshape(-1, 2),
                        np.asarray(covs).reshape(-1, 2, 2), np.asarray(uvs).reshape(-1, 2),
@@ -293,7 +294,8 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
                        np.asarray(xg).reshape(-1, 2), np.asarray(offs).reshape(-1, 2),
                        tuple(refs), np.asarray(gcov).reshape(-1, 2, 2),
                        np.asarray(ocov).reshape(-1, 2, 2), m, K, tuple(unrel), tuple(under)),
-                   dots_bg_residual=tuple(bgr), dots_background=tuple(bgk))
+                   dots_bg_residual=tuple(bgr), dots_background=tuple(bgk),
+                   dots_suspect=tuple(sus))
 
 
 def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank, config):
@@ -693,7 +695,8 @@ def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool]
         # refine_dot uses it only for dots paper and grid lines leave unreliable or not
         # measurable: the other photos are neither decoded again nor finished twice
         need = {k for k, im in enumerate(images)
-                if any(im.dots_unreliable) or im.rejected.get("not measurable")}
+                if any(im.dots_unreliable) or any(im.dots_suspect)
+                or im.rejected.get("not measurable")}
         before = previous_photos(session, Path(session.root), [d.file for d in dets],
                                  listed_marks, images, only=need)
         for k, prev in before.items():

@@ -279,6 +279,9 @@ class DotMeasurement:
     #: why the centre cannot be trusted ("" when it can): the background model leaves more
     #: than ``config.dots.unreliable_bg_residual`` times the noise around it
     unreliable: str = ""
+    #: flagged against the blank paper's noise, if not against the series' plain ground
+    #: (``ground_scale``): the photo before is tried for it
+    suspect: bool = False
 
 
 def _resample(S: np.ndarray, origin, mapping: SheetMapping, centre, half, step):
@@ -323,7 +326,7 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
               blank_rects=blank_rects, printed=printed, ground_scale=ground_scale,
               config=config)
     first = _refine_dot(patch_rgb, origin, mapping, xy0_mm, **kw)
-    if previous is None or (first is not None and not first.unreliable):
+    if previous is None or (first is not None and not first.unreliable and not first.suspect):
         return first
     again = _refine_dot(patch_rgb, origin, mapping, xy0_mm, previous=previous, **kw)
     return first if again is None else again
@@ -506,8 +509,13 @@ def _refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
         why = (f"pen ink on printed ink ({on}) that could not be separated: the centre "
                f"moves {1000 * d_edge:.0f} um when the print's edges move "
                f"{1000 * cfg.printed_edge_mm:.0f} um (another rasteriser, toner)")
+    # what the blank paper's noise alone would have flagged: worth the photo before, which
+    # shows a print under the mark the series' plain ground may hide (a grid number)
+    suspect = bool(why) or (g > 1 and background == "separable" and (
+        ratio > cfg.unreliable_bg_residual_separable
+        or ring_shift > max(cfg.unreliable_ink_shift_mm, cfg.unreliable_noise_sigmas * ring_sd)))
     return DotMeasurement(c, cov_noise + cov_map, M_mm2, cov_noise, cov_map,
-                          ratio, on, background, why)
+                          ratio, on, background, why, suspect)
 
 
 def ground_scale(ratios, backgrounds, printed_under, config: DotConfig | None = None

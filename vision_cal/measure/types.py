@@ -153,6 +153,7 @@ class ImageResult:
     #: ``bg_residual``, ``background``): the series' plain-ground level (not written)
     dots_bg_residual: tuple = ()
     dots_background: tuple = ()
+    dots_suspect: tuple = ()        # DotMeasurement.suspect (not written)
 
     def summary_json(self) -> dict:
         """The photo's entry of calibration.json ``images[]``."""
