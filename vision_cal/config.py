@@ -89,6 +89,18 @@ class DotConfig:
                                       # photo's noise gives that pull (a 2-D pull of noise alone
                                       # exceeds 3.5 std in 0.2 % of marks; clean marks on
                                       # renders: up to 2.7 std, at 0.26 mm/px up to 10 um)
+    printed_edge_mm: float = 0.05     # over the sheet's own print: how far its edges may be
+                                      # from where the layout puts them (half a pixel of the
+                                      # 254 dpi raster another rasteriser draws; toner spreads
+                                      # 0.03-0.06 mm): a centre moving more than
+                                      # unreliable_ink_shift_mm with them is "unreliable"
+    ground_min_dots: int = 8          # dots on plain ground (paper and grid lines) a series
+                                      # needs before its own ground level (a low quantile
+                                      # of their background residuals) replaces the blank
+                                      # paper's noise in the tests above (JPEG, low
+                                      # resolution: issue 28)
+    ground_quantile: float = 0.25     # that quantile: ink under up to 3/4 of the dots (a
+                                      # sheet nobody describes) does not raise it
 
 
 @dataclass(frozen=True)
@@ -120,6 +132,11 @@ class SelectionConfig:
     min_scan_dof: int = 20            # residual dof below which no structure is looked for
                                       # (unexplained: periodograms need that many)
     min_sheet_marks: int = 12         # marks below which the sheet map is not tested
+    min_sheet_affine: float = 5e-4    # a sheet_affine (paper scale along x or y, or shear)
+                                      # smaller than this is not claimed, however
+                                      # significant: the sheet's 100 mm scale bars read with
+                                      # a ruler to 0.05 mm cannot confirm less (issue 28:
+                                      # 0.012 % claimed on a robot with none)
 
 
 @dataclass(frozen=True)
@@ -255,7 +272,15 @@ class GridDeclarationConfig:
                                       # above this: one constant offset everywhere
     min_offset_mm: float = 0.05       # its mean beyond this (a raised paper moves the lines
                                       # by parallax, differently at each place) ...
-    min_offset_sigmas: float = 5.0    # ... and beyond this many standard errors
+    min_offset_sigmas: float = 5.0    # ... and beyond this many standard errors (of the
+                                      # marks and camera places, not of the photos: a
+                                      # series repeats each mark from one place)
+    alpha: float = 1e-3               # a height per mark along its parallax direction that
+                                      # explains the offsets better than the constant alone
+                                      # (F test at this level) makes them a raised paper,
+                                      # not a wrong declaration (issue 28: a bumped sheet
+                                      # under a fixed camera tilted 15 deg)
+    same_mark_mm: float = 1.0         # dots of different photos this close are one mark
 
 
 @dataclass(frozen=True)

@@ -126,3 +126,39 @@ def test_a_sheet_nobody_describes_flags_what_it_cannot_separate(a4, tmp_path, se
         assert res[k][0] < 0.03, k
     for k in PLAIN:
         assert res[k][0] < 0.03 and not res[k][1], k
+
+
+@pytest.fixture(scope="module")
+def a4_pdf(tmp_path_factory, a4):
+    """The same sheet photographed as pdfium draws its PDF (not the sheet's own raster
+    writer, which the measurement's reference uses): other glyphs, other edges."""
+    pytest.importorskip("pypdfium2")
+    import shutil
+
+    from PIL import Image
+
+    from tests.sheet.raster import rasterise_pdf
+
+    d = tmp_path_factory.mktemp("a4pdf")
+    for f in ("sheet.json", "sheet.pdf"):
+        shutil.copy(a4 / f, d / f)
+    rgb, _ = rasterise_pdf(d / "sheet.pdf", 10.0)
+    own = np.asarray(Image.open(a4 / "sheet.png"))
+    assert rgb.shape[:2] == own.shape[:2]
+    Image.fromarray(rgb).save(d / "sheet.png", dpi=(254, 254))
+    return d
+
+
+@pytest.mark.parametrize("seed", [100])
+def test_marks_on_a_rendering_of_the_pdf_are_within_the_bound_or_flagged(a4_pdf, tmp_path,
+                                                                         seed):
+    """Issue 28 section 4: the print as another rasteriser draws the project's PDF; the
+    reference does not know its edges to 50 um (config dots.printed_edge_mm), so a centre
+    that depends on them is flagged (before: the axis letter 38 um and a grid number 53 um
+    off, unflagged, with poppler's rendering)."""
+    res = _measure(a4_pdf, tmp_path / "d", seed)
+    for k, (err, why, under) in res.items():
+        print(f"{k:12s} {err:.4f} {under!r} {why!r}")
+    for k in ON_PRINT:
+        err, why, under = res[k]
+        assert err < 0.03 or why, (k, err)

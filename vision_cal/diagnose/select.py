@@ -324,7 +324,8 @@ def _select(base: Fit, nuisance: tuple, cands, q, xy, app, sigma, ids, held, alp
         # sheet scale along x or y: the same fit (one is the other with the lengths scaled);
         # the sheet shrinks, so keep the alternative whose printed scale is above one.
         trials = _prefer_shrink(trials)
-        sig = [t for t in trials if t[5] < alpha_each and t[6] < 0]
+        small = {id(t[0]) for t in trials if _below_paper_floor(t[0], t[1], config)}
+        sig = [t for t in trials if t[5] < alpha_each and t[6] < 0 and id(t[0]) not in small]
         scored = []
         for t in sig:
             scored.append((held(t[1].model), t))
@@ -335,6 +336,8 @@ def _select(base: Fit, nuisance: tuple, cands, q, xy, app, sigma, ids, held, alp
             if best is not None and c is best[1][0] and h < current_held:
                 continue
             why = ("not significant" if p >= alpha_each or dbic >= 0 else
+                   f"smaller than the {config.selection.min_sheet_affine:.2%} the printed "
+                   "scale bars can be measured to" if id(c) in small else
                    "held-out error not lowered" if not (h < current_held) else
                    "another candidate explains more")
             round_rejected.append(Evidence(c.label, current_held, h, rss0, rss1, float(F), p,
@@ -390,6 +393,16 @@ def _rss_w(fit: Fit, sigma) -> float:
     if sigma is not None:
         r = r / np.asarray(sigma)[fit.inliers, None]
     return float(np.sum(r**2))
+
+
+def _below_paper_floor(c: Candidate, f: Fit, config: EstimatorConfig) -> bool:
+    """A paper-scale effect (``sheet_affine``) smaller than the sheet's scale bars can be
+    measured to (config ``selection.min_sheet_affine``): a claim nobody could check on
+    the paper, and the size a slightly tilted camera or motion plane leaves."""
+    if not isinstance(c.effect, SheetAffine):
+        return False
+    theta = f.model.effects[-1].theta
+    return bool(len(theta)) and float(np.max(np.abs(theta))) < config.selection.min_sheet_affine
 
 
 def _prefer_shrink(trials):

@@ -44,7 +44,8 @@ from vision_cal.measure.aruco import edge_points, find_sheet_markers
 from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerprint
 from vision_cal.measure.infer import infer_image_marks
 from vision_cal.dataset.marker_geometry import marker_geometry
-from vision_cal.measure.dots import _radii_mm, blank_regions, find_candidates, refine_dot
+from vision_cal.measure.dots import (_radii_mm, blank_regions, find_candidates, ground_scale,
+                                     refine_dot)
 from vision_cal.measure.previous_photo import previous_photos
 from vision_cal.measure.printed import printed_reference
 from vision_cal.measure.rotated import to_main_px, transposed, turned_lens
@@ -216,11 +217,12 @@ def _lens_of(session: Session, lens: LensEstimate | None, size):
 
 
 def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | None = None,
-                 *, from_cache: bool = False, previous=None,
+                 *, from_cache: bool = False, previous=None, ground_scale: float = 1.0,
                  config: EstimatorConfig | None = None) -> ImageResult:
     """Stage 2: final mapping and dot centres on the sheet (``config``: the ``dots``
     thresholds, default ``vision_cal.config.DEFAULT``). ``previous``: the photo before
-    in a series adding marks (:mod:`vision_cal.measure.previous_photo`)."""
+    in a series adding marks (:mod:`vision_cal.measure.previous_photo`);
+    ``ground_scale``: the series' plain-ground level (:func:`dots.ground_scale`)."""
     config = config or DEFAULT
     if det.status != "ok":
         return ImageResult(det.file, det.status, det.reason, n_markers=len(det.marker_ids),
@@ -246,7 +248,7 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     dia = session.pen_mark_diameter_mm
     xy0 = m.image_to_sheet(c.uv_px) if len(c.uv_px) else np.zeros((0, 2))
     xs, covs, uvs, xg, offs, refs, gcov, ocov = [], [], [], [], [], [], [], []
-    unrel, under = [], []
+    unrel, under, bgr, bgk, sus = [], [], [], [], []
     rejected = dict(c.rejected)
     blank = blank_regions(session.sheet)
     grid = session.sheet.grid_spec
@@ -256,7 +258,8 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     grid_blank = blank if pref is None else np.concatenate([blank, pref.ungridded_boxes_mm()])
     for k, (patch, org, x0, uv) in enumerate(zip(c.patches, c.origins, xy0, c.uv_px)):
         r = refine_dot(patch, org, m, x0, dia_mm=dia, noise_sigma=c.noise_sigma,
-                       blank_rects=blank, printed=pref, previous=previous, config=config.dots)
+                       blank_rects=blank, printed=pref, previous=previous,
+                       ground_scale=ground_scale, config=config.dots)
         if r is None:
             rejected["not measurable"] = rejected.get("not measurable", 0) + 1
             continue
@@ -281,14 +284,19 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
         refs.append(ref)
         unrel.append(r.unreliable)
         under.append(r.printed_under)
-    return ImageResult(det.file, "ok", None, len(det.marker_ids), m.corner_rms_px,
+        bgr.append(float(r.bg_residual))
+        bgk.append(r.background)
+        sus.append(r.suspect)
+    return replace(ImageResult(det.file, "ok", None, len(det.marker_ids), m.corner_rms_px,
                        m.corner_rms_mm, len(xs), np.asarray(xs).reshape(-1, 2),
                        np.asarray(covs).reshape(-1, 2, 2), np.asarray(uvs).reshape(-1, 2),
                        rejected, c.noise_sigma, det.size_px, from_cache,
                        np.asarray(det.marker_ids), det.corners_for(K, dist),
                        np.asarray(xg).reshape(-1, 2), np.asarray(offs).reshape(-1, 2),
                        tuple(refs), np.asarray(gcov).reshape(-1, 2, 2),
-                       np.asarray(ocov).reshape(-1, 2, 2), m, K, tuple(unrel), tuple(under))
+                       np.asarray(ocov).reshape(-1, 2, 2), m, K, tuple(unrel), tuple(under)),
+                   dots_bg_residual=tuple(bgr), dots_background=tuple(bgk),
+                   dots_suspect=tuple(sus))
 
 
 def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank, config):
@@ -662,7 +670,8 @@ def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool]
     warnings: list[str] = []
     images = [finish_image(d, session, lens, from_cache=c, config=config) for d, c in zip(dets, cached)]
     _check_sheet_fits(session, images)
-    wrong_grid = misdeclared_grid(images, session.sheet.grid_spec, config.grid_declaration)
+    wrong_grid = misdeclared_grid(images, session.sheet.grid_spec, config.grid_declaration,
+                                  height_config=config.sheet_height)
     if wrong_grid is not None:   # two references disagree by a constant: the markers win
         log.warning(wrong_grid.message)
         warnings.append(wrong_grid.message)
@@ -670,18 +679,30 @@ def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool]
         images = [finish_image(d, session, lens, from_cache=c, config=config)
                   for d, c in zip(dets, cached)]
 
+    # the tests for ink under a mark against this series' plain ground, not the blank
+    # paper's noise (JPEG, grid lines a few pixels apart, a low resolution)
+    ok = [im for im in images if im.status == "ok"]
+    g = ground_scale([x for im in ok for x in im.dots_bg_residual],
+                     [b for im in ok for b in im.dots_background],
+                     [u for im in ok for u in im.dots_printed_under], config.dots)
+    if g > 1.0:
+        images = [finish_image(d, session, lens, from_cache=c, ground_scale=g, config=config)
+                  if any(im.dots_unreliable) else im
+                  for d, c, im in zip(dets, cached, images)]
+
     # a series adding marks photo by photo, on a sheet whose print is not described: the
     # photo before shows the print under each new mark
     if listed_marks is not None and printed_reference(session.sheet) is None:
         # refine_dot uses it only for dots paper and grid lines leave unreliable or not
         # measurable: the other photos are neither decoded again nor finished twice
         need = {k for k, im in enumerate(images)
-                if any(im.dots_unreliable) or im.rejected.get("not measurable")}
+                if any(im.dots_unreliable) or any(im.dots_suspect)
+                or im.rejected.get("not measurable")}
         before = previous_photos(session, Path(session.root), [d.file for d in dets],
                                  listed_marks, images, only=need)
         for k, prev in before.items():
             images[k] = finish_image(dets[k], session, lens, from_cache=cached[k],
-                                     previous=prev, config=config)
+                                     previous=prev, ground_scale=g, config=config)
 
     # a photo moved as a whole against the others is left out, not the marks it shares
     for k, why in disagreeing_photos(images, config.photo_agreement).items():

@@ -149,6 +149,11 @@ class ImageResult:
 
     #: added after association: per dot the id of the mark it was taken for ("" for none)
     dots_mark: tuple = ()
+    #: per dot the background model's residual / noise and the model (``DotMeasurement``
+    #: ``bg_residual``, ``background``): the series' plain-ground level (not written)
+    dots_bg_residual: tuple = ()
+    dots_background: tuple = ()
+    dots_suspect: tuple = ()        # DotMeasurement.suspect (not written)
 
     def summary_json(self) -> dict:
         """The photo's entry of calibration.json ``images[]``."""
