@@ -31,11 +31,17 @@ R_h t_B_i``) are linear in ``(t_X,x, t_X,y, cos a, sin a, t_Y,x, t_Y,y)``.
 
 Then least squares (scipy) on the 11 parameters left (a small rotation about each frame's
 axes and the translations, ``t_Y,z`` held), each pair's residual being where it puts the
-target: ``A'_i X B_i`` against ``Y``, its translation (mm) and its rotation (deg), weighted
-by the pairs' own scatter (one std per axis for each, from the residual with the hat
-matrix's leverage). Pairs that disagree beyond that scatter (their deleted residual's
-Hotelling T^2 above the ``handeye.outlier_alpha`` level over the pairs, the scatter
-taken robustly: the median pair first, then the pairs within that level) are left out one at a time, worst first, and named. The result
+target: ``A'_i X B_i`` against ``Y``, its translation (mm) and its rotation (deg), seen
+from the camera (where a detector's noise is alike from pair to pair) and whitened by the
+pairs' own 6x6 scatter (a board pose's depth and tilt errors are not its lateral ones, and
+tilt and shift trade), estimated from the residual with what the fit took from each
+direction given back (the hat matrix). The parameters' covariance is the fit's, scaled by
+``nu / (nu - 7)`` for weights that are the inverse of an estimated covariance (checked
+over many seeds by bench/handeye_pairs.py: error / std near 1). Pairs that disagree beyond
+the scatter (their deleted translation or rotation residual, per-axis scatter taken
+robustly: the median pair first, then the pairs within the level; the level ``3 F(3,
+nu)`` at ``handeye.outlier_alpha`` over the pairs) are left out one at a time, worst
+first, and named. The result
 is a :class:`PairsFit` (frozen), or a :class:`PairsFailed` (falsy, with the reason).
 """
 
@@ -243,12 +249,15 @@ def _raw_residuals(x, A, B, X0, Y0, z_mm) -> tuple[np.ndarray, np.ndarray, np.nd
     return dt, dr, cam
 
 
-def _weighted(x, A, B, X0, Y0, z_mm, W) -> np.ndarray:
-    return (_raw_residuals(x, A, B, X0, Y0, z_mm)[2] @ W.T).ravel()
+def _weighted(x, A, B, X0, Y0, z_mm, W, target=False) -> np.ndarray:
+    _, dr, cam = _raw_residuals(x, A, B, X0, Y0, z_mm)
+    if target:      # the rotation in the target's frame
+        cam = np.hstack([cam[:, :3], dr])
+    return (cam @ W.T).ravel()
 
 
-def _solve(A, B, X0, Y0, z_mm, W, x0):
-    sol = least_squares(_weighted, x0, args=(A, B, X0, Y0, z_mm, W), method="lm")
+def _solve(A, B, X0, Y0, z_mm, W, x0, target=False):
+    sol = least_squares(_weighted, x0, args=(A, B, X0, Y0, z_mm, W, target), method="lm")
     return sol.x, sol.jac
 
 
@@ -270,31 +279,42 @@ def _whitener(S: np.ndarray) -> np.ndarray:
     return (vecs / np.sqrt(np.maximum(vals, _TINY**2))).T
 
 
-def _noise(cam: np.ndarray, n_params: float, trim: float) -> np.ndarray:
-    """The 6x6 covariance of the pairs' camera-frame residual (N, 6): robust first (each
-    axis's scale from the median pair), then the pairs within ``trim`` (a chi-square level
-    on 6 dof) pooled, with the dof the parameters consume."""
-    med = np.sqrt(np.median(cam[:, :3] ** 2 * 3, axis=0).clip(_TINY**2) / _CHI2_3_MEDIAN)
-    med_r = np.sqrt(np.median(cam[:, 3:] ** 2 * 3, axis=0).clip(_TINY**2) / _CHI2_3_MEDIAN)
-    S = np.diag(np.concatenate([med, med_r]) ** 2)
-    for _ in range(3):
-        W = _whitener(S)
-        d2 = np.sum((cam @ W.T) ** 2, axis=1)
-        keep = d2 <= trim
-        if keep.sum() < 7:
-            keep = d2 <= np.sort(d2)[min(6, len(d2) - 1)]
-        c = cam[keep]
-        S = c.T @ c / max(len(c) - n_params / 6.0, 1.0)
-    return S
+def _noise(cam: np.ndarray, trim_alpha: float, W=None, hat=None) -> np.ndarray:
+    """The 6x6 covariance of the pairs' camera-frame residual ``cam`` (N, 6), robust: the
+    pairs whose Mahalanobis distance is beyond the chi-square's ``1 - trim_alpha`` point
+    left out of it (and the variance such a cut removes from a normal's given back). Without
+    a fit (``W`` None) each axis's scale comes from the median pair first; with the fit's
+    whitener ``W`` and hat blocks ``hat`` (N, 6, 6), what the fit took from each direction
+    is given back: the whitened residuals' scatter is ``sum (I - H_ii)`` where the noise is
+    ``W^-1 W^-T``, so ``S = W^-1 M^-1/2 C M^-1/2 W^-T`` (C their scatter, M that sum)."""
+    cut = float(stats.chi2.isf(trim_alpha, 6)) if trim_alpha > 0 else np.inf
+    consistency = float(stats.chi2.cdf(cut, 8) / stats.chi2.cdf(cut, 6)) if np.isfinite(cut) else 1.0
+    if W is None:
+        med = np.median(cam**2 * 3, axis=0).clip(_TINY**2) / _CHI2_3_MEDIAN
+        S = np.diag(med)
+        for _ in range(4):
+            d2 = np.sum((cam @ _whitener(S).T) ** 2, axis=1)
+            keep = d2 <= max(cut, float(np.sort(d2)[min(6, len(d2) - 1)]))
+            c = cam[keep]
+            S = c.T @ c / max(len(c) - 11.0 / 6.0, 1.0) / consistency
+        return S
+    w = cam @ W.T
+    keep = np.sum(w**2, axis=1) <= max(cut, float(np.sort(np.sum(w**2, axis=1))[min(6, len(w) - 1)]))
+    C = w[keep].T @ w[keep] / consistency
+    M = np.sum(np.eye(6) - hat[keep], axis=0)
+    vals, vecs = np.linalg.eigh(0.5 * (M + M.T))
+    Mih = (vecs / np.sqrt(np.maximum(vals, 1e-9))) @ vecs.T
+    Wi = np.linalg.inv(W)
+    return Wi @ Mih @ C @ Mih @ Wi.T
 
 
 def _outlier_level(alpha: float, n_in: int) -> float:
-    """The level a pair's deleted residual (6-D, whitened by a covariance the other pairs
-    estimate with ``nu`` dof) passes by chance with probability ``alpha``: Hotelling's T^2,
-    ``nu p / (nu - p + 1) F(p, nu - p + 1)``, not the chi-square a known noise would give
-    (20 pairs: 2.4 times the chi-square's level)."""
-    nu = max(n_in - 1 - 11.0 / 6.0, 6.0)
-    return float(nu * 6 / (nu - 5) * stats.f.isf(alpha, 6, nu - 5))
+    """The level a pair's deleted translation (or rotation) residual, 3-D and whitened axis
+    by axis by variances the pairs estimate with ``nu`` dof each, passes by chance with
+    probability ``alpha`` (each of the two: ``alpha / 2``): ``3 F(3, nu)``, the
+    chi-square's level widened for variances known from few pairs."""
+    nu = max(n_in - 1 - 11.0 / 6.0, 2.0)
+    return float(3.0 * stats.f.isf(alpha / 2, 3, nu))
 
 
 def fit_pose_pairs(pairs: list[PosePair], mount: str = "arm", *, z_mm: float | None = None,
@@ -323,18 +343,41 @@ def fit_pose_pairs(pairs: list[PosePair], mount: str = "arm", *, z_mm: float | N
     W = np.eye(6)
     while True:
         limit = _outlier_level(cfg.outlier_alpha / n, int(inl.sum()))
-        for _ in range(3):   # the fit and the noise it leaves, in turn
-            x, J = _solve(A[inl], B[inl], X0, Y0, z, W, x)
-            S = _noise(_raw_residuals(x, A[inl], B[inl], X0, Y0, z)[2], 11.0, limit)
+        # the noise: robust from the median pair first, then with the fit's leverage
+        x, J = _solve(A[inl], B[inl], X0, Y0, z, np.eye(6), x)
+        S = _noise(_raw_residuals(x, A[inl], B[inl], X0, Y0, z)[2], cfg.outlier_alpha)
+        for _ in range(3):
             W = _whitener(S)
+            x, J = _solve(A[inl], B[inl], X0, Y0, z, W, x)
+            cov, hat = _cov_and_hat(J)
+            S = _noise(_raw_residuals(x, A[inl], B[inl], X0, Y0, z)[2], 0.0,
+                       W, hat)
+        W = _whitener(S)
         x, J = _solve(A[inl], B[inl], X0, Y0, z, W, x)
         cov, hat = _cov_and_hat(J)
-        w_all = _raw_residuals(x, A, B, X0, Y0, z)[2] @ W.T
+        # the outlier test against the scatter of the pairs within the chi-square's level
+        # (a pair far off would widen its own yardstick)
+        _, dr_all, cam_all = _raw_residuals(x, A, B, X0, Y0, z)
+        w_all = cam_all @ W.T
+        # (a detector's rotation error is the same in every pair in the target's frame)
+        seen = np.hstack([cam_all[:, :3], dr_all])
+        W_in = _whitener(_noise(seen[inl], cfg.outlier_alpha / n))
+        for _ in range(2):   # what the fit takes from each direction given back
+            hat_in = _cov_and_hat(_solve(A[inl], B[inl], X0, Y0, z, W_in, x, target=True)[1])[1]
+            W_in = _whitener(_noise(seen[inl], cfg.outlier_alpha / n, W_in, hat_in))
+        # per axis only (6 variances, not 21 terms, from so few pairs: a far lower level)
+        W_in = np.diag(1.0 / np.sqrt(np.diag(np.linalg.inv(W_in.T @ W_in))))
+        hat_in = _cov_and_hat(_solve(A[inl], B[inl], X0, Y0, z, W_in, x, target=True)[1])[1]
+        w_test = seen @ W_in.T
         chi = np.zeros(n)
         idx = np.flatnonzero(inl)
-        for k, i in enumerate(idx):      # deleted residual's chi-square, leverage included
-            chi[i] = float(w_all[i] @ np.linalg.solve(np.eye(6) - hat[k] + 1e-12 * np.eye(6),
-                                                      w_all[i]))
+        for k, i in enumerate(idx):      # deleted residual's T^2, leverage included: the
+            # translation and the rotation tested apart (a pair off in one of them is not
+            # diluted by the other's three axes), each at half the level
+            d = np.linalg.solve(np.eye(6) - hat_in[k] + 1e-12 * np.eye(6), w_test[i])
+            Sd = np.linalg.inv(np.eye(6) - hat_in[k] + 1e-12 * np.eye(6))
+            chi[i] = max(float(d[:3] @ np.linalg.solve(Sd[:3, :3], d[:3])),
+                         float(d[3:] @ np.linalg.solve(Sd[3:, 3:], d[3:])))
         worst = idx[np.argmax(chi[idx])]
         if chi[worst] <= limit:
             break
@@ -346,7 +389,7 @@ def fit_pose_pairs(pairs: list[PosePair], mount: str = "arm", *, z_mm: float | N
         dt_w, dr_w, _ = _raw_residuals(x, A[worst:worst + 1], B[worst:worst + 1], X0, Y0, z)
         reasons.append(f"pair {pairs[worst].id}: {float(np.linalg.norm(dt_w)):.3f} mm, "
                        f"{float(np.linalg.norm(dr_w)):.3f} deg from where the others put the "
-                       f"target (T^2 {chi[worst]:.0f}, the level {limit:.0f})")
+                       f"target (T^2 {chi[worst]:.0f}, the level {limit:.0f} for {len(idx)} pairs)")
     X, Y = _unpack(x, X0, Y0, z)
     dt_all, dr_all, _ = _raw_residuals(x, A, B, X0, Y0, z)
     # the weights are the inverse of a covariance estimated from the pairs themselves,

@@ -70,10 +70,13 @@ def simulate_pairs(robot: TrueRobot, n: int, *, seed: int = 0, mount: str = "arm
     ``mount="arm"``: a camera drawn by :func:`T_flange_camera_true` looks down at a board
     lying flat at ``board_at_mm`` on the sheet; each pose puts the camera's view of the
     sheet within ``reach_mm`` of the board, joint 4 turned at random. ``mount="fixed"``: a
-    camera 600 mm above ``board_at_mm`` looks down at a board riding 30 mm off the flange."""
+    camera 600 mm above ``board_at_mm`` looks down at a board (160 x 120 mm) riding 30 mm off
+    the flange."""
     rng = np.random.default_rng(seed)
     K = np.array([[f_px, 0, 399.5], [0, f_px, 299.5], [0, 0, 1.0]]) if K is None else K
-    board = board_points()
+    # a board sized to the view: 60 x 40 mm under a camera 150-250 mm away, 160 x 120 mm
+    # under one 600 mm away (a quarter of the image wide either way)
+    board = board_points() if mount == "arm" else board_points(9, 7, 20.0)
     T_sr = T_sheet_robot(robot)
     T_rs = np.linalg.inv(T_sr)
     centre = np.array([*board_at_mm, 0.0])
