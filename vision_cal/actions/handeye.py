@@ -62,7 +62,9 @@ def pairs_document(fit: PairsFit, *, source: str, units: str,
                                  "the others beyond their scatter: " + ", ".join(fit.outliers)))
     verdict = judge_camera_poses(
         fit.residual_mm[inl, :2], fit.sigma_xy_mm[inl], fit.heldout_mm[inl, :2],
-        n_params=fit.n_params_xy, reasons=reasons, config=config.verdict, ids=ids)
+        n_params=fit.n_params_xy, reasons=reasons, config=config.verdict, ids=ids,
+        # the pairs' scatter holds the robot's repeatability already: not added twice
+        repeatability_mm=0.0)
     why_out = {r.split(":")[0].removeprefix("pair "): r for r in fit.outlier_reasons}
     table = []
     for i, pid in enumerate(fit.ids):
@@ -102,8 +104,9 @@ def pairs_document(fit: PairsFit, *, source: str, units: str,
         "config": config.to_json(),
         "notes": [f"{xname} from {len(ids)} pose pairs ({len(fit.outliers)} left out); the "
                   "floor is the pairs' own scatter (their 6x6 covariance in the camera "
-                  "frame): the verdict tests the held-out pairs and the largest error "
-                  "against it, not against a stated noise"]}
+                  "frame, the robot's repeatability included): the verdict tests the "
+                  "held-out pairs and the largest error against it, not against a stated "
+                  "noise"]}
 
 
 def handeye_pairs(req: HandeyeRequest) -> int:
