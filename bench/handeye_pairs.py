@@ -14,7 +14,19 @@ has it: the pip build of OpenCV 5.0 does not) its error and its time on the same
 
 ``--opencv-python``: a Python whose cv2 has ``calibrateRobotWorldHandEye``; the pairs are
 handed to it through a temporary .npz and its X read back (the project's venv keeps its
-OpenCV 5).
+OpenCV 5). ``--photos``: also the photo-based ``handeye`` (camera/arm.fit_arm_camera on the
+views' corners, 0.1 px) against pose pairs from the same views.
+
+Figures (2026-11-26, ``--seeds 20 --pairs 20 --photos --opencv-python`` an OpenCV 4.14.0
+venv; seeds 5000-5019): error/std RMS per parameter 0.67-1.15 in all four cases (arm/fixed x
+px/pose), 95.0-97.5 % of parameters within 2 std, no pair falsely left out in 80 sets, the
+height flagged in 80/80 without ``--z-mm``, 135-365 ms a fit (pure Python loops); OpenCV
+4.14 ``calibrateRobotWorldHandEye`` (SHAH and LI) failed on 40/40 SCARA sets ("Rotation
+normalization issue: determinant(R) is null": every motion turns about one axis). Photos
+vs pairs on the same robot and views (10 seeds, 16 poses): photo-based 0.032 mm / 0.009
+deg median error; pairs with an exact controller 0.039 mm / 0.0085 deg; pairs with the
+nominal controller (links 6 mm off) 3.2 mm / 1.28 deg: pose pairs are only as good as the
+controller's kinematics.
 """
 
 from __future__ import annotations

@@ -10,6 +10,7 @@ bench/handeye_pairs.py's (RMS of error/std near 1, 2 std holding ~95 %)."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -225,3 +226,14 @@ def test_handeye_poses_writes_the_calibration_with_its_verdict(tmp_path, capsys)
     assert main(["handeye", str(tmp_path), "--poses", str(tmp_path / "p.csv"), "--out",
                  str(tmp_path / "d")]) == 2
     assert "--poses" in capsys.readouterr().err
+
+
+def test_the_fixture_finds_its_camera_and_names_its_misdetected_pair():
+    """fixtures/handeye_pairs/: X within the 95 % region of its covariance around the
+    truth it ships, p09 (moved 8 mm) named and left out."""
+    root = Path(__file__).resolve().parents[2] / "fixtures" / "handeye_pairs"
+    pf = read_poses(root / "pairs.json")
+    fit = fit_pose_pairs(list(pf.pairs), pf.mount, z_mm=0.0)
+    truth = json.loads((root / "truth.json").read_text())
+    assert fit.outliers == ("p09",)
+    assert _within(fit, np.array(truth["T_flange_camera"])) < REGION_6
