@@ -62,8 +62,8 @@ MOUNTS = ("arm", "fixed")
 #: translations); ``Y``'s z translation is held (see the module docstring)
 LABELS = ("X_rot_x_deg", "X_rot_y_deg", "X_rot_z_deg", "X_x_mm", "X_y_mm", "X_z_mm",
           "Y_rot_x_deg", "Y_rot_y_deg", "Y_rot_z_deg", "Y_x_mm", "Y_y_mm")
-#: the median of a chi-square with 3 dof: |r|^2 / sigma^2 of a 3-D normal residual
-_CHI2_3_MEDIAN = float(stats.chi2.median(3))
+#: the median of a chi-square with 1 dof: r^2 / sigma^2 of one normal axis
+_CHI2_1_MEDIAN = float(stats.chi2.median(1))
 #: a scatter below this (mm or deg) is taken as this: exact synthetic pairs
 _TINY = 1e-9
 
@@ -290,7 +290,7 @@ def _noise(cam: np.ndarray, trim_alpha: float, W=None, hat=None) -> np.ndarray:
     cut = float(stats.chi2.isf(trim_alpha, 6)) if trim_alpha > 0 else np.inf
     consistency = float(stats.chi2.cdf(cut, 8) / stats.chi2.cdf(cut, 6)) if np.isfinite(cut) else 1.0
     if W is None:
-        med = np.median(cam**2 * 3, axis=0).clip(_TINY**2) / _CHI2_3_MEDIAN
+        med = np.median(cam**2, axis=0).clip(_TINY**2) / _CHI2_1_MEDIAN
         S = np.diag(med)
         for _ in range(4):
             d2 = np.sum((cam @ _whitener(S).T) ** 2, axis=1)
