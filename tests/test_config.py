@@ -19,6 +19,7 @@ from tests.measure.test_measure_grid import _mapping_shifted
 from tests.measure.test_measure_no_images import _groups
 from tests.tool.test_placements import _kinematic_places
 from vision_cal.calibrate import joint4, placements
+from vision_cal.camera import pose_pairs
 from vision_cal.config import (DEFAULT, AssociationConfig, DiscoveryConfig, DotConfig,
                                EstimatorConfig, GridConfig, GridDeclarationConfig, Joint4Config,
                                PhotoAgreementConfig, PlanMatchConfig, SelectionConfig,
@@ -41,6 +42,7 @@ from vision_cal.report.headline import configuration
 CONFIGURED = {dots: (), grid: (), sheetfit: (), discover: (), joint4: (),
               verdict: ("R95_PER_RMS",), associate: (), height: (), plan_match: (),
               photo_agreement: (), grid_declaration: (), placements: (), infer: (),
+              pose_pairs: ("_TINY",),   # a numerical guard (exact synthetic pairs)
               # the smoother's cost bounds (not judgements: the test stays exact)
               sheet: ("EXACT_MAX_MARKS", "GRID_PER_LENGTH", "MAX_GRID_CELLS")}
 
@@ -100,7 +102,8 @@ def test_calibration_json_says_how_it_was_obtained(paper_folder, tmp_path):
     assert set(doc["config"]) == {"markers", "dots", "association", "selection", "fit",
                                   "per_photo_offsets", "sheet_fit", "grid", "sheet_height",
                                   "plan_match", "photo_agreement", "grid_declaration",
-                                  "smooth_residual", "discovery", "joint4", "verdict"}
+                                  "smooth_residual", "discovery", "joint4", "verdict",
+                                  "handeye"}
     assert doc["config"]["selection"]["alpha"] == 0.01
     cfg = replace(DEFAULT, selection=SelectionConfig(alpha=1e-3, k_folds=3, max_effects=1))
     calibrate_dataset(paper_folder, out_dir=tmp_path / "c", config=cfg)

@@ -27,6 +27,7 @@ recorded values, not today's defaults). The parts, by key:
 - ``smooth_residual``: a spatially smooth residual (:mod:`vision_cal.diagnose.sheet`);
 - ``discovery``: the scans for effects no candidate names (:mod:`vision_cal.diagnose.discover`);
 - ``joint4``: the joint-4 (tool offset) stage (:mod:`vision_cal.calibrate.joint4`);
+- ``handeye``: the hand-eye from pose pairs (:mod:`vision_cal.camera.pose_pairs`);
 - ``verdict``: the noise-floor gate and the status rule (:mod:`vision_cal.diagnose.verdict`,
   which judges a calibration.json with the config that file recorded).
 """
@@ -342,6 +343,24 @@ class VerdictConfig:
 
 
 @dataclass(frozen=True)
+class HandeyeConfig:
+    """The hand-eye from pose pairs (``vision_cal.camera.pose_pairs``, issue 32)."""
+
+    min_pairs: int = 4                # 11 parameters, 6 rows a pair: four leave 13 dof
+    min_yaw_spread_deg: float = 5.0   # the flange must turn between pairs by this much, else
+                                      # the camera's x, y on it are not seen at all
+    outlier_alpha: float = 0.001      # a pair is left out when its deleted translation or
+                                      # rotation residual (3-D, per-axis scatter) is beyond this
+                                      # level over all the pairs (alpha / N each); 0.001:
+                                      # with the scatter estimated from 20 pairs, clean
+                                      # simulated pairs lose one pair in ~30 sets
+                                      # (bench/handeye_pairs.py)
+    max_outlier_fraction: float = 0.3  # never leave out more than this share of the pairs
+    unidentified_std_mm: float = 5.0  # a translation whose std is above this (mm) ...
+    unidentified_std_deg: float = 2.0  # ... or a rotation above this (deg): not identifiable
+
+
+@dataclass(frozen=True)
 class EstimatorConfig:
     """All the knobs, by part; the keys of calibration.json ``config``."""
 
@@ -361,6 +380,7 @@ class EstimatorConfig:
     discovery: DiscoveryConfig = field(default_factory=DiscoveryConfig)
     joint4: Joint4Config = field(default_factory=Joint4Config)
     verdict: VerdictConfig = field(default_factory=VerdictConfig)
+    handeye: HandeyeConfig = field(default_factory=HandeyeConfig)
 
     def to_json(self) -> dict:
         return asdict(self)

@@ -108,7 +108,6 @@ def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[st
     app = session.approach
     j4 = np.column_stack([session.j4_deg, session.approach4]) if session.uses_joint4 else None
     ids, q, a, xy, sig, roles, missing, k4 = [], [], [], [], [], [], [], []
-    have_sigma = measurement is not None
     for i, m in enumerate(session.marks):
         if measurement is not None and m.id in measurement.marks:
             mm = measurement.marks[m.id]
@@ -116,8 +115,9 @@ def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[st
                 continue   # kept in calibration.json with its reason, left out of the fit
             pos = np.asarray(mm.xy_mm, dtype=float)
             s = float(np.sqrt(np.trace(np.asarray(mm.cov_mm2)) / 2))
-        elif m.measured_mm is not None:
-            pos, s = np.asarray(m.measured_mm, dtype=float), np.nan
+        elif m.measured_mm is not None:   # its stated accuracy, when given (issue 32)
+            pos = np.asarray(m.measured_mm, dtype=float)
+            s = np.nan if m.measured_sigma_mm is None else float(m.measured_sigma_mm)
         else:
             missing.append(m.id)
             continue
@@ -128,7 +128,7 @@ def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[st
         sig.append(s)
         roles.append(m.role)
         k4.append(i)
-    sigma = np.array(sig) if have_sigma and np.all(np.isfinite(sig)) and len(sig) else None
+    sigma = np.array(sig) if len(sig) and np.all(np.isfinite(sig)) else None
     return MarkData(tuple(ids), np.array(q, float).reshape(-1, 2), np.array(a, float).reshape(-1, 2),
                     np.array(xy, float).reshape(-1, 2), sigma, tuple(roles),
                     None if j4 is None else j4[np.array(k4, dtype=int)]), missing
@@ -215,7 +215,8 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     if method not in METHODS:
         raise VisionCalError(f"unknown method {method!r} (expected one of {', '.join(METHODS)})")
     config = config or DEFAULT
-    session = load_session(folder)
+    # a folder, or a session already read (a marks CSV: vision_cal.dataset.marks_csv)
+    session = folder if isinstance(folder, Session) else load_session(folder)
     out_dir = Path(out_dir)
     measurement, data, missing = measure_marks(session, out_dir=out_dir, jobs=jobs,
                                                progress=progress, config=config)

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from vision_cal.calibrate.placements import calibrate_placements
 from vision_cal.dataset.io import atomic_write_json, output_dir
+from vision_cal.dataset.marks_csv import session_from_marks_csv
 from vision_cal.diagnose.verdict import Verdict
 from vision_cal.dataset.out_folder import output_names, retire_earlier_run
 from vision_cal.errors import VisionCalError
@@ -31,6 +32,8 @@ class CalibrateRequest:
     report: bool = False          # also report.json and report.html
     joint: bool = False           # the folders are placements of one robot
     quiet: bool = False
+    robot: str | None = None      # a marks CSV's robot file (issue 32)
+    sigma_mm: float | None = None  # a marks CSV's stated accuracy (mm, one std per axis)
 
 
 def calibrate(req: CalibrateRequest) -> int:
@@ -60,8 +63,12 @@ def calibrate(req: CalibrateRequest) -> int:
         print(f"wrote {out / 'calibration.json'}")
         return 0
     several = len(req.folders) > 1
+    csvs = [str(f).lower().endswith(".csv") for f in req.folders]
+    for name, value in (("--robot", req.robot), ("--sigma-mm", req.sigma_mm)):
+        if value is not None and not any(csvs):
+            raise VisionCalError("applies to a marks CSV only", field=name)
     output_dir(req.out or "out", field="--out")
-    names = output_names(req.folders)
+    names = [Path(n).stem if c else n for n, c in zip(output_names(req.folders), csvs)]
     if several and not req.quiet:
         plain = [Path(f).resolve().name for f in req.folders]
         if names != plain:  # two folders share a name: say where each one goes
@@ -77,7 +84,9 @@ def calibrate(req: CalibrateRequest) -> int:
             moved = retire_earlier_run(out)
             if moved and not req.quiet:
                 print(f"moved the earlier results ({', '.join(moved)}) to {out / 'previous'}")
-            result = calibrate_dataset(folder, out_dir=out, method=req.method, jobs=req.jobs,
+            source = (session_from_marks_csv(folder, req.robot, sigma_mm=req.sigma_mm)
+                      if str(folder).lower().endswith(".csv") else folder)
+            result = calibrate_dataset(source, out_dir=out, method=req.method, jobs=req.jobs,
                                        progress=progress, truth=req.truth)
         except VisionCalError as e:
             if not several:

@@ -12,11 +12,16 @@ examples:
   vision-cal fixtures/paper_sm5 --method paper --out /tmp/x  the seed paper's circles
   vision-cal images/ --out out/ --jobs 2                   photographs, in parallel
   vision-cal calibrate A/ B/ C/ --joint --out X/           one robot, three placements
+  vision-cal calibrate marks.csv --robot robot.yaml --sigma-mm 0.02 --out X/
+                                       marks a laser tracker or CMM measured (no photos)
 """
 
 
 def add_arguments(p) -> None:
-    p.add_argument("folders", nargs="+", metavar="DIR", help="dataset folder(s) with session.json")
+    p.add_argument("folders", nargs="+", metavar="DIR",
+                   help="dataset folder(s) with session.json, or a marks CSV "
+                        "(id,q1_deg,q2_deg[,q4_deg],x_mm,y_mm[,approach1,approach2]) measured "
+                        "by another instrument (docs/format.md, \"Marks from other instruments\")")
     p.add_argument("-o", "--out", default=None,
                    help="output folder (default: out/<folder name>); with several folders, "
                         "one sub-folder each")
@@ -34,6 +39,13 @@ def add_arguments(p) -> None:
                         "OUT/calibration.json, OUT/<folder>/calibration.json)")
 
 
+    p.add_argument("--robot", default=None, metavar="ROBOT.yaml",
+                   help="a marks CSV: the robot file (the nominal model to start from)")
+    p.add_argument("--sigma-mm", type=float, default=None, dest="sigma_mm", metavar="S",
+                   help="a marks CSV: the instrument's stated accuracy (one std per axis, mm): "
+                        "the noise floor of the verdict")
+
+
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
@@ -41,4 +53,5 @@ def run(args) -> int:
 
     return calibrate(CalibrateRequest(tuple(args.folders), out=args.out, method=args.method,
                                       jobs=args.jobs, truth=args.truth, report=args.report,
-                                      joint=args.joint, quiet=args.quiet))
+                                      joint=args.joint, quiet=args.quiet, robot=args.robot,
+                                      sigma_mm=args.sigma_mm))

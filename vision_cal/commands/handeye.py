@@ -4,10 +4,18 @@ from __future__ import annotations
 
 NAME = "handeye"
 HELP = ("calibrate the robot and T_flange_camera from photos taken by the arm's camera "
-        "(session.json poses; no pen)")
+        "(session.json poses; no pen), or a camera from pose pairs another tool measured "
+        "(--poses)")
 EXAMPLES = """\
 examples:
   vision-cal handeye arm_photos/ --out arm_cal/     -> arm_cal/calibration.json
+  vision-cal handeye --poses pairs.json --out he/   -> he/calibration.json (T_flange_camera)
+  vision-cal handeye --poses pairs.csv --units m --mount fixed --z-mm 12.5 --out he/
+
+--poses: pairs of T_robot_flange and T_camera_target (4x4, or x,y,z,yaw and OpenCV
+rvec/tvec; JSON or CSV; docs/format.md, "Hand-eye from pose pairs"). A SCARA's poses cannot
+see the camera's height: --z-mm gives the target origin's height (arm: in the robot frame;
+fixed: in the flange frame), else it is reported not identifiable.
 
 session.json lists "poses" ({"image", "joints_deg", "j4_deg"}), the declared camera lens,
 "camera_mount" (flange | link2) and the marker field (vision-cal sheet --field); see
@@ -16,17 +24,40 @@ docs/format.md, "Cameras".
 
 
 def add_arguments(p) -> None:
-    p.add_argument("folder", metavar="FOLDER", help="dataset folder with session.json poses")
+    p.add_argument("folder", metavar="FOLDER", nargs="?", default=None,
+                   help="dataset folder with session.json poses (photos of the arm's camera)")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--poses", metavar="PAIRS", default=None,
+                   help="pose pairs file (JSON vision-cal/poses/1, or CSV) instead of FOLDER")
+    p.add_argument("--units", choices=("mm", "m"), default=None,
+                   help="--poses: the file's lengths (default: the file's units, else mm)")
+    p.add_argument("--mount", choices=("arm", "fixed"), default=None,
+                   help="--poses: the camera rides on the flange (arm, default) or stands "
+                        "still watching a target on the flange (fixed)")
+    p.add_argument("--z-mm", type=float, default=None, dest="z_mm", metavar="H",
+                   help="--poses: the target origin's height (mm; arm: robot frame, fixed: "
+                        "flange frame), which a SCARA's motion cannot see")
 
 
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
+    from vision_cal.actions.handeye import HandeyeRequest, handeye_pairs
     from vision_cal.camera.arm_session import calibrate_arm_camera
     from vision_cal.dataset.io import atomic_write_json, output_dir
     from vision_cal.diagnose.verdict import Verdict
+    from vision_cal.errors import VisionCalError
 
+    if (args.folder is None) == (args.poses is None):
+        raise VisionCalError("give FOLDER (photos of the arm's camera) or --poses PAIRS "
+                             "(pose pairs), one of them", field="--poses")
+    if args.poses is not None:
+        return handeye_pairs(HandeyeRequest(args.poses, args.out, units=args.units,
+                                            mount=args.mount, z_mm=args.z_mm,
+                                            quiet=args.quiet))
+    for name in ("units", "mount", "z_mm"):
+        if getattr(args, name) is not None:
+            raise VisionCalError("applies to --poses only", field=f"--{name.replace('_', '-')}")
     out = output_dir(args.out, field="--out")
     doc = calibrate_arm_camera(args.folder)
     path = atomic_write_json(out / "calibration.json", doc)

@@ -175,6 +175,8 @@ class Mark:
     measured_mm: tuple[float, float] | None = None
     j4_deg: float | None = None   # commanded joint 4 (contract "Joint 4 and the tool")
     repeat_of: str | None = None  # the mark whose pose this one returns to (docs/format.md)
+    #: the per-axis std (mm) of ``measured_mm``: a stated instrument accuracy (issue 32)
+    measured_sigma_mm: float | None = None
 
 
 @dataclass(frozen=True)
@@ -421,8 +423,14 @@ def load_session(folder) -> Session:
         if not folder.exists():
             raise VisionCalError("folder not found", file=str(folder))
         raise VisionCalError("missing: a dataset folder needs a session.json", file=str(path))
-    raw = read_json(path)
-    r = FieldReader(str(path))
+    return session_from_raw(read_json(path), folder, str(path))
+
+
+def session_from_raw(raw: dict, folder, where: str) -> Session:
+    """A session from its JSON (``where`` names it in errors): what :func:`load_session`
+    reads, and what a marks CSV becomes (:mod:`vision_cal.dataset.marks_csv`)."""
+    folder = Path(folder)
+    r = FieldReader(where)
 
     fmt = r.get(raw, "format", "")
     if fmt != FORMAT:
@@ -459,7 +467,13 @@ def load_session(folder) -> Session:
             if j4 is not None else None
         rep = m.get("repeat_of")
         rep = r.string(rep, f"{w}.repeat_of") if rep is not None else None
-        marks.append(Mark(mid, q, role, appr, tgt, meas, j4, rep))
+        msig = m.get("measured_sigma_mm")
+        if msig is not None:
+            if meas is None:
+                r.fail(f"{w}.measured_sigma_mm", "given without measured_mm")
+            msig = r.number(msig, f"{w}.measured_sigma_mm", lo=0.0, hi=MAX_PEN_MM,
+                            positive=True, what="std in mm")
+        marks.append(Mark(mid, q, role, appr, tgt, meas, j4, rep, msig))
     by_id = {mk.id: mk for mk in marks}
     for i, mk in enumerate(marks):   # a repeat returns to another mark's pose, same side
         if mk.repeat_of is None:

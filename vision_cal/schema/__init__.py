@@ -11,7 +11,7 @@ import json
 from functools import lru_cache
 from importlib import resources
 
-NAMES = ("session", "sheet", "robot", "calibration")
+NAMES = ("session", "sheet", "robot", "calibration", "poses")
 
 
 @lru_cache(maxsize=None)

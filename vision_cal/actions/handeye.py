@@ -1,0 +1,139 @@
+"""The hand-eye from pose pairs (``vision-cal handeye --poses FILE``): the file read
+(:mod:`vision_cal.dataset.poses`), the fit (:mod:`vision_cal.camera.pose_pairs`), the
+contract's verdict (:func:`vision_cal.diagnose.verdict.judge_camera_poses`, each pair's
+target position standing for a mark) and calibration.json (docs/format.md, "Hand-eye from
+pose pairs")."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from vision_cal.camera.pose_pairs import LABELS, PairsFit, fit_pose_pairs
+from vision_cal.config import DEFAULT, EstimatorConfig
+from vision_cal.dataset.io import atomic_write_json, distinct_outputs, output_dir
+from vision_cal.dataset.poses import read_poses
+from vision_cal.diagnose.verdict import Verdict, judge_camera_poses
+from vision_cal.errors import CalibrationError
+
+#: what X and Y are, by mount (the contract's names)
+NAMES = {"arm": ("T_flange_camera", "T_robot_target", "robot"),
+         "fixed": ("T_robot_camera", "T_flange_target", "flange")}
+
+
+@dataclass(frozen=True)
+class HandeyeRequest:
+    """What ``vision-cal handeye --poses`` was asked (see its ``--help``)."""
+
+    poses: str
+    out: str
+    units: str | None = None       # mm | m (None: the file's, else mm)
+    mount: str | None = None       # arm | fixed (None: the file's, else arm)
+    z_mm: float | None = None      # the target origin's height (None: the file's or unknown)
+    quiet: bool = False
+
+
+def pairs_document(fit: PairsFit, *, source: str, units: str,
+                   config: EstimatorConfig | None = None) -> dict:
+    """calibration.json (as a dict) of a hand-eye from pose pairs."""
+    config = config or DEFAULT
+    xname, yname, yframe = NAMES[fit.mount]
+    std = fit.std()
+    inl = fit.inlier
+    ids = [i for i, ok in zip(fit.ids, inl) if ok]
+    reasons: list[tuple[str, str]] = []
+    if not fit.z_given:
+        reasons.append(("check", f"the camera's height ({xname} z) is not identifiable from a "
+                                 "SCARA's poses: taken with the target's origin at z = 0 in "
+                                 f"the {yframe} frame; give its height with --z-mm (or "
+                                 "target_z_mm in the file)"))
+    others = [d for d in fit.not_identifiable if d["label"] != "X_z_mm"]
+    if others:
+        reasons.append(("not reliable", "the pairs do not determine "
+                        + ", ".join(d["label"] for d in others)
+                        + ": turn the flange more between pairs, over more places"))
+    for r in fit.outlier_reasons:
+        if r.startswith("more pairs disagree"):
+            reasons.append(("not reliable", r))
+    if fit.outliers:
+        reasons.append(("check", f"{len(fit.outliers)} pair(s) left out as disagreeing with "
+                                 "the others beyond their scatter: " + ", ".join(fit.outliers)))
+    verdict = judge_camera_poses(
+        fit.residual_mm[inl, :2], fit.sigma_xy_mm[inl], fit.heldout_mm[inl, :2],
+        n_params=fit.n_params_xy, reasons=reasons, config=config.verdict, ids=ids,
+        # the pairs' scatter holds the robot's repeatability already: not added twice
+        repeatability_mm=0.0)
+    why_out = {r.split(":")[0].removeprefix("pair "): r for r in fit.outlier_reasons}
+    table = []
+    for i, pid in enumerate(fit.ids):
+        row = {"id": pid, "status": "ok" if inl[i] else "outlier",
+               "residual_mm": float(np.linalg.norm(fit.residual_mm[i])),
+               "residual_deg": float(np.linalg.norm(fit.residual_deg[i])),
+               "residual_xyz_mm": [float(v) for v in fit.residual_mm[i]],
+               "heldout_xyz_mm": [float(v) for v in fit.heldout_mm[i]],
+               "sigma_xy_mm": float(fit.sigma_xy_mm[i])}
+        if not inl[i]:
+            row["reason"] = why_out.get(pid, "left out")
+        table.append(row)
+    z_from = ("given" if fit.z_given else
+              "assumed: the target's origin at z = 0 (not identifiable)")
+    cam = {"mount": fit.mount, "pairs": ids,
+           xname: fit.X.tolist(), f"{xname}_std": std["X"],
+           yname: fit.Y.tolist(), f"{yname}_std": std["Y"],
+           "target_z_mm": fit.z_mm, "target_z_from": z_from}
+    inl_mm = fit.residual_mm[inl]
+    inl_deg = fit.residual_deg[inl]
+    return {
+        "format": "vision-cal/calibration/1", "method": "pose_pairs",
+        "poses_file": source, "units_read": units, "mount": fit.mount,
+        "cameras": [cam],
+        "not_identifiable": list(fit.not_identifiable),
+        "pairs": table, "outliers": list(fit.outliers),
+        "pair_rms": {"residual_mm": float(np.sqrt(np.mean(np.sum(inl_mm**2, axis=1)))),
+                     "residual_deg": float(np.sqrt(np.mean(np.sum(inl_deg**2, axis=1))))},
+        "pair_scatter": {"sigma_mm": fit.sigma_mm, "sigma_deg": fit.sigma_deg,
+                         "labels": ["x_mm", "y_mm", "z_mm", "rot_x_deg", "rot_y_deg",
+                                    "rot_z_deg"],
+                         "covariance_camera": fit.noise_cov.tolist()},
+        "covariance": {"params": list(LABELS), "matrix": fit.cov.tolist()},
+        "initial_guess": {"method": "4-DOF closed form (SCARA: rotations about z)",
+                          xname: fit.start_X.tolist(), yname: fit.start_Y.tolist()},
+        "verdict": verdict.to_json(),
+        "config": config.to_json(),
+        "notes": [f"{xname} from {len(ids)} pose pairs ({len(fit.outliers)} left out); the "
+                  "floor is the pairs' own scatter (their 6x6 covariance in the camera "
+                  "frame, the robot's repeatability included): the verdict tests the "
+                  "held-out pairs and the largest error against it, not against a stated "
+                  "noise"]}
+
+
+def handeye_pairs(req: HandeyeRequest) -> int:
+    """Read, fit, judge and write ``OUT/calibration.json``; print the summary."""
+    pf = read_poses(req.poses, units=req.units, mount=req.mount, target_z_mm=req.z_mm)
+    out = output_dir(req.out, field="--out")
+    target = out / "calibration.json"
+    distinct_outputs([("--out", target)], [("--poses", Path(req.poses))])
+    fit = fit_pose_pairs(list(pf.pairs), pf.mount, z_mm=pf.target_z_mm,
+                         config=DEFAULT.handeye)
+    if not fit:
+        raise CalibrationError(fit.reason, file=str(pf.path))
+    doc = pairs_document(fit, source=str(pf.path), units=pf.units)
+    path = atomic_write_json(target, doc)
+    if not req.quiet:
+        xname = NAMES[fit.mount][0]
+        cam = doc["cameras"][0]
+        t, sd = fit.X[:3, 3], cam[f"{xname}_std"]["translation_mm"]
+        print(f"{len(fit.ids)} pairs, {len(fit.outliers)} left out; pair scatter "
+              f"{fit.sigma_mm:.3f} mm, {fit.sigma_deg:.3f} deg (one std per axis)")
+        print(f"{xname}: at {t[0]:.3f} {t[1]:.3f} {t[2]:.3f} mm (std "
+              + ", ".join("not identifiable" if v is None else f"{v:.3f}" for v in sd) + ")")
+        for r in fit.outlier_reasons:
+            print(f"left out: {r}")
+        v = Verdict.from_json(doc["verdict"])
+        if v.floor_line:
+            print(v.floor_line)
+        print(v.text)
+        print(f"wrote {path}")
+    return 0

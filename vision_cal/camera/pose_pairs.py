@@ -1,0 +1,434 @@
+"""Hand-eye of a SCARA from pose pairs another tool measured (``vision-cal handeye --poses``).
+
+Each pair is the flange as the controller reports it, ``A_i = T_robot_flange``, and the
+target (a board) as the camera saw it, ``B_i = T_camera_target`` (4x4, mm, the contract's
+``T_A_B``: maps frame B to frame A). Two unknown constant transforms close the loop:
+
+    arm mount   (the camera rides on the flange):   A_i   X B_i = Y
+                X = T_flange_camera,  Y = T_robot_target  (the board stands still)
+    fixed mount (the camera stands, the board rides): A_i^-1 X B_i = Y
+                X = T_robot_camera,   Y = T_flange_target
+
+so both are ``A'_i X B_i = Y`` with ``A'_i = A_i`` or ``A_i^-1``, a turn about the robot's
+vertical axis and a translation.
+
+What a SCARA's motion cannot see. Every ``A'_i`` turns about z only, so the z row of the
+translations reads ``t_X,z - t_Y,z = -t_A'_i,z - (R_X t_B_i)_z`` in every pair: only the
+difference of the two heights is seen (Ulrich & Steger, "Hand-eye calibration of SCARA
+robots", 2014/2016; HALCON's ``hand_eye_scara_*`` and the ``handeye-4dof`` project report
+the same one unidentifiable translation). One height must be given: ``z_mm`` is the
+target's origin height in the frame ``Y`` maps to (the robot frame for an arm mount, the
+flange frame for a fixed one); without it it is taken as 0 and the camera's height is
+reported ``not identifiable`` with the reason.
+
+The start (a 4-DOF closed form, in the spirit of Ulrich & Steger's: rotations about z
+first, then a linear system). ``g = R_Y^T z`` and ``h = R_X^T z`` satisfy ``R_B_i g = h`` in
+every pair (the robot's z seen from the target and from the camera): the null vector of
+the stacked ``[R_B_i, -I]``, up to a sign tried both ways. With ``R_X = Rz(a) R_h`` (``R_h``
+turning ``h`` onto z) the rotation left unknown is the angle ``a`` about z, which the
+translations fix: the x, y rows ``Rz_i t_X + Rz_i Rz(a) v_i - t_Y = -t_A'_i`` (``v_i =
+R_h t_B_i``) are linear in ``(t_X,x, t_X,y, cos a, sin a, t_Y,x, t_Y,y)``.
+
+Then least squares (scipy) on the 11 parameters left (a small rotation about each frame's
+axes and the translations, ``t_Y,z`` held), each pair's residual being where it puts the
+target: ``A'_i X B_i`` against ``Y``, its translation (mm) and its rotation (deg), seen
+from the camera (where a detector's noise is alike from pair to pair) and whitened by the
+pairs' own 6x6 scatter (a board pose's depth and tilt errors are not its lateral ones, and
+tilt and shift trade), estimated from the residual with what the fit took from each
+direction given back (the hat matrix). The parameters' covariance is the fit's, scaled by
+``nu / (nu - 7)`` for weights that are the inverse of an estimated covariance (checked
+over many seeds by bench/handeye_pairs.py: error / std near 1). Pairs that disagree beyond
+the scatter (their deleted translation or rotation residual, per-axis scatter taken
+robustly: the median pair first, then the pairs within the level; the level ``3 F(3,
+nu)`` at ``handeye.outlier_alpha`` over the pairs) are left out one at a time, worst
+first, and named. The result
+is a :class:`PairsFit` (frozen), or a :class:`PairsFailed` (falsy, with the reason).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from vision_cal.config import DEFAULT, HandeyeConfig
+
+MOUNTS = ("arm", "fixed")
+#: the 11 fitted parameters (a small rotation about each frame's own parent axes, then the
+#: translations); ``Y``'s z translation is held (see the module docstring)
+LABELS = ("X_rot_x_deg", "X_rot_y_deg", "X_rot_z_deg", "X_x_mm", "X_y_mm", "X_z_mm",
+          "Y_rot_x_deg", "Y_rot_y_deg", "Y_rot_z_deg", "Y_x_mm", "Y_y_mm")
+#: the median of a chi-square with 1 dof: r^2 / sigma^2 of one normal axis
+_CHI2_1_MEDIAN = float(stats.chi2.median(1))
+#: a scatter below this (mm or deg) is taken as this: exact synthetic pairs
+_TINY = 1e-9
+
+
+@dataclass(frozen=True)
+class PosePair:
+    """One pair: ``T_robot_flange`` and ``T_camera_target`` (4, 4), mm."""
+
+    id: str
+    T_robot_flange: np.ndarray
+    T_camera_target: np.ndarray
+
+
+@dataclass(frozen=True)
+class PairsFailed:
+    """A hand-eye that cannot be made (falsy), with the reason."""
+
+    reason: str
+
+    def __bool__(self) -> bool:
+        return False
+
+
+@dataclass(frozen=True)
+class PairsFit:
+    """The hand-eye of a SCARA from pose pairs (module docstring).
+
+    ``X``: ``T_flange_camera`` (arm) or ``T_robot_camera`` (fixed); ``Y``: ``T_robot_target``
+    or ``T_flange_target``; ``cov`` (11, 11) in :data:`LABELS` units; ``residual_mm`` (N, 3)
+    and ``residual_deg`` (N, 3) of every pair (outliers included: against the fit without
+    them), in ``Y``'s parent frame; ``heldout_mm`` (N, 3): leave-one-pair-out translation
+    residuals (outliers: their residual); ``noise_cov``: the inliers' scatter, the 6x6 covariance of
+    a pair's residual in the camera frame (mm, deg: a detector's depth and tilt errors are
+    not those across the view); ``sigma_xy_mm`` (N,): the per-axis std it gives each pair's
+    x, y in ``Y``'s frame; ``n_params_xy``: the parameters the x, y residuals consume."""
+
+    @property
+    def sigma_mm(self) -> float:
+        """The scatter of a pair's translation, one std per axis (RMS over the axes)."""
+        return math.sqrt(float(np.trace(self.noise_cov[:3, :3])) / 3.0)
+
+    @property
+    def sigma_deg(self) -> float:
+        """The scatter of a pair's rotation, one std per axis (RMS over the axes)."""
+        return math.sqrt(float(np.trace(self.noise_cov[3:, 3:])) / 3.0)
+
+    mount: str
+    ids: tuple[str, ...]
+    X: np.ndarray
+    Y: np.ndarray
+    cov: np.ndarray
+    residual_mm: np.ndarray
+    residual_deg: np.ndarray
+    heldout_mm: np.ndarray
+    inlier: np.ndarray                  # (N,) bool
+    noise_cov: np.ndarray               # (6, 6) the pairs' scatter in the camera frame
+    sigma_xy_mm: np.ndarray             # (N,) per-axis std of each pair's x, y (Y's frame)
+    n_params_xy: float
+    z_mm: float                          # the held height of Y's origin
+    z_given: bool
+    start_X: np.ndarray                  # the closed form's X and Y
+    start_Y: np.ndarray
+    outlier_reasons: tuple[str, ...] = ()
+    not_identifiable: tuple[dict, ...] = ()
+
+    def __bool__(self) -> bool:
+        return True
+
+    @property
+    def outliers(self) -> tuple[str, ...]:
+        return tuple(i for i, ok in zip(self.ids, self.inlier) if not ok)
+
+    def std(self) -> dict:
+        """One std of X and Y: ``rotation_deg`` (about the parent frame's axes) and
+        ``translation_mm``; the unseen height (X's z when not given) is None."""
+        sd = np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
+        x_t = [float(v) for v in sd[3:6]]
+        if not self.z_given:
+            x_t[2] = None
+        return {"X": {"rotation_deg": [float(v) for v in sd[0:3]], "translation_mm": x_t},
+                "Y": {"rotation_deg": [float(v) for v in sd[6:9]],
+                      "translation_mm": [float(sd[9]), float(sd[10]),
+                                         0.0 if self.z_given else None]}}
+
+
+def _rz(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _T(R, t) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, t
+    return T
+
+
+def _project_so3(M: np.ndarray) -> np.ndarray:
+    U, _, Vt = np.linalg.svd(M)
+    R = U @ Vt
+    if np.linalg.det(R) < 0:
+        U[:, -1] *= -1
+        R = U @ Vt
+    return R
+
+
+def _onto_z(h: np.ndarray) -> np.ndarray:
+    """The smallest rotation turning unit ``h`` onto z."""
+    z = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(h, z)
+    s, c = np.linalg.norm(axis), float(np.dot(h, z))
+    if s < 1e-12:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    return Rotation.from_rotvec(axis / s * math.atan2(s, c)).as_matrix()
+
+
+def flange_tilt_deg(T_robot_flange: np.ndarray) -> float:
+    """How far a flange pose's z axis is from the robot's (deg): a SCARA's is 0."""
+    return math.degrees(math.acos(np.clip(T_robot_flange[2, 2], -1.0, 1.0)))
+
+
+def _moving(pairs: list[PosePair], mount: str) -> tuple[np.ndarray, np.ndarray]:
+    """(A' (N, 4, 4), B (N, 4, 4))."""
+    A = np.array([p.T_robot_flange for p in pairs], float)
+    B = np.array([p.T_camera_target for p in pairs], float)
+    return (A if mount == "arm" else np.linalg.inv(A)), B
+
+
+def closed_form(A: np.ndarray, B: np.ndarray, z_mm: float = 0.0
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The 4-DOF start (module docstring): (X, Y) from ``A'`` and ``B`` (N, 4, 4), ``Y``'s
+    origin at height ``z_mm``; of the two signs of the robot's z, the one whose pairs agree
+    best."""
+    n = len(A)
+    M = np.zeros((3 * n, 6))
+    for i in range(n):
+        M[3 * i:3 * i + 3, :3] = B[i, :3, :3]
+        M[3 * i:3 * i + 3, 3:] = -np.eye(3)
+    v = np.linalg.svd(M)[2][-1]
+    best = None
+    for sign in (1.0, -1.0):
+        h = sign * v[3:] / np.linalg.norm(v[3:])
+        Rh = _onto_z(h)
+        D = _project_so3(sum(A[i, :3, :3] @ Rh @ B[i, :3, :3] for i in range(n)))
+        rows, rhs = [], []
+        for i in range(n):
+            Rz2 = A[i, :2, :2]
+            w = Rh @ B[i, :3, 3]
+            V = np.array([[w[0], -w[1]], [w[1], w[0]]])
+            rows.append(np.hstack([Rz2, Rz2 @ V, -np.eye(2)]))
+            rhs.append(-A[i, :2, 3])
+        u = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
+        a = math.atan2(u[3], u[2])
+        RX = _rz(a) @ Rh
+        RY = _rz(a) @ D
+        dz = np.mean([-A[i, 2, 3] - (RX @ B[i, :3, 3])[2] for i in range(n)])
+        X = _T(RX, [u[0], u[1], z_mm + dz])
+        Y = _T(RY, [u[4], u[5], z_mm])
+        P = A @ X @ B
+        cost = float(np.sum((P[:, :3, 3] - Y[:3, 3]) ** 2))
+        if best is None or cost < best[0]:
+            best = (cost, X, Y)
+    return best[1], best[2]
+
+
+def _unpack(x, X0, Y0, z_mm) -> tuple[np.ndarray, np.ndarray]:
+    RX = Rotation.from_rotvec(np.radians(x[0:3])).as_matrix() @ X0[:3, :3]
+    RY = Rotation.from_rotvec(np.radians(x[6:9])).as_matrix() @ Y0[:3, :3]
+    return _T(RX, X0[:3, 3] + x[3:6]), _T(RY, [Y0[0, 3] + x[9], Y0[1, 3] + x[10], z_mm])
+
+
+def _raw_residuals(x, A, B, X0, Y0, z_mm) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where each pair puts the target against ``Y``: (N, 3) mm and (N, 3) deg in ``Y``'s
+    parent frame, and (N, 6) the same in the camera frame (mm, deg), where a detector's
+    noise is the same in every pair."""
+    X, Y = _unpack(x, X0, Y0, z_mm)
+    AX = A @ X
+    P = AX @ B
+    dt = P[:, :3, 3] - Y[:3, 3]
+    dR = np.einsum("ji,njk->nik", Y[:3, :3], P[:, :3, :3])
+    dr = np.degrees(Rotation.from_matrix(dR).as_rotvec())      # in the target's frame
+    cam = np.hstack([np.einsum("nji,nj->ni", AX[:, :3, :3], dt),
+                     np.einsum("nij,nj->ni", B[:, :3, :3], dr)])
+    return dt, dr, cam
+
+
+def _weighted(x, A, B, X0, Y0, z_mm, W, target=False) -> np.ndarray:
+    _, dr, cam = _raw_residuals(x, A, B, X0, Y0, z_mm)
+    if target:      # the rotation in the target's frame
+        cam = np.hstack([cam[:, :3], dr])
+    return (cam @ W.T).ravel()
+
+
+def _solve(A, B, X0, Y0, z_mm, W, x0, target=False):
+    sol = least_squares(_weighted, x0, args=(A, B, X0, Y0, z_mm, W, target), method="lm")
+    return sol.x, sol.jac
+
+
+def _cov_and_hat(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(cov (11, 11), hat diagonal blocks (N, 6, 6)) of the whitened Jacobian (6N, 11); a
+    direction the pairs do not see gets a huge variance instead of a pseudo-inverse's 0."""
+    U, s, Vt = np.linalg.svd(J, full_matrices=False)
+    s_safe = np.maximum(s, 1e-12 * max(s[0], 1e-300))
+    cov = (Vt.T / s_safe**2) @ Vt
+    Uk = U[:, s > 1e-9 * s[0]]
+    Ub = Uk.reshape(J.shape[0] // 6, 6, -1)
+    return cov, np.einsum("nik,njk->nij", Ub, Ub)
+
+
+def _whitener(S: np.ndarray) -> np.ndarray:
+    """W with W S W^T = I (S: the residuals' 6x6 covariance, floored)."""
+    S = 0.5 * (S + S.T) + _TINY**2 * np.eye(6)
+    vals, vecs = np.linalg.eigh(S)
+    return (vecs / np.sqrt(np.maximum(vals, _TINY**2))).T
+
+
+def _noise(cam: np.ndarray, trim_alpha: float, W=None, hat=None) -> np.ndarray:
+    """The 6x6 covariance of the pairs' camera-frame residual ``cam`` (N, 6), robust: the
+    pairs whose Mahalanobis distance is beyond the chi-square's ``1 - trim_alpha`` point
+    left out of it (and the variance such a cut removes from a normal's given back). Without
+    a fit (``W`` None) each axis's scale comes from the median pair first; with the fit's
+    whitener ``W`` and hat blocks ``hat`` (N, 6, 6), what the fit took from each direction
+    is given back: the whitened residuals' scatter is ``sum (I - H_ii)`` where the noise is
+    ``W^-1 W^-T``, so ``S = W^-1 M^-1/2 C M^-1/2 W^-T`` (C their scatter, M that sum)."""
+    cut = float(stats.chi2.isf(trim_alpha, 6)) if trim_alpha > 0 else np.inf
+    consistency = float(stats.chi2.cdf(cut, 8) / stats.chi2.cdf(cut, 6)) if np.isfinite(cut) else 1.0
+    if W is None:
+        med = np.median(cam**2, axis=0).clip(_TINY**2) / _CHI2_1_MEDIAN
+        S = np.diag(med)
+        for _ in range(4):
+            d2 = np.sum((cam @ _whitener(S).T) ** 2, axis=1)
+            keep = d2 <= max(cut, float(np.sort(d2)[min(6, len(d2) - 1)]))
+            c = cam[keep]
+            S = c.T @ c / max(len(c) - 11.0 / 6.0, 1.0) / consistency
+        return S
+    w = cam @ W.T
+    keep = np.sum(w**2, axis=1) <= max(cut, float(np.sort(np.sum(w**2, axis=1))[min(6, len(w) - 1)]))
+    C = w[keep].T @ w[keep] / consistency
+    M = np.sum(np.eye(6) - hat[keep], axis=0)
+    vals, vecs = np.linalg.eigh(0.5 * (M + M.T))
+    Mih = (vecs / np.sqrt(np.maximum(vals, 1e-9))) @ vecs.T
+    Wi = np.linalg.inv(W)
+    return Wi @ Mih @ C @ Mih @ Wi.T
+
+
+def _outlier_level(alpha: float, n_in: int) -> float:
+    """The level a pair's deleted translation (or rotation) residual, 3-D and whitened axis
+    by axis by variances the pairs estimate with ``nu`` dof each, passes by chance with
+    probability ``alpha`` (each of the two: ``alpha / 2``): ``3 F(3, nu)``, the
+    chi-square's level widened for variances known from few pairs."""
+    nu = max(n_in - 1 - 11.0 / 6.0, 2.0)
+    return float(3.0 * stats.f.isf(alpha / 2, 3, nu))
+
+
+def fit_pose_pairs(pairs: list[PosePair], mount: str = "arm", *, z_mm: float | None = None,
+                   config: HandeyeConfig | None = None) -> PairsFit | PairsFailed:
+    """The hand-eye of ``pairs`` (module docstring); ``z_mm`` the target origin's height in
+    ``Y``'s parent frame (None: not known, 0 taken and the camera's height flagged)."""
+    cfg = config or DEFAULT.handeye
+    if mount not in MOUNTS:
+        return PairsFailed(f"mount {mount!r}: expected one of {', '.join(MOUNTS)}")
+    n = len(pairs)
+    if n < cfg.min_pairs:
+        return PairsFailed(f"{n} pairs: at least {cfg.min_pairs} are needed")
+    A, B = _moving(pairs, mount)
+    yaw = np.degrees(np.arctan2(A[:, 1, 0], A[:, 0, 0]))
+    spread = float(np.degrees(np.abs(np.angle(np.exp(1j * np.radians(yaw - yaw[0]))))).max())
+    if spread < cfg.min_yaw_spread_deg:
+        return PairsFailed(f"the flange turns by at most {spread:.2f} deg between pairs: a "
+                           "camera's place on the flange needs turns of joint 4 (or of the "
+                           f"arm) of at least {cfg.min_yaw_spread_deg:g} deg")
+    z = 0.0 if z_mm is None else float(z_mm)
+    X0, Y0 = closed_form(A, B, z)
+    inl = np.ones(n, bool)
+    reasons: list[str] = []
+    max_out = int(math.floor(cfg.max_outlier_fraction * n))
+    x = np.zeros(11)
+    W = np.eye(6)
+    while True:
+        limit = _outlier_level(cfg.outlier_alpha / n, int(inl.sum()))
+        # the noise: robust from the median pair first, then with the fit's leverage
+        x, J = _solve(A[inl], B[inl], X0, Y0, z, np.eye(6), x)
+        S = _noise(_raw_residuals(x, A[inl], B[inl], X0, Y0, z)[2], cfg.outlier_alpha)
+        for _ in range(3):
+            W = _whitener(S)
+            x, J = _solve(A[inl], B[inl], X0, Y0, z, W, x)
+            cov, hat = _cov_and_hat(J)
+            S = _noise(_raw_residuals(x, A[inl], B[inl], X0, Y0, z)[2], 0.0,
+                       W, hat)
+        W = _whitener(S)
+        x, J = _solve(A[inl], B[inl], X0, Y0, z, W, x)
+        cov, hat = _cov_and_hat(J)
+        # the outlier test against the scatter of the pairs within the chi-square's level
+        # (a pair far off would widen its own yardstick)
+        _, dr_all, cam_all = _raw_residuals(x, A, B, X0, Y0, z)
+        w_all = cam_all @ W.T
+        # (a detector's rotation error is the same in every pair in the target's frame)
+        seen = np.hstack([cam_all[:, :3], dr_all])
+        W_in = _whitener(_noise(seen[inl], cfg.outlier_alpha / n))
+        for _ in range(2):   # what the fit takes from each direction given back
+            hat_in = _cov_and_hat(_solve(A[inl], B[inl], X0, Y0, z, W_in, x, target=True)[1])[1]
+            W_in = _whitener(_noise(seen[inl], cfg.outlier_alpha / n, W_in, hat_in))
+        # per axis only (6 variances, not 21 terms, from so few pairs: a far lower level)
+        W_in = np.diag(1.0 / np.sqrt(np.diag(np.linalg.inv(W_in.T @ W_in))))
+        hat_in = _cov_and_hat(_solve(A[inl], B[inl], X0, Y0, z, W_in, x, target=True)[1])[1]
+        w_test = seen @ W_in.T
+        chi = np.zeros(n)
+        idx = np.flatnonzero(inl)
+        for k, i in enumerate(idx):      # deleted residual's T^2, leverage included: the
+            # translation and the rotation tested apart (a pair off in one of them is not
+            # diluted by the other's three axes), each at half the level
+            d = np.linalg.solve(np.eye(6) - hat_in[k] + 1e-12 * np.eye(6), w_test[i])
+            Sd = np.linalg.inv(np.eye(6) - hat_in[k] + 1e-12 * np.eye(6))
+            chi[i] = max(float(d[:3] @ np.linalg.solve(Sd[:3, :3], d[:3])),
+                         float(d[3:] @ np.linalg.solve(Sd[3:, 3:], d[3:])))
+        worst = idx[np.argmax(chi[idx])]
+        if chi[worst] <= limit:
+            break
+        if (~inl).sum() >= max_out or inl.sum() - 1 < cfg.min_pairs:
+            reasons.append(f"more pairs disagree than {cfg.max_outlier_fraction:.0%} of them: "
+                           "none more left out (a wrong mount, units or frame convention?)")
+            break
+        inl[worst] = False
+        dt_w, dr_w, _ = _raw_residuals(x, A[worst:worst + 1], B[worst:worst + 1], X0, Y0, z)
+        reasons.append(f"pair {pairs[worst].id}: {float(np.linalg.norm(dt_w)):.3f} mm, "
+                       f"{float(np.linalg.norm(dr_w)):.3f} deg from where the others put the "
+                       f"target (T^2 {chi[worst]:.0f}, the level {limit:.0f} for {len(idx)} pairs)")
+    X, Y = _unpack(x, X0, Y0, z)
+    dt_all, dr_all, _ = _raw_residuals(x, A, B, X0, Y0, z)
+    # the weights are the inverse of a covariance estimated from the pairs themselves,
+    # which is too large on average by nu / (nu - 7) (the inverse Wishart's mean, 6 axes):
+    # the parameters' covariance is scaled back by it
+    nu = inl.sum() - 11.0 / 6.0
+    cov = cov * (nu / (nu - 7.0) if nu > 9.0 else 3.0)
+    # leave-one-pair-out (deleted) residuals, back from the whitened camera frame to Y's
+    # parent frame; each pair's per-axis noise in the plane from the pooled covariance
+    Winv = np.linalg.inv(W)
+    AX = A @ X
+    held = dt_all.copy()
+    sig_xy = np.zeros(n)
+    for i in range(n):
+        Rc = AX[i, :3, :3]
+        St = Rc @ S[:3, :3] @ Rc.T
+        sig_xy[i] = math.sqrt(max(float(St[0, 0] + St[1, 1]) / 2.0, 0.0))
+    for k, i in enumerate(np.flatnonzero(inl)):
+        d = Winv @ np.linalg.solve(np.eye(6) - hat[k] + 1e-12 * np.eye(6), w_all[i])
+        held[i] = AX[i, :3, :3] @ d[:3]
+    # the parameters the x, y rows consume: the hat matrix's trace over them, in Y's frame
+    p_xy = 0.0
+    for k, i in enumerate(np.flatnonzero(inl)):
+        Rc = AX[i, :3, :3]
+        T = Rc @ Winv[:3, :] @ hat[k] @ W[:, :3] @ Rc.T
+        p_xy += float(T[0, 0] + T[1, 1])
+    ni = [] if z_mm is not None else [{
+        "label": "X_z_mm", "std": None,
+        "reason": "a SCARA turns about its vertical axis only: the pairs see the difference "
+                  "of the camera's and the target's heights, not either one; taken with the "
+                  "target's origin at z = 0 (give the target's height: --z-mm)"}]
+    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+    for k, lab in enumerate(LABELS):
+        if lab == "X_z_mm" and z_mm is None:
+            continue
+        lim = cfg.unidentified_std_deg if lab.endswith("_deg") else cfg.unidentified_std_mm
+        if sd[k] > lim:
+            ni.append({"label": lab, "std": float(sd[k]),
+                       "reason": "the pairs do not determine it (turn the flange more, over "
+                                 "more places)"})
+    return PairsFit(mount, tuple(p.id for p in pairs), X, Y, cov, dt_all, dr_all, held, inl,
+                    S, sig_xy, p_xy, z, z_mm is not None, X0, Y0, tuple(reasons), tuple(ni))
