@@ -46,7 +46,7 @@ def export_calibration(req: ExportRequest) -> int:
                       ("--ros (its transform)",
                        req.ros and transform_path(req.ros))],
                      [("CALIBRATION.json", req.calibration)])
-    _, doc = load_calibration(req.calibration)
+    _, doc = load_calibration(req.calibration, sheet_frame=False)
 
     warn = refuse_unreliable(doc, req.calibration, force=req.force)
     if warn:

@@ -14,7 +14,8 @@ from vision_cal.camera.arm import camera_for
 from vision_cal.camera.fixed import locate
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.csvio import number_field
-from vision_cal.dataset.io import atomic_write_text, output_file, read_text
+from vision_cal.dataset.io import atomic_write_text, read_text
+from vision_cal.dataset.out_folder import output_file_of_kind
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.errors import VisionCalError
 from vision_cal.plan.compensate import plan_targets
@@ -77,6 +78,10 @@ def locate_pixels(req: LocateRequest) -> int:
         raise VisionCalError("-o needs --csv", field="-o")
     if not np.isfinite(req.z_mm):
         raise VisionCalError("expected a finite height", field="--z-mm")
+    if req.out:  # never over an input or a file of another kind (issue 30)
+        output_file_of_kind(req.out, "csv", field="-o",
+                            inputs=[("CALIBRATION.json", req.calibration), ("--csv", req.csv),
+                                    ("--robot", req.robot)])
     model, doc = load_calibration(req.calibration)
     cam = camera_for(doc, req.camera, joints_deg=req.joints, photo=req.photo,
                      file=req.calibration)
@@ -131,7 +136,6 @@ def _write_csv(req: LocateRequest, ids, points, joints) -> int:
                    [j.approach[0], j.approach[1], j.status, j.reason]
         wr.writerow(row)
     if req.out:
-        output_file(req.out, field="-o")
         path = atomic_write_text(req.out, buf.getvalue())
         if not req.quiet:
             print(f"located {len(points)} pixels -> {path}")

@@ -33,7 +33,8 @@ from vision_cal.calibrate.lsq import Fit
 from vision_cal.calibrate.tool import joint4_values
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.covariance import covariance_json
-from vision_cal.dataset.io import atomic_write_json
+from vision_cal.dataset.io import atomic_write_json, written_together
+from vision_cal.dataset.out_folder import output_names
 from vision_cal.dataset.session import load_session
 from vision_cal.errors import CalibrationError
 from vision_cal.kinematics import ScaraParams
@@ -405,19 +406,18 @@ def placement_cov(fit: PlacementsFit, k: int) -> np.ndarray:
 
 def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
                          progress: bool = False,
-                         config: EstimatorConfig | None = None) -> dict:
+                         config: EstimatorConfig | None = None, names=None) -> dict:
     """``vision-cal calibrate A/ B/ C/ --joint --out X``: measure each folder, fit one robot
     and one sheet pose per placement, write ``X/calibration.json`` (robot frame R) and
     ``X/<folder>/calibration.json`` (each placement's sheet frame, for ``plan``).
     Returns the robot-frame document. ``config``: the thresholds (default ``DEFAULT``),
-    recorded as its ``config``."""
+    recorded as its ``config``. ``names``: each placement's sub-folder (default
+    :func:`~vision_cal.dataset.out_folder.output_names`: ``d1-plan`` and ``d2-plan`` for two
+    folders named ``plan``)."""
     config = config or DEFAULT
     out_dir = Path(out_dir)
     places, sessions = [], []
-    names = [Path(f).resolve().name for f in folders]
-    if len(set(names)) != len(names):
-        raise CalibrationError("two placement folders have the same name: "
-                               + ", ".join(sorted({n for n in names if names.count(n) > 1})))
+    names = list(names) if names is not None else output_names(folders)
     for folder, name in zip(folders, names):
         session = load_session(folder)
         _, data, _ = measure_marks(session, out_dir=out_dir / name, jobs=jobs, progress=progress,
@@ -449,6 +449,7 @@ def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
     seen = unexplained_seen(log)
     if seen:   # significant structure that a library effect would only stand in for
         doc["effects"].append({"name": "unexplained", "seen": seen})
+    subs = []
     for k, ((session, cal), name) in enumerate(zip(sessions, names)):
         m = fit.model_on(k)
         params = m.params.to_json()
@@ -465,6 +466,9 @@ def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
                "residual_rms_mm": {"final_model": doc["placements"][k]["residual_rms_mm"]},
                "marks": {i: {"measured_mm": xy.tolist(), "residual_mm": r.tolist()}
                          for i, xy, r in zip(cal.ids, cal.xy_mm, fit.residuals_mm[k])}}
-        atomic_write_json(out_dir / name / "calibration.json", sub)
-    atomic_write_json(out_dir / "calibration.json", doc)
+        subs.append((out_dir / name / "calibration.json", sub))
+    with written_together():   # every placement's file and the top one, or none
+        for path, sub in subs:
+            atomic_write_json(path, sub)
+        atomic_write_json(out_dir / "calibration.json", doc)
     return doc

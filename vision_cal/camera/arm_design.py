@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vision_cal.camera.arm import MAX_POSES
 from vision_cal.dataset.io import atomic_write_json, atomic_write_text
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import forward
@@ -102,15 +103,23 @@ def spel_camera_program(poses, robot, *, trigger: str = "output", output_bit: in
     return "\r\n".join(lines) + "\r\n"
 
 
+def check_design(*, n_poses: int, trigger: str, seed: int) -> None:
+    """The arguments of a camera-on-arm design, each bounded (one line naming the option)."""
+    if trigger not in TRIGGERS:
+        raise VisionCalError(f"expected one of {', '.join(TRIGGERS)}", field="--trigger")
+    if not 8 <= n_poses <= MAX_POSES:
+        raise VisionCalError(f"expected 8 to {MAX_POSES} poses (at least 8: 12 parameters and "
+                             f"both elbows; at most {MAX_POSES}: more adds nothing the fit "
+                             f"can use), got {n_poses}", field="--n-poses")
+    if seed < 0:
+        raise VisionCalError(f"expected a non-negative integer, got {seed}", field="--seed")
+
+
 def design_camera_on_arm(robot, sheet, sheet_json: dict, out, *, n_poses: int = 24,
                          mount: str = "flange", trigger: str = "output", output_bit: int = 8,
                          seed: int = 0) -> tuple[Path, Path]:
     """session.json (poses, no camera yet) and program.prg in ``out``."""
-    if trigger not in TRIGGERS:
-        raise VisionCalError(f"expected one of {', '.join(TRIGGERS)}", field="--trigger")
-    if n_poses < 8:
-        raise VisionCalError(f"expected at least 8 poses (12 parameters, and both elbows), got "
-                             f"{n_poses}", field="--n-poses")
+    check_design(n_poses=n_poses, trigger=trigger, seed=seed)
     poses = plan_poses(robot, sheet, n_poses=n_poses, mount=mount, rng=seed)
     prg = spel_camera_program(poses, robot, trigger=trigger, output_bit=output_bit)
     out = Path(out)

@@ -20,7 +20,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vision_cal.camera.arm import MIN_POSES, ArmView, estimate_lens, fit_arm_camera
+from vision_cal.camera.arm import MAX_POSES, MIN_POSES, ArmView, estimate_lens, fit_arm_camera
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.dataset.photos import PhotoRefused, load_photo, normalise_name
@@ -28,6 +28,7 @@ from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.session import read_robot_block, read_sheet_block
 from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.errors import CalibrationError
+from vision_cal.progress import bar
 from vision_cal.kinematics import ScaraParams
 from vision_cal.motion import approach_signs
 from vision_cal.measure.aruco import corners_from_edges, edge_points, find_sheet_markers
@@ -54,9 +55,16 @@ def read_arm_session(folder):
     if mount not in MOUNTS:
         r.fail("camera_mount", f"expected one of {', '.join(MOUNTS)}, got {mount!r}")
     poses = []
-    for i, p in enumerate(r.list_(r.get(raw, "poses", ""), "poses", nonempty=True)):
+    listed = r.list_(r.get(raw, "poses", ""), "poses", nonempty=True)
+    if len(listed) > MAX_POSES:
+        r.fail("poses", f"{len(listed)} poses: at most {MAX_POSES} (more adds nothing the fit "
+                        "can use, and measuring them would take hours); keep a subset")
+    for i, p in enumerate(listed):
         w = f"poses[{i}]"
-        img = normalise_name(r.string(r.get(p, "image", w), f"{w}.image"))
+        try:
+            img = normalise_name(r.string(r.get(p, "image", w), f"{w}.image"))
+        except ValueError as e:
+            r.fail(f"{w}.image", f"{e}: the photos sit in the folder beside session.json")
         q = r.angles(r.get(p, "joints_deg", w), f"{w}.joints_deg")
         j4 = r.number(p.get("j4_deg", 0.0), f"{w}.j4_deg")
         if mount == "link2" and j4 != 0.0:
@@ -137,25 +145,37 @@ def measure_view(folder, sheet, size, image: str, q, j4, approach=(1.0, 1.0)
                   "size_px": [int(gray.shape[1]), int(gray.shape[0])]}
 
 
-def calibrate_arm_camera(folder) -> dict:
+def calibrate_arm_camera(folder, *, progress: bool = False) -> dict:
     """calibration.json (as a dict) of an arm-camera dataset: the robot's base parameters
-    with std and covariance, and the ``cameras`` entry with ``T_flange_camera``."""
+    with std and covariance, and the ``cameras`` entry with ``T_flange_camera``.
+    ``progress``: a bar (or one line per stage) while the photos are measured."""
     folder, sheet, nominal, camera, mount, poses, rep = read_arm_session(folder)
     views, images = [], []
+    pbar = bar(progress, total=len(poses), desc="measure arm photos", unit="photo")
     for img, q, j4, sg in poses:
         v, entry = measure_view(folder, sheet, None if camera is None else camera[0], img, q, j4,
                                 sg)
         images.append(entry)
+        pbar.update()
         if v is not None:
             views.append(v)
+    pbar.close()
     sizes = {tuple(e["size_px"]) for e in images if e["status"] == "ok"}
     if camera is None and len(sizes) > 1:
         raise CalibrationError(f"photos of {len(sizes)} sizes ({', '.join(f'{a}x{b}' for a, b in sorted(sizes))}) "
                                "and no camera declared: one camera takes photos of one size",
                                file=str(folder / "session.json"), field="camera")
     if len(views) < MIN_POSES:
+        why = {}
+        for e in images:
+            if e["status"] != "ok":
+                why.setdefault(e.get("reason") or "unknown", []).append(e["file"])
+        common = sorted(why.items(), key=lambda kv: -len(kv[1]))[:2]
+        said = "; ".join(f"{len(fs)} skipped: {r} ({fs[0]}{', ...' if len(fs) > 1 else ''})"
+                         for r, fs in common)
         raise CalibrationError(f"{len(views)} of {len(poses)} photos usable: at least "
-                               f"{MIN_POSES} are needed", file=str(folder / "session.json"))
+                               f"{MIN_POSES} are needed" + (f" ({said})" if said else ""),
+                               file=str(folder / "session.json"))
     lens_reason = []
     if camera is None:
         size = sizes.pop()

@@ -24,12 +24,16 @@ def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
     from vision_cal.camera.arm_session import calibrate_arm_camera
-    from vision_cal.dataset.io import atomic_write_json, output_dir
+    from vision_cal.dataset.io import atomic_write_json
+    from vision_cal.dataset.out_folder import writing_into
     from vision_cal.diagnose.verdict import Verdict
 
-    out = output_dir(args.out, field="--out")
-    doc = calibrate_arm_camera(args.folder)
-    path = atomic_write_json(out / "calibration.json", doc)
+    # the output folder: never the photos' folder; an earlier run's results (this command's
+    # or a pen calibration's) go to previous/ first; locked while written (issue 30)
+    with writing_into(args.out, command="handeye", inputs=[("FOLDER", args.folder)],
+                      quiet=args.quiet) as out:
+        doc = calibrate_arm_camera(args.folder, progress=not args.quiet)
+        path = atomic_write_json(out / "calibration.json", doc)
     if not args.quiet:
         cam = doc["cameras"][0]
         p, sd = doc["params"], doc["std"]
@@ -40,9 +44,7 @@ def run(args) -> int:
               f"{sd['L2_mm']:.4f} mm, zeros {p['joint_zero_deg'][0]:.4f} "
               f"{p['joint_zero_deg'][1]:.4f} deg, base {p['base_mm'][0]:.3f} "
               f"{p['base_mm'][1]:.3f} mm")
-        t = cam["T_flange_camera"]
-        print(f"T_flange_camera: camera at {t[0][3]:.3f} {t[1][3]:.3f} {t[2][3]:.3f} mm in the "
-              f"flange frame (std {', '.join(f'{v:.3f}' for v in cam['T_flange_camera_std']['translation_mm'])})")
+        print(flange_camera_line(cam))
         for e in doc["effects"]:
             print(f"joint {e['joint']} backlash {e['deg']:.4f} +- {e['std']:.4f} deg")
         v = Verdict.from_json(doc["verdict"])
@@ -51,3 +53,15 @@ def run(args) -> int:
         print(v.text)
         print(f"wrote {path}")
     return 0
+
+
+def flange_camera_line(cam: dict) -> str:
+    """T_flange_camera in words, with units: the camera's x and y in the flange frame with
+    their std; its z is the height above the sheet's plane (SCARA motion is planar: the
+    flange's own height, hence the camera's height above the flange, is not identifiable)."""
+    t = cam["T_flange_camera"]
+    sd = cam["T_flange_camera_std"]["translation_mm"]
+    return (f"T_flange_camera: camera at x {t[0][3]:.3f} +- {sd[0]:.3f} mm, y {t[1][3]:.3f} +- "
+            f"{sd[1]:.3f} mm in the flange frame; its height above the flange is not "
+            f"identifiable (planar motion): z {t[2][3]:.3f} mm is its height above the "
+            "sheet's plane")

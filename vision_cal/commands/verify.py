@@ -36,6 +36,7 @@ def run(args) -> int:
     # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
     from pathlib import Path
 
+    from vision_cal.dataset.out_folder import writing_into
     from vision_cal.errors import VisionCalError
     from vision_cal.verify import verify_folder
 
@@ -44,8 +45,13 @@ def run(args) -> int:
     folder = Path(args.folder)
     here = folder.resolve()
     out = Path(args.out) if args.out else here.with_name(here.name + "_verify")
-    r, path = verify_folder(args.calibration, folder, out_dir=out, jobs=args.jobs,
-                            progress=not args.quiet)
+    # the output folder: never the photos' folder nor the one holding CAL.json; an earlier
+    # check's results go to previous/; locked while written (issue 30)
+    with writing_into(out, command="verify", field="-o",
+                      inputs=[("CAL.json", args.calibration), ("PHOTOS/", args.folder)],
+                      quiet=args.quiet) as out:
+        r, path = verify_folder(args.calibration, folder, out_dir=out, jobs=args.jobs,
+                                progress=not args.quiet)
     if not args.quiet:
         print(f"{'mark':<8}{'error x':>10}{'error y':>10}{'|error|':>10}  [mm, the sheet's "
               "placement taken out]")
