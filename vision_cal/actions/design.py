@@ -6,6 +6,7 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass
 
+from vision_cal.calibrate.plausible import check_links_against
 from vision_cal.camera.arm_design import check_design, design_camera_on_arm
 from vision_cal.dataset.calibration import refuse_robot_frame
 from vision_cal.dataset.io import read_json, written_together
@@ -79,6 +80,8 @@ def design(req: DesignRequest) -> int:
     for given in (req.pilot, req.verify):
         if given is not None:
             refuse_robot_frame(read_json(given), given)
+            check_links_against(read_json(given), load_robot_file(req.robot).nominal,
+                                file=given, robot_file=req.robot)
     if req.pilot:
         require_ready_pilot(read_json(req.pilot), req.pilot)
     check = req.verify is not None

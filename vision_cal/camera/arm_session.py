@@ -20,6 +20,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from vision_cal.calibrate.plausible import RADIAN_RANGE, radians_given
 from vision_cal.camera.arm import MAX_POSES, MIN_POSES, ArmView, estimate_lens, fit_arm_camera
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.marker_geometry import marker_geometry
@@ -27,7 +28,7 @@ from vision_cal.dataset.photos import PhotoRefused, load_photo, normalise_name
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.session import read_robot_block, read_sheet_block
 from vision_cal.diagnose.verdict import judge_camera_poses
-from vision_cal.errors import CalibrationError
+from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.progress import bar
 from vision_cal.kinematics import ScaraParams
 from vision_cal.motion import approach_signs
@@ -42,6 +43,10 @@ def read_arm_session(folder):
     list of (image, q_deg (2,), j4_deg); every field checked, one line naming it."""
     folder = Path(folder)
     path = folder / "session.json"
+    if folder.is_dir() and not path.exists():
+        raise VisionCalError("missing: a camera-on-arm folder needs a session.json (the poses "
+                             "the photos were taken at): `vision-cal design --camera-on-arm` "
+                             "writes it", file=str(path))
     raw = read_json(path)
     r = FieldReader(str(path))
     fmt = r.get(raw, "format", "")
@@ -71,6 +76,9 @@ def read_arm_session(folder):
             r.fail(f"{w}.j4_deg", "a camera on link 2 does not turn with joint 4: leave "
                                   "j4_deg out or set camera_mount: flange")
         poses.append((img, np.asarray(q, float), float(j4)))
+    if radians_given([q for _, q, _ in poses]):
+        r.fail("poses", f"every joint angle is within +-{RADIAN_RANGE:.2f}: written in radians? "
+                        "joints_deg are degrees (multiply by 57.2958)")
     nominal = ScaraParams(robot.L1_mm, robot.L2_mm, robot.joint_zero_deg[0],
                           robot.joint_zero_deg[1], robot.base_mm[0], robot.base_mm[1])
     # each joint's approach (the format's rule: its last motion, over every pose in order)

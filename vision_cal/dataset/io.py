@@ -229,11 +229,15 @@ def read_text(path, *, what: str = "file") -> str:
 
 
 def _folder_given(path: Path, what: str) -> str:
-    """A folder given where a file is wanted: name the file in it that was probably meant."""
-    wanted = [n for n in ("calibration.json", "session.json", "sheet.json", "robot.yaml")
-              if (path / n).is_file()]
-    if wanted:
-        return f"is a folder, expected a file: give the file in it ({path / wanted[0]})"
+    """A folder given where a file is wanted: name the files in it that may be meant."""
+    try:
+        known = [n for n in ("calibration.json", "session.json", "sheet.json", "robot.yaml")
+                 if (path / n).is_file()]
+    except OSError:
+        known = []
+    if known:
+        return (f"is a folder, expected a file (in it: {', '.join(known)}; give the one "
+                f"wanted, e.g. {path / known[0]})")
     return "is a folder, expected a file"
 
 

@@ -411,6 +411,13 @@ def load_sheet_file(path) -> Sheet:
     return read_sheet_block(FieldReader(str(path)), read_json(path), "")
 
 
+#: what a folder of photos without session.json needs (one line, issue 30)
+MISSING_SESSION = ("missing: a dataset folder needs a session.json (what the robot drew): "
+                   "`vision-cal design` writes it into the folder the photos go into, or "
+                   "`vision-cal init PHOTOS/ --plan PLAN/session.json -o PHOTOS/session.json` "
+                   "completes a planned one from the photos")
+
+
 def load_session(folder) -> Session:
     """Read and validate ``folder/session.json`` (or a path to the file itself)."""
     folder = Path(folder)
@@ -420,7 +427,7 @@ def load_session(folder) -> Session:
     if not path.exists():
         if not folder.exists():
             raise VisionCalError("folder not found", file=str(folder))
-        raise VisionCalError("missing: a dataset folder needs a session.json", file=str(path))
+        raise VisionCalError(MISSING_SESSION, file=str(path))
     raw = read_json(path)
     r = FieldReader(str(path))
 
