@@ -128,3 +128,51 @@ def test_log_warnings_are_spelled_like_the_commands_own(tmp_path, capsys):
     line = _LowerLevelFormatter("vision-cal: %(levelname)s: %(message)s").format(rec)
     assert line == "vision-cal: warning: ignoring unknown fields"
     assert rec.levelname == "WARNING"   # the record itself is left as it was
+
+
+# --------------------------------------------------------------------------- what is printed
+
+def test_a_targets_folder_prints_where_each_target_landed_first(files):
+    from vision_cal.report.summary import format_summary
+
+    doc = json.loads((files / "cam.json").read_text())
+    doc["targets"] = [{"id": "t1", "target_mm": [0, 0], "measured_mm": [0.01, 0],
+                       "error_mm": [0.01, -0.002], "error_norm_mm": 0.0102},
+                      {"id": "t2", "target_mm": [5, 0], "measured_mm": [5.0, 0.02],
+                       "error_mm": [-0.004, 0.02], "error_norm_mm": 0.0204}]
+    text = format_summary(doc)
+    first = text.splitlines()[0]
+    assert first.startswith("where each target landed (2 targets")
+    assert "largest 0.0204 mm (t2)" in text and "by-product" in text
+    # the still camera the calibration located, with its place and what to run next
+    line = next(ln for ln in text.splitlines() if ln.startswith("still camera 0"))
+    assert "z 700.00 mm in the robot frame" in line and "vision-cal locate" in line
+
+
+def test_the_arm_camera_line_has_units_and_says_the_height_is_not_identifiable():
+    from vision_cal.commands.handeye import flange_camera_line
+
+    cam = {"T_flange_camera": [[1, 0, 0, 12.5], [0, 1, 0, -3.0], [0, 0, 1, 180.0],
+                               [0, 0, 0, 1]],
+           "T_flange_camera_std": {"translation_mm": [0.02, 0.03, 0.0]}}
+    line = flange_camera_line(cam)
+    assert "x 12.500 +- 0.020 mm" in line and "not identifiable" in line
+    assert "+- 0.000" not in line   # no std claimed for the height it cannot see
+
+
+@pytest.mark.parametrize("argv,words", [
+    (["--help"], ["--opencv", "--ros"]),
+    (["plan", "--help"], ["std_mm", "PLAN.failed.csv"]),
+    (["calibrate", "--help"], ["measurement.json", "previous/", "summary.json"]),
+    (["locate", "--help"], ["handeye", "still camera"]),
+    (["handeye", "--help"], ["--jobs", "--report", "500"]),
+    (["export", "--help"], ["still camera", "cal/calibration.json --opencv"]),
+])
+def test_help_says_what_the_command_writes_and_reads(capsys, argv, words):
+    from vision_cal.commands.main import main
+
+    with pytest.raises(SystemExit):
+        main(argv)
+    text = " ".join(capsys.readouterr().out.split())
+    for w in words:
+        assert w in text, w

@@ -12,6 +12,16 @@ examples:
   vision-cal fixtures/paper_sm5 --method paper --out /tmp/x  the seed paper's circles
   vision-cal images/ --out out/ --jobs 2                   photographs, in parallel
   vision-cal calibrate A/ B/ C/ --joint --out X/           one robot, three placements
+
+writes into OUT (default out/<folder name>):
+  calibration.json   the model, std, covariance, effects, verdict (docs/format.md)
+  measurement.json   every photo's marks as measured
+  report.json, report.html   with --report
+  summary.json       with several folders: one row each (OUT/<folder>/ each)
+  previous/          an earlier run's results, moved aside before this run writes
+  .cache/            the photos' detections, keyed by their bytes (safe to delete)
+--joint: OUT/calibration.json (robot frame) and OUT/<folder>/calibration.json per
+placement (their sheet frames, for plan). OUT is locked while written (.vision-cal.lock).
 """
 
 

@@ -11,7 +11,11 @@ examples:
 
 session.json lists "poses" ({"image", "joints_deg", "j4_deg"}), the declared camera lens,
 "camera_mount" (flange | link2) and the marker field (vision-cal sheet --field); see
-docs/format.md, "Cameras".
+docs/format.md, "Cameras". At most 500 poses.
+
+Writes OUT/calibration.json only (an earlier run's results go to OUT/previous/). The
+photos are measured one after another (no --jobs) and no report is written (no --report):
+calibration.json's "poses" and "verdict" hold what a report would.
 """
 
 
