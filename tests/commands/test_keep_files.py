@@ -315,3 +315,15 @@ def test_the_lock_is_held_while_the_run_writes(tmp_path, capsys, monkeypatch):
     assert rc == 130
     assert seen["pid"] == os.getpid() and seen["command"] == "calibrate"
     assert not (out / LOCK).exists()
+
+
+def test_init_never_writes_over_its_plan(tmp_path, capsys):
+    plan = tmp_path / "plan"
+    shutil.copytree("fixtures/paper_sm5", plan)
+    (tmp_path / "photos").mkdir()
+    before = snapshot(tmp_path)
+    rc, _, err = cli(["init", tmp_path / "photos", "--plan", plan / "session.json", "-o",
+                      plan / "session.json"], capsys)
+    assert rc == 2
+    assert_one_line(err, "-o", "is the input --plan")
+    assert snapshot(tmp_path) == before

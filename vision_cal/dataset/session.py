@@ -413,9 +413,9 @@ def load_sheet_file(path) -> Sheet:
 
 #: what a folder of photos without session.json needs (one line, issue 30)
 MISSING_SESSION = ("missing: a dataset folder needs a session.json (what the robot drew): "
-                   "`vision-cal design` writes it into the folder the photos go into, or "
-                   "`vision-cal init PHOTOS/ --plan PLAN/session.json -o PHOTOS/session.json` "
-                   "completes a planned one from the photos")
+                   "`vision-cal design ... --out PLAN/` writes it; put the photos into PLAN/ "
+                   "beside it (`vision-cal init PHOTOS/ --plan PLAN/session.json` shows which "
+                   "marks each photo holds)")
 
 
 def load_session(folder) -> Session:
