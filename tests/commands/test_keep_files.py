@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import socket
 import subprocess
 import sys
 
@@ -15,7 +16,11 @@ import pytest
 
 from tests.commands.test_trust import (assert_one_line, calibration,  # noqa: F401
                                        cli, snapshot)
+import vision_cal.actions.calibrate as calibrate_action
+import vision_cal.calibrate.placements as placements
 from tests.tool.test_placements import _places
+from vision_cal.camera.arm import MAX_POSES
+from vision_cal.commands.main import main
 from vision_cal.dataset.out_folder import LOCK
 
 ROBOT = "fixtures/robot_sm5.yaml"
@@ -33,7 +38,6 @@ def pen_cal(tmp_path, calibration):  # noqa: F811
 @pytest.fixture(scope="module")
 def field_sheet(tmp_path_factory):
     d = tmp_path_factory.mktemp("field") / "sheet"
-    from vision_cal.commands.main import main
     assert main(["sheet", "--field", "--size", "A2", "--out", str(d), "-q"]) == 0
     return d
 
@@ -145,8 +149,6 @@ def test_handeye_image_outside_the_folder_is_one_line(arm, tmp_path, capsys):
 
 def test_handeye_session_of_too_many_poses_is_refused_before_measuring(arm, tmp_path,
                                                                        capsys):
-    from vision_cal.camera.arm import MAX_POSES
-
     s = json.loads((arm / "session.json").read_text())
     s["poses"] = [dict(s["poses"][0], image=f"p{i}.png") for i in range(MAX_POSES + 1)]
     (arm / "session.json").write_text(json.dumps(s))
@@ -240,8 +242,6 @@ def test_joint_folders_with_one_name_get_their_own_outputs(tmp_path, capsys):
 
 def test_ctrl_c_during_a_joint_run_leaves_nothing_that_looks_current(tmp_path, capsys,
                                                                       monkeypatch):
-    import vision_cal.calibrate.placements as placements
-
     places = [d for d, _ in _places(tmp_path)][:2]
     out = tmp_path / "X"
     assert cli(["calibrate", *places, "--joint", "--out", out, "-q"], capsys)[0] == 0
@@ -274,7 +274,6 @@ def live_pid():
 
 def _lock(folder, pid):
     folder.mkdir(parents=True, exist_ok=True)
-    import socket
     (folder / LOCK).write_text(json.dumps({"command": "calibrate", "pid": pid,
                                            "host": socket.gethostname(),
                                            "started": "2026-01-01 10:00:00"}))
@@ -301,15 +300,13 @@ def test_a_lock_left_by_a_dead_run_is_taken_over(tmp_path, arm, capsys):
 
 def test_the_lock_is_held_while_the_run_writes(tmp_path, capsys, monkeypatch):
     """While a calibration runs, its folder carries the lock with this process's pid."""
-    import vision_cal.actions.calibrate as action
-
     seen = {}
 
     def spy(folder, *, out_dir, **k):
         seen.update(json.loads((out_dir / LOCK).read_text()))
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(action, "calibrate_dataset", spy)
+    monkeypatch.setattr(calibrate_action, "calibrate_dataset", spy)
     out = tmp_path / "o"
     rc, _, _ = cli(["calibrate", "fixtures/paper_sm5", "--out", out], capsys)
     assert rc == 130

@@ -5,23 +5,25 @@ naming the file or option and the likely cause (never a Python traceback without
 from __future__ import annotations
 
 import json
+import logging
 import math
 import shutil
 
 import pytest
 
 from tests.commands.test_keep_files import ROBOT, arm, field_sheet  # noqa: F401
-from tests.commands.test_trust import (PAPER, TARGETS, assert_one_line,  # noqa: F401
-                                       calibration, cli)
+from tests.commands.test_trust import (TARGETS, assert_one_line, calibration,  # noqa: F401
+                                       cli)
 from tests.tool.test_placements import _places
+from vision_cal.commands.handeye import flange_camera_line
+from vision_cal.commands.main import _LowerLevelFormatter, main
+from vision_cal.report.summary import format_summary
 
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory, calibration):  # noqa: F811
     """The inputs the cases spoil: a still-camera calibration, a joint (robot-frame)
     calibration, a calibration in metres, a printed sheet, pixel lists."""
-    from vision_cal.commands.main import main
-
     d = tmp_path_factory.mktemp("probe")
     doc = json.loads(calibration.read_text())
     doc["cameras"] = [{
@@ -120,10 +122,6 @@ def test_handeye_folder_without_session_points_to_design(tmp_path, capsys):
 def test_log_warnings_are_spelled_like_the_commands_own(tmp_path, capsys):
     """An unknown field in the robot file is logged: "vision-cal: warning:", never
     "WARNING:"."""
-    import logging
-
-    from vision_cal.commands.main import _LowerLevelFormatter
-
     rec = logging.LogRecord("x", logging.WARNING, "f", 1, "ignoring unknown fields", (), None)
     line = _LowerLevelFormatter("vision-cal: %(levelname)s: %(message)s").format(rec)
     assert line == "vision-cal: warning: ignoring unknown fields"
@@ -133,8 +131,6 @@ def test_log_warnings_are_spelled_like_the_commands_own(tmp_path, capsys):
 # --------------------------------------------------------------------------- what is printed
 
 def test_a_targets_folder_prints_where_each_target_landed_first(files):
-    from vision_cal.report.summary import format_summary
-
     doc = json.loads((files / "cam.json").read_text())
     doc["targets"] = [{"id": "t1", "target_mm": [0, 0], "measured_mm": [0.01, 0],
                        "error_mm": [0.01, -0.002], "error_norm_mm": 0.0102},
@@ -150,8 +146,6 @@ def test_a_targets_folder_prints_where_each_target_landed_first(files):
 
 
 def test_the_arm_camera_line_has_units_and_says_the_height_is_not_identifiable():
-    from vision_cal.commands.handeye import flange_camera_line
-
     cam = {"T_flange_camera": [[1, 0, 0, 12.5], [0, 1, 0, -3.0], [0, 0, 1, 180.0],
                                [0, 0, 0, 1]],
            "T_flange_camera_std": {"translation_mm": [0.02, 0.03, 0.0]}}
@@ -169,8 +163,6 @@ def test_the_arm_camera_line_has_units_and_says_the_height_is_not_identifiable()
     (["export", "--help"], ["still camera", "cal/calibration.json --opencv"]),
 ])
 def test_help_says_what_the_command_writes_and_reads(capsys, argv, words):
-    from vision_cal.commands.main import main
-
     with pytest.raises(SystemExit):
         main(argv)
     text = " ".join(capsys.readouterr().out.split())
