@@ -67,9 +67,10 @@ def design(req: DesignRequest) -> int:
         if req.pilot:
             raise VisionCalError("--placements designs each placement's pilot; design the "
                                  "informative plans per placement folder", field="--pilot")
-        places = design_placements(req.robot, req.sheet, req.out, req.placements,
-                                   program=None if req.program == "none" else req.program,
-                                   seed=req.seed)
+        with writing_into(req.out, command="design", retire=False):   # locked while written
+            places = design_placements(req.robot, req.sheet, req.out, req.placements,
+                                       program=None if req.program == "none" else req.program,
+                                       seed=req.seed)
         if not req.quiet:
             for p in places:
                 print(f"{p['folder']}: {p['instruction']}")
@@ -87,13 +88,15 @@ def design(req: DesignRequest) -> int:
     check = req.verify is not None
     if not 0 <= req.iso9283 <= 30:
         raise VisionCalError(f"expected 1..30 cycles, got {req.iso9283}", field="--iso9283")
-    r = design_stage(req.robot, req.sheet, req.out, pilot=req.verify if check else req.pilot,
-                     program=None if req.program == "none" else req.program,
-                     n_calibration=10 if check else req.n_calibration,
-                     n_validation=0 if check else req.n_validation,
-                     safety_mm=req.safety_mm, seed=req.seed,
-                     stage="verify" if check else None,
-                     iso9283_cycles=req.iso9283 if check else 0)
+    with writing_into(req.out, command="design", retire=False):   # locked while written
+        r = design_stage(req.robot, req.sheet, req.out,
+                         pilot=req.verify if check else req.pilot,
+                         program=None if req.program == "none" else req.program,
+                         n_calibration=10 if check else req.n_calibration,
+                         n_validation=0 if check else req.n_validation,
+                         safety_mm=req.safety_mm, seed=req.seed,
+                         stage="verify" if check else None,
+                         iso9283_cycles=req.iso9283 if check else 0)
 
     for w in r.info.get("warnings", []):
         print(f"vision-cal: warning: {w}", file=sys.stderr)
