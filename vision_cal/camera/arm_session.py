@@ -14,6 +14,8 @@ that cannot be used is skipped with its reason and the others go on.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -29,6 +31,7 @@ from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.session import read_robot_block, read_sheet_block
 from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.errors import CalibrationError, VisionCalError
+from vision_cal.measure.workers import exit_with_parent
 from vision_cal.progress import bar
 from vision_cal.kinematics import ScaraParams
 from vision_cal.motion import approach_signs
@@ -153,21 +156,38 @@ def measure_view(folder, sheet, size, image: str, q, j4, approach=(1.0, 1.0)
                   "size_px": [int(gray.shape[1]), int(gray.shape[0])]}
 
 
-def calibrate_arm_camera(folder, *, progress: bool = False) -> dict:
+def _measure_one(a):
+    return measure_view(*a)
+
+
+def calibrate_arm_camera(folder, *, progress: bool = False, jobs: int = 1) -> dict:
     """calibration.json (as a dict) of an arm-camera dataset: the robot's base parameters
     with std and covariance, and the ``cameras`` entry with ``T_flange_camera``.
-    ``progress``: a bar (or one line per stage) while the photos are measured."""
+    ``progress``: a bar (or one line per stage) while the photos are measured; ``jobs``:
+    processes measuring them (each photo's result is the same for any number)."""
     folder, sheet, nominal, camera, mount, poses, rep = read_arm_session(folder)
     views, images = [], []
-    pbar = bar(progress, total=len(poses), desc="measure arm photos", unit="photo")
-    for img, q, j4, sg in poses:
-        v, entry = measure_view(folder, sheet, None if camera is None else camera[0], img, q, j4,
-                                sg)
-        images.append(entry)
-        pbar.update()
-        if v is not None:
-            views.append(v)
-    pbar.close()
+    size0 = None if camera is None else camera[0]
+    args = [(folder, sheet, size0, img, q, j4, sg) for img, q, j4, sg in poses]
+    pbar = bar(progress, total=len(poses), desc="measure arm photos", unit="photo",
+               note=f"{jobs} job(s)")
+    pool = None
+    try:
+        if jobs > 1 and len(args) > 1:
+            pool = ProcessPoolExecutor(max_workers=min(jobs, len(args)),
+                                       initializer=exit_with_parent, initargs=(os.getpid(),))
+            results = pool.map(_measure_one, args, chunksize=1)
+        else:
+            results = map(_measure_one, args)
+        for v, entry in results:
+            images.append(entry)
+            pbar.update()
+            if v is not None:
+                views.append(v)
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+        pbar.close()
     sizes = {tuple(e["size_px"]) for e in images if e["status"] == "ok"}
     if camera is None and len(sizes) > 1:
         raise CalibrationError(f"photos of {len(sizes)} sizes ({', '.join(f'{a}x{b}' for a, b in sorted(sizes))}) "

@@ -13,30 +13,39 @@ session.json lists "poses" ({"image", "joints_deg", "j4_deg"}), the declared cam
 "camera_mount" (flange | link2) and the marker field (vision-cal sheet --field); see
 docs/format.md, "Cameras". At most 500 poses.
 
-Writes OUT/calibration.json only (an earlier run's results go to OUT/previous/). The
-photos are measured one after another (no --jobs) and no report is written (no --report):
-calibration.json's "poses" and "verdict" hold what a report would.
+Writes OUT/calibration.json only (an earlier run's results go to OUT/previous/): no
+report.html yet (no --report); calibration.json's "poses" (each photo's residual) and
+"verdict" hold what a report would. The photos are measured in --jobs processes.
 """
 
 
 def add_arguments(p) -> None:
     p.add_argument("folder", metavar="FOLDER", help="dataset folder with session.json poses")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("-j", "--jobs", type=int, default=None, metavar="N",
+                   help="processes that measure the photos (default: every core; the same "
+                        "result for any N)")
 
 
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
+    import os
+
     from vision_cal.camera.arm_session import calibrate_arm_camera
     from vision_cal.dataset.io import atomic_write_json
     from vision_cal.dataset.out_folder import writing_into
     from vision_cal.diagnose.verdict import Verdict
+    from vision_cal.errors import VisionCalError
 
+    if args.jobs is not None and args.jobs < 1:
+        raise VisionCalError(f"must be at least 1, got {args.jobs}", field="--jobs")
     # the output folder: never the photos' folder; an earlier run's results (this command's
     # or a pen calibration's) go to previous/ first; locked while written (issue 30)
     with writing_into(args.out, command="handeye", inputs=[("FOLDER", args.folder)],
                       quiet=args.quiet) as out:
-        doc = calibrate_arm_camera(args.folder, progress=not args.quiet)
+        doc = calibrate_arm_camera(args.folder, progress=not args.quiet,
+                                   jobs=args.jobs or os.cpu_count() or 1)
         path = atomic_write_json(out / "calibration.json", doc)
     if not args.quiet:
         cam = doc["cameras"][0]
