@@ -135,6 +135,7 @@ def test_handeye_says_why_no_photo_was_usable(arm, tmp_path, capsys):
     rc, _, err = cli(["handeye", arm, "--out", tmp_path / "o"], capsys)
     assert rc == 1
     assert_one_line(err, "0 of 10 photos usable", "outside the dataset folder")
+    assert "vision-cal: progress: measure arm photos: 10/10 photos" in err
     assert not (tmp_path / "o").exists()
 
 
@@ -324,3 +325,10 @@ def test_init_never_writes_over_its_plan(tmp_path, capsys):
     assert rc == 2
     assert_one_line(err, "-o", "is the input --plan")
     assert snapshot(tmp_path) == before
+
+
+def test_choosing_many_camera_poses_shows_progress(tmp_path, field_sheet, capsys):
+    rc, _, err = cli(["design", ROBOT, "--sheet", field_sheet / "sheet.json",
+                      "--camera-on-arm", "--n-poses", "100", "--out", tmp_path / "o"], capsys)
+    assert rc == 0
+    assert "vision-cal: progress: plan camera poses: 100/100 poses" in err

@@ -131,7 +131,7 @@ def _camera_on_arm(req: DesignRequest) -> int:
             a, b = design_camera_on_arm(robot, sheet, read_json(req.sheet), out,
                                         n_poses=req.n_poses, mount=req.mount,
                                         trigger=req.trigger, output_bit=req.trigger_output,
-                                        seed=req.seed)
+                                        seed=req.seed, progress=not req.quiet)
     if not req.quiet:
         print(f"camera poses: {req.n_poses} ({req.mount} mount); put the photos beside "
               f"{a} (and your camera's lens in it if you know it: camera: size_px, K, dist), "

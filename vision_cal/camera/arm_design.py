@@ -21,14 +21,19 @@ from vision_cal.camera.arm import MAX_POSES
 from vision_cal.dataset.io import atomic_write_json, atomic_write_text
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import forward
+from vision_cal.progress import bar
 from vision_cal.program.spel import _comment, _ja
 
 TRIGGERS = ("output", "wait")
+#: from this many poses on, choosing them takes seconds: a progress line shows it
+PROGRESS_FROM = 100
 
 
 def plan_poses(robot, sheet, *, n_poses: int = 24, margin_mm: float = 60.0,
-               mount: str = "flange", j4_range_deg=(-170.0, 170.0), rng=None) -> list[dict]:
-    """``poses`` entries ({image, joints_deg, j4_deg}) in driving order."""
+               mount: str = "flange", j4_range_deg=(-170.0, 170.0), rng=None,
+               progress: bool = False) -> list[dict]:
+    """``poses`` entries ({image, joints_deg, j4_deg}) in driving order; ``progress``: a
+    bar (or a line at the start and the end) while they are chosen."""
     rng = np.random.default_rng(rng)
     p = robot.nominal.params
     hull = sheet.markers_hull_mm()
@@ -42,6 +47,8 @@ def plan_poses(robot, sheet, *, n_poses: int = 24, margin_mm: float = 60.0,
     lim = np.asarray(robot.joint_limits_deg, float)
     chosen: list[np.ndarray] = []
     qs: list[np.ndarray] = []
+    pbar = bar(progress and n_poses >= PROGRESS_FROM, total=n_poses, desc="plan camera poses",
+               unit="pose")
     for k in range(n_poses):
         elbow = robot.elbows[k % len(robot.elbows)]
         q = rng.uniform(lim[:, 0], lim[:, 1], (4000, 2))
@@ -60,6 +67,8 @@ def plan_poses(robot, sheet, *, n_poses: int = 24, margin_mm: float = 60.0,
             i = 0
         chosen.append(xy[i])
         qs.append(q[i])
+        pbar.update()
+    pbar.close()
     if mount == "flange":
         j4 = np.linspace(j4_range_deg[0], j4_range_deg[1], n_poses)
         j4 = j4[rng.permutation(n_poses)]
@@ -117,10 +126,11 @@ def check_design(*, n_poses: int, trigger: str, seed: int) -> None:
 
 def design_camera_on_arm(robot, sheet, sheet_json: dict, out, *, n_poses: int = 24,
                          mount: str = "flange", trigger: str = "output", output_bit: int = 8,
-                         seed: int = 0) -> tuple[Path, Path]:
+                         seed: int = 0, progress: bool = False) -> tuple[Path, Path]:
     """session.json (poses, no camera yet) and program.prg in ``out``."""
     check_design(n_poses=n_poses, trigger=trigger, seed=seed)
-    poses = plan_poses(robot, sheet, n_poses=n_poses, mount=mount, rng=seed)
+    poses = plan_poses(robot, sheet, n_poses=n_poses, mount=mount, rng=seed,
+                       progress=progress)
     prg = spel_camera_program(poses, robot, trigger=trigger, output_bit=output_bit)
     out = Path(out)
     session = {"format": "vision-cal/1", "sheet": sheet_json,
