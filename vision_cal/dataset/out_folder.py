@@ -14,7 +14,7 @@
 Every command that writes goes through this module (issue 30):
 
 - :func:`writing_into`: the one way into an output folder. It refuses (one line, exit 2)
-  a folder that is one of the command's inputs, lies inside one, or holds an input file;
+  a folder that is one of the command's inputs or holds an input file;
   takes the folder's lock (:data:`LOCK`: a second run into the same folder is refused in one
   line naming the first run's command and pid; a lock left by a run that died is taken
   over); moves the results an earlier run (of this command or another) left there into
@@ -190,8 +190,11 @@ def writing_into(out, *, command: str, field: str = "--out", inputs=(), retire: 
 
 
 def _sniff(path: Path) -> str:
-    """What an existing file holds: png, pdf, json, csv, text or binary."""
-    head = path.read_bytes()[:512]
+    """What an existing file holds: empty, png, pdf, json, csv, text or binary."""
+    with open(path, "rb") as f:
+        head = f.read(512)
+    if not head.strip():
+        return "empty"
     if head.startswith(b"\x89PNG"):
         return "png"
     if head.startswith(b"%PDF"):
@@ -239,7 +242,7 @@ def output_file_of_kind(path, kind: str, *, field: str, inputs=(), outputs=()) -
             found = _sniff(path)
         except OSError:
             found = "unreadable"
-        if found != kind:
+        if found not in (kind, "empty"):
             raise VisionCalError(f"exists and holds {found.upper()}, not the {kind.upper()} this "
                                  f"option writes: writing it would destroy it; choose another "
                                  "name (or remove it)", file=str(path), field=field)
