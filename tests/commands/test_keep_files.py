@@ -332,3 +332,20 @@ def test_choosing_many_camera_poses_shows_progress(tmp_path, field_sheet, capsys
                       "--camera-on-arm", "--n-poses", "100", "--out", tmp_path / "o"], capsys)
     assert rc == 0
     assert "vision-cal: progress: plan camera poses: 100/100 poses" in err
+
+
+@pytest.mark.parametrize("opts,field", [
+    (["--yaml", "{robot}", "--robot", "{robot}"], "--yaml"),
+    (["--urdf", "{other}"], "--urdf"),
+], ids=["yaml-over-robot-file", "urdf-over-a-calibration"])
+def test_export_never_writes_over_the_robot_file_or_a_calibration(tmp_path, pen_cal, capsys,
+                                                                  opts, field):
+    shutil.copy(ROBOT, tmp_path / "robot.yaml")
+    shutil.copy(pen_cal / "calibration.json", tmp_path / "other.json")
+    names = {"robot": tmp_path / "robot.yaml", "other": tmp_path / "other.json"}
+    before = snapshot(tmp_path)
+    rc, _, err = cli(["export", pen_cal / "calibration.json",
+                      *[o.format(**names) for o in opts]], capsys)
+    assert rc == 2
+    assert_one_line(err, field)
+    assert snapshot(tmp_path) == before

@@ -232,7 +232,7 @@ def refuse_other_sheet(out, sheet_id: str, *, field: str = "--out") -> None:
 
 
 def output_file_of_kind(path, kind: str, *, field: str, inputs=(), outputs=()) -> Path:
-    """A single output file of ``kind`` ("csv" or "png"): not an input, not another of the
+    """A single output file of ``kind`` ("csv", "png" or "text"): not an input, not another of the
     command's ``outputs``, and, when a file is there already, one that holds ``kind`` (an
     earlier result of this command), else refused in one line, the file untouched."""
     path = output_file(path, field=field)
@@ -242,7 +242,8 @@ def output_file_of_kind(path, kind: str, *, field: str, inputs=(), outputs=()) -
             found = _sniff(path)
         except OSError:
             found = "unreadable"
-        if found not in (kind, "empty"):
+        # "text" (YAML, URDF): any text is one of ours; never JSON, an image or a PDF
+        if found not in (kind, "empty") and not (kind == "text" and found == "csv"):
             raise VisionCalError(f"exists and holds {found.upper()}, not the {kind.upper()} this "
                                  f"option writes: writing it would destroy it; choose another "
                                  "name (or remove it)", file=str(path), field=field)
