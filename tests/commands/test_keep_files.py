@@ -349,3 +349,15 @@ def test_export_never_writes_over_the_robot_file_or_a_calibration(tmp_path, pen_
     assert rc == 2
     assert_one_line(err, field)
     assert snapshot(tmp_path) == before
+
+
+def test_plan_never_writes_over_a_calibration(tmp_path, pen_cal, capsys):
+    other = tmp_path / "other" / "calibration.json"
+    other.parent.mkdir()
+    shutil.copy(pen_cal / "calibration.json", other)
+    before = snapshot(tmp_path)
+    rc, _, err = cli(["plan", pen_cal / "calibration.json", "fixtures/targets_origin.csv",
+                      "-o", other], capsys)
+    assert rc == 2
+    assert_one_line(err, "-o", "holds JSON")
+    assert snapshot(tmp_path) == before

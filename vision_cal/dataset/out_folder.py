@@ -242,8 +242,10 @@ def output_file_of_kind(path, kind: str, *, field: str, inputs=(), outputs=()) -
             found = _sniff(path)
         except OSError:
             found = "unreadable"
-        # "text" (YAML, URDF): any text is one of ours; never JSON, an image or a PDF
-        if found not in (kind, "empty") and not (kind == "text" and found == "csv"):
+        # a CSV, YAML or URDF output may replace any plain text (an earlier one), never a
+        # JSON document (a calibration), an image, a PDF or other binary
+        plain = ("csv", "text", "empty")
+        if not (found in plain if kind in plain else found in (kind, "empty")):
             raise VisionCalError(f"exists and holds {found.upper()}, not the {kind.upper()} this "
                                  f"option writes: writing it would destroy it; choose another "
                                  "name (or remove it)", file=str(path), field=field)
