@@ -18,6 +18,7 @@ demo: $(STAMP)
 	$(BIN)/vision-cal fixtures/paper_sm5 --method paper --out out/paper_sm5
 	$(BIN)/vision-cal loop renders/default.yaml --out out/demo
 	@echo "disk used by out/: $$(du -sh out | cut -f1)"
+	@echo "vision-cal is installed in $(BIN)/: type '. $(BIN)/activate' to run it as 'vision-cal' in this shell"
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -186,3 +186,12 @@ def test_an_undeclared_lens_seen_tilted_is_estimated(tmp_path):
     X = np.array(read_json(folder / "truth.json")["T_flange_camera"])
     dz = cam["T_flange_camera"][2][3] - X[2, 3]
     assert abs(dz) < N_STD * cam["T_flange_camera_std"]["translation_mm"][2], dz
+
+
+def test_one_job_measures_the_same_as_several(arm, tmp_path):
+    """handeye --jobs: the photos measured in one process give the same calibration as
+    the fixture's run in every core's (issue 30)."""
+    folder, doc, _ = arm
+    assert main(["handeye", str(folder), "--out", str(tmp_path / "one"), "-q", "-j", "1"]) == 0
+    one = read_json(tmp_path / "one" / "calibration.json")
+    assert one["params"] == doc["params"] and one["images"] == doc["images"]

@@ -12,8 +12,10 @@ from pathlib import Path
 from vision_cal.calibrate.placements import calibrate_placements
 from vision_cal.dataset.io import atomic_write_json, output_dir
 from vision_cal.dataset.marks_csv import session_from_marks_csv
+from vision_cal.dataset.out_folder import (earlier_placements, output_names,
+                                           refuse_input_folder, retire_earlier_run,
+                                           writing_into)
 from vision_cal.diagnose.verdict import Verdict
-from vision_cal.dataset.out_folder import output_names, retire_earlier_run
 from vision_cal.errors import VisionCalError
 from vision_cal.pipeline import calibrate_dataset
 from vision_cal.report.html import write_report
@@ -46,9 +48,23 @@ def calibrate(req: CalibrateRequest) -> int:
         if req.method != "lsq":
             raise VisionCalError("--joint fits by least squares only", field="--method")
         out = Path(req.out or "out")
-        output_dir(out, field="--out")
-        doc = calibrate_placements(req.folders, out_dir=out, jobs=req.jobs,
-                                   progress=progress)
+        names = output_names(req.folders)
+        # an earlier joint run's results go to previous/ first: its top file and the
+        # placement folders this run does not write (whole), and, in the ones it does,
+        # their results (the detection cache stays); so an interrupted run leaves nothing
+        # that looks current, and no placement of an earlier run beside this one's top file
+        stale = [n for n in earlier_placements(out) if n not in names]
+        for n in names:   # --out . with the placements in it: their folders are inputs
+            refuse_input_folder(out / n, _inputs(req.folders))
+        with writing_into(out, command="calibrate --joint", inputs=_inputs(req.folders),
+                          subfolders=stale, quiet=req.quiet):
+            for n in names:
+                moved = retire_earlier_run(out / n)
+                if moved and not req.quiet:
+                    print(f"moved the earlier results ({', '.join(moved)}) to "
+                          f"{out / n / 'previous'}")
+            doc = calibrate_placements(req.folders, out_dir=out, jobs=req.jobs,
+                                       progress=progress, names=names)
         if not req.quiet:
             for pl in doc["placements"]:
                 print(f"{pl['folder']}: sheet at {pl['angle_deg']:.3f} deg, base "
@@ -80,14 +96,15 @@ def calibrate(req: CalibrateRequest) -> int:
         out = Path(req.out) / name if (req.out and several) else Path(req.out or f"out/{name}")
         try:
             # OUT holds one run: an earlier run's results go to OUT/previous/ first, so a
-            # failed or interrupted run leaves nothing that looks current
-            moved = retire_earlier_run(out)
-            if moved and not req.quiet:
-                print(f"moved the earlier results ({', '.join(moved)}) to {out / 'previous'}")
+            # failed or interrupted run leaves nothing that looks current; OUT is never the
+            # dataset folder, and is locked while written (dataset/out_folder.py)
             source = (session_from_marks_csv(folder, req.robot, sigma_mm=req.sigma_mm)
                       if str(folder).lower().endswith(".csv") else folder)
-            result = calibrate_dataset(source, out_dir=out, method=req.method, jobs=req.jobs,
-                                       progress=progress, truth=req.truth)
+            with writing_into(out, command="calibrate", inputs=[("DIR", folder)],
+                              quiet=req.quiet):
+                result = calibrate_dataset(source, out_dir=out, method=req.method,
+                                           jobs=req.jobs, progress=progress, truth=req.truth)
+                report = _write_report(result, out) if req.report else None
         except VisionCalError as e:
             if not several:
                 raise
@@ -113,14 +130,8 @@ def calibrate(req: CalibrateRequest) -> int:
         meas = result.measurement
         for note in (meas.inferred_notes if meas is not None else ()):  # no images list
             print(f"vision-cal: warning: {folder}: {note}", file=sys.stderr)
-        if req.report:
-            try:
-                path = write_report(result.out_path, out)
-            except BaseException:  # Ctrl-C or a failure: both report files or neither
-                for n in ("report.json", "report.html"):
-                    (out / n).unlink(missing_ok=True)
-                raise
-            print(f"report: {path} ({path.stat().st_size / 1e6:.1f} MB)")
+        if report is not None:
+            print(f"report: {report} ({report.stat().st_size / 1e6:.1f} MB)")
         print(f"wrote {result.out_path}")
     if several:
         root = Path(req.out or "out")
@@ -128,6 +139,19 @@ def calibrate(req: CalibrateRequest) -> int:
         print(_summary_table(rows))
         print(f"wrote {root / 'summary.json'}")
     return 1 if failures else 0
+
+
+def _write_report(result, out: Path) -> Path:
+    try:
+        return write_report(result.out_path, out)
+    except BaseException:  # Ctrl-C or a failure: both report files or neither
+        for n in ("report.json", "report.html"):
+            (out / n).unlink(missing_ok=True)
+        raise
+
+
+def _inputs(folders) -> list:
+    return [("DIR", f) for f in folders]
 
 
 def _summary_table(rows) -> str:

@@ -6,8 +6,12 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass
 
-from vision_cal.camera.arm_design import design_camera_on_arm
-from vision_cal.dataset.io import output_dir, read_json
+from vision_cal.calibrate.plausible import check_links_against
+from vision_cal.camera.arm_design import check_design, design_camera_on_arm
+from vision_cal.dataset.calibration import refuse_robot_frame
+from vision_cal.dataset.io import read_json, written_together
+from vision_cal.dataset.out_folder import writing_into
+from vision_cal.dataset.photos import list_photos
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.dataset.session import load_sheet_file
 from vision_cal.dataset.trust import require_ready_pilot
@@ -45,6 +49,11 @@ def design(req: DesignRequest) -> int:
     """The plan of a calibration stage (pilot, informative, verify), several placements, or
     the camera poses of a camera on the arm."""
     _refuse_conflicts(req)
+    if req.seed < 0:
+        raise VisionCalError(f"expected a non-negative integer, got {req.seed}", field="--seed")
+    if req.iso9283 and req.verify is None:
+        raise VisionCalError("ISO 9283's cycles are part of a check: give --verify CAL.json "
+                             "with it", field="--iso9283")
     if req.camera_on_arm:
         return _camera_on_arm(req)
 
@@ -60,9 +69,10 @@ def design(req: DesignRequest) -> int:
         if req.pilot:
             raise VisionCalError("--placements designs each placement's pilot; design the "
                                  "informative plans per placement folder", field="--pilot")
-        places = design_placements(req.robot, req.sheet, req.out, req.placements,
-                                   program=None if req.program == "none" else req.program,
-                                   seed=req.seed)
+        with writing_into(req.out, command="design", retire=False):   # locked while written
+            places = design_placements(req.robot, req.sheet, req.out, req.placements,
+                                       program=None if req.program == "none" else req.program,
+                                       seed=req.seed)
         if not req.quiet:
             for p in places:
                 print(f"{p['folder']}: {p['instruction']}")
@@ -70,19 +80,25 @@ def design(req: DesignRequest) -> int:
     if req.verify is not None and req.pilot is not None:
         raise VisionCalError("give either --pilot (the informative plan) or --verify (a check "
                              "of a calibration), not both", field="--verify")
+    for given in (req.pilot, req.verify):
+        if given is not None:
+            refuse_robot_frame(read_json(given), given)
+            check_links_against(read_json(given), load_robot_file(req.robot).nominal,
+                                file=given, robot_file=req.robot)
     if req.pilot:
         require_ready_pilot(read_json(req.pilot), req.pilot)
     check = req.verify is not None
-    if req.iso9283 and not check or not 0 <= req.iso9283 <= 30:
-        raise VisionCalError(f"expected 1..30 cycles with --verify, got {req.iso9283}",
-                             field="--iso9283")
-    r = design_stage(req.robot, req.sheet, req.out, pilot=req.verify if check else req.pilot,
-                     program=None if req.program == "none" else req.program,
-                     n_calibration=10 if check else req.n_calibration,
-                     n_validation=0 if check else req.n_validation,
-                     safety_mm=req.safety_mm, seed=req.seed,
-                     stage="verify" if check else None,
-                     iso9283_cycles=req.iso9283 if check else 0)
+    if not 0 <= req.iso9283 <= 30:
+        raise VisionCalError(f"expected 1..30 cycles, got {req.iso9283}", field="--iso9283")
+    with writing_into(req.out, command="design", retire=False):   # locked while written
+        r = design_stage(req.robot, req.sheet, req.out,
+                         pilot=req.verify if check else req.pilot,
+                         program=None if req.program == "none" else req.program,
+                         n_calibration=10 if check else req.n_calibration,
+                         n_validation=0 if check else req.n_validation,
+                         safety_mm=req.safety_mm, seed=req.seed,
+                         stage="verify" if check else None,
+                         iso9283_cycles=req.iso9283 if check else 0)
 
     for w in r.info.get("warnings", []):
         print(f"vision-cal: warning: {w}", file=sys.stderr)
@@ -154,13 +170,21 @@ def _camera_on_arm(req: DesignRequest) -> int:
     if not 0 <= req.repeats <= req.n_poses:
         raise VisionCalError(f"expected 0..{req.n_poses} (--n-poses), got {req.repeats}",
                              field="--repeats")
-    out = output_dir(req.out, field="--out")
+    check_design(n_poses=req.n_poses, trigger=req.trigger, seed=req.seed)
     robot = load_robot_file(req.robot)
     sheet = load_sheet_file(req.sheet)
-    a, b = design_camera_on_arm(robot, sheet, read_json(req.sheet), out, n_poses=req.n_poses,
-                                mount=req.mount, trigger=req.trigger,
-                                output_bit=req.trigger_output, seed=req.seed,
-                                repeats=req.repeats)
+    with writing_into(req.out, command="design", retire=False) as out:
+        photos = list_photos(out)
+        if photos:   # their poses are the earlier session's: a new one would not match them
+            raise VisionCalError(f"holds photos ({photos[0]}, ...) of an earlier design: new "
+                                 "poses would not match them; choose another --out",
+                                 file=str(out), field="--out")
+        with written_together():   # session.json and program.prg both, or neither
+            a, b = design_camera_on_arm(robot, sheet, read_json(req.sheet), out,
+                                        n_poses=req.n_poses, mount=req.mount,
+                                        trigger=req.trigger, output_bit=req.trigger_output,
+                                        seed=req.seed, repeats=req.repeats,
+                                        progress=not req.quiet)
     if not req.quiet:
         print(f"camera poses: {req.n_poses}, {req.repeats} of them taken twice (the robot's "
               f"repeatability, measured) ({req.mount} mount); put the photos beside "

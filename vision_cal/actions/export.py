@@ -9,7 +9,8 @@ from dataclasses import dataclass
 from vision_cal.camera.export import transform_path, write_opencv, write_ros
 from vision_cal.camera.fixed import camera_of
 from vision_cal.dataset.calibration import load_calibration
-from vision_cal.dataset.io import distinct_outputs, output_file, written_together
+from vision_cal.dataset.io import distinct_outputs, written_together
+from vision_cal.dataset.out_folder import output_file_of_kind
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.dataset.trust import refuse_unreliable
 from vision_cal.dataset.valid_for import check as check_valid_for
@@ -41,15 +42,15 @@ def export_calibration(req: ExportRequest) -> int:
         raise VisionCalError("nothing to export: give --urdf, --yaml, --opencv and/or --ros")
     for opt, path in (("--urdf", req.urdf), ("--yaml", req.yaml), ("--opencv", req.opencv),
                       ("--ros", req.ros)):
-        if path:
-            output_file(path, field=opt)
+        if path:   # never over a JSON (a calibration), an image or a PDF
+            output_file_of_kind(path, "text", field=opt)
     distinct_outputs([("--urdf", req.urdf),
                       ("--urdf (its effects)", req.urdf and effects_path(req.urdf)),
                       ("--yaml", req.yaml), ("--opencv", req.opencv), ("--ros", req.ros),
                       ("--ros (its transform)",
                        req.ros and transform_path(req.ros))],
-                     [("CALIBRATION.json", req.calibration)])
-    _, doc = load_calibration(req.calibration)
+                     [("CALIBRATION.json", req.calibration), ("--robot", req.robot)])
+    _, doc = load_calibration(req.calibration, sheet_frame=False)
 
     warn = refuse_unreliable(doc, req.calibration, force=req.force)
     if warn:

@@ -7,7 +7,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from vision_cal.dataset.io import atomic_write_json
+from vision_cal.dataset.io import atomic_write_json, distinct_outputs
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.complete import complete_session
 
@@ -40,6 +40,9 @@ def init_session(req: InitSessionRequest) -> int:
         if out.is_dir():
             raise VisionCalError("is a folder, expected a .json file to write",
                                  file=str(req.out))
+        plan = Path(req.plan)
+        distinct_outputs([("-o", out)], [("--plan", plan / "session.json" if plan.is_dir()
+                                          else plan)])
     progress = (not req.quiet) and sys.stderr.isatty()
     doc, meas = complete_session(req.photos, req.plan, jobs=req.jobs, progress=progress)
     if not doc["images"]:

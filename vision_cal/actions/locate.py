@@ -13,8 +13,9 @@ import numpy as np
 from vision_cal.camera.arm import camera_for
 from vision_cal.camera.fixed import locate
 from vision_cal.dataset.calibration import load_calibration
-from vision_cal.dataset.csvio import number_field
-from vision_cal.dataset.io import atomic_write_text, output_file, read_text
+from vision_cal.dataset.csvio import number_field, read_rows
+from vision_cal.dataset.io import atomic_write_text
+from vision_cal.dataset.out_folder import output_file_of_kind
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.dataset.valid_for import check as check_valid_for
 from vision_cal.dataset.valid_for import enforce as enforce_valid_for
@@ -28,16 +29,9 @@ CSV_IN = ("id", "u_px", "v_px")
 
 
 def _read_pixels(path, z_default: float):
-    reader = csv.DictReader(io.StringIO(read_text(path)))
-    header = [h.strip() for h in (reader.fieldnames or [])]
-    missing = [f for f in CSV_IN if f not in header]
-    if missing:
-        raise VisionCalError(f"header lacks {', '.join(missing)} (expected id,u_px,v_px"
-                             "[,z_mm])", file=str(path), field="line 1")
-    reader.fieldnames = header
-    ids, uv, z = [], [], []
-    for i, row in enumerate(reader):
-        line = i + 2
+    """(ids, pixels, heights, line numbers) of PIXELS.csv, every cell checked."""
+    ids, uv, z, lines = [], [], [], []
+    for i, (line, row) in enumerate(read_rows(path, CSV_IN)):
         vals = []
         for k in ("u_px", "v_px", "z_mm"):
             v = (row.get(k) or "").strip()
@@ -48,9 +42,10 @@ def _read_pixels(path, z_default: float):
         ids.append((row.get("id") or "").strip() or f"p{i}")
         uv.append(vals[:2])
         z.append(vals[2])
+        lines.append(line)
     if not ids:
         raise VisionCalError("no pixels", file=str(path))
-    return ids, uv, z
+    return ids, uv, z, lines
 
 
 @dataclass(frozen=True)
@@ -81,21 +76,42 @@ def locate_pixels(req: LocateRequest) -> int:
         raise VisionCalError("-o needs --csv", field="-o")
     if not np.isfinite(req.z_mm):
         raise VisionCalError("expected a finite height", field="--z-mm")
+    if req.out:  # never over an input or a file of another kind (issue 30)
+        output_file_of_kind(req.out, "csv", field="-o",
+                            inputs=[("CALIBRATION.json", req.calibration), ("--csv", req.csv),
+                                    ("--robot", req.robot)])
     model, doc = load_calibration(req.calibration)
     cam = camera_for(doc, req.camera, joints_deg=req.joints, photo=req.photo,
                      file=req.calibration)
     if req.csv:
-        ids, uv, z = _read_pixels(req.csv, req.z_mm)
+        ids, uv, z, lines = _read_pixels(req.csv, req.z_mm)
     else:
         if not np.all(np.isfinite(req.pixel)):
             raise VisionCalError("expected finite pixel coordinates", field="--pixel")
-        ids, uv, z = ["pixel"], [req.pixel], [req.z_mm]
+        ids, uv, z, lines = ["pixel"], [req.pixel], [req.z_mm], [None]
     w, h = cam.size_px
-    for i, (u, v) in zip(ids, uv):
+
+    def where(line, column):
+        """(file, field) of a pixel's row: the CSV's line, or the option given."""
+        if line is None:
+            return None, column
+        return req.csv, f"line {line}: {column.lstrip('-').replace('pixel', 'u_px, v_px')}"
+
+    for i, (u, v), line in zip(ids, uv, lines):
         if not (-0.5 <= u <= w - 0.5 and -0.5 <= v <= h - 0.5):
+            f, fld = where(line, "--pixel")
             raise VisionCalError(f"pixel {u:g} {v:g} ({i}) is outside the camera's "
-                                 f"{w}x{h} image", field="--csv" if req.csv else "--pixel")
-    points = [locate(cam, [p], zz)[0] for p, zz in zip(uv, z)]
+                                 f"{w}x{h} image", file=f, field=fld)
+    points = []
+    for p, zz, line in zip(uv, z, lines):
+        try:
+            points.append(locate(cam, [p], zz)[0])
+        except VisionCalError as e:   # the ray misses the plane: the height's fault
+            f, fld = where(line, "--z-mm" if line is None else "z_mm")
+            cam_z = float(cam.T_robot_camera[2, 3])
+            raise VisionCalError(f"{e.reason} (the camera is at z {cam_z:.1f} mm in the robot "
+                                 f"frame; the height given is {zz:g} mm)", file=f,
+                                 field=fld) from e
     joints = [None] * len(points)
     if req.robot:
         robot = load_robot_file(req.robot)
@@ -169,7 +185,6 @@ def _write_csv(req: LocateRequest, ids, points, joints, flagged=None) -> int:
             row.append(flagged.get(i, ""))
         wr.writerow(row)
     if req.out:
-        output_file(req.out, field="-o")
         path = atomic_write_text(req.out, buf.getvalue())
         if not req.quiet:
             print(f"located {len(points)} pixels -> {path}")

@@ -13,7 +13,8 @@ from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.covariance import load_covariance
 from vision_cal.dataset.csvio import (failed_report_path, read_target_theta, read_targets,
                                       write_failed_targets, write_plan)
-from vision_cal.dataset.io import distinct_outputs, output_file, written_together
+from vision_cal.dataset.io import distinct_outputs, written_together
+from vision_cal.dataset.out_folder import output_file_of_kind
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.dataset.trust import refuse_unreliable
 from vision_cal.dataset.valid_for import check as check_valid_for
@@ -52,13 +53,14 @@ def plan(req: PlanRequest) -> int:
     """Plan ``req.targets`` with the model of ``req.calibration``; write the plan (and the
     trajectory, the robot program) together or not at all. Exit code: 0, or 1 when no
     target could be planned."""
-    output_file(req.out, field="-o")
+    # never over a file of another kind (a calibration.json, an image): issue 30
+    output_file_of_kind(req.out, "csv", field="-o")
     if req.trajectory:
-        output_file(req.trajectory, field="--trajectory")
+        output_file_of_kind(req.trajectory, "csv", field="--trajectory")
     prg = None
     if req.program:
         prg = program_path(req.program, Path(req.out).with_suffix(""))
-        output_file(prg, field="--program")
+        output_file_of_kind(prg, "csv" if req.program == "csv" else "text", field="--program")
     report = failed_report_path(req.out)
     distinct_outputs([("-o", req.out), ("-o (its failed targets)", report),
                       ("--trajectory", req.trajectory), ("--program", prg)],

@@ -34,8 +34,9 @@ from vision_cal.calibrate.lsq import Fit
 from vision_cal.calibrate.tool import joint4_values
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.covariance import covariance_json
-from vision_cal.dataset.io import atomic_write_json
+from vision_cal.dataset.io import atomic_write_json, written_together
 from vision_cal.dataset.nominal import nominal_blocks
+from vision_cal.dataset.out_folder import output_names
 from vision_cal.dataset.photos import list_photos
 from vision_cal.dataset.session import load_session
 from vision_cal.dataset.valid_for import build as valid_for_block
@@ -484,19 +485,18 @@ def refuse_same_evidence(sessions) -> None:
 
 def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
                          progress: bool = False,
-                         config: EstimatorConfig | None = None) -> dict:
+                         config: EstimatorConfig | None = None, names=None) -> dict:
     """``vision-cal calibrate A/ B/ C/ --joint --out X``: measure each folder, fit one robot
     and one sheet pose per placement, write ``X/calibration.json`` (robot frame R) and
     ``X/<folder>/calibration.json`` (each placement's sheet frame, for ``plan``).
     Returns the robot-frame document. ``config``: the thresholds (default ``DEFAULT``),
-    recorded as its ``config``."""
+    recorded as its ``config``. ``names``: each placement's sub-folder (default
+    :func:`~vision_cal.dataset.out_folder.output_names`: ``d1-plan`` and ``d2-plan`` for two
+    folders named ``plan``)."""
     config = config or DEFAULT
     out_dir = Path(out_dir)
     places, sessions = [], []
-    names = [Path(f).resolve().name for f in folders]
-    if len(set(names)) != len(names):
-        raise CalibrationError("two placement folders have the same name: "
-                               + ", ".join(sorted({n for n in names if names.count(n) > 1})))
+    names = list(names) if names is not None else output_names(folders)
     loaded = [load_session(folder) for folder in folders]
     refuse_same_evidence(loaded)
     for session, name in zip(loaded, names):
@@ -535,6 +535,7 @@ def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
         pl["verdict"] = v.to_json()
         if a is not None:
             pl["agreement"] = a.to_json()
+    subs = []
     for k, ((session, cal), name) in enumerate(zip(sessions, names)):
         m = fit.model_on(k)
         params = m.params.to_json()
@@ -555,6 +556,9 @@ def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
                          for j, (i, xy, r) in enumerate(zip(cal.ids, cal.xy_mm,
                                                             fit.residuals_mm[k]))}}
         sub["valid_for"] = valid_for_block(sub)   # what plan checks its targets against
-        atomic_write_json(out_dir / name / "calibration.json", sub)
-    atomic_write_json(out_dir / "calibration.json", doc)
+        subs.append((out_dir / name / "calibration.json", sub))
+    with written_together():   # every placement's file and the top one, or none
+        for path, sub in subs:
+            atomic_write_json(path, sub)
+        atomic_write_json(out_dir / "calibration.json", doc)
     return doc

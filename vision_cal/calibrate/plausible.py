@@ -66,3 +66,33 @@ def check_plausible(doc: dict, session) -> None:
                 f"printers stay within {100 * MAX_SHEET_SCALE:g} %); "
                 f"{_likely_cause(session.joints_deg, worst)}",
                 file=str(session.path), field="marks")
+
+
+def check_links_against(doc: dict, nominal, *, file: str, robot_file: str) -> None:
+    """A calibration.json given to plan for a robot (``design --pilot/--verify``) whose link
+    lengths are far from the robot file's (x0.7 .. x1.4): one line naming the likely unit
+    mistake (a file in metres), not the sheet's reach."""
+    p = doc.get("params") if isinstance(doc, dict) else None
+    if not isinstance(p, dict):
+        return
+    for name in ("L1_mm", "L2_mm"):
+        got, nom = p.get(name), getattr(nominal, name, None)
+        if not isinstance(got, (int, float)) or not nom or nom <= 0:
+            continue
+        ratio = float(got) / float(nom)
+        if not (LINK_RATIO[0] <= ratio <= LINK_RATIO[1]):
+            cause = next((f"lengths in {what}?" for factor, what in
+                          ((1000.0, "metres instead of millimetres"),
+                           (25.4, "inches instead of millimetres"))
+                          for r in (factor, 1.0 / factor) if abs(ratio / r - 1.0) < 0.1),
+                         "is it this robot's calibration?")
+            raise VisionCalError(f"{name} = {float(got):.6g} against {nom:g} mm in the robot "
+                                 f"file {robot_file} ({ratio:.3g}x): {cause}", file=file,
+                                 field=f"params.{name}")
+
+
+def radians_given(joints_deg) -> bool:
+    """Every joint angle within +-2 pi (and not all one value): joints written in radians."""
+    q = np.asarray(joints_deg, float)
+    return bool(q.size and float(np.abs(q).max()) <= RADIAN_RANGE
+                and float(np.ptp(q.reshape(len(q), -1), axis=0).max()) > 0)

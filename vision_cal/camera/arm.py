@@ -46,6 +46,10 @@ LABELS = ("L1_mm", "L2_mm", "z1_deg", "z2_deg", "base_x_mm", "base_y_mm",
           "cam_z_mm")
 #: fewer photos leave too few degrees of freedom to estimate the photo-level variances
 MIN_POSES = 6
+#: more photos than this a user could not mean (a typo, a generated list): refused before
+#: anything is measured (each photo takes about a second to measure; 500 is several times
+#: what the fit needs; issue 30, docs/format.md "Cameras")
+MAX_POSES = 500
 #: a parameter whose std is above this (its unit: mm or deg) is reported not identifiable
 UNIDENTIFIED_STD = 1.0
 

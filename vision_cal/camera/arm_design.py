@@ -17,13 +17,17 @@ from pathlib import Path
 
 import numpy as np
 
+from vision_cal.camera.arm import MAX_POSES
 from vision_cal.dataset.io import atomic_write_json, atomic_write_text
 from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import forward
 from vision_cal.motion import approach_signs
+from vision_cal.progress import bar
 from vision_cal.program.spel import _comment, _ja
 
 TRIGGERS = ("output", "wait")
+#: from this many poses on, choosing them takes seconds: a progress line shows it
+PROGRESS_FROM = 100
 #: how far before a repeated pose its via point lies (deg, each joint on its approach side)
 REPEAT_VIA_DEG = 5.0
 
@@ -71,8 +75,10 @@ def add_repeats(poses: list[dict], n_repeats: int, home_deg=(0.0, 0.0),
 
 
 def plan_poses(robot, sheet, *, n_poses: int = 24, margin_mm: float = 60.0,
-               mount: str = "flange", j4_range_deg=(-170.0, 170.0), rng=None) -> list[dict]:
-    """``poses`` entries ({image, joints_deg, j4_deg}) in driving order."""
+               mount: str = "flange", j4_range_deg=(-170.0, 170.0), rng=None,
+               progress: bool = False) -> list[dict]:
+    """``poses`` entries ({image, joints_deg, j4_deg}) in driving order; ``progress``: a
+    bar (or a line at the start and the end) while they are chosen."""
     rng = np.random.default_rng(rng)
     p = robot.nominal.params
     hull = sheet.markers_hull_mm()
@@ -86,6 +92,8 @@ def plan_poses(robot, sheet, *, n_poses: int = 24, margin_mm: float = 60.0,
     lim = np.asarray(robot.joint_limits_deg, float)
     chosen: list[np.ndarray] = []
     qs: list[np.ndarray] = []
+    pbar = bar(progress and n_poses >= PROGRESS_FROM, total=n_poses, desc="plan camera poses",
+               unit="pose")
     for k in range(n_poses):
         elbow = robot.elbows[k % len(robot.elbows)]
         q = rng.uniform(lim[:, 0], lim[:, 1], (4000, 2))
@@ -104,6 +112,8 @@ def plan_poses(robot, sheet, *, n_poses: int = 24, margin_mm: float = 60.0,
             i = 0
         chosen.append(xy[i])
         qs.append(q[i])
+        pbar.update()
+    pbar.close()
     if mount == "flange":
         j4 = np.linspace(j4_range_deg[0], j4_range_deg[1], n_poses)
         j4 = j4[rng.permutation(n_poses)]
@@ -151,17 +161,27 @@ def spel_camera_program(poses, robot, *, trigger: str = "output", output_bit: in
     return "\r\n".join(lines) + "\r\n"
 
 
-def design_camera_on_arm(robot, sheet, sheet_json: dict, out, *, n_poses: int = 24,
-                         mount: str = "flange", trigger: str = "output", output_bit: int = 8,
-                         seed: int = 0, repeats: int = 0) -> tuple[Path, Path]:
-    """session.json (poses, no camera yet) and program.prg in ``out``; ``repeats`` of the
-    poses taken twice (:func:`add_repeats`)."""
+def check_design(*, n_poses: int, trigger: str, seed: int) -> None:
+    """The arguments of a camera-on-arm design, each bounded (one line naming the option)."""
     if trigger not in TRIGGERS:
         raise VisionCalError(f"expected one of {', '.join(TRIGGERS)}", field="--trigger")
-    if n_poses < 8:
-        raise VisionCalError(f"expected at least 8 poses (12 parameters, and both elbows), got "
-                             f"{n_poses}", field="--n-poses")
-    poses = plan_poses(robot, sheet, n_poses=n_poses, mount=mount, rng=seed)
+    if not 8 <= n_poses <= MAX_POSES:
+        raise VisionCalError(f"expected 8 to {MAX_POSES} poses (at least 8: 12 parameters and "
+                             f"both elbows; at most {MAX_POSES}: more adds nothing the fit "
+                             f"can use), got {n_poses}", field="--n-poses")
+    if seed < 0:
+        raise VisionCalError(f"expected a non-negative integer, got {seed}", field="--seed")
+
+
+def design_camera_on_arm(robot, sheet, sheet_json: dict, out, *, n_poses: int = 24,
+                         mount: str = "flange", trigger: str = "output", output_bit: int = 8,
+                         seed: int = 0, repeats: int = 0,
+                         progress: bool = False) -> tuple[Path, Path]:
+    """session.json (poses, no camera yet) and program.prg in ``out``; ``repeats`` of the
+    poses taken twice (:func:`add_repeats`)."""
+    check_design(n_poses=n_poses, trigger=trigger, seed=seed)
+    poses = plan_poses(robot, sheet, n_poses=n_poses, mount=mount, rng=seed,
+                       progress=progress)
     if mount != "flange" and repeats:
         poses = add_repeats(poses, repeats, robot.nominal.home_deg,
                             limits_deg=robot.joint_limits_deg)

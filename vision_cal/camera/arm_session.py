@@ -14,14 +14,17 @@ that cannot be used is skipped with its reason and the others go on.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from vision_cal.camera.arm import (MIN_POSES, ArmView, check_declared_lens, estimate_lens,
-                                   fit_arm_camera)
+from vision_cal.calibrate.plausible import RADIAN_RANGE, radians_given
+from vision_cal.camera.arm import (MAX_POSES, MIN_POSES, ArmView, check_declared_lens,
+                                   estimate_lens, fit_arm_camera)
 from vision_cal.camera.fixed import UNDETERMINED
 from vision_cal.dataset.camera_block import read_lens
 from vision_cal.dataset.io import read_json
@@ -30,7 +33,9 @@ from vision_cal.dataset.photos import PhotoRefused, load_photo, normalise_name
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.session import read_robot_block, read_sheet_block
 from vision_cal.diagnose.verdict import judge_camera_poses
-from vision_cal.errors import CalibrationError
+from vision_cal.errors import CalibrationError, VisionCalError
+from vision_cal.measure.workers import exit_with_parent
+from vision_cal.progress import bar
 from vision_cal.kinematics import ScaraParams
 from vision_cal.motion import approach_signs
 from vision_cal.measure.aruco import corners_from_edges, edge_points, find_sheet_markers
@@ -45,6 +50,10 @@ def read_arm_session(folder):
     list of (image, q_deg (2,), j4_deg); every field checked, one line naming it."""
     folder = Path(folder)
     path = folder / "session.json"
+    if folder.is_dir() and not path.exists():
+        raise VisionCalError("missing: a camera-on-arm folder needs a session.json (the poses "
+                             "the photos were taken at): `vision-cal design --camera-on-arm` "
+                             "writes it", file=str(path))
     raw = read_json(path)
     r = FieldReader(str(path))
     fmt = r.get(raw, "format", "")
@@ -58,15 +67,25 @@ def read_arm_session(folder):
     if mount not in MOUNTS:
         r.fail("camera_mount", f"expected one of {', '.join(MOUNTS)}, got {mount!r}")
     poses = []
-    for i, p in enumerate(r.list_(r.get(raw, "poses", ""), "poses", nonempty=True)):
+    listed = r.list_(r.get(raw, "poses", ""), "poses", nonempty=True)
+    if len(listed) > MAX_POSES:
+        r.fail("poses", f"{len(listed)} poses: at most {MAX_POSES} (more adds nothing the fit "
+                        "can use, and measuring them would take hours); keep a subset")
+    for i, p in enumerate(listed):
         w = f"poses[{i}]"
-        img = normalise_name(r.string(r.get(p, "image", w), f"{w}.image"))
+        try:
+            img = normalise_name(r.string(r.get(p, "image", w), f"{w}.image"))
+        except ValueError as e:
+            r.fail(f"{w}.image", f"{e}: the photos sit in the folder beside session.json")
         q = r.angles(r.get(p, "joints_deg", w), f"{w}.joints_deg")
         j4 = r.number(p.get("j4_deg", 0.0), f"{w}.j4_deg")
         if mount == "link2" and j4 != 0.0:
             r.fail(f"{w}.j4_deg", "a camera on link 2 does not turn with joint 4: leave "
                                   "j4_deg out or set camera_mount: flange")
         poses.append((img, np.asarray(q, float), float(j4)))
+    if radians_given([q for _, q, _ in poses]):
+        r.fail("poses", f"every joint angle is within +-{RADIAN_RANGE:.2f}: written in radians? "
+                        "joints_deg are degrees (multiply by 57.2958)")
     nominal = ScaraParams(robot.L1_mm, robot.L2_mm, robot.joint_zero_deg[0],
                           robot.joint_zero_deg[1], robot.base_mm[0], robot.base_mm[1])
     # each joint's approach (the format's rule: its last motion, over every pose in order)
@@ -168,25 +187,56 @@ def measure_view(folder, sheet, size, image: str, q, j4, approach=(1.0, 1.0), le
                   "size_px": [int(gray.shape[1]), int(gray.shape[0])]}
 
 
-def calibrate_arm_camera(folder) -> dict:
+def _measure_one(a):
+    *args, lens = a
+    return measure_view(*args, lens=lens)
+
+
+def calibrate_arm_camera(folder, *, progress: bool = False, jobs: int = 1) -> dict:
     """calibration.json (as a dict) of an arm-camera dataset: the robot's base parameters
-    with std and covariance, and the ``cameras`` entry with ``T_flange_camera``."""
+    with std and covariance, and the ``cameras`` entry with ``T_flange_camera``.
+    ``progress``: a bar (or one line per stage) while the photos are measured; ``jobs``:
+    processes measuring them (each photo's result is the same for any number)."""
     folder, sheet, nominal, camera, mount, poses, rep = read_arm_session(folder)
     views, images = [], []
-    for img, q, j4, sg in poses:
-        v, entry = measure_view(folder, sheet, None if camera is None else camera[0], img, q, j4,
-                                sg, lens=None if camera is None else camera[1:])
-        images.append(entry)
-        if v is not None:
-            views.append(v)
+    size0 = None if camera is None else camera[0]
+    lens0 = None if camera is None else camera[1:]
+    args = [(folder, sheet, size0, img, q, j4, sg, lens0) for img, q, j4, sg in poses]
+    pbar = bar(progress, total=len(poses), desc="measure arm photos", unit="photo",
+               note=f"{jobs} job(s)")
+    pool = None
+    try:
+        if jobs > 1 and len(args) > 1:
+            pool = ProcessPoolExecutor(max_workers=min(jobs, len(args)),
+                                       initializer=exit_with_parent, initargs=(os.getpid(),))
+            results = pool.map(_measure_one, args, chunksize=1)
+        else:
+            results = map(_measure_one, args)
+        for v, entry in results:
+            images.append(entry)
+            pbar.update()
+            if v is not None:
+                views.append(v)
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+        pbar.close()
     sizes = {tuple(e["size_px"]) for e in images if e["status"] == "ok"}
     if camera is None and len(sizes) > 1:
         raise CalibrationError(f"photos of {len(sizes)} sizes ({', '.join(f'{a}x{b}' for a, b in sorted(sizes))}) "
                                "and no camera declared: one camera takes photos of one size",
                                file=str(folder / "session.json"), field="camera")
     if len(views) < MIN_POSES:
+        why = {}
+        for e in images:
+            if e["status"] != "ok":
+                why.setdefault(e.get("reason") or "unknown", []).append(e["file"])
+        common = sorted(why.items(), key=lambda kv: -len(kv[1]))[:2]
+        said = "; ".join(f"{len(fs)} skipped: {r} ({fs[0]}{', ...' if len(fs) > 1 else ''})"
+                         for r, fs in common)
         raise CalibrationError(f"{len(views)} of {len(poses)} photos usable: at least "
-                               f"{MIN_POSES} are needed", file=str(folder / "session.json"))
+                               f"{MIN_POSES} are needed" + (f" ({said})" if said else ""),
+                               file=str(folder / "session.json"))
     lens_reason = []
     check = None
     if camera is None:

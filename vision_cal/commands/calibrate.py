@@ -14,6 +14,16 @@ examples:
   vision-cal calibrate A/ B/ C/ --joint --out X/           one robot, three placements
   vision-cal calibrate marks.csv --robot robot.yaml --sigma-mm 0.02 --out X/
                                        marks a laser tracker or CMM measured (no photos)
+
+writes into OUT (default out/<folder name>):
+  calibration.json   the model, std, covariance, effects, verdict (docs/format.md)
+  measurement.json   every photo's marks as measured
+  report.json, report.html   with --report
+  summary.json       with several folders: one row each (OUT/<folder>/ each)
+  previous/          an earlier run's results, moved aside before this run writes
+  .cache/            the photos' detections, keyed by their bytes (safe to delete)
+--joint: OUT/calibration.json (robot frame) and OUT/<folder>/calibration.json per
+placement (their sheet frames, for plan). OUT is locked while written (.vision-cal.lock).
 """
 
 

@@ -5,13 +5,19 @@ from __future__ import annotations
 from vision_cal.commands import request
 
 NAME = "export"
-HELP = "export calibration.json as URDF joint origins (+ effects side file) or YAML"
+HELP = ("export calibration.json as URDF joint origins (+ effects side file) or YAML; a still "
+        "camera as OpenCV (--opencv) or ROS camera_info (--ros) YAML")
 EXAMPLES = """\
 examples:
   vision-cal fixtures/paper_sm5 --out /tmp/x
   vision-cal export /tmp/x/calibration.json --urdf /tmp/x/robot.urdf
   vision-cal export /tmp/x/calibration.json --yaml /tmp/x/calibration.yaml
-  vision-cal export /tmp/x/calibration.json --opencv camera.yaml --ros camera_info.yaml
+
+--opencv and --ros need a calibration with a still camera (calibration.json "cameras":
+photos of the robot's sheet taken from one place, README "Calibrate your camera"); the
+paper's calibration has none. For example, with the photos of a still camera in plan/:
+  vision-cal plan/ --out cal/
+  vision-cal export cal/calibration.json --opencv camera.yaml --ros camera_info.yaml
 """
 
 

@@ -26,16 +26,24 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.dataset.io import atomic_write_bytes, atomic_write_text
+    from vision_cal.dataset.io import atomic_write_bytes, atomic_write_text, written_together
+    from vision_cal.dataset.out_folder import output_file_of_kind
     from vision_cal.report.history import history_csv, history_png, history_table, read_history
 
+    # an output on a calibration.json, on another output or on a file of another kind is
+    # refused before anything is read or written (issue 30)
+    if args.out:
+        output_file_of_kind(args.out, "csv", field="-o")
+    if args.plot:
+        output_file_of_kind(args.plot, "png", field="--plot", outputs=[("-o", args.out)])
     rows = read_history(args.folder)
     csv_text = history_csv(rows)
     png = history_png(rows) if args.plot else None
-    if args.out:
-        atomic_write_text(args.out, csv_text)
-    if png is not None:
-        atomic_write_bytes(args.plot, png)
+    with written_together():
+        if args.out:
+            atomic_write_text(args.out, csv_text)
+        if png is not None:
+            atomic_write_bytes(args.plot, png)
     if not args.quiet:
         print(history_table(rows))
         for p in (args.out, args.plot):

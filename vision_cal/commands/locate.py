@@ -26,7 +26,10 @@ the camera's (its pose, focal length and the robot's base), the pixel taken as e
 
 
 def add_arguments(p) -> None:
-    p.add_argument("calibration", metavar="CALIBRATION.json")
+    p.add_argument("calibration", metavar="CALIBRATION.json",
+                   help="a calibration.json with a camera (\"cameras\"): a still camera's "
+                        "(`vision-cal PHOTOS/` on photos taken from one place) or the arm "
+                        "camera's (`vision-cal handeye`)")
     p.add_argument("--pixel", type=float, nargs=2, metavar=("U", "V"),
                    help="pixel (OpenCV convention: the top-left pixel's centre is 0 0)")
     p.add_argument("--csv", metavar="PIXELS.csv", help="a list: id,u_px,v_px[,z_mm]")

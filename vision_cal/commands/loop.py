@@ -37,8 +37,11 @@ def run(args) -> int:
 
         raise VisionCalError(f"must be at least 1, got {args.jobs}", field="--jobs")
     progress = not args.quiet  # a bar on a terminal, else one line per stage
-    doc, run = run_loop(args.scene, out_dir=args.out, jobs=args.jobs, progress=progress,
-                   elbow=args.elbow)
+    from vision_cal.dataset.out_folder import writing_into
+
+    with writing_into(args.out, command="loop", retire=False):   # locked while written
+        doc, run = run_loop(args.scene, out_dir=args.out, jobs=args.jobs, progress=progress,
+                            elbow=args.elbow)
     if not args.quiet:
         print(format_summary(run.document))
         print()

@@ -57,6 +57,13 @@ def add_common(p: argparse.ArgumentParser) -> None:
     g.add_argument("-v", "--verbose", action="store_true", help="log details; tracebacks on error")
 
 
+class _LowerLevelFormatter(logging.Formatter):
+    def format(self, record):
+        record = logging.makeLogRecord(record.__dict__)
+        record.levelname = record.levelname.lower()
+        return super().format(record)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     # `calibrate` is the default when the first argument is not a subcommand or option
@@ -67,8 +74,12 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "_run", None):
         parser.print_help()
         return EXIT_INPUT
+    # one spelling on stderr: "vision-cal: warning: ..." (the commands' own lines) and the
+    # log's alike (logging's level names are upper case)
+    handler = logging.StreamHandler()
+    handler.setFormatter(_LowerLevelFormatter("vision-cal: %(levelname)s: %(message)s"))
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
-                        format="vision-cal: %(levelname)s: %(message)s")
+                        handlers=[handler])
     from vision_cal.errors import CalibrationError, VisionCalError
 
     try:

@@ -74,7 +74,14 @@ def run(args) -> int:
                              custom_mm=args.custom, dictionary=args.dictionary,
                              marker_mm=args.marker_mm, pitch_mm=args.pitch_mm,
                              measured_bar_mm=args.measured_bar_mm)
-    paths = write_sheet(layout, args.out, png_dpi=args.png_dpi)
+    from vision_cal.dataset.io import written_together
+    from vision_cal.dataset.out_folder import refuse_other_sheet, writing_into
+
+    # another sheet in the folder (the one the plans were designed on) is never replaced;
+    # the folder is locked while written (issue 30)
+    refuse_other_sheet(args.out, layout.sheet_id)
+    with writing_into(args.out, command="sheet", retire=False) as out, written_together():
+        paths = write_sheet(layout, out, png_dpi=args.png_dpi)
     if not args.quiet:
         print(f"sheet {layout.sheet_id}: {layout.page} {layout.orientation} "
               f"{layout.size_mm[0]:g} x {layout.size_mm[1]:g} mm, {len(layout.markers)} "

@@ -48,14 +48,19 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
+    from vision_cal.dataset.io import written_together
+    from vision_cal.dataset.out_folder import writing_into
     from vision_cal.errors import VisionCalError
     from vision_cal.render.rehearse import simulate_session
 
     if args.seed is not None and args.seed < 0:
         raise VisionCalError(f"expected a non-negative integer, got {args.seed}", field="--seed")
-    r = simulate_session(args.plan, args.truth, args.out, after=args.after,
-                         progress=not args.quiet, rng=args.seed, sheet_json=args.sheet,
-                         targets=args.targets)
+    # locked while written; the photos, session.json and truth.json are renamed into place
+    # together at the end, so an interrupted run leaves none of them (issue 30)
+    with writing_into(args.out, command="simulate", retire=False), written_together():
+        r = simulate_session(args.plan, args.truth, args.out, after=args.after,
+                             progress=not args.quiet, rng=args.seed, sheet_json=args.sheet,
+                             targets=args.targets)
     if not args.quiet:
         extra = []
         if r.off_paper:

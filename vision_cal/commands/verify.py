@@ -41,6 +41,7 @@ def run(args) -> int:
     import sys
     from pathlib import Path
 
+    from vision_cal.dataset.out_folder import writing_into
     from vision_cal.errors import VisionCalError
     from vision_cal.verify import verify_folder
 
@@ -49,8 +50,13 @@ def run(args) -> int:
     folder = Path(args.folder)
     here = folder.resolve()
     out = Path(args.out) if args.out else here.with_name(here.name + "_verify")
-    r, path, said = verify_folder(args.calibration, folder, out_dir=out, jobs=args.jobs,
-                                  progress=not args.quiet, force=args.force)
+    # the output folder: never the photos' folder nor the one holding CAL.json; an earlier
+    # check's results go to previous/; locked while written (issue 30)
+    with writing_into(out, command="verify", field="-o",
+                      inputs=[("CAL.json", args.calibration), ("PHOTOS/", args.folder)],
+                      quiet=args.quiet) as out:
+        r, path, said = verify_folder(args.calibration, folder, out_dir=out, jobs=args.jobs,
+                                      progress=not args.quiet, force=args.force)
     for w in said:   # --force: the check compared beyond what was calibrated
         print(f"vision-cal: warning: {w}", file=sys.stderr)
     if not args.quiet:

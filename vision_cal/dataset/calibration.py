@@ -113,15 +113,34 @@ def _read_std(r: FieldReader, obj, where: str) -> None:
             r.fail(f"{where}.{k}", f"expected a list of {n} numbers or nulls")
 
 
-def load_calibration(path, *, which: str = "calibrated") -> tuple[RobotModel, dict]:
+def refuse_robot_frame(doc, path) -> None:
+    """A robot-frame calibration of several placements (``calibrate --joint``'s top
+    calibration.json) given where one sheet's calibration is needed (plan, design, verify,
+    locate): one line pointing at the placements' own files."""
+    if not isinstance(doc, dict) or not isinstance(doc.get("placements"), list):
+        return
+    names = [p.get("folder") for p in doc["placements"] if isinstance(p, dict)]
+    here = Path(path).parent
+    subs = [str(here / n / "calibration.json") for n in names if isinstance(n, str)]
+    raise VisionCalError("is the robot-frame calibration of several placements (calibrate "
+                         "--joint): give the placement's own calibration.json, in the sheet "
+                         "frame of the sheet you draw on" + (f" ({', '.join(subs)})"
+                                                             if subs else ""), file=str(path))
+
+
+def load_calibration(path, *, which: str = "calibrated",
+                     sheet_frame: bool = True) -> tuple[RobotModel, dict]:
     """The calibrated model (base parameters and every robot effect found), or with
     ``which="nominal"`` the nominal model the calibration started from.
 
     Every field a reader of this file uses is checked (``params``, ``nominal``, ``std``,
     ``effects``, ``home_deg``); the first bad one raises :class:`VisionCalError` naming the
-    file and the field."""
+    file and the field. ``sheet_frame``: the caller needs one sheet's calibration (a
+    robot-frame one of several placements is refused, :func:`refuse_robot_frame`)."""
     path = Path(path)
     doc = read_json(path)
+    if sheet_frame:
+        refuse_robot_frame(doc, path)
     r = FieldReader(str(path))
     fmt = r.get(doc, "format", "")
     if fmt != FORMAT:

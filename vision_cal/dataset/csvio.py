@@ -68,6 +68,12 @@ def _rows(path: Path, required: tuple[str, ...]) -> list[tuple[int, dict]]:
     return out
 
 
+def read_rows(path, required: tuple[str, ...]) -> list[tuple[int, dict]]:
+    """Every CSV reader's rows (dicts with their line number), checked as :func:`_rows`
+    says (a stray quote, a decimal comma, a missing column: one line naming it)."""
+    return _rows(Path(path), required)
+
+
 def number_field(v: str, path, line: int, name: str) -> float:
     """A finite number from a CSV cell, or one line naming the file, the line and the
     column."""

@@ -220,8 +220,40 @@ def read_text(path, *, what: str = "file") -> str:
         return path.read_text(encoding="utf-8-sig")
     except FileNotFoundError as e:
         raise VisionCalError(f"{what} not found", file=str(path)) from e
-    except (OSError, UnicodeDecodeError) as e:
-        raise VisionCalError(f"cannot read: {e}", file=str(path)) from e
+    except IsADirectoryError as e:
+        raise VisionCalError(_folder_given(path, what), file=str(path)) from e
+    except UnicodeDecodeError as e:
+        raise VisionCalError(_binary_given(path, what), file=str(path)) from e
+    except OSError as e:
+        raise VisionCalError(f"cannot read: {e.strerror or e}", file=str(path)) from e
+
+
+def _folder_given(path: Path, what: str) -> str:
+    """A folder given where a file is wanted: name the files in it that may be meant."""
+    try:
+        known = [n for n in ("calibration.json", "session.json", "sheet.json", "robot.yaml")
+                 if (path / n).is_file()]
+    except OSError:
+        known = []
+    if known:
+        return (f"is a folder, expected a file (in it: {', '.join(known)}; give the one "
+                f"wanted, e.g. {path / known[0]})")
+    return "is a folder, expected a file"
+
+
+def _binary_given(path: Path, what: str) -> str:
+    """A binary file (the printable PDF, a photo) given where a text file is wanted."""
+    try:
+        head = path.read_bytes()[:8]
+    except OSError:
+        head = b""
+    if head.startswith(b"%PDF"):
+        beside = path.with_suffix(".json")
+        return ("is the PDF to print, not the sheet's description: pass the sheet.json "
+                f"beside it{f' ({beside})' if beside.is_file() else ''}")
+    if head.startswith((b"\x89PNG", b"\xff\xd8\xff")):
+        return "is an image, expected a text file (JSON, YAML or CSV)"
+    return "is not UTF-8 text (a binary file?), expected a text file (JSON, YAML or CSV)"
 
 
 def _line(text: str, pos: int) -> int:

@@ -413,6 +413,13 @@ def load_sheet_file(path) -> Sheet:
     return read_sheet_block(FieldReader(str(path)), read_json(path), "")
 
 
+#: what a folder of photos without session.json needs (one line, issue 30)
+MISSING_SESSION = ("missing: a dataset folder needs a session.json (what the robot drew): "
+                   "`vision-cal design ... --out PLAN/` writes it; put the photos into PLAN/ "
+                   "beside it (`vision-cal init PHOTOS/ --plan PLAN/session.json` shows which "
+                   "marks each photo holds)")
+
+
 def load_session(folder) -> Session:
     """Read and validate ``folder/session.json`` (or a path to the file itself)."""
     folder = Path(folder)
@@ -422,7 +429,7 @@ def load_session(folder) -> Session:
     if not path.exists():
         if not folder.exists():
             raise VisionCalError("folder not found", file=str(folder))
-        raise VisionCalError("missing: a dataset folder needs a session.json", file=str(path))
+        raise VisionCalError(MISSING_SESSION, file=str(path))
     return session_from_raw(read_json(path), folder, str(path))
 
 

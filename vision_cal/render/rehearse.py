@@ -107,6 +107,9 @@ def load_simulated_robot(path) -> SimulatedRobot:
     path = Path(path)
     tree = read_yaml(path, what="simulated robot file")
     r = FieldReader(str(path))
+    if isinstance(tree, dict) and "hidden" not in tree and not isinstance(tree.get("robot"), str):
+        r.fail("", "is a robot file, not a simulated robot: write one that names it with "
+                   "`vision-cal robot-template --simulated -o true_robot.yaml` and pass that")
     tree = r.section(tree, "", SECTIONS)
     robot_ref = r.string(r.get(tree, "robot", ""), "robot")
     robot_path = (path.parent / robot_ref) if not Path(robot_ref).is_absolute() else Path(robot_ref)

@@ -36,6 +36,55 @@ def _rows(doc: dict):
 
 def format_summary(doc: dict, *, reference: dict | None = None) -> str:
     """Table-2 style comparison, effects with evidence, RMS against the noise floor."""
+    targets = _target_lines(doc)
+    if targets:   # a folder of compensated targets: where each landed is the answer
+        return "\n".join(targets + ["", "the calibration fitted to these marks (a by-product: "
+                                     "targets are not a calibration plan):",
+                                     _calibration_summary(doc, reference)])
+    return _calibration_summary(doc, reference)
+
+
+def _target_lines(doc: dict) -> list[str]:
+    """Each target's error (measured minus target, mm), its RMS and the largest."""
+    t = [x for x in doc.get("targets") or [] if isinstance(x, dict) and "error_mm" in x]
+    if not t:
+        return []
+    lines = [f"where each target landed ({len(t)} targets; measured minus target, mm):",
+             f"{'target':<10}{'error x':>10}{'error y':>10}{'|error|':>10}"]
+    for x in t:
+        ex, ey = x["error_mm"]
+        lines.append(f"{str(x['id']):<10}{ex:>+10.4f}{ey:>+10.4f}{x['error_norm_mm']:>10.4f}")
+    norms = [float(x["error_norm_mm"]) for x in t]
+    worst = max(t, key=lambda x: x["error_norm_mm"])
+    rms = (sum(n * n for n in norms) / len(norms)) ** 0.5
+    lines.append(f"targets: RMS {rms:.4f} mm, largest {worst['error_norm_mm']:.4f} mm "
+                 f"({worst['id']})")
+    return lines
+
+
+def _camera_lines(doc: dict) -> list[str]:
+    """The still cameras a calibration located: where, how well, what to run next."""
+    out = []
+    for k, c in enumerate(doc.get("cameras") or []):
+        if not isinstance(c, dict) or "T_robot_camera" not in c:
+            continue
+        try:
+            t = [float(c["T_robot_camera"][i][3]) for i in range(3)]
+            size = "x".join(str(int(v)) for v in c.get("size_px", []))
+        except (TypeError, ValueError, IndexError, KeyError):
+            continue
+        rms = c.get("corner_rms_px")
+        out.append(f"still camera {k} ({len(c.get('images') or [])} photos, {size} px, lens "
+                   f"{c.get('intrinsics', 'declared')}): at x {t[0]:.2f} y {t[1]:.2f} z "
+                   f"{t[2]:.2f} mm in the robot frame"
+                   + (f", corner RMS {rms:.3f} px" if isinstance(rms, (int, float)) else "")
+                   + "; map its pixels with `vision-cal locate CALIBRATION.json --pixel U V`")
+        if c.get("note"):
+            out.append(f"  note: {c['note']}")
+    return out
+
+
+def _calibration_summary(doc: dict, reference: dict | None) -> str:
     ref = (reference or {}).get("params")
     head = f"{'parameter':<12}{'robot file':>11}{'calibrated':>13}{'std':>10}"
     if ref:
@@ -105,6 +154,7 @@ def format_summary(doc: dict, *, reference: dict | None = None) -> str:
         if v.get("floor_line"):
             lines.append(v["floor_line"])
         lines.append(v["text"])
+    lines += _camera_lines(doc)
     tc = doc.get("truth_comparison")
     if tc:
         lines.append("against truth.json: dL1 {} dL2 {} mm, dz1 {} dz2 {} deg, dbase {} {} mm".format(
