@@ -47,7 +47,7 @@ def arm(tmp_path, field_sheet, capsys):
     """A camera-on-arm design (session.json, program.prg) with 10 photos of an earlier one."""
     d = tmp_path / "arm"
     rc, _, _ = cli(["design", ROBOT, "--sheet", field_sheet / "sheet.json", "--camera-on-arm",
-                    "--n-poses", "10", "--out", d, "-q"], capsys)
+                    "--n-poses", "10", "--repeats", "0", "--out", d, "-q"], capsys)
     assert rc == 0
     for i in range(10):
         (d / f"pose_{i:03d}.png").write_bytes(b"\x89PNG not really")

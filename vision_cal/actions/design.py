@@ -167,10 +167,10 @@ def _refuse_conflicts(req: DesignRequest) -> None:
 
 
 def _camera_on_arm(req: DesignRequest) -> int:
+    check_design(n_poses=req.n_poses, trigger=req.trigger, seed=req.seed)
     if not 0 <= req.repeats <= req.n_poses:
         raise VisionCalError(f"expected 0..{req.n_poses} (--n-poses), got {req.repeats}",
                              field="--repeats")
-    check_design(n_poses=req.n_poses, trigger=req.trigger, seed=req.seed)
     robot = load_robot_file(req.robot)
     sheet = load_sheet_file(req.sheet)
     with writing_into(req.out, command="design", retire=False) as out:
