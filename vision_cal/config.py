@@ -295,6 +295,27 @@ class VerdictConfig:
 
 
 @dataclass(frozen=True)
+class AsPrintedConfig:
+    """The sheet as printed, from several views (``vision_cal.measure.asprinted``, #28)."""
+
+    min_places: int = 3               # distinct camera places needed to release the layout
+                                      # (two leave the print and the lens nearly confounded)
+    place_move: float = 0.05          # camera centres further apart than this fraction of
+                                      # their distance to the sheet are two places ...
+    place_turn_deg: float = 3.0       # ... or views turned more than this
+    min_views: int = 2                # a corner is released when this many photos see it
+    noise_px: float = 0.2             # the corners' noise assumed by the prior's weight
+    prior_mm: float = 1.0             # the prior on each corner's deviation: a printer is
+                                      # within tenths of a mm; holds what the views do not fix
+    huber_px: float = 1.0             # residuals beyond this count linearly (a corner on an
+                                      # arm's edge must not bend the layout)
+    single_view_factor: float = 1.5   # one place: the print's deviation the marker corners
+                                      # show beyond the homography, times this (the part the
+                                      # pose absorbs is not seen), is each mark's systematic
+                                      # uncertainty, per axis
+
+
+@dataclass(frozen=True)
 class EstimatorConfig:
     """All the knobs, by part; the keys of calibration.json ``config``."""
 
@@ -314,6 +335,7 @@ class EstimatorConfig:
     discovery: DiscoveryConfig = field(default_factory=DiscoveryConfig)
     joint4: Joint4Config = field(default_factory=Joint4Config)
     verdict: VerdictConfig = field(default_factory=VerdictConfig)
+    as_printed: AsPrintedConfig = field(default_factory=AsPrintedConfig)
 
     def to_json(self) -> dict:
         return asdict(self)
