@@ -292,6 +292,8 @@ class VerdictConfig:
     min_spare_dof: int = 8            # 2 N - P below this: too few marks to test any effect
     min_repeat_pairs: int = 4         # pairs of marks drawn at the same command needed to
                                       # measure repeatability (fewer: the robot block's figure)
+    print_check_mm: float = 0.01      # the print's limit on the marks (2-D RMS) seen from one
+                                      # camera place beyond this: check (a survey measures it)
 
 
 @dataclass(frozen=True)

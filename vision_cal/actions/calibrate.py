@@ -13,6 +13,7 @@ from vision_cal.calibrate.placements import calibrate_placements
 from vision_cal.dataset.io import atomic_write_json, output_dir
 from vision_cal.dataset.out_folder import output_names, retire_earlier_run
 from vision_cal.errors import VisionCalError
+from vision_cal.measure.survey import find_survey
 from vision_cal.pipeline import calibrate_dataset
 from vision_cal.report.html import write_report
 from vision_cal.report.summary import format_summary
@@ -30,6 +31,7 @@ class CalibrateRequest:
     report: bool = False          # also report.json and report.html
     joint: bool = False           # the folders are placements of one robot
     quiet: bool = False
+    survey: str | None = None     # survey.json (default: a survey.json in the folder)
 
 
 def calibrate(req: CalibrateRequest) -> int:
@@ -72,8 +74,13 @@ def calibrate(req: CalibrateRequest) -> int:
             moved = retire_earlier_run(out)
             if moved and not req.quiet:
                 print(f"moved the earlier results ({', '.join(moved)}) to {out / 'previous'}")
+            survey = find_survey(req.survey or folder)   # #28: the sheet as printed
+            if req.survey and survey is None:
+                raise VisionCalError("not found", file=str(req.survey))
+            if survey is not None and not req.quiet:
+                print(f"measuring against the sheet as surveyed: {survey}")
             result = calibrate_dataset(folder, out_dir=out, method=req.method, jobs=req.jobs,
-                                       progress=progress, truth=req.truth)
+                                       progress=progress, truth=req.truth, survey=survey)
         except VisionCalError as e:
             if not several:
                 raise

@@ -14,6 +14,7 @@ from vision_cal.dataset.trust import require_ready_pilot
 from vision_cal.design.placements import design_placements
 from vision_cal.design.stage import design_stage
 from vision_cal.errors import VisionCalError
+from vision_cal.measure.survey import copy_survey, find_survey
 
 
 @dataclass(frozen=True)
@@ -38,6 +39,7 @@ class DesignRequest:
     mount: str = 'flange'
     trigger: str = 'output'
     trigger_output: int = 8
+    survey: str | None = None     # survey.json (#28; default: one beside --sheet)
 
 
 def design(req: DesignRequest) -> int:
@@ -84,6 +86,13 @@ def design(req: DesignRequest) -> int:
 
     for w in r.info.get("warnings", []):
         print(f"vision-cal: warning: {w}", file=sys.stderr)
+    survey = find_survey(req.survey or req.sheet)   # #28: measured against it, found there
+    if req.survey and survey is None:
+        raise VisionCalError("not found", file=str(req.survey))
+    if survey is not None:
+        dest = copy_survey(survey, load_sheet_file(req.sheet), r.session_path.parent)
+        if not req.quiet:
+            print(f"the sheet as surveyed ({survey}) goes with the plan: {dest}")
     if not req.quiet:
         print(f"{r.stage} plan: {r.n_marks} marks, {r.duration_s:.1f} s of motion")
         if r.stage == "pilot":

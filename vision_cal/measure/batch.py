@@ -41,6 +41,7 @@ from vision_cal.calibrate.tool import fit_tool
 from vision_cal.errors import VisionCalError
 from vision_cal.measure import associate as assoc
 from vision_cal.measure.aruco import edge_points, find_sheet_markers
+from vision_cal.measure.asprinted import AsPrinted, estimate_as_printed
 from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerprint
 from vision_cal.measure.infer import infer_image_marks
 from vision_cal.dataset.marker_geometry import marker_geometry
@@ -445,7 +446,8 @@ def _with_fitted_tool(a, session, mark_ids, mark_images, groups, ac):
 
 
 def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
-                   progress=None, config: EstimatorConfig | None = None) -> Measurement:
+                   progress=None, config: EstimatorConfig | None = None,
+                   survey: AsPrinted | None = None) -> Measurement:
     """Measure every photo of a dataset folder and every pen mark on the sheet.
 
     ``session``: a :class:`Session` or a folder. ``out_dir``: where results go (never the
@@ -453,7 +455,8 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
     (default ``os.cpu_count()``; 1 runs in this process). ``progress``: a tqdm bar on stderr.
     ``config``: the thresholds of every stage (default ``vision_cal.config.DEFAULT``).
     Without ``images`` in session.json every photo in the folder is measured and which
-    marks each shows is inferred (:mod:`vision_cal.measure.infer`).
+    marks each shows is inferred (:mod:`vision_cal.measure.infer`). ``survey``: the sheet
+    as printed (``vision-cal survey``'s survey.json): the marks are measured against it.
 
     The stages, one function each: :func:`photos_to_measure` (listing and checks),
     :func:`detect_all` (stage 1, cached, parallel), :func:`lens_of_photos` (stage 2),
@@ -481,9 +484,11 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
     cached = [ph.cached for ph in items]
     lens, lens_warnings = lens_of_photos(session, dets)
     warnings += lens_warnings
+    as_printed, lens, dets = as_printed_stage(session, dets, lens, config, survey=survey)
     images, finish_warnings = finish_all(session, dets, cached, lens, config,
                                          listed_marks=[ph.listed_marks for ph in items])
     warnings += finish_warnings
+    print_summary = print_stage(session, images, as_printed, config)
     files = [ph.file for ph in items]
     dots = associate_dots(session, items, images, ac, config.dots.default_diameter_mm,
                           config.plan_match)
@@ -498,9 +503,85 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                        warnings, tuple(dots.image_marks),
                        None if inferred is None else inferred.mode,
                        () if inferred is None else (*notes, *inferred.warnings),
-                       heights, hmap, hnote, str(root.resolve()))
+                       heights, hmap, hnote, str(root.resolve()), as_printed, print_summary)
+    if print_summary is not None and print_summary["source"] == "one place":
+        marks = {k: replace(m, cov_mm2=m.cov_mm2 + print_summary["sigma_mm"] ** 2 * np.eye(2))
+                 for k, m in meas.marks.items()}
+        meas = replace(meas, marks=marks)
     atomic_write_json(out_dir / "measurement.json", meas.to_json())
     return meas
+
+
+# --------------------------------------------------------------------------- the print (#28)
+
+def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEstimate | None,
+                     config: EstimatorConfig, *, survey: AsPrinted | None = None):
+    """The sheet as printed (:mod:`vision_cal.measure.asprinted`): the survey's layout when
+    one is given, else estimated from these photos when they were taken from at least
+    ``config.as_printed.min_places`` places. Returns (as_printed or None, lens, detections
+    with their markers' corners as printed); an estimated lens is then the one solved with
+    the layout (the stage-2 lens absorbed part of the print)."""
+    ap = survey
+    if ap is None:
+        ok = [d for d in dets if d.status == "ok"]
+        sizes = sorted({d.size_px for d in ok}, key=lambda s: -sum(x.size_px == s for x in ok))
+        if not sizes:
+            return None, lens, dets
+        size = sizes[0]
+        K, dist = _lens_of(session, lens, size)
+        if K is None:   # no lens kept: start from its focal length, no distortion
+            K = (lens.K if lens is not None else
+                 np.array([[1.2 * max(size), 0, (size[0] - 1) / 2],
+                           [0, 1.2 * max(size), (size[1] - 1) / 2], [0, 0, 1.0]]))
+            dist = np.zeros(5)
+        views = [(d.file, d.marker_ids, d.corners_mm, d.corners_for(*_lens_of(session, lens, size)))
+                 for d in ok if d.size_px == size]
+        ap = estimate_as_printed(views, K, dist, size, lens_free=session.camera is None,
+                                 config=config.as_printed)
+        if ap is None:
+            return None, lens, dets
+        if session.camera is None and lens is not None:
+            lens = replace(lens, K=ap.K, dist=ap.dist, kept=True)
+    out = []
+    for d in dets:
+        if d.status != "ok" or not len(d.marker_ids):
+            out.append(d)
+            continue
+        d2 = replace(d, corners_mm=ap.corners_for(d.marker_ids, d.corners_mm))
+        d2.__dict__["_corners_memo"] = d.__dict__.get("_corners_memo", {})
+        out.append(d2)
+    return ap, lens, out
+
+
+def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrinted | None,
+                config: EstimatorConfig) -> dict | None:
+    """measurement.json ``print``: the print's deviation from its layout and the limit it
+    leaves on the marks (``limit_mm``, 2-D RMS). As printed (a survey or several places):
+    its figures, the limit the corners' uncertainty. From one place, where the print cannot
+    be told from the lens and the pose: each marker's mean corner residual beyond the
+    photo's mapping (the part of the print a homography cannot take), times
+    ``config.as_printed.single_view_factor`` for what it took; ``sigma_mm`` is then added to
+    every mark's variance per axis."""
+    if as_printed is not None:
+        return {"source": as_printed.source, "rms_mm": as_printed.rms_mm,
+                "max_mm": as_printed.max_mm, "growth_mm": as_printed.growth_mm,
+                "field_rms_mm": as_printed.field_rms_mm,
+                "unresolved_mm": as_printed.unresolved_mm,
+                "limit_mm": as_printed.unresolved_mm, "n_places": as_printed.n_places}
+    declared = {int(m.id): np.asarray(m.corners_mm, float) for m in session.sheet.markers}
+    res = []
+    for im in images:
+        if im.status != "ok" or im.mapping is None or not len(im.marker_ids):
+            continue
+        xy = im.mapping.image_to_sheet(np.asarray(im.markers_px).reshape(-1, 2)).reshape(-1, 4, 2)
+        dec = np.array([declared[int(i)] for i in im.marker_ids])
+        res.append((xy - dec).mean(axis=1))
+    if not res:
+        return None
+    seen = float(np.sqrt(np.mean(np.sum(np.concatenate(res) ** 2, axis=1))))
+    limit = config.as_printed.single_view_factor * seen
+    return {"source": "one place", "seen_rms_mm": seen, "limit_mm": limit,
+            "sigma_mm": limit / np.sqrt(2.0), "n_places": 1}
 
 
 def photos_to_measure(session: Session) -> tuple[list[_Photo], list[str], list[str]]:

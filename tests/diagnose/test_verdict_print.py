@@ -1,0 +1,28 @@
+"""The print's limit in the verdict (#28): from one camera place never ready, and the
+expected target error covers it."""
+
+import pytest
+
+from tests.diagnose.test_verdict import _fit_doc
+from vision_cal.diagnose.verdict import R95_PER_RMS, judge
+
+
+def test_one_place_print_makes_check_and_adds_to_the_expected_error():
+    doc = _fit_doc()
+    base = judge(doc)
+    assert base.status == "ready"
+    one = judge({**doc, "print": {"source": "one place", "seen_rms_mm": 0.06,
+                                  "limit_mm": 0.09, "sigma_mm": 0.064}})
+    assert one.status == "check"
+    assert any("survey" in r for r in one.reasons)
+    assert one.expected_target_error_mm >= R95_PER_RMS * 0.09
+    assert one.expected_target_error_mm == pytest.approx(
+        (base.expected_target_error_mm ** 2 + (R95_PER_RMS * 0.09) ** 2) ** 0.5)
+
+
+def test_a_surveyed_print_adds_its_uncertainty_without_a_check():
+    doc = _fit_doc()
+    base = judge(doc)
+    v = judge({**doc, "print": {"source": "survey", "rms_mm": 0.17, "limit_mm": 0.005}})
+    assert v.status == "ready"
+    assert v.expected_target_error_mm > base.expected_target_error_mm
