@@ -26,3 +26,12 @@ def test_a_surveyed_print_adds_its_uncertainty_without_a_check():
     v = judge({**doc, "print": {"source": "survey", "rms_mm": 0.17, "limit_mm": 0.005}})
     assert v.status == "ready"
     assert v.expected_target_error_mm > base.expected_target_error_mm
+
+
+def test_grid_off_its_layout_is_the_print_once_the_print_is_measured():
+    doc = _fit_doc()
+    doc["diagnosis"] = {"sheet_height": {"claimed": False, "not_claimed_as": "mapping"}}
+    doc["marks"]["c00"]["local_minus_global_mm"] = [0.2, 0.1]
+    assert judge(doc).status == "check"
+    v = judge({**doc, "print": {"source": "views", "rms_mm": 0.17, "limit_mm": 0.002}})
+    assert v.status == "ready" and any("as printed" in r for r in v.reasons)

@@ -365,7 +365,16 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
                      "bad sheet mapping?): " + ", ".join(moved[:5]))
     sh = diagnosis.get("sheet_height") or {}
     as_ = sh.get("not_claimed_as")
-    if not sh.get("claimed") and as_ in ("lens", "mapping"):
+    printed_measured = (doc.get("print") or {}).get("source") in ("views", "survey")
+    if not sh.get("claimed") and as_ == "mapping" and printed_measured:
+        # the sheet as printed was measured (#28): the grid is off its layout as the markers
+        # were, and the marks are measured against the markers as printed
+        off = [math.hypot(*m["local_minus_global_mm"]) for m in marks.values()
+               if m.get("local_minus_global_mm") is not None]
+        add("ready", "the printed grid is off its layout " + (f"by up to {max(off):.3f} mm "
+                     if off else "") + "as the print is: the marks are measured against the "
+                     "markers as printed (calibration.json print)")
+    elif not sh.get("claimed") and as_ in ("lens", "mapping"):
         off = [math.hypot(*m["local_minus_global_mm"]) for m in marks.values()
                if m.get("local_minus_global_mm") is not None]
         size = f"by up to {max(off):.3f} mm " if off else ""

@@ -127,7 +127,7 @@ def load_survey(path, sheet: Sheet | None) -> AsPrinted:
         r.fail("as_printed", f"unreadable: {e}")
     ap = AsPrinted(**{**ap.__dict__, "source": "survey"})
     if sheet is not None:
-        declared = sheet.corners_by_id
+        declared = sheet.corners_by_id()
         for k, (i, c) in enumerate(zip(ap.ids, ap.declared_mm)):
             if int(i) not in declared:
                 r.fail(f"as_printed.markers[{k}].id", f"marker {int(i)} is not on this sheet: "
