@@ -315,6 +315,8 @@ class AsPrintedConfig:
                                       # show beyond the homography, times this (the part the
                                       # pose absorbs is not seen), is each mark's systematic
                                       # uncertainty, per axis
+    survey_good_mm: float = 0.02      # a survey whose corners are known to this (2-D RMS of
+                                      # their std) says "good"; else what limits it
 
 
 @dataclass(frozen=True)

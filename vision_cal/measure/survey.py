@@ -28,8 +28,6 @@ from vision_cal.measure.asprinted import AsPrinted
 from vision_cal.measure.batch import as_printed_stage, detect_image, lens_of_photos
 
 FORMAT = "vision-cal/survey/1"
-#: how well the sheet is known (2-D RMS of the corners' std) for the verdict "good"
-GOOD_TO_MM = 0.02
 
 
 def _session(root: Path, sheet: Sheet, camera=None) -> Session:
@@ -85,7 +83,7 @@ def run_survey(photos_dir, sheet_json, out_dir, *, config: EstimatorConfig | Non
                   "n_places": ap.n_places},
         "paper_height": {"measured": False,
                          "note": "the paper's height is not estimated by this version"},
-        "verdict": survey_verdict(ap),
+        "verdict": survey_verdict(ap, config),
         "warnings": warnings,
         "as_printed": ap.to_json(),
     }
@@ -93,12 +91,12 @@ def run_survey(photos_dir, sheet_json, out_dir, *, config: EstimatorConfig | Non
     return doc
 
 
-def survey_verdict(ap: AsPrinted) -> dict:
-    """``good`` when the corners are known to :data:`GOOD_TO_MM` (2-D RMS of their std),
-    else ``limited`` with what limits it."""
+def survey_verdict(ap: AsPrinted, config: EstimatorConfig | None = None) -> dict:
+    """``good`` when the corners are known to ``config.as_printed.survey_good_mm`` (2-D RMS
+    of their std), else ``limited`` with what limits it."""
     good_to = ap.unresolved_mm
     limits = []
-    if not math.isfinite(good_to) or good_to > GOOD_TO_MM:
+    if not math.isfinite(good_to) or good_to > (config or DEFAULT).as_printed.survey_good_mm:
         limits.append(f"the views separate the print from the lens only to {good_to:.3f} mm: "
                       "add photos from further places, tilted more (docs/sheet.md)")
     n_rel = int(ap.released.sum())
