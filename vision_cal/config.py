@@ -309,6 +309,9 @@ class AsPrintedConfig:
     noise_px: float = 0.2             # the corners' noise assumed by the prior's weight
     prior_mm: float = 1.0             # the prior on each corner's deviation: a printer is
                                       # within tenths of a mm; holds what the views do not fix
+    focal_scatter: float = 0.1        # an undeclared lens: each photo's focal length may
+                                      # differ from the others' by about this fraction (a
+                                      # phone refocuses between photos; the prior's width)
     huber_px: float = 1.0             # residuals beyond this count linearly (a corner on an
                                       # arm's edge must not bend the layout)
     single_view_factor: float = 1.5   # one place: the print's deviation the marker corners

@@ -17,7 +17,8 @@ Model. Marker corner ``c`` of the declared layout (``P_c``, sheet mm, z = 0) is 
 ``P_c + delta_c``; photo ``v`` sees it at ``project(K, dist, R_v, t_v, P_c + delta_c)``
 (OpenCV's pinhole with k1 k2 p1 p2 k3). Free: every pose, every ``delta_c`` of a corner seen
 in at least ``min_views`` photos, and the lens when it was not declared (f, principal point,
-k1, k2, p1, p2). A weak prior (``prior_mm``) holds the deltas the views do not fix at zero
+k1, k2, p1, p2; and each photo's focal length within ``focal_scatter`` of it: a phone
+refocuses). A weak prior (``prior_mm``) holds the deltas the views do not fix at zero
 (the gauge, and any mode the lens can take over); the similarity is then removed. Solved by
 ``scipy.optimize.least_squares`` (trf, Huber loss), with OpenCV's derivatives of its
 projection for the poses and the lens.
@@ -280,15 +281,18 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
 
     lens0 = _lens_vector(K, dist0)
     n_lens = len(LENS_FREE) if lens_free else 0
-    n_pose = 6 * V
+    npv = 7 if lens_free else 6    # per photo: rvec, tvec (and its focal length's factor)
+    n_pose = npv * V
     n_delta = 2 * len(rel_idx)
     w_prior = cfg.noise_px / cfg.prior_mm
+    n_foc = V if lens_free else 0  # a phone refocuses: each photo's f = f (1 + e), e ~ prior
+    w_foc = cfg.noise_px / cfg.focal_scatter
 
     def unpack(x):
         lens = lens0.copy()
         if lens_free:
             lens[:7] = x[:7]
-        poses = x[n_lens:n_lens + n_pose].reshape(V, 6)
+        poses = x[n_lens:n_lens + n_pose].reshape(V, npv)
         delta = np.zeros_like(P0)
         delta[rel_idx] = x[n_lens + n_pose:].reshape(-1, 2)
         return lens, poses, delta
@@ -306,16 +310,20 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
         J = np.zeros((m_obs, len(x))) if with_jac else None
         eps = 1e-3
         for v, rows in enumerate(view_rows):
+            Kv = Kx.copy()
+            if lens_free:
+                Kv[0, 0] = Kv[1, 1] = Kx[0, 0] * (1.0 + poses[v, 6])
             Pv = np.column_stack([P[obs_pt[rows]], np.zeros(len(rows))])
-            pv, jv = cv2.projectPoints(Pv, poses[v, :3], poses[v, 3:], Kx, dx)
+            pv, jv = cv2.projectPoints(Pv, poses[v, :3], poses[v, 3:6], Kv, dx)
             pred[rows] = pv.reshape(-1, 2)
             if not with_jac:
                 continue
             r2 = np.column_stack([2 * rows, 2 * rows + 1]).ravel()
             jv = jv.reshape(-1, 2, jv.shape[1]).reshape(2 * len(rows), -1)
-            J[r2, n_lens + 6 * v:n_lens + 6 * v + 6] = jv[:, :6]
-            if lens_free:   # f (fx = fy), cx, cy, k1, k2, p1, p2
-                J[r2, 0] = jv[:, 6] + jv[:, 7]
+            J[r2, n_lens + npv * v:n_lens + npv * v + 6] = jv[:, :6]
+            if lens_free:   # f (fx = fy), cx, cy, k1, k2, p1, p2; the photo's focal factor
+                J[r2, 0] = (jv[:, 6] + jv[:, 7]) * (1.0 + poses[v, 6])
+                J[r2, n_lens + npv * v + 6] = (jv[:, 6] + jv[:, 7]) * Kx[0, 0]
                 J[r2, 1], J[r2, 2] = jv[:, 8], jv[:, 9]
                 J[r2, 3:7] = jv[:, 10:14]
             cols = col_of[obs_pt[rows]]
@@ -324,7 +332,7 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
                 for j in range(2):
                     Ps = Pv.copy()
                     Ps[:, j] += eps
-                    ps, _ = cv2.projectPoints(Ps, poses[v, :3], poses[v, 3:], Kx, dx)
+                    ps, _ = cv2.projectPoints(Ps, poses[v, :3], poses[v, 3:6], Kv, dx)
                     dp = (ps.reshape(-1, 2) - pv.reshape(-1, 2)) / eps
                     rr = rows[rel]
                     cc = n_lens + n_pose + 2 * cols[rel] + j
@@ -332,23 +340,29 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
                     J[2 * rr + 1, cc] = dp[rel, 1]
         return pred, J
 
+    foc_cols = n_lens + npv * np.arange(V) + 6
+
     def residuals(x):
         pred, _ = _model(x, False)
-        return np.concatenate([(pred - obs_px).ravel(), w_prior * x[n_lens + n_pose:]])
+        return np.concatenate([(pred - obs_px).ravel(), w_foc * x[foc_cols[:n_foc]],
+                               w_prior * x[n_lens + n_pose:]])
 
     def jacobian(x):
         _, J = _model(x, True)
-        return np.vstack([J, np.hstack([np.zeros((n_delta, n_lens + n_pose)),
-                                        w_prior * np.eye(n_delta)])])
+        F = np.zeros((n_foc, len(x)))
+        F[np.arange(n_foc), foc_cols[:n_foc]] = w_foc
+        D = np.hstack([np.zeros((n_delta, n_lens + n_pose)), w_prior * np.eye(n_delta)])
+        return np.vstack([J, F, D])
 
-    x0 = np.concatenate([lens0[:7] if lens_free else [], np.column_stack([rvecs, tvecs]).ravel(),
-                         np.zeros(n_delta)])
+    poses0 = np.column_stack([rvecs, tvecs] + ([np.zeros(V)] if lens_free else []))
+    x0 = np.concatenate([lens0[:7] if lens_free else [], poses0.ravel(), np.zeros(n_delta)])
 
     # before: the declared layout, the same lens, each photo's own pose
     nb = n_lens + n_pose
-    before = least_squares(lambda x: residuals(np.concatenate([x, np.zeros(n_delta)]))[:m_obs],
+    mb = m_obs + n_foc
+    before = least_squares(lambda x: residuals(np.concatenate([x, np.zeros(n_delta)]))[:mb],
                            x0[:nb], jac=lambda x: jacobian(np.concatenate(
-                               [x, np.zeros(n_delta)]))[:m_obs, :nb],
+                               [x, np.zeros(n_delta)]))[:mb, :nb],
                            method="trf", loss="huber", f_scale=cfg.huber_px, x_scale="jac",
                            max_nfev=100)
     x0 = np.concatenate([before.x, np.zeros(n_delta)])

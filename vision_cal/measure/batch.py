@@ -520,7 +520,7 @@ def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEs
     one is given, else estimated from these photos when they were taken from at least
     ``config.as_printed.min_places`` places. Returns (as_printed or None, lens, detections
     with their markers' corners as printed); an estimated lens is then the one solved with
-    the layout (the stage-2 lens absorbed part of the print)."""
+    the layout (the stage-2 lens absorbed part of the print), when stage 2 kept one."""
     ap = survey
     if ap is None:
         ok = [d for d in dets if d.status == "ok"]
@@ -540,8 +540,8 @@ def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEs
                                  config=config.as_printed)
         if ap is None:
             return None, lens, dets
-        if session.camera is None and lens is not None:
-            lens = replace(lens, K=ap.K, dist=ap.dist, kept=True)
+        if session.camera is None and lens is not None and lens.kept:
+            lens = replace(lens, K=ap.K, dist=ap.dist)   # the held-out test kept a lens
     out = []
     for d in dets:
         if d.status != "ok" or not len(d.marker_ids):
@@ -559,7 +559,8 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
     leaves on the marks (``limit_mm``, 2-D RMS). As printed (a survey or several places):
     its figures, the limit the corners' uncertainty. From one place, where the print cannot
     be told from the lens and the pose: each marker's mean corner residual beyond the
-    photo's mapping (the part of the print a homography cannot take), times
+    photo's mapping (the part of the print a homography cannot take; RMS over the markers,
+    less what the corners' own noise, seen within each marker, explains), times
     ``config.as_printed.single_view_factor`` for what it took; ``sigma_mm`` is then added to
     every mark's variance per axis."""
     if as_printed is not None:
@@ -569,18 +570,30 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
                 "unresolved_mm": as_printed.unresolved_mm,
                 "limit_mm": as_printed.unresolved_mm, "n_places": as_printed.n_places}
     declared = {int(m.id): np.asarray(m.corners_mm, float) for m in session.sheet.markers}
-    res = []
+    means, noise = [], []
     for im in images:
         if im.status != "ok" or im.mapping is None or not len(im.marker_ids):
             continue
         xy = im.mapping.image_to_sheet(np.asarray(im.markers_px).reshape(-1, 2)).reshape(-1, 4, 2)
         dec = np.array([declared[int(i)] for i in im.marker_ids])
-        res.append((xy - dec).mean(axis=1))
-    if not res:
+        r = xy - dec
+        m = r.mean(axis=1)
+        # within a marker: its growth (toner) along the corners' diagonals, then noise
+        sgn = np.sign(dec - dec.mean(axis=1, keepdims=True))
+        g = (((r - m[:, None]) * sgn).sum(axis=(1, 2)) / 8.0)[:, None, None]
+        noise.append((r - m[:, None] - g * sgn).reshape(len(r), -1))
+        means.append(m)
+    if not means:
         return None
-    seen = float(np.sqrt(np.mean(np.sum(np.concatenate(res) ** 2, axis=1))))
-    limit = config.as_printed.single_view_factor * seen
-    return {"source": "one place", "seen_rms_mm": seen, "limit_mm": limit,
+    seen = float(np.sqrt(np.mean(np.sum(np.concatenate(means) ** 2, axis=1))))
+    # 8 values a marker, 3 taken (its mean, its growth): the corners' noise per axis, and
+    # that of a marker's mean (2-D) is 2 sigma^2 / 4
+    nz = np.concatenate(noise)
+    s2 = float(np.sum(nz**2)) / max(nz.shape[0] * 5, 1)
+    excess = float(np.sqrt(max(seen**2 - s2 / 2.0, 0.0)))
+    limit = config.as_printed.single_view_factor * excess
+    return {"source": "one place", "seen_rms_mm": excess, "corner_noise_mm": float(np.sqrt(s2)),
+            "limit_mm": limit,
             "sigma_mm": limit / np.sqrt(2.0), "n_places": 1}
 
 
