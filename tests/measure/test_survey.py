@@ -81,3 +81,14 @@ def test_survey_from_one_place_is_refused(tmp_path):
     assert main(["survey", str(tmp_path / "p"), "--sheet", str(tmp_path / "sheet.json"),
                  "--out", str(tmp_path / "o"), "-q"]) == 2
     assert not (tmp_path / "o" / "survey.json").exists()
+
+
+def test_survey_never_writes_over_its_sheet(tmp_path):
+    sheet = sm.small_sheet()
+    (tmp_path / "p").mkdir()
+    (tmp_path / "o").mkdir()
+    (tmp_path / "o" / "survey.json").write_text(json.dumps(sheet.to_json()))
+    before = (tmp_path / "o" / "survey.json").read_text()
+    assert main(["survey", str(tmp_path / "p"), "--sheet", str(tmp_path / "o" / "survey.json"),
+                 "--out", str(tmp_path / "o"), "-q"]) == 2
+    assert (tmp_path / "o" / "survey.json").read_text() == before

@@ -21,7 +21,7 @@ import numpy as np
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset import photos
 from vision_cal.dataset.fields import FieldReader
-from vision_cal.dataset.io import atomic_write_json, read_json
+from vision_cal.dataset.io import atomic_write_json, distinct_outputs, read_json
 from vision_cal.dataset.session import NominalRobot, Session, Sheet, load_sheet_file
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.asprinted import AsPrinted
@@ -50,6 +50,7 @@ def run_survey(photos_dir, sheet_json, out_dir, *, config: EstimatorConfig | Non
                              "(photos are never written to)", file=str(out_dir))
     except ValueError:
         pass
+    distinct_outputs([("--out", out_dir / "survey.json")], [("--sheet", sheet_json)])
     sheet = load_sheet_file(sheet_json)
     session = _session(root, sheet)
     names = photos.list_photos(root)
