@@ -419,6 +419,8 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     ext = "jpg" if ph.jpeg_quality is not None else "png"
     if ph.mode == "series":
         shots = [(f"img_{k:03d}.{ext}", k + 1) for k in range(n)]
+    elif ph.mode == "survey":   # the blank sheet from every view, before the robot draws
+        shots = [(f"survey_{k:03d}.{ext}", 0) for k in range(len(views))]
     else:
         shots = [(f"img_000.{ext}", n)]
     # each photo's camera matrix: phones refocus between photos (camera.f_scatter)
@@ -452,7 +454,8 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
         for i, (fname, n_marks) in enumerate(shots):
             # the views are rigid poses of the arm frame; a deformed sheet (sheet_affine)
             # lies physically shrunk in it: T maps printed sheet points to the camera
-            T = truth.T_render(views[i % len(views)] if cam.moving else views[0])
+            T = truth.T_render(views[i % len(views)] if cam.moving or ph.mode == "survey"
+                               else views[0])
             arm = None
             if ph.arm_parked and (ph.mode == "single" or i % PARK_EVERY == PARK_EVERY - 1):
                 q_park = parking_pose(truth, sheet.extent_mm, rng=st.park)

@@ -77,6 +77,8 @@ Sections and fields::
                                   # (needs declared: false; the contract has one K)
     photos:
       mode: series                # series: one photo after each mark | single: one photo
+                                  # | survey: one photo of the blank sheet (no mark yet)
+                                  # from each of camera.n_views places (vision-cal survey)
       texture_px_per_mm: 8.0      # resolution of the rendered sheet texture
       vignetting: 0.15            # 0..1 light fall-off in the corners
       noise_sigma: 1.5            # sensor noise, grey levels
@@ -110,7 +112,7 @@ from vision_cal.render.sheet import make_sheet
 from vision_cal.render.truth_model import DRIFT_PARAMS, TrueRobot
 
 PLAN_KINDS = ("informative", "paper")
-PHOTO_MODES = ("series", "single")
+PHOTO_MODES = ("series", "single", "survey")
 CONTROLLERS = ("kinematic", "smc", "pd")
 EXTRA_KINDS = ("blank", "noise", "corrupt")
 
