@@ -73,3 +73,4 @@ def test_scene_reads_the_print_block():
     s = scene_from_dict({"sheet": {"print": {"deviation_rms_mm": 0.17, "toner_mm": 0.06}}})
     assert s.sheet.print.deviation_rms_mm == 0.17 and s.sheet.print.toner_mm == 0.06
     assert scene_from_dict({}).sheet.print is None
+    assert scene_from_dict({"photos": {"mode": "survey"}}).photos.mode == "survey"
