@@ -14,7 +14,7 @@ from vision_cal.dataset.trust import require_ready_pilot
 from vision_cal.design.placements import design_placements
 from vision_cal.design.stage import design_stage
 from vision_cal.errors import VisionCalError
-from vision_cal.measure.survey import copy_survey, find_survey
+from vision_cal.measure.survey import copy_survey, find_survey, load_survey
 
 
 @dataclass(frozen=True)
@@ -72,6 +72,11 @@ def design(req: DesignRequest) -> int:
                              "of a calibration), not both", field="--verify")
     if req.pilot:
         require_ready_pilot(read_json(req.pilot), req.pilot)
+    survey = find_survey(req.survey or req.sheet)   # #28: measured against it, found there
+    if req.survey and survey is None:
+        raise VisionCalError("not found", file=str(req.survey))
+    if survey is not None:   # checked against the sheet before anything is written
+        load_survey(survey, load_sheet_file(req.sheet))
     check = req.verify is not None
     if req.iso9283 and not check or not 0 <= req.iso9283 <= 30:
         raise VisionCalError(f"expected 1..30 cycles with --verify, got {req.iso9283}",
@@ -86,9 +91,6 @@ def design(req: DesignRequest) -> int:
 
     for w in r.info.get("warnings", []):
         print(f"vision-cal: warning: {w}", file=sys.stderr)
-    survey = find_survey(req.survey or req.sheet)   # #28: measured against it, found there
-    if req.survey and survey is None:
-        raise VisionCalError("not found", file=str(req.survey))
     if survey is not None:
         dest = copy_survey(survey, load_sheet_file(req.sheet), r.session_path.parent)
         if not req.quiet:
