@@ -139,12 +139,16 @@ def load_survey(path, sheet: Sheet | None) -> AsPrinted:
 
 
 def find_survey(*candidates) -> Path | None:
-    """The first ``survey.json`` that exists among the folders or files given."""
+    """The first survey that exists among those given: a survey file itself (a .json that
+    is not sheet.json or session.json), else ``survey.json`` in the folder given or beside
+    the file given."""
     for c in candidates:
         if c is None:
             continue
         p = Path(c)
-        p = p if p.name == "survey.json" else (p if p.is_dir() else p.parent) / "survey.json"
+        if p.is_file() and p.name not in ("sheet.json", "session.json"):
+            return p
+        p = (p if p.is_dir() else p.parent) / "survey.json"
         if p.is_file():
             return p
     return None
