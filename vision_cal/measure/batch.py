@@ -504,7 +504,7 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
                        None if inferred is None else inferred.mode,
                        () if inferred is None else (*notes, *inferred.warnings),
                        heights, hmap, hnote, str(root.resolve()), as_printed, print_summary)
-    if print_summary is not None and print_summary["source"] == "one place":
+    if print_summary is not None and np.isfinite(print_summary.get("sigma_mm", np.nan)):
         marks = {k: replace(m, cov_mm2=m.cov_mm2 + print_summary["sigma_mm"] ** 2 * np.eye(2))
                  for k, m in meas.marks.items()}
         meas = replace(meas, marks=marks)
@@ -557,7 +557,8 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
                 config: EstimatorConfig) -> dict | None:
     """measurement.json ``print``: the print's deviation from its layout and the limit it
     leaves on the marks (``limit_mm``, 2-D RMS). As printed (a survey or several places):
-    its figures, the limit the corners' uncertainty. From one place, where the print cannot
+    its figures, the limit the corners' uncertainty (``sigma_mm``: per axis, added to every
+    mark's variance as below). From one place, where the print cannot
     be told from the lens and the pose: each marker's mean corner residual beyond the
     photo's mapping (the part of the print a homography cannot take; RMS over the markers,
     less what the corners' own noise, seen within each marker, explains), times
@@ -568,7 +569,9 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
                 "max_mm": as_printed.max_mm, "growth_mm": as_printed.growth_mm,
                 "field_rms_mm": as_printed.field_rms_mm,
                 "unresolved_mm": as_printed.unresolved_mm,
-                "limit_mm": as_printed.unresolved_mm, "n_places": as_printed.n_places}
+                "limit_mm": as_printed.unresolved_mm,
+                "sigma_mm": as_printed.unresolved_mm / np.sqrt(2.0),
+                "n_places": as_printed.n_places}
     declared = {int(m.id): np.asarray(m.corners_mm, float) for m in session.sheet.markers}
     means, noise = [], []
     for im in images:
