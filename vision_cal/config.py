@@ -309,6 +309,9 @@ class AsPrintedConfig:
     noise_px: float = 0.2             # the corners' noise assumed by the prior's weight
     prior_mm: float = 1.0             # the prior on each corner's deviation: a printer is
                                       # within tenths of a mm; holds what the views do not fix
+    min_deviation_ratio: float = 3.0  # the layout is measured as printed only when its
+                                      # deviation (RMS) exceeds this many times what the
+                                      # views leave unresolved: else the declared one is kept
     focal_scatter: float = 0.1        # an undeclared lens: each photo's focal length may
                                       # differ from the others' by about this fraction (a
                                       # phone refocuses between photos; the prior's width)

@@ -35,3 +35,12 @@ def test_grid_off_its_layout_is_the_print_once_the_print_is_measured():
     assert judge(doc).status == "check"
     v = judge({**doc, "print": {"source": "views", "rms_mm": 0.17, "limit_mm": 0.002}})
     assert v.status == "ready" and any("as printed" in r for r in v.reasons)
+
+
+def test_a_layout_found_on_its_declaration_changes_nothing():
+    doc = _fit_doc()
+    doc["diagnosis"] = {"sheet_height": {"claimed": False, "not_claimed_as": "mapping"}}
+    doc["marks"]["c00"]["local_minus_global_mm"] = [0.2, 0.1]
+    v = judge({**doc, "print": {"source": "views", "applied": False, "rms_mm": 0.01,
+                                "unresolved_mm": 0.01, "limit_mm": 0.0}})
+    assert v.status == "check" and v.expected_target_error_mm == judge(doc).expected_target_error_mm

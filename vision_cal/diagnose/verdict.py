@@ -365,7 +365,8 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
                      "bad sheet mapping?): " + ", ".join(moved[:5]))
     sh = diagnosis.get("sheet_height") or {}
     as_ = sh.get("not_claimed_as")
-    printed_measured = (doc.get("print") or {}).get("source") in ("views", "survey")
+    pr = doc.get("print") or {}
+    printed_measured = pr.get("source") in ("views", "survey") and pr.get("applied", True)
     if not sh.get("claimed") and as_ == "mapping" and printed_measured:
         # the sheet as printed was measured (#28): the grid is off its layout as the markers
         # were, and the marks are measured against the markers as printed

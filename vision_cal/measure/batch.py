@@ -484,11 +484,12 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
     cached = [ph.cached for ph in items]
     lens, lens_warnings = lens_of_photos(session, dets)
     warnings += lens_warnings
-    as_printed, lens, dets = as_printed_stage(session, dets, lens, config, survey=survey)
+    as_printed, lens, dets, kept_declared = as_printed_stage(session, dets, lens, config,
+                                                             survey=survey)
     images, finish_warnings = finish_all(session, dets, cached, lens, config,
                                          listed_marks=[ph.listed_marks for ph in items])
     warnings += finish_warnings
-    print_summary = print_stage(session, images, as_printed, config)
+    print_summary = print_stage(session, images, as_printed, config, kept_declared)
     files = [ph.file for ph in items]
     dots = associate_dots(session, items, images, ac, config.dots.default_diameter_mm,
                           config.plan_match)
@@ -518,15 +519,18 @@ def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEs
                      config: EstimatorConfig, *, survey: AsPrinted | None = None):
     """The sheet as printed (:mod:`vision_cal.measure.asprinted`): the survey's layout when
     one is given, else estimated from these photos when they were taken from at least
-    ``config.as_printed.min_places`` places. Returns (as_printed or None, lens, detections
+    ``config.as_printed.min_places`` places and off its layout beyond
+    ``config.as_printed.min_deviation_ratio`` times what they leave unresolved. Returns
+    (as_printed or None, lens, detections
     with their markers' corners as printed); an estimated lens is then the one solved with
-    the layout (the stage-2 lens absorbed part of the print), when stage 2 kept one."""
+    the layout (the stage-2 lens absorbed part of the print), when stage 2 kept one; and
+    the layout found but not used (None when used or not found)."""
     ap = survey
     if ap is None:
         ok = [d for d in dets if d.status == "ok"]
         sizes = sorted({d.size_px for d in ok}, key=lambda s: -sum(x.size_px == s for x in ok))
         if not sizes:
-            return None, lens, dets
+            return None, lens, dets, None
         size = sizes[0]
         K, dist = _lens_of(session, lens, size)
         if K is None:   # no lens kept: start from its focal length, no distortion
@@ -539,7 +543,12 @@ def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEs
         ap = estimate_as_printed(views, K, dist, size, lens_free=session.camera is None,
                                  config=config.as_printed)
         if ap is None:
-            return None, lens, dets
+            return None, lens, dets, None
+        if not ap.rms_mm > config.as_printed.min_deviation_ratio * ap.unresolved_mm:
+            # the views see no print off its layout beyond what they cannot resolve
+            log.info("as printed: %.4f mm RMS off the layout, within %.4f mm the views leave "
+                     "unresolved: the declared layout is kept", ap.rms_mm, ap.unresolved_mm)
+            return None, lens, dets, ap
         if session.camera is None and lens is not None and lens.kept:
             lens = replace(lens, K=ap.K, dist=ap.dist)   # the held-out test kept a lens
     out = []
@@ -550,11 +559,11 @@ def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEs
         d2 = replace(d, corners_mm=ap.corners_for(d.marker_ids, d.corners_mm))
         d2.__dict__["_corners_memo"] = d.__dict__.get("_corners_memo", {})
         out.append(d2)
-    return ap, lens, out
+    return ap, lens, out, None
 
 
 def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrinted | None,
-                config: EstimatorConfig) -> dict | None:
+                config: EstimatorConfig, kept_declared: AsPrinted | None = None) -> dict | None:
     """measurement.json ``print``: the print's deviation from its layout and the limit it
     leaves on the marks (``limit_mm``, 2-D RMS). As printed (a survey or several places):
     its figures, the limit the corners' uncertainty (``sigma_mm``: per axis, added to every
@@ -564,8 +573,13 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
     less what the corners' own noise, seen within each marker, explains), times
     ``config.as_printed.single_view_factor`` for what it took; ``sigma_mm`` is then added to
     every mark's variance per axis."""
+    if kept_declared is not None:   # the views saw the print on its layout: nothing added
+        return {"source": kept_declared.source, "applied": False,
+                "rms_mm": kept_declared.rms_mm, "max_mm": kept_declared.max_mm,
+                "unresolved_mm": kept_declared.unresolved_mm, "limit_mm": 0.0,
+                "n_places": kept_declared.n_places}
     if as_printed is not None:
-        return {"source": as_printed.source, "rms_mm": as_printed.rms_mm,
+        return {"source": as_printed.source, "applied": True, "rms_mm": as_printed.rms_mm,
                 "max_mm": as_printed.max_mm, "growth_mm": as_printed.growth_mm,
                 "field_rms_mm": as_printed.field_rms_mm,
                 "unresolved_mm": as_printed.unresolved_mm,

@@ -58,7 +58,8 @@ def run_survey(photos_dir, sheet_json, out_dir, *, config: EstimatorConfig | Non
         raise VisionCalError("no photos (JPEG or PNG) in the folder", file=str(root))
     dets = [detect_image(root / n, session, root=root, name=n, config=config) for n in names]
     lens, warnings = lens_of_photos(session, dets)
-    ap, lens, _ = as_printed_stage(session, dets, lens, config)
+    ap, lens, _, on_layout = as_printed_stage(session, dets, lens, config)
+    ap = ap or on_layout   # a survey reports the layout it found, on the declared one or not
     ok = [d for d in dets if d.status == "ok"]
     if ap is None:
         raise VisionCalError(

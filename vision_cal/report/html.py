@@ -335,6 +335,11 @@ def _print_html(pr: dict) -> str:
                 f"mapping; every mark carries about {_f(pr.get('limit_mm'), 3)} mm (RMS) for it. "
                 "Survey the sheet (vision-cal survey) or photograph it from several places."
                 "</p>")
+    if pr.get("applied") is False:
+        return (f"<p>Measured from the {_e(pr.get('source'))} ({pr.get('n_places')} camera "
+                f"places): on its layout within what they resolve ({_f(pr.get('rms_mm'), 3)} "
+                f"mm RMS against {_f(pr.get('unresolved_mm'), 3)} mm); the declared layout is "
+                "kept.</p>")
     return (f"<p>Measured from {_e(pr.get('source'))} ({pr.get('n_places')} camera places): "
             f"the markers' corners are {_f(pr.get('rms_mm'), 3)} mm RMS, "
             f"{_f(pr.get('max_mm'), 3)} mm at most, off their layout; the markers grew "
