@@ -12,7 +12,7 @@ then
   and max against the targets,
 - print: the reported deviation (``print.field_rms_mm``, ``growth_mm``) against truth.json
   ``print`` (the field at the markers' corners, the toner),
-- the verdict's status and expected target error (95 %) and its RMS equivalent.
+- the verdict's status and expected target error (95 %).
 ``--folder DATASET OUT``: only the figures of a folder already calibrated into OUT.
 """
 

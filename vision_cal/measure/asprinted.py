@@ -160,22 +160,6 @@ class AsPrinted:
 
 # ---------------------------------------------------------------------- projection
 
-def _project(lens: np.ndarray, rvecs: np.ndarray, tvecs: np.ndarray, view: np.ndarray,
-             P: np.ndarray) -> np.ndarray:
-    """Pixels (N, 2) of sheet points ``P`` (N, 2) seen by photo ``view`` (N,) indices;
-    ``lens`` = (f, cx, cy, k1, k2, p1, p2, k3)."""
-    f, cx, cy, k1, k2, p1, p2, k3 = lens
-    R = np.array([cv2.Rodrigues(r)[0] for r in rvecs])          # (V, 3, 3)
-    Rv = R[view]
-    X = Rv[:, :, 0] * P[:, :1] + Rv[:, :, 1] * P[:, 1:2] + tvecs[view]
-    x, y = X[:, 0] / X[:, 2], X[:, 1] / X[:, 2]
-    r2 = x * x + y * y
-    rad = 1 + k1 * r2 + k2 * r2 * r2 + k3 * r2 * r2 * r2
-    xd = x * rad + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
-    yd = y * rad + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
-    return np.column_stack([f * xd + cx, f * yd + cy])
-
-
 def _lens_vector(K, dist) -> np.ndarray:
     d = np.zeros(5)
     dd = np.asarray(dist, float).ravel()[:5]
