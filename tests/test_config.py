@@ -28,8 +28,8 @@ from vision_cal.dataset.session import SheetGrid, load_session
 from vision_cal.diagnose import discover, sheet, verdict
 from vision_cal.diagnose.select import diagnose
 from vision_cal.errors import CalibrationError
-from vision_cal.measure import (associate, dots, grid, grid_declaration, height, infer,
-                                photo_agreement, plan_match, sheetfit)
+from vision_cal.measure import (asprinted, associate, dots, grid, grid_declaration, height,
+                                infer, photo_agreement, plan_match, sheetfit, survey)
 from vision_cal.measure.batch import measure_image
 from vision_cal.measure.cache import session_fingerprint
 from vision_cal.pipeline import MarkData, calibrate_dataset
@@ -43,6 +43,7 @@ CONFIGURED = {dots: (), grid: (), sheetfit: (), discover: (), joint4: (),
               verdict: ("R95_PER_RMS",), associate: (), height: (), plan_match: (),
               photo_agreement: (), grid_declaration: (), placements: (), infer: (),
               pose_pairs: ("_TINY",),   # a numerical guard (exact synthetic pairs)
+              asprinted: (), survey: (),
               # the smoother's cost bounds (not judgements: the test stays exact)
               sheet: ("EXACT_MAX_MARKS", "GRID_PER_LENGTH", "MAX_GRID_CELLS")}
 
@@ -103,7 +104,7 @@ def test_calibration_json_says_how_it_was_obtained(paper_folder, tmp_path):
                                   "per_photo_offsets", "sheet_fit", "grid", "sheet_height",
                                   "plan_match", "photo_agreement", "grid_declaration",
                                   "smooth_residual", "discovery", "joint4", "verdict",
-                                  "handeye"}
+                                  "handeye", "as_printed"}
     assert doc["config"]["selection"]["alpha"] == 0.01
     cfg = replace(DEFAULT, selection=SelectionConfig(alpha=1e-3, k_folds=3, max_effects=1))
     calibrate_dataset(paper_folder, out_dir=tmp_path / "c", config=cfg)

@@ -341,6 +341,9 @@ class VerdictConfig:
     lens_min_px: float = 0.1          # distortion at the farthest corner seen: 0.1 px (the
                                       # sub-pixel corners' own scale)
 
+    print_check_mm: float = 0.01      # the print's limit on the marks (2-D RMS) seen from one
+                                      # camera place beyond this: check (a survey measures it)
+
 
 @dataclass(frozen=True)
 class HandeyeConfig:
@@ -358,6 +361,36 @@ class HandeyeConfig:
     max_outlier_fraction: float = 0.3  # never leave out more than this share of the pairs
     unidentified_std_mm: float = 5.0  # a translation whose std is above this (mm) ...
     unidentified_std_deg: float = 2.0  # ... or a rotation above this (deg): not identifiable
+
+
+@dataclass(frozen=True)
+class AsPrintedConfig:
+    """The sheet as printed, from several views (``vision_cal.measure.asprinted``, #28)."""
+
+    min_places: int = 3               # distinct camera places needed to release the layout
+                                      # (two leave the print and the lens nearly confounded)
+    place_move: float = 0.05          # camera centres further apart than this fraction of
+                                      # their distance to the sheet are two places ...
+    place_turn_deg: float = 3.0       # ... or views turned more than this
+    min_views: int = 2                # a corner is released when this many photos see it
+    noise_px: float = 0.2             # the corners' noise assumed by the prior's weight
+    prior_mm: float = 1.0             # the prior on each corner's deviation: a printer is
+                                      # within tenths of a mm; holds what the views do not fix
+    min_deviation_ratio: float = 3.0  # the layout is measured as printed only when its
+                                      # deviation (RMS) exceeds this many times what the
+                                      # views leave unresolved: else the declared one is kept
+    focal_scatter: float = 0.1        # an undeclared lens: each photo's focal length may
+                                      # differ from the others' by about this fraction (a
+                                      # phone refocuses between photos; the prior's width)
+    huber_px: float = 1.0             # residuals beyond this count linearly (a corner on an
+                                      # arm's edge must not bend the layout)
+    single_view_factor: float = 1.0   # one place: the print's deviation the marker corners
+                                      # show beyond the homography, times this, is the marks'
+                                      # systematic uncertainty (2-D): the pose takes part of
+                                      # the print, the robot fit part of what is left (a 0.17
+                                      # mm print: 0.15 mm seen, marks 0.08 mm off)
+    survey_good_mm: float = 0.02      # a survey whose corners are known to this (2-D RMS of
+                                      # their std) says "good"; else what limits it
 
 
 @dataclass(frozen=True)
@@ -381,6 +414,7 @@ class EstimatorConfig:
     joint4: Joint4Config = field(default_factory=Joint4Config)
     verdict: VerdictConfig = field(default_factory=VerdictConfig)
     handeye: HandeyeConfig = field(default_factory=HandeyeConfig)
+    as_printed: AsPrintedConfig = field(default_factory=AsPrintedConfig)
 
     def to_json(self) -> dict:
         return asdict(self)

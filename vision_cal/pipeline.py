@@ -42,6 +42,7 @@ from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.kinematics import forward
 from vision_cal.measure.batch import measure_folder
 from vision_cal.measure.printed import printed_content_json
+from vision_cal.measure.survey import load_survey
 from vision_cal.measure.types import Measurement
 from vision_cal.model import JointBacklash, RobotModel, SheetAffine
 from vision_cal.report_data import add_to_calibration
@@ -206,12 +207,14 @@ class _Fitted:
 
 def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None = None,
                       progress: bool = False, truth: bool = False,
-                      config: EstimatorConfig | None = None) -> CalibrationRun:
+                      config: EstimatorConfig | None = None, survey=None) -> CalibrationRun:
     """Measure (if needed), calibrate and diagnose a dataset folder; write calibration.json.
 
     The stages: :func:`measure_marks`, then :func:`fit_paper` or :func:`fit_lsq`, then
     :func:`document`. ``config``: the estimator's thresholds (:mod:`vision_cal.config`;
-    default ``DEFAULT``), recorded in calibration.json's ``config``."""
+    default ``DEFAULT``), recorded in calibration.json's ``config``. ``survey``: the sheet
+    as printed (survey.json's path, or None: a ``survey.json`` beside session.json's sheet
+    is not looked for here; :func:`vision_cal.survey.find_survey` does that)."""
     if method not in METHODS:
         raise VisionCalError(f"unknown method {method!r} (expected one of {', '.join(METHODS)})")
     config = config or DEFAULT
@@ -219,7 +222,9 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     session = folder if isinstance(folder, Session) else load_session(folder)
     out_dir = Path(out_dir)
     measurement, data, missing = measure_marks(session, out_dir=out_dir, jobs=jobs,
-                                               progress=progress, config=config)
+                                               progress=progress, config=config,
+                                               survey=None if survey is None
+                                               else load_survey(survey, session.sheet))
     cal, val = data.select("calibration"), data.select("validation")
     if cal.joint4 is not None and len(np.unique(np.round(cal.joint4[:, 0], 6))) > 1:
         if method == "paper":
@@ -244,7 +249,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
 
 
 def measure_marks(session: Session, *, out_dir: Path, jobs: int | None = None,
-                  progress: bool = False, config: EstimatorConfig = DEFAULT
+                  progress: bool = False, config: EstimatorConfig = DEFAULT, survey=None
                   ) -> tuple[Measurement | None, MarkData, list[str]]:
     """(measurement or None, MarkData, missing ids): the photos measured when a mark has
     no ``measured_mm``; fewer than 3 calibration marks is a :class:`CalibrationError` that
@@ -252,7 +257,7 @@ def measure_marks(session: Session, *, out_dir: Path, jobs: int | None = None,
     measurement = None
     if any(m.measured_mm is None for m in session.marks):
         measurement = measure_folder(session, out_dir=out_dir, jobs=jobs, progress=progress,
-                                     config=config)
+                                     config=config, survey=survey)
     data, missing = collect_marks(session, measurement)
     n_cal = len(data.select("calibration").ids)
     if n_cal < 3:
@@ -441,7 +446,10 @@ def document(session: Session, data: MarkData, missing: list[str],
         targets=tuple(_target_errors(session, data)) or None,
         printer_scale=printer,
         cameras=cameras or None,   # added: still cameras (vision_cal/camera/fixed.py)
-        sheet=sheet_identity(session.raw.get("sheet")))  # which printed sheet: design --pilot
+        sheet=sheet_identity(session.raw.get("sheet")),  # which printed sheet: design --pilot
+        # added (#28): the print's deviation from its layout and its limit on the marks
+        extra={"print": measurement.print_summary}
+        if measurement is not None and measurement.print_summary is not None else {})
     if truth:
         result = replace(result, truth_comparison=compare_truth(session.root / "truth.json",
                                                                 result.to_json()))

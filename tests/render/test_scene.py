@@ -24,7 +24,7 @@ def test_every_expected_scene_is_shipped():
 def test_shipped_scene_loads(path):
     s = load_scene(path)
     assert s.source == str(path)
-    assert s.photos.mode in ("series", "single")
+    assert s.photos.mode in ("series", "single", "survey")
 
 
 def test_default_scene_matches_the_issue():

@@ -17,6 +17,7 @@ from vision_cal.dataset.out_folder import (earlier_placements, output_names,
                                            writing_into)
 from vision_cal.diagnose.verdict import Verdict
 from vision_cal.errors import VisionCalError
+from vision_cal.measure.survey import find_survey
 from vision_cal.pipeline import calibrate_dataset
 from vision_cal.report.html import write_report
 from vision_cal.report.summary import format_summary
@@ -36,6 +37,7 @@ class CalibrateRequest:
     quiet: bool = False
     robot: str | None = None      # a marks CSV's robot file (issue 32)
     sigma_mm: float | None = None  # a marks CSV's stated accuracy (mm, one std per axis)
+    survey: str | None = None     # survey.json (default: a survey.json in the folder)
 
 
 def calibrate(req: CalibrateRequest) -> int:
@@ -98,12 +100,19 @@ def calibrate(req: CalibrateRequest) -> int:
             # OUT holds one run: an earlier run's results go to OUT/previous/ first, so a
             # failed or interrupted run leaves nothing that looks current; OUT is never the
             # dataset folder, and is locked while written (dataset/out_folder.py)
+            is_csv = str(folder).lower().endswith(".csv")
             source = (session_from_marks_csv(folder, req.robot, sigma_mm=req.sigma_mm)
-                      if str(folder).lower().endswith(".csv") else folder)
+                      if is_csv else folder)
+            survey = None if is_csv else find_survey(req.survey or folder)   # #28: as printed
+            if req.survey and survey is None:
+                raise VisionCalError("not found", file=str(req.survey))
+            if survey is not None and not req.quiet:
+                print(f"measuring against the sheet as surveyed: {survey}")
             with writing_into(out, command="calibrate", inputs=[("DIR", folder)],
                               quiet=req.quiet):
                 result = calibrate_dataset(source, out_dir=out, method=req.method,
-                                           jobs=req.jobs, progress=progress, truth=req.truth)
+                                           jobs=req.jobs, progress=progress, truth=req.truth,
+                                           survey=survey)
                 report = _write_report(result, out) if req.report else None
         except VisionCalError as e:
             if not several:

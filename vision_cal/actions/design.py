@@ -18,6 +18,7 @@ from vision_cal.dataset.trust import require_ready_pilot
 from vision_cal.design.placements import design_placements
 from vision_cal.design.stage import design_stage
 from vision_cal.errors import VisionCalError
+from vision_cal.measure.survey import copy_survey, find_survey, load_survey
 
 
 @dataclass(frozen=True)
@@ -43,6 +44,7 @@ class DesignRequest:
     trigger: str = 'output'
     trigger_output: int = 8
     repeats: int = 6
+    survey: str | None = None     # survey.json (#28; default: one beside --sheet)
 
 
 def design(req: DesignRequest) -> int:
@@ -87,6 +89,11 @@ def design(req: DesignRequest) -> int:
                                 file=given, robot_file=req.robot)
     if req.pilot:
         require_ready_pilot(read_json(req.pilot), req.pilot)
+    survey = find_survey(req.survey or req.sheet)   # #28: measured against it, found there
+    if req.survey and survey is None:
+        raise VisionCalError("not found", file=str(req.survey))
+    if survey is not None:   # checked against the sheet before anything is written
+        load_survey(survey, load_sheet_file(req.sheet))
     check = req.verify is not None
     if not 0 <= req.iso9283 <= 30:
         raise VisionCalError(f"expected 1..30 cycles, got {req.iso9283}", field="--iso9283")
@@ -102,6 +109,10 @@ def design(req: DesignRequest) -> int:
 
     for w in r.info.get("warnings", []):
         print(f"vision-cal: warning: {w}", file=sys.stderr)
+    if survey is not None:
+        dest = copy_survey(survey, load_sheet_file(req.sheet), r.session_path.parent)
+        if not req.quiet:
+            print(f"the sheet as surveyed ({survey}) goes with the plan: {dest}")
     if not req.quiet:
         print(f"{r.stage} plan: {r.n_marks} marks, {r.duration_s:.1f} s of motion")
         if r.stage == "pilot":

@@ -43,6 +43,9 @@ def add_arguments(p) -> None:
     p.add_argument("--truth", action="store_true",
                    help="compare with truth.json (synthetic data only)")
     p.add_argument("--report", action="store_true", help="also write report.json and report.html")
+    p.add_argument("--survey", default=None, metavar="SURVEY.json",
+                   help="the sheet as printed (vision-cal survey); default: a survey.json in "
+                        "the dataset folder, if any")
     p.add_argument("--joint", action="store_true",
                    help="the folders are placements of one sheet (or several sheets) drawn by "
                         "one robot: fit one robot and one sheet pose each (robot frame R; "
@@ -64,4 +67,4 @@ def run(args) -> int:
     return calibrate(CalibrateRequest(tuple(args.folders), out=args.out, method=args.method,
                                       jobs=args.jobs, truth=args.truth, report=args.report,
                                       joint=args.joint, quiet=args.quiet, robot=args.robot,
-                                      sigma_mm=args.sigma_mm))
+                                      sigma_mm=args.sigma_mm, survey=args.survey))

@@ -27,6 +27,9 @@ def add_arguments(p) -> None:
                         "placement tolerance, pen heights (vision_cal/dataset/robot.py)")
     p.add_argument("--sheet", required=True, metavar="SHEET.json",
                    help="the sheet.json written by `vision-cal sheet`")
+    p.add_argument("--survey", default=None, metavar="SURVEY.json",
+                   help="the sheet as printed (vision-cal survey), copied into the plan's "
+                        "folder for the calibration; default: a survey.json beside --sheet")
     p.add_argument("-o", "--out", required=True, metavar="PLAN/",
                    help="folder for session.json, trajectory.csv and the program (the photos "
                         "go here later)")

@@ -12,7 +12,8 @@ import logging
 import sys
 
 SUBCOMMANDS = ("calibrate", "sheet", "design", "init", "render", "plan", "loop", "export",
-               "simulate", "verify", "robot-template", "history", "locate", "handeye")
+               "simulate", "verify", "robot-template", "history", "locate", "handeye",
+               "survey")
 EXIT_OK, EXIT_CALIBRATION, EXIT_INPUT = 0, 1, 2
 
 EPILOG = """\

@@ -380,7 +380,17 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
                      "bad sheet mapping?): " + ", ".join(moved[:5]))
     sh = diagnosis.get("sheet_height") or {}
     as_ = sh.get("not_claimed_as")
-    if not sh.get("claimed") and as_ in ("lens", "mapping"):
+    pr = doc.get("print") or {}
+    printed_measured = pr.get("source") in ("views", "survey") and pr.get("applied", True)
+    if not sh.get("claimed") and as_ == "mapping" and printed_measured:
+        # the sheet as printed was measured (#28): the grid is off its layout as the markers
+        # were, and the marks are measured against the markers as printed
+        off = [math.hypot(*m["local_minus_global_mm"]) for m in marks.values()
+               if m.get("local_minus_global_mm") is not None]
+        add("ready", "the printed grid is off its layout " + (f"by up to {max(off):.3f} mm "
+                     if off else "") + "as the print is: the marks are measured against the "
+                     "markers as printed (calibration.json print)")
+    elif not sh.get("claimed") and as_ in ("lens", "mapping"):
         off = [math.hypot(*m["local_minus_global_mm"]) for m in marks.values()
                if m.get("local_minus_global_mm") is not None]
         size = f"by up to {max(off):.3f} mm " if off else ""
@@ -408,6 +418,7 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
         add(by_design or "check",
             f"{n_fit} fitted marks leave {2 * n_fit - n_par} degrees of freedom, too few to "
             "test for backlash, gear-ratio or sheet effects")
+    r95 = _with_print(doc.get("print"), r95, add, cfg)
     if (r95 is not None and _finite(fit_rms) and fit_rms > 0
             and held_rms > cfg.heldout_warn_ratio * fit_rms):
         add("check", f"the held-out RMS ({held_rms:.4f} mm) is {held_rms / fit_rms:.1f} times "
@@ -418,6 +429,26 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
                          source, worst)
         v = replace(v, within_valid_for=inner.status)
     return v
+
+
+def _with_print(pr: dict | None, r95, add, cfg):
+    """The print's limit on the marks (calibration.json ``print``, #28): its ``limit_mm``
+    (2-D RMS, the same at every mark and not averaged by the fit: the print is where it
+    is) added to the expected target error; from one camera place, where the print
+    cannot be told from the lens, a limit beyond ``cfg.print_check_mm`` makes the run
+    ``check``. Returns the expected target error."""
+    lim = (pr or {}).get("limit_mm")
+    if not _finite(lim) or lim <= 0:
+        return r95
+    if r95 is not None:
+        r95 = float(math.hypot(r95, R95_PER_RMS * lim))
+    if pr.get("source") == "one place" and lim > cfg.print_check_mm:
+        add("check", f"the print's deviation from its layout is not measured: one camera "
+                     f"place cannot tell it from the lens; the markers show "
+                     f"{pr.get('seen_rms_mm', float('nan')):.3f} mm beyond the photo's mapping, "
+                     f"about {lim:.3f} mm RMS on every mark: survey the sheet (vision-cal "
+                     "survey) or photograph it from several places")
+    return r95
 
 
 def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from vision_cal.measure.aruco import corners_from_edges
+from vision_cal.measure.asprinted import AsPrinted
 from vision_cal.measure.dots import DotCandidates
 from vision_cal.measure.height import HeightMap, MarkHeight
 from vision_cal.measure.mapping import LensEstimate, SheetMapping, distort_px, undistort_px
@@ -283,6 +284,10 @@ class Measurement:
     height_note: str | None = None
     #: the dataset folder the photos are in (``images[].file`` is relative to it)
     dataset: str | None = None
+    #: the sheet as printed (#28: :class:`vision_cal.measure.asprinted.AsPrinted`), when a
+    #: survey or several camera places gave it; ``print_summary``: measurement.json ``print``
+    as_printed: object | None = None
+    print_summary: dict | None = None
 
     def session_images(self) -> list[dict]:
         """``images`` for session.json: every usable photo and the marks it shows."""
@@ -323,7 +328,9 @@ class Measurement:
                                  if self.height_map is not None
                                  else {"claimed": False, "note": self.height_note}),
                 "heights": {k: h.to_full_json() for k, h in self.heights.items()},
-                "height_note": self.height_note}
+                "height_note": self.height_note,
+                "as_printed": None if self.as_printed is None else self.as_printed.to_json(),
+                "print": self.print_summary}
 
     @classmethod
     def from_json(cls, d: dict) -> "Measurement":
@@ -338,7 +345,9 @@ class Measurement:
                    tuple(d.get("inferred_notes") or ()),
                    {k: MarkHeight.from_json(h) for k, h in (d.get("heights") or {}).items()},
                    HeightMap.from_json(sh) if "grid" in sh else None,
-                   d.get("height_note", sh.get("note")), d.get("dataset"))
+                   d.get("height_note", sh.get("note")), d.get("dataset"),
+                   None if d.get("as_printed") is None else AsPrinted.from_json(d["as_printed"]),
+                   d.get("print"))
 
 
 def mark_reference_json(m: "MarkMeasurement") -> dict:

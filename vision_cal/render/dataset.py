@@ -139,12 +139,15 @@ class _Textures:
     sheet texture draws the paper before the dots).
     """
 
-    def __init__(self, sheet, xy_mm, diameters_mm, *, px_per_mm, seed, printed=None):
-        texture = sheet_texture
+    def __init__(self, sheet, xy_mm, diameters_mm, *, px_per_mm, seed, printed=None,
+                 print_field=None):
+        def texture(_sheet, **kw):
+            return sheet_texture(_sheet, print_field=print_field, **kw)
+
         if printed is not None:  # the printed sheet's own raster (vision_cal.render.printed)
 
             def texture(_sheet, **kw):
-                return printed_texture(printed, **kw)
+                return printed_texture(printed, print_field=print_field, **kw)
 
             px_per_mm = printed.px_per_mm
 
@@ -193,6 +196,7 @@ class _PhotoJob:
     folder: Path
     printed: object = None         # a PrintedSheet photographed instead of the analytic one
     height_grid: object = None     # the sheet's height map (render.height), if not flat
+    print_field: object = None     # the printer's displacement (render.print_deviation)
 
 
 def _shoot(job: _PhotoJob, tasks, photographer, bar=None) -> int:
@@ -201,7 +205,7 @@ def _shoot(job: _PhotoJob, tasks, photographer, bar=None) -> int:
     ph = job.photos
     textures = _Textures(job.sheet, job.xy_mm, job.diameters_mm,
                          px_per_mm=ph.texture_px_per_mm, seed=job.texture_seed,
-                         printed=job.printed)
+                         printed=job.printed, print_field=job.print_field)
     extra = {} if job.height_grid is None else {"height_grid": job.height_grid}
     for fname, n_marks, T, arm, rng, K_dist in tasks:
         tex = textures.add_marks(n_marks)
@@ -384,6 +388,10 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
         if hfield.is_flat:
             hfield = None
     height_grid = None if hfield is None else hfield.grid()
+    pfield = None
+    if sh.print is not None and not sh.print.is_exact:
+        pfield = sh.print.field(sheet.extent_mm, [m.corners_mm for m in sheet.markers],
+                                scene.seed)
     if plan is None:
         plan = build_plan(scene, sheet, pilot=pilot, rng=st.plan)
     plan = list(plan)
@@ -411,6 +419,8 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     ext = "jpg" if ph.jpeg_quality is not None else "png"
     if ph.mode == "series":
         shots = [(f"img_{k:03d}.{ext}", k + 1) for k in range(n)]
+    elif ph.mode == "survey":   # the blank sheet from every view, before the robot draws
+        shots = [(f"survey_{k:03d}.{ext}", 0) for k in range(len(views))]
     else:
         shots = [(f"img_000.{ext}", n)]
     # each photo's camera matrix: phones refocus between photos (camera.f_scatter)
@@ -444,7 +454,8 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
         for i, (fname, n_marks) in enumerate(shots):
             # the views are rigid poses of the arm frame; a deformed sheet (sheet_affine)
             # lies physically shrunk in it: T maps printed sheet points to the camera
-            T = truth.T_render(views[i % len(views)] if cam.moving else views[0])
+            T = truth.T_render(views[i % len(views)] if cam.moving or ph.mode == "survey"
+                               else views[0])
             arm = None
             if ph.arm_parked and (ph.mode == "single" or i % PARK_EVERY == PARK_EVERY - 1):
                 q_park = parking_pose(truth, sheet.extent_mm, rng=st.park)
@@ -458,7 +469,7 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
             K_photo[fname] = Ki.tolist()
         job = _PhotoJob(sheet, world.xy_mm, diameters, st.texture_seed, ph,
                         dist if any(dist) else None, tmp,
-                        printed, height_grid)
+                        printed, height_grid, pfield)
         n_jobs = min(int(jobs or 1), len(tasks)) if own else 1
         bar = progress_bar(progress, total=len(tasks), desc=f"render {out_dir.name}",
                            unit="photo", note=f"{max(n_jobs, 1)} job(s)")
@@ -519,6 +530,9 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
             truth_json["sheet_height"] = hfield.to_json()
             truth_json["mark_height_mm"] = {mid: float(z) for mid, z in zip(
                 world.ids, hfield.height_mm(world.xy_mm))}
+        if pfield is not None:  # added field: the sheet as printed (render.print_deviation)
+            truth_json["print"] = pfield.to_json([m.id for m in sheet.markers],
+                                                 [m.corners_mm for m in sheet.markers])
         atomic_write_json(tmp / "session.json", session)
         atomic_write_json(tmp / "truth.json", truth_json)
         _commit(tmp, out_dir)

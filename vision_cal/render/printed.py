@@ -15,12 +15,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 from PIL import Image
 
 from vision_cal.dataset.session import Sheet, load_sheet_file
 from vision_cal.errors import VisionCalError
-from vision_cal.render.sheet import PAPER_RGB, _paper_field, ink_marks, texture_shape
+from vision_cal.render.sheet import (PAPER_RGB, _displacement_maps, _paper_field, ink_marks,
+                                     texture_shape)
 
 
 @dataclass(frozen=True)
@@ -69,8 +71,11 @@ def load_printed_sheet(sheet_json, png=None) -> PrintedSheet:
 
 def printed_texture(printed: PrintedSheet, *, marks_xy_mm, mark_diameters_mm=1.2,
                     px_per_mm: float | None = None, rng=None,
-                    paper_grain: bool = True) -> np.ndarray:
+                    paper_grain: bool = True, print_field=None) -> np.ndarray:
     """The printed sheet with its pen marks: (H, W, 3) uint8 RGB, like ``sheet_texture``.
+
+    ``print_field`` (:class:`vision_cal.render.print_deviation.PrintField`): the raster's
+    ink displaced by its field (its toner growth is not applied to a raster).
 
     ``px_per_mm``, when given, must be the raster's own (the print is not resampled).
     """
@@ -82,7 +87,12 @@ def printed_texture(printed: PrintedSheet, *, marks_xy_mm, mark_diameters_mm=1.2
     H, W = printed.rgb.shape[:2]
     paper = _paper_field((H, W), rng) if paper_grain else np.ones((H, W), np.float32)
     # printed ink filters the paper's colour and grain (as in sheet_texture)
-    tex = printed.rgb.astype(np.float32) * (np.asarray(PAPER_RGB, np.float32) / 255.0)
+    ink = printed.rgb.astype(np.float32)
+    if print_field is not None and print_field.moves:
+        maps = _displacement_maps(print_field, printed.sheet.extent_mm, ppm, (H, W))
+        ink = np.clip(cv2.remap(ink, *maps, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE),
+                      0.0, 255.0)
+    tex = ink * (np.asarray(PAPER_RGB, np.float32) / 255.0)
     tex *= paper[:, :, None]
     tex = np.clip(np.rint(tex), 0, 255).astype(np.uint8)
     return ink_marks(tex, extent_mm=printed.sheet.extent_mm, px_per_mm=ppm,

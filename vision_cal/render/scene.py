@@ -49,6 +49,11 @@ Sections and fields::
         sag_mm: 0.3               # the middle lower than the edges by this much
         random: {n: 4, height_mm: [0.3, 0.65], sigma_mm: [25, 60], signed: true}
                                   # bumps drawn from the seed (see render/height.py)
+      print:                      # printed off the layout (absent: exactly on it)
+        deviation_rms_mm: 0.17    # a smooth field in the paper's plane (feed wave, bow,
+                                  # skew; no overall shift, turn or scale), its RMS
+        toner_mm: 0.06            # the markers' black squares grown this much a side
+                                  # (see render/print_deviation.py)
     plan:
       kind: informative           # informative | paper (the seed paper's 5 poses)
       n_calibration: 30
@@ -75,6 +80,8 @@ Sections and fields::
                                   # (needs declared: false; the contract has one K)
     photos:
       mode: series                # series: one photo after each mark | single: one photo
+                                  # | survey: one photo of the blank sheet (no mark yet)
+                                  # from each of camera.n_views places (vision-cal survey)
       texture_px_per_mm: 8.0      # resolution of the rendered sheet texture
       vignetting: 0.15            # 0..1 light fall-off in the corners
       noise_sigma: 1.5            # sensor noise, grey levels
@@ -102,12 +109,13 @@ from vision_cal.errors import VisionCalError
 from vision_cal.kinematics import ScaraParams
 from vision_cal.model import Effect, RobotModel, effect_from_json
 from vision_cal.render.height import height_scene_from_dict
+from vision_cal.render.print_deviation import PrintScene
 from vision_cal.render.printed import load_printed_sheet
 from vision_cal.render.sheet import make_sheet
 from vision_cal.render.truth_model import DRIFT_PARAMS, TrueRobot
 
 PLAN_KINDS = ("informative", "paper")
-PHOTO_MODES = ("series", "single")
+PHOTO_MODES = ("series", "single", "survey")
 CONTROLLERS = ("kinematic", "smc", "pd")
 EXTRA_KINDS = ("blank", "noise", "corrupt")
 
@@ -176,6 +184,7 @@ class SheetScene:
     margin_mm: float = 15.0
     height: "HeightScene | None" = None   # not flat: vision_cal.render.height
     printed: str | None = None   # a vision-cal sheet's sheet.json: photograph its own raster
+    print: PrintScene | None = None   # printed off its layout: render.print_deviation
 
 
 @dataclass(frozen=True)
@@ -323,7 +332,7 @@ def _drift(r: _R, e: dict, where: str) -> dict:
 
 def _sheet(r: _R, d) -> SheetScene:
     d = r.section(d, "sheet", ("size_mm", "bottom_left_mm", "dictionary", "marker_mm", "grid",
-                               "margin_mm", "height", "printed"))
+                               "margin_mm", "height", "printed", "print"))
     dflt = SheetScene()
     if d.get("printed") is not None:
         return _printed_sheet(r, d)
@@ -359,7 +368,18 @@ def _sheet(r: _R, d) -> SheetScene:
         r.fail(f"sheet.{e.field}" if e.field else "sheet", e.reason)
 
     height = height_scene_from_dict(r, d.get("height"))
-    return SheetScene(size, bl, dic, marker, grid, margin, height)
+    return SheetScene(size, bl, dic, marker, grid, margin, height,
+                      print=_print(r, d.get("print")))
+
+
+def _print(r: _R, d) -> PrintScene | None:
+    """``sheet.print``: the printer's displacement field and toner growth."""
+    if d is None:
+        return None
+    d = r.section(d, "sheet.print", ("deviation_rms_mm", "toner_mm"))
+    return PrintScene(r.number(d.get("deviation_rms_mm", 0.0), "sheet.print.deviation_rms_mm",
+                               lo=0, hi=5),
+                      r.number(d.get("toner_mm", 0.0), "sheet.print.toner_mm", lo=0, hi=1))
 
 
 def _printed_sheet(r: _R, d) -> SheetScene:
@@ -381,7 +401,7 @@ def _printed_sheet(r: _R, d) -> SheetScene:
 
     return SheetScene(pr.sheet.size_mm, pr.sheet.bottom_left_mm, pr.sheet.aruco_dictionary,
                       height=height_scene_from_dict(r, d.get("height")),
-                      printed=str(path.absolute()))
+                      printed=str(path.absolute()), print=_print(r, d.get("print")))
 
 
 def _plan(r: _R, d) -> PlanScene:

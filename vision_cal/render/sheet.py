@@ -221,13 +221,17 @@ def _paper_field(shape, rng: np.random.Generator) -> np.ndarray:
 
 
 def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm: float = 8.0,
-                  rng=None, grid: bool = True, paper_grain: bool = True) -> np.ndarray:
+                  rng=None, grid: bool = True, paper_grain: bool = True,
+                  print_field=None) -> np.ndarray:
     """The printed sheet with its pen marks: (H, W, 3) uint8 RGB (see the module docstring).
 
     ``marks_xy_mm`` (N, 2) sheet positions of the ink dots (may be empty); ``mark_diameters_mm``
     a scalar or (N,) nominal diameters. Each dot is an ellipse of random size (+-10 %), aspect
     (1..1.15) and orientation, centred exactly on its mark. ``grid=False`` leaves out the
     plotting-paper lines, ``paper_grain=False`` gives a uniform paper (test helpers).
+    ``print_field``: a :class:`vision_cal.render.print_deviation.PrintField`: the markers'
+    black squares grown by its toner and the printed layer (grid, markers) displaced by its
+    field (the pen's dots are not).
     """
     rng = np.random.default_rng(rng)
     ppm = float(px_per_mm)
@@ -266,13 +270,19 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
         q = float((sheet.printed or {}).get("quiet_zone_modules", QUIET_MODULES)) * mod
         quiet = _rect_coverage(extent, ppm, shape, np.array([mx0 - q, mx0 + s + q]),
                                np.array([my0 - q, my0 + s + q]))
-        cells = _rect_coverage(extent, ppm, shape, mx0 + mod * np.arange(n + 1),
-                               my0 + mod * np.arange(n + 1))
+        toner = 0.0 if print_field is None else float(print_field.toner_mm)
+        if toner > 0:
+            cells = _grown_cells(extent, ppm, shape, mx0, my0, mod, black, toner)
+        else:
+            cells = _rect_coverage(extent, ppm, shape, mx0 + mod * np.arange(n + 1),
+                                   my0 + mod * np.arange(n + 1))
         marker_patches.append((quiet, cells, black))
     # dots
     dot_patches = _dot_patches(marks, dia, x0=x0, y1=y1, ppm=ppm, shape=shape, rng=rng)
 
     out = np.empty((H, W, 3), np.uint8)
+    remap = (_displacement_maps(print_field, extent, ppm, shape)
+             if print_field is not None and print_field.moves else None)
     for ch in range(3):
         if grid:
             kf, kb = 1.0 - FINE_RGB[ch] / 255.0, 1.0 - BOLD_RGB[ch] / 255.0
@@ -291,10 +301,16 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
                 rs, cs, cy, cx = quiet
                 qcov = (cy[:, 0][:, None] * cx[:, 0][None, :]).astype(np.float32)
                 trans[rs, cs] = trans[rs, cs] * (1.0 - qcov) + qcov
-            if cells is not None:
+            if cells is not None and len(cells) == 3:   # grown by toner: coverage given
+                rs, cs, mcov = cells
+                trans[rs, cs] *= 1.0 - km * mcov
+            elif cells is not None:
                 rs, cs, cy, cx = cells
                 mcov = (cy @ black @ cx.T).astype(np.float32)
                 trans[rs, cs] *= 1.0 - km * mcov
+        if remap is not None:
+            trans = np.clip(cv2.remap(trans, *remap, cv2.INTER_CUBIC,
+                                      borderMode=cv2.BORDER_REPLICATE), 0.0, 1.0)
         val = trans
         val *= paper
         val *= PAPER_RGB[ch]
@@ -303,6 +319,50 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
         np.clip(val, 0.0, 255.0, out=val)
         out[:, :, ch] = np.rint(val)
     return out
+
+
+def _grown_cells(extent_mm, ppm: float, shape, mx0: float, my0: float, mod: float,
+                 black: np.ndarray, toner_mm: float, ss: int = 8):
+    """(rows, cols, coverage) of a marker's black modules grown ``toner_mm`` on every side
+    (their union dilated by a square), by supersampling ``ss`` x ``ss`` per pixel."""
+    H, W = shape
+    x0, _, _, y1 = extent_mm
+    n = black.shape[0]
+    s = n * mod
+    c0 = max(int(np.floor((mx0 - toner_mm - x0) * ppm)) - 1, 0)
+    c1 = min(int(np.ceil((mx0 + s + toner_mm - x0) * ppm)) + 1, W)
+    r0 = max(int(np.floor((y1 - (my0 + s + toner_mm)) * ppm)) - 1, 0)
+    r1 = min(int(np.ceil((y1 - (my0 - toner_mm)) * ppm)) + 1, H)
+    if c1 <= c0 or r1 <= r0:
+        return None
+    sub = (np.arange(ss) + 0.5) / ss
+    xs = x0 + (np.arange(c0, c1)[:, None] + sub[None, :]).ravel() / ppm
+    ys = y1 - (np.arange(r0, r1)[:, None] + sub[None, :]).ravel() / ppm
+    # a sample is black when a black module lies within toner_mm (Chebyshev) of it
+    pad = np.zeros((n + 2, n + 2), bool)
+    pad[1:-1, 1:-1] = black > 0.5          # row 0 at the top of the marker
+    hit = np.zeros((len(ys), len(xs)), bool)
+    for ex in (-toner_mm, 0.0, toner_mm):
+        ci = np.clip(np.floor((xs + ex - mx0) / mod).astype(int) + 1, 0, n + 1)
+        for ey in (-toner_mm, 0.0, toner_mm):
+            ri = np.clip(np.floor((my0 + s - (ys + ey)) / mod).astype(int) + 1, 0, n + 1)
+            hit |= pad[ri[:, None], ci[None, :]]
+    cov = hit.reshape(r1 - r0, ss, c1 - c0, ss).mean(axis=(1, 3)).astype(np.float32)
+    return slice(r0, r1), slice(c0, c1), cov
+
+
+def _displacement_maps(print_field, extent_mm, ppm: float, shape):
+    """cv2.remap maps (float32 (H, W) each) of the printer's field: the paper at q shows the
+    layout at ``print_field.layout_at(q)`` (the printed layer is resampled bicubically)."""
+    H, W = shape
+    x0, _, _, y1 = extent_mm
+    qx = (x0 + (np.arange(W, dtype=np.float64) + 0.5) / ppm)[None, :]
+    qy = (y1 - (np.arange(H, dtype=np.float64) + 0.5) / ppm)[:, None]
+    lx, ly = print_field.layout_at(qx, qy)
+    mu = ((lx - x0) * ppm - 0.5).astype(np.float32)
+    mv = ((y1 - ly) * ppm - 0.5).astype(np.float32)
+    return (np.ascontiguousarray(np.broadcast_to(mu, (H, W))),
+            np.ascontiguousarray(np.broadcast_to(mv, (H, W))))
 
 
 def _dot_patches(marks, dia, *, x0: float, y1: float, ppm: float, shape, rng) -> list:

@@ -65,6 +65,8 @@ def build_report(calibration_path, *, loop=None, out_dir=None) -> dict:
     rep["marks_table"] = mark_rows(doc, (meas or {}).get("refused"))
     rep["statistics"] = STATISTICS
     rep["photos"] = [_photo_entry(im, dataset, out_dir) for im in (meas or {}).get("images", [])]
+    if (meas or {}).get("as_printed"):   # #28: the sheet as printed (measurement.json)
+        rep["as_printed"] = meas["as_printed"]
     if loop:
         rep["loop"] = loop
     return rep
@@ -338,6 +340,28 @@ def _marks_html(rep: dict) -> str:
                      rows, sortable=True, tid="marks"))
 
 
+def _print_html(pr: dict) -> str:
+    """calibration.json ``print`` (#28) in words."""
+    if pr.get("source") == "one place":
+        return (f"<p class=bad>Not measured: one camera place cannot tell the print from the "
+                f"lens. The markers show {_f(pr.get('seen_rms_mm'), 3)} mm beyond each photo's "
+                f"mapping; every mark carries about {_f(pr.get('limit_mm'), 3)} mm (RMS) for it. "
+                "Survey the sheet (vision-cal survey) or photograph it from several places."
+                "</p>")
+    if pr.get("applied") is False:
+        return (f"<p>Measured from the {_e(pr.get('source'))} ({pr.get('n_places')} camera "
+                f"places): on its layout within what they resolve ({_f(pr.get('rms_mm'), 3)} "
+                f"mm RMS against {_f(pr.get('unresolved_mm'), 3)} mm); the declared layout is "
+                "kept.</p>")
+    return (f"<p>Measured from {_e(pr.get('source'))} ({pr.get('n_places')} camera places): "
+            f"the markers' corners are {_f(pr.get('rms_mm'), 3)} mm RMS, "
+            f"{_f(pr.get('max_mm'), 3)} mm at most, off their layout; the markers grew "
+            f"{_f(pr.get('growth_mm'), 3)} mm a side (toner), the rest moved "
+            f"{_f(pr.get('field_rms_mm'), 3)} mm RMS. The views leave "
+            f"{_f(pr.get('unresolved_mm'), 4)} mm (RMS) not separated from the lens. The marks "
+            "are measured against the markers as printed.</p>")
+
+
 def tool_html(doc: dict) -> str:
     """The tool's section, from calibration.json's ``tool`` block alone (docs/format.md,
     "Joint 4, the tool and placements"): ``tool_mm`` with its std when the marks at several
@@ -488,6 +512,12 @@ def render_html(rep: dict) -> str:
                      "through the marker mapping by about z r / H; against the printed grid "
                      "around it the mark keeps its paper position.</p>"
                      f"<img class=fig alt='sheet height' src='{_uri(sh)}'>")
+    pr = doc.get("print") or {}
+    if pr:
+        parts.append("<h2>The sheet as printed</h2>" + _print_html(pr))
+        fig = plots.print_deviation(rep.get("as_printed"))
+        if fig:
+            parts.append(f"<img class=fig alt='print deviation' src='{_uri(fig)}'>")
     if rep.get("marks_table"):
         parts.append(_marks_html(rep))
     c = plots.circles(doc)

@@ -220,6 +220,35 @@ def sheet_height(report: dict) -> bytes | None:
     return _png(fig)
 
 
+def print_deviation(ap: dict | None) -> bytes | None:
+    """The sheet as printed (measurement.json ``as_printed``, #28): each marker outlined
+    where the layout puts it, an arrow from every corner to where it was printed (scaled);
+    None without it."""
+    if not ap or not ap.get("markers"):
+        return None
+    dec = np.array([m["declared_mm"] for m in ap["markers"]], float).reshape(-1, 4, 2)
+    got = np.array([m["corners_mm"] for m in ap["markers"]], float).reshape(-1, 4, 2)
+    rel = np.array([m["released"] for m in ap["markers"]], bool).reshape(-1, 4)
+    d = (got - dec)[rel]
+    p = dec[rel]
+    big = max(float(np.max(np.hypot(*d.T))) if len(d) else 0.0, 1e-6)
+    span = float(np.ptp(dec.reshape(-1, 2), axis=0).max())
+    k = 0.06 * span / big
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(8, 5.6), layout="constrained")
+    for c in dec:
+        ax.fill(c[:, 0], c[:, 1], fill=False, ec="0.6", lw=0.8)
+    ax.quiver(p[:, 0], p[:, 1], d[:, 0], d[:, 1], angles="xy", scale_units="xy",
+              scale=1.0 / k, color="tab:red", width=0.003)
+    ax.set_title(f"print minus layout at the markers' corners: RMS {ap.get('rms_mm', 0):.3f} "
+                 f"mm, max {big:.3f} mm (arrows x{k:.0f})")
+    ax.set_xlabel("sheet x [mm]")
+    ax.set_ylabel("sheet y [mm]")
+    ax.set_aspect("equal")
+    ax.grid(alpha=0.3)
+    return _png(fig)
+
+
 # ------------------------------------------------------------------- the closed loop
 
 def loop_paths(loop: dict) -> bytes:

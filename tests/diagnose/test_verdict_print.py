@@ -1,0 +1,46 @@
+"""The print's limit in the verdict (#28): from one camera place never ready, and the
+expected target error covers it."""
+
+import pytest
+
+from tests.diagnose.test_verdict import _fit_doc
+from vision_cal.diagnose.verdict import R95_PER_RMS, judge
+
+
+def test_one_place_print_makes_check_and_adds_to_the_expected_error():
+    doc = _fit_doc()
+    base = judge(doc)
+    assert base.status == "ready"
+    one = judge({**doc, "print": {"source": "one place", "seen_rms_mm": 0.06,
+                                  "limit_mm": 0.09, "sigma_mm": 0.064}})
+    assert one.status == "check"
+    assert any("survey" in r for r in one.reasons)
+    assert one.expected_target_error_mm >= R95_PER_RMS * 0.09
+    assert one.expected_target_error_mm == pytest.approx(
+        (base.expected_target_error_mm ** 2 + (R95_PER_RMS * 0.09) ** 2) ** 0.5)
+
+
+def test_a_surveyed_print_adds_its_uncertainty_without_a_check():
+    doc = _fit_doc()
+    base = judge(doc)
+    v = judge({**doc, "print": {"source": "survey", "rms_mm": 0.17, "limit_mm": 0.005}})
+    assert v.status == "ready"
+    assert v.expected_target_error_mm > base.expected_target_error_mm
+
+
+def test_grid_off_its_layout_is_the_print_once_the_print_is_measured():
+    doc = _fit_doc()
+    doc["diagnosis"] = {"sheet_height": {"claimed": False, "not_claimed_as": "mapping"}}
+    doc["marks"]["c00"]["local_minus_global_mm"] = [0.2, 0.1]
+    assert judge(doc).status == "check"
+    v = judge({**doc, "print": {"source": "views", "rms_mm": 0.17, "limit_mm": 0.002}})
+    assert v.status == "ready" and any("as printed" in r for r in v.reasons)
+
+
+def test_a_layout_found_on_its_declaration_changes_nothing():
+    doc = _fit_doc()
+    doc["diagnosis"] = {"sheet_height": {"claimed": False, "not_claimed_as": "mapping"}}
+    doc["marks"]["c00"]["local_minus_global_mm"] = [0.2, 0.1]
+    v = judge({**doc, "print": {"source": "views", "applied": False, "rms_mm": 0.01,
+                                "unresolved_mm": 0.01, "limit_mm": 0.0}})
+    assert v.status == "check" and v.expected_target_error_mm == judge(doc).expected_target_error_mm

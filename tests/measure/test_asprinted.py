@@ -1,0 +1,83 @@
+"""The sheet as printed, from several views: a bundle adjustment with the corners released."""
+
+import cv2
+import numpy as np
+import pytest
+
+from vision_cal.measure.asprinted import AsPrinted, _similarity, estimate_as_printed
+
+SIZE = (2400, 1800)
+K = np.array([[2600.0, 0, 1199.5], [0, 2600.0, 899.5], [0, 0, 1]])
+DIST = np.array([-0.08, 0.05, 0.0, 0.0, 0.0])
+
+
+def _layout():
+    xs, ys = np.linspace(-282, 222, 6), np.linspace(-195, 135, 4)
+    ids, corners = [], []
+    for j, y in enumerate(ys):
+        for i, x in enumerate(xs):
+            ids.append(6 * j + i)
+            corners.append([[x, y + 60], [x + 60, y + 60], [x + 60, y], [x, y]][:4])
+    c = np.array(corners, float)
+    c[:, :, :] = c[:, :, :]
+    # 30 mm markers
+    c = np.array([[[x, y + 30], [x + 30, y + 30], [x + 30, y], [x, y]]
+                  for x, y in zip(np.repeat(xs[None], 4, 0).ravel(), np.repeat(ys, 6))])
+    return np.array(ids), c
+
+
+def _deviation(p, rms):
+    x, y = p[:, 0], p[:, 1]
+    d = np.column_stack([0.8 * np.sin(2 * np.pi * y / 210 + 1) + 0.3 * y / 210,
+                         0.5 * np.sin(2 * np.pi * y / 170) + 0.7 * (x / 297) ** 2])
+    d -= np.column_stack([_similarity(p, d)[0] + _similarity(p, d)[2] * x - _similarity(p, d)[3] * y,
+                          _similarity(p, d)[1] + _similarity(p, d)[3] * x + _similarity(p, d)[2] * y])
+    return d * rms / np.sqrt(np.mean(np.sum(d**2, axis=1)))
+
+
+def _views(printed, ids, places, rng, noise_px=0.08):
+    views = []
+    for k, (rx, ry, tx, ty) in enumerate(places):
+        rvec = np.array([np.pi + np.radians(rx), np.radians(ry), 0.02 * k])
+        R = cv2.Rodrigues(rvec)[0]
+        C = np.array([tx, ty, 720.0])                    # camera centre above the sheet
+        t = -R @ C
+        P = np.column_stack([printed.reshape(-1, 2), np.zeros(printed.size // 2)])
+        px, _ = cv2.projectPoints(P, rvec, t, K, DIST)
+        px = px.reshape(-1, 4, 2) + rng.normal(0, noise_px, (len(ids), 4, 2))
+        views.append((f"img_{k}.png", ids, None, px))
+    return views
+
+
+PLACES6 = [(0, 0, 0, 0), (12, 0, -150, 0), (-12, 0, 150, 0), (0, 12, 0, 150),
+           (0, -12, 0, -150), (9, 9, -100, 100)]
+
+
+@pytest.mark.parametrize("lens_free", [True])
+def test_six_places_recover_the_print(lens_free):
+    rng = np.random.default_rng(3)
+    ids, declared = _layout()
+    dev = _deviation(declared.reshape(-1, 2), 0.17).reshape(declared.shape)
+    views = [(f, i, declared, px) for f, i, _, px in _views(declared + dev, ids, PLACES6, rng)]
+    K0 = K.copy()
+    if lens_free:
+        K0[0, 0] = K0[1, 1] = 2560.0
+    ap = estimate_as_printed(views, K0, DIST * (0.7 if lens_free else 1.0), SIZE,
+                             lens_free=lens_free)
+    assert ap is not None and ap.n_places == 6
+    err = ap.deviation_mm - dev
+    # the error the solve leaves is what its reported std says, and small
+    assert np.sqrt(np.mean(np.sum(err**2, axis=2))) < 1.5 * ap.unresolved_mm
+    assert ap.unresolved_mm < 0.03
+    assert abs(ap.rms_mm - 0.17) < 0.2 * 0.17
+    assert max(ap.rms_px_after) < 0.5 * min(ap.rms_px_before)
+    back = AsPrinted.from_json(ap.to_json())
+    assert np.allclose(back.printed_mm, ap.printed_mm) and back.rms_mm == ap.rms_mm
+
+
+def test_one_place_releases_nothing():
+    rng = np.random.default_rng(4)
+    ids, declared = _layout()
+    views = [(f, i, declared, px) for f, i, _, px in
+             _views(declared, ids, [PLACES6[1]] * 5, rng)]
+    assert estimate_as_printed(views, K, DIST, SIZE, lens_free=True) is None

@@ -1,0 +1,76 @@
+"""The world's printer: a smooth displacement of the printed layer, toner growth."""
+
+import numpy as np
+
+from vision_cal.render.print_deviation import PrintScene, _similarity_fit
+from vision_cal.render.scene import scene_from_dict
+from vision_cal.render.sheet import make_sheet, sheet_texture
+
+
+def _sheet():
+    return make_sheet(size_mm=(200.0, 150.0), bottom_left_mm=(-100.0, -75.0), marker_mm=20.0,
+                      grid=(3, 2), margin_mm=10.0)
+
+
+def test_field_has_its_rms_and_no_similarity_at_the_markers():
+    sheet = _sheet()
+    corners = np.array([m.corners_mm for m in sheet.markers])
+    f = PrintScene(0.17, 0.06).field(sheet.extent_mm, corners, seed=5)
+    d = f.displacement(f.paper_grid())
+    assert abs(np.sqrt(np.mean(np.sum(d**2, axis=1))) - 0.17) < 1e-9
+    c = corners.reshape(-1, 2)
+    assert np.all(np.abs(_similarity_fit(c, f.displacement(c))) < 1e-9)
+    # smooth: neighbouring points 1 mm apart move alike (a printer's field, not noise)
+    assert np.abs(f.displacement(c + [1.0, 0]) - f.displacement(c)).max() < 0.02
+    # the inverse lands back
+    p = f.printed_at(c)
+    lx, ly = f.layout_at(p[:, 0], p[:, 1])
+    assert np.abs(np.column_stack([lx, ly]) - c).max() < 1e-6
+    j = f.to_json([m.id for m in sheet.markers], corners)
+    grown = np.array(j["markers"][str(sheet.markers[0].id)])
+    assert np.allclose(grown, f.printed_at(corners[0] + 0.06 * np.sign(
+        corners[0] - corners[0].mean(axis=0))))
+
+
+def test_texture_moves_the_print_and_grows_the_toner_not_the_dots():
+    sheet = _sheet()
+    corners = np.array([m.corners_mm for m in sheet.markers])
+    plain = sheet_texture(sheet, marks_xy_mm=[[0.0, 0.0]], px_per_mm=8.0, rng=1,
+                          paper_grain=False, grid=False)
+    toner = PrintScene(0.0, 0.1).field(sheet.extent_mm, corners, seed=1)
+    grown = sheet_texture(sheet, marks_xy_mm=[[0.0, 0.0]], px_per_mm=8.0, rng=1,
+                          paper_grain=False, grid=False, print_field=toner)
+    black = lambda t: float(np.sum(255.0 - t[..., 1].astype(float)))   # noqa: E731
+    # markers' black area: each module region grows; total dark grows by roughly the
+    # perimeter x 0.1 mm (at least the outer border: 4 x 20 mm x 0.1 mm per marker)
+    assert black(grown) > black(plain) + 0.8 * 6 * 4 * 20 * 0.1 * 64 * 230
+    moved = PrintScene(0.3, 0.0).field(sheet.extent_mm, corners, seed=2)
+    shifted = sheet_texture(sheet, marks_xy_mm=[[0.0, 0.0]], px_per_mm=8.0, rng=1,
+                            paper_grain=False, grid=False, print_field=moved)
+    # the pen dot (at the centre, far from markers) is where it was
+    r, c = 75 * 8, 100 * 8
+    assert np.array_equal(shifted[r - 12:r + 12, c - 12:c + 12], plain[r - 12:r + 12, c - 12:c + 12])
+    # a marker's dark centroid moved by the field at its centre
+    m = corners[0]
+    x0, x1, y0, y1 = m[:, 0].min() - 3, m[:, 0].max() + 3, m[:, 1].min() - 3, m[:, 1].max() + 3
+    cs, rs = slice(int((x0 + 100) * 8), int((x1 + 100) * 8)), slice(int((75 - y1) * 8), int((75 - y0) * 8))
+
+    yy, xx = np.mgrid[rs, cs]
+
+    def centroid(t):
+        w = 245.0 - t[rs, cs, 1].astype(float)   # paper: 245
+        return np.array([np.sum(w * xx), -np.sum(w * yy)]) / w.sum() / 8.0
+
+    d = centroid(shifted) - centroid(plain)
+    w = 245.0 - plain[rs, cs, 1].astype(float)   # the ink's mean displacement
+    dd = moved.displacement(np.column_stack([(xx.ravel() + 0.5) / 8 - 100,
+                                             75 - (yy.ravel() + 0.5) / 8]))
+    want = (w.ravel()[:, None] * dd).sum(axis=0) / w.sum()
+    assert np.linalg.norm(d - want) < 0.02, (d, want)
+
+
+def test_scene_reads_the_print_block():
+    s = scene_from_dict({"sheet": {"print": {"deviation_rms_mm": 0.17, "toner_mm": 0.06}}})
+    assert s.sheet.print.deviation_rms_mm == 0.17 and s.sheet.print.toner_mm == 0.06
+    assert scene_from_dict({}).sheet.print is None
+    assert scene_from_dict({"photos": {"mode": "survey"}}).photos.mode == "survey"

@@ -1,0 +1,392 @@
+"""The sheet as printed: where the printed markers' corners really are on the paper.
+
+A printer does not put the ink where the layout says (a wave along the paper feed, a bow,
+a skew, toner that grows the black squares: tenths of a millimetre). Where several views of
+the sheet exist (a series from several places, a survey before the robot draws), the
+markers' corners are estimated jointly with the lens and each photo's pose: a bundle
+adjustment with the target's points released, as OpenCV's ``calibrateCameraRO`` (Strobl and
+Hirzinger 2011) and mrcal's board deformation do.
+
+The gauge. Moving the whole layout by a similarity (shift, turn, scale) and every camera
+with it leaves every photo the same, so the views cannot see it. It is fixed as the
+contract's frame is: the as-printed layout's best-fitting similarity to the declared one is
+the identity (the sheet frame stays the declared one on average, the overall scale the
+declared one; the printer's overall scale is the bars' business, ``printed_scale``).
+
+Model. Marker corner ``c`` of the declared layout (``P_c``, sheet mm, z = 0) is printed at
+``P_c + delta_c``; photo ``v`` sees it at ``project(K, dist, R_v, t_v, P_c + delta_c)``
+(OpenCV's pinhole with k1 k2 p1 p2 k3). Free: every pose, every ``delta_c`` of a corner seen
+in at least ``min_views`` photos, and the lens when it was not declared (f, principal point,
+k1, k2, p1, p2; and each photo's focal length within ``focal_scatter`` of it: a phone
+refocuses). A weak prior (``prior_mm``) holds the deltas the views do not fix at zero
+(the gauge, and any mode the lens can take over); the similarity is then removed. Solved by
+``scipy.optimize.least_squares`` (trf, Huber loss), with OpenCV's derivatives of its
+projection for the poses and the lens.
+
+What the views cannot separate from the lens is stated with its size: ``unresolved_mm``,
+the RMS over the released corners of their standard deviation (from the Jacobian at the
+solution, the residual's own scale), the lens free.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from scipy.optimize import least_squares
+
+from vision_cal.config import DEFAULT, AsPrintedConfig
+from vision_cal.rms import rms_2d
+
+#: lens parameters freed when the lens was not declared, in this order
+LENS_FREE = ("f", "cx", "cy", "k1", "k2", "p1", "p2")
+
+
+@dataclass(frozen=True)
+class AsPrinted:
+    """The as-printed layout (see the module docstring).
+
+    ``ids`` (M,), ``declared_mm`` / ``printed_mm`` / ``std_mm`` (M, 4, 2): each marker's
+    corners (TL, TR, BR, BL) as declared, as printed (gauge fixed), and the per-axis std of
+    the printed ones (0 for corners not released). ``released`` (M, 4) bool. ``K``, ``dist``,
+    ``size_px``: the lens the views were solved with (``lens_free``: refined here).
+    ``files``, ``rms_px_before`` / ``rms_px_after``: per photo, the marker corners' RMS
+    reprojection residual against the declared layout and against the printed one (same
+    lens, each photo's own pose). ``n_places``: distinct camera places among the photos.
+    """
+
+    ids: np.ndarray
+    declared_mm: np.ndarray
+    printed_mm: np.ndarray
+    std_mm: np.ndarray
+    released: np.ndarray
+    K: np.ndarray
+    dist: np.ndarray
+    size_px: tuple[int, int]
+    lens_free: bool
+    files: tuple[str, ...]
+    rms_px_before: tuple[float, ...]
+    rms_px_after: tuple[float, ...]
+    n_places: int
+    source: str = "views"
+    notes: tuple[str, ...] = field(default=())
+
+    # ------------------------------------------------------------------ figures
+    @property
+    def deviation_mm(self) -> np.ndarray:
+        """printed - declared (M, 4, 2)."""
+        return self.printed_mm - self.declared_mm
+
+    @property
+    def rms_mm(self) -> float:
+        d = self.deviation_mm[self.released]
+        return rms_2d(d) if len(d) else 0.0
+
+    @property
+    def max_mm(self) -> float:
+        d = self.deviation_mm[self.released]
+        return float(np.linalg.norm(d, axis=1).max()) if len(d) else 0.0
+
+    @property
+    def growth_mm(self) -> float:
+        """The markers' mean growth per side (toner; negative: printed thinner)."""
+        s = np.sign(self.declared_mm - self.declared_mm.mean(axis=1, keepdims=True))
+        g = (self.deviation_mm * s).sum(axis=2) / 2.0
+        return float(g[self.released].mean()) if self.released.any() else 0.0
+
+    @property
+    def field_rms_mm(self) -> float:
+        """The deviation's RMS without the markers' growth: where the print moved."""
+        s = np.sign(self.declared_mm - self.declared_mm.mean(axis=1, keepdims=True))
+        d = (self.deviation_mm - self.growth_mm * s)[self.released]
+        return rms_2d(d) if len(d) else 0.0
+
+    @property
+    def unresolved_mm(self) -> float:
+        """RMS (2-D) of the released corners' std: what the views leave uncertain, the part
+        of the print the lens could take over included."""
+        s = self.std_mm[self.released]
+        return float(np.sqrt(np.mean(np.sum(s**2, axis=1)))) if len(s) else float("nan")
+
+    def corners_for(self, ids, declared_mm) -> np.ndarray:
+        """The printed corners of markers ``ids`` (their declared ``declared_mm`` where this
+        layout does not know them)."""
+        pos = {int(i): k for k, i in enumerate(self.ids)}
+        out = np.array(declared_mm, float, copy=True).reshape(-1, 4, 2)
+        for j, i in enumerate(np.asarray(ids).ravel()):
+            k = pos.get(int(i))
+            if k is not None:
+                out[j] = self.printed_mm[k]
+        return out
+
+    # ------------------------------------------------------------------ JSON
+    def to_json(self) -> dict:
+        """measurement.json / survey.json ``as_printed`` (docs/format.md)."""
+        return {
+            "source": self.source,
+            "gauge": "best-fitting similarity to the declared layout = identity",
+            "rms_mm": self.rms_mm, "max_mm": self.max_mm, "growth_mm": self.growth_mm,
+            "field_rms_mm": self.field_rms_mm, "unresolved_mm": self.unresolved_mm,
+            "n_places": int(self.n_places), "lens_free": bool(self.lens_free),
+            "K": np.asarray(self.K).tolist(), "dist": np.asarray(self.dist).tolist(),
+            "size_px": list(self.size_px),
+            "photos": [{"file": f, "corner_rms_px_before": b, "corner_rms_px_after": a}
+                       for f, b, a in zip(self.files, self.rms_px_before, self.rms_px_after)],
+            "markers": [{"id": int(i), "corners_mm": p.tolist(), "declared_mm": d.tolist(),
+                         "std_mm": s.tolist(), "released": [bool(r) for r in rel]}
+                        for i, p, d, s, rel in zip(self.ids, self.printed_mm, self.declared_mm,
+                                                   self.std_mm, self.released)],
+            "notes": list(self.notes),
+        }
+
+    @classmethod
+    def from_json(cls, d: dict) -> "AsPrinted":
+        ms = d["markers"]
+        ph = d.get("photos") or []
+        return cls(np.array([int(m["id"]) for m in ms]),
+                   np.array([m["declared_mm"] for m in ms], float).reshape(-1, 4, 2),
+                   np.array([m["corners_mm"] for m in ms], float).reshape(-1, 4, 2),
+                   np.array([m["std_mm"] for m in ms], float).reshape(-1, 4, 2),
+                   np.array([m["released"] for m in ms], bool).reshape(-1, 4),
+                   np.asarray(d["K"], float), np.asarray(d["dist"], float),
+                   tuple(int(v) for v in d["size_px"]), bool(d["lens_free"]),
+                   tuple(p["file"] for p in ph),
+                   tuple(float(p["corner_rms_px_before"]) for p in ph),
+                   tuple(float(p["corner_rms_px_after"]) for p in ph),
+                   int(d["n_places"]), str(d.get("source", "views")),
+                   tuple(d.get("notes") or ()))
+
+
+# ---------------------------------------------------------------------- projection
+
+def _lens_vector(K, dist) -> np.ndarray:
+    d = np.zeros(5)
+    dd = np.asarray(dist, float).ravel()[:5]
+    d[:len(dd)] = dd
+    K = np.asarray(K, float)
+    return np.array([0.5 * (K[0, 0] + K[1, 1]), K[0, 2], K[1, 2], d[0], d[1], d[2], d[3], d[4]])
+
+
+def _lens_matrices(lens):
+    f, cx, cy, k1, k2, p1, p2, k3 = lens
+    return (np.array([[f, 0, cx], [0, f, cy], [0, 0, 1.0]]),
+            np.array([k1, k2, p1, p2, k3]))
+
+
+def _similarity(p: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """The small similarity (tx, ty, a, b) best fitting displacements ``d`` at ``p``:
+    d = t + [[a, -b], [b, a]] p."""
+    A = np.zeros((2 * len(p), 4))
+    A[0::2, 0] = A[1::2, 1] = 1.0
+    A[0::2, 2], A[0::2, 3] = p[:, 0], -p[:, 1]
+    A[1::2, 2], A[1::2, 3] = p[:, 1], p[:, 0]
+    return np.linalg.lstsq(A, d.reshape(-1), rcond=None)[0]
+
+
+def _apply_similarity(s, p):
+    tx, ty, a, b = s
+    return np.column_stack([tx + a * p[:, 0] - b * p[:, 1], ty + b * p[:, 0] + a * p[:, 1]])
+
+
+def count_places(rvecs, tvecs, *, min_move_mm: float, min_turn_deg: float) -> int:
+    """Distinct camera places among poses (sheet -> camera): greedy clusters of camera
+    centres within ``min_move_mm`` and view directions within ``min_turn_deg``."""
+    places = []
+    for r, t in zip(rvecs, tvecs):
+        R = cv2.Rodrigues(np.asarray(r, float))[0]
+        C = -R.T @ np.asarray(t, float).ravel()
+        z = R[2]
+        if not any(np.linalg.norm(C - c) < min_move_mm and
+                   np.degrees(np.arccos(np.clip(z @ zz, -1, 1))) < min_turn_deg
+                   for c, zz in places):
+            places.append((C, z))
+    return len(places)
+
+
+# ---------------------------------------------------------------------- the solve
+
+def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
+                        config: AsPrintedConfig | None = None, source: str = "views"
+                        ) -> AsPrinted | None:
+    """The as-printed layout from ``views``: list of (file, marker_ids (M,), declared
+    corners_mm (M, 4, 2), raw corners_px (M, 4, 2)). ``K``, ``dist``: the lens (start, or
+    fixed when ``lens_free`` is False). None when fewer than ``config.min_places`` camera
+    places (``config``: default ``vision_cal.config.DEFAULT.as_printed``)."""
+    cfg = config or DEFAULT.as_printed
+    views = [v for v in views if len(v[1]) >= 4]
+    if len(views) < 2:
+        return None
+    K = np.asarray(K, float)
+    dist0 = np.zeros(5)
+    dd = np.asarray(dist if dist is not None else np.zeros(5), float).ravel()[:5]
+    dist0[:len(dd)] = dd
+    # the corners: one unknown each, over all photos
+    layout: dict[int, np.ndarray] = {}
+    for _, ids, mm, _ in views:
+        for i, c in zip(ids, mm):
+            layout.setdefault(int(i), np.asarray(c, float))
+    ids = np.array(sorted(layout))
+    pos = {int(i): k for k, i in enumerate(ids)}
+    declared = np.array([layout[int(i)] for i in ids])                      # (M, 4, 2)
+    P0 = declared.reshape(-1, 2)
+    # observations
+    obs_view, obs_pt, obs_px = [], [], []
+    rvecs, tvecs = [], []
+    for v, (_, mids, mm, px) in enumerate(views):
+        ok, r, t = cv2.solvePnP(np.column_stack([mm.reshape(-1, 2), np.zeros(mm.size // 2)]),
+                                np.asarray(px, float).reshape(-1, 1, 2), K, dist0,
+                                flags=cv2.SOLVEPNP_IPPE)
+        if not ok:
+            ok, r, t = cv2.solvePnP(np.column_stack([mm.reshape(-1, 2), np.zeros(mm.size // 2)]),
+                                    np.asarray(px, float).reshape(-1, 1, 2), K, dist0)
+        rvecs.append(np.asarray(r, float).ravel())
+        tvecs.append(np.asarray(t, float).ravel())
+        for i, c in zip(mids, np.asarray(px, float).reshape(-1, 4, 2)):
+            for k in range(4):
+                obs_view.append(v)
+                obs_pt.append(4 * pos[int(i)] + k)
+                obs_px.append(c[k])
+    obs_view, obs_pt, obs_px = np.array(obs_view), np.array(obs_pt), np.array(obs_px)
+    rvecs, tvecs = np.array(rvecs), np.array(tvecs)
+    V = len(views)
+    scale = float(np.median(np.abs(tvecs[:, 2])))
+    n_places = count_places(rvecs, tvecs, min_move_mm=cfg.place_move * scale,
+                            min_turn_deg=cfg.place_turn_deg)
+    if n_places < cfg.min_places:
+        return None
+    n_seen = np.bincount(obs_pt, minlength=len(P0))
+    view_sets = [set(obs_view[obs_pt == p]) for p in range(len(P0))]
+    released = np.array([n_seen[p] >= cfg.min_views and len(view_sets[p]) >= cfg.min_views
+                         for p in range(len(P0))])
+    rel_idx = np.flatnonzero(released)
+    col_of = -np.ones(len(P0), int)
+    col_of[rel_idx] = np.arange(len(rel_idx))
+
+    lens0 = _lens_vector(K, dist0)
+    n_lens = len(LENS_FREE) if lens_free else 0
+    npv = 7 if lens_free else 6    # per photo: rvec, tvec (and its focal length's factor)
+    n_pose = npv * V
+    n_delta = 2 * len(rel_idx)
+    w_prior = cfg.noise_px / cfg.prior_mm
+    n_foc = V if lens_free else 0  # a phone refocuses: each photo's f = f (1 + e), e ~ prior
+    w_foc = cfg.noise_px / cfg.focal_scatter
+
+    def unpack(x):
+        lens = lens0.copy()
+        if lens_free:
+            lens[:7] = x[:7]
+        poses = x[n_lens:n_lens + n_pose].reshape(V, npv)
+        delta = np.zeros_like(P0)
+        delta[rel_idx] = x[n_lens + n_pose:].reshape(-1, 2)
+        return lens, poses, delta
+
+    view_rows = [np.flatnonzero(obs_view == v) for v in range(V)]
+    m_obs = 2 * len(obs_px)
+
+    def _model(x, with_jac: bool):
+        """Predicted pixels (n_obs, 2) and, with ``with_jac``, the dense Jacobian of the
+        observation rows (OpenCV's own derivatives of its projection)."""
+        lens, poses, delta = unpack(x)
+        Kx, dx = _lens_matrices(lens)
+        P = P0 + delta
+        pred = np.empty_like(obs_px)
+        J = np.zeros((m_obs, len(x))) if with_jac else None
+        eps = 1e-3
+        for v, rows in enumerate(view_rows):
+            Kv = Kx.copy()
+            if lens_free:
+                Kv[0, 0] = Kv[1, 1] = Kx[0, 0] * (1.0 + poses[v, 6])
+            Pv = np.column_stack([P[obs_pt[rows]], np.zeros(len(rows))])
+            pv, jv = cv2.projectPoints(Pv, poses[v, :3], poses[v, 3:6], Kv, dx)
+            pred[rows] = pv.reshape(-1, 2)
+            if not with_jac:
+                continue
+            r2 = np.column_stack([2 * rows, 2 * rows + 1]).ravel()
+            jv = jv.reshape(-1, 2, jv.shape[1]).reshape(2 * len(rows), -1)
+            J[r2, n_lens + npv * v:n_lens + npv * v + 6] = jv[:, :6]
+            if lens_free:   # f (fx = fy), cx, cy, k1, k2, p1, p2; the photo's focal factor
+                J[r2, 0] = (jv[:, 6] + jv[:, 7]) * (1.0 + poses[v, 6])
+                J[r2, n_lens + npv * v + 6] = (jv[:, 6] + jv[:, 7]) * Kx[0, 0]
+                J[r2, 1], J[r2, 2] = jv[:, 8], jv[:, 9]
+                J[r2, 3:7] = jv[:, 10:14]
+            cols = col_of[obs_pt[rows]]
+            rel = cols >= 0
+            if rel.any():   # each corner moves only its own pixel: two shifted projections
+                for j in range(2):
+                    Ps = Pv.copy()
+                    Ps[:, j] += eps
+                    ps, _ = cv2.projectPoints(Ps, poses[v, :3], poses[v, 3:6], Kv, dx)
+                    dp = (ps.reshape(-1, 2) - pv.reshape(-1, 2)) / eps
+                    rr = rows[rel]
+                    cc = n_lens + n_pose + 2 * cols[rel] + j
+                    J[2 * rr, cc] = dp[rel, 0]
+                    J[2 * rr + 1, cc] = dp[rel, 1]
+        return pred, J
+
+    foc_cols = n_lens + npv * np.arange(V) + 6
+
+    def residuals(x):
+        pred, _ = _model(x, False)
+        return np.concatenate([(pred - obs_px).ravel(), w_foc * x[foc_cols[:n_foc]],
+                               w_prior * x[n_lens + n_pose:]])
+
+    def jacobian(x):
+        _, J = _model(x, True)
+        F = np.zeros((n_foc, len(x)))
+        F[np.arange(n_foc), foc_cols[:n_foc]] = w_foc
+        D = np.hstack([np.zeros((n_delta, n_lens + n_pose)), w_prior * np.eye(n_delta)])
+        return np.vstack([J, F, D])
+
+    poses0 = np.column_stack([rvecs, tvecs] + ([np.zeros(V)] if lens_free else []))
+    x0 = np.concatenate([lens0[:7] if lens_free else [], poses0.ravel(), np.zeros(n_delta)])
+
+    # before: the declared layout, the same lens, each photo's own pose
+    nb = n_lens + n_pose
+    mb = m_obs + n_foc
+    before = least_squares(lambda x: residuals(np.concatenate([x, np.zeros(n_delta)]))[:mb],
+                           x0[:nb], jac=lambda x: jacobian(np.concatenate(
+                               [x, np.zeros(n_delta)]))[:mb, :nb],
+                           method="trf", loss="huber", f_scale=cfg.huber_px, x_scale="jac",
+                           max_nfev=100)
+    x0 = np.concatenate([before.x, np.zeros(n_delta)])
+    sol = least_squares(residuals, x0, jac=jacobian, method="trf", loss="huber",
+                        f_scale=cfg.huber_px, x_scale="jac", max_nfev=100)
+    lens, poses, delta = unpack(sol.x)
+
+    def per_view(res):
+        r = res[:m_obs].reshape(-1, 2)
+        return tuple(rms_2d(r[obs_view == v]) for v in range(V))
+
+    rms_before = per_view(before.fun)
+    rms_after = per_view(sol.fun)
+    # std of the released corners from the Jacobian at the solution
+    J = jacobian(sol.x)   # the plain Jacobian (sol.jac is scaled by the loss)
+    r_obs = sol.fun[:m_obs]
+    dof = max(m_obs - (len(x0) - 4), 1)
+    s2 = float(np.sum(r_obs**2)) / dof
+    std = np.zeros_like(P0)
+    try:
+        cov = s2 * np.linalg.inv(J.T @ J)[n_lens + n_pose:, n_lens + n_pose:]
+        # in the gauge: the deviations less their best-fitting similarity
+        pr = P0[rel_idx]
+        A = np.zeros((2 * len(pr), 4))
+        A[0::2, 0] = A[1::2, 1] = 1.0
+        A[0::2, 2], A[0::2, 3] = pr[:, 0], -pr[:, 1]
+        A[1::2, 2], A[1::2, 3] = pr[:, 1], pr[:, 0]
+        Q = np.eye(len(A)) - A @ np.linalg.pinv(A)
+        cov = Q @ cov @ Q.T
+        std[rel_idx] = np.sqrt(np.clip(np.diag(cov), 0, None)).reshape(-1, 2)
+    except np.linalg.LinAlgError:
+        std[rel_idx] = np.nan
+    # the gauge: no similarity between the printed and the declared layout
+    sim = _similarity(P0[rel_idx], delta[rel_idx]) if len(rel_idx) >= 3 else np.zeros(4)
+    delta[rel_idx] -= _apply_similarity(sim, P0[rel_idx])
+    Kf, df = _lens_matrices(lens)
+    notes = []
+    if not sol.success:
+        notes.append(f"the bundle adjustment stopped: {sol.message}")
+    return AsPrinted(ids, declared, (P0 + delta).reshape(-1, 4, 2), std.reshape(-1, 4, 2),
+                     released.reshape(-1, 4), Kf, df, (int(size_px[0]), int(size_px[1])),
+                     bool(lens_free), tuple(v[0] for v in views), rms_before, rms_after,
+                     n_places, source, tuple(notes))
