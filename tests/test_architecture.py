@@ -173,7 +173,6 @@ LONG_PENDING = {
     "vision_cal.render.dataset.render_dataset": "split pending, issue 31",
     "vision_cal.report.html.render_html": "split pending, issue 31",
     # being split now (issue 31, branch i31)
-    "vision_cal.simulate.run.simulate_plan": "split pending, issue 31",
     "vision_cal.render.rehearse.simulate_session": "split pending, issue 31",
 }
 #: the reason's mark: a sentence of the docstring beginning with these words
