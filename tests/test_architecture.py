@@ -172,8 +172,6 @@ LONG_PENDING = {
     "vision_cal.measure.dots._refine_dot": "split pending, issue 31",
     "vision_cal.render.dataset.render_dataset": "split pending, issue 31",
     "vision_cal.report.html.render_html": "split pending, issue 31",
-    # being split now (issue 31, branch i31)
-    "vision_cal.render.rehearse.simulate_session": "split pending, issue 31",
 }
 #: the reason's mark: a sentence of the docstring beginning with these words
 LONG_REASON = re.compile(r"(?:^|[.!?:;]\s+|\n\s*)Long because\b")
