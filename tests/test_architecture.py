@@ -5,6 +5,7 @@ package's modules (imports inside functions count as much as those at the top)."
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -153,3 +154,82 @@ def test_every_command_is_on_the_command_line():
     caught = {ast.unparse(h.type) for h in ast.walk(tree)
               if isinstance(h, ast.ExceptHandler) and h.type is not None}
     assert not caught & {"ModuleNotFoundError", "ImportError"}, caught
+
+
+#: the longest a function may be without saying why (lines from its first decorator to its
+#: last line, docstring included)
+MAX_FUNCTION_LINES = 100
+#: functions over the limit in files other engineers are editing now; each is split (or
+#: given its reason) by issue 31, and leaves this set when it is
+LONG_PENDING = {
+    "vision_cal.actions.plan.plan": "split pending, issue 31",
+    "vision_cal.diagnose.discover._trace": "split pending, issue 31",
+    "vision_cal.diagnose.select.diagnose": "split pending, issue 31",
+    "vision_cal.diagnose.verdict.judge": "split pending, issue 31",
+    "vision_cal.diagnose.verdict.judge_placements": "split pending, issue 31",
+    "vision_cal.loop.run_loop": "split pending, issue 31",
+    "vision_cal.measure.dots.find_candidates": "split pending, issue 31",
+    "vision_cal.measure.dots._refine_dot": "split pending, issue 31",
+    "vision_cal.render.dataset.render_dataset": "split pending, issue 31",
+    "vision_cal.report.html.render_html": "split pending, issue 31",
+}
+#: the reason's mark: a sentence of the docstring beginning with these words
+LONG_REASON = re.compile(r"(?:^|[.!?:;]\s+|\n\s*)Long because\b")
+
+
+def long_functions(package: Path = PACKAGE) -> dict[str, int]:
+    """Qualified name (module.Class.function) -> length, of every function or method over
+    ``MAX_FUNCTION_LINES`` whose docstring gives no reason (no sentence "Long because ...")."""
+    out = {}
+    for name, path in modules(package).items():
+        tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+        todo = [(name, node) for node in tree.body]
+        while todo:
+            prefix, node = todo.pop()
+            if isinstance(node, ast.ClassDef):
+                todo += [(f"{prefix}.{node.name}", n) for n in node.body]
+            elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                qual = f"{prefix}.{node.name}"
+                todo += [(qual, n) for n in ast.walk(node)
+                         if n is not node and isinstance(n, (ast.FunctionDef,
+                                                             ast.AsyncFunctionDef, ast.ClassDef))]
+                start = min([node.lineno] + [d.lineno for d in node.decorator_list])
+                length = node.end_lineno - start + 1
+                if length > MAX_FUNCTION_LINES and not LONG_REASON.search(
+                        ast.get_docstring(node) or ""):
+                    out[qual] = length
+    return out
+
+
+def test_no_long_function_without_a_reason():
+    """Every function over 100 lines says why in its docstring ("Long because ..."), or is
+    one of the few whose split is pending; a pending one that got short leaves the set."""
+    long = long_functions()
+    assert set(long) - set(LONG_PENDING) == set(), {
+        k: v for k, v in long.items() if k not in LONG_PENDING}
+    assert set(LONG_PENDING) - set(long) == set(), "split: remove from LONG_PENDING"
+
+
+def test_the_length_check_sees_what_it_guards(tmp_path):
+    """A 101-line function, a long method and a long nested function are found; a 100-line
+    one and a long one whose docstring says "Long because" are not."""
+    pkg = tmp_path / "vision_cal"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+
+    def function(name, lines, doc="", indent=""):
+        head = [f"{indent}@staticmethod"] if indent else []
+        head += [f"{indent}def {name}():", f'{indent}    """{doc}"""']
+        return head + [f"{indent}    x = 1"] * (lines - len(head))
+
+    src = (function("too_long", 101) + function("just_fits", 100)
+           + function("excused", 140, "Does a thing.\n    Long because the stages share state.")
+           + function("mentions", 140, "Not Long because of this.")
+           + ["class Tool:"] + function("method", 101, indent="    ")
+           + ["def outer():", "    def inner():"] + ["        x = 1"] * 100)
+    (pkg / "mod.py").write_text("\n".join(src) + "\n")
+    assert long_functions(pkg) == {"vision_cal.mod.too_long": 101,
+                                   "vision_cal.mod.mentions": 140,
+                                   "vision_cal.mod.Tool.method": 101,
+                                   "vision_cal.mod.outer": 102,
+                                   "vision_cal.mod.outer.inner": 101}

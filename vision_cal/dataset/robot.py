@@ -138,122 +138,14 @@ def load_robot_file(path) -> RobotFile:
     r = FieldReader(str(path))
     nominal = read_robot_block(r, tree, "")
     kw: dict = {}
-
-    def opt(key):
-        return tree.get(key)
-
-    if opt("name") is not None:
-        kw["name"] = r.string(opt("name"), "name")
-    t = opt("placement_tolerance")
-    if t is not None:
-        if not isinstance(t, dict):
-            r.fail("placement_tolerance", f"expected an object, got {type(t).__name__}")
-        d = PlacementTolerance()
-        b = _positive(r, t["base_mm"], "placement_tolerance.base_mm", zero_ok=True) \
-            if "base_mm" in t else d.base_mm
-        z = r.vector(t["joint_zero_deg"], "placement_tolerance.joint_zero_deg", 2) \
-            if "joint_zero_deg" in t else d.joint_zero_deg
-        for i, v in enumerate(z):
-            _positive(r, v, f"placement_tolerance.joint_zero_deg[{i}]", zero_ok=True)
-        ln = _positive(r, t["link_mm"], "placement_tolerance.link_mm", zero_ok=True) \
-            if "link_mm" in t else d.link_mm
-        extra = set(t) - {"base_mm", "joint_zero_deg", "link_mm"}
-        if extra:
-            log.warning("%s: placement_tolerance: ignoring unknown fields %s", path,
-                        ", ".join(sorted(extra)))
-        kw["tolerance"] = PlacementTolerance(b, z, ln)
-    lim = opt("joint_limits_deg")
-    if lim is not None:
-        rows = r.list_(lim, "joint_limits_deg")
-        if len(rows) != 2:
-            r.fail("joint_limits_deg", f"expected [[lo, hi], [lo, hi]], got {lim!r}")
-        pairs = []
-        for j, row in enumerate(rows):
-            lo, hi = r.vector(row, f"joint_limits_deg[{j}]", 2)
-            if not lo < hi:
-                r.fail(f"joint_limits_deg[{j}]", f"expected lo < hi, got {row!r}")
-            pairs.append((lo, hi))
-        kw["joint_limits_deg"] = tuple(pairs)
-    if opt("joint4_limits_deg") is not None:
-        lo, hi = r.vector(opt("joint4_limits_deg"), "joint4_limits_deg", 2)
-        if not lo < hi:
-            r.fail("joint4_limits_deg", f"expected lo < hi, got {opt('joint4_limits_deg')!r}")
-        kw["joint4_limits_deg"] = (lo, hi)
-    if opt("joint3_limits_mm") is not None:
-        lo, hi = r.vector(opt("joint3_limits_mm"), "joint3_limits_mm", 2)
-        if not lo < hi:
-            r.fail("joint3_limits_mm", f"expected lo < hi, got {opt('joint3_limits_mm')!r}")
-        kw["joint3_limits_mm"] = (lo, hi)
-    for key in ("speed_limits_deg_s", "accel_limits_deg_s2"):
-        if opt(key) is not None:
-            v = r.vector(opt(key), key, 2)
-            for i, x in enumerate(v):
-                _positive(r, x, f"{key}[{i}]")
-            kw[key] = v
-    if opt("elbows") is not None:
-        els = r.list_(opt("elbows"), "elbows", nonempty=True)
-        for i, e in enumerate(els):
-            if isinstance(e, bool) or e not in (1, -1):
-                r.fail(f"elbows[{i}]", f"expected +1 or -1, got {e!r}")
-        if len(set(els)) != len(els):
-            r.fail("elbows", f"expected distinct values, got {els!r}")
-        kw["elbows"] = tuple(int(e) for e in els)
-    for key in ("pen_up_mm", "pen_down_mm", "j4_deg"):
-        if opt(key) is not None:
-            kw[key] = r.number(opt(key), key)
-    if ("pen_up_mm" in kw) != ("pen_down_mm" in kw):
-        missing = "pen_down_mm" if "pen_up_mm" in kw else "pen_up_mm"
-        r.fail(missing, "missing: give both pen heights or neither")
-    if "pen_up_mm" in kw and kw["pen_up_mm"] == kw["pen_down_mm"]:
-        r.fail("pen_down_mm", "must differ from pen_up_mm")
-    lo3, hi3 = kw.get("joint3_limits_mm", JOINT3_LIMITS_MM)
-    for key in ("pen_up_mm", "pen_down_mm"):
-        if key in kw and not lo3 <= kw[key] <= hi3:
-            r.fail(key, f"{kw[key]:g} mm is outside joint 3's travel [{lo3:g}, {hi3:g}] mm "
-                        "(joint3_limits_mm)")
-    for key in ("mark_diameter_mm", "overshoot_deg"):
-        if opt(key) is not None:
-            kw[key] = _positive(r, opt(key), key)
-    p = opt("program")
-    if p is not None:
-        if not isinstance(p, dict):
-            r.fail("program", f"expected an object, got {type(p).__name__}")
-        d = ProgramSettings()
-        power = p.get("power", d.power)
-        if power not in ("low", "high"):
-            r.fail("program.power", f"expected 'low' or 'high', got {power!r}")
-        sp = r.number(p["speed_percent"], "program.speed_percent") \
-            if "speed_percent" in p else d.speed_percent
-        if not 1 <= sp <= 100:
-            r.fail("program.speed_percent", f"expected 1..100, got {sp:g}")
-        ac = r.vector(p["accel_percent"], "program.accel_percent", 2) \
-            if "accel_percent" in p else d.accel_percent
-        for i, a in enumerate(ac):
-            if not 1 <= a <= 100:
-                r.fail(f"program.accel_percent[{i}]", f"expected 1..100, got {a:g}")
-        settle = _positive(r, p["settle_s"], "program.settle_s", zero_ok=True) \
-            if "settle_s" in p else d.settle_s
-        dwell = _positive(r, p["pen_dwell_s"], "program.pen_dwell_s", zero_ok=True) \
-            if "pen_dwell_s" in p else d.pen_dwell_s
-        bit = p.get("pen_output_bit")
-        if bit is not None and (isinstance(bit, bool) or not isinstance(bit, int)
-                                or not 0 <= bit <= 9999):
-            r.fail("program.pen_output_bit", f"expected an output bit number 0..9999, got {bit!r}")
-        safe = r.number(p["safe_z_mm"], "program.safe_z_mm") if p.get("safe_z_mm") is not None \
-            else None
-        moff = p.get("motor_off", False)
-        if not isinstance(moff, bool):
-            r.fail("program.motor_off", f"expected true or false, got {moff!r}")
-        sig = p.get("pen_signal")
-        if sig is not None and not (isinstance(sig, str)
-                                    and re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,31}", sig)):
-            r.fail("program.pen_signal", f"expected a signal name (a letter, then letters, "
-                                         f"digits or _, at most 32), got {sig!r}")
-        extra = set(p) - {"power", "speed_percent", "accel_percent", "settle_s", "pen_dwell_s",
-                          "pen_output_bit", "safe_z_mm", "motor_off", "pen_signal"}
-        if extra:
-            log.warning("%s: program: ignoring unknown fields %s", path, ", ".join(sorted(extra)))
-        kw["program"] = ProgramSettings(power, sp, ac, settle, dwell, bit, safe, moff, sig)
+    if tree.get("name") is not None:
+        kw["name"] = r.string(tree.get("name"), "name")
+    if tree.get("placement_tolerance") is not None:
+        kw["tolerance"] = _read_tolerance(r, tree.get("placement_tolerance"), path)
+    kw.update(_read_limits(r, tree))
+    kw.update(_read_pen(r, tree, kw.get("joint3_limits_mm", JOINT3_LIMITS_MM)))
+    if tree.get("program") is not None:
+        kw["program"] = _read_program(r, tree.get("program"), path)
     known = set(ROBOT_BLOCK) | {f for f in RobotFile.__dataclass_fields__} | {
         "placement_tolerance", "tool_mm"}
     extra = set(tree) - known
@@ -266,3 +158,129 @@ def load_robot_file(path) -> RobotFile:
             r.fail("home_deg", f"joint {j + 1} at {home[j]:g} deg is outside joint_limits_deg "
                                f"{list(lims[j])}")
     return RobotFile(path, nominal, **kw)
+
+
+def _read_tolerance(r: FieldReader, t, path: Path) -> PlacementTolerance:
+    """The ``placement_tolerance`` block (defaults for what it leaves out; unknown fields
+    logged and ignored)."""
+    if not isinstance(t, dict):
+        r.fail("placement_tolerance", f"expected an object, got {type(t).__name__}")
+    d = PlacementTolerance()
+    b = _positive(r, t["base_mm"], "placement_tolerance.base_mm", zero_ok=True) \
+        if "base_mm" in t else d.base_mm
+    z = r.vector(t["joint_zero_deg"], "placement_tolerance.joint_zero_deg", 2) \
+        if "joint_zero_deg" in t else d.joint_zero_deg
+    for i, v in enumerate(z):
+        _positive(r, v, f"placement_tolerance.joint_zero_deg[{i}]", zero_ok=True)
+    ln = _positive(r, t["link_mm"], "placement_tolerance.link_mm", zero_ok=True) \
+        if "link_mm" in t else d.link_mm
+    extra = set(t) - {"base_mm", "joint_zero_deg", "link_mm"}
+    if extra:
+        log.warning("%s: placement_tolerance: ignoring unknown fields %s", path,
+                    ", ".join(sorted(extra)))
+    return PlacementTolerance(b, z, ln)
+
+
+def _read_limits(r: FieldReader, tree: dict) -> dict:
+    """The joint limits, speed and acceleration limits and elbows the file gives, as
+    ``RobotFile`` keyword arguments (each ``lo < hi``, positive, distinct +1/-1)."""
+    kw: dict = {}
+    lim = tree.get("joint_limits_deg")
+    if lim is not None:
+        rows = r.list_(lim, "joint_limits_deg")
+        if len(rows) != 2:
+            r.fail("joint_limits_deg", f"expected [[lo, hi], [lo, hi]], got {lim!r}")
+        pairs = []
+        for j, row in enumerate(rows):
+            lo, hi = r.vector(row, f"joint_limits_deg[{j}]", 2)
+            if not lo < hi:
+                r.fail(f"joint_limits_deg[{j}]", f"expected lo < hi, got {row!r}")
+            pairs.append((lo, hi))
+        kw["joint_limits_deg"] = tuple(pairs)
+    for key in ("joint4_limits_deg", "joint3_limits_mm"):
+        if tree.get(key) is not None:
+            lo, hi = r.vector(tree.get(key), key, 2)
+            if not lo < hi:
+                r.fail(key, f"expected lo < hi, got {tree.get(key)!r}")
+            kw[key] = (lo, hi)
+    for key in ("speed_limits_deg_s", "accel_limits_deg_s2"):
+        if tree.get(key) is not None:
+            v = r.vector(tree.get(key), key, 2)
+            for i, x in enumerate(v):
+                _positive(r, x, f"{key}[{i}]")
+            kw[key] = v
+    if tree.get("elbows") is not None:
+        els = r.list_(tree.get("elbows"), "elbows", nonempty=True)
+        for i, e in enumerate(els):
+            if isinstance(e, bool) or e not in (1, -1):
+                r.fail(f"elbows[{i}]", f"expected +1 or -1, got {e!r}")
+        if len(set(els)) != len(els):
+            r.fail("elbows", f"expected distinct values, got {els!r}")
+        kw["elbows"] = tuple(int(e) for e in els)
+    return kw
+
+
+def _read_pen(r: FieldReader, tree: dict, joint3_limits_mm) -> dict:
+    """The pen's heights (both or neither, different, inside joint 3's travel), the tool's
+    angle, the mark's diameter and the overshoot, as ``RobotFile`` keyword arguments."""
+    kw: dict = {}
+    for key in ("pen_up_mm", "pen_down_mm", "j4_deg"):
+        if tree.get(key) is not None:
+            kw[key] = r.number(tree.get(key), key)
+    if ("pen_up_mm" in kw) != ("pen_down_mm" in kw):
+        missing = "pen_down_mm" if "pen_up_mm" in kw else "pen_up_mm"
+        r.fail(missing, "missing: give both pen heights or neither")
+    if "pen_up_mm" in kw and kw["pen_up_mm"] == kw["pen_down_mm"]:
+        r.fail("pen_down_mm", "must differ from pen_up_mm")
+    lo3, hi3 = joint3_limits_mm
+    for key in ("pen_up_mm", "pen_down_mm"):
+        if key in kw and not lo3 <= kw[key] <= hi3:
+            r.fail(key, f"{kw[key]:g} mm is outside joint 3's travel [{lo3:g}, {hi3:g}] mm "
+                        "(joint3_limits_mm)")
+    for key in ("mark_diameter_mm", "overshoot_deg"):
+        if tree.get(key) is not None:
+            kw[key] = _positive(r, tree.get(key), key)
+    return kw
+
+
+def _read_program(r: FieldReader, p, path: Path) -> ProgramSettings:
+    """The ``program`` block (defaults for what it leaves out; unknown fields logged and
+    ignored)."""
+    if not isinstance(p, dict):
+        r.fail("program", f"expected an object, got {type(p).__name__}")
+    d = ProgramSettings()
+    power = p.get("power", d.power)
+    if power not in ("low", "high"):
+        r.fail("program.power", f"expected 'low' or 'high', got {power!r}")
+    sp = r.number(p["speed_percent"], "program.speed_percent") \
+        if "speed_percent" in p else d.speed_percent
+    if not 1 <= sp <= 100:
+        r.fail("program.speed_percent", f"expected 1..100, got {sp:g}")
+    ac = r.vector(p["accel_percent"], "program.accel_percent", 2) \
+        if "accel_percent" in p else d.accel_percent
+    for i, a in enumerate(ac):
+        if not 1 <= a <= 100:
+            r.fail(f"program.accel_percent[{i}]", f"expected 1..100, got {a:g}")
+    settle = _positive(r, p["settle_s"], "program.settle_s", zero_ok=True) \
+        if "settle_s" in p else d.settle_s
+    dwell = _positive(r, p["pen_dwell_s"], "program.pen_dwell_s", zero_ok=True) \
+        if "pen_dwell_s" in p else d.pen_dwell_s
+    bit = p.get("pen_output_bit")
+    if bit is not None and (isinstance(bit, bool) or not isinstance(bit, int)
+                            or not 0 <= bit <= 9999):
+        r.fail("program.pen_output_bit", f"expected an output bit number 0..9999, got {bit!r}")
+    safe = r.number(p["safe_z_mm"], "program.safe_z_mm") if p.get("safe_z_mm") is not None \
+        else None
+    moff = p.get("motor_off", False)
+    if not isinstance(moff, bool):
+        r.fail("program.motor_off", f"expected true or false, got {moff!r}")
+    sig = p.get("pen_signal")
+    if sig is not None and not (isinstance(sig, str)
+                                and re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,31}", sig)):
+        r.fail("program.pen_signal", f"expected a signal name (a letter, then letters, "
+                                     f"digits or _, at most 32), got {sig!r}")
+    extra = set(p) - {"power", "speed_percent", "accel_percent", "settle_s", "pen_dwell_s",
+                      "pen_output_bit", "safe_z_mm", "motor_off", "pen_signal"}
+    if extra:
+        log.warning("%s: program: ignoring unknown fields %s", path, ", ".join(sorted(extra)))
+    return ProgramSettings(power, sp, ac, settle, dwell, bit, safe, moff, sig)

@@ -442,10 +442,42 @@ def session_from_raw(raw: dict, folder, where: str) -> Session:
     fmt = r.get(raw, "format", "")
     if fmt != FORMAT:
         r.fail("format", f"expected {FORMAT!r}, got {fmt!r}")
-
     robot = read_robot_block(r, r.get(raw, "robot", ""), "robot")
+    marks = _read_marks(r, raw)
+    _check_repeats(r, marks)
 
-    # marks
+    # images (absent: every photo in the folder, marks found from the photos)
+    images_listed = "images" in raw
+    images = _read_images(r, raw, {m.id for m in marks})
+    if images_listed and not images and any(m.measured_mm is None for m in marks):
+        missing = next(m.id for m in marks if m.measured_mm is None)
+        r.fail("images", f"no images, and mark {missing!r} has no measured_mm: "
+                         "nothing to measure it from")
+    needs_photos = bool(images) or (not images_listed
+                                    and any(m.measured_mm is None for m in marks))
+
+    sheet = None
+    sheet_raw = raw.get("sheet")
+    if sheet_raw is None:
+        if needs_photos:
+            r.fail("sheet", "missing required field (photos need the printed ArUco grid)")
+    else:
+        sheet = read_sheet_block(r, sheet_raw, "sheet", need_markers=needs_photos)
+
+    camera = _read_camera(r, raw["camera"]) if raw.get("camera") is not None else None
+    pen = raw.get("pen")
+    dia = None
+    if pen is not None:
+        v = r.get(pen, "mark_diameter_mm", "pen", required=False)
+        dia = (r.number(v, "pen.mark_diameter_mm", lo=0.0, hi=MAX_PEN_MM, positive=True,
+                        what="diameter in mm") if v is not None else None)
+
+    return Session(folder, sheet, robot, tuple(marks), tuple(images), camera, dia, raw,
+                   images_listed)
+
+
+def _read_marks(r: FieldReader, raw: dict) -> list[Mark]:
+    """The ``marks`` list (non-empty, ids unique), each mark's fields checked."""
     marks_raw = r.list_(r.get(raw, "marks", ""), "marks", nonempty=True)
     marks: list[Mark] = []
     seen: set[str] = set()
@@ -481,8 +513,13 @@ def session_from_raw(raw: dict, folder, where: str) -> Session:
             msig = r.number(msig, f"{w}.measured_sigma_mm", lo=0.0, hi=MAX_PEN_MM,
                             positive=True, what="std in mm")
         marks.append(Mark(mid, q, role, appr, tgt, meas, j4, rep, msig))
+    return marks
+
+
+def _check_repeats(r: FieldReader, marks: list[Mark]) -> None:
+    """A repeat returns to another mark's pose, from the same side; refuses any other."""
     by_id = {mk.id: mk for mk in marks}
-    for i, mk in enumerate(marks):   # a repeat returns to another mark's pose, same side
+    for i, mk in enumerate(marks):
         if mk.repeat_of is None:
             continue
         twin = by_id.get(mk.repeat_of)
@@ -493,8 +530,10 @@ def session_from_raw(raw: dict, folder, where: str) -> Session:
                                             f"{twin.id!r} from {twin.approach}: a repeat comes "
                                             "from the same side")
 
-    # images (absent: every photo in the folder, marks found from the photos)
-    images_listed = "images" in raw
+
+def _read_images(r: FieldReader, raw: dict, mark_ids: set[str]) -> list[ImageEntry]:
+    """The ``images`` list (empty when absent): file names normalised and unique, each
+    image's marks among ``mark_ids``."""
     imgs_raw = r.list_(raw.get("images", []), "images")
     images: list[ImageEntry] = []
     files: dict[str, int] = {}
@@ -514,58 +553,34 @@ def session_from_raw(raw: dict, folder, where: str) -> Session:
         ids = r.list_(r.get(im, "marks", w), f"{w}.marks")
         for j, mid in enumerate(ids):
             r.string(mid, f"{w}.marks[{j}]")
-            if mid not in seen:
+            if mid not in mark_ids:
                 r.fail(f"{w}.marks[{j}]", f"names mark {mid!r}, which is not in marks")
         images.append(ImageEntry(f, tuple(ids)))
-    if images_listed and not images and any(m.measured_mm is None for m in marks):
-        missing = next(m.id for m in marks if m.measured_mm is None)
-        r.fail("images", f"no images, and mark {missing!r} has no measured_mm: "
-                         "nothing to measure it from")
-    needs_photos = bool(images) or (not images_listed
-                                    and any(m.measured_mm is None for m in marks))
+    return images
 
-    # sheet
-    sheet = None
-    sheet_raw = raw.get("sheet")
-    if sheet_raw is None:
-        if needs_photos:
-            r.fail("sheet", "missing required field (photos need the printed ArUco grid)")
-    else:
-        sheet = read_sheet_block(r, sheet_raw, "sheet", need_markers=needs_photos)
 
-    # camera
-    camera = None
-    cam = raw.get("camera")
-    if cam is not None:
-        size_px = r.vector(r.get(cam, "size_px", "camera"), "camera.size_px", 2, lo=1,
-                           hi=MAX_IMAGE_PX, what="image size in pixels")
-        if any(x != int(x) for x in size_px):
-            r.fail("camera.size_px", f"expected whole pixels, got {_short(cam['size_px'])}")
-        K_raw = r.list_(r.get(cam, "K", "camera"), "camera.K")
-        if len(K_raw) != 3:
-            r.fail("camera.K", "expected a 3x3 matrix")
-        K = np.array([r.vector(row, f"camera.K[{i}]", 3, lo=-MAX_K_PX, hi=MAX_K_PX,
-                               what="pixel value") for i, row in enumerate(K_raw)])
-        for i in (0, 1):
-            if K[i, i] <= 0:
-                r.fail(f"camera.K[{i}][{i}]", f"expected a positive focal length in pixels, "
-                                              f"got {K[i, i]:g}")
-        if K[1, 0] != 0 or tuple(K[2]) != (0.0, 0.0, 1.0):
-            r.fail("camera.K", "expected an OpenCV camera matrix [[fx,s,cx],[0,fy,cy],[0,0,1]]")
-        dist_raw = r.list_(r.get(cam, "dist", "camera"), "camera.dist")
-        if len(dist_raw) not in (4, 5, 8, 12, 14):
-            r.fail("camera.dist", f"expected 4, 5, 8, 12 or 14 OpenCV coefficients, got {len(dist_raw)}")
-        dist = np.array([r.number(x, f"camera.dist[{i}]", lo=-MAX_DIST, hi=MAX_DIST,
-                                  what="distortion coefficient")
-                         for i, x in enumerate(dist_raw)])
-        camera = Camera((int(size_px[0]), int(size_px[1])), K, dist)
-
-    pen = raw.get("pen")
-    dia = None
-    if pen is not None:
-        v = r.get(pen, "mark_diameter_mm", "pen", required=False)
-        dia = (r.number(v, "pen.mark_diameter_mm", lo=0.0, hi=MAX_PEN_MM, positive=True,
-                        what="diameter in mm") if v is not None else None)
-
-    return Session(folder, sheet, robot, tuple(marks), tuple(images), camera, dia, raw,
-                   images_listed)
+def _read_camera(r: FieldReader, cam) -> Camera:
+    """The ``camera`` block: whole-pixel image size, an OpenCV camera matrix with positive
+    focal lengths, 4 to 14 distortion coefficients."""
+    size_px = r.vector(r.get(cam, "size_px", "camera"), "camera.size_px", 2, lo=1,
+                       hi=MAX_IMAGE_PX, what="image size in pixels")
+    if any(x != int(x) for x in size_px):
+        r.fail("camera.size_px", f"expected whole pixels, got {_short(cam['size_px'])}")
+    K_raw = r.list_(r.get(cam, "K", "camera"), "camera.K")
+    if len(K_raw) != 3:
+        r.fail("camera.K", "expected a 3x3 matrix")
+    K = np.array([r.vector(row, f"camera.K[{i}]", 3, lo=-MAX_K_PX, hi=MAX_K_PX,
+                           what="pixel value") for i, row in enumerate(K_raw)])
+    for i in (0, 1):
+        if K[i, i] <= 0:
+            r.fail(f"camera.K[{i}][{i}]", f"expected a positive focal length in pixels, "
+                                          f"got {K[i, i]:g}")
+    if K[1, 0] != 0 or tuple(K[2]) != (0.0, 0.0, 1.0):
+        r.fail("camera.K", "expected an OpenCV camera matrix [[fx,s,cx],[0,fy,cy],[0,0,1]]")
+    dist_raw = r.list_(r.get(cam, "dist", "camera"), "camera.dist")
+    if len(dist_raw) not in (4, 5, 8, 12, 14):
+        r.fail("camera.dist", f"expected 4, 5, 8, 12 or 14 OpenCV coefficients, got {len(dist_raw)}")
+    dist = np.array([r.number(x, f"camera.dist[{i}]", lo=-MAX_DIST, hi=MAX_DIST,
+                              what="distortion coefficient")
+                     for i, x in enumerate(dist_raw)])
+    return Camera((int(size_px[0]), int(size_px[1])), K, dist)

@@ -157,17 +157,14 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
                  n_calibration: int = 30, n_validation: int = 8, safety_mm: float | None = None,
                  seed: int = 0, stage: str | None = None,
                  iso9283_cycles: int = 0) -> DesignResult:
+    """The stage's files in ``out_dir`` (see the module docstring): the pilot without
+    ``pilot``, else the informative plan placed with the pilot calibration's model (a
+    check of it when ``stage == "verify"``, with ``iso9283_cycles`` of ISO 9283's points)."""
     robot = load_robot_file(robot_path)
     sheet = load_sheet_file(sheet_path)
     sheet_raw = read_json(sheet_path)
     out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise VisionCalError("exists and is not a folder", file=str(out))
-    if out.is_dir():
-        photos = list_photos(out)
-        if photos:
-            raise VisionCalError(f"holds photos ({photos[0]}, ...) of a plan: a new plan would "
-                                 "not match them; choose another --out", file=str(out))
+    _check_out_dir(out)
     warnings = []
     if program is not None and (robot.pen_up_mm is None or robot.pen_down_mm is None):
         # the plan and the trajectory do not need them: write those, skip only the program
@@ -182,97 +179,19 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
     if pilot is not None:   # the pilot lands anywhere within the tolerance: measured over print
         sheet = with_printed_content(sheet)
     nominal = robot.nominal
-
-    def _params(r) -> ScaraParams:
-        return ScaraParams(r.L1_mm, r.L2_mm, r.joint_zero_deg[0], r.joint_zero_deg[1],
-                           r.base_mm[0], r.base_mm[1])
-
-    reach = reach_fraction(_params(nominal), sheet, joint_limits_deg=robot.joint_limits_deg,
-                           elbows=robot.elbows)
-    reach_note = (f"the robot file's base_mm {list(nominal.base_mm)} and joint_zero_deg "
-                  f"{list(nominal.joint_zero_deg)} put only {100 * reach:.0f} % of the "
-                  "drawable paper within the arm's reach and joint limits: check base_mm (sheet "
-                  "frame, mm) and z1 (it includes the robot's rotation to the sheet; "
-                  "docs/robot-file.md)")
+    reach, reach_note = _reach(robot, sheet)
     if reach < REACH_WARN:
         warnings.append(f"{robot_path}: {reach_note}")
     joint4 = None   # mark id -> j4_deg when the plan turns joint 4
     if pilot is None:
-        try:
-            d = design_pilot(robot, sheet)
-        except VisionCalError as e:
-            why = f"{e.reason}; {reach_note}" if reach < REACH_WARN else e.reason
-            raise VisionCalError(why, file=e.file or str(robot_path), field=e.field) from e
-        marks = list(d.marks)
-        plan_robot = nominal
-        info = d.to_json()
-        title = (f"vision-cal pilot: {len(marks)} marks of the seed paper's pattern, kept on "
-                 "free paper for every placement within the robot file's tolerance")
+        marks, plan_robot, info, title = _pilot_plan(robot, sheet, robot_path, reach,
+                                                     reach_note)
     else:
-        model, doc = load_calibration(pilot)
-
-        check_same_sheet(doc, sheet_raw, file=str(pilot), sheet_file=str(sheet_path))
-        cov = load_covariance(doc, model, file=str(pilot))
-        if safety_mm is None:
-            safety_mm = pilot_safety_mm(model, cov, sheet)
-        sheet = with_pilot_marks(with_drawable_bands(sheet, paper), doc, robot.mark_diameter_mm)
-        p = model.params
-        plan_robot = NominalRobot(p.L1_mm, p.L2_mm, p.joint_zero_deg, p.base_mm,
-                                  nominal.home_deg)
-        iso_extra, iso = [], None
-        if stage == "verify" and iso9283_cycles:
-            # ISO 9283's points first; the check's marks keep clear of their patches
-            bl, sz = sheet.bottom_left_mm, sheet.size_mm
-            box = (bl[0], bl[1], bl[0] + sz[0], bl[1] + sz[1]) if bl is not None \
-                else sheet.extent_mm
-            iso_extra, iso = iso_marks(model, box, iso9283_cycles, elbow=robot.elbows[0],
-                                       overshoot_deg=robot.overshoot_deg,
-                                       joint_limits_deg=robot.joint_limits_deg)
-            h = PITCH_MM * (np.ceil(np.sqrt(iso9283_cycles)) + 1) / 2
-            centres = sorted({tuple(v["point_mm"]) for v in iso.values()})
-            patches = [SheetMarker(-2000 - k, np.array([[x - h, y + h], [x + h, y + h],
-                                                        [x + h, y - h], [x - h, y - h]]))
-                       for k, (x, y) in enumerate(centres)]
-            sheet = replace(sheet, markers=tuple(sheet.markers) + tuple(patches))
-        try:
-            marks = informative_plan(
-                p, sheet, n_calibration=n_calibration, n_validation=n_validation,
-                pen_diameter_mm=robot.mark_diameter_mm, joint_limits_deg=robot.joint_limits_deg,
-                rng=seed, safety_mm=safety_mm, overshoot_deg=robot.overshoot_deg,
-                home_deg=nominal.home_deg, elbows=robot.elbows,
-                speed_deg_s=robot.speed_limits_deg_s,
-                n_repeats=0 if stage == "verify" else DESIGN_REPEATS)
-        except VisionCalError as e:
-            raise VisionCalError(e.reason, file=str(sheet_path), field=e.field) from e
-        info = {"stage": "informative", "pilot_calibration": str(pilot), "safety_mm": safety_mm,
-                "n_calibration": n_calibration, "n_validation": n_validation, "seed": seed,
-                "n_repeats": sum(m.repeat_of is not None for m in marks)}
-        if nominal.tool_mm is not None and any(nominal.tool_mm):   # an off-axis tool (#21)
-            points = forward(p, [m.joints_deg for m in marks])
-            marks, joint4 = turn_joint4(marks, p, nominal.tool_mm,
-                                        folded_j4_deg=robot.j4_deg,
-                                        overshoot_deg=robot.overshoot_deg)
-            if stage != "verify":   # the seed paper's joint-4 circles, both elbows and sides
-                triples, t4 = circle_triples(
-                    p, nominal.tool_mm, sheet, avoid_xy=points, folded_j4_deg=robot.j4_deg,
-                    clearance_mm=robot.mark_diameter_mm / 2 + 3.0 + safety_mm,
-                    joint_limits_deg=robot.joint_limits_deg,
-                    joint4_limits_deg=robot.joint4_limits_deg,
-                    overshoot_deg=robot.overshoot_deg, elbows=robot.elbows, rng=seed)
-                marks, joint4 = list(marks) + triples, {**joint4, **t4}
-                info["joint4_triples"] = [[m.id for m in triples[i:i + 3]]
-                                          for i in range(0, len(triples), 3)]
-            info["joint4_turns"] = sorted(set(joint4.values()))
-        title = (f"vision-cal calibration plan: {n_calibration} calibration + {n_validation} "
-                 "validation marks, both elbows, both approach sides per joint")
-        if stage == "verify":   # vision-cal verify: a short check of a calibration
-            info.update(stage="verify", calibration=str(pilot))
-            if iso_extra:
-                marks = list(marks) + list(iso_extra)
-                info["iso9283"] = {"cycles": iso9283_cycles, "marks": iso}
-            title = (f"vision-cal check of {Path(pilot).name}: {n_calibration} marks, both "
-                     "elbows, both approach sides (then: vision-cal verify)")
-    if pilot is not None:   # the plan against what the calibration it was placed with saw
+        doc, sheet, marks, plan_robot, info, title, joint4 = _informative_plan(
+            robot, sheet, paper, sheet_raw, sheet_path, pilot, n_calibration=n_calibration,
+            n_validation=n_validation, safety_mm=safety_mm, seed=seed, stage=stage,
+            iso9283_cycles=iso9283_cycles)
+        # the plan against what the calibration it was placed with saw
         _against_valid_for(doc, pilot, marks, nominal.home_deg, joint4, stage, info, warnings)
     traj = plan_trajectory(marks, home_deg=nominal.home_deg, vmax_deg_s=robot.speed_limits_deg_s,
                            amax_deg_s2=robot.accel_limits_deg_s2,
@@ -283,12 +202,7 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
     if warnings:
         info["warnings"] = warnings
     info["trajectory_s"] = traj.duration_s
-    session = {"format": FORMAT, "sheet": sheet_raw, "robot": plan_robot.to_json(),
-               "pen": {"mark_diameter_mm": robot.mark_diameter_mm},
-               "marks": [dict(m.to_json(), **({"j4_deg": joint4[m.id]} if joint4 else {}))
-                         for m in marks], "design": info}
-    # the robot file's limits travel with the session into calibration.json (plan, export)
-    session["robot"]["joint_limits_deg"] = [[float(v) for v in p] for p in robot.joint_limits_deg]
+    session = _session_doc(robot, sheet_raw, plan_robot, marks, joint4, info)
     points = program_points(marks, home_deg=nominal.home_deg, z2_deg=plan_robot.joint_zero_deg[1],
                             joint4=None if joint4 is None else joint4_vias(
                                 marks, joint4, start_deg=robot.j4_deg,
@@ -308,6 +222,150 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
                                   title=title)
     return DesignResult(info["stage"], session_path, traj_path, prog_path, len(marks),
                         traj.duration_s, info)
+
+
+def _check_out_dir(out: Path) -> None:
+    """Refuses an ``--out`` that is a file, or a folder holding photos (of another plan)."""
+    if out.exists() and not out.is_dir():
+        raise VisionCalError("exists and is not a folder", file=str(out))
+    if out.is_dir():
+        photos = list_photos(out)
+        if photos:
+            raise VisionCalError(f"holds photos ({photos[0]}, ...) of a plan: a new plan would "
+                                 "not match them; choose another --out", file=str(out))
+
+
+def _params(r) -> ScaraParams:
+    """The kinematic parameters of a robot block (``NominalRobot``)."""
+    return ScaraParams(r.L1_mm, r.L2_mm, r.joint_zero_deg[0], r.joint_zero_deg[1],
+                       r.base_mm[0], r.base_mm[1])
+
+
+def _reach(robot, sheet) -> tuple[float, str]:
+    """The fraction of the drawable paper the robot file's nominal robot reaches within
+    its joint limits, and the sentence a low one is explained with."""
+    nominal = robot.nominal
+    reach = reach_fraction(_params(nominal), sheet, joint_limits_deg=robot.joint_limits_deg,
+                           elbows=robot.elbows)
+    reach_note = (f"the robot file's base_mm {list(nominal.base_mm)} and joint_zero_deg "
+                  f"{list(nominal.joint_zero_deg)} put only {100 * reach:.0f} % of the "
+                  "drawable paper within the arm's reach and joint limits: check base_mm (sheet "
+                  "frame, mm) and z1 (it includes the robot's rotation to the sheet; "
+                  "docs/robot-file.md)")
+    return reach, reach_note
+
+
+def _pilot_plan(robot, sheet, robot_path, reach: float, reach_note: str):
+    """The pilot's ``(marks, plan_robot, info, title)``; a refusal names the robot file and,
+    when little of the paper is in reach, says so."""
+    try:
+        d = design_pilot(robot, sheet)
+    except VisionCalError as e:
+        why = f"{e.reason}; {reach_note}" if reach < REACH_WARN else e.reason
+        raise VisionCalError(why, file=e.file or str(robot_path), field=e.field) from e
+    marks = list(d.marks)
+    title = (f"vision-cal pilot: {len(marks)} marks of the seed paper's pattern, kept on "
+             "free paper for every placement within the robot file's tolerance")
+    return marks, robot.nominal, d.to_json(), title
+
+
+def _informative_plan(robot, sheet, paper, sheet_raw: dict, sheet_path, pilot, *,
+                      n_calibration: int, n_validation: int, safety_mm: float | None,
+                      seed: int, stage: str | None, iso9283_cycles: int):
+    """The informative plan (or, ``stage == "verify"``, the check) placed with the pilot
+    calibration's model: ``(doc, sheet, marks, plan_robot, info, title, joint4)``, with
+    ``doc`` the calibration, ``sheet`` with the obstacles the marks kept clear of, and
+    ``joint4`` mark id -> j4_deg when the plan turns joint 4 (else None)."""
+    nominal = robot.nominal
+    model, doc = load_calibration(pilot)
+
+    check_same_sheet(doc, sheet_raw, file=str(pilot), sheet_file=str(sheet_path))
+    cov = load_covariance(doc, model, file=str(pilot))
+    if safety_mm is None:
+        safety_mm = pilot_safety_mm(model, cov, sheet)
+    sheet = with_pilot_marks(with_drawable_bands(sheet, paper), doc, robot.mark_diameter_mm)
+    p = model.params
+    plan_robot = NominalRobot(p.L1_mm, p.L2_mm, p.joint_zero_deg, p.base_mm, nominal.home_deg)
+    iso_extra, iso = [], None
+    if stage == "verify" and iso9283_cycles:
+        sheet, iso_extra, iso = _with_iso9283(model, sheet, robot, iso9283_cycles)
+    try:
+        marks = informative_plan(
+            p, sheet, n_calibration=n_calibration, n_validation=n_validation,
+            pen_diameter_mm=robot.mark_diameter_mm, joint_limits_deg=robot.joint_limits_deg,
+            rng=seed, safety_mm=safety_mm, overshoot_deg=robot.overshoot_deg,
+            home_deg=nominal.home_deg, elbows=robot.elbows,
+            speed_deg_s=robot.speed_limits_deg_s,
+            n_repeats=0 if stage == "verify" else DESIGN_REPEATS)
+    except VisionCalError as e:
+        raise VisionCalError(e.reason, file=str(sheet_path), field=e.field) from e
+    info = {"stage": "informative", "pilot_calibration": str(pilot), "safety_mm": safety_mm,
+            "n_calibration": n_calibration, "n_validation": n_validation, "seed": seed,
+            "n_repeats": sum(m.repeat_of is not None for m in marks)}
+    joint4 = None
+    if nominal.tool_mm is not None and any(nominal.tool_mm):   # an off-axis tool (#21)
+        marks, joint4 = _turned_joint4(marks, p, robot, sheet, safety_mm, seed, stage, info)
+    title = (f"vision-cal calibration plan: {n_calibration} calibration + {n_validation} "
+             "validation marks, both elbows, both approach sides per joint")
+    if stage == "verify":   # vision-cal verify: a short check of a calibration
+        info.update(stage="verify", calibration=str(pilot))
+        if iso_extra:
+            marks = list(marks) + list(iso_extra)
+            info["iso9283"] = {"cycles": iso9283_cycles, "marks": iso}
+        title = (f"vision-cal check of {Path(pilot).name}: {n_calibration} marks, both "
+                 "elbows, both approach sides (then: vision-cal verify)")
+    return doc, sheet, marks, plan_robot, info, title, joint4
+
+
+def _with_iso9283(model, sheet, robot, cycles: int):
+    """ISO 9283's points for a check, placed first: ``(sheet, marks, iso)`` with the sheet
+    keeping the check's other marks clear of their patches."""
+    bl, sz = sheet.bottom_left_mm, sheet.size_mm
+    box = (bl[0], bl[1], bl[0] + sz[0], bl[1] + sz[1]) if bl is not None \
+        else sheet.extent_mm
+    iso_extra, iso = iso_marks(model, box, cycles, elbow=robot.elbows[0],
+                               overshoot_deg=robot.overshoot_deg,
+                               joint_limits_deg=robot.joint_limits_deg)
+    h = PITCH_MM * (np.ceil(np.sqrt(cycles)) + 1) / 2
+    centres = sorted({tuple(v["point_mm"]) for v in iso.values()})
+    patches = [SheetMarker(-2000 - k, np.array([[x - h, y + h], [x + h, y + h],
+                                                [x + h, y - h], [x - h, y - h]]))
+               for k, (x, y) in enumerate(centres)]
+    return replace(sheet, markers=tuple(sheet.markers) + tuple(patches)), iso_extra, iso
+
+
+def _turned_joint4(marks, p, robot, sheet, safety_mm: float, seed: int, stage, info: dict):
+    """With an off-axis tool: the marks with joint 4 turned, and (not for a check) the seed
+    paper's joint-4 circles (triples at one pose, both elbows and sides) added;
+    ``(marks, joint4)`` with joint4 mark id -> j4_deg, the triples and turns into ``info``."""
+    tool = robot.nominal.tool_mm
+    points = forward(p, [m.joints_deg for m in marks])
+    marks, joint4 = turn_joint4(marks, p, tool, folded_j4_deg=robot.j4_deg,
+                                overshoot_deg=robot.overshoot_deg)
+    if stage != "verify":
+        triples, t4 = circle_triples(
+            p, tool, sheet, avoid_xy=points, folded_j4_deg=robot.j4_deg,
+            clearance_mm=robot.mark_diameter_mm / 2 + 3.0 + safety_mm,
+            joint_limits_deg=robot.joint_limits_deg,
+            joint4_limits_deg=robot.joint4_limits_deg,
+            overshoot_deg=robot.overshoot_deg, elbows=robot.elbows, rng=seed)
+        marks, joint4 = list(marks) + triples, {**joint4, **t4}
+        info["joint4_triples"] = [[m.id for m in triples[i:i + 3]]
+                                  for i in range(0, len(triples), 3)]
+    info["joint4_turns"] = sorted(set(joint4.values()))
+    return marks, joint4
+
+
+def _session_doc(robot, sheet_raw: dict, plan_robot, marks, joint4, info: dict) -> dict:
+    """session.json of the plan: the sheet verbatim, the robot it was placed with (with
+    the robot file's joint limits, which travel into calibration.json), the pen, the marks
+    (with j4_deg when joint 4 turns) and ``design`` = ``info`` (the same dict)."""
+    session = {"format": FORMAT, "sheet": sheet_raw, "robot": plan_robot.to_json(),
+               "pen": {"mark_diameter_mm": robot.mark_diameter_mm},
+               "marks": [dict(m.to_json(), **({"j4_deg": joint4[m.id]} if joint4 else {}))
+                         for m in marks], "design": info}
+    session["robot"]["joint_limits_deg"] = [[float(v) for v in p] for p in robot.joint_limits_deg]
+    return session
 
 
 def _against_valid_for(doc: dict, cal, marks, home_deg, joint4, stage, info: dict,

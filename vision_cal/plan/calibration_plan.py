@@ -224,10 +224,32 @@ def informative_plan(nominal, sheet, *, n_calibration: int = 30, n_validation: i
     if np.any(hi <= lo):
         raise VisionCalError(f"joint limits {lim.tolist()} leave no room for a "
                              f"{overshoot_deg} deg overshoot", field="joint_limits_deg")
+    clearance = pen_diameter_mm / 2 + margin_mm + safety_mm
+    q, xy, elbow = _candidate_poses(nominal, sheet, lo, hi, rng, n_candidates, n_total,
+                                    clearance, min_sin_elbow, elbows)
+    chosen = _max_min_design(q, xy, elbow, lo, hi, n_total, min_separation_mm)
+    role = _validation_roles(elbow[chosen], n_total, int(n_validation), rng)
+    qs = q[chosen]
+    els = elbow[chosen]
+    signs = np.empty((n_total, 2), dtype=int)
+    for r in ("calibration", "validation"):
+        idx = np.flatnonzero(role == r)
+        if len(idx):
+            signs[idx] = _balanced_signs(qs[idx], els[idx], rng)
+    order = _drawing_order(qs, home_deg, speed_deg_s)
+    out = _planned_marks(qs, role, signs, order, overshoot_deg)
+    return add_repeats(out, nominal, sheet, n_repeats, min_separation_mm=min_separation_mm,
+                       clearance_mm=clearance,
+                       overshoot_deg=overshoot_deg, joint_limits_deg=lim)
 
+
+def _candidate_poses(nominal, sheet, lo, hi, rng, n_candidates: int, n_total: int,
+                     clearance: float, min_sin_elbow: float, elbows):
+    """``(q, xy, elbow)`` of the poses drawn uniformly in ``[lo, hi]`` whose pen (nominal
+    model) lands ``clearance`` mm clear of the sheet's edges and markers, away from the
+    stretched arm and with an allowed elbow; refuses fewer than ``n_total`` of them."""
     q = lo + (hi - lo) * rng.random((int(n_candidates), 2))
     xy = forward(nominal, q)
-    clearance = pen_diameter_mm / 2 + margin_mm + safety_mm
     ok = sheet_clearance_mm(sheet, xy) >= clearance
     sin_el = np.sin(np.radians(q[:, 1] + nominal.z2_deg))
     ok &= np.abs(sin_el) >= min_sin_elbow
@@ -238,8 +260,13 @@ def informative_plan(nominal, sheet, *, n_calibration: int = 30, n_validation: i
             f"only {len(q)} of {n_candidates} sampled poses put the pen on the sheet "
             f"{clearance:.1f} mm clear of its edges and markers (nominal model): the sheet "
             f"is out of reach or the nominal base/zeros are wrong", field="sheet")
+    return q, xy, elbow
 
-    # greedy max-min in normalised joint space, alternating elbows
+
+def _max_min_design(q, xy, elbow, lo, hi, n_total: int, min_separation_mm: float) -> np.ndarray:
+    """Indices of ``n_total`` candidates picked greedily max-min in normalised joint space,
+    starting at the most extreme pose, alternating the elbows, each at least
+    ``min_separation_mm`` from the others on the sheet; refuses when they do not fit."""
     u = (q - lo) / (hi - lo)
     d_min = np.full(len(q), np.inf)
     alive = np.ones(len(q), dtype=bool)
@@ -263,15 +290,18 @@ def informative_plan(nominal, sheet, *, n_calibration: int = 30, n_validation: i
         chosen.append(pick)
         d_min = np.minimum(d_min, np.linalg.norm(u - u[pick], axis=1))
         alive &= np.linalg.norm(xy - xy[pick], axis=1) >= min_separation_mm
+    return np.array(chosen)
 
-    chosen_arr = np.array(chosen)
-    # validation: random subset of the design, both elbows, skipping the first extremes
+
+def _validation_roles(els, n_total: int, n_validation: int, rng) -> np.ndarray:
+    """Each design pose's role: validation for a random subset of ``n_validation`` (both
+    elbows ``els``, skipping the first extreme picks), calibration for the rest."""
     role = np.array(["calibration"] * n_total, dtype=object)
     if n_validation:
         skip = min(4, max(0, n_total - n_validation))
         cand = np.arange(skip, n_total)
-        pos = cand[elbow[chosen_arr[cand]] > 0]
-        neg = cand[elbow[chosen_arr[cand]] < 0]
+        pos = cand[els[cand] > 0]
+        neg = cand[els[cand] < 0]
         n_pos = min(len(pos), (n_validation + 1) // 2)
         n_neg = min(len(neg), n_validation - n_pos)
         n_pos = min(len(pos), n_validation - n_neg)
@@ -281,25 +311,25 @@ def informative_plan(nominal, sheet, *, n_calibration: int = 30, n_validation: i
             rest = np.setdiff1d(np.arange(n_total), val)
             val = np.concatenate([val, rng.choice(rest, n_validation - len(val), replace=False)])
         role[val] = "validation"
+    return role
 
-    qs = q[chosen_arr]
-    els = elbow[chosen_arr]
-    signs = np.empty((n_total, 2), dtype=int)
-    for r in ("calibration", "validation"):
-        idx = np.flatnonzero(role == r)
-        if len(idx):
-            signs[idx] = _balanced_signs(qs[idx], els[idx], rng)
 
-    # drawing order: nearest neighbour in joint travel time (default speed limits) from home
+def _drawing_order(qs, home_deg, speed_deg_s) -> list[int]:
+    """The poses' drawing order: nearest neighbour in joint travel time from home."""
     speed = np.asarray(speed_deg_s, dtype=float)
     order, cur = [], np.asarray(home_deg, dtype=float)
-    left = list(range(n_total))
+    left = list(range(len(qs)))
     while left:
         cost = np.max(np.abs(qs[left] - cur) / speed, axis=1)
         k = left.pop(int(np.argmin(cost)))
         order.append(k)
         cur = qs[k]
+    return order
 
+
+def _planned_marks(qs, role, signs, order, overshoot_deg: float) -> list[PlannedMark]:
+    """The marks in drawing order, ids ``c00..`` / ``v00..`` per role, each with its one
+    overshoot via point ``q - approach * overshoot_deg``."""
     out: list[PlannedMark] = []
     counter = {"calibration": 0, "validation": 0}
     for k in order:
@@ -310,6 +340,4 @@ def informative_plan(nominal, sheet, *, n_calibration: int = 30, n_validation: i
         s = (int(signs[k, 0]), int(signs[k, 1]))
         via = (float(qk[0] - s[0] * overshoot_deg), float(qk[1] - s[1] * overshoot_deg))
         out.append(PlannedMark(mid, qk, r, s, (via,)))
-    return add_repeats(out, nominal, sheet, n_repeats, min_separation_mm=min_separation_mm,
-                       clearance_mm=clearance,
-                       overshoot_deg=overshoot_deg, joint_limits_deg=lim)
+    return out

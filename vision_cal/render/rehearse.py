@@ -471,18 +471,8 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
     measure where they landed: calibration.json ``targets``)."""
     plan_dir, out = Path(plan_dir), Path(out_dir)
     sim = load_simulated_robot(truth_path)
-    if not plan_dir.exists():
-        raise VisionCalError("no such program or folder: the simulated robot runs the program "
-                             "you give it", file=str(plan_dir))
-    if plan_dir.is_file():
-        program = plan_dir
-        session = targets_session(program, sim, sheet_json=sheet_json, targets=targets)
-        session_path = Path(sheet_json)
-        plan_dir = out
-    else:
-        program = None
-        session_path = plan_dir / "session.json"
-        session = read_json(session_path)
+    program, session, session_path, plan_dir = _open_plan(plan_dir, out, sim, sheet_json,
+                                                          targets)
     if out.exists() and not out.is_dir():
         raise VisionCalError("exists and is not a folder", file=str(out))
     if out.is_dir():
@@ -505,61 +495,20 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
     printed = printed_sheet(sheet_block, file=str(session_path), size_px=sim.camera.size_px,
                             f_px=sim.camera.f_px)
     sheet_id = (sheet_block.get("printed") or {}).get("sheet_id")
-    earlier = []
-    for d in after:
-        t = read_json(Path(d) / "truth.json")
-        if (t.get("sheet_id") or sheet_id) != sheet_id:
-            raise VisionCalError(f"was drawn on sheet {t.get('sheet_id')}, this plan is for "
-                                 f"{sheet_id}", file=str(Path(d) / "truth.json"), field="sheet_id")
-        earlier += [v for v in (t.get("marks") or {}).values()]
-    earlier_xy = np.asarray(earlier, dtype=float).reshape(-1, 2)
-
-    home = sim.robot.nominal.home_deg
-    if sim.controller == "kinematic":
-        source, model = None, sim.truth
-    else:
-        # the robot file's speed and acceleration limits shape the trajectory it follows
-        source, model = simulated_world(sim.truth, controller=sim.controller, rng=rng,
-                                        vmax_deg_s=tuple(sim.robot.speed_limits_deg_s),
-                                        amax_deg_s2=tuple(sim.robot.accel_limits_deg_s2))
-    # joint 4 as the program commands it: the robot file's tool turns with it
-    world = draw_marks(model, plan, home_deg=home, repeatability_mm=sim.repeatability_mm,
-                       joint_source=source, rng=rng,
-                       joint4_deg=np.array([m.j4_deg for m in plan], dtype=float))
+    earlier_xy = _earlier_marks(after, sheet_id)
+    source, world = _draw(sim, plan, rng)
     sheet = printed.sheet
     off = marks_off_paper(world, sheet)
     on = marks_on_markers(world, sheet)
     pen = session.get("pen") or {}
     dia = float(pen.get("mark_diameter_mm", sim.robot.mark_diameter_mm))
-
-    cam = sim.camera
-    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px), dtype=float)
-    all_xy = np.vstack([earlier_xy, world.xy_mm])
-    tex = printed_texture(printed, marks_xy_mm=all_xy, mark_diameters_mm=dia, rng=rng)
-    views = default_views(sheet, n=cam.photos, size_px=cam.size_px, K=K,
-                          tilt_deg=cam.tilt_deg, rng=rng, fill=0.96, target_jitter=0.02)
-    if cam.fixed:   # a camera fixed over the work area: one place, several photos
-        views = [views[0]] * len(views)
-
-    bar = progress_bar(progress, total=len(views), desc=f"simulate {out.name}", unit="photo")
-    photographer = Photographer(size_px=cam.size_px, K=K)
-    images = []
-    try:
-        for i, T in enumerate(views):
-            rgb = photographer.photograph(tex, extent_mm=sheet.extent_mm,
-                                          T_cam_sheet=sim.truth.T_render(T),
-                                          vignetting=cam.vignetting,
-                                          noise_sigma=cam.noise_sigma, rng=rng)
-            images.append((f"IMG_{i + 1:04d}.png", _encode_image(np.asarray(rgb), None), T))
-            bar.update()
-    finally:
-        photographer.close()
-        bar.close()
-
+    K = np.asarray(camera_matrix(size_px=sim.camera.size_px, f_px=sim.camera.f_px), dtype=float)
+    images = _photograph(sim, printed, np.vstack([earlier_xy, world.xy_mm]), dia, K, rng,
+                         progress=progress, desc=f"simulate {out.name}")
     truth = {
         "params": sim.params, "effects": list(sim.effects),
         "marks": {mid: world.xy_mm[i].tolist() for i, mid in enumerate(world.ids)},
-        "camera": {"size_px": list(cam.size_px), "K": K.tolist(), "dist": [0.0] * 5,
+        "camera": {"size_px": list(sim.camera.size_px), "K": K.tolist(), "dist": [0.0] * 5,
                    "declared": False,
                    "T_cam_sheet": {f: sim.truth.T_render(T).tolist() for f, _, T in images}},
         "repeatability_mm": sim.repeatability_mm, "controller": sim.controller,
@@ -578,3 +527,76 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
     paths = tuple(atomic_write_bytes(out / f, data) for f, data, _ in images)
     truth_path_out = atomic_write_json(out / "truth.json", truth)
     return SimulateResult(out, paths, len(world.ids), tuple(off), tuple(on), truth_path_out)
+
+
+def _open_plan(plan_dir: Path, out: Path, sim: SimulatedRobot, sheet_json, targets):
+    """What the simulated robot runs: ``(program, session, session_path, plan_dir)``, with
+    ``program`` the targets program given instead of a designed folder (its session built
+    from ``sheet_json`` and ``targets``; ``plan_dir`` is then ``out``), else None and the
+    folder's session.json."""
+    if not plan_dir.exists():
+        raise VisionCalError("no such program or folder: the simulated robot runs the program "
+                             "you give it", file=str(plan_dir))
+    if plan_dir.is_file():
+        session = targets_session(plan_dir, sim, sheet_json=sheet_json, targets=targets)
+        return plan_dir, session, Path(sheet_json), out
+    session_path = plan_dir / "session.json"
+    return None, read_json(session_path), session_path, plan_dir
+
+
+def _earlier_marks(after, sheet_id) -> np.ndarray:
+    """The true marks (N, 2) of the rehearsals in ``after``, already on the sheet; refuses
+    one drawn on another sheet."""
+    earlier = []
+    for d in after:
+        t = read_json(Path(d) / "truth.json")
+        if (t.get("sheet_id") or sheet_id) != sheet_id:
+            raise VisionCalError(f"was drawn on sheet {t.get('sheet_id')}, this plan is for "
+                                 f"{sheet_id}", file=str(Path(d) / "truth.json"), field="sheet_id")
+        earlier += [v for v in (t.get("marks") or {}).values()]
+    return np.asarray(earlier, dtype=float).reshape(-1, 2)
+
+
+def _draw(sim: SimulatedRobot, plan, rng):
+    """The true robot draws ``plan``: ``(source, world)``, with ``source`` the simulated
+    controller and arm (None for the kinematic robot) and ``world`` the drawn marks."""
+    if sim.controller == "kinematic":
+        source, model = None, sim.truth
+    else:
+        # the robot file's speed and acceleration limits shape the trajectory it follows
+        source, model = simulated_world(sim.truth, controller=sim.controller, rng=rng,
+                                        vmax_deg_s=tuple(sim.robot.speed_limits_deg_s),
+                                        amax_deg_s2=tuple(sim.robot.accel_limits_deg_s2))
+    # joint 4 as the program commands it: the robot file's tool turns with it
+    world = draw_marks(model, plan, home_deg=sim.robot.nominal.home_deg,
+                       repeatability_mm=sim.repeatability_mm, joint_source=source, rng=rng,
+                       joint4_deg=np.array([m.j4_deg for m in plan], dtype=float))
+    return source, world
+
+
+def _photograph(sim: SimulatedRobot, printed, marks_xy, dia: float, K, rng, *,
+                progress: bool, desc: str) -> list:
+    """The photos of the printed sheet with the marks ``marks_xy`` (mm) on it, from the
+    simulated camera's views (one place when it is fixed): ``[(file, png bytes, T)]``."""
+    cam = sim.camera
+    sheet = printed.sheet
+    tex = printed_texture(printed, marks_xy_mm=marks_xy, mark_diameters_mm=dia, rng=rng)
+    views = default_views(sheet, n=cam.photos, size_px=cam.size_px, K=K,
+                          tilt_deg=cam.tilt_deg, rng=rng, fill=0.96, target_jitter=0.02)
+    if cam.fixed:   # a camera fixed over the work area: one place, several photos
+        views = [views[0]] * len(views)
+    bar = progress_bar(progress, total=len(views), desc=desc, unit="photo")
+    photographer = Photographer(size_px=cam.size_px, K=K)
+    images = []
+    try:
+        for i, T in enumerate(views):
+            rgb = photographer.photograph(tex, extent_mm=sheet.extent_mm,
+                                          T_cam_sheet=sim.truth.T_render(T),
+                                          vignetting=cam.vignetting,
+                                          noise_sigma=cam.noise_sigma, rng=rng)
+            images.append((f"IMG_{i + 1:04d}.png", _encode_image(np.asarray(rgb), None), T))
+            bar.update()
+    finally:
+        photographer.close()
+        bar.close()
+    return images

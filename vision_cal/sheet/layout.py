@@ -304,24 +304,13 @@ def _ring_positions(lo: float, hi: float, pitch: float) -> np.ndarray:
     return lo + span * np.arange(n) / (n - 1)
 
 
-def make_layout(*, size: str | None = "A3", landscape: bool | None = None, custom_mm=None,
-                dictionary: str = "DICT_5X5_100", marker_mm: float | None = None,
-                pitch_mm: float | None = None, quiet_modules: float = QUIET_MODULES,
-                measured_bar_mm=None, version: str | None = None) -> SheetLayout:
-    """The sheet for a page (ISO ``size`` or ``custom_mm``), see the module docstring.
-
-    ``marker_mm``: side of a marker including its black border (default about 1/15 of the
-    short side); ``pitch_mm``: the largest centre-to-centre spacing of the border markers
-    (default 4 marker sides); ``quiet_modules``: the white margin around each marker.
-    Refuses (``VisionCalError`` naming the option) what does not fit.
-    """
-    version = __version__ if version is None else version
-    page, orientation, (W, H) = page_size_mm(size, landscape=landscape, custom_mm=custom_mm)
-    d = _dictionary(dictionary)
-    n_cells = int(d.markerSize) + 2
-    n_ids = int(d.bytesList.shape[0])
+def _sizes(n_cells: int, short_mm: float, marker_mm, pitch_mm, quiet_modules,
+           measured_bar_mm) -> tuple[float, float, float, float, tuple | None]:
+    """The options checked, as ``(module, side, quiet, pitch, measured_bar_mm)`` in mm.
+    Refuses (``VisionCalError`` naming the option) a non-positive marker, a negative quiet
+    zone, a pitch smaller than a marker with its quiet zones, or bars far from 100 mm."""
     if marker_mm is None:
-        module = default_module_mm(min(W, H), n_cells)
+        module = default_module_mm(short_mm, n_cells)
     else:
         if not (math.isfinite(marker_mm) and marker_mm > 0):
             raise VisionCalError(f"expected a positive size, got {marker_mm!r}",
@@ -345,11 +334,16 @@ def make_layout(*, size: str | None = "A3", landscape: bool | None = None, custo
             raise VisionCalError(f"expected the two printed bars' lengths in mm (about 100), "
                                  f"got {measured_bar_mm!r}", field="--measured-bar-mm")
         measured_bar_mm = (mb[0], mb[1])
+    return module, s, q, pitch, measured_bar_mm
 
+
+def _areas(W: float, H: float, s: float, q: float, field: str) -> tuple[tuple, tuple]:
+    """The ruled area ``(gx0, gy0, gx1, gy1)`` (whole mm inside the quiet zones' inner
+    edges) and the drawable area ``(dx0, dy0, dx1, dy1)`` (inside the bands); refuses, naming
+    ``field``, a page whose drawable area cannot hold the scale bars."""
     x_min, y_min = -W / 2.0, -H / 2.0
     x_max, y_max = W / 2.0, H / 2.0
-    e = EDGE_MM + q                       # paper edge -> marker edge
-    r = e + s + q                         # paper edge -> inner edge of the quiet zones
+    r = EDGE_MM + q + s + q               # paper edge -> inner edge of the quiet zones
     hw = BOLD_WIDTH_MM / 2                # a line's half width stays off the quiet zone
     gx0, gy0 = math.ceil(x_min + r + hw), math.ceil(y_min + r + hw)
     gx1, gy1 = math.floor(x_max - r - hw), math.floor(y_max - r - hw)
@@ -357,15 +351,19 @@ def make_layout(*, size: str | None = "A3", landscape: bool | None = None, custo
     dx1, dy1 = gx1 - BAND_RIGHT_MM, gy1 - BAND_TOP_MM
     need = BAR_MM + 2.0
     if dx1 - dx0 < max(need, MIN_DRAWABLE_MM) or dy1 - dy0 < max(need, MIN_DRAWABLE_MM):
-        field = "--marker-mm" if marker_mm is not None else ("--custom" if custom_mm is not None
-                                                             else "--size")
         raise VisionCalError(f"a {W:g} x {H:g} mm page with {s:g} mm markers leaves "
                              f"{dx1 - dx0:g} x {dy1 - dy0:g} mm inside the markers; the "
                              f"{BAR_MM:g} mm scale bars need {need:g} mm", field=field)
+    return (gx0, gy0, gx1, gy1), (dx0, dy0, dx1, dy1)
 
-    # the ring of markers, ids counter-clockwise from the bottom-left corner
-    xs = _ring_positions(x_min + e, x_max - e - s, pitch)
-    ys = _ring_positions(y_min + e, y_max - e - s, pitch)
+
+def _ring(W: float, H: float, module: float, s: float, q: float, pitch: float,
+          dictionary: str, n_ids: int) -> tuple[MarkerCells, ...]:
+    """The ring of markers, ids counter-clockwise from the bottom-left corner; refuses more
+    markers than the dictionary holds, or markers closer than their quiet zones."""
+    e = EDGE_MM + q                       # paper edge -> marker edge
+    xs = _ring_positions(-W / 2.0 + e, W / 2.0 - e - s, pitch)
+    ys = _ring_positions(-H / 2.0 + e, H / 2.0 - e - s, pitch)
     spots = ([(x, ys[0]) for x in xs] + [(xs[-1], y) for y in ys[1:]]
              + [(x, ys[-1]) for x in xs[-2::-1]] + [(xs[0], y) for y in ys[-2:0:-1]])
     if len(spots) > n_ids:
@@ -377,71 +375,123 @@ def make_layout(*, size: str | None = "A3", landscape: bool | None = None, custo
     if gap < s + 2 * q - 1e-9:
         raise VisionCalError("markers too close together for their quiet zones",
                              field="--pitch-mm")
-    markers = tuple(MarkerCells(i, float(x), float(y), module, marker_bits(dictionary, i))
-                    for i, (x, y) in enumerate(spots))
+    return tuple(MarkerCells(i, float(x), float(y), module, marker_bits(dictionary, i))
+                 for i, (x, y) in enumerate(spots))
 
+
+def _grid_prims(ruled: tuple, drawable: tuple) -> list:
+    """The grid (whole millimetres from the origin, inside the ruled area, the bold lines
+    over the fine ones), then the bare-paper bands for the bars and the text."""
+    gx0, gy0, gx1, gy1 = ruled
+    dx0, dy0 = drawable[:2]
     prims: list = []
-    # grid: whole millimetres from the origin, inside the quiet zones' inner edges; the
-    # bold lines over the fine ones
     for bold, width, rgb in ((False, FINE_WIDTH_MM, FINE_RGB), (True, BOLD_WIDTH_MM, BOLD_RGB)):
         w = width / 2
         prims += [Rect(k - w, gy0, k + w, gy1, rgb) for k in grid_lines(gx0, gx1, bold)]
         prims += [Rect(gx0, k - w, gx1, k + w, rgb) for k in grid_lines(gy0, gy1, bold)]
-    # the bands for bars and text are bare paper
     prims.append(Rect(gx0 - 1, gy0 - 1, gx1 + 1, dy0, PAPER_RGB))
     prims.append(Rect(gx0 - 1, dy0, dx0, gy1 + 1, PAPER_RGB))
+    return prims
 
-    # scale bars: x along the bottom band, y along the left band; their ends are measured
+
+def _bar_prims(drawable: tuple) -> tuple[list, dict, float]:
+    """The scale bars (x along the bottom band, y along the left band) with their labels,
+    the bars' measured ends ``{"x": (start, end), "y": ...}`` and the x bar's bottom edge."""
+    dx0, dy0 = drawable[:2]
     by = dy0 - 3.0 - BAR_WIDTH_MM
     bar_x = Rect(dx0, by, dx0 + BAR_MM, by + BAR_WIDTH_MM, ANNOT_RGB)
     bx = dx0 - 3.0 - BAR_WIDTH_MM
     bar_y = Rect(bx, dy0, bx + BAR_WIDTH_MM, dy0 + BAR_MM, ANNOT_RGB)
-    prims += [bar_x, bar_y]
     yc, xc = by + BAR_WIDTH_MM / 2, bx + BAR_WIDTH_MM / 2
     bars = {"x": ((dx0, yc), (dx0 + BAR_MM, yc)), "y": ((xc, dy0), (xc, dy0 + BAR_MM))}
-    prims.append(Text(dx0 + BAR_MM + 2.0, by + 0.2, f"<- x bar {BAR_MM:.1f} mm",
-                      TEXT_MM))
-    prims.append(Text(bx - 0.8, dy0 + BAR_MM + 2.0, f"y bar {BAR_MM:.1f} mm ->",
-                      TEXT_MM, angle_deg=90.0))
+    prims = [bar_x, bar_y,
+             Text(dx0 + BAR_MM + 2.0, by + 0.2, f"<- x bar {BAR_MM:.1f} mm", TEXT_MM),
+             Text(bx - 0.8, dy0 + BAR_MM + 2.0, f"y bar {BAR_MM:.1f} mm ->",
+                  TEXT_MM, angle_deg=90.0)]
+    return prims, bars, by
 
-    # origin and axes (the origin is the paper centre)
+
+def _axes_prims(drawable: tuple) -> list:
+    """The origin (the paper centre) and the axes; the letters x and y only when the
+    drawable area holds them."""
+    dx0, dy0, dx1, dy1 = drawable
     ax = 12.0
     t = 0.35
-    prims += [Rect(0.0, -t / 2, ax, t / 2, ANNOT_RGB), Rect(-t / 2, 0.0, t / 2, ax, ANNOT_RGB),
-              Poly(((ax, -1.0), (ax + 3.0, 0.0), (ax, 1.0)), ANNOT_RGB),
-              Poly(((-1.0, ax), (0.0, ax + 3.0), (1.0, ax)), ANNOT_RGB),
-              Text(ax + 3.8, -0.8, "x", 3.0, anchor="start"),
-              Text(0.0, ax + 4.0, "y", 3.0, anchor="middle"),
-              Text(-1.0, -3.2, "origin (0, 0)", NUMBER_MM, anchor="end")]
+    prims = [Rect(0.0, -t / 2, ax, t / 2, ANNOT_RGB), Rect(-t / 2, 0.0, t / 2, ax, ANNOT_RGB),
+             Poly(((ax, -1.0), (ax + 3.0, 0.0), (ax, 1.0)), ANNOT_RGB),
+             Poly(((-1.0, ax), (0.0, ax + 3.0), (1.0, ax)), ANNOT_RGB),
+             Text(ax + 3.8, -0.8, "x", 3.0, anchor="start"),
+             Text(0.0, ax + 4.0, "y", 3.0, anchor="middle"),
+             Text(-1.0, -3.2, "origin (0, 0)", NUMBER_MM, anchor="end")]
     if not (dx0 < -1 and dx1 > ax + 6 and dy0 < -4 and dy1 > ax + 6):
         prims = [p for p in prims if not (isinstance(p, Text) and p.text in "xy")]
+    return prims
 
-    # numbers of the bold lines: x along the top of the ruled area, y along its right side
+
+def _number_labels(prims: list, ruled: tuple, drawable: tuple) -> None:
+    """Numbers of the bold lines into ``prims``: x along the top of the ruled area, y along
+    its right side, and the unit."""
+    gx1, gy1 = ruled[2:]
+    dx0, dy0, dx1, dy1 = drawable
     for k in range(int(math.ceil(dx0 / BOLD_EVERY)) * BOLD_EVERY, int(dx1) + 1, BOLD_EVERY):
         _label(prims, Text(float(k), gy1 - NUMBER_MM - 0.6, f"{k}", NUMBER_MM, anchor="middle"))
     for k in range(int(math.ceil(dy0 / BOLD_EVERY)) * BOLD_EVERY, int(dy1) + 1, BOLD_EVERY):
         _label(prims, Text(gx1 - 0.8, k - 0.35 * NUMBER_MM, f"{k}", NUMBER_MM, anchor="end"))
     _label(prims, Text(gx1 - 0.8, gy1 - NUMBER_MM - 0.6, "mm", NUMBER_MM, anchor="end"))
 
+
+def _title_prims(layout: SheetLayout, s: float, by: float) -> list:
+    """The instruction and title block, under the x bar, each line fitted to the ruled
+    area's width."""
+    W, H = layout.size_mm
+    lines = [f"PRINT AT 100 % (actual size, no fit-to-page). Measure both bars: each must be "
+             f"{BAR_MM:.1f} mm. If not, give vision-cal sheet --measured-bar-mm X Y.",
+             f"vision-cal sheet {layout.sheet_id} | {layout.dictionary}, {len(layout.markers)} "
+             f"markers of {s:g} mm (module {layout.module_mm:g} mm, quiet zone "
+             f"{layout.quiet_modules:g} modules) | {layout.page} {layout.orientation} "
+             f"{W:g} x {H:g} mm | origin at the centre | {GENERATOR} {layout.version}"]
+    dx0, gx1 = layout.drawable_mm[0], layout.grid_extent_mm[2]
+    width = gx1 - dx0
+    return [Text(dx0, by - 3.2 - i * (TEXT_MM + 1.0), line, min(TEXT_MM, _fit_size(line, width)))
+            for i, line in enumerate(lines)]
+
+
+def make_layout(*, size: str | None = "A3", landscape: bool | None = None, custom_mm=None,
+                dictionary: str = "DICT_5X5_100", marker_mm: float | None = None,
+                pitch_mm: float | None = None, quiet_modules: float = QUIET_MODULES,
+                measured_bar_mm=None, version: str | None = None) -> SheetLayout:
+    """The sheet for a page (ISO ``size`` or ``custom_mm``), see the module docstring.
+
+    ``marker_mm``: side of a marker including its black border (default about 1/15 of the
+    short side); ``pitch_mm``: the largest centre-to-centre spacing of the border markers
+    (default 4 marker sides); ``quiet_modules``: the white margin around each marker.
+    Refuses (``VisionCalError`` naming the option) what does not fit.
+    """
+    version = __version__ if version is None else version
+    page, orientation, (W, H) = page_size_mm(size, landscape=landscape, custom_mm=custom_mm)
+    d = _dictionary(dictionary)
+    n_cells = int(d.markerSize) + 2
+    module, s, q, pitch, measured_bar_mm = _sizes(n_cells, min(W, H), marker_mm, pitch_mm,
+                                                  quiet_modules, measured_bar_mm)
+    field = "--marker-mm" if marker_mm is not None else ("--custom" if custom_mm is not None
+                                                         else "--size")
+    ruled, drawable = _areas(W, H, s, q, field)
+    markers = _ring(W, H, module, s, q, pitch, dictionary, int(d.bytesList.shape[0]))
+
+    prims = _grid_prims(ruled, drawable)
+    bar_prims, bars, by = _bar_prims(drawable)
+    prims += bar_prims
+    prims += _axes_prims(drawable)
+    _number_labels(prims, ruled, drawable)
     # markers (painted after the grid and the bands: their quiet zones are bare paper)
     for (qx0, qy0, qx1, qy1) in _quiet_boxes(markers, q):
         prims.append(Rect(qx0, qy0, qx1, qy1, PAPER_RGB))
     prims.extend(markers)
 
-    layout = SheetLayout(page, orientation, (W, H), (x_min, y_min), str(dictionary), module,
-                         float(quiet_modules), markers, (gx0, gy0, gx1, gy1),
-                         (dx0, dy0, dx1, dy1), bars, (), str(version), measured_bar_mm)
-    # instruction and title block, under the x bar
-    lines = [f"PRINT AT 100 % (actual size, no fit-to-page). Measure both bars: each must be "
-             f"{BAR_MM:.1f} mm. If not, give vision-cal sheet --measured-bar-mm X Y.",
-             f"vision-cal sheet {layout.sheet_id} | {dictionary}, {len(markers)} markers of "
-             f"{s:g} mm (module {module:g} mm, quiet zone {quiet_modules:g} modules) | "
-             f"{page} {orientation} {W:g} x {H:g} mm | origin at the centre | "
-             f"{GENERATOR} {version}"]
-    width = gx1 - dx0
-    for i, line in enumerate(lines):
-        size_mm = min(TEXT_MM, _fit_size(line, width))
-        prims.append(Text(dx0, by - 3.2 - i * (TEXT_MM + 1.0), line, size_mm))
+    layout = SheetLayout(page, orientation, (W, H), (-W / 2.0, -H / 2.0), str(dictionary),
+                         module, float(quiet_modules), markers, ruled, drawable, bars, (),
+                         str(version), measured_bar_mm)
+    prims += _title_prims(layout, s, by)
     return _replace_prims(layout, tuple(prims))
 
 

@@ -84,31 +84,13 @@ def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), contro
     at every simulation step.
     """
     rng = np.random.default_rng(rng)
-    if not dt_s > 0:
-        raise VisionCalError(f"dt_s must be positive, got {dt_s}", field="dt_s")
-    band = np.broadcast_to(np.asarray(backlash_deg, dtype=float), (2,))
-    if np.any(band < 0) or not np.all(np.isfinite(band)):
-        raise VisionCalError(f"backlash_deg must be >= 0, got {backlash_deg!r}",
-                             field="backlash_deg")
+    band = _checked_inputs(marks, dt_s, backlash_deg)
     n_marks = len(marks)
-    if n_marks == 0:
-        raise VisionCalError("the plan has no marks", field="marks")
     traj = trajectory if trajectory is not None else plan_trajectory(
         marks, home_deg=home_deg, dt_s=trajectory_dt_s, **trajectory_kwargs)
     plant = Stepper(dynamics or ScaraDynamics())
     ctrl = make_controller(controller)
-
-    # reference at the simulation step (analytic spline), radians
-    n_ref = int(round(traj.duration_s / dt_s)) + 1
-    t_ref = np.arange(n_ref) * dt_s
-    r, rd, rdd = (np.radians(x) for x in traj.evaluate(t_ref))
-    r1s, r2s = r[:, 0].tolist(), r[:, 1].tolist()
-    rd1s, rd2s = rd[:, 0].tolist(), rd[:, 1].tolist()
-    rdd1s, rdd2s = rdd[:, 0].tolist(), rdd[:, 1].tolist()
-    pen_k = np.rint(traj.pen_t_s / dt_s).astype(int)
-    if len(pen_k) != n_marks:
-        raise VisionCalError(f"trajectory has {len(pen_k)} pen-downs for {n_marks} marks")
-    pen_at = {int(k): i for i, k in enumerate(pen_k)}
+    n_ref, (r1s, r2s, rd1s, rd2s, rdd1s, rdd2s), pen_at = _reference(traj, dt_s, n_marks)
     marks_rad = np.radians(np.array([m.joints_deg for m in marks], dtype=float).reshape(-1, 2))
 
     tol = math.radians(settle_tol_deg)
@@ -122,8 +104,6 @@ def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), contro
     l1, l2 = q1 - hb1, q2 - hb2           # last moved in + (format default)
     g1, g2 = q1 - dh1, q2 - dh2           # direction trackers
     sg1 = sg2 = 1.0
-    sigma = math.radians(encoder_noise_deg)
-    noise = sigma > 0
     max_hold = int(round(max_settle_s / dt_s))
     trace_every = max(int(trace_every), 1)
 
@@ -136,38 +116,9 @@ def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), contro
     err_max1 = err_max2 = 0.0
     n_err = 0
     trace_t, trace_m, trace_l = [], [], []
-    step = plant.step
-    torque = ctrl.torque
     steps = 0
-
-    def advance(q1, q2, v1, v2, a1, a2, b1, b2, c1, c2):
-        if noise:
-            n1, n2 = rng.normal(0.0, sigma, 2)
-            u1, u2 = torque(q1 + n1, q2 + n2, v1, v2, a1, a2, b1, b2, c1, c2)
-        else:
-            u1, u2 = torque(q1, q2, v1, v2, a1, a2, b1, b2, c1, c2)
-        return step(q1, q2, v1, v2, u1, u2, dt_s)
-
-    def track(q1, q2, l1, l2, g1, g2, sg1, sg2):
-        """Play operator (link inside the band about the motor) and, with a tiny band,
-        the side each joint last moved towards (its arrival sign)."""
-        if l1 < q1 - hb1:
-            l1 = q1 - hb1
-        elif l1 > q1 + hb1:
-            l1 = q1 + hb1
-        if l2 < q2 - hb2:
-            l2 = q2 - hb2
-        elif l2 > q2 + hb2:
-            l2 = q2 + hb2
-        if g1 < q1 - dh1:
-            g1, sg1 = q1 - dh1, 1.0
-        elif g1 > q1 + dh1:
-            g1, sg1 = q1 + dh1, -1.0
-        if g2 < q2 - dh2:
-            g2, sg2 = q2 - dh2, 1.0
-        elif g2 > q2 + dh2:
-            g2, sg2 = q2 + dh2, -1.0
-        return l1, l2, g1, g2, sg1, sg2
+    advance = _advancer(ctrl.torque, plant.step, dt_s, math.radians(encoder_noise_deg), rng)
+    track = _tracker(hb1, hb2, dh1, dh2)
 
     for k in range(n_ref):
         if k:  # control from the state and reference at step k - 1, over one step
@@ -205,11 +156,96 @@ def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), contro
         resid[i] = (q1 - m1, q2 - m2)
         extra[i] = hold * dt_s
 
+    return _result(motor, link, arrival, resid, extra, (err_sq1, err_sq2),
+                   (err_max1, err_max2), n_err, traj, steps, dt_s, (trace_t, trace_m, trace_l))
+
+
+def _advancer(torque, step, dt_s: float, sigma: float, rng):
+    """One simulation step, ``advance(q1, q2, v1, v2, a1, a2, b1, b2, c1, c2) -> (q1, q2,
+    v1, v2)``: the controller's torque for the reference ``a`` (angle), ``b`` (speed), ``c``
+    (acceleration) from the encoder (with white noise of std ``sigma`` rad when positive),
+    then the plant over ``dt_s``. A closure over plain floats: the loop's cost is its calls."""
+    noise = sigma > 0
+
+    def advance(q1, q2, v1, v2, a1, a2, b1, b2, c1, c2):
+        if noise:
+            n1, n2 = rng.normal(0.0, sigma, 2)
+            u1, u2 = torque(q1 + n1, q2 + n2, v1, v2, a1, a2, b1, b2, c1, c2)
+        else:
+            u1, u2 = torque(q1, q2, v1, v2, a1, a2, b1, b2, c1, c2)
+        return step(q1, q2, v1, v2, u1, u2, dt_s)
+
+    return advance
+
+
+def _tracker(hb1: float, hb2: float, dh1: float, dh2: float):
+    """``track(q1, q2, l1, l2, g1, g2, sg1, sg2) -> (l1, l2, g1, g2, sg1, sg2)``: the play
+    operator (link inside the band ``+-hb`` about the motor) and the direction trackers
+    (half width ``dh``) giving the side each joint last moved towards (its arrival sign)."""
+
+    def track(q1, q2, l1, l2, g1, g2, sg1, sg2):
+        """Play operator (link inside the band about the motor) and, with a tiny band,
+        the side each joint last moved towards (its arrival sign)."""
+        if l1 < q1 - hb1:
+            l1 = q1 - hb1
+        elif l1 > q1 + hb1:
+            l1 = q1 + hb1
+        if l2 < q2 - hb2:
+            l2 = q2 - hb2
+        elif l2 > q2 + hb2:
+            l2 = q2 + hb2
+        if g1 < q1 - dh1:
+            g1, sg1 = q1 - dh1, 1.0
+        elif g1 > q1 + dh1:
+            g1, sg1 = q1 + dh1, -1.0
+        if g2 < q2 - dh2:
+            g2, sg2 = q2 - dh2, 1.0
+        elif g2 > q2 + dh2:
+            g2, sg2 = q2 + dh2, -1.0
+        return l1, l2, g1, g2, sg1, sg2
+
+    return track
+
+
+def _checked_inputs(marks, dt_s: float, backlash_deg) -> np.ndarray:
+    """The backlash band per joint (deg); refuses a non-positive step, a negative or
+    non-finite band, and a plan without marks."""
+    if not dt_s > 0:
+        raise VisionCalError(f"dt_s must be positive, got {dt_s}", field="dt_s")
+    band = np.broadcast_to(np.asarray(backlash_deg, dtype=float), (2,))
+    if np.any(band < 0) or not np.all(np.isfinite(band)):
+        raise VisionCalError(f"backlash_deg must be >= 0, got {backlash_deg!r}",
+                             field="backlash_deg")
+    if len(marks) == 0:
+        raise VisionCalError("the plan has no marks", field="marks")
+    return band
+
+
+def _reference(traj: Trajectory, dt_s: float, n_marks: int):
+    """The reference at the simulation step (the analytic spline, radians):
+    ``(n_ref, (r1, r2, rd1, rd2, rdd1, rdd2) as lists of floats, {step: mark index})``;
+    refuses a trajectory whose pen-downs are not one per mark."""
+    n_ref = int(round(traj.duration_s / dt_s)) + 1
+    t_ref = np.arange(n_ref) * dt_s
+    r, rd, rdd = (np.radians(x) for x in traj.evaluate(t_ref))
+    columns = (r[:, 0].tolist(), r[:, 1].tolist(), rd[:, 0].tolist(), rd[:, 1].tolist(),
+               rdd[:, 0].tolist(), rdd[:, 1].tolist())
+    pen_k = np.rint(traj.pen_t_s / dt_s).astype(int)
+    if len(pen_k) != n_marks:
+        raise VisionCalError(f"trajectory has {len(pen_k)} pen-downs for {n_marks} marks")
+    return n_ref, columns, {int(k): i for i, k in enumerate(pen_k)}
+
+
+def _result(motor, link, arrival, resid, extra, err_sq, err_max, n_err: int,
+            traj: Trajectory, steps: int, dt_s: float, trace) -> SimResult:
+    """The run in degrees: per-mark states (radians in), the tracking error's RMS from its
+    sums of squares and its maximum, the trace ``(t, motor, link)``."""
+    trace_t, trace_m, trace_l = trace
     return SimResult(
         motor_deg=np.degrees(motor), link_deg=np.degrees(link), approach=arrival,
         settle_residual_deg=np.degrees(resid), settle_extra_s=extra,
-        tracking_rms_deg=np.degrees(np.sqrt(np.array([err_sq1, err_sq2]) / max(n_err, 1))),
-        tracking_max_deg=np.degrees(np.array([err_max1, err_max2])),
+        tracking_rms_deg=np.degrees(np.sqrt(np.array(err_sq) / max(n_err, 1))),
+        tracking_max_deg=np.degrees(np.array(err_max)),
         reference=traj, duration_s=steps * dt_s, n_steps=steps, t_s=np.asarray(trace_t),
         motor_trace_deg=np.degrees(np.asarray(trace_m)).reshape(-1, 2),
         link_trace_deg=np.degrees(np.asarray(trace_l)).reshape(-1, 2))
