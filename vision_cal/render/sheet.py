@@ -229,6 +229,18 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
     (1..1.15) and orientation, centred exactly on its mark. ``grid=False`` leaves out the
     plotting-paper lines, ``paper_grain=False`` gives a uniform paper (test helpers).
     """
+    return sheet_textures(sheet, marks_xy_mm=marks_xy_mm, mark_diameters_mm=mark_diameters_mm,
+                          px_per_mm=px_per_mm, rng=rng, grid=grid, paper_grain=paper_grain,
+                          bare=False)[0]
+
+
+def sheet_textures(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2,
+                   px_per_mm: float = 8.0, rng=None, grid: bool = True,
+                   paper_grain: bool = True, bare: bool = True):
+    """``(with the marks, without them)``: :func:`sheet_texture` with and without its pen
+    marks from one build (the paper, grid and markers are drawn once; the second is what
+    ``sheet_texture`` gives for no marks and the same ``rng``, byte for byte). ``bare``
+    False: ``(with the marks, None)``."""
     rng = np.random.default_rng(rng)
     ppm = float(px_per_mm)
     extent = tuple(float(v) for v in sheet.extent_mm)
@@ -273,6 +285,7 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
     dot_patches = _dot_patches(marks, dia, x0=x0, y1=y1, ppm=ppm, shape=shape, rng=rng)
 
     out = np.empty((H, W, 3), np.uint8)
+    without = np.empty((H, W, 3), np.uint8) if bare else None
     for ch in range(3):
         if grid:
             kf, kb = 1.0 - FINE_RGB[ch] / 255.0, 1.0 - BOLD_RGB[ch] / 255.0
@@ -298,11 +311,13 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
         val = trans
         val *= paper
         val *= PAPER_RGB[ch]
+        if without is not None:
+            without[:, :, ch] = np.rint(np.clip(val, 0.0, 255.0))
         for rs, cs, alpha in dot_patches:
             val[rs, cs] = val[rs, cs] * (1.0 - alpha) + DOT_RGB[ch] * alpha
         np.clip(val, 0.0, 255.0, out=val)
         out[:, :, ch] = np.rint(val)
-    return out
+    return out, without
 
 
 def _dot_patches(marks, dia, *, x0: float, y1: float, ppm: float, shape, rng) -> list:
