@@ -15,6 +15,13 @@ for flat and bumped scenes (renders/flat_tilted, bumped_tilted, bumped_moving by
 measured through the marker mapping only (global: sheet.grid left out) and against the
 printed grid (local), with the time per photo of each and whether sheet_height is claimed.
 
+``--whole [--folder DIR]``: instead, the whole calibration (``vision-cal DIR --jobs 1``, no
+cache: measure, fit, diagnosis, calibration.json) of the demo's 38 photos
+(renders/default.yaml, rendered once into DIR, default /tmp/vision-cal-bench-whole) against
+plain OpenCV decode + detectMarkers of the same photos, timed before and after it in the
+same process: the ratio (goal <= 1.5), where the rest goes (measuring, fit + diagnosis),
+and the fit + diagnosis per mark, also as a ratio to plain decode + detect per photo.
+
 ``--printed [--seeds N]``: instead, marks on every kind of printed content of the sheet's
 own raster (A4, 254 dpi; the photos of ``tests/measure/test_printed_ink.py`` at views and
 noise of seeds 100..100+N, not the tests' seeds): per kind, the largest error of the marks
@@ -163,6 +170,72 @@ def reference_table(scenes: list[str], root: Path, seed: int | None) -> None:
               f"{str(loc[3]):>7s} {'+'.join(loc[4]):10s} {loc[2] / g[2]:.2f}")
 
 
+def plain_all(files: list[Path], dictionary: str) -> float:
+    """Seconds of plain OpenCV decode + detectMarkers over ``files`` (one detector)."""
+    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(
+        getattr(cv2.aruco, dictionary)), cv2.aruco.DetectorParameters())
+    t = time.perf_counter()
+    for p in files:
+        img = cv2.imdecode(np.frombuffer(p.read_bytes(), np.uint8), cv2.IMREAD_COLOR)
+        det.detectMarkers(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY))
+    return time.perf_counter() - t
+
+
+def whole_run(folder: Path) -> None:
+    """The whole calibration against plain decode + detect (see the module docstring)."""
+    from vision_cal import pipeline
+    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.dataset.session import load_session
+    from vision_cal.render.dataset import render_dataset
+    from vision_cal.render.scene import load_scene
+
+    if not (folder / "session.json").exists():
+        t = time.perf_counter()
+        render_dataset(load_scene(ROOT / "renders" / "default.yaml"), folder, progress=True,
+                       pilot=pilot_params, jobs=None)
+        print(f"rendered {folder} in {time.perf_counter() - t:.0f} s")
+    s = load_session(folder)
+    files = [folder / im.file for im in s.images]
+    spent = {"measure": 0.0, "fit + diagnosis": 0.0}
+
+    def timed(name, f):
+        def run(*a, **k):
+            t = time.perf_counter()
+            try:
+                return f(*a, **k)
+            finally:
+                spent[name] += time.perf_counter() - t
+        return run
+
+    plain_all(files[:1], s.sheet.aruco_dictionary)          # warm-up: imports, first call
+    before = plain_all(files, s.sheet.aruco_dictionary)
+    out = Path(tempfile.mkdtemp(prefix="bench-whole-"))
+    orig = pipeline.measure_marks, pipeline.fit_lsq
+    pipeline.measure_marks = timed("measure", orig[0])
+    pipeline.fit_lsq = timed("fit + diagnosis", orig[1])
+    try:
+        t = time.perf_counter()
+        run = pipeline.calibrate_dataset(folder, out_dir=out, jobs=1)
+        whole = time.perf_counter() - t
+    finally:
+        pipeline.measure_marks, pipeline.fit_lsq = orig
+        shutil.rmtree(out, ignore_errors=True)
+    after = plain_all(files, s.sheet.aruco_dictionary)
+    plain = 0.5 * (before + after)
+    n_marks = len(run.document.get("marks", {}))
+    rest = whole - spent["measure"] - spent["fit + diagnosis"]
+    print(f"{len(files)} photos, {n_marks} marks; plain OpenCV decode + detectMarkers "
+          f"{before:.1f} s before, {after:.1f} s after the run")
+    print(f"whole run (--jobs 1, no cache) {whole:.1f} s = {whole / plain:.2f}x plain "
+          f"(goal <= 1.5)")
+    print(f"  measure {spent['measure']:.1f} s = {spent['measure'] / plain:.2f}x plain, "
+          f"fit + diagnosis {spent['fit + diagnosis']:.2f} s = "
+          f"{spent['fit + diagnosis'] / plain:.3f}x, the rest {rest:.2f} s")
+    per_mark = spent["fit + diagnosis"] / max(n_marks, 1)
+    print(f"fit + diagnosis per mark {1e3 * per_mark:.1f} ms = "
+          f"{per_mark / (plain / len(files)):.3f}x plain decode + detect per photo")
+
+
 def printed_table(n_seeds: int, first_seed: int = 100) -> None:
     from tests.measure.test_printed_ink import ON_PRINT, PLAIN, _measure
     from vision_cal.sheet import make_layout, write_sheet
@@ -204,7 +277,13 @@ def main() -> int:
                     help="only the marks-on-printed-ink table (see the module docstring)")
     ap.add_argument("--seeds", type=int, default=10, help="photos for --printed")
     ap.add_argument("--first-seed", type=int, default=100, help="first photo seed for --printed")
+    ap.add_argument("--whole", action="store_true",
+                    help="only the whole calibration against decode + detect (docstring)")
     a = ap.parse_args()
+    if a.whole:
+        whole_run(Path(a.folder if a.folder != "/tmp/vision-cal-bench-measure"
+                       else "/tmp/vision-cal-bench-whole"))
+        return 0
     if a.printed:
         printed_table(a.seeds, a.first_seed)
         return 0
