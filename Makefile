@@ -20,7 +20,7 @@ demo: $(STAMP)
 	@echo "disk used by out/: $$(du -sh out | cut -f1)"
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q --durations=10
 
 clean:
 	rm -rf out .pytest_cache
