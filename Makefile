@@ -28,6 +28,7 @@ clean:
 bench: $(STAMP)
 	$(BIN)/python bench/diagnose.py
 	$(BIN)/python bench/measure.py
+	$(BIN)/python bench/measure.py --whole
 	$(BIN)/python bench/render.py
 	$(BIN)/python bench/simulate.py
 	$(BIN)/python bench/walkthrough.py
