@@ -21,7 +21,7 @@ demo: $(STAMP)
 	@echo "vision-cal is installed in $(BIN)/: type '. $(BIN)/activate' to run it as 'vision-cal' in this shell"
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q --durations=10
 
 clean:
 	rm -rf out .pytest_cache
@@ -29,6 +29,7 @@ clean:
 bench: $(STAMP)
 	$(BIN)/python bench/diagnose.py
 	$(BIN)/python bench/measure.py
+	$(BIN)/python bench/measure.py --whole
 	$(BIN)/python bench/render.py
 	$(BIN)/python bench/simulate.py
 	$(BIN)/python bench/walkthrough.py

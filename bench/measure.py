@@ -15,6 +15,13 @@ for flat and bumped scenes (renders/flat_tilted, bumped_tilted, bumped_moving by
 measured through the marker mapping only (global: sheet.grid left out) and against the
 printed grid (local), with the time per photo of each and whether sheet_height is claimed.
 
+``--whole [--folder DIR]``: instead, the whole calibration (``vision-cal DIR --jobs 1``, no
+cache: measure, fit, diagnosis, calibration.json) of the demo's 38 photos
+(renders/default.yaml, rendered once into DIR, default /tmp/vision-cal-bench-whole) against
+plain OpenCV decode + detectMarkers of the same photos, timed before and after it in the
+same process: the ratio (goal <= 1.5), where the rest goes (measuring, fit + diagnosis),
+and the fit + diagnosis per mark, also as a ratio to plain decode + detect per photo.
+
 ``--printed [--seeds N]``: instead, marks on every kind of printed content of the sheet's
 own raster (A4, 254 dpi; the photos of ``tests/measure/test_printed_ink.py`` at views and
 noise of seeds 100..100+N, not the tests' seeds): per kind, the largest error of the marks
@@ -163,6 +170,74 @@ def reference_table(scenes: list[str], root: Path, seed: int | None) -> None:
               f"{str(loc[3]):>7s} {'+'.join(loc[4]):10s} {loc[2] / g[2]:.2f}")
 
 
+def plain_all(files: list[Path], dictionary: str) -> tuple[float, float]:
+    """(wall, CPU) seconds of plain OpenCV decode + detectMarkers over ``files``."""
+    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(
+        getattr(cv2.aruco, dictionary)), cv2.aruco.DetectorParameters())
+    t, c = time.perf_counter(), time.process_time()
+    for p in files:
+        img = cv2.imdecode(np.frombuffer(p.read_bytes(), np.uint8), cv2.IMREAD_COLOR)
+        det.detectMarkers(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY))
+    return time.perf_counter() - t, time.process_time() - c
+
+
+def whole_run(folder: Path) -> None:
+    """The whole calibration against plain decode + detect (see the module docstring)."""
+    from vision_cal import pipeline
+    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.dataset.session import load_session
+    from vision_cal.render.dataset import render_dataset
+    from vision_cal.render.scene import load_scene
+
+    if not (folder / "session.json").exists():
+        t = time.perf_counter()
+        render_dataset(load_scene(ROOT / "renders" / "default.yaml"), folder, progress=True,
+                       pilot=pilot_params, jobs=None)
+        print(f"rendered {folder} in {time.perf_counter() - t:.0f} s")
+    s = load_session(folder)
+    files = [folder / im.file for im in s.images]
+    spent = {"measure": 0.0, "fit + diagnosis": 0.0}
+
+    def timed(name, f):
+        def run(*a, **k):
+            c = time.process_time()
+            try:
+                return f(*a, **k)
+            finally:
+                spent[name] += time.process_time() - c
+        return run
+
+    plain_all(files[:1], s.sheet.aruco_dictionary)          # warm-up: imports, first call
+    before = plain_all(files, s.sheet.aruco_dictionary)
+    out = Path(tempfile.mkdtemp(prefix="bench-whole-"))
+    orig = pipeline.measure_marks, pipeline.fit_lsq
+    pipeline.measure_marks = timed("measure", orig[0])
+    pipeline.fit_lsq = timed("fit + diagnosis", orig[1])
+    try:
+        t, c = time.perf_counter(), time.process_time()
+        run = pipeline.calibrate_dataset(folder, out_dir=out, jobs=1)
+        whole, whole_cpu = time.perf_counter() - t, time.process_time() - c
+    finally:
+        pipeline.measure_marks, pipeline.fit_lsq = orig
+        shutil.rmtree(out, ignore_errors=True)
+    after = plain_all(files, s.sheet.aruco_dictionary)
+    plain, plain_cpu = 0.5 * (before[0] + after[0]), 0.5 * (before[1] + after[1])
+    n_marks = len(run.document.get("marks", {}))
+    rest = whole_cpu - spent["measure"] - spent["fit + diagnosis"]
+    print(f"{len(files)} photos, {n_marks} marks; plain OpenCV decode + detectMarkers "
+          f"{before[0]:.1f} / {after[0]:.1f} s wall before / after the run, "
+          f"{before[1]:.1f} / {after[1]:.1f} s CPU")
+    print(f"whole run (--jobs 1, no cache) {whole:.1f} s wall = {whole / plain:.2f}x plain; "
+          f"{whole_cpu:.1f} s CPU = {whole_cpu / plain_cpu:.2f}x plain CPU (goal <= 1.5; "
+          "CPU time is the figure a shared machine does not move)")
+    print(f"  CPU: measure {spent['measure']:.1f} s = {spent['measure'] / plain_cpu:.2f}x "
+          f"plain, fit + diagnosis {spent['fit + diagnosis']:.2f} s = "
+          f"{spent['fit + diagnosis'] / plain_cpu:.3f}x, the rest {rest:.2f} s")
+    per_mark = spent["fit + diagnosis"] / max(n_marks, 1)
+    print(f"fit + diagnosis per mark {1e3 * per_mark:.1f} ms CPU = "
+          f"{per_mark / (plain_cpu / len(files)):.3f}x plain decode + detect per photo")
+
+
 def printed_table(n_seeds: int, first_seed: int = 100) -> None:
     from tests.measure.test_printed_ink import ON_PRINT, PLAIN, _measure
     from vision_cal.sheet import make_layout, write_sheet
@@ -204,7 +279,13 @@ def main() -> int:
                     help="only the marks-on-printed-ink table (see the module docstring)")
     ap.add_argument("--seeds", type=int, default=10, help="photos for --printed")
     ap.add_argument("--first-seed", type=int, default=100, help="first photo seed for --printed")
+    ap.add_argument("--whole", action="store_true",
+                    help="only the whole calibration against decode + detect (docstring)")
     a = ap.parse_args()
+    if a.whole:
+        whole_run(Path(a.folder if a.folder != "/tmp/vision-cal-bench-measure"
+                       else "/tmp/vision-cal-bench-whole"))
+        return 0
     if a.printed:
         printed_table(a.seeds, a.first_seed)
         return 0

@@ -94,6 +94,8 @@ def test_rehearsal_calibrates_the_hidden_robot(rehearsal):
         2 * r_true * 8**0.5) + sig, (v["repeatability_mm"], r_true, sig)
     assert (tmp / "cal" / "report.html").exists()
     assert (tmp / "targets_plan.prg").exists()
+    # every photo was used (none found in the folder was skipped)
+    assert cal["images"] and all(im["status"] == "ok" for im in cal["images"]), cal["images"]
     # nobody wrote an images list: the photos were found in the folder
     assert "images" not in json.loads((tmp / "plan" / "session.json").read_text())
 
@@ -144,6 +146,18 @@ def test_the_compensated_targets_program_hits_its_targets(rehearsal):
     assert float(np.sqrt(np.mean(np.sum(true_miss**2, axis=1)))) < 0.05
     seen = np.array([r["error_mm"] for r in rows])
     assert np.all(np.hypot(*(seen - true_miss).T) < 0.05), (seen, true_miss)
+    # the misses agree with what the plan predicted (targets_plan.csv std_mm, per axis) and
+    # the robot's repeatability: per axis under 3 times their combined std (the check
+    # bench/walkthrough.py makes on 27 targets)
+    import csv
+
+    plan = {r["id"]: r for r in csv.DictReader((tmp / "targets_plan.csv").read_text()
+                                                .splitlines())}
+    std = np.array([float(plan[r["id"]]["std_mm"]) for r in rows])
+    rep = yaml.safe_load((tmp / "true_robot.yaml").read_text())["hidden"]["repeatability_mm"]
+    per_axis = float(np.sqrt(np.mean(np.sum(true_miss**2, axis=1)) / 2))
+    expected = float(np.sqrt(np.mean(std**2) + rep**2))
+    assert per_axis < 3 * expected, (per_axis, expected)
 
 
 def test_the_report_tells_the_controller_the_robot_files_offsets(rehearsal):

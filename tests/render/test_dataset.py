@@ -114,6 +114,26 @@ def test_incremental_texture_equals_a_fresh_one():
         np.testing.assert_array_equal(tex.add_marks(k), want)
 
 
+def test_textures_built_once_equal_two_builds():
+    """The finished and the mark-free sheet from one build (what every photo of a dataset
+    shares) are the bytes two separate builds give."""
+    sheet = make_sheet(size_mm=(120.0, 80.0), bottom_left_mm=(-60.0, -40.0), marker_mm=20.0,
+                       grid=(3, 2), margin_mm=8.0)
+    xy = np.array([[-20.0, 5.0], [10.0, -3.0], [33.3, 12.7]])
+    full, bare = ds.build_textures(sheet, xy, np.full(3, 1.2), px_per_mm=4.0, seed=5)
+    np.testing.assert_array_equal(full, sheet_texture(sheet, marks_xy_mm=xy, px_per_mm=4.0,
+                                                      rng=np.random.default_rng(5)))
+    np.testing.assert_array_equal(bare, sheet_texture(sheet, marks_xy_mm=np.zeros((0, 2)),
+                                                      px_per_mm=4.0,
+                                                      rng=np.random.default_rng(5)))
+    assert np.any(full != bare)
+    # the shared mark-free texture is never patched by the photos that use it
+    tex = ds._Textures(sheet, xy, np.full(3, 1.2), px_per_mm=4.0, seed=5, built=(full, bare))
+    tex.add_marks(3)
+    np.testing.assert_array_equal(tex.current, full)
+    assert np.any(bare != full)
+
+
 @pytest.mark.render
 def test_single_photo_undeclared_lens_jpeg_and_extras(tmp_path, small_photographer):
     from dataclasses import replace

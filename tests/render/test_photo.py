@@ -219,3 +219,20 @@ def test_photographer_refuses_bad_input(photographer, small_sheet):
     with pytest.raises(VisionCalError, match=r"arm\[0\]"):
         photographer.render(np.zeros((10, 10, 3), np.uint8), extent_mm=small_sheet.extent_mm,
                             T_cam_sheet=T, arm=[(1.0, 2.0)])
+
+
+def test_colour_only_read_back_is_pyrenders_own(photographer, small_sheet, full_textures):
+    """A photo without the arm's shadows skips the depth read-back: its colour bytes are
+    pyrender's own read-back (depth and colour) of the same render."""
+    import pyrender
+
+    tex, _ = full_textures
+    T = look_at(eye_mm=(10.0, 5.0, 470.0), target_mm=(0.0, 15.0))
+    fast = photographer.render(tex, extent_mm=small_sheet.extent_mm, T_cam_sheet=T)
+    inner = photographer._renderer._renderer
+    assert "_read_main_framebuffer" not in vars(inner)      # the patch is never left behind
+    full, depth = photographer._renderer.render(photographer._scene,
+                                                flags=pyrender.RenderFlags.FLAT)
+    assert depth is not None and depth.shape == full.shape[:2]
+    w, h = photographer.size_px
+    np.testing.assert_array_equal(fast, cv2.resize(full, (w, h), interpolation=cv2.INTER_AREA))

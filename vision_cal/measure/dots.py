@@ -36,6 +36,7 @@ from scipy.ndimage import gaussian_filter, grey_dilation, grey_erosion, maximum_
 
 from vision_cal.config import DEFAULT, DotConfig
 from vision_cal.dataset.session import Sheet
+from vision_cal.measure.grid import nanmedian_columns
 from vision_cal.measure.mapping import SheetMapping
 from vision_cal.measure.printed import BLUR_CANDIDATES_PX
 from vision_cal.dataset.marker_geometry import (marker_boxes_mm, marker_geometry, marker_side_mm,
@@ -385,8 +386,8 @@ def _refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
         with warnings.catch_warnings():  # columns / rows with no background sample
             warnings.simplefilter("ignore", RuntimeWarning)
             for _ in range(3):
-                a = _fill(np.nanmedian(Lm - b[:, None], axis=0))
-                b = _fill(np.nanmedian(Lm - a[None, :], axis=1))
+                a = _fill(nanmedian_columns(Lm - b[:, None]))
+                b = _fill(nanmedian_columns((Lm - a[None, :]).T))
         bg = np.exp(a[None, :] + b[:, None])
         resid = (L - a[None, :] - b[:, None])[fitmask]
         # paper level without printed lines: upper envelope of the separable model

@@ -73,7 +73,7 @@ def _phase(profile: np.ndarray, coord: np.ndarray, ok: np.ndarray, sigma: np.nda
     return float(d), float(sd), float(amp / max(noise, 1e-12))
 
 
-def _nanmedian0(A: np.ndarray) -> np.ndarray:
+def nanmedian_columns(A: np.ndarray) -> np.ndarray:
     """Median of each column of A ignoring NaNs (NaN for an empty column); sorts once."""
     n = np.sum(np.isfinite(A), axis=0)
     srt = np.sort(A, axis=0)                      # NaNs go last
@@ -172,8 +172,8 @@ def grid_offset(patch_rgb: np.ndarray, origin_px, mapping: SheetMapping, centre_
     a = np.zeros(X.shape[1])
     b = np.zeros(X.shape[0])
     for _ in range(2):
-        a = _nanmedian0(L - b[:, None])
-        b = _nanmedian0((L - a[None, :]).T)
+        a = nanmedian_columns(L - b[:, None])
+        b = nanmedian_columns((L - a[None, :]).T)
     # a column (row) counts when enough of its samples were usable
     col_ok = np.isfinite(a) & (ok.sum(axis=0) >= 0.25 * ok.shape[0])
     row_ok = np.isfinite(b) & (ok.sum(axis=1) >= 0.25 * ok.shape[1])

@@ -47,6 +47,8 @@ def distort_px(uv_ideal, K, dist) -> np.ndarray:
     K = np.asarray(K, float)
     xn = (uv[:, 0] - K[0, 2]) / K[0, 0]
     yn = (uv[:, 1] - K[1, 2]) / K[1, 1]
+    if not np.any(dist):   # no lens distortion: what cv2.projectPoints computes, in numpy
+        return np.column_stack([xn * K[0, 0] + K[0, 2], yn * K[1, 1] + K[1, 2]])
     pts = np.column_stack([xn, yn, np.ones_like(xn)])
     out, _ = cv2.projectPoints(pts.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K,
                                np.asarray(dist, float))
@@ -137,14 +139,13 @@ class SheetMapping:
         """Local linear size of one raw pixel on the sheet (N,) mm, sqrt(|det J|)."""
         xy = np.asarray(xy_mm, float).reshape(-1, 2)
         e = 0.5
-        out = np.empty(len(xy))
-        for i, p in enumerate(xy):
-            q = self.sheet_to_image(np.array([p, p + [e, 0], p + [0, e]]))
-            a = q[1] - q[0]
-            b = q[2] - q[0]
-            det = abs(a[0] * b[1] - a[1] * b[0]) / (e * e)  # px^2 per mm^2
-            out[i] = 1.0 / np.sqrt(max(det, 1e-12))
-        return out
+        # every point and its two neighbours through the mapping at once
+        q = self.sheet_to_image(np.stack([xy, xy + [e, 0], xy + [0, e]], axis=1)
+                                ).reshape(-1, 3, 2)
+        a = q[:, 1] - q[:, 0]
+        b = q[:, 2] - q[:, 0]
+        det = np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]) / (e * e)  # px^2 per mm^2
+        return 1.0 / np.sqrt(np.maximum(det, 1e-12))
 
     def point_cov_mm2(self, xy_mm) -> np.ndarray:
         """Covariance (N, 2, 2) mm^2 of mapped sheet points due to the homography fit."""

@@ -56,6 +56,7 @@ import os
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 import functools  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 import zlib  # noqa: E402
 
@@ -107,6 +108,24 @@ class _BiasedTexture(pyrender.Texture):
         GL.glBindTexture(GL.GL_TEXTURE_2D, self._texid)
         GL.glTexParameterf(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_LOD_BIAS, self.lod_bias)
         GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+
+
+def _read_color_only(renderer, scene, flags):
+    """pyrender's ``Renderer._read_main_framebuffer`` without the depth buffer: the same
+    colour bytes (resolve the multisampled buffer, read RGB, flip), ``(color, None)``. The
+    depth read-back and its linearisation over every supersampled pixel cost more than the
+    colour; a photo without the arm's shadows never uses them."""
+    from OpenGL import GL
+
+    width, height = renderer._main_fb_dims[0], renderer._main_fb_dims[1]
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, renderer._main_fb_ms)
+    GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, renderer._main_fb)
+    GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT,
+                         GL.GL_LINEAR)
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, renderer._main_fb)
+    buf = GL.glReadPixels(0, 0, width, height, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
+    color = np.frombuffer(buf, dtype=np.uint8).reshape((height, width, 3))
+    return np.flip(color, axis=0), None
 
 
 def _unit(v) -> np.ndarray:
@@ -299,7 +318,18 @@ class Photographer:
         pose = np.linalg.inv(T) @ np.diag([1.0, -1.0, -1.0, 1.0])
         self._scene.set_pose(self._cam_node, pose)
         t1 = time.perf_counter()
-        color, depth = self._renderer.render(self._scene, flags=pyrender.RenderFlags.FLAT)
+        shadows = bool(casters) and lights not in (None, "none")
+        inner = getattr(self._renderer, "_renderer", None)
+        if shadows or inner is None or not hasattr(inner, "_read_main_framebuffer") \
+                or sys.platform == "darwin":
+            color, depth = self._renderer.render(self._scene, flags=pyrender.RenderFlags.FLAT)
+        else:   # no shadows to draw: the depth buffer is not read back
+            inner._read_main_framebuffer = functools.partial(_read_color_only, inner)
+            try:
+                color, depth = self._renderer.render(self._scene,
+                                                     flags=pyrender.RenderFlags.FLAT)
+            finally:
+                del inner._read_main_framebuffer
         t2 = time.perf_counter()
         s = self.supersample
         w, h = self.size_px

@@ -79,6 +79,15 @@ def printed_texture(printed: PrintedSheet, *, marks_xy_mm, mark_diameters_mm=1.2
 
     ``px_per_mm``, when given, must be the raster's own (the print is not resampled).
     """
+    return printed_textures(printed, marks_xy_mm=marks_xy_mm,
+                            mark_diameters_mm=mark_diameters_mm, px_per_mm=px_per_mm, rng=rng,
+                            paper_grain=paper_grain, print_field=print_field)[0]
+
+
+def printed_textures(printed: PrintedSheet, *, marks_xy_mm, mark_diameters_mm=1.2,
+                     px_per_mm: float | None = None, rng=None, paper_grain: bool = True,
+                     print_field=None):
+    """``(with the marks, without them)`` from one build, like ``sheet_textures``."""
     ppm = printed.px_per_mm
     if px_per_mm is not None and abs(float(px_per_mm) - ppm) > 1e-9:
         raise VisionCalError(f"the printed raster is {ppm:g} px/mm, not {px_per_mm:g}",
@@ -96,4 +105,5 @@ def printed_texture(printed: PrintedSheet, *, marks_xy_mm, mark_diameters_mm=1.2
     tex *= paper[:, :, None]
     tex = np.clip(np.rint(tex), 0, 255).astype(np.uint8)
     return ink_marks(tex, extent_mm=printed.sheet.extent_mm, px_per_mm=ppm,
-                     marks_xy_mm=marks_xy_mm, mark_diameters_mm=mark_diameters_mm, rng=rng)
+                     marks_xy_mm=marks_xy_mm, mark_diameters_mm=mark_diameters_mm,
+                     rng=rng), tex

@@ -233,6 +233,18 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
     black squares grown by its toner and the printed layer (grid, markers) displaced by its
     field (the pen's dots are not).
     """
+    return sheet_textures(sheet, marks_xy_mm=marks_xy_mm, mark_diameters_mm=mark_diameters_mm,
+                          px_per_mm=px_per_mm, rng=rng, grid=grid, paper_grain=paper_grain,
+                          bare=False, print_field=print_field)[0]
+
+
+def sheet_textures(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2,
+                   px_per_mm: float = 8.0, rng=None, grid: bool = True,
+                   paper_grain: bool = True, bare: bool = True, print_field=None):
+    """``(with the marks, without them)``: :func:`sheet_texture` with and without its pen
+    marks from one build (the paper, grid and markers are drawn once; the second is what
+    ``sheet_texture`` gives for no marks and the same ``rng``, byte for byte). ``bare``
+    False: ``(with the marks, None)``."""
     rng = np.random.default_rng(rng)
     ppm = float(px_per_mm)
     extent = tuple(float(v) for v in sheet.extent_mm)
@@ -283,6 +295,7 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
     out = np.empty((H, W, 3), np.uint8)
     remap = (_displacement_maps(print_field, extent, ppm, shape)
              if print_field is not None and print_field.moves else None)
+    without = np.empty((H, W, 3), np.uint8) if bare else None
     for ch in range(3):
         if grid:
             kf, kb = 1.0 - FINE_RGB[ch] / 255.0, 1.0 - BOLD_RGB[ch] / 255.0
@@ -314,11 +327,13 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
         val = trans
         val *= paper
         val *= PAPER_RGB[ch]
+        if without is not None:
+            without[:, :, ch] = np.rint(np.clip(val, 0.0, 255.0))
         for rs, cs, alpha in dot_patches:
             val[rs, cs] = val[rs, cs] * (1.0 - alpha) + DOT_RGB[ch] * alpha
         np.clip(val, 0.0, 255.0, out=val)
         out[:, :, ch] = np.rint(val)
-    return out
+    return out, without
 
 
 def _grown_cells(extent_mm, ppm: float, shape, mx0: float, my0: float, mod: float,
