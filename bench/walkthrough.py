@@ -151,6 +151,16 @@ def walkthrough(tmp: Path) -> dict:
     cal = json.loads((tmp / "cal" / "calibration.json").read_text())
     sheet = load_sheet_file(sheet_dir / "sheet.json")
     ids, xy = default_targets(sheet, ScaraParams.from_json(cal["params"]), n_grid=20, n_path=6)
+    # the targets where the calibration was calibrated (valid_for: the joints its marks
+    # covered); plan refuses one beyond them (tests/dataset/test_valid_for.py)
+    from vision_cal.dataset.valid_for import check as check_valid_for
+    from vision_cal.kinematics import inverse
+
+    qt = inverse(ScaraParams.from_json(cal["params"]), np.asarray(xy), elbow=1)
+    beyond = {i for o in check_valid_for(cal["valid_for"], ids=ids, joints_deg=qt.tolist())
+              for i in o.ids}
+    keep = [i not in beyond for i in ids]
+    ids, xy = [i for i, k in zip(ids, keep) if k], np.asarray(xy)[keep]
     write_targets(tmp / "targets.csv", ids, xy)
     cli("plan", tmp / "cal" / "calibration.json", tmp / "targets.csv", "-o", tmp / "plan.csv",
         "--program", "spel", "--robot", ROBOT, "-q")
