@@ -151,10 +151,10 @@ class ImageResult:
     #: added after association: per dot the id of the mark it was taken for ("" for none)
     dots_mark: tuple = ()
     #: per dot the background model's residual / noise and the model (``DotMeasurement``
-    #: ``bg_residual``, ``background``): the series' plain-ground level (not written)
+    #: ``bg_residual``, ``background``): the series' plain-ground level
     dots_bg_residual: tuple = ()
     dots_background: tuple = ()
-    dots_suspect: tuple = ()        # DotMeasurement.suspect (not written)
+    dots_suspect: tuple = ()        # DotMeasurement.suspect
 
     def summary_json(self) -> dict:
         """The photo's entry of calibration.json ``images[]``."""
@@ -194,7 +194,11 @@ class ImageResult:
                          "reference": list(self.dots_reference),
                          "unreliable": list(self.dots_unreliable),
                          "printed_under": list(self.dots_printed_under),
-                         "mark": list(self.dots_mark)}}
+                         "mark": list(self.dots_mark),
+                         "bg_residual": [None if not np.isfinite(v) else float(v)
+                                         for v in self.dots_bg_residual],
+                         "background": list(self.dots_background),
+                         "suspect": [bool(v) for v in self.dots_suspect]}}
 
     @classmethod
     def from_json(cls, d: dict) -> "ImageResult":
@@ -217,7 +221,11 @@ class ImageResult:
             _a(dots.get("global_cov_mm2"), (2, 2)), _a(dots.get("grid_offset_cov_mm2"), (2, 2)),
             None if d.get("mapping") is None else SheetMapping.from_json(d["mapping"]),
             _opt(d.get("K"), (3, 3)), tuple(dots.get("unreliable") or ()),
-            tuple(dots.get("printed_under") or ()), tuple(dots.get("mark") or ()))
+            tuple(dots.get("printed_under") or ()), tuple(dots.get("mark") or ()),
+            tuple(float("nan") if v is None else float(v)
+                  for v in dots.get("bg_residual") or ()),
+            tuple(dots.get("background") or ()),
+            tuple(bool(v) for v in dots.get("suspect") or ()))
 
 
 @dataclass(frozen=True)
