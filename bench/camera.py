@@ -53,7 +53,7 @@ import yaml
 from vision_cal.calibrate.paper import pilot_params
 from vision_cal.camera.fixed import camera_of, locate
 from vision_cal.dataset.io import read_json
-from vision_cal.pipeline import calibrate_dataset
+from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.render import dataset as ds
 from vision_cal.render.scene import scene_from_dict
 
@@ -268,7 +268,7 @@ def poses_needed(target_mm: float = 0.02) -> None:
     import test_arm as world_views  # the tests' projected-corner world
 
     from vision_cal.camera.arm import fit_arm_camera
-    from vision_cal.kinematics import jacobian
+    from vision_cal.model.kinematics import jacobian
 
     print(f"arm camera: predicted flange std (per axis, RMS over the sheet) vs poses")
     grid = np.array([[a, b] for a in np.linspace(-60, 60, 7) for b in np.linspace(-140, 140, 8)

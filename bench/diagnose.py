@@ -29,8 +29,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from vision_cal.diagnose.select import diagnose
-from vision_cal.kinematics import ScaraParams, forward
-from vision_cal.model import JointBacklash, JointCyclic, JointScale, SheetAffine
+from vision_cal.model.kinematics import ScaraParams, forward
+from vision_cal.model.robot import JointBacklash, JointCyclic, JointScale, SheetAffine
 from vision_cal.render.truth_model import TrueRobot
 
 TRUTH = ScaraParams(344.05, 259.87, -2.57, -8.13, -424.26, -230.35)
@@ -79,7 +79,7 @@ def render_grid(seeds: int, width: int, only: str | None = None) -> None:
 
     import yaml
 
-    from vision_cal.pipeline import calibrate_dataset
+    from vision_cal.workflows.pipeline import calibrate_dataset
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.render.dataset import photographer_K, render_dataset
     from vision_cal.render.photo import Photographer
@@ -123,7 +123,7 @@ def render_grid(seeds: int, width: int, only: str | None = None) -> None:
             lens = [e for e in doc["effects"] if e["name"] == "lens_distortion"]
             mark_rms.append(doc["truth_comparison"].get("mark_rms_mm", np.nan))
             p = doc["params"]
-            from vision_cal.kinematics import ScaraParams
+            from vision_cal.model.kinematics import ScaraParams
 
             fitted = ScaraParams.from_json(p)
             truth_p = sc.robot.truth

@@ -137,7 +137,7 @@ def photo_comparison(seeds, n_poses: int = 16) -> None:
     # imported here: the photo-based comparison only
     from tests.camera.test_arm import K, NOMINAL, TRUTH as T_ARM, _plan, _views
     from vision_cal.camera.arm import camera_pose, fit_arm_camera
-    from vision_cal.kinematics import ScaraParams
+    from vision_cal.model.kinematics import ScaraParams
     from vision_cal.render import arm_camera as world
 
     def controller(params: ScaraParams, q, j4):

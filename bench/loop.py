@@ -27,8 +27,8 @@ def main() -> None:
     ap.add_argument("--no-serial", action="store_true", help="skip the serial render")
     a = ap.parse_args()
     from vision_cal.dataset.calibration import load_calibration
-    from vision_cal.kinematics import inverse
-    from vision_cal.loop import format_table, run_loop
+    from vision_cal.model.kinematics import inverse
+    from vision_cal.workflows.loop import format_table, run_loop
     from vision_cal.plan.compensate import plan_targets
 
     t0 = time.perf_counter()

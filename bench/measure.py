@@ -183,7 +183,7 @@ def plain_all(files: list[Path], dictionary: str) -> tuple[float, float]:
 
 def whole_run(folder: Path) -> None:
     """The whole calibration against plain decode + detect (see the module docstring)."""
-    from vision_cal import pipeline
+    from vision_cal.workflows import pipeline
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.dataset.session import load_session
     from vision_cal.render.dataset import render_dataset

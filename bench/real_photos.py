@@ -156,9 +156,9 @@ def world_table(seeds) -> int:
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.dataset.calibration import load_calibration
     from vision_cal.errors import VisionCalError
-    from vision_cal.kinematics import ScaraParams
-    from vision_cal.model import RobotModel, effect_from_json
-    from vision_cal.pipeline import calibrate_dataset
+    from vision_cal.model.kinematics import ScaraParams
+    from vision_cal.model.robot import RobotModel, effect_from_json
+    from vision_cal.workflows.pipeline import calibrate_dataset
     from vision_cal.render.dataset import render_dataset
     from vision_cal.render.scene import scene_from_dict
 

@@ -114,9 +114,9 @@ def main() -> int:
         only = sys.argv[sys.argv.index("--only") + 1] if "--only" in sys.argv else None
         return false_claims(range(lo, hi + 1), only)
     from vision_cal.dataset.calibration import load_calibration
-    from vision_cal.kinematics import ScaraParams
-    from vision_cal.model import RobotModel, effect_from_json
-    from vision_cal.pipeline import calibrate_dataset
+    from vision_cal.model.kinematics import ScaraParams
+    from vision_cal.model.robot import RobotModel, effect_from_json
+    from vision_cal.workflows.pipeline import calibrate_dataset
 
     print(f"{'dataset':34s} {'marks um':>8s} {'backlash %':>10s} {'claimed':30s} "
           f"{'plan um':>7s} {'nominal plan um':>15s}")

@@ -17,7 +17,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from vision_cal.dataset.session import Sheet, SheetMarker
-from vision_cal.kinematics import ScaraParams
+from vision_cal.model.kinematics import ScaraParams
 from vision_cal.plan.calibration_plan import informative_plan, paper_plan
 from vision_cal.plan.trajectory import plan_trajectory
 from vision_cal.simulate.controller import PDController

@@ -46,8 +46,8 @@ sys.path.insert(0, str(ROOT))
 from vision_cal.calibrate.placements import Placement, fit_placements
 from vision_cal.calibrate.tool import fit_tool
 from vision_cal.diagnose.verdict import judge
-from vision_cal.model import JointBacklash, JointScale
-from vision_cal.pipeline import calibrate_dataset
+from vision_cal.model.robot import JointBacklash, JointScale
+from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.plan.orient import plan_poses
 from vision_cal.render.truth_model import TrueRobot
 
@@ -165,7 +165,7 @@ def render_case(seed: int, *, width_px: int = 1600, keep: Path | None = None) ->
 
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.design.joint4 import circle_triples, turn_joint4
-    from vision_cal.kinematics import forward
+    from vision_cal.model.kinematics import forward
     from vision_cal.render import dataset as ds
     from vision_cal.render.scene import scene_from_dict
     from vision_cal.render.sheet import make_sheet

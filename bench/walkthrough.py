@@ -33,7 +33,7 @@ sys.path.insert(0, str(ROOT))
 
 from tests.design.test_programs import parse_spel  # noqa: E402
 from vision_cal.commands.main import main as cli_main  # noqa: E402
-from vision_cal.kinematics import ScaraParams  # noqa: E402
+from vision_cal.model.kinematics import ScaraParams  # noqa: E402
 from vision_cal.plan.calibration_plan import PlannedMark  # noqa: E402
 from vision_cal.render.truth_model import TrueRobot  # noqa: E402
 
@@ -115,7 +115,7 @@ def photograph(folder: Path, sheet_dir: Path, world, photographer, rng, *, n: in
 def walkthrough(tmp: Path) -> dict:
     from vision_cal.dataset.csvio import read_plan, read_targets, write_targets
     from vision_cal.dataset.session import load_sheet_file
-    from vision_cal.loop import default_targets
+    from vision_cal.workflows.loop import default_targets
     from vision_cal.render.camera import camera_matrix
     from vision_cal.render.photo import Photographer
 
@@ -154,7 +154,7 @@ def walkthrough(tmp: Path) -> dict:
     # the targets where the calibration was calibrated (valid_for: the joints its marks
     # covered); plan refuses one beyond them (tests/dataset/test_valid_for.py)
     from vision_cal.dataset.valid_for import check as check_valid_for
-    from vision_cal.kinematics import inverse
+    from vision_cal.model.kinematics import inverse
 
     qt = inverse(ScaraParams.from_json(cal["params"]), np.asarray(xy), elbow=1)
     beyond = {i for o in check_valid_for(cal["valid_for"], ids=ids, joints_deg=qt.tolist())

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vision_cal.kinematics import ScaraParams
+from vision_cal.model.kinematics import ScaraParams
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER_Q = np.array([[0, 0], [20, 0], [-20, 0], [0, 60], [0, -60]], dtype=float)

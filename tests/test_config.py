@@ -32,7 +32,7 @@ from vision_cal.measure import (asprinted, associate, dots, grid, grid_declarati
                                 infer, photo_agreement, plan_match, sheetfit, survey)
 from vision_cal.measure.batch import measure_image
 from vision_cal.measure.cache import session_fingerprint
-from vision_cal.pipeline import MarkData, calibrate_dataset
+from vision_cal.workflows.pipeline import MarkData, calibrate_dataset
 from vision_cal.render.camera import project
 from vision_cal.render.truth_model import TrueRobot
 from vision_cal.report.headline import configuration

@@ -4,7 +4,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import ScaraParams, forward, inverse, jacobian
+from vision_cal.model.kinematics import ScaraParams, forward, inverse, jacobian
 
 P = ScaraParams(344.05, 259.87, -2.57, -8.13, -424.26, -230.35)
 

@@ -10,7 +10,7 @@ import pytest
 
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.csvio import read_plan, read_targets
-from vision_cal.loop import format_table, run_loop
+from vision_cal.workflows.loop import format_table, run_loop
 from vision_cal.render.scene import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -126,7 +126,7 @@ def test_loop_report_headline_photos_once_and_linked(loop):
 
 
 def test_landing_note_says_where_the_pen_went(loop):
-    from vision_cal.loop import landing_note
+    from vision_cal.workflows.loop import landing_note
     from vision_cal.plan.compensate import PlannedTarget
 
     _, _, run = loop

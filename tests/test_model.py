@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import ScaraParams, forward
-from vision_cal.model import (JointBacklash, JointCyclic, JointScale, RobotModel, SheetAffine,
+from vision_cal.model.kinematics import ScaraParams, forward
+from vision_cal.model.robot import (JointBacklash, JointCyclic, JointScale, RobotModel, SheetAffine,
                               effect_from_json)
 
 P = ScaraParams(344.05, 259.87, -2.57, -8.13, -424.26, -230.35)

@@ -3,7 +3,7 @@
 import numpy as np
 
 from vision_cal.dataset.session import Mark, resolve_approach
-from vision_cal.motion import approach_signs
+from vision_cal.model.motion import approach_signs
 from vision_cal.plan.calibration_plan import paper_plan
 
 

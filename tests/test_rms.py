@@ -2,7 +2,7 @@ import math
 
 import numpy as np
 
-from vision_cal.rms import rms, rms_2d
+from vision_cal.model.rms import rms, rms_2d
 
 
 def test_rms_2d_is_the_length_not_per_coordinate():

@@ -1,4 +1,4 @@
-"""vision_cal.verify.compare on kinematic data (no photos): the verdict and the moved
+"""vision_cal.workflows.verify.compare on kinematic data (no photos): the verdict and the moved
 parameters, with bounds from the reported std and the noise put in."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import pytest
 
 from tests.conftest import SM5, random_plan
 from vision_cal.errors import CalibrationError
-from vision_cal.model import JointBacklash, RobotModel
-from vision_cal.verify import MOVED_SIGMA, compare
+from vision_cal.model.robot import JointBacklash, RobotModel
+from vision_cal.workflows.verify import MOVED_SIGMA, compare
 
 NOISE_MM = 0.01                      # per axis, as the rendered photos measure
 CAL_DOC = {"validation_rms_mm": {"final_model": NOISE_MM * np.sqrt(2)}}
@@ -26,7 +26,7 @@ def check(true: RobotModel, seed: int, n: int = 10):
 
 def moved(model: RobotModel, *, L1=0.0, z1=0.0, z2=0.0, base=(0.0, 0.0)) -> RobotModel:
     p = model.params
-    from vision_cal.kinematics import ScaraParams
+    from vision_cal.model.kinematics import ScaraParams
 
     return RobotModel(ScaraParams(p.L1_mm + L1, p.L2_mm, p.z1_deg + z1, p.z2_deg + z2,
                                   p.base_mm[0] + base[0], p.base_mm[1] + base[1]),

@@ -14,7 +14,7 @@ import pytest
 
 from tests.conftest import SM5, random_plan
 from vision_cal.commands.main import main
-from vision_cal.model import RobotModel
+from vision_cal.model.robot import RobotModel
 
 ROOT = Path(__file__).resolve().parents[1]
 CHECK = ROOT / "fixtures" / "paper_sm5"          # a session.json of the SM5 (robot block)
@@ -88,7 +88,7 @@ def test_verify_refuses_what_it_cannot_check_naming_the_field(tmp_path, capsys, 
     # its marks are measured_mm, so it compares)
     from vision_cal.dataset.calibration import load_calibration
     from vision_cal.dataset.session import load_session
-    from vision_cal.verify import check_verifiable
+    from vision_cal.workflows.verify import check_verifiable
 
     model, doc = load_calibration(good)
     check_verifiable(model, doc, good, load_session(CHECK))

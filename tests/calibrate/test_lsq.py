@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 
 from tests.conftest import SM5, random_plan
-from vision_cal.calibrate.linear import linear_init
+from vision_cal.model.linear import linear_init
 from vision_cal.calibrate.lsq import Fit
 from vision_cal.config import DEFAULT, FitConfig
 from vision_cal.errors import CalibrationError
-from vision_cal.kinematics import forward
-from vision_cal.model import JointBacklash, RobotModel
+from vision_cal.model.kinematics import forward
+from vision_cal.model.robot import JointBacklash, RobotModel
 
 
 def test_linear_init_is_exact_on_clean_data():

@@ -6,7 +6,7 @@ import pytest
 from tests.conftest import PAPER_Q, PAPER_XY
 from vision_cal.calibrate.paper import paper_method
 from vision_cal.errors import CalibrationError
-from vision_cal.kinematics import ScaraParams, forward, inverse
+from vision_cal.model.kinematics import ScaraParams, forward, inverse
 
 
 def printed(value, paper, digits=1):

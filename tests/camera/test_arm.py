@@ -12,7 +12,7 @@ import dataclasses
 
 from vision_cal.camera.arm import (LABELS, ArmView, fit_arm_camera, relative_motion)
 from vision_cal.diagnose.verdict import judge_camera_poses
-from vision_cal.kinematics import ScaraParams
+from vision_cal.model.kinematics import ScaraParams
 from vision_cal.render import arm_camera as world
 from vision_cal.render.sheet import make_sheet
 from vision_cal.render.truth_model import TrueRobot
@@ -144,7 +144,7 @@ def test_poses_that_do_not_separate_a_parameter_are_not_reliable():
     rng = np.random.default_rng(5)
     X = world.T_flange_camera_true(rng)
     fit = fit_arm_camera(_views(_plan(16, rng, turn_j4=False), X, rng), K, None, NOMINAL)
-    from vision_cal.camera.arm_session import _reasons
+    from vision_cal.workflows.arm_session import _reasons
 
     v = _verdict(fit, reasons=_reasons(fit, "flange"))
     assert v.status == "not reliable" and "L2_mm" in v.reasons[0], v.reasons

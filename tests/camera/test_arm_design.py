@@ -9,7 +9,7 @@ import numpy as np
 
 from vision_cal.commands.main import main
 from vision_cal.dataset.robot import load_robot_file
-from vision_cal.kinematics import forward
+from vision_cal.model.kinematics import forward
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -43,7 +43,7 @@ def test_repeated_poses_come_back_from_the_same_sides(tmp_path):
     """Each repeated pose follows its first photo; the program leaves through a via point
     on each joint's approach side and comes back, so the format's approach rule (the
     session's) and the real motion agree: the same sides both times."""
-    from vision_cal.motion import approach_signs
+    from vision_cal.model.motion import approach_signs
 
     robot_path = ROOT / "fixtures" / "robot_sm5.yaml"
     assert main(["sheet", "--size", "A2", "--field", "--out", str(tmp_path / "field"), "-q"]) == 0

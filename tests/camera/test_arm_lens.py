@@ -12,7 +12,7 @@ import pytest
 
 from tests.camera.test_arm import NOMINAL, TRUTH, _field, _plan
 from vision_cal.camera.arm import ArmView, check_declared_lens, fit_arm_camera
-from vision_cal.camera.arm_session import _reasons
+from vision_cal.workflows.arm_session import _reasons
 from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.render import arm_camera as world
 
@@ -152,7 +152,7 @@ def test_corners_are_found_in_the_declared_lenss_ideal_pixels():
     there put the corner off by a few hundredths of a pixel (a bias that changes across the
     image, which no pose absorbs). Fitted in the lens's ideal pixels, the corners are where
     the lens puts them."""
-    from vision_cal.camera.arm_session import corners_in_lens
+    from vision_cal.workflows.arm_session import corners_in_lens
     from vision_cal.measure.mapping import distort_px
 
     ideal = np.array([[1000.0, 750.0], [1120.0, 750.0], [1120.0, 870.0], [1000.0, 870.0]])
@@ -193,7 +193,7 @@ def test_repeated_poses_measure_the_robots_repeatability():
     the residual sits on the floor."""
     from tests.camera.test_arm import K as K0
     from tests.camera.test_arm import _views as views0
-    from vision_cal.camera.arm_session import repeat_pairs
+    from vision_cal.workflows.arm_session import repeat_pairs
 
     rng = np.random.default_rng(21)
     X = world.T_flange_camera_true(rng)

@@ -79,7 +79,7 @@ def test_plan_command_writes_plan_and_trajectory(paper_folder, tmp_path, capsys)
     # against its measured numbers in tests/calibrate/test_paper.py): the calibrated
     # model puts the planned command on the sheet origin
     doc = json.loads(cal.read_text())
-    from vision_cal.kinematics import ScaraParams, forward
+    from vision_cal.model.kinematics import ScaraParams, forward
 
     assert abs(forward(ScaraParams.from_json(doc["params"]), q[:1])[0]).max() < 1e-4
     traj = (tmp_path / "traj.csv").read_text().splitlines()
@@ -147,7 +147,7 @@ def test_calibration_run_keeps_the_model_calibration_json_holds(paper_folder, tm
     import numpy as np
 
     from vision_cal.dataset.calibration import load_calibration
-    from vision_cal.pipeline import calibrate_dataset
+    from vision_cal.workflows.pipeline import calibrate_dataset
 
     for method in ("lsq", "paper"):
         run = calibrate_dataset(paper_folder, out_dir=tmp_path / method, method=method)

@@ -11,7 +11,7 @@ import numpy as np
 from tests.conftest import SM5
 from vision_cal.commands.main import main
 from vision_cal.dataset.calibration import joints_covered_deg
-from vision_cal.kinematics import forward
+from vision_cal.model.kinematics import forward
 
 ROOT = Path(__file__).resolve().parents[2]
 

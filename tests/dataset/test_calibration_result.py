@@ -5,7 +5,7 @@ import json
 import pytest
 
 from vision_cal.dataset.calibration_result import CalibrationResult, ModelRms
-from vision_cal.pipeline import calibrate_dataset
+from vision_cal.workflows.pipeline import calibrate_dataset
 
 
 @pytest.mark.parametrize("method", ["paper", "lsq"])

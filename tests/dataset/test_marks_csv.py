@@ -16,7 +16,7 @@ from tests.conftest import ROOT, SM5, random_plan
 from vision_cal.commands.main import main
 from vision_cal.dataset.marks_csv import session_from_marks_csv
 from vision_cal.errors import VisionCalError
-from vision_cal.pipeline import calibrate_dataset
+from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.render.truth_model import TrueRobot
 
 N, SIGMA = 40, 0.02            # marks; the instrument's accuracy, one std per axis (mm)

@@ -186,7 +186,7 @@ def test_locate_refuses_heights_the_camera_cannot_locate(paper, tmp_path, capsys
 
 def test_locate_refuses_a_joint_command_beyond_the_marks(paper, tmp_path, capsys):
     """--robot: the compensated command of the located point, checked as plan's targets."""
-    from vision_cal.kinematics import ScaraParams, forward
+    from vision_cal.model.kinematics import ScaraParams, forward
 
     p = ScaraParams.from_json(paper["params"])
     robot = ROOT / "fixtures" / "robot_sm5.yaml"

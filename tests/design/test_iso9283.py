@@ -7,7 +7,7 @@ import pytest
 
 from tests.conftest import SM5
 from vision_cal.design.iso9283 import ap_rp, iso_marks, iso_points_mm, offsets_mm
-from vision_cal.model import RobotModel
+from vision_cal.model.robot import RobotModel
 
 
 def test_points_are_the_centre_and_the_diagonals_at_10_percent():

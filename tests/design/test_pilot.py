@@ -10,7 +10,7 @@ from vision_cal.calibrate.paper import paper_method
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.design.pilot import design_pilot, pens_mm
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import ScaraParams, forward
+from vision_cal.model.kinematics import ScaraParams, forward
 from vision_cal.plan.calibration_plan import sheet_clearance_mm
 
 

@@ -7,7 +7,7 @@ import numpy as np
 from tests.design.conftest import ROBOT, border_sheet
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.design.placements import joint1_span_deg, plan_placements
-from vision_cal.kinematics import ScaraParams, forward
+from vision_cal.model.kinematics import ScaraParams, forward
 
 
 def test_a_turned_placement_is_the_same_robot_in_the_turned_sheet():

@@ -11,7 +11,7 @@ import yaml
 from tests.design.conftest import ROBOT, border_sheet
 from vision_cal.commands.main import main
 from vision_cal.design.preview import reach_fraction
-from vision_cal.kinematics import ScaraParams
+from vision_cal.model.kinematics import ScaraParams
 
 
 def robot_file(tmp_path, **edit) -> str:

@@ -4,7 +4,7 @@ import numpy as np
 
 from tests.conftest import SM5, random_plan
 from vision_cal.diagnose.photos import per_photo_offsets
-from vision_cal.model import RobotModel
+from vision_cal.model.robot import RobotModel
 
 
 def _measurement(shift_photo=None, shift_mm=(0.0, 0.0), seed=0):

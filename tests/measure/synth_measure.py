@@ -99,7 +99,7 @@ def write_session(folder, d):
 
 # --------------------------------------------------------------------------- datasets
 
-from vision_cal.kinematics import ScaraParams, inverse  # noqa: E402
+from vision_cal.model.kinematics import ScaraParams, inverse  # noqa: E402
 
 TRUTH = ScaraParams(350.0, 260.0, 3.0, -4.0, -250.0, 210.0)
 #: the user's nominal model: 8 / -7 deg off in the zeros and ~92 mm off in the base

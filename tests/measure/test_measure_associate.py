@@ -7,7 +7,7 @@ import pytest
 
 from tests.measure import synth_measure as sm
 from vision_cal.dataset.session import load_session
-from vision_cal.kinematics import ScaraParams, forward
+from vision_cal.model.kinematics import ScaraParams, forward
 from vision_cal.measure.associate import DotGroup, associate, combine, match_to_plan
 from vision_cal.measure.batch import measure_folder
 

@@ -10,7 +10,7 @@ from vision_cal.dataset.session import load_session
 from vision_cal.measure import batch
 from vision_cal.measure.associate import DotGroup
 from vision_cal.measure.batch import Measurement, MarkMeasurement
-from vision_cal.pipeline import _unreliable_marks, collect_marks
+from vision_cal.workflows.pipeline import _unreliable_marks, collect_marks
 from vision_cal.report.headline import mark_rows
 
 from pathlib import Path

@@ -6,8 +6,8 @@ import pytest
 
 from vision_cal.dataset.session import Sheet, SheetMarker
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import ScaraParams, forward
-from vision_cal.model import JointBacklash, JointCyclic, JointScale, RobotModel
+from vision_cal.model.kinematics import ScaraParams, forward
+from vision_cal.model.robot import JointBacklash, JointCyclic, JointScale, RobotModel
 from vision_cal.plan.calibration_plan import (PlannedMark, informative_plan, paper_plan,
                                               sheet_clearance_mm)
 

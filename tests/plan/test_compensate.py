@@ -4,7 +4,7 @@ import pytest
 from tests.conftest import SM5
 from vision_cal.dataset.csvio import read_plan, read_targets, write_plan, write_targets
 from vision_cal.errors import VisionCalError
-from vision_cal.model import JointBacklash, JointCyclic, JointScale, RobotModel, SheetAffine
+from vision_cal.model.robot import JointBacklash, JointCyclic, JointScale, RobotModel, SheetAffine
 from vision_cal.plan.compensate import plan_targets
 
 TRUE = RobotModel(SM5, (JointBacklash(joint=2, deg=0.12), JointScale(joint=1, scale=0.003),

@@ -9,7 +9,7 @@ from vision_cal.plan.calibration_plan import PlannedMark, informative_plan, pape
 from vision_cal.plan.trajectory import (joint_trajectory, plan_trajectory, plan_waypoints,
                                         write_trajectory_csv)
 from vision_cal.dataset.session import Sheet, SheetMarker
-from vision_cal.kinematics import ScaraParams
+from vision_cal.model.kinematics import ScaraParams
 
 NOMINAL = ScaraParams(350.0, 260.0, 0.0, 0.0, -400.0, -250.0)
 

@@ -326,7 +326,7 @@ def test_shrunk_sheet_is_photographed_shrunk(tmp_path):
     printed points to the camera (so it carries the shrink)."""
     from dataclasses import replace
 
-    from vision_cal.model import SheetAffine
+    from vision_cal.model.robot import SheetAffine
 
     seen = []
 

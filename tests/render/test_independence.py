@@ -12,12 +12,12 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2] / "vision_cal"
-ESTIMATOR = ("vision_cal.model", "vision_cal.kinematics", "vision_cal.calibrate",
-             "vision_cal.diagnose", "vision_cal.measure", "vision_cal.pipeline",
-             "vision_cal.joint_terms", "vision_cal.camera", "vision_cal.verify")
+ESTIMATOR = ("vision_cal.model.robot", "vision_cal.model.kinematics", "vision_cal.calibrate",
+             "vision_cal.diagnose", "vision_cal.measure", "vision_cal.workflows.pipeline",
+             "vision_cal.model.joint_terms", "vision_cal.camera", "vision_cal.workflows.verify")
 #: (file, module) -> names allowed: reading the format's JSON blocks
-JSON_READING = {("scene.py", "vision_cal.model"): {"Effect", "RobotModel", "effect_from_json"},
-                ("scene.py", "vision_cal.kinematics"): {"ScaraParams"}}
+JSON_READING = {("scene.py", "vision_cal.model.robot"): {"Effect", "RobotModel", "effect_from_json"},
+                ("scene.py", "vision_cal.model.kinematics"): {"ScaraParams"}}
 
 
 def _imports(path: Path):

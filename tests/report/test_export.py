@@ -7,7 +7,7 @@ import yaml
 
 from tests.conftest import ROOT, SM5
 from vision_cal.commands.main import main
-from vision_cal.kinematics import forward
+from vision_cal.model.kinematics import forward
 
 
 def _rot(a):

@@ -165,7 +165,7 @@ def test_joint_residuals_written_by_the_pipeline_explain_the_residuals(doc):
     mark's residual (to first order: the residuals are a few tenths of a degree)."""
     import numpy as np
 
-    from vision_cal.kinematics import ScaraParams, forward
+    from vision_cal.model.kinematics import ScaraParams, forward
 
     p = ScaraParams.from_json(doc["params"])
     marks = doc["marks"]

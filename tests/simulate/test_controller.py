@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import ScaraParams
+from vision_cal.model.kinematics import ScaraParams
 from vision_cal.plan.calibration_plan import PlannedMark, informative_plan, paper_plan
 from vision_cal.dataset.session import Sheet, SheetMarker, resolve_approach
 from vision_cal.simulate.controller import PDController, SlidingModeController, make_controller

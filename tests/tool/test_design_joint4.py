@@ -3,7 +3,7 @@
 import numpy as np
 
 from vision_cal.design.joint4 import turn_joint4
-from vision_cal.kinematics import ScaraParams, forward
+from vision_cal.model.kinematics import ScaraParams, forward
 from vision_cal.plan.calibration_plan import PlannedMark
 from vision_cal.plan.orient import folded_params
 from vision_cal.render.truth_model import TrueRobot
@@ -40,8 +40,8 @@ def test_circle_triples_paper_style_on_free_paper(tmp_path):
     from vision_cal.dataset.session import load_sheet_file
     from vision_cal.design.joint4 import circle_triples, joint4_vias
     from vision_cal.design.stage import drawable_sheet, with_printed_content
-    from vision_cal.model import RobotModel, Tool
-    from vision_cal.motion import approach_signs
+    from vision_cal.model.robot import RobotModel, Tool
+    from vision_cal.model.motion import approach_signs
     from vision_cal.plan.calibration_plan import sheet_clearance_mm
     from vision_cal.plan.orient import unfold_params
     from vision_cal.sheet import make_layout, write_sheet

@@ -6,7 +6,7 @@ import pytest
 
 from vision_cal.calibrate.tool import fit_tool, folded_statement, paper_tool
 from vision_cal.errors import CalibrationError
-from vision_cal.model import JointBacklash, JointScale
+from vision_cal.model.robot import JointBacklash, JointScale
 from vision_cal.render.truth_model import TrueRobot
 
 

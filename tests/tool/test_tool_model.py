@@ -4,8 +4,8 @@ hand-computed anchors (direction and sign of q4) and the analytic Jacobian."""
 import numpy as np
 import pytest
 
-from vision_cal.kinematics import ScaraParams, forward, forward_tool
-from vision_cal.model import JointBacklash, JointScale, RobotModel, Tool, effect_from_json
+from vision_cal.model.kinematics import ScaraParams, forward, forward_tool
+from vision_cal.model.robot import JointBacklash, JointScale, RobotModel, Tool, effect_from_json
 
 P = ScaraParams(300.0, 200.0)
 

@@ -7,7 +7,7 @@ import json
 import numpy as np
 
 from vision_cal.dataset.calibration import load_calibration
-from vision_cal.pipeline import calibrate_dataset
+from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.render.truth_model import TrueRobot
 
 PARAMS = {"L1_mm": 344.05, "L2_mm": 259.87, "joint_zero_deg": [-2.57, -8.13],
@@ -134,7 +134,7 @@ def test_plan_command_with_theta_writes_q4_and_tlset(tmp_path):
 def test_urdf_with_joints_3_4_and_tool_reproduces_the_model(tmp_path):
     import xml.etree.ElementTree as ET
 
-    from vision_cal.kinematics import ScaraParams, forward_tool
+    from vision_cal.model.kinematics import ScaraParams, forward_tool
     from vision_cal.report.export import urdf_text
 
     p = ScaraParams(344.0, 260.0, -2.5, -8.0, -424.0, -230.0)

@@ -4,8 +4,8 @@ hit the targets on the world's true robot within the calibration's predicted err
 import numpy as np
 
 from vision_cal.calibrate.tool import fit_tool
-from vision_cal.model import JointBacklash, JointScale, RobotModel, Tool
-from vision_cal.kinematics import ScaraParams
+from vision_cal.model.robot import JointBacklash, JointScale, RobotModel, Tool
+from vision_cal.model.kinematics import ScaraParams
 from vision_cal.plan.orient import folded_params, plan_poses
 from vision_cal.render.truth_model import TrueRobot
 

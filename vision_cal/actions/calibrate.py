@@ -1,5 +1,5 @@
 """The calibration action (``vision-cal calibrate``): one or several dataset folders
-measured and calibrated (:func:`vision_cal.pipeline.calibrate_dataset`), or one robot from
+measured and calibrated (:func:`vision_cal.workflows.pipeline.calibrate_dataset`), or one robot from
 several placements (:func:`vision_cal.calibrate.placements.calibrate_placements`), with the
 console summary, the optional report and, for several folders, ``summary.json``."""
 
@@ -18,7 +18,7 @@ from vision_cal.dataset.out_folder import (earlier_placements, output_names,
 from vision_cal.diagnose.verdict import Verdict
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.survey import find_survey
-from vision_cal.pipeline import calibrate_dataset
+from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.report.html import write_report
 from vision_cal.report.summary import format_summary
 

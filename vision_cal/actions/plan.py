@@ -22,7 +22,7 @@ from vision_cal.dataset.valid_for import enforce as enforce_valid_for
 from vision_cal.dataset.valid_for import of as valid_for_of
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.printed import targets_on_print
-from vision_cal.motion import JOINT_LIMITS_DEG
+from vision_cal.model.motion import JOINT_LIMITS_DEG
 from vision_cal.plan.compensate import plan_targets, to_planned_marks, write_plan_trajectory
 from vision_cal.plan.orient import controller_tool_mm, plan_poses
 from vision_cal.plan.trajectory import check_length

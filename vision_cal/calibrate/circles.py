@@ -28,7 +28,7 @@ from scipy.linalg import eig
 from scipy.optimize import least_squares
 
 from vision_cal.calibrate.lsq import FailedFit
-from vision_cal.rms import rms
+from vision_cal.model.rms import rms
 
 
 @dataclass(frozen=True)

@@ -3,9 +3,9 @@
 ``Fit.from_estimate(q_deg, xy_mm, approach=..., model=...)`` fits every free parameter of
 ``model`` (the base model when ``model`` has no effects) to marks anywhere:
 
-- the start comes from the closed-form linear solve (:mod:`vision_cal.calibrate.linear`),
+- the start comes from the closed-form linear solve (:mod:`vision_cal.model.linear`),
   so the solve never depends on the nominal model being close; effects start at zero;
-- scipy ``least_squares`` with the analytic Jacobian of :class:`vision_cal.model.RobotModel`;
+- scipy ``least_squares`` with the analytic Jacobian of :class:`vision_cal.model.robot.RobotModel`;
 - a robust pass (soft-L1 loss scaled to the residual spread) names outliers (normalised
   residual above ``outlier_sigma``), which are left out of the final solve;
 - identifiability is checked on the column-scaled Jacobian (rank and condition number)
@@ -21,7 +21,7 @@ Thresholds (outlier rule, condition number limit): the ``config`` passed in
 (:class:`vision_cal.config.EstimatorConfig`, default :data:`vision_cal.config.DEFAULT`).
 Weights: ``sigma_mm`` (N,) per-mark measurement standard deviations, if known.
 Joints ``(N, 3)`` carry joint 4 (``[q1, q2, q4]``, for a model with a tool, see
-:mod:`vision_cal.model`); the linear start uses joints 1 and 2 only.
+:mod:`vision_cal.model.robot`); the linear start uses joints 1 and 2 only.
 """
 
 from __future__ import annotations
@@ -31,12 +31,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from vision_cal.calibrate.linear import explain_degeneracy, linear_init
+from vision_cal.model.linear import explain_degeneracy, linear_init
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.errors import CalibrationError
-from vision_cal.kinematics import ScaraParams
-from vision_cal.model import RobotModel, Tool
-from vision_cal.rms import rms_2d
+from vision_cal.model.kinematics import ScaraParams
+from vision_cal.model.robot import RobotModel, Tool
+from vision_cal.model.rms import rms_2d
 
 
 

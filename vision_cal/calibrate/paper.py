@@ -23,7 +23,7 @@ import numpy as np
 
 from vision_cal.calibrate.circles import Circle
 from vision_cal.calibrate.lsq import FailedFit
-from vision_cal.kinematics import ScaraParams
+from vision_cal.model.kinematics import ScaraParams
 
 
 @dataclass(frozen=True)

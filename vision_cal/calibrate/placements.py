@@ -29,7 +29,7 @@ import numpy as np
 from scipy import stats
 from scipy.optimize import least_squares
 
-from vision_cal import joint_terms as jt
+from vision_cal.model import joint_terms as jt
 from vision_cal.calibrate.lsq import Fit
 from vision_cal.calibrate.tool import joint4_values
 from vision_cal.config import DEFAULT, EstimatorConfig
@@ -42,11 +42,11 @@ from vision_cal.dataset.session import load_session
 from vision_cal.dataset.valid_for import build as valid_for_block
 from vision_cal.diagnose.verdict import judge_placements
 from vision_cal.errors import CalibrationError
-from vision_cal.kinematics import ScaraParams
-from vision_cal.model import (Effect, JointBacklash, JointCyclic, JointScale, JointTerms,
+from vision_cal.model.kinematics import ScaraParams
+from vision_cal.model.robot import (Effect, JointBacklash, JointCyclic, JointScale, JointTerms,
                               RobotModel, Tool)
-from vision_cal.pipeline import measure_marks
-from vision_cal.rms import rms_2d
+from vision_cal.workflows.pipeline import measure_marks
+from vision_cal.model.rms import rms_2d
 
 
 @dataclass(frozen=True)
@@ -204,7 +204,7 @@ def _start(places: list[Placement], tool: Tool | None) -> tuple[ScaraParams, tup
 def _library_columns(e: Effect) -> tuple[tuple[int, str], ...] | None:
     """The dictionary columns (joint, feature) a joint-1/2 library effect is (None for
     others): ``joint_scale`` is ``q_j``, ``joint_backlash`` ``approach_j``, ``joint_cyclic``
-    the sine and cosine of its harmonic (:data:`vision_cal.joint_terms.DICTIONARY`)."""
+    the sine and cosine of its harmonic (:data:`vision_cal.model.joint_terms.DICTIONARY`)."""
     j = getattr(e, "joint", None)
     if j not in (1, 2):
         return None
@@ -220,7 +220,7 @@ def _library_columns(e: Effect) -> tuple[tuple[int, str], ...] | None:
 
 def best_alternative(places: list[Placement], fit: PlacementsFit, effect: Effect):
     """Issue 17's rule for a library ``effect`` about to be added to ``fit``: the subset of
-    the joint-term dictionary (both joints' columns of :data:`vision_cal.joint_terms.
+    the joint-term dictionary (both joints' columns of :data:`vision_cal.model.joint_terms.
     DICTIONARY`) with as many parameters that explains most of ``fit``'s residual, to first
     order (the columns' displacements with what ``fit`` already absorbs projected out).
 

@@ -31,8 +31,8 @@ from vision_cal.calibrate.circles import Circle
 from vision_cal.calibrate.lsq import FailedFit, Fit
 from vision_cal.calibrate.paper import paper_method
 from vision_cal.errors import CalibrationError
-from vision_cal.kinematics import ScaraParams
-from vision_cal.model import Effect, JointEffect, RobotModel, Tool
+from vision_cal.model.kinematics import ScaraParams
+from vision_cal.model.robot import Effect, JointEffect, RobotModel, Tool
 
 
 def joint4_values(q4_deg, tol_deg: float = 1e-6) -> np.ndarray:

@@ -38,8 +38,8 @@ from vision_cal.camera.fixed import (F_REL_STD_MAX, UNDETERMINED, FixedCamera, T
 from vision_cal.config import DEFAULT, VerdictConfig
 from vision_cal.dataset.camera_block import check_camera_entry
 from vision_cal.errors import CalibrationError, VisionCalError
-from vision_cal.kinematics import ScaraParams, flange_angle_rad, forward
-from vision_cal.rms import rms_2d
+from vision_cal.model.kinematics import ScaraParams, flange_angle_rad, forward
+from vision_cal.model.rms import rms_2d
 
 LABELS = ("L1_mm", "L2_mm", "z1_deg", "z2_deg", "base_x_mm", "base_y_mm",
           "cam_rot_x_deg", "cam_rot_y_deg", "cam_rot_z_deg", "cam_x_mm", "cam_y_mm",
@@ -370,7 +370,7 @@ def _lens_cov_k(cov: np.ndarray) -> np.ndarray:
 def T_sheet_flange(params: ScaraParams, q_deg, j4_deg) -> np.ndarray:
     """(N, 4, 4) flange -> sheet for commanded joints (N, 2) and ``j4_deg`` (N,): the flange
     x axis turned by ``phi1 + phi2`` (the estimator's one owner,
-    :func:`vision_cal.kinematics.flange_angle_rad`) plus ``q4`` (the contract's flange frame:
+    :func:`vision_cal.model.kinematics.flange_angle_rad`) plus ``q4`` (the contract's flange frame:
     x along link 2 at commanded ``q4 = 0``)."""
     q = np.array(q_deg, dtype=float, ndmin=2)
     a = (flange_angle_rad(params.vector, np.radians(q[:, :2]))

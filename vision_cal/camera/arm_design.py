@@ -20,8 +20,8 @@ import numpy as np
 from vision_cal.camera.arm import MAX_POSES
 from vision_cal.dataset.io import atomic_write_json, atomic_write_text
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import forward
-from vision_cal.motion import approach_signs
+from vision_cal.model.kinematics import forward
+from vision_cal.model.motion import approach_signs
 from vision_cal.progress import bar
 from vision_cal.program.spel import _comment, _ja
 

@@ -36,7 +36,7 @@ from vision_cal.dataset.camera_block import check_camera_entry
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.mapping import undistort_px
-from vision_cal.rms import rms_2d
+from vision_cal.model.rms import rms_2d
 
 #: photos whose marker mappings differ by less than this at every marker corner (px) were
 #: taken from one camera pose

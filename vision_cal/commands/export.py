@@ -29,7 +29,7 @@ def add_arguments(p) -> None:
     p.add_argument("--robot", metavar="ROBOT.yaml",
                    help="robot file: the URDF's joint limits, joint 3's travel and joint 4's "
                         "range (default: calibration.json's joint_limits_deg, which the "
-                        "session's robot file gave; joints 3 and 4: vision_cal.motion's)")
+                        "session's robot file gave; joints 3 and 4: vision_cal.model.motion's)")
     p.add_argument("--force", action="store_true",
                    help="export even a calibration whose verdict is 'not reliable', or a "
                         "robot model with an effect it could not identify (calibration.json "

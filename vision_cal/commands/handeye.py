@@ -52,7 +52,7 @@ def run(args) -> int:
     import os
 
     from vision_cal.actions.handeye import HandeyeRequest, handeye_pairs
-    from vision_cal.camera.arm_session import calibrate_arm_camera
+    from vision_cal.workflows.arm_session import calibrate_arm_camera
     from vision_cal.dataset.io import atomic_write_json
     from vision_cal.dataset.out_folder import writing_into
     from vision_cal.diagnose.verdict import Verdict

@@ -29,7 +29,7 @@ def run(args) -> int:
     # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
     from pathlib import Path
 
-    from vision_cal.loop import format_table, run_loop
+    from vision_cal.workflows.loop import format_table, run_loop
     from vision_cal.report.summary import format_summary
 
     if args.jobs is not None and args.jobs < 1:

@@ -43,7 +43,7 @@ def run(args) -> int:
 
     from vision_cal.dataset.out_folder import writing_into
     from vision_cal.errors import VisionCalError
-    from vision_cal.verify import verify_folder
+    from vision_cal.workflows.verify import verify_folder
 
     if args.jobs is not None and args.jobs < 1:
         raise VisionCalError(f"must be at least 1, got {args.jobs}", field="--jobs")

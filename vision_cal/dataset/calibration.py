@@ -16,9 +16,9 @@ from vision_cal.dataset.io import read_json
 from vision_cal.dataset.valid_for import build as build_valid_for
 from vision_cal.dataset.fields import MAX_JOINT_DEG, FieldReader
 from vision_cal.errors import VisionCalError
-from vision_cal.joint_terms import check_feature
-from vision_cal.kinematics import ScaraParams
-from vision_cal.model import RobotModel, Tool, effect_from_json
+from vision_cal.model.joint_terms import check_feature
+from vision_cal.model.kinematics import ScaraParams
+from vision_cal.model.robot import RobotModel, Tool, effect_from_json
 
 ROBOT_EFFECTS = ("joint_backlash", "joint_scale", "joint_cyclic", "sheet_affine", "joint_terms")
 #: effects of the contract that do not act on the robot (the camera's, the paper's height,

@@ -53,13 +53,13 @@ from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.io import read_json, read_yaml
 from vision_cal.dataset.session import NominalRobot, read_robot_block
 from vision_cal.errors import VisionCalError
-from vision_cal.motion import (ACCEL_DEG_S2, JOINT3_LIMITS_MM, JOINT4_LIMITS_DEG,
+from vision_cal.model.motion import (ACCEL_DEG_S2, JOINT3_LIMITS_MM, JOINT4_LIMITS_DEG,
                                JOINT_LIMITS_DEG, SPEED_DEG_S)
 
 log = logging.getLogger(__name__)
 
 ROBOT_BLOCK = ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "home_deg", "repeatability_mm")
-DEFAULT_LIMITS_DEG = JOINT_LIMITS_DEG  # the defaults live in vision_cal.motion
+DEFAULT_LIMITS_DEG = JOINT_LIMITS_DEG  # the defaults live in vision_cal.model.motion
 
 
 @dataclass(frozen=True)

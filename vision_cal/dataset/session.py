@@ -16,8 +16,8 @@ from vision_cal.dataset.fields import (MAX_DIST, MAX_IMAGE_PX, MAX_JOINT_DEG, MA
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.photos import normalise_name
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import ScaraParams
-from vision_cal.motion import approach_signs
+from vision_cal.model.kinematics import ScaraParams
+from vision_cal.model.motion import approach_signs
 
 FORMAT = "vision-cal/1"
 ROLES = ("calibration", "validation")
@@ -257,7 +257,7 @@ class Session:
 
 def resolve_approach(marks, home_deg=(0.0, 0.0)) -> np.ndarray:
     """Approach signs (N, 2) of ``marks``: given, else the format's rule
-    (:func:`vision_cal.motion.approach_signs`)."""
+    (:func:`vision_cal.model.motion.approach_signs`)."""
     return approach_signs([m.joints_deg for m in marks], home_deg,
                           given=[m.approach for m in marks])
 

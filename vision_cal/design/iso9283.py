@@ -7,7 +7,7 @@ visit is a pen mark, so repeated visits of one point would put every dot on the 
 each visit ``j`` of point ``P`` is commanded to ``P + offset_j`` instead, the offsets a
 small grid (``PITCH_MM`` apart, wider than a dot) centred on ``P``.
 
-How the offsets are taken out (``vision_cal.verify``): each visit's error is its measured
+How the offsets are taken out (``vision_cal.workflows.verify``): each visit's error is its measured
 mark minus *its own* commanded position (``P + offset_j`` through the calibrated model,
 with the sheet's placement refitted), so the offset cancels exactly. This assumes the
 robot's systematic error is the same over the few millimetres of the grid (the visits

@@ -23,9 +23,9 @@ from __future__ import annotations
 import numpy as np
 
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import ScaraParams, forward
-from vision_cal.model import RobotModel, Tool
-from vision_cal.motion import approach_signs
+from vision_cal.model.kinematics import ScaraParams, forward
+from vision_cal.model.robot import RobotModel, Tool
+from vision_cal.model.motion import approach_signs
 from vision_cal.plan.calibration_plan import PlannedMark, sheet_clearance_mm
 from vision_cal.plan.orient import plan_poses, unfold_params
 

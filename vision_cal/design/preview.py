@@ -18,7 +18,7 @@ import io
 
 import numpy as np
 
-from vision_cal.kinematics import forward
+from vision_cal.model.kinematics import forward
 
 REACH_WARN = 0.5
 N_ARMS = 4            # planned poses drawn with both links

@@ -42,7 +42,7 @@ from vision_cal.design.joint4 import circle_triples, joint4_vias, turn_joint4
 from vision_cal.design.pilot import design_pilot
 from vision_cal.design.preview import REACH_WARN, preview_png, reach_fraction
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import ScaraParams, forward
+from vision_cal.model.kinematics import ScaraParams, forward
 from vision_cal.measure.printed import printed_reference
 from vision_cal.plan.calibration_plan import informative_plan
 from vision_cal.plan.trajectory import plan_trajectory, write_trajectory_csv

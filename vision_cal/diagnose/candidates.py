@@ -1,6 +1,6 @@
 """Candidate effects the diagnosis may add to the base model.
 
-Each candidate is an effect (``vision_cal.model``) at zero with its own Jacobian, plus the
+Each candidate is an effect (``vision_cal.model.robot``) at zero with its own Jacobian, plus the
 plan change that would make it identifiable when the plan cannot see it.
 """
 
@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vision_cal.model import Effect, JointBacklash, JointCyclic, JointScale, SheetAffine
+from vision_cal.model.robot import Effect, JointBacklash, JointCyclic, JointScale, SheetAffine
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ split over the scans (Bonferroni): on clean data at most ``alpha`` of datasets r
 alarm; ``bench/diagnose.py --scans`` measures it over 200 clean kinematic datasets.
 
 Discovery (:func:`discover`). The columns of a documented dictionary
-(:data:`vision_cal.joint_terms.DICTIONARY` for each joint: both angles, their products and
+(:data:`vision_cal.model.joint_terms.DICTIONARY` for each joint: both angles, their products and
 squares, harmonics 1-3, approach signs; plus one time column per base parameter) are
 selected by **forward stepwise selection with held-out validation**: each step adds the
 column that most lowers the residual sum of squares if its F-test passes at ``alpha``
@@ -45,12 +45,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import stats
 
-from vision_cal import joint_terms as jt
+from vision_cal.model import joint_terms as jt
 from vision_cal.calibrate.lsq import FailedFit, Fit
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.diagnose.select import Diagnosis, Evidence, heldout_rms
 from vision_cal.diagnose.structure import sheet_scan
-from vision_cal.model import (JointBacklash, JointCyclic, JointEffect, JointScale, JointTerms,
+from vision_cal.model.robot import (JointBacklash, JointCyclic, JointEffect, JointScale, JointTerms,
                               RobotModel, SheetAffine)
 
 BASE_PARAMS = ("L1_mm", "L2_mm", "z1_deg", "z2_deg", "base_x_mm", "base_y_mm")

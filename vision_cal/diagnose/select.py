@@ -27,9 +27,9 @@ from vision_cal.calibrate.lsq import FailedFit, Fit
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.diagnose.candidates import Candidate, default_candidates, joint_residuals_deg
 from vision_cal.diagnose.structure import harmonic_scan, sheet_scan
-from vision_cal.kinematics import ScaraParams
-from vision_cal.model import JointCyclic, RobotModel, SheetAffine, Tool
-from vision_cal.rms import rms, rms_2d
+from vision_cal.model.kinematics import ScaraParams
+from vision_cal.model.robot import JointCyclic, RobotModel, SheetAffine, Tool
+from vision_cal.model.rms import rms, rms_2d
 
 
 

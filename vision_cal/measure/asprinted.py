@@ -37,7 +37,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from vision_cal.config import DEFAULT, AsPrintedConfig
-from vision_cal.rms import rms_2d
+from vision_cal.model.rms import rms_2d
 
 #: lens parameters freed when the lens was not declared, in this order
 LENS_FREE = ("f", "cx", "cy", "k1", "k2", "p1", "p2")

@@ -10,7 +10,7 @@
    ~10 deg in the joint zeros and ~100 mm in the base: a vote over joint-zero offsets
    (0.5 deg grid) and base translations (5 mm bins) proposes hypotheses, each refined by
    Hungarian assignment (``scipy.optimize.linear_sum_assignment``) and the closed-form base
-   fit ``vision_cal.calibrate.linear.linear_init``. Already identified marks (anchors) are
+   fit ``vision_cal.model.linear.linear_init``. Already identified marks (anchors) are
    kept. The result is accepted only when one assignment explains the dots clearly better
    than any other; a mark with two dots inside the gate is left out, with a reason.
 
@@ -24,12 +24,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from vision_cal.calibrate.linear import explain_degeneracy, linear_init
+from vision_cal.model.linear import explain_degeneracy, linear_init
 from vision_cal.config import DEFAULT
 from vision_cal.errors import CalibrationError
-from vision_cal.kinematics import ScaraParams, forward
-from vision_cal.rms import rms as rms_of
-from vision_cal.rms import rms_2d
+from vision_cal.model.kinematics import ScaraParams, forward
+from vision_cal.model.rms import rms as rms_of
+from vision_cal.model.rms import rms_2d
 
 
 @dataclass(frozen=True)

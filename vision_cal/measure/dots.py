@@ -41,7 +41,7 @@ from vision_cal.measure.mapping import SheetMapping
 from vision_cal.measure.printed import BLUR_CANDIDATES_PX
 from vision_cal.dataset.marker_geometry import (marker_boxes_mm, marker_geometry, marker_side_mm,
                                                 quiet_boxes_mm)
-from vision_cal.rms import rms
+from vision_cal.model.rms import rms
 
 
 

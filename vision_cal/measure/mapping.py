@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 
 from vision_cal.errors import VisionCalError
-from vision_cal.rms import rms_2d
+from vision_cal.model.rms import rms_2d
 
 _UNDIST_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 60, 1e-12)
 

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import forward, inverse
-from vision_cal.motion import SPEED_DEG_S, approach_signs
+from vision_cal.model.kinematics import forward, inverse
+from vision_cal.model.motion import SPEED_DEG_S, approach_signs
 
 
 @dataclass(frozen=True)

@@ -22,9 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vision_cal.kinematics import ik_failures, inverse
-from vision_cal.model import JointEffect, JointTerms, RobotModel
-from vision_cal.motion import JOINT_LIMITS_DEG, TRAJECTORY_DT_S
+from vision_cal.model.kinematics import ik_failures, inverse
+from vision_cal.model.robot import JointEffect, JointTerms, RobotModel
+from vision_cal.model.motion import JOINT_LIMITS_DEG, TRAJECTORY_DT_S
 from vision_cal.plan.calibration_plan import PlannedMark
 from vision_cal.plan.trajectory import plan_trajectory, write_trajectory_csv
 

@@ -25,9 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vision_cal.kinematics import ScaraParams, flange_angle_rad, forward_tool, inverse
-from vision_cal.model import JointEffect, RobotModel, Tool
-from vision_cal.motion import JOINT4_LIMITS_DEG, JOINT_LIMITS_DEG
+from vision_cal.model.kinematics import ScaraParams, flange_angle_rad, forward_tool, inverse
+from vision_cal.model.robot import JointEffect, RobotModel, Tool
+from vision_cal.model.motion import JOINT4_LIMITS_DEG, JOINT_LIMITS_DEG
 from vision_cal.plan.compensate import PlannedTarget, plan_targets
 
 #: default joint-4 range of a SCARA (commanded, deg)

@@ -27,7 +27,7 @@ from scipy.interpolate import CubicHermiteSpline
 
 from vision_cal.dataset.io import atomic_write_text
 from vision_cal.errors import VisionCalError
-from vision_cal.motion import ACCEL_DEG_S2, SPEED_DEG_S, TRAJECTORY_DT_S
+from vision_cal.model.motion import ACCEL_DEG_S2, SPEED_DEG_S, TRAJECTORY_DT_S
 
 
 @dataclass(frozen=True, eq=False)

@@ -106,8 +106,8 @@ from pathlib import Path
 from vision_cal.dataset.io import read_yaml
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import ScaraParams
-from vision_cal.model import Effect, RobotModel, effect_from_json
+from vision_cal.model.kinematics import ScaraParams
+from vision_cal.model.robot import Effect, RobotModel, effect_from_json
 from vision_cal.render.height import height_scene_from_dict
 from vision_cal.render.print_deviation import PrintScene
 from vision_cal.render.printed import load_printed_sheet

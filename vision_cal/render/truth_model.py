@@ -1,7 +1,7 @@
 """The synthetic world's own robot: every injected effect written out from the contract.
 
-This module deliberately shares **no code** with the estimator (``vision_cal.model``,
-``vision_cal.kinematics``): it reads the format's JSON blocks (``params`` and ``effects``
+This module deliberately shares **no code** with the estimator (``vision_cal.model.robot``,
+``vision_cal.model.kinematics``): it reads the format's JSON blocks (``params`` and ``effects``
 of truth.json, docs/format.md) and computes where the pen really is from
 the contract's formulas, so a sign or convention error in the estimator cannot cancel
 against the same error in the world. Frames and units as in docs/conventions.md.

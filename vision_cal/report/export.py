@@ -13,7 +13,7 @@ joint4 (revolute about z) -> flange -> tool (fixed, at tool_mm in the flange fra
 pen``, so ``pen`` is the calibrated pen tip for any ``q1, q2, q3, q4`` (joint 3 moves the
 pen vertically only). Joint 3's travel and joint 4's range are the robot file's
 ``joint3_limits_mm`` and ``joint4_limits_deg`` (``export --robot``), else the defaults of
-:mod:`vision_cal.motion`. Without a tool the chain ends at ``pen_tip`` as before.
+:mod:`vision_cal.model.motion`. Without a tool the chain ends at ``pen_tip`` as before.
 
 Effects a URDF cannot hold (backlash, gear-ratio and cyclic errors, sheet scale) go in a
 side file ``<name>.effects.yaml``: the format's effect names and parameters, in degrees and
@@ -30,7 +30,7 @@ import yaml
 
 from vision_cal.dataset.io import atomic_write_text
 from vision_cal.dataset.nominal import SIGN_CONVENTION, controller_offsets, offsets_text
-# the defaults live in vision_cal.motion; report/ reads them through dataset/ (its rule)
+# the defaults live in vision_cal.model.motion; report/ reads them through dataset/ (its rule)
 from vision_cal.dataset.robot import DEFAULT_LIMITS_DEG as JOINT_LIMITS_DEG
 from vision_cal.dataset.robot import JOINT3_LIMITS_MM, JOINT4_LIMITS_DEG
 
@@ -163,10 +163,10 @@ def effects_path(urdf) -> Path:
 def export(doc: dict, *, urdf=None, yaml_path=None, limits_deg=None,
            limits4_deg=None, limits3_mm=None, extrapolated=()) -> list[Path]:
     """``limits_deg``: the URDF's joint limits [[lo, hi], [lo, hi]] (default: the
-    calibration's ``joint_limits_deg``, else :data:`vision_cal.motion.JOINT_LIMITS_DEG`);
+    calibration's ``joint_limits_deg``, else :data:`vision_cal.model.motion.JOINT_LIMITS_DEG`);
     ``limits4_deg`` and ``limits3_mm``: joint 4's [lo, hi] (deg) and joint 3's travel
-    (mm) when the URDF has a tool (defaults :data:`vision_cal.motion.JOINT4_LIMITS_DEG`,
-    :data:`vision_cal.motion.JOINT3_LIMITS_MM`; the robot file's ``joint4_limits_deg`` and
+    (mm) when the URDF has a tool (defaults :data:`vision_cal.model.motion.JOINT4_LIMITS_DEG`,
+    :data:`vision_cal.model.motion.JOINT3_LIMITS_MM`; the robot file's ``joint4_limits_deg`` and
     ``joint3_limits_mm`` via ``export --robot``); ``extrapolated``: the lines saying what
     the export goes beyond calibration.json ``valid_for`` with (``--force``), written into
     the effects file and the YAML."""

@@ -23,7 +23,7 @@ link-side friction holds it). The link's inertia is carried with the motor in th
 matrix (the band is a fraction of a degree, so M(q) is the same on both sides), so the
 play operator changes no dynamics and integrates stably at any step. After a motion in
 direction ``s`` the link rests at ``m - s * band / 2``: it lags against its approach, the
-convention of :class:`vision_cal.model.JointBacklash` (``-s * band / 2``). This is the
+convention of :class:`vision_cal.model.robot.JointBacklash` (``-s * band / 2``). This is the
 friction-dominated limit: a real link may coast into the other flank when it decelerates
 faster than its own friction would stop it, which is why calibration plans end each move
 with a short, slow overshoot move.

@@ -1,8 +1,8 @@
 """Simulate a plan: trajectory -> controller -> dynamics -> backlash -> where the pen lands.
 
 Conventions: angles in degrees at the API, in the *commanded* joint frame (before the
-model's zero offsets ``z1, z2``): ``link_deg`` is what :func:`vision_cal.kinematics.forward`
-(or :class:`vision_cal.model.RobotModel` without its joint effects) turns into a pen
+model's zero offsets ``z1, z2``): ``link_deg`` is what :func:`vision_cal.model.kinematics.forward`
+(or :class:`vision_cal.model.robot.RobotModel` without its joint effects) turns into a pen
 position. Inside, radians at a fixed step ``dt_s`` (semi-implicit Euler, see
 :class:`~vision_cal.simulate.dynamics.Stepper`), plain floats in one lean loop.
 
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vision_cal.errors import VisionCalError
-from vision_cal.motion import TRAJECTORY_DT_S
+from vision_cal.model.motion import TRAJECTORY_DT_S
 from vision_cal.plan.trajectory import Trajectory, plan_trajectory
 from vision_cal.simulate.controller import make_controller
 from vision_cal.simulate.dynamics import ScaraDynamics, Stepper

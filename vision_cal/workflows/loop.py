@@ -35,19 +35,19 @@ from vision_cal.dataset.io import atomic_write_json, read_json
 from vision_cal.dataset.marker_geometry import quiet_boxes_mm
 from vision_cal.dataset.session import load_session
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import ScaraParams, inverse
+from vision_cal.model.kinematics import ScaraParams, inverse
 from vision_cal.measure.batch import measure_folder
-from vision_cal.model import RobotModel
-from vision_cal.motion import JOINT_LIMITS_DEG
-from vision_cal.pipeline import calibrate_dataset
+from vision_cal.model.robot import RobotModel
+from vision_cal.model.motion import JOINT_LIMITS_DEG
+from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.plan.calibration_plan import sheet_clearance_mm
 from vision_cal.plan.compensate import plan_targets, to_planned_marks
 from vision_cal.progress import stage_line
 from vision_cal.render.dataset import render_dataset
 from vision_cal.render.scene import load_scene
 from vision_cal.report.plots import loop_joints, loop_paths
-from vision_cal.report_data import loop_trajectories
-from vision_cal.rms import rms
+from vision_cal.workflows.report_data import loop_trajectories
+from vision_cal.model.rms import rms
 
 log = logging.getLogger(__name__)
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from vision_cal.errors import CalibrationError
-from vision_cal.kinematics import ScaraParams
+from vision_cal.model.kinematics import ScaraParams
 
 
 def design_matrix(q_deg: np.ndarray) -> np.ndarray:

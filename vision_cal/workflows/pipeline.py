@@ -39,14 +39,14 @@ from vision_cal.diagnose.select import Diagnosis, diagnose
 from vision_cal.diagnose.sheet import smooth_residual
 from vision_cal.diagnose.verdict import judge
 from vision_cal.errors import CalibrationError, VisionCalError
-from vision_cal.kinematics import forward
+from vision_cal.model.kinematics import forward
 from vision_cal.measure.batch import measure_folder
 from vision_cal.measure.printed import printed_content_json
 from vision_cal.measure.survey import load_survey
 from vision_cal.measure.types import Measurement
-from vision_cal.model import JointBacklash, RobotModel, SheetAffine
-from vision_cal.report_data import add_to_calibration
-from vision_cal.rms import rms_2d
+from vision_cal.model.robot import JointBacklash, RobotModel, SheetAffine
+from vision_cal.workflows.report_data import add_to_calibration
+from vision_cal.model.rms import rms_2d
 
 log = logging.getLogger(__name__)
 

@@ -32,9 +32,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from vision_cal import joint_terms as jt
+from vision_cal.model import joint_terms as jt
 from vision_cal.errors import VisionCalError
-from vision_cal.kinematics import (ScaraParams, flange_angle_rad, forward_rad, jacobian_rad,
+from vision_cal.model.kinematics import (ScaraParams, flange_angle_rad, forward_rad, jacobian_rad,
                                    tool_offset_rad)
 
 
@@ -176,7 +176,7 @@ class JointCyclic(JointEffect):
 class JointTerms(JointEffect):
     """A joint error found from the residual: the joint turns ``sum(coef_k * f_k)`` degrees
     more than commanded, ``f_k`` features of both commanded angles and approach signs
-    (:mod:`vision_cal.joint_terms`). Internally ``theta_k = radians(coef_k) * unit(f_k)``."""
+    (:mod:`vision_cal.model.joint_terms`). Internally ``theta_k = radians(coef_k) * unit(f_k)``."""
 
     name: ClassVar[str] = "joint_terms"
     features: tuple[str, ...] = ()

@@ -48,8 +48,8 @@ from vision_cal.dataset.valid_for import enforce as enforce_valid_for
 from vision_cal.dataset.valid_for import of as valid_for_of
 from vision_cal.design.iso9283 import ap_rp
 from vision_cal.errors import CalibrationError, VisionCalError
-from vision_cal.pipeline import measure_marks
-from vision_cal.rms import rms_2d
+from vision_cal.workflows.pipeline import measure_marks
+from vision_cal.model.rms import rms_2d
 
 #: the calibrations verify can check: pen marks fitted in one sheet's frame (a joint
 #: calibration's placements too: OUT/<folder>/calibration.json)

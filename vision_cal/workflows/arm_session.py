@@ -36,8 +36,8 @@ from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.measure.workers import exit_with_parent
 from vision_cal.progress import bar
-from vision_cal.kinematics import ScaraParams
-from vision_cal.motion import approach_signs
+from vision_cal.model.kinematics import ScaraParams
+from vision_cal.model.motion import approach_signs
 from vision_cal.measure.aruco import corners_from_edges, edge_points, find_sheet_markers
 from vision_cal.measure.mapping import distort_px, undistort_px
 
