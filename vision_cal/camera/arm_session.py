@@ -286,13 +286,18 @@ def calibrate_arm_camera(folder, *, progress: bool = False, jobs: int = 1) -> di
            "notes": ["robot calibrated from the arm camera's views of the marker field (no "
                      "pen): the base model, and the backlash of a joint reached from both "
                      "sides; other joint effects are not looked for in this version"]}
-    # what the poses covered (the one owner, dataset/valid_for), and the verdict judged
-    # against it as the pen's is: a joint reached from one side only is never "ready"
+    return _judged(doc, fit, views, rep,
+                   _reasons(fit, mount, undetermined=(how == UNDETERMINED)) + lens_reason)
+
+
+def _judged(doc: dict, fit, views, rep, reasons) -> dict:
+    """calibration.json with ``valid_for`` (what the poses covered; the one owner:
+    ``dataset/valid_for``) and the verdict judged against it as the pen's is: a joint
+    reached from one side only leaves its backlash unidentified, never "ready"."""
     doc["valid_for"] = valid_for_block(doc)
     doc["verdict"] = judge_camera_poses(
         fit.flange_residual_mm, fit.flange_sigma_mm, fit.flange_heldout_mm,
-        n_params=fit.n_params_xy, repeatability_mm=rep,
-        reasons=_reasons(fit, mount, undetermined=(how == UNDETERMINED)) + lens_reason,
+        n_params=fit.n_params_xy, repeatability_mm=rep, reasons=reasons,
         ids=[v.file for v in views], heldout_inflate=fit.flange_heldout_inflate,
         repeat_pairs=repeat_pairs(views), valid_for=doc["valid_for"]).to_json()
     return doc
