@@ -195,3 +195,88 @@ def test_one_job_measures_the_same_as_several(arm, tmp_path):
     assert main(["handeye", str(folder), "--out", str(tmp_path / "one"), "-q", "-j", "1"]) == 0
     one = read_json(tmp_path / "one" / "calibration.json")
     assert one["params"] == doc["params"] and one["images"] == doc["images"]
+
+
+# ------------------------------------------------ what the poses covered (issue 29, valid_for)
+
+def _err_line(capsys) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    return err[0]
+
+
+def test_the_calibration_says_what_its_poses_covered(arm):
+    """handeye writes calibration.json ``valid_for`` (the one owner's block, built from its
+    poses): the joint ranges and sides the photos were taken from, joint 4's angles, the
+    camera's height above the sheet (where locate can map a pixel)."""
+    from vision_cal.dataset.valid_for import build
+
+    _, doc, _ = arm
+    vf = doc["valid_for"]
+    assert vf == json.loads(json.dumps(build({k: v for k, v in doc.items()
+                                              if k != "valid_for"})))
+    q = np.array([p["joints_deg"] for p in doc["poses"]])
+    assert vf["joints_deg"] == [[q[:, j].min(), q[:, j].max()] for j in range(2)]
+    assert vf["approach_sides"]["1"] == [-1, 1] and vf["approach_sides"]["2"] == [-1, 1]
+    assert vf["joint4_deg"] == sorted({round(p["j4_deg"], 6) for p in doc["poses"]})
+    z = doc["cameras"][0]["T_flange_camera"][2][3]
+    assert vf["cameras"][0]["locate_heights_mm"] == [0.0, z]
+    assert vf["not_identified"] == [] and "within_valid_for" not in doc["verdict"]
+
+
+def test_a_joint_reached_from_one_side_only_is_never_ready(arm, tmp_path):
+    """The same photos with joint 2 always reached from below (poses sorted by q2, home
+    below them all): its backlash cannot be identified; the verdict, judged against
+    valid_for as the pen's is, is "check", names it and what to draw."""
+    folder, doc, _ = arm
+    s = read_json(folder / "session.json")
+    s["poses"] = sorted(s["poses"], key=lambda p: p["joints_deg"][1])
+    s["robot"]["home_deg"] = [0.0, -149.0]
+    one = tmp_path / "one"
+    one.mkdir()
+    for p in s["poses"]:
+        if (folder / p["image"]).exists():
+            (one / p["image"]).write_bytes((folder / p["image"]).read_bytes())
+    (one / "session.json").write_text(json.dumps(s))
+    assert main(["handeye", str(one), "--out", str(tmp_path / "out"), "-q"]) == 0
+    d = read_json(tmp_path / "out" / "calibration.json")
+    assert d["valid_for"]["approach_sides"]["2"] == [1]
+    v = d["verdict"]
+    assert v["status"] == "check", v
+    assert any("joint_backlash(joint 2)" in r for r in v["reasons"]), v["reasons"]
+    assert v["within_valid_for"] in ("ready", "check")
+
+
+def test_locate_refuses_heights_the_arm_camera_did_not_see(arm, tmp_path, capsys):
+    """--z-mm below the sheet (or above the camera): outside valid_for, one line; with
+    --force the extrapolation is said on the console and in the CSV."""
+    _, doc, _ = arm
+    cal = tmp_path / "calibration.json"
+    cal.write_text(json.dumps(doc))
+    q = [str(v) for v in doc["poses"][5]["joints_deg"] + [doc["poses"][5]["j4_deg"]]]
+    base = ["locate", str(cal), "--pixel", "320", "240", "--joints", *q, "-q"]
+    assert main(base + ["--z-mm", "20"]) == 0
+    capsys.readouterr()
+    assert main(base + ["--z-mm", "-30"]) == 2
+    line = _err_line(capsys)
+    assert "valid_for.heights" in line and "-30" in line, line
+    (tmp_path / "px.csv").write_text("id,u_px,v_px,z_mm\na,320,240,-30\n")
+    out = tmp_path / "loc.csv"
+    assert main(["locate", str(cal), "--csv", str(tmp_path / "px.csv"), "--joints", *q,
+                 "-o", str(out), "-q", "--force"]) == 0
+    assert "valid_for" in capsys.readouterr().err
+    assert "heights" in out.read_text().splitlines()[1].split(",")[-1]
+
+
+@pytest.mark.parametrize("joints", [["500", "60"], ["30", "-151"], ["30", "60", "400"]])
+def test_locate_refuses_joints_the_robot_cannot_reach_even_forced(arm, tmp_path, capsys,
+                                                                  joints):
+    """--joints beyond the joint limits (the defaults here; the robot file's with --robot):
+    no photo was ever taken there, --force or not."""
+    _, doc, _ = arm
+    cal = tmp_path / "calibration.json"
+    cal.write_text(json.dumps(doc))
+    assert main(["locate", str(cal), "--pixel", "320", "240", "--joints", *joints,
+                 "--force", "-q"]) == 2
+    line = _err_line(capsys)
+    assert "--joints" in line and "beyond" in line and "limits" in line, line

@@ -342,3 +342,41 @@ def test_wrong_dictionary_names_the_cause(tmp_path, capsys, rendered):
     assert rc == 1
     assert_one_line(err, "0 calibration marks", "1 of 1 photos skipped", "1 wrong sheet",
                     "DICT_5X5")
+
+
+def test_ctrl_c_after_the_photos_are_measured_leaves_nothing_that_looks_current(
+        tmp_path, capsys, rendered, monkeypatch):
+    """Issue 30: a run stopped between measuring and fitting left a new measurement.json
+    beside the earlier calibration (moved to previous/). measurement.json is now renamed
+    into OUT with calibration.json at the end; the detection cache is kept."""
+    import vision_cal.pipeline as pipeline
+
+    folder = dataset(tmp_path, lambda s: None, src=rendered)
+    out = tmp_path / "out"
+    out.mkdir()
+    for n in ("calibration.json", "measurement.json"):
+        (out / n).write_text(json.dumps({"earlier": n}))
+    earlier = snapshot(out)
+    measured = []
+    real = pipeline.measure_marks
+
+    def spy(*a, **k):
+        r = real(*a, **k)
+        measured.append(r[0])
+        return r
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pipeline, "measure_marks", spy)
+    monkeypatch.setattr(pipeline, "fit_lsq", interrupted)
+    monkeypatch.setattr(pipeline, "fit_paper", interrupted)
+    rc, _, _ = cli([folder, "-o", out, "-j", "1", "-q"], capsys)
+    assert rc == 130
+    assert measured and measured[0] is not None      # the photos were measured, then Ctrl-C
+    left = snapshot(out)
+    current = [n for n in left if not n.startswith(("previous/", ".cache/"))]
+    assert current == [], current
+    assert {n: left[f"previous/{n}"] for n in ("calibration.json", "measurement.json")} \
+        == earlier
+    assert any(n.startswith(".cache/") for n in left)  # kept: the next run measures nothing

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from vision_cal.calibrate.placements import calibrate_placements
-from vision_cal.dataset.io import atomic_write_json, output_dir
+from vision_cal.dataset.io import atomic_write_json, output_dir, written_together
 from vision_cal.dataset.marks_csv import session_from_marks_csv
 from vision_cal.dataset.out_folder import (earlier_placements, output_names,
                                            refuse_input_folder, retire_earlier_run,
@@ -110,9 +110,10 @@ def calibrate(req: CalibrateRequest) -> int:
                 print(f"measuring against the sheet as surveyed: {survey}")
             with writing_into(out, command="calibrate", inputs=[("DIR", folder)],
                               quiet=req.quiet):
-                result = calibrate_dataset(source, out_dir=out, method=req.method,
-                                           jobs=req.jobs, progress=progress, truth=req.truth,
-                                           survey=survey)
+                with written_together():   # measurement.json renamed with calibration.json
+                    result = calibrate_dataset(source, out_dir=out, method=req.method,
+                                               jobs=req.jobs, progress=progress,
+                                               truth=req.truth, survey=survey)
                 report = _write_report(result, out) if req.report else None
         except VisionCalError as e:
             if not several:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass
 
+from vision_cal.calibrate.plausible import check_units
 from vision_cal.camera.export import transform_path, write_opencv, write_ros
 from vision_cal.camera.fixed import camera_of
 from vision_cal.dataset.calibration import load_calibration
@@ -50,7 +51,12 @@ def export_calibration(req: ExportRequest) -> int:
                       ("--ros (its transform)",
                        req.ros and transform_path(req.ros))],
                      [("CALIBRATION.json", req.calibration), ("--robot", req.robot)])
-    _, doc = load_calibration(req.calibration, sheet_frame=False)
+    model, doc = load_calibration(req.calibration, sheet_frame=False)
+    robot = load_robot_file(req.robot) if req.robot else None
+    # metres, radians: refused before anything is written (the owner: calibrate/plausible)
+    check_units(model, doc, file=str(req.calibration),
+                nominal=None if robot is None else robot.nominal,
+                nominal_of=f"the robot file {req.robot}")
 
     warn = refuse_unreliable(doc, req.calibration, force=req.force)
     if warn:
@@ -62,8 +68,7 @@ def export_calibration(req: ExportRequest) -> int:
         said = enforce_valid_for(outside, file=str(req.calibration), force=req.force,
                                  what="--urdf/--yaml")
     limits, limits4, limits3 = doc.get("joint_limits_deg"), None, None
-    if req.robot:
-        robot = load_robot_file(req.robot)
+    if robot is not None:
         limits, limits4 = robot.joint_limits_deg, robot.joint4_limits_deg
         limits3 = robot.joint3_limits_mm
     written = []

@@ -21,6 +21,7 @@ from vision_cal.dataset.valid_for import check as check_valid_for
 from vision_cal.dataset.valid_for import enforce as enforce_valid_for
 from vision_cal.dataset.valid_for import of as valid_for_of
 from vision_cal.errors import VisionCalError
+from vision_cal.motion import JOINT4_LIMITS_DEG, JOINT_LIMITS_DEG
 from vision_cal.plan.compensate import plan_targets
 
 
@@ -81,6 +82,8 @@ def locate_pixels(req: LocateRequest) -> int:
                             inputs=[("CALIBRATION.json", req.calibration), ("--csv", req.csv),
                                     ("--robot", req.robot)])
     model, doc = load_calibration(req.calibration)
+    robot = load_robot_file(req.robot) if req.robot else None
+    _refuse_joints_beyond_limits(req, doc, robot)
     cam = camera_for(doc, req.camera, joints_deg=req.joints, photo=req.photo,
                      file=req.calibration)
     if req.csv:
@@ -113,8 +116,7 @@ def locate_pixels(req: LocateRequest) -> int:
                                  f"frame; the height given is {zz:g} mm)", file=f,
                                  field=fld) from e
     joints = [None] * len(points)
-    if req.robot:
-        robot = load_robot_file(req.robot)
+    if robot is not None:
         joints = plan_targets(model, ids, [p.sheet_mm[:2] for p in points], elbow=req.elbow,
                               joint_limits_deg=robot.joint_limits_deg)
     outside = _outside_valid_for(req, doc, ids, z, joints)
@@ -140,6 +142,30 @@ def locate_pixels(req: LocateRequest) -> int:
         else:
             print(f"  joint command: none ({j.reason})")
     return 0
+
+
+def _refuse_joints_beyond_limits(req: LocateRequest, doc: dict, robot) -> None:
+    """``--joints`` beyond what the robot can be commanded to (the robot file's
+    ``joint_limits_deg`` and ``joint4_limits_deg`` with ``--robot``, else the calibration's
+    ``joint_limits_deg``, else the defaults): no photo was taken there, so it is refused,
+    ``--force`` or not (``valid_for``, the range the poses covered, is the softer check)."""
+    if req.joints is None or not np.all(np.isfinite(req.joints)):
+        return   # camera_for names a bad --joints
+    if robot is not None:
+        lims = [*robot.joint_limits_deg, robot.joint4_limits_deg]
+        of = f"joint_limits_deg of {req.robot}"
+    elif doc.get("joint_limits_deg") is not None:
+        lims = [*doc["joint_limits_deg"], JOINT4_LIMITS_DEG]
+        of = f"joint_limits_deg of {req.calibration}"
+    else:
+        lims = [*JOINT_LIMITS_DEG, JOINT4_LIMITS_DEG]
+        of = "the default joint limits (give --robot ROBOT.yaml for the robot's own)"
+    for k, (q, name) in enumerate(zip(req.joints, ("joint 1", "joint 2", "joint 4"))):
+        lo, hi = (float(v) for v in lims[k])
+        if not lo <= q <= hi:
+            raise VisionCalError(f"{name} at {q:g} deg is beyond {lo:g}..{hi:g} deg ({of}): "
+                                 "the robot cannot be commanded there; joints are degrees",
+                                 field="--joints")
 
 
 def _outside_valid_for(req: LocateRequest, doc: dict, ids, z, joints) -> list:

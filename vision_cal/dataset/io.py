@@ -97,8 +97,11 @@ def output_file(path, *, field: str | None = None) -> Path:
     return path
 
 
-def atomic_write_bytes(path, data: bytes) -> Path:
+def atomic_write_bytes(path, data: bytes, *, at_once: bool = False) -> Path:
     """Write ``data`` to ``path`` through a temporary file in the same folder, then rename.
+    ``at_once``: renamed now even inside :func:`written_together` (a detection cache entry,
+    keyed by what it was computed from, is never stale and worth keeping from a run that
+    is stopped).
 
     Any failure of the file system (a file where a folder should be, a folder where the file
     should be, read-only, full) is one :class:`VisionCalError` naming the path."""
@@ -116,7 +119,7 @@ def atomic_write_bytes(path, data: bytes) -> Path:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
-        pending = _PENDING.get()
+        pending = None if at_once else _PENDING.get()
         if pending is None:
             os.replace(tmp, path)
         else:  # inside written_together(): renamed with the others at its end

@@ -455,7 +455,8 @@ def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
                        repeatability_mm: float | None = None,
                        reasons: list[tuple[str, str]] = (),
                        config: VerdictConfig | None = None, ids=None,
-                       heldout_inflate=None, repeat_pairs=()) -> Verdict:
+                       heldout_inflate=None, repeat_pairs=(),
+                       valid_for: dict | None = None) -> Verdict:
     """The verdict of a calibration from the arm camera's photos (``vision-cal handeye``):
     the same gate, status rule and block as :func:`judge`, its "marks" being the flange
     positions the photos imply. ``residual_mm`` (N, 2): each photo's in-plane flange
@@ -476,7 +477,11 @@ def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
     as :func:`repeatability_from_repeats` does for marks), better than a catalogue
     figure or the default: the floor is almost all repeatability (the corners' noise
     gives the flange 0.001 mm where the robot gives 0.01), so a robot 1.4 times less
-    repeatable than assumed reads 1.4 times its floor with nothing missing."""
+    repeatable than assumed reads 1.4 times its floor with nothing missing. ``valid_for``:
+    calibration.json's block (``dataset/valid_for.build`` of the poses), judged as
+    :func:`judge` judges the pen's: an effect the poses could not identify (a joint reached
+    from one side) is ``check`` with what to draw, the status inside it
+    ``within_valid_for``."""
     cfg = config or DEFAULT.verdict
     rep = cfg.default_repeatability_mm if repeatability_mm is None else float(repeatability_mm)
     source = "default" if repeatability_mm is None else "robot block"
@@ -495,14 +500,20 @@ def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
     hfloor = floor_test(heldout_mm, sigma_mm, rep, inflate=inflate, config=cfg)
     worst = max_error_test(list(range(n)) if ids is None else list(ids), heldout_mm, sigma_mm,
                            rep, of="held-out", inflate=inflate, config=cfg)
-    found = list(reasons) + _floor_reasons(floor, hfloor, cfg) + _max_error_reasons(
+    outside = valid_for_reasons(valid_for)
+    found = list(reasons) + outside + _floor_reasons(floor, hfloor, cfg) + _max_error_reasons(
         worst, "photo", "look at that photo's markers and the pose it was taken at")
     if 2 * n - p < cfg.min_spare_dof:
         found.append(("check", f"{n} photos leave {2 * n - p} degrees of freedom to compare "
                                "with the noise floor: add poses"))
     held = np.asarray(heldout_mm, float).reshape(-1, 2)
     r95 = R95_PER_RMS * float(np.sqrt(np.mean(np.sum(held**2, axis=1)))) if n else None
-    return _verdict(found, r95, floor, hfloor, rep, source, worst)
+    v = _verdict(found, r95, floor, hfloor, rep, source, worst)
+    if outside:   # the status inside valid_for, as the pen's verdict says it
+        inner = _verdict([r for r in found if r not in outside], r95, floor, hfloor, rep,
+                         source, worst)
+        v = replace(v, within_valid_for=inner.status)
+    return v
 
 
 def _verdict(reasons, r95, floor, hfloor, rep, source, worst) -> Verdict:

@@ -241,6 +241,7 @@ class DetectionCache:
 
     def put(self, key: str, value) -> None:
         try:
-            atomic_write_bytes(self._path(key), encode_detections(value, key))
+            atomic_write_bytes(self._path(key), encode_detections(value, key),
+                               at_once=True)   # kept from a run that is stopped
         except OSError as e:
             log.warning("cache not written (%s): the next run measures this photo again", e)

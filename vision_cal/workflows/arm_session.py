@@ -32,6 +32,7 @@ from vision_cal.dataset.marker_geometry import marker_geometry
 from vision_cal.dataset.photos import PhotoRefused, load_photo, normalise_name
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.session import read_robot_block, read_sheet_block
+from vision_cal.dataset.valid_for import build as valid_for_block
 from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.measure.workers import exit_with_parent
@@ -266,12 +267,6 @@ def calibrate_arm_camera(folder, *, progress: bool = False, jobs: int = 1) -> di
     d = fit.to_json()
     for entry, v, rms in zip([e for e in images if e["status"] == "ok"], views, fit.view_rms_px):
         entry["corner_rms_px"] = float(rms)
-    verdict = judge_camera_poses(
-        fit.flange_residual_mm, fit.flange_sigma_mm, fit.flange_heldout_mm,
-        n_params=fit.n_params_xy, repeatability_mm=rep,
-        reasons=_reasons(fit, mount, undetermined=(how == UNDETERMINED)) + lens_reason,
-        ids=[v.file for v in views], heldout_inflate=fit.flange_heldout_inflate,
-        repeat_pairs=repeat_pairs(views))
     cam = {"images": [v.file for v in views], "size_px": list(size), "K": K.tolist(),
            "dist": dist.tolist(), "T_flange_camera": d["T_flange_camera"],
            "mount": mount, "T_flange_camera_std": d["T_flange_camera_std"],
@@ -281,13 +276,28 @@ def calibrate_arm_camera(folder, *, progress: bool = False, jobs: int = 1) -> di
         cam["f_px_std"] = f_sd if np.isfinite(f_sd) else None
     if check is not None:
         cam["lens_check"] = check.to_json()
-    return {"format": "vision-cal/calibration/1", "method": "arm_camera",
-            "params": d["params"], "std": d["std"], "covariance": d["covariance"],
-            "nominal": nominal.to_json(), "effects": d["effects"], "cameras": [cam],
-            "not_identifiable": d["not_identifiable"], "pose_rms": d["pose_rms"],
-            "identifiability": d["identifiability"],
-            "poses": _pose_table(views, fit), "verdict": verdict.to_json(),
-            "images": images,
-            "notes": ["robot calibrated from the arm camera's views of the marker field (no "
-                      "pen): the base model, and the backlash of a joint reached from both "
-                      "sides; other joint effects are not looked for in this version"]}
+    doc = {"format": "vision-cal/calibration/1", "method": "arm_camera",
+           "params": d["params"], "std": d["std"], "covariance": d["covariance"],
+           "nominal": nominal.to_json(), "effects": d["effects"], "cameras": [cam],
+           "not_identifiable": d["not_identifiable"], "pose_rms": d["pose_rms"],
+           "identifiability": d["identifiability"],
+           "poses": _pose_table(views, fit), "verdict": None,
+           "images": images,
+           "notes": ["robot calibrated from the arm camera's views of the marker field (no "
+                     "pen): the base model, and the backlash of a joint reached from both "
+                     "sides; other joint effects are not looked for in this version"]}
+    return _judged(doc, fit, views, rep,
+                   _reasons(fit, mount, undetermined=(how == UNDETERMINED)) + lens_reason)
+
+
+def _judged(doc: dict, fit, views, rep, reasons) -> dict:
+    """calibration.json with ``valid_for`` (what the poses covered; the one owner:
+    ``dataset/valid_for``) and the verdict judged against it as the pen's is: a joint
+    reached from one side only leaves its backlash unidentified, never "ready"."""
+    doc["valid_for"] = valid_for_block(doc)
+    doc["verdict"] = judge_camera_poses(
+        fit.flange_residual_mm, fit.flange_sigma_mm, fit.flange_heldout_mm,
+        n_params=fit.n_params_xy, repeatability_mm=rep, reasons=reasons,
+        ids=[v.file for v in views], heldout_inflate=fit.flange_heldout_inflate,
+        repeat_pairs=repeat_pairs(views), valid_for=doc["valid_for"]).to_json()
+    return doc

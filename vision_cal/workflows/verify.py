@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.calibrate.plausible import LINK_RATIO
+from vision_cal.calibrate.plausible import LINK_RATIO, own_marks_offset
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.camera_block import check_cameras
 from vision_cal.dataset.fields import FieldReader
@@ -54,12 +54,6 @@ from vision_cal.model.rms import rms_2d
 #: the calibrations verify can check: pen marks fitted in one sheet's frame (a joint
 #: calibration's placements too: OUT/<folder>/calibration.json)
 CHECKABLE_METHODS = ("lsq", "paper", "lsq-placements")
-#: a calibration's own marks lie where its parameters put them within this (mm) plus
-#: ``SELF_RMS_FACTOR`` x its residual RMS: a file in metres or radians is hundreds or tens
-#: of mm off (L1 0.344 puts every mark near the base; z2 in radians turns link 2 by 8 deg,
-#: 36 mm at 260 mm), a drift the model does not hold a fraction of a mm
-SELF_TOLERANCE_MM = 1.0
-SELF_RMS_FACTOR = 10.0
 MOVED_SIGMA = 4.0          # a parameter moved when its change exceeds this many std
 TOLERANCE_FACTOR = 2.0     # still good: RMS within this factor of the promised error
 PLACEMENT = (2, 4, 5)      # z1, base x, base y: where the sheet lies (always refitted)
@@ -250,38 +244,12 @@ def check_verifiable(model, doc: dict, path, session) -> None:
 
 def _check_own_marks(model, doc: dict, r: FieldReader) -> None:
     """The calibration's own marks lie where its parameters put them (its units are the
-    marks': mm and degrees), within ``SELF_TOLERANCE_MM`` + ``SELF_RMS_FACTOR`` x its
-    residual RMS."""
-    marks = doc.get("marks")
-    if not isinstance(marks, dict):
-        return
-    q, s, xy = [], [], []
-    for m in marks.values():
-        if not (isinstance(m, dict) and m.get("status", "ok") == "ok" and m.get("role")
-                in ("calibration", "validation", None)):
-            continue
-        try:
-            qq = [float(x) for x in m["joints_deg"][:2]] + [float(m.get("j4_deg") or 0.0)]
-            ss = [float(x) for x in (m.get("approach") or [1, 1])[:2]] + [1.0]
-            pt = [float(x) for x in m["measured_mm"][:2]]
-        except (KeyError, TypeError, ValueError, IndexError):
-            continue
-        if len(qq) == 3 and len(ss) == 3 and len(pt) == 2:
-            q.append(qq), s.append(ss), xy.append(pt)
-    if len(q) < 3:
-        return
-    q, s, xy = np.array(q), np.array(s), np.array(xy)
-    off = rms_2d(xy - model.predict(q if model.tool is not None else q[:, :2],
-                                    s if model.tool is not None else s[:, :2]))
-    res = (doc.get("residual_rms_mm") or {}).get("final_model")
-    res = float(res) if isinstance(res, (int, float)) else 0.0
-    bound = SELF_TOLERANCE_MM + SELF_RMS_FACTOR * res
-    if not off <= bound:
-        jz = model.params.z1_deg, model.params.z2_deg
-        hint = ("joint_zero_deg in radians?" if max(map(abs, jz)) <= 2 * np.pi
-                and max(map(abs, jz)) > 0 else "params not in mm and degrees?")
-        r.fail("params", f"its own marks lie {off:.3g} mm RMS from where its parameters put "
-                         f"them (it fitted {res:.3g} mm): {hint} verify reads mm and degrees")
+    marks': mm and degrees; the owner: ``calibrate/plausible.own_marks_offset``)."""
+    off = own_marks_offset(model, doc)
+    if off is not None:
+        r.fail("params", f"its own marks lie {off[0]:.3g} mm RMS from where its parameters "
+                         f"put them (it fitted {off[1]:.3g} mm): {off[2]} verify reads mm "
+                         "and degrees")
 
 
 def verify_folder(cal_path, folder, *, out_dir, jobs: int | None = None,
