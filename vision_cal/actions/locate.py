@@ -21,7 +21,7 @@ from vision_cal.dataset.valid_for import check as check_valid_for
 from vision_cal.dataset.valid_for import enforce as enforce_valid_for
 from vision_cal.dataset.valid_for import of as valid_for_of
 from vision_cal.errors import VisionCalError
-from vision_cal.motion import JOINT4_LIMITS_DEG, JOINT_LIMITS_DEG
+from vision_cal.model.motion import JOINT4_LIMITS_DEG, JOINT_LIMITS_DEG
 from vision_cal.plan.compensate import plan_targets
 
 

@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from vision_cal.errors import VisionCalError
-from vision_cal.rms import rms_2d
+from vision_cal.model.rms import rms_2d
 
 LINK_RATIO = (0.7, 1.4)
 MAX_SHEET_SCALE = 0.05
