@@ -4,6 +4,7 @@ informative plan)."""
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 from dataclasses import dataclass
 
 from vision_cal.calibrate.plausible import check_links_against
@@ -89,7 +90,8 @@ def design(req: DesignRequest) -> int:
                                 file=given, robot_file=req.robot)
     if req.pilot:
         require_ready_pilot(read_json(req.pilot), req.pilot)
-    survey = find_survey(req.survey or req.sheet)   # #28: measured against it, found there
+    # #28: measured against it; found beside the sheet (the sheet file is never the survey)
+    survey = find_survey(req.survey) if req.survey else find_survey(Path(req.sheet).parent)
     if req.survey and survey is None:
         raise VisionCalError("not found", file=str(req.survey))
     if survey is not None:   # checked against the sheet before anything is written
