@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import os
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
@@ -33,7 +33,7 @@ from vision_cal.dataset.photos import PhotoRefused, load_photo, normalise_name
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.session import read_robot_block, read_sheet_block
 from vision_cal.diagnose.verdict import judge_camera_poses
-from vision_cal.errors import CalibrationError, VisionCalError
+from vision_cal.errors import CalibrationError, Failure, VisionCalError
 from vision_cal.measure.workers import exit_with_parent
 from vision_cal.progress import bar
 from vision_cal.kinematics import ScaraParams
@@ -161,21 +161,40 @@ def in_lens(view: ArmView, K, dist) -> ArmView:
     return replace(view, corners_px=np.asarray(c, float).reshape(-1, 2))
 
 
+@dataclass(frozen=True)
+class SkippedPhoto(Failure):
+    """A photo :func:`measure_view` could not use, and why (falsy; reading an
+    :class:`ArmView`'s attribute from it raises with the reason)."""
+
+    file: str
+    reason: str
+
+    def to_json(self) -> dict:
+        """Its calibration.json ``images[]`` entry."""
+        return {"file": self.file, "status": "skipped", "reason": self.reason}
+
+
+def _skipped(image: str, reason: str) -> tuple[SkippedPhoto, dict]:
+    s = SkippedPhoto(image, reason)
+    return s, s.to_json()
+
+
 def measure_view(folder, sheet, size, image: str, q, j4, approach=(1.0, 1.0), lens=None
-                 ) -> tuple[ArmView | None, dict]:
-    """One photo's corners (sub-pixel) as an :class:`ArmView`, and its ``images[]`` entry
-    (``size_px`` of the photo); ``size``: the declared camera's, or None; ``lens``: its
-    ``(K, dist)`` when declared (the corners are then found in its ideal pixels)."""
+                 ) -> tuple[ArmView | SkippedPhoto, dict]:
+    """One photo's corners (sub-pixel) as an :class:`ArmView` (or a falsy
+    :class:`SkippedPhoto` with the reason), and its ``images[]`` entry (``size_px`` of the
+    photo); ``size``: the declared camera's, or None; ``lens``: its ``(K, dist)`` when
+    declared (the corners are then found in its ideal pixels)."""
     try:
         bgr, _, _ = load_photo(folder, image, size)
     except PhotoRefused as e:
-        return None, {"file": image, "status": "skipped", "reason": e.reason}
+        return _skipped(image, e.reason)
     if bgr is None:
-        return None, {"file": image, "status": "skipped", "reason": "not a readable image"}
+        return _skipped(image, "not a readable image")
     gray = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
     det = find_sheet_markers(gray, sheet)
     if det.reason:
-        return None, {"file": image, "status": "skipped", "reason": det.reason}
+        return _skipped(image, det.reason)
     edges = edge_points(gray, det.corners_px, geometry=marker_geometry(sheet))
     K, dist = lens if lens is not None else (None, None)
     corners = corners_in_lens(edges, det.corners_px, K, dist)
@@ -215,7 +234,7 @@ def calibrate_arm_camera(folder, *, progress: bool = False, jobs: int = 1) -> di
         for v, entry in results:
             images.append(entry)
             pbar.update()
-            if v is not None:
+            if v:   # a SkippedPhoto is falsy: its entry says why
                 views.append(v)
     finally:
         if pool is not None:
