@@ -26,6 +26,7 @@ from vision_cal.calibrate.plausible import RADIAN_RANGE, radians_given
 from vision_cal.camera.arm import (MAX_POSES, MIN_POSES, ArmView, check_declared_lens,
                                    estimate_lens, fit_arm_camera)
 from vision_cal.camera.fixed import UNDETERMINED
+from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.camera_block import read_lens
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.marker_geometry import marker_geometry
@@ -300,13 +301,12 @@ def calibrate_arm_camera(folder, *, progress: bool = False, jobs: int = 1) -> di
         cam["f_px_std"] = f_sd if np.isfinite(f_sd) else None
     if check is not None:
         cam["lens_check"] = check.to_json()
-    return {"format": "vision-cal/calibration/1", "method": "arm_camera",
-            "params": d["params"], "std": d["std"], "covariance": d["covariance"],
-            "nominal": nominal.to_json(), "effects": d["effects"], "cameras": [cam],
-            "not_identifiable": d["not_identifiable"], "pose_rms": d["pose_rms"],
-            "identifiability": d["identifiability"],
-            "poses": _pose_table(views, fit), "verdict": verdict.to_json(),
-            "images": images,
-            "notes": ["robot calibrated from the arm camera's views of the marker field (no "
-                      "pen): the base model, and the backlash of a joint reached from both "
-                      "sides; other joint effects are not looked for in this version"]}
+    return CalibrationResult(
+        method="arm_camera", params=d["params"], std=d["std"], covariance=d["covariance"],
+        nominal=nominal.to_json(), effects=tuple(d["effects"]), cameras=[cam],
+        identifiability=d["identifiability"], verdict=verdict.to_json(), images=tuple(images),
+        notes=("robot calibrated from the arm camera's views of the marker field (no pen): "
+               "the base model, and the backlash of a joint reached from both sides; other "
+               "joint effects are not looked for in this version",),
+        extra={"not_identifiable": d["not_identifiable"], "pose_rms": d["pose_rms"],
+               "poses": _pose_table(views, fit)}).to_json()
