@@ -21,3 +21,32 @@ class VisionCalError(Exception):
 
 class CalibrationError(VisionCalError):
     """The data cannot calibrate the model (too few marks, unidentifiable plan)."""
+
+
+class FailureUsed(AttributeError):
+    """A :class:`Failure` was used as if it were the result it stands for (an attribute of
+    the result read from it): a programming error, named with the failure's reason and the
+    check that was missed. An ``AttributeError``, so ``getattr(x, name, default)`` and
+    ``hasattr`` keep working."""
+
+
+class Failure:
+    """A result that could not be made, and why: falsy, so a caller branches with
+    ``if not result:``; it carries ``reason`` (one line). Reading any other attribute from
+    it, as if it were the success, raises :class:`FailureUsed` with the reason and a hint
+    (scikit-image's ``FailedEstimation`` does the same). Subclasses are frozen dataclasses
+    with ``reason`` as a field (``vision_cal.calibrate.lsq.FailedFit``,
+    ``vision_cal.measure.associate.NoMatch``, ``vision_cal.workflows.arm_session.SkippedPhoto``).
+    """
+
+    __slots__ = ()
+
+    def __bool__(self) -> bool:
+        return False
+
+    def __getattr__(self, name: str):
+        # only called when the normal lookup fails: an attribute of the success (copy's
+        # and pickle's protocol lookups get the AttributeError they expect)
+        reason = object.__getattribute__(self, "reason")
+        raise FailureUsed(f"{type(self).__name__} has no {name!r}: the result could not be "
+                          f"made ({reason}); check `if not result:` before using it")

@@ -14,6 +14,7 @@ import pytest
 from vision_cal.camera.arm import camera_for
 from vision_cal.camera.fixed import UNDETERMINED, locate
 from vision_cal.commands.main import main
+from vision_cal.dataset.calibration_result import METHODS_EXTRA, CalibrationResult
 from vision_cal.dataset.io import read_json
 from vision_cal.render.arm_camera import render_arm_dataset
 
@@ -79,6 +80,9 @@ def test_a_missing_photo_is_skipped_and_the_rest_used(arm):
     bad = [im for im in doc["images"] if im["status"] != "ok"]
     assert [im["file"] for im in bad] == ["missing.png"] and bad[0]["reason"]
     assert len(doc["cameras"][0]["images"]) == 12
+    # written through CalibrationResult: the arm camera's own blocks in its documented extra
+    r = CalibrationResult.from_json(doc)
+    assert r.to_json() == doc and set(r.extra) <= set(METHODS_EXTRA["arm_camera"])
 
 
 def test_bad_pose_field_one_line_exit_2(arm, tmp_path, capsys):

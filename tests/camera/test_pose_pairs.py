@@ -19,6 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from vision_cal.camera.pose_pairs import (LABELS, PairsFailed, PosePair, closed_form,
                                           fit_pose_pairs)
+from vision_cal.dataset.calibration_result import METHODS_EXTRA, CalibrationResult
 from vision_cal.dataset.poses import read_poses
 from vision_cal.errors import VisionCalError
 from vision_cal.render.pose_pairs import simulate_pairs
@@ -206,6 +207,8 @@ def test_handeye_poses_writes_the_calibration_with_its_verdict(tmp_path, capsys)
     assert main(["handeye", "--poses", str(tmp_path / "p4.json"), "--out",
                  str(tmp_path / "o"), "--z-mm", "0"]) == 0
     doc = json.loads((tmp_path / "o" / "calibration.json").read_text())
+    r = CalibrationResult.from_json(doc)   # written through it: the method's blocks in extra
+    assert r.to_json() == doc and set(r.extra) <= set(METHODS_EXTRA["pose_pairs"])
     cam = doc["cameras"][0]
     assert cam["mount"] == "arm" and len(cam["T_flange_camera"]) == 4
     assert doc["outliers"] == ["p3"] and doc["pairs"][3]["status"] == "outlier"

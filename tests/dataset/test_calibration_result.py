@@ -1,10 +1,12 @@
 """calibration.json as one typed value: what is written reads back the same."""
 
 import json
+from pathlib import Path
 
 import pytest
 
-from vision_cal.dataset.calibration_result import CalibrationResult, ModelRms
+from vision_cal.dataset.calibration_result import (FORMAT, METHODS_EXTRA, CalibrationResult,
+                                                   ModelRms)
 from vision_cal.workflows.pipeline import calibrate_dataset
 
 
@@ -45,3 +47,27 @@ def test_every_field_is_written_and_read():
         d[name] = [name]
     r = CalibrationResult.from_json(d)
     assert r.extra == {} and r.to_json() == d
+
+
+def test_a_method_writes_only_what_it_has_and_it_reads_back():
+    """Every field is optional (a placement's file, the arm camera's, the pose pairs'): a
+    ``residual_rms_mm`` with only ``final_model`` stays so, the method's own blocks are in
+    ``extra`` (METHODS_EXTRA) and the file round-trips."""
+    d = {"format": FORMAT, "method": "lsq-placements", "params": {"L1_mm": 1.0},
+         "residual_rms_mm": {"final_model": 0.02}, "placement": {"folder": "a"}}
+    r = CalibrationResult.from_json(d)
+    assert r.residual_rms_mm.final_model == 0.02 and r.validation_rms_mm is None
+    assert r.extra == {"placement": {"folder": "a"}}
+    assert set(r.extra) <= set(METHODS_EXTRA["lsq-placements"])
+    assert r.to_json() == d
+    assert CalibrationResult(method="pose_pairs").to_json() == {"format": FORMAT,
+                                                               "method": "pose_pairs"}
+
+
+def test_the_format_string_is_spelled_once():
+    """``vision-cal/calibration/1`` is written out in dataset/calibration_result.py alone:
+    every writer takes it from CalibrationResult, every reader checks against FORMAT."""
+    root = Path(__file__).resolve().parents[2] / "vision_cal"
+    spelled = [str(p.relative_to(root)) for p in root.rglob("*.py")
+               if FORMAT in p.read_text(encoding="utf-8")]
+    assert spelled == ["dataset/calibration_result.py"]

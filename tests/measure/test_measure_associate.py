@@ -7,6 +7,7 @@ import pytest
 
 from tests.measure import synth_measure as sm
 from vision_cal.dataset.session import load_session
+from vision_cal.errors import FailureUsed
 from vision_cal.model.kinematics import ScaraParams, forward
 from vision_cal.measure.associate import DotGroup, associate, combine, match_to_plan
 from vision_cal.measure.batch import measure_folder
@@ -24,22 +25,26 @@ def test_single_photo_model_matching_tolerates_a_bad_nominal():
     q, xy = _plan(20, rng)
     dots = xy + rng.normal(0, 0.05, xy.shape)
     perm = rng.permutation(len(dots))
-    pairs, params, rms, why = match_to_plan(q, dots[perm], NOMINAL)
-    assert why is None
+    m = match_to_plan(q, dots[perm], NOMINAL)
+    assert m, m
+    pairs, params = m.pairs, m.params
     assert len(pairs) == len(q)
     assert all(perm[j] == i for i, j in pairs)
     assert abs(params.z1_deg - 3.0) < 0.1 and abs(params.base_x_mm + 250.0) < 1.0
     # a stray dot (not a mark) is left out, the rest still identified
     extra = np.vstack([dots[perm], dots[perm][0] + [40.0, 25.0]])
-    pairs2, *_ , why2 = match_to_plan(q, extra, NOMINAL)
-    assert why2 is None and sorted(pairs2) == sorted(pairs)
+    m2 = match_to_plan(q, extra, NOMINAL)
+    assert m2 and sorted(m2.pairs) == sorted(pairs)
 
 
 def test_ambiguous_cases_are_refused_with_a_reason():
     rng = np.random.default_rng(5)
     q, xy = _plan(3, rng)
-    pairs, _, _, why = match_to_plan(q, xy[::-1], NOMINAL)
-    assert pairs is None and "3 marks" in why
+    m = match_to_plan(q, xy[::-1], NOMINAL)
+    assert not m and "3 marks" in m.reason
+    # the refusal used as a match raises, naming the reason and the missed check
+    with pytest.raises(FailureUsed, match="3 marks.*if not result"):
+        m.pairs
     # marks along two arcs of joint 1 at equal steps, the first of each arc not seen: a
     # 4 deg slip of the joint-1 zero explains the dots (shifted by one mark) as well as
     # the truth does
@@ -48,8 +53,8 @@ def test_ambiguous_cases_are_refused_with_a_reason():
                    np.column_stack([q1, np.full(6, -125.0)])])
     xy = forward(sm.TRUTH, q)
     seen = np.r_[1:6, 7:12]
-    pairs, _, _, why = match_to_plan(q, xy[seen], NOMINAL)
-    assert pairs is None and "ambiguous" in why
+    m = match_to_plan(q, xy[seen], NOMINAL)
+    assert not m and "ambiguous" in m.reason
 
 
 def test_two_candidate_dots_for_a_mark_are_refused():

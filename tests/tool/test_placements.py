@@ -9,6 +9,7 @@ import numpy as np
 from vision_cal.calibrate.placements import Placement, fit_placements
 from vision_cal.commands.main import main
 from vision_cal.dataset.calibration import load_calibration
+from vision_cal.dataset.calibration_result import METHODS_EXTRA, CalibrationResult
 from vision_cal.render.truth_model import TrueRobot
 
 CYCLIC = {"name": "joint_cyclic", "joint": 1, "harmonic": 1, "deg": 0.003, "phase_deg": 70.0}
@@ -56,6 +57,11 @@ def test_three_placements_find_joint1_once_per_turn(tmp_path):
     # each placement's own calibration reads back for planning
     model, _ = load_calibration(out / "place1" / "calibration.json")
     assert any(x.name == "joint_cyclic" for x in model.effects)
+    # both files are CalibrationResults: the method's own blocks in its documented extra
+    for path in (out / "calibration.json", out / "place1" / "calibration.json"):
+        written = json.loads(path.read_text())
+        r = CalibrationResult.from_json(written)
+        assert r.to_json() == written and set(r.extra) <= set(METHODS_EXTRA["lsq-placements"])
     # one placement alone does not name the once-per-turn error (same data, same rule)
     for _, p in places:
         alone, _ = fit_placements([p])

@@ -13,6 +13,7 @@ import numpy as np
 
 from vision_cal.camera.pose_pairs import LABELS, PairsFit, fit_pose_pairs
 from vision_cal.config import DEFAULT, EstimatorConfig
+from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.io import atomic_write_json, distinct_outputs, output_dir
 from vision_cal.dataset.poses import read_poses
 from vision_cal.diagnose.verdict import Verdict, judge_camera_poses
@@ -85,28 +86,26 @@ def pairs_document(fit: PairsFit, *, source: str, units: str,
            "target_z_mm": fit.z_mm, "target_z_from": z_from}
     inl_mm = fit.residual_mm[inl]
     inl_deg = fit.residual_deg[inl]
-    return {
-        "format": "vision-cal/calibration/1", "method": "pose_pairs",
-        "poses_file": source, "units_read": units, "mount": fit.mount,
-        "cameras": [cam],
-        "not_identifiable": list(fit.not_identifiable),
-        "pairs": table, "outliers": list(fit.outliers),
-        "pair_rms": {"residual_mm": float(np.sqrt(np.mean(np.sum(inl_mm**2, axis=1)))),
-                     "residual_deg": float(np.sqrt(np.mean(np.sum(inl_deg**2, axis=1))))},
-        "pair_scatter": {"sigma_mm": fit.sigma_mm, "sigma_deg": fit.sigma_deg,
-                         "labels": ["x_mm", "y_mm", "z_mm", "rot_x_deg", "rot_y_deg",
-                                    "rot_z_deg"],
-                         "covariance_camera": fit.noise_cov.tolist()},
-        "covariance": {"params": list(LABELS), "matrix": fit.cov.tolist()},
-        "initial_guess": {"method": "4-DOF closed form (SCARA: rotations about z)",
-                          xname: fit.start_X.tolist(), yname: fit.start_Y.tolist()},
-        "verdict": verdict.to_json(),
-        "config": config.to_json(),
-        "notes": [f"{xname} from {len(ids)} pose pairs ({len(fit.outliers)} left out); the "
-                  "floor is the pairs' own scatter (their 6x6 covariance in the camera "
-                  "frame, the robot's repeatability included): the verdict tests the "
-                  "held-out pairs and the largest error against it, not against a stated "
-                  "noise"]}
+    return CalibrationResult(
+        method="pose_pairs", cameras=[cam], outliers=tuple(fit.outliers),
+        covariance={"params": list(LABELS), "matrix": fit.cov.tolist()},
+        initial_guess={"method": "4-DOF closed form (SCARA: rotations about z)",
+                       xname: fit.start_X.tolist(), yname: fit.start_Y.tolist()},
+        verdict=verdict.to_json(), config=config.to_json(),
+        notes=(f"{xname} from {len(ids)} pose pairs ({len(fit.outliers)} left out); the "
+               "floor is the pairs' own scatter (their 6x6 covariance in the camera "
+               "frame, the robot's repeatability included): the verdict tests the "
+               "held-out pairs and the largest error against it, not against a stated "
+               "noise",),
+        extra={
+            "poses_file": source, "units_read": units, "mount": fit.mount,
+            "not_identifiable": list(fit.not_identifiable), "pairs": table,
+            "pair_rms": {"residual_mm": float(np.sqrt(np.mean(np.sum(inl_mm**2, axis=1)))),
+                         "residual_deg": float(np.sqrt(np.mean(np.sum(inl_deg**2, axis=1))))},
+            "pair_scatter": {"sigma_mm": fit.sigma_mm, "sigma_deg": fit.sigma_deg,
+                             "labels": ["x_mm", "y_mm", "z_mm", "rot_x_deg", "rot_y_deg",
+                                        "rot_z_deg"],
+                             "covariance_camera": fit.noise_cov.tolist()}}).to_json()
 
 
 def handeye_pairs(req: HandeyeRequest) -> int:

@@ -33,7 +33,7 @@ from scipy.optimize import least_squares
 
 from vision_cal.model.linear import explain_degeneracy, linear_init
 from vision_cal.config import DEFAULT, EstimatorConfig
-from vision_cal.errors import CalibrationError
+from vision_cal.errors import CalibrationError, Failure
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import RobotModel, Tool
 from vision_cal.model.rms import rms_2d
@@ -41,13 +41,11 @@ from vision_cal.model.rms import rms_2d
 
 
 @dataclass(frozen=True)
-class FailedFit:
-    """A fit that could not be made, and why. Falsy, so ``if not fit`` branches on it."""
+class FailedFit(Failure):
+    """A fit that could not be made, and why. Falsy, so ``if not fit`` branches on it;
+    reading a fit's attribute from it raises with the reason (:class:`~vision_cal.errors.Failure`)."""
 
     reason: str
-
-    def __bool__(self) -> bool:
-        return False
 
     def or_raise(self):
         """End the run: :class:`CalibrationError` with the reason."""

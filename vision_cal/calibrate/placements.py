@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import hashlib
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -33,8 +33,9 @@ from vision_cal.model import joint_terms as jt
 from vision_cal.calibrate.lsq import Fit
 from vision_cal.calibrate.tool import joint4_values
 from vision_cal.config import DEFAULT, EstimatorConfig
+from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.covariance import covariance_json
-from vision_cal.dataset.io import atomic_write_json, written_together
+from vision_cal.dataset.io import written_together
 from vision_cal.dataset.nominal import nominal_blocks
 from vision_cal.dataset.out_folder import output_names
 from vision_cal.dataset.photos import list_photos
@@ -518,47 +519,52 @@ def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
         tool = Tool()
     fit, log = fit_placements(places, tool=tool, config=config)
     joint_v, place_v, agree = _verdicts(places, sessions, fit, log, config)
-    doc = {"format": "vision-cal/calibration/1", "method": "lsq-placements",
-           **robot_frame_json(fit, names),
-           "diagnosis": {"selection": log,
-                         "alpha": config.selection.alpha},
-           "config": config.to_json(),
-           "covariance": covariance_json(list(fit.labels), fit.cov),
-           "notes": ["one robot from several placements: params in the robot frame R "
-                     "(docs/format.md); each placement's sheet-frame calibration in its "
-                     "sub-folder"]}
+    rf = robot_frame_json(fit, names)
+    effects = list(rf["effects"])
     seen = unexplained_seen(log)
     if seen:   # significant structure that a library effect would only stand in for
-        doc["effects"].append({"name": "unexplained", "seen": seen})
-    doc["verdict"] = joint_v.to_json()
-    for pl, v, a in zip(doc["placements"], place_v, agree):
+        effects.append({"name": "unexplained", "seen": seen})
+    for pl, v, a in zip(rf["placements"], place_v, agree):
         pl["verdict"] = v.to_json()
         if a is not None:
             pl["agreement"] = a.to_json()
+    joint = CalibrationResult(
+        method="lsq-placements", params=rf["params"], std=rf["std"], effects=tuple(effects),
+        residual_rms_mm=rf["residual_rms_mm"],
+        diagnosis={"selection": log, "alpha": config.selection.alpha},
+        config=config.to_json(),
+        covariance=covariance_json(list(fit.labels), fit.cov),
+        notes=("one robot from several placements: params in the robot frame R "
+               "(docs/format.md); each placement's sheet-frame calibration in its "
+               "sub-folder",),
+        verdict=joint_v.to_json(),
+        extra={"frame": rf["frame"], "placements": rf["placements"]})
     subs = []
     for k, ((session, cal), name) in enumerate(zip(sessions, names)):
         m = fit.model_on(k)
         params = m.params.to_json()
         if m.tool is not None:
             params["tool_mm"] = list(m.tool.tool_mm)
-        sub = {"format": "vision-cal/calibration/1", "method": "lsq-placements",
-               "params": params,
-               "effects": [e.to_json(fit.effect_std(i)) for i, e in enumerate(fit.effects)
-                           if not isinstance(e, Tool)],
-               "covariance": covariance_json(m.param_labels(), placement_cov(fit, k)),
-               # the robot file the controller runs (dataset/nominal), not the pilot's model
-               **nominal_blocks(session.raw, session.robot.params.to_json()),
-               "home_deg": [float(v) for v in session.robot.home_deg],
-               "placement": doc["placements"][k],
-               "residual_rms_mm": {"final_model": doc["placements"][k]["residual_rms_mm"]},
-               "verdict": place_v[k].to_json(),
-               "marks": {i: _mark_json(places[k], j, xy, r)
-                         for j, (i, xy, r) in enumerate(zip(cal.ids, cal.xy_mm,
-                                                            fit.residuals_mm[k]))}}
-        sub["valid_for"] = valid_for_block(sub)   # what plan checks its targets against
+        placement = rf["placements"][k]
+        sub = CalibrationResult(
+            method="lsq-placements", params=params,
+            effects=tuple(e.to_json(fit.effect_std(i)) for i, e in enumerate(fit.effects)
+                          if not isinstance(e, Tool)),
+            covariance=covariance_json(m.param_labels(), placement_cov(fit, k)),
+            # the robot file the controller runs (dataset/nominal), not the pilot's model
+            **nominal_blocks(session.raw, session.robot.params.to_json()),
+            home_deg=tuple(float(v) for v in session.robot.home_deg),
+            residual_rms_mm={"final_model": placement["residual_rms_mm"]},
+            verdict=place_v[k].to_json(),
+            marks={i: _mark_json(places[k], j, xy, r)
+                   for j, (i, xy, r) in enumerate(zip(cal.ids, cal.xy_mm,
+                                                      fit.residuals_mm[k]))},
+            extra={"placement": placement})
+        # what plan checks its targets against
+        sub = replace(sub, valid_for=valid_for_block(sub.to_json()))
         subs.append((out_dir / name / "calibration.json", sub))
     with written_together():   # every placement's file and the top one, or none
         for path, sub in subs:
-            atomic_write_json(path, sub)
-        atomic_write_json(out_dir / "calibration.json", doc)
-    return doc
+            sub.write(path)
+        joint.write(out_dir / "calibration.json")
+    return joint.to_json()

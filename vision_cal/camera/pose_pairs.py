@@ -56,6 +56,7 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from vision_cal.config import DEFAULT, HandeyeConfig
+from vision_cal.errors import Failure
 
 MOUNTS = ("arm", "fixed")
 #: the 11 fitted parameters (a small rotation about each frame's own parent axes, then the
@@ -78,13 +79,11 @@ class PosePair:
 
 
 @dataclass(frozen=True)
-class PairsFailed:
-    """A hand-eye that cannot be made (falsy), with the reason."""
+class PairsFailed(Failure):
+    """A hand-eye that cannot be made (falsy), with the reason; reading a
+    :class:`PairsFit`'s attribute from it raises with the reason."""
 
     reason: str
-
-    def __bool__(self) -> bool:
-        return False
 
 
 @dataclass(frozen=True)

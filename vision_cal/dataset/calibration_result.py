@@ -7,8 +7,13 @@ planner's strict reader of the model is :func:`vision_cal.dataset.calibration.lo
 
 The top level is typed field by field; the blocks the contract describes as free JSON
 (``params``, ``effects`` entries, ``diagnosis``, ``marks`` entries, ...) stay JSON values,
-as written. Keys this version does not know are kept in ``extra`` and written back, so a
-file round-trips unchanged: ``CalibrationResult.from_json(d).to_json() == d``.
+as written. A method's own blocks (:data:`METHODS_EXTRA`) and keys this version does not
+know are kept in ``extra`` and written back, so a file round-trips unchanged:
+``CalibrationResult.from_json(d).to_json() == d`` (same keys and values). Every field but
+``format`` is optional: a placement calibration, the arm camera's and the pose pairs' write
+what they have. Every writer of calibration.json builds one (the pipeline,
+``calibrate/placements``, ``camera/arm_session``, ``actions/handeye``); :data:`FORMAT` is
+the one spelling of the format string.
 """
 
 from __future__ import annotations
@@ -19,7 +24,20 @@ from typing import Any
 
 from vision_cal.dataset.io import atomic_write_json, read_json
 
-FORMAT = "vision-cal/calibration/1"
+FORMAT = "vision-cal/calibration/1"   # the one spelling of calibration.json's ``format``
+
+# The blocks each method writes beyond the typed fields, kept in ``extra`` (docs/format.md,
+# "Method-specific blocks"): the lsq / paper pipeline writes ``print``; the others are the
+# placement calibration's (robot frame, and each placement's sub-folder file), the arm
+# camera's and the pose pairs' (vision-cal handeye).
+METHODS_EXTRA = {
+    "lsq": ("print",),
+    "paper": ("print",),
+    "lsq-placements": ("frame", "placements", "placement"),
+    "arm_camera": ("not_identifiable", "pose_rms", "poses"),
+    "pose_pairs": ("poses_file", "units_read", "mount", "not_identifiable", "pairs",
+                   "pair_rms", "pair_scatter"),
+}
 
 
 @dataclass(frozen=True)
@@ -30,16 +48,20 @@ class ModelRms:
     base_model: float | None
     final_model: float | None
     kind: str | None = None
+    # False: the block has no ``base_model`` key (a placement calibration's: one model)
+    base_written: bool = True
 
     def to_json(self) -> dict:
-        d = {"base_model": self.base_model, "final_model": self.final_model}
+        d = {"base_model": self.base_model} if self.base_written else {}
+        d["final_model"] = self.final_model
         if self.kind is not None:
             d["kind"] = self.kind
         return d
 
     @classmethod
     def from_json(cls, d: dict) -> "ModelRms":
-        return cls(d.get("base_model"), d.get("final_model"), d.get("kind"))
+        return cls(d.get("base_model"), d.get("final_model"), d.get("kind"),
+                   base_written="base_model" in d)
 
 
 @dataclass(frozen=True)
@@ -47,17 +69,17 @@ class CalibrationResult:
     """Everything calibration.json holds, in the order it is written. Optional blocks are
     None when absent (not written)."""
 
-    method: str                               # "lsq" or "paper"
-    config: dict                              # vision_cal.config.EstimatorConfig.to_json()
-    params: dict                              # the calibrated base parameters
-    std: dict                                 # their one-sigma std
-    effects: tuple[dict, ...]                 # the contract's effect entries
-    residual_rms_mm: ModelRms
-    validation_rms_mm: ModelRms
-    nominal: dict                             # the model the OLP had (robot file)
-    home_deg: tuple[float, float]             # where plans start
-    marks: dict                               # id -> mark entry
-    images: tuple[dict, ...]                  # per photo: status, reason, counts
+    method: str | None = None                 # "lsq", "paper", or a METHODS_EXTRA key
+    config: dict | None = None                # vision_cal.config.EstimatorConfig.to_json()
+    params: dict | None = None                # the calibrated base parameters
+    std: dict | None = None                   # their one-sigma std
+    effects: tuple[dict, ...] | None = None   # the contract's effect entries
+    residual_rms_mm: ModelRms | None = None
+    validation_rms_mm: ModelRms | None = None
+    nominal: dict | None = None               # the model the OLP had (robot file)
+    home_deg: tuple[float, float] | None = None   # where plans start
+    marks: dict | None = None                 # id -> mark entry
+    images: tuple[dict, ...] | None = None    # per photo: status, reason, counts
     verdict: dict | None = None               # diagnose/verdict.judge's block
     base_model_params: dict | None = None
     base_model_std: dict | None = None
@@ -82,7 +104,9 @@ class CalibrationResult:
     dataset: str | None = None                # the input folder (report_data, for the report)
     starting_model: dict | None = None        # the model the plan was placed with (a pilot's)
     valid_for: dict | None = None             # what it was calibrated for (dataset/valid_for)
-    extra: dict = field(default_factory=dict)  # keys this version does not know
+    # the method-specific blocks (METHODS_EXTRA, docs/format.md) and the keys this
+    # version does not know, written after the typed fields in their own order
+    extra: dict = field(default_factory=dict)
     format: str = FORMAT
 
     # the written order: format first, then the fields in the order the file has had

@@ -26,7 +26,7 @@ from scipy.optimize import linear_sum_assignment
 
 from vision_cal.model.linear import explain_degeneracy, linear_init
 from vision_cal.config import DEFAULT
-from vision_cal.errors import CalibrationError
+from vision_cal.errors import CalibrationError, Failure
 from vision_cal.model.kinematics import ScaraParams, forward
 from vision_cal.model.rms import rms as rms_of
 from vision_cal.model.rms import rms_2d
@@ -45,6 +45,24 @@ class DotGroup:
     @property
     def mean_mm(self) -> np.ndarray:
         return self.xy_mm.mean(axis=0)
+
+
+@dataclass(frozen=True)
+class Match:
+    """:func:`match_to_plan`'s assignment: ``pairs`` (mark index, dot index), the base
+    parameters it fits (``params``) and the residual RMS (mm) under them."""
+
+    pairs: tuple[tuple[int, int], ...]
+    params: ScaraParams
+    rms_mm: float
+
+
+@dataclass(frozen=True)
+class NoMatch(Failure):
+    """No assignment of the dots to the plan could be told, and why (falsy; reading a
+    :class:`Match`'s attribute from it raises with the reason)."""
+
+    reason: str
 
 
 def group_dots(per_image, *, tol_mm: float) -> list[DotGroup]:
@@ -199,12 +217,12 @@ def clean_anchors(q_deg, dots_mm, anchors, *, tol_mm: float = 3.0) -> list:
 
 def match_to_plan(q_deg, dots_mm, nominal: ScaraParams, *, allowed=None, anchors=(),
                   max_zero_deg: float | None = None, max_base_mm: float | None = None,
-                  zero_step_deg: float = 0.5, bin_mm: float = 5.0):
+                  zero_step_deg: float = 0.5, bin_mm: float = 5.0) -> Match | NoMatch:
     """Assign dots (M, 2) to planned marks at ``q_deg`` (N, 2) through the robot model.
 
     ``allowed`` (N, M) bool: pairs permitted by the photo series; ``anchors``: (mark, dot)
-    pairs already known. Returns ``(pairs, params, rms_mm, reason)``: ``pairs`` a tuple of
-    (mark index, dot index) or None with ``reason`` saying why it refuses.
+    pairs already known. Returns a :class:`Match` (``pairs`` a tuple of (mark index, dot
+    index), ``params``, ``rms_mm``) or a falsy :class:`NoMatch` with the ``reason`` it refuses.
     ``max_zero_deg`` / ``max_base_mm`` None: config ``association`` of ``DEFAULT``.
     """
     ac = DEFAULT.association
@@ -217,7 +235,7 @@ def match_to_plan(q_deg, dots_mm, nominal: ScaraParams, *, allowed=None, anchors
     anchors = tuple((int(i), int(j)) for i, j in anchors)
     kw = dict(nominal=nominal, max_zero_deg=max_zero_deg, max_base_mm=max_base_mm)
     if M == 0:
-        return None, None, float("nan"), "no dots to match"
+        return NoMatch("no dots to match")
     cands = []
     if len(anchors) >= 3 and _fit(q, dots, anchors) is not None:
         p = _fit(q, dots, anchors)
@@ -231,7 +249,7 @@ def match_to_plan(q_deg, dots_mm, nominal: ScaraParams, *, allowed=None, anchors
         Z = np.column_stack([Z1.ravel(), Z2.ravel()])
         mi, dj = np.nonzero(allowed)
         if len(mi) == 0:
-            return None, None, float("nan"), "no dot may be any of the marks"
+            return NoMatch("no dot may be any of the marks")
         P = np.empty((len(Z), N, 2))
         for h, (a, b) in enumerate(Z):
             p = ScaraParams(nominal.L1_mm, nominal.L2_mm, nominal.z1_deg + a,
@@ -268,8 +286,8 @@ def match_to_plan(q_deg, dots_mm, nominal: ScaraParams, *, allowed=None, anchors
             if r:
                 cands.append(r)
     if not cands:
-        return None, None, float("nan"), ("no assignment of dots to marks is consistent with "
-                                          "the nominal robot model")
+        return NoMatch("no assignment of dots to marks is consistent with the nominal robot "
+                       "model")
     uniq = {}
     for c in cands:
         if c["pairs"] not in uniq or c["rms"] < uniq[c["pairs"]]["rms"]:
@@ -278,14 +296,14 @@ def match_to_plan(q_deg, dots_mm, nominal: ScaraParams, *, allowed=None, anchors
     b = ranked[0]
     n = len(b["pairs"])
     if n <= 3:
-        return None, None, float("nan"), (f"only {n} marks matched: 3 marks fit any assignment "
-                                          "exactly, so which dot is which cannot be told")
+        return NoMatch(f"only {n} marks matched: 3 marks fit any assignment exactly, so "
+                       "which dot is which cannot be told")
     for o in ranked[1:]:
         if len(o["pairs"]) >= n and o["rms"] < 3.0 * b["rms"] + 0.05:
-            return None, None, float("nan"), (
+            return NoMatch(
                 f"ambiguous: two assignments of {n} marks explain the dots about equally well "
                 f"(residual RMS {b['rms']:.3f} and {o['rms']:.3f} mm)")
-    return b["pairs"], b["params"], b["rms"], None
+    return Match(b["pairs"], b["params"], b["rms"])
 
 
 def associate(q_deg, mark_ids, mark_images, groups: list[DotGroup], nominal: ScaraParams,
@@ -324,18 +342,18 @@ def associate(q_deg, mark_ids, mark_images, groups: list[DotGroup], nominal: Sca
     rest_m = [i for i in range(N) if mark_images[i] and i not in {a for a, _ in anchors}]
     pairs, params = list(anchors), None
     if rest_m or len(anchors) >= 3:
-        got, p, rms, why = match_to_plan(q, dots, nominal, allowed=allowed, anchors=anchors,
-                                         max_zero_deg=max_zero_deg, max_base_mm=max_base_mm)
-        if got is None:
+        match = match_to_plan(q, dots, nominal, allowed=allowed, anchors=anchors,
+                              max_zero_deg=max_zero_deg, max_base_mm=max_base_mm)
+        if not match:
             for i in rest_m:
-                refused[str(mark_ids[i])] = why
-            warnings.append(f"{len(rest_m)} marks not identified: {why}")
+                refused[str(mark_ids[i])] = match.reason
+            warnings.append(f"{len(rest_m)} marks not identified: {match.reason}")
         else:
-            params = p
+            params = match.params
             # anchors that the model contradicts are dropped (cannot both be right)
-            pairs = list(got)
-            P = forward(p, q)
-            gate = max(2.0, 5.0 * rms)
+            pairs = list(match.pairs)
+            P = forward(params, q)
+            gate = max(2.0, 5.0 * match.rms_mm)
             keep = []
             for i, c in pairs:
                 near = np.hypot(*(dots - P[i]).T) <= gate

@@ -6,7 +6,8 @@ Each calibration is dated by its ``report.json`` (``provenance.created_utc``, wr
 parameter is given with its std (1 sigma, calibration.json ``std``), the effects found, the
 held-out RMS and the verdict when the file carries one.
 
-Nothing here fits anything: it reads the files (``dataset/io.read_json``) and lays them out.
+Nothing here fits anything: it reads the files (``CalibrationResult.from_json``) and lays them
+out.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vision_cal.dataset.calibration_result import FORMAT, CalibrationResult, ModelRms
 from vision_cal.dataset.io import read_json
 from vision_cal.errors import VisionCalError
 
@@ -67,16 +69,19 @@ def read_history(folder) -> list[HistoryRow]:
     rows = []
     for p in sorted(folder.rglob("calibration.json")):
         doc = read_json(p)
-        if doc.get("format") != "vision-cal/calibration/1":
-            raise VisionCalError(f"expected 'vision-cal/calibration/1', got "
-                                 f"{doc.get('format')!r}", file=str(p), field="format")
+        fmt = doc.get("format") if isinstance(doc, dict) else None
+        if fmt != FORMAT:
+            raise VisionCalError(f"expected {FORMAT!r}, got {fmt!r}", file=str(p),
+                                 field="format")
+        cal = CalibrationResult.from_json(doc)
         date, how = _date(p)
-        values = {label: (_get(doc.get("params"), key, k), _get(doc.get("std"), key, k))
+        values = {label: (_get(cal.params, key, k), _get(cal.std, key, k))
                   for label, key, k in PARAMS}
         eff = ", ".join(
             f"{e.get('name')}(joint {e['joint']})" if "joint" in e else str(e.get("name"))
-            for e in doc.get("effects") or [] if isinstance(e, dict)) or "none"
-        val = (doc.get("validation_rms_mm") or {}).get("final_model")
+            for e in cal.effects or [] if isinstance(e, dict)) or "none"
+        vr = cal.validation_rms_mm
+        val = vr.final_model if isinstance(vr, ModelRms) else None
         rows.append(HistoryRow(p, date, how, values, eff,
                                float(val) if isinstance(val, (int, float)) else None))
     if not rows:

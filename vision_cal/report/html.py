@@ -1,7 +1,8 @@
 """report.json, then report.html rendered from it (one self-contained file).
 
 ``build_report(calibration_path)`` collects the statistics into a dict that is written as
-``OUT/report.json``, from the files alone: calibration.json, the measurement.json beside it
+``OUT/report.json``, from the files alone: calibration.json (read through
+``CalibrationResult.from_json``, as every reader of it), the measurement.json beside it
 (when the calibration measured photos: marker corners and dots drawn on each photo), the
 dataset's session.json (the published ``reference`` and the declared ``camera``, when it is
 still there) and loop.json (a closed loop's targets). ``render_html(report)`` makes the
@@ -22,6 +23,7 @@ import cv2
 import numpy as np
 
 from vision_cal.dataset import photos as photo_files
+from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.io import atomic_write_json, atomic_write_text, read_json
 from vision_cal.report import plots
 from vision_cal.report.headline import STATISTICS, actions, headline, mark_rows, provenance
@@ -47,12 +49,13 @@ def build_report(calibration_path, *, loop=None, out_dir=None) -> dict:
     contents). ``out_dir``: where report.html goes (default: next to calibration.json);
     photo links are relative to it."""
     cal_path = Path(calibration_path)
-    doc = read_json(cal_path)
+    cal = CalibrationResult.read(cal_path)   # every reader of calibration.json: from_json
+    doc = cal.to_json()   # the report carries it as JSON (report.json ``calibration``)
     loop = _read(loop) if isinstance(loop, (str, Path)) else loop
     out_dir = Path(out_dir) if out_dir is not None else cal_path.parent
     # the photos measured for this calibration (a folder of marks given in mm has none)
-    meas = _read(cal_path.parent / "measurement.json") if doc.get("images") else None
-    dataset = doc.get("dataset") or (meas or {}).get("dataset")
+    meas = _read(cal_path.parent / "measurement.json") if cal.images else None
+    dataset = cal.dataset or (meas or {}).get("dataset")
     session = (_read(Path(dataset) / "session.json") if dataset else None) or {}
     where = str(dataset) if dataset else "not recorded (an older calibration.json)"
     rep = {"format": "vision-cal/report/1", "dataset": where, "calibration": doc,

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import os
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
@@ -26,6 +26,7 @@ from vision_cal.calibrate.plausible import RADIAN_RANGE, radians_given
 from vision_cal.camera.arm import (MAX_POSES, MIN_POSES, ArmView, check_declared_lens,
                                    estimate_lens, fit_arm_camera)
 from vision_cal.camera.fixed import UNDETERMINED
+from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.camera_block import read_lens
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.marker_geometry import marker_geometry
@@ -34,7 +35,7 @@ from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.session import read_robot_block, read_sheet_block
 from vision_cal.dataset.valid_for import build as valid_for_block
 from vision_cal.diagnose.verdict import judge_camera_poses
-from vision_cal.errors import CalibrationError, VisionCalError
+from vision_cal.errors import CalibrationError, Failure, VisionCalError
 from vision_cal.measure.workers import exit_with_parent
 from vision_cal.progress import bar
 from vision_cal.model.kinematics import ScaraParams
@@ -162,21 +163,40 @@ def in_lens(view: ArmView, K, dist) -> ArmView:
     return replace(view, corners_px=np.asarray(c, float).reshape(-1, 2))
 
 
+@dataclass(frozen=True)
+class SkippedPhoto(Failure):
+    """A photo :func:`measure_view` could not use, and why (falsy; reading an
+    :class:`ArmView`'s attribute from it raises with the reason)."""
+
+    file: str
+    reason: str
+
+    def to_json(self) -> dict:
+        """Its calibration.json ``images[]`` entry."""
+        return {"file": self.file, "status": "skipped", "reason": self.reason}
+
+
+def _skipped(image: str, reason: str) -> tuple[SkippedPhoto, dict]:
+    s = SkippedPhoto(image, reason)
+    return s, s.to_json()
+
+
 def measure_view(folder, sheet, size, image: str, q, j4, approach=(1.0, 1.0), lens=None
-                 ) -> tuple[ArmView | None, dict]:
-    """One photo's corners (sub-pixel) as an :class:`ArmView`, and its ``images[]`` entry
-    (``size_px`` of the photo); ``size``: the declared camera's, or None; ``lens``: its
-    ``(K, dist)`` when declared (the corners are then found in its ideal pixels)."""
+                 ) -> tuple[ArmView | SkippedPhoto, dict]:
+    """One photo's corners (sub-pixel) as an :class:`ArmView` (or a falsy
+    :class:`SkippedPhoto` with the reason), and its ``images[]`` entry (``size_px`` of the
+    photo); ``size``: the declared camera's, or None; ``lens``: its ``(K, dist)`` when
+    declared (the corners are then found in its ideal pixels)."""
     try:
         bgr, _, _ = load_photo(folder, image, size)
     except PhotoRefused as e:
-        return None, {"file": image, "status": "skipped", "reason": e.reason}
+        return _skipped(image, e.reason)
     if bgr is None:
-        return None, {"file": image, "status": "skipped", "reason": "not a readable image"}
+        return _skipped(image, "not a readable image")
     gray = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
     det = find_sheet_markers(gray, sheet)
     if det.reason:
-        return None, {"file": image, "status": "skipped", "reason": det.reason}
+        return _skipped(image, det.reason)
     edges = edge_points(gray, det.corners_px, geometry=marker_geometry(sheet))
     K, dist = lens if lens is not None else (None, None)
     corners = corners_in_lens(edges, det.corners_px, K, dist)
@@ -216,7 +236,7 @@ def calibrate_arm_camera(folder, *, progress: bool = False, jobs: int = 1) -> di
         for v, entry in results:
             images.append(entry)
             pbar.update()
-            if v is not None:
+            if v:   # a SkippedPhoto is falsy: its entry says why
                 views.append(v)
     finally:
         if pool is not None:
@@ -276,28 +296,27 @@ def calibrate_arm_camera(folder, *, progress: bool = False, jobs: int = 1) -> di
         cam["f_px_std"] = f_sd if np.isfinite(f_sd) else None
     if check is not None:
         cam["lens_check"] = check.to_json()
-    doc = {"format": "vision-cal/calibration/1", "method": "arm_camera",
-           "params": d["params"], "std": d["std"], "covariance": d["covariance"],
-           "nominal": nominal.to_json(), "effects": d["effects"], "cameras": [cam],
-           "not_identifiable": d["not_identifiable"], "pose_rms": d["pose_rms"],
-           "identifiability": d["identifiability"],
-           "poses": _pose_table(views, fit), "verdict": None,
-           "images": images,
-           "notes": ["robot calibrated from the arm camera's views of the marker field (no "
-                     "pen): the base model, and the backlash of a joint reached from both "
-                     "sides; other joint effects are not looked for in this version"]}
+    doc = CalibrationResult(
+        method="arm_camera", params=d["params"], std=d["std"], covariance=d["covariance"],
+        nominal=nominal.to_json(), effects=tuple(d["effects"]), cameras=[cam],
+        identifiability=d["identifiability"], images=tuple(images),
+        notes=("robot calibrated from the arm camera's views of the marker field (no pen): "
+               "the base model, and the backlash of a joint reached from both sides; other "
+               "joint effects are not looked for in this version",),
+        extra={"not_identifiable": d["not_identifiable"], "pose_rms": d["pose_rms"],
+               "poses": _pose_table(views, fit)})
     return _judged(doc, fit, views, rep,
                    _reasons(fit, mount, undetermined=(how == UNDETERMINED)) + lens_reason)
 
 
-def _judged(doc: dict, fit, views, rep, reasons) -> dict:
+def _judged(doc: CalibrationResult, fit, views, rep, reasons) -> dict:
     """calibration.json with ``valid_for`` (what the poses covered; the one owner:
     ``dataset/valid_for``) and the verdict judged against it as the pen's is: a joint
     reached from one side only leaves its backlash unidentified, never "ready"."""
-    doc["valid_for"] = valid_for_block(doc)
-    doc["verdict"] = judge_camera_poses(
+    valid_for = valid_for_block(doc.to_json())
+    verdict = judge_camera_poses(
         fit.flange_residual_mm, fit.flange_sigma_mm, fit.flange_heldout_mm,
         n_params=fit.n_params_xy, repeatability_mm=rep, reasons=reasons,
         ids=[v.file for v in views], heldout_inflate=fit.flange_heldout_inflate,
-        repeat_pairs=repeat_pairs(views), valid_for=doc["valid_for"]).to_json()
-    return doc
+        repeat_pairs=repeat_pairs(views), valid_for=valid_for)
+    return replace(doc, valid_for=valid_for, verdict=verdict.to_json()).to_json()
