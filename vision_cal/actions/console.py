@@ -1,0 +1,157 @@
+"""The console, in one place: what each action returned, printed as the command's lines
+(stdout; warnings on stderr). ``show(outcome, quiet=...)`` picks the printer by the
+outcome's type and returns the command's exit code. The actions write files and return
+typed outcomes; they print nothing of their results (progress bars and the output folder's
+notices aside)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from vision_cal.actions.arm_camera import ArmCameraOutcome
+from vision_cal.actions.history import HistoryOutcome
+from vision_cal.actions.loop import LoopOutcome
+from vision_cal.actions.verify import VerifyOutcome
+from vision_cal.diagnose.verdict import Verdict
+from vision_cal.loop import format_table
+from vision_cal.render.rehearse import SimulateResult
+from vision_cal.report.history import history_table
+from vision_cal.report.summary import format_summary
+
+
+def show(outcome, *, quiet: bool = False) -> int:
+    """Print ``outcome`` (nothing but warnings and what a quiet run still says, when
+    ``quiet``); the exit code."""
+    for kind, printer in PRINTERS.items():
+        if isinstance(outcome, kind):
+            printer(outcome, quiet)
+            return 0
+    raise TypeError(f"no printer for {type(outcome).__name__}")
+
+
+def arm_camera_lines(o: ArmCameraOutcome) -> list[str]:
+    """``vision-cal handeye FOLDER``: the photos used, the arm, the camera's mount, the
+    effects and the verdict."""
+    doc = o.calibration
+    cam = doc["cameras"][0]
+    p, sd = doc["params"], doc["std"]
+    skipped = [im for im in doc["images"] if im["status"] != "ok"]
+    lines = [f"{len(cam['images'])} photos used, {len(skipped)} skipped; corner RMS "
+             f"{cam['corner_rms_px']:.3f} px",
+             f"L1 {p['L1_mm']:.4f} +- {sd['L1_mm']:.4f} mm, L2 {p['L2_mm']:.4f} +- "
+             f"{sd['L2_mm']:.4f} mm, zeros {p['joint_zero_deg'][0]:.4f} "
+             f"{p['joint_zero_deg'][1]:.4f} deg, base {p['base_mm'][0]:.3f} "
+             f"{p['base_mm'][1]:.3f} mm",
+             flange_camera_line(cam)]
+    lines += [f"joint {e['joint']} backlash {e['deg']:.4f} +- {e['std']:.4f} deg"
+              for e in doc["effects"]]
+    v = Verdict.from_json(doc["verdict"])
+    if v.floor_line:
+        lines.append(v.floor_line)
+    return lines + [v.text, f"wrote {o.path}"]
+
+
+def flange_camera_line(cam: dict) -> str:
+    """T_flange_camera in words, with units: the camera's x and y in the flange frame with
+    their std; its z is the height above the sheet's plane (SCARA motion is planar: the
+    flange's own height, hence the camera's height above the flange, is not identifiable)."""
+    t = cam["T_flange_camera"]
+    sd = cam["T_flange_camera_std"]["translation_mm"]
+    return (f"T_flange_camera: camera at x {t[0][3]:.3f} +- {sd[0]:.3f} mm, y {t[1][3]:.3f} +- "
+            f"{sd[1]:.3f} mm in the flange frame; its height above the flange is not "
+            f"identifiable (planar motion): z {t[2][3]:.3f} mm is its height above the "
+            "sheet's plane")
+
+
+def verify_lines(o: VerifyOutcome) -> list[str]:
+    """``vision-cal verify``: each mark's error, the RMS and its bound, which parameters
+    moved, ISO 9283 and the verdict with its reasons."""
+    r = o.result
+    lines = [f"{'mark':<8}{'error x':>10}{'error y':>10}{'|error|':>10}  [mm, the sheet's "
+             "placement taken out]"]
+    for mid, m in r.marks.items():
+        ex, ey = m["error_mm"]
+        lines.append(f"{mid:<8}{ex:>+10.4f}{ey:>+10.4f}{m['error_norm_mm']:>10.4f}")
+    lines.append(f"RMS {r.rms_mm['sheet_placed']:.4f} mm (bound for 'still good': "
+                 f"{r.bound_mm:.4f} mm)")
+    lines.append(f"{'parameter':<12}{'change':>10}{'std':>9}  moved?")
+    for label, c in r.changes.items():
+        if c.get("sheet_placement"):
+            continue
+        lines.append(f"{label:<12}{c['delta']:>+10.4f}{c['std']:>9.4f}  "
+                     f"{'yes' if c['moved'] else 'no'} ({c['sigmas']:.1f} std)")
+    if r.iso9283:
+        lines.append("ISO 9283 (each visit's own commanded point taken out; assumes the "
+                     "robot's error is the same over each point's few-mm grid of visits):")
+        lines += [f"  {name}: AP {v['AP_mm']:.4f} mm, RP {v['RP_mm']:.4f} mm ({v['n']} visits)"
+                  for name, v in r.iso9283.items()]
+    lines.append(f"verdict: {r.verdict}")
+    lines += [f"  {reason}" for reason in r.reasons]
+    return lines + [f"wrote {o.path}"]
+
+
+def loop_lines(o: LoopOutcome) -> list[str]:
+    """``vision-cal loop``: the calibration's summary and the targets' table (Table 3)."""
+    return [format_summary(o.calibration), "",
+            "absolute error of each target, measured from the photographs (Table 3):",
+            format_table(o.loop)]
+
+
+def report_line(path: Path, photos: Path) -> str:
+    """Where the report is, its size, and where the photos it links are."""
+    return (f"report: {path.resolve()} ({path.stat().st_size / 1e6:.1f} MB; the photos it "
+            f"links are in {photos.resolve()})")
+
+
+def simulate_line(r: SimulateResult) -> str:
+    """``vision-cal simulate``: the marks drawn (off the paper, on a printed marker) and the
+    photos taken."""
+    extra = []
+    if r.off_paper:
+        extra.append(f"{len(r.off_paper)} off the paper")
+    if r.on_marker:
+        extra.append(f"{len(r.on_marker)} on a printed marker")
+    return (f"the simulated robot drew {r.n_marks} marks"
+            + (f" ({', '.join(extra)})" if extra else "")
+            + f"; {len(r.photos)} photos -> {r.out_dir}/ (truth.json: where they really are)")
+
+
+def _print_lines(lines) -> None:
+    for line in lines:
+        print(line)
+
+
+def _arm_camera(o: ArmCameraOutcome, quiet: bool) -> None:
+    if not quiet:
+        _print_lines(arm_camera_lines(o))
+
+
+def _verify(o: VerifyOutcome, quiet: bool) -> None:
+    for w in o.warnings:   # --force: the check compared beyond what was calibrated
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
+    if not quiet:
+        _print_lines(verify_lines(o))
+
+
+def _loop(o: LoopOutcome, quiet: bool) -> None:
+    if not quiet:
+        _print_lines(loop_lines(o))
+    if o.report is not None:   # said even when quiet: where to look
+        print(report_line(o.report, o.out))
+
+
+def _history(o: HistoryOutcome, quiet: bool) -> None:
+    if not quiet:
+        print(history_table(list(o.rows)))
+        _print_lines(f"wrote {p}" for p in o.written)
+
+
+def _simulate(r: SimulateResult, quiet: bool) -> None:
+    if not quiet:
+        print(simulate_line(r))
+
+
+#: the printer of each outcome's type
+PRINTERS = {ArmCameraOutcome: _arm_camera, VerifyOutcome: _verify, LoopOutcome: _loop,
+            HistoryOutcome: _history, SimulateResult: _simulate}
