@@ -8,31 +8,38 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from vision_cal.actions.arm_camera import ArmCameraOutcome
-from vision_cal.actions.history import HistoryOutcome
-from vision_cal.actions.loop import LoopOutcome
-from vision_cal.actions.verify import VerifyOutcome
-from vision_cal.diagnose.verdict import Verdict
-from vision_cal.loop import format_table
-from vision_cal.render.rehearse import SimulateResult
-from vision_cal.report.history import history_table
-from vision_cal.report.summary import format_summary
+if TYPE_CHECKING:   # the outcomes' modules pull numpy, OpenCV and the renderer
+    from vision_cal.actions.arm_camera import ArmCameraOutcome
+    from vision_cal.actions.history import HistoryOutcome
+    from vision_cal.actions.loop import LoopOutcome
+    from vision_cal.actions.render import RenderOutcome
+    from vision_cal.actions.robot_template import RobotTemplateOutcome
+    from vision_cal.actions.sheet import SheetOutcome
+    from vision_cal.actions.survey import SurveyOutcome
+    from vision_cal.actions.verify import VerifyOutcome
+    from vision_cal.render.rehearse import SimulateResult
 
 
 def show(outcome, *, quiet: bool = False) -> int:
     """Print ``outcome`` (nothing but warnings and what a quiet run still says, when
-    ``quiet``); the exit code."""
-    for kind, printer in PRINTERS.items():
-        if isinstance(outcome, kind):
-            printer(outcome, quiet)
-            return 0
-    raise TypeError(f"no printer for {type(outcome).__name__}")
+    ``quiet``); the exit code. The printer is looked up by the outcome's class name, so that
+    this module imports none of the actions (a light command stays light)."""
+    kind = type(outcome)
+    printer = PRINTERS.get(f"{kind.__module__}.{kind.__qualname__}")
+    if printer is None:
+        raise TypeError(f"no printer for {kind.__module__}.{kind.__qualname__}")
+    printer(outcome, quiet)
+    return 0
 
 
 def arm_camera_lines(o: ArmCameraOutcome) -> list[str]:
     """``vision-cal handeye FOLDER``: the photos used, the arm, the camera's mount, the
     effects and the verdict."""
+    # the action that returned ``o`` imported it already
+    from vision_cal.diagnose.verdict import Verdict
+
     doc = o.calibration
     cam = doc["cameras"][0]
     p, sd = doc["params"], doc["std"]
@@ -93,6 +100,10 @@ def verify_lines(o: VerifyOutcome) -> list[str]:
 
 def loop_lines(o: LoopOutcome) -> list[str]:
     """``vision-cal loop``: the calibration's summary and the targets' table (Table 3)."""
+    # the action that returned ``o`` imported it already
+    from vision_cal.loop import format_table
+    from vision_cal.report.summary import format_summary
+
     return [format_summary(o.calibration), "",
             "absolute error of each target, measured from the photographs (Table 3):",
             format_table(o.loop)]
@@ -143,6 +154,9 @@ def _loop(o: LoopOutcome, quiet: bool) -> None:
 
 def _history(o: HistoryOutcome, quiet: bool) -> None:
     if not quiet:
+        # the action that returned ``o`` imported it already
+        from vision_cal.report.history import history_table
+
         print(history_table(list(o.rows)))
         _print_lines(f"wrote {p}" for p in o.written)
 
@@ -152,6 +166,53 @@ def _simulate(r: SimulateResult, quiet: bool) -> None:
         print(simulate_line(r))
 
 
-#: the printer of each outcome's type
-PRINTERS = {ArmCameraOutcome: _arm_camera, VerifyOutcome: _verify, LoopOutcome: _loop,
-            HistoryOutcome: _history, SimulateResult: _simulate}
+
+def sheet_lines(o: SheetOutcome) -> list[str]:
+    """``vision-cal sheet``: the page, the markers, the files, and how to print."""
+    layout = o.layout
+    return [f"sheet {layout.sheet_id}: {layout.page} {layout.orientation} "
+            f"{layout.size_mm[0]:g} x {layout.size_mm[1]:g} mm, {len(layout.markers)} "
+            f"{layout.dictionary} markers of {layout.marker_mm:g} mm -> "
+            + ", ".join(str(p) for p in o.paths.values()),
+            "print at 100 % (actual size) and check that both bars measure 100.0 mm"]
+
+
+def survey_lines(o: SurveyOutcome) -> list[str]:
+    """``vision-cal survey``: the verdict and what limits it."""
+    v = o.survey["verdict"]
+    return ([f"{o.path}: {v['status']}: {v['text']}"]
+            + [f"  limited by: {line}" for line in v["limits"]])
+
+
+def _render(o: RenderOutcome, quiet: bool) -> None:
+    print(o.folder)   # even when quiet: the folder to calibrate next
+
+
+def _robot_template(o: RobotTemplateOutcome, quiet: bool) -> None:
+    if o.path is None:   # the text itself is the output
+        print(o.text, end="")
+    elif not quiet:
+        print(f"wrote {o.path}: edit the fields marked EDIT" if not o.simulated
+              else f"wrote {o.path}: the `hidden` block is what the simulated robot hides")
+
+
+def _sheet(o: SheetOutcome, quiet: bool) -> None:
+    if not quiet:
+        _print_lines(sheet_lines(o))
+
+
+def _survey(o: SurveyOutcome, quiet: bool) -> None:
+    if not quiet:
+        _print_lines(survey_lines(o))
+
+
+#: the printer of each outcome's type, by its module and name
+PRINTERS = {"vision_cal.actions.arm_camera.ArmCameraOutcome": _arm_camera,
+            "vision_cal.actions.verify.VerifyOutcome": _verify,
+            "vision_cal.actions.loop.LoopOutcome": _loop,
+            "vision_cal.actions.history.HistoryOutcome": _history,
+            "vision_cal.render.rehearse.SimulateResult": _simulate,
+            "vision_cal.actions.render.RenderOutcome": _render,
+            "vision_cal.actions.robot_template.RobotTemplateOutcome": _robot_template,
+            "vision_cal.actions.sheet.SheetOutcome": _sheet,
+            "vision_cal.actions.survey.SurveyOutcome": _survey}
