@@ -6,13 +6,16 @@ notices aside)."""
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:   # the outcomes' modules pull numpy, OpenCV and the renderer
     from vision_cal.actions.arm_camera import ArmCameraOutcome
+    from vision_cal.actions.export import ExportOutcome
     from vision_cal.actions.history import HistoryOutcome
+    from vision_cal.actions.init import InitOutcome
     from vision_cal.actions.loop import LoopOutcome
     from vision_cal.actions.render import RenderOutcome
     from vision_cal.actions.robot_template import RobotTemplateOutcome
@@ -206,6 +209,24 @@ def _survey(o: SurveyOutcome, quiet: bool) -> None:
         _print_lines(survey_lines(o))
 
 
+
+def _export(o: ExportOutcome, quiet: bool) -> None:
+    for w in o.warnings:
+        print(w, file=sys.stderr)
+    for w in o.said:   # --force: exported beyond what was calibrated
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
+    if not quiet:
+        _print_lines(f"wrote {p}" for p in o.written)
+
+
+def _init(o: InitOutcome, quiet: bool) -> None:
+    for w in o.warnings:
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
+    if o.out is None:   # the session itself is the output
+        sys.stdout.write(json.dumps(o.session, indent=2) + "\n")
+    if not quiet:
+        print(o.summary, file=sys.stderr)
+
 #: the printer of each outcome's type, by its module and name
 PRINTERS = {"vision_cal.actions.arm_camera.ArmCameraOutcome": _arm_camera,
             "vision_cal.actions.verify.VerifyOutcome": _verify,
@@ -215,4 +236,6 @@ PRINTERS = {"vision_cal.actions.arm_camera.ArmCameraOutcome": _arm_camera,
             "vision_cal.actions.render.RenderOutcome": _render,
             "vision_cal.actions.robot_template.RobotTemplateOutcome": _robot_template,
             "vision_cal.actions.sheet.SheetOutcome": _sheet,
-            "vision_cal.actions.survey.SurveyOutcome": _survey}
+            "vision_cal.actions.survey.SurveyOutcome": _survey,
+            "vision_cal.actions.export.ExportOutcome": _export,
+            "vision_cal.actions.init.InitOutcome": _init}
