@@ -41,7 +41,6 @@ PRINTS_PENDING = {
     "vision_cal.actions.calibrate": "pending, issue 31 (placements' document being retyped)",
     "vision_cal.actions.design": "pending, issue 31",
     "vision_cal.actions.handeye": "pending, issue 31 (its calibration.json being retyped)",
-    "vision_cal.actions.locate": "pending, issue 31",
     "vision_cal.actions.plan": "pending, issue 31",
 }
 

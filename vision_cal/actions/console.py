@@ -16,6 +16,7 @@ if TYPE_CHECKING:   # the outcomes' modules pull numpy, OpenCV and the renderer
     from vision_cal.actions.export import ExportOutcome
     from vision_cal.actions.history import HistoryOutcome
     from vision_cal.actions.init import InitOutcome
+    from vision_cal.actions.locate import LocateOutcome
     from vision_cal.actions.loop import LoopOutcome
     from vision_cal.actions.render import RenderOutcome
     from vision_cal.actions.robot_template import RobotTemplateOutcome
@@ -227,6 +228,32 @@ def _init(o: InitOutcome, quiet: bool) -> None:
     if not quiet:
         print(o.summary, file=sys.stderr)
 
+
+def locate_lines(o: LocateOutcome) -> list[str]:
+    """``vision-cal locate --pixel``: the pixel in the robot and sheet frames, and the joint
+    command that reaches it (with --robot)."""
+    p, j = o.point, o.joint
+    lines = [f"pixel {p.pixel[0]:g} {p.pixel[1]:g} at z {p.z_mm:g} mm (camera {o.camera})",
+             f"  robot frame: x {p.robot_mm[0]:.4f} y {p.robot_mm[1]:.4f} z "
+             f"{p.robot_mm[2]:.4f} mm  (std {p.robot_std_mm[0]:.4f} {p.robot_std_mm[1]:.4f} mm)",
+             f"  sheet frame: x {p.sheet_mm[0]:.4f} y {p.sheet_mm[1]:.4f} mm"]
+    if j is not None:
+        lines.append(f"  joint command (compensated, elbow {o.elbow:+d}): q1 {j.q_deg[0]:.4f} "
+                     f"q2 {j.q_deg[1]:.4f} deg, approach {j.approach[0]:+d} {j.approach[1]:+d}"
+                     if j.status == "ok" else f"  joint command: none ({j.reason})")
+    return lines
+
+
+def _locate(o: LocateOutcome, quiet: bool) -> None:
+    for w in o.warnings:   # --force: the extrapolation (also in the CSV)
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
+    if o.point is not None:   # one pixel: the answer itself, even when quiet
+        _print_lines(locate_lines(o))
+    elif o.csv_text is not None:
+        sys.stdout.write(o.csv_text)
+    elif not quiet:
+        print(f"located {o.n} pixels -> {o.path}")
+
 #: the printer of each outcome's type, by its module and name
 PRINTERS = {"vision_cal.actions.arm_camera.ArmCameraOutcome": _arm_camera,
             "vision_cal.actions.verify.VerifyOutcome": _verify,
@@ -238,4 +265,5 @@ PRINTERS = {"vision_cal.actions.arm_camera.ArmCameraOutcome": _arm_camera,
             "vision_cal.actions.sheet.SheetOutcome": _sheet,
             "vision_cal.actions.survey.SurveyOutcome": _survey,
             "vision_cal.actions.export.ExportOutcome": _export,
-            "vision_cal.actions.init.InitOutcome": _init}
+            "vision_cal.actions.init.InitOutcome": _init,
+            "vision_cal.actions.locate.LocateOutcome": _locate}
