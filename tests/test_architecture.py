@@ -39,7 +39,6 @@ PRINTS = {"vision_cal.actions.console", "vision_cal.commands.main"}
 #: return a typed outcome that actions/console.py prints, and leaves this set when it does
 PRINTS_PENDING = {
     "vision_cal.actions.calibrate": "pending, issue 31 (placements' document being retyped)",
-    "vision_cal.actions.design": "pending, issue 31",
     "vision_cal.actions.handeye": "pending, issue 31 (its calibration.json being retyped)",
     "vision_cal.actions.plan": "pending, issue 31",
 }

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:   # the outcomes' modules pull numpy, OpenCV and the renderer
     from vision_cal.actions.arm_camera import ArmCameraOutcome
+    from vision_cal.actions.design import CameraPosesDesigned, PlacementsDesigned, StageDesigned
     from vision_cal.actions.export import ExportOutcome
     from vision_cal.actions.history import HistoryOutcome
     from vision_cal.actions.init import InitOutcome
@@ -254,6 +255,58 @@ def _locate(o: LocateOutcome, quiet: bool) -> None:
     elif not quiet:
         print(f"located {o.n} pixels -> {o.path}")
 
+
+def stage_lines(o: StageDesigned) -> list[str]:
+    """``vision-cal design``: the survey that goes with the plan, the plan's size and what
+    it is for, the files written."""
+    r = o.result
+    lines = ([f"the sheet as surveyed ({o.survey}) goes with the plan: {o.survey_copy}"]
+             if o.survey_copy is not None else [])
+    lines.append(f"{r.stage} plan: {r.n_marks} marks, {r.duration_s:.1f} s of motion")
+    if r.stage == "pilot":
+        lines.append(f"every mark stays {r.info['worst_case_clearance_mm']:.1f} mm clear of "
+                     f"markers and edges for {r.info['placements_checked']} placements within "
+                     "the robot file's placement_tolerance")
+    elif r.stage == "verify":
+        lines.append(f"a check of {o.verify}: draw it on a fresh sheet, photograph it into "
+                     f"{o.out}, then: vision-cal verify {o.verify} {o.out}")
+    else:
+        lines.append(f"placed with the pilot's model, {r.info['safety_mm']:.1f} mm of safety")
+        beyond = r.info.get("beyond_valid_for") or []
+        if beyond:   # by design: the informative plan identifies what the pilot could not
+            lines.append("the pilot's model is this plan's starting model (not the nominal: "
+                         "that stays the robot file); the plan goes beyond what the pilot saw, "
+                         "by design (" + ", ".join(b["field"] for b in beyond) + "): its "
+                         "calibration identifies them (session.json design.beyond_valid_for)")
+    return lines + [f"wrote {p}" for p in (r.session_path, r.trajectory_path, r.program_path)
+                    if p is not None]
+
+
+def camera_poses_lines(o: CameraPosesDesigned) -> list[str]:
+    """``vision-cal design --camera-on-arm``: the poses, where the photos go, what next."""
+    return [f"camera poses: {o.n_poses}, {o.repeats} of them taken twice (the robot's "
+            f"repeatability, measured) ({o.mount} mount); put the photos beside "
+            f"{o.session} (and your camera's lens in it if you know it: camera: size_px, K, "
+            f"dist), then vision-cal handeye {o.out} --out CAL/",
+            f"wrote {o.session}", f"wrote {o.program}"]
+
+
+def _stage(o: StageDesigned, quiet: bool) -> None:
+    for w in o.result.info.get("warnings", []):
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
+    if not quiet:
+        _print_lines(stage_lines(o))
+
+
+def _placements(o: PlacementsDesigned, quiet: bool) -> None:
+    if not quiet:
+        _print_lines(f"{p['folder']}: {p['instruction']}" for p in o.placements)
+
+
+def _camera_poses(o: CameraPosesDesigned, quiet: bool) -> None:
+    if not quiet:
+        _print_lines(camera_poses_lines(o))
+
 #: the printer of each outcome's type, by its module and name
 PRINTERS = {"vision_cal.actions.arm_camera.ArmCameraOutcome": _arm_camera,
             "vision_cal.actions.verify.VerifyOutcome": _verify,
@@ -266,4 +319,7 @@ PRINTERS = {"vision_cal.actions.arm_camera.ArmCameraOutcome": _arm_camera,
             "vision_cal.actions.survey.SurveyOutcome": _survey,
             "vision_cal.actions.export.ExportOutcome": _export,
             "vision_cal.actions.init.InitOutcome": _init,
-            "vision_cal.actions.locate.LocateOutcome": _locate}
+            "vision_cal.actions.locate.LocateOutcome": _locate,
+            "vision_cal.actions.design.StageDesigned": _stage,
+            "vision_cal.actions.design.PlacementsDesigned": _placements,
+            "vision_cal.actions.design.CameraPosesDesigned": _camera_poses}
