@@ -40,7 +40,6 @@ PRINTS = {"vision_cal.actions.console", "vision_cal.commands.main"}
 PRINTS_PENDING = {
     "vision_cal.actions.calibrate": "pending, issue 31 (placements' document being retyped)",
     "vision_cal.actions.handeye": "pending, issue 31 (its calibration.json being retyped)",
-    "vision_cal.actions.plan": "pending, issue 31",
 }
 
 

@@ -18,6 +18,7 @@ if TYPE_CHECKING:   # the outcomes' modules pull numpy, OpenCV and the renderer
     from vision_cal.actions.history import HistoryOutcome
     from vision_cal.actions.init import InitOutcome
     from vision_cal.actions.locate import LocateOutcome
+    from vision_cal.actions.plan import PlanOutcome
     from vision_cal.actions.loop import LoopOutcome
     from vision_cal.actions.render import RenderOutcome
     from vision_cal.actions.robot_template import RobotTemplateOutcome
@@ -29,14 +30,14 @@ if TYPE_CHECKING:   # the outcomes' modules pull numpy, OpenCV and the renderer
 
 def show(outcome, *, quiet: bool = False) -> int:
     """Print ``outcome`` (nothing but warnings and what a quiet run still says, when
-    ``quiet``); the exit code. The printer is looked up by the outcome's class name, so that
+    ``quiet``); the exit code (0 unless the printer says otherwise). The printer is looked up by the outcome's class name, so that
     this module imports none of the actions (a light command stays light)."""
     kind = type(outcome)
     printer = PRINTERS.get(f"{kind.__module__}.{kind.__qualname__}")
     if printer is None:
         raise TypeError(f"no printer for {kind.__module__}.{kind.__qualname__}")
-    printer(outcome, quiet)
-    return 0
+    code = printer(outcome, quiet)
+    return code or 0
 
 
 def arm_camera_lines(o: ArmCameraOutcome) -> list[str]:
@@ -307,6 +308,20 @@ def _camera_poses(o: CameraPosesDesigned, quiet: bool) -> None:
     if not quiet:
         _print_lines(camera_poses_lines(o))
 
+
+def _plan(o: PlanOutcome, quiet: bool) -> int:
+    if o.trust_warning:
+        print(o.trust_warning, file=sys.stderr)
+    if o.program is not None and not quiet:
+        print(f"wrote {o.program}")
+    for w in o.warnings:
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
+    if not quiet:
+        print(o.summary)
+    if o.error:
+        print(f"vision-cal: error: {o.error}", file=sys.stderr)
+    return o.exit_code
+
 #: the printer of each outcome's type, by its module and name
 PRINTERS = {"vision_cal.actions.arm_camera.ArmCameraOutcome": _arm_camera,
             "vision_cal.actions.verify.VerifyOutcome": _verify,
@@ -322,4 +337,5 @@ PRINTERS = {"vision_cal.actions.arm_camera.ArmCameraOutcome": _arm_camera,
             "vision_cal.actions.locate.LocateOutcome": _locate,
             "vision_cal.actions.design.StageDesigned": _stage,
             "vision_cal.actions.design.PlacementsDesigned": _placements,
-            "vision_cal.actions.design.CameraPosesDesigned": _camera_poses}
+            "vision_cal.actions.design.CameraPosesDesigned": _camera_poses,
+            "vision_cal.actions.plan.PlanOutcome": _plan}
