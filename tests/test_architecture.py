@@ -38,8 +38,13 @@ PRINTS = {"vision_cal.actions.console", "vision_cal.commands.main"}
 #: actions that still print their own results (an exit code, not an outcome); each is to
 #: return a typed outcome that actions/console.py prints, and leaves this set when it does
 PRINTS_PENDING = {
-    "vision_cal.actions.calibrate": "pending, issue 31 (placements' document being retyped)",
-    "vision_cal.actions.handeye": "pending, issue 31 (its calibration.json being retyped)",
+    "vision_cal.actions.calibrate":
+        "pending, issue 31: prints each folder's result as it is done (several folders take "
+        "minutes each), so its outcome is to reach the console per folder (a callback), and "
+        "--joint's document is being retyped (placements.py)",
+    "vision_cal.actions.handeye":
+        "pending, issue 31: its calibration.json (the document it prints from) is being "
+        "retyped by another change",
 }
 
 
