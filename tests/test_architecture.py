@@ -1,6 +1,8 @@
 """The house's rules, read from the source (ast, nothing imported): ``report/`` renders the
-written files and imports nothing of the estimator, and no import circle exists among the
-package's modules (imports inside functions count as much as those at the top)."""
+written files and imports nothing of the estimator, no import circle exists among the
+package's modules (imports inside functions count as much as those at the top), a command
+only parses its arguments and calls an action, and the actions' results are printed in one
+place (``actions/console.py``)."""
 
 from __future__ import annotations
 
@@ -16,6 +18,34 @@ PACKAGE = Path(__file__).resolve().parents[1] / "vision_cal"
 #: for the provenance) and the one exception type
 REPORT_MAY_IMPORT = ("vision_cal.report", "vision_cal.dataset")
 REPORT_ALSO = {"vision_cal", "vision_cal.errors"}
+
+#: what a command module may import: the actions, the commands package (its ``request``
+#: helper), the one exception type and the progress lines (argparse and the standard
+#: library aside)
+COMMANDS_MAY_IMPORT = ("vision_cal.actions", "vision_cal.commands")
+COMMANDS_ALSO = {"vision_cal.errors", "vision_cal.progress"}
+#: the imports a command makes beyond those, each with its reason
+COMMANDS_EXCEPT = {
+    ("vision_cal.commands.main", "vision_cal"):
+        "--version prints the package's __version__",
+    ("vision_cal.commands.calibrate", "vision_cal.config"):
+        "--method's choices are config.METHODS, the one list of methods; config imports "
+        "nothing (no numpy), so building the parser stays instant",
+}
+#: the modules of actions/ and commands/ that may call print(): the console, and main's
+#: one line per error
+PRINTS = {"vision_cal.actions.console", "vision_cal.commands.main"}
+#: actions that still print their own results (an exit code, not an outcome); each is to
+#: return a typed outcome that actions/console.py prints, and leaves this set when it does
+PRINTS_PENDING = {
+    "vision_cal.actions.calibrate":
+        "pending, issue 31: prints each folder's result as it is done (several folders take "
+        "minutes each), so its outcome is to reach the console per folder (a callback), and "
+        "--joint's document is being retyped (placements.py)",
+    "vision_cal.actions.handeye":
+        "pending, issue 31: its calibration.json (the document it prints from) is being "
+        "retyped by another change",
+}
 
 
 def modules(package: Path = PACKAGE) -> dict[str, Path]:
@@ -110,6 +140,30 @@ def report_violations(graph: dict[str, set[str]]) -> dict[str, list[str]]:
                 d == p or d.startswith(p + ".") for p in REPORT_MAY_IMPORT)}] if bad}
 
 
+def command_violations(graph: dict[str, set[str]]) -> dict[str, list[str]]:
+    """Command module -> what it imports beyond the actions, the commands package, errors,
+    progress and the listed exceptions."""
+    return {m: sorted(bad) for m, deps in graph.items()
+            if m == "vision_cal.commands" or m.startswith("vision_cal.commands.")
+            for bad in [{d for d in deps if d not in COMMANDS_ALSO
+                         and (m, d) not in COMMANDS_EXCEPT and not any(
+                             d == p or d.startswith(p + ".") for p in COMMANDS_MAY_IMPORT)}]
+            if bad}
+
+
+def printing_modules(package: Path = PACKAGE) -> set[str]:
+    """The modules of actions/ and commands/ that call ``print`` anywhere."""
+    out = set()
+    for name, path in modules(package).items():
+        if name.split(".")[1:2] not in (["actions"], ["commands"]):
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+        if any(isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == "print"
+               for n in ast.walk(tree)):
+            out.add(name)
+    return out
+
+
 @pytest.fixture(scope="module")
 def graph():
     return import_graph()
@@ -140,6 +194,49 @@ def test_the_checks_see_what_they_guard(tmp_path):
     g = import_graph(pkg)
     assert report_violations(g) == {"vision_cal.report.plots": ["vision_cal.measure.batch"]}
     assert circles(g) == [["vision_cal.measure.batch", "vision_cal.measure.cache"]]
+
+
+def test_commands_only_parse_and_call_an_action(graph):
+    """A command imports the actions (and the parser's helpers), never the library below
+    them; the exceptions are listed with their reason, and leave the list when gone."""
+    assert "vision_cal.commands.verify" in graph and graph["vision_cal.commands.verify"]
+    assert command_violations(graph) == {}
+    stale = {(m, d) for m, d in COMMANDS_EXCEPT if d not in graph.get(m, ())}
+    assert stale == set(), "gone: remove from COMMANDS_EXCEPT"
+
+
+def test_results_are_printed_in_one_place():
+    """Only actions/console.py (and main's error line) print; an action still printing is
+    listed as pending, and leaves the list when it returns an outcome instead."""
+    printing = printing_modules()
+    assert "vision_cal.actions.console" in printing
+    assert printing - PRINTS - set(PRINTS_PENDING) == set()
+    assert set(PRINTS_PENDING) - printing == set(), "prints no more: remove from PRINTS_PENDING"
+
+
+def test_the_command_checks_see_what_they_guard(tmp_path):
+    """A command reaching into the library inside its run(), and an action or a command
+    printing, are found; a command importing an action, errors and the commands package, and
+    the console printing, are not."""
+    pkg = tmp_path / "vision_cal"
+    for d in ("commands", "actions", "measure"):
+        (pkg / d).mkdir(parents=True)
+        (pkg / d / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "errors.py").write_text("")
+    (pkg / "measure" / "batch.py").write_text("")
+    (pkg / "actions" / "go.py").write_text("def go(req):\n    print(req)\n")
+    (pkg / "actions" / "console.py").write_text("def show(o):\n    print(o)\n")
+    (pkg / "commands" / "good.py").write_text(
+        "from vision_cal.commands import request\n\ndef run(args):\n"
+        "    from vision_cal.errors import VisionCalError\n"
+        "    from vision_cal.actions.go import go\n    return go(args)\n")
+    (pkg / "commands" / "bad.py").write_text(
+        "def run(args):\n    from ..measure import batch\n    print(batch)\n")
+    g = import_graph(pkg)
+    assert command_violations(g) == {"vision_cal.commands.bad": ["vision_cal.measure.batch"]}
+    assert printing_modules(pkg) == {"vision_cal.actions.go", "vision_cal.actions.console",
+                                     "vision_cal.commands.bad"}
 
 
 def test_every_command_is_on_the_command_line():

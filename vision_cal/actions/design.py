@@ -3,9 +3,8 @@ informative plan)."""
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
 from dataclasses import dataclass
+from pathlib import Path
 
 from vision_cal.calibrate.plausible import check_links_against
 from vision_cal.camera.arm_design import check_design, design_camera_on_arm
@@ -17,7 +16,7 @@ from vision_cal.dataset.robot import load_robot_file
 from vision_cal.dataset.session import load_sheet_file
 from vision_cal.dataset.trust import require_ready_pilot
 from vision_cal.design.placements import design_placements
-from vision_cal.design.stage import design_stage
+from vision_cal.design.stage import DesignResult, design_stage
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.survey import copy_survey, find_survey, load_survey
 
@@ -48,7 +47,38 @@ class DesignRequest:
     survey: str | None = None     # survey.json (#28; default: one beside --sheet)
 
 
-def design(req: DesignRequest) -> int:
+@dataclass(frozen=True)
+class StageDesigned:
+    """A stage's plan (pilot, informative, verify) as designed, and the survey copied beside
+    it (None: no survey)."""
+
+    result: DesignResult
+    survey: Path | None = None        # the sheet as surveyed that was found
+    survey_copy: Path | None = None   # its copy beside the plan
+    verify: str | None = None         # the calibration a check plan checks
+    out: str = ""
+
+
+@dataclass(frozen=True)
+class PlacementsDesigned:
+    """Several placements' pilots: each folder with its instruction."""
+
+    placements: tuple[dict, ...]
+
+
+@dataclass(frozen=True)
+class CameraPosesDesigned:
+    """A camera on the arm's poses: session.json and the program written."""
+
+    n_poses: int
+    repeats: int
+    mount: str
+    session: Path
+    program: Path
+    out: Path
+
+
+def design(req: DesignRequest) -> StageDesigned | PlacementsDesigned | CameraPosesDesigned:
     """The plan of a calibration stage (pilot, informative, verify), several placements, or
     the camera poses of a camera on the arm."""
     _refuse_conflicts(req)
@@ -76,10 +106,7 @@ def design(req: DesignRequest) -> int:
             places = design_placements(req.robot, req.sheet, req.out, req.placements,
                                        program=None if req.program == "none" else req.program,
                                        seed=req.seed)
-        if not req.quiet:
-            for p in places:
-                print(f"{p['folder']}: {p['instruction']}")
-        return 0
+        return PlacementsDesigned(tuple(places))
     if req.verify is not None and req.pilot is not None:
         raise VisionCalError("give either --pilot (the informative plan) or --verify (a check "
                              "of a calibration), not both", field="--verify")
@@ -109,33 +136,9 @@ def design(req: DesignRequest) -> int:
                          stage="verify" if check else None,
                          iso9283_cycles=req.iso9283 if check else 0)
 
-    for w in r.info.get("warnings", []):
-        print(f"vision-cal: warning: {w}", file=sys.stderr)
-    if survey is not None:
-        dest = copy_survey(survey, load_sheet_file(req.sheet), r.session_path.parent)
-        if not req.quiet:
-            print(f"the sheet as surveyed ({survey}) goes with the plan: {dest}")
-    if not req.quiet:
-        print(f"{r.stage} plan: {r.n_marks} marks, {r.duration_s:.1f} s of motion")
-        if r.stage == "pilot":
-            print(f"every mark stays {r.info['worst_case_clearance_mm']:.1f} mm clear of markers "
-                  f"and edges for {r.info['placements_checked']} placements within the "
-                  "robot file's placement_tolerance")
-        elif r.stage == "verify":
-            print(f"a check of {req.verify}: draw it on a fresh sheet, photograph it into "
-                  f"{req.out}, then: vision-cal verify {req.verify} {req.out}")
-        else:
-            print(f"placed with the pilot's model, {r.info['safety_mm']:.1f} mm of safety")
-            beyond = r.info.get("beyond_valid_for") or []
-            if beyond:   # by design: the informative plan identifies what the pilot could not
-                print("the pilot's model is this plan's starting model (not the nominal: "
-                      "that stays the robot file); the plan goes beyond what the pilot saw, "
-                      "by design (" + ", ".join(o["field"] for o in beyond) + "): its "
-                      "calibration identifies them (session.json design.beyond_valid_for)")
-        for p in (r.session_path, r.trajectory_path, r.program_path):
-            if p is not None:
-                print(f"wrote {p}")
-    return 0
+    dest = (copy_survey(survey, load_sheet_file(req.sheet), r.session_path.parent)
+            if survey is not None else None)
+    return StageDesigned(r, survey, dest, req.verify, req.out)
 
 
 #: options that contradict each other: (a, b, why); ``a`` and ``b`` name an option given
@@ -179,7 +182,7 @@ def _refuse_conflicts(req: DesignRequest) -> None:
                                  field=a)
 
 
-def _camera_on_arm(req: DesignRequest) -> int:
+def _camera_on_arm(req: DesignRequest) -> CameraPosesDesigned:
     check_design(n_poses=req.n_poses, trigger=req.trigger, seed=req.seed)
     if not 0 <= req.repeats <= req.n_poses:
         raise VisionCalError(f"expected 0..{req.n_poses} (--n-poses), got {req.repeats}",
@@ -198,11 +201,4 @@ def _camera_on_arm(req: DesignRequest) -> int:
                                         trigger=req.trigger, output_bit=req.trigger_output,
                                         seed=req.seed, repeats=req.repeats,
                                         progress=not req.quiet)
-    if not req.quiet:
-        print(f"camera poses: {req.n_poses}, {req.repeats} of them taken twice (the robot's "
-              f"repeatability, measured) ({req.mount} mount); put the photos beside "
-              f"{a} (and your camera's lens in it if you know it: camera: size_px, K, dist), "
-              f"then vision-cal handeye {out} --out CAL/")
-        print(f"wrote {a}")
-        print(f"wrote {b}")
-    return 0
+    return CameraPosesDesigned(req.n_poses, req.repeats, req.mount, a, b, out)

@@ -3,7 +3,6 @@ YAML."""
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass
 
 from vision_cal.calibrate.plausible import check_units
@@ -36,7 +35,18 @@ class ExportRequest:
     camera: int = 0
 
 
-def export_calibration(req: ExportRequest) -> int:
+@dataclass(frozen=True)
+class ExportOutcome:
+    """The files written, in order, and the warnings for the console: the calibration's
+    trust (``--force`` over an unreliable one) first, then each extrapolation beyond its
+    ``valid_for`` (with ``--force``)."""
+
+    written: tuple[str, ...]
+    warnings: tuple[str, ...] = ()
+    said: tuple[str, ...] = ()
+
+
+def export_calibration(req: ExportRequest) -> ExportOutcome:
     """The calibration exported: URDF and its effects, controller YAML, OpenCV and ROS
     camera files, written together or not at all."""
     if not (req.urdf or req.yaml or req.opencv or req.ros):
@@ -59,8 +69,6 @@ def export_calibration(req: ExportRequest) -> int:
                 nominal_of=f"the robot file {req.robot}")
 
     warn = refuse_unreliable(doc, req.calibration, force=req.force)
-    if warn:
-        print(warn, file=sys.stderr)
     said = []
     if req.urdf or req.yaml:   # the robot model for every pose: what it could not identify
         outside = check_valid_for(valid_for_of(doc, file=str(req.calibration)),
@@ -81,9 +89,4 @@ def export_calibration(req: ExportRequest) -> int:
             written = export(doc, urdf=req.urdf, yaml_path=req.yaml,
                              limits_deg=limits, limits4_deg=limits4,
                              limits3_mm=limits3, extrapolated=said) + written
-    for w in said:
-        print(f"vision-cal: warning: {w}", file=sys.stderr)
-    for path in written:
-        if not req.quiet:
-            print(f"wrote {path}")
-    return 0
+    return ExportOutcome(tuple(str(p) for p in written), (warn,) if warn else (), tuple(said))

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,9 +22,20 @@ class InitSessionRequest:
     jobs: int | None = None
 
 
-def init_session(req: InitSessionRequest) -> int:
+@dataclass(frozen=True)
+class InitOutcome:
+    """The session completed (a dict; written to ``out``, or None: for stdout), the warnings
+    (photos not used, marks refused) and the summary line (photos, marks found)."""
+
+    session: dict
+    out: str | None
+    warnings: tuple[str, ...]
+    summary: str
+
+
+def init_session(req: InitSessionRequest) -> InitOutcome:
     """A session.json completed from photos and a plan: which photo shows which marks,
-    written to OUT or printed."""
+    written to OUT or returned for the console."""
     if req.jobs is not None and req.jobs < 1:
         raise VisionCalError(f"--jobs must be at least 1, got {req.jobs}")
     if req.out:
@@ -50,22 +60,14 @@ def init_session(req: InitSessionRequest) -> int:
                              "file(s)" + (f" (first: {meas.images[0].file}: "
                                           f"{meas.images[0].reason})" if meas.images else ""),
                              file=str(req.photos))
-    for im in meas.images:
-        if im.status != "ok":
-            print(f"vision-cal: warning: {req.photos}/{im.file}: not used: {im.reason}",
-                  file=sys.stderr)
-    for w in meas.warnings:
-        print(f"vision-cal: warning: {w}", file=sys.stderr)
+    warnings = tuple(f"{req.photos}/{im.file}: not used: {im.reason}"
+                     for im in meas.images if im.status != "ok") + tuple(meas.warnings)
     if req.out:
         try:
             atomic_write_json(req.out, doc)
         except OSError as e:
             raise VisionCalError(f"cannot write: {e.strerror or e}", file=str(req.out)) from e
-    else:
-        sys.stdout.write(json.dumps(doc, indent=2) + "\n")
-    if not req.quiet:
-        n = len(doc["images"])
-        print(f"{n} photo(s) of the sheet ({meas.inferred or 'none'}), "
-              f"{len(meas.marks)} of {len(meas.marks) + len(meas.refused)} marks found"
-              + (f" -> {req.out}" if req.out else ""), file=sys.stderr)
-    return 0
+    summary = (f"{len(doc['images'])} photo(s) of the sheet ({meas.inferred or 'none'}), "
+               f"{len(meas.marks)} of {len(meas.marks) + len(meas.refused)} marks found"
+               + (f" -> {req.out}" if req.out else ""))
+    return InitOutcome(doc, req.out, warnings, summary)

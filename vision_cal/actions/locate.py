@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import csv
 import io
-import sys
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -67,10 +67,26 @@ class LocateRequest:
     force: bool = False   # locate outside valid_for, the extrapolation stated
 
 
-def locate_pixels(req: LocateRequest) -> int:
+@dataclass(frozen=True)
+class LocateOutcome:
+    """What was located, for the console: one pixel (``point``, its ``joint`` command or
+    None), or a CSV of them (its text for stdout, or the file written); and the warnings
+    (``--force``: beyond ``valid_for``)."""
+
+    warnings: tuple[str, ...] = ()
+    point: object = None          # camera.fixed's located point (one --pixel)
+    joint: object = None          # its joint command (with --robot), else None
+    camera: int = 0
+    elbow: int = 1
+    csv_text: str | None = None   # --csv without -o: the table for stdout
+    path: Path | None = None      # --csv -o: the file written
+    n: int = 0                    # pixels located
+
+
+def locate_pixels(req: LocateRequest) -> LocateOutcome:
     """Pixels of a still camera (or the camera on the arm) located in the robot and sheet
-    frames (and the joint commands that reach them, with a robot file); one pixel printed, a
-    CSV of them written."""
+    frames (and the joint commands that reach them, with a robot file); one pixel returned,
+    a CSV of them written (or returned for stdout)."""
     if (req.pixel is None) == (req.csv is None):
         raise VisionCalError("give either --pixel U V or --csv PIXELS.csv", field="--pixel")
     if req.out and not req.csv:
@@ -122,26 +138,19 @@ def locate_pixels(req: LocateRequest) -> int:
     outside = _outside_valid_for(req, doc, ids, z, joints)
     said = enforce_valid_for(outside, file=str(req.calibration), force=req.force,
                              what="--csv" if req.csv else "--pixel")
-    for w in said:   # --force: the extrapolation on the console (and in the CSV)
-        print(f"vision-cal: warning: {w}", file=sys.stderr)
+    # said: --force, the extrapolation, for the console (and in the CSV)
     if req.csv:
         flagged: dict = {}
         for o in outside:
             for i in o.ids:
                 flagged[i] = (flagged.get(i, "") + " " + o.field).strip()
-        return _write_csv(req, ids, points, joints, flagged if said else None)
-    p, j = points[0], joints[0]
-    print(f"pixel {p.pixel[0]:g} {p.pixel[1]:g} at z {p.z_mm:g} mm (camera {req.camera})")
-    print(f"  robot frame: x {p.robot_mm[0]:.4f} y {p.robot_mm[1]:.4f} z {p.robot_mm[2]:.4f} mm"
-          f"  (std {p.robot_std_mm[0]:.4f} {p.robot_std_mm[1]:.4f} mm)")
-    print(f"  sheet frame: x {p.sheet_mm[0]:.4f} y {p.sheet_mm[1]:.4f} mm")
-    if j is not None:
-        if j.status == "ok":
-            print(f"  joint command (compensated, elbow {req.elbow:+d}): q1 {j.q_deg[0]:.4f} "
-                  f"q2 {j.q_deg[1]:.4f} deg, approach {j.approach[0]:+d} {j.approach[1]:+d}")
-        else:
-            print(f"  joint command: none ({j.reason})")
-    return 0
+        text = _csv_text(req, ids, points, joints, flagged if said else None)
+        if req.out:
+            return LocateOutcome(tuple(said), path=atomic_write_text(req.out, text),
+                                 n=len(points))
+        return LocateOutcome(tuple(said), csv_text=text, n=len(points))
+    return LocateOutcome(tuple(said), point=points[0], joint=joints[0], camera=req.camera,
+                         elbow=req.elbow, n=1)
 
 
 def _refuse_joints_beyond_limits(req: LocateRequest, doc: dict, robot) -> None:
@@ -189,7 +198,7 @@ def _outside_valid_for(req: LocateRequest, doc: dict, ids, z, joints) -> list:
     return out
 
 
-def _write_csv(req: LocateRequest, ids, points, joints, flagged=None) -> int:
+def _csv_text(req: LocateRequest, ids, points, joints, flagged=None) -> str:
     buf = io.StringIO()
     wr = csv.writer(buf, lineterminator="\n")
     head = ["id", "u_px", "v_px", "z_mm", "x_mm", "y_mm", "x_std_mm", "y_std_mm",
@@ -210,10 +219,4 @@ def _write_csv(req: LocateRequest, ids, points, joints, flagged=None) -> int:
         if flagged is not None:
             row.append(flagged.get(i, ""))
         wr.writerow(row)
-    if req.out:
-        path = atomic_write_text(req.out, buf.getvalue())
-        if not req.quiet:
-            print(f"located {len(points)} pixels -> {path}")
-    else:
-        sys.stdout.write(buf.getvalue())
-    return 0
+    return buf.getvalue()

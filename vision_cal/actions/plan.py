@@ -5,7 +5,6 @@ reference trajectory and a robot program, written together or not at all."""
 from __future__ import annotations
 
 import math
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -49,9 +48,27 @@ class PlanRequest:
     quiet: bool = False
 
 
-def plan(req: PlanRequest) -> int:
+@dataclass(frozen=True)
+class PlanOutcome:
+    """What ``vision-cal plan`` did, for the console, in the order it is said: the
+    calibration's trust (``--force`` over an unreliable one), the program written, the
+    warnings (targets not planned, on the print, beyond ``valid_for``), the summary, and the
+    error when nothing could be planned (exit code 1)."""
+
+    summary: str
+    trust_warning: str | None = None
+    program: Path | None = None
+    warnings: tuple[str, ...] = ()
+    error: str | None = None
+
+    @property
+    def exit_code(self) -> int:
+        return 1 if self.error else 0
+
+
+def plan(req: PlanRequest) -> PlanOutcome:
     """Plan ``req.targets`` with the model of ``req.calibration``; write the plan (and the
-    trajectory, the robot program) together or not at all. Exit code: 0, or 1 when no
+    trajectory, the robot program) together or not at all. Its exit code: 0, or 1 when no
     target could be planned."""
     # never over a file of another kind (a calibration.json, an image): issue 30
     output_file_of_kind(req.out, "csv", field="-o")
@@ -76,8 +93,6 @@ def plan(req: PlanRequest) -> int:
             check_program(req.program, robot)
     model, doc = load_calibration(req.calibration, which=req.model)
     warn = refuse_unreliable(doc, req.calibration, force=req.force)
-    if warn:
-        print(warn, file=sys.stderr)
     home_deg = _home_deg(req, doc, robot)
     ids, xy = read_targets(req.targets)
     if req.trajectory:  # a million targets: refused before they are planned
@@ -120,6 +135,7 @@ def plan(req: PlanRequest) -> int:
     said = enforce_valid_for(outside, file=str(req.calibration), force=req.force,
                              what=str(req.targets))
     flagged = _flagged_targets(outside)
+    written_program = None
     # every output is written together or not at all (a program path that cannot be
     # written, a trajectory too long, leave the earlier files as they were)
     with written_together():
@@ -148,49 +164,43 @@ def plan(req: PlanRequest) -> int:
                     tool = controller_tool_mm(model.params, model.tool.tool_mm)
             points = program_points(marks, home_deg=home_deg,
                                     z2_deg=model.params.z2_deg, joint4=joint4)
-            path = write_program(req.program, prg, points, robot,
+            written_program = write_program(req.program, prg, points, robot,
                                  title=f"vision-cal compensated targets: {len(ok)} of "
                                        f"{len(planned)} targets of {req.targets}, "
                                        f"{req.model} model" + "".join(
                                            f"; EXTRAPOLATED: {w}" for w in said),
                                  tool_mm=tool)
-            if not req.quiet:
-                print(f"wrote {path}")
+    warnings = []
     if failed:
         if ok:  # when none is planned, the error below says it once
-            print(f"vision-cal: warning: {req.targets}: {summarise_failures(failed)}; "
-                  f"all in {report}", file=sys.stderr)
+            warnings.append(f"{req.targets}: {summarise_failures(failed)}; all in {report}")
     else:
         report.unlink(missing_ok=True)  # a stale report of an earlier run
-    _say_targets_on_print(req, doc, ok)
-    for w in said:
-        print(f"vision-cal: warning: {w}", file=sys.stderr)
-    if not req.quiet:
-        print(f"planned {len(planned) - len(failed)} of {len(planned)} targets "
-              f"with the {req.model} model -> {req.out}")
-    if not ok:
-        print(f"vision-cal: error: {req.targets}: nothing could be planned with the "
-              f"{req.model} model of {req.calibration}: {summarise_failures(failed)}; "
-              f"all in {report}", file=sys.stderr)
-        return 1
-    return 0
+    warnings += _targets_on_print(req, doc, ok) + list(said)
+    return PlanOutcome(
+        f"planned {len(planned) - len(failed)} of {len(planned)} targets with the "
+        f"{req.model} model -> {req.out}", warn, written_program,
+        tuple(warnings),
+        None if ok else (f"{req.targets}: nothing could be planned with the {req.model} "
+                         f"model of {req.calibration}: {summarise_failures(failed)}; "
+                         f"all in {report}"))
 
 
-def _say_targets_on_print(req, doc: dict, ok) -> None:
-    """One warning line naming the planned targets that lie on the sheet's printed ink
-    (calibration.json ``printed_content``) and what it costs."""
+def _targets_on_print(req, doc: dict, ok) -> list[str]:
+    """The warning (none or one line) naming the planned targets that lie on the sheet's
+    printed ink (calibration.json ``printed_content``) and what it costs."""
     content = doc.get("printed_content") or []
     if not content or not ok:
-        return
+        return []
     on = targets_on_print(content, [p.id for p in ok], [p.target_mm for p in ok], 1.0)
     if not on:
-        return
+        return []
     head = "; ".join(f"{tid} ({', '.join(labels)})" for tid, labels in on[:3])
     more = f" and {len(on) - 3} more" if len(on) > 3 else ""
-    print(f"vision-cal: warning: {req.targets}: {len(on)} target(s) on the sheet's printed "
-          f"ink: {head}{more}: a pen mark there is measured against the print (0.01-0.02 mm "
-          "less certain) or, where it cannot be separated, left out as unreliable; move the "
-          "target by a few millimetres onto plain paper to check it", file=sys.stderr)
+    return [f"{req.targets}: {len(on)} target(s) on the sheet's printed ink: {head}{more}: a "
+            "pen mark there is measured against the print (0.01-0.02 mm less certain) or, "
+            "where it cannot be separated, left out as unreliable; move the target by a few "
+            "millimetres onto plain paper to check it"]
 
 
 def _outside_valid_for(req, doc: dict, ok, pose_of, robot) -> list:

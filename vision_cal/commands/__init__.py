@@ -1,9 +1,11 @@
 """Command-line front end: modules here only parse arguments; the work is in the library.
 
 Each subcommand module defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and
-``run(args) -> int``, and is listed in ``main.SUBCOMMANDS``. ``run`` calls one action
-(``vision_cal.actions`` or a stage module's entry point), imported inside ``run`` so that
-``--help`` is instant.
+``run(args) -> int``, and is listed in ``main.SUBCOMMANDS``. ``run`` builds the action's
+request (:func:`request`), calls one action of ``vision_cal.actions`` and hands its outcome to
+``actions.console.show``; both imported inside ``run`` so that ``--help`` is instant. A
+command imports nothing but the actions, this package, errors and progress
+(tests/test_architecture.py).
 """
 
 from __future__ import annotations

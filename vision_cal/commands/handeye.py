@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from vision_cal.commands import request
+
 NAME = "handeye"
 HELP = ("calibrate the robot and T_flange_camera from photos taken by the arm's camera "
         "(session.json poses; no pen), or a camera from pose pairs another tool measured "
@@ -48,63 +50,20 @@ def add_arguments(p) -> None:
 
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
-    # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    import os
-
-    from vision_cal.actions.handeye import HandeyeRequest, handeye_pairs
-    from vision_cal.workflows.arm_session import calibrate_arm_camera
-    from vision_cal.dataset.io import atomic_write_json
-    from vision_cal.dataset.out_folder import writing_into
-    from vision_cal.diagnose.verdict import Verdict
+    # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
     from vision_cal.errors import VisionCalError
 
     if (args.folder is None) == (args.poses is None):
         raise VisionCalError("give FOLDER (photos of the arm's camera) or --poses PAIRS "
                              "(pose pairs), one of them", field="--poses")
     if args.poses is not None:
-        return handeye_pairs(HandeyeRequest(args.poses, args.out, units=args.units,
-                                            mount=args.mount, z_mm=args.z_mm,
-                                            quiet=args.quiet))
+        from vision_cal.actions.handeye import HandeyeRequest, handeye_pairs
+
+        return handeye_pairs(request(args, HandeyeRequest))
     for name in ("units", "mount", "z_mm"):
         if getattr(args, name) is not None:
             raise VisionCalError("applies to --poses only", field=f"--{name.replace('_', '-')}")
-    if args.jobs is not None and args.jobs < 1:
-        raise VisionCalError(f"must be at least 1, got {args.jobs}", field="--jobs")
-    # the output folder: never the photos' folder; an earlier run's results (this command's
-    # or a pen calibration's) go to previous/ first; locked while written (issue 30)
-    with writing_into(args.out, command="handeye", inputs=[("FOLDER", args.folder)],
-                      quiet=args.quiet) as out:
-        doc = calibrate_arm_camera(args.folder, progress=not args.quiet,
-                                   jobs=args.jobs or os.cpu_count() or 1)
-        path = atomic_write_json(out / "calibration.json", doc)
-    if not args.quiet:
-        cam = doc["cameras"][0]
-        p, sd = doc["params"], doc["std"]
-        skipped = [im for im in doc["images"] if im["status"] != "ok"]
-        print(f"{len(cam['images'])} photos used, {len(skipped)} skipped; corner RMS "
-              f"{cam['corner_rms_px']:.3f} px")
-        print(f"L1 {p['L1_mm']:.4f} +- {sd['L1_mm']:.4f} mm, L2 {p['L2_mm']:.4f} +- "
-              f"{sd['L2_mm']:.4f} mm, zeros {p['joint_zero_deg'][0]:.4f} "
-              f"{p['joint_zero_deg'][1]:.4f} deg, base {p['base_mm'][0]:.3f} "
-              f"{p['base_mm'][1]:.3f} mm")
-        print(flange_camera_line(cam))
-        for e in doc["effects"]:
-            print(f"joint {e['joint']} backlash {e['deg']:.4f} +- {e['std']:.4f} deg")
-        v = Verdict.from_json(doc["verdict"])
-        if v.floor_line:
-            print(v.floor_line)
-        print(v.text)
-        print(f"wrote {path}")
-    return 0
+    from vision_cal.actions.arm_camera import ArmCameraRequest, calibrate_arm
+    from vision_cal.actions.console import show
 
-
-def flange_camera_line(cam: dict) -> str:
-    """T_flange_camera in words, with units: the camera's x and y in the flange frame with
-    their std; its z is the height above the sheet's plane (SCARA motion is planar: the
-    flange's own height, hence the camera's height above the flange, is not identifiable)."""
-    t = cam["T_flange_camera"]
-    sd = cam["T_flange_camera_std"]["translation_mm"]
-    return (f"T_flange_camera: camera at x {t[0][3]:.3f} +- {sd[0]:.3f} mm, y {t[1][3]:.3f} +- "
-            f"{sd[1]:.3f} mm in the flange frame; its height above the flange is not "
-            f"identifiable (planar motion): z {t[2][3]:.3f} mm is its height above the "
-            "sheet's plane")
+    return show(calibrate_arm(request(args, ArmCameraRequest)), quiet=args.quiet)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from vision_cal.commands import request
+
 NAME = "render"
 HELP = ("render a synthetic dataset (photos, session.json, truth.json) from a scene file "
         "(renders/README.md)")
@@ -30,22 +32,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
-    # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.errors import VisionCalError
-    from vision_cal.render.dataset import render_dataset
-    from vision_cal.render.scene import load_scene
+    # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
+    from vision_cal.actions.console import show
+    from vision_cal.actions.render import RenderRequest, render
 
-    if args.seed is not None and args.seed < 0:
-        raise VisionCalError(f"expected a non-negative integer, got {args.seed}", field="--seed")
-    scene = load_scene(args.scene).with_overrides(seed=args.seed, mode=args.mode)
-    progress = not getattr(args, "quiet", False)  # a bar on a terminal, else one line per stage
-    if args.jobs is not None and args.jobs < 1:
-        raise VisionCalError(f"must be at least 1, got {args.jobs}", field="--jobs")
-    import os
-
-    from vision_cal.calibrate.paper import pilot_params
-
-    out = render_dataset(scene, args.out, progress=progress, pilot=pilot_params,
-                         jobs=args.jobs or os.cpu_count())
-    print(out)
-    return 0
+    return show(render(request(args, RenderRequest)), quiet=args.quiet)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from vision_cal.commands import request
+
 NAME = "robot-template"
 HELP = ("write a commented robot file to edit (docs/robot-file.md), or with --simulated a "
         "simulated robot for `vision-cal simulate`")
@@ -23,23 +25,8 @@ def add_arguments(p) -> None:
 
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
-    # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from pathlib import Path
+    # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
+    from vision_cal.actions.console import show
+    from vision_cal.actions.robot_template import RobotTemplateRequest, robot_template
 
-    from vision_cal.dataset.io import atomic_write_text
-    from vision_cal.errors import VisionCalError
-    from vision_cal.templates import template_text
-
-    text = template_text("simulated" if args.simulated else "robot")
-    if args.out is None:
-        print(text, end="")
-        return 0
-    out = Path(args.out)
-    if out.exists():
-        raise VisionCalError("exists: not replaced (remove it or choose another name)",
-                             file=str(out), field="--out")
-    atomic_write_text(out, text)
-    if not args.quiet:
-        print(f"wrote {out}: edit the fields marked EDIT" if not args.simulated
-              else f"wrote {out}: the `hidden` block is what the simulated robot hides")
-    return 0
+    return show(robot_template(request(args, RobotTemplateRequest)), quiet=args.quiet)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from vision_cal.commands import request
+
 NAME = "sheet"
 HELP = ("write the printable calibration sheet (vector PDF at true scale, SVG, optional PNG) "
         "and sheet.json, the session's sheet block")
@@ -18,9 +20,6 @@ Print sheet.pdf at 100 % (actual size, no fit-to-page) and measure both bars; pa
 sheet.json as the "sheet" block of session.json (vision-cal design does it for you).
 """
 
-DEFAULT_DICT = "DICT_5X5_100"
-
-
 def add_arguments(p) -> None:
     page = p.add_argument_group("page")
     page.add_argument("--size", default=None, metavar="A0..A4",
@@ -33,8 +32,9 @@ def add_arguments(p) -> None:
     o.add_argument("--portrait", dest="landscape", action="store_const", const=False,
                    help="higher than wide")
     m = p.add_argument_group("markers")
-    m.add_argument("--dictionary", default=DEFAULT_DICT, metavar="DICT",
-                   help="OpenCV predefined ArUco dictionary (default DICT_5X5_100)")
+    m.add_argument("--dictionary", default=None, metavar="DICT",
+                   help="OpenCV predefined ArUco dictionary (default DICT_5X5_100; with "
+                        "--field DICT_5X5_1000)")
     m.add_argument("--marker-mm", type=float, metavar="S",
                    help="marker side including its black border (default: about 1/15 of "
                         "the short side)")
@@ -55,37 +55,8 @@ def add_arguments(p) -> None:
 
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
-    # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.sheet import make_layout, write_sheet
+    # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
+    from vision_cal.actions.console import show
+    from vision_cal.actions.sheet import SheetRequest, sheet
 
-    if args.size is not None and args.custom is not None:
-        from vision_cal.errors import VisionCalError
-
-        raise VisionCalError("give either --size or --custom, not both", field="--custom")
-    if args.field:  # added: vision_cal/sheet/field.py
-        from vision_cal.sheet.field import make_field_layout
-
-        layout = make_field_layout(
-            size=args.size or "A3", landscape=args.landscape, custom_mm=args.custom,
-            dictionary=args.dictionary if args.dictionary != DEFAULT_DICT else "DICT_5X5_1000",
-            marker_mm=args.marker_mm, pitch_mm=args.pitch_mm)
-    else:
-        layout = make_layout(size=args.size or "A3", landscape=args.landscape,
-                             custom_mm=args.custom, dictionary=args.dictionary,
-                             marker_mm=args.marker_mm, pitch_mm=args.pitch_mm,
-                             measured_bar_mm=args.measured_bar_mm)
-    from vision_cal.dataset.io import written_together
-    from vision_cal.dataset.out_folder import refuse_other_sheet, writing_into
-
-    # another sheet in the folder (the one the plans were designed on) is never replaced;
-    # the folder is locked while written (issue 30)
-    refuse_other_sheet(args.out, layout.sheet_id)
-    with writing_into(args.out, command="sheet", retire=False) as out, written_together():
-        paths = write_sheet(layout, out, png_dpi=args.png_dpi)
-    if not args.quiet:
-        print(f"sheet {layout.sheet_id}: {layout.page} {layout.orientation} "
-              f"{layout.size_mm[0]:g} x {layout.size_mm[1]:g} mm, {len(layout.markers)} "
-              f"{layout.dictionary} markers of {layout.marker_mm:g} mm -> "
-              + ", ".join(str(p) for p in paths.values()))
-        print("print at 100 % (actual size) and check that both bars measure 100.0 mm")
-    return 0
+    return show(sheet(request(args, SheetRequest)), quiet=args.quiet)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from vision_cal.commands import request
+
 NAME = "simulate"
 HELP = ("rehearse without a robot: a simulated robot (your robot file plus hidden offsets and "
         "effects) draws a designed plan on the printed sheet and photographs it")
@@ -47,27 +49,8 @@ def add_arguments(p) -> None:
 
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
-    # and the library pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.dataset.io import written_together
-    from vision_cal.dataset.out_folder import writing_into
-    from vision_cal.errors import VisionCalError
-    from vision_cal.render.rehearse import simulate_session
+    # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
+    from vision_cal.actions.console import show
+    from vision_cal.actions.simulate import SimulateRequest, simulate
 
-    if args.seed is not None and args.seed < 0:
-        raise VisionCalError(f"expected a non-negative integer, got {args.seed}", field="--seed")
-    # locked while written; the photos, session.json and truth.json are renamed into place
-    # together at the end, so an interrupted run leaves none of them (issue 30)
-    with writing_into(args.out, command="simulate", retire=False), written_together():
-        r = simulate_session(args.plan, args.truth, args.out, after=args.after,
-                             progress=not args.quiet, rng=args.seed, sheet_json=args.sheet,
-                             targets=args.targets)
-    if not args.quiet:
-        extra = []
-        if r.off_paper:
-            extra.append(f"{len(r.off_paper)} off the paper")
-        if r.on_marker:
-            extra.append(f"{len(r.on_marker)} on a printed marker")
-        print(f"the simulated robot drew {r.n_marks} marks"
-              + (f" ({', '.join(extra)})" if extra else "")
-              + f"; {len(r.photos)} photos -> {r.out_dir}/ (truth.json: where they really are)")
-    return 0
+    return show(simulate(request(args, SimulateRequest)), quiet=args.quiet)

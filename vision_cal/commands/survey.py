@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from vision_cal.commands import request
+
 NAME = "survey"
 HELP = ("measure the printed sheet as it really is (markers' corners, lens) from photos "
         "taken from several places before any mark; writes OUT/survey.json")
@@ -22,15 +24,9 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    # imported here: every command module is imported to build the parser
-    from pathlib import Path
+    # imported here, not at the top: every command module is imported to build the parser,
+    # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
+    from vision_cal.actions.console import show
+    from vision_cal.actions.survey import SurveyRequest, survey
 
-    from vision_cal.measure.survey import run_survey
-
-    doc = run_survey(args.photos, args.sheet, args.out)
-    if not args.quiet:
-        v = doc["verdict"]
-        print(f"{Path(args.out) / 'survey.json'}: {v['status']}: {v['text']}")
-        for line in v["limits"]:
-            print(f"  limited by: {line}")
-    return 0
+    return show(survey(request(args, SurveyRequest)), quiet=args.quiet)

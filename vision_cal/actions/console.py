@@ -1,0 +1,341 @@
+"""The console, in one place: what each action returned, printed as the command's lines
+(stdout; warnings on stderr). ``show(outcome, quiet=...)`` picks the printer by the
+outcome's type and returns the command's exit code. The actions write files and return
+typed outcomes; they print nothing of their results (progress bars and the output folder's
+notices aside)."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:   # the outcomes' modules pull numpy, OpenCV and the renderer
+    from vision_cal.actions.arm_camera import ArmCameraOutcome
+    from vision_cal.actions.design import CameraPosesDesigned, PlacementsDesigned, StageDesigned
+    from vision_cal.actions.export import ExportOutcome
+    from vision_cal.actions.history import HistoryOutcome
+    from vision_cal.actions.init import InitOutcome
+    from vision_cal.actions.locate import LocateOutcome
+    from vision_cal.actions.plan import PlanOutcome
+    from vision_cal.actions.loop import LoopOutcome
+    from vision_cal.actions.render import RenderOutcome
+    from vision_cal.actions.robot_template import RobotTemplateOutcome
+    from vision_cal.actions.sheet import SheetOutcome
+    from vision_cal.actions.survey import SurveyOutcome
+    from vision_cal.actions.verify import VerifyOutcome
+    from vision_cal.render.rehearse import SimulateResult
+
+
+def show(outcome, *, quiet: bool = False) -> int:
+    """Print ``outcome`` (nothing but warnings and what a quiet run still says, when
+    ``quiet``); the exit code (0 unless the printer says otherwise). The printer is looked up by the outcome's class name, so that
+    this module imports none of the actions (a light command stays light)."""
+    kind = type(outcome)
+    printer = PRINTERS.get(f"{kind.__module__}.{kind.__qualname__}")
+    if printer is None:
+        raise TypeError(f"no printer for {kind.__module__}.{kind.__qualname__}")
+    code = printer(outcome, quiet)
+    return code or 0
+
+
+def arm_camera_lines(o: ArmCameraOutcome) -> list[str]:
+    """``vision-cal handeye FOLDER``: the photos used, the arm, the camera's mount, the
+    effects and the verdict."""
+    # the action that returned ``o`` imported it already
+    from vision_cal.diagnose.verdict import Verdict
+
+    doc = o.calibration
+    cam = doc["cameras"][0]
+    p, sd = doc["params"], doc["std"]
+    skipped = [im for im in doc["images"] if im["status"] != "ok"]
+    lines = [f"{len(cam['images'])} photos used, {len(skipped)} skipped; corner RMS "
+             f"{cam['corner_rms_px']:.3f} px",
+             f"L1 {p['L1_mm']:.4f} +- {sd['L1_mm']:.4f} mm, L2 {p['L2_mm']:.4f} +- "
+             f"{sd['L2_mm']:.4f} mm, zeros {p['joint_zero_deg'][0]:.4f} "
+             f"{p['joint_zero_deg'][1]:.4f} deg, base {p['base_mm'][0]:.3f} "
+             f"{p['base_mm'][1]:.3f} mm",
+             flange_camera_line(cam)]
+    lines += [f"joint {e['joint']} backlash {e['deg']:.4f} +- {e['std']:.4f} deg"
+              for e in doc["effects"]]
+    v = Verdict.from_json(doc["verdict"])
+    if v.floor_line:
+        lines.append(v.floor_line)
+    return lines + [v.text, f"wrote {o.path}"]
+
+
+def flange_camera_line(cam: dict) -> str:
+    """T_flange_camera in words, with units: the camera's x and y in the flange frame with
+    their std; its z is the height above the sheet's plane (SCARA motion is planar: the
+    flange's own height, hence the camera's height above the flange, is not identifiable)."""
+    t = cam["T_flange_camera"]
+    sd = cam["T_flange_camera_std"]["translation_mm"]
+    return (f"T_flange_camera: camera at x {t[0][3]:.3f} +- {sd[0]:.3f} mm, y {t[1][3]:.3f} +- "
+            f"{sd[1]:.3f} mm in the flange frame; its height above the flange is not "
+            f"identifiable (planar motion): z {t[2][3]:.3f} mm is its height above the "
+            "sheet's plane")
+
+
+def verify_lines(o: VerifyOutcome) -> list[str]:
+    """``vision-cal verify``: each mark's error, the RMS and its bound, which parameters
+    moved, ISO 9283 and the verdict with its reasons."""
+    r = o.result
+    lines = [f"{'mark':<8}{'error x':>10}{'error y':>10}{'|error|':>10}  [mm, the sheet's "
+             "placement taken out]"]
+    for mid, m in r.marks.items():
+        ex, ey = m["error_mm"]
+        lines.append(f"{mid:<8}{ex:>+10.4f}{ey:>+10.4f}{m['error_norm_mm']:>10.4f}")
+    lines.append(f"RMS {r.rms_mm['sheet_placed']:.4f} mm (bound for 'still good': "
+                 f"{r.bound_mm:.4f} mm)")
+    lines.append(f"{'parameter':<12}{'change':>10}{'std':>9}  moved?")
+    for label, c in r.changes.items():
+        if c.get("sheet_placement"):
+            continue
+        lines.append(f"{label:<12}{c['delta']:>+10.4f}{c['std']:>9.4f}  "
+                     f"{'yes' if c['moved'] else 'no'} ({c['sigmas']:.1f} std)")
+    if r.iso9283:
+        lines.append("ISO 9283 (each visit's own commanded point taken out; assumes the "
+                     "robot's error is the same over each point's few-mm grid of visits):")
+        lines += [f"  {name}: AP {v['AP_mm']:.4f} mm, RP {v['RP_mm']:.4f} mm ({v['n']} visits)"
+                  for name, v in r.iso9283.items()]
+    lines.append(f"verdict: {r.verdict}")
+    lines += [f"  {reason}" for reason in r.reasons]
+    return lines + [f"wrote {o.path}"]
+
+
+def loop_lines(o: LoopOutcome) -> list[str]:
+    """``vision-cal loop``: the calibration's summary and the targets' table (Table 3)."""
+    # the action that returned ``o`` imported it already
+    from vision_cal.workflows.loop import format_table
+    from vision_cal.report.summary import format_summary
+
+    return [format_summary(o.calibration), "",
+            "absolute error of each target, measured from the photographs (Table 3):",
+            format_table(o.loop)]
+
+
+def report_line(path: Path, photos: Path) -> str:
+    """Where the report is, its size, and where the photos it links are."""
+    return (f"report: {path.resolve()} ({path.stat().st_size / 1e6:.1f} MB; the photos it "
+            f"links are in {photos.resolve()})")
+
+
+def simulate_line(r: SimulateResult) -> str:
+    """``vision-cal simulate``: the marks drawn (off the paper, on a printed marker) and the
+    photos taken."""
+    extra = []
+    if r.off_paper:
+        extra.append(f"{len(r.off_paper)} off the paper")
+    if r.on_marker:
+        extra.append(f"{len(r.on_marker)} on a printed marker")
+    return (f"the simulated robot drew {r.n_marks} marks"
+            + (f" ({', '.join(extra)})" if extra else "")
+            + f"; {len(r.photos)} photos -> {r.out_dir}/ (truth.json: where they really are)")
+
+
+def _print_lines(lines) -> None:
+    for line in lines:
+        print(line)
+
+
+def _arm_camera(o: ArmCameraOutcome, quiet: bool) -> None:
+    if not quiet:
+        _print_lines(arm_camera_lines(o))
+
+
+def _verify(o: VerifyOutcome, quiet: bool) -> None:
+    for w in o.warnings:   # --force: the check compared beyond what was calibrated
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
+    if not quiet:
+        _print_lines(verify_lines(o))
+
+
+def _loop(o: LoopOutcome, quiet: bool) -> None:
+    if not quiet:
+        _print_lines(loop_lines(o))
+    if o.report is not None:   # said even when quiet: where to look
+        print(report_line(o.report, o.out))
+
+
+def _history(o: HistoryOutcome, quiet: bool) -> None:
+    if not quiet:
+        # the action that returned ``o`` imported it already
+        from vision_cal.report.history import history_table
+
+        print(history_table(list(o.rows)))
+        _print_lines(f"wrote {p}" for p in o.written)
+
+
+def _simulate(r: SimulateResult, quiet: bool) -> None:
+    if not quiet:
+        print(simulate_line(r))
+
+
+
+def sheet_lines(o: SheetOutcome) -> list[str]:
+    """``vision-cal sheet``: the page, the markers, the files, and how to print."""
+    layout = o.layout
+    return [f"sheet {layout.sheet_id}: {layout.page} {layout.orientation} "
+            f"{layout.size_mm[0]:g} x {layout.size_mm[1]:g} mm, {len(layout.markers)} "
+            f"{layout.dictionary} markers of {layout.marker_mm:g} mm -> "
+            + ", ".join(str(p) for p in o.paths.values()),
+            "print at 100 % (actual size) and check that both bars measure 100.0 mm"]
+
+
+def survey_lines(o: SurveyOutcome) -> list[str]:
+    """``vision-cal survey``: the verdict and what limits it."""
+    v = o.survey["verdict"]
+    return ([f"{o.path}: {v['status']}: {v['text']}"]
+            + [f"  limited by: {line}" for line in v["limits"]])
+
+
+def _render(o: RenderOutcome, quiet: bool) -> None:
+    print(o.folder)   # even when quiet: the folder to calibrate next
+
+
+def _robot_template(o: RobotTemplateOutcome, quiet: bool) -> None:
+    if o.path is None:   # the text itself is the output
+        print(o.text, end="")
+    elif not quiet:
+        print(f"wrote {o.path}: edit the fields marked EDIT" if not o.simulated
+              else f"wrote {o.path}: the `hidden` block is what the simulated robot hides")
+
+
+def _sheet(o: SheetOutcome, quiet: bool) -> None:
+    if not quiet:
+        _print_lines(sheet_lines(o))
+
+
+def _survey(o: SurveyOutcome, quiet: bool) -> None:
+    if not quiet:
+        _print_lines(survey_lines(o))
+
+
+
+def _export(o: ExportOutcome, quiet: bool) -> None:
+    for w in o.warnings:
+        print(w, file=sys.stderr)
+    for w in o.said:   # --force: exported beyond what was calibrated
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
+    if not quiet:
+        _print_lines(f"wrote {p}" for p in o.written)
+
+
+def _init(o: InitOutcome, quiet: bool) -> None:
+    for w in o.warnings:
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
+    if o.out is None:   # the session itself is the output
+        sys.stdout.write(json.dumps(o.session, indent=2) + "\n")
+    if not quiet:
+        print(o.summary, file=sys.stderr)
+
+
+def locate_lines(o: LocateOutcome) -> list[str]:
+    """``vision-cal locate --pixel``: the pixel in the robot and sheet frames, and the joint
+    command that reaches it (with --robot)."""
+    p, j = o.point, o.joint
+    lines = [f"pixel {p.pixel[0]:g} {p.pixel[1]:g} at z {p.z_mm:g} mm (camera {o.camera})",
+             f"  robot frame: x {p.robot_mm[0]:.4f} y {p.robot_mm[1]:.4f} z "
+             f"{p.robot_mm[2]:.4f} mm  (std {p.robot_std_mm[0]:.4f} {p.robot_std_mm[1]:.4f} mm)",
+             f"  sheet frame: x {p.sheet_mm[0]:.4f} y {p.sheet_mm[1]:.4f} mm"]
+    if j is not None:
+        lines.append(f"  joint command (compensated, elbow {o.elbow:+d}): q1 {j.q_deg[0]:.4f} "
+                     f"q2 {j.q_deg[1]:.4f} deg, approach {j.approach[0]:+d} {j.approach[1]:+d}"
+                     if j.status == "ok" else f"  joint command: none ({j.reason})")
+    return lines
+
+
+def _locate(o: LocateOutcome, quiet: bool) -> None:
+    for w in o.warnings:   # --force: the extrapolation (also in the CSV)
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
+    if o.point is not None:   # one pixel: the answer itself, even when quiet
+        _print_lines(locate_lines(o))
+    elif o.csv_text is not None:
+        sys.stdout.write(o.csv_text)
+    elif not quiet:
+        print(f"located {o.n} pixels -> {o.path}")
+
+
+def stage_lines(o: StageDesigned) -> list[str]:
+    """``vision-cal design``: the survey that goes with the plan, the plan's size and what
+    it is for, the files written."""
+    r = o.result
+    lines = ([f"the sheet as surveyed ({o.survey}) goes with the plan: {o.survey_copy}"]
+             if o.survey_copy is not None else [])
+    lines.append(f"{r.stage} plan: {r.n_marks} marks, {r.duration_s:.1f} s of motion")
+    if r.stage == "pilot":
+        lines.append(f"every mark stays {r.info['worst_case_clearance_mm']:.1f} mm clear of "
+                     f"markers and edges for {r.info['placements_checked']} placements within "
+                     "the robot file's placement_tolerance")
+    elif r.stage == "verify":
+        lines.append(f"a check of {o.verify}: draw it on a fresh sheet, photograph it into "
+                     f"{o.out}, then: vision-cal verify {o.verify} {o.out}")
+    else:
+        lines.append(f"placed with the pilot's model, {r.info['safety_mm']:.1f} mm of safety")
+        beyond = r.info.get("beyond_valid_for") or []
+        if beyond:   # by design: the informative plan identifies what the pilot could not
+            lines.append("the pilot's model is this plan's starting model (not the nominal: "
+                         "that stays the robot file); the plan goes beyond what the pilot saw, "
+                         "by design (" + ", ".join(b["field"] for b in beyond) + "): its "
+                         "calibration identifies them (session.json design.beyond_valid_for)")
+    return lines + [f"wrote {p}" for p in (r.session_path, r.trajectory_path, r.program_path)
+                    if p is not None]
+
+
+def camera_poses_lines(o: CameraPosesDesigned) -> list[str]:
+    """``vision-cal design --camera-on-arm``: the poses, where the photos go, what next."""
+    return [f"camera poses: {o.n_poses}, {o.repeats} of them taken twice (the robot's "
+            f"repeatability, measured) ({o.mount} mount); put the photos beside "
+            f"{o.session} (and your camera's lens in it if you know it: camera: size_px, K, "
+            f"dist), then vision-cal handeye {o.out} --out CAL/",
+            f"wrote {o.session}", f"wrote {o.program}"]
+
+
+def _stage(o: StageDesigned, quiet: bool) -> None:
+    for w in o.result.info.get("warnings", []):
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
+    if not quiet:
+        _print_lines(stage_lines(o))
+
+
+def _placements(o: PlacementsDesigned, quiet: bool) -> None:
+    if not quiet:
+        _print_lines(f"{p['folder']}: {p['instruction']}" for p in o.placements)
+
+
+def _camera_poses(o: CameraPosesDesigned, quiet: bool) -> None:
+    if not quiet:
+        _print_lines(camera_poses_lines(o))
+
+
+def _plan(o: PlanOutcome, quiet: bool) -> int:
+    if o.trust_warning:
+        print(o.trust_warning, file=sys.stderr)
+    if o.program is not None and not quiet:
+        print(f"wrote {o.program}")
+    for w in o.warnings:
+        print(f"vision-cal: warning: {w}", file=sys.stderr)
+    if not quiet:
+        print(o.summary)
+    if o.error:
+        print(f"vision-cal: error: {o.error}", file=sys.stderr)
+    return o.exit_code
+
+#: the printer of each outcome's type, by its module and name
+PRINTERS = {"vision_cal.actions.arm_camera.ArmCameraOutcome": _arm_camera,
+            "vision_cal.actions.verify.VerifyOutcome": _verify,
+            "vision_cal.actions.loop.LoopOutcome": _loop,
+            "vision_cal.actions.history.HistoryOutcome": _history,
+            "vision_cal.render.rehearse.SimulateResult": _simulate,
+            "vision_cal.actions.render.RenderOutcome": _render,
+            "vision_cal.actions.robot_template.RobotTemplateOutcome": _robot_template,
+            "vision_cal.actions.sheet.SheetOutcome": _sheet,
+            "vision_cal.actions.survey.SurveyOutcome": _survey,
+            "vision_cal.actions.export.ExportOutcome": _export,
+            "vision_cal.actions.init.InitOutcome": _init,
+            "vision_cal.actions.locate.LocateOutcome": _locate,
+            "vision_cal.actions.design.StageDesigned": _stage,
+            "vision_cal.actions.design.PlacementsDesigned": _placements,
+            "vision_cal.actions.design.CameraPosesDesigned": _camera_poses,
+            "vision_cal.actions.plan.PlanOutcome": _plan}

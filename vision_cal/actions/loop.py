@@ -1,0 +1,50 @@
+"""The closed loop on a synthetic scene (``vision-cal loop``): :func:`vision_cal.workflows.loop.run_loop`
+in a locked output folder, then the report. Returns what was found;
+:mod:`vision_cal.actions.console` prints it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from vision_cal.dataset.out_folder import writing_into
+from vision_cal.errors import VisionCalError
+from vision_cal.workflows.loop import run_loop
+from vision_cal.report.html import write_report
+
+
+@dataclass(frozen=True)
+class LoopRequest:
+    """What ``vision-cal loop`` was asked (see its ``--help``)."""
+
+    scene: str                    # SCENE.yaml
+    out: str
+    jobs: int | None = None       # render and measurement processes (default: every core)
+    elbow: int = 1                # elbow of the planned targets
+    report: bool = True           # DIR/calibration/report.html
+    quiet: bool = False
+
+
+@dataclass(frozen=True)
+class LoopOutcome:
+    """loop.json's document, the calibration's document (calibration.json as a dict), the
+    output folder and the report written (None: ``--no-report``)."""
+
+    loop: dict
+    calibration: dict
+    out: Path
+    report: Path | None = None
+
+
+def loop(req: LoopRequest) -> LoopOutcome:
+    """Run the closed loop of ``req.scene`` into ``req.out`` (and its report)."""
+    if req.jobs is not None and req.jobs < 1:
+        raise VisionCalError(f"must be at least 1, got {req.jobs}", field="--jobs")
+    progress = not req.quiet  # a bar on a terminal, else one line per stage
+    with writing_into(req.out, command="loop", retire=False):   # locked while written
+        doc, run = run_loop(req.scene, out_dir=req.out, jobs=req.jobs, progress=progress,
+                            elbow=req.elbow)
+    out = Path(req.out)
+    report = (write_report(run.out_path, out / "calibration", loop=out / "loop.json")
+              if req.report else None)
+    return LoopOutcome(doc, run.document, out, report)

@@ -1,0 +1,65 @@
+"""The printable calibration sheet (``vision-cal sheet``): its layout
+(:func:`vision_cal.sheet.make_layout`, or a marker field for an arm camera,
+:func:`vision_cal.sheet.field.make_field_layout`) written as PDF, SVG, sheet.json (and PNG)
+into a locked folder that holds no other sheet."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from vision_cal.dataset.io import written_together
+from vision_cal.dataset.out_folder import refuse_other_sheet, writing_into
+from vision_cal.errors import VisionCalError
+from vision_cal.sheet import SheetLayout, make_layout, write_sheet
+from vision_cal.sheet.field import make_field_layout
+
+#: the markers' dictionary when none is given: a ruled sheet's, a marker field's
+DEFAULT_DICT = "DICT_5X5_100"
+FIELD_DICT = "DICT_5X5_1000"
+
+
+@dataclass(frozen=True)
+class SheetRequest:
+    """What ``vision-cal sheet`` was asked (see its ``--help``)."""
+
+    out: str
+    size: str | None = None                        # ISO page (default A3)
+    custom: tuple[float, float] | None = None      # page width, height (mm)
+    landscape: bool | None = None
+    dictionary: str | None = None                  # default DEFAULT_DICT (field: FIELD_DICT)
+    marker_mm: float | None = None
+    pitch_mm: float | None = None
+    field: bool = False                            # a marker field for an arm camera
+    png_dpi: float | None = None
+    measured_bar_mm: tuple[float, float] | None = None
+    quiet: bool = False
+
+
+@dataclass(frozen=True)
+class SheetOutcome:
+    """The layout written and its files (kind -> path)."""
+
+    layout: SheetLayout
+    paths: dict
+
+
+def sheet(req: SheetRequest) -> SheetOutcome:
+    """Lay out the sheet of ``req`` and write it into ``req.out``."""
+    if req.size is not None and req.custom is not None:
+        raise VisionCalError("give either --size or --custom, not both", field="--custom")
+    if req.field:
+        layout = make_field_layout(
+            size=req.size or "A3", landscape=req.landscape, custom_mm=req.custom,
+            dictionary=req.dictionary or FIELD_DICT, marker_mm=req.marker_mm,
+            pitch_mm=req.pitch_mm)
+    else:
+        layout = make_layout(size=req.size or "A3", landscape=req.landscape,
+                             custom_mm=req.custom, dictionary=req.dictionary or DEFAULT_DICT,
+                             marker_mm=req.marker_mm, pitch_mm=req.pitch_mm,
+                             measured_bar_mm=req.measured_bar_mm)
+    # another sheet in the folder (the one the plans were designed on) is never replaced;
+    # the folder is locked while written (issue 30)
+    refuse_other_sheet(req.out, layout.sheet_id)
+    with writing_into(req.out, command="sheet", retire=False) as out, written_together():
+        paths = write_sheet(layout, out, png_dpi=req.png_dpi)
+    return SheetOutcome(layout, paths)

@@ -1,0 +1,39 @@
+"""The robot's part rehearsed (``vision-cal simulate``): a simulated robot draws a plan and
+photographs it (:func:`vision_cal.render.rehearse.simulate_session`), the photos, session.json
+and truth.json renamed into place together. Returns what was drawn;
+:mod:`vision_cal.actions.console` prints it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from vision_cal.dataset.io import written_together
+from vision_cal.dataset.out_folder import writing_into
+from vision_cal.errors import VisionCalError
+from vision_cal.render.rehearse import SimulateResult, simulate_session
+
+
+@dataclass(frozen=True)
+class SimulateRequest:
+    """What ``vision-cal simulate`` was asked (see its ``--help``)."""
+
+    plan: str                      # PLAN_DIR, or a targets program PLAN.prg
+    truth: str                     # TRUE_ROBOT.yaml
+    out: str                       # PHOTOS/
+    sheet: str | None = None       # targets program: the sheet.json it is drawn on
+    targets: str | None = None     # targets program: targets.csv
+    after: tuple[str, ...] = ()    # folders simulated before on the same sheet
+    seed: int | None = None        # overrides the robot file's seed
+    quiet: bool = False
+
+
+def simulate(req: SimulateRequest) -> SimulateResult:
+    """Draw and photograph ``req.plan`` with the simulated robot of ``req.truth``."""
+    if req.seed is not None and req.seed < 0:
+        raise VisionCalError(f"expected a non-negative integer, got {req.seed}", field="--seed")
+    # locked while written; the photos, session.json and truth.json are renamed into place
+    # together at the end, so an interrupted run leaves none of them (issue 30)
+    with writing_into(req.out, command="simulate", retire=False), written_together():
+        return simulate_session(req.plan, req.truth, req.out, after=list(req.after),
+                                progress=not req.quiet, rng=req.seed, sheet_json=req.sheet,
+                                targets=req.targets)

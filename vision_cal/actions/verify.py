@@ -1,0 +1,52 @@
+"""The check of a calibration (``vision-cal verify``): the check's photos measured and
+compared with calibration.json (:func:`vision_cal.workflows.verify.verify_folder`), written into an
+output folder that is never an input's (:func:`vision_cal.dataset.out_folder.writing_into`).
+Returns what was found; :mod:`vision_cal.actions.console` prints it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from vision_cal.dataset.out_folder import writing_into
+from vision_cal.errors import VisionCalError
+from vision_cal.workflows.verify import VerifyResult, verify_folder
+
+
+@dataclass(frozen=True)
+class VerifyRequest:
+    """What ``vision-cal verify`` was asked (see its ``--help``)."""
+
+    calibration: str              # CAL.json
+    folder: str                   # the check's photos and session.json
+    out: str | None = None        # default PHOTOS_verify beside the photos
+    force: bool = False           # check marks outside the calibration's valid_for
+    jobs: int | None = None       # photo measurement processes (default: every core)
+    quiet: bool = False
+
+
+@dataclass(frozen=True)
+class VerifyOutcome:
+    """The check's result, where verify.json was written, and the warnings (``--force``:
+    marks compared beyond what was calibrated) for the console."""
+
+    result: VerifyResult
+    path: Path
+    warnings: tuple[str, ...] = ()
+
+
+def verify(req: VerifyRequest) -> VerifyOutcome:
+    """Check ``req.calibration`` on the photos of ``req.folder``; writes verify.json."""
+    if req.jobs is not None and req.jobs < 1:
+        raise VisionCalError(f"must be at least 1, got {req.jobs}", field="--jobs")
+    folder = Path(req.folder)
+    here = folder.resolve()
+    out = Path(req.out) if req.out else here.with_name(here.name + "_verify")
+    # the output folder: never the photos' folder nor the one holding CAL.json; an earlier
+    # check's results go to previous/; locked while written (issue 30)
+    with writing_into(out, command="verify", field="-o",
+                      inputs=[("CAL.json", req.calibration), ("PHOTOS/", req.folder)],
+                      quiet=req.quiet) as out:
+        r, path, said = verify_folder(req.calibration, folder, out_dir=out, jobs=req.jobs,
+                                      progress=not req.quiet, force=req.force)
+    return VerifyOutcome(r, path, tuple(said))
