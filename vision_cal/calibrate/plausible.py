@@ -82,14 +82,19 @@ def check_links_against(doc: dict, nominal, *, file: str, robot_file: str) -> No
             continue
         ratio = float(got) / float(nom)
         if not (LINK_RATIO[0] <= ratio <= LINK_RATIO[1]):
-            cause = next((f"lengths in {what}?" for factor, what in
-                          ((1000.0, "metres instead of millimetres"),
-                           (25.4, "inches instead of millimetres"))
-                          for r in (factor, 1.0 / factor) if abs(ratio / r - 1.0) < 0.1),
-                         "is it this robot's calibration?")
+            cause = _unit_cause(ratio, "is it this robot's calibration?")
             raise VisionCalError(f"{name} = {float(got):.6g} against {nom:g} mm in the robot "
                                  f"file {robot_file} ({ratio:.3g}x): {cause}", file=file,
                                  field=f"params.{name}")
+
+
+def _unit_cause(ratio: float, otherwise: str) -> str:
+    """Why a link length is ``ratio`` times the robot file's: metres or inches where
+    millimetres were meant (either way), else ``otherwise``."""
+    return next((f"lengths in {what}?" for factor, what in
+                 ((1000.0, "metres instead of millimetres"),
+                  (25.4, "inches instead of millimetres"))
+                 for r in (factor, 1.0 / factor) if abs(ratio / r - 1.0) < 0.1), otherwise)
 
 
 def radians_given(joints_deg) -> bool:
@@ -165,11 +170,7 @@ def check_units(model, doc: dict, *, file: str, nominal=None, nominal_of: str = 
             continue
         ratio = float(got) / float(nom)
         if not LINK_RATIO[0] <= ratio <= LINK_RATIO[1]:
-            cause = next((f"lengths in {what}?" for factor, what in
-                          ((1000.0, "metres instead of millimetres"),
-                           (25.4, "inches instead of millimetres"))
-                          for r in (factor, 1.0 / factor) if abs(ratio / r - 1.0) < 0.1),
-                         "not this robot's calibration, or not in mm?")
+            cause = _unit_cause(ratio, "not this robot's calibration, or not in mm?")
             raise VisionCalError(f"implausible units: {float(got):.6g} against {nom:g} mm "
                                  f"({nominal_of}, {ratio:.3g}x): {cause}", file=file,
                                  field=f"params.{name}")
