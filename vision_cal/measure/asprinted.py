@@ -25,7 +25,8 @@ projection for the poses and the lens.
 
 What the views cannot separate from the lens is stated with its size: ``unresolved_mm``,
 the RMS over the released corners of their standard deviation (from the Jacobian at the
-solution, the residual's own scale), the lens free.
+solution, the residual's own scale, times sqrt(photos / places): repeated photos from one
+place repeat its detection errors), the lens free.
 """
 
 from __future__ import annotations
@@ -400,7 +401,11 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
     J = jacobian(sol.x)   # the plain Jacobian (sol.jac is scaled by the loss)
     r_obs = sol.fun[:m_obs]
     dof = max(m_obs - (len(x0) - 4), 1)
-    s2 = float(np.sum(r_obs**2)) / dof
+    # photos from one place see the corners with the same detection errors (the same
+    # pixels): they carry one view's information, not one each; the variance counts
+    # places (38 photos from 4 places: the std was 3 times too small, and a bumped sheet's
+    # model error passed for 0.012 mm of print at 5 times it)
+    s2 = float(np.sum(r_obs**2)) / dof * V / max(n_places, 1)
     std = np.zeros_like(P0)
     hstd = np.zeros(len(P0))
     plane = np.column_stack([np.ones(len(rel_idx)), P0[rel_idx]])   # the heights' gauge
