@@ -389,6 +389,13 @@ class AsPrintedConfig:
                                       # systematic uncertainty (2-D): the pose takes part of
                                       # the print, the robot fit part of what is left (a 0.17
                                       # mm print: 0.15 mm seen, marks 0.08 mm off)
+    release_heights: bool = True      # each released corner's height off the paper's plane
+                                      # is solved too: paper that is not flat shows parallax
+                                      # between places, which in-plane shifts alone take
+                                      # for print (a bumped sheet, 0.3-1 mm, from four
+                                      # places: 0.11-0.26 mm of false print)
+    height_prior_mm: float = 2.0      # the prior on each corner's height (paper off flat by
+                                      # a few mm at most; holds the heights' gauge)
     survey_good_mm: float = 0.02      # a survey whose corners are known to this (2-D RMS of
                                       # their std) says "good"; else what limits it
 

@@ -25,7 +25,8 @@ projection for the poses and the lens.
 
 What the views cannot separate from the lens is stated with its size: ``unresolved_mm``,
 the RMS over the released corners of their standard deviation (from the Jacobian at the
-solution, the residual's own scale), the lens free.
+solution, the residual's own scale, times sqrt(photos / places): repeated photos from one
+place repeat its detection errors), the lens free.
 """
 
 from __future__ import annotations
@@ -54,6 +55,9 @@ class AsPrinted:
     ``files``, ``rms_px_before`` / ``rms_px_after``: per photo, the marker corners' RMS
     reprojection residual against the declared layout and against the printed one (same
     lens, each photo's own pose). ``n_places``: distinct camera places among the photos.
+    ``heights_mm`` / ``height_std_mm`` (M, 4): each corner's height off the paper's plane
+    (less the heights' best-fitting plane) and its std, when they were released
+    (``config.as_printed.release_heights``; else None): paper that is not flat.
     """
 
     ids: np.ndarray
@@ -71,6 +75,8 @@ class AsPrinted:
     n_places: int
     source: str = "views"
     notes: tuple[str, ...] = field(default=())
+    heights_mm: np.ndarray | None = None
+    height_std_mm: np.ndarray | None = None
 
     # ------------------------------------------------------------------ figures
     @property
@@ -103,6 +109,22 @@ class AsPrinted:
         return rms_2d(d) if len(d) else 0.0
 
     @property
+    def height_rms_mm(self) -> float | None:
+        """RMS of the released corners' heights off the paper's plane (None: not released)."""
+        if self.heights_mm is None:
+            return None
+        h = np.asarray(self.heights_mm)[self.released]
+        return float(np.sqrt(np.mean(h**2))) if len(h) else 0.0
+
+    @property
+    def height_unresolved_mm(self) -> float | None:
+        """RMS of the released corners' height std (None: not released)."""
+        if self.height_std_mm is None:
+            return None
+        s = np.asarray(self.height_std_mm)[self.released]
+        return float(np.sqrt(np.mean(s**2))) if len(s) else float("nan")
+
+    @property
     def unresolved_mm(self) -> float:
         """RMS (2-D) of the released corners' std: what the views leave uncertain, the part
         of the print the lens could take over included."""
@@ -128,15 +150,21 @@ class AsPrinted:
             "gauge": "best-fitting similarity to the declared layout = identity",
             "rms_mm": self.rms_mm, "max_mm": self.max_mm, "growth_mm": self.growth_mm,
             "field_rms_mm": self.field_rms_mm, "unresolved_mm": self.unresolved_mm,
+            "height_rms_mm": self.height_rms_mm,
+            "height_unresolved_mm": self.height_unresolved_mm,
             "n_places": int(self.n_places), "lens_free": bool(self.lens_free),
             "K": np.asarray(self.K).tolist(), "dist": np.asarray(self.dist).tolist(),
             "size_px": list(self.size_px),
             "photos": [{"file": f, "corner_rms_px_before": b, "corner_rms_px_after": a}
                        for f, b, a in zip(self.files, self.rms_px_before, self.rms_px_after)],
             "markers": [{"id": int(i), "corners_mm": p.tolist(), "declared_mm": d.tolist(),
-                         "std_mm": s.tolist(), "released": [bool(r) for r in rel]}
-                        for i, p, d, s, rel in zip(self.ids, self.printed_mm, self.declared_mm,
-                                                   self.std_mm, self.released)],
+                         "std_mm": s.tolist(), "released": [bool(r) for r in rel],
+                         **({} if self.heights_mm is None else
+                            {"height_mm": np.asarray(self.heights_mm)[k].tolist(),
+                             "height_std_mm": np.asarray(self.height_std_mm)[k].tolist()})}
+                        for k, (i, p, d, s, rel) in enumerate(zip(
+                            self.ids, self.printed_mm, self.declared_mm, self.std_mm,
+                            self.released))],
             "notes": list(self.notes),
         }
 
@@ -155,7 +183,10 @@ class AsPrinted:
                    tuple(float(p["corner_rms_px_before"]) for p in ph),
                    tuple(float(p["corner_rms_px_after"]) for p in ph),
                    int(d["n_places"]), str(d.get("source", "views")),
-                   tuple(d.get("notes") or ()))
+                   tuple(d.get("notes") or ()),
+                   *((np.array([m["height_mm"] for m in ms], float).reshape(-1, 4),
+                      np.array([m["height_std_mm"] for m in ms], float).reshape(-1, 4))
+                     if ms and all("height_mm" in m for m in ms) else (None, None)))
 
 
 # ---------------------------------------------------------------------- projection
@@ -267,8 +298,14 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
     n_lens = len(LENS_FREE) if lens_free else 0
     npv = 7 if lens_free else 6    # per photo: rvec, tvec (and its focal length's factor)
     n_pose = npv * V
-    n_delta = 2 * len(rel_idx)
+    # each released corner: its shift in the paper's plane, and (``release_heights``) its
+    # height off it: paper that is not flat shows parallax between places, which a shift
+    # alone would take for print
+    nd = 3 if cfg.release_heights else 2
+    n_delta = nd * len(rel_idx)
     w_prior = cfg.noise_px / cfg.prior_mm
+    w_delta = np.tile([w_prior] * 2 + ([cfg.noise_px / cfg.height_prior_mm] if nd == 3 else []),
+                      len(rel_idx))
     n_foc = V if lens_free else 0  # a phone refocuses: each photo's f = f (1 + e), e ~ prior
     w_foc = cfg.noise_px / cfg.focal_scatter
 
@@ -277,8 +314,8 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
         if lens_free:
             lens[:7] = x[:7]
         poses = x[n_lens:n_lens + n_pose].reshape(V, npv)
-        delta = np.zeros_like(P0)
-        delta[rel_idx] = x[n_lens + n_pose:].reshape(-1, 2)
+        delta = np.zeros((len(P0), 3))
+        delta[rel_idx, :nd] = x[n_lens + n_pose:].reshape(-1, nd)
         return lens, poses, delta
 
     view_rows = [np.flatnonzero(obs_view == v) for v in range(V)]
@@ -289,7 +326,7 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
         observation rows (OpenCV's own derivatives of its projection)."""
         lens, poses, delta = unpack(x)
         Kx, dx = _lens_matrices(lens)
-        P = P0 + delta
+        P = np.column_stack([P0, np.zeros(len(P0))]) + delta
         pred = np.empty_like(obs_px)
         J = np.zeros((m_obs, len(x))) if with_jac else None
         eps = 1e-3
@@ -297,7 +334,7 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
             Kv = Kx.copy()
             if lens_free:
                 Kv[0, 0] = Kv[1, 1] = Kx[0, 0] * (1.0 + poses[v, 6])
-            Pv = np.column_stack([P[obs_pt[rows]], np.zeros(len(rows))])
+            Pv = P[obs_pt[rows]]
             pv, jv = cv2.projectPoints(Pv, poses[v, :3], poses[v, 3:6], Kv, dx)
             pred[rows] = pv.reshape(-1, 2)
             if not with_jac:
@@ -313,13 +350,13 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
             cols = col_of[obs_pt[rows]]
             rel = cols >= 0
             if rel.any():   # each corner moves only its own pixel: two shifted projections
-                for j in range(2):
+                for j in range(nd):
                     Ps = Pv.copy()
                     Ps[:, j] += eps
                     ps, _ = cv2.projectPoints(Ps, poses[v, :3], poses[v, 3:6], Kv, dx)
                     dp = (ps.reshape(-1, 2) - pv.reshape(-1, 2)) / eps
                     rr = rows[rel]
-                    cc = n_lens + n_pose + 2 * cols[rel] + j
+                    cc = n_lens + n_pose + nd * cols[rel] + j
                     J[2 * rr, cc] = dp[rel, 0]
                     J[2 * rr + 1, cc] = dp[rel, 1]
         return pred, J
@@ -329,13 +366,13 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
     def residuals(x):
         pred, _ = _model(x, False)
         return np.concatenate([(pred - obs_px).ravel(), w_foc * x[foc_cols[:n_foc]],
-                               w_prior * x[n_lens + n_pose:]])
+                               w_delta * x[n_lens + n_pose:]])
 
     def jacobian(x):
         _, J = _model(x, True)
         F = np.zeros((n_foc, len(x)))
         F[np.arange(n_foc), foc_cols[:n_foc]] = w_foc
-        D = np.hstack([np.zeros((n_delta, n_lens + n_pose)), w_prior * np.eye(n_delta)])
+        D = np.hstack([np.zeros((n_delta, n_lens + n_pose)), np.diag(w_delta)])
         return np.vstack([J, F, D])
 
     poses0 = np.column_stack([rvecs, tvecs] + ([np.zeros(V)] if lens_free else []))
@@ -364,10 +401,22 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
     J = jacobian(sol.x)   # the plain Jacobian (sol.jac is scaled by the loss)
     r_obs = sol.fun[:m_obs]
     dof = max(m_obs - (len(x0) - 4), 1)
-    s2 = float(np.sum(r_obs**2)) / dof
+    # photos from one place see the corners with the same detection errors (the same
+    # pixels): they carry one view's information, not one each; the variance counts
+    # places (38 photos from 4 places: the std was 3 times too small, and a bumped sheet's
+    # model error passed for 0.012 mm of print at 5 times it)
+    s2 = float(np.sum(r_obs**2)) / dof * V / max(n_places, 1)
     std = np.zeros_like(P0)
+    hstd = np.zeros(len(P0))
+    plane = np.column_stack([np.ones(len(rel_idx)), P0[rel_idx]])   # the heights' gauge
     try:
-        cov = s2 * np.linalg.inv(J.T @ J)[n_lens + n_pose:, n_lens + n_pose:]
+        cov3 = s2 * np.linalg.inv(J.T @ J)[n_lens + n_pose:, n_lens + n_pose:]
+        inplane = (np.arange(n_delta) % nd) < 2
+        cov = cov3[np.ix_(inplane, inplane)]
+        if nd == 3 and len(rel_idx) >= 3:   # heights less their best-fitting plane
+            Qh = np.eye(len(plane)) - plane @ np.linalg.pinv(plane)
+            ch = cov3[np.ix_(~inplane, ~inplane)]
+            hstd[rel_idx] = np.sqrt(np.clip(np.diag(Qh @ ch @ Qh.T), 0, None))
         # in the gauge: the deviations less their best-fitting similarity
         pr = P0[rel_idx]
         A = np.zeros((2 * len(pr), 4))
@@ -379,7 +428,14 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
         std[rel_idx] = np.sqrt(np.clip(np.diag(cov), 0, None)).reshape(-1, 2)
     except np.linalg.LinAlgError:
         std[rel_idx] = np.nan
-    # the gauge: no similarity between the printed and the declared layout
+        hstd[rel_idx] = np.nan
+    # the gauge: no similarity between the printed and the declared layout; no plane
+    # between the heights and the paper's
+    heights = np.zeros(len(P0))
+    if nd == 3 and len(rel_idx) >= 3:
+        h = delta[rel_idx, 2]
+        heights[rel_idx] = h - plane @ np.linalg.lstsq(plane, h, rcond=None)[0]
+    delta = delta[:, :2]
     sim = _similarity(P0[rel_idx], delta[rel_idx]) if len(rel_idx) >= 3 else np.zeros(4)
     delta[rel_idx] -= _apply_similarity(sim, P0[rel_idx])
     Kf, df = _lens_matrices(lens)
@@ -389,4 +445,6 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
     return AsPrinted(ids, declared, (P0 + delta).reshape(-1, 4, 2), std.reshape(-1, 4, 2),
                      released.reshape(-1, 4), Kf, df, (int(size_px[0]), int(size_px[1])),
                      bool(lens_free), tuple(v[0] for v in views), rms_before, rms_after,
-                     n_places, source, tuple(notes))
+                     n_places, source, tuple(notes),
+                     heights.reshape(-1, 4) if nd == 3 else None,
+                     hstd.reshape(-1, 4) if nd == 3 else None)

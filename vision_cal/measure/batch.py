@@ -586,6 +586,7 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
         return {"source": kept_declared.source, "applied": False,
                 "rms_mm": kept_declared.rms_mm, "max_mm": kept_declared.max_mm,
                 "unresolved_mm": kept_declared.unresolved_mm, "limit_mm": 0.0,
+                "height_rms_mm": kept_declared.height_rms_mm,
                 "n_places": kept_declared.n_places}
     if as_printed is not None:
         return {"source": as_printed.source, "applied": True, "rms_mm": as_printed.rms_mm,
@@ -594,6 +595,7 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
                 "unresolved_mm": as_printed.unresolved_mm,
                 "limit_mm": as_printed.unresolved_mm,
                 "sigma_mm": as_printed.unresolved_mm / np.sqrt(2.0),
+                "height_rms_mm": as_printed.height_rms_mm,
                 "n_places": as_printed.n_places}
     declared = {int(m.id): np.asarray(m.corners_mm, float) for m in session.sheet.markers}
     means, noise = [], []

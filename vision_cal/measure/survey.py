@@ -83,8 +83,14 @@ def run_survey(photos_dir, sheet_json, out_dir, *, config: EstimatorConfig | Non
         "print": {"rms_mm": ap.rms_mm, "max_mm": ap.max_mm, "growth_mm": ap.growth_mm,
                   "field_rms_mm": ap.field_rms_mm, "unresolved_mm": ap.unresolved_mm,
                   "n_places": ap.n_places},
-        "paper_height": {"measured": False,
-                         "note": "the paper's height is not estimated by this version"},
+        "paper_height": ({"measured": False,
+                          "note": "the corners' heights were not released "
+                                  "(config.as_printed.release_heights)"}
+                         if ap.height_rms_mm is None else
+                         {"measured": True, "rms_mm": ap.height_rms_mm,
+                          "unresolved_mm": ap.height_unresolved_mm,
+                          "note": "each marker corner's height off the paper's best-fitting "
+                                  "plane: as_printed.markers[].height_mm"}),
         "verdict": survey_verdict(ap, config),
         "warnings": warnings,
         "as_printed": ap.to_json(),
