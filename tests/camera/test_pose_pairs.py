@@ -240,3 +240,24 @@ def test_the_fixture_finds_its_camera_and_names_its_misdetected_pair():
     truth = json.loads((root / "truth.json").read_text())
     assert fit.outliers == ("p09",)
     assert _within(fit, np.array(truth["T_flange_camera"])) < REGION_6
+
+
+def test_handeye_poses_keeps_the_pairs_folder_and_an_earlier_run(tmp_path, capsys):
+    """``--out`` the folder holding the pairs file is refused (exit 2, the input's folder
+    unchanged); a second run into the same folder moves the first one's result to
+    previous/ (the output owner, issue 30)."""
+    from vision_cal.commands.main import main
+
+    w = simulate_pairs(TRUTH, 12, seed=3275, mount="arm", **POSE)
+    _write_forms(tmp_path, w)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    assert main(["handeye", "--poses", str(tmp_path / "p4.json"), "--out", str(tmp_path),
+                 "-q"]) == 2
+    assert "holds the input --poses" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    out = tmp_path / "o"
+    for _ in range(2):
+        assert main(["handeye", "--poses", str(tmp_path / "p4.json"), "--out", str(out),
+                     "-q"]) == 0
+    assert (out / "calibration.json").is_file()
+    assert (out / "previous" / "calibration.json").is_file()

@@ -7,14 +7,14 @@ pose pairs")."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from vision_cal.camera.pose_pairs import LABELS, PairsFit, fit_pose_pairs
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.calibration_result import CalibrationResult
-from vision_cal.dataset.io import atomic_write_json, distinct_outputs, output_dir
+from vision_cal.dataset.io import atomic_write_json
+from vision_cal.dataset.out_folder import writing_into
 from vision_cal.dataset.poses import read_poses
 from vision_cal.diagnose.verdict import Verdict, judge_camera_poses
 from vision_cal.errors import CalibrationError
@@ -111,15 +111,16 @@ def pairs_document(fit: PairsFit, *, source: str, units: str,
 def handeye_pairs(req: HandeyeRequest) -> int:
     """Read, fit, judge and write ``OUT/calibration.json``; print the summary."""
     pf = read_poses(req.poses, units=req.units, mount=req.mount, target_z_mm=req.z_mm)
-    out = output_dir(req.out, field="--out")
-    target = out / "calibration.json"
-    distinct_outputs([("--out", target)], [("--poses", Path(req.poses))])
     fit = fit_pose_pairs(list(pf.pairs), pf.mount, z_mm=pf.target_z_mm,
                          config=DEFAULT.handeye)
     if not fit:
         raise CalibrationError(fit.reason, file=str(pf.path))
     doc = pairs_document(fit, source=str(pf.path), units=pf.units)
-    path = atomic_write_json(target, doc)
+    # the output folder's one owner (issue 30): never the folder holding the pairs file; an
+    # earlier run's results go to previous/; locked while written
+    with writing_into(req.out, command="handeye", inputs=[("--poses", req.poses)],
+                      quiet=req.quiet) as out:
+        path = atomic_write_json(out / "calibration.json", doc)
     if not req.quiet:
         xname = NAMES[fit.mount][0]
         cam = doc["cameras"][0]
