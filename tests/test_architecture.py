@@ -359,8 +359,6 @@ UPWARD_PENDING = {
     ("dataset", "camera"): "the camera block's reader moves to dataset (issue 31)",
     ("measure", "calibrate"): "association and the tool's first guess move to identify/",
     ("measure", "plan"): "association's equivalent joints move to identify/",
-    ("calibrate", "diagnose"): "the fit's diagnosis call moves to workflows/",
-    ("calibrate", "workflows"): "calibrate_placements moves to workflows/",
 }
 
 

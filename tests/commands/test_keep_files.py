@@ -17,7 +17,7 @@ import pytest
 from tests.commands.test_trust import (assert_one_line, calibration,  # noqa: F401
                                        cli, snapshot)
 import vision_cal.actions.calibrate as calibrate_action
-import vision_cal.calibrate.placements as placements
+import vision_cal.workflows.placements as placements
 from tests.tool.test_placements import _places
 from vision_cal.camera.arm import MAX_POSES
 from vision_cal.commands.main import main

@@ -1,6 +1,6 @@
 """The calibration action (``vision-cal calibrate``): one or several dataset folders
 measured and calibrated (:func:`vision_cal.workflows.pipeline.calibrate_dataset`), or one robot from
-several placements (:func:`vision_cal.calibrate.placements.calibrate_placements`), with the
+several placements (:func:`vision_cal.workflows.placements.calibrate_placements`), with the
 console summary, the optional report and, for several folders, ``summary.json``."""
 
 from __future__ import annotations
@@ -9,7 +9,6 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from vision_cal.calibrate.placements import calibrate_placements
 from vision_cal.dataset.io import atomic_write_json, output_dir, written_together
 from vision_cal.dataset.marks_csv import session_from_marks_csv
 from vision_cal.dataset.out_folder import (earlier_placements, output_names,
@@ -19,6 +18,7 @@ from vision_cal.diagnose.verdict import Verdict
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.survey import find_survey
 from vision_cal.workflows.pipeline import calibrate_dataset
+from vision_cal.workflows.placements import calibrate_placements
 from vision_cal.report.html import write_report
 from vision_cal.report.summary import format_summary
 
