@@ -20,7 +20,7 @@ from scipy.spatial.transform import Rotation
 from vision_cal.camera.pose_pairs import (LABELS, PairsFailed, PosePair, closed_form,
                                           fit_pose_pairs)
 from vision_cal.dataset.calibration_result import METHODS_EXTRA, CalibrationResult
-from vision_cal.dataset.poses import read_poses
+from vision_cal.camera.poses_file import read_poses
 from vision_cal.errors import VisionCalError
 from vision_cal.render.pose_pairs import simulate_pairs
 from vision_cal.render.truth_model import TrueRobot

@@ -1,5 +1,5 @@
 """The hand-eye from pose pairs (``vision-cal handeye --poses FILE``): the file read
-(:mod:`vision_cal.dataset.poses`), the fit (:mod:`vision_cal.camera.pose_pairs`), the
+(:mod:`vision_cal.camera.poses_file`), the fit (:mod:`vision_cal.camera.pose_pairs`), the
 contract's verdict (:func:`vision_cal.diagnose.verdict.judge_camera_poses`, each pair's
 target position standing for a mark) and calibration.json (docs/format.md, "Hand-eye from
 pose pairs")."""
@@ -15,7 +15,7 @@ from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.out_folder import writing_into
-from vision_cal.dataset.poses import read_poses
+from vision_cal.camera.poses_file import read_poses
 from vision_cal.diagnose.verdict import Verdict, judge_camera_poses
 from vision_cal.errors import CalibrationError
 
