@@ -92,3 +92,15 @@ def test_survey_never_writes_over_its_sheet(tmp_path):
     assert main(["survey", str(tmp_path / "p"), "--sheet", str(tmp_path / "o" / "survey.json"),
                  "--out", str(tmp_path / "o"), "-q"]) == 2
     assert (tmp_path / "o" / "survey.json").read_text() == before
+
+
+def test_a_second_survey_keeps_the_first_in_previous(surveyed, capsys):
+    """The output folders' one owner: a survey into a folder holding an earlier survey moves
+    that one to previous/ (byte for byte), and the sheet beside it stays where it is."""
+    code, tmp, _, _ = surveyed
+    first = (tmp / "out" / "survey.json").read_bytes()
+    assert main(["survey", str(tmp / "photos"), "--sheet", str(tmp / "sheet.json"),
+                 "--out", str(tmp / "out"), "-q"]) == 0
+    assert (tmp / "out" / "previous" / "survey.json").read_bytes() == first
+    assert (tmp / "out" / "survey.json").is_file()
+

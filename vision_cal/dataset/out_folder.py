@@ -46,12 +46,13 @@ PREVIOUS = "previous"
 LOCK = ".vision-cal.lock"
 
 
-def retire_earlier_run(out_dir, *, subfolders=()) -> list[str]:
-    """Move an earlier run's :data:`RESULT_FILES` (and the sub-folders ``subfolders`` it
-    wrote, e.g. the placements of ``calibrate --joint``) from ``out_dir`` to
-    ``out_dir/previous/``; returns the names moved (none: nothing to do)."""
+def retire_earlier_run(out_dir, *, subfolders=(), results=RESULT_FILES) -> list[str]:
+    """Move an earlier run's ``results`` (default :data:`RESULT_FILES`; a command that
+    writes other files names its own) and the sub-folders ``subfolders`` it wrote (e.g. the
+    placements of ``calibrate --joint``) from ``out_dir`` to ``out_dir/previous/``; returns
+    the names moved (none: nothing to do)."""
     out = Path(out_dir)
-    found = [n for n in RESULT_FILES if (out / n).is_file()]
+    found = [n for n in results if (out / n).is_file()]
     subs = [n for n in subfolders if n and n != PREVIOUS and "/" not in n and n not in (".", "..")
             and (out / n).is_dir()]
     if not found and not subs:
@@ -62,7 +63,7 @@ def retire_earlier_run(out_dir, *, subfolders=()) -> list[str]:
             raise VisionCalError("is a file, expected a folder for the earlier run's results",
                                  file=str(prev), field="--out")
         prev.mkdir(exist_ok=True)
-        for n in RESULT_FILES:  # the even earlier set goes: previous/ holds one run
+        for n in results:  # the even earlier set goes: previous/ holds one run
             (prev / n).unlink(missing_ok=True)
         for n in found:
             os.replace(out / n, prev / n)
@@ -162,7 +163,7 @@ def folder_lock(out, *, command: str, field: str = "--out"):
 
 @contextlib.contextmanager
 def writing_into(out, *, command: str, field: str = "--out", inputs=(), retire: bool = True,
-                 subfolders=(), quiet: bool = True):
+                 subfolders=(), results=RESULT_FILES, quiet: bool = True):
     """The one way a command writes into an output folder (see the module docstring).
     Yields the folder (created); the names moved to ``previous/`` are printed unless
     ``quiet``."""
@@ -177,7 +178,7 @@ def writing_into(out, *, command: str, field: str = "--out", inputs=(), retire: 
     try:
         with folder_lock(out, command=command, field=field):
             if retire:
-                moved = retire_earlier_run(out, subfolders=subfolders)
+                moved = retire_earlier_run(out, subfolders=subfolders, results=results)
                 if moved and not quiet:
                     print(f"moved the earlier results ({', '.join(moved)}) to "
                           f"{out / PREVIOUS}")

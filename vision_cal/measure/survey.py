@@ -21,13 +21,14 @@ import numpy as np
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset import photos
 from vision_cal.dataset.fields import FieldReader
-from vision_cal.dataset.io import atomic_write_json, distinct_outputs, read_json
+from vision_cal.dataset.io import atomic_write_json, read_json
 from vision_cal.dataset.session import NominalRobot, Session, Sheet, load_sheet_file
-from vision_cal.errors import VisionCalError
+from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.measure.asprinted import AsPrinted
 from vision_cal.measure.batch import as_printed_stage, detect_image, lens_of_photos
 
 FORMAT = "vision-cal/survey/1"
+SURVEY_FILE = "survey.json"
 
 
 def _session(root: Path, sheet: Sheet, camera=None) -> Session:
@@ -39,18 +40,12 @@ def _session(root: Path, sheet: Sheet, camera=None) -> Session:
 def run_survey(photos_dir, sheet_json, out_dir, *, config: EstimatorConfig | None = None
                ) -> dict:
     """Survey: measure the photos in ``photos_dir`` of the sheet ``sheet_json``, write
-    ``out_dir/survey.json`` (docs/format.md) and return it."""
+    ``out_dir/survey.json`` (docs/format.md) and return it. ``out_dir`` is the output
+    owner's (``actions/survey``: checked against the inputs, locked)."""
     config = config or DEFAULT
     root, out_dir = Path(photos_dir), Path(out_dir)
     if not root.is_dir():
         raise VisionCalError("not a folder of photos", file=str(root))
-    try:
-        out_dir.resolve().relative_to(root.resolve())
-        raise VisionCalError("the output folder must not be inside the photos' folder "
-                             "(photos are never written to)", file=str(out_dir))
-    except ValueError:
-        pass
-    distinct_outputs([("--out", out_dir / "survey.json")], [("--sheet", sheet_json)])
     sheet = load_sheet_file(sheet_json)
     session = _session(root, sheet)
     names = photos.list_photos(root)
@@ -66,6 +61,14 @@ def run_survey(photos_dir, sheet_json, out_dir, *, config: EstimatorConfig | Non
             f"{len(ok)} usable photo(s) from fewer than {config.as_printed.min_places} camera "
             "places: a survey needs photos from several places (docs/sheet.md: 5-10 photos, "
             "the phone moved and tilted 10-30 deg each time)", file=str(root))
+    if not math.isfinite(ap.unresolved_mm) or ap.unresolved_mm > config.as_printed.prior_mm:
+        # the corners are held by the prior alone: the views do not fix the sheet
+        raise CalibrationError(
+            f"the views do not fix the sheet as printed: its corners are known only to "
+            f"{ap.unresolved_mm:.3g} mm, more than the {config.as_printed.prior_mm:g} mm a "
+            "printer can be off; check that --sheet describes the sheet in the photos (its "
+            "markers' ids, size and places), then photograph it from further places, tilted "
+            "more (docs/sheet.md)", file=str(sheet_json))
     ap = AsPrinted(**{**ap.__dict__, "source": "survey"})
     before = dict(zip(ap.files, ap.rms_px_before))
     after = dict(zip(ap.files, ap.rms_px_after))
@@ -95,7 +98,7 @@ def run_survey(photos_dir, sheet_json, out_dir, *, config: EstimatorConfig | Non
         "warnings": warnings,
         "as_printed": ap.to_json(),
     }
-    atomic_write_json(out_dir / "survey.json", doc)
+    atomic_write_json(out_dir / SURVEY_FILE, doc)
     return doc
 
 
@@ -155,7 +158,7 @@ def find_survey(*candidates) -> Path | None:
         p = Path(c)
         if p.is_file() and p.name not in ("sheet.json", "session.json"):
             return p
-        p = (p if p.is_dir() else p.parent) / "survey.json"
+        p = (p if p.is_dir() else p.parent) / SURVEY_FILE
         if p.is_file():
             return p
     return None
@@ -165,7 +168,7 @@ def copy_survey(path, sheet: Sheet, out_dir) -> Path:
     """``design --survey``: checked against the designed sheet and copied into the design
     folder, where the calibration finds it beside session.json."""
     load_survey(path, sheet)
-    dest = Path(out_dir) / "survey.json"
+    dest = Path(out_dir) / SURVEY_FILE
     if Path(path).resolve() != dest.resolve():
         tmp = dest.with_name(".survey.json.tmp")
         shutil.copyfile(path, tmp)
