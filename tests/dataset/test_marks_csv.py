@@ -147,3 +147,30 @@ def test_the_fixture_is_the_world_it_says():
     got = np.array([m.measured_mm for m in session.marks])
     assert np.allclose(got, xy, atol=6e-5) and len(session.marks) == N
     assert yaml.safe_load((FIXTURE / "robot.yaml").read_text()) == robot
+
+
+def test_a_marks_csv_in_metres_or_a_pdf_is_named_as_what_it_is(tmp_path, capsys):
+    """The wrong kind of input: marks written in metres are refused naming the CSV (not a
+    session.json the user never wrote) and the likely unit; a PDF saved as .csv is called a
+    PDF, not taken for the sheet's; nothing is written, the inputs stay as they were."""
+    fx = ROOT / "fixtures" / "tracker_example"
+    rows = (fx / "marks.csv").read_text().splitlines()
+    head = rows[0].split(",")
+    ix, iy = head.index("x_mm"), head.index("y_mm")
+    out = [rows[0]]
+    for r in rows[1:]:
+        c = r.split(",")
+        c[ix], c[iy] = str(float(c[ix]) / 1000), str(float(c[iy]) / 1000)
+        out.append(",".join(c))
+    (tmp_path / "m.csv").write_text("\n".join(out) + "\n")
+    (tmp_path / "x.csv").write_bytes(b"%PDF-1.4\n\xe2\xe3\xcf\xd3 binary")
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert main(["calibrate", str(tmp_path / "m.csv"), "--robot", str(fx / "robot.yaml"),
+                 "--out", str(tmp_path / "o"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "m.csv: marks:" in err and "metres" in err and "session.json" not in err
+    assert main(["calibrate", str(tmp_path / "x.csv"), "--robot", str(fx / "robot.yaml"),
+                 "--out", str(tmp_path / "o"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "is a PDF" in err and "sheet" not in err
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before

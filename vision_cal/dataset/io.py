@@ -252,6 +252,8 @@ def _binary_given(path: Path, what: str) -> str:
         head = b""
     if head.startswith(b"%PDF"):
         beside = path.with_suffix(".json")
+        if path.suffix.lower() != ".pdf" and not beside.is_file():  # not the sheet's PDF
+            return "is a PDF, expected a text file (JSON, YAML or CSV)"
         return ("is the PDF to print, not the sheet's description: pass the sheet.json "
                 f"beside it{f' ({beside})' if beside.is_file() else ''}")
     if head.startswith((b"\x89PNG", b"\xff\xd8\xff")):

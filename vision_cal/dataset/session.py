@@ -207,10 +207,13 @@ class Session:
     #: False when session.json has no ``images``: every photo in the folder is used and
     #: which marks each shows is found from the photos (``vision_cal.measure.infer``)
     images_listed: bool = True
+    #: the file the session was read from when it is not ``root/session.json`` (a marks
+    #: CSV, :mod:`vision_cal.dataset.marks_csv`): what errors name
+    source: Path | None = field(default=None, compare=False)
 
     @property
     def path(self) -> Path:
-        return self.root / "session.json"
+        return self.source if self.source is not None else self.root / "session.json"
 
     @property
     def design_stage(self) -> str | None:
@@ -472,8 +475,9 @@ def session_from_raw(raw: dict, folder, where: str) -> Session:
         dia = (r.number(v, "pen.mark_diameter_mm", lo=0.0, hi=MAX_PEN_MM, positive=True,
                         what="diameter in mm") if v is not None else None)
 
+    source = None if Path(where).name == "session.json" else Path(where)
     return Session(folder, sheet, robot, tuple(marks), tuple(images), camera, dia, raw,
-                   images_listed)
+                   images_listed, source)
 
 
 def _read_marks(r: FieldReader, raw: dict) -> list[Mark]:
