@@ -131,7 +131,9 @@ class FixedCamera:
 
 def camera_from_json(entry: dict, *, where: str = "cameras[0]", file: str | None = None
                      ) -> FixedCamera:
-    """A ``cameras`` entry written by :meth:`FixedCamera.to_json` (checked field by field)."""
+    """A ``cameras`` entry written by :meth:`FixedCamera.to_json` (shapes checked; its values
+    by the one validator, :func:`vision_cal.dataset.camera_block.check_camera_entry`, which
+    :func:`camera_of` runs first)."""
     def arr(key, shape):
         try:
             a = np.asarray(entry[key], dtype=float)
@@ -150,18 +152,6 @@ def camera_from_json(entry: dict, *, where: str = "cameras[0]", file: str | None
     K, T = arr("K", (3, 3)), arr("T_robot_camera", (4, 4))
     dist = arr("dist", None).ravel()
     size = arr("size_px", (2,))
-    # the minimal checks that keep OpenCV's assertions and a wrong cause out of locate
-    if len(dist) not in (4, 5, 8, 12, 14):
-        raise VisionCalError(f"expected 4, 5, 8, 12 or 14 OpenCV coefficients, got {len(dist)}",
-                             file=file, field=f"{where}.dist")
-    if not (K[0, 0] > 0 and K[1, 1] > 0 and tuple(K[2]) == (0.0, 0.0, 1.0)):
-        raise VisionCalError("expected an OpenCV camera matrix [[fx,0,cx],[0,fy,cy],[0,0,1]] "
-                             "with fx, fy > 0", file=file, field=f"{where}.K")
-    R = T[:3, :3]
-    if (tuple(T[3]) != (0.0, 0.0, 0.0, 1.0) or not np.allclose(R.T @ R, np.eye(3), atol=1e-6)
-            or not np.linalg.det(R) > 0):
-        raise VisionCalError("expected a rigid transform (a rotation, a translation in mm and "
-                             "0 0 0 1 as its last row)", file=file, field=f"{where}.T_robot_camera")
     try:
         cov = np.asarray(entry["covariance"]["matrix"], float)
         if cov.shape != (7, 7):
