@@ -46,10 +46,11 @@ def _matrix(r: FieldReader, v, where: str, shape: tuple[int, int]) -> np.ndarray
                      for i, row in enumerate(rows)], float)
 
 
-def read_lens(r: FieldReader, cam, where: str = "camera"
+def read_lens(r: FieldReader, cam, where: str = "camera", *, principal_inside: bool = True
               ) -> tuple[tuple[int, int], np.ndarray, np.ndarray]:
     """``size_px``, ``K`` and ``dist`` of a camera block, every field checked:
-    ((w, h), K (3, 3), dist (n,))."""
+    ((w, h), K (3, 3), dist (n,)). ``principal_inside``: the principal point must lie in the
+    image (a calibration's camera; session.json's declared lens is read as it always was)."""
     if not isinstance(cam, dict):
         r.fail(where, f"expected an object with size_px, K and dist, got {type(cam).__name__}")
     size = r.vector(r.get(cam, "size_px", where), f"{where}.size_px", 2, lo=1, hi=MAX_IMAGE_PX,
@@ -68,7 +69,7 @@ def read_lens(r: FieldReader, cam, where: str = "camera"
                                            f"{K[i, i]:g}")
     if K[1, 0] != 0 or tuple(K[2]) != (0.0, 0.0, 1.0):
         r.fail(f"{where}.K", "expected an OpenCV camera matrix [[fx,s,cx],[0,fy,cy],[0,0,1]]")
-    if not (-0.5 <= K[0, 2] <= w - 0.5 and -0.5 <= K[1, 2] <= h - 0.5):
+    if principal_inside and not (-0.5 <= K[0, 2] <= w - 0.5 and -0.5 <= K[1, 2] <= h - 0.5):
         r.fail(f"{where}.K", f"the principal point ({K[0, 2]:g}, {K[1, 2]:g}) px is outside "
                              f"the {w}x{h} image")
     dist_raw = r.list_(r.get(cam, "dist", where), f"{where}.dist")

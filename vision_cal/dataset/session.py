@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.dataset.fields import (MAX_DIST, MAX_IMAGE_PX, MAX_JOINT_DEG, MAX_K_PX, MAX_MM,
-                                       MAX_PEN_MM, FieldReader, _short)
+from vision_cal.dataset.camera_block import read_lens
+from vision_cal.dataset.fields import MAX_JOINT_DEG, MAX_MM, MAX_PEN_MM, FieldReader
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.photos import normalise_name
 from vision_cal.errors import VisionCalError
@@ -565,26 +565,7 @@ def _read_images(r: FieldReader, raw: dict, mark_ids: set[str]) -> list[ImageEnt
 
 def _read_camera(r: FieldReader, cam) -> Camera:
     """The ``camera`` block: whole-pixel image size, an OpenCV camera matrix with positive
-    focal lengths, 4 to 14 distortion coefficients."""
-    size_px = r.vector(r.get(cam, "size_px", "camera"), "camera.size_px", 2, lo=1,
-                       hi=MAX_IMAGE_PX, what="image size in pixels")
-    if any(x != int(x) for x in size_px):
-        r.fail("camera.size_px", f"expected whole pixels, got {_short(cam['size_px'])}")
-    K_raw = r.list_(r.get(cam, "K", "camera"), "camera.K")
-    if len(K_raw) != 3:
-        r.fail("camera.K", "expected a 3x3 matrix")
-    K = np.array([r.vector(row, f"camera.K[{i}]", 3, lo=-MAX_K_PX, hi=MAX_K_PX,
-                           what="pixel value") for i, row in enumerate(K_raw)])
-    for i in (0, 1):
-        if K[i, i] <= 0:
-            r.fail(f"camera.K[{i}][{i}]", f"expected a positive focal length in pixels, "
-                                          f"got {K[i, i]:g}")
-    if K[1, 0] != 0 or tuple(K[2]) != (0.0, 0.0, 1.0):
-        r.fail("camera.K", "expected an OpenCV camera matrix [[fx,s,cx],[0,fy,cy],[0,0,1]]")
-    dist_raw = r.list_(r.get(cam, "dist", "camera"), "camera.dist")
-    if len(dist_raw) not in (4, 5, 8, 12, 14):
-        r.fail("camera.dist", f"expected 4, 5, 8, 12 or 14 OpenCV coefficients, got {len(dist_raw)}")
-    dist = np.array([r.number(x, f"camera.dist[{i}]", lo=-MAX_DIST, hi=MAX_DIST,
-                              what="distortion coefficient")
-                     for i, x in enumerate(dist_raw)])
-    return Camera((int(size_px[0]), int(size_px[1])), K, dist)
+    focal lengths, 4 to 14 distortion coefficients (the one lens reader,
+    :func:`vision_cal.dataset.camera_block.read_lens`)."""
+    size, K, dist = read_lens(r, cam, "camera", principal_inside=False)
+    return Camera(size, K, dist)
