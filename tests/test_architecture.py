@@ -268,8 +268,6 @@ LONG_PENDING = {
     "vision_cal.diagnose.verdict.judge": "split pending, issue 31",
     "vision_cal.diagnose.verdict.judge_placements": "split pending, issue 31",
     "vision_cal.workflows.loop.run_loop": "split pending, issue 31",
-    "vision_cal.measure.dots.find_candidates": "split pending, issue 31",
-    "vision_cal.measure.dots._refine_dot": "split pending, issue 31",
     "vision_cal.render.dataset.render_dataset": "split pending, issue 31",
     "vision_cal.report.html.render_html": "split pending, issue 31",
 }
