@@ -352,6 +352,15 @@ def decode_photo(data: bytes, *, turned: bool = False):
         return None
 
 
+def channel_sum(rgb: np.ndarray, dtype=np.float32) -> np.ndarray:
+    """B+G+R of (H, W, 3) uint8 pixels in ``dtype`` (exact: at most 765): three plane
+    additions, several times faster than numpy's sum over the last, 3-long axis."""
+    out = rgb[..., 0].astype(dtype)
+    out += rgb[..., 1]
+    out += rgb[..., 2]
+    return out
+
+
 def decode_as_measured(data: bytes, size_px=None):
     """Pixels in the frame a photo was measured in (``size_px`` (w, h) of the measurement;
     the stored frame unless only the turned one has that size), for drawing overlays."""

@@ -35,6 +35,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter, grey_dilation, grey_erosion, maximum_filter1d
 
 from vision_cal.config import DEFAULT, DotConfig
+from vision_cal.dataset.photos import channel_sum
 from vision_cal.dataset.session import Sheet
 from vision_cal.measure.grid import nanmedian_columns
 from vision_cal.measure.mapping import SheetMapping
@@ -97,7 +98,7 @@ def noise_sigma_sum(rgb: np.ndarray, mapping: SheetMapping | None = None,
             u1, v1 = np.ceil(box.max(axis=0)).astype(int) + 3
             if u0 < 0 or v0 < 0 or u1 > W or v1 > H:
                 continue
-            crop = rgb[v0:v1, u0:u1].astype(np.float32).sum(axis=2)
+            crop = channel_sum(rgb[v0:v1, u0:u1])
             resp = cv2.filter2D(crop, -1, _LAPLACE)
             mk = np.zeros(crop.shape, np.uint8)
             for d, val in ((outer, 255), (inner, 0)):
@@ -110,7 +111,7 @@ def noise_sigma_sum(rgb: np.ndarray, mapping: SheetMapping | None = None,
             vals.append(resp[mk > 0])
     v = np.concatenate(vals) if vals else np.zeros(0)
     if len(v) < 200:
-        S = rgb[::2, ::2].astype(np.float32).sum(axis=2)
+        S = channel_sum(rgb[::2, ::2])
         v = cv2.filter2D(S, -1, _LAPLACE)[1:-1, 1:-1].ravel()
     return float(max(1.4826 * np.median(np.abs(v)) / 6.0, 0.3))
 
@@ -419,7 +420,7 @@ def _refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm,
     centre so far, then its covariance (:func:`_noise_cov`) and whether it can be trusted
     (:func:`_ring_pull`, :func:`_verdict`)."""
     cfg = o.cfg
-    S = patch_rgb.astype(np.float32).sum(axis=2)
+    S = channel_sum(patch_rgb)
     c = np.asarray(xy0_mm, float).reshape(2)
     mm_px = float(mapping.mm_per_px(c)[0])
     r_win, half = _radii_mm(o.dia, mm_px)
