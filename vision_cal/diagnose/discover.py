@@ -46,7 +46,7 @@ import numpy as np
 from scipy import stats
 
 from vision_cal.model import joint_terms as jt
-from vision_cal.calibrate.lsq import FailedFit, Fit
+from vision_cal.model.lsq import FailedFit, Fit
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.diagnose.select import Diagnosis, Evidence, heldout_rms
 from vision_cal.diagnose.structure import sheet_scan
