@@ -126,7 +126,7 @@ def reference_table(scenes: list[str], root: Path, seed: int | None) -> None:
     (local), flat and bumped scenes, in one table; time per photo of both."""
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.dataset.session import load_session
-    from vision_cal.measure.batch import measure_folder
+    from vision_cal.workflows.measure_folder import measure_folder
     from vision_cal.render.dataset import render_dataset
     from vision_cal.render.scene import load_scene
 
@@ -295,7 +295,8 @@ def main() -> int:
         return 0
 
     from vision_cal.dataset.session import load_session
-    from vision_cal.measure.batch import detect_image, measure_folder
+    from vision_cal.measure.detect import detect_image
+    from vision_cal.workflows.measure_folder import measure_folder
 
     folder = Path(a.folder)
     if not (folder / "session.json").exists():

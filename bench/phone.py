@@ -35,7 +35,9 @@ def gate_table(n_series: int, first_seed: int) -> int:
     from tests.measure import synth_measure as sm
     from vision_cal.dataset.session import load_session
     from vision_cal.config import DEFAULT
-    from vision_cal.measure.batch import detect_image, finish_image, measure_folder
+    from vision_cal.measure.detect import detect_image
+    from vision_cal.measure.finish import finish_image
+    from vision_cal.workflows.measure_folder import measure_folder
     from vision_cal.measure.sheetfit import MISFIT, marker_side_mm
 
     # per photo and lens case: (corner_rms_mm, mm_per_px at the markers, marker side mm)

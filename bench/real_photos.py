@@ -84,7 +84,8 @@ def fixture_table() -> int:
     import cv2
 
     from vision_cal.dataset.session import load_session
-    from vision_cal.measure.batch import detect_image, measure_folder
+    from vision_cal.measure.detect import detect_image
+    from vision_cal.workflows.measure_folder import measure_folder
 
     sheet = json.loads((FIXTURE / "sheet.json").read_text())
     tmp = Path(tempfile.mkdtemp(prefix="bench-real-"))

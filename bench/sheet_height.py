@@ -74,7 +74,7 @@ def false_claims(seeds, only: str | None = None) -> int:
     """The flat-sheet false-claim rate and the bumped detection rate (module docstring);
     ``only``: the worlds whose name holds it."""
     from vision_cal.calibrate.paper import pilot_params
-    from vision_cal.measure.batch import measure_folder
+    from vision_cal.workflows.measure_folder import measure_folder
     from vision_cal.render.dataset import render_dataset
 
     worlds = [("flat, tilt 0, undeclared k1 -0.06", 0.0, -0.06, False, None),

@@ -44,7 +44,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from vision_cal.calibrate.placements import Placement, fit_placements
-from vision_cal.calibrate.tool import fit_tool
+from vision_cal.model.tool_fit import fit_tool
 from vision_cal.diagnose.verdict import judge
 from vision_cal.model.robot import JointBacklash, JointScale
 from vision_cal.workflows.pipeline import calibrate_dataset

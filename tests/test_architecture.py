@@ -263,10 +263,6 @@ LONG_PENDING = {
     "vision_cal.actions.plan.plan": "split pending, issue 31",
     "vision_cal.camera.pose_pairs.fit_pose_pairs": "split pending, issue 31",
     "vision_cal.measure.asprinted.estimate_as_printed": "split pending, issue 31",
-    "vision_cal.diagnose.discover._trace": "split pending, issue 31",
-    "vision_cal.diagnose.select.diagnose": "split pending, issue 31",
-    "vision_cal.diagnose.verdict.judge": "split pending, issue 31",
-    "vision_cal.diagnose.verdict.judge_placements": "split pending, issue 31",
     "vision_cal.workflows.loop.run_loop": "split pending, issue 31",
     "vision_cal.render.dataset.render_dataset": "split pending, issue 31",
     "vision_cal.report.html.render_html": "split pending, issue 31",
@@ -341,6 +337,7 @@ LAYERS = [
     {"dataset"},
     {"sheet"},
     {"measure"},
+    {"identify"},
     {"calibrate"},
     {"diagnose"},
     {"plan"},
@@ -351,12 +348,13 @@ LAYERS = [
     {"actions"},
     {"commands"},
 ]
-#: imports that still reach up a layer, each with what removes it; the list only shrinks
-#: (a new one fails the test, and so does one that is gone but still listed)
-UPWARD_PENDING = {
-    ("measure", "calibrate"): "association and the tool's first guess move to identify/",
-    ("measure", "plan"): "association's equivalent joints move to identify/",
-}
+#: what measure/ (photos -> dots and marks' positions in sheet millimetres) may import, and
+#: why: dataset/ (the session, reading the photos, atomic writes) and model/ (RMS) below it;
+#: sheet/ (the sheet's own print rebuilt from its layout, to see what lies under a dot:
+#: sheet/ draws the sheet and imports only dataset/, so it is below measure, beside the
+#: data); the root's config (thresholds), errors and progress (the bar). Nothing that tells
+#: which dot is which mark (identify/), fits (calibrate/) or plans.
+MEASURE_MAY_IMPORT = {"measure", "dataset", "model", "sheet", "config", "errors", "progress"}
 
 
 def package_of(module: str) -> str:
@@ -394,14 +392,38 @@ def test_model_imports_nothing_above_it(graph):
     assert {m: d for m, d in bad.items() if d} == {}
 
 
+def imports_beyond(graph: dict[str, set[str]], package: str, allowed) -> dict[str, list[str]]:
+    """Module of ``package`` -> the package modules it imports outside ``allowed`` (package
+    names, the root's modules by their own name)."""
+    return {m: sorted(bad) for m, deps in graph.items() if package_of(m) == package
+            for bad in [{d for d in deps if package_of(d) not in allowed}] if bad}
+
+
+def at_or_below(package: str) -> set[str]:
+    """The packages of ``package``'s layer and of every layer below it (:data:`LAYERS`)."""
+    rank = next(i for i, layer in enumerate(LAYERS) if package in layer)
+    return set().union(*LAYERS[:rank + 1])
+
+
 def test_no_package_reaches_up_a_layer(graph):
-    up = upward_imports(graph)
-    assert up - set(UPWARD_PENDING) == set(), "an import reaches up a layer"
-    assert set(UPWARD_PENDING) - up == set(), "gone: remove it from UPWARD_PENDING"
-    pg = package_graph(graph)
-    for a, b in UPWARD_PENDING:
-        pg[a].discard(b)
-    assert circles(pg) == []
+    assert upward_imports(graph) == set(), "an import reaches up a layer"
+    assert circles(package_graph(graph)) == []
+
+
+def test_measure_imports_nothing_above_dataset_and_model(graph):
+    """measure/ turns photos into sheet millimetres: it imports dataset/, model/, sheet/ and
+    the root's config, errors and progress (:data:`MEASURE_MAY_IMPORT`), never identify/,
+    calibrate/ or anything above."""
+    assert "vision_cal.measure.finish" in graph and graph["vision_cal.measure.finish"]
+    assert imports_beyond(graph, "measure", MEASURE_MAY_IMPORT) == {}
+
+
+def test_identify_imports_nothing_above_it(graph):
+    """identify/ (which dot is which mark, the tool's first guess) imports its layer and the
+    ones below (measure/, sheet/, dataset/, model/, the root's), never calibrate/ or above."""
+    assert "vision_cal.identify.match" in graph and graph["vision_cal.identify.match"]
+    assert "calibrate" not in at_or_below("identify")
+    assert imports_beyond(graph, "identify", at_or_below("identify")) == {}
 
 
 def test_the_layer_checks_see_what_they_guard(tmp_path):
@@ -417,3 +439,29 @@ def test_the_layer_checks_see_what_they_guard(tmp_path):
     g = import_graph(pkg)
     assert ("model", "dataset") in upward_imports(g)
     assert ("measure", "report") in upward_imports(g)
+
+
+def test_the_measure_and_identify_checks_see_what_they_guard(tmp_path):
+    """measure/ importing identify/ inside a function, and identify/ importing calibrate/,
+    are found; measure/ reading the sheet's layout and identify/ importing measure/ are not."""
+    pkg = tmp_path / "vision_cal"
+    for d in ("measure", "identify", "calibrate", "sheet", "dataset"):
+        (pkg / d).mkdir(parents=True)
+        (pkg / d / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "config.py").write_text("")
+    (pkg / "sheet" / "layout.py").write_text("from vision_cal.dataset import io\n")
+    (pkg / "dataset" / "io.py").write_text("")
+    (pkg / "calibrate" / "tool.py").write_text("")
+    (pkg / "measure" / "printed.py").write_text(
+        "from vision_cal.sheet import layout\nfrom vision_cal import config\n")
+    (pkg / "measure" / "finish.py").write_text(
+        "def f():\n    from ..identify import match\n")
+    (pkg / "identify" / "match.py").write_text(
+        "from vision_cal.measure import printed\nfrom vision_cal.calibrate.tool import fit\n")
+    g = import_graph(pkg)
+    assert imports_beyond(g, "measure", MEASURE_MAY_IMPORT) == {
+        "vision_cal.measure.finish": ["vision_cal.identify.match"]}
+    assert imports_beyond(g, "identify", at_or_below("identify")) == {
+        "vision_cal.identify.match": ["vision_cal.calibrate.tool"]}
+    assert upward_imports(g) == {("measure", "identify"), ("identify", "calibrate")}

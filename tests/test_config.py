@@ -28,9 +28,10 @@ from vision_cal.dataset.session import SheetGrid, load_session
 from vision_cal.diagnose import discover, sheet, verdict
 from vision_cal.diagnose.select import diagnose
 from vision_cal.errors import CalibrationError
-from vision_cal.measure import (asprinted, associate, dots, grid, grid_declaration, height,
-                                infer, photo_agreement, plan_match, sheetfit, survey)
-from vision_cal.measure.batch import measure_image
+from vision_cal.identify import associate, infer, plan_match
+from vision_cal.measure import (asprinted, dots, grid, grid_declaration, height,
+                                photo_agreement, sheetfit, survey)
+from vision_cal.measure.finish import measure_image
 from vision_cal.measure.cache import session_fingerprint
 from vision_cal.workflows.pipeline import MarkData, calibrate_dataset
 from vision_cal.render.camera import project

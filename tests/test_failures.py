@@ -8,11 +8,11 @@ import pickle
 
 import pytest
 
-from vision_cal.calibrate.lsq import FailedFit
+from vision_cal.model.lsq import FailedFit
 from vision_cal.workflows.arm_session import SkippedPhoto, measure_view
 from vision_cal.camera.pose_pairs import PairsFailed
 from vision_cal.errors import CalibrationError, FailureUsed
-from vision_cal.measure.associate import NoMatch
+from vision_cal.identify.associate import NoMatch
 
 FAILURES = [FailedFit("only 3 marks"), NoMatch("only 3 marks matched"),
             SkippedPhoto("a.png", "only 3 markers found"), PairsFailed("only 3 pairs")]

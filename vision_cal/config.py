@@ -9,18 +9,18 @@ stage, and all of it is written to calibration.json ``config`` (the report shows
 recorded values, not today's defaults). The parts, by key:
 
 - ``markers``: photos and printed markers (:mod:`vision_cal.measure.aruco`,
-  :mod:`vision_cal.measure.batch`);
+  :mod:`vision_cal.measure.detect`);
 - ``dots``: pen-mark detection and centring (:mod:`vision_cal.measure.dots`);
-- ``association``: grouping and matching (:mod:`vision_cal.measure.associate`,
-  :mod:`vision_cal.measure.infer`);
+- ``association``: grouping and matching (:mod:`vision_cal.identify.associate`,
+  :mod:`vision_cal.identify.infer`);
 - ``selection``: the F-test level, cross-validation and outlier rule
-  (:mod:`vision_cal.diagnose.select`, :mod:`vision_cal.calibrate.lsq`);
-- ``fit``: identifiability of a least-squares fit (:mod:`vision_cal.calibrate.lsq`);
+  (:mod:`vision_cal.diagnose.select`, :mod:`vision_cal.model.lsq`);
+- ``fit``: identifiability of a least-squares fit (:mod:`vision_cal.model.lsq`);
 - ``per_photo_offsets``: photos whose marks moved together (:mod:`vision_cal.diagnose.photos`);
 - ``sheet_fit``: the marker-corner gate of a photo (:mod:`vision_cal.measure.sheetfit`);
 - ``grid``: the printed grid read around each dot (:mod:`vision_cal.measure.grid`);
 - ``sheet_height``: the paper's height from parallax (:mod:`vision_cal.measure.height`);
-- ``plan_match``: photos that do not belong to the session (:mod:`vision_cal.measure.plan_match`);
+- ``plan_match``: photos that do not belong to the session (:mod:`vision_cal.identify.plan_match`);
 - ``photo_agreement``: a photo moved as a whole (:mod:`vision_cal.measure.photo_agreement`);
 - ``grid_declaration``: a printed grid not where declared
   (:mod:`vision_cal.measure.grid_declaration`);
@@ -45,7 +45,7 @@ METHODS = ("lsq", "paper")
 @dataclass(frozen=True)
 class MarkerConfig:
     """Photos and the sheet's printed markers (``vision_cal.measure.aruco``,
-    ``vision_cal.measure.batch``)."""
+    ``vision_cal.measure.detect``)."""
 
     min_markers: int = 4              # markers a photo must show: 4 give 16 corners, twice the
                                       # 8 a homography needs, so one bad marker is seen
@@ -116,7 +116,7 @@ class DotConfig:
 @dataclass(frozen=True)
 class AssociationConfig:
     """Grouping dots across photos and matching them to planned marks
-    (``vision_cal.measure.associate``)."""
+    (``vision_cal.identify.associate``)."""
 
     group_tol_diameters: float = 0.4  # dots of two photos closer than this many mark diameters
     group_tol_min_mm: float = 0.3     # ... (at least this many mm) are the same mark
@@ -126,13 +126,13 @@ class AssociationConfig:
     max_base_mm: float = 100.0        # how far the nominal base may be off (search range)
     finished_fraction: float = 0.7    # with no images list: every usable photo sees at least
                                       # this share of the persistent dots, so each shows the
-                                      # finished sheet (else a series; vision_cal.measure.infer)
+                                      # finished sheet (else a series; vision_cal.identify.infer)
 
 
 @dataclass(frozen=True)
 class SelectionConfig:
     """Which effects are added to the base model (``vision_cal.diagnose.select``) and which
-    marks are left out of a fit (``vision_cal.calibrate.lsq``)."""
+    marks are left out of a fit (``vision_cal.model.lsq``)."""
 
     alpha: float = 0.01               # family-wise F-test level, split over the candidates
                                       # (Bonferroni: clean data claims nothing)
@@ -151,7 +151,7 @@ class SelectionConfig:
 
 @dataclass(frozen=True)
 class FitConfig:
-    """Identifiability of a least-squares fit (``vision_cal.calibrate.lsq``)."""
+    """Identifiability of a least-squares fit (``vision_cal.model.lsq``)."""
 
     condition_number_limit: float = 1e8   # singular values of the column-scaled Jacobian
                                           # below the largest / this count as zero: a rank
@@ -244,7 +244,7 @@ class SheetHeightConfig:
 
 @dataclass(frozen=True)
 class PlanMatchConfig:
-    """Photos that do not belong to the session (``vision_cal.measure.plan_match``)."""
+    """Photos that do not belong to the session (``vision_cal.identify.plan_match``)."""
 
     max_dots_per_mark: float = 2.0    # a photo showing more than this many dots per mark it
                                       # should show (plus ``spare_dots``) is crowded: in most

@@ -35,8 +35,8 @@ class Failure:
     ``if not result:``; it carries ``reason`` (one line). Reading any other attribute from
     it, as if it were the success, raises :class:`FailureUsed` with the reason and a hint
     (scikit-image's ``FailedEstimation`` does the same). Subclasses are frozen dataclasses
-    with ``reason`` as a field (``vision_cal.calibrate.lsq.FailedFit``,
-    ``vision_cal.measure.associate.NoMatch``, ``vision_cal.workflows.arm_session.SkippedPhoto``).
+    with ``reason`` as a field (``vision_cal.model.lsq.FailedFit``,
+    ``vision_cal.identify.associate.NoMatch``, ``vision_cal.workflows.arm_session.SkippedPhoto``).
     """
 
     __slots__ = ()

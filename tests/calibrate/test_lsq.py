@@ -6,7 +6,7 @@ import pytest
 
 from tests.conftest import SM5, random_plan
 from vision_cal.model.linear import linear_init
-from vision_cal.calibrate.lsq import Fit
+from vision_cal.model.lsq import Fit
 from vision_cal.config import DEFAULT, FitConfig
 from vision_cal.errors import CalibrationError
 from vision_cal.model.kinematics import forward

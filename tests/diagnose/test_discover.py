@@ -114,6 +114,6 @@ def test_drift_is_reported_and_the_verdict_is_not_reliable(tmp_path):
 
 
 def _base_fit(q, xy, s):
-    from vision_cal.calibrate.lsq import Fit
+    from vision_cal.model.lsq import Fit
 
     return (Fit.from_estimate(q, xy, approach=s),)

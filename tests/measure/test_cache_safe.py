@@ -15,8 +15,8 @@ import pytest
 
 from tests.measure import synth_measure as sm
 from vision_cal.dataset.session import load_session
-from vision_cal.measure import batch
-from vision_cal.measure.batch import measure_folder
+from vision_cal.measure import detect
+from vision_cal.workflows.measure_folder import measure_folder
 from vision_cal.measure.cache import (DetectionCache, cache_key, decode_detections,
                                      encode_detections, session_fingerprint)
 
@@ -53,13 +53,13 @@ def folder(tmp_path_factory):
 
 def _count(monkeypatch):
     calls = []
-    real = batch.detect_image
+    real = detect.detect_image
 
     def counting(path, session, **kw):
         calls.append(kw.get("name"))
         return real(path, session, **kw)
 
-    monkeypatch.setattr(batch, "detect_image", counting)
+    monkeypatch.setattr(detect, "detect_image", counting)
     return calls
 
 
@@ -142,7 +142,7 @@ def test_stale_temporary_files_are_cleaned(tmp_path):
 
 
 def test_decoder_checks_its_key():
-    from vision_cal.measure.batch import ImageDetections
+    from vision_cal.measure.types import ImageDetections
 
     det = ImageDetections("a.png", "skipped", "blank image: no contrast", (10, 20))
     data = encode_detections(det, "k1")

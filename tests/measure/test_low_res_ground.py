@@ -18,7 +18,8 @@ import pytest
 from tests.measure.synth_measure import jpeg_bytes, photo, view
 from vision_cal.config import DEFAULT
 from vision_cal.dataset.session import load_session
-from vision_cal.measure.batch import detect_image_bytes, finish_all
+from vision_cal.measure.detect import detect_image_bytes
+from vision_cal.measure.finish import finish_all
 from vision_cal.render.printed import load_printed_sheet, printed_texture
 from vision_cal.sheet import make_layout, write_sheet
 
@@ -91,7 +92,7 @@ def test_in_a_series_the_photo_before_takes_what_the_plain_ground_hides(a4, tmp_
     (The photo before is tried for the marks flagged alone too; the new marks then come
     out as well as plain ones at this resolution, 20-65 um on one photo.)"""
     from vision_cal.dataset.photos import decode_photo
-    from vision_cal.measure.batch import finish_image
+    from vision_cal.measure.finish import finish_image
     from vision_cal.measure.dots import ground_scale
     from vision_cal.measure.previous_photo import PreviousPhoto
 

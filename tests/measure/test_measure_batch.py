@@ -14,8 +14,9 @@ import pytest
 from tests.measure import synth_measure as sm
 from vision_cal.dataset.session import Session, load_session
 from vision_cal.errors import VisionCalError
-from vision_cal.measure import batch, types
-from vision_cal.measure.batch import _drop_deformed_markers, detect_image_bytes, measure_folder
+from vision_cal.measure import detect, types
+from vision_cal.measure.detect import _drop_deformed_markers, detect_image_bytes
+from vision_cal.workflows.measure_folder import measure_folder
 
 
 @pytest.fixture(scope="module")
@@ -113,13 +114,13 @@ def test_cache_measures_only_new_photos(tmp_path, world, monkeypatch):
     sm.write_png(src / "a.png", good)
     _write(src, world, ["a.png"])
     calls = []
-    real = batch.detect_image
+    real = detect.detect_image
 
     def counting(path, session, **kw):
         calls.append(os.path.basename(path))
         return real(path, session, **kw)
 
-    monkeypatch.setattr(batch, "detect_image", counting)
+    monkeypatch.setattr(detect, "detect_image", counting)
     m1 = measure_folder(load_session(src), out_dir=tmp_path / "out", jobs=1)
     assert calls == ["a.png"]
     sm.write_png(src / "b.png", good2)

@@ -9,7 +9,7 @@ import pytest
 
 from tests.measure import synth_measure as sm
 from vision_cal.dataset.session import load_session
-from vision_cal.measure.batch import measure_image
+from vision_cal.measure.finish import measure_image
 
 
 def _match(xy, truth):

@@ -20,7 +20,7 @@ from PIL import Image
 from tests.measure import synth_measure as sm
 from vision_cal.commands.main import main
 from vision_cal.dataset.session import load_session
-from vision_cal.measure.batch import measure_folder
+from vision_cal.workflows.measure_folder import measure_folder
 
 N = 6
 
@@ -215,7 +215,7 @@ def test_no_photos_at_all_is_one_line(tmp_path, world, capsys):
 
 
 def _groups(seen):
-    from vision_cal.measure.associate import DotGroup
+    from vision_cal.identify.associate import DotGroup
 
     z = np.zeros((1, 2))
     return [DotGroup(np.repeat(z, len(s), 0), np.zeros((len(s), 2, 2)), tuple(s),
@@ -225,7 +225,7 @@ def _groups(seen):
 def test_a_dot_seen_once_is_not_a_mark():
     """A reflection in photo 1 only (never seen again) does not shift the series; the dot of
     a mark missed once (photo 3) still counts from where it first appeared."""
-    from vision_cal.measure.infer import infer_image_marks
+    from vision_cal.identify.infer import infer_image_marks
 
     ids = ["a", "b", "c", "d"]
     files = [f"p{k}" for k in range(4)]
@@ -303,7 +303,7 @@ def test_a_photo_out_of_order_is_named_and_left_out():
     """Photos of marks 1, 2, 4, 3 (two swapped): the one with 3 marks after the one with 4
     adds nothing and lacks mark 4: named out of order, not 'repeated', and not used (it
     would otherwise claim a mark it does not show). Issue 19."""
-    from vision_cal.measure.infer import infer_image_marks
+    from vision_cal.identify.infer import infer_image_marks
 
     ids = ["a", "b", "c", "d"]
     files = ["p1", "p2", "p4", "p3"]
@@ -333,7 +333,7 @@ def test_init_on_an_empty_folder_names_the_folder(tmp_path, world, capsys):
 def test_a_photo_with_one_dot_after_the_finished_sheet_is_not_listed_with_six():
     """Issue 19: a photo showing one of the six dots, taken after one of the finished sheet,
     was listed as showing all six ("a repeated photo"); it is left out, named."""
-    from vision_cal.measure.infer import infer_image_marks
+    from vision_cal.identify.infer import infer_image_marks
 
     ids = ["a", "b", "c", "d", "e", "f"]
     seen = [{0, 1}] + [{0}] * 5

@@ -20,7 +20,8 @@ CHILD = textwrap.dedent("""
     import numpy as np
     sys.path.insert(0, {root!r})
     from tests.measure import synth_measure as sm
-    from vision_cal.measure import batch
+    from vision_cal.measure import detect
+    from vision_cal.workflows.measure_folder import measure_folder
     from vision_cal.dataset.session import load_session
 
     src, pids = Path(sys.argv[1]), Path(sys.argv[2])
@@ -29,14 +30,14 @@ CHILD = textwrap.dedent("""
         (pids / str(os.getpid())).write_text(file)
         time.sleep(600)
 
-    batch.detect_image_bytes = stuck
+    detect.detect_image_bytes = stuck
     sheet = sm.small_sheet()
     rng = np.random.default_rng(0)
     for k in range(2):
         sm.write_png(src / f"p{{k}}.png", rng.integers(0, 255, (60, 80, 3)).astype(np.uint8))
     sm.write_session(src, sm.session_json(sheet, marks=[("c0", (0.0, 0.0))],
                                           images=[("p0.png", ["c0"]), ("p1.png", ["c0"])]))
-    batch.measure_folder(load_session(src), out_dir=src.parent / "out", jobs=2)
+    measure_folder(load_session(src), out_dir=src.parent / "out", jobs=2)
 """)
 
 

@@ -23,8 +23,8 @@ from tests.measure import synth_measure as sm
 from vision_cal.commands.main import main
 from vision_cal.dataset import photos
 from vision_cal.dataset.session import load_session
-from vision_cal.measure import batch
-from vision_cal.measure.batch import measure_folder
+from vision_cal.measure import detect
+from vision_cal.workflows.measure_folder import measure_folder
 
 N = 6
 IDS = [f"c{i}" for i in range(N)]
@@ -266,13 +266,13 @@ def test_decompression_bombs_are_refused_before_decoding(tmp_path, world, bombs,
     files = ["a.png", *bombs]
     _session(src, world, files, camera=camera)
     sent = []
-    real = batch.detect_image
+    real = detect.detect_image
 
     def spy(path, session, **kw):
         sent.append(kw.get("name"))
         return real(path, session, **kw)
 
-    monkeypatch.setattr(batch, "detect_image", spy)
+    monkeypatch.setattr(detect, "detect_image", spy)
     limit = Image.MAX_IMAGE_PIXELS
     rc, err, doc = _run(src, tmp_path / "out", capsys)
     assert Image.MAX_IMAGE_PIXELS == limit  # Pillow's global guard left as it was
@@ -329,7 +329,7 @@ def test_the_header_is_read_without_decoding(bombs, monkeypatch):
 
 
 def test_workers_do_not_multiply_the_largest_photo():
-    from vision_cal.measure.batch import MAX_PIXELS_IN_FLIGHT, jobs_for
+    from vision_cal.measure.detect import MAX_PIXELS_IN_FLIGHT, jobs_for
 
     assert MAX_PIXELS_IN_FLIGHT <= 2 * photos.MAX_PIXELS
     assert jobs_for(8, [12_000_000] * 5) == 8          # phone photos: every core

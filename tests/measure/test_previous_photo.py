@@ -17,7 +17,8 @@ import pytest
 
 from tests.measure.synth_measure import photo, view
 from vision_cal.dataset.session import load_session
-from vision_cal.measure.batch import detect_image_bytes, finish_image
+from vision_cal.measure.detect import detect_image_bytes
+from vision_cal.measure.finish import finish_image
 from vision_cal.measure.previous_photo import PreviousPhoto, previous_photos
 from vision_cal.render.printed import load_printed_sheet, printed_texture
 from vision_cal.sheet import make_layout, write_sheet
@@ -112,7 +113,7 @@ def test_a_series_in_a_folder_measures_its_new_marks_against_the_photo_before(se
     measure_folder finds the photo before by itself; the new marks on print are measured,
     none unreliable."""
     from tests.measure import synth_measure as sm
-    from vision_cal.measure.batch import measure_folder
+    from vision_cal.workflows.measure_folder import measure_folder
 
     session, ((img_a, _), (img_b, _)), new = series
     rng = np.random.default_rng(3)

@@ -15,7 +15,8 @@ import pytest
 
 from tests.measure.synth_measure import photo, view
 from vision_cal.dataset.session import load_session
-from vision_cal.measure.batch import detect_image_bytes, finish_image
+from vision_cal.measure.detect import detect_image_bytes
+from vision_cal.measure.finish import finish_image
 from vision_cal.measure.printed import printed_reference
 from vision_cal.render.printed import load_printed_sheet, printed_texture
 from vision_cal.sheet import make_layout, write_sheet

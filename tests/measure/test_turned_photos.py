@@ -9,7 +9,7 @@ import pytest
 
 from tests.measure import synth_measure as sm
 from vision_cal.dataset.session import load_session
-from vision_cal.measure.batch import measure_folder
+from vision_cal.workflows.measure_folder import measure_folder
 from vision_cal.measure.rotated import to_main_px, turned_lens
 
 VIEWS = [dict(tilt_deg=12.0, azimuth_deg=20.0), dict(tilt_deg=18.0, azimuth_deg=150.0),
@@ -89,7 +89,8 @@ def test_the_sheet_fit_gate_takes_a_phone_photo_before_its_lens_is_known(tmp_pat
     """The gate's lens allowance (config.SheetFitConfig.lens_px, set on bench/phone.py
     --gate): photos of a mild lens nobody declared, measured with no lens, are not refused;
     on this series one leaves about 1.5 px beyond the print term (1 px would refuse it)."""
-    from vision_cal.measure.batch import detect_image, finish_image
+    from vision_cal.measure.detect import detect_image
+    from vision_cal.measure.finish import finish_image
 
     sm.phone_series(tmp_path / "in", 10, n_photos=6, n_turned=2, n_marks=10)
     session = load_session(tmp_path / "in")

@@ -7,9 +7,10 @@ import numpy as np
 
 from vision_cal.config import DEFAULT
 from vision_cal.dataset.session import load_session
-from vision_cal.measure import batch
-from vision_cal.measure.associate import DotGroup
-from vision_cal.measure.batch import Measurement, MarkMeasurement
+from vision_cal.identify import marks as identify_marks
+from vision_cal.identify.match import AssociatedDots
+from vision_cal.identify.associate import DotGroup
+from vision_cal.measure.types import MarkMeasurement, Measurement
 from vision_cal.workflows.pipeline import _unreliable_marks, collect_marks
 from vision_cal.report.headline import mark_rows
 
@@ -58,7 +59,7 @@ def test_dots_that_cannot_be_trusted_are_no_height_evidence(monkeypatch):
         seen.update(groups_of)
         return {}, None, None
 
-    monkeypatch.setattr(batch, "sheet_heights", heights)
+    monkeypatch.setattr(identify_marks, "sheet_heights", heights)
     images = [SimpleNamespace(dots_unreliable=("", "ink beside it", "")),
               SimpleNamespace(dots_unreliable=("", "", "ink beside it"))]
     groups = [DotGroup(np.zeros((2, 2)), np.zeros((2, 2, 2)), (0, 1), (0, 0)),
@@ -68,8 +69,8 @@ def test_dots_that_cannot_be_trusted_are_no_height_evidence(monkeypatch):
              "b": MarkMeasurement(np.zeros(2), np.eye(2), 1, 0.0),
              "c": MarkMeasurement(np.zeros(2), np.eye(2), 1, 0.0, status="unreliable",
                                   reason="ink beside it")}
-    dots = batch.AssociatedDots(groups, SimpleNamespace(mark_to_group={"a": 0, "b": 1, "c": 2}),
+    dots = AssociatedDots(groups, SimpleNamespace(mark_to_group={"a": 0, "b": 1, "c": 2}),
                                 [], None, [])
     session = SimpleNamespace(sheet=SimpleNamespace(extent_mm=(0, 0, 1, 1)))
-    batch.sheet_height_stage(session, images, marks, dots, None, DEFAULT)
+    identify_marks.sheet_height_stage(session, images, marks, dots, None, DEFAULT)
     assert seen == {"a": [(0, 0), (1, 0)], "b": [(1, 1)]}

@@ -3,7 +3,7 @@
 import numpy as np
 
 from tests.conftest import SM5, random_plan
-from vision_cal.calibrate.lsq import Fit
+from vision_cal.model.lsq import Fit
 from vision_cal.model.kinematics import inverse
 from vision_cal.model.robot import JointBacklash, RobotModel
 from vision_cal.dataset.covariance import covariance_json, load_covariance

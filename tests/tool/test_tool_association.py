@@ -12,9 +12,9 @@ import numpy as np
 
 from vision_cal.config import DEFAULT
 from vision_cal.dataset.session import load_session
-from vision_cal.measure import associate as assoc
-from vision_cal.measure.batch import _tool_joints, _with_fitted_tool
-from vision_cal.plan.orient import equivalent_joints
+from vision_cal.identify import associate as assoc
+from vision_cal.identify.match import _tool_joints, _with_fitted_tool
+from vision_cal.model.equivalent import equivalent_joints
 
 DATA = json.loads((Path(__file__).parent / "data" / "joint4_association.json").read_text())
 

@@ -4,7 +4,8 @@ least-squares recovery of tool_mm and joint-4 effects within 4 reported std."""
 import numpy as np
 import pytest
 
-from vision_cal.calibrate.tool import fit_tool, folded_statement, paper_tool
+from vision_cal.model.tool_fit import fit_tool, folded_statement
+from vision_cal.calibrate.tool import paper_tool
 from vision_cal.errors import CalibrationError
 from vision_cal.model.robot import JointBacklash, JointScale
 from vision_cal.render.truth_model import TrueRobot

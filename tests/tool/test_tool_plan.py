@@ -3,7 +3,7 @@ hit the targets on the world's true robot within the calibration's predicted err
 
 import numpy as np
 
-from vision_cal.calibrate.tool import fit_tool
+from vision_cal.model.tool_fit import fit_tool
 from vision_cal.model.robot import JointBacklash, JointScale, RobotModel, Tool
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.plan.orient import folded_params, plan_poses

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from vision_cal.dataset.io import atomic_write_json, distinct_outputs
 from vision_cal.errors import VisionCalError
-from vision_cal.measure.complete import complete_session
+from vision_cal.workflows.complete import complete_session
 
 
 @dataclass(frozen=True)

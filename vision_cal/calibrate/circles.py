@@ -14,7 +14,7 @@ along the arc's bisector grows roughly like ``sigma / (1 - cos(s/2))``, so the p
 +-20 deg arc (s = 40 deg) amplifies the mark noise about 16x in the base position.
 
 Points that no circle fits (fewer than three, collinear, coincident) give a
-:class:`vision_cal.calibrate.lsq.FailedFit`, falsy, with the reason (as
+:class:`vision_cal.model.lsq.FailedFit`, falsy, with the reason (as
 ``skimage.measure.CircleModel.from_estimate`` gives a ``FailedEstimation``): a caller that
 branches tests ``if not circle``, one that cannot go on calls ``.or_raise()``.
 """
@@ -27,7 +27,7 @@ import numpy as np
 from scipy.linalg import eig
 from scipy.optimize import least_squares
 
-from vision_cal.calibrate.lsq import FailedFit
+from vision_cal.model.lsq import FailedFit
 from vision_cal.model.rms import rms
 
 

@@ -2,7 +2,7 @@
 branch for the tool and joint 4; contract "Joint 4 and the tool", docs/format.md).
 
 Least squares: :func:`joint4_stage` fits the base model with ``tool_mm``
-(:func:`vision_cal.calibrate.tool.fit_tool`), then joint 4's backlash and gear-ratio
+(:func:`vision_cal.model.tool_fit.fit_tool`), then joint 4's backlash and gear-ratio
 error, each kept only when its estimate exceeds ``joint4.accept_sigma`` (config) reported std
 (clean data claims nothing); :func:`vision_cal.workflows.pipeline.fit_lsq` then runs the usual
 diagnosis (joint-1/2 effects, sheet, scans, discovery) with those held in every model, and
@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vision_cal.calibrate.tool import ToolFit, fit_tool, paper_tool
+from vision_cal.model.tool_fit import ToolFit, fit_tool
+from vision_cal.calibrate.tool import paper_tool
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.model.robot import JointBacklash, JointScale
 from vision_cal.dataset.covariance import covariance_json

@@ -11,7 +11,7 @@ printed eqs 12-13 swap x and y)::
                                                   the zero-return mark, as the paper does)
 
 The paper's a and b are |z1| and |z2|. Marks without both circles give a
-:class:`vision_cal.calibrate.lsq.FailedFit` (falsy, with the reason), not an exception:
+:class:`vision_cal.model.lsq.FailedFit` (falsy, with the reason), not an exception:
 the least-squares run adds the circles only where the plan has them.
 """
 
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vision_cal.calibrate.circles import Circle
-from vision_cal.calibrate.lsq import FailedFit
+from vision_cal.model.lsq import FailedFit
 from vision_cal.model.kinematics import ScaraParams
 
 

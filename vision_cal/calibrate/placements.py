@@ -28,7 +28,7 @@ from scipy import stats
 from scipy.optimize import least_squares
 
 from vision_cal.model import joint_terms as jt
-from vision_cal.calibrate.lsq import Fit
+from vision_cal.model.lsq import Fit
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.errors import CalibrationError
 from vision_cal.model.kinematics import ScaraParams

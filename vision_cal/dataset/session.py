@@ -205,7 +205,7 @@ class Session:
     pen_mark_diameter_mm: float | None = None
     raw: dict = field(default_factory=dict, repr=False, compare=False)
     #: False when session.json has no ``images``: every photo in the folder is used and
-    #: which marks each shows is found from the photos (``vision_cal.measure.infer``)
+    #: which marks each shows is found from the photos (``vision_cal.identify.infer``)
     images_listed: bool = True
     #: the file the session was read from when it is not ``root/session.json`` (a marks
     #: CSV, :mod:`vision_cal.dataset.marks_csv`): what errors name

@@ -46,7 +46,7 @@ import numpy as np
 from scipy import stats
 
 from vision_cal.model import joint_terms as jt
-from vision_cal.calibrate.lsq import FailedFit, Fit
+from vision_cal.model.lsq import FailedFit, Fit
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.diagnose.select import Diagnosis, Evidence, heldout_rms
 from vision_cal.diagnose.structure import sheet_scan
@@ -331,7 +331,12 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     """Scan the selected model's residual along every axis, run the dictionary selection on
     the model without its joint effects and, when it finds what no library effect says
     (a coupling, a polynomial, a third harmonic, a drift), replace the joint effects by
-    what it found if that lowers the held-out error; drift is reported, never fitted."""
+    what it found if that lowers the held-out error; drift is reported, never fitted.
+
+    The stages: the scans and the selection (:func:`discover`), the fit with the terms
+    found and whether it beats the selected model (:func:`_terms_win`), the sheet effects
+    checked again beside them (:func:`_recheck_nonjoint`), the evidence and what is left
+    unexplained (:func:`_evidence_after`, :func:`_unexplained_after`)."""
     config = config or DEFAULT
     q = np.asarray(q_deg, float)
     xy = np.asarray(xy_mm, float)
@@ -380,15 +385,8 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
         return Traced(diag, drift, report)
     h1 = held(f1.model)
     report["heldout_rms_mm"] = [diag.heldout_final_mm, h1]
-    # a library effect is kept only when it does better than the dictionary's terms with no
-    # more parameters: fewer parameters win when the fit's BIC says so and the held-out
-    # error is within its own noise (an RMS over a few held-out marks scatters by ~20 %)
-    n_old = sum(len(e.theta) for e in final.model.effects if _dictionary_joint(e))
-    n_new = sum(len(e.theta) for e in new_joint)
-    tie = (n_new < n_old and _bic(f1, sigma_mm) <= _bic(final, sigma_mm)
-           and h1 <= config.discovery.heldout_tie * diag.heldout_final_mm)
     report["bic"] = [_bic(final, sigma_mm), _bic(f1, sigma_mm)]
-    if not (h1 < diag.heldout_final_mm or tie):
+    if not _terms_win(diag, f1, new_joint, h1, sigma_mm, config):
         report["decision"] = "the dictionary's terms do not lower the held-out error: kept"
         return Traced(diag, drift, report)
     # a sheet effect selected before the joint terms were known may stand in for them: it
@@ -400,8 +398,42 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
         h1 = held(f1.model)
         report["heldout_rms_mm"] = [diag.heldout_final_mm, h1]
     labels = {e.label for e in f1.model.effects}
+    accepted = _evidence_after(diag, f1, new_joint, d.steps, h1)
+    dropped = [a.label for a in diag.accepted if a.label not in labels]
+    report["decision"] = ("replaced " + ", ".join(dropped) + " by " if dropped else "added ") \
+        + ", ".join(e.label for e in new_joint)
+    unexplained = _unexplained_after(diag.unexplained, d.joint_features, f1, xy, alpha)
+    new = replace(diag, final_fit=f1, accepted=accepted, heldout_final_mm=h1,
+                  unexplained=unexplained)
+    report["scans_after"] = axis_scans(f1, q, app, t, sigma_mm=sigma_mm, alpha=alpha)
+    return Traced(new, drift, report)
+
+
+def _terms_win(diag: Diagnosis, f1: Fit, new_joint: tuple, h1: float, sigma_mm,
+               config: EstimatorConfig) -> bool:
+    """Whether the fit with the dictionary's joint terms (``f1``, held-out RMS ``h1``)
+    replaces the selected model: it lowers the held-out error, or it ties with fewer
+    parameters. A library effect is kept only when it does better than the dictionary's
+    terms with no more parameters: fewer parameters win when the fit's BIC says so and the
+    held-out error is within its own noise (``discovery.heldout_tie``: an RMS over a few
+    held-out marks scatters by ~20 %)."""
+    final = diag.final_fit
+    n_old = sum(len(e.theta) for e in final.model.effects if _dictionary_joint(e))
+    n_new = sum(len(e.theta) for e in new_joint)
+    tie = (n_new < n_old and _bic(f1, sigma_mm) <= _bic(final, sigma_mm)
+           and h1 <= config.discovery.heldout_tie * diag.heldout_final_mm)
+    return bool(h1 < diag.heldout_final_mm or tie)
+
+
+def _evidence_after(diag: Diagnosis, f1: Fit, new_joint: tuple, steps, h1: float
+                    ) -> tuple[Evidence, ...]:
+    """The accepted effects once the dictionary's joint terms are in: the selection's
+    evidence for the effects ``f1`` still holds, then one entry per new joint effect (its
+    fitted values; the largest F and smallest p of the selection steps of its joint; the
+    held-out RMS before and after, ``h1``)."""
+    labels = {e.label for e in f1.model.effects}
     accepted = [a for a in diag.accepted if a.label in labels]
-    step = {s["column"]: s for s in d.steps}
+    step = {s["column"]: s for s in steps}
     for e in new_joint:
         if e.label in {a.label for a in accepted}:
             continue
@@ -412,10 +444,16 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
                                  min((s["p_value"] for s in ps), default=float("nan")),
                                  float("nan"), True, "selected from the dictionary: significant "
                                  "and lowers the held-out error", fitted.to_json()))
-    dropped = [a.label for a in diag.accepted if a.label not in labels]
-    report["decision"] = ("replaced " + ", ".join(dropped) + " by " if dropped else "added ") \
-        + ", ".join(e.label for e in new_joint)
-    unexplained = _without_named(diag.unexplained, d.joint_features)
+    return tuple(accepted)
+
+
+def _unexplained_after(unexplained: dict | None, features: dict, f1: Fit, xy,
+                       alpha: float) -> dict | None:
+    """The diagnosis's ``unexplained`` once the selected joint ``features`` are fitted: the
+    harmonics they now model gone (:func:`_without_named`), and the shared residual of
+    neighbouring marks gone when the sheet map of ``f1``'s residual no longer finds it
+    (p at or above ``alpha / 2``)."""
+    unexplained = _without_named(unexplained, features)
     if unexplained and unexplained.get("sheet"):
         # the sheet map was of the replaced model's residual: look again
         k = f1.inliers
@@ -424,10 +462,7 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
             seen = [x for x in unexplained["seen"] if not x.startswith("neighbouring marks")]
             unexplained = {kk: v for kk, v in unexplained.items() if kk != "sheet"}
             unexplained = dict(unexplained, seen=seen) if seen else None
-    new = replace(diag, final_fit=f1, accepted=tuple(accepted), heldout_final_mm=h1,
-                  unexplained=unexplained)
-    report["scans_after"] = axis_scans(f1, q, app, t, sigma_mm=sigma_mm, alpha=alpha)
-    return Traced(new, drift, report)
+    return unexplained
 
 
 def _dictionary_joint(e) -> bool:

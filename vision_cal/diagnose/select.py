@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from vision_cal.calibrate.lsq import FailedFit, Fit
+from vision_cal.model.lsq import FailedFit, Fit
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.diagnose.candidates import Candidate, default_candidates, joint_residuals_deg
 from vision_cal.diagnose.structure import harmonic_scan, sheet_scan
@@ -161,8 +161,120 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
 
     ``base_effects``: effects every model holds and the selection never tests (the tool and
     joint-4 effects: joints ``(N, 3)`` ``[q1, q2, q4]`` and approach ``(N, 3)``, contract
-    "Joint 4 and the tool"); the tool is reported in ``params``, not among the effects."""
-    config = config or DEFAULT
+    "Joint 4 and the tool"); the tool is reported in ``params``, not among the effects.
+
+    The stages: the selection on every mark (:meth:`_Problem.select_on`), again away from
+    marks that share a residual (:func:`_away_from_local`), the reported model's fit
+    (:func:`_reported`) and what its residual still shows (:func:`_final_analysis`)."""
+    pb = _problem(q_deg, xy_mm, approach, sigma_mm=sigma_mm, ids=ids, q_val=q_val,
+                  xy_val=xy_val, approach_val=approach_val, candidates=candidates, alpha=alpha,
+                  k_folds=k_folds, max_effects=max_effects, rng=rng, base_effects=base_effects,
+                  config=config or DEFAULT)
+    base = _fit(pb.base_model, pb.q, pb.xy, pb.app, pb.sigma, pb.ids, pb.config).or_raise()
+    found = pb.select_on(np.ones(len(pb.q), dtype=bool))
+    found, sheet_map = _away_from_local(pb, found)
+    current = _reported(pb, base, found)
+    # keep only the last round's rejections per label (the final word on each candidate)
+    last = {}
+    for ev in found.selection.rejected:
+        last[ev.label] = ev
+    sheet_alpha = pb.alpha / 2
+    analysis = _final_analysis(pb, current.fit, sheet_map)
+    unexplained = _unexplained(analysis, pb.alpha, found.harmonics, sheet_alpha)
+    kind = ("validation marks" if pb.has_val
+            else f"{min(pb.k_folds, len(pb.q))}-fold cross-validation")
+    return Diagnosis(base, current.fit, tuple(found.selection.accepted), tuple(last.values()),
+                     tuple(found.selection.not_identifiable), unexplained, kind,
+                     current.base_held, current.held, analysis,
+                     {"alpha": pb.alpha, "n_candidates": len(pb.cands),
+                      "alpha_each": pb.alpha_each, "delta_bic_below": 0.0,
+                      "k_folds": pb.k_folds, "max_effects": pb.max_effects,
+                      "unexplained_harmonics_alpha": pb.alpha,
+                      "unexplained_sheet_alpha": sheet_alpha})
+
+
+@dataclass(frozen=True)
+class _Found:
+    """A selection (:class:`_Selection`) with the joint harmonics no candidate offers
+    found in the residual (the scan's rows) and fitted as nuisances (their effects)."""
+
+    selection: "_Selection"
+    harmonics: list
+    nuisance: tuple
+
+
+@dataclass(frozen=True)
+class _Problem:
+    """One diagnosis's data and levels: the calibration marks (``q`` (N, 2|3), ``xy``,
+    ``app``, ``sigma`` or None, ``ids`` as given), the validation marks (used when
+    ``has_val``: at least three), the candidates and the selection's thresholds."""
+
+    q: np.ndarray
+    xy: np.ndarray
+    app: np.ndarray
+    sigma: np.ndarray | None
+    ids: object
+    q_val: np.ndarray | None
+    xy_val: np.ndarray | None
+    app_val: np.ndarray | None
+    has_val: bool
+    cands: list
+    alpha: float
+    alpha_each: float           # alpha over the candidates (Bonferroni)
+    k_folds: int
+    max_effects: int
+    rng: object
+    base_model: RobotModel | None
+    n_base: int                 # effects every model holds (the tool's, joint 4's)
+    min_sheet_marks: int
+    config: EstimatorConfig
+
+    def held_on(self, sub):
+        """The held-out RMS of a model fitted to the marks ``sub``
+        (:func:`heldout_rms`: the validation marks, else k-fold CV over ``sub``)."""
+        q, xy, app, sigma = self.q, self.xy, self.app, self.sigma
+
+        def held(model):
+            return heldout_rms(model, q[sub], xy[sub], app[sub],
+                               sigma=None if sigma is None else sigma[sub],
+                               q_val=self.q_val if self.has_val else None, xy_val=self.xy_val,
+                               app_val=self.app_val, k_folds=self.k_folds, rng=self.rng,
+                               config=self.config)
+        return held
+
+    def select_on(self, sub) -> _Found:
+        """Selection on the marks ``sub``, with joint harmonics no candidate offers found
+        in the residual and fitted as nuisances (never reported as something else)."""
+        cands, config = self.cands, self.config
+        qs, xs, aps = self.q[sub], self.xy[sub], self.app[sub]
+        ss = None if self.sigma is None else self.sigma[sub]
+        idl = None if self.ids is None else tuple(np.asarray(self.ids, dtype=object)[sub])
+        held = self.held_on(sub)
+        b = _fit(self.base_model, qs, xs, aps, ss, idl, config).or_raise()
+        sl = _select(b, (), cands, qs, xs, aps, ss, idl, held, self.alpha_each,
+                     self.max_effects, config)
+        # harmonics significant even beside every candidate the plan can fit
+        full = sl.fit
+        for c in cands:
+            if c.key in {k.key for k in cands if any(k.label == a.label for a in sl.accepted)}:
+                continue
+            f = _fit(full.model.with_effect(c.effect), qs, xs, aps, ss, idl, config)
+            full = f or full
+        fnd = _unexplained_harmonics(full, qs, aps, ss, cands, self.alpha, ids=idl, xy=xs,
+                                     config=config)
+        nui = tuple(JointCyclic(joint=h["joint"], harmonic=h["harmonic"]) for h in fnd)
+        if nui:
+            sl = _select(b, nui, cands, qs, xs, aps, ss, idl, held, self.alpha_each,
+                         self.max_effects, config)
+        return _Found(sl, fnd, nui)
+
+
+def _problem(q_deg, xy_mm, approach, *, sigma_mm, ids, q_val, xy_val, approach_val,
+             candidates, alpha, k_folds, max_effects, rng, base_effects,
+             config: EstimatorConfig) -> _Problem:
+    """:func:`diagnose`'s arguments as arrays (joints (N, 2) or, with joint 4, (N, 3);
+    approach all +1 when not given) and its levels (the arguments given, else
+    ``config.selection``'s)."""
     sel_cfg = config.selection
     alpha = sel_cfg.alpha if alpha is None else alpha
     k_folds = sel_cfg.k_folds if k_folds is None else k_folds
@@ -174,59 +286,29 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
     app = np.ones_like(q) if approach is None else np.asarray(approach, float).reshape(-1, ncol)
     sigma = None if sigma_mm is None else np.asarray(sigma_mm, dtype=float)
     base_model = RobotModel(ScaraParams(1.0, 1.0), tuple(base_effects)) if base_effects else None
-    n_base = len(base_effects)
     if q_val is not None:
         q_val = np.asarray(q_val, float).reshape(-1, ncol)
         xy_val = np.asarray(xy_val, float).reshape(-1, 2)
         approach_val = (np.ones_like(q_val) if approach_val is None
                         else np.asarray(approach_val, float).reshape(-1, ncol))
     has_val = q_val is not None and len(q_val) >= 3
-    kind = "validation marks" if has_val else f"{min(k_folds, len(q))}-fold cross-validation"
     cands = list(candidates if candidates is not None else default_candidates())
-    alpha_each = alpha / max(len(cands), 1)
+    return _Problem(q, xy, app, sigma, ids, q_val, xy_val, approach_val, has_val, cands, alpha,
+                    alpha / max(len(cands), 1), k_folds, max_effects, rng, base_model,
+                    len(base_effects), sel_cfg.min_sheet_marks, config)
 
-    def held_on(sub):
-        def held(model):
-            return heldout_rms(model, q[sub], xy[sub], app[sub],
-                               sigma=None if sigma is None else sigma[sub],
-                               q_val=q_val if has_val else None, xy_val=xy_val,
-                               app_val=approach_val, k_folds=k_folds, rng=rng, config=config)
-        return held
 
-    def select_on(sub):
-        """Selection on the marks ``sub``, with joint harmonics no candidate offers found
-        in the residual and fitted as nuisances (never reported as something else)."""
-        qs, xs, aps = q[sub], xy[sub], app[sub]
-        ss = None if sigma is None else sigma[sub]
-        idl = None if ids is None else tuple(np.asarray(ids, dtype=object)[sub])
-        held = held_on(sub)
-        b = _fit(base_model, qs, xs, aps, ss, idl, config).or_raise()
-        sl = _select(b, (), cands, qs, xs, aps, ss, idl, held, alpha_each, max_effects, config)
-        # harmonics significant even beside every candidate the plan can fit
-        full = sl.fit
-        for c in cands:
-            if c.key in {k.key for k in cands if any(k.label == a.label for a in sl.accepted)}:
-                continue
-            f = _fit(full.model.with_effect(c.effect), qs, xs, aps, ss, idl, config)
-            full = f or full
-        fnd = _unexplained_harmonics(full, qs, aps, ss, cands, alpha, ids=idl, xy=xs,
-                                     config=config)
-        nui = tuple(JointCyclic(joint=h["joint"], harmonic=h["harmonic"]) for h in fnd)
-        if nui:
-            sl = _select(b, nui, cands, qs, xs, aps, ss, idl, held, alpha_each, max_effects,
-                         config)
-        return sl, fnd, nui
-
-    everything = np.ones(len(q), dtype=bool)
-    held = held_on(everything)
-    base = _fit(base_model, q, xy, app, sigma, ids, config).or_raise()
-    sel, found, nuisance = select_on(everything)
-    # the sheet map of what is left once the nuisance harmonics are out
+def _away_from_local(pb: _Problem, found: _Found) -> tuple[_Found, dict]:
+    """The sheet map of the residual once the nuisance harmonics are out; when neighbouring
+    marks share a residual (p below alpha / 2), the selection again without the marks
+    there, so the local structure is not explained by a global effect (when enough marks
+    are left), and the map as that model sees it. Returns (the selection, the map)."""
+    q, xy, app = pb.q, pb.xy, pb.app
+    sel = found.selection
     keep = sel.fit.inliers
     sheet_map = (sheet_scan(xy[keep], sel.fit.residuals_mm[keep])
-                 if keep.sum() >= sel_cfg.min_sheet_marks else {"p_value": 1.0, "k": 0})
-    sheet_alpha = alpha / 2
-    if sheet_map["p_value"] < sheet_alpha:
+                 if keep.sum() >= pb.min_sheet_marks else {"p_value": 1.0, "k": 0})
+    if sheet_map["p_value"] < pb.alpha / 2:
         # neighbouring marks share a residual: select again without the marks there, so
         # the local structure is not explained by a global effect
         peak = np.asarray(sheet_map["peak_mm"])
@@ -236,41 +318,50 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
         sheet_map["excluded_radius_mm"] = float(radius)
         sheet_map["excluded_marks"] = int((~outside).sum())
         if outside.sum() >= max(12, len(q) // 2):
-            sel, found, nuisance = select_on(outside)
+            found = pb.select_on(outside)
             # the map as the model fitted away from the structure sees it
-            again = sheet_scan(xy, xy - sel.fit.predict(q, app), n_perm=0)
+            again = sheet_scan(xy, xy - found.selection.fit.predict(q, app), n_perm=0)
             sheet_map.update({k: again[k] for k in ("peak_mm", "peak_size_mm",
                                                     "peak_residual_mm", "map")})
-    # the reported model: the selected effects only (a nuisance is reported, not fitted),
-    # on every mark
+    return found, sheet_map
+
+
+@dataclass(frozen=True)
+class _Reported:
+    """The reported model's fit on every mark, its held-out RMS and the base model's."""
+
+    fit: Fit
+    held: float
+    base_held: float
+
+
+def _reported(pb: _Problem, base: Fit, found: _Found) -> _Reported:
+    """The reported model: the selected effects only (a nuisance is reported, not fitted),
+    on every mark; refitted from zero when the selection held nuisances or ran on fewer
+    marks, else the selection's own fit and held-out figures."""
+    sel, nuisance, n_base = found.selection, found.nuisance, pb.n_base
     effects = (sel.fit.model.effects[:n_base]
                + tuple(sel.fit.model.effects[n_base + len(nuisance):]))
-    if nuisance or len(sel.fit.residuals_mm) != len(q):
+    if nuisance or len(sel.fit.residuals_mm) != len(pb.q):
         zero = RobotModel(base.params, tuple(_at_zero(e) for e in effects))
-        current = _fit(zero if effects else None, q, xy, app, sigma, ids, config).or_raise()
+        current = _fit(zero if effects else None, pb.q, pb.xy, pb.app, pb.sigma, pb.ids,
+                       pb.config).or_raise()
+        held = pb.held_on(np.ones(len(pb.q), dtype=bool))
         current_held = held(current.model)
-        base_held = held(base.model)
-    else:
-        current, current_held, base_held = sel.fit, sel.held, sel.base_held
-    accepted = sel.accepted
-    # keep only the last round's rejections per label (the final word on each candidate)
-    last = {}
-    for ev in sel.rejected:
-        last[ev.label] = ev
-    analysis = residual_analysis(current, q, app)
+        return _Reported(current, current_held, held(base.model))
+    return _Reported(sel.fit, sel.held, sel.base_held)
+
+
+def _final_analysis(pb: _Problem, current: Fit, sheet_map: dict) -> dict:
+    """What the reported model's residual shows (:func:`residual_analysis`), its joint
+    periodogram (weighted by 1 / sigma) and the sheet map."""
+    analysis = residual_analysis(current, pb.q, pb.app)
     keep = current.inliers
-    w = None if sigma is None else 1.0 / np.asarray(sigma)[keep]
-    analysis["periodogram"] = harmonic_scan(current.model, q[keep], app[keep],
+    w = None if pb.sigma is None else 1.0 / np.asarray(pb.sigma)[keep]
+    analysis["periodogram"] = harmonic_scan(current.model, pb.q[keep], pb.app[keep],
                                             current.residuals_mm[keep], weights=w)
     analysis["sheet_map"] = sheet_map
-    unexplained = _unexplained(analysis, alpha, found, sheet_alpha)
-    return Diagnosis(base, current, tuple(accepted), tuple(last.values()),
-                     tuple(sel.not_identifiable), unexplained, kind, base_held, current_held,
-                     analysis,
-                     {"alpha": alpha, "n_candidates": len(cands), "alpha_each": alpha_each,
-                      "delta_bic_below": 0.0, "k_folds": k_folds,
-                      "max_effects": max_effects, "unexplained_harmonics_alpha": alpha,
-                      "unexplained_sheet_alpha": sheet_alpha})
+    return analysis
 
 
 @dataclass

@@ -295,51 +295,107 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
     model for designing the informative plan: what its nine marks cannot do by design
     (test effects, compare marks given as ``measured_mm`` with a noise floor) is said among
     the reasons at the ``ready`` level, so it does not hold the pilot back; the informative
-    plan tests the effects. The thresholds: the document's own ``config.verdict``."""
+    plan tests the effects. The thresholds: the document's own ``config.verdict``.
+
+    The reasons are gathered stage by stage, in the order the verdict lists them within a
+    status: the plan (:func:`_plan_reasons`), a drift, the noise floor
+    (:func:`_noise_floor`), structure left (:func:`_structure_reasons`), marks left out,
+    the accuracy figure (:func:`_accuracy`)."""
     cfg = EstimatorConfig.from_json(doc.get("config")).verdict
     pilot = stage == "pilot"
     by_design = "ready" if pilot else None
+    outliers = set(doc.get("outliers") or [])
+    marks = doc.get("marks") or {}
+    rep, source = _repeatability(marks, outliers, repeatability_mm, cfg)
+    ident = doc.get("identifiability") or {}
+    n_par = int(ident.get("n_params") or 6)
+    vf = doc.get("valid_for") if isinstance(doc.get("valid_for"), dict) else None
+    reasons, outside = _plan_reasons(ident, vf, pilot)
+    effects = doc.get("effects") or []
+    reasons += _drift_reasons(effects)
+    floors = _noise_floor(marks, outliers, n_par, rep, cfg, by_design)
+    reasons += floors.reasons
+    reasons += _structure_reasons(doc, effects, marks)
+    reasons += _left_out_reasons(outliers, marks)
+    acc = _accuracy(doc, marks, n_par, cfg, by_design)
+    reasons += acc.reasons
+    v = _verdict(reasons, acc.r95, floors.floor, floors.hfloor, rep, source, floors.worst)
+    if outside:   # the status inside valid_for (design --pilot accepts a pilot "ready" there)
+        inner = _verdict([r for r in reasons if r not in outside], acc.r95, floors.floor,
+                         floors.hfloor, rep, source, floors.worst)
+        v = replace(v, within_valid_for=inner.status)
+    return v
+
+
+def _repeatability(marks: dict, outliers: set, repeatability_mm: float | None,
+                   cfg: VerdictConfig) -> tuple[float, str]:
+    """The robot's repeatability the floor adds and where it comes from: measured from the
+    marks drawn twice (outliers out) when there are enough pairs, else ``repeatability_mm``
+    (the robot block's), else the config's default. Returns (mm, source)."""
     rep = cfg.default_repeatability_mm if repeatability_mm is None else float(repeatability_mm)
     source = "default" if repeatability_mm is None else "robot block"
-    outliers = set(doc.get("outliers") or [])
-    measured = repeatability_from_repeats({k: m for k, m in (doc.get("marks") or {}).items()
+    measured = repeatability_from_repeats({k: m for k, m in marks.items()
                                            if k not in outliers}, cfg)
     if measured is not None:   # better than a catalogue figure: this robot, this day
         rep, source = measured[0], f"{measured[1]} pairs of marks drawn at the same command"
-    reasons: list[tuple[str, str]] = []     # (status, sentence)
+    return rep, source
 
-    def add(status, text):
-        reasons.append((status, text))
 
-    ident = doc.get("identifiability") or {}
+def _plan_reasons(ident: dict, vf: dict | None,
+                  pilot: bool) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
+    """(status, sentence) for what the plan cannot identify: a rank below the parameters
+    (``not reliable``), the first candidate it cannot separate from the base model (``not
+    reliable``; a pilot's at the ``ready`` level, and not those ``valid_for`` says), and
+    what ``valid_for`` says a user's targets would excite that the calibration could not
+    identify (never ``ready``: dataset/valid_for). Returns (every reason, in that order;
+    the ``valid_for`` ones among them)."""
+    out: list[tuple[str, str]] = []
     if ident and ident.get("rank") is not None and ident["rank"] < ident.get("n_params", 0):
-        add("not reliable", f"the plan identifies only {ident['rank']} of "
-                            f"{ident['n_params']} parameters; add marks that spread both "
-                            "joints and both approach directions")
+        out.append(("not reliable", f"the plan identifies only {ident['rank']} of "
+                                    f"{ident['n_params']} parameters; add marks that spread "
+                                    "both joints and both approach directions"))
     ni = ident.get("not_identifiable") or []
-    vf = doc.get("valid_for") if isinstance(doc.get("valid_for"), dict) else None
     vf_labels = {d.get("label") for d in (vf or {}).get("not_identified") or []}
     if pilot:   # said once, by valid_for below, at its own level (check, never ready)
         ni = [d for d in ni if d.get("label") not in vf_labels]
     if ni:
         d = ni[0]
         more = f" (and {len(ni) - 1} more, listed below)" if len(ni) > 1 else ""
-        add(by_design or "not reliable",
-            f"the plan cannot separate {d['label']} from the base model{more}; {d['fix']}"
-            + ("; a pilot leaves that to the informative plan" if pilot else ""))
+        out.append(("ready" if pilot else "not reliable",
+                    f"the plan cannot separate {d['label']} from the base model{more}; "
+                    f"{d['fix']}" + ("; a pilot leaves that to the informative plan"
+                                     if pilot else "")))
     # what the calibration could not identify and a user's targets excite: never "ready"
     # (dataset/valid_for: plan and the other consumers refuse requests outside it)
     outside = valid_for_reasons(vf, skip_labels={d.get("label") for d in ni})
-    reasons += outside
-    effects = doc.get("effects") or []
-    for e in effects:
-        if e.get("name") == "drift":
-            add("not reliable", f"the robot changed while drawing ({e.get('size_mm', 0):.3f} mm "
-                                f"from the first to the last mark, {e.get('along', '?')}): "
-                                "warm it up / re-home, then draw again")
-    # the noise floor
-    marks = doc.get("marks") or {}
-    n_par = int(ident.get("n_params") or 6)
+    return out + outside, outside
+
+
+def _drift_reasons(effects: list) -> list[tuple[str, str]]:
+    """``not reliable`` for each ``drift`` effect: the robot changed while it drew."""
+    return [("not reliable", f"the robot changed while drawing ({e.get('size_mm', 0):.3f} mm "
+                             f"from the first to the last mark, {e.get('along', '?')}): "
+                             "warm it up / re-home, then draw again")
+            for e in effects if e.get("name") == "drift"]
+
+
+@dataclass(frozen=True)
+class _Floors:
+    """The document's marks against the noise floor: the fitted marks' and the held-out
+    marks' floor tests, the largest target error (held-out marks' when judged, else the
+    fitted marks'), and the (status, sentence) reasons they give."""
+
+    floor: FloorTest | None
+    hfloor: FloorTest | None
+    worst: MaxErrorTest | None
+    reasons: list[tuple[str, str]]
+
+
+def _noise_floor(marks: dict, outliers: set, n_par: int, rep: float, cfg: VerdictConfig,
+                 by_design: str | None) -> _Floors:
+    """The floor tests of the fitted calibration marks (outliers out) and of the validation
+    marks when every one carries its noise; without noise, a reason (``check``, or
+    ``by_design``'s level for a pilot) saying the residual cannot be compared."""
     fitted_ids = [k for k, m in marks.items() if m.get("role", "calibration") == "calibration"
                   and k not in outliers and m.get("status", "ok") == "ok"]
     held_ids = [k for k, m in marks.items() if m.get("role") == "validation"
@@ -347,6 +403,7 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
     fitted = [marks[k] for k in fitted_ids]
     held = [marks[k] for k in held_ids]
     floor = hfloor = worst = None
+    reasons: list[tuple[str, str]] = []
     if fitted and all(m.get("sigma_mm") is not None for m in fitted):
         floor = floor_test([m["residual_mm"] for m in fitted],
                            [m["sigma_mm"] for m in fitted], rep, n_params=n_par, config=cfg)
@@ -360,24 +417,34 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
                                    [m["sigma_mm"] for m in held], rep, of="held-out",
                                    inflate=inflate, config=cfg)
     elif fitted:
-        add(by_design or "check", "the marks carry no measurement noise (measured_mm given): "
-                                  "the residual cannot be compared with a noise floor")
-    for st, text in _floor_reasons(floor, hfloor, cfg):
-        add(st, text)
+        reasons.append((by_design or "check", "the marks carry no measurement noise "
+                                              "(measured_mm given): the residual cannot be "
+                                              "compared with a noise floor"))
+    reasons += _floor_reasons(floor, hfloor, cfg)
     reasons += _max_error_reasons(worst, "mark", "look at that mark and the paper around it")
+    return _Floors(floor, hfloor, worst, reasons)
+
+
+def _structure_reasons(doc: dict, effects: list, marks: dict) -> list[tuple[str, str]]:
+    """(status, sentence) for structure the model leaves: an ``unexplained`` effect, the
+    scans for unnamed effects skipped, photos whose marks moved together, a printed grid
+    that disagrees with the markers (``ready`` when the print was measured and the marks
+    are against it, else ``check``)."""
+    out: list[tuple[str, str]] = []
     unexplained = [e for e in effects if e.get("name") == "unexplained"]
     if unexplained:
         seen = "; ".join(unexplained[0].get("seen", [])) or "structure"
-        add("check", f"structure no candidate explains is left in the residual ({seen})")
+        out.append(("check", f"structure no candidate explains is left in the residual "
+                             f"({seen})"))
     diagnosis = doc.get("diagnosis") or {}
     skipped = (diagnosis.get("discovery") or {}).get("skipped")
     if skipped:
-        add("check", skipped)
+        out.append(("check", skipped))
     moved = [p.get("file", "?") for p in diagnosis.get("per_photo_offsets") or []
              if p.get("flagged")]
     if moved:
-        add("check", f"{len(moved)} photo(s) whose marks moved together beyond the noise (a "
-                     "bad sheet mapping?): " + ", ".join(moved[:5]))
+        out.append(("check", f"{len(moved)} photo(s) whose marks moved together beyond the "
+                             "noise (a bad sheet mapping?): " + ", ".join(moved[:5])))
     sh = diagnosis.get("sheet_height") or {}
     as_ = sh.get("not_claimed_as")
     pr = doc.get("print") or {}
@@ -387,25 +454,55 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
         # were, and the marks are measured against the markers as printed
         off = [math.hypot(*m["local_minus_global_mm"]) for m in marks.values()
                if m.get("local_minus_global_mm") is not None]
-        add("ready", "the printed grid is off its layout " + (f"by up to {max(off):.3f} mm "
-                     if off else "") + "as the print is: the marks are measured against the "
-                     "markers as printed (calibration.json print)")
+        out.append(("ready", "the printed grid is off its layout " + (
+            f"by up to {max(off):.3f} mm " if off else "") + "as the print is: the marks are "
+            "measured against the markers as printed (calibration.json print)"))
     elif not sh.get("claimed") and as_ in ("lens", "mapping"):
         off = [math.hypot(*m["local_minus_global_mm"]) for m in marks.values()
                if m.get("local_minus_global_mm") is not None]
         size = f"by up to {max(off):.3f} mm " if off else ""
-        add("check", f"the printed grid disagrees with the markers' mapping {size}the way "
-                     + ("a lens error does" if as_ == "lens" else "a mapping error does")
-                     + " (not the paper's height): marks measured against the markers carry "
-                     "that error; declare the camera's lens, or photograph from several "
-                     "places")
+        out.append(("check", f"the printed grid disagrees with the markers' mapping {size}the "
+                             "way " + ("a lens error does" if as_ == "lens" else
+                                       "a mapping error does")
+                    + " (not the paper's height): marks measured against the markers carry "
+                    "that error; declare the camera's lens, or photograph from several "
+                    "places"))
+    return out
+
+
+def _left_out_reasons(outliers: set, marks: dict) -> list[tuple[str, str]]:
+    """``check`` for marks left out of the fit: outliers, marks that could not be trusted."""
+    out = []
     if outliers:
-        add("check", f"{len(outliers)} mark(s) left out as outliers: "
-                     + ", ".join(sorted(outliers)[:5]))
+        out.append(("check", f"{len(outliers)} mark(s) left out as outliers: "
+                             + ", ".join(sorted(outliers)[:5])))
     unreliable = [k for k, m in marks.items() if m.get("status") == "unreliable"]
     if unreliable:
-        add("check", f"{len(unreliable)} mark(s) could not be trusted and were left out: "
-                     + ", ".join(sorted(unreliable)[:5]))
+        out.append(("check", f"{len(unreliable)} mark(s) could not be trusted and were left "
+                             "out: " + ", ".join(sorted(unreliable)[:5])))
+    return out
+
+
+@dataclass(frozen=True)
+class _Accuracy:
+    """The expected target error (95 % radius, mm; None: no figure) and the (status,
+    sentence) reasons about it."""
+
+    r95: float | None
+    reasons: list[tuple[str, str]]
+
+
+def _accuracy(doc: dict, marks: dict, n_par: int, cfg: VerdictConfig,
+              by_design: str | None) -> _Accuracy:
+    """The expected target error from the held-out RMS, with the print's limit added
+    (:func:`_with_print`), and the reasons it gives: no held-out figure, too few spare
+    degrees of freedom (``by_design``'s level for a pilot), a held-out RMS well above the
+    fitted one."""
+    reasons: list[tuple[str, str]] = []
+
+    def add(status, text):
+        reasons.append((status, text))
+
     v = doc.get("validation_rms_mm") or {}
     held_rms, fit_rms = v.get("final_model"), (doc.get("residual_rms_mm") or {}).get("final_model")
     r95 = R95_PER_RMS * held_rms if _finite(held_rms) else None
@@ -423,12 +520,7 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
             and held_rms > cfg.heldout_warn_ratio * fit_rms):
         add("check", f"the held-out RMS ({held_rms:.4f} mm) is {held_rms / fit_rms:.1f} times "
                      "the fitted RMS: the model misses something on new poses")
-    v = _verdict(reasons, r95, floor, hfloor, rep, source, worst)
-    if outside:   # the status inside valid_for (design --pilot accepts a pilot "ready" there)
-        inner = _verdict([r for r in reasons if r not in outside], r95, floor, hfloor, rep,
-                         source, worst)
-        v = replace(v, within_valid_for=inner.status)
-    return v
+    return _Accuracy(r95, reasons)
 
 
 def _with_print(pr: dict | None, r95, add, cfg):
@@ -567,7 +659,54 @@ def judge_placements(names, residuals_mm, sigmas_mm, heldout_mm, *, n_params: in
     block). It is named in the joint verdict (``not reliable`` at ``not_reliable_ratio``
     and beyond: its marks pull the shared parameters) and in its own; the other
     placements' verdicts say their shared parameters were fitted with it."""
-    cfg = config or DEFAULT.verdict
+    pl = _placements(names, residuals_mm, sigmas_mm, heldout_mm, n_params, repeatability_mm,
+                     config or DEFAULT.verdict)
+    agree = _agreements(pl)
+    bad = [a for a in agree if a is not None and a.beyond]
+    no_noise = [] if pl.known else [("check", "some placements' marks carry no measurement "
+                                              "noise (measured_mm given): the residual "
+                                              "cannot be compared with a noise floor")]
+    joint = _joint_placements_verdict(pl, list(reasons) + [
+        _disagree_sentence(a, pl.cfg) for a in bad] + no_noise)
+    each = []
+    for k in range(len(pl.res)):
+        mine = [_disagree_sentence(a, pl.cfg) for a in bad if a.name == pl.names[k]]
+        others = [a.name for a in bad if a.name != pl.names[k]]
+        if others:
+            mine.append(("check", f"the shared parameters were fitted with placement(s) "
+                                  f"{', '.join(others)}, which disagree with the others"))
+        each.append(_placement_verdict(pl, k, list(reasons) + mine + no_noise))
+    return joint, each, agree
+
+
+@dataclass(frozen=True)
+class _Placements:
+    """Several placements' residuals, as :func:`judge_placements` judges them: per
+    placement the fitted and held-out residuals (N_k, 2), the measurer's noise (N_k,) or
+    None, its marks, the parameters it is charged, its residual sum of squares (in noise
+    units when every noise is known, else mm) and degrees of freedom; the joint fit's
+    parameters, the repeatability and its source, the thresholds."""
+
+    names: tuple[str, ...]
+    res: list
+    held: list
+    sigmas: list
+    n_k: list[int]
+    p_k: list[float]
+    ssr: list[float]
+    dof: list[float]
+    known: bool             # every placement's marks carry their noise
+    n_params: int
+    rep: float
+    source: str
+    cfg: VerdictConfig
+
+
+def _placements(names, residuals_mm, sigmas_mm, heldout_mm, n_params: int,
+                repeatability_mm: float | None, cfg: VerdictConfig) -> _Placements:
+    """The placements' arrays and what each is charged: its sheet pose (3 parameters) and
+    the shared parameters' share by its marks; the repeatability is the robot block's
+    (``repeatability_mm``) or the config's default."""
     rep = cfg.default_repeatability_mm if repeatability_mm is None else float(repeatability_mm)
     source = "default" if repeatability_mm is None else "robot block"
     res = [np.asarray(r, float).reshape(-1, 2) for r in residuals_mm]
@@ -581,72 +720,85 @@ def judge_placements(names, residuals_mm, sigmas_mm, heldout_mm, *, n_params: in
            for s, n in zip(sigmas_mm, n_k)]
     ssr = [float(np.sum(r**2 / v[:, None])) for r, v in zip(res, var)]
     dof = [2 * n - p for n, p in zip(n_k, p_k)]
+    return _Placements(tuple(str(n) for n in names), res, held, list(sigmas_mm), n_k, p_k, ssr,
+                       dof, known, n_params, rep, source, cfg)
+
+
+def _agreements(pl: _Placements) -> list[PlacementAgreement | None]:
+    """Each placement's residual against the others' pooled (F-test at ``floor_alpha``,
+    beyond also ``floor_ratio_tol`` in scale); None where there is nothing to compare (one
+    placement, no degrees of freedom, a zero residual)."""
     agree: list[PlacementAgreement | None] = []
+    n_place = len(pl.res)
     for k in range(n_place):
-        o_ssr = sum(ssr) - ssr[k]
-        o_dof = sum(dof) - dof[k]
-        if n_place < 2 or dof[k] <= 0 or o_dof <= 0 or o_ssr <= 0:
+        o_ssr = sum(pl.ssr) - pl.ssr[k]
+        o_dof = sum(pl.dof) - pl.dof[k]
+        if n_place < 2 or pl.dof[k] <= 0 or o_dof <= 0 or o_ssr <= 0:
             agree.append(None)
             continue
-        F = (ssr[k] / dof[k]) / (o_ssr / o_dof)
-        p = float(stats.f.sf(F, dof[k], o_dof))
+        F = (pl.ssr[k] / pl.dof[k]) / (o_ssr / o_dof)
+        p = float(stats.f.sf(F, pl.dof[k], o_dof))
         ratio = math.sqrt(F)
         agree.append(PlacementAgreement(
-            str(names[k]), n_k[k], float(np.sqrt(np.mean(np.sum(res[k]**2, axis=1)))), ratio, p,
-            "noise" if known else "mm", bool(p < cfg.floor_alpha and ratio > cfg.floor_ratio_tol)))
-    bad = [a for a in agree if a is not None and a.beyond]
+            pl.names[k], pl.n_k[k], float(np.sqrt(np.mean(np.sum(pl.res[k]**2, axis=1)))),
+            ratio, p, "noise" if pl.known else "mm",
+            bool(p < pl.cfg.floor_alpha and ratio > pl.cfg.floor_ratio_tol)))
+    return agree
 
-    def disagree_sentence(a: PlacementAgreement) -> tuple[str, str]:
-        return ("not reliable" if a.ratio >= cfg.not_reliable_ratio else "check",
-                f"placement {a.name} disagrees with the others: its marks miss the shared robot "
-                f"by {a.rms_mm:.4f} mm RMS, {a.ratio:.1f} times the others' residual "
-                f"({'in noise units' if a.units == 'noise' else 'in mm'}, p = {a.p_value:.2g}); "
-                "the same robot, the sheet taped still, the right session.json? calibrate it "
-                "alone to compare, or leave it out")
 
-    no_noise = [] if known else [("check", "some placements' marks carry no measurement noise "
-                                           "(measured_mm given): the residual cannot be "
-                                           "compared with a noise floor")]
-    # the joint fit
+def _disagree_sentence(a: PlacementAgreement, cfg: VerdictConfig) -> tuple[str, str]:
+    """(status, sentence) naming a placement that disagrees with the others: ``not
+    reliable`` at ``not_reliable_ratio`` and beyond, else ``check``."""
+    return ("not reliable" if a.ratio >= cfg.not_reliable_ratio else "check",
+            f"placement {a.name} disagrees with the others: its marks miss the shared robot "
+            f"by {a.rms_mm:.4f} mm RMS, {a.ratio:.1f} times the others' residual "
+            f"({'in noise units' if a.units == 'noise' else 'in mm'}, p = {a.p_value:.2g}); "
+            "the same robot, the sheet taped still, the right session.json? calibrate it "
+            "alone to compare, or leave it out")
+
+
+def _joint_placements_verdict(pl: _Placements, reasons: list[tuple[str, str]]) -> Verdict:
+    """The joint fit's verdict: every placement's marks against the floor (when every
+    noise is known), the largest held-out error named ``placement/index``, too few spare
+    degrees of freedom, and ``reasons`` (the fit's and the placements')."""
+    cfg, rep, n_params = pl.cfg, pl.rep, pl.n_params
+    n_all = sum(pl.n_k)
     floor = hfloor = worst = None
-    if known:
-        sig = np.concatenate([np.asarray(s, float).reshape(-1) for s in sigmas_mm])
-        floor = floor_test(np.concatenate(res), sig, rep, n_params=n_params, config=cfg)
+    if pl.known:
+        sig = np.concatenate([np.asarray(s, float).reshape(-1) for s in pl.sigmas])
+        floor = floor_test(np.concatenate(pl.res), sig, rep, n_params=n_params, config=cfg)
         inflate = 1.0 + n_params / max(2 * n_all, 1)
-        hfloor = floor_test(np.concatenate(held), sig, rep, inflate=inflate, config=cfg)
-        ids = [f"{names[k]}/{i}" for k in range(n_place) for i in range(n_k[k])]
-        worst = max_error_test(ids, np.concatenate(held), sig, rep, of="held-out",
+        hfloor = floor_test(np.concatenate(pl.held), sig, rep, inflate=inflate, config=cfg)
+        ids = [f"{pl.names[k]}/{i}" for k in range(len(pl.res)) for i in range(pl.n_k[k])]
+        worst = max_error_test(ids, np.concatenate(pl.held), sig, rep, of="held-out",
                                inflate=inflate, config=cfg)
-    found = (list(reasons) + [disagree_sentence(a) for a in bad] + no_noise
-             + _floor_reasons(floor, hfloor, cfg)
+    found = (list(reasons) + _floor_reasons(floor, hfloor, cfg)
              + _max_error_reasons(worst, "mark", "look at that mark and the paper around it"))
     if 2 * n_all - n_params < cfg.min_spare_dof:
         found.append(("check", f"{n_all} marks leave {2 * n_all - n_params} degrees of freedom, "
                                "too few to test for effects"))
-    allh = np.concatenate(held)
+    allh = np.concatenate(pl.held)
     r95 = R95_PER_RMS * float(np.sqrt(np.mean(np.sum(allh**2, axis=1)))) if len(allh) else None
-    joint = _verdict(found, r95 if r95 is not None and math.isfinite(r95) else None,
-                     floor, hfloor, rep, source, worst)
-    # each placement's calibration
-    each = []
-    for k in range(n_place):
-        fk = hk = wk = None
-        if known:
-            s = np.asarray(sigmas_mm[k], float).reshape(-1)
-            fk = floor_test(res[k], s, rep, n_params=int(round(p_k[k])), config=cfg)
-            infl = 1.0 + p_k[k] / max(2 * n_k[k], 1)
-            hk = floor_test(held[k], s, rep, inflate=infl, config=cfg)
-            wk = max_error_test(list(range(n_k[k])), held[k], s, rep, of="held-out",
-                                inflate=infl, config=cfg)
-        mine = [disagree_sentence(a) for a in bad if a.name == str(names[k])]
-        others = [a.name for a in bad if a.name != str(names[k])]
-        if others:
-            mine.append(("check", f"the shared parameters were fitted with placement(s) "
-                                  f"{', '.join(others)}, which disagree with the others"))
-        rk = list(reasons) + mine + no_noise + _floor_reasons(fk, hk, cfg) + _max_error_reasons(
-            wk, "mark", "look at that mark and the paper around it")
-        e95 = (R95_PER_RMS * float(np.sqrt(np.mean(np.sum(held[k]**2, axis=1))))
-               if n_k[k] else None)
-        each.append(_verdict(rk, e95 if e95 is not None and math.isfinite(e95) else None,
-                             fk, hk, rep, source, wk))
-    return joint, each, agree
+    return _verdict(found, r95 if r95 is not None and math.isfinite(r95) else None,
+                    floor, hfloor, rep, pl.source, worst)
+
+
+def _placement_verdict(pl: _Placements, k: int, reasons: list[tuple[str, str]]) -> Verdict:
+    """Placement ``k``'s own verdict: its marks against the floor with the parameters it
+    is charged (when every noise is known), its largest held-out error, and ``reasons``
+    (the fit's, and what its or the other placements' disagreement says of it)."""
+    cfg, rep = pl.cfg, pl.rep
+    fk = hk = wk = None
+    if pl.known:
+        s = np.asarray(pl.sigmas[k], float).reshape(-1)
+        fk = floor_test(pl.res[k], s, rep, n_params=int(round(pl.p_k[k])), config=cfg)
+        infl = 1.0 + pl.p_k[k] / max(2 * pl.n_k[k], 1)
+        hk = floor_test(pl.held[k], s, rep, inflate=infl, config=cfg)
+        wk = max_error_test(list(range(pl.n_k[k])), pl.held[k], s, rep, of="held-out",
+                            inflate=infl, config=cfg)
+    rk = list(reasons) + _floor_reasons(fk, hk, cfg) + _max_error_reasons(
+        wk, "mark", "look at that mark and the paper around it")
+    e95 = (R95_PER_RMS * float(np.sqrt(np.mean(np.sum(pl.held[k]**2, axis=1))))
+           if pl.n_k[k] else None)
+    return _verdict(rk, e95 if e95 is not None and math.isfinite(e95) else None,
+                    fk, hk, rep, pl.source, wk)

@@ -5,27 +5,30 @@ Frames and units: sheet frame S (x right, y up, mm) as in the dataset format; im
 
 Public API (imports are lazy so that ``import vision_cal.measure`` stays light)::
 
-    measure_folder(session, *, out_dir, jobs=None, cache_dir=None, progress=None, config=None)
-        -> Measurement(marks={id: MarkMeasurement}, images=[ImageResult], lens, ...)
     measure_image(path, session, *, lens=None, config=None) -> ImageResult
 
-Modules: ``aruco`` (markers, sub-pixel edges), ``mapping`` (lens + homography, lens
-estimate), ``dots`` (ink dots and their centres on the sheet), ``associate`` (dots to
-plan mark ids), ``types`` (the measurement's types and their JSON), ``cache`` (per-photo
-cache), ``batch`` (the pipeline).
+A whole folder, photos to marks (which dot is which mark is identify/'s), is
+:func:`vision_cal.workflows.measure_folder.measure_folder`.
+
+Modules, by stage: ``listing`` (the photos to measure, checked), ``detect`` (stage 1:
+markers and dot candidates, cached, in parallel), ``finish`` (stage 2: the lens, the
+mapping, dots on the sheet), ``print_stage`` (the sheet as printed); below them ``aruco``
+(markers, sub-pixel edges), ``mapping`` (lens + homography, lens estimate), ``dots`` (ink
+dots and their centres on the sheet), ``types`` (the measurement's types and their JSON),
+``cache`` (per-photo cache).
 """
 
 from __future__ import annotations
 
-__all__ = ["measure_folder", "measure_image", "Measurement", "MarkMeasurement", "ImageResult",
+__all__ = ["measure_image", "Measurement", "MarkMeasurement", "ImageResult",
            "LensEstimate"]
 
 
 def __getattr__(name):
     # local imports: ``import vision_cal.measure`` stays light (no OpenCV) until one is used
-    if name in ("measure_folder", "measure_image"):
-        from vision_cal.measure import batch
-        return getattr(batch, name)
+    if name == "measure_image":
+        from vision_cal.measure.finish import measure_image
+        return measure_image
     if name in ("Measurement", "MarkMeasurement", "ImageResult"):
         from vision_cal.measure import types
         return getattr(types, name)

@@ -46,7 +46,7 @@ def previous_photos(session, root, files, listed_marks, results,
     """{k: the photo before photo ``k``} for a series adding marks photo by photo: photo
     ``k - 1`` (in the listed order) was measured, and its listed marks are fewer than and all
     among photo ``k``'s. ``files`` and ``listed_marks`` per photo (None: not listed),
-    ``results`` their :class:`vision_cal.measure.batch.ImageResult`. A photo that cannot be
+    ``results`` their :class:`vision_cal.measure.types.ImageResult`. A photo that cannot be
     read again is no reference (nothing else changes). ``only``: the photos to look at
     (default all)."""
     out = {}

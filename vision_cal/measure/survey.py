@@ -1,7 +1,7 @@
 """Survey the sheet before the robot draws (``vision-cal survey``, issue 28).
 
 Photos of the sheet taped in place, before any mark, from several places: the markers'
-corners are found in each (stage 1 of :mod:`vision_cal.measure.batch`), the lens is
+corners are found in each (stage 1, :mod:`vision_cal.measure.detect`), the lens is
 estimated when none is declared (stage 2), and the sheet as printed is solved jointly with
 the lens and every photo's pose (:mod:`vision_cal.measure.asprinted`). ``OUT/survey.json``
 holds the as-printed layout, the lens, each photo's corner residual before and after, the
@@ -25,7 +25,9 @@ from vision_cal.dataset.io import atomic_write_json, read_json
 from vision_cal.dataset.session import NominalRobot, Session, Sheet, load_sheet_file
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.measure.asprinted import AsPrinted
-from vision_cal.measure.batch import as_printed_stage, detect_image, lens_of_photos
+from vision_cal.measure.print_stage import as_printed_stage
+from vision_cal.measure.detect import detect_image
+from vision_cal.measure.finish import lens_of_photos
 
 FORMAT = "vision-cal/survey/1"
 SURVEY_FILE = "survey.json"

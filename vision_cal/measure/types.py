@@ -3,7 +3,7 @@ measured mark are, the whole measurement, and their JSON.
 
 ``ImageDetections`` (stage 1, cached by :mod:`vision_cal.measure.cache`), ``ImageResult``
 (one photo measured), ``MarkMeasurement`` (one pen mark on the sheet) and ``Measurement``
-(everything :func:`vision_cal.measure.batch.measure_folder` returns). ``Measurement.to_json``
+(everything :func:`vision_cal.workflows.measure_folder.measure_folder` returns). ``Measurement.to_json``
 is ``OUT/measurement.json`` (docs/format.md) and ``Measurement.from_json`` reads it back;
 ``ImageResult.summary_json`` is a photo's entry of calibration.json ``images[]``. The report
 reads measurement.json, never these objects (``vision_cal.report``).

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vision_cal.model.kinematics import ScaraParams, flange_angle_rad, forward_tool, inverse
+from vision_cal.model.kinematics import ScaraParams, flange_angle_rad
 from vision_cal.model.robot import JointEffect, RobotModel, Tool
 from vision_cal.model.motion import JOINT4_LIMITS_DEG, JOINT_LIMITS_DEG
 from vision_cal.plan.compensate import PlannedTarget, plan_targets
@@ -166,21 +166,3 @@ def unfold_params(folded: ScaraParams, tool_mm, q4_real_deg: float = 0.0) -> Sca
     return ScaraParams(folded.L1_mm, float(along - t[0]), folded.z1_deg,
                        folded.z2_deg - float(np.degrees(np.arctan2(t[1], along))),
                        folded.base_x_mm, folded.base_y_mm)
-
-
-def equivalent_joints(params: ScaraParams, tool_mm, q_deg, q4_deg,
-                      solve_with: ScaraParams | None = None) -> np.ndarray:
-    """Joints (N, 2) deg that put the tool-less model ``solve_with`` (default ``params``)
-    where ``params`` with the tool ``tool_mm`` puts the pen at joints ``q_deg`` (N, 2) and
-    joint 4 ``q4_deg`` (N,), same elbow: for code that predicts marks with the base model
-    only (the association of dots to marks). NaN where the point is out of the tool-less
-    model's reach (``params`` with L2 lengthened by |tool| reaches every pen position)."""
-    solve_with = params if solve_with is None else solve_with
-    q = np.asarray(q_deg, dtype=float).reshape(-1, 2)
-    xy = forward_tool(params, q, np.asarray(q4_deg, dtype=float), tool_mm)
-    out = np.full_like(q, np.nan)
-    for elbow in (1, -1):
-        k = np.sign(np.sin(np.radians(q[:, 1] + params.z2_deg))) == elbow
-        if k.any():
-            out[k] = inverse(solve_with, xy[k], elbow=elbow, on_fail="nan")
-    return out

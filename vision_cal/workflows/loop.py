@@ -36,7 +36,7 @@ from vision_cal.dataset.marker_geometry import quiet_boxes_mm
 from vision_cal.dataset.session import load_session
 from vision_cal.errors import VisionCalError
 from vision_cal.model.kinematics import ScaraParams, inverse
-from vision_cal.measure.batch import measure_folder
+from vision_cal.workflows.measure_folder import measure_folder
 from vision_cal.model.robot import RobotModel
 from vision_cal.model.motion import JOINT_LIMITS_DEG
 from vision_cal.workflows.pipeline import calibrate_dataset

@@ -19,10 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from vision_cal.calibrate.joint4 import add_tool, fit_joint4_paper, joint4_stage
-from vision_cal.calibrate.lsq import Fit
+from vision_cal.model.lsq import Fit
 from vision_cal.calibrate.paper import PaperResult, paper_method
 from vision_cal.calibrate.plausible import check_plausible
-from vision_cal.calibrate.tool import folded_statement
+from vision_cal.model.tool_fit import folded_statement
 from vision_cal.camera.fixed import cameras_json
 from vision_cal.config import DEFAULT, METHODS, EstimatorConfig
 from vision_cal.dataset.calibration_result import CalibrationResult, ModelRms
@@ -40,7 +40,7 @@ from vision_cal.diagnose.sheet import smooth_residual
 from vision_cal.diagnose.verdict import judge
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.model.kinematics import forward
-from vision_cal.measure.batch import measure_folder
+from vision_cal.workflows.measure_folder import measure_folder
 from vision_cal.measure.printed import printed_content_json
 from vision_cal.measure.survey import load_survey
 from vision_cal.measure.types import Measurement

@@ -14,7 +14,7 @@ import numpy as np
 from vision_cal.calibrate.placements import (Placement, PlacementsFit, _cv_residuals,
                                              fit_placements, placement_cov,
                                              robot_frame_json, unexplained_seen)
-from vision_cal.calibrate.tool import joint4_values
+from vision_cal.model.tool_fit import joint4_values
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.covariance import covariance_json

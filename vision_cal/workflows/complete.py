@@ -2,7 +2,7 @@
 
 :func:`complete_session` measures every photo of a folder against a planned session (one
 without ``images``, e.g. from ``vision-cal design``), infers which marks each photo shows
-(:mod:`vision_cal.measure.infer`) and returns the session.json document with ``images``
+(:mod:`vision_cal.identify.infer`) and returns the session.json document with ``images``
 filled in, for a user who wants to check or edit the list. Photos that are not usable (no
 sheet in them, repeated, unreadable) are left out of the list and reported.
 """
@@ -16,7 +16,7 @@ from pathlib import Path
 
 from vision_cal.dataset.session import load_session
 from vision_cal.errors import VisionCalError
-from vision_cal.measure.batch import measure_folder
+from vision_cal.workflows.measure_folder import measure_folder
 
 
 def complete_session(photos_dir, plan_path, *, jobs: int | None = None, progress=None):

@@ -1,7 +1,7 @@
 """Which planned marks each photo shows, when ``session.json`` has no ``images`` list.
 
 The photos are in capture order (EXIF time, else natural file name). Pen marks are only
-ever added, so a dot group (one physical dot, :func:`vision_cal.measure.associate.group_dots`)
+ever added, so a dot group (one physical dot, :func:`vision_cal.identify.associate.group_dots`)
 that is a pen mark stays visible in the photos after the one it first appeared in. From
 the dot groups:
 
