@@ -137,33 +137,37 @@ def _grid_patches(rgb, mapping, uv_px, half_mm: float):
         cu, cv_ = int(round(u)), int(round(v))
         c0, r0 = max(cu - hp, 0), max(cv_ - hp, 0)
         c1, r1 = min(cu + hp + 1, W), min(cv_ + hp + 1, H)
-        patches.append(rgb[r0:r1, c0:c1].astype(np.uint16).sum(axis=2, dtype=np.uint16))
+        patches.append(photos.channel_sum(rgb[r0:r1, c0:c1], np.uint16))
         origins.append((c0, r0))
     return tuple(patches), np.asarray(origins, int).reshape(-1, 2)
 
 
 def detect_image(path, session: Session, *, root=None, name: str | None = None,
-                 sha256: str | None = None,
+                 sha256: str | None = None, identity: tuple | None = None,
                  config: EstimatorConfig | None = None) -> ImageDetections:
     """Stage 1 on one photo file: ``root``/``name`` (``name`` the photo's relative path,
     kept in the result), or ``path`` itself. ``sha256``: the content the caller checked
-    (header, cache key); a file that changed since is skipped."""
+    (header, cache key); a file that changed since is skipped. ``identity``: the file's
+    identity when the caller hashed it (:func:`photos.read_photo_identity`): read back
+    unchanged, the bytes are the ones hashed (any write changes the file's change time)
+    and are not hashed again; otherwise they are."""
     path = Path(path)
     root = Path(root) if root is not None else path.parent
     name = name if name is not None else path.name
     try:
-        data = photos.read_photo(root, name)
+        data, now = photos.read_photo_identity(root, name)
     except photos.PhotoRefused as e:
         return _skip(name, e.reason)
-    if sha256 is not None and hashlib.sha256(data).hexdigest() != sha256:
+    if sha256 is not None and (identity is None or tuple(now) != tuple(identity)) \
+            and hashlib.sha256(data).hexdigest() != sha256:
         return _skip(name, "changed while being measured: run again")
     return detect_image_bytes(data, name, session, config=config)
 
 
 def _worker(args):
-    root, name, session, sha, config = args
+    root, name, session, sha, identity, config = args
     return detect_image(Path(root) / name, session, root=root, name=name, sha256=sha,
-                        config=config)
+                        identity=identity, config=config)
 
 
 #: pixels decoded at once over all workers: each photo is at most ``photos.MAX_PIXELS``
@@ -220,7 +224,8 @@ def detect_all(items: list[_Photo], session: Session, cache: DetectionCache, *,
                        if todo else "all from the cache")
     if not todo and bar:
         bar.update(n_cached)
-    args = [(root, items[i].file, session, items[i].sha256, config) for i in todo]
+    args = [(root, items[i].file, session, items[i].sha256, items[i].identity, config)
+            for i in todo]
     try:
         if jobs <= 1 or len(todo) <= 1:
             results = (_worker(a) for a in args)

@@ -48,15 +48,18 @@ class _Photo:
     pixels: int = 0
     key: str | None = None
     cached: bool = False
+    #: the file's identity when it was hashed (:func:`photos.read_photo_identity`): a
+    #: worker reading the same identity reads the same bytes and need not hash them again
+    identity: tuple | None = None
 
 
 def _check_photo(ph: _Photo, root: Path, session: Session) -> None:
     """Read the photo once in the parent, before any worker sees it: regular file inside
     the folder, header within the limits (no pixel decoded). Fills ``sha256``, ``captured``
-    or a skip (``det``)."""
+    ``identity`` or a skip (``det``)."""
     cam = session.camera
     try:
-        data = photos.read_photo(root, ph.file)
+        data, identity = photos.read_photo_identity(root, ph.file)
         if not data:
             raise photos.PhotoRefused("unreadable: empty file")
         header = photos.read_header(data)
@@ -65,6 +68,7 @@ def _check_photo(ph: _Photo, root: Path, session: Session) -> None:
         ph.det = _skip(ph.file, _refusal(ph.file, e))
         return
     ph.sha256 = hashlib.sha256(data).hexdigest()
+    ph.identity = identity
     ph.captured = header.captured
     ph.pixels = header.stored_px[0] * header.stored_px[1]
 
