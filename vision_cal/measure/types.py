@@ -160,9 +160,6 @@ class ImageResult:
     #: in pixels (S, 2): for grouping and inference only, not in ``n_dots``
     seen_xy_mm: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     seen_uv_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    #: per dot candidate of the detection, whether it was refined (the finish stage's
-    #: choice, kept for its reruns; not written)
-    refined: tuple = field(default=(), repr=False, compare=False)
 
     def summary_json(self) -> dict:
         """The photo's entry of calibration.json ``images[]``."""
