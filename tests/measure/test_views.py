@@ -34,6 +34,20 @@ def test_a_dot_is_wanted_until_it_has_its_reliable_views():
     assert not v.wanted([b]).any()
 
 
+def test_a_new_camera_place_refines_the_dot_again():
+    v = ViewCount(1, tol_mm=0.5, place_fraction=0.02)
+    a = np.array([[10.0, 20.0]])
+    here = v.place([0.0, 0.0, 700.0])
+    assert v.place([5.0, 0.0, 700.0]) == here          # 5 mm at 700 mm: the same place
+    there = v.place([100.0, 0.0, 700.0])
+    assert there != here and v.place(None) == -1
+    v.add(a, [True], here)
+    assert not v.wanted(a, here).any()
+    assert v.wanted(a, there).all()                     # its parallax needs this view
+    v.add(a, [True], there)
+    assert not v.wanted(a, there).any()
+
+
 def test_zero_views_refines_every_dot():
     v = ViewCount(0, tol_mm=0.5)
     v.add([[1.0, 1.0]] * 5, [True] * 5)

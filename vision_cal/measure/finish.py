@@ -20,6 +20,7 @@ from vision_cal.measure.detect import detect_image
 from vision_cal.measure.dots import _radii_mm, blank_regions, ground_scale, refine_dot
 from vision_cal.measure.grid import grid_offset
 from vision_cal.measure.grid_declaration import misdeclared_grid
+from vision_cal.measure.height import camera_centre_mm
 from vision_cal.measure.mapping import LensEstimate, estimate_lens, fit_mapping, undistort_px
 from vision_cal.measure.photo_agreement import disagreeing_photos
 from vision_cal.measure.previous_photo import previous_photos
@@ -50,8 +51,9 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     in a series adding marks (:mod:`vision_cal.measure.previous_photo`);
     ``ground_scale``: the series' plain-ground level (:func:`dots.ground_scale`).
     ``refine``: which dot candidates to refine, a bool per candidate or a function of their
-    sheet positions (K, 2) giving them (:meth:`ViewCount.wanted`); the others are only seen
-    (``ImageResult.seen_xy_mm``). None or empty: every candidate."""
+    sheet positions (K, 2), the photo's mapping and its K (None: no lens) giving them
+    (:func:`_finish_views`); the others are only seen (``ImageResult.seen_xy_mm``). None or
+    empty: every candidate."""
     config = config or DEFAULT
     if det.status != "ok":
         return ImageResult(det.file, det.status, det.reason, n_markers=len(det.marker_ids),
@@ -77,7 +79,7 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     dia = session.pen_mark_diameter_mm
     xy0 = m.image_to_sheet(c.uv_px) if len(c.uv_px) else np.zeros((0, 2))
     want = (np.ones(len(xy0), bool) if refine is None or (not callable(refine) and not len(refine))
-            else np.asarray(refine(xy0) if callable(refine) else refine, bool))
+            else np.asarray(refine(xy0, m, K) if callable(refine) else refine, bool))
     seen_xy, seen_uv = [], []
     xs, covs, uvs, xg, offs, refs, gcov, ocov = [], [], [], [], [], [], [], []
     unrel, under, bgr, bgk, sus = [], [], [], [], []
@@ -234,22 +236,34 @@ def _finish_views(session: Session, dets, cached, lens, config: EstimatorConfig,
     ac = config.association
     dia = session.pen_mark_diameter_mm or config.dots.default_diameter_mm
     views = ViewCount(config.dots.views_per_dot,
-                      max(ac.group_tol_diameters * dia, ac.group_tol_min_mm))
+                      max(ac.group_tol_diameters * dia, ac.group_tol_min_mm),
+                      config.sheet_height.same_place_fraction)
     images, chosen = [], []
     for k, (d, c) in enumerate(zip(dets, cached)):
-        picked = []
+        picked, place = [], []
 
-        def wanted(xy_mm, picked=picked):
-            picked.append(views.wanted(xy_mm))
-            return picked[-1]
+        def wanted(xy_mm, mapping, K, picked=picked, place=place):
+            place.append(views.place(_camera_centre(mapping, K)))
+            picked.append(views.wanted(xy_mm, place[0]))
+            return picked[0]
 
         im = finish_image(d, session, lens, from_cache=c,
                           refine=None if k in not_counted else wanted, config=config)
-        if im.status == "ok" and k not in not_counted:
-            views.add(im.dots_xy_mm, [not u for u in im.dots_unreliable])
+        if im.status == "ok" and k not in not_counted and place:
+            views.add(im.dots_xy_mm, [not u for u in im.dots_unreliable], place[0])
         images.append(im)
         chosen.append(picked[0] if picked else None)
     return images, chosen
+
+
+def _camera_centre(mapping, K):
+    """The camera's centre (3,) in the sheet frame, None without a lens or a pose."""
+    if K is None:
+        return None
+    try:
+        return camera_centre_mm(mapping.H_img_sheet, K)
+    except (VisionCalError, np.linalg.LinAlgError):
+        return None
 
 
 def _finish_series(session: Session, dets, cached, lens, config: EstimatorConfig,
