@@ -2,7 +2,8 @@
 (stdout; warnings on stderr). ``show(outcome, quiet=...)`` picks the printer by the
 outcome's type and returns the command's exit code. The actions write files and return
 typed outcomes; they print nothing of their results (progress bars and the output folder's
-notices aside)."""
+notices aside). A long action tells each step's outcome as it happens to a callback the
+command points at :func:`show` (``calibrate``: each folder, as soon as it is done)."""
 
 from __future__ import annotations
 
