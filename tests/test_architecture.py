@@ -262,7 +262,6 @@ LONG_PENDING = {
     "vision_cal.actions.calibrate.calibrate": "split pending, issue 31",
     "vision_cal.actions.plan.plan": "split pending, issue 31",
     "vision_cal.camera.pose_pairs.fit_pose_pairs": "split pending, issue 31",
-    "vision_cal.measure.asprinted.estimate_as_printed": "split pending, issue 31",
     "vision_cal.diagnose.discover._trace": "split pending, issue 31",
     "vision_cal.diagnose.select.diagnose": "split pending, issue 31",
     "vision_cal.diagnose.verdict.judge": "split pending, issue 31",
