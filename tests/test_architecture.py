@@ -260,7 +260,6 @@ MAX_FUNCTION_LINES = 100
 #: given its reason) by issue 31, and leaves this set when it is
 LONG_PENDING = {
     "vision_cal.actions.calibrate.calibrate": "split pending, issue 31",
-    "vision_cal.actions.plan.plan": "split pending, issue 31",
     "vision_cal.camera.pose_pairs.fit_pose_pairs": "split pending, issue 31",
     "vision_cal.diagnose.discover._trace": "split pending, issue 31",
     "vision_cal.diagnose.select.diagnose": "split pending, issue 31",
