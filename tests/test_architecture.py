@@ -260,15 +260,12 @@ MAX_FUNCTION_LINES = 100
 #: given its reason) by issue 31, and leaves this set when it is
 LONG_PENDING = {
     "vision_cal.actions.calibrate.calibrate": "split pending, issue 31",
-    "vision_cal.camera.pose_pairs.fit_pose_pairs": "split pending, issue 31",
     "vision_cal.diagnose.discover._trace": "split pending, issue 31",
     "vision_cal.diagnose.select.diagnose": "split pending, issue 31",
     "vision_cal.diagnose.verdict.judge": "split pending, issue 31",
     "vision_cal.diagnose.verdict.judge_placements": "split pending, issue 31",
-    "vision_cal.workflows.loop.run_loop": "split pending, issue 31",
     "vision_cal.measure.dots.find_candidates": "split pending, issue 31",
     "vision_cal.measure.dots._refine_dot": "split pending, issue 31",
-    "vision_cal.render.dataset.render_dataset": "split pending, issue 31",
     "vision_cal.report.html.render_html": "split pending, issue 31",
 }
 #: the reason's mark: a sentence of the docstring beginning with these words
