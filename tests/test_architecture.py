@@ -266,7 +266,6 @@ LONG_PENDING = {
     "vision_cal.diagnose.verdict.judge_placements": "split pending, issue 31",
     "vision_cal.measure.dots.find_candidates": "split pending, issue 31",
     "vision_cal.measure.dots._refine_dot": "split pending, issue 31",
-    "vision_cal.report.html.render_html": "split pending, issue 31",
 }
 #: the reason's mark: a sentence of the docstring beginning with these words
 LONG_REASON = re.compile(r"(?:^|[.!?:;]\s+|\n\s*)Long because\b")
