@@ -323,22 +323,27 @@ class _Problem:
 
     @property
     def V(self) -> int:
+        """The photos."""
         return len(self.obs.rvecs)
 
     @property
     def n_lens(self) -> int:
+        """The lens's unknowns (0: the lens fixed)."""
         return len(LENS_FREE) if self.lens_free else 0
 
     @property
     def npv(self) -> int:
+        """Unknowns per photo: rvec, tvec (and its focal length's factor)."""
         return 7 if self.lens_free else 6
 
     @property
     def n_pose(self) -> int:
+        """Every photo's unknowns."""
         return self.npv * self.V
 
     @property
     def n_delta(self) -> int:
+        """The released corners' unknowns."""
         return self.nd * len(self.rel_idx)
 
     @property
@@ -348,10 +353,12 @@ class _Problem:
 
     @property
     def m_obs(self) -> int:
+        """The pixel residuals (x and y of every observed corner)."""
         return 2 * len(self.obs.px)
 
     @property
     def foc_cols(self) -> np.ndarray:
+        """Each photo's focal factor's column in ``x`` (V,; used only with the lens free)."""
         return self.n_lens + self.npv * np.arange(self.V) + 6
 
     def unpack(self, x):
