@@ -36,6 +36,13 @@ The library effects take part on equal terms: their columns (``q_j`` = ``joint_s
 dictionary, so a library effect is kept only when no other column of the dictionary, with
 no more parameters, explains the residual better. Selected time columns are ``drift``
 (not compensable); other joint columns become a ``joint_terms`` effect per joint.
+
+Local structure is not a joint term: when neighbouring marks share the residual of the model
+without joint effects (a bump of the sheet), the selection and the held-out test run on the
+marks away from it only, by the selection's own rule
+(:func:`vision_cal.diagnose.select.marks_away_from`); a joint term is claimed only for what
+those marks show (a 0.15 mm bump was taken for joint 1's ``cos(q2)`` or ``q1*q2`` on 6 of 10
+bump-only worlds before; ``bench/discover_bump.py``).
 """
 
 from __future__ import annotations
@@ -365,6 +372,13 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     tt = np.asarray(t, float)
     if away is not None:
         report["away_from_local"] = away.report
+        if not away.enough:
+            # the structure covers most marks: a joint term could not be told from it
+            report["decision"] = (f"not run: neighbouring marks share their residual over "
+                                  f"most of the sheet ({away.report['excluded_marks']} of "
+                                  f"{len(q)} marks near it), which a joint term would "
+                                  "stand in for")
+            return Traced(diag, None, report)
         f0 = refit_with(final.model, nonjoint, *_take(away.outside, q, xy, app, sigma_mm, ids),
                         config)
         if not f0:
@@ -453,9 +467,11 @@ def _terms_win(h0: float, h1: float, bic: list, n_old: int, n_new: int,
 @dataclass(frozen=True)
 class _Away:
     """The marks a local structure of the sheet does not touch (``outside``, a mask over
-    the calibration marks) and what ``diagnosis.discovery.away_from_local`` says of it."""
+    the calibration marks), whether they are ``enough`` to search on, and what
+    ``diagnosis.discovery.away_from_local`` says of it."""
 
     outside: np.ndarray
+    enough: bool
     report: dict
 
 
@@ -464,7 +480,8 @@ def _away_from_local(f0: Fit, xy, sheet_alpha: float, config: EstimatorConfig
     """When the residual of the model without joint effects (``f0``) is shared by
     neighbouring marks (sheet map p below ``sheet_alpha``, the selection's level), the marks
     away from it (:func:`vision_cal.diagnose.select.marks_away_from`, the selection's own
-    rule), if enough are left (:func:`vision_cal.diagnose.select.enough_away`); else None."""
+    rule) and whether they are enough to search on
+    (:func:`vision_cal.diagnose.select.enough_away`); else None."""
     k = f0.inliers
     if k.sum() < config.selection.min_sheet_marks:
         return None
@@ -472,11 +489,9 @@ def _away_from_local(f0: Fit, xy, sheet_alpha: float, config: EstimatorConfig
     if not scan["p_value"] < sheet_alpha:
         return None
     outside, radius = marks_away_from(xy, scan)
-    if not enough_away(outside):
-        return None
-    return _Away(outside, {"p_value": scan["p_value"], "peak_mm": list(scan["peak_mm"]),
-                           "excluded_radius_mm": radius,
-                           "excluded_marks": int((~outside).sum())})
+    return _Away(outside, enough_away(outside),
+                 {"p_value": scan["p_value"], "peak_mm": list(scan["peak_mm"]),
+                  "excluded_radius_mm": radius, "excluded_marks": int((~outside).sum())})
 
 
 def _take(mask, q, xy, app, sigma, ids):
