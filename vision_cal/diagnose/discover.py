@@ -369,23 +369,13 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     # of the held-out test, as the selection leaves them out: a global joint term is
     # claimed only for what the marks the local structure does not touch show
     away = _away_from_local(f0, xy, sheet_alpha, config)
-    tt = np.asarray(t, float)
     if away is not None:
         report["away_from_local"] = away.report
-        if not away.enough:
-            # the structure covers most marks: a joint term could not be told from it
-            report["decision"] = (f"not run: neighbouring marks share their residual over "
-                                  f"most of the sheet ({away.report['excluded_marks']} of "
-                                  f"{len(q)} marks near it), which a joint term would "
-                                  "stand in for")
-            return Traced(diag, None, report)
-        f0 = refit_with(final.model, nonjoint, *_take(away.outside, q, xy, app, sigma_mm, ids),
-                        config)
-        if not f0:
-            report["decision"] = ("not run: the model without joint effects cannot be fitted "
-                                  "away from the local structure")
+        f0 = _fit_away(away, final.model, nonjoint, q, xy, app, sigma_mm, ids, config, report)
+        if f0 is None:
             return Traced(diag, None, report)
     sub = np.ones(len(q), bool) if away is None else away.outside
+    tt = np.asarray(t, float)
     d = discover(f0, q[sub], app[sub], tt[sub], sigma_mm=None if sigma_mm is None
                  else np.asarray(sigma_mm)[sub], alpha=alpha, k_folds=k_folds,
                  max_terms=config.discovery.max_terms)
@@ -414,23 +404,16 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
         report["decision"] = ("drift found; the joint effects kept" if drift else
                               "the dictionary's terms cannot be fitted: kept")
         return Traced(diag, drift, report)
-    h1 = held(f1.model)
-    n_old = sum(len(e.theta) for e in final.model.effects if _dictionary_joint(e))
-    n_new = sum(len(e.theta) for e in new_joint)
-    if away is None:
-        h0, bic = diag.heldout_final_mm, [_bic(final, sigma_mm), _bic(f1, sigma_mm)]
-    else:
-        # both models judged on the marks away from the local structure only
-        h0, h1, bic = _judged_away(final, f1, away.outside, q, xy, app, sigma_mm, ids,
-                                   q_val if has_val else None, xy_val, approach_val, k_folds,
-                                   config)
+    h1_all = held(f1.model)
+    h0, h1, bic = _before_after(diag, f1, h1_all, away, q, xy, app, sigma_mm, ids,
+                                q_val if has_val else None, xy_val, approach_val, k_folds,
+                                config)
     report["heldout_rms_mm"] = [h0, h1]
     report["bic"] = bic
-    if not _terms_win(h0, h1, bic, n_old, n_new, config):
+    if not _terms_win(h0, h1, bic, final.model, new_joint, config):
         report["decision"] = "the dictionary's terms do not lower the held-out error: kept"
         return Traced(diag, drift, report)
-    if away is not None:
-        h1 = held(f1.model)     # the diagnosis's held-out figure is over every mark
+    h1 = h1_all     # the diagnosis's held-out figure is over every mark
     # a sheet effect selected before the joint terms were known may stand in for them: it
     # stays only if it is still significant beside them
     f1, nonjoint, gone = _recheck_nonjoint(f1, nonjoint, new_joint, q, xy, app, sigma_mm, ids,
@@ -451,15 +434,17 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     return Traced(new, drift, report)
 
 
-def _terms_win(h0: float, h1: float, bic: list, n_old: int, n_new: int,
+def _terms_win(h0: float, h1: float, bic: list, model: RobotModel, new_joint: tuple,
                config: EstimatorConfig) -> bool:
-    """Whether the fit with the dictionary's joint terms (held-out RMS ``h1``, BIC
-    ``bic[1]``, ``n_new`` joint parameters) replaces the selected model (``h0``, ``bic[0]``,
-    ``n_old``): it lowers the held-out error, or it ties with fewer parameters. A library
+    """Whether the fit with the dictionary's joint terms ``new_joint`` (held-out RMS ``h1``,
+    BIC ``bic[1]``) replaces the selected ``model`` (``h0``, ``bic[0]``): it lowers the
+    held-out error, or it ties with fewer joint parameters. A library
     effect is kept only when it does better than the dictionary's terms with no more
     parameters: fewer parameters win when the fit's BIC says so and the held-out error is
     within its own noise (``discovery.heldout_tie``: an RMS over a few held-out marks
     scatters by ~20 %)."""
+    n_old = sum(len(e.theta) for e in model.effects if _dictionary_joint(e))
+    n_new = sum(len(e.theta) for e in new_joint)
     tie = n_new < n_old and bic[1] <= bic[0] and h1 <= config.discovery.heldout_tie * h0
     return bool(h1 < h0 or tie)
 
@@ -494,18 +479,40 @@ def _away_from_local(f0: Fit, xy, sheet_alpha: float, config: EstimatorConfig
                   "excluded_radius_mm": radius, "excluded_marks": int((~outside).sum())})
 
 
+def _fit_away(away: _Away, model: RobotModel, nonjoint, q, xy, app, sigma, ids, config,
+              report: dict) -> Fit | None:
+    """The model without joint effects fitted to the marks ``away`` from a local structure,
+    or None with ``report["decision"]`` saying why the search does not run (too few marks
+    away: a joint term could not be told from the structure; or no fit there)."""
+    if not away.enough:
+        report["decision"] = (f"not run: neighbouring marks share their residual over most of "
+                              f"the sheet ({away.report['excluded_marks']} of {len(q)} marks "
+                              "near it), which a joint term would stand in for")
+        return None
+    f0 = refit_with(model, nonjoint, *_take(away.outside, q, xy, app, sigma, ids), config)
+    if not f0:
+        report["decision"] = ("not run: the model without joint effects cannot be fitted "
+                              "away from the local structure")
+        return None
+    return f0
+
+
 def _take(mask, q, xy, app, sigma, ids):
     """The marks ``mask`` of each array (``sigma``, ``ids`` may be None)."""
     return (q[mask], xy[mask], app[mask], None if sigma is None else np.asarray(sigma)[mask],
             None if ids is None else tuple(np.asarray(ids, dtype=object)[mask]))
 
 
-def _judged_away(final: Fit, f1: Fit, outside, q, xy, app, sigma, ids, q_val, xy_val,
-                 app_val, k_folds, config):
-    """The held-out RMS of the selected model and of the one with the dictionary's terms,
-    and their BIC, over the marks ``outside`` a local structure only (both refitted there):
-    (h0, h1, [bic0, bic1]); a model that cannot be fitted there scores infinity."""
-    part = _take(outside, q, xy, app, sigma, ids)
+def _before_after(diag: Diagnosis, f1: Fit, h1: float, away: _Away | None, q, xy, app, sigma,
+                  ids, q_val, xy_val, app_val, k_folds, config):
+    """The held-out RMS of the selected model and of ``f1`` (the one with the dictionary's
+    terms, ``h1`` over every mark), and their BIC: (h0, h1, [bic0, bic1]). With marks
+    ``away`` from a local structure, both are judged there only (refitted there; a model
+    that cannot be fitted there scores infinity)."""
+    final = diag.final_fit
+    if away is None:
+        return diag.heldout_final_mm, h1, [_bic(final, sigma), _bic(f1, sigma)]
+    part = _take(away.outside, q, xy, app, sigma, ids)
     out, bic = [], []
     for m in (final.model, f1.model):
         f = refit_with(m, m.effects, *part, config)
