@@ -77,6 +77,17 @@ def retire_earlier_run(out_dir, *, subfolders=(), results=RESULT_FILES) -> list[
     return found + [n + "/" for n in subs]
 
 
+def retire_and_say(out_dir, *, subfolders=(), results=RESULT_FILES,
+                   quiet: bool = True) -> list[str]:
+    """:func:`retire_earlier_run`, the names moved printed (the output folder's one
+    notice) unless ``quiet``."""
+    moved = retire_earlier_run(out_dir, subfolders=subfolders, results=results)
+    if moved and not quiet:
+        print(f"moved the earlier results ({', '.join(moved)}) to "
+              f"{Path(out_dir) / PREVIOUS}")
+    return moved
+
+
 def earlier_placements(out_dir) -> list[str]:
     """The placement sub-folders an earlier ``calibrate --joint`` wrote into ``out_dir``
     (its top calibration.json's ``placements[].folder``); none when there is none."""
@@ -178,10 +189,7 @@ def writing_into(out, *, command: str, field: str = "--out", inputs=(), retire: 
     try:
         with folder_lock(out, command=command, field=field):
             if retire:
-                moved = retire_earlier_run(out, subfolders=subfolders, results=results)
-                if moved and not quiet:
-                    print(f"moved the earlier results ({', '.join(moved)}) to "
-                          f"{out / PREVIOUS}")
+                retire_and_say(out, subfolders=subfolders, results=results, quiet=quiet)
             yield out
     except BaseException:
         if created:   # a run that failed before writing anything leaves no empty folder
