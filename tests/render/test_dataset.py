@@ -228,9 +228,11 @@ def test_paper_plan_scene(tmp_path):
 
 def test_cli_render(tmp_path, monkeypatch, capsys):
     from vision_cal.commands.main import main
-    from vision_cal.render import photo
 
-    monkeypatch.setattr(photo, "Photographer", lambda **kw: _Flat())
+    # render_dataset looks Photographer up in its own module (imported by name from
+    # render.photo): patching render.photo would leave the real pyrender one in place
+    built = []
+    monkeypatch.setattr(ds, "Photographer", lambda **kw: built.append(kw) or _Flat())
     out = tmp_path / "cli"
     rc = main(["render", str(RENDERS / "small.yaml"), "--out", str(out), "--seed", "5",
                "--mode", "single", "-q"])
@@ -238,6 +240,7 @@ def test_cli_render(tmp_path, monkeypatch, capsys):
     assert capsys.readouterr().out.strip() == str(out.absolute())
     assert _read(out, "truth.json")["seed"] == 5
     assert len(load_session(out).images) == 1
+    assert len(built) == 1  # the stand-in, not pyrender, took the photo
     rc = main(["render", str(tmp_path / "nope.yaml"), "--out", str(out)])
     assert rc == 2
     assert "nope.yaml" in capsys.readouterr().err
