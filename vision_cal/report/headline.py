@@ -33,7 +33,7 @@ def headline(doc: dict, loop: dict | None = None) -> dict:
     photos = doc.get("images", [])
     n_ok = sum(im.get("status") == "ok" for im in photos)
     effects = [e for e in doc.get("effects", []) if e["name"] != "unexplained"]
-    what = (f"SCARA base model (L1, L2, joint zeros z1 z2, base x y)"
+    what = ("SCARA base model (L1, L2, joint zeros z1 z2, base x y)"
             + (" + " + ", ".join(_effect_name(e) for e in effects) if effects else "")
             + f", {doc.get('method', 'lsq')} fit of {n_fit} marks"
             + (f" ({n_val} held out)" if n_val else "")
