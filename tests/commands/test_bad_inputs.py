@@ -1,0 +1,76 @@
+"""A new user's wrong inputs, found by running each command once on them (the sweep after
+issue 31's moves): each is one line naming the file, exit 2, and nothing written, not even
+the empty default out/ folder."""
+
+from __future__ import annotations
+
+from tests.commands.test_trust import TARGETS, assert_one_line, calibration  # noqa: F401
+from vision_cal.commands.main import main
+from vision_cal.dataset.out_folder import writing_into
+
+PDF = b"%PDF-1.4\n%\xe2\xe3\xcf\xd3\n1 0 obj<<>>endobj\n"
+
+
+def _run(argv, capsys):
+    rc = main([str(a) for a in argv])
+    return rc, capsys.readouterr().err
+
+
+def test_calibrate_a_missing_folder_leaves_no_empty_out_folder(tmp_path, monkeypatch, capsys):
+    """Without --out the results go to out/<name>: both folders were made before the input
+    was found missing, and only out/<name> was removed again."""
+    monkeypatch.chdir(tmp_path)
+    rc, err = _run(["calibrate", "nodir"], capsys)
+    assert rc == 2
+    assert "folder not found" in assert_one_line(err, "nodir")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_failed_write_removes_the_parents_it_made_and_keeps_the_others(tmp_path):
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / "kept.txt").write_text("x")
+    try:
+        with writing_into(tmp_path / "a" / "b" / "c", command="test"):
+            raise KeyboardInterrupt
+    except KeyboardInterrupt:
+        pass
+    assert sorted(p.name for p in (tmp_path / "a").iterdir()) == ["kept.txt"]
+
+
+def test_a_pdf_given_for_a_calibration_or_a_robot_file_is_called_a_pdf(tmp_path, capsys,
+                                                                       calibration):  # noqa: F811
+    """Only the sheet's own PDF (beside its sheet.json, or given for the sheet) gets the
+    hint to pass sheet.json; a calibration or robot file saved as PDF is called a PDF."""
+    (tmp_path / "calibration.pdf").write_bytes(PDF)
+    for argv, name in ((["plan", tmp_path / "calibration.pdf", TARGETS, "-o",
+                         tmp_path / "p.csv"], "calibration.pdf"),
+                       (["plan", calibration, TARGETS, "-o", tmp_path / "p.csv",
+                         "--robot", tmp_path / "calibration.pdf"], "calibration.pdf"),
+                       (["export", tmp_path / "calibration.pdf", "--yaml",
+                         tmp_path / "e.yaml"], "calibration.pdf")):
+        rc, err = _run(argv, capsys)
+        assert rc == 2
+        line = assert_one_line(err, tmp_path / name)
+        assert "is a PDF" in line and "sheet" not in line, line
+    (tmp_path / "print.pdf").write_bytes(PDF)   # the sheet's PDF renamed: still the hint
+    (tmp_path / "photos").mkdir()
+    rc, err = _run(["survey", tmp_path / "photos", "--sheet", tmp_path / "print.pdf", "-o",
+                    tmp_path / "o"], capsys)
+    assert rc == 2 and "pass the sheet.json" in assert_one_line(err, tmp_path / "print.pdf")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["calibration.pdf", "photos",
+                                                          "print.pdf"]
+
+
+def test_init_plan_missing_or_a_pdf_names_the_file_given(tmp_path, capsys):
+    """--plan SESSION.json names a file: a missing one is 'file not found' (not the advice
+    for a folder without session.json), a PDF is called a PDF (not PDF/session.json)."""
+    (tmp_path / "photos").mkdir()
+    (tmp_path / "plan.pdf").write_bytes(PDF)
+    rc, err = _run(["init", tmp_path / "photos", "--plan", tmp_path / "nope.json"], capsys)
+    assert rc == 2 and "file not found" in assert_one_line(err, tmp_path / "nope.json")
+    rc, err = _run(["init", tmp_path / "photos", "--plan", tmp_path / "plan.pdf"], capsys)
+    assert rc == 2
+    line = assert_one_line(err, tmp_path / "plan.pdf")
+    assert "is a PDF" in line and "plan.pdf/session.json" not in line, line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["photos", "plan.pdf"]
+    assert list((tmp_path / "photos").iterdir()) == []
