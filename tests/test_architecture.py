@@ -248,14 +248,8 @@ MAX_FUNCTION_LINES = 100
 #: functions over the limit in files other engineers are editing now; each is split (or
 #: given its reason) by issue 31, and leaves this set when it is
 LONG_PENDING = {
-    "vision_cal.actions.plan.plan": "split pending, issue 31",
-    "vision_cal.camera.pose_pairs.fit_pose_pairs": "split pending, issue 31",
-    "vision_cal.measure.asprinted.estimate_as_printed": "split pending, issue 31",
-    "vision_cal.workflows.loop.run_loop": "split pending, issue 31",
     "vision_cal.measure.dots.find_candidates": "split pending, issue 31",
     "vision_cal.measure.dots._refine_dot": "split pending, issue 31",
-    "vision_cal.render.dataset.render_dataset": "split pending, issue 31",
-    "vision_cal.report.html.render_html": "split pending, issue 31",
 }
 #: the reason's mark: a sentence of the docstring beginning with these words
 LONG_REASON = re.compile(r"(?:^|[.!?:;]\s+|\n\s*)Long because\b")
