@@ -74,3 +74,24 @@ def test_init_plan_missing_or_a_pdf_names_the_file_given(tmp_path, capsys):
     assert "is a PDF" in line and "plan.pdf/session.json" not in line, line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["photos", "plan.pdf"]
     assert list((tmp_path / "photos").iterdir()) == []
+
+
+def test_simulate_a_program_without_its_plan_csv_says_what_to_give(tmp_path, capsys):
+    """A targets program (plan --program) is read with the plan CSV beside it; given a
+    designed plan's program.prg instead of its folder, the line said 'program.csv: file not
+    found', a file the user never had: it now names the program and what to give."""
+    assert main(["robot-template", "-o", str(tmp_path / "robot.yaml"), "-q"]) == 0
+    assert main(["robot-template", "--simulated", "-o", str(tmp_path / "true.yaml"),
+                 "-q"]) == 0
+    (tmp_path / "plan").mkdir()
+    (tmp_path / "plan" / "session.json").write_text("{}")
+    (tmp_path / "plan" / "program.prg").write_text("Function main\nFend\n")
+    (tmp_path / "lone.prg").write_text("Function main\nFend\n")
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    for prg, words in ((tmp_path / "plan" / "program.prg", "give its folder"),
+                       (tmp_path / "lone.prg", "no lone.csv beside it")):
+        rc, err = _run(["simulate", prg, "--truth", tmp_path / "true.yaml", "--sheet",
+                        tmp_path / "sheet.json", "-o", tmp_path / "out"], capsys)
+        assert rc == 2
+        assert words in assert_one_line(err, prg)
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before

@@ -420,6 +420,12 @@ def targets_session(program: Path, sim: SimulatedRobot, *, sheet_json, targets=N
     if sheet_json is None:
         raise VisionCalError("a targets program needs the sheet it is drawn on: give "
                              "--sheet SHEET.json", field="--sheet")
+    if not plan_csv.is_file():   # a designed plan's program.prg given instead of its folder
+        why = (f"is a designed plan's program: give its folder ({program.parent}) instead"
+               if (program.parent / "session.json").is_file() else
+               f"no {plan_csv.name} beside it: a targets program needs the plan CSV "
+               "`vision-cal plan` wrote with it")
+        raise VisionCalError(why, file=str(program))
     ids, q, s = read_plan(plan_csv)
     want = {}
     if targets is not None:
