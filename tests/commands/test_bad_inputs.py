@@ -4,10 +4,13 @@ the empty default out/ folder."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from tests.commands.test_trust import TARGETS, assert_one_line, calibration  # noqa: F401
 from vision_cal.commands.main import main
 from vision_cal.dataset.out_folder import writing_into
 
+ROOT = Path(__file__).resolve().parents[2]
 PDF = b"%PDF-1.4\n%\xe2\xe3\xcf\xd3\n1 0 obj<<>>endobj\n"
 
 
@@ -95,3 +98,16 @@ def test_simulate_a_program_without_its_plan_csv_says_what_to_give(tmp_path, cap
         assert rc == 2
         assert words in assert_one_line(err, prg)
     assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
+
+
+def test_jobs_below_one_names_the_option_as_every_command_does(tmp_path, capsys):
+    """calibrate and init said '--jobs must be ...' without the field; render, loop, verify
+    and handeye name it ('--jobs: must be at least 1')."""
+    (tmp_path / "photos").mkdir()
+    paper = ROOT / "fixtures" / "paper_sm5"
+    for argv in (["calibrate", paper, "-o", tmp_path / "o", "-j", "0"],
+                 ["init", tmp_path / "photos", "--plan", paper / "session.json", "-j", "0"]):
+        rc, err = _run(argv, capsys)
+        assert rc == 2
+        assert "must be at least 1, got 0" in assert_one_line(err, "--jobs")
+    assert [p.name for p in tmp_path.iterdir()] == ["photos"]
