@@ -6,9 +6,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from tests.commands.test_trust import TARGETS, assert_one_line, calibration  # noqa: F401
 from vision_cal.commands.main import main
 from vision_cal.dataset.out_folder import writing_into
+from vision_cal.errors import VisionCalError
+from vision_cal.render.rehearse import _earlier_marks
 
 ROOT = Path(__file__).resolve().parents[2]
 PDF = b"%PDF-1.4\n%\xe2\xe3\xcf\xd3\n1 0 obj<<>>endobj\n"
@@ -111,3 +115,22 @@ def test_jobs_below_one_names_the_option_as_every_command_does(tmp_path, capsys)
         assert rc == 2
         assert "must be at least 1, got 0" in assert_one_line(err, "--jobs")
     assert [p.name for p in tmp_path.iterdir()] == ["photos"]
+
+
+def test_a_bad_option_is_one_line_naming_it(tmp_path, capsys):
+    """argparse printed the whole usage (eight lines for plan) before its error line."""
+    with pytest.raises(SystemExit) as e:
+        main(["plan", "cal.json", "t.csv", "-o", str(tmp_path / "p.csv"), "--home", "1"])
+    assert e.value.code == 2
+    line = assert_one_line(capsys.readouterr().err)
+    assert line.startswith("vision-cal plan: error: argument --home: expected 2 arguments")
+    assert "vision-cal plan --help" in line
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_simulate_after_a_file_names_the_option(tmp_path):
+    """--after X.pdf said 'X.pdf/truth.json: cannot read: Not a directory'."""
+    (tmp_path / "x.pdf").write_bytes(PDF)
+    with pytest.raises(VisionCalError) as e:
+        _earlier_marks([tmp_path / "x.pdf"], "sheet-id")
+    assert str(e.value).startswith(f"{tmp_path / 'x.pdf'}: --after: expected a folder")

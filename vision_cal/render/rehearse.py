@@ -555,6 +555,10 @@ def _earlier_marks(after, sheet_id) -> np.ndarray:
     one drawn on another sheet."""
     earlier = []
     for d in after:
+        if not Path(d).is_dir():
+            raise VisionCalError("expected a folder simulated before (its truth.json says "
+                                 "which marks are already on the sheet)", file=str(d),
+                                 field="--after")
         t = read_json(Path(d) / "truth.json")
         if (t.get("sheet_id") or sheet_id) != sheet_id:
             raise VisionCalError(f"was drawn on sheet {t.get('sheet_id')}, this plan is for "
