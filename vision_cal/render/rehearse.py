@@ -53,7 +53,7 @@ from vision_cal.errors import VisionCalError
 from vision_cal.progress import bar as progress_bar
 from vision_cal.render.arm_camera import T_flange_camera_true, photograph_poses
 from vision_cal.render.camera import camera_matrix, default_views
-from vision_cal.render.dataset import _encode_image, marks_off_paper, marks_on_markers
+from vision_cal.render.dataset import encode_image, marks_off_paper, marks_on_markers
 from vision_cal.render.photo import Photographer
 from vision_cal.render.printed import PrintedSheet, printed_texture
 from vision_cal.render.truth_model import TrueRobot
@@ -604,7 +604,7 @@ def _photograph(sim: SimulatedRobot, printed, marks_xy, dia: float, K, rng, *,
                                           T_cam_sheet=sim.truth.T_render(T),
                                           vignetting=cam.vignetting,
                                           noise_sigma=cam.noise_sigma, rng=rng)
-            images.append((f"IMG_{i + 1:04d}.png", _encode_image(np.asarray(rgb), None), T))
+            images.append((f"IMG_{i + 1:04d}.png", encode_image(np.asarray(rgb), None), T))
             bar.update()
     finally:
         photographer.close()
