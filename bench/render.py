@@ -50,11 +50,11 @@ def main(argv=None) -> int:
     t_init = time.perf_counter() - t0
 
     # as render_dataset does: both textures built once, each photo patches in its new dot
-    from vision_cal.render.dataset import _encode_image, _Textures
+    from vision_cal.render.dataset import Textures, encode_image
 
     d = np.full(36 + args.n, 1.2)
     t0 = time.perf_counter()
-    textures = _Textures(sheet, marks[: 36 + args.n], d, px_per_mm=args.px_per_mm, seed=2)
+    textures = Textures(sheet, marks[: 36 + args.n], d, px_per_mm=args.px_per_mm, seed=2)
     t_tex = time.perf_counter() - t0
     tex = textures.add_marks(35)
     tex_s, parts, totals, enc_s = [], [], [], []
@@ -68,7 +68,7 @@ def main(argv=None) -> int:
         totals.append(time.perf_counter() - t0)
         parts.append(dict(ph.last_timing))
         t0 = time.perf_counter()
-        _encode_image(rgb, None)
+        encode_image(rgb, None)
         enc_s.append(time.perf_counter() - t0)
 
     # baseline: one homography warp of the same texture to the same (ideal) view

@@ -108,7 +108,7 @@ def calibrate(req: CalibrateRequest,
     before it (:class:`OutputsNamed`, :class:`SurveyFound`) go to ``tell`` when they happen;
     returns the run's end."""
     if req.jobs is not None and req.jobs < 1:
-        raise VisionCalError(f"--jobs must be at least 1, got {req.jobs}")
+        raise VisionCalError(f"must be at least 1, got {req.jobs}", field="--jobs")
     if req.joint:
         return calibrate_joint(req)
     return calibrate_folders(req, tell)

@@ -180,7 +180,7 @@ def writing_into(out, *, command: str, field: str = "--out", inputs=(), retire: 
     ``quiet``."""
     out = output_dir(out, field=field)
     refuse_input_folder(out, inputs, field=field)
-    created = not out.exists()
+    created = _missing_folders(out)   # out and the parents mkdir makes, deepest first
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
@@ -192,10 +192,24 @@ def writing_into(out, *, command: str, field: str = "--out", inputs=(), retire: 
                 retire_and_say(out, subfolders=subfolders, results=results, quiet=quiet)
             yield out
     except BaseException:
-        if created:   # a run that failed before writing anything leaves no empty folder
-            with contextlib.suppress(OSError):
-                out.rmdir()
+        # a run that failed before writing anything leaves no empty folder (nor the empty
+        # parents made for it: `calibrate DIR` without --out makes out/ and out/DIR)
+        for d in created:
+            try:
+                d.rmdir()
+            except OSError:
+                break
         raise
+
+
+def _missing_folders(out: Path) -> list[Path]:
+    """``out`` and each of its parents that does not exist yet, deepest first."""
+    missing = []
+    p = Path(out).absolute()
+    while not p.exists() and p != p.parent:
+        missing.append(p)
+        p = p.parent
+    return missing
 
 
 def _sniff(path: Path) -> str:

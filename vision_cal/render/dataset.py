@@ -133,7 +133,7 @@ def build_plan(scene: Scene, sheet, *, pilot=None, rng=None) -> list:
 # ----------------------------------------------------------------------------- textures
 
 
-class _Textures:
+class Textures:
     """The texture with the first k marks, kept up to date cheaply.
 
     ``full`` is the finished sheet; ``current`` starts mark-free and gets each new mark's
@@ -214,7 +214,7 @@ def _shoot(job: _PhotoJob, tasks, photographer, bar=None) -> int:
     """Render ``tasks`` ((file, n_marks, T_cam_sheet, arm, rng, K_dist), in series order)
     into ``job.folder``; returns how many."""
     ph = job.photos
-    textures = _Textures(job.sheet, job.xy_mm, job.diameters_mm,
+    textures = Textures(job.sheet, job.xy_mm, job.diameters_mm,
                          px_per_mm=ph.texture_px_per_mm, seed=job.texture_seed,
                          printed=job.printed, print_field=job.print_field,
                          built=job.textures)
@@ -225,7 +225,7 @@ def _shoot(job: _PhotoJob, tasks, photographer, bar=None) -> int:
             tex, extent_mm=job.sheet.extent_mm, T_cam_sheet=T, dist=job.dist,
             K_dist=K_dist, arm=arm, vignetting=ph.vignetting, noise_sigma=ph.noise_sigma,
             jpeg_quality=None, rng=rng, **extra)
-        (job.folder / fname).write_bytes(_encode_image(np.asarray(rgb), ph.jpeg_quality))
+        (job.folder / fname).write_bytes(encode_image(np.asarray(rgb), ph.jpeg_quality))
         del rgb
         if bar is not None:
             bar.update()
@@ -244,7 +244,7 @@ def _render_chunk(job: _PhotoJob, tasks, size_px, K) -> int:
 # ------------------------------------------------------------------------------- output
 
 
-def _encode_image(rgb: np.ndarray, jpeg_quality: int | None) -> bytes:
+def encode_image(rgb: np.ndarray, jpeg_quality: int | None) -> bytes:
     """PNG (lossless) or JPEG bytes of an RGB image."""
     # OpenCV takes 0.2 s to import: loaded here, when used
     import cv2
@@ -265,10 +265,10 @@ def _extra_image(kind: str, size_px, rng: np.random.Generator) -> bytes:
     """A bad photo: ``blank`` (grey), ``noise`` (random pixels) or ``corrupt`` (bad bytes)."""
     w, h = size_px
     if kind == "blank":
-        return _encode_image(np.full((h, w, 3), 128, np.uint8), None)
+        return encode_image(np.full((h, w, 3), 128, np.uint8), None)
     if kind == "noise":
-        return _encode_image(rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8), None)
-    good = _encode_image(np.full((h // 4, w // 4, 3), 200, np.uint8), None)
+        return encode_image(rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8), None)
+    good = encode_image(np.full((h // 4, w // 4, 3), 200, np.uint8), None)
     return good[:64] + rng.integers(0, 256, size=256, dtype=np.uint8).tobytes()
 
 
