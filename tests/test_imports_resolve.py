@@ -15,12 +15,7 @@ TREES = ("vision_cal", "tests", "bench")
 #: (importer, module, name): private names another module still imports, to be made
 #: public when measure/listing, measure/finish and measure/dots are free (engineer B)
 PRIVATE_PENDING = {
-    ("vision_cal/identify/match.py", "vision_cal.measure.listing", "_Photo"),
-    ("vision_cal/measure/detect.py", "vision_cal.measure.listing", "_Photo"),
-    ("vision_cal/measure/detect.py", "vision_cal.measure.listing", "_refusal"),
-    ("vision_cal/measure/detect.py", "vision_cal.measure.listing", "_skip"),
     ("vision_cal/measure/finish.py", "vision_cal.measure.dots", "_radii_mm"),
-    ("vision_cal/measure/print_stage.py", "vision_cal.measure.finish", "_lens_of"),
 }
 
 

@@ -12,7 +12,7 @@ import numpy as np
 from tests.measure import synth_measure as sm
 from vision_cal.dataset.session import load_session
 from vision_cal.measure import detect
-from vision_cal.measure.listing import _check_photo, _Photo
+from vision_cal.measure.listing import _check_photo, Photo
 
 
 def _one_photo(tmp_path):
@@ -27,7 +27,7 @@ def _one_photo(tmp_path):
     sm.write_session(src, sm.session_json(sheet, marks=list(zip(ids, sm.plan_for(targets))),
                                           images=[("p0.png", ids)], robot=sm.NOMINAL))
     session = load_session(src)
-    ph = _Photo("p0.png", tuple(ids))
+    ph = Photo("p0.png", tuple(ids))
     _check_photo(ph, src, session)
     assert ph.det is None and ph.sha256 and ph.identity
     return src, session, ph

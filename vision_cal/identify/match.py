@@ -14,7 +14,7 @@ from vision_cal.dataset.session import Session
 from vision_cal.identify import associate as assoc
 from vision_cal.identify.infer import infer_image_marks
 from vision_cal.identify.plan_match import check_plan_match
-from vision_cal.measure.listing import _Photo
+from vision_cal.measure.listing import Photo
 from vision_cal.measure.types import ImageResult
 from vision_cal.model.equivalent import equivalent_joints
 from vision_cal.model.tool_fit import fit_tool
@@ -77,7 +77,7 @@ class AssociatedDots:
                 for gi, g in enumerate(self.groups) if gi not in used]
 
 
-def associate_dots(session: Session, items: list[_Photo], images: list[ImageResult],
+def associate_dots(session: Session, items: list[Photo], images: list[ImageResult],
                    ac: AssociationConfig, default_diameter_mm: float,
                    plan_match: PlanMatchConfig | None = None) -> AssociatedDots:
     """Stage 3: dots grouped across photos and the groups matched to the planned marks

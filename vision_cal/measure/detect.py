@@ -22,7 +22,7 @@ from vision_cal.errors import VisionCalError
 from vision_cal.measure.aruco import edge_points, find_sheet_markers
 from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerprint
 from vision_cal.measure.dots import find_candidates
-from vision_cal.measure.listing import _Photo, _refusal, _skip
+from vision_cal.measure.listing import Photo, refusal, skipped
 from vision_cal.measure.mapping import fit_mapping, undistort_px
 from vision_cal.measure.types import ImageDetections
 from vision_cal.measure.workers import exit_with_parent
@@ -39,7 +39,7 @@ def _decode(data: bytes, file: str, camera_size_px=None):
         photos.check_complete(data)  # by its structure: a phone's trailer is not truncation
         turned = photos.check_header(photos.read_header(data), camera_size_px)
     except photos.PhotoRefused as e:
-        return None, _refusal(file, e)
+        return None, refusal(file, e)
     img = photos.decode_photo(data, turned=turned)
     if img is None:
         return None, "unreadable: not an image OpenCV can decode"
@@ -85,15 +85,15 @@ def detect_image_bytes(data: bytes, file: str, session: Session, *,
     cam = session.camera
     rgb, why = _decode(data, file, None if cam is None else cam.size_px)
     if rgb is None:
-        return _skip(file, why)
+        return skipped(file, why)
     h, w = rgb.shape[:2]
     size = (int(w), int(h))
     if cam is not None and tuple(cam.size_px) != size:
-        return _skip(file, f"wrong size: {w}x{h} px, camera.size_px says "
+        return skipped(file, f"wrong size: {w}x{h} px, camera.size_px says "
                            f"{cam.size_px[0]}x{cam.size_px[1]}", size)
     gray = cv2.cvtColor(rgb, cv2.COLOR_BGR2GRAY)
     if float(gray[::4, ::4].std()) < config.markers.blank_photo_std:
-        return _skip(file, "blank image: no contrast", size)
+        return skipped(file, "blank image: no contrast", size)
     det = find_sheet_markers(gray, session.sheet, config=config.markers)
     if det.reason:
         return ImageDetections(file, "skipped", det.reason, size, det.ids, det.corners_px,
@@ -105,13 +105,13 @@ def detect_image_bytes(data: bytes, file: str, session: Session, *,
                                             geometry=marker_geometry(session.sheet)))
     out, n_bad = _drop_deformed_markers(out, K, dist, min_markers=config.markers.min_markers)
     if len(out.marker_ids) < config.markers.min_markers:
-        return _skip(file, f"too few markers: {len(out.marker_ids)} usable after {n_bad} "
+        return skipped(file, f"too few markers: {len(out.marker_ids)} usable after {n_bad} "
                            "deformed ones (partly hidden?) were left out", size)
     try:
         approx = fit_mapping(out.corners_mm.reshape(-1, 2),
                              out.corners_for(K, dist).reshape(-1, 2), K=K, dist=dist)
     except VisionCalError as e:
-        return _skip(file, f"no mapping: {e.reason}", size)
+        return skipped(file, f"no mapping: {e.reason}", size)
     cand = find_candidates(rgb, approx, session.sheet, dia_mm=session.pen_mark_diameter_mm,
                            config=config.dots)
     gp, go = None, None
@@ -157,10 +157,10 @@ def detect_image(path, session: Session, *, root=None, name: str | None = None,
     try:
         data, now = photos.read_photo_identity(root, name)
     except photos.PhotoRefused as e:
-        return _skip(name, e.reason)
+        return skipped(name, e.reason)
     if sha256 is not None and (identity is None or tuple(now) != tuple(identity)) \
             and hashlib.sha256(data).hexdigest() != sha256:
-        return _skip(name, "changed while being measured: run again")
+        return skipped(name, "changed while being measured: run again")
     return detect_image_bytes(data, name, session, config=config)
 
 
@@ -188,7 +188,7 @@ def _pool_initializer(parent_pid: int) -> None:
     exit_with_parent(parent_pid)
 
 
-def detect_all(items: list[_Photo], session: Session, cache: DetectionCache, *,
+def detect_all(items: list[Photo], session: Session, cache: DetectionCache, *,
                jobs: int | None = None, progress=None,
                config: EstimatorConfig | None = None) -> list[str]:
     """Stage 1 of every photo not skipped yet (``ph.det`` filled): from the cache, else in

@@ -33,7 +33,9 @@ from vision_cal.measure.views import ViewCount
 log = logging.getLogger(__name__)
 
 
-def _lens_of(session: Session, lens: LensEstimate | None, size):
+def lens_of(session: Session, lens: LensEstimate | None, size):
+    """(K, dist) for a photo of ``size`` px: session.json's camera, else the estimated lens
+    (turned for a photo of the same camera held the other way), else (None, None)."""
     if session.camera is not None:
         return session.camera.K, session.camera.dist
     if lens is not None and lens.kept and tuple(lens.size_px) == tuple(size):
@@ -58,7 +60,7 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     if det.status != "ok":
         return ImageResult(det.file, det.status, det.reason, n_markers=len(det.marker_ids),
                            size_px=det.size_px, from_cache=from_cache)
-    K, dist = _lens_of(session, lens, det.size_px)
+    K, dist = lens_of(session, lens, det.size_px)
     corners_px = det.corners_for(K, dist)
     m = fit_mapping(det.corners_mm.reshape(-1, 2), corners_px.reshape(-1, 2), K=K, dist=dist)
     # the gate judges the corners where the mapping fits them: in ideal pixels
