@@ -128,6 +128,62 @@ def _read_color_only(renderer, scene, flags):
     return np.flip(color, axis=0), None
 
 
+#: a shadow weaker than this changes no pixel: 255 (1 - SHADOW_STRENGTH m) rounds to 255
+SHADOW_VISIBLE = 0.005
+
+
+def _shadow_window(mask, hs: int, ws: int, q: int):
+    """The full-resolution window ``(r0, r1, c0, c1)`` outside which the shadow ``mask``
+    (drawn at 1/``q`` resolution) changes no pixel, and the mask resized there; None: no
+    shadow anywhere. The values are those of ``cv2.resize(mask, (ws, hs), INTER_LINEAR)``
+    over the whole image: a full pixel mixes its two nearest small pixels per axis, so away
+    from the crop's own border (one small pixel of padding) the crop resizes the same; a
+    pixel whose small neighbours are all below ``SHADOW_VISIBLE`` keeps its colour
+    (``np.rint(c * (1 - SHADOW_STRENGTH m)) == c`` for c <= 255). When ``q`` does not
+    divide the image the whole image is the window."""
+    if hs != q * mask.shape[0] or ws != q * mask.shape[1]:
+        return (0, hs, 0, ws), cv2.resize(mask, (ws, hs), interpolation=cv2.INTER_LINEAR)
+    rows = np.flatnonzero(mask.max(axis=1) >= SHADOW_VISIBLE)
+    cols = np.flatnonzero(mask.max(axis=0) >= SHADOW_VISIBLE)
+    if rows.size == 0:
+        return None
+    hq, wq = mask.shape
+    i0, i1 = max(rows[0] - 2, 0), min(rows[-1] + 3, hq)      # small crop, 2 px padding
+    j0, j1 = max(cols[0] - 2, 0), min(cols[-1] + 3, wq)
+    big = cv2.resize(np.ascontiguousarray(mask[i0:i1, j0:j1]), ((j1 - j0) * q, (i1 - i0) * q),
+                     interpolation=cv2.INTER_LINEAR)
+    # full pixels whose two small neighbours per axis both lie in the crop
+    r0 = 0 if i0 == 0 else (i0 + 1) * q
+    r1 = hs if i1 == hq else (i1 - 1) * q
+    c0 = 0 if j0 == 0 else (j0 + 1) * q
+    c1 = ws if j1 == wq else (j1 - 1) * q
+    return (r0, r1, c0, c1), big[r0 - i0 * q:r1 - i0 * q, c0 - j0 * q:c1 - j0 * q]
+
+
+def _read_depth_window(renderer, r0: int, r1: int, c0: int, c1: int, znear: float,
+                       zfar: float) -> np.ndarray:
+    """The linear depth (mm; 0 where nothing was drawn) of rows ``r0:r1``, columns
+    ``c0:c1`` (top-down image rows) of pyrender's last render: pyrender's own
+    ``_read_main_framebuffer`` depth (multisample resolve, read-back, linearisation)
+    restricted to the window, the same values at a fraction of the cost."""
+    from OpenGL import GL
+
+    height = renderer._main_fb_dims[1]
+    y0, y1 = height - r1, height - r0                # OpenGL rows count from the bottom
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, renderer._main_fb_ms)
+    GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, renderer._main_fb)
+    GL.glBlitFramebuffer(c0, y0, c1, y1, c0, y0, c1, y1, GL.GL_DEPTH_BUFFER_BIT, GL.GL_NEAREST)
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, renderer._main_fb)
+    buf = GL.glReadPixels(c0, y0, c1 - c0, y1 - y0, GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT)
+    d = np.flip(np.frombuffer(buf, dtype=np.float32).reshape((y1 - y0, c1 - c0)), axis=0)
+    inf = d == 1.0
+    d = 2.0 * d - 1.0
+    noninf = np.logical_not(inf)
+    d[noninf] = (2.0 * znear * zfar) / (zfar + znear - d[noninf] * (zfar - znear))
+    d[inf] = 0.0
+    return d
+
+
 def _unit(v) -> np.ndarray:
     v = np.asarray(v, dtype=float)
     return v / np.linalg.norm(v)
@@ -320,10 +376,10 @@ class Photographer:
         t1 = time.perf_counter()
         shadows = bool(casters) and lights not in (None, "none")
         inner = getattr(self._renderer, "_renderer", None)
-        if shadows or inner is None or not hasattr(inner, "_read_main_framebuffer") \
+        if inner is None or not hasattr(inner, "_read_main_framebuffer") \
                 or sys.platform == "darwin":
             color, depth = self._renderer.render(self._scene, flags=pyrender.RenderFlags.FLAT)
-        else:   # no shadows to draw: the depth buffer is not read back
+        else:   # the colour only: the shadows read the depth of their own window
             inner._read_main_framebuffer = functools.partial(_read_color_only, inner)
             try:
                 color, depth = self._renderer.render(self._scene,
@@ -333,7 +389,7 @@ class Photographer:
         t2 = time.perf_counter()
         s = self.supersample
         w, h = self.size_px
-        if casters and lights not in (None, "none"):
+        if shadows:
             color = self._shadowed(color, depth, casters, T, lights)
         t3 = time.perf_counter()
         if lens is not None:
@@ -362,6 +418,9 @@ class Photographer:
 
         Shadows are drawn and blurred at 1/``SHADOW_SCALE`` resolution (they are soft) and
         applied where the depth buffer shows the paper plane (not the arm, not the table).
+        Only the window where the shadow can change a pixel is worked at full resolution
+        (:func:`_shadow_window`); ``depth`` None: its depth is read back from the render
+        (:func:`_read_depth_window`), the same values as pyrender's whole depth image there.
         """
         key_dir = _unit(_lights(lights)[0][0])
         Ks = self.K_render
@@ -389,22 +448,27 @@ class Photographer:
             sigma = max(0.7, 0.08 * z_low * Kq[0, 0] / float(np.mean(pc[:, 2])))
             one = cv2.GaussianBlur(one, (0, 0), sigma)
             np.maximum(mask, one, out=mask)
-        mask = cv2.resize(mask, (ws, hs), interpolation=cv2.INTER_LINEAR)
+        win = _shadow_window(mask, hs, ws, q)
+        if win is None:
+            return color
+        (r0, r1, c0, c1), mask = win
+        if depth is None:
+            depth = _read_depth_window(self._renderer._renderer, r0, r1, c0, c1,
+                                       self._camera.znear, self._camera.zfar)
+        else:
+            depth = depth[r0:r1, c0:c1]
         # sheet pixels only: the depth buffer equals the depth of the paper plane there
         n = R[:, 2]
         a = (n[0] / Ks[0, 0]) * (np.arange(ws, dtype=np.float32) - Ks[0, 2])
         b = (n[1] / Ks[1, 1]) * (np.arange(hs, dtype=np.float32) - Ks[1, 2])
         with np.errstate(divide="ignore", invalid="ignore"):
-            z_plane = np.float32(n @ t) / (a[None, :] + b[:, None] + np.float32(n[2]))
+            z_plane = np.float32(n @ t) / (a[None, c0:c1] + b[r0:r1, None] + np.float32(n[2]))
         off_sheet = np.abs(depth - z_plane) > 1.0 + 1e-3 * np.abs(z_plane)
         mask[off_sheet] = 0.0
-        rows = np.flatnonzero(mask.max(axis=1) > 1e-3)
-        if rows.size == 0:
-            return color
-        r0, r1 = rows[0], rows[-1] + 1
-        gain = 1.0 - SHADOW_STRENGTH * mask[r0:r1]
+        gain = 1.0 - SHADOW_STRENGTH * mask
         out = color.copy()
-        out[r0:r1] = np.clip(np.rint(color[r0:r1].astype(np.float32) * gain[..., None]), 0, 255)
+        out[r0:r1, c0:c1] = np.clip(np.rint(color[r0:r1, c0:c1].astype(np.float32)
+                                            * gain[..., None]), 0, 255)
         return out
 
     def photograph(self, texture_rgb, *, extent_mm, T_cam_sheet, dist=None, K_dist=None,
