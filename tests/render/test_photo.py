@@ -280,3 +280,26 @@ def test_depth_window_is_pyrenders_depth(photographer, small_sheet, full_texture
                                   cam.znear, cam.zfar)
         np.testing.assert_array_equal(part, depth[r0:r1, c0:c1])
     assert np.ptp(depth) > 100.0                               # arm, paper and table
+
+
+def test_a_patched_texture_renders_as_a_fresh_upload(photographer, small_sheet,
+                                                     full_textures):
+    """A series photo changes a few texels: only they are uploaded and the mipmaps rebuilt,
+    and the photo is the same, byte for byte, as one from a texture uploaded whole
+    (tilted: the coarser mipmap levels are sampled too)."""
+    full, bare = full_textures
+    T = default_views(small_sheet, n=1, size_px=photographer.size_px, K=photographer.K,
+                      tilt_deg=(35, 35), rng=3)[0]
+    ext = small_sheet.extent_mm
+    patched = bare.copy()
+    patched[200:260, 300:420] = full[200:260, 300:420]
+    assert np.any(patched != bare)
+    photographer.render(bare, extent_mm=ext, T_cam_sheet=T)
+    uploaded = photographer._sheet_texture
+    fast = photographer.render(patched, extent_mm=ext, T_cam_sheet=T)
+    assert photographer._sheet_texture is uploaded               # patched, not re-uploaded
+    photographer.render(bare[:-8], extent_mm=ext, T_cam_sheet=T)  # another shape: a new one
+    fresh = photographer.render(patched, extent_mm=ext, T_cam_sheet=T)
+    assert photographer._sheet_texture is not uploaded
+    np.testing.assert_array_equal(fast, fresh)
+    assert np.any(fast != photographer.render(bare, extent_mm=ext, T_cam_sheet=T))

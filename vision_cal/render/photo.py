@@ -194,7 +194,9 @@ class Photographer:
 
     Build one per image size and K and reuse it (it owns an OpenGL context; ``close()``
     frees it without disturbing other Photographers in the process). The sheet
-    texture is uploaded once and kept while the same texture content is rendered again.
+    texture is uploaded once and kept while the same texture content is rendered again;
+    a texture of the same size that differs in a few texels (a series photo's new mark)
+    has only their rectangle uploaded, then its mipmaps rebuilt (the same photo).
     ``last_timing`` holds the seconds of the last call split into ``texture_upload_s``,
     ``render_s`` (pyrender and read-back), ``downsample_s``, ``post_s`` (distortion,
     vignetting, noise, JPEG) and ``total_s``.
@@ -226,6 +228,7 @@ class Photographer:
                                                  zfar=zfar_mm)
         self._cam_node = self._scene.add(self._camera, pose=np.eye(4))
         self._sheet_node = None
+        self._sheet_texture = None
         self._sheet_key = None
         self._arm_node = None
         self.last_timing: dict[str, float] = {}
@@ -285,6 +288,10 @@ class Photographer:
         if key == self._sheet_key:
             return 0.0
         t0 = time.perf_counter()
+        if self._sheet_key is not None and self._sheet_key[0] == key[0] \
+                and self._sheet_key[1:4:2] == key[1:4:2] and self._patch_sheet(tex):
+            self._sheet_key = key
+            return time.perf_counter() - t0
         if self._sheet_node is not None:
             self._scene.remove_node(self._sheet_node)
         x0, y0, x1, y1 = ext
@@ -309,8 +316,36 @@ class Photographer:
                                       normals=np.tile([0, 0, 1], (len(pos), 1)).astype(np.float32),
                                       texcoord_0=uv, indices=idx, material=mat)
         self._sheet_node = self._scene.add(pyrender.Mesh([prim]))
+        self._sheet_texture = texture
         self._sheet_key = key
         return time.perf_counter() - t0
+
+    def _patch_sheet(self, tex: np.ndarray) -> bool:
+        """Upload only the rectangle where ``tex`` differs from the sheet texture in the
+        OpenGL context, then rebuild its mipmaps from the whole base level (what a fresh
+        upload does, so the same texels at every level: a series photo adds one mark's
+        few texels to a 4752 x 3360 texture). False: not uploaded yet, nothing done."""
+        texture = self._sheet_texture
+        if texture is None or texture._texid is None or texture.source.shape != tex.shape:
+            return False
+        old = texture.source
+        rows = np.flatnonzero(np.any(old != tex, axis=(1, 2)))
+        if rows.size:
+            r0, r1 = int(rows[0]), int(rows[-1]) + 1
+            cols = np.flatnonzero(np.any(old[r0:r1] != tex[r0:r1], axis=(0, 2)))
+            c0, c1 = int(cols[0]), int(cols[-1]) + 1
+            old[r0:r1, c0:c1] = tex[r0:r1, c0:c1]
+            from OpenGL import GL
+
+            self._renderer._platform.make_current()
+            H = tex.shape[0]
+            data = np.ascontiguousarray(np.flip(tex[r0:r1, c0:c1], axis=0))
+            GL.glBindTexture(GL.GL_TEXTURE_2D, texture._texid)
+            GL.glTexSubImage2D(GL.GL_TEXTURE_2D, 0, c0, H - r1, c1 - c0, r1 - r0, GL.GL_RGB,
+                               GL.GL_UNSIGNED_BYTE, data)
+            GL.glGenerateMipmap(GL.GL_TEXTURE_2D)
+            GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+        return True
 
     def _set_arm(self, arm, lights) -> list:
         """Add the arm meshes (baked lighting); returns shadow casters [(points (n,3), top)]."""
