@@ -256,6 +256,10 @@ def test_shadow_window_is_the_whole_resize_where_a_shadow_shows():
         outside[r0:r1, c0:c1] = 0.0
         assert outside.max() < SHADOW_VISIBLE
     assert _shadow_window(np.zeros((24, 40), np.float32), hs, ws, q) is None
+    # a shadow below the visible level leaves every grey level as it was
+    c = np.arange(256, dtype=np.float32)
+    gain = 1.0 - SHADOW_STRENGTH * np.float32(SHADOW_VISIBLE)
+    np.testing.assert_array_equal(np.rint(c * gain), c)
     odd = np.ones((25, 40), np.float32)                       # q does not divide 97 rows
     (r0, r1, c0, c1), part = _shadow_window(odd, 97, ws, q)
     assert (r0, r1, c0, c1) == (0, 97, 0, ws) and part.shape == (97, ws)
