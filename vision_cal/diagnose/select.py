@@ -350,7 +350,7 @@ def _away_from_local(pb: _Problem, found: _Found, base: Fit) -> tuple[_Found, di
     every = np.ones(len(pb.q), dtype=bool)
     sel = found.selection
     level = pb.alpha / 2
-    sheet_map = _local_map(pb, sel.fit, every)
+    after = sheet_map = _local_map(pb, sel.fit, every)
     before_only = False
     if sheet_map["p_value"] >= level and sel.accepted:
         seen = _local_map(pb, base, every)
@@ -359,6 +359,8 @@ def _away_from_local(pb: _Problem, found: _Found, base: Fit) -> tuple[_Found, di
     if sheet_map["p_value"] >= level:
         return found, sheet_map
     outside, radius = marks_away_from(pb.xy, sheet_map)
+    if not enough_away(outside) and before_only:
+        return found, after     # nothing to check it on: the selection's own map stands
     sheet_map["excluded_radius_mm"] = float(radius)
     sheet_map["excluded_marks"] = int((~outside).sum())
     if not enough_away(outside):
@@ -375,7 +377,7 @@ def _away_from_local(pb: _Problem, found: _Found, base: Fit) -> tuple[_Found, di
         outside, away = wider, pb.select_on(wider)
     if before_only and ([a.label for a in away.selection.accepted]
                         == [a.label for a in sel.accepted]):
-        return found, _local_map(pb, sel.fit, every)
+        return found, after
     away = _confirmed_on_every_mark(pb, base, away, outside)
     sheet_map["excluded_radius_mm"] = float(radius)
     sheet_map["excluded_marks"] = int((~outside).sum())
