@@ -139,10 +139,9 @@ def _bumped(effects, seed, val=False, traced=True):
 @pytest.mark.parametrize("seed,val", [(5, False), (7, False)])
 def test_a_local_bump_is_not_claimed_as_a_library_effect(seed, val):
     """A sheet bump and no joint effect: the selection claims no library effect for it (the
-    old rule claimed joint-1 backlash on seed 5, whose map was clean only after it; joint-1
-    cyclic harmonic 2 on seed 7 and joint-1 scale on seed 29 with validation marks, asked
-    for away from the bump by its tails, neither significant on every mark), and the bump
-    stays reported where it is."""
+    old rule claimed joint-1 backlash on seed 5, whose map was clean only after it, and
+    joint-1 cyclic harmonic 2 on seed 7, asked for away from the bump by its tails and not
+    significant on every mark), and the bump stays reported where it is."""
     d, _ = _bumped([], seed, val, traced=False)
     assert d.accepted == (), [a.label for a in d.accepted]
     assert d.unexplained["sheet"]["p_value"] < 0.005
