@@ -18,7 +18,7 @@ as ``unexplained``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
@@ -174,7 +174,7 @@ def diagnose(q_deg, xy_mm, approach=None, *, sigma_mm=None, ids=None, q_val=None
                   config=config or DEFAULT)
     base = _fit(pb.base_model, pb.q, pb.xy, pb.app, pb.sigma, pb.ids, pb.config).or_raise()
     found = pb.select_on(np.ones(len(pb.q), dtype=bool))
-    found, sheet_map = _away_from_local(pb, found)
+    found, sheet_map = _away_from_local(pb, found, base)
     current = _reported(pb, base, found)
     # keep only the last round's rejections per label (the final word on each candidate)
     last = {}
@@ -244,16 +244,19 @@ class _Problem:
                                config=self.config, fit=fit)
         return held
 
-    def select_on(self, sub) -> _Found:
+    def select_on(self, sub, only=None) -> _Found:
         """Selection on the marks ``sub``, with joint harmonics no candidate offers found
-        in the residual and fitted as nuisances (never reported as something else)."""
+        in the residual and fitted as nuisances (never reported as something else).
+        ``only``: the labels of the candidates that may be added (else every candidate);
+        the others still count as offered (a harmonic they model is no nuisance)."""
         cands, config = self.cands, self.config
+        allowed = [c for c in cands if only is None or c.label in only]
         qs, xs, aps = self.q[sub], self.xy[sub], self.app[sub]
         ss = None if self.sigma is None else self.sigma[sub]
         idl = None if self.ids is None else tuple(np.asarray(self.ids, dtype=object)[sub])
         held = self.held_on(sub)
         b = _fit(self.base_model, qs, xs, aps, ss, idl, config).or_raise()
-        sl = _select(b, (), cands, qs, xs, aps, ss, idl, held, self.alpha_each,
+        sl = _select(b, (), allowed, qs, xs, aps, ss, idl, held, self.alpha_each,
                      self.max_effects, config)
         # harmonics significant even beside every candidate the plan can fit
         full = sl.fit
@@ -266,7 +269,7 @@ class _Problem:
                                      config=config)
         nui = tuple(JointCyclic(joint=h["joint"], harmonic=h["harmonic"]) for h in fnd)
         if nui:
-            sl = _select(b, nui, cands, qs, xs, aps, ss, idl, held, self.alpha_each,
+            sl = _select(b, nui, allowed, qs, xs, aps, ss, idl, held, self.alpha_each,
                          self.max_effects, config)
         return _Found(sl, fnd, nui)
 
@@ -315,29 +318,116 @@ def enough_away(outside: np.ndarray) -> bool:
     return bool(outside.sum() >= max(12, len(outside) // 2))
 
 
-def _away_from_local(pb: _Problem, found: _Found) -> tuple[_Found, dict]:
+def _local_map(pb: _Problem, fit: Fit, sub) -> dict:
+    """The sheet map (:func:`sheet_scan`) of ``fit``'s residual over the marks ``sub`` it
+    was fitted to (its inliers; no test below ``min_sheet_marks`` of them)."""
+    keep = fit.inliers
+    if keep.sum() < pb.min_sheet_marks:
+        return {"p_value": 1.0, "k": 0}
+    return sheet_scan(pb.xy[sub][keep], fit.residuals_mm[keep])
+
+
+def _away_from_local(pb: _Problem, found: _Found, base: Fit) -> tuple[_Found, dict]:
     """The sheet map of the residual once the nuisance harmonics are out; when neighbouring
     marks share a residual (p below alpha / 2), the selection again without the marks
     there, so the local structure is not explained by a global effect (when enough marks
-    are left), and the map as that model sees it. Returns (the selection, the map)."""
-    q, xy, app = pb.q, pb.xy, pb.app
+    are left), and the map as that model sees it. Returns (the selection, the map).
+
+    The rule (a library effect is claimed only where nothing local explains it better):
+
+    - the map is read after the selection and, when the selection added effects, before
+      it (on the base model's residual): effects that took up a local structure leave no
+      map after them (bench/discover_bump.py: a joint-1 backlash or scale claimed for a
+      bump);
+    - away from it, the map of the new residual is read again, and the marks where
+      neighbours still share a residual are left out too, as long as enough are left
+      (:func:`enough_away`);
+    - an effect the selection away from it adds is kept only when every mark confirms it
+      (:func:`_confirmed_on_every_mark`: significant and lowering the held-out error
+      beside the others); one only the structure's tails asked for is rejected, and the
+      selection runs again without it. When the map was seen only before the selection
+      and both selections agree, the selection on every mark stands."""
+    every = np.ones(len(pb.q), dtype=bool)
     sel = found.selection
-    keep = sel.fit.inliers
-    sheet_map = (sheet_scan(xy[keep], sel.fit.residuals_mm[keep])
-                 if keep.sum() >= pb.min_sheet_marks else {"p_value": 1.0, "k": 0})
-    if sheet_map["p_value"] < pb.alpha / 2:
-        # neighbouring marks share a residual: select again without the marks there, so
-        # the local structure is not explained by a global effect
-        outside, radius = marks_away_from(xy, sheet_map)
-        sheet_map["excluded_radius_mm"] = float(radius)
-        sheet_map["excluded_marks"] = int((~outside).sum())
-        if enough_away(outside):
-            found = pb.select_on(outside)
-            # the map as the model fitted away from the structure sees it
-            again = sheet_scan(xy, xy - found.selection.fit.predict(q, app), n_perm=0)
-            sheet_map.update({k: again[k] for k in ("peak_mm", "peak_size_mm",
-                                                    "peak_residual_mm", "map")})
-    return found, sheet_map
+    level = pb.alpha / 2
+    after = sheet_map = _local_map(pb, sel.fit, every)
+    before_only = False
+    if sheet_map["p_value"] >= level and sel.accepted:
+        seen = _local_map(pb, base, every)
+        before_only = seen["p_value"] < level
+        sheet_map = seen if before_only else sheet_map
+    if sheet_map["p_value"] >= level:
+        return found, sheet_map
+    outside, radius = marks_away_from(pb.xy, sheet_map)
+    if not enough_away(outside) and before_only:
+        return found, after     # nothing to check it on: the selection's own map stands
+    sheet_map["excluded_radius_mm"] = float(radius)
+    sheet_map["excluded_marks"] = int((~outside).sum())
+    if not enough_away(outside):
+        return found, sheet_map
+    away = pb.select_on(outside)
+    while True:
+        again = _local_map(pb, away.selection.fit, outside)
+        if again["p_value"] >= level:
+            break
+        wider = outside.copy()
+        wider[outside] = marks_away_from(pb.xy[outside], again)[0]
+        if not enough_away(wider):
+            break
+        outside, away = wider, pb.select_on(wider)
+    if before_only and ([a.label for a in away.selection.accepted]
+                        == [a.label for a in sel.accepted]):
+        return found, after
+    away = _confirmed_on_every_mark(pb, base, away, outside)
+    sheet_map["excluded_radius_mm"] = float(radius)
+    sheet_map["excluded_marks"] = int((~outside).sum())
+    # the map as the model fitted away from the structure sees it
+    again = sheet_scan(pb.xy, pb.xy - away.selection.fit.predict(pb.q, pb.app), n_perm=0)
+    sheet_map.update({k: again[k] for k in ("peak_mm", "peak_size_mm",
+                                            "peak_residual_mm", "map")})
+    return away, sheet_map
+
+
+def _unconfirmed(pb: _Problem, base: Fit, sel: "_Selection") -> list:
+    """The effects ``sel`` added that, on every mark, beside the others it added, are not
+    significant or do not lower the held-out error (:func:`_select`'s own test, one
+    candidate): what only the marks away from a local structure (its tails) asked for."""
+    every = np.ones(len(pb.q), dtype=bool)
+    held = pb.held_on(every)
+    by_label = {c.label: c for c in pb.cands}
+    out = []
+    for a in sel.accepted:
+        model = base.model
+        for b in sel.accepted:
+            if b.label != a.label:
+                model = model.with_effect(by_label[b.label].effect)
+        start = _fit(model, pb.q, pb.xy, pb.app, pb.sigma, pb.ids, pb.config)
+        if not start:
+            continue        # the others cannot be fitted on every mark: nothing to test
+        one = _select(start, (), [by_label[a.label]], pb.q, pb.xy, pb.app, pb.sigma, pb.ids,
+                      held, pb.alpha_each, 1, pb.config)
+        if not one.accepted:
+            out.append(a)
+    return out
+
+
+def _confirmed_on_every_mark(pb: _Problem, base: Fit, away: _Found, outside) -> _Found:
+    """The selection away from a local structure, without the effects every mark does not
+    confirm (:func:`_unconfirmed`): it runs again without them, until each effect it adds
+    is confirmed; the dropped ones are reported rejected, with the reason."""
+    dropped = []
+    while True:
+        bad = _unconfirmed(pb, base, away.selection)
+        if not bad:
+            break
+        dropped += bad
+        gone = {a.label for a in dropped}
+        away = pb.select_on(outside, only={c.label for c in pb.cands} - gone)
+    away.selection.rejected.extend(
+        replace(a, accepted=False, effect=None, reason="added away from a local structure, "
+                "but on every mark not significant or not lowering the held-out error")
+        for a in dropped)
+    return away
 
 
 @dataclass(frozen=True)
