@@ -27,7 +27,9 @@ the dots refined per mark (issue 33: linear in photos and marks).
 own raster (A4, 254 dpi; the photos of ``tests/measure/test_printed_ink.py`` at views and
 noise of seeds 100..100+N, not the tests' seeds): per kind, the largest error of the marks
 not flagged, how many were flagged unreliable, and the same with the sheet's ``printed``
-block removed (a sheet nobody describes).
+block removed (a sheet nobody describes). ``--raster pdfium|poppler|toner``: the photos show
+the PDF as another rasteriser draws it, or the raster with its ink grown 0.03 mm, while the
+reference stays the sheet's own raster; ``--described-only``: the first table only.
 
 Usage::
 
@@ -243,18 +245,50 @@ def whole_run(folder: Path) -> None:
           f"{per_mark / (plain_cpu / len(files)):.3f}x plain decode + detect per photo")
 
 
-def printed_table(n_seeds: int, first_seed: int = 100) -> None:
+def _rerasterised(a4: Path, raster: str) -> Path:
+    """A copy of the sheet folder ``a4`` whose sheet.png is the PDF as ``raster`` (pdfium or
+    poppler's pdftoppm) draws it, or (``toner``) its own raster with the ink grown about
+    0.03 mm (0.3 of a pixel's erosion): the print the photos show, not the reference's."""
+    from PIL import Image
+    from scipy.ndimage import grey_erosion
+
+    from tests.sheet.raster import rasterise_pdf, rasterise_pdftoppm
+
+    d = a4.parent / f"a4_{raster}"
+    d.mkdir()
+    for f in ("sheet.json", "sheet.pdf"):
+        shutil.copy(a4 / f, d / f)
+    own = np.asarray(Image.open(a4 / "sheet.png"))
+    if raster == "toner":
+        grown = grey_erosion(own, size=(3, 3, 1)).astype(float)
+        Image.fromarray(np.round(0.7 * own + 0.3 * grown).astype(np.uint8)).save(
+            d / "sheet.png", dpi=(254, 254))
+        return d
+    rgb, _ = (rasterise_pdftoppm if raster == "poppler" else rasterise_pdf)(d / "sheet.pdf",
+                                                                             10.0)
+    rgb = rgb[:own.shape[0], :own.shape[1]]
+    Image.fromarray(rgb).save(d / "sheet.png", dpi=(254, 254))
+    return d
+
+
+def printed_table(n_seeds: int, first_seed: int = 100, raster: str = "own",
+                  describes=None) -> None:
     from tests.measure.test_printed_ink import ON_PRINT, PLAIN, _measure
     from vision_cal.sheet import make_layout, write_sheet
 
     root = Path(tempfile.mkdtemp(prefix="vision-cal-bench-printed-"))
     try:
         write_sheet(make_layout(size="A4"), root / "a4", png_dpi=254)
-        for describe in (True, False):
+        if raster != "own":
+            print(("photos of the sheet's own raster with its ink grown 0.03 mm" if raster == "toner"
+                   else f"photos of the PDF as {raster} draws it")
+                  + " (the reference: the sheet's own raster)")
+        sheet_dir = root / "a4" if raster == "own" else _rerasterised(root / "a4", raster)
+        for describe in ((True, False) if describes is None else describes):
             per: dict = {k: [] for k in (*ON_PRINT, *PLAIN)}
             t = time.perf_counter()
             for s in range(first_seed, first_seed + n_seeds):
-                res = _measure(root / "a4", root / f"d{s}{int(describe)}", s, describe=describe)
+                res = _measure(sheet_dir, root / f"d{s}{int(describe)}", s, describe=describe)
                 for k, v in res.items():
                     per[k].append(v)
             dt = (time.perf_counter() - t) / n_seeds
@@ -284,6 +318,12 @@ def main() -> int:
                     help="only the marks-on-printed-ink table (see the module docstring)")
     ap.add_argument("--seeds", type=int, default=10, help="photos for --printed")
     ap.add_argument("--first-seed", type=int, default=100, help="first photo seed for --printed")
+    ap.add_argument("--raster", choices=("own", "pdfium", "poppler", "toner"), default="own",
+                    help="--printed: the photos show the sheet's own raster, its PDF as "
+                         "pdfium or poppler (pdftoppm) draws it, or its raster with the ink "
+                         "grown 0.03 mm (toner)")
+    ap.add_argument("--described-only", action="store_true",
+                    help="--printed: only the sheet with its printed block")
     ap.add_argument("--whole", action="store_true",
                     help="only the whole calibration against decode + detect (docstring)")
     a = ap.parse_args()
@@ -292,7 +332,7 @@ def main() -> int:
                        else "/tmp/vision-cal-bench-whole"))
         return 0
     if a.printed:
-        printed_table(a.seeds, a.first_seed)
+        printed_table(a.seeds, a.first_seed, a.raster, (True,) if a.described_only else None)
         return 0
     if a.reference is not None:
         reference_table(a.reference or ["flat_tilted", "bumped_tilted", "bumped_moving"],

@@ -95,6 +95,10 @@ class DotConfig:
                                       # 254 dpi raster another rasteriser draws; toner spreads
                                       # 0.03-0.06 mm): a centre moving more than
                                       # unreliable_ink_shift_mm with them is "unreliable"
+    printed_edge_chi2: float = 4.0    # ... as far as the photo allows: the ground around the
+                                      # mark fitted with the print's edges moved leaves this
+                                      # many noise variances (2 std) more than with them where
+                                      # the layout puts them (dots._edge_shift)
     ground_min_dots: int = 8          # dots on plain ground (paper and grid lines) a series
                                       # needs before its own ground level (a low quantile
                                       # of their background residuals) replaces the blank

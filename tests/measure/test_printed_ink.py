@@ -108,6 +108,12 @@ def test_marks_on_print_are_measured_against_the_print(a4, tmp_path, seed):
     for k in PLAIN:                                # clean paper: nothing claimed
         err, why, under = res[k]
         assert err < 0.03 and not why and not under, (k, err, why, under)
+    # where the photo shows the print as the reference draws it, the ground around a mark
+    # on text pins the print's edges: good marks on text are kept (issue 28 s4's leftover:
+    # every one flagged for a 50 um edge move the photo excludes; here 3 of 6 kept)
+    text = ("axis letter", "origin text", "x number", "y number", "title", "instruction")
+    kept = [k for k in text if res[k][0] < 0.015 and not res[k][1]]
+    assert len(kept) >= 2, kept
 
 
 @pytest.mark.parametrize("seed", [7, 200])
@@ -163,3 +169,37 @@ def test_marks_on_a_rendering_of_the_pdf_are_within_the_bound_or_flagged(a4_pdf,
     for k in ON_PRINT:
         err, why, under = res[k]
         assert err < 0.03 or why, (k, err)
+
+
+
+@pytest.fixture(scope="module")
+def a4_toner(tmp_path_factory, a4):
+    """The sheet's own raster with its ink grown about 0.03 mm (a third of a pixel's
+    erosion at 254 dpi: toner spread), which the reference does not know."""
+    import shutil
+
+    from PIL import Image
+    from scipy.ndimage import grey_erosion
+
+    d = tmp_path_factory.mktemp("a4toner")
+    for f in ("sheet.json", "sheet.pdf"):
+        shutil.copy(a4 / f, d / f)
+    own = np.asarray(Image.open(a4 / "sheet.png")).astype(float)
+    grown = grey_erosion(own, size=(3, 3, 1))
+    Image.fromarray(np.round(0.7 * own + 0.3 * grown).astype(np.uint8)).save(
+        d / "sheet.png", dpi=(254, 254))
+    return d
+
+
+def test_a_mark_whose_centre_depends_on_the_print_edges_is_flagged(a4_toner, tmp_path):
+    """Toner grew the print 0.03 mm: a blur and a contrast stand for it in the ground
+    around a mark on a letter, so the ground cannot pin the edges, and the centre, which
+    moves with them (the axis letter 49 um off), is flagged for them (config
+    dots.printed_edge_mm, printed_edge_chi2)."""
+    res = _measure(a4_toner, tmp_path / "d", 12)
+    for k, (err, why, under) in res.items():
+        print(f"{k:12s} {err:.4f} {under!r} {why!r}")
+    for k in ON_PRINT:
+        err, why, _ = res[k]
+        assert err < 0.03 or why, (k, err)
+    assert "print's edges move" in res["axis letter"][1]

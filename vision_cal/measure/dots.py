@@ -403,7 +403,8 @@ class _Ground:
 class _Centre:
     """The pen's centre over one ground (:func:`_centre`): ``c`` (2,), the window ``win``,
     the ink's mass ``M`` (samples) and, over the sheet's own print, how far the centre
-    moves with the ink's level, the print's blur and its edges (mm)."""
+    moves with the ink's level, the print's blur and its edges (mm; the edges moved
+    ``edge_mm``, as far as the photo allows, :func:`_edge_shift`)."""
 
     c: np.ndarray
     win: np.ndarray
@@ -411,6 +412,7 @@ class _Centre:
     d_shift: float = 0.0
     d_blur: float = 0.0
     d_edge: float = 0.0
+    edge_mm: float = 0.0
 
 
 def _refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm,
@@ -433,7 +435,7 @@ def _refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm,
             return None
         bgmask = np.hypot(X - c[0], Y - c[1]) > r_win
         gr = _ground(S, origin, mapping, X, Y, Sg, bgmask, c, half, step, mm_px, under, o, gr)
-        fit = _centre(gr, Sg, X, Y, c, r_win, step, o)
+        fit = _centre(gr, Sg, X, Y, c, r_win, step, mm_px, o)
         if fit is None:
             return None
         t = Sg / gr.P
@@ -516,7 +518,7 @@ def _ground(S, origin, mapping, X, Y, Sg, bgmask, c, half, step, mm_px, under, o
     return g
 
 
-def _centre(gr: _Ground, Sg, X, Y, c, r_win, step, o: _Given) -> _Centre | None:
+def _centre(gr: _Ground, Sg, X, Y, c, r_win, step, mm_px, o: _Given) -> _Centre | None:
     """The pen's disk over what it covers (:func:`_pen_over_print`): the sharp print where
     the sheet describes it, else the ground model itself (paper and grid lines, blurred as
     the photo is); the pen's own level ``D`` is its darkest core. Over the print, how far
@@ -546,9 +548,11 @@ def _centre(gr: _Ground, Sg, X, Y, c, r_win, step, o: _Given) -> _Centre | None:
         alt = _pen_over_print(bg_b - Sg, gr.sharp - D, X, Y, c, r_dot, r_win, step)
         if alt is not None:
             d_blur = max(d_blur, float(np.hypot(*(alt[0] - cc))))
-    d_edge = _edge_shift(Sg, bg, gr.sharp, D, X, Y, c, cc, r_dot, r_win, step, gr.blur_mm,
-                         o.cfg)
-    return _Centre(cc, win, M, d_shift, d_blur, d_edge)
+    d_edge, edge_mm = _edge_shift(Sg, bg, gr.sharp, D, X, Y, c, cc, r_dot, r_win, step,
+                                   gr.blur_mm,
+                                   o.noise_sigma * max(float(o.ground_scale), 1.0),
+                                   mm_px / step, o.cfg)
+    return _Centre(cc, win, M, d_shift, d_blur, d_edge, edge_mm)
 
 
 def _noise_cov(win, t, bgmask, dX, dY, step, sw2, M_mm2, median_efficiency):
@@ -621,7 +625,8 @@ def _verdict(background: str, on: str, ratio: float, ring, fit: _Centre, o: _Giv
     elif background == "printed" and fit.d_edge > cfg.unreliable_ink_shift_mm:
         why = (f"pen ink on printed ink ({on}) that could not be separated: the centre "
                f"moves {1000 * fit.d_edge:.0f} um when the print's edges move "
-               f"{1000 * cfg.printed_edge_mm:.0f} um (another rasteriser, toner)")
+               f"{1000 * fit.edge_mm:.0f} um, as far as the ground around it allows (another "
+               "rasteriser, toner)")
     suspect = bool(why) or (g > 1 and background == "separable" and (
         ratio > cfg.unreliable_bg_residual_separable
         or ring_shift > max(cfg.unreliable_ink_shift_mm, cfg.unreliable_noise_sigmas * ring_sd)))
@@ -724,26 +729,60 @@ def _pen_over_print(F, contrast, X, Y, c0, r_dot: float, r_win: float, step: flo
     return cc, win, cover
 
 
-def _edge_shift(Sg, bg, sharp, D, X, Y, c, cc, r_dot, r_win, step, blur_mm,
-                cfg: DotConfig) -> float:
-    """How far the centre moves when the print's edges are ``cfg.printed_edge_mm`` from
-    where the layout puts them (its ink grown or thinned: another rasteriser of the same
-    PDF, toner, a font drawn by other code): the sharp print grown or thinned by that much,
-    the blurred print moved with it (the fitted blur). The print is not known that well
-    and its fit around the dot cannot tell it (the model's own misfit there is larger than
-    what such a move changes), so a centre that depends on it that much is unreliable (issue
-    28 section 4: on photos of a rendering of the project's PDF, a mark on a bar's edge
-    35 um off and marks on letters and numbers 40-60 um off, none flagged)."""
+def _edge_shift(Sg, bg, sharp, D, X, Y, c, cc, r_dot, r_win, step, blur_mm, noise: float,
+                px_per_step: float, cfg: DotConfig) -> tuple[float, float]:
+    """(shift, edge) mm: how far the centre moves when the print's edges move as far as the
+    photo allows (``edge``), at most ``cfg.printed_edge_mm`` from where the layout puts
+    them (its ink grown or thinned: another rasteriser of the same PDF, toner, a font drawn
+    by other code).
+
+    For each side (grown, thinned by ``printed_edge_mm``) the centre's move ``d`` (the sharp
+    print moved, the blurred print moved with it at the fitted blur) and the photo's say on
+    it: the ground around the dot (outside the window) fitted with the moved print and with
+    the print as laid out, each at its best blur of
+    :data:`vision_cal.measure.printed.BLUR_CANDIDATES_PX` and level (a blur and a contrast
+    can stand for a grown stroke), the moved print's excess residual ``chi2`` over the
+    variance (the residual's level, at least the photo's noise, over the samples a pixel
+    holds). The edges may move the fraction ``sqrt(cfg.printed_edge_chi2 / chi2)`` of the
+    way there (at most all of it: the residual grows with the square of a small move), and
+    the centre moves that fraction of ``d``. A centre that moves more than
+    ``unreliable_ink_shift_mm`` so is unreliable: print under the pen that the ground
+    around it does not pin (issue 28 section 4: on photos of a rendering of the project's
+    PDF, a mark on a bar's edge 35 um off and marks on letters and numbers 40-60 um off,
+    none flagged before any edge move was counted; the sheet's own raster's marks on text
+    2-13 um off, all flagged with every move counted whole, though the ground there fits
+    no other edges)."""
     n = max(1, int(round(cfg.printed_edge_mm / step)))
     size = (2 * n + 1, 2 * n + 1)
-    out = 0.0
+    ring = np.hypot(X - c[0], Y - c[1]) > r_win
+    y = Sg[ring].astype(float)
+    A1 = np.ones(len(y))
+    mm_px = px_per_step * step
+
+    def misfit(s_):   # the ground's least residual with the sharp print s_, any blur
+        best = np.inf
+        for k in BLUR_CANDIDATES_PX:
+            m = gaussian_filter(s_, k * mm_px / step, mode="nearest")[ring]
+            A = np.column_stack([A1, m])
+            coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+            best = min(best, float(np.sum((y - A @ coef) ** 2)))
+        return best
+
+    ss0 = misfit(sharp)
+    var = max(float(noise) ** 2, ss0 / max(len(y), 1)) * px_per_step ** 2
+    shift = edge = 0.0
     for op in (grey_erosion, grey_dilation):
         sharp_e = op(sharp, size=size)
-        bg_e = bg + gaussian_filter(sharp_e - sharp, blur_mm / step, mode="nearest")
-        alt = _pen_over_print(bg_e - Sg, sharp_e - D, X, Y, c, r_dot, r_win, step)
-        if alt is not None:
-            out = max(out, float(np.hypot(*(alt[0] - cc))))
-    return out
+        moved = gaussian_filter(sharp_e - sharp, blur_mm / step, mode="nearest")
+        alt = _pen_over_print(bg + moved - Sg, sharp_e - D, X, Y, c, r_dot, r_win, step)
+        if alt is None:
+            continue
+        d = float(np.hypot(*(alt[0] - cc)))
+        chi2 = max(misfit(sharp_e) - ss0, 0.0) / var
+        reach = float(min(1.0, np.sqrt(cfg.printed_edge_chi2 / max(chi2, 1e-12))))
+        if reach * d > shift:
+            shift, edge = reach * d, reach * cfg.printed_edge_mm
+    return shift, edge
 
 
 def _printed_background(S, origin, mapping: SheetMapping, c, half, step, Sg, bgmask, printed,
