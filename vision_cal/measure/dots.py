@@ -46,7 +46,7 @@ from vision_cal.model.rms import rms
 
 
 
-def _radii_mm(dia_mm: float, mm_per_px: float) -> tuple[float, float]:
+def radii_mm(dia_mm: float, mm_per_px: float) -> tuple[float, float]:
     """(r_window, half_patch) in mm for a dot of ``dia_mm`` seen at ``mm_per_px``."""
     r_win = 0.5 * dia_mm * 1.2 + 2.5 * mm_per_px
     return r_win, r_win + max(0.8, 3.0 * mm_per_px)
@@ -271,7 +271,7 @@ def _cut_patch(rgb: np.ndarray, uv, J, det: float, dia: float):
     :func:`refine_dot`'s window, or the reason it cannot be cut."""
     H, W = rgb.shape[:2]
     mm_px = float(np.sqrt(det))
-    _, half_mm = _radii_mm(dia, mm_px)
+    _, half_mm = radii_mm(dia, mm_px)
     smax = float(np.linalg.svd(J, compute_uv=False).min())  # mm per px, smallest
     hp = int(np.ceil(1.15 * half_mm / max(smax, 1e-6))) + 3
     cu, cv_ = int(round(uv[0])), int(round(uv[1]))
@@ -425,7 +425,7 @@ def _refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm,
     S = channel_sum(patch_rgb)
     c = np.asarray(xy0_mm, float).reshape(2)
     mm_px = float(mapping.mm_per_px(c)[0])
-    r_win, half = _radii_mm(o.dia, mm_px)
+    r_win, half = radii_mm(o.dia, mm_px)
     step = min(cfg.fine_step_mm, mm_px / 4)
     under = [] if o.printed is None else o.printed.content_near(c, half + 0.5)
     gr = None

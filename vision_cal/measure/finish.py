@@ -17,7 +17,7 @@ from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.session import Session
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.detect import detect_image
-from vision_cal.measure.dots import _radii_mm, blank_regions, ground_scale, refine_dot
+from vision_cal.measure.dots import blank_regions, ground_scale, radii_mm, refine_dot
 from vision_cal.measure.grid import grid_offset
 from vision_cal.measure.grid_declaration import misdeclared_grid
 from vision_cal.measure.height import camera_centre_mm
@@ -144,7 +144,7 @@ def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank, 
     """The printed grid's offset around candidate ``k`` (None: not usable)."""
     if k >= len(det.grid_patches):
         return None
-    r_win, _ = _radii_mm(float(dia), float(mapping.mm_per_px(xy_mm)[0]))
+    r_win, _ = radii_mm(float(dia), float(mapping.mm_per_px(xy_mm)[0]))
     return grid_offset(det.grid_patches[k], det.grid_origins[k], mapping, xy_mm, grid,
                        exclude_r_mm=r_win, blank_rects=blank, dot_dia_mm=dia,
                        dots=config.dots, config=config.grid)
