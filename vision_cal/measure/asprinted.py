@@ -77,6 +77,11 @@ class AsPrinted:
     notes: tuple[str, ...] = field(default=())
     heights_mm: np.ndarray | None = None
     height_std_mm: np.ndarray | None = None
+    #: (2 M 4, 2 M 4) the corners' joint covariance in the gauge (x, y of each corner, in
+    #: ``printed_mm``'s order; zero where not released); not written (``field`` is)
+    corner_cov_mm2: np.ndarray | None = None
+    #: a ``field`` block read from a file (used when ``corner_cov_mm2`` is None)
+    field_read: dict | None = None
 
     # ------------------------------------------------------------------ figures
     @property
@@ -131,6 +136,27 @@ class AsPrinted:
         s = self.std_mm[self.released]
         return float(np.sqrt(np.mean(np.sum(s**2, axis=1)))) if len(s) else float("nan")
 
+    @property
+    def field(self) -> dict | None:
+        """What the layout's uncertainty does to every photo's mapping, hence to the marks:
+        the corners' joint covariance (``corner_cov_mm2``, in the gauge) projected on the
+        displacement fields a mapping takes (:func:`field_basis`, a homography's 8): a mark
+        at ``p`` is off by ``B(p) c`` with ``c`` of covariance ``cov_mm2``, the same ``c``
+        for every mark (the marks near each other share it: it does not average down over
+        marks as their own noise does). None without the joint covariance (a layout read
+        from a file written before it was kept)."""
+        if self.corner_cov_mm2 is None or not self.released.any():
+            return self.field_read
+        rel = self.released.ravel()
+        P = self.declared_mm.reshape(-1, 2)
+        centre = P[rel].mean(axis=0)
+        scale = float(np.abs(P[rel] - centre).max())
+        rc = np.column_stack([2 * np.flatnonzero(rel), 2 * np.flatnonzero(rel) + 1]).ravel()
+        L = np.linalg.pinv(field_basis(P[rel], centre, scale))
+        C = np.asarray(self.corner_cov_mm2, float)[np.ix_(rc, rc)]
+        return {"basis": "homography", "centre_mm": centre.tolist(), "scale_mm": scale,
+                "cov_mm2": (L @ C @ L.T).tolist()}
+
     def corners_for(self, ids, declared_mm) -> np.ndarray:
         """The printed corners of markers ``ids`` (their declared ``declared_mm`` where this
         layout does not know them)."""
@@ -147,7 +173,8 @@ class AsPrinted:
         """measurement.json / survey.json ``as_printed`` (docs/format.md)."""
         return {
             "source": self.source,
-            "gauge": "best-fitting similarity to the declared layout = identity",
+            "gauge": "best-fitting similarity to the declared layout, each marker's growth "
+                     "aside, = identity",
             "rms_mm": self.rms_mm, "max_mm": self.max_mm, "growth_mm": self.growth_mm,
             "field_rms_mm": self.field_rms_mm, "unresolved_mm": self.unresolved_mm,
             "height_rms_mm": self.height_rms_mm,
@@ -166,6 +193,7 @@ class AsPrinted:
                             self.ids, self.printed_mm, self.declared_mm, self.std_mm,
                             self.released))],
             "notes": list(self.notes),
+            "field": self.field,
         }
 
     @classmethod
@@ -186,7 +214,8 @@ class AsPrinted:
                    tuple(d.get("notes") or ()),
                    *((np.array([m["height_mm"] for m in ms], float).reshape(-1, 4),
                       np.array([m["height_std_mm"] for m in ms], float).reshape(-1, 4))
-                     if ms and all("height_mm" in m for m in ms) else (None, None)))
+                     if ms and all("height_mm" in m for m in ms) else (None, None)),
+                   None, d.get("field"))
 
 
 # ---------------------------------------------------------------------- projection
@@ -213,6 +242,37 @@ def _similarity(p: np.ndarray, d: np.ndarray) -> np.ndarray:
     A[0::2, 2], A[0::2, 3] = p[:, 0], -p[:, 1]
     A[1::2, 2], A[1::2, 3] = p[:, 1], p[:, 0]
     return np.linalg.lstsq(A, d.reshape(-1), rcond=None)[0]
+
+
+def _gauge_matrix(p: np.ndarray, marker: np.ndarray, growth_sign: np.ndarray) -> np.ndarray:
+    """(4, 2N): the small similarity (tx, ty, a, b) of displacements at corners ``p`` (N, 2),
+    each marker's growth aside (``marker`` (N,) its index, ``growth_sign`` (N, 2) the
+    corner's direction from its marker's centre): toner grows every black square, which
+    is no shift, turn or scale of the layout (fitted on the corners alone, a 0.06 mm growth
+    of 30 mm markers read as a 3.5e-5 scale of the whole sheet: the links 0.012 mm short)."""
+    A = np.zeros((2 * len(p), 4))
+    A[0::2, 0] = A[1::2, 1] = 1.0
+    A[0::2, 2], A[0::2, 3] = p[:, 0], -p[:, 1]
+    A[1::2, 2], A[1::2, 3] = p[:, 1], p[:, 0]
+    _, m = np.unique(marker, return_inverse=True)
+    G = np.zeros((2 * len(p), m.max() + 1 if len(m) else 0))
+    G[0::2][np.arange(len(p)), m] = growth_sign[:, 0]
+    G[1::2][np.arange(len(p)), m] = growth_sign[:, 1]
+    return np.linalg.pinv(np.hstack([A, G]))[:4]
+
+
+def field_basis(p: np.ndarray, centre, scale: float) -> np.ndarray:
+    """(2N, 8): the displacement fields a sheet mapping (a homography) can take, at points
+    ``p`` (N, 2): shift (2), the linear part (4), the perspective terms (2), in
+    ``(p - centre) / scale``; rows x0, y0, x1, y1, ... (mm per unit coefficient)."""
+    u = (np.asarray(p, float).reshape(-1, 2) - np.asarray(centre, float)) / float(scale)
+    B = np.zeros((2 * len(u), 8))
+    B[0::2, 0] = B[1::2, 1] = 1.0
+    B[0::2, 2], B[0::2, 3] = u[:, 0], u[:, 1]
+    B[1::2, 4], B[1::2, 5] = u[:, 0], u[:, 1]
+    B[0::2, 6], B[0::2, 7] = u[:, 0] ** 2, u[:, 0] * u[:, 1]
+    B[1::2, 6], B[1::2, 7] = u[:, 0] * u[:, 1], u[:, 1] ** 2
+    return B
 
 
 def _apply_similarity(s, p):
@@ -409,6 +469,9 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
     std = np.zeros_like(P0)
     hstd = np.zeros(len(P0))
     plane = np.column_stack([np.ones(len(rel_idx)), P0[rel_idx]])   # the heights' gauge
+    marker = rel_idx // 4
+    centres = declared.mean(axis=1)
+    gauge = _gauge_matrix(P0[rel_idx], marker, np.sign(P0[rel_idx] - centres[marker]))
     try:
         cov3 = s2 * np.linalg.inv(J.T @ J)[n_lens + n_pose:, n_lens + n_pose:]
         inplane = (np.arange(n_delta) % nd) < 2
@@ -417,18 +480,22 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
             Qh = np.eye(len(plane)) - plane @ np.linalg.pinv(plane)
             ch = cov3[np.ix_(~inplane, ~inplane)]
             hstd[rel_idx] = np.sqrt(np.clip(np.diag(Qh @ ch @ Qh.T), 0, None))
-        # in the gauge: the deviations less their best-fitting similarity
+        # in the gauge: the deviations less their best-fitting similarity (growth aside)
         pr = P0[rel_idx]
         A = np.zeros((2 * len(pr), 4))
         A[0::2, 0] = A[1::2, 1] = 1.0
         A[0::2, 2], A[0::2, 3] = pr[:, 0], -pr[:, 1]
         A[1::2, 2], A[1::2, 3] = pr[:, 1], pr[:, 0]
-        Q = np.eye(len(A)) - A @ np.linalg.pinv(A)
+        Q = np.eye(len(A)) - A @ gauge
         cov = Q @ cov @ Q.T
         std[rel_idx] = np.sqrt(np.clip(np.diag(cov), 0, None)).reshape(-1, 2)
+        full = np.zeros((2 * len(P0), 2 * len(P0)))
+        rc = np.column_stack([2 * rel_idx, 2 * rel_idx + 1]).ravel()
+        full[np.ix_(rc, rc)] = cov
     except np.linalg.LinAlgError:
         std[rel_idx] = np.nan
         hstd[rel_idx] = np.nan
+        full = None
     # the gauge: no similarity between the printed and the declared layout; no plane
     # between the heights and the paper's
     heights = np.zeros(len(P0))
@@ -436,7 +503,7 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
         h = delta[rel_idx, 2]
         heights[rel_idx] = h - plane @ np.linalg.lstsq(plane, h, rcond=None)[0]
     delta = delta[:, :2]
-    sim = _similarity(P0[rel_idx], delta[rel_idx]) if len(rel_idx) >= 3 else np.zeros(4)
+    sim = gauge @ delta[rel_idx].ravel() if len(rel_idx) >= 3 else np.zeros(4)
     delta[rel_idx] -= _apply_similarity(sim, P0[rel_idx])
     Kf, df = _lens_matrices(lens)
     notes = []
@@ -447,4 +514,4 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
                      bool(lens_free), tuple(v[0] for v in views), rms_before, rms_after,
                      n_places, source, tuple(notes),
                      heights.reshape(-1, 4) if nd == 3 else None,
-                     hstd.reshape(-1, 4) if nd == 3 else None)
+                     hstd.reshape(-1, 4) if nd == 3 else None, full)
