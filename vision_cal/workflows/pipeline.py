@@ -327,7 +327,6 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
         diag = traced.diagnosis
     diag = _print_shared(diag, cal, measurement)
     fb, ff = diag.base_fit, diag.final_fit
-    final_model = ff.model
     has_val = len(val.ids) >= 3
     vb = rms_2d(val.xy_mm - fb.predict(val.q_model, val.approach_model)) if has_val else diag.heldout_base_mm
     vf = rms_2d(val.xy_mm - ff.predict(val.q_model, val.approach_model)) if has_val else diag.heldout_final_mm
@@ -390,7 +389,7 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
     pm = paper_method(cal.q_deg, cal.xy_mm) if not base_effects else None
     if pm:
         doc["circles"] = {"base": pm.circle_base.to_json(), "elbow": pm.circle_elbow.to_json()}
-    return _Fitted(doc, final_model, residual_all, residual_base, diagnosis=diag)
+    return _Fitted(doc, ff.model, residual_all, residual_base, diagnosis=diag)
 
 
 def _print_shared(diag: Diagnosis, cal: MarkData, measurement) -> Diagnosis:
