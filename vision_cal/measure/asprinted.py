@@ -9,9 +9,16 @@ Hirzinger 2011) and mrcal's board deformation do.
 
 The gauge. Moving the whole layout by a similarity (shift, turn, scale) and every camera
 with it leaves every photo the same, so the views cannot see it. It is fixed as the
-contract's frame is: the as-printed layout's best-fitting similarity to the declared one is
-the identity (the sheet frame stays the declared one on average, the overall scale the
-declared one; the printer's overall scale is the bars' business, ``printed_scale``).
+contract's frame is: the as-printed layout's best-fitting similarity to the declared one,
+each marker's growth (toner) fitted beside it, is the identity (the sheet frame stays the
+declared one on average, the overall scale the declared one; the printer's overall scale
+is the bars' business, ``printed_scale``; a marker's growth is no scale of the sheet).
+
+What the layout's uncertainty does to the marks is not independent from mark to mark:
+every photo's mapping is fitted to the corners, so the marks share it. ``field`` is the
+corners' joint covariance projected on the displacement fields a mapping can take
+(:func:`field_basis`); the calibration carries it into the parameters' covariance
+(``vision_cal.model.lsq.Fit.with_shared_error``).
 
 Model. Marker corner ``c`` of the declared layout (``P_c``, sheet mm, z = 0) is printed at
 ``P_c + delta_c``; photo ``v`` sees it at ``project(K, dist, R_v, t_v, P_c + delta_c)``
