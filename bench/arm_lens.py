@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from vision_cal.camera.arm import ArmView, check_declared_lens, estimate_lens, fit_arm_camera
-from vision_cal.workflows.arm_session import _reasons
+from vision_cal.workflows.arm_session import undetermined_reasons
 from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.render import arm_camera as world
@@ -91,7 +91,7 @@ def run(case, seed, tilt, n=24):
                          corner_sigma_px=chk.corner_sigma_px if chk else None)
     v = judge_camera_poses(fit.flange_residual_mm, fit.flange_sigma_mm, fit.flange_heldout_mm,
                            n_params=fit.n_params_xy, repeatability_mm=0.01,
-                           reasons=_reasons(fit, "flange") + extra)
+                           reasons=undetermined_reasons(fit, "flange") + extra)
     z = fit.T_flange_camera[2, 3]
     zs = float(np.hypot(fit.std[11], z * f_sd / Kd[0, 0]))   # as handeye: f's std in z
     print(f"{case:8s} seed {seed}: {v.status:12s} floor x{v.residual_over_floor:.2f} "

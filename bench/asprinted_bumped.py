@@ -30,6 +30,9 @@ sys.path.insert(0, str(ROOT))
 
 
 def main(folders: list[str]) -> int:
+    if not folders or {"-h", "--help"} & set(folders):   # the usage, not a run of minutes
+        print(__doc__)
+        return 0
     from vision_cal.config import DEFAULT
     from vision_cal.dataset.session import load_session
     from vision_cal.workflows.measure_folder import measure_folder

@@ -270,7 +270,7 @@ def poses_needed(target_mm: float = 0.02) -> None:
     from vision_cal.camera.arm import fit_arm_camera
     from vision_cal.model.kinematics import jacobian
 
-    print(f"arm camera: predicted flange std (per axis, RMS over the sheet) vs poses")
+    print("arm camera: predicted flange std (per axis, RMS over the sheet) vs poses")
     grid = np.array([[a, b] for a in np.linspace(-60, 60, 7) for b in np.linspace(-140, 140, 8)
                      if abs(b) > 20])
     found = None

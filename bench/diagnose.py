@@ -123,8 +123,6 @@ def render_grid(seeds: int, width: int, only: str | None = None) -> None:
             lens = [e for e in doc["effects"] if e["name"] == "lens_distortion"]
             mark_rms.append(doc["truth_comparison"].get("mark_rms_mm", np.nan))
             p = doc["params"]
-            from vision_cal.model.kinematics import ScaraParams
-
             fitted = ScaraParams.from_json(p)
             truth_p = sc.robot.truth
             base_ok = (abs(fitted.L1_mm - truth_p.L1_mm) < 0.05 and

@@ -20,7 +20,8 @@ cache: measure, fit, diagnosis, calibration.json) of the demo's 38 photos
 (renders/default.yaml, rendered once into DIR, default /tmp/vision-cal-bench-whole) against
 plain OpenCV decode + detectMarkers of the same photos, timed before and after it in the
 same process: the ratio (goal <= 1.5), where the rest goes (measuring, fit + diagnosis),
-and the fit + diagnosis per mark, also as a ratio to plain decode + detect per photo.
+and the fit + diagnosis per mark, also as a ratio to plain decode + detect per photo, and
+the dots refined per mark (issue 33: linear in photos and marks).
 
 ``--printed [--seeds N]``: instead, marks on every kind of printed content of the sheet's
 own raster (A4, 254 dpi; the photos of ``tests/measure/test_printed_ink.py`` at views and
@@ -233,6 +234,10 @@ def whole_run(folder: Path) -> None:
     print(f"  CPU: measure {spent['measure']:.1f} s = {spent['measure'] / plain_cpu:.2f}x "
           f"plain, fit + diagnosis {spent['fit + diagnosis']:.2f} s = "
           f"{spent['fit + diagnosis'] / plain_cpu:.3f}x, the rest {rest:.2f} s")
+    views = sum(int(m.get("n_photos", 0)) for m in run.document.get("marks", {}).values())
+    print(f"dots refined {views} over {len(files)} photos and {n_marks} marks = "
+          f"{views / max(n_marks, 1):.1f} per mark (config dots.views_per_dot: linear in "
+          "marks, however many photos show each)")
     per_mark = spent["fit + diagnosis"] / max(n_marks, 1)
     print(f"fit + diagnosis per mark {1e3 * per_mark:.1f} ms CPU = "
           f"{per_mark / (plain_cpu / len(files)):.3f}x plain decode + detect per photo")

@@ -195,6 +195,9 @@ def world_table(seeds) -> int:
 
 
 def main() -> int:
+    if {"-h", "--help"} & set(sys.argv[1:]):   # the usage, not a run of minutes
+        print(__doc__)
+        return 0
     if "--fixture" in sys.argv:
         return fixture_table()
     spec = sys.argv[sys.argv.index("--seeds") + 1] if "--seeds" in sys.argv else "41-42"

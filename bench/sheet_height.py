@@ -108,6 +108,9 @@ def false_claims(seeds, only: str | None = None) -> int:
 
 
 def main() -> int:
+    if {"-h", "--help"} & set(sys.argv[1:]):   # the usage, not a run of minutes
+        print(__doc__)
+        return 0
     if sys.argv[1:2] == ["--false-claims"]:
         spec = sys.argv[sys.argv.index("--seeds") + 1] if "--seeds" in sys.argv else "301-310"
         lo, hi = (int(v) for v in spec.split("-"))

@@ -11,6 +11,7 @@ tracking/settling figures of both controllers.
 
 from __future__ import annotations
 
+import sys
 import time
 
 import numpy as np
@@ -49,6 +50,9 @@ def best_of(f, n=3):
 
 
 def main():
+    if {"-h", "--help"} & set(sys.argv[1:]):   # the usage, not a run of minutes
+        print(__doc__)
+        return
     t_plan, plan = best_of(lambda: informative_plan(NOMINAL, a2_sheet(), rng=0), 3)
     band = (0.1, 0.05)
     t_smc, smc = best_of(lambda: simulate_plan(plan, backlash_deg=band, controller="smc"), 3)

@@ -35,17 +35,6 @@ COMMANDS_EXCEPT = {
 #: the modules of actions/ and commands/ that may call print(): the console, and main's
 #: one line per error
 PRINTS = {"vision_cal.actions.console", "vision_cal.commands.main"}
-#: actions that still print their own results (an exit code, not an outcome); each is to
-#: return a typed outcome that actions/console.py prints, and leaves this set when it does
-PRINTS_PENDING = {
-    "vision_cal.actions.calibrate":
-        "pending, issue 31: prints each folder's result as it is done (several folders take "
-        "minutes each), so its outcome is to reach the console per folder (a callback), and "
-        "--joint's document is being retyped (placements.py)",
-    "vision_cal.actions.handeye":
-        "pending, issue 31: its calibration.json (the document it prints from) is being "
-        "retyped by another change",
-}
 
 
 def modules(package: Path = PACKAGE) -> dict[str, Path]:
@@ -206,12 +195,12 @@ def test_commands_only_parse_and_call_an_action(graph):
 
 
 def test_results_are_printed_in_one_place():
-    """Only actions/console.py (and main's error line) print; an action still printing is
-    listed as pending, and leaves the list when it returns an outcome instead."""
+    """Only actions/console.py (and main's error line) print: every action returns a typed
+    outcome that the console prints (a long one tells each step's outcome to a callback
+    the command gives, as ``calibrate`` does per folder)."""
     printing = printing_modules()
     assert "vision_cal.actions.console" in printing
-    assert printing - PRINTS - set(PRINTS_PENDING) == set()
-    assert set(PRINTS_PENDING) - printing == set(), "prints no more: remove from PRINTS_PENDING"
+    assert printing - PRINTS == set()
 
 
 def test_the_command_checks_see_what_they_guard(tmp_path):
@@ -259,15 +248,6 @@ MAX_FUNCTION_LINES = 100
 #: functions over the limit in files other engineers are editing now; each is split (or
 #: given its reason) by issue 31, and leaves this set when it is
 LONG_PENDING = {
-    "vision_cal.actions.calibrate.calibrate": "split pending, issue 31",
-    "vision_cal.actions.plan.plan": "split pending, issue 31",
-    "vision_cal.camera.pose_pairs.fit_pose_pairs": "split pending, issue 31",
-    "vision_cal.measure.asprinted.estimate_as_printed": "split pending, issue 31",
-    "vision_cal.workflows.loop.run_loop": "split pending, issue 31",
-    "vision_cal.measure.dots.find_candidates": "split pending, issue 31",
-    "vision_cal.measure.dots._refine_dot": "split pending, issue 31",
-    "vision_cal.render.dataset.render_dataset": "split pending, issue 31",
-    "vision_cal.report.html.render_html": "split pending, issue 31",
 }
 #: the reason's mark: a sentence of the docstring beginning with these words
 LONG_REASON = re.compile(r"(?:^|[.!?:;]\s+|\n\s*)Long because\b")

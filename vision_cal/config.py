@@ -102,6 +102,15 @@ class DotConfig:
                                       # resolution: issue 28)
     ground_quantile: float = 0.25     # that quantile: ink under up to 3/4 of the dots (a
                                       # sheet nobody describes) does not raise it
+    views_per_dot: int = 5            # a dot is refined in its first this many photos (capture
+                                      # order) where it was measured reliably; later photos keep
+                                      # it only as seen (grouping, which marks a photo shows, a
+                                      # photo moved as a whole): the finish stage linear in
+                                      # photos and marks, not their product. Past a few views a
+                                      # mark's std hardly falls (association.common_fraction
+                                      # of each view's error is common to them all: 5 views
+                                      # give 0.60 of one view's variance, 38 give 0.51). 0:
+                                      # every photo (issue 33)
 
 
 @dataclass(frozen=True)

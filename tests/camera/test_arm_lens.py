@@ -12,7 +12,7 @@ import pytest
 
 from tests.camera.test_arm import NOMINAL, TRUTH, _field, _plan
 from vision_cal.camera.arm import ArmView, check_declared_lens, fit_arm_camera
-from vision_cal.workflows.arm_session import _reasons
+from vision_cal.workflows.arm_session import undetermined_reasons
 from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.render import arm_camera as world
 
@@ -52,7 +52,7 @@ def _judge(views, Kd, dd):
     fit = fit_arm_camera(views, Kd, dd, NOMINAL, corner_sigma_px=chk.corner_sigma_px)
     v = judge_camera_poses(fit.flange_residual_mm, fit.flange_sigma_mm, fit.flange_heldout_mm,
                            n_params=fit.n_params_xy, repeatability_mm=0.01,
-                           reasons=_reasons(fit, "flange") + list(chk.reasons))
+                           reasons=undetermined_reasons(fit, "flange") + list(chk.reasons))
     return chk, fit, v
 
 

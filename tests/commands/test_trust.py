@@ -5,11 +5,9 @@ file that lies."""
 
 from __future__ import annotations
 
-import copy
 import errno
 import hashlib
 import json
-import math
 import shutil
 from pathlib import Path
 

@@ -19,6 +19,7 @@ import yaml
 
 from vision_cal.commands.main import main
 from vision_cal.dataset import valid_for as vf_mod
+from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.trust import require_ready_pilot
 from vision_cal.diagnose.verdict import judge
 from vision_cal.errors import VisionCalError
@@ -106,10 +107,11 @@ def test_a_pilot_that_cannot_identify_backlash_is_never_ready(paper):
     assert not any("not identified" in r for r in judge(paper, stage="pilot").reasons)
     # design --pilot: ready inside valid_for is accepted, a plain "check" is not
     ok = {"verdict": {"status": "check", "within_valid_for": "ready", "reasons": ["x"]}}
-    require_ready_pilot(ok, "pilot.json")
+    require_ready_pilot(CalibrationResult.from_json(ok), "pilot.json")
     with pytest.raises(VisionCalError, match="verdict.status"):
-        require_ready_pilot({"verdict": {"status": "check", "within_valid_for": "check",
-                                         "reasons": ["x"]}}, "pilot.json")
+        require_ready_pilot(CalibrationResult.from_json(
+            {"verdict": {"status": "check", "within_valid_for": "check", "reasons": ["x"]}}),
+            "pilot.json")
 
 
 # --------------------------------------------------------------------------- plan

@@ -3,7 +3,6 @@ line naming the photos and what was seen, nothing calibrated."""
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from tests.measure import synth_measure as sm

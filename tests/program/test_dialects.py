@@ -178,7 +178,7 @@ def parse_tp(text):
                          rf"\tJ3={NUM} mm,\n\tJ4={NUM}deg\n\}};", pos):
         points[int(m[1])] = tuple(float(v) for v in m.groups()[1:])
     assert len(points) == pos.count("P["), "a /POS entry the parser does not read"
-    ops, tool, n = [], None, 0
+    ops, tool = [], None
     body = mn.strip("\n").split("\n")
     count = int(re.search(r"LINE_COUNT\t= (\d+);", attr)[1])
     assert len(body) == count

@@ -7,7 +7,6 @@ from __future__ import annotations
 import csv
 import shutil
 
-import numpy as np
 import pytest
 
 from tests.commands.test_trust import (ROOT, TARGETS, assert_one_line, calibration,  # noqa: F401

@@ -107,7 +107,7 @@ def test_incremental_texture_equals_a_fresh_one():
                        grid=(3, 2), margin_mm=8.0)
     xy = np.array([[-20.0, 5.0], [10.0, -3.0], [33.3, 12.7], [-45.0, -30.0]])
     d = np.array([1.2, 1.5, 1.0, 1.2])
-    tex = ds._Textures(sheet, xy, d, px_per_mm=4.0, seed=11)
+    tex = ds.Textures(sheet, xy, d, px_per_mm=4.0, seed=11)
     for k in (0, 1, 3, 4):
         want = sheet_texture(sheet, marks_xy_mm=xy[:k], mark_diameters_mm=d[:k], px_per_mm=4.0,
                              rng=np.random.default_rng(11))
@@ -128,7 +128,7 @@ def test_textures_built_once_equal_two_builds():
                                                       rng=np.random.default_rng(5)))
     assert np.any(full != bare)
     # the shared mark-free texture is never patched by the photos that use it
-    tex = ds._Textures(sheet, xy, np.full(3, 1.2), px_per_mm=4.0, seed=5, built=(full, bare))
+    tex = ds.Textures(sheet, xy, np.full(3, 1.2), px_per_mm=4.0, seed=5, built=(full, bare))
     tex.add_marks(3)
     np.testing.assert_array_equal(tex.current, full)
     assert np.any(bare != full)
@@ -228,9 +228,11 @@ def test_paper_plan_scene(tmp_path):
 
 def test_cli_render(tmp_path, monkeypatch, capsys):
     from vision_cal.commands.main import main
-    from vision_cal.render import photo
 
-    monkeypatch.setattr(photo, "Photographer", lambda **kw: _Flat())
+    # render_dataset looks Photographer up in its own module (imported by name from
+    # render.photo): patching render.photo would leave the real pyrender one in place
+    built = []
+    monkeypatch.setattr(ds, "Photographer", lambda **kw: built.append(kw) or _Flat())
     out = tmp_path / "cli"
     rc = main(["render", str(RENDERS / "small.yaml"), "--out", str(out), "--seed", "5",
                "--mode", "single", "-q"])
@@ -238,6 +240,7 @@ def test_cli_render(tmp_path, monkeypatch, capsys):
     assert capsys.readouterr().out.strip() == str(out.absolute())
     assert _read(out, "truth.json")["seed"] == 5
     assert len(load_session(out).images) == 1
+    assert len(built) == 1  # the stand-in, not pyrender, took the photo
     rc = main(["render", str(tmp_path / "nope.yaml"), "--out", str(out)])
     assert rc == 2
     assert "nope.yaml" in capsys.readouterr().err

@@ -236,3 +236,74 @@ def test_colour_only_read_back_is_pyrenders_own(photographer, small_sheet, full_
     assert depth is not None and depth.shape == full.shape[:2]
     w, h = photographer.size_px
     np.testing.assert_array_equal(fast, cv2.resize(full, (w, h), interpolation=cv2.INTER_AREA))
+
+
+def test_shadow_window_is_the_whole_resize_where_a_shadow_shows():
+    """The shadow mask resized in its window only: the same values as the whole image's
+    resize there, and below the visible level everywhere else."""
+    from vision_cal.render.photo import SHADOW_VISIBLE, _shadow_window
+
+    q, hs, ws = 4, 96, 160
+    for blob, sigma in (((10, 17), 1.5), ((0, 0), 2.0), ((23, 39), 0.8)):
+        small = np.zeros((hs // q, ws // q), np.float32)
+        small[blob] = 1.0
+        small = cv2.GaussianBlur(small, (0, 0), sigma)
+        whole = cv2.resize(small, (ws, hs), interpolation=cv2.INTER_LINEAR)
+        (r0, r1, c0, c1), part = _shadow_window(small, hs, ws, q)
+        assert r1 - r0 < hs or c1 - c0 < ws                  # a window, not the image
+        np.testing.assert_array_equal(part, whole[r0:r1, c0:c1])
+        outside = whole.copy()
+        outside[r0:r1, c0:c1] = 0.0
+        assert outside.max() < SHADOW_VISIBLE
+    assert _shadow_window(np.zeros((24, 40), np.float32), hs, ws, q) is None
+    # a shadow below the visible level leaves every grey level as it was
+    c = np.arange(256, dtype=np.float32)
+    gain = 1.0 - SHADOW_STRENGTH * np.float32(SHADOW_VISIBLE)
+    np.testing.assert_array_equal(np.rint(c * gain), c)
+    odd = np.ones((25, 40), np.float32)                       # q does not divide 97 rows
+    (r0, r1, c0, c1), part = _shadow_window(odd, 97, ws, q)
+    assert (r0, r1, c0, c1) == (0, 97, 0, ws) and part.shape == (97, ws)
+
+
+def test_depth_window_is_pyrenders_depth(photographer, small_sheet, full_textures):
+    """The shadows' depth, read back in a window, is pyrender's whole depth image there."""
+    import pyrender
+
+    from vision_cal.render.photo import _read_depth_window
+
+    tex, _ = full_textures
+    T = look_at(eye_mm=(20.0, -40.0, 520.0), target_mm=(0.0, 15.0))
+    arm = [((-160.0, 120.0), (-40.0, 30.0), 30.0, 90.0)]
+    photographer.render(tex, extent_mm=small_sheet.extent_mm, T_cam_sheet=T, arm=arm)
+    _, depth = photographer._renderer.render(photographer._scene,
+                                             flags=pyrender.RenderFlags.FLAT)
+    cam = photographer._camera
+    hs, ws = depth.shape
+    for r0, r1, c0, c1 in ((0, hs, 0, ws), (37, 411, 120, 777), (hs - 50, hs, 0, 64)):
+        part = _read_depth_window(photographer._renderer._renderer, r0, r1, c0, c1,
+                                  cam.znear, cam.zfar)
+        np.testing.assert_array_equal(part, depth[r0:r1, c0:c1])
+    assert np.ptp(depth) > 100.0                               # arm, paper and table
+
+
+def test_a_patched_texture_renders_as_a_fresh_upload(photographer, small_sheet,
+                                                     full_textures):
+    """A series photo changes a few texels: only they are uploaded and the mipmaps rebuilt,
+    and the photo is the same, byte for byte, as one from a texture uploaded whole
+    (tilted: the coarser mipmap levels are sampled too)."""
+    full, bare = full_textures
+    T = default_views(small_sheet, n=1, size_px=photographer.size_px, K=photographer.K,
+                      tilt_deg=(35, 35), rng=3)[0]
+    ext = small_sheet.extent_mm
+    patched = bare.copy()
+    patched[200:260, 300:420] = full[200:260, 300:420]
+    assert np.any(patched != bare)
+    photographer.render(bare, extent_mm=ext, T_cam_sheet=T)
+    uploaded = photographer._sheet_texture
+    fast = photographer.render(patched, extent_mm=ext, T_cam_sheet=T)
+    assert photographer._sheet_texture is uploaded               # patched, not re-uploaded
+    photographer.render(bare[:-8], extent_mm=ext, T_cam_sheet=T)  # another shape: a new one
+    fresh = photographer.render(patched, extent_mm=ext, T_cam_sheet=T)
+    assert photographer._sheet_texture is not uploaded
+    np.testing.assert_array_equal(fast, fresh)
+    assert np.any(fast != photographer.render(bare, extent_mm=ext, T_cam_sheet=T))

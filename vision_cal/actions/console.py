@@ -2,7 +2,8 @@
 (stdout; warnings on stderr). ``show(outcome, quiet=...)`` picks the printer by the
 outcome's type and returns the command's exit code. The actions write files and return
 typed outcomes; they print nothing of their results (progress bars and the output folder's
-notices aside)."""
+notices aside). A long action tells each step's outcome as it happens to a callback the
+command points at :func:`show` (``calibrate``: each folder, as soon as it is done)."""
 
 from __future__ import annotations
 
@@ -13,8 +14,11 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:   # the outcomes' modules pull numpy, OpenCV and the renderer
     from vision_cal.actions.arm_camera import ArmCameraOutcome
+    from vision_cal.actions.calibrate import (CalibrateOutcome, FolderCalibrated, FolderFailed,
+                                              JointCalibrated, OutputsNamed, SurveyFound)
     from vision_cal.actions.design import CameraPosesDesigned, PlacementsDesigned, StageDesigned
     from vision_cal.actions.export import ExportOutcome
+    from vision_cal.actions.handeye import HandeyePairsOutcome
     from vision_cal.actions.history import HistoryOutcome
     from vision_cal.actions.init import InitOutcome
     from vision_cal.actions.locate import LocateOutcome
@@ -63,6 +67,60 @@ def arm_camera_lines(o: ArmCameraOutcome) -> list[str]:
     if v.floor_line:
         lines.append(v.floor_line)
     return lines + [v.text, f"wrote {o.path}"]
+
+
+def handeye_pairs_lines(o: HandeyePairsOutcome) -> list[str]:
+    """``vision-cal handeye --poses``: the pairs, the camera's pose with its std, the pairs
+    left out, and the verdict."""
+    # the action that returned ``o`` imported it already
+    from vision_cal.diagnose.verdict import Verdict
+
+    fit, xname = o.fit, o.camera_name
+    t, sd = fit.X[:3, 3], o.document["cameras"][0][f"{xname}_std"]["translation_mm"]
+    lines = [f"{len(fit.ids)} pairs, {len(fit.outliers)} left out; pair scatter "
+             f"{fit.sigma_mm:.3f} mm, {fit.sigma_deg:.3f} deg (one std per axis)",
+             f"{xname}: at {t[0]:.3f} {t[1]:.3f} {t[2]:.3f} mm (std "
+             + ", ".join("not identifiable" if v is None else f"{v:.3f}" for v in sd) + ")"]
+    lines += [f"left out: {r}" for r in fit.outlier_reasons]
+    v = Verdict.from_json(o.document["verdict"])
+    if v.floor_line:
+        lines.append(v.floor_line)
+    return lines + [v.text, f"wrote {o.path}"]
+
+
+def joint_lines(o: JointCalibrated) -> list[str]:
+    """``vision-cal calibrate --joint``: each placement's sheet pose and residual, the
+    effects, each placement's verdict and the robot's."""
+    # the action that returned ``o`` imported it already
+    from vision_cal.diagnose.verdict import Verdict
+
+    doc = o.document
+    lines = [f"{pl['folder']}: sheet at {pl['angle_deg']:.3f} deg, base "
+             f"({pl['base_mm'][0]:.3f}, {pl['base_mm'][1]:.3f}) mm, rms "
+             f"{pl['residual_rms_mm']:.4f} mm" for pl in doc["placements"]]
+    lines.append("effects: " + (", ".join(e["name"] + (f"(joint {e['joint']})"
+                                                       if "joint" in e else "")
+                                          for e in doc["effects"]) or "none"))
+    lines += [f"{pl['folder']}: {Verdict.from_json(pl['verdict']).text}"
+              for pl in doc["placements"]]
+    return lines + [f"verdict: {Verdict.from_json(doc['verdict']).text}"]
+
+
+def summary_table(rows) -> str:
+    """``vision-cal calibrate A/ B/``: one line per folder (summary.json's rows)."""
+    def f(x):
+        return "-" if x is None else f"{x:.4f}"
+
+    lines = [f"{'folder':<28}{'status':<8}{'marks':>6}{'skipped':>8}{'rms [mm]':>10}"
+             f"{'held-out':>10}  effects"]
+    for r in rows:
+        if r["status"] != "ok":
+            lines.append(f"{r['folder'][-28:]:<28}{'failed':<8}  {r['reason']}")
+            continue
+        lines.append(f"{r['folder'][-28:]:<28}{'ok':<8}{r['marks']:>6}{r['skipped_photos']:>8}"
+                     f"{f(r['residual_rms_mm']):>10}{f(r['validation_rms_mm']):>10}  "
+                     f"{', '.join(r['effects']) or 'none'}")
+    return "\n".join(lines)
 
 
 def flange_camera_line(cam: dict) -> str:
@@ -142,6 +200,59 @@ def _print_lines(lines) -> None:
 def _arm_camera(o: ArmCameraOutcome, quiet: bool) -> None:
     if not quiet:
         _print_lines(arm_camera_lines(o))
+
+
+def _handeye_pairs(o: HandeyePairsOutcome, quiet: bool) -> None:
+    if not quiet:
+        _print_lines(handeye_pairs_lines(o))
+
+
+def _outputs_named(o: OutputsNamed, quiet: bool) -> None:
+    if not quiet:
+        print("outputs: " + ", ".join(f"{f} -> {out}" for f, out in o.outputs))
+
+
+def _survey_found(o: SurveyFound, quiet: bool) -> None:
+    if not quiet:
+        print(f"measuring against the sheet as surveyed: {o.path}")
+
+
+def _folder_calibrated(o: FolderCalibrated, quiet: bool) -> None:
+    """The summary, then the photos skipped and what was inferred (stderr), the report and
+    the file written (said even when quiet)."""
+    run = o.run
+    if not quiet:
+        # the action that returned ``o`` imported it already
+        from vision_cal.report.summary import format_summary
+
+        print(format_summary(run.document, reference=run.session.raw.get("reference")))
+    for im in run.document.get("images", []):
+        if im.get("status") != "ok":
+            print(f"vision-cal: warning: {o.folder}/{im['file']}: skipped: {im.get('reason')}",
+                  file=sys.stderr)
+    meas = run.measurement
+    for note in (meas.inferred_notes if meas is not None else ()):  # no images list
+        print(f"vision-cal: warning: {o.folder}: {note}", file=sys.stderr)
+    if o.report is not None:
+        print(f"report: {o.report} ({o.report.stat().st_size / 1e6:.1f} MB)")
+    print(f"wrote {run.out_path}")
+
+
+def _folder_failed(o: FolderFailed, quiet: bool) -> None:
+    print(f"vision-cal: error: {o.folder}: {o.reason}", file=sys.stderr)
+
+
+def _calibrate(o: CalibrateOutcome, quiet: bool) -> int:
+    if o.summary is not None:   # several folders: the table even when quiet
+        print(summary_table(o.rows))
+        print(f"wrote {o.summary}")
+    return 1 if o.failures else 0
+
+
+def _joint(o: JointCalibrated, quiet: bool) -> None:
+    if not quiet:
+        _print_lines(joint_lines(o))
+    print(f"wrote {o.path}")
 
 
 def _verify(o: VerifyOutcome, quiet: bool) -> None:
@@ -338,4 +449,11 @@ PRINTERS = {"vision_cal.actions.arm_camera.ArmCameraOutcome": _arm_camera,
             "vision_cal.actions.design.StageDesigned": _stage,
             "vision_cal.actions.design.PlacementsDesigned": _placements,
             "vision_cal.actions.design.CameraPosesDesigned": _camera_poses,
-            "vision_cal.actions.plan.PlanOutcome": _plan}
+            "vision_cal.actions.plan.PlanOutcome": _plan,
+            "vision_cal.actions.handeye.HandeyePairsOutcome": _handeye_pairs,
+            "vision_cal.actions.calibrate.OutputsNamed": _outputs_named,
+            "vision_cal.actions.calibrate.SurveyFound": _survey_found,
+            "vision_cal.actions.calibrate.FolderCalibrated": _folder_calibrated,
+            "vision_cal.actions.calibrate.FolderFailed": _folder_failed,
+            "vision_cal.actions.calibrate.CalibrateOutcome": _calibrate,
+            "vision_cal.actions.calibrate.JointCalibrated": _joint}

@@ -9,6 +9,7 @@ from pathlib import Path
 from vision_cal.calibrate.plausible import check_links_against
 from vision_cal.camera.arm_design import check_design, design_camera_on_arm
 from vision_cal.dataset.calibration import refuse_robot_frame
+from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.io import read_json, written_together
 from vision_cal.dataset.out_folder import writing_into
 from vision_cal.dataset.photos import list_photos
@@ -110,13 +111,16 @@ def design(req: DesignRequest) -> StageDesigned | PlacementsDesigned | CameraPos
     if req.verify is not None and req.pilot is not None:
         raise VisionCalError("give either --pilot (the informative plan) or --verify (a check "
                              "of a calibration), not both", field="--verify")
-    for given in (req.pilot, req.verify):
-        if given is not None:
-            refuse_robot_frame(read_json(given), given)
-            check_links_against(read_json(given), load_robot_file(req.robot).nominal,
-                                file=given, robot_file=req.robot)
-    if req.pilot:
-        require_ready_pilot(read_json(req.pilot), req.pilot)
+    given = req.pilot if req.pilot is not None else req.verify
+    if given is not None:
+        # read as every reader of calibration.json reads it (the planner's strict reader,
+        # load_calibration, follows in design_stage)
+        cal = CalibrationResult.read(given)
+        refuse_robot_frame(cal, given)
+        check_links_against(cal, load_robot_file(req.robot).nominal, file=given,
+                            robot_file=req.robot)
+        if req.pilot:
+            require_ready_pilot(cal, req.pilot)
     # #28: measured against it; found beside the sheet (the sheet file is never the survey)
     survey = find_survey(req.survey) if req.survey else find_survey(Path(req.sheet).parent)
     if req.survey and survey is None:

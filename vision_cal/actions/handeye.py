@@ -2,11 +2,12 @@
 (:mod:`vision_cal.camera.poses_file`), the fit (:mod:`vision_cal.camera.pose_pairs`), the
 contract's verdict (:func:`vision_cal.diagnose.verdict.judge_camera_poses`, each pair's
 target position standing for a mark) and calibration.json (docs/format.md, "Hand-eye from
-pose pairs")."""
+pose pairs"). Returns what was found; :mod:`vision_cal.actions.console` prints it."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -16,12 +17,26 @@ from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.out_folder import writing_into
 from vision_cal.camera.poses_file import read_poses
-from vision_cal.diagnose.verdict import Verdict, judge_camera_poses
+from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.errors import CalibrationError
 
 #: what X and Y are, by mount (the contract's names)
 NAMES = {"arm": ("T_flange_camera", "T_robot_target", "robot"),
          "fixed": ("T_robot_camera", "T_flange_target", "flange")}
+
+
+@dataclass(frozen=True)
+class HandeyePairsOutcome:
+    """The fit of the pose pairs, the calibration.json written from it, and where."""
+
+    fit: PairsFit
+    document: dict
+    path: Path
+
+    @property
+    def camera_name(self) -> str:
+        """What the fitted X is called (the mount's name of the camera's pose)."""
+        return NAMES[self.fit.mount][0]
 
 
 @dataclass(frozen=True)
@@ -108,8 +123,8 @@ def pairs_document(fit: PairsFit, *, source: str, units: str,
                              "covariance_camera": fit.noise_cov.tolist()}}).to_json()
 
 
-def handeye_pairs(req: HandeyeRequest) -> int:
-    """Read, fit, judge and write ``OUT/calibration.json``; print the summary."""
+def handeye_pairs(req: HandeyeRequest) -> HandeyePairsOutcome:
+    """Read, fit, judge and write ``OUT/calibration.json``."""
     pf = read_poses(req.poses, units=req.units, mount=req.mount, target_z_mm=req.z_mm)
     fit = fit_pose_pairs(list(pf.pairs), pf.mount, z_mm=pf.target_z_mm,
                          config=DEFAULT.handeye)
@@ -121,19 +136,4 @@ def handeye_pairs(req: HandeyeRequest) -> int:
     with writing_into(req.out, command="handeye", inputs=[("--poses", req.poses)],
                       quiet=req.quiet) as out:
         path = atomic_write_json(out / "calibration.json", doc)
-    if not req.quiet:
-        xname = NAMES[fit.mount][0]
-        cam = doc["cameras"][0]
-        t, sd = fit.X[:3, 3], cam[f"{xname}_std"]["translation_mm"]
-        print(f"{len(fit.ids)} pairs, {len(fit.outliers)} left out; pair scatter "
-              f"{fit.sigma_mm:.3f} mm, {fit.sigma_deg:.3f} deg (one std per axis)")
-        print(f"{xname}: at {t[0]:.3f} {t[1]:.3f} {t[2]:.3f} mm (std "
-              + ", ".join("not identifiable" if v is None else f"{v:.3f}" for v in sd) + ")")
-        for r in fit.outlier_reasons:
-            print(f"left out: {r}")
-        v = Verdict.from_json(doc["verdict"])
-        if v.floor_line:
-            print(v.floor_line)
-        print(v.text)
-        print(f"wrote {path}")
-    return 0
+    return HandeyePairsOutcome(fit, doc, path)

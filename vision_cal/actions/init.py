@@ -37,7 +37,7 @@ def init_session(req: InitSessionRequest) -> InitOutcome:
     """A session.json completed from photos and a plan: which photo shows which marks,
     written to OUT or returned for the console."""
     if req.jobs is not None and req.jobs < 1:
-        raise VisionCalError(f"--jobs must be at least 1, got {req.jobs}")
+        raise VisionCalError(f"must be at least 1, got {req.jobs}", field="--jobs")
     if req.out:
         out = Path(req.out)
         try:

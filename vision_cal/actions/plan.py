@@ -66,11 +66,51 @@ class PlanOutcome:
         return 1 if self.error else 0
 
 
+@dataclass(frozen=True)
+class _Planned:
+    """The targets planned: ``planned`` every target's result (``ok`` and ``failed`` of
+    them), ``poses`` / ``pose_of`` (by target id) the full poses when joint 4 or the tool is
+    planned (else None), ``std`` the predicted std (mm) of each ``ok`` target (NaN unknown)."""
+
+    planned: list
+    ok: list
+    failed: list
+    poses: list | None
+    pose_of: dict | None
+    std: list
+
+
 def plan(req: PlanRequest) -> PlanOutcome:
     """Plan ``req.targets`` with the model of ``req.calibration``; write the plan (and the
     trajectory, the robot program) together or not at all. Its exit code: 0, or 1 when no
     target could be planned."""
-    # never over a file of another kind (a calibration.json, an image): issue 30
+    prg, report = _check_outputs(req)
+    robot = _robot_of(req)
+    model, doc = load_calibration(req.calibration, which=req.model)
+    warn = refuse_unreliable(doc, req.calibration, force=req.force)
+    home_deg = _home_deg(req, doc, robot)
+    ids, xy = read_targets(req.targets)
+    if req.trajectory:  # a million targets: refused before they are planned
+        try:
+            check_length(len(ids))
+        except VisionCalError as e:
+            raise VisionCalError(e.reason, file=str(req.trajectory),
+                                 field="--trajectory") from e
+    p = _plan_targets(req, model, doc, robot, ids, xy)
+    # the request against what the calibration was calibrated for, before anything is
+    # written: refused, or with --force written with the extrapolation stated
+    outside = _outside_valid_for(req, doc, p.ok, p.pose_of, robot)
+    said = enforce_valid_for(outside, file=str(req.calibration), force=req.force,
+                             what=str(req.targets))
+    written_program = _write_outputs(req, model, robot, p, said, _flagged_targets(outside),
+                                     home_deg, prg, report)
+    return _outcome(req, doc, p, said, warn, written_program, report)
+
+
+def _check_outputs(req: PlanRequest) -> tuple[Path | None, Path]:
+    """Refuse outputs of another kind than they should be (a calibration.json, an image:
+    issue 30) or one over another or over an input; return the program's path (None
+    without ``--program``) and the failed targets' report's path."""
     output_file_of_kind(req.out, "csv", field="-o")
     if req.trajectory:
         output_file_of_kind(req.trajectory, "csv", field="--trajectory")
@@ -83,30 +123,33 @@ def plan(req: PlanRequest) -> PlanOutcome:
                       ("--trajectory", req.trajectory), ("--program", prg)],
                      [("CALIBRATION.json", req.calibration), ("TARGETS.csv", req.targets),
                       ("--robot", req.robot)])
-    robot = None
+    return prg, report
+
+
+def _robot_of(req: PlanRequest):
+    """The robot file's description (None without ``--robot``), its program checked;
+    ``--program`` without ``--robot`` refused."""
     if req.program and not req.robot:
         raise VisionCalError("--program needs --robot ROBOT.yaml (pen heights, speeds)",
                              field="--robot")
+    robot = None
     if req.robot:
         robot = load_robot_file(req.robot)
         if req.program:
             check_program(req.program, robot)
-    model, doc = load_calibration(req.calibration, which=req.model)
-    warn = refuse_unreliable(doc, req.calibration, force=req.force)
-    home_deg = _home_deg(req, doc, robot)
-    ids, xy = read_targets(req.targets)
-    if req.trajectory:  # a million targets: refused before they are planned
-        try:
-            check_length(len(ids))
-        except VisionCalError as e:
-            raise VisionCalError(e.reason, file=str(req.trajectory),
-                                 field="--trajectory") from e
+    return robot
+
+
+def _plan_targets(req: PlanRequest, model, doc: dict, robot, ids, xy) -> _Planned:
+    """Every target planned within the joint limits (the robot file's, else those the run
+    recorded), with joint 4 and the tool when the targets give an angle or the model has a
+    tool (plan/orient.py), and the predicted std of those planned (calibrated model)."""
     limits = {} if robot is None else {"joint_limits_deg": robot.joint_limits_deg}
     if robot is None and doc.get("joint_limits_deg") is not None:   # recorded by the run
         limits = {"joint_limits_deg": tuple(tuple(float(v) for v in p)
                                             for p in doc["joint_limits_deg"])}
     theta = read_target_theta(req.targets)
-    poses = None
+    poses = pose_of = None
     if theta is not None or model.tool is not None:   # joint 4 and the tool (plan/orient.py)
         if robot is not None:
             limits["joint4_limits_deg"] = robot.joint4_limits_deg
@@ -129,47 +172,57 @@ def plan(req: PlanRequest) -> PlanOutcome:
         a_ok = [(*p.approach, pose_of[p.id].approach4) for p in ok]
     std = (predicted_std_mm(model, cov, q_ok, a_ok)
            if cov is not None and ok else [float("nan")] * len(ok))
-    # the request against what the calibration was calibrated for, before anything is
-    # written: refused, or with --force written with the extrapolation stated
-    outside = _outside_valid_for(req, doc, ok, pose_of if poses is not None else None, robot)
-    said = enforce_valid_for(outside, file=str(req.calibration), force=req.force,
-                             what=str(req.targets))
-    flagged = _flagged_targets(outside)
+    return _Planned(planned, ok, failed, poses, pose_of, std)
+
+
+def _write_outputs(req: PlanRequest, model, robot, p: _Planned, said, flagged: dict,
+                   home_deg, prg, report) -> Path | None:
+    """Write the plan, the failed targets' report, the trajectory and the program, together
+    or not at all (a program path that cannot be written, a trajectory too long, leave the
+    earlier files as they were); return the program written (None: none)."""
+    ok, poses, pose_of = p.ok, p.poses, p.pose_of
     written_program = None
-    # every output is written together or not at all (a program path that cannot be
-    # written, a trajectory too long, leave the earlier files as they were)
     with written_together():
         # the command file holds only what can be sent to the robot: no NaN, no failed row
         # (an unknown std, as with the nominal model, is left empty)
-        write_plan(req.out, [dict(p.to_row() if poses is None else pose_of[p.id].to_row(),
+        write_plan(req.out, [dict(t.to_row() if poses is None else pose_of[t.id].to_row(),
                                    std_mm=float(s) if math.isfinite(s) else "",
-                                   **({"outside_valid_for": flagged.get(p.id, "")}
+                                   **({"outside_valid_for": flagged.get(t.id, "")}
                                       if said else {}))
-                              for p, s in zip(ok, std)])
-        if failed:
-            write_failed_targets(report, [(p.id, *p.target_mm, p.reason) for p in failed])
+                              for t, s in zip(ok, p.std)])
+        if p.failed:
+            write_failed_targets(report, [(t.id, *t.target_mm, t.reason) for t in p.failed])
         if req.trajectory and ok:
             try:
                 write_plan_trajectory(req.trajectory, ok, home_deg=home_deg)
             except VisionCalError as e:
                 raise VisionCalError(e.reason, file=str(req.trajectory),
                                      field="--trajectory") from e
-        if req.program and ok:  # no program of nothing (exit 1 below)
+        if req.program and ok:  # no program of nothing (exit 1 in the outcome)
             marks = to_planned_marks(ok, overshoot_deg=robot.overshoot_deg, role="target")
             joint4, tool = None, None
             if poses is not None:   # joint 4 turns: its via point on the approach side
-                joint4 = {p.target.id: (p.q4_deg, p.q4_deg - p.approach4 * robot.overshoot_deg)
-                          for p in poses if p.target.status == "ok"}
+                joint4 = {t.target.id: (t.q4_deg, t.q4_deg - t.approach4 * robot.overshoot_deg)
+                          for t in poses if t.target.status == "ok"}
                 if model.tool is not None:
                     tool = controller_tool_mm(model.params, model.tool.tool_mm)
             points = program_points(marks, home_deg=home_deg,
                                     z2_deg=model.params.z2_deg, joint4=joint4)
             written_program = write_program(req.program, prg, points, robot,
                                  title=f"vision-cal compensated targets: {len(ok)} of "
-                                       f"{len(planned)} targets of {req.targets}, "
+                                       f"{len(p.planned)} targets of {req.targets}, "
                                        f"{req.model} model" + "".join(
                                            f"; EXTRAPOLATED: {w}" for w in said),
                                  tool_mm=tool)
+    return written_program
+
+
+def _outcome(req: PlanRequest, doc: dict, p: _Planned, said, warn, written_program,
+             report) -> PlanOutcome:
+    """What the planning says: the failed targets (or, none failed, the stale report of an
+    earlier run removed), the targets on the print, the extrapolations; the error when
+    nothing could be planned."""
+    ok, failed, planned = p.ok, p.failed, p.planned
     warnings = []
     if failed:
         if ok:  # when none is planned, the error below says it once

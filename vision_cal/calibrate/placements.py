@@ -250,8 +250,8 @@ def best_alternative(places: list[Placement], fit: PlacementsFit, effect: Effect
     return tuple(names[i] for i in best), best_drop, lib_drop
 
 
-def _cv_residuals(places: list[Placement], fit: PlacementsFit, effects, k_folds: int,
-                  condition_limit: float, rng_seed: int = 0) -> list[np.ndarray] | None:
+def cv_residuals(places: list[Placement], fit: PlacementsFit, effects, k_folds: int,
+                 condition_limit: float, rng_seed: int = 0) -> list[np.ndarray] | None:
     """k-fold cross-validated residuals (per placement (N_k, 2), mm) of the shared model
     with ``effects``: the marks of every placement split into ``k_folds`` folds (fixed
     seed: the same data calibrate the same way), each fold predicted by the fit on the
@@ -278,8 +278,8 @@ def _cv_rms(places: list[Placement], fit: PlacementsFit, effects, k_folds: int,
             condition_limit: float,
             rng_seed: int = 0) -> float:
     """k-fold cross-validated RMS (mm, 2-D) of the shared model with ``effects``
-    (:func:`_cv_residuals`); NaN when a fold cannot be fitted."""
-    res = _cv_residuals(places, fit, effects, k_folds, condition_limit, rng_seed)
+    (:func:`cv_residuals`); NaN when a fold cannot be fitted."""
+    res = cv_residuals(places, fit, effects, k_folds, condition_limit, rng_seed)
     return float("nan") if res is None else rms_2d(np.concatenate(res))
 
 

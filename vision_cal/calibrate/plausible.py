@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 
+from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.errors import VisionCalError
 from vision_cal.model.rms import rms_2d
 
@@ -69,11 +70,12 @@ def check_plausible(doc: dict, session) -> None:
                 file=str(session.path), field="marks")
 
 
-def check_links_against(doc: dict, nominal, *, file: str, robot_file: str) -> None:
+def check_links_against(cal: CalibrationResult, nominal, *, file: str,
+                        robot_file: str) -> None:
     """A calibration.json given to plan for a robot (``design --pilot/--verify``) whose link
     lengths are far from the robot file's (x0.7 .. x1.4): one line naming the likely unit
     mistake (a file in metres), not the sheet's reach."""
-    p = doc.get("params") if isinstance(doc, dict) else None
+    p = cal.params
     if not isinstance(p, dict):
         return
     for name in ("L1_mm", "L2_mm"):

@@ -34,7 +34,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from vision_cal.camera.fixed import (F_REL_STD_MAX, UNDETERMINED, FixedCamera, T_sheet_robot,
-                                     _delta, camera_of, fit_pose, homogeneous, lsq_covariance)
+                                     camera_of, fit_pose, homogeneous, lsq_covariance,
+                                     pose_delta)
 from vision_cal.config import DEFAULT, VerdictConfig
 from vision_cal.dataset.camera_block import check_camera_entry
 from vision_cal.errors import CalibrationError, VisionCalError
@@ -672,7 +673,7 @@ def _camera_at(params: ScaraParams, X, cov12, q, j4, *, K, dist, size, rep, f_sd
     for k in range(12):
         d = np.zeros(12)
         d[k] = steps[k]
-        J[:, k] = (_delta(T_rc(x0 + d), T0) - _delta(T_rc(x0 - d), T0)) / (2 * steps[k])
+        J[:, k] = (pose_delta(T_rc(x0 + d), T0) - pose_delta(T_rc(x0 - d), T0)) / (2 * steps[k])
     cov = np.zeros((7, 7))
     cov[:6, :6] = J @ cov12 @ J.T
     s = np.array([np.degrees(1.0)] * 3 + [1.0] * 3)

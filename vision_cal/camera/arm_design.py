@@ -23,7 +23,7 @@ from vision_cal.errors import VisionCalError
 from vision_cal.model.kinematics import forward
 from vision_cal.model.motion import approach_signs
 from vision_cal.progress import bar
-from vision_cal.program.spel import _comment, _ja
+from vision_cal.program.spel import spel_comment, spel_joints
 
 TRIGGERS = ("output", "wait")
 #: from this many poses on, choosing them takes seconds: a progress line shows it
@@ -131,13 +131,13 @@ def spel_camera_program(poses, robot, *, trigger: str = "output", output_bit: in
                         wait_s: float = 3.0) -> str:
     up, _ = robot.require_pen_heights()
     prog = robot.program
-    lines = [_comment(f"vision-cal design --camera-on-arm: {len(poses)} camera poses for robot "
+    lines = [spel_comment(f"vision-cal design --camera-on-arm: {len(poses)} camera poses for robot "
                       f"{robot.name}"),
-             _comment("Points are joint angles JA(j1 deg, j2 deg, j3 mm, j4 deg); joint 3 "
+             spel_comment("Points are joint angles JA(j1 deg, j2 deg, j3 mm, j4 deg); joint 3 "
                       "stays up. At each pose the arm settles, then the camera is triggered "
                       + (f"by a {pulse_s:g} s pulse on output {output_bit}."
                          if trigger == "output" else f"by hand during a {wait_s:g} s pause.")),
-             _comment("Do not edit the points: the calibration reads the commanded joints "
+             spel_comment("Do not edit the points: the calibration reads the commanded joints "
                       "from session.json poses."),
              "", "Function main", "    Motor On",
              f"    Power {'High' if prog.power == 'high' else 'Low'}",
@@ -147,9 +147,9 @@ def spel_camera_program(poses, robot, *, trigger: str = "output", output_bit: in
         lines.append(f"    Print \"pose {k + 1} of {len(poses)}: {p['image']}\"")
         if p.get("via_deg") is not None:   # a repeat: away and back from the same sides
             v = p["via_deg"]
-            lines.append(f"    Go {_ja(v[:2], up, v[2])}  ' away, then back to "
+            lines.append(f"    Go {spel_joints(v[:2], up, v[2])}  ' away, then back to "
                          f"{p['repeat_of']}'s pose")
-        lines.append(f"    Go {_ja(p['joints_deg'], up, p['j4_deg'])}")
+        lines.append(f"    Go {spel_joints(p['joints_deg'], up, p['j4_deg'])}")
         if prog.settle_s > 0:
             lines.append(f"    Wait {prog.settle_s:g}")
         if trigger == "output":

@@ -270,7 +270,7 @@ def _robot_camera(p7, robot3, M) -> np.ndarray:
     return np.linalg.inv(T_sr) @ np.linalg.inv(T_cs)
 
 
-def _delta(T: np.ndarray, T0: np.ndarray) -> np.ndarray:
+def pose_delta(T: np.ndarray, T0: np.ndarray) -> np.ndarray:
     """(rotation vector rad, translation mm) taking T0 to T (rotation in the target frame)."""
     R = T[:3, :3] @ T0[:3, :3].T      # near the identity: its skew part (first order;
     w = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
@@ -325,8 +325,8 @@ def fixed_camera(images, idx, sheet_corners: dict, *, K, dist, free_f: bool, rob
         x[k] += steps[k]
         xm = x0.copy()
         xm[k] -= steps[k]
-        dp = _delta(_robot_camera(x[:7], x[7:], sheet_matrix), T0)
-        dm = _delta(_robot_camera(xm[:7], xm[7:], sheet_matrix), T0)
+        dp = pose_delta(_robot_camera(x[:7], x[7:], sheet_matrix), T0)
+        dm = pose_delta(_robot_camera(xm[:7], xm[7:], sheet_matrix), T0)
         J[:6, k] = (dp - dm) / (2 * steps[k])
     J[6, 6] = 1.0
     cov = J @ C @ J.T

@@ -316,67 +316,108 @@ def _outlier_level(alpha: float, n_in: int) -> float:
     return float(3.0 * stats.f.isf(alpha / 2, 3, nu))
 
 
-def fit_pose_pairs(pairs: list[PosePair], mount: str = "arm", *, z_mm: float | None = None,
-                   config: HandeyeConfig | None = None) -> PairsFit | PairsFailed:
-    """The hand-eye of ``pairs`` (module docstring); ``z_mm`` the target origin's height in
-    ``Y``'s parent frame (None: not known, 0 taken and the camera's height flagged)."""
-    cfg = config or DEFAULT.handeye
+@dataclass(frozen=True)
+class _Weighted:
+    """A fit of pairs weighted by their own scatter: ``x`` (11,) the parameters (about the
+    closed form), ``S`` (6, 6) the pairs' noise covariance in the camera frame, ``W`` its
+    whitener, ``cov`` (11, 11) the parameters' covariance (before the inverse Wishart's
+    correction) and ``hat`` (n, 6, 6) the hat matrix's diagonal blocks, of the pairs fitted."""
+
+    x: np.ndarray
+    S: np.ndarray
+    W: np.ndarray
+    cov: np.ndarray
+    hat: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Robust:
+    """The weighted fit of the inliers (``fit``), which pairs they are (``inlier`` (N,)
+    bool) and why each other one was left out, or why no more were (``reasons``)."""
+
+    fit: _Weighted
+    inlier: np.ndarray
+    reasons: tuple[str, ...]
+
+
+def _refused(pairs: list[PosePair], mount: str, cfg: HandeyeConfig) -> PairsFailed | None:
+    """Why ``pairs`` cannot make a hand-eye before any fit (an unknown mount, too few pairs,
+    a flange that hardly turns); None: they can."""
     if mount not in MOUNTS:
         return PairsFailed(f"mount {mount!r}: expected one of {', '.join(MOUNTS)}")
     n = len(pairs)
     if n < cfg.min_pairs:
         return PairsFailed(f"{n} pairs: at least {cfg.min_pairs} are needed")
-    A, B = _moving(pairs, mount)
+    A, _ = _moving(pairs, mount)
     yaw = np.degrees(np.arctan2(A[:, 1, 0], A[:, 0, 0]))
     spread = float(np.degrees(np.abs(np.angle(np.exp(1j * np.radians(yaw - yaw[0]))))).max())
     if spread < cfg.min_yaw_spread_deg:
         return PairsFailed(f"the flange turns by at most {spread:.2f} deg between pairs: a "
                            "camera's place on the flange needs turns of joint 4 (or of the "
                            f"arm) of at least {cfg.min_yaw_spread_deg:g} deg")
-    z = 0.0 if z_mm is None else float(z_mm)
-    X0, Y0 = closed_form(A, B, z)
+    return None
+
+
+def _weighted_fit(A, B, X0, Y0, z: float, x, trim_alpha: float) -> _Weighted:
+    """The fit of pairs ``A``, ``B`` from ``x``, weighted by their noise: robust from the
+    median pair first (``trim_alpha``: the chi-square's tail left out), then three rounds
+    with the fit's leverage given back, and a last solve with the noise found."""
+    x, J = _solve(A, B, X0, Y0, z, np.eye(6), x)
+    S = _noise(_raw_residuals(x, A, B, X0, Y0, z)[2], trim_alpha)
+    for _ in range(3):
+        W = _whitener(S)
+        x, J = _solve(A, B, X0, Y0, z, W, x)
+        cov, hat = _cov_and_hat(J)
+        S = _noise(_raw_residuals(x, A, B, X0, Y0, z)[2], 0.0, W, hat)
+    W = _whitener(S)
+    x, J = _solve(A, B, X0, Y0, z, W, x)
+    cov, hat = _cov_and_hat(J)
+    return _Weighted(x, S, W, cov, hat)
+
+
+def _deleted_t2(A, B, X0, Y0, z: float, x, inl: np.ndarray, alpha: float) -> np.ndarray:
+    """Each inlier pair's deleted residual's T^2 at ``x`` (N,; 0 for the others), against
+    the scatter of the inliers within the chi-square's ``1 - alpha`` level (a pair far off
+    would widen its own yardstick), leverage included; the translation and the rotation
+    tested apart (a pair off in one of them is not diluted by the other's three axes), the
+    larger kept."""
+    n = len(A)
+    _, dr_all, cam_all = _raw_residuals(x, A, B, X0, Y0, z)
+    # (a detector's rotation error is the same in every pair in the target's frame)
+    seen = np.hstack([cam_all[:, :3], dr_all])
+    W_in = _whitener(_noise(seen[inl], alpha))
+    for _ in range(2):   # what the fit takes from each direction given back
+        hat_in = _cov_and_hat(_solve(A[inl], B[inl], X0, Y0, z, W_in, x, target=True)[1])[1]
+        W_in = _whitener(_noise(seen[inl], alpha, W_in, hat_in))
+    # per axis only (6 variances, not 21 terms, from so few pairs: a far lower level)
+    W_in = np.diag(1.0 / np.sqrt(np.diag(np.linalg.inv(W_in.T @ W_in))))
+    hat_in = _cov_and_hat(_solve(A[inl], B[inl], X0, Y0, z, W_in, x, target=True)[1])[1]
+    w_test = seen @ W_in.T
+    chi = np.zeros(n)
+    for k, i in enumerate(np.flatnonzero(inl)):   # each at half the level
+        d = np.linalg.solve(np.eye(6) - hat_in[k] + 1e-12 * np.eye(6), w_test[i])
+        Sd = np.linalg.inv(np.eye(6) - hat_in[k] + 1e-12 * np.eye(6))
+        chi[i] = max(float(d[:3] @ np.linalg.solve(Sd[:3, :3], d[:3])),
+                     float(d[3:] @ np.linalg.solve(Sd[3:, 3:], d[3:])))
+    return chi
+
+
+def _fit_with_outliers(pairs: list[PosePair], A, B, X0, Y0, z: float,
+                       cfg: HandeyeConfig) -> _Robust:
+    """The weighted fit, leaving out the worst pair (deleted T^2 over the Bonferroni level
+    :func:`_outlier_level`) and fitting again, until none is over it or
+    ``cfg.max_outlier_fraction`` of them are out."""
+    n = len(pairs)
     inl = np.ones(n, bool)
     reasons: list[str] = []
     max_out = int(math.floor(cfg.max_outlier_fraction * n))
     x = np.zeros(11)
-    W = np.eye(6)
     while True:
         limit = _outlier_level(cfg.outlier_alpha / n, int(inl.sum()))
-        # the noise: robust from the median pair first, then with the fit's leverage
-        x, J = _solve(A[inl], B[inl], X0, Y0, z, np.eye(6), x)
-        S = _noise(_raw_residuals(x, A[inl], B[inl], X0, Y0, z)[2], cfg.outlier_alpha)
-        for _ in range(3):
-            W = _whitener(S)
-            x, J = _solve(A[inl], B[inl], X0, Y0, z, W, x)
-            cov, hat = _cov_and_hat(J)
-            S = _noise(_raw_residuals(x, A[inl], B[inl], X0, Y0, z)[2], 0.0,
-                       W, hat)
-        W = _whitener(S)
-        x, J = _solve(A[inl], B[inl], X0, Y0, z, W, x)
-        cov, hat = _cov_and_hat(J)
-        # the outlier test against the scatter of the pairs within the chi-square's level
-        # (a pair far off would widen its own yardstick)
-        _, dr_all, cam_all = _raw_residuals(x, A, B, X0, Y0, z)
-        w_all = cam_all @ W.T
-        # (a detector's rotation error is the same in every pair in the target's frame)
-        seen = np.hstack([cam_all[:, :3], dr_all])
-        W_in = _whitener(_noise(seen[inl], cfg.outlier_alpha / n))
-        for _ in range(2):   # what the fit takes from each direction given back
-            hat_in = _cov_and_hat(_solve(A[inl], B[inl], X0, Y0, z, W_in, x, target=True)[1])[1]
-            W_in = _whitener(_noise(seen[inl], cfg.outlier_alpha / n, W_in, hat_in))
-        # per axis only (6 variances, not 21 terms, from so few pairs: a far lower level)
-        W_in = np.diag(1.0 / np.sqrt(np.diag(np.linalg.inv(W_in.T @ W_in))))
-        hat_in = _cov_and_hat(_solve(A[inl], B[inl], X0, Y0, z, W_in, x, target=True)[1])[1]
-        w_test = seen @ W_in.T
-        chi = np.zeros(n)
+        fit = _weighted_fit(A[inl], B[inl], X0, Y0, z, x, cfg.outlier_alpha)
+        x = fit.x
+        chi = _deleted_t2(A, B, X0, Y0, z, x, inl, cfg.outlier_alpha / n)
         idx = np.flatnonzero(inl)
-        for k, i in enumerate(idx):      # deleted residual's T^2, leverage included: the
-            # translation and the rotation tested apart (a pair off in one of them is not
-            # diluted by the other's three axes), each at half the level
-            d = np.linalg.solve(np.eye(6) - hat_in[k] + 1e-12 * np.eye(6), w_test[i])
-            Sd = np.linalg.inv(np.eye(6) - hat_in[k] + 1e-12 * np.eye(6))
-            chi[i] = max(float(d[:3] @ np.linalg.solve(Sd[:3, :3], d[:3])),
-                         float(d[3:] @ np.linalg.solve(Sd[3:, 3:], d[3:])))
         worst = idx[np.argmax(chi[idx])]
         if chi[worst] <= limit:
             break
@@ -389,45 +430,78 @@ def fit_pose_pairs(pairs: list[PosePair], mount: str = "arm", *, z_mm: float | N
         reasons.append(f"pair {pairs[worst].id}: {float(np.linalg.norm(dt_w)):.3f} mm, "
                        f"{float(np.linalg.norm(dr_w)):.3f} deg from where the others put the "
                        f"target (T^2 {chi[worst]:.0f}, the level {limit:.0f} for {len(idx)} pairs)")
-    X, Y = _unpack(x, X0, Y0, z)
-    dt_all, dr_all, _ = _raw_residuals(x, A, B, X0, Y0, z)
-    # the weights are the inverse of a covariance estimated from the pairs themselves,
-    # which is too large on average by nu / (nu - 7) (the inverse Wishart's mean, 6 axes):
-    # the parameters' covariance is scaled back by it
-    nu = inl.sum() - 11.0 / 6.0
-    cov = cov * (nu / (nu - 7.0) if nu > 9.0 else 3.0)
-    # leave-one-pair-out (deleted) residuals, back from the whitened camera frame to Y's
-    # parent frame; each pair's per-axis noise in the plane from the pooled covariance
-    Winv = np.linalg.inv(W)
+    return _Robust(fit, inl, tuple(reasons))
+
+
+def _per_pair(A, B, X0, Y0, z: float, r: _Robust) -> tuple[np.ndarray, np.ndarray, float]:
+    """Per pair, in ``Y``'s parent frame: the leave-one-pair-out (deleted) translation
+    residual (N, 3; outliers: their residual), the per-axis std of x, y from the pooled
+    noise (N,); and the parameters the inliers' x, y rows consume (the hat matrix's trace
+    over them)."""
+    f, inl = r.fit, r.inlier
+    X, _ = _unpack(f.x, X0, Y0, z)
+    dt_all, _, cam_all = _raw_residuals(f.x, A, B, X0, Y0, z)
+    w_all = cam_all @ f.W.T
+    Winv = np.linalg.inv(f.W)
     AX = A @ X
     held = dt_all.copy()
-    sig_xy = np.zeros(n)
-    for i in range(n):
+    sig_xy = np.zeros(len(A))
+    for i in range(len(A)):
         Rc = AX[i, :3, :3]
-        St = Rc @ S[:3, :3] @ Rc.T
+        St = Rc @ f.S[:3, :3] @ Rc.T
         sig_xy[i] = math.sqrt(max(float(St[0, 0] + St[1, 1]) / 2.0, 0.0))
     for k, i in enumerate(np.flatnonzero(inl)):
-        d = Winv @ np.linalg.solve(np.eye(6) - hat[k] + 1e-12 * np.eye(6), w_all[i])
+        d = Winv @ np.linalg.solve(np.eye(6) - f.hat[k] + 1e-12 * np.eye(6), w_all[i])
         held[i] = AX[i, :3, :3] @ d[:3]
-    # the parameters the x, y rows consume: the hat matrix's trace over them, in Y's frame
     p_xy = 0.0
     for k, i in enumerate(np.flatnonzero(inl)):
         Rc = AX[i, :3, :3]
-        T = Rc @ Winv[:3, :] @ hat[k] @ W[:, :3] @ Rc.T
+        T = Rc @ Winv[:3, :] @ f.hat[k] @ f.W[:, :3] @ Rc.T
         p_xy += float(T[0, 0] + T[1, 1])
-    ni = [] if z_mm is not None else [{
+    return held, sig_xy, p_xy
+
+
+def _not_identifiable(cov: np.ndarray, z_given: bool, cfg: HandeyeConfig) -> tuple[dict, ...]:
+    """The parameters the pairs do not determine (label, std, reason): the camera's height
+    when the target's is not given, and any whose std is over ``cfg``'s limits."""
+    ni = [] if z_given else [{
         "label": "X_z_mm", "std": None,
         "reason": "a SCARA turns about its vertical axis only: the pairs see the difference "
                   "of the camera's and the target's heights, not either one; taken with the "
                   "target's origin at z = 0 (give the target's height: --z-mm)"}]
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     for k, lab in enumerate(LABELS):
-        if lab == "X_z_mm" and z_mm is None:
+        if lab == "X_z_mm" and not z_given:
             continue
         lim = cfg.unidentified_std_deg if lab.endswith("_deg") else cfg.unidentified_std_mm
         if sd[k] > lim:
             ni.append({"label": lab, "std": float(sd[k]),
                        "reason": "the pairs do not determine it (turn the flange more, over "
                                  "more places)"})
+    return tuple(ni)
+
+
+def fit_pose_pairs(pairs: list[PosePair], mount: str = "arm", *, z_mm: float | None = None,
+                   config: HandeyeConfig | None = None) -> PairsFit | PairsFailed:
+    """The hand-eye of ``pairs`` (module docstring); ``z_mm`` the target origin's height in
+    ``Y``'s parent frame (None: not known, 0 taken and the camera's height flagged)."""
+    cfg = config or DEFAULT.handeye
+    failed = _refused(pairs, mount, cfg)
+    if failed is not None:
+        return failed
+    A, B = _moving(pairs, mount)
+    z = 0.0 if z_mm is None else float(z_mm)
+    X0, Y0 = closed_form(A, B, z)
+    r = _fit_with_outliers(pairs, A, B, X0, Y0, z, cfg)
+    x, inl = r.fit.x, r.inlier
+    X, Y = _unpack(x, X0, Y0, z)
+    dt_all, dr_all, _ = _raw_residuals(x, A, B, X0, Y0, z)
+    # the weights are the inverse of a covariance estimated from the pairs themselves,
+    # which is too large on average by nu / (nu - 7) (the inverse Wishart's mean, 6 axes):
+    # the parameters' covariance is scaled back by it
+    nu = inl.sum() - 11.0 / 6.0
+    cov = r.fit.cov * (nu / (nu - 7.0) if nu > 9.0 else 3.0)
+    held, sig_xy, p_xy = _per_pair(A, B, X0, Y0, z, r)
     return PairsFit(mount, tuple(p.id for p in pairs), X, Y, cov, dt_all, dr_all, held, inl,
-                    S, sig_xy, p_xy, z, z_mm is not None, X0, Y0, tuple(reasons), tuple(ni))
+                    r.fit.S, sig_xy, p_xy, z, z_mm is not None, X0, Y0, r.reasons,
+                    _not_identifiable(cov, z_mm is not None, cfg))

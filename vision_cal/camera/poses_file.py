@@ -24,7 +24,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from vision_cal.camera.pose_pairs import MOUNTS, PosePair, flange_tilt_deg
-from vision_cal.dataset.csvio import _rows, number_field
+from vision_cal.dataset.csvio import number_field, read_rows
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.io import read_json
 from vision_cal.errors import VisionCalError
@@ -173,7 +173,7 @@ def _read_csv(path: Path, units: str, mount: str, target_z_mm) -> PosesFile:
                              field="--units")
     scale = UNITS[units]
     pairs, seen = [], set()
-    for line, row in _rows(path, CSV_FIELDS):
+    for line, row in read_rows(path, CSV_FIELDS):
         pid = row.get("id") or str(len(pairs))
         if pid in seen:
             raise VisionCalError(f"duplicate id {pid!r}", file=str(path),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from vision_cal.commands import request
 from vision_cal.config import METHODS
 
 NAME = "calibrate"
@@ -63,8 +64,8 @@ def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
     from vision_cal.actions.calibrate import CalibrateRequest, calibrate
+    from vision_cal.actions.console import show
 
-    return calibrate(CalibrateRequest(tuple(args.folders), out=args.out, method=args.method,
-                                      jobs=args.jobs, truth=args.truth, report=args.report,
-                                      joint=args.joint, quiet=args.quiet, robot=args.robot,
-                                      sigma_mm=args.sigma_mm, survey=args.survey))
+    req = request(args, CalibrateRequest)
+    # each folder's result is printed as soon as it is done (several take minutes each)
+    return show(calibrate(req, tell=lambda o: show(o, quiet=args.quiet)), quiet=args.quiet)

@@ -56,14 +56,15 @@ def run(args) -> int:
     if (args.folder is None) == (args.poses is None):
         raise VisionCalError("give FOLDER (photos of the arm's camera) or --poses PAIRS "
                              "(pose pairs), one of them", field="--poses")
+    from vision_cal.actions.console import show
+
     if args.poses is not None:
         from vision_cal.actions.handeye import HandeyeRequest, handeye_pairs
 
-        return handeye_pairs(request(args, HandeyeRequest))
+        return show(handeye_pairs(request(args, HandeyeRequest)), quiet=args.quiet)
     for name in ("units", "mount", "z_mm"):
         if getattr(args, name) is not None:
             raise VisionCalError("applies to --poses only", field=f"--{name.replace('_', '-')}")
     from vision_cal.actions.arm_camera import ArmCameraRequest, calibrate_arm
-    from vision_cal.actions.console import show
 
     return show(calibrate_arm(request(args, ArmCameraRequest)), quiet=args.quiet)

@@ -33,10 +33,18 @@ def _module(name: str):
     return importlib.import_module(f"vision_cal.commands.{name.replace('-', '_')}")
 
 
+class _Parser(argparse.ArgumentParser):
+    """A bad option is one line naming it (argparse prints the whole usage first, eight
+    lines for `plan`), with where the usage is."""
+
+    def error(self, message):
+        self.exit(EXIT_INPUT, f"{self.prog}: error: {message} (usage: {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from vision_cal import __version__
 
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="vision-cal", description=__doc__.splitlines()[0].split(": ", 1)[1],
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"vision-cal {__version__}")

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from vision_cal.dataset.calibration_result import FORMAT
+from vision_cal.dataset.calibration_result import FORMAT, CalibrationResult
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.valid_for import build as build_valid_for
 from vision_cal.dataset.fields import MAX_JOINT_DEG, FieldReader
@@ -116,10 +116,13 @@ def _read_std(r: FieldReader, obj, where: str) -> None:
 def refuse_robot_frame(doc, path) -> None:
     """A robot-frame calibration of several placements (``calibrate --joint``'s top
     calibration.json) given where one sheet's calibration is needed (plan, design, verify,
-    locate): one line pointing at the placements' own files."""
-    if not isinstance(doc, dict) or not isinstance(doc.get("placements"), list):
+    locate): one line pointing at the placements' own files. ``doc``: the
+    :class:`CalibrationResult`, or the document as read (``placements`` is a method's
+    block: a CalibrationResult keeps it in ``extra``)."""
+    blocks = doc.extra if isinstance(doc, CalibrationResult) else doc
+    if not isinstance(blocks, dict) or not isinstance(blocks.get("placements"), list):
         return
-    names = [p.get("folder") for p in doc["placements"] if isinstance(p, dict)]
+    names = [p.get("folder") for p in blocks["placements"] if isinstance(p, dict)]
     here = Path(path).parent
     subs = [str(here / n / "calibration.json") for n in names if isinstance(n, str)]
     raise VisionCalError("is the robot-frame calibration of several placements (calibrate "

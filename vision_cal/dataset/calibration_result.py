@@ -2,8 +2,8 @@
 
 The pipeline builds it once (:func:`vision_cal.workflows.pipeline.document`), writes it once
 (:meth:`CalibrationResult.write`) and whoever reads a calibration back without planning
-with it (the report, history, verify) takes :meth:`CalibrationResult.from_json`; the
-planner's strict reader of the model is :func:`vision_cal.dataset.calibration.load_calibration`.
+with it (the report, history, verify, design's ``--pilot`` and ``--verify``) takes
+:meth:`CalibrationResult.from_json`; the planner's strict reader of the model is :func:`vision_cal.dataset.calibration.load_calibration`.
 
 The top level is typed field by field; the blocks the contract describes as free JSON
 (``params``, ``effects`` entries, ``diagnosis``, ``marks`` entries, ...) stay JSON values,

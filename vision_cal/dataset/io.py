@@ -252,7 +252,8 @@ def _binary_given(path: Path, what: str) -> str:
         head = b""
     if head.startswith(b"%PDF"):
         beside = path.with_suffix(".json")
-        if path.suffix.lower() != ".pdf" and not beside.is_file():  # not the sheet's PDF
+        sheets = beside.is_file() or "sheet" in f"{path.stem} {what}".lower()
+        if not sheets:  # not the sheet's PDF: a calibration, robot file... saved as PDF
             return "is a PDF, expected a text file (JSON, YAML or CSV)"
         return ("is the PDF to print, not the sheet's description: pass the sheet.json "
                 f"beside it{f' ({beside})' if beside.is_file() else ''}")
@@ -324,11 +325,11 @@ def _no_duplicates(pairs):
     return d
 
 
-def read_json(path) -> dict:
+def read_json(path, *, what: str = "file") -> dict:
     """Read a JSON object; a missing or malformed file is one clear line. A key given twice
     in one object (JSON parsers silently keep the last) is refused naming both lines."""
     path = Path(path)
-    text = read_text(path)
+    text = read_text(path, what=what)
     try:
         obj = json.loads(text, parse_constant=lambda c: float(c),
                          object_pairs_hook=_no_duplicates)

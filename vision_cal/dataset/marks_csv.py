@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from vision_cal.dataset.csvio import _rows, number_field
+from vision_cal.dataset.csvio import number_field, read_rows
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.dataset.session import FORMAT, Session, session_from_raw
 from vision_cal.errors import VisionCalError
@@ -38,7 +38,7 @@ def session_from_marks_csv(path, robot_path, *, sigma_mm: float | None = None) -
                              field="--sigma-mm")
     robot = load_robot_file(robot_path)
     marks, seen = [], set()
-    rows = _rows(path, REQUIRED)
+    rows = read_rows(path, REQUIRED)
     header = set(rows[0][1]) if rows else set()
     if ("approach1" in header) != ("approach2" in header):
         raise VisionCalError("approach1 and approach2 go together", file=str(path),

@@ -77,6 +77,17 @@ def retire_earlier_run(out_dir, *, subfolders=(), results=RESULT_FILES) -> list[
     return found + [n + "/" for n in subs]
 
 
+def retire_and_say(out_dir, *, subfolders=(), results=RESULT_FILES,
+                   quiet: bool = True) -> list[str]:
+    """:func:`retire_earlier_run`, the names moved printed (the output folder's one
+    notice) unless ``quiet``."""
+    moved = retire_earlier_run(out_dir, subfolders=subfolders, results=results)
+    if moved and not quiet:
+        print(f"moved the earlier results ({', '.join(moved)}) to "
+              f"{Path(out_dir) / PREVIOUS}")
+    return moved
+
+
 def earlier_placements(out_dir) -> list[str]:
     """The placement sub-folders an earlier ``calibrate --joint`` wrote into ``out_dir``
     (its top calibration.json's ``placements[].folder``); none when there is none."""
@@ -169,7 +180,7 @@ def writing_into(out, *, command: str, field: str = "--out", inputs=(), retire: 
     ``quiet``."""
     out = output_dir(out, field=field)
     refuse_input_folder(out, inputs, field=field)
-    created = not out.exists()
+    created = _missing_folders(out)   # out and the parents mkdir makes, deepest first
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
@@ -178,16 +189,27 @@ def writing_into(out, *, command: str, field: str = "--out", inputs=(), retire: 
     try:
         with folder_lock(out, command=command, field=field):
             if retire:
-                moved = retire_earlier_run(out, subfolders=subfolders, results=results)
-                if moved and not quiet:
-                    print(f"moved the earlier results ({', '.join(moved)}) to "
-                          f"{out / PREVIOUS}")
+                retire_and_say(out, subfolders=subfolders, results=results, quiet=quiet)
             yield out
     except BaseException:
-        if created:   # a run that failed before writing anything leaves no empty folder
-            with contextlib.suppress(OSError):
-                out.rmdir()
+        # a run that failed before writing anything leaves no empty folder (nor the empty
+        # parents made for it: `calibrate DIR` without --out makes out/ and out/DIR)
+        for d in created:
+            try:
+                d.rmdir()
+            except OSError:
+                break
         raise
+
+
+def _missing_folders(out: Path) -> list[Path]:
+    """``out`` and each of its parents that does not exist yet, deepest first."""
+    missing = []
+    p = Path(out).absolute()
+    while not p.exists() and p != p.parent:
+        missing.append(p)
+        p = p.parent
+    return missing
 
 
 def _sniff(path: Path) -> str:

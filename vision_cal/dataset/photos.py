@@ -133,6 +133,15 @@ def _inside(path: Path, root: Path) -> bool:
 
 def read_photo(root, name: str) -> bytes:
     """The bytes of photo ``name`` (a :func:`normalise_name` path) of folder ``root``."""
+    return read_photo_identity(root, name)[0]
+
+
+def read_photo_identity(root, name: str) -> tuple[bytes, tuple]:
+    """(bytes, identity) of photo ``name`` of folder ``root`` (:func:`read_photo`): the
+    identity is the file's device, inode, size, modification and change times (ns) as
+    they were when the read ended. Any write to the file changes its change time (which no
+    user can set back), so an equal identity read later is the same content; a different
+    one may not be (issue 33: a photo hashed once, read again by its worker)."""
     root_real = Path(os.path.realpath(root))
     path = Path(root) / name
     real = Path(os.path.realpath(path))
@@ -166,7 +175,8 @@ def read_photo(root, name: str) -> bytes:
         if len(data) > MAX_FILE_BYTES:
             raise PhotoRefused(f"refused: file grew above the {MAX_FILE_BYTES / 2**20:.0f} "
                                "MiB limit while being read")
-        return data
+        st = os.fstat(fd)
+        return data, (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
     except OSError as e:
         raise PhotoRefused(f"unreadable: {e.strerror or e}") from None
     finally:
@@ -350,6 +360,15 @@ def decode_photo(data: bytes, *, turned: bool = False):
         return cv2.imdecode(np.frombuffer(data, np.uint8), flags)
     except cv2.error:
         return None
+
+
+def channel_sum(rgb: np.ndarray, dtype=np.float32) -> np.ndarray:
+    """B+G+R of (H, W, 3) uint8 pixels in ``dtype`` (exact: at most 765): three plane
+    additions, several times faster than numpy's sum over the last, 3-long axis."""
+    out = rgb[..., 0].astype(dtype)
+    out += rgb[..., 1]
+    out += rgb[..., 2]
+    return out
 
 
 def decode_as_measured(data: bytes, size_px=None):

@@ -113,7 +113,7 @@ class RobotFile:
         return float(self.pen_up_mm), float(self.pen_down_mm)
 
 
-def _read_tree(path: Path) -> dict:
+def read_robot_tree(path: Path) -> dict:
     if path.suffix.lower() == ".json":
         tree = read_json(path)
     else:
@@ -134,7 +134,7 @@ def _positive(r: FieldReader, v, where: str, *, zero_ok=False) -> float:
 def load_robot_file(path) -> RobotFile:
     """Read and validate a robot file (YAML, or JSON when it ends in .json)."""
     path = Path(path)
-    tree = _read_tree(path)
+    tree = read_robot_tree(path)
     r = FieldReader(str(path))
     nominal = read_robot_block(r, tree, "")
     kw: dict = {}

@@ -413,7 +413,7 @@ def _optional_object(r: FieldReader, obj: dict, where: str) -> dict | None:
 def load_sheet_file(path) -> Sheet:
     """Read and validate a ``sheet.json`` (the session's sheet block on its own)."""
     path = Path(path)
-    return read_sheet_block(FieldReader(str(path)), read_json(path), "")
+    return read_sheet_block(FieldReader(str(path)), read_json(path, what="sheet file"), "")
 
 
 #: what a folder of photos without session.json needs (one line, issue 30)
@@ -426,10 +426,13 @@ MISSING_SESSION = ("missing: a dataset folder needs a session.json (what the rob
 def load_session(folder) -> Session:
     """Read and validate ``folder/session.json`` (or a path to the file itself)."""
     folder = Path(folder)
-    path = folder if folder.name.endswith(".json") else folder / "session.json"
-    if folder.name.endswith(".json"):
+    given_file = folder.name.endswith(".json") or folder.is_file()
+    path = folder if given_file else folder / "session.json"
+    if given_file:   # the file itself (a PDF or photo given here is named as one on reading)
         folder = folder.parent
     if not path.exists():
+        if given_file:
+            raise VisionCalError("file not found", file=str(path))
         if not folder.exists():
             raise VisionCalError("folder not found", file=str(folder))
         raise VisionCalError(MISSING_SESSION, file=str(path))

@@ -10,13 +10,22 @@ one whose verdict is ``not reliable`` unless ``--force``. A calibration.json wit
 
 from __future__ import annotations
 
+from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.errors import VisionCalError
 
 
-def verdict_of(doc: dict) -> tuple[str | None, list[str]]:
-    """(status or None, reasons) of a calibration.json document."""
-    v = doc.get("verdict") if isinstance(doc, dict) else None
-    if not isinstance(v, dict):
+def _verdict_block(doc) -> dict | None:
+    """The ``verdict`` block of a calibration (its :class:`CalibrationResult`, or the
+    document as :func:`~vision_cal.dataset.calibration.load_calibration` returns it)."""
+    v = (doc.verdict if isinstance(doc, CalibrationResult)
+         else doc.get("verdict") if isinstance(doc, dict) else None)
+    return v if isinstance(v, dict) else None
+
+
+def verdict_of(doc) -> tuple[str | None, list[str]]:
+    """(status or None, reasons) of a calibration (see :func:`_verdict_block`)."""
+    v = _verdict_block(doc)
+    if v is None:
         return None, []
     reasons = v.get("reasons") or []
     return v.get("status"), [str(r) for r in reasons] if isinstance(reasons, list) else []
@@ -26,11 +35,11 @@ def _why(reasons: list[str]) -> str:
     return f": {'; '.join(reasons[:3])}" if reasons else ""
 
 
-def require_ready_pilot(doc: dict, path) -> None:
+def require_ready_pilot(cal: CalibrationResult, path) -> None:
     """Refuse (``VisionCalError``, exit 2) a pilot calibration whose verdict is not ready."""
-    status, reasons = verdict_of(doc)
-    v = doc.get("verdict") if isinstance(doc, dict) else None
-    if status == "check" and isinstance(v, dict) and v.get("within_valid_for") == "ready":
+    status, reasons = verdict_of(cal)
+    v = _verdict_block(cal)
+    if status == "check" and v is not None and v.get("within_valid_for") == "ready":
         return   # ready inside its valid_for: the informative plan identifies the rest
     if status is not None and status != "ready":
         raise VisionCalError(f"the pilot calibration's verdict is {status!r}, not 'ready'"

@@ -20,7 +20,7 @@ import numpy as np
 import yaml
 
 from vision_cal.dataset.io import atomic_write_json, atomic_write_text
-from vision_cal.dataset.robot import _read_tree, load_robot_file
+from vision_cal.dataset.robot import load_robot_file, read_robot_tree
 from vision_cal.dataset.session import load_sheet_file
 from vision_cal.design.stage import design_stage
 from vision_cal.errors import VisionCalError
@@ -82,7 +82,7 @@ def design_placements(robot_path, sheet_path, out_dir, n: int, *, program: str |
     ``vision-cal calibrate OUT/place1 OUT/place2 ... --joint``."""
     robot = load_robot_file(robot_path)
     places = plan_placements(robot, load_sheet_file(sheet_path), n)
-    tree = _read_tree(Path(robot_path))
+    tree = read_robot_tree(Path(robot_path))
     out = Path(out_dir)
     for k, p in enumerate(places, start=1):
         d = out / f"place{k}"

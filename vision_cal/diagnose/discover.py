@@ -36,6 +36,13 @@ The library effects take part on equal terms: their columns (``q_j`` = ``joint_s
 dictionary, so a library effect is kept only when no other column of the dictionary, with
 no more parameters, explains the residual better. Selected time columns are ``drift``
 (not compensable); other joint columns become a ``joint_terms`` effect per joint.
+
+Local structure is not a joint term: when neighbouring marks share the residual of the model
+without joint effects (a bump of the sheet), the selection and the held-out test run on the
+marks away from it only, by the selection's own rule
+(:func:`vision_cal.diagnose.select.marks_away_from`); a joint term is claimed only for what
+those marks show (a 0.15 mm bump was taken for joint 1's ``cos(q2)`` or ``q1*q2`` on 6 of 10
+bump-only worlds before; ``bench/discover_bump.py``).
 """
 
 from __future__ import annotations
@@ -48,7 +55,8 @@ from scipy import stats
 from vision_cal.model import joint_terms as jt
 from vision_cal.model.lsq import FailedFit, Fit
 from vision_cal.config import DEFAULT, EstimatorConfig
-from vision_cal.diagnose.select import Diagnosis, Evidence, heldout_rms
+from vision_cal.diagnose.select import (Diagnosis, Evidence, enough_away, heldout_rms,
+                                        marks_away_from)
 from vision_cal.diagnose.structure import sheet_scan
 from vision_cal.model.robot import (JointBacklash, JointCyclic, JointEffect, JointScale, JointTerms,
                               RobotModel, SheetAffine)
@@ -346,6 +354,7 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     # fit's residual, whose p-values come out slightly low (5.4 % below 0.05 over 7000 clean
     # scans, bench/discover.py), and the issue's bound (1 % of clean datasets) is on the
     # family measured, not on the nominal level
+    sheet_alpha = alpha / 2     # the selection's level for a shared local residual
     alpha = config.discovery.scan_level * alpha
     report = {"scans": axis_scans(final, q, app, t, sigma_mm=sigma_mm, alpha=alpha),
               "method": "forward stepwise selection, F-test at alpha / columns left and "
@@ -356,7 +365,19 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     if not f0:
         report["decision"] = "not run: the model without joint effects cannot be fitted"
         return Traced(diag, None, report)
-    d = discover(f0, q, app, t, sigma_mm=sigma_mm, alpha=alpha, k_folds=k_folds,
+    # marks that share a local residual (a bump of the sheet) are left out of the search and
+    # of the held-out test, as the selection leaves them out: a global joint term is
+    # claimed only for what the marks the local structure does not touch show
+    away = _away_from_local(f0, xy, sheet_alpha, config)
+    if away is not None:
+        report["away_from_local"] = away.report
+        f0 = _fit_away(away, final.model, nonjoint, q, xy, app, sigma_mm, ids, config, report)
+        if f0 is None:
+            return Traced(diag, None, report)
+    sub = np.ones(len(q), bool) if away is None else away.outside
+    tt = np.asarray(t, float)
+    d = discover(f0, q[sub], app[sub], tt[sub], sigma_mm=None if sigma_mm is None
+                 else np.asarray(sigma_mm)[sub], alpha=alpha, k_folds=k_folds,
                  max_terms=config.discovery.max_terms)
     report["steps"] = list(d.steps)
     report["selected"] = {f"joint{j}": list(fs) for j, fs in d.joint_features.items()}
@@ -383,12 +404,16 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
         report["decision"] = ("drift found; the joint effects kept" if drift else
                               "the dictionary's terms cannot be fitted: kept")
         return Traced(diag, drift, report)
-    h1 = held(f1.model)
-    report["heldout_rms_mm"] = [diag.heldout_final_mm, h1]
-    report["bic"] = [_bic(final, sigma_mm), _bic(f1, sigma_mm)]
-    if not _terms_win(diag, f1, new_joint, h1, sigma_mm, config):
+    h1_all = held(f1.model)
+    h0, h1, bic = _before_after(diag, f1, h1_all, away, q, xy, app, sigma_mm, ids,
+                                q_val if has_val else None, xy_val, approach_val, k_folds,
+                                config)
+    report["heldout_rms_mm"] = [h0, h1]
+    report["bic"] = bic
+    if not _terms_win(h0, h1, bic, final.model, new_joint, config):
         report["decision"] = "the dictionary's terms do not lower the held-out error: kept"
         return Traced(diag, drift, report)
+    h1 = h1_all     # the diagnosis's held-out figure is over every mark
     # a sheet effect selected before the joint terms were known may stand in for them: it
     # stays only if it is still significant beside them
     f1, nonjoint, gone = _recheck_nonjoint(f1, nonjoint, new_joint, q, xy, app, sigma_mm, ids,
@@ -409,20 +434,96 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     return Traced(new, drift, report)
 
 
-def _terms_win(diag: Diagnosis, f1: Fit, new_joint: tuple, h1: float, sigma_mm,
+def _terms_win(h0: float, h1: float, bic: list, model: RobotModel, new_joint: tuple,
                config: EstimatorConfig) -> bool:
-    """Whether the fit with the dictionary's joint terms (``f1``, held-out RMS ``h1``)
-    replaces the selected model: it lowers the held-out error, or it ties with fewer
-    parameters. A library effect is kept only when it does better than the dictionary's
-    terms with no more parameters: fewer parameters win when the fit's BIC says so and the
-    held-out error is within its own noise (``discovery.heldout_tie``: an RMS over a few
-    held-out marks scatters by ~20 %)."""
-    final = diag.final_fit
-    n_old = sum(len(e.theta) for e in final.model.effects if _dictionary_joint(e))
+    """Whether the fit with the dictionary's joint terms ``new_joint`` (held-out RMS ``h1``,
+    BIC ``bic[1]``) replaces the selected ``model`` (``h0``, ``bic[0]``): it lowers the
+    held-out error, or it ties with fewer joint parameters. A library
+    effect is kept only when it does better than the dictionary's terms with no more
+    parameters: fewer parameters win when the fit's BIC says so and the held-out error is
+    within its own noise (``discovery.heldout_tie``: an RMS over a few held-out marks
+    scatters by ~20 %)."""
+    n_old = sum(len(e.theta) for e in model.effects if _dictionary_joint(e))
     n_new = sum(len(e.theta) for e in new_joint)
-    tie = (n_new < n_old and _bic(f1, sigma_mm) <= _bic(final, sigma_mm)
-           and h1 <= config.discovery.heldout_tie * diag.heldout_final_mm)
-    return bool(h1 < diag.heldout_final_mm or tie)
+    tie = n_new < n_old and bic[1] <= bic[0] and h1 <= config.discovery.heldout_tie * h0
+    return bool(h1 < h0 or tie)
+
+
+@dataclass(frozen=True)
+class _Away:
+    """The marks a local structure of the sheet does not touch (``outside``, a mask over
+    the calibration marks), whether they are ``enough`` to search on, and what
+    ``diagnosis.discovery.away_from_local`` says of it."""
+
+    outside: np.ndarray
+    enough: bool
+    report: dict
+
+
+def _away_from_local(f0: Fit, xy, sheet_alpha: float, config: EstimatorConfig
+                     ) -> _Away | None:
+    """When the residual of the model without joint effects (``f0``) is shared by
+    neighbouring marks (sheet map p below ``sheet_alpha``, the selection's level), the marks
+    away from it (:func:`vision_cal.diagnose.select.marks_away_from`, the selection's own
+    rule) and whether they are enough to search on
+    (:func:`vision_cal.diagnose.select.enough_away`); else None."""
+    k = f0.inliers
+    if k.sum() < config.selection.min_sheet_marks:
+        return None
+    scan = sheet_scan(xy[k], f0.residuals_mm[k])
+    if not scan["p_value"] < sheet_alpha:
+        return None
+    outside, radius = marks_away_from(xy, scan)
+    return _Away(outside, enough_away(outside),
+                 {"p_value": scan["p_value"], "peak_mm": list(scan["peak_mm"]),
+                  "excluded_radius_mm": radius, "excluded_marks": int((~outside).sum())})
+
+
+def _fit_away(away: _Away, model: RobotModel, nonjoint, q, xy, app, sigma, ids, config,
+              report: dict) -> Fit | None:
+    """The model without joint effects fitted to the marks ``away`` from a local structure,
+    or None with ``report["decision"]`` saying why the search does not run (too few marks
+    away: a joint term could not be told from the structure; or no fit there)."""
+    if not away.enough:
+        report["decision"] = (f"not run: neighbouring marks share their residual over most of "
+                              f"the sheet ({away.report['excluded_marks']} of {len(q)} marks "
+                              "near it), which a joint term would stand in for")
+        return None
+    f0 = refit_with(model, nonjoint, *_take(away.outside, q, xy, app, sigma, ids), config)
+    if not f0:
+        report["decision"] = ("not run: the model without joint effects cannot be fitted "
+                              "away from the local structure")
+        return None
+    return f0
+
+
+def _take(mask, q, xy, app, sigma, ids):
+    """The marks ``mask`` of each array (``sigma``, ``ids`` may be None)."""
+    return (q[mask], xy[mask], app[mask], None if sigma is None else np.asarray(sigma)[mask],
+            None if ids is None else tuple(np.asarray(ids, dtype=object)[mask]))
+
+
+def _before_after(diag: Diagnosis, f1: Fit, h1: float, away: _Away | None, q, xy, app, sigma,
+                  ids, q_val, xy_val, app_val, k_folds, config):
+    """The held-out RMS of the selected model and of ``f1`` (the one with the dictionary's
+    terms, ``h1`` over every mark), and their BIC: (h0, h1, [bic0, bic1]). With marks
+    ``away`` from a local structure, both are judged there only (refitted there; a model
+    that cannot be fitted there scores infinity)."""
+    final = diag.final_fit
+    if away is None:
+        return diag.heldout_final_mm, h1, [_bic(final, sigma), _bic(f1, sigma)]
+    part = _take(away.outside, q, xy, app, sigma, ids)
+    out, bic = [], []
+    for m in (final.model, f1.model):
+        f = refit_with(m, m.effects, *part, config)
+        if not f:
+            out.append(float("inf"))
+            bic.append(float("inf"))
+            continue
+        out.append(heldout_rms(m, part[0], part[1], part[2], sigma=part[3], q_val=q_val,
+                               xy_val=xy_val, app_val=app_val, k_folds=k_folds, config=config))
+        bic.append(_bic(f, part[3]))
+    return out[0], out[1], bic
 
 
 def _evidence_after(diag: Diagnosis, f1: Fit, new_joint: tuple, steps, h1: float

@@ -95,14 +95,16 @@ def _fit(model, q, xy, app, sigma, ids, config: EstimatorConfig) -> Fit | Failed
 
 def heldout_rms(model: RobotModel, q, xy, app, *, sigma=None, q_val=None, xy_val=None,
                 app_val=None, k_folds: int = 5, rng=None,
-                config: EstimatorConfig | None = None) -> float:
+                config: EstimatorConfig | None = None, fit: Fit | None = None) -> float:
     """Held-out RMS (mm, 2-D): on validation marks if given, else k-fold CV (NaN when a
-    fold's marks cannot fit ``model``: no held-out error can be given then)."""
+    fold's marks cannot fit ``model``: no held-out error can be given then). ``fit``: the
+    robust fit of ``model`` to these very marks when the caller has it (the validation
+    marks are then predicted from it instead of fitting it again; k-fold ignores it)."""
     if q_val is not None and len(q_val) >= 3:
         # fitted as the calibration is (robust pass): a mark it leaves out as an outlier
         # (a mis-associated dot) would pull every model alike and hide what an effect does
-        f = Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma, robust=True,
-                              config=config).or_raise()
+        f = fit or Fit.from_estimate(q, xy, approach=app, model=model, sigma_mm=sigma,
+                                     robust=True, config=config).or_raise()
         r = xy_val - f.predict(q_val, app_val)
         return rms_2d(r)
     n = len(q)
@@ -234,12 +236,12 @@ class _Problem:
         (:func:`heldout_rms`: the validation marks, else k-fold CV over ``sub``)."""
         q, xy, app, sigma = self.q, self.xy, self.app, self.sigma
 
-        def held(model):
+        def held(model, fit=None):
             return heldout_rms(model, q[sub], xy[sub], app[sub],
                                sigma=None if sigma is None else sigma[sub],
                                q_val=self.q_val if self.has_val else None, xy_val=self.xy_val,
                                app_val=self.app_val, k_folds=self.k_folds, rng=self.rng,
-                               config=self.config)
+                               config=self.config, fit=fit)
         return held
 
     def select_on(self, sub) -> _Found:
@@ -298,6 +300,21 @@ def _problem(q_deg, xy_mm, approach, *, sigma_mm, ids, q_val, xy_val, approach_v
                     len(base_effects), sel_cfg.min_sheet_marks, config)
 
 
+def marks_away_from(xy, sheet_map: dict) -> tuple[np.ndarray, float]:
+    """The marks a local structure found by the sheet map (:func:`sheet_scan`: its peak and
+    neighbourhood size ``k``) does not touch: farther from the peak than 1.5 times its
+    ``k``-th nearest mark. Returns (mask over ``xy``, that radius in mm)."""
+    d = np.linalg.norm(np.asarray(xy, float) - np.asarray(sheet_map["peak_mm"]), axis=1)
+    radius = 1.5 * np.sort(d)[min(sheet_map["k"], len(d) - 1)]
+    return d > radius, float(radius)
+
+
+def enough_away(outside: np.ndarray) -> bool:
+    """Whether the marks ``outside`` a local structure are enough to select on instead of
+    every mark (12, and half of them)."""
+    return bool(outside.sum() >= max(12, len(outside) // 2))
+
+
 def _away_from_local(pb: _Problem, found: _Found) -> tuple[_Found, dict]:
     """The sheet map of the residual once the nuisance harmonics are out; when neighbouring
     marks share a residual (p below alpha / 2), the selection again without the marks
@@ -311,13 +328,10 @@ def _away_from_local(pb: _Problem, found: _Found) -> tuple[_Found, dict]:
     if sheet_map["p_value"] < pb.alpha / 2:
         # neighbouring marks share a residual: select again without the marks there, so
         # the local structure is not explained by a global effect
-        peak = np.asarray(sheet_map["peak_mm"])
-        d = np.linalg.norm(xy - peak, axis=1)
-        radius = 1.5 * np.sort(d)[min(sheet_map["k"], len(d) - 1)]
-        outside = d > radius
+        outside, radius = marks_away_from(xy, sheet_map)
         sheet_map["excluded_radius_mm"] = float(radius)
         sheet_map["excluded_marks"] = int((~outside).sum())
-        if outside.sum() >= max(12, len(q) // 2):
+        if enough_away(outside):
             found = pb.select_on(outside)
             # the map as the model fitted away from the structure sees it
             again = sheet_scan(xy, xy - found.selection.fit.predict(q, app), n_perm=0)
@@ -347,8 +361,8 @@ def _reported(pb: _Problem, base: Fit, found: _Found) -> _Reported:
         current = _fit(zero if effects else None, pb.q, pb.xy, pb.app, pb.sigma, pb.ids,
                        pb.config).or_raise()
         held = pb.held_on(np.ones(len(pb.q), dtype=bool))
-        current_held = held(current.model)
-        return _Reported(current, current_held, held(base.model))
+        current_held = held(current.model, fit=current)
+        return _Reported(current, current_held, held(base.model, fit=base))
     return _Reported(sel.fit, sel.held, sel.base_held)
 
 
@@ -387,7 +401,8 @@ def _select(base: Fit, nuisance: tuple, cands, q, xy, app, sigma, ids, held, alp
                        sigma, ids, config).or_raise()
     else:
         current = base
-    current_held = held(current.model)
+    # the selection's fits are of these marks, robust, as the held-out test's: reused
+    current_held = held(current.model, fit=current)
     base_held = current_held
     accepted, rejected, not_ident = [], [], []
     used_keys: set[str] = set()
@@ -419,7 +434,7 @@ def _select(base: Fit, nuisance: tuple, cands, q, xy, app, sigma, ids, held, alp
         sig = [t for t in trials if t[5] < alpha_each and t[6] < 0 and id(t[0]) not in small]
         scored = []
         for t in sig:
-            scored.append((held(t[1].model), t))
+            scored.append((held(t[1].model, fit=t[1]), t))
         best = min(scored, key=lambda s: s[0]) if scored else None
         round_rejected = []
         for c, f, rss0, rss1, F, p, dbic in trials:

@@ -35,7 +35,9 @@ def mark_measurements(dots: AssociatedDots, images: list[ImageResult], files: li
     the reference (grid, markers or mixed) and the local-minus-global difference."""
     marks = {}
     for mid, gi in dots.assoc.mark_to_group.items():
-        g = dots.groups[gi]
+        g = dots.measured_group(gi)
+        if not len(g.images):   # its refined views were all in photos left out
+            continue
         why = [dot_field(images[k], "dots_unreliable", j) for k, j in zip(g.images, g.dot_index)]
         status, reason = "ok", ""
         if all(why):
@@ -74,8 +76,8 @@ def sheet_height_stage(session: Session, images: list[ImageResult], marks: dict,
     None)."""
     groups_of = {}
     for mid, gi in dots.assoc.mark_to_group.items():
-        if marks[mid].status == "ok":
-            g = _without_flagged(dots.groups[gi], images)
+        if mid in marks and marks[mid].status == "ok":
+            g = _without_flagged(dots.measured_group(gi), images)
             groups_of[mid] = list(zip(g.images, g.dot_index))
     heights, hmap, hnote = {}, None, None
     try:
@@ -92,10 +94,10 @@ def sheet_height_stage(session: Session, images: list[ImageResult], marks: dict,
                                      reference="parallax")
     elif heights:
         for mid, gi in dots.assoc.mark_to_group.items():
-            mm = marks[mid]
-            if mm.reference == "markers":
+            mm = marks.get(mid)
+            if mm is None or mm.reference == "markers":
                 continue
-            g = _without_flagged(dots.groups[gi], images)
+            g = _without_flagged(dots.measured_group(gi), images)
             gg = assoc.DotGroup(
                 np.array([images[k].dots_global_xy_mm[j] for k, j in zip(g.images, g.dot_index)]),
                 np.array([images[k].dots_global_cov_mm2[j]

@@ -5,7 +5,7 @@ tool's first guess fitted to the marks the first pass matched (:func:`_with_fitt
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -14,7 +14,7 @@ from vision_cal.dataset.session import Session
 from vision_cal.identify import associate as assoc
 from vision_cal.identify.infer import infer_image_marks
 from vision_cal.identify.plan_match import check_plan_match
-from vision_cal.measure.listing import _Photo
+from vision_cal.measure.listing import Photo
 from vision_cal.measure.types import ImageResult
 from vision_cal.model.equivalent import equivalent_joints
 from vision_cal.model.tool_fit import fit_tool
@@ -62,6 +62,13 @@ class AssociatedDots:
     image_marks: list
     inferred: object | None
     warnings: list
+    #: the groups with their refined dots only (the dots only seen left out,
+    #: :mod:`vision_cal.measure.views`): what the marks are measured from
+    measured: list = field(default_factory=list)
+
+    def measured_group(self, gi: int):
+        """Group ``gi`` with its refined dots only (all of it when not split)."""
+        return self.measured[gi] if self.measured else self.groups[gi]
 
     def unassigned(self, files: list[str]) -> list[dict]:
         """The dot groups no mark took: mean position and the photos they are on."""
@@ -70,7 +77,7 @@ class AssociatedDots:
                 for gi, g in enumerate(self.groups) if gi not in used]
 
 
-def associate_dots(session: Session, items: list[_Photo], images: list[ImageResult],
+def associate_dots(session: Session, items: list[Photo], images: list[ImageResult],
                    ac: AssociationConfig, default_diameter_mm: float,
                    plan_match: PlanMatchConfig | None = None) -> AssociatedDots:
     """Stage 3: dots grouped across photos and the groups matched to the planned marks
@@ -80,7 +87,11 @@ def associate_dots(session: Session, items: list[_Photo], images: list[ImageResu
     warnings: list[str] = []
     files = [ph.file for ph in items]
     idx_ok = [i for i, r in enumerate(images) if r.status == "ok"]
-    per_image = [(i, images[i].dots_xy_mm, images[i].dots_cov_mm2) for i in idx_ok]
+    # the dots only seen group with their refined views: which marks a photo shows
+    per_image = [(i, np.concatenate([images[i].dots_xy_mm, images[i].seen_xy_mm]),
+                  np.concatenate([images[i].dots_cov_mm2,
+                                  np.full((len(images[i].seen_xy_mm), 2, 2), np.nan)]))
+                 for i in idx_ok]
     dia = session.pen_mark_diameter_mm or default_diameter_mm
     groups = assoc.group_dots(per_image, tol_mm=max(ac.group_tol_diameters * dia,
                                                     ac.group_tol_min_mm))
@@ -110,11 +121,22 @@ def associate_dots(session: Session, items: list[_Photo], images: list[ImageResu
     warnings.extend(a.warnings)
     check_plan_match(session.path, files, images, image_marks, len(groups), len(a.mark_to_group),
                      plan_match)
+    measured = [_refined_only(g, images) for g in groups]
     dot_mark = [[""] * len(im.dots_xy_mm) for im in images]
     for mid, gi in a.mark_to_group.items():
-        for k, j in zip(groups[gi].images, groups[gi].dot_index):
+        for k, j in zip(measured[gi].images, measured[gi].dot_index):
             dot_mark[k][j] = mid
     for k, im in enumerate(images):
         if im.status == "ok":
             images[k] = replace(im, dots_mark=tuple(dot_mark[k]))
-    return AssociatedDots(groups, a, image_marks, inferred, warnings)
+    return AssociatedDots(groups, a, image_marks, inferred, warnings, measured)
+
+
+def _refined_only(g, images: list[ImageResult]):
+    """The group without the dots only seen (their index is past the photo's refined
+    dots, :mod:`vision_cal.measure.views`)."""
+    keep = [i for i, (k, j) in enumerate(zip(g.images, g.dot_index)) if j < images[k].n_dots]
+    if len(keep) == len(g.images):
+        return g
+    return assoc.DotGroup(g.xy_mm[keep].reshape(-1, 2), g.cov_mm2[keep].reshape(-1, 2, 2),
+                          tuple(g.images[i] for i in keep), tuple(g.dot_index[i] for i in keep))

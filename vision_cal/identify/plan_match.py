@@ -27,11 +27,17 @@ def _names(files) -> str:
     return ", ".join(files[:4]) + (f" and {len(files) - 4} more" if len(files) > 4 else "")
 
 
+def _dots_seen(im) -> int:
+    """Dots found in a photo: refined, and seen but not refined."""
+    return int(im.n_dots) + len(getattr(im, "seen_xy_mm", ()))
+
+
 def check_plan_match(session_path, files, images, image_marks, n_groups: int,
                      matched: int, config: PlanMatchConfig | None = None) -> None:
     """Raise when the photos do not match the plan (see the module docstring).
 
-    ``images``: per photo an ``ImageResult`` (``status``, ``n_dots``); ``image_marks``: per
+    ``images``: per photo an ``ImageResult`` (``status``, ``n_dots`` and the dots only seen,
+    ``seen_xy_mm``: :mod:`vision_cal.measure.views`); ``image_marks``: per
     photo the marks it should show; ``n_groups``: physical dots found over the photos;
     ``matched``: marks assigned to a dot; ``config`` the thresholds (default
     ``DEFAULT.plan_match``)."""
@@ -39,14 +45,15 @@ def check_plan_match(session_path, files, images, image_marks, n_groups: int,
     ok = [k for k, im in enumerate(images) if im.status == "ok"]
     if not ok:
         return
+    n_dots = {k: _dots_seen(images[k]) for k in ok}
     crowded = [k for k in ok
-               if images[k].n_dots > cfg.max_dots_per_mark * len(image_marks[k]) + cfg.spare_dots]
+               if n_dots[k] > cfg.max_dots_per_mark * len(image_marks[k]) + cfg.spare_dots]
     expected = {m for k in ok for m in image_marks[k]}
     if 2 * len(crowded) > len(ok):
         k = crowded[0]
         raise CalibrationError(
             f"the photos do not match the plan: {_names(files[i] for i in crowded)} show "
-            f"{images[k].n_dots} dots where {len(image_marks[k])} planned marks should be "
+            f"{n_dots[k]} dots where {len(image_marks[k])} planned marks should be "
             f"({matched} of {len(expected)} marks could be matched): photos of another "
             "sheet or another session? Put the photos of this plan in the folder",
             file=str(session_path), field="images")

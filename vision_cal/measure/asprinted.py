@@ -304,22 +304,33 @@ def count_places(rvecs, tvecs, *, min_move_mm: float, min_turn_deg: float) -> in
 
 # ---------------------------------------------------------------------- the solve
 
-def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
-                        config: AsPrintedConfig | None = None, source: str = "views"
-                        ) -> AsPrinted | None:
-    """The as-printed layout from ``views``: list of (file, marker_ids (M,), declared
-    corners_mm (M, 4, 2), raw corners_px (M, 4, 2)). ``K``, ``dist``: the lens (start, or
-    fixed when ``lens_free`` is False). None when fewer than ``config.min_places`` camera
-    places (``config``: default ``vision_cal.config.DEFAULT.as_printed``)."""
-    cfg = config or DEFAULT.as_printed
-    views = [v for v in views if len(v[1]) >= 4]
-    if len(views) < 2:
-        return None
-    K = np.asarray(K, float)
-    dist0 = np.zeros(5)
-    dd = np.asarray(dist if dist is not None else np.zeros(5), float).ravel()[:5]
-    dist0[:len(dd)] = dd
-    # the corners: one unknown each, over all photos
+@dataclass(frozen=True)
+class _Observations:
+    """Every photo's marker corners, gathered for the joint solve.
+
+    ``ids`` (M,) and ``declared`` (M, 4, 2): the markers seen (sorted) and their declared
+    corners; ``view`` / ``point`` (n,) and ``px`` (n, 2): each observed corner's photo, its
+    corner's index (4 * marker + corner) and its raw pixel; ``rvecs`` / ``tvecs`` (V, 3):
+    each photo's start pose (sheet -> camera) against the declared layout."""
+
+    ids: np.ndarray
+    declared: np.ndarray
+    view: np.ndarray
+    point: np.ndarray
+    px: np.ndarray
+    rvecs: np.ndarray
+    tvecs: np.ndarray
+
+    @property
+    def P0(self) -> np.ndarray:
+        """The declared corners, one row each (4 M, 2)."""
+        return self.declared.reshape(-1, 2)
+
+
+def _observe(views, K, dist0) -> _Observations:
+    """The corners of ``views`` as one unknown each over all photos, every photo's
+    observations of them, and each photo's start pose (IPPE, else OpenCV's iterative PnP)
+    against the declared layout with the lens ``K``, ``dist0``."""
     layout: dict[int, np.ndarray] = {}
     for _, ids, mm, _ in views:
         for i, c in zip(ids, mm):
@@ -327,8 +338,6 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
     ids = np.array(sorted(layout))
     pos = {int(i): k for k, i in enumerate(ids)}
     declared = np.array([layout[int(i)] for i in ids])                      # (M, 4, 2)
-    P0 = declared.reshape(-1, 2)
-    # observations
     obs_view, obs_pt, obs_px = [], [], []
     rvecs, tvecs = [], []
     for v, (_, mids, mm, px) in enumerate(views):
@@ -345,59 +354,104 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
                 obs_view.append(v)
                 obs_pt.append(4 * pos[int(i)] + k)
                 obs_px.append(c[k])
-    obs_view, obs_pt, obs_px = np.array(obs_view), np.array(obs_pt), np.array(obs_px)
-    rvecs, tvecs = np.array(rvecs), np.array(tvecs)
-    V = len(views)
-    scale = float(np.median(np.abs(tvecs[:, 2])))
-    n_places = count_places(rvecs, tvecs, min_move_mm=cfg.place_move * scale,
-                            min_turn_deg=cfg.place_turn_deg)
-    if n_places < cfg.min_places:
-        return None
-    n_seen = np.bincount(obs_pt, minlength=len(P0))
-    view_sets = [set(obs_view[obs_pt == p]) for p in range(len(P0))]
-    released = np.array([n_seen[p] >= cfg.min_views and len(view_sets[p]) >= cfg.min_views
-                         for p in range(len(P0))])
-    rel_idx = np.flatnonzero(released)
-    col_of = -np.ones(len(P0), int)
-    col_of[rel_idx] = np.arange(len(rel_idx))
+    return _Observations(ids, declared, np.array(obs_view), np.array(obs_pt),
+                         np.array(obs_px), np.array(rvecs), np.array(tvecs))
 
-    lens0 = _lens_vector(K, dist0)
-    n_lens = len(LENS_FREE) if lens_free else 0
-    npv = 7 if lens_free else 6    # per photo: rvec, tvec (and its focal length's factor)
-    n_pose = npv * V
-    # each released corner: its shift in the paper's plane, and (``release_heights``) its
-    # height off it: paper that is not flat shows parallax between places, which a shift
-    # alone would take for print
-    nd = 3 if cfg.release_heights else 2
-    n_delta = nd * len(rel_idx)
-    w_prior = cfg.noise_px / cfg.prior_mm
-    w_delta = np.tile([w_prior] * 2 + ([cfg.noise_px / cfg.height_prior_mm] if nd == 3 else []),
-                      len(rel_idx))
-    n_foc = V if lens_free else 0  # a phone refocuses: each photo's f = f (1 + e), e ~ prior
-    w_foc = cfg.noise_px / cfg.focal_scatter
 
-    def unpack(x):
-        lens = lens0.copy()
-        if lens_free:
+def _released(obs: _Observations, min_views: int) -> np.ndarray:
+    """Which corners are released (4 M,) bool: seen at least ``min_views`` times, in at
+    least ``min_views`` photos."""
+    n_points = len(obs.P0)
+    n_seen = np.bincount(obs.point, minlength=n_points)
+    view_sets = [set(obs.view[obs.point == p]) for p in range(n_points)]
+    return np.array([n_seen[p] >= min_views and len(view_sets[p]) >= min_views
+                     for p in range(n_points)])
+
+
+@dataclass(frozen=True)
+class _Problem:
+    """The bundle adjustment's layout of unknowns and its residuals (module docstring).
+
+    The unknowns ``x``: the lens (``n_lens``: ``LENS_FREE``, when ``lens_free``), then per
+    photo ``npv`` values (rvec, tvec, and its focal length's factor when the lens is free),
+    then ``nd`` per released corner (its shift in the paper's plane and, with
+    ``release_heights``, its height off it). The residuals: every observed pixel (x, y),
+    the focal factors' prior (``w_foc``), the corners' prior (``w_delta``)."""
+
+    obs: _Observations
+    lens0: np.ndarray
+    lens_free: bool
+    rel_idx: np.ndarray         # the released corners' indices
+    col_of: np.ndarray          # corner index -> its column among the released, -1: fixed
+    nd: int
+    w_delta: np.ndarray
+    w_foc: float
+    view_rows: tuple            # per photo, its observations' rows
+
+    @property
+    def V(self) -> int:
+        """The photos."""
+        return len(self.obs.rvecs)
+
+    @property
+    def n_lens(self) -> int:
+        """The lens's unknowns (0: the lens fixed)."""
+        return len(LENS_FREE) if self.lens_free else 0
+
+    @property
+    def npv(self) -> int:
+        """Unknowns per photo: rvec, tvec (and its focal length's factor)."""
+        return 7 if self.lens_free else 6
+
+    @property
+    def n_pose(self) -> int:
+        """Every photo's unknowns."""
+        return self.npv * self.V
+
+    @property
+    def n_delta(self) -> int:
+        """The released corners' unknowns."""
+        return self.nd * len(self.rel_idx)
+
+    @property
+    def n_foc(self) -> int:
+        """The focal factors' prior rows: a phone refocuses, each photo's f = f (1 + e)."""
+        return self.V if self.lens_free else 0
+
+    @property
+    def m_obs(self) -> int:
+        """The pixel residuals (x and y of every observed corner)."""
+        return 2 * len(self.obs.px)
+
+    @property
+    def foc_cols(self) -> np.ndarray:
+        """Each photo's focal factor's column in ``x`` (V,; used only with the lens free)."""
+        return self.n_lens + self.npv * np.arange(self.V) + 6
+
+    def unpack(self, x):
+        """The lens vector (8,), the poses (V, npv) and every corner's delta (4 M, 3) of
+        ``x``."""
+        lens = self.lens0.copy()
+        if self.lens_free:
             lens[:7] = x[:7]
-        poses = x[n_lens:n_lens + n_pose].reshape(V, npv)
-        delta = np.zeros((len(P0), 3))
-        delta[rel_idx, :nd] = x[n_lens + n_pose:].reshape(-1, nd)
+        poses = x[self.n_lens:self.n_lens + self.n_pose].reshape(self.V, self.npv)
+        delta = np.zeros((len(self.obs.P0), 3))
+        delta[self.rel_idx, :self.nd] = x[self.n_lens + self.n_pose:].reshape(-1, self.nd)
         return lens, poses, delta
 
-    view_rows = [np.flatnonzero(obs_view == v) for v in range(V)]
-    m_obs = 2 * len(obs_px)
-
-    def _model(x, with_jac: bool):
+    def model(self, x, with_jac: bool):
         """Predicted pixels (n_obs, 2) and, with ``with_jac``, the dense Jacobian of the
         observation rows (OpenCV's own derivatives of its projection)."""
-        lens, poses, delta = unpack(x)
+        lens_free, n_lens, npv, n_pose, nd = (self.lens_free, self.n_lens, self.npv,
+                                              self.n_pose, self.nd)
+        P0, obs_pt, obs_px, col_of = self.obs.P0, self.obs.point, self.obs.px, self.col_of
+        lens, poses, delta = self.unpack(x)
         Kx, dx = _lens_matrices(lens)
         P = np.column_stack([P0, np.zeros(len(P0))]) + delta
         pred = np.empty_like(obs_px)
-        J = np.zeros((m_obs, len(x))) if with_jac else None
+        J = np.zeros((self.m_obs, len(x))) if with_jac else None
         eps = 1e-3
-        for v, rows in enumerate(view_rows):
+        for v, rows in enumerate(self.view_rows):
             Kv = Kx.copy()
             if lens_free:
                 Kv[0, 0] = Kv[1, 1] = Kx[0, 0] * (1.0 + poses[v, 6])
@@ -428,59 +482,108 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
                     J[2 * rr + 1, cc] = dp[rel, 1]
         return pred, J
 
-    foc_cols = n_lens + npv * np.arange(V) + 6
+    def residuals(self, x) -> np.ndarray:
+        """The weighted residuals: pixels, focal factors' prior, corners' prior."""
+        pred, _ = self.model(x, False)
+        return np.concatenate([(pred - self.obs.px).ravel(),
+                               self.w_foc * x[self.foc_cols[:self.n_foc]],
+                               self.w_delta * x[self.n_lens + self.n_pose:]])
 
-    def residuals(x):
-        pred, _ = _model(x, False)
-        return np.concatenate([(pred - obs_px).ravel(), w_foc * x[foc_cols[:n_foc]],
-                               w_delta * x[n_lens + n_pose:]])
-
-    def jacobian(x):
-        _, J = _model(x, True)
+    def jacobian(self, x) -> np.ndarray:
+        """The residuals' dense Jacobian at ``x``."""
+        _, J = self.model(x, True)
+        n_foc, n_fixed = self.n_foc, self.n_lens + self.n_pose
         F = np.zeros((n_foc, len(x)))
-        F[np.arange(n_foc), foc_cols[:n_foc]] = w_foc
-        D = np.hstack([np.zeros((n_delta, n_lens + n_pose)), np.diag(w_delta)])
+        F[np.arange(n_foc), self.foc_cols[:n_foc]] = self.w_foc
+        D = np.hstack([np.zeros((self.n_delta, n_fixed)), np.diag(self.w_delta)])
         return np.vstack([J, F, D])
 
-    poses0 = np.column_stack([rvecs, tvecs] + ([np.zeros(V)] if lens_free else []))
-    x0 = np.concatenate([lens0[:7] if lens_free else [], poses0.ravel(), np.zeros(n_delta)])
+    def start(self) -> np.ndarray:
+        """The start ``x``: the lens as given, the start poses, no focal change, no delta."""
+        obs = self.obs
+        poses0 = np.column_stack([obs.rvecs, obs.tvecs]
+                                 + ([np.zeros(self.V)] if self.lens_free else []))
+        return np.concatenate([self.lens0[:7] if self.lens_free else [], poses0.ravel(),
+                               np.zeros(self.n_delta)])
 
-    # before: the declared layout, the same lens, each photo's own pose
-    nb = n_lens + n_pose
-    mb = m_obs + n_foc
-    before = least_squares(lambda x: residuals(np.concatenate([x, np.zeros(n_delta)]))[:mb],
-                           x0[:nb], jac=lambda x: jacobian(np.concatenate(
+    def per_view_rms(self, res) -> tuple[float, ...]:
+        """Each photo's RMS pixel residual (2-D) in residual vector ``res``."""
+        r = res[:self.m_obs].reshape(-1, 2)
+        return tuple(rms_2d(r[self.obs.view == v]) for v in range(self.V))
+
+    def heights_plane(self) -> np.ndarray:
+        """The heights' gauge: the released corners' plane design matrix (n, 3)."""
+        return np.column_stack([np.ones(len(self.rel_idx)), self.obs.P0[self.rel_idx]])
+
+    def gauge(self) -> np.ndarray:
+        """The in-plane gauge: (4, 2 n) the released corners' displacements' best-fitting
+        small similarity, each marker's growth fitted beside it (:func:`_gauge_matrix`)."""
+        rel_idx, P0 = self.rel_idx, self.obs.P0
+        marker = rel_idx // 4
+        centres = self.obs.declared.mean(axis=1)
+        return _gauge_matrix(P0[rel_idx], marker, np.sign(P0[rel_idx] - centres[marker]))
+
+
+def _problem(obs: _Observations, released: np.ndarray, lens0: np.ndarray, lens_free: bool,
+             cfg: AsPrintedConfig) -> _Problem:
+    """The bundle adjustment over ``obs`` with the corners ``released`` free, its priors'
+    weights from ``cfg`` (the noise over each prior's size)."""
+    rel_idx = np.flatnonzero(released)
+    col_of = -np.ones(len(obs.P0), int)
+    col_of[rel_idx] = np.arange(len(rel_idx))
+    # each released corner: its shift in the paper's plane, and (``release_heights``) its
+    # height off it: paper that is not flat shows parallax between places, which a shift
+    # alone would take for print
+    nd = 3 if cfg.release_heights else 2
+    w_prior = cfg.noise_px / cfg.prior_mm
+    w_delta = np.tile([w_prior] * 2 + ([cfg.noise_px / cfg.height_prior_mm] if nd == 3 else []),
+                      len(rel_idx))
+    view_rows = tuple(np.flatnonzero(obs.view == v) for v in range(len(obs.rvecs)))
+    return _Problem(obs, lens0, lens_free, rel_idx, col_of, nd, w_delta,
+                    cfg.noise_px / cfg.focal_scatter, view_rows)
+
+
+def _solve(pb: _Problem, huber_px: float):
+    """The two solves, as scipy results: ``before`` (the declared layout, the lens and the
+    poses free) and the solution from it (the released corners free too)."""
+    x0 = pb.start()
+    n_delta = pb.n_delta
+    nb = pb.n_lens + pb.n_pose
+    mb = pb.m_obs + pb.n_foc
+    before = least_squares(lambda x: pb.residuals(np.concatenate([x, np.zeros(n_delta)]))[:mb],
+                           x0[:nb], jac=lambda x: pb.jacobian(np.concatenate(
                                [x, np.zeros(n_delta)]))[:mb, :nb],
-                           method="trf", loss="huber", f_scale=cfg.huber_px, x_scale="jac",
+                           method="trf", loss="huber", f_scale=huber_px, x_scale="jac",
                            max_nfev=100)
     x0 = np.concatenate([before.x, np.zeros(n_delta)])
-    sol = least_squares(residuals, x0, jac=jacobian, method="trf", loss="huber",
-                        f_scale=cfg.huber_px, x_scale="jac", max_nfev=100)
-    lens, poses, delta = unpack(sol.x)
+    sol = least_squares(pb.residuals, x0, jac=pb.jacobian, method="trf", loss="huber",
+                        f_scale=huber_px, x_scale="jac", max_nfev=100)
+    return before, sol
 
-    def per_view(res):
-        r = res[:m_obs].reshape(-1, 2)
-        return tuple(rms_2d(r[obs_view == v]) for v in range(V))
 
-    rms_before = per_view(before.fun)
-    rms_after = per_view(sol.fun)
-    # std of the released corners from the Jacobian at the solution
-    J = jacobian(sol.x)   # the plain Jacobian (sol.jac is scaled by the loss)
-    r_obs = sol.fun[:m_obs]
-    dof = max(m_obs - (len(x0) - 4), 1)
+def _corner_std(pb: _Problem, sol, n_places: int
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The released corners' std at the solution ``sol``, from the Jacobian and the
+    residual's own scale: in-plane (4 M, 2), in the gauge (less the best-fitting
+    similarity, each marker's growth aside), and the heights' (4 M,), less their
+    best-fitting plane; and the in-plane joint covariance in the gauge (2 M 4, 2 M 4),
+    zero where not released (``AsPrinted.corner_cov_mm2``). NaN std and no covariance
+    (None) when the normal matrix is singular; 0 for the corners not released."""
+    P0, rel_idx, nd, n_delta = pb.obs.P0, pb.rel_idx, pb.nd, pb.n_delta
+    J = pb.jacobian(sol.x)   # the plain Jacobian (sol.jac is scaled by the loss)
+    r_obs = sol.fun[:pb.m_obs]
+    dof = max(pb.m_obs - (len(sol.x) - 4), 1)
     # photos from one place see the corners with the same detection errors (the same
     # pixels): they carry one view's information, not one each; the variance counts
     # places (38 photos from 4 places: the std was 3 times too small, and a bumped sheet's
     # model error passed for 0.012 mm of print at 5 times it)
-    s2 = float(np.sum(r_obs**2)) / dof * V / max(n_places, 1)
+    s2 = float(np.sum(r_obs**2)) / dof * pb.V / max(n_places, 1)
     std = np.zeros_like(P0)
     hstd = np.zeros(len(P0))
-    plane = np.column_stack([np.ones(len(rel_idx)), P0[rel_idx]])   # the heights' gauge
-    marker = rel_idx // 4
-    centres = declared.mean(axis=1)
-    gauge = _gauge_matrix(P0[rel_idx], marker, np.sign(P0[rel_idx] - centres[marker]))
+    plane = pb.heights_plane()
+    gauge = pb.gauge()
     try:
-        cov3 = s2 * np.linalg.inv(J.T @ J)[n_lens + n_pose:, n_lens + n_pose:]
+        cov3 = s2 * np.linalg.inv(J.T @ J)[pb.n_lens + pb.n_pose:, pb.n_lens + pb.n_pose:]
         inplane = (np.arange(n_delta) % nd) < 2
         cov = cov3[np.ix_(inplane, inplane)]
         if nd == 3 and len(rel_idx) >= 3:   # heights less their best-fitting plane
@@ -503,22 +606,62 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
         std[rel_idx] = np.nan
         hstd[rel_idx] = np.nan
         full = None
-    # the gauge: no similarity between the printed and the declared layout; no plane
-    # between the heights and the paper's
+    return std, hstd, full
+
+
+def _in_gauge(pb: _Problem, delta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The solved deltas (4 M, 3) in the gauge: the in-plane shifts (4 M, 2) less their
+    best-fitting similarity to the declared layout (each marker's growth aside,
+    :meth:`_Problem.gauge`), and the heights (4 M,) less their best-fitting plane (zeros
+    when heights are not released)."""
+    P0, rel_idx = pb.obs.P0, pb.rel_idx
     heights = np.zeros(len(P0))
-    if nd == 3 and len(rel_idx) >= 3:
+    if pb.nd == 3 and len(rel_idx) >= 3:
+        plane = pb.heights_plane()
         h = delta[rel_idx, 2]
         heights[rel_idx] = h - plane @ np.linalg.lstsq(plane, h, rcond=None)[0]
     delta = delta[:, :2]
-    sim = gauge @ delta[rel_idx].ravel() if len(rel_idx) >= 3 else np.zeros(4)
+    sim = pb.gauge() @ delta[rel_idx].ravel() if len(rel_idx) >= 3 else np.zeros(4)
     delta[rel_idx] -= _apply_similarity(sim, P0[rel_idx])
+    return delta, heights
+
+
+def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
+                        config: AsPrintedConfig | None = None, source: str = "views"
+                        ) -> AsPrinted | None:
+    """The as-printed layout from ``views``: list of (file, marker_ids (M,), declared
+    corners_mm (M, 4, 2), raw corners_px (M, 4, 2)). ``K``, ``dist``: the lens (start, or
+    fixed when ``lens_free`` is False). None when fewer than ``config.min_places`` camera
+    places (``config``: default ``vision_cal.config.DEFAULT.as_printed``)."""
+    cfg = config or DEFAULT.as_printed
+    views = [v for v in views if len(v[1]) >= 4]
+    if len(views) < 2:
+        return None
+    K = np.asarray(K, float)
+    dist0 = np.zeros(5)
+    dd = np.asarray(dist if dist is not None else np.zeros(5), float).ravel()[:5]
+    dist0[:len(dd)] = dd
+    obs = _observe(views, K, dist0)
+    scale = float(np.median(np.abs(obs.tvecs[:, 2])))
+    n_places = count_places(obs.rvecs, obs.tvecs, min_move_mm=cfg.place_move * scale,
+                            min_turn_deg=cfg.place_turn_deg)
+    if n_places < cfg.min_places:
+        return None
+    released = _released(obs, cfg.min_views)
+    pb = _problem(obs, released, _lens_vector(K, dist0), lens_free, cfg)
+    before, sol = _solve(pb, cfg.huber_px)
+    lens, _, delta = pb.unpack(sol.x)
+    std, hstd, full = _corner_std(pb, sol, n_places)
+    delta, heights = _in_gauge(pb, delta)
     Kf, df = _lens_matrices(lens)
     notes = []
     if not sol.success:
         notes.append(f"the bundle adjustment stopped: {sol.message}")
-    return AsPrinted(ids, declared, (P0 + delta).reshape(-1, 4, 2), std.reshape(-1, 4, 2),
-                     released.reshape(-1, 4), Kf, df, (int(size_px[0]), int(size_px[1])),
-                     bool(lens_free), tuple(v[0] for v in views), rms_before, rms_after,
-                     n_places, source, tuple(notes),
+    nd = pb.nd
+    return AsPrinted(obs.ids, obs.declared, (obs.P0 + delta).reshape(-1, 4, 2),
+                     std.reshape(-1, 4, 2), released.reshape(-1, 4), Kf, df,
+                     (int(size_px[0]), int(size_px[1])), bool(lens_free),
+                     tuple(v[0] for v in views), pb.per_view_rms(before.fun),
+                     pb.per_view_rms(sol.fun), n_places, source, tuple(notes),
                      heights.reshape(-1, 4) if nd == 3 else None,
                      hstd.reshape(-1, 4) if nd == 3 else None, full)

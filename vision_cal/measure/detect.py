@@ -22,7 +22,7 @@ from vision_cal.errors import VisionCalError
 from vision_cal.measure.aruco import edge_points, find_sheet_markers
 from vision_cal.measure.cache import DetectionCache, cache_key, session_fingerprint
 from vision_cal.measure.dots import find_candidates
-from vision_cal.measure.listing import _Photo, _refusal, _skip
+from vision_cal.measure.listing import Photo, refusal, skipped
 from vision_cal.measure.mapping import fit_mapping, undistort_px
 from vision_cal.measure.types import ImageDetections
 from vision_cal.measure.workers import exit_with_parent
@@ -39,7 +39,7 @@ def _decode(data: bytes, file: str, camera_size_px=None):
         photos.check_complete(data)  # by its structure: a phone's trailer is not truncation
         turned = photos.check_header(photos.read_header(data), camera_size_px)
     except photos.PhotoRefused as e:
-        return None, _refusal(file, e)
+        return None, refusal(file, e)
     img = photos.decode_photo(data, turned=turned)
     if img is None:
         return None, "unreadable: not an image OpenCV can decode"
@@ -85,15 +85,15 @@ def detect_image_bytes(data: bytes, file: str, session: Session, *,
     cam = session.camera
     rgb, why = _decode(data, file, None if cam is None else cam.size_px)
     if rgb is None:
-        return _skip(file, why)
+        return skipped(file, why)
     h, w = rgb.shape[:2]
     size = (int(w), int(h))
     if cam is not None and tuple(cam.size_px) != size:
-        return _skip(file, f"wrong size: {w}x{h} px, camera.size_px says "
+        return skipped(file, f"wrong size: {w}x{h} px, camera.size_px says "
                            f"{cam.size_px[0]}x{cam.size_px[1]}", size)
     gray = cv2.cvtColor(rgb, cv2.COLOR_BGR2GRAY)
     if float(gray[::4, ::4].std()) < config.markers.blank_photo_std:
-        return _skip(file, "blank image: no contrast", size)
+        return skipped(file, "blank image: no contrast", size)
     det = find_sheet_markers(gray, session.sheet, config=config.markers)
     if det.reason:
         return ImageDetections(file, "skipped", det.reason, size, det.ids, det.corners_px,
@@ -105,13 +105,13 @@ def detect_image_bytes(data: bytes, file: str, session: Session, *,
                                             geometry=marker_geometry(session.sheet)))
     out, n_bad = _drop_deformed_markers(out, K, dist, min_markers=config.markers.min_markers)
     if len(out.marker_ids) < config.markers.min_markers:
-        return _skip(file, f"too few markers: {len(out.marker_ids)} usable after {n_bad} "
+        return skipped(file, f"too few markers: {len(out.marker_ids)} usable after {n_bad} "
                            "deformed ones (partly hidden?) were left out", size)
     try:
         approx = fit_mapping(out.corners_mm.reshape(-1, 2),
                              out.corners_for(K, dist).reshape(-1, 2), K=K, dist=dist)
     except VisionCalError as e:
-        return _skip(file, f"no mapping: {e.reason}", size)
+        return skipped(file, f"no mapping: {e.reason}", size)
     cand = find_candidates(rgb, approx, session.sheet, dia_mm=session.pen_mark_diameter_mm,
                            config=config.dots)
     gp, go = None, None
@@ -137,33 +137,37 @@ def _grid_patches(rgb, mapping, uv_px, half_mm: float):
         cu, cv_ = int(round(u)), int(round(v))
         c0, r0 = max(cu - hp, 0), max(cv_ - hp, 0)
         c1, r1 = min(cu + hp + 1, W), min(cv_ + hp + 1, H)
-        patches.append(rgb[r0:r1, c0:c1].astype(np.uint16).sum(axis=2, dtype=np.uint16))
+        patches.append(photos.channel_sum(rgb[r0:r1, c0:c1], np.uint16))
         origins.append((c0, r0))
     return tuple(patches), np.asarray(origins, int).reshape(-1, 2)
 
 
 def detect_image(path, session: Session, *, root=None, name: str | None = None,
-                 sha256: str | None = None,
+                 sha256: str | None = None, identity: tuple | None = None,
                  config: EstimatorConfig | None = None) -> ImageDetections:
     """Stage 1 on one photo file: ``root``/``name`` (``name`` the photo's relative path,
     kept in the result), or ``path`` itself. ``sha256``: the content the caller checked
-    (header, cache key); a file that changed since is skipped."""
+    (header, cache key); a file that changed since is skipped. ``identity``: the file's
+    identity when the caller hashed it (:func:`photos.read_photo_identity`): read back
+    unchanged, the bytes are the ones hashed (any write changes the file's change time)
+    and are not hashed again; otherwise they are."""
     path = Path(path)
     root = Path(root) if root is not None else path.parent
     name = name if name is not None else path.name
     try:
-        data = photos.read_photo(root, name)
+        data, now = photos.read_photo_identity(root, name)
     except photos.PhotoRefused as e:
-        return _skip(name, e.reason)
-    if sha256 is not None and hashlib.sha256(data).hexdigest() != sha256:
-        return _skip(name, "changed while being measured: run again")
+        return skipped(name, e.reason)
+    if sha256 is not None and (identity is None or tuple(now) != tuple(identity)) \
+            and hashlib.sha256(data).hexdigest() != sha256:
+        return skipped(name, "changed while being measured: run again")
     return detect_image_bytes(data, name, session, config=config)
 
 
 def _worker(args):
-    root, name, session, sha, config = args
+    root, name, session, sha, identity, config = args
     return detect_image(Path(root) / name, session, root=root, name=name, sha256=sha,
-                        config=config)
+                        identity=identity, config=config)
 
 
 #: pixels decoded at once over all workers: each photo is at most ``photos.MAX_PIXELS``
@@ -184,7 +188,7 @@ def _pool_initializer(parent_pid: int) -> None:
     exit_with_parent(parent_pid)
 
 
-def detect_all(items: list[_Photo], session: Session, cache: DetectionCache, *,
+def detect_all(items: list[Photo], session: Session, cache: DetectionCache, *,
                jobs: int | None = None, progress=None,
                config: EstimatorConfig | None = None) -> list[str]:
     """Stage 1 of every photo not skipped yet (``ph.det`` filled): from the cache, else in
@@ -220,7 +224,8 @@ def detect_all(items: list[_Photo], session: Session, cache: DetectionCache, *,
                        if todo else "all from the cache")
     if not todo and bar:
         bar.update(n_cached)
-    args = [(root, items[i].file, session, items[i].sha256, config) for i in todo]
+    args = [(root, items[i].file, session, items[i].sha256, items[i].identity, config)
+            for i in todo]
     try:
         if jobs <= 1 or len(todo) <= 1:
             results = (_worker(a) for a in args)

@@ -28,13 +28,14 @@ covariance at the dot (homography fitted to the marker corners).
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
 from scipy.ndimage import gaussian_filter, grey_dilation, grey_erosion, maximum_filter1d
 
 from vision_cal.config import DEFAULT, DotConfig
+from vision_cal.dataset.photos import channel_sum
 from vision_cal.dataset.session import Sheet
 from vision_cal.measure.grid import nanmedian_columns
 from vision_cal.measure.mapping import SheetMapping
@@ -97,7 +98,7 @@ def noise_sigma_sum(rgb: np.ndarray, mapping: SheetMapping | None = None,
             u1, v1 = np.ceil(box.max(axis=0)).astype(int) + 3
             if u0 < 0 or v0 < 0 or u1 > W or v1 > H:
                 continue
-            crop = rgb[v0:v1, u0:u1].astype(np.float32).sum(axis=2)
+            crop = channel_sum(rgb[v0:v1, u0:u1])
             resp = cv2.filter2D(crop, -1, _LAPLACE)
             mk = np.zeros(crop.shape, np.uint8)
             for d, val in ((outer, 255), (inner, 0)):
@@ -110,7 +111,7 @@ def noise_sigma_sum(rgb: np.ndarray, mapping: SheetMapping | None = None,
             vals.append(resp[mk > 0])
     v = np.concatenate(vals) if vals else np.zeros(0)
     if len(v) < 200:
-        S = rgb[::2, ::2].astype(np.float32).sum(axis=2)
+        S = channel_sum(rgb[::2, ::2])
         v = cv2.filter2D(S, -1, _LAPLACE)[1:-1, 1:-1].ravel()
     return float(max(1.4826 * np.median(np.abs(v)) / 6.0, 0.3))
 
@@ -161,10 +162,52 @@ def find_candidates(rgb: np.ndarray, mapping: SheetMapping, sheet: Sheet, *,
                     config: DotConfig | None = None) -> DotCandidates:
     """Stage 1 on a whole colour photo (H, W, 3) uint8 (any channel order: only the
     channels' maximum and sum are used) with an approximate mapping. ``config``: the
-    thresholds (default ``vision_cal.config.DEFAULT.dots``)."""
+    thresholds (default ``vision_cal.config.DEFAULT.dots``). The stages: the ink
+    (:func:`_ink`), its blobs judged one by one (:func:`_judge_blob`), a patch cut around
+    each that passes (:func:`_cut_patch`)."""
     cfg = config or DEFAULT.dots
     dia = float(dia_mm or cfg.default_diameter_mm)
-    H, W = rgb.shape[:2]
+    V, bg, ink = _ink(rgb, mapping, sheet, dia, cfg)
+    try:
+        n, labels, stats, cents = cv2.connectedComponentsWithStats(ink, connectivity=8,
+                                                                   ltype=cv2.CV_16U)
+    except cv2.error:  # more than 65535 blobs
+        n, labels, stats, cents = cv2.connectedComponentsWithStats(ink, connectivity=8)
+    sigma = noise_sigma_sum(rgb, mapping, sheet)
+    uvs, patches, origins, areas = [], [], [], []
+    rejected: dict[str, int] = {}
+    rej_uv = []
+    if n > 1:
+        idx = np.arange(1, n)
+        area = stats[idx, cv2.CC_STAT_AREA].astype(float)
+        J = _local_jac(mapping, cents[idx])
+        det = np.abs(np.linalg.det(J))  # mm^2 per px
+        exp_area = np.pi * (dia / 2) ** 2 / np.maximum(det, 1e-12)
+        ratio = area / exp_area
+        for j, lab in enumerate(idx):
+            uv = cents[lab]
+            why = _judge_blob(ratio[j], labels, lab, stats[lab, :4], V, bg, J[j], cfg)
+            if why is None:
+                why = _cut_patch(rgb, uv, J[j], det[j], dia)
+            if isinstance(why, str):
+                if why:   # "": noise, paper texture: not worth a reason
+                    rejected[why] = rejected.get(why, 0) + 1
+                    rej_uv.append(uv)
+                continue
+            patch, origin = why
+            patches.append(patch)
+            origins.append(origin)
+            uvs.append(uv)
+            areas.append(area[j])
+    return DotCandidates(np.asarray(uvs, float).reshape(-1, 2), tuple(patches),
+                         np.asarray(origins, int).reshape(-1, 2), np.asarray(areas, float),
+                         sigma, rejected, np.asarray(rej_uv, float).reshape(-1, 2))
+
+
+def _ink(rgb: np.ndarray, mapping: SheetMapping, sheet: Sheet, dia: float, cfg: DotConfig):
+    """(V the brightest channel, bg its local background, ink uint8 mask): ink is what
+    darkens the brightest channel by ``cfg.ink_darkening`` of a closing that removes dots
+    of ``dia`` mm, on the paper and off the markers (:func:`sheet_mask`)."""
     x0, y0, x1, y1 = sheet.search_extent_mm
     probe = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1], [(x0 + x1) / 2, (y0 + y1) / 2]])
     mmpp = mapping.mm_per_px(probe)
@@ -176,88 +219,66 @@ def find_candidates(rgb: np.ndarray, mapping: SheetMapping, sheet: Sheet, *,
     thr = cv2.multiply(bg, 1.0 - cfg.ink_darkening, dtype=cv2.CV_8U)
     ink = cv2.compare(V, thr, cv2.CMP_LT)
     mask = sheet_mask(rgb.shape, mapping, sheet, margin_mm=cfg.marker_margin_mm)
-    ink = cv2.bitwise_and(ink, mask)
-    try:
-        n, labels, stats, cents = cv2.connectedComponentsWithStats(ink, connectivity=8,
-                                                                   ltype=cv2.CV_16U)
-    except cv2.error:  # more than 65535 blobs
-        n, labels, stats, cents = cv2.connectedComponentsWithStats(ink, connectivity=8)
-    sigma = noise_sigma_sum(rgb, mapping, sheet)
-    uvs, patches, origins, areas = [], [], [], []
-    rejected: dict[str, int] = {}
-    rej_uv = []
+    return V, bg, cv2.bitwise_and(ink, mask)
 
-    def reject(why, uv):
-        rejected[why] = rejected.get(why, 0) + 1
-        rej_uv.append(uv)
 
-    if n > 1:
-        idx = np.arange(1, n)
-        area = stats[idx, cv2.CC_STAT_AREA].astype(float)
-        J = _local_jac(mapping, cents[idx])
-        det = np.abs(np.linalg.det(J))  # mm^2 per px
-        exp_area = np.pi * (dia / 2) ** 2 / np.maximum(det, 1e-12)
-        ratio = area / exp_area
-        for j, lab in enumerate(idx):
-            uv = cents[lab]
-            r = ratio[j]
-            if r < cfg.min_area_ratio:
-                continue  # noise, paper texture: not worth a reason
-            if r > cfg.huge_area_ratio:
-                reject("too large for a pen mark (arm, shadow or print)", uv)
-                continue
-            if r > cfg.max_area_ratio:
-                reject("too large for one mark (merged marks or smudge)", uv)
-                continue
-            xl, yt, w, h = stats[lab, :4]
-            crop = (labels[yt:yt + h, xl:xl + w] == lab)
-            # darkness-weighted second moments (above the level printed lines reach) on
-            # the blob grown by a pixel: steadier than the thresholded pixels of a small dot
-            y0_, x0_ = max(yt - 1, 0), max(xl - 1, 0)
-            y1_, x1_ = min(yt + h + 1, H), min(xl + w + 1, W)
-            grown = cv2.dilate((labels[y0_:y1_, x0_:x1_] == lab).astype(np.uint8),
-                               np.ones((3, 3), np.uint8)) > 0
-            bgc = bg[y0_:y1_, x0_:x1_].astype(float)
-            dk = np.clip(bgc - V[y0_:y1_, x0_:x1_] - 0.2 * bgc, 0.0, None) * grown
-            yy, xx = np.mgrid[y0_:y1_, x0_:x1_]
-            sw = dk.sum()
-            if sw > 0:
-                mx, my = (dk * xx).sum() / sw, (dk * yy).sum() / sw
-                C = np.array([[(dk * (xx - mx) ** 2).sum(), (dk * (xx - mx) * (yy - my)).sum()],
-                              [0.0, (dk * (yy - my) ** 2).sum()]]) / sw
-                C[1, 0] = C[0, 1]
-                C += np.eye(2) / 12.0
-            else:
-                C = np.eye(2)
-            Cm = J[j] @ C @ J[j].T
-            ev = np.linalg.eigvalsh(Cm)
-            aspect = float(np.sqrt(ev[1] / max(ev[0], 1e-12)))
-            if aspect > cfg.max_aspect:
-                reject("elongated (merged marks or smudge)", uv)
-                continue
-            cnts, _ = cv2.findContours(np.pad(crop, 1).astype(np.uint8), cv2.RETR_EXTERNAL,
-                                       cv2.CHAIN_APPROX_NONE)
-            cnt = max(cnts, key=len)
-            a_c = cv2.contourArea(cnt)
-            a_h = cv2.contourArea(cv2.convexHull(cnt))
-            if a_h > 8 and a_c / a_h < cfg.min_solidity:
-                reject("irregular shape (smudge)", uv)
-                continue
-            mm_px = float(np.sqrt(det[j]))
-            _, half_mm = _radii_mm(dia, mm_px)
-            smax = float(np.linalg.svd(J[j], compute_uv=False).min())  # mm per px, smallest
-            hp = int(np.ceil(1.15 * half_mm / max(smax, 1e-6))) + 3
-            cu, cv_ = int(round(uv[0])), int(round(uv[1]))
-            if cu - hp < 0 or cv_ - hp < 0 or cu + hp + 1 > W or cv_ + hp + 1 > H:
-                reject("too close to the image edge", uv)
-                continue
-            patches.append(np.ascontiguousarray(rgb[cv_ - hp:cv_ + hp + 1, cu - hp:cu + hp + 1]))
-            origins.append((cu - hp, cv_ - hp))
-            uvs.append(uv)
-            areas.append(area[j])
-    return DotCandidates(np.asarray(uvs, float).reshape(-1, 2), tuple(patches),
-                         np.asarray(origins, int).reshape(-1, 2), np.asarray(areas, float),
-                         sigma, rejected, np.asarray(rej_uv, float).reshape(-1, 2))
+def _judge_blob(ratio: float, labels, lab: int, box, V, bg, J, cfg: DotConfig) -> str | None:
+    """Why blob ``lab`` (bounding ``box`` (x, y, w, h), ``ratio`` its area over a dot's,
+    ``J`` d sheet / d px at it) is no pen mark, "" for noise not worth a reason, None when
+    it may be one: its size, its sheet-frame aspect (darkness-weighted second moments on the
+    blob grown by a pixel, above the level printed lines reach: steadier than the
+    thresholded pixels of a small dot) and its solidity."""
+    if ratio < cfg.min_area_ratio:
+        return ""
+    if ratio > cfg.huge_area_ratio:
+        return "too large for a pen mark (arm, shadow or print)"
+    if ratio > cfg.max_area_ratio:
+        return "too large for one mark (merged marks or smudge)"
+    H, W = labels.shape
+    xl, yt, w, h = box
+    crop = (labels[yt:yt + h, xl:xl + w] == lab)
+    y0_, x0_ = max(yt - 1, 0), max(xl - 1, 0)
+    y1_, x1_ = min(yt + h + 1, H), min(xl + w + 1, W)
+    grown = cv2.dilate((labels[y0_:y1_, x0_:x1_] == lab).astype(np.uint8),
+                       np.ones((3, 3), np.uint8)) > 0
+    bgc = bg[y0_:y1_, x0_:x1_].astype(float)
+    dk = np.clip(bgc - V[y0_:y1_, x0_:x1_] - 0.2 * bgc, 0.0, None) * grown
+    yy, xx = np.mgrid[y0_:y1_, x0_:x1_]
+    sw = dk.sum()
+    if sw > 0:
+        mx, my = (dk * xx).sum() / sw, (dk * yy).sum() / sw
+        C = np.array([[(dk * (xx - mx) ** 2).sum(), (dk * (xx - mx) * (yy - my)).sum()],
+                      [0.0, (dk * (yy - my) ** 2).sum()]]) / sw
+        C[1, 0] = C[0, 1]
+        C += np.eye(2) / 12.0
+    else:
+        C = np.eye(2)
+    ev = np.linalg.eigvalsh(J @ C @ J.T)
+    if float(np.sqrt(ev[1] / max(ev[0], 1e-12))) > cfg.max_aspect:
+        return "elongated (merged marks or smudge)"
+    cnts, _ = cv2.findContours(np.pad(crop, 1).astype(np.uint8), cv2.RETR_EXTERNAL,
+                               cv2.CHAIN_APPROX_NONE)
+    cnt = max(cnts, key=len)
+    a_c = cv2.contourArea(cnt)
+    a_h = cv2.contourArea(cv2.convexHull(cnt))
+    if a_h > 8 and a_c / a_h < cfg.min_solidity:
+        return "irregular shape (smudge)"
+    return None
+
+
+def _cut_patch(rgb: np.ndarray, uv, J, det: float, dia: float):
+    """(raw RGB patch, its top-left (col, row)) around a candidate at ``uv`` wide enough for
+    :func:`refine_dot`'s window, or the reason it cannot be cut."""
+    H, W = rgb.shape[:2]
+    mm_px = float(np.sqrt(det))
+    _, half_mm = _radii_mm(dia, mm_px)
+    smax = float(np.linalg.svd(J, compute_uv=False).min())  # mm per px, smallest
+    hp = int(np.ceil(1.15 * half_mm / max(smax, 1e-6))) + 3
+    cu, cv_ = int(round(uv[0])), int(round(uv[1]))
+    if cu - hp < 0 or cv_ - hp < 0 or cu + hp + 1 > W or cv_ + hp + 1 > H:
+        return "too close to the image edge"
+    return (np.ascontiguousarray(rgb[cv_ - hp:cv_ + hp + 1, cu - hp:cu + hp + 1]),
+            (cu - hp, cv_ - hp))
 
 
 @dataclass(frozen=True)
@@ -322,23 +343,7 @@ def refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     and grid lines do not explain it (the mark would be unreliable, or not measurable,
     without it): elsewhere it would add its own noise, blur and mapping error to a mark the
     separable model measures well (renders/small.yaml's closed loop: after-targets 0.099 mm
-    RMS with it for every new mark, 0.051 mm with it only where needed, as before it)."""
-    kw = dict(dia_mm=dia_mm, noise_sigma=noise_sigma, median_efficiency=median_efficiency,
-              blank_rects=blank_rects, printed=printed, ground_scale=ground_scale,
-              config=config)
-    first = _refine_dot(patch_rgb, origin, mapping, xy0_mm, **kw)
-    if previous is None or (first is not None and not first.unreliable and not first.suspect):
-        return first
-    again = _refine_dot(patch_rgb, origin, mapping, xy0_mm, previous=previous, **kw)
-    return first if again is None else again
-
-
-def _refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
-                dia_mm: float | None = None, noise_sigma: float = 1.0,
-                median_efficiency: float = 1.57, blank_rects=None,
-                printed=None, previous=None, ground_scale: float = 1.0,
-                config: DotConfig | None = None) -> DotMeasurement | None:
-    """One dot's centre with one model of the ground.
+    RMS with it for every new mark, 0.051 mm with it only where needed, as before it).
 
     ``blank_rects`` (K, 4): sheet rectangles with no plotting grid (see
     :func:`blank_regions`). ``printed``: the sheet's own print
@@ -354,135 +359,242 @@ def _refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
     ``config``: the thresholds (default ``vision_cal.config.DEFAULT.dots``).
     """
     cfg = config or DEFAULT.dots
-    dia = float(dia_mm or cfg.default_diameter_mm)
-    S = patch_rgb.astype(np.float32).sum(axis=2)
+    o = _Given(float(dia_mm or cfg.default_diameter_mm), noise_sigma, median_efficiency,
+               blank_rects, printed, None, ground_scale, cfg)
+    first = _refine_dot(patch_rgb, origin, mapping, xy0_mm, o)
+    if previous is None or (first is not None and not first.unreliable and not first.suspect):
+        return first
+    again = _refine_dot(patch_rgb, origin, mapping, xy0_mm, replace(o, previous=previous))
+    return first if again is None else again
+
+
+@dataclass(frozen=True)
+class _Given:
+    """What :func:`refine_dot` is given besides the patch and the mapping (its arguments)."""
+
+    dia: float
+    noise_sigma: float
+    median_efficiency: float
+    blank_rects: object
+    printed: object
+    previous: object
+    ground_scale: float
+    cfg: DotConfig
+
+
+@dataclass(frozen=True)
+class _Ground:
+    """One model of the ground around a dot on its sheet grid: ``bg`` the background,
+    ``P`` the paper's level, ``resid`` the log residual over the fitted samples,
+    ``background`` its kind (:attr:`DotMeasurement.background`); over the sheet's own
+    print also ``blur_alts`` (the neighbouring blurs' (bg, P)), ``sharp`` (the unblurred
+    print) and ``blur_mm``."""
+
+    bg: np.ndarray
+    P: np.ndarray
+    resid: np.ndarray
+    background: str = "separable"
+    blur_alts: tuple = ()
+    sharp: np.ndarray | None = None
+    blur_mm: float = 0.0
+
+
+@dataclass(frozen=True)
+class _Centre:
+    """The pen's centre over one ground (:func:`_centre`): ``c`` (2,), the window ``win``,
+    the ink's mass ``M`` (samples) and, over the sheet's own print, how far the centre
+    moves with the ink's level, the print's blur and its edges (mm)."""
+
+    c: np.ndarray
+    win: np.ndarray
+    M: float
+    d_shift: float = 0.0
+    d_blur: float = 0.0
+    d_edge: float = 0.0
+
+
+def _refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm,
+                o: _Given) -> DotMeasurement | None:
+    """One dot's centre with one model of the ground (:func:`refine_dot`): two passes of
+    ground (:func:`_ground`) and centre (:func:`_centre`) on a sheet grid around the
+    centre so far, then its covariance (:func:`_noise_cov`) and whether it can be trusted
+    (:func:`_ring_pull`, :func:`_verdict`)."""
+    cfg = o.cfg
+    S = channel_sum(patch_rgb)
     c = np.asarray(xy0_mm, float).reshape(2)
     mm_px = float(mapping.mm_per_px(c)[0])
-    r_win, half = _radii_mm(dia, mm_px)
+    r_win, half = _radii_mm(o.dia, mm_px)
     step = min(cfg.fine_step_mm, mm_px / 4)
-    under = [] if printed is None else printed.content_near(c, half + 0.5)
-    background = "separable"
-    d_shift = d_blur = d_edge = 0.0
-    blur_alts = ()
+    under = [] if o.printed is None else o.printed.content_near(c, half + 0.5)
+    gr = None
     for _pass in range(2):
         X, Y, Sg = _resample(S, origin, mapping, c, half, step)
         if np.any(Sg < 0):
             return None
-        L = np.log(np.maximum(Sg, 1.0))
-        R = np.hypot(X - c[0], Y - c[1])
-        bgmask = R > r_win
-        # blank paper (quiet zones): the plotting grid ends there, which a separable model
-        # cannot follow; fit it on the ruled part and use the bare paper level inside
-        blank = np.zeros(X.shape, bool)
-        for x0, y0, x1, y1 in (() if blank_rects is None else blank_rects):
-            blank |= (X >= x0) & (X <= x1) & (Y >= y0) & (Y <= y1)
-        partial = blank.any() and not blank.all()
-        fitmask = bgmask & ~blank if partial else bgmask
-        if partial and (fitmask.sum(axis=0).max() == 0 or fitmask.sum(axis=1).max() == 0):
-            partial, fitmask = False, bgmask
-        Lm = np.where(fitmask, L, np.nan)
-        a = np.zeros(X.shape[1])
-        b = np.zeros(X.shape[0])
-        with warnings.catch_warnings():  # columns / rows with no background sample
-            warnings.simplefilter("ignore", RuntimeWarning)
-            for _ in range(3):
-                a = _fill(nanmedian_columns(Lm - b[:, None]))
-                b = _fill(nanmedian_columns((Lm - a[None, :]).T))
-        bg = np.exp(a[None, :] + b[:, None])
-        resid = (L - a[None, :] - b[:, None])[fitmask]
-        # paper level without printed lines: upper envelope of the separable model
-        k_env = 2 * int(0.35 / step) + 1
-        P = np.exp(maximum_filter1d(a, k_env, mode="nearest")[None, :]
-                   + maximum_filter1d(b, k_env, mode="nearest")[:, None])
-        if partial:
-            bg = np.where(blank, P, bg)
-        if under:
-            pb = _printed_background(S, origin, mapping, c, half, step, Sg, bgmask, printed,
-                                     mm_px, noise_sigma)
-            if pb is not None:
-                bg, P, resid, blur_alts, sharp, blur_mm = pb
-                background = "printed"
-        elif previous is not None:
-            pv = _previous_background(previous, X, Y, Sg, bgmask, c, dia, noise_sigma)
-            if pv is not None:
-                bg, P, resid = pv
-                background = "previous photo"
-        r_dot = 0.5 * dia
-        # the pen's own level D (its darkest core) and how well the core tells it (its
-        # spread: noise, uneven ink)
-        core = np.hypot(X - c[0], Y - c[1]) <= 0.5 * r_dot
-        D = float(np.percentile(Sg[core], 10)) if core.any() else float(Sg.min())
-        dD = float(np.percentile(Sg[core], 50)) - D if core.any() else 0.0
-        # what the pen covers: the sharp print where the sheet describes it, else the
-        # background model itself (paper and grid lines, blurred as the photo is)
-        under_pen = sharp if background == "printed" else bg
-        fw = _pen_over_print(bg - Sg, under_pen - D, X, Y, c, r_dot, r_win, step)
-        if fw is None:
+        bgmask = np.hypot(X - c[0], Y - c[1]) > r_win
+        gr = _ground(S, origin, mapping, X, Y, Sg, bgmask, c, half, step, mm_px, under, o, gr)
+        fit = _centre(gr, Sg, X, Y, c, r_win, step, o)
+        if fit is None:
             return None
-        cc, win, cover = fw
-        M = cover * float(np.mean((P - D) / P))
-        if background == "printed":
-            # how far the centre depends on what the model assumes: the ink's own level
-            # (within the core's spread) and the print's blur (the neighbouring candidates,
-            # which the photo tells apart only by a little)
-            d_shift = d_blur = 0.0
-            for Dp in (D - dD, D + dD):
-                alt = _pen_over_print(bg - Sg, sharp - Dp, X, Y, c, r_dot, r_win, step)
-                if alt is not None:
-                    d_shift = max(d_shift, float(np.hypot(*(alt[0] - cc))))
-            for bg_b, _P_b in blur_alts:
-                alt = _pen_over_print(bg_b - Sg, sharp - D, X, Y, c, r_dot, r_win, step)
-                if alt is not None:
-                    d_blur = max(d_blur, float(np.hypot(*(alt[0] - cc))))
-            d_edge = _edge_shift(Sg, bg, sharp, D, X, Y, c, cc, r_dot, r_win, step, blur_mm,
-                                 cfg)
-        t = Sg / P
-        shift = np.hypot(*(cc - c))
-        c = cc
+        t = Sg / gr.P
+        shift = np.hypot(*(fit.c - c))
+        c = fit.c
         if shift < 0.1 * r_win:
             break
     if np.hypot(*(c - np.asarray(xy0_mm, float).reshape(2))) > 0.5 * r_win:
         return None  # the centroid ran away from the blob: not a clean dot
-    M_mm2 = float(M * step * step)
-    if M_mm2 < 0.1 * np.pi * (0.5 * dia) ** 2:
+    M_mm2 = float(fit.M * step * step)
+    if M_mm2 < 0.1 * np.pi * (0.5 * o.dia) ** 2:
         return None  # hardly any ink
-    dX, dY = X - c[0], Y - c[1]
-    sw2 = (noise_sigma / float(np.median(bg))) ** 2 * mm_px**2  # per unit area
-    # pixel noise inside the window
+    sw2 = (o.noise_sigma / float(np.median(gr.bg))) ** 2 * mm_px**2  # per unit area
+    cov_noise = _noise_cov(fit.win, t, bgmask, X - c[0], Y - c[1], step, sw2, M_mm2,
+                           o.median_efficiency) + np.eye(2) * (cfg.model_floor_px * mm_px) ** 2
+    cov_map = mapping.point_cov_mm2(c)[0]
+    # what the separable background leaves unexplained, relative to the noise (diagnostic)
+    noise_grid = np.sqrt(sw2) / mm_px  # per-sample std of the relative intensity (upper)
+    ratio = rms(gr.resid) / noise_grid
+    ring = (_ring_pull(gr, Sg, X, Y, c, r_win, o.dia, step, sw2, fit.M, M_mm2)
+            if gr.background == "separable" else (0.0, 0.0))
+    on = "; ".join(it.label for it in under)
+    why, suspect = _verdict(gr.background, on, ratio, ring, fit, o)
+    return DotMeasurement(c, cov_noise + cov_map, M_mm2, cov_noise, cov_map,
+                          ratio, on, gr.background, why, suspect)
+
+
+def _separable_ground(L, X, Y, bgmask, step, blank_rects) -> _Ground:
+    """The paper and grid lines around a dot, separable in log intensity
+    (``log S = a(x) + b(y)``, robust medians over ``bgmask``), the paper's level their
+    upper envelope. Blank paper (the markers' quiet zones, ``blank_rects``): the plotting
+    grid ends there, which a separable model cannot follow; it is fitted on the ruled part
+    and the bare paper level used inside."""
+    blank = np.zeros(X.shape, bool)
+    for x0, y0, x1, y1 in (() if blank_rects is None else blank_rects):
+        blank |= (X >= x0) & (X <= x1) & (Y >= y0) & (Y <= y1)
+    partial = blank.any() and not blank.all()
+    fitmask = bgmask & ~blank if partial else bgmask
+    if partial and (fitmask.sum(axis=0).max() == 0 or fitmask.sum(axis=1).max() == 0):
+        partial, fitmask = False, bgmask
+    Lm = np.where(fitmask, L, np.nan)
+    a = np.zeros(X.shape[1])
+    b = np.zeros(X.shape[0])
+    with warnings.catch_warnings():  # columns / rows with no background sample
+        warnings.simplefilter("ignore", RuntimeWarning)
+        for _ in range(3):
+            a = _fill(nanmedian_columns(Lm - b[:, None]))
+            b = _fill(nanmedian_columns((Lm - a[None, :]).T))
+    bg = np.exp(a[None, :] + b[:, None])
+    resid = (L - a[None, :] - b[:, None])[fitmask]
+    # paper level without printed lines: upper envelope of the separable model
+    k_env = 2 * int(0.35 / step) + 1
+    P = np.exp(maximum_filter1d(a, k_env, mode="nearest")[None, :]
+               + maximum_filter1d(b, k_env, mode="nearest")[:, None])
+    if partial:
+        bg = np.where(blank, P, bg)
+    return _Ground(bg, P, resid)
+
+
+def _ground(S, origin, mapping, X, Y, Sg, bgmask, c, half, step, mm_px, under, o: _Given,
+            before: _Ground | None) -> _Ground:
+    """The ground of one pass: the sheet's own print where it describes more than the grid
+    near the dot (``under``), else the photo before when given and usable, else paper and
+    grid lines. What a model the pass before chose left (its kind, the sharp print and the
+    blurs) stays when this pass's fit of it fails."""
+    g = _separable_ground(np.log(np.maximum(Sg, 1.0)), X, Y, bgmask, step, o.blank_rects)
+    if before is not None:
+        g = replace(g, background=before.background, blur_alts=before.blur_alts,
+                    sharp=before.sharp, blur_mm=before.blur_mm)
+    if under:
+        pb = _printed_background(S, origin, mapping, c, half, step, Sg, bgmask, o.printed,
+                                 mm_px, o.noise_sigma)
+        if pb is not None:
+            bg, P, resid, blur_alts, sharp, blur_mm = pb
+            return _Ground(bg, P, resid, "printed", blur_alts, sharp, blur_mm)
+    elif o.previous is not None:
+        pv = _previous_background(o.previous, X, Y, Sg, bgmask, c, o.dia, o.noise_sigma)
+        if pv is not None:
+            return replace(g, bg=pv[0], P=pv[1], resid=pv[2], background="previous photo")
+    return g
+
+
+def _centre(gr: _Ground, Sg, X, Y, c, r_win, step, o: _Given) -> _Centre | None:
+    """The pen's disk over what it covers (:func:`_pen_over_print`): the sharp print where
+    the sheet describes it, else the ground model itself (paper and grid lines, blurred as
+    the photo is); the pen's own level ``D`` is its darkest core. Over the print, how far
+    the centre depends on what the model assumes: the ink's level (within the core's
+    spread), the print's blur (the neighbouring candidates, which the photo tells apart only
+    by a little) and its edges (:func:`_edge_shift`). None when there is no ink."""
+    bg, P = gr.bg, gr.P
+    r_dot = 0.5 * o.dia
+    core = np.hypot(X - c[0], Y - c[1]) <= 0.5 * r_dot
+    D = float(np.percentile(Sg[core], 10)) if core.any() else float(Sg.min())
+    dD = float(np.percentile(Sg[core], 50)) - D if core.any() else 0.0
+    printed = gr.background == "printed"
+    under_pen = gr.sharp if printed else bg
+    fw = _pen_over_print(bg - Sg, under_pen - D, X, Y, c, r_dot, r_win, step)
+    if fw is None:
+        return None
+    cc, win, cover = fw
+    M = cover * float(np.mean((P - D) / P))
+    if not printed:
+        return _Centre(cc, win, M)
+    d_shift = d_blur = 0.0
+    for Dp in (D - dD, D + dD):
+        alt = _pen_over_print(bg - Sg, gr.sharp - Dp, X, Y, c, r_dot, r_win, step)
+        if alt is not None:
+            d_shift = max(d_shift, float(np.hypot(*(alt[0] - cc))))
+    for bg_b, _P_b in gr.blur_alts:
+        alt = _pen_over_print(bg_b - Sg, gr.sharp - D, X, Y, c, r_dot, r_win, step)
+        if alt is not None:
+            d_blur = max(d_blur, float(np.hypot(*(alt[0] - cc))))
+    d_edge = _edge_shift(Sg, bg, gr.sharp, D, X, Y, c, cc, r_dot, r_win, step, gr.blur_mm,
+                         o.cfg)
+    return _Centre(cc, win, M, d_shift, d_blur, d_edge)
+
+
+def _noise_cov(win, t, bgmask, dX, dY, step, sw2, M_mm2, median_efficiency):
+    """The centre's covariance from the photo's white noise (``sw2`` per unit area): the
+    pixels inside the window and the background's columns a(x) and rows b(y), each a
+    median over its background samples (``median_efficiency`` its variance over a mean's)."""
     w2 = win * win
     cov_pix = np.array([[np.sum(w2 * dX * dX), np.sum(w2 * dX * dY)],
                         [np.sum(w2 * dX * dY), np.sum(w2 * dY * dY)]]) * step**2
-    # background columns a(x) and rows b(y), each a median over its bg samples
     wt = win * t
     Lx = bgmask.sum(axis=0) * step
     Ly = bgmask.sum(axis=1) * step
     gx = np.stack([(wt * dX).sum(axis=0), (wt * dY).sum(axis=0)]) * step  # (2, nx)
     gy = np.stack([(wt * dX).sum(axis=1), (wt * dY).sum(axis=1)]) * step  # (2, ny)
     cov_bg = ((gx / np.maximum(Lx, step)) @ gx.T + (gy / np.maximum(Ly, step)) @ gy.T) * step
-    cov_noise = sw2 * (cov_pix + median_efficiency * cov_bg) / (M_mm2**2)
-    cov_noise = cov_noise + np.eye(2) * (cfg.model_floor_px * mm_px) ** 2
-    cov_map = mapping.point_cov_mm2(c)[0]
-    # what the separable background leaves unexplained, relative to the noise (diagnostic)
-    noise_grid = np.sqrt(sw2) / mm_px  # per-sample std of the relative intensity (upper)
-    e_rms = rms(resid)
-    ratio = e_rms / noise_grid
-    ring_shift = ring_sd = 0.0
-    if background == "separable":
-        # ink the model does not explain just outside the window (print it cannot follow:
-        # a letter, a number, the corner of a label) goes on inside it, in the window's
-        # margin around the dot; its pull on the centroid, taken from a ring of the same
-        # width just outside the window
-        rr = np.hypot(X - c[0], Y - c[1])
-        ring = (rr > r_win) & (rr <= 2.0 * r_win - 0.5 * dia)
-        u = np.where(ring, (bg - Sg) / P, 0.0)
-        if M > 0:
-            ring_shift = float(np.hypot((u * dX).sum(), (u * dY).sum()) / M)
-            # ... beyond what the photo's noise alone gives it (per axis)
-            ring_sd = float(np.sqrt(sw2 * np.sum(ring * (dX * dX + dY * dY)) * step**2 / 2)
-                            / M_mm2)
-    on = "; ".join(it.label for it in under)
+    return sw2 * (cov_pix + median_efficiency * cov_bg) / (M_mm2**2)
+
+
+def _ring_pull(gr: _Ground, Sg, X, Y, c, r_win, dia, step, sw2, M, M_mm2):
+    """(shift, its noise std per axis) in mm: ink the separable model does not explain just
+    outside the window (print it cannot follow: a letter, a number, the corner of a label)
+    goes on inside it, in the window's margin around the dot; its pull on the centroid,
+    taken from a ring of the same width just outside the window."""
+    if not M > 0:
+        return 0.0, 0.0
+    dX, dY = X - c[0], Y - c[1]
+    rr = np.hypot(dX, dY)
+    ring = (rr > r_win) & (rr <= 2.0 * r_win - 0.5 * dia)
+    u = np.where(ring, (gr.bg - Sg) / gr.P, 0.0)
+    shift = float(np.hypot((u * dX).sum(), (u * dY).sum()) / M)
+    # ... beyond what the photo's noise alone gives it (per axis)
+    sd = float(np.sqrt(sw2 * np.sum(ring * (dX * dX + dY * dY)) * step**2 / 2) / M_mm2)
+    return shift, sd
+
+
+def _verdict(background: str, on: str, ratio: float, ring, fit: _Centre, o: _Given
+             ) -> tuple[str, bool]:
+    """(why the centre cannot be trusted, "" when it can; suspect): the ground's residual
+    beyond ``ratio`` limits (scaled by the series' plain ground), ink beside the window, or
+    over the print a centre that moves with the ink's level, the blur or the edges. Suspect:
+    what the blank paper's noise alone would have flagged, worth the photo before, which
+    shows a print under the mark the series' plain ground may hide (a grid number)."""
+    cfg = o.cfg
+    ring_shift, ring_sd = ring
     why = ""
-    g = max(float(ground_scale), 1.0)
+    g = max(float(o.ground_scale), 1.0)
     limit = g * (cfg.unreliable_bg_residual_separable if background == "separable"
                  else cfg.unreliable_bg_residual)
     if not ratio <= limit:
@@ -498,25 +610,22 @@ def _refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm, *,
         why = ("the ground around the mark is not paper and grid lines (printed ink, a blot "
                "or a neighbouring mark) that could not be separated: the ink beside it the "
                f"model does not explain would move the centre {1000 * ring_shift:.0f} um")
-    elif background == "printed" and d_shift > cfg.unreliable_ink_shift_mm:
+    elif background == "printed" and fit.d_shift > cfg.unreliable_ink_shift_mm:
         why = (f"pen ink on printed ink ({on}) that could not be separated: the centre "
-               f"moves {1000 * d_shift:.0f} um with the ink's level (within the spread "
+               f"moves {1000 * fit.d_shift:.0f} um with the ink's level (within the spread "
                "of the dot's core)")
-    elif background == "printed" and d_blur > cfg.unreliable_ink_shift_mm:
+    elif background == "printed" and fit.d_blur > cfg.unreliable_ink_shift_mm:
         why = (f"pen ink on printed ink ({on}) that could not be separated: the centre "
-               f"moves {1000 * d_blur:.0f} um with the print's blur (one step of "
+               f"moves {1000 * fit.d_blur:.0f} um with the print's blur (one step of "
                "measure.printed.BLUR_CANDIDATES_PX)")
-    elif background == "printed" and d_edge > cfg.unreliable_ink_shift_mm:
+    elif background == "printed" and fit.d_edge > cfg.unreliable_ink_shift_mm:
         why = (f"pen ink on printed ink ({on}) that could not be separated: the centre "
-               f"moves {1000 * d_edge:.0f} um when the print's edges move "
+               f"moves {1000 * fit.d_edge:.0f} um when the print's edges move "
                f"{1000 * cfg.printed_edge_mm:.0f} um (another rasteriser, toner)")
-    # what the blank paper's noise alone would have flagged: worth the photo before, which
-    # shows a print under the mark the series' plain ground may hide (a grid number)
     suspect = bool(why) or (g > 1 and background == "separable" and (
         ratio > cfg.unreliable_bg_residual_separable
         or ring_shift > max(cfg.unreliable_ink_shift_mm, cfg.unreliable_noise_sigmas * ring_sd)))
-    return DotMeasurement(c, cov_noise + cov_map, M_mm2, cov_noise, cov_map,
-                          ratio, on, background, why, suspect)
+    return why, suspect
 
 
 def ground_scale(ratios, backgrounds, printed_under, config: DotConfig | None = None

@@ -1,7 +1,9 @@
 """Stage 2: the lens (``session.camera`` when declared; otherwise estimated jointly over the
 photos of each image size and kept only when held-out marker corners say it helps,
 :func:`lens_of_photos`), then per photo the final mapping (lens + homography) and each
-dot's centre on the sheet with its covariance (:func:`finish_image`, :func:`finish_all`)."""
+dot's centre on the sheet with its covariance (:func:`finish_image`, :func:`finish_all`),
+each dot refined in ``config.dots.views_per_dot`` photos and only seen in the others
+(:mod:`vision_cal.measure.views`)."""
 
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ from vision_cal.measure.detect import detect_image
 from vision_cal.measure.dots import _radii_mm, blank_regions, ground_scale, refine_dot
 from vision_cal.measure.grid import grid_offset
 from vision_cal.measure.grid_declaration import misdeclared_grid
+from vision_cal.measure.height import camera_centre_mm
 from vision_cal.measure.mapping import LensEstimate, estimate_lens, fit_mapping, undistort_px
 from vision_cal.measure.photo_agreement import disagreeing_photos
 from vision_cal.measure.previous_photo import previous_photos
@@ -25,11 +28,14 @@ from vision_cal.measure.printed import printed_reference
 from vision_cal.measure.rotated import to_main_px, transposed, turned_lens
 from vision_cal.measure.sheetfit import LENS_CAUSE, MISFIT, sheet_misfit
 from vision_cal.measure.types import ImageDetections, ImageResult
+from vision_cal.measure.views import ViewCount
 
 log = logging.getLogger(__name__)
 
 
-def _lens_of(session: Session, lens: LensEstimate | None, size):
+def lens_of(session: Session, lens: LensEstimate | None, size):
+    """(K, dist) for a photo of ``size`` px: session.json's camera, else the estimated lens
+    (turned for a photo of the same camera held the other way), else (None, None)."""
     if session.camera is not None:
         return session.camera.K, session.camera.dist
     if lens is not None and lens.kept and tuple(lens.size_px) == tuple(size):
@@ -41,16 +47,20 @@ def _lens_of(session: Session, lens: LensEstimate | None, size):
 
 def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | None = None,
                  *, from_cache: bool = False, previous=None, ground_scale: float = 1.0,
-                 config: EstimatorConfig | None = None) -> ImageResult:
+                 refine=None, config: EstimatorConfig | None = None) -> ImageResult:
     """Stage 2: final mapping and dot centres on the sheet (``config``: the ``dots``
     thresholds, default ``vision_cal.config.DEFAULT``). ``previous``: the photo before
     in a series adding marks (:mod:`vision_cal.measure.previous_photo`);
-    ``ground_scale``: the series' plain-ground level (:func:`dots.ground_scale`)."""
+    ``ground_scale``: the series' plain-ground level (:func:`dots.ground_scale`).
+    ``refine``: which dot candidates to refine, a bool per candidate or a function of their
+    sheet positions (K, 2), the photo's mapping and its K (None: no lens) giving them
+    (:func:`_finish_views`); the others are only seen (``ImageResult.seen_xy_mm``). None or
+    empty: every candidate."""
     config = config or DEFAULT
     if det.status != "ok":
         return ImageResult(det.file, det.status, det.reason, n_markers=len(det.marker_ids),
                            size_px=det.size_px, from_cache=from_cache)
-    K, dist = _lens_of(session, lens, det.size_px)
+    K, dist = lens_of(session, lens, det.size_px)
     corners_px = det.corners_for(K, dist)
     m = fit_mapping(det.corners_mm.reshape(-1, 2), corners_px.reshape(-1, 2), K=K, dist=dist)
     # the gate judges the corners where the mapping fits them: in ideal pixels
@@ -70,6 +80,9 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     c = det.candidates
     dia = session.pen_mark_diameter_mm
     xy0 = m.image_to_sheet(c.uv_px) if len(c.uv_px) else np.zeros((0, 2))
+    want = (np.ones(len(xy0), bool) if refine is None or (not callable(refine) and not len(refine))
+            else np.asarray(refine(xy0, m, K) if callable(refine) else refine, bool))
+    seen_xy, seen_uv = [], []
     xs, covs, uvs, xg, offs, refs, gcov, ocov = [], [], [], [], [], [], [], []
     unrel, under, bgr, bgk, sus = [], [], [], [], []
     rejected = dict(c.rejected)
@@ -80,6 +93,10 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     # the local grid reference leaves out what is printed over or instead of the grid
     grid_blank = blank if pref is None else np.concatenate([blank, pref.ungridded_boxes_mm()])
     for k, (patch, org, x0, uv) in enumerate(zip(c.patches, c.origins, xy0, c.uv_px)):
+        if not want[k]:   # refined in enough photos before this one
+            seen_xy.append(x0)
+            seen_uv.append(uv)
+            continue
         r = refine_dot(patch, org, m, x0, dia_mm=dia, noise_sigma=c.noise_sigma,
                        blank_rects=blank, printed=pref, previous=previous,
                        ground_scale=ground_scale, config=config.dots)
@@ -119,7 +136,8 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
                        tuple(refs), np.asarray(gcov).reshape(-1, 2, 2),
                        np.asarray(ocov).reshape(-1, 2, 2), m, K, tuple(unrel), tuple(under)),
                    dots_bg_residual=tuple(bgr), dots_background=tuple(bgk),
-                   dots_suspect=tuple(sus))
+                   dots_suspect=tuple(sus), seen_xy_mm=np.asarray(seen_xy).reshape(-1, 2),
+                   seen_uv_px=np.asarray(seen_uv).reshape(-1, 2))
 
 
 def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank, config):
@@ -190,14 +208,71 @@ def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool]
                lens: LensEstimate | None, config: EstimatorConfig | None = None, *,
                listed_marks=None
                ) -> tuple[list[ImageResult], list[str]]:
-    """Every photo's final mapping and dots (:func:`finish_image`); the sheet's declaration
-    checked (markers that do not fit it stop the run, a misdeclared grid is dropped: the
-    markers win), the photo before as the print under new marks (``listed_marks``: per
-    photo the marks session.json lists, None when not listed;
+    """Every photo's final mapping and dots (:func:`finish_image`), each dot refined in
+    ``config.dots.views_per_dot`` photos (:mod:`vision_cal.measure.views`); the sheet's
+    declaration checked (markers that do not fit it stop the run, a misdeclared grid is
+    dropped: the markers win), the photo before as the print under new marks
+    (``listed_marks``: per photo the marks session.json lists, None when not listed;
     :mod:`vision_cal.measure.previous_photo`) and a photo moved as a whole against the
-    others left out. Returns (images, warnings)."""
+    others left out (when it held views other photos then skipped, the views are counted
+    again without it). Returns (images, warnings)."""
+    config = config or DEFAULT
+    images, warnings = _finish_series(session, dets, cached, lens, config, listed_marks)
+    out = disagreeing_photos(images, config.photo_agreement)
+    if any(images[k].n_dots for k in out) and any(len(im.seen_xy_mm) for im in images):
+        images, warnings = _finish_series(session, dets, cached, lens, config, listed_marks,
+                                          not_counted=set(out))
+    # a photo moved as a whole against the others is left out, not the marks it shares
+    for k, why in out.items():
+        log.warning("%s: %s", images[k].file, why)
+        warnings.append(f"{images[k].file}: {why}")
+        images[k] = replace(images[k], status="skipped", reason=why)
+    return images, warnings
+
+
+def _finish_views(session: Session, dets, cached, lens, config: EstimatorConfig,
+                  not_counted=frozenset()) -> tuple[list[ImageResult], list]:
+    """The first finish of every photo, in capture order, each dot refined until it has
+    ``config.dots.views_per_dot`` reliable views (photos in ``not_counted`` give none).
+    Returns (images, per photo which candidates were refined: for the reruns; None: all)."""
+    ac = config.association
+    dia = session.pen_mark_diameter_mm or config.dots.default_diameter_mm
+    views = ViewCount(config.dots.views_per_dot,
+                      max(ac.group_tol_diameters * dia, ac.group_tol_min_mm),
+                      config.sheet_height.same_place_fraction)
+    images, chosen = [], []
+    for k, (d, c) in enumerate(zip(dets, cached)):
+        picked, place = [], []
+
+        def wanted(xy_mm, mapping, K, picked=picked, place=place):
+            place.append(views.place(_camera_centre(mapping, K)))
+            picked.append(views.wanted(xy_mm, place[0]))
+            return picked[0]
+
+        im = finish_image(d, session, lens, from_cache=c,
+                          refine=None if k in not_counted else wanted, config=config)
+        if im.status == "ok" and k not in not_counted and place:
+            views.add(im.dots_xy_mm, [not u for u in im.dots_unreliable], place[0])
+        images.append(im)
+        chosen.append(picked[0] if picked else None)
+    return images, chosen
+
+
+def _camera_centre(mapping, K):
+    """The camera's centre (3,) in the sheet frame, None without a lens or a pose."""
+    if K is None:
+        return None
+    try:
+        return camera_centre_mm(mapping.H_img_sheet, K)
+    except (VisionCalError, np.linalg.LinAlgError):
+        return None
+
+
+def _finish_series(session: Session, dets, cached, lens, config: EstimatorConfig,
+                   listed_marks, not_counted=frozenset()) -> tuple[list[ImageResult], list[str]]:
+    """:func:`finish_all` but for the photos moved as a whole (the same arguments)."""
     warnings: list[str] = []
-    images = [finish_image(d, session, lens, from_cache=c, config=config) for d, c in zip(dets, cached)]
+    images, chosen = _finish_views(session, dets, cached, lens, config, not_counted)
     _check_sheet_fits(session, images)
     wrong_grid = misdeclared_grid(images, session.sheet.grid_spec, config.grid_declaration,
                                   height_config=config.sheet_height)
@@ -205,8 +280,8 @@ def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool]
         log.warning(wrong_grid.message)
         warnings.append(wrong_grid.message)
         session = replace(session, sheet=replace(session.sheet, grid=None))
-        images = [finish_image(d, session, lens, from_cache=c, config=config)
-                  for d, c in zip(dets, cached)]
+        images = [finish_image(d, session, lens, from_cache=c, refine=r, config=config)
+                  for d, c, r in zip(dets, cached, chosen)]
 
     # the tests for ink under a mark against this series' plain ground, not the blank
     # paper's noise (JPEG, grid lines a few pixels apart, a low resolution)
@@ -215,9 +290,10 @@ def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool]
                      [b for im in ok for b in im.dots_background],
                      [u for im in ok for u in im.dots_printed_under], config.dots)
     if g > 1.0:
-        images = [finish_image(d, session, lens, from_cache=c, ground_scale=g, config=config)
+        images = [finish_image(d, session, lens, from_cache=c, ground_scale=g, refine=r,
+                               config=config)
                   if any(im.dots_unreliable) else im
-                  for d, c, im in zip(dets, cached, images)]
+                  for d, c, im, r in zip(dets, cached, images, chosen)]
 
     # a series adding marks photo by photo, on a sheet whose print is not described: the
     # photo before shows the print under each new mark
@@ -231,11 +307,6 @@ def finish_all(session: Session, dets: list[ImageDetections], cached: list[bool]
                                  listed_marks, images, only=need)
         for k, prev in before.items():
             images[k] = finish_image(dets[k], session, lens, from_cache=cached[k],
-                                     previous=prev, ground_scale=g, config=config)
-
-    # a photo moved as a whole against the others is left out, not the marks it shares
-    for k, why in disagreeing_photos(images, config.photo_agreement).items():
-        log.warning("%s: %s", images[k].file, why)
-        warnings.append(f"{images[k].file}: {why}")
-        images[k] = replace(images[k], status="skipped", reason=why)
+                                     previous=prev, ground_scale=g, refine=chosen[k],
+                                     config=config)
     return images, warnings

@@ -31,6 +31,7 @@ import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
 from vision_cal.config import DEFAULT, DotConfig, GridConfig
+from vision_cal.dataset.photos import channel_sum
 from vision_cal.dataset.session import SheetGrid
 from vision_cal.measure.mapping import SheetMapping, apply_h
 
@@ -120,7 +121,7 @@ def grid_offset(patch_rgb: np.ndarray, origin_px, mapping: SheetMapping, centre_
     half_mm = cfg.window_half_mm if half_mm is None else half_mm
     step_mm = cfg.window_step_mm if step_mm is None else step_mm
     S = np.asarray(patch_rgb)
-    S = S.astype(np.float32).sum(axis=2) if S.ndim == 3 else S.astype(np.float32)
+    S = channel_sum(S) if S.ndim == 3 else S.astype(np.float32)
     c = np.asarray(centre_mm, float).reshape(2)
     n = int(np.ceil(half_mm / step_mm))
     g = step_mm * np.arange(-n, n + 1)

@@ -437,7 +437,8 @@ def sheet_heights(images, marks: dict, groups_of: dict, extent_mm, *, K_fallback
                   config: EstimatorConfig | None = None):
     """Heights of the measured marks and the map between them.
 
-    ``images``: the measured :class:`ImageResult` list; ``marks``: id -> MarkMeasurement;
+    ``images``: the measured :class:`vision_cal.measure.types.ImageResult` list;
+    ``marks``: id -> MarkMeasurement;
     ``groups_of``: id -> list of (image index, dot index). Returns (heights: id ->
     MarkHeight, HeightMap or None, note or None). ``config``: the thresholds (default
     ``vision_cal.config.DEFAULT``).

@@ -22,11 +22,13 @@ log = logging.getLogger(__name__)
 IMAGE_SUFFIXES = set(photos.PHOTO_SUFFIXES)
 
 
-def _skip(file, why, size=None) -> ImageDetections:
+def skipped(file, why, size=None) -> ImageDetections:
+    """A photo left out before its markers are measured, with the reason (``size``: its
+    (width, height) px when known)."""
     return ImageDetections(file, "skipped", why, size)
 
 
-def _refusal(file: str, e: "photos.PhotoRefused") -> str:
+def refusal(file: str, e: "photos.PhotoRefused") -> str:
     """The reason a photo is refused; a camera format not read (HEIC, raw) says so and how
     to fix it, listed in session.json or found in the folder alike."""
     if e.reason.startswith("unreadable: not an image") and file.lower().endswith(
@@ -37,7 +39,7 @@ def _refusal(file: str, e: "photos.PhotoRefused") -> str:
 
 
 @dataclass
-class _Photo:
+class Photo:
     """One photo before stage 1: its name, and what the parent learnt from its header."""
 
     file: str
@@ -48,28 +50,32 @@ class _Photo:
     pixels: int = 0
     key: str | None = None
     cached: bool = False
+    #: the file's identity when it was hashed (:func:`photos.read_photo_identity`): a
+    #: worker reading the same identity reads the same bytes and need not hash them again
+    identity: tuple | None = None
 
 
-def _check_photo(ph: _Photo, root: Path, session: Session) -> None:
+def _check_photo(ph: Photo, root: Path, session: Session) -> None:
     """Read the photo once in the parent, before any worker sees it: regular file inside
     the folder, header within the limits (no pixel decoded). Fills ``sha256``, ``captured``
-    or a skip (``det``)."""
+    ``identity`` or a skip (``det``)."""
     cam = session.camera
     try:
-        data = photos.read_photo(root, ph.file)
+        data, identity = photos.read_photo_identity(root, ph.file)
         if not data:
             raise photos.PhotoRefused("unreadable: empty file")
         header = photos.read_header(data)
         photos.check_header(header, None if cam is None else cam.size_px)
     except photos.PhotoRefused as e:
-        ph.det = _skip(ph.file, _refusal(ph.file, e))
+        ph.det = skipped(ph.file, refusal(ph.file, e))
         return
     ph.sha256 = hashlib.sha256(data).hexdigest()
+    ph.identity = identity
     ph.captured = header.captured
     ph.pixels = header.stored_px[0] * header.stored_px[1]
 
 
-def _capture_order(items: list[_Photo], warnings: list) -> list[_Photo]:
+def _capture_order(items: list[Photo], warnings: list) -> list[Photo]:
     """Photos found in the folder: by EXIF capture time when every readable photo has one,
     else by natural file name (already the order of ``items``)."""
     readable = [p for p in items if p.det is None]
@@ -84,7 +90,7 @@ def _capture_order(items: list[_Photo], warnings: list) -> list[_Photo]:
     return items
 
 
-def photos_to_measure(session: Session) -> tuple[list[_Photo], list[str], list[str]]:
+def photos_to_measure(session: Session) -> tuple[list[Photo], list[str], list[str]]:
     """The photos to measure, in order (listed in session.json, or found in the folder by
     capture time), each read once and checked here before any worker sees it; a repeated
     file is skipped. Returns (photos, warnings, notes: what the console should see when
@@ -100,7 +106,7 @@ def photos_to_measure(session: Session) -> tuple[list[_Photo], list[str], list[s
                                  file=str(root)) from e
         present = []
     if session.images_listed:
-        items = [_Photo(im.file, im.marks) for im in session.images]
+        items = [Photo(im.file, im.marks) for im in session.images]
         listed = {im.file for im in session.images}
         extra = [f for f in present if f not in listed]
         if extra:
@@ -119,7 +125,7 @@ def photos_to_measure(session: Session) -> tuple[list[_Photo], list[str], list[s
                                  f"file{conv}", file=str(session.path), field="images")
         if unread:
             notes.append(conv[2:])
-        items = [_Photo(f, None) for f in present]
+        items = [Photo(f, None) for f in present]
 
     # checked in this process before anything is decoded or dispatched
     for ph in items:
@@ -130,7 +136,7 @@ def photos_to_measure(session: Session) -> tuple[list[_Photo], list[str], list[s
     first_of: dict[str, str] = {}
     for ph in items:
         if ph.det is None and ph.sha256 in first_of:
-            ph.det = _skip(ph.file, f"repeated photo: the same file as {first_of[ph.sha256]}")
+            ph.det = skipped(ph.file, f"repeated photo: the same file as {first_of[ph.sha256]}")
         elif ph.det is None:
             first_of[ph.sha256] = ph.file
     return items, warnings, notes

@@ -20,20 +20,30 @@ import numpy as np
 from vision_cal.config import DEFAULT, PhotoAgreementConfig
 
 
+def _all_dots(im) -> np.ndarray:
+    """A photo's dots, refined and only seen (:mod:`vision_cal.measure.views`): a bad
+    mapping moves both."""
+    xy = np.asarray(im.dots_xy_mm, float).reshape(-1, 2)
+    seen = np.asarray(getattr(im, "seen_xy_mm", ()), float).reshape(-1, 2)
+    return np.concatenate([xy, seen]) if len(seen) else xy
+
+
 def disagreeing_photos(images, config: PhotoAgreementConfig | None = None) -> dict[int, str]:
     """{index in ``images``: reason} of the usable photos whose dots are displaced together
-    from the other photos' (``images``: results with ``status``, ``dots_xy_mm`` (K, 2));
+    from the other photos' (``images``: results with ``status``, ``dots_xy_mm`` (K, 2) and
+    optionally ``seen_xy_mm`` (S, 2), the dots seen but not refined);
     ``config`` the thresholds (default ``DEFAULT.photo_agreement``)."""
     cfg = config or DEFAULT.photo_agreement
-    ok = [k for k, im in enumerate(images) if im.status == "ok" and len(im.dots_xy_mm)]
+    seen = [_all_dots(im) for im in images]
+    ok = [k for k, im in enumerate(images) if im.status == "ok" and len(seen[k])]
     if len(ok) < cfg.min_photos:
         return {}
     out = {}
     for k in ok:
-        others = np.concatenate([images[j].dots_xy_mm for j in ok if j != k])
+        others = np.concatenate([seen[j] for j in ok if j != k])
         if not len(others):
             continue
-        xy = images[k].dots_xy_mm
+        xy = seen[k]
         d = xy[:, None, :] - others[None, :, :]
         dist = np.linalg.norm(d, axis=2)
         j = dist.argmin(axis=1)

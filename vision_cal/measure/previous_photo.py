@@ -69,5 +69,5 @@ def previous_photos(session, root, files, listed_marks, results,
         img = photos.decode_photo(data, turned=turned)
         if img is None or tuple(img.shape[1::-1]) != tuple(prev.size_px or ()):
             continue
-        out[k] = PreviousPhoto(files[k - 1], img.astype(np.float32).sum(axis=2), prev.mapping)
+        out[k] = PreviousPhoto(files[k - 1], photos.channel_sum(img), prev.mapping)
     return out

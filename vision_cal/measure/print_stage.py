@@ -12,7 +12,7 @@ import numpy as np
 from vision_cal.config import EstimatorConfig
 from vision_cal.dataset.session import Session
 from vision_cal.measure.asprinted import AsPrinted, estimate_as_printed, field_basis
-from vision_cal.measure.finish import _lens_of
+from vision_cal.measure.finish import lens_of
 from vision_cal.measure.mapping import LensEstimate
 from vision_cal.measure.types import ImageDetections, ImageResult
 
@@ -36,13 +36,13 @@ def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEs
         if not sizes:
             return None, lens, dets, None
         size = sizes[0]
-        K, dist = _lens_of(session, lens, size)
+        K, dist = lens_of(session, lens, size)
         if K is None:   # no lens kept: start from its focal length, no distortion
             K = (lens.K if lens is not None else
                  np.array([[1.2 * max(size), 0, (size[0] - 1) / 2],
                            [0, 1.2 * max(size), (size[1] - 1) / 2], [0, 0, 1.0]]))
             dist = np.zeros(5)
-        views = [(d.file, d.marker_ids, d.corners_mm, d.corners_for(*_lens_of(session, lens, size)))
+        views = [(d.file, d.marker_ids, d.corners_mm, d.corners_for(*lens_of(session, lens, size)))
                  for d in ok if d.size_px == size]
         ap = estimate_as_printed(views, K, dist, size, lens_free=session.camera is None,
                                  config=config.as_printed)

@@ -31,7 +31,7 @@ from vision_cal.dataset.session import Sheet
 from vision_cal.errors import VisionCalError
 from vision_cal.sheet.layout import (ANNOT_RGB, GENERATOR, MarkerCells, Poly, Rect, Text,
                                      make_layout, text_width_mm)
-from vision_cal.sheet.png import _Canvas
+from vision_cal.sheet.png import Canvas
 
 #: raster scale of the reference when the sheet does not say the dpi of its own PNG
 DEFAULT_PX_PER_MM = 20.0
@@ -96,7 +96,7 @@ class PrintedReference:
         r1 = math.ceil((Y1 - y0) * ppm)
         wx0, wy1 = X0 + c0 / ppm, Y1 - r0 / ppm
         ext = (wx0, Y1 - r1 / ppm, X0 + c1 / ppm, wy1)
-        cv = _Canvas(SimpleNamespace(extent_mm=ext, size_mm=(ext[2] - ext[0], ext[3] - ext[1])),
+        cv = Canvas(SimpleNamespace(extent_mm=ext, size_mm=(ext[2] - ext[0], ext[3] - ext[1])),
                      ppm)
         for b, p in self._prims:
             if b[2] < ext[0] or b[0] > ext[2] or b[3] < ext[1] or b[1] > ext[3]:

@@ -155,6 +155,11 @@ class ImageResult:
     dots_bg_residual: tuple = ()
     dots_background: tuple = ()
     dots_suspect: tuple = ()        # DotMeasurement.suspect
+    #: dots seen but not refined (issue 33, :mod:`vision_cal.measure.views`): refined in
+    #: enough earlier photos; their blob centroids through this photo's mapping (S, 2) and
+    #: in pixels (S, 2): for grouping and inference only, not in ``n_dots``
+    seen_xy_mm: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    seen_uv_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
     def summary_json(self) -> dict:
         """The photo's entry of calibration.json ``images[]``."""
@@ -198,7 +203,9 @@ class ImageResult:
                          "bg_residual": [None if not np.isfinite(v) else float(v)
                                          for v in self.dots_bg_residual],
                          "background": list(self.dots_background),
-                         "suspect": [bool(v) for v in self.dots_suspect]}}
+                         "suspect": [bool(v) for v in self.dots_suspect]},
+                "dots_seen": {"xy_mm": np.asarray(self.seen_xy_mm).tolist(),
+                              "uv_px": np.asarray(self.seen_uv_px).tolist()}}
 
     @classmethod
     def from_json(cls, d: dict) -> "ImageResult":
@@ -225,7 +232,9 @@ class ImageResult:
             tuple(float("nan") if v is None else float(v)
                   for v in dots.get("bg_residual") or ()),
             tuple(dots.get("background") or ()),
-            tuple(bool(v) for v in dots.get("suspect") or ()))
+            tuple(bool(v) for v in dots.get("suspect") or ()),
+            _a((d.get("dots_seen") or {}).get("xy_mm"), (2,)),
+            _a((d.get("dots_seen") or {}).get("uv_px"), (2,)))
 
 
 @dataclass(frozen=True)

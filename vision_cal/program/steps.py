@@ -66,7 +66,6 @@ def program_steps(points, robot) -> list:
     announced, k, first = None, 0, True
 
     def travel(q4, p, note):
-        nonlocal here
         if safe is not None:
             if here is not None:
                 out.append(Move((here[0], here[1], float(safe), here[2]), "rise to the safe "

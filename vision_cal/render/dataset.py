@@ -133,7 +133,7 @@ def build_plan(scene: Scene, sheet, *, pilot=None, rng=None) -> list:
 # ----------------------------------------------------------------------------- textures
 
 
-class _Textures:
+class Textures:
     """The texture with the first k marks, kept up to date cheaply.
 
     ``full`` is the finished sheet; ``current`` starts mark-free and gets each new mark's
@@ -214,7 +214,7 @@ def _shoot(job: _PhotoJob, tasks, photographer, bar=None) -> int:
     """Render ``tasks`` ((file, n_marks, T_cam_sheet, arm, rng, K_dist), in series order)
     into ``job.folder``; returns how many."""
     ph = job.photos
-    textures = _Textures(job.sheet, job.xy_mm, job.diameters_mm,
+    textures = Textures(job.sheet, job.xy_mm, job.diameters_mm,
                          px_per_mm=ph.texture_px_per_mm, seed=job.texture_seed,
                          printed=job.printed, print_field=job.print_field,
                          built=job.textures)
@@ -225,7 +225,7 @@ def _shoot(job: _PhotoJob, tasks, photographer, bar=None) -> int:
             tex, extent_mm=job.sheet.extent_mm, T_cam_sheet=T, dist=job.dist,
             K_dist=K_dist, arm=arm, vignetting=ph.vignetting, noise_sigma=ph.noise_sigma,
             jpeg_quality=None, rng=rng, **extra)
-        (job.folder / fname).write_bytes(_encode_image(np.asarray(rgb), ph.jpeg_quality))
+        (job.folder / fname).write_bytes(encode_image(np.asarray(rgb), ph.jpeg_quality))
         del rgb
         if bar is not None:
             bar.update()
@@ -244,7 +244,7 @@ def _render_chunk(job: _PhotoJob, tasks, size_px, K) -> int:
 # ------------------------------------------------------------------------------- output
 
 
-def _encode_image(rgb: np.ndarray, jpeg_quality: int | None) -> bytes:
+def encode_image(rgb: np.ndarray, jpeg_quality: int | None) -> bytes:
     """PNG (lossless) or JPEG bytes of an RGB image."""
     # OpenCV takes 0.2 s to import: loaded here, when used
     import cv2
@@ -265,10 +265,10 @@ def _extra_image(kind: str, size_px, rng: np.random.Generator) -> bytes:
     """A bad photo: ``blank`` (grey), ``noise`` (random pixels) or ``corrupt`` (bad bytes)."""
     w, h = size_px
     if kind == "blank":
-        return _encode_image(np.full((h, w, 3), 128, np.uint8), None)
+        return encode_image(np.full((h, w, 3), 128, np.uint8), None)
     if kind == "noise":
-        return _encode_image(rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8), None)
-    good = _encode_image(np.full((h // 4, w // 4, 3), 200, np.uint8), None)
+        return encode_image(rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8), None)
+    good = encode_image(np.full((h // 4, w // 4, 3), 200, np.uint8), None)
     return good[:64] + rng.integers(0, 256, size=256, dtype=np.uint8).tobytes()
 
 
@@ -362,6 +362,249 @@ def photographer_K(scene: Scene) -> np.ndarray:
     return Ki
 
 
+@dataclass(frozen=True)
+class _SheetSetup:
+    """The sheet as the world has it: ``sheet`` (the analytic one, or ``printed.sheet``),
+    ``printed`` (a PrintedSheet photographed instead, or None), ``hfield`` / ``height_grid``
+    (the paper's height field and its grid; None: flat), ``pfield`` (the printer's
+    displacement; None: printed exactly)."""
+
+    sheet: object
+    printed: object
+    hfield: object
+    height_grid: object
+    pfield: object
+
+
+def _sheet_setup(scene: Scene, printed) -> _SheetSetup:
+    """The scene's sheet (``printed`` given, the scene's printed sheet, or the analytic one
+    made from its spec), its height field and its print field."""
+    sh = scene.sheet
+    if printed is None and sh.printed is not None:
+        printed = load_printed_sheet(sh.printed)
+    sheet = make_sheet(size_mm=sh.size_mm, bottom_left_mm=sh.bottom_left_mm,
+                       dictionary=sh.dictionary, marker_mm=sh.marker_mm, grid=sh.grid,
+                       margin_mm=sh.margin_mm) if printed is None else printed.sheet
+    hfield = None
+    if sh.height is not None:
+        hfield = sh.height.field(sheet.extent_mm, scene.seed)
+        if hfield.is_flat:
+            hfield = None
+    height_grid = None if hfield is None else hfield.grid()
+    pfield = None
+    if sh.print is not None and not sh.print.is_exact:
+        pfield = sh.print.field(sheet.extent_mm, [m.corners_mm for m in sheet.markers],
+                                scene.seed)
+    return _SheetSetup(sheet, printed, hfield, height_grid, pfield)
+
+
+@dataclass(frozen=True)
+class _Drawn:
+    """What the true robot drew: the ``plan`` (list of PlannedMark), the ``world`` (where
+    every mark landed), the joint ``source`` used (None: kinematic), ``j4`` (each mark's
+    commanded joint 4, or None), ``off_paper`` (ids of the marks on the table)."""
+
+    plan: list
+    world: WorldMarks
+    source: object
+    j4: list | None
+    off_paper: list
+
+
+def _draw(scene: Scene, sheet, st: _Streams, *, plan, pilot, joint_source,
+          joint4_deg) -> _Drawn:
+    """The plan (``plan``, else the scene's: :func:`build_plan`) drawn by the true robot,
+    through the scene's simulated controller unless ``joint_source`` is given."""
+    rob = scene.robot
+    if plan is None:
+        plan = build_plan(scene, sheet, pilot=pilot, rng=st.plan)
+    plan = list(plan)
+    truth = rob.true_robot
+    predict_model, source = truth, joint_source
+    if source is None and rob.controller != "kinematic":
+        source, predict_model = simulated_world(truth, controller=rob.controller, rng=st.sim)
+    j4 = None if joint4_deg is None else [float(joint4_deg.get(m.id, 0.0)) for m in plan]
+    world = draw_marks(predict_model, plan, home_deg=rob.nominal.home_deg,
+                       repeatability_mm=rob.repeatability_mm, joint_source=source,
+                       rng=st.world, joint4_deg=j4)
+    return _Drawn(plan, world, source, j4, marks_off_paper(world, sheet))
+
+
+@dataclass(frozen=True)
+class _Shots:
+    """The photos to take: ``K`` / ``dist`` the scene's lens, ``views`` the camera poses,
+    ``shots`` (file, marks drawn by then) in order, ``Ks`` each photo's camera matrix."""
+
+    K: np.ndarray
+    dist: np.ndarray
+    views: list
+    shots: list
+    Ks: list
+
+
+def _shots(scene: Scene, sheet, n: int, st: _Streams) -> _Shots:
+    """The camera's views of ``sheet`` and the photos of the scene's mode (``series``: one
+    after each of the ``n`` marks; ``survey``: the blank sheet from every view; ``single``:
+    the finished sheet), each with its camera matrix (phones refocus: ``camera.f_scatter``)."""
+    cam, ph = scene.camera, scene.photos
+    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px,
+                                 principal_px=cam.principal_px), dtype=float)
+    dist = np.asarray(cam.dist, dtype=float)
+    # the views keep the sheet in frame at the longest focal length any photo has
+    K_long = K.copy()
+    K_long[0, 0] = K_long[1, 1] = cam.f_px * (1.0 + cam.f_scatter)
+    views = default_views(sheet, n=cam.n_views, size_px=cam.size_px, K=K_long,
+                          tilt_deg=cam.tilt_deg, rng=st.views, fill=cam.fill,
+                          target_jitter=(1.0 - cam.fill) / 2)
+    ext = "jpg" if ph.jpeg_quality is not None else "png"
+    if ph.mode == "series":
+        shots = [(f"img_{k:03d}.{ext}", k + 1) for k in range(n)]
+    elif ph.mode == "survey":   # the blank sheet from every view, before the robot draws
+        shots = [(f"survey_{k:03d}.{ext}", 0) for k in range(len(views))]
+    else:
+        shots = [(f"img_000.{ext}", n)]
+    Ks = []
+    for _ in shots:
+        Ki = K.copy()
+        if cam.f_scatter > 0:
+            Ki[0, 0] = Ki[1, 1] = cam.f_px * st.focal.uniform(1 - cam.f_scatter,
+                                                              1 + cam.f_scatter)
+        Ks.append(Ki)
+    return _Shots(K, dist, views, shots, Ks)
+
+
+def _check_photographer(scene: Scene, photographer, K_ideal: np.ndarray) -> None:
+    """Refuse a ``photographer`` built for another camera than the scene's (its size, its
+    K against ``K_ideal``); one without ``K`` / ``size_px`` is taken as it is."""
+    cam = scene.camera
+    if hasattr(photographer, "K") and hasattr(photographer, "size_px"):
+        if (tuple(photographer.size_px) != tuple(cam.size_px)
+                or not np.allclose(photographer.K, K_ideal)):
+            raise VisionCalError("the photographer given was built for another camera "
+                                 f"(size {tuple(photographer.size_px)}, K "
+                                 f"{np.round(photographer.K, 3).tolist()}); this scene needs "
+                                 f"size {tuple(cam.size_px)}, K "
+                                 f"{np.round(K_ideal, 3).tolist()}", field="photographer")
+
+
+@dataclass(frozen=True)
+class _Tasks:
+    """Every photo's rendering task (file, n_marks, T_cam_sheet, arm, rng, K_dist) and
+    what the dataset says of it: ``images`` (session.json), ``poses`` / ``K_photo`` /
+    ``parked`` (truth.json: T_cam_sheet, K_per_photo, arm_parked_q_deg, by file)."""
+
+    tasks: list
+    images: list
+    poses: dict
+    parked: dict
+    K_photo: dict
+
+
+def _photo_tasks(scene: Scene, sheet, drawn: _Drawn, sh: _Shots, K_ideal: np.ndarray,
+                 st: _Streams) -> _Tasks:
+    """Every photo's task, everything random drawn here, in photo order, so the photos do
+    not depend on how many processes render them (serial and --jobs N are bit-identical)."""
+    cam, ph, truth, world = scene.camera, scene.photos, scene.robot.true_robot, drawn.world
+    images, poses, parked, tasks, K_photo = [], {}, {}, [], {}
+    photo_rngs = st.photos.spawn(len(sh.shots))
+    for i, (fname, n_marks) in enumerate(sh.shots):
+        # the views are rigid poses of the arm frame; a deformed sheet (sheet_affine)
+        # lies physically shrunk in it: T maps printed sheet points to the camera
+        T = truth.T_render(sh.views[i % len(sh.views)] if cam.moving or ph.mode == "survey"
+                           else sh.views[0])
+        arm = None
+        if ph.arm_parked and (ph.mode == "single" or i % PARK_EVERY == PARK_EVERY - 1):
+            q_park = parking_pose(truth, sheet.extent_mm, rng=st.park)
+            arm = arm_boxes(truth, q_park)
+            parked[fname] = [float(v) for v in q_park]
+        Ki = sh.Ks[i]
+        lens = any(sh.dist) or not np.allclose(Ki, K_ideal)
+        tasks.append((fname, n_marks, T, arm, photo_rngs[i], Ki if lens else None))
+        images.append({"file": fname, "marks": list(world.ids[:n_marks])})
+        poses[fname] = T.tolist()
+        K_photo[fname] = Ki.tolist()
+    return _Tasks(tasks, images, poses, parked, K_photo)
+
+
+def _render_photos(job: _PhotoJob, tasks, photographer, bar, *, n_jobs: int, size_px,
+                   K_ideal) -> None:
+    """Render ``tasks`` into ``job.folder``: here with ``photographer``, or (``n_jobs`` > 1)
+    in contiguous runs, one spawned process each (its own OpenGL context)."""
+    if n_jobs <= 1:
+        _shoot(job, tasks, photographer, bar)
+        return
+    chunks = [c for c in np.array_split(np.arange(len(tasks)), n_jobs) if len(c)]
+    # spawn: a fresh process per worker, each with its own OpenGL context
+    with ProcessPoolExecutor(len(chunks), mp_context=mp.get_context("spawn")) as ex:
+        futs = [ex.submit(_render_chunk, job, [tasks[k] for k in c],
+                          tuple(size_px), K_ideal) for c in chunks]
+        for f in futs:
+            bar.update(f.result())
+
+
+def _session_json(scene: Scene, sheet, drawn: _Drawn, sh: _Shots, images: list,
+                  targets_mm: dict | None) -> dict:
+    """session.json: what a real user knows (the nominal robot, the sheet, the plan with
+    its targets and joint 4, the images; the camera only when the scene declares it)."""
+    rob, cam, j4 = scene.robot, scene.camera, drawn.j4
+    session = {
+        "format": FORMAT,
+        "sheet": sheet.to_json(),
+        "robot": rob.nominal.to_json(),
+        "pen": {"mark_diameter_mm": rob.pen_diameter_mm},
+        "marks": [dict(m.to_json(), **({"target_mm": [float(v) for v in targets_mm[m.id]]}
+                                       if targets_mm and m.id in targets_mm else {}),
+                       **({"j4_deg": j4[i]} if j4 is not None else {}))
+                  for i, m in enumerate(drawn.plan)],
+        "images": images,
+    }
+    if cam.declared:
+        session["camera"] = {"size_px": list(cam.size_px), "K": sh.K.tolist(),
+                             "dist": sh.dist.tolist()}
+    return session
+
+
+def _truth_json(scene: Scene, ss: _SheetSetup, drawn: _Drawn, sh: _Shots, t: _Tasks, *,
+                custom_source: bool) -> dict:
+    """truth.json: the true params and effects, where every mark landed, the camera and
+    each photo's pose, and how the world got there (module docstring's added fields)."""
+    rob, cam, ph, world = scene.robot, scene.camera, scene.photos, drawn.world
+    hfield, pfield, sheet = ss.hfield, ss.pfield, ss.sheet
+    effects = [e.to_json() for e in rob.effects] + list(rob.drift)
+    lens = lens_effect(scene)
+    if lens is not None:
+        effects.append(lens)
+    if hfield is not None:
+        effects.append(hfield.effect_json())
+    truth_json = {
+        "params": rob.truth_params_json,
+        "effects": effects,
+        "marks": {mid: world.xy_mm[i].tolist() for i, mid in enumerate(world.ids)},
+        "camera": {"size_px": list(cam.size_px), "K": sh.K.tolist(), "dist": sh.dist.tolist(),
+                   "declared": cam.declared, "T_cam_sheet": t.poses,
+                   "K_per_photo": t.K_photo},
+        # added fields: how the world got there
+        "repeatability_mm": rob.repeatability_mm,
+        "controller": rob.controller if not custom_source else "custom",
+        "approach": {mid: world.approach[i].tolist() for i, mid in enumerate(world.ids)},
+        "link_q_deg": {mid: world.q_deg[i].tolist() for i, mid in enumerate(world.ids)},
+        "off_paper": drawn.off_paper,
+        "on_marker": marks_on_markers(world, sheet),
+        "arm_parked_q_deg": t.parked,
+        "extra_files": {e.file: e.kind for e in ph.extra_files},
+        "seed": scene.seed,
+        "controller_report": getattr(drawn.source, "report", None),
+    }
+    if hfield is not None:  # added fields: the paper's height field, each mark's height
+        truth_json["sheet_height"] = hfield.to_json()
+        truth_json["mark_height_mm"] = {mid: float(z) for mid, z in zip(
+            world.ids, hfield.height_mm(world.xy_mm))}
+    if pfield is not None:  # added field: the sheet as printed (render.print_deviation)
+        truth_json["print"] = pfield.to_json([m.id for m in sheet.markers],
+                                             [m.corners_mm for m in sheet.markers])
+    return truth_json
+
+
 def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographer=None,
                    joint_source=None, plan=None, targets_mm: dict | None = None,
                    pilot=None, printed=None, jobs: int | None = 1,
@@ -388,171 +631,44 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     out_dir = Path(out_dir).absolute()
     _prepare_out(out_dir)
     st = _Streams.from_seed(scene.seed)
-    cam, ph, rob = scene.camera, scene.photos, scene.robot
-
-    sh = scene.sheet
-    if printed is None and sh.printed is not None:
-        printed = load_printed_sheet(sh.printed)
-    sheet = make_sheet(size_mm=sh.size_mm, bottom_left_mm=sh.bottom_left_mm,
-                       dictionary=sh.dictionary, marker_mm=sh.marker_mm, grid=sh.grid,
-                       margin_mm=sh.margin_mm) if printed is None else printed.sheet
-    hfield = None
-    if sh.height is not None:
-        hfield = sh.height.field(sheet.extent_mm, scene.seed)
-        if hfield.is_flat:
-            hfield = None
-    height_grid = None if hfield is None else hfield.grid()
-    pfield = None
-    if sh.print is not None and not sh.print.is_exact:
-        pfield = sh.print.field(sheet.extent_mm, [m.corners_mm for m in sheet.markers],
-                                scene.seed)
-    if plan is None:
-        plan = build_plan(scene, sheet, pilot=pilot, rng=st.plan)
-    plan = list(plan)
-    truth = rob.true_robot
-    predict_model, source = truth, joint_source
-    if source is None and rob.controller != "kinematic":
-        source, predict_model = simulated_world(truth, controller=rob.controller, rng=st.sim)
-    j4 = None if joint4_deg is None else [float(joint4_deg.get(m.id, 0.0)) for m in plan]
-    world = draw_marks(predict_model, plan, home_deg=rob.nominal.home_deg,
-                       repeatability_mm=rob.repeatability_mm, joint_source=source,
-                       rng=st.world, joint4_deg=j4)
-    off_paper = marks_off_paper(world, sheet)
-    n = len(plan)
-    diameters = rob.pen_diameter_mm * np.ones(n)
-
-    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px,
-                                 principal_px=cam.principal_px), dtype=float)
-    dist = np.asarray(cam.dist, dtype=float)
-    # the views keep the sheet in frame at the longest focal length any photo has
-    K_long = K.copy()
-    K_long[0, 0] = K_long[1, 1] = cam.f_px * (1.0 + cam.f_scatter)
-    views = default_views(sheet, n=cam.n_views, size_px=cam.size_px, K=K_long,
-                          tilt_deg=cam.tilt_deg, rng=st.views, fill=cam.fill,
-                          target_jitter=(1.0 - cam.fill) / 2)
-    ext = "jpg" if ph.jpeg_quality is not None else "png"
-    if ph.mode == "series":
-        shots = [(f"img_{k:03d}.{ext}", k + 1) for k in range(n)]
-    elif ph.mode == "survey":   # the blank sheet from every view, before the robot draws
-        shots = [(f"survey_{k:03d}.{ext}", 0) for k in range(len(views))]
-    else:
-        shots = [(f"img_000.{ext}", n)]
-    # each photo's camera matrix: phones refocus between photos (camera.f_scatter)
-    Ks = []
-    for _ in shots:
-        Ki = K.copy()
-        if cam.f_scatter > 0:
-            Ki[0, 0] = Ki[1, 1] = cam.f_px * st.focal.uniform(1 - cam.f_scatter,
-                                                              1 + cam.f_scatter)
-        Ks.append(Ki)
+    cam, ph = scene.camera, scene.photos
+    ss = _sheet_setup(scene, printed)
+    sheet = ss.sheet
+    drawn = _draw(scene, sheet, st, plan=plan, pilot=pilot, joint_source=joint_source,
+                  joint4_deg=joint4_deg)
+    world = drawn.world
+    diameters = scene.robot.pen_diameter_mm * np.ones(len(drawn.plan))
+    sh = _shots(scene, sheet, len(drawn.plan), st)
 
     K_ideal = photographer_K(scene)
     own = photographer is None
     if own:
         photographer = Photographer(size_px=cam.size_px, K=K_ideal)
-    elif hasattr(photographer, "K") and hasattr(photographer, "size_px"):
-        if (tuple(photographer.size_px) != tuple(cam.size_px)
-                or not np.allclose(photographer.K, K_ideal)):
-            raise VisionCalError("the photographer given was built for another camera "
-                                 f"(size {tuple(photographer.size_px)}, K "
-                                 f"{np.round(photographer.K, 3).tolist()}); this scene needs "
-                                 f"size {tuple(cam.size_px)}, K "
-                                 f"{np.round(K_ideal, 3).tolist()}", field="photographer")
+    else:
+        _check_photographer(scene, photographer, K_ideal)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp.", dir=out_dir.parent))
     bar = None
     try:
-        # everything random is drawn here, in photo order, so the photos do not depend on
-        # how many processes render them (serial and --jobs N are bit-identical)
-        images, poses, parked, tasks, K_photo = [], {}, {}, [], {}
-        photo_rngs = st.photos.spawn(len(shots))
-        for i, (fname, n_marks) in enumerate(shots):
-            # the views are rigid poses of the arm frame; a deformed sheet (sheet_affine)
-            # lies physically shrunk in it: T maps printed sheet points to the camera
-            T = truth.T_render(views[i % len(views)] if cam.moving or ph.mode == "survey"
-                               else views[0])
-            arm = None
-            if ph.arm_parked and (ph.mode == "single" or i % PARK_EVERY == PARK_EVERY - 1):
-                q_park = parking_pose(truth, sheet.extent_mm, rng=st.park)
-                arm = arm_boxes(truth, q_park)
-                parked[fname] = [float(v) for v in q_park]
-            Ki = Ks[i]
-            lens = any(dist) or not np.allclose(Ki, K_ideal)
-            tasks.append((fname, n_marks, T, arm, photo_rngs[i], Ki if lens else None))
-            images.append({"file": fname, "marks": list(world.ids[:n_marks])})
-            poses[fname] = T.tolist()
-            K_photo[fname] = Ki.tolist()
-        n_jobs = min(int(jobs or 1), len(tasks)) if own else 1
+        t = _photo_tasks(scene, sheet, drawn, sh, K_ideal, st)
+        n_jobs = min(int(jobs or 1), len(t.tasks)) if own else 1
         # the sheet's textures are built once here and shared by every rendering process
         built = (build_textures(sheet, world.xy_mm, diameters, px_per_mm=ph.texture_px_per_mm,
-                                seed=st.texture_seed, printed=printed, print_field=pfield)
+                                seed=st.texture_seed, printed=ss.printed, print_field=ss.pfield)
                  if n_jobs > 1 else None)
         job = _PhotoJob(sheet, world.xy_mm, diameters, st.texture_seed, ph,
-                        dist if any(dist) else None, tmp,
-                        printed, height_grid, pfield, built)
-        bar = progress_bar(progress, total=len(tasks), desc=f"render {out_dir.name}",
+                        sh.dist if any(sh.dist) else None, tmp,
+                        ss.printed, ss.height_grid, ss.pfield, built)
+        bar = progress_bar(progress, total=len(t.tasks), desc=f"render {out_dir.name}",
                            unit="photo", note=f"{max(n_jobs, 1)} job(s)")
-        if n_jobs <= 1:
-            _shoot(job, tasks, photographer, bar)
-        else:
-            chunks = [c for c in np.array_split(np.arange(len(tasks)), n_jobs) if len(c)]
-            # spawn: a fresh process per worker, each with its own OpenGL context
-            with ProcessPoolExecutor(len(chunks), mp_context=mp.get_context("spawn")) as ex:
-                futs = [ex.submit(_render_chunk, job, [tasks[k] for k in c],
-                                  tuple(cam.size_px), K_ideal) for c in chunks]
-                for f in futs:
-                    bar.update(f.result())
+        _render_photos(job, t.tasks, photographer, bar, n_jobs=n_jobs, size_px=cam.size_px,
+                       K_ideal=K_ideal)
         for e in ph.extra_files:
             (tmp / e.file).write_bytes(_extra_image(e.kind, cam.size_px, st.extras))
-            images.append({"file": e.file, "marks": list(world.ids)})
-
-        session = {
-            "format": FORMAT,
-            "sheet": sheet.to_json(),
-            "robot": rob.nominal.to_json(),
-            "pen": {"mark_diameter_mm": rob.pen_diameter_mm},
-            "marks": [dict(m.to_json(), **({"target_mm": [float(v) for v in targets_mm[m.id]]}
-                                           if targets_mm and m.id in targets_mm else {}),
-                           **({"j4_deg": j4[i]} if j4 is not None else {}))
-                      for i, m in enumerate(plan)],
-            "images": images,
-        }
-        if cam.declared:
-            session["camera"] = {"size_px": list(cam.size_px), "K": K.tolist(),
-                                 "dist": dist.tolist()}
-        effects = [e.to_json() for e in rob.effects] + list(rob.drift)
-        lens = lens_effect(scene)
-        if lens is not None:
-            effects.append(lens)
-        if hfield is not None:
-            effects.append(hfield.effect_json())
-        truth_json = {
-            "params": rob.truth_params_json,
-            "effects": effects,
-            "marks": {mid: world.xy_mm[i].tolist() for i, mid in enumerate(world.ids)},
-            "camera": {"size_px": list(cam.size_px), "K": K.tolist(), "dist": dist.tolist(),
-                       "declared": cam.declared, "T_cam_sheet": poses,
-                       "K_per_photo": K_photo},
-            # added fields: how the world got there
-            "repeatability_mm": rob.repeatability_mm,
-            "controller": rob.controller if joint_source is None else "custom",
-            "approach": {mid: world.approach[i].tolist() for i, mid in enumerate(world.ids)},
-            "link_q_deg": {mid: world.q_deg[i].tolist() for i, mid in enumerate(world.ids)},
-            "off_paper": off_paper,
-            "on_marker": marks_on_markers(world, sheet),
-            "arm_parked_q_deg": parked,
-            "extra_files": {e.file: e.kind for e in ph.extra_files},
-            "seed": scene.seed,
-            "controller_report": getattr(source, "report", None),
-        }
-        if hfield is not None:  # added fields: the paper's height field, each mark's height
-            truth_json["sheet_height"] = hfield.to_json()
-            truth_json["mark_height_mm"] = {mid: float(z) for mid, z in zip(
-                world.ids, hfield.height_mm(world.xy_mm))}
-        if pfield is not None:  # added field: the sheet as printed (render.print_deviation)
-            truth_json["print"] = pfield.to_json([m.id for m in sheet.markers],
-                                                 [m.corners_mm for m in sheet.markers])
-        atomic_write_json(tmp / "session.json", session)
-        atomic_write_json(tmp / "truth.json", truth_json)
+            t.images.append({"file": e.file, "marks": list(world.ids)})
+        atomic_write_json(tmp / "session.json",
+                          _session_json(scene, sheet, drawn, sh, t.images, targets_mm))
+        atomic_write_json(tmp / "truth.json", _truth_json(
+            scene, ss, drawn, sh, t, custom_source=joint_source is not None))
         _commit(tmp, out_dir)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

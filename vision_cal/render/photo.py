@@ -112,9 +112,11 @@ class _BiasedTexture(pyrender.Texture):
 
 def _read_color_only(renderer, scene, flags):
     """pyrender's ``Renderer._read_main_framebuffer`` without the depth buffer: the same
-    colour bytes (resolve the multisampled buffer, read RGB, flip), ``(color, None)``. The
-    depth read-back and its linearisation over every supersampled pixel cost more than the
-    colour; a photo without the arm's shadows never uses them."""
+    colour bytes (resolve the multisampled buffer, read back), ``(rgba, None)`` with
+    ``rgba`` (h, w, 4) uint8 still bottom-up (OpenGL's row order; pyrender's image is
+    ``np.flip(rgba, axis=0)[..., :3]``). The depth read-back and its linearisation over
+    every supersampled pixel cost more than the colour; a photo without the arm's shadows
+    never uses them. RGBA reads back at twice the speed of RGB (no repacking)."""
     from OpenGL import GL
 
     width, height = renderer._main_fb_dims[0], renderer._main_fb_dims[1]
@@ -123,9 +125,64 @@ def _read_color_only(renderer, scene, flags):
     GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT,
                          GL.GL_LINEAR)
     GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, renderer._main_fb)
-    buf = GL.glReadPixels(0, 0, width, height, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
-    color = np.frombuffer(buf, dtype=np.uint8).reshape((height, width, 3))
-    return np.flip(color, axis=0), None
+    buf = GL.glReadPixels(0, 0, width, height, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE)
+    return np.frombuffer(buf, dtype=np.uint8).reshape((height, width, 4)), None
+
+
+#: a shadow weaker than this changes no pixel: 255 (1 - SHADOW_STRENGTH m) rounds to 255
+SHADOW_VISIBLE = 0.005
+
+
+def _shadow_window(mask, hs: int, ws: int, q: int):
+    """The full-resolution window ``(r0, r1, c0, c1)`` outside which the shadow ``mask``
+    (drawn at 1/``q`` resolution) changes no pixel, and the mask resized there; None: no
+    shadow anywhere. The values are those of ``cv2.resize(mask, (ws, hs), INTER_LINEAR)``
+    over the whole image: a full pixel mixes its two nearest small pixels per axis, so away
+    from the crop's own border (one small pixel of padding) the crop resizes the same; a
+    pixel whose small neighbours are all below ``SHADOW_VISIBLE`` keeps its colour
+    (``np.rint(c * (1 - SHADOW_STRENGTH m)) == c`` for c <= 255). When ``q`` does not
+    divide the image the whole image is the window."""
+    if hs != q * mask.shape[0] or ws != q * mask.shape[1]:
+        return (0, hs, 0, ws), cv2.resize(mask, (ws, hs), interpolation=cv2.INTER_LINEAR)
+    rows = np.flatnonzero(mask.max(axis=1) >= SHADOW_VISIBLE)
+    cols = np.flatnonzero(mask.max(axis=0) >= SHADOW_VISIBLE)
+    if rows.size == 0:
+        return None
+    hq, wq = mask.shape
+    i0, i1 = max(rows[0] - 2, 0), min(rows[-1] + 3, hq)      # small crop, 2 px padding
+    j0, j1 = max(cols[0] - 2, 0), min(cols[-1] + 3, wq)
+    big = cv2.resize(np.ascontiguousarray(mask[i0:i1, j0:j1]), ((j1 - j0) * q, (i1 - i0) * q),
+                     interpolation=cv2.INTER_LINEAR)
+    # full pixels whose two small neighbours per axis both lie in the crop
+    r0 = 0 if i0 == 0 else (i0 + 1) * q
+    r1 = hs if i1 == hq else (i1 - 1) * q
+    c0 = 0 if j0 == 0 else (j0 + 1) * q
+    c1 = ws if j1 == wq else (j1 - 1) * q
+    return (r0, r1, c0, c1), big[r0 - i0 * q:r1 - i0 * q, c0 - j0 * q:c1 - j0 * q]
+
+
+def _read_depth_window(renderer, r0: int, r1: int, c0: int, c1: int, znear: float,
+                       zfar: float) -> np.ndarray:
+    """The linear depth (mm; 0 where nothing was drawn) of rows ``r0:r1``, columns
+    ``c0:c1`` (top-down image rows) of pyrender's last render: pyrender's own
+    ``_read_main_framebuffer`` depth (multisample resolve, read-back, linearisation)
+    restricted to the window, the same values at a fraction of the cost."""
+    from OpenGL import GL
+
+    height = renderer._main_fb_dims[1]
+    y0, y1 = height - r1, height - r0                # OpenGL rows count from the bottom
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, renderer._main_fb_ms)
+    GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, renderer._main_fb)
+    GL.glBlitFramebuffer(c0, y0, c1, y1, c0, y0, c1, y1, GL.GL_DEPTH_BUFFER_BIT, GL.GL_NEAREST)
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, renderer._main_fb)
+    buf = GL.glReadPixels(c0, y0, c1 - c0, y1 - y0, GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT)
+    d = np.flip(np.frombuffer(buf, dtype=np.float32).reshape((y1 - y0, c1 - c0)), axis=0)
+    inf = d == 1.0
+    d = 2.0 * d - 1.0
+    noninf = np.logical_not(inf)
+    d[noninf] = (2.0 * znear * zfar) / (zfar + znear - d[noninf] * (zfar - znear))
+    d[inf] = 0.0
+    return d
 
 
 def _unit(v) -> np.ndarray:
@@ -138,7 +195,9 @@ class Photographer:
 
     Build one per image size and K and reuse it (it owns an OpenGL context; ``close()``
     frees it without disturbing other Photographers in the process). The sheet
-    texture is uploaded once and kept while the same texture content is rendered again.
+    texture is uploaded once and kept while the same texture content is rendered again;
+    a texture of the same size that differs in a few texels (a series photo's new mark)
+    has only their rectangle uploaded, then its mipmaps rebuilt (the same photo).
     ``last_timing`` holds the seconds of the last call split into ``texture_upload_s``,
     ``render_s`` (pyrender and read-back), ``downsample_s``, ``post_s`` (distortion,
     vignetting, noise, JPEG) and ``total_s``.
@@ -170,6 +229,7 @@ class Photographer:
                                                  zfar=zfar_mm)
         self._cam_node = self._scene.add(self._camera, pose=np.eye(4))
         self._sheet_node = None
+        self._sheet_texture = None
         self._sheet_key = None
         self._arm_node = None
         self.last_timing: dict[str, float] = {}
@@ -229,6 +289,10 @@ class Photographer:
         if key == self._sheet_key:
             return 0.0
         t0 = time.perf_counter()
+        if self._sheet_key is not None and self._sheet_key[0] == key[0] \
+                and self._sheet_key[1:4:2] == key[1:4:2] and self._patch_sheet(tex):
+            self._sheet_key = key
+            return time.perf_counter() - t0
         if self._sheet_node is not None:
             self._scene.remove_node(self._sheet_node)
         x0, y0, x1, y1 = ext
@@ -253,8 +317,36 @@ class Photographer:
                                       normals=np.tile([0, 0, 1], (len(pos), 1)).astype(np.float32),
                                       texcoord_0=uv, indices=idx, material=mat)
         self._sheet_node = self._scene.add(pyrender.Mesh([prim]))
+        self._sheet_texture = texture
         self._sheet_key = key
         return time.perf_counter() - t0
+
+    def _patch_sheet(self, tex: np.ndarray) -> bool:
+        """Upload only the rectangle where ``tex`` differs from the sheet texture in the
+        OpenGL context, then rebuild its mipmaps from the whole base level (what a fresh
+        upload does, so the same texels at every level: a series photo adds one mark's
+        few texels to a 4752 x 3360 texture). False: not uploaded yet, nothing done."""
+        texture = self._sheet_texture
+        if texture is None or texture._texid is None or texture.source.shape != tex.shape:
+            return False
+        old = texture.source
+        rows = np.flatnonzero(np.any(old != tex, axis=(1, 2)))
+        if rows.size:
+            r0, r1 = int(rows[0]), int(rows[-1]) + 1
+            cols = np.flatnonzero(np.any(old[r0:r1] != tex[r0:r1], axis=(0, 2)))
+            c0, c1 = int(cols[0]), int(cols[-1]) + 1
+            old[r0:r1, c0:c1] = tex[r0:r1, c0:c1]
+            from OpenGL import GL
+
+            self._renderer._platform.make_current()
+            H = tex.shape[0]
+            data = np.ascontiguousarray(np.flip(tex[r0:r1, c0:c1], axis=0))
+            GL.glBindTexture(GL.GL_TEXTURE_2D, texture._texid)
+            GL.glTexSubImage2D(GL.GL_TEXTURE_2D, 0, c0, H - r1, c1 - c0, r1 - r0, GL.GL_RGB,
+                               GL.GL_UNSIGNED_BYTE, data)
+            GL.glGenerateMipmap(GL.GL_TEXTURE_2D)
+            GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+        return True
 
     def _set_arm(self, arm, lights) -> list:
         """Add the arm meshes (baked lighting); returns shadow casters [(points (n,3), top)]."""
@@ -320,20 +412,33 @@ class Photographer:
         t1 = time.perf_counter()
         shadows = bool(casters) and lights not in (None, "none")
         inner = getattr(self._renderer, "_renderer", None)
-        if shadows or inner is None or not hasattr(inner, "_read_main_framebuffer") \
+        if inner is None or not hasattr(inner, "_read_main_framebuffer") \
                 or sys.platform == "darwin":
             color, depth = self._renderer.render(self._scene, flags=pyrender.RenderFlags.FLAT)
-        else:   # no shadows to draw: the depth buffer is not read back
+        else:   # the colour only: the shadows read the depth of their own window
             inner._read_main_framebuffer = functools.partial(_read_color_only, inner)
             try:
-                color, depth = self._renderer.render(self._scene,
-                                                     flags=pyrender.RenderFlags.FLAT)
+                rgba, depth = self._renderer.render(self._scene,
+                                                    flags=pyrender.RenderFlags.FLAT)
             finally:
                 del inner._read_main_framebuffer
+            if not shadows and lens is None:
+                # the s x s area average of whole blocks commutes with the flip; the alpha
+                # channel is averaged on its own and dropped
+                t2 = time.perf_counter()
+                img = rgba if self.supersample == 1 else cv2.resize(
+                    rgba, self.size_px, interpolation=cv2.INTER_AREA)
+                img = np.ascontiguousarray(np.flip(img, axis=0)[..., :3])
+                t5 = time.perf_counter()
+                self.last_timing = {"texture_upload_s": upload, "render_s": t2 - t1,
+                                    "downsample_s": t5 - t2, "post_s": 0.0,
+                                    "total_s": t5 - t0}
+                return img
+            color = np.ascontiguousarray(np.flip(rgba, axis=0)[..., :3])
         t2 = time.perf_counter()
         s = self.supersample
         w, h = self.size_px
-        if casters and lights not in (None, "none"):
+        if shadows:
             color = self._shadowed(color, depth, casters, T, lights)
         t3 = time.perf_counter()
         if lens is not None:
@@ -362,6 +467,9 @@ class Photographer:
 
         Shadows are drawn and blurred at 1/``SHADOW_SCALE`` resolution (they are soft) and
         applied where the depth buffer shows the paper plane (not the arm, not the table).
+        Only the window where the shadow can change a pixel is worked at full resolution
+        (:func:`_shadow_window`); ``depth`` None: its depth is read back from the render
+        (:func:`_read_depth_window`), the same values as pyrender's whole depth image there.
         """
         key_dir = _unit(_lights(lights)[0][0])
         Ks = self.K_render
@@ -389,22 +497,27 @@ class Photographer:
             sigma = max(0.7, 0.08 * z_low * Kq[0, 0] / float(np.mean(pc[:, 2])))
             one = cv2.GaussianBlur(one, (0, 0), sigma)
             np.maximum(mask, one, out=mask)
-        mask = cv2.resize(mask, (ws, hs), interpolation=cv2.INTER_LINEAR)
+        win = _shadow_window(mask, hs, ws, q)
+        if win is None:
+            return color
+        (r0, r1, c0, c1), mask = win
+        if depth is None:
+            depth = _read_depth_window(self._renderer._renderer, r0, r1, c0, c1,
+                                       self._camera.znear, self._camera.zfar)
+        else:
+            depth = depth[r0:r1, c0:c1]
         # sheet pixels only: the depth buffer equals the depth of the paper plane there
         n = R[:, 2]
         a = (n[0] / Ks[0, 0]) * (np.arange(ws, dtype=np.float32) - Ks[0, 2])
         b = (n[1] / Ks[1, 1]) * (np.arange(hs, dtype=np.float32) - Ks[1, 2])
         with np.errstate(divide="ignore", invalid="ignore"):
-            z_plane = np.float32(n @ t) / (a[None, :] + b[:, None] + np.float32(n[2]))
+            z_plane = np.float32(n @ t) / (a[None, c0:c1] + b[r0:r1, None] + np.float32(n[2]))
         off_sheet = np.abs(depth - z_plane) > 1.0 + 1e-3 * np.abs(z_plane)
         mask[off_sheet] = 0.0
-        rows = np.flatnonzero(mask.max(axis=1) > 1e-3)
-        if rows.size == 0:
-            return color
-        r0, r1 = rows[0], rows[-1] + 1
-        gain = 1.0 - SHADOW_STRENGTH * mask[r0:r1]
+        gain = 1.0 - SHADOW_STRENGTH * mask
         out = color.copy()
-        out[r0:r1] = np.clip(np.rint(color[r0:r1].astype(np.float32) * gain[..., None]), 0, 255)
+        out[r0:r1, c0:c1] = np.clip(np.rint(color[r0:r1, c0:c1].astype(np.float32)
+                                            * gain[..., None]), 0, 255)
         return out
 
     def photograph(self, texture_rgb, *, extent_mm, T_cam_sheet, dist=None, K_dist=None,
@@ -440,9 +553,20 @@ class Photographer:
             if vignetting:
                 out *= _vignetting_gain((w, h), K_out, float(vignetting))[..., None]
             if noise_sigma:
-                std = float(noise_sigma) * np.sqrt(0.25 + 0.75 * np.clip(out, 0, 255) / 255.0)
-                out += std * rng.standard_normal(out.shape, dtype=np.float32)
-            img = np.clip(np.rint(out), 0, 255).astype(np.uint8)
+                # noise_sigma * sqrt(0.25 + 0.75 * clip(out) / 255), in place (the same
+                # float32 operations in the same order, without six image-sized temporaries)
+                std = np.clip(out, 0, 255)
+                std *= 0.75
+                std /= 255.0
+                std += 0.25
+                np.sqrt(std, out=std)
+                std *= float(noise_sigma)
+                noise = rng.standard_normal(out.shape, dtype=np.float32)
+                noise *= std
+                out += noise
+                del std, noise
+            np.rint(out, out=out)
+            img = np.clip(out, 0, 255, out=out).astype(np.uint8)
         if jpeg_quality is not None:
             ok, buf = cv2.imencode(".jpg", cv2.cvtColor(img, cv2.COLOR_RGB2BGR),
                                    [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)])

@@ -21,7 +21,7 @@ from PIL import Image
 
 from vision_cal.dataset.session import Sheet, load_sheet_file
 from vision_cal.errors import VisionCalError
-from vision_cal.render.sheet import (PAPER_RGB, _displacement_maps, _paper_field, ink_marks,
+from vision_cal.render.sheet import (PAPER_RGB, displacement_maps, ink_marks, paper_field,
                                      texture_shape)
 
 
@@ -94,11 +94,11 @@ def printed_textures(printed: PrintedSheet, *, marks_xy_mm, mark_diameters_mm=1.
                              field="px_per_mm")
     rng = np.random.default_rng(rng)
     H, W = printed.rgb.shape[:2]
-    paper = _paper_field((H, W), rng) if paper_grain else np.ones((H, W), np.float32)
+    paper = paper_field((H, W), rng) if paper_grain else np.ones((H, W), np.float32)
     # printed ink filters the paper's colour and grain (as in sheet_texture)
     ink = printed.rgb.astype(np.float32)
     if print_field is not None and print_field.moves:
-        maps = _displacement_maps(print_field, printed.sheet.extent_mm, ppm, (H, W))
+        maps = displacement_maps(print_field, printed.sheet.extent_mm, ppm, (H, W))
         ink = np.clip(cv2.remap(ink, *maps, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE),
                       0.0, 255.0)
     tex = ink * (np.asarray(PAPER_RGB, np.float32) / 255.0)

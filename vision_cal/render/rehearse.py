@@ -53,7 +53,7 @@ from vision_cal.errors import VisionCalError
 from vision_cal.progress import bar as progress_bar
 from vision_cal.render.arm_camera import T_flange_camera_true, photograph_poses
 from vision_cal.render.camera import camera_matrix, default_views
-from vision_cal.render.dataset import _encode_image, marks_off_paper, marks_on_markers
+from vision_cal.render.dataset import encode_image, marks_off_paper, marks_on_markers
 from vision_cal.render.photo import Photographer
 from vision_cal.render.printed import PrintedSheet, printed_texture
 from vision_cal.render.truth_model import TrueRobot
@@ -420,6 +420,12 @@ def targets_session(program: Path, sim: SimulatedRobot, *, sheet_json, targets=N
     if sheet_json is None:
         raise VisionCalError("a targets program needs the sheet it is drawn on: give "
                              "--sheet SHEET.json", field="--sheet")
+    if not plan_csv.is_file():   # a designed plan's program.prg given instead of its folder
+        why = (f"is a designed plan's program: give its folder ({program.parent}) instead"
+               if (program.parent / "session.json").is_file() else
+               f"no {plan_csv.name} beside it: a targets program needs the plan CSV "
+               "`vision-cal plan` wrote with it")
+        raise VisionCalError(why, file=str(program))
     ids, q, s = read_plan(plan_csv)
     want = {}
     if targets is not None:
@@ -549,6 +555,10 @@ def _earlier_marks(after, sheet_id) -> np.ndarray:
     one drawn on another sheet."""
     earlier = []
     for d in after:
+        if not Path(d).is_dir():
+            raise VisionCalError("expected a folder simulated before (its truth.json says "
+                                 "which marks are already on the sheet)", file=str(d),
+                                 field="--after")
         t = read_json(Path(d) / "truth.json")
         if (t.get("sheet_id") or sheet_id) != sheet_id:
             raise VisionCalError(f"was drawn on sheet {t.get('sheet_id')}, this plan is for "
@@ -594,7 +604,7 @@ def _photograph(sim: SimulatedRobot, printed, marks_xy, dia: float, K, rng, *,
                                           T_cam_sheet=sim.truth.T_render(T),
                                           vignetting=cam.vignetting,
                                           noise_sigma=cam.noise_sigma, rng=rng)
-            images.append((f"IMG_{i + 1:04d}.png", _encode_image(np.asarray(rgb), None), T))
+            images.append((f"IMG_{i + 1:04d}.png", encode_image(np.asarray(rgb), None), T))
             bar.update()
     finally:
         photographer.close()

@@ -108,7 +108,7 @@ from vision_cal.dataset.fields import FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import Effect, RobotModel, effect_from_json
-from vision_cal.render.height import height_scene_from_dict
+from vision_cal.render.height import HeightScene, height_scene_from_dict
 from vision_cal.render.print_deviation import PrintScene
 from vision_cal.render.printed import load_printed_sheet
 from vision_cal.render.sheet import make_sheet
@@ -182,7 +182,7 @@ class SheetScene:
     marker_mm: float = 30.0
     grid: tuple[int, int] = (6, 4)
     margin_mm: float = 15.0
-    height: "HeightScene | None" = None   # not flat: vision_cal.render.height
+    height: HeightScene | None = None   # not flat: vision_cal.render.height
     printed: str | None = None   # a vision-cal sheet's sheet.json: photograph its own raster
     print: PrintScene | None = None   # printed off its layout: render.print_deviation
 

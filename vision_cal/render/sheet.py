@@ -210,7 +210,7 @@ def _ellipse_coverage(u: float, v: float, a_px: float, b_px: float, theta: float
     return slice(r0, r1), slice(c0, c1), alpha
 
 
-def _paper_field(shape, rng: np.random.Generator) -> np.ndarray:
+def paper_field(shape, rng: np.random.Generator) -> np.ndarray:
     """Relative paper brightness (H, W) float32 around 1: soft blotches plus a faint grain."""
     H, W = shape
     lo = rng.standard_normal((max(H // 64, 2) + 1, max(W // 64, 2) + 1)).astype(np.float32)
@@ -254,7 +254,7 @@ def sheet_textures(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2,
     marks = np.asarray(marks_xy_mm, dtype=float).reshape(-1, 2)
     dia = np.broadcast_to(np.asarray(mark_diameters_mm, dtype=float), (len(marks),))
 
-    paper = _paper_field(shape, rng) if paper_grain else np.ones(shape, np.float32)
+    paper = paper_field(shape, rng) if paper_grain else np.ones(shape, np.float32)
 
     # 1-D grid coverage along columns (x) and rows (y, top-down)
     if grid:
@@ -293,7 +293,7 @@ def sheet_textures(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2,
     dot_patches = _dot_patches(marks, dia, x0=x0, y1=y1, ppm=ppm, shape=shape, rng=rng)
 
     out = np.empty((H, W, 3), np.uint8)
-    remap = (_displacement_maps(print_field, extent, ppm, shape)
+    remap = (displacement_maps(print_field, extent, ppm, shape)
              if print_field is not None and print_field.moves else None)
     without = np.empty((H, W, 3), np.uint8) if bare else None
     for ch in range(3):
@@ -366,7 +366,7 @@ def _grown_cells(extent_mm, ppm: float, shape, mx0: float, my0: float, mod: floa
     return slice(r0, r1), slice(c0, c1), cov
 
 
-def _displacement_maps(print_field, extent_mm, ppm: float, shape):
+def displacement_maps(print_field, extent_mm, ppm: float, shape):
     """cv2.remap maps (float32 (H, W) each) of the printer's field: the paper at q shows the
     layout at ``print_field.layout_at(q)`` (the printed layer is resampled bicubically)."""
     H, W = shape

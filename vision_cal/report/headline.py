@@ -6,7 +6,8 @@ computed twice: the RMS values are calibration.json's, copied, never recomputed.
 
 The verdict's "expected target error (95 %)" is the radius that holds 95 % of the errors
 of a circular normal 2-D error whose RMS is the held-out RMS of the final model:
-``r95 = sqrt(-2 ln 0.05) / sqrt(2) * rms = 1.731 * rms`` (:data:`R95_PER_RMS`). The
+``r95 = sqrt(-2 ln 0.05) / sqrt(2) * rms = 1.731 * rms``
+(:data:`vision_cal.diagnose.verdict.R95_PER_RMS`). The
 held-out marks were not fitted, so their RMS includes both the model's uncertainty and
 the measurement noise of the marks themselves (a conservative figure).
 """
@@ -33,7 +34,7 @@ def headline(doc: dict, loop: dict | None = None) -> dict:
     photos = doc.get("images", [])
     n_ok = sum(im.get("status") == "ok" for im in photos)
     effects = [e for e in doc.get("effects", []) if e["name"] != "unexplained"]
-    what = (f"SCARA base model (L1, L2, joint zeros z1 z2, base x y)"
+    what = ("SCARA base model (L1, L2, joint zeros z1 z2, base x y)"
             + (" + " + ", ".join(_effect_name(e) for e in effects) if effects else "")
             + f", {doc.get('method', 'lsq')} fit of {n_fit} marks"
             + (f" ({n_val} held out)" if n_val else "")

@@ -403,9 +403,9 @@ def tool_html(doc: dict) -> str:
 
 
 def render_html(rep: dict) -> str:
-    """The page, from report.json's contents alone."""
+    """The page, from report.json's contents alone: its sections in order, in one page
+    with the style and the lightbox's script."""
     doc = rep["calibration"]
-    stats_help = rep.get("statistics") or {}
     parts = [f"<h1>vision-cal report</h1><p class=note>dataset: {_e(rep['dataset'])}"
              f" &middot; method: {_e(doc.get('method', ''))} &middot; "
              f"{len(doc.get('marks', {}))} marks</p>"]
@@ -413,7 +413,27 @@ def render_html(rep: dict) -> str:
         parts.append(_headline_html(rep))
     if rep.get("actions"):
         parts.append(_actions_html(rep))
-    # Table 2
+    parts += _parameters_html(rep)
+    parts.append(tool_html(doc))
+    parts += _effects_html(rep)
+    parts += _figures_html(rep)
+    parts += _targets_html(rep)
+    parts += _photos_html(rep)
+    if rep.get("provenance"):
+        parts.append(_provenance_html(rep))
+    body = "\n".join(parts)
+    return (f"<!doctype html><html lang=en><head><meta charset=utf-8><title>vision-cal report"
+            f"</title><style>{CSS}</style><script>{JS}</script></head><body>{body}"
+            "<div id=lightbox onclick='hideFull()'><img alt='full size'></div></body></html>\n")
+
+
+def _parameters_html(rep: dict) -> list[str]:
+    """The parameters (the paper's Table 2: nominal, calibrated, std, and the reference's
+    figures when given; shown only beside a reference or without "What to do with it",
+    which lists them), the fit's RMS (residual and held-out), the noise floor and the
+    identifiability (condition number, rank, high correlations)."""
+    doc = rep["calibration"]
+    stats_help = rep.get("statistics") or {}
     p, s, n = doc["params"], doc.get("std") or {}, doc.get("nominal") or {}
     ref = ((rep.get("reference") or {}).get("params")) or {}
     rows = []
@@ -433,8 +453,8 @@ def render_html(rep: dict) -> str:
         head.append(html.escape((rep.get("reference") or {}).get("label", "reference")))
     # "What to do with it" already lists the parameters; repeat them only beside published
     # figures to compare with (the paper's Table 2)
-    parts.append(("<h2>Parameters (Table 2)</h2>" + _table(head, rows))
-                 if ref or not rep.get("actions") else "<h2>Fit statistics</h2>")
+    parts = [("<h2>Parameters (Table 2)</h2>" + _table(head, rows))
+             if ref or not rep.get("actions") else "<h2>Fit statistics</h2>"]
     r, v = doc.get("residual_rms_mm", {}), doc.get("validation_rms_mm", {})
     parts.append(_table(["RMS [mm]", "base model", "final model"], [
         ["residual (fitted marks)", _f(r.get("base_model")), _f(r.get("final_model"))],
@@ -454,9 +474,16 @@ def render_html(rep: dict) -> str:
             parts.append("<p class=note>correlations above 0.9: " + ", ".join(
                 f"{html.escape(c['a'])} ~ {html.escape(c['b'])} ({c['r']:+.3f})" for c in hc)
                 + "</p>")
-    parts.append(tool_html(doc))
-    # effects
-    parts.append("<h2>Effects</h2>")
+    return parts
+
+
+def _effects_html(rep: dict) -> list[str]:
+    """The effects found (with the statistics' help and the diagnosis's level), the
+    unexplained structure, the candidates rejected, the per-photo offsets and what this
+    plan cannot identify."""
+    doc = rep["calibration"]
+    stats_help = rep.get("statistics") or {}
+    parts = ["<h2>Effects</h2>"]
     eff = [e for e in doc.get("effects", []) if e["name"] != "unexplained"]
     parts.append("<ul>" + "".join(f"<li class=ok>{html.escape(describe_effect(e))}</li>"
                                   for e in eff) + "</ul>" if eff else
@@ -481,31 +508,45 @@ def render_html(rep: dict) -> str:
               html.escape(e["reason"])] for e in diag["rejected"]])
             + "<p class=note>held-out after '-': the candidate failed the F/dBIC test, so "
               "its held-out error was not computed.</p>")
-    pp = diag.get("per_photo_offsets") or []
-    if pp:
-        bad = [p for p in pp if p.get("flagged")]
-        worst = max(pp, key=lambda p: float(np.hypot(*p["offset_mm"])))
-        alpha = (((rep.get("provenance") or {}).get("configuration") or {})
-                 .get("per_photo_offsets") or {}).get("alpha")
-        n_ok = sum(1 for im in doc.get("images") or [] if im.get("status") == "ok")
-        untested = (f" ({n_ok - len(pp)} of {n_ok} with fewer than two marks: a photo's "
-                    "offset needs two)" if n_ok > len(pp) else "")
-        parts.append(f"<p>Per-photo offsets: {len(pp)} photos checked{untested}, "
-                     + (f"<span class=bad>{len(bad)} shifted beyond the noise: " +
-                        ", ".join(html.escape(p['file']) for p in bad) + "</span>" if bad else
-                        "none shifted beyond the noise")
-                     + f"; largest mean offset {np.hypot(*worst['offset_mm']):.4f} mm "
-                     f"({html.escape(worst['file'])}).</p>"
-                     "<p class=note>Each photo's mean residual is tested against its dots' own "
-                     "covariances (chi-square, 2 degrees of freedom); a photo is flagged when "
-                     "p is below " + (f"{alpha:g}" if alpha else "the level") + ".</p>")
-    ni = ident.get("not_identifiable", [])
+    if diag.get("per_photo_offsets"):
+        parts.append(_per_photo_offsets_html(rep))
+    ni = (doc.get("identifiability") or {}).get("not_identifiable", [])
     if ni:
         parts.append("<h3>Not identifiable by this plan</h3><ul>" + "".join(
             f"<li>{html.escape(d['label'])}: {html.escape(d['fix'])}</li>" for d in ni) + "</ul>")
-    # figures
-    parts.append("<h2>Residuals</h2>")
-    parts.append(f"<img class=fig alt='residual field' src='{_uri(plots.residual_field(doc))}'>")
+    return parts
+
+
+def _per_photo_offsets_html(rep: dict) -> str:
+    """The per-photo offsets' paragraph: how many photos were checked (and why some could
+    not be), which shifted beyond the noise, the largest offset, and the test's level."""
+    doc = rep["calibration"]
+    pp = (doc.get("diagnosis") or {}).get("per_photo_offsets") or []
+    bad = [p for p in pp if p.get("flagged")]
+    worst = max(pp, key=lambda p: float(np.hypot(*p["offset_mm"])))
+    alpha = (((rep.get("provenance") or {}).get("configuration") or {})
+             .get("per_photo_offsets") or {}).get("alpha")
+    n_ok = sum(1 for im in doc.get("images") or [] if im.get("status") == "ok")
+    untested = (f" ({n_ok - len(pp)} of {n_ok} with fewer than two marks: a photo's "
+                "offset needs two)" if n_ok > len(pp) else "")
+    return (f"<p>Per-photo offsets: {len(pp)} photos checked{untested}, "
+            + (f"<span class=bad>{len(bad)} shifted beyond the noise: " +
+               ", ".join(html.escape(p['file']) for p in bad) + "</span>" if bad else
+               "none shifted beyond the noise")
+            + f"; largest mean offset {np.hypot(*worst['offset_mm']):.4f} mm "
+            f"({html.escape(worst['file'])}).</p>"
+            "<p class=note>Each photo's mean residual is tested against its dots' own "
+            "covariances (chi-square, 2 degrees of freedom); a photo is flagged when "
+            "p is below " + (f"{alpha:g}" if alpha else "the level") + ".</p>")
+
+
+def _figures_html(rep: dict) -> list[str]:
+    """The figures: the residual field (and the joint residuals), the sheet's height, the
+    sheet as printed, the marks' table and the circle fits, each where the calibration has
+    it."""
+    doc = rep["calibration"]
+    parts = ["<h2>Residuals</h2>",
+             f"<img class=fig alt='residual field' src='{_uri(plots.residual_field(doc))}'>"]
     if any("residual_joint_deg" in m for m in doc.get("marks", {}).values()):
         parts.append(f"<img class=fig alt='joint residuals' "
                      f"src='{_uri(plots.joint_residuals(doc))}'>")
@@ -528,66 +569,74 @@ def render_html(rep: dict) -> str:
         parts.append("<h2>Circle fits</h2><p class=note>Arc span limits a circle fit: the "
                      "centre's uncertainty grows like sigma / (1 - cos(span/2)).</p>"
                      f"<img class=fig alt='circle fits' src='{_uri(c)}'>")
-    # Table 3
+    return parts
+
+
+def _targets_html(rep: dict) -> list[str]:
+    """The closed loop's targets (the paper's Table 3: each target's error before and
+    after, every missing value's reason below) and its figures; [] without a loop."""
     loop = rep.get("loop") or {}
-    if loop.get("targets"):
-        parts.append("<h2>Targets (Table 3)</h2>")
-        reasons = {}
-        rows = []
-        for t in loop["targets"]:
-            cells = [html.escape(t["id"]), _f(t["target_mm"][0], 2), _f(t["target_mm"][1], 2)]
-            for side in ("before", "after"):
-                val = t.get(f"{side}_error_mm")
-                if val is None:
-                    why = (t.get(side) or {}).get("reason") or (t.get(side) or {}).get(
-                        "status", "not measured")
-                    k = reasons.setdefault(why, len(reasons) + 1)
-                    cells.append(f"- <sup>{k}</sup>")
-                else:
-                    cells.append(_f(val))
-            rows.append(cells)
-        parts.append(_table(["target", "x [mm]", "y [mm]", "error before [mm]",
-                             "error after [mm]"], rows))
-        if reasons:
-            parts.append("<p class=note>" + "<br>".join(
-                f"<sup>{k}</sup> - : {html.escape(w)}" for w, k in reasons.items()) + "</p>")
-        tp = plots.targets(rep)
-        if tp:
-            parts.append(f"<img class=fig alt='target errors' src='{_uri(tp)}'>")
-        for key in ("paths_png", "joints_png"):
-            if loop.get(key):
-                parts.append(f"<img class=fig alt='{key}' src='{_uri(base64.b64decode(loop[key]))}'>")
-    # photos
+    if not loop.get("targets"):
+        return []
+    parts = ["<h2>Targets (Table 3)</h2>"]
+    reasons = {}
+    rows = []
+    for t in loop["targets"]:
+        cells = [html.escape(t["id"]), _f(t["target_mm"][0], 2), _f(t["target_mm"][1], 2)]
+        for side in ("before", "after"):
+            val = t.get(f"{side}_error_mm")
+            if val is None:
+                why = (t.get(side) or {}).get("reason") or (t.get(side) or {}).get(
+                    "status", "not measured")
+                k = reasons.setdefault(why, len(reasons) + 1)
+                cells.append(f"- <sup>{k}</sup>")
+            else:
+                cells.append(_f(val))
+        rows.append(cells)
+    parts.append(_table(["target", "x [mm]", "y [mm]", "error before [mm]",
+                         "error after [mm]"], rows))
+    if reasons:
+        parts.append("<p class=note>" + "<br>".join(
+            f"<sup>{k}</sup> - : {html.escape(w)}" for w, k in reasons.items()) + "</p>")
+    tp = plots.targets(rep)
+    if tp:
+        parts.append(f"<img class=fig alt='target errors' src='{_uri(tp)}'>")
+    for key in ("paths_png", "joints_png"):
+        if loop.get(key):
+            parts.append(f"<img class=fig alt='{key}' src='{_uri(base64.b64decode(loop[key]))}'>")
+    return parts
+
+
+def _photos_html(rep: dict) -> list[str]:
+    """The photos: how many measured and skipped (with the reasons), the first
+    ``MAX_PHOTOS`` measured ones as thumbnails with their detections drawn (within
+    ``PHOTO_BUDGET_BYTES`` together), each linked to its file; [] without photos."""
     photos = rep.get("photos", [])
+    if not photos:
+        return []
     skipped = [ph for ph in photos if ph.get("status") != "ok"]
-    if photos:
-        parts.append(f"<h2>Photos</h2><p>{len(photos) - len(skipped)} measured, "
-                     f"{len(skipped)} skipped. Click a photo to enlarge it (detections drawn: "
-                     f"markers green, pen marks red); the link opens the full-size file.</p>")
-        if skipped:
-            parts.append(_table(["photo", "reason"], [[html.escape(ph["file"]),
-                                                       html.escape(ph.get("reason", ""))]
-                                                      for ph in skipped]))
-        figs = []
-        ok_photos = [ph for ph in photos if ph.get("status") == "ok"]
-        shown = ok_photos[:MAX_PHOTOS]
-        for ph in shown:
-            ov = _photo_overlay(ph, PHOTO_BUDGET_BYTES // max(len(shown), 1))
-            link = ph.get("link") or ph["path"]
-            if ov:
-                figs.append(f"<figure><img src='{ov}' onclick='showFull(this)' "
-                            f"alt='{html.escape(ph['file'])}'><figcaption>"
-                            f"{html.escape(ph['file'])} &middot; <a href='"
-                            f"{html.escape(Path(link).as_posix())}'>full size</a>"
-                            f"</figcaption></figure>")
-        if figs:
-            parts.append("<div class=thumbs>" + "".join(figs) + "</div>")
-        if len(ok_photos) > MAX_PHOTOS:
-            parts.append(f"<p class=note>{len(ok_photos) - MAX_PHOTOS} more photos are not "
-                         "shown; their files are in the input folder.</p>")
-    if rep.get("provenance"):
-        parts.append(_provenance_html(rep))
-    body = "\n".join(parts)
-    return (f"<!doctype html><html lang=en><head><meta charset=utf-8><title>vision-cal report"
-            f"</title><style>{CSS}</style><script>{JS}</script></head><body>{body}"
-            "<div id=lightbox onclick='hideFull()'><img alt='full size'></div></body></html>\n")
+    parts = [f"<h2>Photos</h2><p>{len(photos) - len(skipped)} measured, "
+             f"{len(skipped)} skipped. Click a photo to enlarge it (detections drawn: "
+             f"markers green, pen marks red); the link opens the full-size file.</p>"]
+    if skipped:
+        parts.append(_table(["photo", "reason"], [[html.escape(ph["file"]),
+                                                   html.escape(ph.get("reason", ""))]
+                                                  for ph in skipped]))
+    figs = []
+    ok_photos = [ph for ph in photos if ph.get("status") == "ok"]
+    shown = ok_photos[:MAX_PHOTOS]
+    for ph in shown:
+        ov = _photo_overlay(ph, PHOTO_BUDGET_BYTES // max(len(shown), 1))
+        link = ph.get("link") or ph["path"]
+        if ov:
+            figs.append(f"<figure><img src='{ov}' onclick='showFull(this)' "
+                        f"alt='{html.escape(ph['file'])}'><figcaption>"
+                        f"{html.escape(ph['file'])} &middot; <a href='"
+                        f"{html.escape(Path(link).as_posix())}'>full size</a>"
+                        f"</figcaption></figure>")
+    if figs:
+        parts.append("<div class=thumbs>" + "".join(figs) + "</div>")
+    if len(ok_photos) > MAX_PHOTOS:
+        parts.append(f"<p class=note>{len(ok_photos) - MAX_PHOTOS} more photos are not "
+                     "shown; their files are in the input folder.</p>")
+    return parts

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 from vision_cal import __version__
 from vision_cal.errors import VisionCalError
 from vision_cal.sheet.layout import (EDGE_MM, QUIET_MODULES, TEXT_MM, GENERATOR, MarkerCells,
-                                     Rect, SheetLayout, Text, PAPER_RGB, _dictionary,
-                                     _replace_prims, marker_bits, page_size_mm)
+                                     Rect, SheetLayout, Text, PAPER_RGB, aruco_dictionary,
+                                     with_primitives, marker_bits, page_size_mm)
 
 #: default marker side (mm) and pitch (in marker sides) of a field
 FIELD_MARKER_MM = 18.0
@@ -53,7 +53,7 @@ def make_field_layout(*, size: str | None = "A3", landscape: bool | None = None,
     """Markers on a grid over the whole page; ids row by row from the bottom left."""
     version = __version__ if version is None else version
     page, orientation, (W, H) = page_size_mm(size, landscape=landscape, custom_mm=custom_mm)
-    d = _dictionary(dictionary)
+    d = aruco_dictionary(dictionary)
     n_cells = int(d.markerSize) + 2
     s = FIELD_MARKER_MM if marker_mm is None else float(marker_mm)
     if not (math.isfinite(s) and s > 0):
@@ -93,4 +93,4 @@ def make_field_layout(*, size: str | None = "A3", landscape: bool | None = None,
             f"{orientation} {W:g} x {H:g} mm | origin at the centre | {GENERATOR} {version}")
     prims.append(Text(x_min + e, y_min + EDGE_MM + 0.5, line,
                       min(TEXT_MM, 0.9 * (W - 2 * e) / max(len(line) * 0.55, 1.0))))
-    return _replace_prims(layout, tuple(prims))
+    return with_primitives(layout, tuple(prims))

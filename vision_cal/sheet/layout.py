@@ -269,7 +269,7 @@ def page_size_mm(size: str | None = "A3", *, landscape: bool | None = None,
     return name, orientation, (w, h)
 
 
-def _dictionary(name: str):
+def aruco_dictionary(name: str):
     # OpenCV takes 0.2 s to import: loaded here, when used
     import cv2
 
@@ -286,7 +286,7 @@ def marker_bits(dictionary: str, marker_id: int) -> np.ndarray:
     # OpenCV takes 0.2 s to import: loaded here, when used
     import cv2
 
-    d = _dictionary(dictionary)
+    d = aruco_dictionary(dictionary)
     n = int(d.markerSize) + 2
     img = cv2.aruco.generateImageMarker(d, int(marker_id), n, borderBits=1)
     return (np.asarray(img) < 128).astype(np.uint8)
@@ -469,7 +469,7 @@ def make_layout(*, size: str | None = "A3", landscape: bool | None = None, custo
     """
     version = __version__ if version is None else version
     page, orientation, (W, H) = page_size_mm(size, landscape=landscape, custom_mm=custom_mm)
-    d = _dictionary(dictionary)
+    d = aruco_dictionary(dictionary)
     n_cells = int(d.markerSize) + 2
     module, s, q, pitch, measured_bar_mm = _sizes(n_cells, min(W, H), marker_mm, pitch_mm,
                                                   quiet_modules, measured_bar_mm)
@@ -492,7 +492,7 @@ def make_layout(*, size: str | None = "A3", landscape: bool | None = None, custo
                          module, float(quiet_modules), markers, ruled, drawable, bars, (),
                          str(version), measured_bar_mm)
     prims += _title_prims(layout, s, by)
-    return _replace_prims(layout, tuple(prims))
+    return with_primitives(layout, tuple(prims))
 
 
 def grid_lines(lo: int, hi: int, bold: bool) -> list[int]:
@@ -525,5 +525,5 @@ def _fit_size(text: str, width_mm: float) -> float:
     return width_mm / max(text_width_mm(text, 1.0), 1e-9)
 
 
-def _replace_prims(layout: SheetLayout, prims: tuple) -> SheetLayout:
+def with_primitives(layout: SheetLayout, prims: tuple) -> SheetLayout:
     return replace(layout, primitives=prims)

@@ -26,7 +26,7 @@ def _overlap(lo_px: np.ndarray, a, b) -> np.ndarray:
     return np.clip(np.minimum(lo_px + 1.0, b) - np.maximum(lo_px, a), 0.0, 1.0)
 
 
-class _Canvas:
+class Canvas:
     def __init__(self, layout: SheetLayout, ppm: float):
         self.ppm = float(ppm)
         self.x0, self.y0, self.x1, self.y1 = layout.extent_mm
@@ -138,7 +138,7 @@ def rasterise(layout: SheetLayout, dpi: float) -> np.ndarray:
     """(H, W, 3) uint8 RGB of the sheet at ``dpi`` (see the module docstring)."""
     if not (np.isfinite(dpi) and dpi > 0):
         raise VisionCalError(f"expected a positive dpi, got {dpi!r}", field="--png-dpi")
-    cv = _Canvas(layout, dpi / 25.4)
+    cv = Canvas(layout, dpi / 25.4)
     for p in layout.primitives:
         cv.draw(p)
     return cv.img

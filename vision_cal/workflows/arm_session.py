@@ -111,7 +111,7 @@ def repeat_pairs(views) -> list[tuple[int, int]]:
     return out
 
 
-def _reasons(fit, mount: str, *, undetermined: bool = False) -> list[tuple[str, str]]:
+def undetermined_reasons(fit, mount: str, *, undetermined: bool = False) -> list[tuple[str, str]]:
     """(status, sentence) of what the poses leave undetermined (the camera's height, with a
     lens whose focal length the views cannot tell, is the lens's sentence)."""
     out = []
@@ -306,7 +306,8 @@ def calibrate_arm_camera(folder, *, progress: bool = False, jobs: int = 1) -> di
         extra={"not_identifiable": d["not_identifiable"], "pose_rms": d["pose_rms"],
                "poses": _pose_table(views, fit)})
     return _judged(doc, fit, views, rep,
-                   _reasons(fit, mount, undetermined=(how == UNDETERMINED)) + lens_reason)
+                   undetermined_reasons(fit, mount, undetermined=(how == UNDETERMINED))
+                   + lens_reason)
 
 
 def _judged(doc: CalibrationResult, fit, views, rep, reasons) -> dict:

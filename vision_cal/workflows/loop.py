@@ -135,10 +135,42 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
     out = Path(out_dir)
     scene = load_scene(scene_path)
     stages = {}
-
     render_jobs = jobs or os.cpu_count() or 1
+    run = _calibrate_scene(scene, out, jobs=jobs, render_jobs=render_jobs, progress=progress,
+                           photographer=photographer, stages=stages)
+    calibrated = run.model                      # kept in memory, not read back
+    nominal = RobotModel(run.session.robot.params)
+    sheet = run.session.sheet
+    ids, xy = default_targets(sheet, calibrated.params, elbow=elbow)
+    write_targets(out / "targets.csv", ids, xy)
+    targets = dict(zip(ids, xy))
     t = time.perf_counter()
+    plans = _plan_both(out, ids, xy, nominal, calibrated, elbow=elbow)
+    stages["plan (both models)"] = time.perf_counter() - t
+    results, controller = {}, {}
+    for k, name in enumerate(("before", "after")):
+        controller[name], m = _draw_and_measure(
+            scene, k, name, plans[name], targets, out, jobs=jobs, render_jobs=render_jobs,
+            progress=progress, photographer=photographer, stages=stages)
+        results[name] = _target_results(plans[name], m, targets, sheet, calibrated)
+    doc = _loop_document(scene_path, ids, targets, results, stages, controller, run)
+    if progress:
+        stage_line("loop", sum(stages.values()), note="; ".join(
+            f"{k} {v:.1f} s" for k, v in stages.items()))
 
+    doc["trajectories"] = loop_trajectories(doc)   # what the report's Fig. 10 draws
+    doc["paths_png"] = base64.b64encode(loop_paths(doc)).decode("ascii")
+    doc["joints_png"] = base64.b64encode(loop_joints(doc)).decode("ascii")
+    atomic_write_json(out / "loop.json", doc)
+    return doc, run
+
+
+def _calibrate_scene(scene, out: Path, *, jobs, render_jobs: int, progress: bool,
+                     photographer, stages: dict):
+    """Steps 1-2: render the scene's calibration session into ``out/session`` and calibrate
+    it into ``out/calibration``; return the ``CalibrationRun``. Each step's seconds go to
+    ``stages``."""
+    t = time.perf_counter()
     session_dir = render_dataset(scene, out / "session", progress=progress,
                                  photographer=photographer, pilot=pilot_params,
                                  jobs=render_jobs)
@@ -150,53 +182,70 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
     if progress:
         stage_line("measure + calibrate + diagnose", stages["measure + calibrate + diagnose"],
                    n=len(run.document.get("marks", {})), unit="mark")
-    calibrated = run.model                      # kept in memory, not read back
-    nominal = RobotModel(run.session.robot.params)
-    sheet = run.session.sheet
-    ids, xy = default_targets(sheet, calibrated.params, elbow=elbow)
-    write_targets(out / "targets.csv", ids, xy)
-    targets = dict(zip(ids, xy))
-    results, controller = {}, {}
-    t = time.perf_counter()
+    return run
+
+
+def _plan_both(out: Path, ids, xy, nominal, calibrated, *, elbow: int) -> dict:
+    """Step 4: the targets planned with the nominal model ("before") and the calibrated one
+    ("after"), each written to ``out/plan_<name>.csv``; name -> its planned targets."""
     plans = {}
     for name, model in (("before", nominal), ("after", calibrated)):
         planned = plan_targets(model, ids, xy, elbow=elbow)
         write_plan(out / f"plan_{name}.csv", [p.to_row() for p in planned])
         plans[name] = planned
-    stages["plan (both models)"] = time.perf_counter() - t
-    for k, name in enumerate(("before", "after")):
-        marks = to_planned_marks(plans[name])
-        sc = scene.with_overrides(seed=scene.seed + 1000 + k, mode="single")
-        # the arm is moved away before the finished sheet is photographed
-        sc = replace(sc, photos=replace(sc.photos, extra_files=(), arm_parked=False))
-        t = time.perf_counter()
-        sheet_dir = render_dataset(sc, out / f"sheet_{name}", progress=progress, plan=marks,
-                                   targets_mm=targets, photographer=photographer,
-                                   jobs=render_jobs)
-        stages[f"simulate + draw + photograph ({name})"] = time.perf_counter() - t
+    return plans
 
-        controller[name] = read_json(sheet_dir / "truth.json").get("controller_report")
-        t = time.perf_counter()
-        m = measure_folder(load_session(sheet_dir), out_dir=out / f"measure_{name}", jobs=jobs,
-                           progress=progress)
-        stages[f"measure ({name})"] = time.perf_counter() - t
-        res = {}
-        for p in plans[name]:
-            if p.status != "ok":
-                res[p.id] = {"status": "not planned", "reason": p.reason}
-            elif p.id in m.marks:
-                e = np.asarray(m.marks[p.id].xy_mm) - targets[p.id]
-                res[p.id] = {"status": "ok", "measured_mm": np.asarray(m.marks[p.id].xy_mm).tolist(),
-                             "error_mm": e.tolist(), "error_norm_mm": float(np.hypot(*e))}
-            else:
-                # the measurement's own reason first (it saw the photo), else where the
-                # calibrated model says the pen landed
-                why = m.refused.get(p.id)
-                res[p.id] = {"status": "not found",
-                             "reason": str(why) if why else landing_note(sheet, calibrated, p)}
-            if p.status == "ok":
-                res[p.id].update(q_deg=list(p.q_deg), approach=list(p.approach))
-        results[name] = res
+
+def _draw_and_measure(scene, k: int, name: str, planned, targets: dict, out: Path, *, jobs,
+                      render_jobs: int, progress: bool, photographer, stages: dict):
+    """Step 5-6 for one plan: the true robot draws ``planned`` on a fresh sheet (seed
+    ``scene.seed + 1000 + k``, the arm parked away) photographed into ``out/sheet_<name>``,
+    measured into ``out/measure_<name>``; return (the controller's report, the
+    measurement). Each step's seconds go to ``stages``."""
+    marks = to_planned_marks(planned)
+    sc = scene.with_overrides(seed=scene.seed + 1000 + k, mode="single")
+    # the arm is moved away before the finished sheet is photographed
+    sc = replace(sc, photos=replace(sc.photos, extra_files=(), arm_parked=False))
+    t = time.perf_counter()
+    sheet_dir = render_dataset(sc, out / f"sheet_{name}", progress=progress, plan=marks,
+                               targets_mm=targets, photographer=photographer,
+                               jobs=render_jobs)
+    stages[f"simulate + draw + photograph ({name})"] = time.perf_counter() - t
+
+    controller = read_json(sheet_dir / "truth.json").get("controller_report")
+    t = time.perf_counter()
+    m = measure_folder(load_session(sheet_dir), out_dir=out / f"measure_{name}", jobs=jobs,
+                       progress=progress)
+    stages[f"measure ({name})"] = time.perf_counter() - t
+    return controller, m
+
+
+def _target_results(planned, m, targets: dict, sheet, calibrated) -> dict:
+    """Target id -> its result in loop.json: measured and its error against the target,
+    not planned, or not found (with the reason); the joints commanded when planned."""
+    res = {}
+    for p in planned:
+        if p.status != "ok":
+            res[p.id] = {"status": "not planned", "reason": p.reason}
+        elif p.id in m.marks:
+            e = np.asarray(m.marks[p.id].xy_mm) - targets[p.id]
+            res[p.id] = {"status": "ok", "measured_mm": np.asarray(m.marks[p.id].xy_mm).tolist(),
+                         "error_mm": e.tolist(), "error_norm_mm": float(np.hypot(*e))}
+        else:
+            # the measurement's own reason first (it saw the photo), else where the
+            # calibrated model says the pen landed
+            why = m.refused.get(p.id)
+            res[p.id] = {"status": "not found",
+                         "reason": str(why) if why else landing_note(sheet, calibrated, p)}
+        if p.status == "ok":
+            res[p.id].update(q_deg=list(p.q_deg), approach=list(p.approach))
+    return res
+
+
+def _loop_document(scene_path, ids, targets: dict, results: dict, stages: dict,
+                   controller: dict, run) -> dict:
+    """loop.json without its figures: every target's row before and after, the summary
+    (RMS and max of the measured errors), the stages' seconds, the controllers' reports."""
     rows = []
     for tid in ids:
         b, a = results["before"][tid], results["after"][tid]
@@ -206,7 +255,7 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
                      "before": b, "after": a})
     after = np.array([r["after_error_mm"] for r in rows if r["after_error_mm"] is not None])
     before = np.array([r["before_error_mm"] for r in rows if r["before_error_mm"] is not None])
-    doc = {
+    return {
         "format": "vision-cal/loop/1", "scene": str(scene_path),
         "targets": rows,
         "summary": {
@@ -223,15 +272,6 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
         "calibration": str(run.out_path),
         "home_deg": [float(v) for v in run.session.robot.home_deg],
     }
-    if progress:
-        stage_line("loop", sum(stages.values()), note="; ".join(
-            f"{k} {v:.1f} s" for k, v in stages.items()))
-
-    doc["trajectories"] = loop_trajectories(doc)   # what the report's Fig. 10 draws
-    doc["paths_png"] = base64.b64encode(loop_paths(doc)).decode("ascii")
-    doc["joints_png"] = base64.b64encode(loop_joints(doc)).decode("ascii")
-    atomic_write_json(out / "loop.json", doc)
-    return doc, run
 
 
 def format_table(doc: dict) -> str:

@@ -215,7 +215,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
     :func:`document`. ``config``: the estimator's thresholds (:mod:`vision_cal.config`;
     default ``DEFAULT``), recorded in calibration.json's ``config``. ``survey``: the sheet
     as printed (survey.json's path, or None: a ``survey.json`` beside session.json's sheet
-    is not looked for here; :func:`vision_cal.survey.find_survey` does that)."""
+    is not looked for here; :func:`vision_cal.measure.survey.find_survey` does that)."""
     if method not in METHODS:
         raise VisionCalError(f"unknown method {method!r} (expected one of {', '.join(METHODS)})")
     config = config or DEFAULT

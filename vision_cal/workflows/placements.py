@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.calibrate.placements import (Placement, PlacementsFit, _cv_residuals,
+from vision_cal.calibrate.placements import (Placement, PlacementsFit, cv_residuals,
                                              fit_placements, placement_cov,
                                              robot_frame_json, unexplained_seen)
 from vision_cal.model.tool_fit import joint4_values
@@ -49,7 +49,7 @@ def _verdicts(places: list[Placement], sessions, fit: PlacementsFit, log,
     agreement with the others (:func:`vision_cal.diagnose.verdict.judge_placements`): the
     residuals under the shared robot, the k-fold held-out ones, the robot block's
     repeatability (the first session that gives one)."""
-    held = _cv_residuals(places, fit, fit.effects, config.selection.k_folds,
+    held = cv_residuals(places, fit, fit.effects, config.selection.k_folds,
                          config.fit.condition_number_limit)
     if held is None:
         held = [np.full((len(p.xy_mm), 2), np.nan) for p in places]
