@@ -12,7 +12,8 @@ then
   and max against the targets,
 - print: the reported deviation (``print.field_rms_mm``, ``growth_mm``) against truth.json
   ``print`` (the field at the markers' corners, the toner),
-- the verdict's status and expected target error (95 %).
+- the verdict's status and expected target error (95 %),
+- ``z``: each parameter's error against the world's over its reported std.
 ``--folder DATASET OUT``: only the figures of a folder already calibrated into OUT.
 """
 
@@ -52,7 +53,22 @@ def evaluate(folder: Path, out: Path) -> dict:
     pr = cal.get("print") or {}
     tp = truth.get("print") or {}
     v = cal["verdict"]
-    return {"marks_rms_mm": float(np.sqrt(np.mean(np.sum(e**2, axis=1)))),
+    # the parameters against the world's, in their reported std (|z| above 3: the std
+    # understates what the photos leave)
+    tp_, cp_, sd = truth["params"], cal["params"], cal["std"]
+    z = {"L1": (cp_["L1_mm"] - tp_["L1_mm"]) / sd["L1_mm"],
+         "L2": (cp_["L2_mm"] - tp_["L2_mm"]) / sd["L2_mm"],
+         **{f"zero{k + 1}": (cp_["joint_zero_deg"][k] - tp_["joint_zero_deg"][k])
+            / sd["joint_zero_deg"][k] for k in (0, 1)},
+         **{f"base_{a}": (cp_["base_mm"][k] - tp_["base_mm"][k]) / sd["base_mm"][k]
+            for k, a in enumerate("xy")}}
+    for ef in cal["effects"]:
+        t = next((x for x in truth["effects"] if x["name"] == ef["name"] == "joint_backlash"
+                  and x.get("joint") == ef.get("joint")), None)
+        if t is not None and ef.get("std"):
+            z[f"backlash{ef['joint']}"] = (ef["deg"] - t["deg"]) / ef["std"]
+    return {"z": {k: round(float(x), 2) for k, x in z.items()},
+            "marks_rms_mm": float(np.sqrt(np.mean(np.sum(e**2, axis=1)))),
             "targets_rms_mm": float(np.sqrt(np.mean(miss**2))), "targets_max_mm": float(miss.max()),
             "n_targets": len(ok),
             "print_source": pr.get("source"), "print_field_rms_mm": pr.get("field_rms_mm"),

@@ -145,3 +145,48 @@ def test_repeated_photos_from_one_place_are_one_view():
     # counted per photo it would shrink by sqrt(4) (0.41x with the residual's dof); the
     # dof still counts photos (0.82x)
     assert 0.75 * once.unresolved_mm < four.unresolved_mm < 1.1 * once.unresolved_mm
+
+
+def test_the_gauge_reads_no_scale_in_the_toner():
+    """The markers' growth (toner) is no shift, turn or scale of the layout: the gauge
+    leaves a grown layout's corners where they are (fitted on the corners alone, a 0.06 mm
+    growth of these 30 mm markers read as a 3.5e-5 scale: 0.01 mm at the sheet's edge)."""
+    from vision_cal.measure.asprinted import _gauge_matrix
+    ids, declared = _layout()
+    P = declared.reshape(-1, 2)
+    centre = declared.mean(axis=1, keepdims=True)
+    sign = np.sign(declared - centre).reshape(-1, 2)
+    field = _deviation(P, 0.17)
+    grown = field + 0.06 * sign
+    G = _gauge_matrix(P, np.repeat(np.arange(len(ids)), 4), sign)
+    # the growth adds nothing to the similarity the field has
+    assert np.allclose(G @ grown.ravel(), G @ field.ravel(), rtol=0, atol=1e-12)
+    # a similarity of the layout is read as itself, growth or not
+    s = np.array([0.01, -0.02, 2e-5, -3e-5])
+    moved = grown + np.column_stack([s[0] + s[2] * P[:, 0] - s[3] * P[:, 1],
+                                     s[1] + s[3] * P[:, 0] + s[2] * P[:, 1]])
+    assert np.allclose(G @ moved.ravel() - G @ field.ravel(), s, rtol=0, atol=1e-12)
+
+
+def test_the_field_the_marks_share_is_the_corners_covariance_on_a_mappings_fields():
+    """A corner covariance made of a mapping's fields is read back as those fields'
+    covariance (``field``), kept through JSON, and gives the marks their joint covariance."""
+    from vision_cal.measure.asprinted import field_basis
+    from vision_cal.measure.print_stage import print_field_cov
+    ids, declared = _layout()
+    P = declared.reshape(-1, 2)
+    centre, scale = P.mean(axis=0), float(np.abs(P - P.mean(axis=0)).max())
+    rng = np.random.default_rng(5)
+    A = rng.normal(0, 0.01, (8, 8))
+    C8 = A @ A.T
+    Bc = field_basis(P, centre, scale)
+    ap = AsPrinted(ids, declared, declared, np.full(declared.shape, 0.01),
+                   np.ones(declared.shape[:2], bool), K, DIST, SIZE, False, (), (), (), 6,
+                   corner_cov_mm2=Bc @ C8 @ Bc.T)
+    assert np.allclose(ap.field["cov_mm2"], C8, atol=1e-12)
+    back = AsPrinted.from_json(ap.to_json())
+    assert np.allclose(back.field["cov_mm2"], C8, atol=1e-12)
+    xy = np.array([[-100.0, 50.0], [120.0, -80.0]])
+    Bm = field_basis(xy, centre, scale)
+    assert np.allclose(print_field_cov({"field": back.field}, xy), Bm @ C8 @ Bm.T, atol=1e-12)
+    assert print_field_cov({"source": "one place"}, xy) is None

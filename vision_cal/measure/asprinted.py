@@ -9,9 +9,16 @@ Hirzinger 2011) and mrcal's board deformation do.
 
 The gauge. Moving the whole layout by a similarity (shift, turn, scale) and every camera
 with it leaves every photo the same, so the views cannot see it. It is fixed as the
-contract's frame is: the as-printed layout's best-fitting similarity to the declared one is
-the identity (the sheet frame stays the declared one on average, the overall scale the
-declared one; the printer's overall scale is the bars' business, ``printed_scale``).
+contract's frame is: the as-printed layout's best-fitting similarity to the declared one,
+each marker's growth (toner) fitted beside it, is the identity (the sheet frame stays the
+declared one on average, the overall scale the declared one; the printer's overall scale
+is the bars' business, ``printed_scale``; a marker's growth is no scale of the sheet).
+
+What the layout's uncertainty does to the marks is not independent from mark to mark:
+every photo's mapping is fitted to the corners, so the marks share it. ``field`` is the
+corners' joint covariance projected on the displacement fields a mapping can take
+(:func:`field_basis`); the calibration carries it into the parameters' covariance
+(``vision_cal.model.lsq.Fit.with_shared_error``).
 
 Model. Marker corner ``c`` of the declared layout (``P_c``, sheet mm, z = 0) is printed at
 ``P_c + delta_c``; photo ``v`` sees it at ``project(K, dist, R_v, t_v, P_c + delta_c)``
@@ -77,6 +84,11 @@ class AsPrinted:
     notes: tuple[str, ...] = field(default=())
     heights_mm: np.ndarray | None = None
     height_std_mm: np.ndarray | None = None
+    #: (2 M 4, 2 M 4) the corners' joint covariance in the gauge (x, y of each corner, in
+    #: ``printed_mm``'s order; zero where not released); not written (``field`` is)
+    corner_cov_mm2: np.ndarray | None = None
+    #: a ``field`` block read from a file (used when ``corner_cov_mm2`` is None)
+    field_read: dict | None = None
 
     # ------------------------------------------------------------------ figures
     @property
@@ -131,6 +143,27 @@ class AsPrinted:
         s = self.std_mm[self.released]
         return float(np.sqrt(np.mean(np.sum(s**2, axis=1)))) if len(s) else float("nan")
 
+    @property
+    def field(self) -> dict | None:
+        """What the layout's uncertainty does to every photo's mapping, hence to the marks:
+        the corners' joint covariance (``corner_cov_mm2``, in the gauge) projected on the
+        displacement fields a mapping takes (:func:`field_basis`, a homography's 8): a mark
+        at ``p`` is off by ``B(p) c`` with ``c`` of covariance ``cov_mm2``, the same ``c``
+        for every mark (the marks near each other share it: it does not average down over
+        marks as their own noise does). None without the joint covariance (a layout read
+        from a file written before it was kept)."""
+        if self.corner_cov_mm2 is None or not self.released.any():
+            return self.field_read
+        rel = self.released.ravel()
+        P = self.declared_mm.reshape(-1, 2)
+        centre = P[rel].mean(axis=0)
+        scale = float(np.abs(P[rel] - centre).max())
+        rc = np.column_stack([2 * np.flatnonzero(rel), 2 * np.flatnonzero(rel) + 1]).ravel()
+        L = np.linalg.pinv(field_basis(P[rel], centre, scale))
+        C = np.asarray(self.corner_cov_mm2, float)[np.ix_(rc, rc)]
+        return {"basis": "homography", "centre_mm": centre.tolist(), "scale_mm": scale,
+                "cov_mm2": (L @ C @ L.T).tolist()}
+
     def corners_for(self, ids, declared_mm) -> np.ndarray:
         """The printed corners of markers ``ids`` (their declared ``declared_mm`` where this
         layout does not know them)."""
@@ -147,7 +180,8 @@ class AsPrinted:
         """measurement.json / survey.json ``as_printed`` (docs/format.md)."""
         return {
             "source": self.source,
-            "gauge": "best-fitting similarity to the declared layout = identity",
+            "gauge": "best-fitting similarity to the declared layout, each marker's growth "
+                     "aside, = identity",
             "rms_mm": self.rms_mm, "max_mm": self.max_mm, "growth_mm": self.growth_mm,
             "field_rms_mm": self.field_rms_mm, "unresolved_mm": self.unresolved_mm,
             "height_rms_mm": self.height_rms_mm,
@@ -166,6 +200,7 @@ class AsPrinted:
                             self.ids, self.printed_mm, self.declared_mm, self.std_mm,
                             self.released))],
             "notes": list(self.notes),
+            "field": self.field,
         }
 
     @classmethod
@@ -186,7 +221,8 @@ class AsPrinted:
                    tuple(d.get("notes") or ()),
                    *((np.array([m["height_mm"] for m in ms], float).reshape(-1, 4),
                       np.array([m["height_std_mm"] for m in ms], float).reshape(-1, 4))
-                     if ms and all("height_mm" in m for m in ms) else (None, None)))
+                     if ms and all("height_mm" in m for m in ms) else (None, None)),
+                   None, d.get("field"))
 
 
 # ---------------------------------------------------------------------- projection
@@ -213,6 +249,37 @@ def _similarity(p: np.ndarray, d: np.ndarray) -> np.ndarray:
     A[0::2, 2], A[0::2, 3] = p[:, 0], -p[:, 1]
     A[1::2, 2], A[1::2, 3] = p[:, 1], p[:, 0]
     return np.linalg.lstsq(A, d.reshape(-1), rcond=None)[0]
+
+
+def _gauge_matrix(p: np.ndarray, marker: np.ndarray, growth_sign: np.ndarray) -> np.ndarray:
+    """(4, 2N): the small similarity (tx, ty, a, b) of displacements at corners ``p`` (N, 2),
+    each marker's growth aside (``marker`` (N,) its index, ``growth_sign`` (N, 2) the
+    corner's direction from its marker's centre): toner grows every black square, which
+    is no shift, turn or scale of the layout (fitted on the corners alone, a 0.06 mm growth
+    of 30 mm markers read as a 3.5e-5 scale of the whole sheet: the links 0.012 mm short)."""
+    A = np.zeros((2 * len(p), 4))
+    A[0::2, 0] = A[1::2, 1] = 1.0
+    A[0::2, 2], A[0::2, 3] = p[:, 0], -p[:, 1]
+    A[1::2, 2], A[1::2, 3] = p[:, 1], p[:, 0]
+    _, m = np.unique(marker, return_inverse=True)
+    G = np.zeros((2 * len(p), m.max() + 1 if len(m) else 0))
+    G[0::2][np.arange(len(p)), m] = growth_sign[:, 0]
+    G[1::2][np.arange(len(p)), m] = growth_sign[:, 1]
+    return np.linalg.pinv(np.hstack([A, G]))[:4]
+
+
+def field_basis(p: np.ndarray, centre, scale: float) -> np.ndarray:
+    """(2N, 8): the displacement fields a sheet mapping (a homography) can take, at points
+    ``p`` (N, 2): shift (2), the linear part (4), the perspective terms (2), in
+    ``(p - centre) / scale``; rows x0, y0, x1, y1, ... (mm per unit coefficient)."""
+    u = (np.asarray(p, float).reshape(-1, 2) - np.asarray(centre, float)) / float(scale)
+    B = np.zeros((2 * len(u), 8))
+    B[0::2, 0] = B[1::2, 1] = 1.0
+    B[0::2, 2], B[0::2, 3] = u[:, 0], u[:, 1]
+    B[1::2, 4], B[1::2, 5] = u[:, 0], u[:, 1]
+    B[0::2, 6], B[0::2, 7] = u[:, 0] ** 2, u[:, 0] * u[:, 1]
+    B[1::2, 6], B[1::2, 7] = u[:, 0] * u[:, 1], u[:, 1] ** 2
+    return B
 
 
 def _apply_similarity(s, p):
@@ -448,6 +515,14 @@ class _Problem:
         """The heights' gauge: the released corners' plane design matrix (n, 3)."""
         return np.column_stack([np.ones(len(self.rel_idx)), self.obs.P0[self.rel_idx]])
 
+    def gauge(self) -> np.ndarray:
+        """The in-plane gauge: (4, 2 n) the released corners' displacements' best-fitting
+        small similarity, each marker's growth fitted beside it (:func:`_gauge_matrix`)."""
+        rel_idx, P0 = self.rel_idx, self.obs.P0
+        marker = rel_idx // 4
+        centres = self.obs.declared.mean(axis=1)
+        return _gauge_matrix(P0[rel_idx], marker, np.sign(P0[rel_idx] - centres[marker]))
+
 
 def _problem(obs: _Observations, released: np.ndarray, lens0: np.ndarray, lens_free: bool,
              cfg: AsPrintedConfig) -> _Problem:
@@ -486,11 +561,14 @@ def _solve(pb: _Problem, huber_px: float):
     return before, sol
 
 
-def _corner_std(pb: _Problem, sol, n_places: int) -> tuple[np.ndarray, np.ndarray]:
+def _corner_std(pb: _Problem, sol, n_places: int
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """The released corners' std at the solution ``sol``, from the Jacobian and the
     residual's own scale: in-plane (4 M, 2), in the gauge (less the best-fitting
-    similarity), and the heights' (4 M,), less their best-fitting plane. NaN when the
-    normal matrix is singular; 0 for the corners not released."""
+    similarity, each marker's growth aside), and the heights' (4 M,), less their
+    best-fitting plane; and the in-plane joint covariance in the gauge (2 M 4, 2 M 4),
+    zero where not released (``AsPrinted.corner_cov_mm2``). NaN std and no covariance
+    (None) when the normal matrix is singular; 0 for the corners not released."""
     P0, rel_idx, nd, n_delta = pb.obs.P0, pb.rel_idx, pb.nd, pb.n_delta
     J = pb.jacobian(sol.x)   # the plain Jacobian (sol.jac is scaled by the loss)
     r_obs = sol.fun[:pb.m_obs]
@@ -503,6 +581,7 @@ def _corner_std(pb: _Problem, sol, n_places: int) -> tuple[np.ndarray, np.ndarra
     std = np.zeros_like(P0)
     hstd = np.zeros(len(P0))
     plane = pb.heights_plane()
+    gauge = pb.gauge()
     try:
         cov3 = s2 * np.linalg.inv(J.T @ J)[pb.n_lens + pb.n_pose:, pb.n_lens + pb.n_pose:]
         inplane = (np.arange(n_delta) % nd) < 2
@@ -511,25 +590,30 @@ def _corner_std(pb: _Problem, sol, n_places: int) -> tuple[np.ndarray, np.ndarra
             Qh = np.eye(len(plane)) - plane @ np.linalg.pinv(plane)
             ch = cov3[np.ix_(~inplane, ~inplane)]
             hstd[rel_idx] = np.sqrt(np.clip(np.diag(Qh @ ch @ Qh.T), 0, None))
-        # in the gauge: the deviations less their best-fitting similarity
+        # in the gauge: the deviations less their best-fitting similarity (growth aside)
         pr = P0[rel_idx]
         A = np.zeros((2 * len(pr), 4))
         A[0::2, 0] = A[1::2, 1] = 1.0
         A[0::2, 2], A[0::2, 3] = pr[:, 0], -pr[:, 1]
         A[1::2, 2], A[1::2, 3] = pr[:, 1], pr[:, 0]
-        Q = np.eye(len(A)) - A @ np.linalg.pinv(A)
+        Q = np.eye(len(A)) - A @ gauge
         cov = Q @ cov @ Q.T
         std[rel_idx] = np.sqrt(np.clip(np.diag(cov), 0, None)).reshape(-1, 2)
+        full = np.zeros((2 * len(P0), 2 * len(P0)))
+        rc = np.column_stack([2 * rel_idx, 2 * rel_idx + 1]).ravel()
+        full[np.ix_(rc, rc)] = cov
     except np.linalg.LinAlgError:
         std[rel_idx] = np.nan
         hstd[rel_idx] = np.nan
-    return std, hstd
+        full = None
+    return std, hstd, full
 
 
 def _in_gauge(pb: _Problem, delta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The solved deltas (4 M, 3) in the gauge: the in-plane shifts (4 M, 2) less their
-    best-fitting similarity to the declared layout, and the heights (4 M,) less their
-    best-fitting plane (zeros when heights are not released)."""
+    best-fitting similarity to the declared layout (each marker's growth aside,
+    :meth:`_Problem.gauge`), and the heights (4 M,) less their best-fitting plane (zeros
+    when heights are not released)."""
     P0, rel_idx = pb.obs.P0, pb.rel_idx
     heights = np.zeros(len(P0))
     if pb.nd == 3 and len(rel_idx) >= 3:
@@ -537,7 +621,7 @@ def _in_gauge(pb: _Problem, delta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         h = delta[rel_idx, 2]
         heights[rel_idx] = h - plane @ np.linalg.lstsq(plane, h, rcond=None)[0]
     delta = delta[:, :2]
-    sim = _similarity(P0[rel_idx], delta[rel_idx]) if len(rel_idx) >= 3 else np.zeros(4)
+    sim = pb.gauge() @ delta[rel_idx].ravel() if len(rel_idx) >= 3 else np.zeros(4)
     delta[rel_idx] -= _apply_similarity(sim, P0[rel_idx])
     return delta, heights
 
@@ -567,7 +651,7 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
     pb = _problem(obs, released, _lens_vector(K, dist0), lens_free, cfg)
     before, sol = _solve(pb, cfg.huber_px)
     lens, _, delta = pb.unpack(sol.x)
-    std, hstd = _corner_std(pb, sol, n_places)
+    std, hstd, full = _corner_std(pb, sol, n_places)
     delta, heights = _in_gauge(pb, delta)
     Kf, df = _lens_matrices(lens)
     notes = []
@@ -580,4 +664,4 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
                      tuple(v[0] for v in views), pb.per_view_rms(before.fun),
                      pb.per_view_rms(sol.fun), n_places, source, tuple(notes),
                      heights.reshape(-1, 4) if nd == 3 else None,
-                     hstd.reshape(-1, 4) if nd == 3 else None)
+                     hstd.reshape(-1, 4) if nd == 3 else None, full)

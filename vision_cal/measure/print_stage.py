@@ -11,7 +11,7 @@ import numpy as np
 
 from vision_cal.config import EstimatorConfig
 from vision_cal.dataset.session import Session
-from vision_cal.measure.asprinted import AsPrinted, estimate_as_printed
+from vision_cal.measure.asprinted import AsPrinted, estimate_as_printed, field_basis
 from vision_cal.measure.finish import lens_of
 from vision_cal.measure.mapping import LensEstimate
 from vision_cal.measure.types import ImageDetections, ImageResult
@@ -91,7 +91,8 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
                 "limit_mm": as_printed.unresolved_mm,
                 "sigma_mm": as_printed.unresolved_mm / np.sqrt(2.0),
                 "height_rms_mm": as_printed.height_rms_mm,
-                "n_places": as_printed.n_places}
+                "n_places": as_printed.n_places,
+                **({"field": as_printed.field} if as_printed.field is not None else {})}
     declared = {int(m.id): np.asarray(m.corners_mm, float) for m in session.sheet.markers}
     means, noise = [], []
     for im in images:
@@ -118,3 +119,14 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
     return {"source": "one place", "seen_rms_mm": excess, "corner_noise_mm": float(np.sqrt(s2)),
             "limit_mm": limit,
             "sigma_mm": limit / np.sqrt(2.0), "n_places": 1}
+
+
+def print_field_cov(summary: dict | None, xy_mm) -> np.ndarray | None:
+    """(2N, 2N) the marks' joint covariance the print leaves (measurement.json ``print``
+    ``field``, :attr:`vision_cal.measure.asprinted.AsPrinted.field`) at positions ``xy_mm``
+    (N, 2), rows x0, y0, x1, y1, ...: correlated between marks. None without a field."""
+    f = (summary or {}).get("field")
+    if not f:
+        return None
+    B = field_basis(np.asarray(xy_mm, float).reshape(-1, 2), f["centre_mm"], f["scale_mm"])
+    return B @ np.asarray(f["cov_mm2"], float) @ B.T

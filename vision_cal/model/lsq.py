@@ -26,7 +26,7 @@ Joints ``(N, 3)`` carry joint 4 (``[q1, q2, q4]``, for a model with a tool, see
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -156,6 +156,27 @@ class Fit:
     def or_raise(self) -> "Fit":
         """This fit (the twin of :meth:`FailedFit.or_raise`)."""
         return self
+
+    def with_shared_error(self, q_deg, approach, cov_mm2, sigma_mm=None) -> "Fit":
+        """This fit with the parameters' covariance grown by an error the marks share
+        (``cov_mm2`` (2N, 2N) over the fit's N marks, rows x0, y0, x1, ...: the print's
+        correlated part, :func:`vision_cal.measure.print_stage.print_field_cov`): the
+        solve's linear response ``G = (J'WJ)^-1 J'W`` (inlier rows, the weights
+        ``1 / sigma_mm^2`` the fit used) carries it, ``cov + G C G'``. The residual's scale
+        ``s^2`` does not: an error the parameters take up leaves no residual."""
+        q = np.asarray(q_deg, float)
+        q = q.reshape(-1, 3 if q.ndim == 2 and q.shape[-1] == 3 else 2)
+        app = (np.ones((len(q), 2)) if approach is None
+               else np.asarray(approach, float).reshape(len(q), -1))
+        keep = np.asarray(self.inliers, bool)
+        w = np.ones(len(q)) if sigma_mm is None else 1.0 / np.asarray(sigma_mm, float)
+        P = len(self.model.vector)
+        J = self.model.jacobian(q[keep], app[keep]).reshape(-1, P)
+        W = np.repeat(w[keep] ** 2, 2)
+        G = np.linalg.pinv(J.T @ (W[:, None] * J)) @ (J.T * W)
+        rows = np.column_stack([2 * np.flatnonzero(keep), 2 * np.flatnonzero(keep) + 1]).ravel()
+        C = np.asarray(cov_mm2, float)[np.ix_(rows, rows)]
+        return replace(self, cov=self.cov + G @ C @ G.T)
 
     # -- results --------------------------------------------------------------------------
     @property
