@@ -1,8 +1,9 @@
 """The world's printer: a smooth displacement of the printed layer, toner growth."""
 
+import cv2
 import numpy as np
 
-from vision_cal.render.print_deviation import PrintScene, _similarity_fit
+from vision_cal.render.print_deviation import PrintField, PrintScene, _similarity_fit
 from vision_cal.render.scene import scene_from_dict
 from vision_cal.render.sheet import make_sheet, sheet_texture
 
@@ -74,3 +75,72 @@ def test_scene_reads_the_print_block():
     assert s.sheet.print.deviation_rms_mm == 0.17 and s.sheet.print.toner_mm == 0.06
     assert scene_from_dict({}).sheet.print is None
     assert scene_from_dict({"photos": {"mode": "survey"}}).photos.mode == "survey"
+
+
+def _edge_line_corners(gray, corners_mm, extent_mm, ppm):
+    """A straight-side reading of each marker in a texture (world-side, for the test): the
+    mid-level crossing along each side's normal at 16 points over its middle 76 %, a line
+    fitted through them, corner k where side k-1 meets side k; (M, 4, 2) sheet mm."""
+    x0, _, _, y1 = extent_mm
+
+    def to_px(q):
+        return np.column_stack([(q[:, 0] - x0) * ppm - 0.5, (y1 - q[:, 1]) * ppm - 0.5])
+
+    out = []
+    for P in corners_mm:
+        pp, lines = to_px(P), []
+        for k in range(4):
+            a, b = pp[k], pp[(k + 1) % 4]
+            d = (b - a) / np.linalg.norm(b - a)
+            n = np.array([d[1], -d[0]])
+            n = n if np.dot((a + b) / 2 - pp.mean(axis=0), n) > 0 else -n    # outward
+            pts = []
+            for t in np.linspace(0.12, 0.88, 16):
+                q, s = a + t * (b - a), np.linspace(-4.0, 4.0, 161)
+                prof = cv2.remap(gray, (q[0] + s * n[0]).astype(np.float32)[None],
+                                 (q[1] + s * n[1]).astype(np.float32)[None], cv2.INTER_CUBIC)[0]
+                lvl = 0.5 * (prof[:10].mean() + prof[-10:].mean())
+                i = int(np.argmax(prof >= lvl))
+                f = (lvl - prof[i - 1]) / (prof[i] - prof[i - 1])
+                pts.append(q + (s[i - 1] + f * (s[1] - s[0])) * n)
+            pts = np.array(pts)
+            m = pts.mean(axis=0)
+            lines.append((m, np.linalg.svd(pts - m)[2][0]))
+        c = []
+        for k in range(4):
+            (p1, d1), (p2, d2) = lines[k - 1], lines[k]
+            c.append(p1 + np.linalg.solve(np.column_stack([d1, -d2]), p2 - p1)[0] * d1)
+        c = np.array(c)
+        out.append(np.column_stack([x0 + (c[:, 0] + 0.5) / ppm, y1 - (c[:, 1] + 0.5) / ppm]))
+    return np.array(out)
+
+
+def test_straight_side_corners_are_what_the_texture_s_straight_sides_give():
+    """A feed wave curves a marker's sides: their straight fits meet away from the corner
+    points (seed 2871 of renders/printed_off_six.yaml read that as a 1.4e-4 shear).
+    truth.json ``markers_straight_sides`` is what the texture's straight sides give;
+    ``markers`` (the points) is not, by ~0.4 h^2 times the curvature."""
+    sheet = _sheet()
+    corners = np.array([m.corners_mm for m in sheet.markers])
+    # a short strong wave along the feed: curvature (2 pi / 60)^2 0.3 = 3.3e-3 /mm
+    f = PrintField(sheet.extent_mm, {"a1": 1.0, "lam1": 60.0, "ph1": 0.3, "a2": 0.0,
+                                     "lam2": 100.0, "ph2": 0.0, "b": 0.0, "s": 0.0},
+                   np.zeros(4), 0.3, 0.0)
+    ppm = 8.0
+    tex = sheet_texture(sheet, marks_xy_mm=np.zeros((0, 2)), px_per_mm=ppm, rng=1,
+                        paper_grain=False, grid=False, print_field=f)
+    read = _edge_line_corners(cv2.cvtColor(tex, cv2.COLOR_RGB2GRAY).astype(np.float32),
+                              f.printed_corners(corners), sheet.extent_mm, ppm)
+    straight, points = f.straight_side_corners(corners), f.printed_corners(corners)
+    assert np.abs(straight - points).max() > 0.05            # the curvature shows
+    assert np.abs(read - straight).max() < 0.01, np.abs(read - straight).max()
+    assert np.abs(read - points).max() > 0.04
+    j = f.to_json([m.id for m in sheet.markers], corners)
+    assert np.allclose(j["markers_straight_sides"][str(sheet.markers[0].id)], straight[0])
+    assert abs(j["straight_side_rms_mm"]
+               - np.sqrt(np.mean(np.sum((straight - points) ** 2, axis=2)))) < 1e-12
+    # an affine field (the skew alone) keeps the sides straight: the two agree
+    g = PrintField(sheet.extent_mm, {"a1": 0.0, "lam1": 60.0, "ph1": 0.0, "a2": 0.0,
+                                     "lam2": 100.0, "ph2": 0.0, "b": 0.0, "s": 1.0},
+                   np.zeros(4), 0.3, 0.06)
+    assert np.abs(g.straight_side_corners(corners) - g.printed_corners(corners)).max() < 1e-9

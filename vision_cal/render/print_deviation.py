@@ -17,6 +17,16 @@ A printer does not put the ink where the layout says. Two things are modelled:
 - **toner growth**: the markers' black squares grow ``toner_mm`` on every side (the
   detected corners of a marker move outward by ``toner_mm`` in x and in y).
 
+A printed marker's sides are then not straight: the feed wave curves them (by about
+``a1 (2 pi / lam1)^2 h^2 / 2`` over a side of half-length ``h``; 0.02 mm for a 30 mm marker
+and a 150 mm wave). Its corner *points* (``printed_corners``, truth.json ``print.markers``)
+are where the ink's corners are; a detector that fits straight lines to the sides and
+intersects them reads ``straight_side_corners`` instead (truth.json
+``print.markers_straight_sides``), off the points by ``-0.4 h^2`` times the field's
+curvature along the side: across the sheet that follows the wave and, over a few marker
+rows, looks like a shear (seed 2871 of renders/printed_off_six.yaml: -1.4e-4 x y, 0.026 mm
+at the outer rows).
+
 The pen's ink is not displaced: it lands where the robot puts it, in the paper's own
 millimetres. This is the world's own implementation; the estimator never imports it.
 """
@@ -29,6 +39,10 @@ import numpy as np
 
 #: evaluation grid step over the paper for the field's RMS and maximum (mm)
 _GRID_STEP_MM = 5.0
+#: the part of each printed side a straight-line fit reads (fractions of the side) and the
+#: number of points taken there (``PrintField.straight_side_corners``)
+STRAIGHT_SIDE_SPAN = (0.12, 0.88)
+_STRAIGHT_SIDE_POINTS = 16
 
 
 @dataclass(frozen=True)
@@ -155,12 +169,37 @@ class PrintField:
         grown = c + self.toner_mm * np.sign(c - centre)
         return self.printed_at(grown.reshape(-1, 2)).reshape(c.shape)
 
+    def straight_side_corners(self, marker_corners_mm) -> np.ndarray:
+        """The markers' corners (M, 4, 2) as straight sides meet: each printed side (the
+        grown layout side, displaced) sampled over ``STRAIGHT_SIDE_SPAN``, a straight line
+        fitted through it (total least squares), corner k where side k-1 meets side k
+        (side k runs from corner k to k+1). Equal to :meth:`printed_corners` where the field
+        is affine over the marker."""
+        c = np.asarray(marker_corners_mm, float).reshape(-1, 4, 2)
+        centre = c.mean(axis=1, keepdims=True)
+        grown = c + self.toner_mm * np.sign(c - centre)
+        t = np.linspace(*STRAIGHT_SIDE_SPAN, _STRAIGHT_SIDE_POINTS)
+        a, b = grown, np.roll(grown, -1, axis=1)
+        pts = a[:, :, None, :] + t[None, None, :, None] * (b - a)[:, :, None, :]
+        pts = self.printed_at(pts.reshape(-1, 2)).reshape(pts.shape)      # (M, 4, n, 2)
+        mid = pts.mean(axis=2)
+        d = pts - mid[:, :, None, :]
+        _, vec = np.linalg.eigh(np.einsum("mkni,mknj->mkij", d, d))
+        dirn = vec[..., :, 1]                                              # (M, 4, 2)
+        p1, d1 = np.roll(mid, 1, axis=1), np.roll(dirn, 1, axis=1)         # side k - 1
+        A = np.stack([d1, -dirn], axis=-1)                                 # (M, 4, 2, 2)
+        s = np.linalg.solve(A, (mid - p1)[..., None])[..., 0, 0]
+        return p1 + s[..., None] * d1
+
     def to_json(self, marker_ids, marker_corners_mm) -> dict:
         """truth.json ``print``: the field's parameters, its RMS and maximum over the paper
-        and at the marker corners, and every marker's corners as printed."""
+        and at the marker corners, every marker's corners as printed (the points) and as
+        its straight-fitted sides meet (``markers_straight_sides``), and the RMS of their
+        difference (``straight_side_rms_mm``)."""
         g = self.displacement(self.paper_grid())
         c = np.asarray(marker_corners_mm, float).reshape(-1, 4, 2)
         dc = self.displacement(c.reshape(-1, 2))
+        pc, sc = self.printed_corners(c), self.straight_side_corners(c)
         n = np.linalg.norm
         return {"params": {k: float(v) for k, v in self.params.items()},
                 "removed_similarity": [float(v) for v in self.similarity],
@@ -169,5 +208,8 @@ class PrintField:
                 "max_mm": float(n(g, axis=1).max()),
                 "corner_rms_mm": float(np.sqrt(np.mean(np.sum(dc**2, axis=1)))),
                 "corner_max_mm": float(n(dc, axis=1).max()),
-                "markers": {str(int(i)): v.tolist() for i, v in
-                            zip(marker_ids, self.printed_corners(c))}}
+                "markers": {str(int(i)): v.tolist() for i, v in zip(marker_ids, pc)},
+                "markers_straight_sides": {str(int(i)): v.tolist() for i, v in
+                                           zip(marker_ids, sc)},
+                "straight_side_rms_mm": float(np.sqrt(np.mean(np.sum((sc - pc)**2,
+                                                                     axis=2))))}
