@@ -42,7 +42,12 @@ without joint effects (a bump of the sheet), the selection and the held-out test
 marks away from it only, by the selection's own rule
 (:func:`vision_cal.diagnose.select.marks_away_from`); a joint term is claimed only for what
 those marks show (a 0.15 mm bump was taken for joint 1's ``cos(q2)`` or ``q1*q2`` on 6 of 10
-bump-only worlds before; ``bench/discover_bump.py``).
+bump-only worlds before; ``bench/discover_bump.py``). When the shared residual covers most
+of the sheet (too few marks away from it, :func:`vision_cal.diagnose.select.enough_away`) it
+is not local, and a joint-space effect (a coupling) makes neighbours share a residual too:
+the search then runs on every mark, and its joint terms are claimed only when the sheet map
+of the residual they leave no longer finds the structure (:func:`_explains`: a bump is a
+function of where a mark is, not of the joint angles, and stays behind).
 """
 
 from __future__ import annotations
@@ -366,14 +371,12 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
         report["decision"] = "not run: the model without joint effects cannot be fitted"
         return Traced(diag, None, report)
     # marks that share a local residual (a bump of the sheet) are left out of the search and
-    # of the held-out test, as the selection leaves them out: a global joint term is
-    # claimed only for what the marks the local structure does not touch show
-    away = _away_from_local(f0, xy, sheet_alpha, config)
-    if away is not None:
-        report["away_from_local"] = away.report
-        f0 = _fit_away(away, final.model, nonjoint, q, xy, app, sigma_mm, ids, config, report)
-        if f0 is None:
-            return Traced(diag, None, report)
+    # the held-out test, as the selection leaves them out; a residual shared over most of
+    # the sheet (``spread``) is searched on every mark, and what is found must explain it
+    f0, away, spread = _where_to_search(f0, final.model, nonjoint, q, xy, app, sigma_mm, ids,
+                                        sheet_alpha, config, report)
+    if f0 is None:
+        return Traced(diag, None, report)
     sub = np.ones(len(q), bool) if away is None else away.outside
     tt = np.asarray(t, float)
     d = discover(f0, q[sub], app[sub], tt[sub], sigma_mm=None if sigma_mm is None
@@ -403,7 +406,7 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     if not f1:
         report["decision"] = ("drift found; the joint effects kept" if drift else
                               "the dictionary's terms cannot be fitted: kept")
-        return Traced(diag, drift, report)
+        return _unclaimed(diag, drift, report, spread)
     h1_all = held(f1.model)
     h0, h1, bic = _before_after(diag, f1, h1_all, away, q, xy, app, sigma_mm, ids,
                                 q_val if has_val else None, xy_val, approach_val, k_folds,
@@ -412,7 +415,7 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     report["bic"] = bic
     if not _terms_win(h0, h1, bic, final.model, new_joint, config):
         report["decision"] = "the dictionary's terms do not lower the held-out error: kept"
-        return Traced(diag, drift, report)
+        return _unclaimed(diag, drift, report, spread)
     h1 = h1_all     # the diagnosis's held-out figure is over every mark
     # a sheet effect selected before the joint terms were known may stand in for them: it
     # stays only if it is still significant beside them
@@ -422,6 +425,8 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
         report["dropped_beside_joint_terms"] = gone
         h1 = held(f1.model)
         report["heldout_rms_mm"] = [diag.heldout_final_mm, h1]
+    if spread is not None and not _explains(f1, xy, spread, sheet_alpha, report):
+        return _unclaimed(diag, drift, report, spread)
     labels = {e.label for e in f1.model.effects}
     accepted = _evidence_after(diag, f1, new_joint, d.steps, h1)
     dropped = [a.label for a in diag.accepted if a.label not in labels]
@@ -479,16 +484,62 @@ def _away_from_local(f0: Fit, xy, sheet_alpha: float, config: EstimatorConfig
                   "excluded_radius_mm": radius, "excluded_marks": int((~outside).sum())})
 
 
+def _where_to_search(f0: Fit, model: RobotModel, nonjoint, q, xy, app, sigma, ids,
+                     sheet_alpha: float, config: EstimatorConfig, report: dict):
+    """Where the dictionary is searched, from the residual of the model without joint
+    effects ``f0`` (on every mark): (the fit to search on, the marks away from a local
+    structure or None, the structure shared over most of the sheet or None). With enough
+    marks away from a local structure, ``f0`` refitted there (:func:`_fit_away`; None when it
+    cannot be); with too few, the structure is not local (a joint-space effect makes
+    neighbours share a residual too): every mark, and what is found must explain it
+    (:func:`_explains`). ``report["away_from_local"]`` when there is such a structure."""
+    away = _away_from_local(f0, xy, sheet_alpha, config)
+    if away is None:
+        return f0, None, None
+    report["away_from_local"] = away.report
+    if not away.enough:
+        return f0, None, away
+    return _fit_away(away, model, nonjoint, q, xy, app, sigma, ids, config, report), away, None
+
+
+def _explains(f1: Fit, xy, spread: _Away, sheet_alpha: float, report: dict) -> bool:
+    """Whether the fit with the dictionary's joint terms (``f1``) leaves no residual shared by
+    neighbouring marks (its sheet map's p at or above ``sheet_alpha``, the level that found
+    the structure ``spread`` over most of the sheet): a joint-space effect is then what the
+    neighbours shared; a bump of the sheet is a function of where a mark is, not of the
+    joint angles, and stays behind. Else ``report["decision"]`` says why nothing is claimed.
+    The map's p goes to ``away_from_local.p_value_after``."""
+    k = f1.inliers
+    p = float(sheet_scan(xy[k], f1.residuals_mm[k])["p_value"])
+    report["away_from_local"]["p_value_after"] = p
+    if p >= sheet_alpha:
+        return True
+    found = ", ".join(e.label for e in f1.model.effects if _dictionary_joint(e))
+    report["decision"] = (f"not claimed: neighbouring marks share their residual over most "
+                          f"of the sheet ({spread.report['excluded_marks']} of {len(xy)} marks "
+                          f"near it), and the joint terms found on every mark ({found}) "
+                          f"leave it (sheet map p = {p:.2g}): they would stand in for it")
+    return False
+
+
+def _unclaimed(diag: Diagnosis, drift: dict | None, report: dict, spread: _Away | None
+               ) -> Traced:
+    """The diagnosis as selected, with the ``drift`` found unless the residual shared over
+    most of the sheet (``spread``) was not explained by joint terms (time can stand in for
+    a structure of the sheet as a joint angle can; ``decision`` then says so)."""
+    if spread is not None and drift is not None:
+        report["decision"] += ("; the drift found is not claimed: neighbouring marks share "
+                               "their residual over most of the sheet, which it could stand "
+                               "in for")
+        drift = None
+    return Traced(diag, drift, report)
+
+
 def _fit_away(away: _Away, model: RobotModel, nonjoint, q, xy, app, sigma, ids, config,
               report: dict) -> Fit | None:
-    """The model without joint effects fitted to the marks ``away`` from a local structure,
-    or None with ``report["decision"]`` saying why the search does not run (too few marks
-    away: a joint term could not be told from the structure; or no fit there)."""
-    if not away.enough:
-        report["decision"] = (f"not run: neighbouring marks share their residual over most of "
-                              f"the sheet ({away.report['excluded_marks']} of {len(q)} marks "
-                              "near it), which a joint term would stand in for")
-        return None
+    """The model without joint effects fitted to the marks ``away`` from a local structure
+    (enough of them), or None with ``report["decision"]`` saying why the search does not run
+    (no fit there)."""
     f0 = refit_with(model, nonjoint, *_take(away.outside, q, xy, app, sigma, ids), config)
     if not f0:
         report["decision"] = ("not run: the model without joint effects cannot be fitted "
