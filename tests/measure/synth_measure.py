@@ -180,3 +180,29 @@ def phone_series(folder, seed: int, n_photos: int = 12, n_turned: int = 3, n_mar
     write_session(folder, session_json(sheet, marks=list(zip(ids, plan_for(targets))),
                                        images=images, robot=NOMINAL))
     return ids, targets
+
+
+#: four views around the sheet, tilted 8-18 deg (the measure tests' small series)
+SERIES_VIEWS = [dict(tilt_deg=12.0, azimuth_deg=20.0), dict(tilt_deg=18.0, azimuth_deg=150.0),
+                dict(tilt_deg=8.0, azimuth_deg=-100.0), dict(tilt_deg=15.0, azimuth_deg=70.0)]
+
+
+def shifted_series(src, *, moved_photo: int, shift_mm, n_marks: int = 10):
+    """Write into ``src`` a session of the four :data:`SERIES_VIEWS` photos of the same
+    ``n_marks`` marks, photo ``moved_photo`` seeing every dot moved together by ``shift_mm``
+    (what a bad mapping of it would give). Returns (ids, true targets (n, 2) mm)."""
+    sheet = small_sheet()
+    targets = free_targets(sheet, n_marks, rng=88, box=(85.0, 62.0))
+    ids = [f"c{i:02d}" for i in range(len(targets))]
+    src.mkdir()
+    images = []
+    for n, v in enumerate(SERIES_VIEWS):
+        K, T = view(**v)
+        xy = targets + (np.asarray(shift_mm) if n == moved_photo else 0.0)
+        write_png(src / f"p{n}.png", photo(sheet, texture(sheet, xy, rng=8), K=K, T=T,
+                                           rng=30 + n))
+        images.append((f"p{n}.png", ids))
+    write_session(src, session_json(sheet, marks=list(zip(ids, plan_for(targets))),
+                                    images=images, robot=NOMINAL))
+    return ids, targets
+

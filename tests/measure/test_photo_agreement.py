@@ -9,26 +9,9 @@ from tests.measure import synth_measure as sm
 from vision_cal.dataset.session import load_session
 from vision_cal.workflows.measure_folder import measure_folder
 
-VIEWS = [dict(tilt_deg=12.0, azimuth_deg=20.0), dict(tilt_deg=18.0, azimuth_deg=150.0),
-         dict(tilt_deg=8.0, azimuth_deg=-100.0), dict(tilt_deg=15.0, azimuth_deg=70.0)]
-
-
 def _run(tmp_path, shift_mm):
-    sheet = sm.small_sheet()
-    targets = sm.free_targets(sheet, 10, rng=88, box=(85.0, 62.0))
-    ids = [f"c{i:02d}" for i in range(len(targets))]
     src = tmp_path / "in"
-    src.mkdir()
-    images = []
-    for n, v in enumerate(VIEWS):
-        K, T = sm.view(**v)
-        # photo 2 sees every dot moved together (what a bad mapping of it would give)
-        xy = targets + (np.asarray(shift_mm) if n == 2 else 0.0)
-        sm.write_png(src / f"p{n}.png", sm.photo(sheet, sm.texture(sheet, xy, rng=8), K=K, T=T,
-                                                  rng=30 + n))
-        images.append((f"p{n}.png", ids))
-    sm.write_session(src, sm.session_json(sheet, marks=list(zip(ids, sm.plan_for(targets))),
-                                          images=images, robot=sm.NOMINAL))
+    ids, targets = sm.shifted_series(src, moved_photo=2, shift_mm=shift_mm)
     meas = measure_folder(load_session(src), out_dir=tmp_path / "out", jobs=1)
     return meas, dict(zip(ids, targets))
 

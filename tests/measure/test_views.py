@@ -84,27 +84,11 @@ def test_seen_dots_count_when_a_photo_shows_far_more_dots_than_marks():
     check_plan_match("s.json", ["a", "b", "c"], ims, [("m1", "m2")] * 3, 2, 2, cfg)
 
 
-VIEWS = [dict(tilt_deg=12.0, azimuth_deg=20.0), dict(tilt_deg=18.0, azimuth_deg=150.0),
-         dict(tilt_deg=8.0, azimuth_deg=-100.0), dict(tilt_deg=15.0, azimuth_deg=70.0)]
-
-
 def _series(tmp_path, views_per_dot, shift_first_mm=(0.0, 0.0)):
     """Four photos of the same ten marks (photo 0 moved as a whole by ``shift_first_mm``),
     measured with ``views_per_dot``."""
-    sheet = sm.small_sheet()
-    targets = sm.free_targets(sheet, 10, rng=88, box=(85.0, 62.0))
-    ids = [f"c{i:02d}" for i in range(len(targets))]
     src = tmp_path / "in"
-    src.mkdir()
-    images = []
-    for n, v in enumerate(VIEWS):
-        K, T = sm.view(**v)
-        xy = targets + (np.asarray(shift_first_mm) if n == 0 else 0.0)
-        sm.write_png(src / f"p{n}.png", sm.photo(sheet, sm.texture(sheet, xy, rng=8), K=K, T=T,
-                                                  rng=30 + n))
-        images.append((f"p{n}.png", ids))
-    sm.write_session(src, sm.session_json(sheet, marks=list(zip(ids, sm.plan_for(targets))),
-                                          images=images, robot=sm.NOMINAL))
+    ids, targets = sm.shifted_series(src, moved_photo=0, shift_mm=shift_first_mm)
     cfg = replace(DEFAULT, dots=replace(DEFAULT.dots, views_per_dot=views_per_dot))
     meas = measure_folder(load_session(src), out_dir=tmp_path / "out", jobs=1, config=cfg)
     return meas, dict(zip(ids, targets))
