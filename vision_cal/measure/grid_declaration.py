@@ -36,7 +36,7 @@ from scipy import stats
 
 from vision_cal.config import DEFAULT, GridDeclarationConfig, SheetHeightConfig
 from vision_cal.errors import VisionCalError
-from vision_cal.measure.height import camera_centre_mm
+from vision_cal.measure.height import camera_centre_mm, place_of
 
 
 @dataclass(frozen=True)
@@ -85,14 +85,7 @@ def _sites(images, mean, p, cfg: GridDeclarationConfig, hc: SheetHeightConfig) -
         xy = np.asarray(im.dots_xy_mm, float).reshape(-1, 2)
         cov = np.asarray(getattr(im, "dots_grid_offset_cov_mm2", ()), float).reshape(-1, 2, 2)
         C = _centre(im)
-        if C is None:
-            k = -1
-        else:
-            k = next((i for i, c in enumerate(places)
-                      if np.linalg.norm(C - c) < hc.same_place_fraction * C[2]), None)
-            if k is None:
-                places.append(C)
-                k = len(places) - 1
+        k = -1 if C is None else place_of(places, C, hc.same_place_fraction)
         for j in range(len(off)):
             if not np.all(np.isfinite(off[j])):
                 continue

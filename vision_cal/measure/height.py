@@ -70,6 +70,20 @@ def camera_centre_mm(H_img_sheet, K) -> np.ndarray:
     return C
 
 
+def place_of(places: list, C, fraction: float) -> int:
+    """The index in ``places`` (camera centres (3,) mm, in the sheet frame) of the camera
+    place of a photo taken from ``C`` (3,): the first centre closer than ``fraction`` of
+    the camera's height (config ``sheet_height.same_place_fraction``), else ``C`` appended
+    as a new place. Photos of one place share their pixel phase and their parallax."""
+    C = np.asarray(C, float)
+    k = next((i for i, c in enumerate(places) if np.linalg.norm(C - c) < fraction * C[2]),
+             None)
+    if k is None:
+        places.append(C)
+        k = len(places) - 1
+    return k
+
+
 @dataclass(frozen=True)
 class MarkHeight:
     """A mark's height ``z_mm`` above the markers' plane, its ``std_mm``, from ``n`` photos;
@@ -284,11 +298,7 @@ def offset_evidence(obs_by_mark: dict,
     groups: dict = {}     # (mark, place) -> [(W, d, v, F)]: one row pair per mark and place
     for m, obs in enumerate(obs_by_mark.values()):
         for C, p, d, cov, H, K in obs:
-            k = next((i for i, c in enumerate(places)
-                      if np.linalg.norm(C - c) < hc.same_place_fraction * C[2]), None)
-            if k is None:
-                places.append(np.asarray(C, float))
-                k = len(places) - 1
+            k = place_of(places, C, hc.same_place_fraction)
             W = np.linalg.inv(np.asarray(cov, float) + np.eye(2) * hc.offset_floor_mm**2)
             groups.setdefault((m, k), []).append((W, np.asarray(d, float), _v(p, C),
                                                   _lens_fields(p, H, K)))

@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from vision_cal.measure.height import place_of
+
 
 class ViewCount:
     """Reliable refined views per place on the sheet, photo after photo.
@@ -46,12 +48,7 @@ class ViewCount:
         sheet frame; -1 for None (no lens: no parallax to keep)."""
         if centre_mm is None:
             return -1
-        c = np.asarray(centre_mm, float)
-        for i, q in enumerate(self._centres):
-            if np.linalg.norm(c - q) < self.place_fraction * abs(c[2]):
-                return i
-        self._centres.append(c)
-        return len(self._centres) - 1
+        return place_of(self._centres, centre_mm, self.place_fraction)
 
     def _nearest(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(index of the nearest place, within tolerance) per point of ``xy`` (K, 2)."""
