@@ -61,7 +61,7 @@ from vision_cal.model import joint_terms as jt
 from vision_cal.model.lsq import FailedFit, Fit
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.diagnose.select import (Diagnosis, Evidence, enough_away, heldout_rms,
-                                        marks_away_from)
+                                        local_map, marks_away_from)
 from vision_cal.diagnose.structure import sheet_scan
 from vision_cal.model.robot import (JointBacklash, JointCyclic, JointEffect, JointScale, JointTerms,
                               RobotModel, SheetAffine)
@@ -472,10 +472,7 @@ def _away_from_local(f0: Fit, xy, sheet_alpha: float, config: EstimatorConfig
     away from it (:func:`vision_cal.diagnose.select.marks_away_from`, the selection's own
     rule) and whether they are enough to search on
     (:func:`vision_cal.diagnose.select.enough_away`); else None."""
-    k = f0.inliers
-    if k.sum() < config.selection.min_sheet_marks:
-        return None
-    scan = sheet_scan(xy[k], f0.residuals_mm[k])
+    scan = local_map(xy, f0, config.selection.min_sheet_marks)
     if not scan["p_value"] < sheet_alpha:
         return None
     outside, radius = marks_away_from(xy, scan)

@@ -318,13 +318,19 @@ def enough_away(outside: np.ndarray) -> bool:
     return bool(outside.sum() >= max(12, len(outside) // 2))
 
 
-def _local_map(pb: _Problem, fit: Fit, sub) -> dict:
-    """The sheet map (:func:`sheet_scan`) of ``fit``'s residual over the marks ``sub`` it
-    was fitted to (its inliers; no test below ``min_sheet_marks`` of them)."""
+def local_map(xy, fit: Fit, min_marks: int) -> dict:
+    """The sheet map (:func:`sheet_scan`) of ``fit``'s residual over the marks at ``xy``
+    (N, 2) it was fitted to (its inliers; no test, p 1, below ``min_marks`` of them:
+    config ``selection.min_sheet_marks``)."""
     keep = fit.inliers
-    if keep.sum() < pb.min_sheet_marks:
+    if keep.sum() < min_marks:
         return {"p_value": 1.0, "k": 0}
-    return sheet_scan(pb.xy[sub][keep], fit.residuals_mm[keep])
+    return sheet_scan(np.asarray(xy, float)[keep], fit.residuals_mm[keep])
+
+
+def _local_map(pb: _Problem, fit: Fit, sub) -> dict:
+    """:func:`local_map` of ``fit``, fitted to the marks ``sub`` of the problem."""
+    return local_map(pb.xy[sub], fit, pb.min_sheet_marks)
 
 
 def _away_from_local(pb: _Problem, found: _Found, base: Fit) -> tuple[_Found, dict]:
