@@ -241,14 +241,20 @@ def _lens_matrices(lens):
             np.array([k1, k2, p1, p2, k3]))
 
 
-def _similarity(p: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """The small similarity (tx, ty, a, b) best fitting displacements ``d`` at ``p``:
-    d = t + [[a, -b], [b, a]] p."""
+def _similarity_design(p: np.ndarray) -> np.ndarray:
+    """(2N, 4): the displacements at points ``p`` (N, 2) of a small similarity
+    (tx, ty, a, b), d = t + [[a, -b], [b, a]] p; rows x0, y0, x1, y1, ..."""
     A = np.zeros((2 * len(p), 4))
     A[0::2, 0] = A[1::2, 1] = 1.0
     A[0::2, 2], A[0::2, 3] = p[:, 0], -p[:, 1]
     A[1::2, 2], A[1::2, 3] = p[:, 1], p[:, 0]
-    return np.linalg.lstsq(A, d.reshape(-1), rcond=None)[0]
+    return A
+
+
+def _similarity(p: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """The small similarity (tx, ty, a, b) best fitting displacements ``d`` at ``p``:
+    d = t + [[a, -b], [b, a]] p."""
+    return np.linalg.lstsq(_similarity_design(p), d.reshape(-1), rcond=None)[0]
 
 
 def _gauge_matrix(p: np.ndarray, marker: np.ndarray, growth_sign: np.ndarray) -> np.ndarray:
@@ -257,10 +263,7 @@ def _gauge_matrix(p: np.ndarray, marker: np.ndarray, growth_sign: np.ndarray) ->
     corner's direction from its marker's centre): toner grows every black square, which
     is no shift, turn or scale of the layout (fitted on the corners alone, a 0.06 mm growth
     of 30 mm markers read as a 3.5e-5 scale of the whole sheet: the links 0.012 mm short)."""
-    A = np.zeros((2 * len(p), 4))
-    A[0::2, 0] = A[1::2, 1] = 1.0
-    A[0::2, 2], A[0::2, 3] = p[:, 0], -p[:, 1]
-    A[1::2, 2], A[1::2, 3] = p[:, 1], p[:, 0]
+    A = _similarity_design(p)
     _, m = np.unique(marker, return_inverse=True)
     G = np.zeros((2 * len(p), m.max() + 1 if len(m) else 0))
     G[0::2][np.arange(len(p)), m] = growth_sign[:, 0]
@@ -591,11 +594,7 @@ def _corner_std(pb: _Problem, sol, n_places: int
             ch = cov3[np.ix_(~inplane, ~inplane)]
             hstd[rel_idx] = np.sqrt(np.clip(np.diag(Qh @ ch @ Qh.T), 0, None))
         # in the gauge: the deviations less their best-fitting similarity (growth aside)
-        pr = P0[rel_idx]
-        A = np.zeros((2 * len(pr), 4))
-        A[0::2, 0] = A[1::2, 1] = 1.0
-        A[0::2, 2], A[0::2, 3] = pr[:, 0], -pr[:, 1]
-        A[1::2, 2], A[1::2, 3] = pr[:, 1], pr[:, 0]
+        A = _similarity_design(P0[rel_idx])
         Q = np.eye(len(A)) - A @ gauge
         cov = Q @ cov @ Q.T
         std[rel_idx] = np.sqrt(np.clip(np.diag(cov), 0, None)).reshape(-1, 2)
