@@ -13,6 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from vision_cal.dataset.session import load_session
 from vision_cal.render.camera import camera_matrix, look_at
 from vision_cal.render.sheet import make_sheet, sheet_texture, sheet_to_texture_pixel
 
@@ -205,4 +206,18 @@ def shifted_series(src, *, moved_photo: int, shift_mm, n_marks: int = 10):
     write_session(src, session_json(sheet, marks=list(zip(ids, plan_for(targets))),
                                     images=images, robot=NOMINAL))
     return ids, targets
+
+
+def one_mark_session(folder, sheet: dict, photo_file: str):
+    """Write into ``folder`` (created) a session.json of ``sheet`` (sheet.json's content)
+    with one mark and one photo ``photo_file`` showing it, for measuring a photo's dots
+    alone; returns the loaded session."""
+    folder.mkdir()
+    (folder / "session.json").write_text(json.dumps({
+        "format": "vision-cal/1", "sheet": sheet,
+        "robot": {"L1_mm": 350.0, "L2_mm": 260.0, "joint_zero_deg": [0, 0],
+                  "base_mm": [-250, 0]},
+        "pen": {"mark_diameter_mm": 1.2}, "marks": [{"id": "c0", "joints_deg": [0, 0]}],
+        "images": [{"file": photo_file, "marks": ["c0"]}]}))
+    return load_session(folder)
 

@@ -15,9 +15,8 @@ import json
 import numpy as np
 import pytest
 
-from tests.measure.synth_measure import jpeg_bytes, photo, view
+from tests.measure.synth_measure import jpeg_bytes, photo, view, one_mark_session
 from vision_cal.config import DEFAULT
-from vision_cal.dataset.session import load_session
 from vision_cal.measure.detect import detect_image_bytes
 from vision_cal.measure.finish import finish_all
 from vision_cal.render.printed import load_printed_sheet, printed_texture
@@ -52,13 +51,7 @@ def _measure(a4, folder, seed, config=DEFAULT):
                 blur_mm=0.2, rng=seed)
     sheet = json.loads((a4 / "sheet.json").read_text())
     sheet.pop("printed")
-    folder.mkdir()
-    (folder / "session.json").write_text(json.dumps({
-        "format": "vision-cal/1", "sheet": sheet,
-        "robot": {"L1_mm": 350.0, "L2_mm": 260.0, "joint_zero_deg": [0, 0], "base_mm": [-250, 0]},
-        "pen": {"mark_diameter_mm": 1.2}, "marks": [{"id": "c0", "joints_deg": [0, 0]}],
-        "images": [{"file": "a.jpg", "marks": ["c0"]}]}))
-    session = load_session(folder)
+    session = one_mark_session(folder, sheet, "a.jpg")
     det = detect_image_bytes(jpeg_bytes(img, quality=85), "a.jpg", session)
     (r,), _ = finish_all(session, [det], [False], None, config)
     assert r.status == "ok"
@@ -104,13 +97,7 @@ def test_in_a_series_the_photo_before_takes_what_the_plain_ground_hides(a4, tmp_
     sheet = json.loads((a4 / "sheet.json").read_text())
     sheet.pop("printed")
     folder = tmp_path / "s"
-    folder.mkdir()
-    (folder / "session.json").write_text(json.dumps({
-        "format": "vision-cal/1", "sheet": sheet,
-        "robot": {"L1_mm": 350.0, "L2_mm": 260.0, "joint_zero_deg": [0, 0], "base_mm": [-250, 0]},
-        "pen": {"mark_diameter_mm": 1.2}, "marks": [{"id": "c0", "joints_deg": [0, 0]}],
-        "images": [{"file": "a.jpg", "marks": ["c0"]}]}))
-    session = load_session(folder)
+    session = one_mark_session(folder, sheet, "a.jpg")
     K, T = view(tilt_deg=15, azimuth_deg=40 + 30 * seed, f_px=1400, dist_mm=490, size=SIZE)
     shots = []
     for n, marks in enumerate((plain, np.vstack([plain, ink]))):

@@ -10,7 +10,6 @@ from __future__ import annotations
 import io
 import json
 import os
-import shutil
 import signal
 import struct
 import zlib
@@ -22,9 +21,7 @@ from PIL import Image
 from tests.measure import synth_measure as sm
 from vision_cal.commands.main import main
 from vision_cal.dataset import photos
-from vision_cal.dataset.session import load_session
 from vision_cal.measure import detect
-from vision_cal.workflows.measure_folder import measure_folder
 
 N = 6
 IDS = [f"c{i}" for i in range(N)]

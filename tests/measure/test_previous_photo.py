@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tests.measure.synth_measure import photo, view
+from tests.measure.synth_measure import photo, view, one_mark_session
 from vision_cal.dataset.session import load_session
 from vision_cal.measure.detect import detect_image_bytes
 from vision_cal.measure.finish import finish_image
@@ -40,14 +40,7 @@ def series(tmp_path_factory):
     sheet = json.loads((d / "a4" / "sheet.json").read_text())
     sheet.pop("printed")                      # nobody describes this sheet's print
     folder = d / "in"
-    folder.mkdir()
-    (folder / "session.json").write_text(json.dumps({
-        "format": "vision-cal/1", "sheet": sheet,
-        "robot": {"L1_mm": 350.0, "L2_mm": 260.0, "joint_zero_deg": [0, 0],
-                  "base_mm": [-250, 0]},
-        "pen": {"mark_diameter_mm": 1.2}, "marks": [{"id": "c0", "joints_deg": [0, 0]}],
-        "images": [{"file": "a.png", "marks": ["c0"]}]}))
-    session = load_session(folder)
+    session = one_mark_session(folder, sheet, "a.png")
     shots = []
     for n, (marks, az) in enumerate(((old, 40.0), (np.vstack([old, new]), 160.0))):
         # the same pen: the old marks keep their shape (one texture rng per mark)

@@ -13,8 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tests.measure.synth_measure import photo, view
-from vision_cal.dataset.session import load_session
+from tests.measure.synth_measure import photo, view, one_mark_session
 from vision_cal.measure.detect import detect_image_bytes
 from vision_cal.measure.finish import finish_image
 from vision_cal.measure.printed import printed_reference
@@ -50,14 +49,8 @@ def _measure(a4, folder, seed, *, describe=True):
     sheet = json.loads((a4 / "sheet.json").read_text())
     if not describe:
         sheet.pop("printed")
-    folder.mkdir()
-    (folder / "session.json").write_text(json.dumps({
-        "format": "vision-cal/1", "sheet": sheet,
-        "robot": {"L1_mm": 350.0, "L2_mm": 260.0, "joint_zero_deg": [0, 0], "base_mm": [-250, 0]},
-        "pen": {"mark_diameter_mm": 1.2}, "marks": [{"id": "c0", "joints_deg": [0, 0]}],
-        "images": [{"file": "a.png", "marks": ["c0"]}]}))
+    session = one_mark_session(folder, sheet, "a.png")
     ok, buf = cv2.imencode(".png", cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
-    session = load_session(folder)
     r = finish_image(detect_image_bytes(buf.tobytes(), "a.png", session), session)
     assert r.status == "ok"
     out = {}
