@@ -11,7 +11,7 @@ import pytest
 
 from tests.commands.test_trust import (ROOT, TARGETS, assert_one_line, calibration,  # noqa: F401
                                        cli, snapshot)
-from tests.program.test_dialects import PARSERS
+from tests.program.checkers import read_program
 
 ROBOT = ROOT / "fixtures" / "robot_sm5.yaml"
 SUFFIX = {"rapid": ".mod", "evplus": ".v2", "pacscript": ".pcs", "tp": ".ls"}
@@ -33,7 +33,7 @@ def test_plan_writes_the_program_of_the_plan_joints(work, capsys, kind):
                       "--program", kind, "--robot", work / "robot.yaml", "--force", "-q"],
                      capsys)   # the paper's marks cover joint 1 -20..20 only (valid_for)
     assert rc == 0, err
-    ops, _ = PARSERS[kind]((work / f"p{SUFFIX[kind]}").read_bytes().decode("ascii"))
+    ops, _ = read_program(kind, work / f"p{SUFFIX[kind]}")
     with open(work / "p.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     down = -20.5   # the fixture's pen_down_mm: joint 3 lowers the pen
@@ -54,4 +54,18 @@ def test_plan_refuses_a_pen_output_rapid_cannot_name(work, capsys):
                       "--program", "rapid", "--robot", robot, "--force", "-q"], capsys)
     assert rc == 2
     assert_one_line(err, robot, "program.pen_signal")
+    assert snapshot(work) == before
+
+
+def test_plan_refuses_a_travel_height_into_the_table(work, capsys):
+    """`program.safe_z_mm: -100` with the pen at -10 / -20.5: exit 2, one line naming the
+    robot file and the field, nothing written."""
+    robot = work / "robot.yaml"
+    robot.write_text(robot.read_text().replace("  pen_dwell_s: 0.2",
+                                               "  pen_dwell_s: 0.2\n  safe_z_mm: -100"))
+    before = snapshot(work)
+    rc, _, err = cli(["plan", work / "cal.json", work / "targets.csv", "-o", work / "p.csv",
+                      "--program", "rapid", "--robot", robot, "--force", "-q"], capsys)
+    assert rc == 2
+    assert_one_line(err, robot, "program.safe_z_mm")
     assert snapshot(work) == before
