@@ -28,13 +28,14 @@ def _ascii_lines(kind: str, text: str, newline: str) -> list[str]:
     """The file's lines (its own line ending only), each printable ASCII and within the
     language's line length."""
     assert text.isascii(), "a character outside ASCII"
+    bad = re.search(r"[^\t\r\n\x20-\x7e]", text)
+    assert bad is None, f"a control character {bad and bad.group(0)!r}"
     body = text.split(newline)
     assert body[-1] == "", "the last line is not ended"
     body = body[:-1]
     limit = RULES[kind].line_chars
     for i, line in enumerate(body, 1):
         assert "\r" not in line and "\n" not in line, f"line {i}: a stray line break"
-        assert all(c.isprintable() or c == "\t" for c in line), f"line {i}: a control character"
         assert limit is None or len(line.encode()) <= limit, f"line {i}: over {limit} characters"
     return body
 
@@ -386,14 +387,15 @@ def read_tp(path: Path):
 
 def _tp_body(body: list[str], points: dict, tool_num):
     ops, tool = [], None
+    line = re.compile(r"^([ \d]{4}):(J P\[(\d+)\] (\d+)% FINE|  (.*)) ;$")
     for i, raw in enumerate(body, 1):
-        m = re.match(rf"^{i:4d}:(J P\[(\d+)\] (\d+)% FINE|  (.*)) ;$", raw)
-        assert m, f"not a TP line: {raw!r}"
-        if m[2]:
-            assert 1 <= int(m[3]) <= 100
-            ops.append(("move", points[int(m[2])]))
+        m = line.match(raw)
+        assert m and m[1] == f"{i:4d}", f"not TP line {i}: {raw!r}"
+        if m[3]:
+            assert 1 <= int(m[4]) <= 100
+            ops.append(("move", points[int(m[3])]))
             continue
-        code = m[4]
+        code = m[5]
         _no_exponent(code, f"line {i}")
         if mm := re.match(r"^DO\[(\d+)\]=(ON|OFF)$", code):
             assert int(mm[1]) >= 1
