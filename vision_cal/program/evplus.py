@@ -26,7 +26,8 @@ from __future__ import annotations
 from vision_cal import __version__
 from vision_cal.errors import VisionCalError
 from vision_cal.program.rules import RULES, check_program_name, plain
-from vision_cal.program.steps import Move, Pen, Say, Wait, header_lines, program_steps, safe_text
+from vision_cal.program.steps import (Move, Pen, Say, Wait, header_lines, optional_tool,
+                                      program_steps, safe_text)
 
 J_FMT = "{:.4f}"
 Z_FMT = "{:.3f}"
@@ -48,22 +49,14 @@ def check(robot, name: str | None = None) -> None:
         check_program_name("evplus", name)
 
 
-def _tool(tool_mm, number) -> tuple[str, list[str]]:
-    """(the header's sentence on the tool, the program's lines for it)."""
-    if tool_mm is None:
-        return "No calibrated tool.", []
-    line = f"TOOL TRANS({tool_mm[0]:.4f}, {tool_mm[1]:.4f}, 0, 0, 0, 0)"
-    if number is None:
-        return ("The calibrated tool is a comment below (give program.tool_number in the "
-                "robot file to set it as the robot's TOOL).", [f"    ; {line}"])
-    return "The calibrated tool is set with TOOL; the joint moves do not use it.", [f"    {line}"]
-
-
 def evplus_program(points, robot, *, title: str, tool_mm=None, name: str = "program") -> str:
     check(robot, name)
     prog = robot.program
     bit = prog.pen_output_bit
-    said, tool_lines = _tool(tool_mm, prog.tool_number)
+    said, tool_lines = optional_tool(
+        tool_mm, prog.tool_number, comment=";", what="the robot's TOOL",
+        define=lambda n: [f"TOOL TRANS({tool_mm[0]:.4f}, {tool_mm[1]:.4f}, 0, 0, 0, 0)"],
+        defined="set with TOOL")
     head = header_lines(points, robot, title=title, version=__version__,
                         joints="precision points #PPOINT(j1 deg, j2 deg, j3 mm, j4 deg)",
                         tool=said)

@@ -30,7 +30,7 @@ import textwrap
 
 from vision_cal import __version__
 from vision_cal.errors import VisionCalError
-from vision_cal.program.rules import RULES, check_program_name
+from vision_cal.program.rules import RULES, check_program_name, check_tool_number
 from vision_cal.program.steps import (Move, Pen, Say, Wait, header_lines, program_steps,
                                       safe_text, whole_percent)
 
@@ -56,10 +56,7 @@ def check(robot, name: str | None = None) -> None:
     if bit is not None and bit < 1:
         raise VisionCalError(f"a Fanuc digital output is DO[1] and up, got {bit}",
                              file=str(robot.path), field="program.pen_output_bit")
-    n = robot.program.tool_number
-    if n is not None and not TOOLS[0] <= n <= TOOLS[1]:
-        raise VisionCalError(f"a Fanuc tool frame is UTOOL[{TOOLS[0]}]..UTOOL[{TOOLS[1]}], "
-                             f"got {n}", file=str(robot.path), field="program.tool_number")
+    check_tool_number(robot, TOOLS, "a Fanuc tool frame is UTOOL[n], n")
     if name is not None:
         check_program_name("tp", name)
 

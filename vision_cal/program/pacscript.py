@@ -21,9 +21,9 @@ Syntax after Denso's PacScript reference and RoboDK's Denso RC8 post-processor
 from __future__ import annotations
 
 from vision_cal import __version__
-from vision_cal.errors import VisionCalError
-from vision_cal.program.rules import RULES, check_program_name, plain
-from vision_cal.program.steps import Move, Pen, Say, Wait, header_lines, program_steps, safe_text
+from vision_cal.program.rules import RULES, check_program_name, check_tool_number, plain
+from vision_cal.program.steps import (Move, Pen, Say, Wait, header_lines, optional_tool,
+                                      program_steps, safe_text)
 
 J_FMT = "{:.4f}"
 Z_FMT = "{:.3f}"
@@ -38,31 +38,20 @@ def joint_value(q) -> str:
 def check(robot, name: str | None = None) -> None:
     """Refuse what PacScript cannot express: a tool number it cannot define; with ``name``
     (the output file's stem, the program's name), a name PacScript cannot take."""
-    n = robot.program.tool_number
-    if n is not None and not TOOLS[0] <= n <= TOOLS[1]:
-        raise VisionCalError(f"PacScript defines tools {TOOLS[0]}..{TOOLS[1]} (Tool n), got "
-                             f"{n}", file=str(robot.path), field="program.tool_number")
+    check_tool_number(robot, TOOLS, "PacScript defines tools (Tool n)")
     if name is not None:
         check_program_name("pacscript", name)
-
-
-def _tool(tool_mm, number) -> tuple[str, list[str]]:
-    """(the header's sentence on the tool, the program's lines for it)."""
-    if tool_mm is None:
-        return "No calibrated tool.", []
-    xy = f"P({tool_mm[0]:.4f}, {tool_mm[1]:.4f}, 0, 0, 0, 0)"
-    if number is None:
-        return ("The calibrated tool is a comment below (give program.tool_number in the "
-                "robot file to define it as a tool).", [f"    ' Tool n, {xy}"])
-    return (f"The calibrated tool is tool {number} (Tool {number}, ChangeTool {number}); the "
-            "joint moves do not use it.", [f"    Tool {number}, {xy}", f"    ChangeTool {number}"])
 
 
 def pacscript_program(points, robot, *, title: str, tool_mm=None, name: str = "program") -> str:
     check(robot, name)
     prog = robot.program
     bit = prog.pen_output_bit
-    said, tool_lines = _tool(tool_mm, prog.tool_number)
+    said, tool_lines = optional_tool(
+        tool_mm, prog.tool_number, comment="'", what="a tool",
+        define=lambda n: [f"Tool {n}, P({tool_mm[0]:.4f}, {tool_mm[1]:.4f}, 0, 0, 0, 0)",
+                          *([f"ChangeTool {n}"] if n != "n" else [])],
+        defined=f"tool {prog.tool_number} (Tool, ChangeTool)")
     head = header_lines(points, robot, title=title, version=__version__,
                         joints="J(j1 deg, j2 deg, j3 mm, j4 deg)", tool=said)
     lines = [f"' {safe_text(h)}" for h in head]

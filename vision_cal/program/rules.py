@@ -146,6 +146,15 @@ def check_pen_signal(kind: str, robot, *, taken=()) -> None:
                    what="the pen output's name")
 
 
+def check_tool_number(robot, tools: tuple[int, int], language: str) -> None:
+    """The robot file's ``program.tool_number`` within the controller's tools ``(lo, hi)``
+    (``language``: how the controller names them, for the message)."""
+    n = robot.program.tool_number
+    if n is not None and not tools[0] <= n <= tools[1]:
+        raise VisionCalError(f"{language} {tools[0]}..{tools[1]}, got {n}",
+                             file=str(robot.path), field="program.tool_number")
+
+
 def short_id(mark_id) -> str:
     """A mark id as program text shows it: at most :data:`ID_CHARS` characters (a longer
     one cut, ending in ``~``)."""

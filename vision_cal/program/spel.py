@@ -27,8 +27,7 @@ from __future__ import annotations
 import textwrap
 
 from vision_cal import __version__
-from vision_cal.errors import VisionCalError
-from vision_cal.program.rules import plain, short_id
+from vision_cal.program.rules import check_tool_number, plain, short_id
 from vision_cal.program.steps import HEADER_CHARS, safe_text, whole_percent
 
 J_FMT = "{:.4f}"      # joints 1, 2, 4: 0.0001 deg is 0.001 mm at 600 mm reach
@@ -57,10 +56,7 @@ def _id(mark_id) -> str:
 
 def check(robot, name: str | None = None) -> None:
     """Refuse what SPEL+ cannot express: a tool number TLSet does not take."""
-    n = robot.program.tool_number
-    if n is not None and not TOOLS[0] <= n <= TOOLS[1]:
-        raise VisionCalError(f"SPEL+ TLSet sets tools {TOOLS[0]}..{TOOLS[1]}, got {n}",
-                             file=str(robot.path), field="program.tool_number")
+    check_tool_number(robot, TOOLS, "SPEL+ TLSet sets tools")
 
 
 def tlset_line(tool_mm, number: int = 1) -> str:

@@ -67,6 +67,22 @@ def safe_text(text, *, banned: str = '"', chars: int | None = None) -> str:
     return out
 
 
+def optional_tool(tool_mm, number, *, define, comment: str, what: str,
+                  defined: str) -> tuple[str, list[str]]:
+    """(the header's sentence on the calibrated tool, the program's lines for it).
+    ``define(n)``: the statements that make it controller tool ``n``, written only when the
+    robot file names ``program.tool_number`` (``number``); otherwise the first of them,
+    for tool ``"n"``, as a comment (``comment``: the language's marker), so no controller
+    tool is overwritten unasked. ``what``: the tool it would become; ``defined``: how."""
+    if tool_mm is None:
+        return "No calibrated tool.", []
+    if number is None:
+        return (f"The calibrated tool is a comment below (give program.tool_number in the "
+                f"robot file to define it as {what}).", [f"    {comment} {define('n')[0]}"])
+    return (f"The calibrated tool is {defined}; the joint moves do not use it.",
+            [f"    {s}" for s in define(number)])
+
+
 def whole_percent(x: float, *, robot, field: str, language: str, lo: int = 1) -> int:
     """``x`` % as a language that takes whole percent (``lo``..100) writes it; a value
     that changes is said (one warning naming the robot file's field), never silently."""
