@@ -101,8 +101,9 @@ def tp_program(points, robot, *, title: str, tool_mm=None, name: str = "program"
             body.append(f"WAIT {s.seconds:6.2f}(sec)")
         elif isinstance(s, Pen):
             body.append(f"DO[{bit}]={'ON' if s.down else 'OFF'}")
-        elif isinstance(s, Say):
-            body.append(_remark(s.text))
+        elif isinstance(s, Say):   # a long id: the message over two remarks
+            body += [_remark(c) for c in textwrap.wrap(safe_text(s.text, banned='";'),
+                                                       REMARK_CHARS)]
     _check_lines(body, start, sum(1 for p in points if p.kind == "mark"))
     mn = [f"{i:4d}:{'' if line.startswith('J ') else '  '}{line} ;"
           for i, line in enumerate(body, 1)]
