@@ -1,13 +1,12 @@
-"""Robot programs for other controllers (RAPID, eV+, PacScript, Fanuc TP): each read back by
-a strict parser of its own (any statement it does not know fails the test), and the joints
-it drives compared with the plan's: home first and last, each mark's via point just before
-the mark, the pen down on the mark's planned joints, to the written precision.
+"""Robot programs for every controller (SPEL+, RAPID, VAL3, eV+, PacScript, Fanuc TP): each
+read back by the strict reader of its language (tests/program/checkers.py: any statement,
+name, string or line count it does not take fails the test), and the joints it drives
+compared with the plan's: home first and last, each mark's via point just before the mark,
+the pen down on the mark's planned joints, to the written precision.
 """
 
 import argparse
 import dataclasses
-import re
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -20,192 +19,13 @@ from vision_cal.errors import VisionCalError
 from vision_cal.plan.calibration_plan import PlannedMark
 from vision_cal.program import KINDS, WRITERS, program_path, program_points, write_program
 
+from tests.program.checkers import READERS, read_program
+
 ROBOT = Path(__file__).resolve().parents[2] / "fixtures" / "robot_sm5.yaml"
-NUM = r"\s*(-?\d+(?:\.\d+)?)\s*"
 # written precision: joints 1, 2, 4 to 4 decimals (TP: 3), joint 3 to 3
-TOL = {"rapid": (0.5e-4, 0.5e-3), "val3": (0.5e-4, 0.5e-3), "evplus": (0.5e-4, 0.5e-3),
-       "pacscript": (0.5e-4, 0.5e-3),
-       "tp": (0.5e-3, 0.5e-3)}
+TOL = {"spel": (0.5e-4, 0.5e-3), "rapid": (0.5e-4, 0.5e-3), "val3": (0.5e-4, 0.5e-3),
+       "evplus": (0.5e-4, 0.5e-3), "pacscript": (0.5e-4, 0.5e-3), "tp": (0.5e-3, 0.5e-3)}
 TOOL = (12.34567, -3.21)
-
-
-# ------------------------------------------------------------------------------ parsers
-# each returns ops: ("move", (j1, j2, j3, j4)), ("pen", bool), ("wait", s), ("say", text),
-# plus {"tool": (x, y) or None}
-
-def parse_rapid(text):
-    lines = text.split("\n")
-    assert lines[0] == "MODULE VisionCal" and lines[-2] == "ENDMODULE" and lines[-1] == ""
-    ops, tool, inside, tool_name = [], None, False, None
-    move = re.compile(rf"^MoveAbsJ \[\[{NUM},{NUM},{NUM},{NUM},0,0\],\[9E9,9E9,9E9,9E9,9E9,"
-                      rf"9E9\]\]\\NoEOffs, v500, fine, (tool0|tVisionCal);$")
-    for raw in lines[1:-2]:
-        code = raw.partition("!")[0].strip()
-        if not code:
-            continue
-        if not inside:
-            m = re.match(rf"^PERS tooldata tVisionCal := \[TRUE,\[\[{NUM},{NUM},0\],\[1,0,0,0\]\],"
-                         r"\[0\.1,\[0,0,1\],\[1,0,0,0\],0,0,0\]\];$", code)
-            if m:
-                tool = (float(m[1]), float(m[2]))
-            elif code == "PROC main()":
-                inside = True
-            else:
-                raise AssertionError(f"unexpected declaration {code!r}")
-            continue
-        if code == "ENDPROC":
-            inside = False
-        elif m := move.match(code):
-            tool_name = m[5]
-            ops.append(("move", tuple(float(v) for v in m.groups()[:4])))
-        elif m := re.match(r"^SetDO doPen, ([01]);$", code):
-            ops.append(("pen", m[1] == "1"))
-        elif m := re.match(rf"^WaitTime \\InPos,{NUM};$", code):
-            ops.append(("wait", float(m[1])))
-        elif m := re.match(r'^TPWrite "([^"\\]*)";$', code):
-            ops.append(("say", m[1]))
-        elif not re.match(rf"^(VelSet|AccSet){NUM},{NUM};$", code):
-            raise AssertionError(f"unexpected statement {code!r}")
-    assert not inside, "no ENDPROC"
-    assert tool_name == ("tool0" if tool is None else "tVisionCal")
-    return ops, tool
-
-
-def parse_val3(text, name="program"):
-    ns = {"v": "http://www.staubli.com/robotics/VAL3/Program/2"}
-    root = ET.fromstring(text.encode("utf-8"))
-    (prog,) = root.findall("v:Program", ns)
-    assert prog.get("name") == name
-    locals_ = {loc.get("name"): loc.get("type") for loc in prog.find("v:Locals", ns)}
-    assert locals_ == {"l_j": "joint", "l_m": "mdesc"}
-    lines = prog.find("v:Code", ns).text.split("\n")
-    assert lines[0] == "begin" and lines[-1] == "end"
-    ops, tool, j, waiting = [], None, {}, False
-    for raw in lines[1:-1]:
-        code, _, comment = raw.partition("//")
-        code = code.strip()
-        if m := re.match(rf"^The calibrated tool: x{NUM}mm, y{NUM}mm", comment.strip()):
-            tool = (float(m[1]), float(m[2]))
-        if not code:
-            continue
-        assert not waiting or code == "waitEndMove()", f"movej without waitEndMove: {code!r}"
-        if m := re.match(rf"^l_j\.j([1-4]) ={NUM}$", code):
-            j[int(m[1])] = float(m[2])
-        elif code == "movej(l_j, flange, l_m)":
-            assert sorted(j) == [1, 2, 3, 4], "a joint not set before movej"
-            ops.append(("move", (j[1], j[2], j[3], j[4])))
-            j, waiting = {}, True
-        elif code == "waitEndMove()":
-            waiting = False
-        elif m := re.match(r"^doPen = (true|false)$", code):
-            ops.append(("pen", m[1] == "true"))
-        elif m := re.match(rf"^delay\({NUM}\)$", code):
-            ops.append(("wait", float(m[1])))
-        elif m := re.match(r'^putln\("([^"]*)"\)$', code):
-            ops.append(("say", m[1]))
-        elif not re.match(rf"^(l_m\.(vel|accel|decel) ={NUM}|l_m\.blend = off|disablePower\(\))$",
-                          code):
-            raise AssertionError(f"unexpected statement {code!r}")
-    assert not waiting
-    return ops, tool
-
-
-def parse_evplus(text):
-    lines = text.split("\n")
-    assert lines[0] == ".PROGRAM vision_cal()" and lines[-2] == ".END"
-    ops, tool, pending = [], None, False
-    for raw in lines[1:-2]:
-        code = raw.partition(";")[0].strip()
-        if not code:
-            continue
-        assert not pending or code == "BREAK", f"a MOVE without BREAK before {code!r}"
-        if m := re.match(rf"^MOVE #PPOINT\({NUM},{NUM},{NUM},{NUM}\)$", code):
-            ops.append(("move", tuple(float(v) for v in m.groups())))
-            pending = True
-        elif code == "BREAK":
-            pending = False
-        elif m := re.match(r"^SIGNAL (-?\d+)$", code):
-            ops.append(("pen", int(m[1]) > 0))
-        elif m := re.match(rf"^DELAY{NUM}$", code):
-            ops.append(("wait", float(m[1])))
-        elif m := re.match(r'^TYPE "([^"]*)"$', code):
-            ops.append(("say", m[1]))
-        elif m := re.match(rf"^TOOL TRANS\({NUM},{NUM}, 0, 0, 0, 0\)$", code):
-            tool = (float(m[1]), float(m[2]))
-        elif not re.match(rf"^(SPEED{NUM}ALWAYS|ACCEL{NUM},{NUM}|FINE ALWAYS|DISABLE POWER)$",
-                          code):
-            raise AssertionError(f"unexpected statement {code!r}")
-    assert not pending
-    return ops, tool
-
-
-def parse_pacscript(text):
-    lines = text.split("\r\n")
-    ops, tool, inside, ended = [], None, False, False
-    for raw in lines:
-        code = raw.partition("'")[0].strip()
-        if not code:
-            continue
-        if not inside:
-            assert code == "Sub Main" and not ended, f"code outside Sub Main: {code!r}"
-            inside = True
-        elif code == "End Sub":
-            inside, ended = False, True
-        elif m := re.match(rf"^Move P, @E J\({NUM},{NUM},{NUM},{NUM}\)$", code):
-            ops.append(("move", tuple(float(v) for v in m.groups())))
-        elif m := re.match(r"^(Set|Reset) IO\[(\d+)\]$", code):
-            ops.append(("pen", m[1] == "Set"))
-        elif m := re.match(r"^Delay (\d+)$", code):
-            ops.append(("wait", int(m[1]) / 1000))
-        elif m := re.match(r'^PrintDbg "([^"]*)"$', code):
-            ops.append(("say", m[1]))
-        elif m := re.match(rf"^Tool 1, P\({NUM},{NUM}, 0, 0, 0, 0\)$", code):
-            tool = (float(m[1]), float(m[2]))
-        elif not re.match(rf"^(TakeArm Keep = 0|Motor On|Motor Off|GiveArm|ChangeTool 1|"
-                          rf"(Speed|Accel|Decel){NUM})$", code):
-            raise AssertionError(f"unexpected statement {code!r}")
-    assert ended
-    return ops, tool
-
-
-def parse_tp(text):
-    sections = re.split(r"^(/PROG .*|/ATTR|/MN|/POS|/END)$", text, flags=re.M)
-    heads = [s for s in sections if s.startswith("/")]
-    assert heads[0].startswith("/PROG") and heads[1:] == ["/ATTR", "/MN", "/POS", "/END"]
-    attr, mn, pos = sections[4], sections[6], sections[8]
-    points = {}
-    for m in re.finditer(rf"P\[(\d+)\]\{{\n   GP1:\n\tUF : 0, UT : 1,\n\tJ1={NUM}deg,\tJ2={NUM}deg,"
-                         rf"\tJ3={NUM} mm,\n\tJ4={NUM}deg\n\}};", pos):
-        points[int(m[1])] = tuple(float(v) for v in m.groups()[1:])
-    assert len(points) == pos.count("P["), "a /POS entry the parser does not read"
-    ops, tool = [], None
-    body = mn.strip("\n").split("\n")
-    count = int(re.search(r"LINE_COUNT\t= (\d+);", attr)[1])
-    assert len(body) == count
-    for i, raw in enumerate(body, 1):
-        m = re.match(rf"^{i:4d}:(J P\[(\d+)\] \d+% FINE|  (.*)) ;$", raw)
-        assert m, f"not a TP line: {raw!r}"
-        if m[2]:
-            ops.append(("move", points[int(m[2])]))
-            continue
-        code = m[3]
-        if mm := re.match(r"^DO\[(\d+)\]=(ON|OFF)$", code):
-            ops.append(("pen", mm[2] == "ON"))
-        elif mm := re.match(rf"^WAIT{NUM}\(sec\)$", code):
-            ops.append(("wait", float(mm[1])))
-        elif code.startswith("!"):
-            assert len(code) <= 33 and ";" not in code
-            if mm := re.match(rf"^!UTOOL\[1\] x{NUM}y{NUM}$", code):
-                tool = (float(mm[1]), float(mm[2]))
-            ops.append(("say", code[1:]))
-        elif code not in ("UFRAME_NUM=0", "UTOOL_NUM=1"):
-            raise AssertionError(f"unexpected statement {code!r}")
-    return ops, tool
-
-
-PARSERS = {"rapid": parse_rapid, "val3": parse_val3, "evplus": parse_evplus,
-           "pacscript": parse_pacscript,
-           "tp": parse_tp}
 
 
 # ------------------------------------------------------------------------------ the plan
@@ -251,7 +71,7 @@ def drawn(ops, up, down, by_output):
     return pen_at, before, moves
 
 
-@pytest.mark.parametrize("kind", sorted(PARSERS))
+@pytest.mark.parametrize("kind", sorted(READERS))
 @pytest.mark.parametrize("by_output", [False, True])
 def test_joints_read_back_equal_the_plan(tmp_path, kind, by_output):
     robot = robot_with(pen_output_bit=9 if by_output else None,
@@ -261,8 +81,7 @@ def test_joints_read_back_equal_the_plan(tmp_path, kind, by_output):
     points = program_points(marks, home_deg=(5.0, -7.0), joint4=joint4)
     path = write_program(kind, program_path(kind, tmp_path / "program"), points, robot,
                          title="test", tool_mm=TOOL)
-    text = path.read_bytes().decode("ascii")
-    ops, tool = PARSERS[kind](text)
+    ops, tool = read_program(kind, path)
     tol_deg, tol_mm = TOL[kind]
     tol = np.array([tol_deg, tol_deg, tol_mm, tol_deg]) + 1e-9
     pen_at, before, moves = drawn(ops, up, down, by_output)
@@ -283,14 +102,14 @@ def test_joints_read_back_equal_the_plan(tmp_path, kind, by_output):
     assert tool is not None and np.allclose(tool, TOOL, rtol=0, atol=tol_mm + 1e-9)
 
 
-@pytest.mark.parametrize("kind", sorted(PARSERS))
+@pytest.mark.parametrize("kind", sorted(READERS))
 def test_safe_height_travel_keeps_the_last_move_onto_each_mark(tmp_path, kind):
     robot = robot_with(safe_z_mm=-2.0)
     marks, joint4 = plan(seed=11, n=3)
     points = program_points(marks, joint4=joint4)
     path = write_program(kind, program_path(kind, tmp_path / "program"), points, robot,
                          title="t")
-    ops, tool = PARSERS[kind](path.read_bytes().decode("ascii"))
+    ops, tool = read_program(kind, path)
     moves = [a for op, a in ops if op == "move"]
     assert tool is None
     # every travel rises to the safe height where the arm is, moves there, comes down
@@ -327,15 +146,16 @@ def test_each_writer_refuses_on_its_own(kind, program):
         WRITERS[kind][0](program_points(plan(n=1)[0]), robot_with(**program), title="t")
 
 
-def test_val3_program_is_named_after_its_file(tmp_path):
+def test_val3_application_is_named_after_its_file(tmp_path):
     marks, _ = plan(n=1)
-    path = write_program("val3", tmp_path / "draw_1.pgx", program_points(marks),
-                         robot_with(), title="t")
-    parse_val3(path.read_text(), name="draw_1")
+    path = write_program("val3", program_path("val3", tmp_path / "draw_1"),
+                         program_points(marks), robot_with(), title="t")
+    assert path == tmp_path / "draw_1" / "draw_1.pjx"
+    read_program("val3", path)
+    target = program_path("val3", tmp_path / "1-draw")
     with pytest.raises(VisionCalError) as e:
-        write_program("val3", tmp_path / "1-draw.pgx", program_points(marks), robot_with(),
-                      title="t")
-    assert e.value.field == "--program" and not (tmp_path / "1-draw.pgx").exists()
+        write_program("val3", target, program_points(marks), robot_with(), title="t")
+    assert e.value.field == "--program" and not target.parent.exists()
 
 
 def test_pen_signal_is_read_and_checked(tmp_path):
@@ -356,18 +176,17 @@ def test_every_kind_has_a_file_beside_the_plan(tmp_path):
     assert {"rapid", "val3", "evplus", "pacscript", "tp"} <= set(KINDS)
 
 
-@pytest.mark.parametrize("kind", sorted(PARSERS))
+@pytest.mark.parametrize("kind", sorted(READERS))
 def test_a_mark_id_cannot_break_the_program(tmp_path, kind):
     """Ids come from the user's targets.csv: quotes, comment and statement characters, a
     line break, XML and non-ASCII text stay inside the message or the comment."""
     marks, _ = plan(n=2)
-    marks = [dataclasses.replace(m, id=f'a"b;c!d\'e//f\\g]]>h<&i\nj é{k}')
+    marks = [dataclasses.replace(m, id=f'é{k}"b;c!d\'e//f\\g]]>h<&i\nj')
              for k, m in enumerate(marks)]
     robot = robot_with(pen_output_bit=9, pen_signal="doPen")
     path = write_program(kind, program_path(kind, tmp_path / "program"), program_points(marks),
                          robot, title='title "with" ; quotes', tool_mm=TOOL)
-    text = path.read_bytes().decode("ascii")
-    ops, _ = PARSERS[kind](text)
+    ops, _ = read_program(kind, path)
     assert sum(1 for op, a in ops if op == "pen" and a) == 2
     assert len([1 for op, _ in ops if op == "move"]) == 2 + sum(len(m.via_deg) + 1 for m in marks)
 

@@ -3,6 +3,7 @@ truth model): tool_mm in calibration.json within 4 reported std, read back for p
 one j4_deg says the tool is folded into L2 and z2."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 
@@ -113,8 +114,10 @@ def test_plan_command_with_theta_writes_q4_and_tlset(tmp_path):
     targets = tmp_path / "targets.csv"
     targets.write_text("id,x_mm,y_mm,theta_deg\na,-200.0,50.0,30.0\nb,-150.0,0.0,-120.0\n")
     out = tmp_path / "plan.csv"
+    robot = tmp_path / "robot.yaml"   # the controller's tool 1 is the program's to set
+    robot.write_text(Path("fixtures/robot_sm5.yaml").read_text() + "  tool_number: 1\n")
     assert main(["plan", str(tmp_path / "out" / "calibration.json"), str(targets), "-o",
-                 str(out), "--program", "spel", "--robot", "fixtures/robot_sm5.yaml",
+                 str(out), "--program", "spel", "--robot", str(robot),
                  "--force", "-q"]) == 0   # measured_mm: no noise floor, so never "ready"
     text = out.read_text()
     head = text.splitlines()[0].split(",")

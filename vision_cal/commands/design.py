@@ -47,9 +47,9 @@ def add_arguments(p) -> None:
                                           "tp", "none"), default="spel",
                    help="robot program: spel (Epson SPEL+ program.prg, default), csv (neutral "
                         "point list program_points.csv), rapid (ABB program.mod), val3 "
-                        "(Staubli program.pgx), evplus (Omron/Adept program.v2), pacscript "
-                        "(Denso program.pcs), tp (Fanuc program.ls; docs/controllers.md) or "
-                        "none")
+                        "(Staubli application program/program.pjx), evplus (Omron/Adept "
+                        "program.v2), pacscript (Denso program.pcs), tp (Fanuc program.ls; "
+                        "docs/controllers.md) or none")
     p.add_argument("--n-calibration", type=int, default=30, metavar="N",
                    help="informative plan: calibration marks (default 30)")
     p.add_argument("--n-validation", type=int, default=8, metavar="N",

@@ -33,10 +33,10 @@ def add_arguments(p) -> None:
     p.add_argument("--program", choices=("spel", "csv", "rapid", "val3", "evplus", "pacscript",
                                           "tp"), default=None,
                    help="also write a robot program beside PLAN.csv: spel (PLAN.prg, Epson "
-                        "SPEL+), csv (PLAN_points.csv), rapid (PLAN.mod, ABB), val3 (PLAN.pgx, "
-                        "Staubli), evplus (PLAN.v2, Omron/Adept), pacscript (PLAN.pcs, Denso) "
-                        "or tp (PLAN.ls, Fanuc); joint targets only (docs/controllers.md); "
-                        "needs --robot")
+                        "SPEL+), csv (PLAN_points.csv), rapid (PLAN.mod, ABB), val3 "
+                        "(PLAN/PLAN.pjx, Staubli), evplus (PLAN.v2, Omron/Adept), pacscript "
+                        "(PLAN.pcs, Denso) or tp (PLAN.ls, Fanuc); joint targets only "
+                        "(docs/controllers.md); needs --robot")
     p.add_argument("--home", type=float, nargs=2, metavar=("Q1", "Q2"), default=None,
                    help="joints (deg) the arm starts from (default: the robot file's "
                         "home_deg, else calibration.json's, which the session gave)")

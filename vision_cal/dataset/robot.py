@@ -31,10 +31,14 @@ The session's ``robot`` block (``L1_mm``, ``L2_mm``, ``joint_zero_deg``, ``base_
       pen_output_bit: 9              #   optional: the pen is lowered by this output (On/Off)
                                      #   instead of by joint 3
       safe_z_mm: -5.0                #   optional: travel with Jump ... LimZ at this height
+                                     #   (inside joint3_limits_mm, at or above pen_up_mm)
       motor_off: true                #   optional: Motor Off at the end (default false)
       pen_signal: doPen              #   optional: the pen output's name where signals have
                                      #   names (RAPID SetDO doPen, VAL3
                                      #   doPen = true); see docs/controllers.md
+      tool_number: 1                 #   optional: the controller tool the calibrated tool
+                                     #   is written to (SPEL+ TLSet n, PacScript Tool n);
+                                     #   without it the program overwrites no tool
 
 Every malformed field is one line naming the file and the field (the typed readers of
 :mod:`vision_cal.dataset.session`); unknown fields are logged and ignored, so files
@@ -83,6 +87,8 @@ class ProgramSettings:
     motor_off: bool = False             # Motor Off at the end of the program
     pen_signal: str | None = None       # the pen output's name, for controllers that name
     #                                     signals (RAPID ``SetDO name``), issue 32
+    tool_number: int | None = None      # the controller tool entry a program may define
+    #                                     (None: it defines none), issue 38
 
 
 @dataclass(frozen=True)
@@ -111,6 +117,35 @@ class RobotFile:
                 raise VisionCalError("missing: a robot program needs the pen-up and pen-down "
                                      "heights (joint 3, mm)", file=str(self.path), field=k)
         return float(self.pen_up_mm), float(self.pen_down_mm)
+
+    def check_travel_height(self) -> None:
+        """``program.safe_z_mm`` as a program may drive it (:func:`travel_height_problem`),
+        else one line naming the file and the field."""
+        problem = travel_height_problem(self.program.safe_z_mm, self.pen_up_mm,
+                                        self.pen_down_mm, self.joint3_limits_mm)
+        if problem is not None:
+            raise VisionCalError(problem, file=str(self.path), field="program.safe_z_mm")
+
+
+def travel_height_problem(safe, up, down, joint3_limits_mm) -> str | None:
+    """Why the travel height ``safe`` (joint 3, mm; None: none) cannot be driven (None: it
+    can): outside joint 3's travel, or below the pen-up height. Up is the side of
+    ``pen_up_mm`` from ``pen_down_mm`` (the sign of joint 3 differs between vendors), so
+    the travel height must lie at or beyond pen up on that side: never between the pen
+    heights or below pen down, where the arm would sweep the pen across (or into) the
+    table."""
+    if safe is None:
+        return None
+    lo, hi = joint3_limits_mm
+    if not lo <= safe <= hi:
+        return (f"{safe:.3f} mm is outside joint 3's travel [{lo:g}, {hi:g}] mm "
+                "(joint3_limits_mm)")
+    if up is not None and down is not None and (safe - up) * (up - down) < 0:
+        side = "above" if up > down else "below"
+        return (f"{safe:.3f} mm is below the pen-up height: the travel height must be at or "
+                f"beyond pen_up_mm {up:g} on its side of pen_down_mm {down:g} (here: "
+                f"{side} {up:g}), or the arm travels with the pen at or into the paper")
+    return None
 
 
 def read_robot_tree(path: Path) -> dict:
@@ -146,6 +181,11 @@ def load_robot_file(path) -> RobotFile:
     kw.update(_read_pen(r, tree, kw.get("joint3_limits_mm", JOINT3_LIMITS_MM)))
     if tree.get("program") is not None:
         kw["program"] = _read_program(r, tree.get("program"), path)
+        problem = travel_height_problem(kw["program"].safe_z_mm, kw.get("pen_up_mm"),
+                                        kw.get("pen_down_mm"),
+                                        kw.get("joint3_limits_mm", JOINT3_LIMITS_MM))
+        if problem is not None:
+            r.fail("program.safe_z_mm", problem)
     known = set(ROBOT_BLOCK) | {f for f in RobotFile.__dataclass_fields__} | {
         "placement_tolerance", "tool_mm"}
     extra = set(tree) - known
@@ -279,8 +319,12 @@ def _read_program(r: FieldReader, p, path: Path) -> ProgramSettings:
                                 and re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,31}", sig)):
         r.fail("program.pen_signal", f"expected a signal name (a letter, then letters, "
                                      f"digits or _, at most 32), got {sig!r}")
+    tool = p.get("tool_number")
+    if tool is not None and (isinstance(tool, bool) or not isinstance(tool, int)
+                             or not 1 <= tool <= 99):
+        r.fail("program.tool_number", f"expected a controller tool number 1..99, got {tool!r}")
     extra = set(p) - {"power", "speed_percent", "accel_percent", "settle_s", "pen_dwell_s",
-                      "pen_output_bit", "safe_z_mm", "motor_off", "pen_signal"}
+                      "pen_output_bit", "safe_z_mm", "motor_off", "pen_signal", "tool_number"}
     if extra:
         log.warning("%s: program: ignoring unknown fields %s", path, ", ".join(sorted(extra)))
-    return ProgramSettings(power, sp, ac, settle, dwell, bit, safe, moff, sig)
+    return ProgramSettings(power, sp, ac, settle, dwell, bit, safe, moff, sig, tool)

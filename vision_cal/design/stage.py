@@ -173,7 +173,7 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
                         "(joint 3, mm; docs/robot-file.md) and run design again")
         program = None
     if program is not None:   # what the dialect cannot express, before anything is written
-        check_program(program, robot)
+        check_program(program, robot, program_path(program, out / "program").stem)
     paper = sheet
     sheet = drawable_sheet(sheet, sheet_raw, file=str(sheet_path))
     if pilot is not None:   # the pilot lands anywhere within the tolerance: measured over print

@@ -192,7 +192,7 @@ class _Move:
 _SPEL_KNOWN = re.compile(
     r"^\s*(?:$|Function\s+\w+\s*$|Fend\s*$|Motor\s+(?:On|Off)\s*$|Power\s+(?:Low|High)\s*$"
     r"|Speed\s+[\d.]+\s*$|Accel\s+[\d.]+\s*,\s*[\d.]+\s*$|Print\s+\"[^\"]*\"\s*$"
-    r"|Wait\s+[\d.]+\s*$|(?:On|Off)\s+\d+\s*$|TLSet\s+1\s*,\s*XY\([^()]*\)\s*$)",
+    r"|Wait\s+[\d.]+\s*$|(?:On|Off)\s+\d+\s*$|TLSet\s+\d+\s*,\s*XY\([^()]*\)\s*$)",
     re.IGNORECASE)
 _GO_FULL = re.compile(r"^\s*(?:Go|Jump)\s+JA\(\s*([^,()]+),\s*([^,()]+),\s*([^,()]+),"
                       r"\s*([^,()]+)\)\s*(?:LimZ\s+(-?[\d.]+)\s*)?$", re.IGNORECASE)
