@@ -14,14 +14,14 @@ import sys
 
 import pytest
 
-from tests.commands.test_trust import (assert_one_line, calibration,  # noqa: F401
-                                       cli, snapshot)
+from tests.commands.test_trust import (PAPER, ROOT, TARGETS, assert_one_line,
+                                       calibration, cli, snapshot)  # noqa: F401
 import vision_cal.actions.calibrate as calibrate_action
 import vision_cal.workflows.placements as placements
 from tests.tool.test_placements import _places
 from vision_cal.camera.arm import MAX_POSES
 from vision_cal.commands.main import main
-from vision_cal.dataset.out_folder import LOCK
+from vision_cal.dataset.out_folder import LOCK, RECORD
 
 ROBOT = "fixtures/robot_sm5.yaml"
 
@@ -32,6 +32,9 @@ def pen_cal(tmp_path, calibration):  # noqa: F811
     d = tmp_path / "cal"
     shutil.copytree(calibration.parent, d)
     (d / "measurement.json").write_text('{"format": "a pen run\'s measurement"}\n')
+    record = json.loads((d / RECORD).read_text())   # as calibrate records it
+    record["runs"]["calibrate"].append("measurement.json")
+    (d / RECORD).write_text(json.dumps(record))
     return d
 
 
@@ -120,7 +123,7 @@ def test_handeye_over_a_pen_calibration_moves_it_to_previous(arm, pen_cal, capsy
     after = snapshot(pen_cal)
     for name, digest in before.items():
         if "/" not in name and not name.startswith("."):
-            assert after[f"previous/{name}"] == digest, name
+            assert after[f"previous/calibrate/{name}"] == digest, name
     assert not (pen_cal / LOCK).exists()
 
 
@@ -204,9 +207,14 @@ def test_sheet_over_another_sheet_is_refused(field_sheet, tmp_path, capsys):
     assert rc == 2
     assert_one_line(err, "sheet.json", "another sheet")
     assert snapshot(d) == before
-    # the same sheet again is its own earlier output: written, the same bytes
+    # the same sheet again is its own earlier output: written, the same bytes, the
+    # earlier files in previous/sheet/
     assert cli(["sheet", "--field", "--size", "A2", "--out", d, "-q"], capsys)[0] == 0
-    assert snapshot(d) == before
+    after = snapshot(d)
+    assert {n: after[n] for n in before} == before
+    assert {n.removeprefix("previous/sheet/"): h for n, h in after.items()
+            if n.startswith("previous/")} == {n: h for n, h in before.items()
+                                              if not n.startswith(".")}
 
 
 # --------------------------------------------------------------------------- calibrate --joint
@@ -223,9 +231,11 @@ def test_joint_rerun_retires_the_placements_it_does_not_write(tmp_path, capsys):
     assert [p["folder"] for p in top["placements"]] == ["place0", "place1"]
     # ... but kept, byte for byte, in previous/
     after = snapshot(out)
-    assert after["previous/place2/calibration.json"] == before["place2/calibration.json"]
-    assert after["previous/calibration.json"] == before["calibration.json"]
-    assert after["place0/previous/calibration.json"] == before["place0/calibration.json"]
+    for n in ("place2/calibration.json", "calibration.json", "place0/calibration.json"):
+        assert after[f"previous/calibrate/{n}"] == before[n]
+    # the placements this run writes again keep their detection caches
+    assert [n for n in after if n.startswith("place0/.cache/")] == \
+        [n for n in before if n.startswith("place0/.cache/")]
 
 
 def test_joint_folders_with_one_name_get_their_own_outputs(tmp_path, capsys):
@@ -258,8 +268,7 @@ def test_ctrl_c_during_a_joint_run_leaves_nothing_that_looks_current(tmp_path, c
     assert not [n for n in after if n.endswith("calibration.json")
                 and "previous/" not in n]
     for n in ("calibration.json", "place0/calibration.json", "place1/calibration.json"):
-        prev = n.replace("calibration.json", "previous/calibration.json")
-        assert after[prev] == before[n], n
+        assert after[f"previous/calibrate/{n}"] == before[n], n
     assert not (out / LOCK).exists()
 
 

@@ -110,7 +110,8 @@ def test_custom_size_and_measured_bars(tmp_path):
     doc = json.loads((tmp_path / "sheet.json").read_text())
     assert doc["size_mm"] == [350.0, 500.0]
     assert doc["printed"]["measured_bar_mm"] == [99.8, 100.1]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["sheet.json", "sheet.pdf", "sheet.svg"]
+    assert sorted(p.name for p in tmp_path.iterdir()
+                  if not p.name.startswith(".")) == ["sheet.json", "sheet.pdf", "sheet.svg"]
 
 
 @pytest.mark.parametrize("argv,field", [

@@ -64,7 +64,8 @@ def output_dir(path, *, field: str | None = None) -> Path:
     else one line naming it and the option ``field`` it came from."""
     path = Path(path)
     if path.exists() and not path.is_dir():
-        raise VisionCalError("is a file, expected a folder", file=str(path), field=field)
+        raise VisionCalError("is a file, expected a folder: choose a folder's name (it is made "
+                             "if missing)", file=str(path), field=field)
     probe = path
     while not probe.exists() and probe != probe.parent:
         probe = probe.parent
@@ -108,6 +109,8 @@ def atomic_write_bytes(path, data: bytes, *, at_once: bool = False) -> Path:
     path = Path(path)
     if path.is_dir():
         raise VisionCalError("cannot write: is a folder, expected a file name", file=str(path))
+    if not at_once:   # a result of the run: recorded in its output set (dataset/out_folder)
+        note_written(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -133,6 +136,30 @@ def atomic_write_bytes(path, data: bytes, *, at_once: bool = False) -> Path:
             raise _cannot_write(path, e) from e
         raise
     return path
+
+
+#: the lists the running output sets (dataset/out_folder.py) record their files in
+_RECORDING: contextvars.ContextVar = contextvars.ContextVar("vision_cal_recording", default=())
+
+
+@contextlib.contextmanager
+def recording_writes():
+    """Yields a list that receives the path of every file written (by
+    :func:`atomic_write_bytes`, or told by :func:`note_written`) while the block runs, in
+    nested blocks too: what a run wrote, for its output set's record."""
+    written: list = []
+    token = _RECORDING.set(_RECORDING.get() + (written,))
+    try:
+        yield written
+    finally:
+        _RECORDING.reset(token)
+
+
+def note_written(path) -> None:
+    """Tell the running output sets that ``path`` was written (a file or folder put in place
+    by other means than :func:`atomic_write_bytes`, e.g. a rendered folder moved in)."""
+    for written in _RECORDING.get():
+        written.append(Path(path))
 
 
 #: the (temporary file, final path) pairs of the ``written_together`` block being run
