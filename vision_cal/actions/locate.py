@@ -32,7 +32,7 @@ CSV_IN = ("id", "u_px", "v_px")
 def _read_pixels(path, z_default: float):
     """(ids, pixels, heights, line numbers) of PIXELS.csv, every cell checked."""
     ids, uv, z, lines = [], [], [], []
-    for i, (line, row) in enumerate(read_rows(path, CSV_IN)):
+    for i, (line, row) in enumerate(read_rows(path, CSV_IN, what="pixels CSV")):
         vals = []
         for k in ("u_px", "v_px", "z_mm"):
             v = (row.get(k) or "").strip()

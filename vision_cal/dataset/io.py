@@ -242,9 +242,37 @@ def atomic_write_json(path, obj) -> Path:
     return atomic_write_text(path, text + "\n")
 
 
+#: what each reader expects (its ``what``), said when given a PDF, an image, a folder or
+#: another kind of file instead: (the file's usual name in a folder, what to give)
+EXPECTED = {
+    "calibration": ("calibration.json", "the calibration.json `vision-cal calibrate` wrote"),
+    "sheet file": ("sheet.json", "the sheet.json `vision-cal sheet` wrote"),
+    "robot file": ("robot.yaml", "the robot file (YAML; `vision-cal robot-template -o "
+                                 "robot.yaml` writes one to fill in)"),
+    "session": ("session.json", "a dataset's session.json (`vision-cal design` writes it)"),
+    "simulated robot file": (None, "the simulated robot's file (`vision-cal robot-template "
+                                   "--simulated -o true_robot.yaml` writes one)"),
+    "scene file": (None, "a scene file (YAML, like renders/default.yaml)"),
+    "survey": ("survey.json", "the survey.json `vision-cal survey` wrote"),
+    "poses file": (None, "the pose pairs file (JSON or CSV, docs/format.md)"),
+    "targets CSV": (None, "a targets CSV (id,x_mm,y_mm)"),
+    "plan CSV": (None, "a plan CSV (`vision-cal plan` writes it)"),
+    "pixels CSV": (None, "a CSV of pixels (id,u_px,v_px)"),
+    "marks CSV": (None, "a marks CSV (docs/format.md: marks measured by an instrument)"),
+    "point list CSV": (None, "a program's point list (`--program csv`)"),
+}
+_TEXT = "a text file (JSON, YAML or CSV)"
+
+
+def expected(what: str) -> str:
+    """What a reader of ``what`` expects, in words (:data:`EXPECTED`)."""
+    return EXPECTED.get(what, (None, _TEXT))[1]
+
+
 def read_text(path, *, what: str = "file") -> str:
     """A UTF-8 text file (a leading byte-order mark, as Windows tools save, is dropped);
-    missing or unreadable is one clear line naming it."""
+    missing or unreadable is one clear line naming it, and a folder, a PDF, an image or a
+    path through a file says what to give instead (``what``: a key of :data:`EXPECTED`)."""
     path = Path(path)
     try:
         return path.read_text(encoding="utf-8-sig")
@@ -252,6 +280,10 @@ def read_text(path, *, what: str = "file") -> str:
         raise VisionCalError(f"{what} not found", file=str(path)) from e
     except IsADirectoryError as e:
         raise VisionCalError(_folder_given(path, what), file=str(path)) from e
+    except NotADirectoryError as e:   # sheet.pdf/session.json: a file given for a folder
+        above = next((q for q in path.parents if q.is_file()), path.parent)
+        raise VisionCalError(f"is a file, expected a folder (holding {path.name})",
+                             file=str(above)) from e
     except UnicodeDecodeError as e:
         raise VisionCalError(_binary_given(path, what), file=str(path)) from e
     except OSError as e:
@@ -259,16 +291,19 @@ def read_text(path, *, what: str = "file") -> str:
 
 
 def _folder_given(path: Path, what: str) -> str:
-    """A folder given where a file is wanted: name the files in it that may be meant."""
+    """A folder given where a file is wanted: the file in it that was meant, else what to
+    give."""
+    name = EXPECTED.get(what, (None, None))[0]
+    names = (name,) if name else () if what in EXPECTED else \
+        ("calibration.json", "session.json", "sheet.json", "robot.yaml")
     try:
-        known = [n for n in ("calibration.json", "session.json", "sheet.json", "robot.yaml")
-                 if (path / n).is_file()]
+        known = [n for n in names if (path / n).is_file()]
     except OSError:
         known = []
     if known:
         return (f"is a folder, expected a file (in it: {', '.join(known)}; give the one "
                 f"wanted, e.g. {path / known[0]})")
-    return "is a folder, expected a file"
+    return f"is a folder, expected {expected(what) if what in EXPECTED else 'a file'}"
 
 
 def _binary_given(path: Path, what: str) -> str:
@@ -279,14 +314,15 @@ def _binary_given(path: Path, what: str) -> str:
         head = b""
     if head.startswith(b"%PDF"):
         beside = path.with_suffix(".json")
-        sheets = beside.is_file() or "sheet" in f"{path.stem} {what}".lower()
+        sheets = what == "sheet file" or (what not in EXPECTED and (
+            beside.is_file() or "sheet" in path.stem.lower()))
         if not sheets:  # not the sheet's PDF: a calibration, robot file... saved as PDF
-            return "is a PDF, expected a text file (JSON, YAML or CSV)"
+            return f"is a PDF, expected {expected(what)}"
         return ("is the PDF to print, not the sheet's description: pass the sheet.json "
                 f"beside it{f' ({beside})' if beside.is_file() else ''}")
     if head.startswith((b"\x89PNG", b"\xff\xd8\xff")):
-        return "is an image, expected a text file (JSON, YAML or CSV)"
-    return "is not UTF-8 text (a binary file?), expected a text file (JSON, YAML or CSV)"
+        return f"is an image, expected {expected(what)}"
+    return f"is not UTF-8 text (a binary file?), expected {expected(what)}"
 
 
 def _line(text: str, pos: int) -> int:

@@ -125,7 +125,7 @@ def load_survey(path, sheet: Sheet | None) -> AsPrinted:
     """survey.json's as-printed layout, checked against ``sheet`` (the same markers,
     declared where the survey's sheet declared them); one-line errors naming the field."""
     path = Path(path)
-    d = read_json(path)
+    d = read_json(path, what="survey")
     r = FieldReader(str(path))
     if d.get("format") != FORMAT:
         r.fail("format", f"expected {FORMAT!r}, got {d.get('format')!r}")
