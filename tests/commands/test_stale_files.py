@@ -78,10 +78,13 @@ def test_two_plans_in_one_folder_keep_their_own_previous(work, capsys):  # noqa:
 # --------------------------------------------------------------------------- design
 
 def test_a_design_in_another_dialect_leaves_no_earlier_program(tmp_path, calibration,  # noqa: F811
-                                                               capsys):
+                                                               capsys, monkeypatch):
     """design --program spel over a folder designed with --program val3 left the old
     program.pgx driving the old marks beside the new session.json (no previous/)."""
-    assert cli(["sheet", "--size", "A3", "--out", tmp_path / "sheet", "-q"], capsys)[0] == 0
+    import vision_cal.design.stage as stage
+
+    monkeypatch.setattr(stage, "preview_png", lambda *a, **k: b"\x89PNG a preview")  # cheap
+    assert cli(["sheet", "--size", "A4", "--out", tmp_path / "sheet", "-q"], capsys)[0] == 0
     argv = ["design", ROBOT, "--sheet", tmp_path / "sheet" / "sheet.json", "--verify",
             calibration, "--out", tmp_path / "plan", "-q", "--program"]
     assert cli([*argv, "val3"], capsys)[0] == 0
