@@ -89,8 +89,9 @@ def test_bad_pose_field_one_line_exit_2(arm, tmp_path, capsys):
     folder, _, _ = arm
     s = read_json(folder / "session.json")
     s["poses"][1]["joints_deg"] = [0.0, "x"]
-    (tmp_path / "session.json").write_text(json.dumps(s))
-    assert main(["handeye", str(tmp_path), "--out", str(tmp_path / "o")]) == 2
+    (tmp_path / "in").mkdir()
+    (tmp_path / "in" / "session.json").write_text(json.dumps(s))
+    assert main(["handeye", str(tmp_path / "in"), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "poses[1].joints_deg" in err[0]
 

@@ -260,4 +260,4 @@ def test_handeye_poses_keeps_the_pairs_folder_and_an_earlier_run(tmp_path, capsy
         assert main(["handeye", "--poses", str(tmp_path / "p4.json"), "--out", str(out),
                      "-q"]) == 0
     assert (out / "calibration.json").is_file()
-    assert (out / "previous" / "calibration.json").is_file()
+    assert (out / "previous" / "handeye" / "calibration.json").is_file()

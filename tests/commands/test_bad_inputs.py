@@ -19,7 +19,10 @@ PDF = b"%PDF-1.4\n%\xe2\xe3\xcf\xd3\n1 0 obj<<>>endobj\n"
 
 
 def _run(argv, capsys):
-    rc = main([str(a) for a in argv])
+    try:
+        rc = main([str(a) for a in argv])
+    except SystemExit as e:   # an option out of its range: argparse's one line
+        rc = e.code
     return rc, capsys.readouterr().err
 
 
@@ -113,7 +116,8 @@ def test_jobs_below_one_names_the_option_as_every_command_does(tmp_path, capsys)
                  ["init", tmp_path / "photos", "--plan", paper / "session.json", "-j", "0"]):
         rc, err = _run(argv, capsys)
         assert rc == 2
-        assert "must be at least 1, got 0" in assert_one_line(err, "--jobs")
+        line = assert_one_line(err, "--jobs")
+        assert "at least 1" in line and "got 0" in line
     assert [p.name for p in tmp_path.iterdir()] == ["photos"]
 
 
@@ -123,7 +127,7 @@ def test_a_bad_option_is_one_line_naming_it(tmp_path, capsys):
         main(["plan", "cal.json", "t.csv", "-o", str(tmp_path / "p.csv"), "--home", "1"])
     assert e.value.code == 2
     line = assert_one_line(capsys.readouterr().err)
-    assert line.startswith("vision-cal plan: error: argument --home: expected 2 arguments")
+    assert line.startswith("vision-cal plan: error: --home: expected 2 arguments")
     assert "vision-cal plan --help" in line
     assert list(tmp_path.iterdir()) == []
 

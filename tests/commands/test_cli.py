@@ -31,8 +31,9 @@ def test_lsq_default_has_std_and_residuals(paper_folder, tmp_path):
 
 
 def test_bad_dataset_exits_2_with_one_line(tmp_path, capsys):
-    (tmp_path / "session.json").write_text('{"format": "vision-cal/1"}')
-    assert main([str(tmp_path), "--out", str(tmp_path / "o")]) == 2
+    (tmp_path / "d").mkdir()
+    (tmp_path / "d" / "session.json").write_text('{"format": "vision-cal/1"}')
+    assert main([str(tmp_path / "d"), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "robot: missing required field" in err
     assert not (tmp_path / "o" / "calibration.json").exists()
@@ -42,8 +43,9 @@ def test_uncalibratable_exits_1(tmp_path, capsys):
     d = json.loads((__import__("pathlib").Path(__file__).parents[2] / "fixtures" / "paper_sm5"
                     / "session.json").read_text())
     d["marks"] = d["marks"][:2]
-    (tmp_path / "session.json").write_text(json.dumps(d))
-    assert main([str(tmp_path), "--out", str(tmp_path / "o")]) == 1
+    (tmp_path / "d").mkdir()
+    (tmp_path / "d" / "session.json").write_text(json.dumps(d))
+    assert main([str(tmp_path / "d"), "--out", str(tmp_path / "o")]) == 1
     assert "at least 3" in capsys.readouterr().err
 
 

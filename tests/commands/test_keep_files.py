@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import socket
 import subprocess
@@ -14,14 +15,14 @@ import sys
 
 import pytest
 
-from tests.commands.test_trust import (assert_one_line, calibration,  # noqa: F401
-                                       cli, snapshot)
+from tests.commands.test_trust import (PAPER, ROOT, TARGETS, assert_one_line,
+                                       calibration, cli, snapshot)  # noqa: F401
 import vision_cal.actions.calibrate as calibrate_action
 import vision_cal.workflows.placements as placements
 from tests.tool.test_placements import _places
 from vision_cal.camera.arm import MAX_POSES
 from vision_cal.commands.main import main
-from vision_cal.dataset.out_folder import LOCK
+from vision_cal.dataset.out_folder import LOCK, RECORD
 
 ROBOT = "fixtures/robot_sm5.yaml"
 
@@ -32,6 +33,9 @@ def pen_cal(tmp_path, calibration):  # noqa: F811
     d = tmp_path / "cal"
     shutil.copytree(calibration.parent, d)
     (d / "measurement.json").write_text('{"format": "a pen run\'s measurement"}\n')
+    record = json.loads((d / RECORD).read_text())   # as calibrate records it
+    record["runs"]["calibrate"].append("measurement.json")
+    (d / RECORD).write_text(json.dumps(record))
     return d
 
 
@@ -120,7 +124,7 @@ def test_handeye_over_a_pen_calibration_moves_it_to_previous(arm, pen_cal, capsy
     after = snapshot(pen_cal)
     for name, digest in before.items():
         if "/" not in name and not name.startswith("."):
-            assert after[f"previous/{name}"] == digest, name
+            assert after[f"previous/calibrate/{name}"] == digest, name
     assert not (pen_cal / LOCK).exists()
 
 
@@ -204,9 +208,14 @@ def test_sheet_over_another_sheet_is_refused(field_sheet, tmp_path, capsys):
     assert rc == 2
     assert_one_line(err, "sheet.json", "another sheet")
     assert snapshot(d) == before
-    # the same sheet again is its own earlier output: written, the same bytes
+    # the same sheet again is its own earlier output: written, the same bytes, the
+    # earlier files in previous/sheet/
     assert cli(["sheet", "--field", "--size", "A2", "--out", d, "-q"], capsys)[0] == 0
-    assert snapshot(d) == before
+    after = snapshot(d)
+    assert {n: after[n] for n in before} == before
+    assert {n.removeprefix("previous/sheet/"): h for n, h in after.items()
+            if n.startswith("previous/")} == {n: h for n, h in before.items()
+                                              if not n.startswith(".")}
 
 
 # --------------------------------------------------------------------------- calibrate --joint
@@ -223,9 +232,11 @@ def test_joint_rerun_retires_the_placements_it_does_not_write(tmp_path, capsys):
     assert [p["folder"] for p in top["placements"]] == ["place0", "place1"]
     # ... but kept, byte for byte, in previous/
     after = snapshot(out)
-    assert after["previous/place2/calibration.json"] == before["place2/calibration.json"]
-    assert after["previous/calibration.json"] == before["calibration.json"]
-    assert after["place0/previous/calibration.json"] == before["place0/calibration.json"]
+    for n in ("place2/calibration.json", "calibration.json", "place0/calibration.json"):
+        assert after[f"previous/calibrate/{n}"] == before[n]
+    # the placements this run writes again keep their detection caches
+    assert [n for n in after if n.startswith("place0/.cache/")] == \
+        [n for n in before if n.startswith("place0/.cache/")]
 
 
 def test_joint_folders_with_one_name_get_their_own_outputs(tmp_path, capsys):
@@ -258,8 +269,7 @@ def test_ctrl_c_during_a_joint_run_leaves_nothing_that_looks_current(tmp_path, c
     assert not [n for n in after if n.endswith("calibration.json")
                 and "previous/" not in n]
     for n in ("calibration.json", "place0/calibration.json", "place1/calibration.json"):
-        prev = n.replace("calibration.json", "previous/calibration.json")
-        assert after[prev] == before[n], n
+        assert after[f"previous/calibrate/{n}"] == before[n], n
     assert not (out / LOCK).exists()
 
 
@@ -361,3 +371,190 @@ def test_plan_never_writes_over_a_calibration(tmp_path, pen_cal, capsys):
     assert rc == 2
     assert_one_line(err, "-o", "holds JSON")
     assert snapshot(tmp_path) == before
+
+
+# --------------------------------------------------------------------------- every command
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory, calibration):  # noqa: F811
+    """Every command's inputs, cheap: calibrate's output folder (cal/, recorded), a sheet
+    (sheet's folder), the paper's dataset, targets, the robot file, a simulated robot, a
+    scene, an empty photo folder, pose pairs, pixels."""
+    w = tmp_path_factory.mktemp("world")
+    shutil.copytree(calibration.parent, w / "cal")
+    assert main(["sheet", "--size", "A4", "--out", str(w / "sheet"), "-q"]) == 0
+    shutil.copytree(PAPER, w / "paper")
+    shutil.copy(TARGETS, w / "targets.csv")
+    shutil.copy(ROBOT, w / "robot.yaml")
+    assert main(["robot-template", "--simulated", "-o", str(w / "true.yaml"), "-q"]) == 0
+    (w / "scenes").mkdir()
+    shutil.copy(ROOT / "renders" / "default.yaml", w / "scenes" / "scene.yaml")
+    (w / "photos").mkdir()
+    (w / "pairs").mkdir()
+    shutil.copy(ROOT / "fixtures" / "handeye_pairs" / "pairs.json", w / "pairs")
+    (w / "px.csv").write_text("id,u_px,v_px\na,10,20\n")
+    return w
+
+
+@pytest.fixture()
+def w(tmp_path, world):
+    d = tmp_path / "w"
+    shutil.copytree(world, d)
+    return d
+
+
+def _argv(argv, w):
+    """``{name}`` in ``argv`` is ``w/name``; ``{o}`` a new path beside ``w``."""
+    names = {p.name: str(p) for p in w.iterdir()} | {"o": str(w.parent / "o")}
+    return [re.sub(r"\{([^}]+)\}", lambda m: names[m.group(1)], a) for a in argv]
+
+
+#: each command's output aimed at one of its inputs (or a file for its folder, a folder
+#: inside its input): refused, one line naming the option, saying what to do instead
+AT_AN_INPUT = [
+    ("calibrate", ["calibrate", "{paper}", "--out", "{paper}"], "--out", "is the input DIR"),
+    ("calibrate-inside", ["calibrate", "{paper}", "--out", "{paper}/results"], "--out",
+     "inside the input DIR"),
+    ("sheet", ["sheet", "--out", "{robot.yaml}"], "--out", "expected a folder"),
+    ("design", ["design", "{robot.yaml}", "--sheet", "{sheet}/sheet.json", "--out",
+                "{sheet}/sheet.json"], "--out", "expected a folder"),
+    ("handeye", ["handeye", "--poses", "{pairs}/pairs.json", "--out", "{pairs}"], "--out",
+     "holds the input --poses"),
+    ("verify", ["verify", "{cal}/calibration.json", "{photos}", "-o", "{cal}"], "-o",
+     "holds the input CAL.json"),
+    ("survey", ["survey", "{photos}", "--sheet", "{sheet}/sheet.json", "--out", "{photos}"],
+     "--out", "is the input PHOTOS/"),
+    ("simulate", ["simulate", "{paper}", "--truth", "{true.yaml}", "--out", "{true.yaml}"],
+     "--out", "expected a folder"),
+    ("render", ["render", "{scenes}/scene.yaml", "--out", "{scenes}"], "--out",
+     "holds scene.yaml"),
+    ("loop", ["loop", "{scenes}/scene.yaml", "--out", "{scenes}"], "--out", "holds scene.yaml"),
+    ("plan", ["plan", "{cal}/calibration.json", "{targets.csv}", "-o", "{targets.csv}"], "-o",
+     "is the input TARGETS.csv"),
+    ("export", ["export", "{cal}/calibration.json", "--yaml", "{robot.yaml}", "--robot",
+                "{robot.yaml}"], "--yaml", "is the input --robot"),
+    ("history", ["history", "{cal}", "-o", "{cal}/calibration.json"], "-o", "holds JSON"),
+    ("locate", ["locate", "{cal}/calibration.json", "--csv", "{px.csv}", "-o", "{px.csv}"],
+     "-o", "is the input --csv"),
+    ("init", ["init", "{photos}", "--plan", "{paper}/session.json", "-o",
+              "{paper}/session.json"], "-o", "is the input --plan"),
+    ("robot-template", ["robot-template", "-o", "{robot.yaml}"], "--out", "exists"),
+]
+
+
+@pytest.mark.parametrize("argv,field,words", [c[1:] for c in AT_AN_INPUT],
+                         ids=[c[0] for c in AT_AN_INPUT])
+def test_no_command_writes_over_its_input(w, capsys, argv, field, words):
+    before = snapshot(w)
+    rc, _, err = cli(_argv(argv, w), capsys)
+    assert rc == 2
+    line = assert_one_line(err, field, words)
+    assert any(k in line for k in ("choose", "give", "remove")), line   # what to do instead
+    assert snapshot(w) == before
+
+
+def test_the_table_covers_every_command():
+    from vision_cal.commands.main import SUBCOMMANDS
+
+    assert {c[1][0] for c in AT_AN_INPUT} == set(SUBCOMMANDS)
+    assert {c[0][0] for c in WRONG_KIND} >= set(SUBCOMMANDS) - {"sheet", "robot-template"}
+
+
+#: each command fed the wrong kind of input (the sheet's PDF for a JSON, YAML or CSV, a
+#: folder for a file, a file for a folder): one line naming the file and what to give
+WRONG_KIND = [
+    (["calibrate", "{sheet}/sheet.pdf", "--out", "{o}"], "sheet.pdf", "is a PDF"),
+    (["design", "{sheet}/sheet.pdf", "--sheet", "{sheet}/sheet.json", "--out", "{o}"],
+     "sheet.pdf", "expected the robot file"),
+    (["design", "{robot.yaml}", "--sheet", "{sheet}", "--out", "{o}"], "sheet",
+     "sheet/sheet.json"),
+    (["handeye", "--poses", "{sheet}/sheet.pdf", "--out", "{o}"], "sheet.pdf",
+     "expected the pose pairs file"),
+    (["handeye", "{sheet}/sheet.pdf", "--out", "{o}"], "sheet.pdf", "expected a folder"),
+    (["verify", "{sheet}/sheet.pdf", "{photos}", "-o", "{o}"], "sheet.pdf",
+     "expected the calibration.json"),
+    (["survey", "{photos}", "--sheet", "{sheet}/sheet.pdf", "--out", "{o}"], "sheet.pdf",
+     "pass the sheet.json"),
+    (["simulate", "{paper}", "--truth", "{sheet}/sheet.pdf", "--out", "{o}"], "sheet.pdf",
+     "expected the simulated robot's file"),
+    (["render", "{sheet}/sheet.pdf", "--out", "{o}"], "sheet.pdf", "expected a scene file"),
+    (["loop", "{scenes}", "--out", "{o}"], "scenes", "expected a scene file"),
+    (["plan", "{sheet}/sheet.pdf", "{targets.csv}", "-o", "{o}.csv"], "sheet.pdf",
+     "expected the calibration.json"),
+    (["plan", "{cal}", "{targets.csv}", "-o", "{o}.csv"], "cal",
+     "cal/calibration.json"),
+    (["plan", "{cal}/calibration.json", "{cal}/calibration.json", "-o", "{o}.csv"],
+     "calibration.json", "is JSON, expected a targets CSV"),
+    (["plan", "{cal}/calibration.json", "{targets.csv}", "-o", "{o}.csv", "--robot",
+      "{sheet}", "--program", "spel"], "sheet", "expected the robot file"),
+    (["export", "{sheet}/sheet.pdf", "--yaml", "{o}.yaml"], "sheet.pdf",
+     "expected the calibration.json"),
+    (["history", "{sheet}/sheet.pdf"], "sheet.pdf", "not a folder"),
+    (["locate", "{sheet}/sheet.pdf", "--pixel", "1", "1"], "sheet.pdf",
+     "expected the calibration.json"),
+    (["init", "{photos}", "--plan", "{sheet}/sheet.pdf"], "sheet.pdf",
+     "expected a dataset's session.json"),
+]
+
+
+@pytest.mark.parametrize("argv,name,words", WRONG_KIND,
+                         ids=[f"{c[0][0]}-{i}" for i, c in enumerate(WRONG_KIND)])
+def test_the_wrong_kind_of_input_says_what_to_give(w, capsys, argv, name, words):
+    before = snapshot(w)
+    rc, _, err = cli(_argv(argv, w), capsys)
+    assert rc == 2
+    line = assert_one_line(err, name, words)
+    assert "sheet.pdf: is a PDF, expected a text file" not in line   # says which
+    assert snapshot(w) == before
+    assert not (w.parent / "o").exists()
+
+
+# ----------------------------------------- into another command's output folder (issue 38)
+
+def test_handeye_twice_into_a_pen_calibration_never_drops_it(w, capsys):
+    """`handeye --poses` run twice into calibrate's folder: the pen calibration is in
+    previous/calibrate/ after both (previous/ kept one run: the second deleted it), the
+    first hand-eye in previous/handeye/."""
+    pen = snapshot(w / "cal")
+    argv = ["handeye", "--poses", w / "pairs" / "pairs.json", "--out", w / "cal", "-q"]
+    assert cli(argv, capsys)[0] == 0
+    first = (w / "cal" / "calibration.json").read_bytes()
+    assert cli(argv, capsys)[0] == 0
+    after = snapshot(w / "cal")
+    for n, h in pen.items():
+        if not n.startswith("."):
+            assert after[f"previous/calibrate/{n}"] == h, n
+    assert (w / "cal" / "previous" / "handeye" / "calibration.json").read_bytes() == first
+    # and calibrate over the hand-eye moves that one aside, the pen run's stays
+    assert cli(["calibrate", PAPER, "--out", w / "cal", "-q"], capsys)[0] == 0
+    after = snapshot(w / "cal")
+    assert "previous/handeye/calibration.json" in after
+    assert after["previous/calibrate/calibration.json"] == pen["calibration.json"]
+
+
+@pytest.mark.parametrize("argv,words", [
+    (["render", "{scenes}/scene.yaml", "--out", "{cal}"], "holds calibration.json"),
+    (["loop", "{scenes}/scene.yaml", "--out", "{sheet}"], "holds sheet.json"),
+], ids=["render-into-calibration", "loop-into-sheet"])
+def test_a_folder_of_its_own_is_refused_over_another_commands(w, capsys, argv, words):
+    before = snapshot(w)
+    rc, _, err = cli(_argv(argv, w), capsys)
+    assert rc == 2
+    assert_one_line(err, "--out", words, "choose an empty folder")
+    assert snapshot(w) == before
+
+
+@pytest.mark.parametrize("argv", [
+    ["sheet", "--size", "A4", "--out", "{cal}", "-q"],
+    ["plan", "{cal}/calibration.json", "{targets.csv}", "-o", "{cal}/plan.csv", "--force",
+     "-q"],
+], ids=["sheet", "plan"])
+def test_beside_another_commands_results_they_stay(w, capsys, argv):
+    """A command writing into calibrate's folder leaves its results where and as they are
+    (no file of theirs is one it writes)."""
+    before = snapshot(w / "cal")
+    assert cli(_argv(argv, w), capsys)[0] == 0
+    after = snapshot(w / "cal")
+    assert {n: after.get(n) for n in before if not n.startswith(".")} == \
+        {n: h for n, h in before.items() if not n.startswith(".")}
+    assert not (w / "cal" / "previous").exists()

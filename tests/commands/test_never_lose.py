@@ -69,7 +69,8 @@ def test_a_program_path_that_is_a_folder_writes_nothing(work, capsys):
 
 def test_outputs_written_together_or_not_at_all(work, capsys, monkeypatch):
     """A failure while writing the last output (the program) leaves the earlier outputs
-    of this command unwritten and the files of an earlier run untouched."""
+    of this command unwritten and the files of an earlier run kept, byte for byte, in
+    previous/ (nothing that looks current)."""
     import vision_cal.actions.plan as action
 
     (work / "p.csv").write_text("earlier\n")
@@ -86,17 +87,19 @@ def test_outputs_written_together_or_not_at_all(work, capsys, monkeypatch):
         cli(["plan", work / "cal.json", work / "targets.csv", "-o", work / "p.csv",
              "--program", "spel", "--robot", work / "robot.yaml", "--trajectory",
              work / "t.csv", "-q", "--force"], capsys)   # --force: the paper's valid_for
-    assert snapshot(work) == before
+    after = snapshot(work)
+    assert after.pop("previous/plan-p/p.csv") == before.pop("p.csv")
+    assert after == before
     assert not [p for p in work.iterdir() if p.name.endswith(".tmp")]
 
 
 def test_home_outside_the_joint_limits_is_refused(work, capsys):
     before = snapshot(work)
     rc, _, err = cli(["plan", work / "cal.json", work / "targets.csv", "-o", work / "p.csv",
-                      "--home", "1000", "0", "--program", "spel", "--robot",
+                      "--home", "300", "0", "--program", "spel", "--robot",
                       work / "robot.yaml"], capsys)
     assert rc == 2
-    assert_one_line(err, "--home", "joint 1 at 1000 deg", "robot.yaml")
+    assert_one_line(err, "--home", "joint 1 at 300 deg", "robot.yaml")
     assert snapshot(work) == before
 
 
@@ -202,6 +205,16 @@ def _calibrate(capsys, *argv):
     return cli([*argv, "-q"], capsys)
 
 
+def _results(snap: dict) -> dict:
+    """A folder's snapshot without vision-cal's hidden files (its record of the runs)."""
+    return {k: v for k, v in snap.items() if not k.startswith(".")}
+
+
+def _previous(out) -> dict:
+    """The earlier calibration kept in OUT/previous/calibrate/."""
+    return snapshot(out / "previous" / "calibrate")
+
+
 def test_a_run_without_report_retires_the_earlier_report(tmp_path, capsys):
     out = tmp_path / "out"
     assert _calibrate(capsys, PAPER, "-o", out, "--report")[0] == 0
@@ -210,9 +223,8 @@ def test_a_run_without_report_retires_the_earlier_report(tmp_path, capsys):
     assert rc == 0, err
     assert not (out / "report.json").exists() and not (out / "report.html").exists()
     # nothing lost: the earlier set is kept, marked as previous
-    assert snapshot(out / "previous") == {k: v for k, v in first.items()
-                                          if k in ("calibration.json", "report.json",
-                                                   "report.html")}
+    assert _previous(out) == {k: v for k, v in first.items()
+                              if k in ("calibration.json", "report.json", "report.html")}
 
 
 def test_a_failed_run_leaves_no_calibration_that_looks_current(tmp_path, capsys):
@@ -229,7 +241,7 @@ def test_a_failed_run_leaves_no_calibration_that_looks_current(tmp_path, capsys)
     assert rc == 1
     assert_one_line(err, "at least 3")
     assert not (out / "calibration.json").exists() and not (out / "report.html").exists()
-    assert snapshot(out / "previous") == first
+    assert _previous(out) == _results(first)
 
 
 def test_ctrl_c_while_the_report_is_written_leaves_no_report(tmp_path, capsys, monkeypatch):
@@ -247,7 +259,7 @@ def test_ctrl_c_while_the_report_is_written_leaves_no_report(tmp_path, capsys, m
     assert rc == 130
     assert_one_line(err, "interrupted")
     assert not (out / "report.json").exists() and not (out / "report.html").exists()
-    assert snapshot(out / "previous") == first
+    assert _previous(out) == _results(first)
 
 
 def test_two_folders_with_one_name_get_their_own_outputs(tmp_path, capsys):
@@ -302,7 +314,7 @@ def test_a_unit_mistake_stops_the_run_naming_it(tmp_path, capsys, unit, words):
     rc, _, err = _calibrate(capsys, folder, "-o", out)
     assert rc == 2
     assert_one_line(err, folder / "session.json", "implausible", words)
-    assert not (out / "calibration.json").exists() and snapshot(out / "previous") == first
+    assert not (out / "calibration.json").exists() and _previous(out) == _results(first)
     assert snapshot(folder) == before
 
 

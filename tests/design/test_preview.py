@@ -31,8 +31,8 @@ def test_without_pen_heights_design_writes_the_plan_and_says_why_no_program(
     rc = main(["design", robot, "--sheet", str(sheet_json), "--out", str(tmp_path / "p")])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 0
-    assert {f.name for f in (tmp_path / "p").iterdir()} == {"session.json", "trajectory.csv",
-                                                             "preview.png"}
+    assert {f.name for f in (tmp_path / "p").iterdir()
+            if not f.name.startswith(".")} == {"session.json", "trajectory.csv", "preview.png"}
     assert len(err) == 1 and "pen_up_mm" in err[0] and "robot.yaml" in err[0], err
 
 

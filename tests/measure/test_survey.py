@@ -101,6 +101,6 @@ def test_a_second_survey_keeps_the_first_in_previous(surveyed, capsys):
     first = (tmp / "out" / "survey.json").read_bytes()
     assert main(["survey", str(tmp / "photos"), "--sheet", str(tmp / "sheet.json"),
                  "--out", str(tmp / "out"), "-q"]) == 0
-    assert (tmp / "out" / "previous" / "survey.json").read_bytes() == first
+    assert (tmp / "out" / "previous" / "survey" / "survey.json").read_bytes() == first
     assert (tmp / "out" / "survey.json").is_file()
 

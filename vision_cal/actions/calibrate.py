@@ -12,11 +12,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from vision_cal.dataset.io import atomic_write_json, output_dir, written_together
+from vision_cal.dataset.io import atomic_write_json, written_together
 from vision_cal.dataset.marks_csv import session_from_marks_csv
-from vision_cal.dataset.out_folder import (earlier_placements, output_names,
-                                           refuse_input_folder, retire_and_say,
-                                           writing_into)
+from vision_cal.dataset.out_folder import output_names, refuse_input_folder, writing_into
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.survey import find_survey
 from vision_cal.workflows.pipeline import CalibrationRun, calibrate_dataset
@@ -121,17 +119,12 @@ def calibrate_joint(req: CalibrateRequest) -> JointCalibrated:
         raise VisionCalError("--joint fits by least squares only", field="--method")
     out = Path(req.out or "out")
     names = output_names(req.folders)
-    # an earlier joint run's results go to previous/ first: its top file and the
-    # placement folders this run does not write (whole), and, in the ones it does,
-    # their results (the detection cache stays); so an interrupted run leaves nothing
-    # that looks current, and no placement of an earlier run beside this one's top file
-    stale = [n for n in earlier_placements(out) if n not in names]
     for n in names:   # --out . with the placements in it: their folders are inputs
         refuse_input_folder(out / n, _inputs(req.folders))
+    # an earlier run's results (its top file, every placement's) go to previous/ whole
+    # first, the placement folders' caches kept (dataset/out_folder.py)
     with writing_into(out, command="calibrate --joint", inputs=_inputs(req.folders),
-                      subfolders=stale, quiet=req.quiet):
-        for n in names:
-            retire_and_say(out / n, quiet=req.quiet)
+                      into=names, quiet=req.quiet):
         doc = calibrate_placements(req.folders, out_dir=out, jobs=req.jobs,
                                    progress=not req.quiet, names=names)
     return JointCalibrated(doc, out / "calibration.json")
@@ -145,29 +138,32 @@ def calibrate_folders(req: CalibrateRequest, tell: Callable[[object], None]) -> 
     for name, value in (("--robot", req.robot), ("--sigma-mm", req.sigma_mm)):
         if value is not None and not any(csvs):
             raise VisionCalError("applies to a marks CSV only", field=name)
-    output_dir(req.out or "out", field="--out")
-    names = [Path(n).stem if c else n for n, c in zip(output_names(req.folders), csvs)]
+    names = output_names(req.folders, suffixes=(".csv",))   # never two into one folder
+    top = Path(req.out or "out")
+    outs = [top / n if (req.out and several) else Path(req.out or f"out/{n}") for n in names]
+    for out in outs:   # before any is calibrated: --out . with the folders in it
+        refuse_input_folder(out, _inputs(req.folders))
     if several and names != [Path(f).resolve().name for f in req.folders]:
         # two folders share a name: say where each one goes
-        tell(OutputsNamed(tuple((str(f), Path(req.out or "out") / n)
-                                for f, n in zip(req.folders, names))))
-    rows = []
-    for folder, name in zip(req.folders, names):
-        out = Path(req.out) / name if (req.out and several) else Path(req.out or f"out/{name}")
-        try:
-            done = calibrate_one(req, folder, out, tell)
-        except VisionCalError as e:
-            if not several:
-                raise
-            tell(FolderFailed(str(folder), str(e)))
-            rows.append({"folder": str(folder), "status": "failed", "reason": str(e)})
-            continue
-        rows.append(_row(folder, done.run))
-        tell(done)
+        tell(OutputsNamed(tuple((str(f), o) for f, o in zip(req.folders, outs))))
     if not several:
+        tell(calibrate_one(req, req.folders[0], outs[0], tell))
         return CalibrateOutcome()
-    summary = Path(req.out or "out") / "summary.json"
-    atomic_write_json(summary, {"folders": rows})
+    # OUT holds one run: an earlier one's summary.json and folders go to previous/ whole
+    # (the folders this run writes keep their caches; dataset/out_folder.py)
+    with writing_into(top, command="calibrate", inputs=_inputs(req.folders), into=names,
+                      quiet=req.quiet):
+        rows = []
+        for folder, out in zip(req.folders, outs):
+            try:
+                done = calibrate_one(req, folder, out, tell)
+            except VisionCalError as e:
+                tell(FolderFailed(str(folder), str(e)))
+                rows.append({"folder": str(folder), "status": "failed", "reason": str(e)})
+                continue
+            rows.append(_row(folder, done.run))
+            tell(done)
+        summary = atomic_write_json(top / "summary.json", {"folders": rows})
     return CalibrateOutcome(tuple(rows), summary)
 
 

@@ -103,7 +103,8 @@ def design(req: DesignRequest) -> StageDesigned | PlacementsDesigned | CameraPos
         if req.pilot:
             raise VisionCalError("--placements designs each placement's pilot; design the "
                                  "informative plans per placement folder", field="--pilot")
-        with writing_into(req.out, command="design", retire=False):   # locked while written
+        with writing_into(req.out, command="design", reads=_reads(req), refuse=_no_photos,
+                          quiet=req.quiet):
             places = design_placements(req.robot, req.sheet, req.out, req.placements,
                                        program=None if req.program == "none" else req.program,
                                        seed=req.seed)
@@ -130,7 +131,10 @@ def design(req: DesignRequest) -> StageDesigned | PlacementsDesigned | CameraPos
     check = req.verify is not None
     if not 0 <= req.iso9283 <= 30:
         raise VisionCalError(f"expected 1..30 cycles, got {req.iso9283}", field="--iso9283")
-    with writing_into(req.out, command="design", retire=False):   # locked while written
+    # the earlier design's files (session.json, its program, trajectory, preview, survey
+    # copy) go to previous/ whole (dataset/out_folder.py); locked while written
+    with writing_into(req.out, command="design", reads=_reads(req), refuse=_no_photos,
+                      quiet=req.quiet):
         r = design_stage(req.robot, req.sheet, req.out,
                          pilot=req.verify if check else req.pilot,
                          program=None if req.program == "none" else req.program,
@@ -139,10 +143,24 @@ def design(req: DesignRequest) -> StageDesigned | PlacementsDesigned | CameraPos
                          safety_mm=req.safety_mm, seed=req.seed,
                          stage="verify" if check else None,
                          iso9283_cycles=req.iso9283 if check else 0)
-
-    dest = (copy_survey(survey, load_sheet_file(req.sheet), r.session_path.parent)
-            if survey is not None else None)
+        dest = (copy_survey(survey, load_sheet_file(req.sheet), r.session_path.parent)
+                if survey is not None else None)
     return StageDesigned(r, survey, dest, req.verify, req.out)
+
+
+def _reads(req: DesignRequest) -> list:
+    """The files a design reads (never moved aside, even in its folder)."""
+    return [req.robot, req.sheet, req.pilot, req.verify, req.survey]
+
+
+def _no_photos(out: Path, moving) -> None:
+    """A folder holding photos (of an earlier plan, drawn and photographed) is refused: a
+    new design would not match them."""
+    photos = [p for p in list_photos(out) if p not in moving]
+    if photos:
+        raise VisionCalError(f"holds photos ({photos[0]}, ...) of an earlier design: a new "
+                             "design would not match them; choose another --out",
+                             file=str(out), field="--out")
 
 
 #: options that contradict each other: (a, b, why); ``a`` and ``b`` name an option given
@@ -187,18 +205,15 @@ def _refuse_conflicts(req: DesignRequest) -> None:
 
 
 def _camera_on_arm(req: DesignRequest) -> CameraPosesDesigned:
-    check_design(n_poses=req.n_poses, trigger=req.trigger, seed=req.seed)
+    check_design(n_poses=req.n_poses, trigger=req.trigger, seed=req.seed,
+                 output_bit=req.trigger_output)
     if not 0 <= req.repeats <= req.n_poses:
         raise VisionCalError(f"expected 0..{req.n_poses} (--n-poses), got {req.repeats}",
                              field="--repeats")
     robot = load_robot_file(req.robot)
     sheet = load_sheet_file(req.sheet)
-    with writing_into(req.out, command="design", retire=False) as out:
-        photos = list_photos(out)
-        if photos:   # their poses are the earlier session's: a new one would not match them
-            raise VisionCalError(f"holds photos ({photos[0]}, ...) of an earlier design: new "
-                                 "poses would not match them; choose another --out",
-                                 file=str(out), field="--out")
+    with writing_into(req.out, command="design", reads=_reads(req), refuse=_no_photos,
+                      quiet=req.quiet) as out:
         with written_together():   # session.json and program.prg both, or neither
             a, b = design_camera_on_arm(robot, sheet, read_json(req.sheet), out,
                                         n_poses=req.n_poses, mount=req.mount,

@@ -10,7 +10,7 @@ from vision_cal.camera.export import transform_path, write_opencv, write_ros
 from vision_cal.camera.fixed import camera_of
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.io import distinct_outputs, written_together
-from vision_cal.dataset.out_folder import output_file_of_kind
+from vision_cal.dataset.out_folder import output_file_of_kind, replacing_files
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.dataset.trust import refuse_unreliable
 from vision_cal.dataset.valid_for import check as check_valid_for
@@ -55,11 +55,7 @@ def export_calibration(req: ExportRequest) -> ExportOutcome:
                       ("--ros", req.ros)):
         if path:   # never over a JSON (a calibration), an image or a PDF
             output_file_of_kind(path, "text", field=opt)
-    distinct_outputs([("--urdf", req.urdf),
-                      ("--urdf (its effects)", req.urdf and effects_path(req.urdf)),
-                      ("--yaml", req.yaml), ("--opencv", req.opencv), ("--ros", req.ros),
-                      ("--ros (its transform)",
-                       req.ros and transform_path(req.ros))],
+    distinct_outputs(_outputs(req),
                      [("CALIBRATION.json", req.calibration), ("--robot", req.robot)])
     model, doc = load_calibration(req.calibration, sheet_frame=False)
     robot = load_robot_file(req.robot) if req.robot else None
@@ -80,7 +76,11 @@ def export_calibration(req: ExportRequest) -> ExportOutcome:
         limits, limits4 = robot.joint_limits_deg, robot.joint4_limits_deg
         limits3 = robot.joint3_limits_mm
     written = []
-    with written_together():
+    # one output set: an earlier export's files (an effects file this one does not write
+    # among them) go to previous/export-<name>/ first
+    with replacing_files(_outputs(req), command="export", quiet=req.quiet,
+                         inputs=[("CALIBRATION.json", req.calibration), ("--robot", req.robot)]
+                         ), written_together():
         if req.opencv or req.ros:
             cam = camera_of(doc, req.camera, file=req.calibration)
             written += [write_opencv(req.opencv, cam)] if req.opencv else []
@@ -90,3 +90,10 @@ def export_calibration(req: ExportRequest) -> ExportOutcome:
                              limits_deg=limits, limits4_deg=limits4,
                              limits3_mm=limits3, extrapolated=said) + written
     return ExportOutcome(tuple(str(p) for p in written), (warn,) if warn else (), tuple(said))
+
+
+def _outputs(req: ExportRequest) -> list:
+    """(option, path) of every file the export writes (None: not asked)."""
+    return [("--urdf", req.urdf), ("--urdf (its effects)", req.urdf and effects_path(req.urdf)),
+            ("--yaml", req.yaml), ("--opencv", req.opencv), ("--ros", req.ros),
+            ("--ros (its transform)", req.ros and transform_path(req.ros))]

@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from vision_cal.dataset.io import atomic_write_bytes, atomic_write_text, written_together
-from vision_cal.dataset.out_folder import output_file_of_kind
+from vision_cal.dataset.out_folder import output_file_of_kind, replacing_files
 from vision_cal.report.history import HistoryRow, history_csv, history_png, read_history
 
 
@@ -40,7 +40,10 @@ def history(req: HistoryRequest) -> HistoryOutcome:
     rows = read_history(req.folder)
     csv_text = history_csv(rows)
     png = history_png(rows) if req.plot else None
-    with written_together():
+    if not (req.out or req.plot):
+        return HistoryOutcome(tuple(rows))
+    with replacing_files([("-o", req.out), ("--plot", req.plot)], command="history",
+                         quiet=req.quiet), written_together():
         if req.out:
             atomic_write_text(req.out, csv_text)
         if png is not None:

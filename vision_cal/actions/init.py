@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from vision_cal.dataset.io import atomic_write_json, distinct_outputs
+from vision_cal.dataset.out_folder import replacing_files
 from vision_cal.errors import VisionCalError
 from vision_cal.workflows.complete import complete_session
 
@@ -50,9 +51,7 @@ def init_session(req: InitSessionRequest) -> InitOutcome:
         if out.is_dir():
             raise VisionCalError("is a folder, expected a .json file to write",
                                  file=str(req.out))
-        plan = Path(req.plan)
-        distinct_outputs([("-o", out)], [("--plan", plan / "session.json" if plan.is_dir()
-                                          else plan)])
+        distinct_outputs([("-o", out)], [("--plan", _plan_file(req.plan))])
     progress = (not req.quiet) and sys.stderr.isatty()
     doc, meas = complete_session(req.photos, req.plan, jobs=req.jobs, progress=progress)
     if not doc["images"]:
@@ -62,12 +61,17 @@ def init_session(req: InitSessionRequest) -> InitOutcome:
                              file=str(req.photos))
     warnings = tuple(f"{req.photos}/{im.file}: not used: {im.reason}"
                      for im in meas.images if im.status != "ok") + tuple(meas.warnings)
-    if req.out:
-        try:
+    if req.out:   # the output set's one owner: an earlier session.json to previous/
+        with replacing_files([("-o", req.out)], command="init", quiet=req.quiet,
+                             inputs=[("--plan", _plan_file(req.plan))]):
             atomic_write_json(req.out, doc)
-        except OSError as e:
-            raise VisionCalError(f"cannot write: {e.strerror or e}", file=str(req.out)) from e
     summary = (f"{len(doc['images'])} photo(s) of the sheet ({meas.inferred or 'none'}), "
                f"{len(meas.marks)} of {len(meas.marks) + len(meas.refused)} marks found"
                + (f" -> {req.out}" if req.out else ""))
     return InitOutcome(doc, req.out, warnings, summary)
+
+
+def _plan_file(plan) -> Path:
+    """The plan's session.json (``--plan`` a folder or the file)."""
+    plan = Path(plan)
+    return plan / "session.json" if plan.is_dir() else plan

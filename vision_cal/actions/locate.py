@@ -15,7 +15,7 @@ from vision_cal.camera.fixed import locate
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.csvio import number_field, read_rows
 from vision_cal.dataset.io import atomic_write_text
-from vision_cal.dataset.out_folder import output_file_of_kind
+from vision_cal.dataset.out_folder import output_file_of_kind, replacing_files
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.dataset.valid_for import check as check_valid_for
 from vision_cal.dataset.valid_for import enforce as enforce_valid_for
@@ -32,7 +32,7 @@ CSV_IN = ("id", "u_px", "v_px")
 def _read_pixels(path, z_default: float):
     """(ids, pixels, heights, line numbers) of PIXELS.csv, every cell checked."""
     ids, uv, z, lines = [], [], [], []
-    for i, (line, row) in enumerate(read_rows(path, CSV_IN)):
+    for i, (line, row) in enumerate(read_rows(path, CSV_IN, what="pixels CSV")):
         vals = []
         for k in ("u_px", "v_px", "z_mm"):
             v = (row.get(k) or "").strip()
@@ -145,9 +145,12 @@ def locate_pixels(req: LocateRequest) -> LocateOutcome:
             for i in o.ids:
                 flagged[i] = (flagged.get(i, "") + " " + o.field).strip()
         text = _csv_text(req, ids, points, joints, flagged if said else None)
-        if req.out:
-            return LocateOutcome(tuple(said), path=atomic_write_text(req.out, text),
-                                 n=len(points))
+        if req.out:   # the output set's one owner: an earlier file to previous/
+            with replacing_files([("-o", req.out)], command="locate", quiet=req.quiet,
+                                 inputs=[("CALIBRATION.json", req.calibration),
+                                         ("--csv", req.csv), ("--robot", req.robot)]):
+                path = atomic_write_text(req.out, text)
+            return LocateOutcome(tuple(said), path=path, n=len(points))
         return LocateOutcome(tuple(said), csv_text=text, n=len(points))
     return LocateOutcome(tuple(said), point=points[0], joint=joints[0], camera=req.camera,
                          elbow=req.elbow, n=1)

@@ -41,10 +41,12 @@ def loop(req: LoopRequest) -> LoopOutcome:
     if req.jobs is not None and req.jobs < 1:
         raise VisionCalError(f"must be at least 1, got {req.jobs}", field="--jobs")
     progress = not req.quiet  # a bar on a terminal, else one line per stage
-    with writing_into(req.out, command="loop", retire=False):   # locked while written
-        doc, run = run_loop(req.scene, out_dir=req.out, jobs=req.jobs, progress=progress,
+    # OUT holds one loop: an earlier one's files go to previous/loop/ whole (the caches of
+    # its measurements kept), files of anything else are refused; locked while written
+    with writing_into(req.out, command="loop", reads=[req.scene], alone=True, displace=False,
+                      into=("calibration", "measure_*"), quiet=req.quiet) as out:
+        doc, run = run_loop(req.scene, out_dir=out, jobs=req.jobs, progress=progress,
                             elbow=req.elbow)
-    out = Path(req.out)
-    report = (write_report(run.out_path, out / "calibration", loop=out / "loop.json")
-              if req.report else None)
-    return LoopOutcome(doc, run.document, out, report)
+        report = (write_report(run.out_path, out / "calibration", loop=out / "loop.json")
+                  if req.report else None)
+    return LoopOutcome(doc, run.document, Path(out), report)

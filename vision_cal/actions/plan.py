@@ -13,7 +13,7 @@ from vision_cal.dataset.covariance import load_covariance
 from vision_cal.dataset.csvio import (failed_report_path, read_target_theta, read_targets,
                                       write_failed_targets, write_plan)
 from vision_cal.dataset.io import distinct_outputs, written_together
-from vision_cal.dataset.out_folder import output_file_of_kind
+from vision_cal.dataset.out_folder import output_file_of_kind, replacing_files
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.dataset.trust import refuse_unreliable
 from vision_cal.dataset.valid_for import check as check_valid_for
@@ -26,6 +26,7 @@ from vision_cal.plan.compensate import plan_targets, to_planned_marks, write_pla
 from vision_cal.plan.orient import controller_tool_mm, plan_poses
 from vision_cal.plan.trajectory import check_length
 from vision_cal.plan.uncertainty import predicted_std_mm
+from vision_cal.program import KINDS as PROGRAM_KINDS
 from vision_cal.program import check_program, program_path, program_points, write_program
 
 
@@ -121,9 +122,13 @@ def _check_outputs(req: PlanRequest) -> tuple[Path | None, Path]:
     report = failed_report_path(req.out)
     distinct_outputs([("-o", req.out), ("-o (its failed targets)", report),
                       ("--trajectory", req.trajectory), ("--program", prg)],
-                     [("CALIBRATION.json", req.calibration), ("TARGETS.csv", req.targets),
-                      ("--robot", req.robot)])
+                     _inputs(req))
     return prg, report
+
+
+def _inputs(req: PlanRequest) -> list:
+    return [("CALIBRATION.json", req.calibration), ("TARGETS.csv", req.targets),
+            ("--robot", req.robot)]
 
 
 def _robot_of(req: PlanRequest):
@@ -182,7 +187,13 @@ def _write_outputs(req: PlanRequest, model, robot, p: _Planned, said, flagged: d
     earlier files as they were); return the program written (None: none)."""
     ok, poses, pose_of = p.ok, p.poses, p.pose_of
     written_program = None
-    with written_together():
+    # one output set: an earlier run's plan, report, trajectory and program (of any
+    # dialect) go to previous/plan-<name>/ first, whatever this run writes
+    with replacing_files([("-o", req.out), ("-o (its failed targets)", report),
+                          ("--trajectory", req.trajectory), ("--program", prg)],
+                         command="plan", inputs=_inputs(req), quiet=req.quiet,
+                         siblings=[program_path(k, Path(req.out).with_suffix(""))
+                                   for k in PROGRAM_KINDS]), written_together():
         # the command file holds only what can be sent to the robot: no NaN, no failed row
         # (an unknown std, as with the nominal model, is left empty)
         write_plan(req.out, [dict(t.to_row() if poses is None else pose_of[t.id].to_row(),
@@ -219,16 +230,12 @@ def _write_outputs(req: PlanRequest, model, robot, p: _Planned, said, flagged: d
 
 def _outcome(req: PlanRequest, doc: dict, p: _Planned, said, warn, written_program,
              report) -> PlanOutcome:
-    """What the planning says: the failed targets (or, none failed, the stale report of an
-    earlier run removed), the targets on the print, the extrapolations; the error when
-    nothing could be planned."""
+    """What the planning says: the failed targets, the targets on the print, the
+    extrapolations; the error when nothing could be planned."""
     ok, failed, planned = p.ok, p.failed, p.planned
     warnings = []
-    if failed:
-        if ok:  # when none is planned, the error below says it once
-            warnings.append(f"{req.targets}: {summarise_failures(failed)}; all in {report}")
-    else:
-        report.unlink(missing_ok=True)  # a stale report of an earlier run
+    if failed and ok:  # when none is planned, the error below says it once
+        warnings.append(f"{req.targets}: {summarise_failures(failed)}; all in {report}")
     warnings += _targets_on_print(req, doc, ok) + list(said)
     return PlanOutcome(
         f"planned {len(planned) - len(failed)} of {len(planned)} targets with the "

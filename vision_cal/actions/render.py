@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from vision_cal.calibrate.paper import pilot_params
+from vision_cal.dataset.out_folder import writing_into
 from vision_cal.errors import VisionCalError
 from vision_cal.render.dataset import render_dataset
 from vision_cal.render.scene import load_scene
@@ -40,6 +41,10 @@ def render(req: RenderRequest) -> RenderOutcome:
     scene = load_scene(req.scene).with_overrides(seed=req.seed, mode=req.mode)
     if req.jobs is not None and req.jobs < 1:
         raise VisionCalError(f"must be at least 1, got {req.jobs}", field="--jobs")
-    out = render_dataset(scene, req.out, progress=not req.quiet, pilot=pilot_params,
-                         jobs=req.jobs or os.cpu_count())
+    # OUT holds one dataset: an earlier render's goes to previous/render/ whole, files of
+    # anything else are refused (dataset/out_folder.py); locked while written
+    with writing_into(req.out, command="render", reads=[req.scene], alone=True, displace=False,
+                      quiet=req.quiet):
+        out = render_dataset(scene, req.out, progress=not req.quiet, pilot=pilot_params,
+                             jobs=req.jobs or os.cpu_count())
     return RenderOutcome(Path(out))

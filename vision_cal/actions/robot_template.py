@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from vision_cal.dataset.io import atomic_write_text
+from vision_cal.dataset.out_folder import replacing_files
 from vision_cal.errors import VisionCalError
 from vision_cal.templates import template_text
 
@@ -35,8 +36,12 @@ def robot_template(req: RobotTemplateRequest) -> RobotTemplateOutcome:
     if req.out is None:
         return RobotTemplateOutcome(text, None, req.simulated)
     out = Path(req.out)
-    if out.exists():
+    if out.is_dir():
+        raise VisionCalError("is a folder, expected the robot file's name (e.g. "
+                             f"{out / 'robot.yaml'})", file=str(out), field="--out")
+    if out.exists():   # a robot file being filled in is never replaced
         raise VisionCalError("exists: not replaced (remove it or choose another name)",
                              file=str(out), field="--out")
-    atomic_write_text(out, text)
+    with replacing_files([("--out", out)], command="robot-template", quiet=req.quiet):
+        atomic_write_text(out, text)
     return RobotTemplateOutcome(text, out, req.simulated)

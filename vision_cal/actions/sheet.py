@@ -58,8 +58,9 @@ def sheet(req: SheetRequest) -> SheetOutcome:
                              marker_mm=req.marker_mm, pitch_mm=req.pitch_mm,
                              measured_bar_mm=req.measured_bar_mm)
     # another sheet in the folder (the one the plans were designed on) is never replaced;
-    # the folder is locked while written (issue 30)
+    # the earlier files of this one go to previous/sheet/ (a PNG this run does not write
+    # among them); the folder is locked while written (issue 30)
     refuse_other_sheet(req.out, layout.sheet_id)
-    with writing_into(req.out, command="sheet", retire=False) as out, written_together():
+    with writing_into(req.out, command="sheet", quiet=req.quiet) as out, written_together():
         paths = write_sheet(layout, out, png_dpi=req.png_dpi)
     return SheetOutcome(layout, paths)

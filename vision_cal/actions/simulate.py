@@ -6,9 +6,11 @@ and truth.json renamed into place together. Returns what was drawn;
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 from vision_cal.dataset.io import written_together
 from vision_cal.dataset.out_folder import writing_into
+from vision_cal.dataset.photos import list_photos
 from vision_cal.errors import VisionCalError
 from vision_cal.render.rehearse import SimulateResult, simulate_session
 
@@ -31,9 +33,24 @@ def simulate(req: SimulateRequest) -> SimulateResult:
     """Draw and photograph ``req.plan`` with the simulated robot of ``req.truth``."""
     if req.seed is not None and req.seed < 0:
         raise VisionCalError(f"expected a non-negative integer, got {req.seed}", field="--seed")
-    # locked while written; the photos, session.json and truth.json are renamed into place
-    # together at the end, so an interrupted run leaves none of them (issue 30)
-    with writing_into(req.out, command="simulate", retire=False), written_together():
+    # locked while written; an earlier rehearsal's photos, session.json and truth.json go
+    # to previous/simulate/ whole (photos of anything else are refused), and this one's are
+    # renamed into place together at the end, so an interrupted run leaves none of them
+    into_plan = Path(req.plan).is_dir() and Path(req.plan).resolve() == Path(req.out).resolve()
+    with writing_into(req.out, command="simulate",
+                      reads=[req.plan, req.truth, req.sheet, req.targets, *req.after],
+                      writes=("truth.json",) if into_plan else ("truth.json", "session.json"),
+                      refuse=_no_other_photos, quiet=req.quiet), written_together():
         return simulate_session(req.plan, req.truth, req.out, after=list(req.after),
                                 progress=not req.quiet, rng=req.seed, sheet_json=req.sheet,
                                 targets=req.targets)
+
+
+def _no_other_photos(out: Path, moving) -> None:
+    """Photos in OUT that no earlier rehearsal took there (the user's, a render's) are
+    refused before anything moves: a rehearsal adds its own."""
+    photos = [p for p in list_photos(out) if p not in moving]
+    if photos:
+        raise VisionCalError(f"holds photos already ({photos[0]}, ...) that no earlier "
+                             "`vision-cal simulate` took: a rehearsal adds its own; choose an "
+                             "empty folder", file=str(out), field="--out")

@@ -8,7 +8,6 @@ from pathlib import Path
 
 from vision_cal.dataset.io import distinct_outputs
 from vision_cal.dataset.out_folder import writing_into
-from vision_cal.errors import VisionCalError
 from vision_cal.measure.survey import SURVEY_FILE, run_survey
 
 
@@ -32,15 +31,12 @@ class SurveyOutcome:
 
 def survey(req: SurveyRequest) -> SurveyOutcome:
     """Survey the sheet ``req.sheet`` from the photos in ``req.photos`` into OUT, through
-    the output folders' one owner: never the photos' folder; an earlier survey.json goes to
-    OUT/previous/ (OUT may hold the sheet itself, and other commands' files stay where they
-    are); locked while written."""
-    out, root = Path(req.out), Path(req.photos)
-    if root.is_dir() and out.resolve().is_relative_to(root.resolve()):
-        raise VisionCalError("the output folder must not be inside the photos' folder "
-                             "(photos are never written to)", file=str(out), field="--out")
+    the output folders' one owner: never the photos' folder; an earlier survey goes to
+    OUT/previous/survey/ (OUT may hold the sheet itself, and other commands' files stay where
+    they are; a plan's copy of a survey is refused, not replaced); locked while written."""
+    out = Path(req.out)
     distinct_outputs([("--out", out / SURVEY_FILE)], [("--sheet", req.sheet)])
     with writing_into(req.out, command="survey", inputs=[("PHOTOS/", req.photos)],
-                      results=(SURVEY_FILE,), quiet=req.quiet) as out:
+                      reads=[req.sheet], displace=False, quiet=req.quiet) as out:
         doc = run_survey(req.photos, req.sheet, out)
     return SurveyOutcome(doc, Path(out) / SURVEY_FILE)

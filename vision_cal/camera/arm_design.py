@@ -19,6 +19,7 @@ import numpy as np
 
 from vision_cal.camera.arm import MAX_POSES
 from vision_cal.dataset.io import atomic_write_json, atomic_write_text
+from vision_cal.dataset.robot import OUTPUT_BITS
 from vision_cal.errors import VisionCalError
 from vision_cal.model.kinematics import forward
 from vision_cal.model.motion import approach_signs
@@ -161,10 +162,15 @@ def spel_camera_program(poses, robot, *, trigger: str = "output", output_bit: in
     return "\r\n".join(lines) + "\r\n"
 
 
-def check_design(*, n_poses: int, trigger: str, seed: int) -> None:
+def check_design(*, n_poses: int, trigger: str, seed: int, output_bit: int = 8) -> None:
     """The arguments of a camera-on-arm design, each bounded (one line naming the option)."""
     if trigger not in TRIGGERS:
         raise VisionCalError(f"expected one of {', '.join(TRIGGERS)}", field="--trigger")
+    lo, hi = OUTPUT_BITS
+    if isinstance(output_bit, bool) or not isinstance(output_bit, int) \
+            or not lo <= output_bit <= hi:   # else "On -5" in the program
+        raise VisionCalError(f"expected an output bit number {lo}..{hi}, got {output_bit!r}",
+                             field="--trigger-output")
     if not 8 <= n_poses <= MAX_POSES:
         raise VisionCalError(f"expected 8 to {MAX_POSES} poses (at least 8: 12 parameters and "
                              f"both elbows; at most {MAX_POSES}: more adds nothing the fit "
@@ -179,7 +185,7 @@ def design_camera_on_arm(robot, sheet, sheet_json: dict, out, *, n_poses: int = 
                          progress: bool = False) -> tuple[Path, Path]:
     """session.json (poses, no camera yet) and program.prg in ``out``; ``repeats`` of the
     poses taken twice (:func:`add_repeats`)."""
-    check_design(n_poses=n_poses, trigger=trigger, seed=seed)
+    check_design(n_poses=n_poses, trigger=trigger, seed=seed, output_bit=output_bit)
     poses = plan_poses(robot, sheet, n_poses=n_poses, mount=mount, rng=seed,
                        progress=progress)
     if mount != "flange" and repeats:

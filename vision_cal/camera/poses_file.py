@@ -112,7 +112,7 @@ def read_poses(path, *, units: str | None = None, mount: str | None = None,
 
 
 def _read_json(path: Path, units, mount, target_z_mm) -> PosesFile:
-    raw = read_json(path)
+    raw = read_json(path, what="poses file")
     r = FieldReader(str(path))
     fmt = r.get(raw, "format", "")
     if fmt != FORMAT:
@@ -173,7 +173,7 @@ def _read_csv(path: Path, units: str, mount: str, target_z_mm) -> PosesFile:
                              field="--units")
     scale = UNITS[units]
     pairs, seen = [], set()
-    for line, row in read_rows(path, CSV_FIELDS):
+    for line, row in read_rows(path, CSV_FIELDS, what="poses file"):
         pid = row.get("id") or str(len(pairs))
         if pid in seen:
             raise VisionCalError(f"duplicate id {pid!r}", file=str(path),

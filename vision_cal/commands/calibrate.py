@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from vision_cal.commands import request
+from vision_cal.commands import JOBS, bounded, request
 from vision_cal.config import METHODS
 
 NAME = "calibrate"
@@ -39,7 +39,7 @@ def add_arguments(p) -> None:
     p.add_argument("--method", choices=METHODS, default=METHODS[0],
                    help="lsq: least squares with effect diagnosis (default); paper: the seed "
                         "paper's three-point circles")
-    p.add_argument("-j", "--jobs", type=int, default=None, help="parallel photo measurement "
+    p.add_argument("-j", "--jobs", type=JOBS, default=None, help="parallel photo measurement "
                    "(default: the number of cores)")
     p.add_argument("--truth", action="store_true",
                    help="compare with truth.json (synthetic data only)")
@@ -55,7 +55,8 @@ def add_arguments(p) -> None:
 
     p.add_argument("--robot", default=None, metavar="ROBOT.yaml",
                    help="a marks CSV: the robot file (the nominal model to start from)")
-    p.add_argument("--sigma-mm", type=float, default=None, dest="sigma_mm", metavar="S",
+    p.add_argument("--sigma-mm", type=bounded(0, 100, lo_open=True, unit="mm"), default=None,
+                   dest="sigma_mm", metavar="S",
                    help="a marks CSV: the instrument's stated accuracy (one std per axis, mm): "
                         "the noise floor of the verdict")
 

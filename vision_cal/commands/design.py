@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from vision_cal.commands import request
+from vision_cal.commands import SEED, bounded, request
 
 NAME = "design"
 HELP = ("design the marks the robot draws on the printed sheet: the pilot (no --pilot) or, "
@@ -39,7 +39,7 @@ def add_arguments(p) -> None:
                    help="plan a short check of this calibration instead (about ten marks "
                         "across the workspace, both elbows): draw it on a fresh sheet, then "
                         "`vision-cal verify CAL.json OUT/`")
-    p.add_argument("--iso9283", type=int, default=0, metavar="N",
+    p.add_argument("--iso9283", type=bounded(0, 30, integer=True), default=0, metavar="N",
                    help="with --verify: also visit ISO 9283's five points N times each (small "
                         "known offsets keep the dots apart) for positioning accuracy AP and "
                         "repeatability RP")
@@ -50,15 +50,15 @@ def add_arguments(p) -> None:
                         "(Staubli application program/program.pjx), evplus (Omron/Adept "
                         "program.v2), pacscript (Denso program.pcs), tp (Fanuc program.ls; "
                         "docs/controllers.md) or none")
-    p.add_argument("--n-calibration", type=int, default=30, metavar="N",
+    p.add_argument("--n-calibration", type=bounded(3, 1000, integer=True), default=30, metavar="N",
                    help="informative plan: calibration marks (default 30)")
-    p.add_argument("--n-validation", type=int, default=8, metavar="N",
+    p.add_argument("--n-validation", type=bounded(0, 1000, integer=True), default=8, metavar="N",
                    help="informative plan: held-out validation marks (default 8)")
-    p.add_argument("--safety-mm", type=float, default=None, metavar="MM",
+    p.add_argument("--safety-mm", type=bounded(0, 200, unit="mm"), default=None, metavar="MM",
                    help="informative plan: extra clearance from markers and edges (default: "
                         "5 mm + 6 x the pilot model's largest predicted std on the sheet)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the design (default 0)")
-    p.add_argument("--placements", type=int, default=None, metavar="N",
+    p.add_argument("--seed", type=SEED, default=0, help="random seed of the design (default 0)")
+    p.add_argument("--placements", type=bounded(1, 12, integer=True), default=None, metavar="N",
                    help="plan N placements of the sheet turned about joint 1 (a joint "
                         "calibration, `calibrate ... --joint`): OUT/placeK/ each with its "
                         "robot.yaml and pilot design, OUT/placements.json")
@@ -66,9 +66,9 @@ def add_arguments(p) -> None:
     c.add_argument("--camera-on-arm", action="store_true",
                    help="plan camera poses over a marker field (vision-cal sheet --field) "
                         "instead of pen marks: session.json poses and program.prg")
-    c.add_argument("--n-poses", type=int, default=24, metavar="N",
+    c.add_argument("--n-poses", type=bounded(8, 500, integer=True), default=24, metavar="N",
                    help="camera poses (default 24)")
-    c.add_argument("--repeats", type=int, default=6, metavar="N",
+    c.add_argument("--repeats", type=bounded(0, 500, integer=True), default=6, metavar="N",
                    help="poses photographed twice, leaving and coming back from the same "
                         "sides: the verdict measures the robot's repeatability from them "
                         "(default 6; 0: none, the robot block's repeatability_mm is taken)")
@@ -76,7 +76,8 @@ def add_arguments(p) -> None:
                    help="the camera turns with joint 4 (flange, default) or not (link2)")
     c.add_argument("--trigger", choices=("output", "wait"), default="output",
                    help="camera trigger per pose: an output pulse (default) or a pause")
-    c.add_argument("--trigger-output", type=int, default=8, metavar="BIT",
+    c.add_argument("--trigger-output", type=bounded(0, 9999, integer=True), default=8,
+                   metavar="BIT",
                    help="output bit pulsed for the camera (default 8)")
 
 

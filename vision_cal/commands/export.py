@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from vision_cal.commands import request
+from vision_cal.commands import CAMERA, request
 
 NAME = "export"
 HELP = ("export calibration.json as URDF joint origins (+ effects side file) or YAML; a still "
@@ -39,7 +39,7 @@ def add_arguments(p) -> None:
                    "YAML: camera_matrix, distortion_coefficients, T_robot_camera (mm)")
     p.add_argument("--ros", metavar="FILE.yaml", help="a still camera as ROS camera_info YAML, "
                    "and FILE.transform.yaml: robot -> camera optical frame")
-    p.add_argument("--camera", type=int, default=0, metavar="N",
+    p.add_argument("--camera", type=CAMERA, default=0, metavar="N",
                    help="which of calibration.json's cameras (default 0)")
 
 

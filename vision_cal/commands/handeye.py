@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from vision_cal.commands import request
+from vision_cal.commands import HEIGHT_MM, JOBS, request
 
 NAME = "handeye"
 HELP = ("calibrate the robot and T_flange_camera from photos taken by the arm's camera "
@@ -40,10 +40,10 @@ def add_arguments(p) -> None:
     p.add_argument("--mount", choices=("arm", "fixed"), default=None,
                    help="--poses: the camera rides on the flange (arm, default) or stands "
                         "still watching a target on the flange (fixed)")
-    p.add_argument("--z-mm", type=float, default=None, dest="z_mm", metavar="H",
+    p.add_argument("--z-mm", type=HEIGHT_MM, default=None, dest="z_mm", metavar="H",
                    help="--poses: the target origin's height (mm; arm: robot frame, fixed: "
                         "flange frame), which a SCARA's motion cannot see")
-    p.add_argument("-j", "--jobs", type=int, default=None, metavar="N",
+    p.add_argument("-j", "--jobs", type=JOBS, default=None, metavar="N",
                    help="processes that measure the photos (default: every core; the same "
                         "result for any N)")
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from vision_cal.commands import request
+from vision_cal.commands import JOBS, request
 
 NAME = "init"
 HELP = ("complete a planned session.json with the images list found from a folder of photos "
@@ -24,7 +24,7 @@ def add_arguments(p) -> None:
                    help="the planned session (no images), e.g. from `vision-cal design`")
     p.add_argument("-o", "--out", default=None, metavar="OUT.json",
                    help="where to write the completed session.json (default: stdout)")
-    p.add_argument("-j", "--jobs", type=int, default=None,
+    p.add_argument("-j", "--jobs", type=JOBS, default=None,
                    help="parallel photo measurement (default: the number of cores)")
 
 

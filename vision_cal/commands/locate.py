@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from vision_cal.commands import request
+from vision_cal.commands import CAMERA, HEIGHT_MM, JOINT_DEG, bounded, request
 
 NAME = "locate"
 HELP = ("map a pixel of a calibrated camera (calibration.json cameras: still, or on the arm at "
@@ -30,18 +30,18 @@ def add_arguments(p) -> None:
                    help="a calibration.json with a camera (\"cameras\"): a still camera's "
                         "(`vision-cal PHOTOS/` on photos taken from one place) or the arm "
                         "camera's (`vision-cal handeye`)")
-    p.add_argument("--pixel", type=float, nargs=2, metavar=("U", "V"),
+    p.add_argument("--pixel", type=bounded(-1, 100000, unit="px"), nargs=2, metavar=("U", "V"),
                    help="pixel (OpenCV convention: the top-left pixel's centre is 0 0)")
     p.add_argument("--csv", metavar="PIXELS.csv", help="a list: id,u_px,v_px[,z_mm]")
     p.add_argument("-o", "--out", metavar="POINTS.csv", help="with --csv: write here "
                    "(default: print)")
-    p.add_argument("--camera", type=int, default=0, metavar="N",
+    p.add_argument("--camera", type=CAMERA, default=0, metavar="N",
                    help="which of calibration.json's cameras (default 0)")
-    p.add_argument("--z-mm", type=float, default=0.0, metavar="H",
+    p.add_argument("--z-mm", type=HEIGHT_MM, default=0.0, metavar="H",
                    help="height of the point above the sheet's plane (default 0)")
     p.add_argument("--robot", metavar="ROBOT.yaml", help="robot file: also print the "
                    "compensated joint command (its joint limits)")
-    p.add_argument("--joints", type=float, nargs="+", metavar="Q",
+    p.add_argument("--joints", type=JOINT_DEG, nargs="+", metavar="Q",
                    help="a camera on the arm: the commanded joints Q1 Q2 [Q4] (deg) the photo "
                         "was taken at")
     p.add_argument("--photo", metavar="NAME", help="a camera on the arm: the command of this "

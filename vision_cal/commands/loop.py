@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from vision_cal.commands import request
+from vision_cal.commands import JOBS, request
 
 NAME = "loop"
 HELP = ("render a calibration session, calibrate it from the photos, plan targets with the "
@@ -18,7 +18,7 @@ def add_arguments(p) -> None:
     p.add_argument("scene", metavar="SCENE.yaml", help="scene file (see renders/README.md)")
     p.add_argument("-o", "--out", required=True, metavar="DIR",
                    help="folder for the rendered sessions, the calibration, loop.json")
-    p.add_argument("-j", "--jobs", type=int, default=None,
+    p.add_argument("-j", "--jobs", type=JOBS, default=None,
                    help="processes that render and measure photos (default: every core)")
     p.add_argument("--elbow", type=int, choices=(1, -1), default=1,
                    help="elbow of the planned targets (+1: sin(q2 + z2) > 0; default 1)")

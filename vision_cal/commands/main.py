@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import re
 import sys
 
 SUBCOMMANDS = ("calibrate", "sheet", "design", "init", "render", "plan", "loop", "export",
@@ -38,6 +39,10 @@ class _Parser(argparse.ArgumentParser):
     lines for `plan`), with where the usage is."""
 
     def error(self, message):
+        # "argument -j/--jobs: expected ..." -> "--jobs: expected ...": the option first, as
+        # every error line names its file or option
+        message = re.sub(r"^argument ([^:\s]+): ",
+                         lambda m: m.group(1).split("/")[-1] + ": ", message)
         self.exit(EXIT_INPUT, f"{self.prog}: error: {message} (usage: {self.prog} --help)\n")
 
 

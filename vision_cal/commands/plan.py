@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from vision_cal.commands import JOINT_DEG
+
 NAME = "plan"
 HELP = "plan joint commands for sheet targets with the calibrated (or nominal) model"
 EXAMPLES = """\
@@ -37,7 +39,7 @@ def add_arguments(p) -> None:
                         "(PLAN/PLAN.pjx, Staubli), evplus (PLAN.v2, Omron/Adept), pacscript "
                         "(PLAN.pcs, Denso) or tp (PLAN.ls, Fanuc); joint targets only "
                         "(docs/controllers.md); needs --robot")
-    p.add_argument("--home", type=float, nargs=2, metavar=("Q1", "Q2"), default=None,
+    p.add_argument("--home", type=JOINT_DEG, nargs=2, metavar=("Q1", "Q2"), default=None,
                    help="joints (deg) the arm starts from (default: the robot file's "
                         "home_deg, else calibration.json's, which the session gave)")
     p.add_argument("--robot", metavar="ROBOT.yaml",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from vision_cal.commands import request
+from vision_cal.commands import JOBS, SEED, request
 
 NAME = "render"
 HELP = ("render a synthetic dataset (photos, session.json, truth.json) from a scene file "
@@ -21,11 +21,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", metavar="SCENE.yaml", help="scene file (see renders/README.md)")
     parser.add_argument("-o", "--out", metavar="DIR", required=True,
                         help="dataset folder to write (replaced if it holds a previous dataset)")
-    parser.add_argument("--seed", type=int, metavar="N", default=None,
+    parser.add_argument("--seed", type=SEED, metavar="N", default=None,
                         help="override the scene's seed")
     parser.add_argument("--mode", choices=("series", "single"), default=None,
                         help="override photos.mode: a photo after each mark, or one at the end")
-    parser.add_argument("-j", "--jobs", type=int, default=None, metavar="N",
+    parser.add_argument("-j", "--jobs", type=JOBS, default=None, metavar="N",
                         help="processes that render photos (default: every core); the photos "
                              "are the same for any N")
 

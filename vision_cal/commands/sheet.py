@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from vision_cal.commands import request
+from vision_cal.commands import bounded, request
 
 NAME = "sheet"
 HELP = ("write the printable calibration sheet (vector PDF at true scale, SVG, optional PNG) "
@@ -24,7 +24,8 @@ def add_arguments(p) -> None:
     page = p.add_argument_group("page")
     page.add_argument("--size", default=None, metavar="A0..A4",
                       help="ISO page size (default A3)")
-    page.add_argument("--custom", type=float, nargs=2, metavar=("W", "H"),
+    page.add_argument("--custom", type=bounded(0, 5000, lo_open=True, unit="mm"), nargs=2,
+                      metavar=("W", "H"),
                       help="custom page width and height in mm (instead of --size)")
     o = page.add_mutually_exclusive_group()
     o.add_argument("--landscape", dest="landscape", action="store_const", const=True,
@@ -35,18 +36,19 @@ def add_arguments(p) -> None:
     m.add_argument("--dictionary", default=None, metavar="DICT",
                    help="OpenCV predefined ArUco dictionary (default DICT_5X5_100; with "
                         "--field DICT_5X5_1000)")
-    m.add_argument("--marker-mm", type=float, metavar="S",
+    m.add_argument("--marker-mm", type=bounded(0, 1000, lo_open=True, unit="mm"), metavar="S",
                    help="marker side including its black border (default: about 1/15 of "
                         "the short side)")
-    m.add_argument("--pitch-mm", type=float, metavar="P",
+    m.add_argument("--pitch-mm", type=bounded(0, 5000, lo_open=True, unit="mm"), metavar="P",
                    help="largest centre spacing of the border markers (default 4 markers)")
     p.add_argument("--field", action="store_true",
                    help="a marker field over the whole page for a camera on the arm (no "
                         "ruled grid; default DICT_5X5_1000, 18 mm markers every 36 mm)")
-    p.add_argument("--png-dpi", type=float, metavar="N",
+    p.add_argument("--png-dpi", type=bounded(10, 2400, unit="dpi"), metavar="N",
                    help="also write sheet.png at N dpi (254 = 10 px/mm); `vision-cal "
                         "simulate` does not need it (it rebuilds the print from sheet.json)")
-    p.add_argument("--measured-bar-mm", type=float, nargs=2, metavar=("X", "Y"),
+    p.add_argument("--measured-bar-mm", nargs=2, metavar=("X", "Y"),
+                   type=bounded(50, 200, lo_open=True, hi_open=True, unit="mm"),
                    help="the printed x and y scale bars as measured (mm), recorded in "
                         "sheet.json for the calibration's printer scale")
     p.add_argument("-o", "--out", required=True, metavar="DIR",

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from vision_cal.commands import request
+from vision_cal.commands import SEED, request
 
 NAME = "simulate"
 HELP = ("rehearse without a robot: a simulated robot (your robot file plus hidden offsets and "
@@ -43,7 +43,7 @@ def add_arguments(p) -> None:
     p.add_argument("--after", action="append", default=[], metavar="DIR",
                    help="a folder simulated before on the same sheet: its marks are on the "
                         "paper too (repeatable)")
-    p.add_argument("--seed", type=int, default=None, metavar="N",
+    p.add_argument("--seed", type=SEED, default=None, metavar="N",
                    help="override the simulated robot file's seed")
 
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from vision_cal.commands import request
+from vision_cal.commands import JOBS, request
 
 NAME = "verify"
 HELP = ("check a calibration on a short plan drawn later (design --verify): each mark's error, "
@@ -33,7 +33,7 @@ def add_arguments(p) -> None:
                    help="check even marks outside what the calibration was calibrated for "
                         "(calibration.json valid_for: joint ranges, approach sides, joint 4), "
                         "the extrapolation stated in verify.json and on the console")
-    p.add_argument("-j", "--jobs", type=int, default=None, metavar="N",
+    p.add_argument("-j", "--jobs", type=JOBS, default=None, metavar="N",
                    help="processes that measure photos (default: every core)")
 
 

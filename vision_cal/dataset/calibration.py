@@ -141,7 +141,7 @@ def load_calibration(path, *, which: str = "calibrated",
     file and the field. ``sheet_frame``: the caller needs one sheet's calibration (a
     robot-frame one of several placements is refused, :func:`refuse_robot_frame`)."""
     path = Path(path)
-    doc = read_json(path)
+    doc = read_json(path, what="calibration")
     if sheet_frame:
         refuse_robot_frame(doc, path)
     r = FieldReader(str(path))

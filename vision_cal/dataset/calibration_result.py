@@ -155,7 +155,7 @@ class CalibrationResult:
 
     @classmethod
     def read(cls, path) -> "CalibrationResult":
-        return cls.from_json(read_json(Path(path)))
+        return cls.from_json(read_json(Path(path), what="calibration"))
 
 
 _TUPLES = ("effects", "images", "home_deg", "notes", "outliers", "missing_marks", "targets")

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.dataset.io import atomic_write_text, read_text
+from vision_cal.dataset.io import atomic_write_text, expected, read_text
 from vision_cal.errors import VisionCalError
 
 TARGET_FIELDS = ("id", "x_mm", "y_mm")
@@ -27,12 +27,16 @@ PLAN_FIELDS = ("id", "q1_deg", "q2_deg", "approach1", "approach2")
 MAX_FIELD_CHARS = 4096
 
 
-def _rows(path: Path, required: tuple[str, ...]) -> list[tuple[int, dict]]:
+def _rows(path: Path, required: tuple[str, ...],
+          what: str = "CSV file") -> list[tuple[int, dict]]:
     """Rows as dicts with their line number. A row with more fields than the header (an
     unquoted decimal comma: ``a,100,5,250``), a field running over a line end or longer than
-    :data:`MAX_FIELD_CHARS` (a stray quote) is refused naming the line: never read as
-    something else."""
-    text = read_text(path)
+    :data:`MAX_FIELD_CHARS` (a stray quote), a column named twice in the header is refused
+    naming the line: never read as something else. ``what``: the kind of CSV (a key of
+    :data:`vision_cal.dataset.io.EXPECTED`), said when a JSON document is given instead."""
+    text = read_text(path, what=what)
+    if text.lstrip().startswith(("{", "[")):   # a calibration.json given for a targets CSV
+        raise VisionCalError(f"is JSON, expected {expected(what)}", file=str(path))
     reader = csv.reader(io.StringIO(text))
     try:
         rows = []
@@ -51,6 +55,7 @@ def _rows(path: Path, required: tuple[str, ...]) -> list[tuple[int, dict]]:
         header = []
     else:
         header = [h.strip() for h in rows[0][1]]
+    _refuse_duplicate_columns(header, path)
     missing = [f for f in required if f not in header]
     if missing:
         raise VisionCalError(f"header lacks {', '.join(missing)} (expected {','.join(required)})",
@@ -68,10 +73,22 @@ def _rows(path: Path, required: tuple[str, ...]) -> list[tuple[int, dict]]:
     return out
 
 
-def read_rows(path, required: tuple[str, ...]) -> list[tuple[int, dict]]:
+def _refuse_duplicate_columns(header: list[str], path: Path) -> None:
+    """A column named twice is refused naming both (a dict of the row would silently keep
+    the last one: a target planned at the wrong x, a marks CSV with every x 0)."""
+    for i, name in enumerate(header):
+        if name and name in header[:i]:
+            raise VisionCalError(f"column {name!r} is given twice (columns "
+                                 f"{header.index(name) + 1} and {i + 1}); keep one",
+                                 file=str(path), field="line 1")
+
+
+def read_rows(path, required: tuple[str, ...], *,
+              what: str = "CSV file") -> list[tuple[int, dict]]:
     """Every CSV reader's rows (dicts with their line number), checked as :func:`_rows`
-    says (a stray quote, a decimal comma, a missing column: one line naming it)."""
-    return _rows(Path(path), required)
+    says (a stray quote, a decimal comma, a missing column, a column named twice: one line
+    naming it)."""
+    return _rows(Path(path), required, what)
 
 
 def number_field(v: str, path, line: int, name: str) -> float:
@@ -91,7 +108,7 @@ def number_field(v: str, path, line: int, name: str) -> float:
 def read_targets(path) -> tuple[list[str], np.ndarray]:
     """Target ids and sheet positions (N, 2) mm."""
     ids, xy, seen = [], [], set()
-    for line, row in _rows(path, TARGET_FIELDS):
+    for line, row in _rows(path, TARGET_FIELDS, "targets CSV"):
         tid = row["id"]
         if not tid:
             raise VisionCalError("empty id", file=str(path), field=f"line {line}: id")
@@ -148,7 +165,7 @@ def read_plan(path) -> tuple[list[str], np.ndarray, np.ndarray]:
     """Planned ids, joints (N, 2) deg and approach signs (N, 2); rows with a failed
     ``status`` (not planned) are skipped."""
     ids, q, s = [], [], []
-    for line, row in _rows(path, PLAN_FIELDS):
+    for line, row in _rows(path, PLAN_FIELDS, "plan CSV"):
         if row.get("status", "ok") not in ("", "ok"):
             continue
         ids.append(row["id"])
@@ -165,7 +182,7 @@ def read_plan(path) -> tuple[list[str], np.ndarray, np.ndarray]:
 def read_target_theta(path) -> np.ndarray | None:
     """The optional ``theta_deg`` column of targets.csv (N,) - the tool's orientation in the
     sheet frame (docs/format.md) - or None when the file has no such column."""
-    rows = _rows(path, TARGET_FIELDS)
+    rows = _rows(path, TARGET_FIELDS, "targets CSV")
     if not rows or "theta_deg" not in rows[0][1]:
         return None
     return np.array([number_field(row["theta_deg"], path, line, "theta_deg") for line, row in rows])

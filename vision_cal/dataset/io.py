@@ -64,7 +64,8 @@ def output_dir(path, *, field: str | None = None) -> Path:
     else one line naming it and the option ``field`` it came from."""
     path = Path(path)
     if path.exists() and not path.is_dir():
-        raise VisionCalError("is a file, expected a folder", file=str(path), field=field)
+        raise VisionCalError("is a file, expected a folder: choose a folder's name (it is made "
+                             "if missing)", file=str(path), field=field)
     probe = path
     while not probe.exists() and probe != probe.parent:
         probe = probe.parent
@@ -108,6 +109,8 @@ def atomic_write_bytes(path, data: bytes, *, at_once: bool = False) -> Path:
     path = Path(path)
     if path.is_dir():
         raise VisionCalError("cannot write: is a folder, expected a file name", file=str(path))
+    if not at_once:   # a result of the run: recorded in its output set (dataset/out_folder)
+        note_written(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -133,6 +136,30 @@ def atomic_write_bytes(path, data: bytes, *, at_once: bool = False) -> Path:
             raise _cannot_write(path, e) from e
         raise
     return path
+
+
+#: the lists the running output sets (dataset/out_folder.py) record their files in
+_RECORDING: contextvars.ContextVar = contextvars.ContextVar("vision_cal_recording", default=())
+
+
+@contextlib.contextmanager
+def recording_writes():
+    """Yields a list that receives the path of every file written (by
+    :func:`atomic_write_bytes`, or told by :func:`note_written`) while the block runs, in
+    nested blocks too: what a run wrote, for its output set's record."""
+    written: list = []
+    token = _RECORDING.set(_RECORDING.get() + (written,))
+    try:
+        yield written
+    finally:
+        _RECORDING.reset(token)
+
+
+def note_written(path) -> None:
+    """Tell the running output sets that ``path`` was written (a file or folder put in place
+    by other means than :func:`atomic_write_bytes`, e.g. a rendered folder moved in)."""
+    for written in _RECORDING.get():
+        written.append(Path(path))
 
 
 #: the (temporary file, final path) pairs of the ``written_together`` block being run
@@ -215,9 +242,37 @@ def atomic_write_json(path, obj) -> Path:
     return atomic_write_text(path, text + "\n")
 
 
+#: what each reader expects (its ``what``), said when given a PDF, an image, a folder or
+#: another kind of file instead: (the file's usual name in a folder, what to give)
+EXPECTED = {
+    "calibration": ("calibration.json", "the calibration.json `vision-cal calibrate` wrote"),
+    "sheet file": ("sheet.json", "the sheet.json `vision-cal sheet` wrote"),
+    "robot file": ("robot.yaml", "the robot file (YAML; `vision-cal robot-template -o "
+                                 "robot.yaml` writes one to fill in)"),
+    "session": ("session.json", "a dataset's session.json (`vision-cal design` writes it)"),
+    "simulated robot file": (None, "the simulated robot's file (`vision-cal robot-template "
+                                   "--simulated -o true_robot.yaml` writes one)"),
+    "scene file": (None, "a scene file (YAML, like renders/default.yaml)"),
+    "survey": ("survey.json", "the survey.json `vision-cal survey` wrote"),
+    "poses file": (None, "the pose pairs file (JSON or CSV, docs/format.md)"),
+    "targets CSV": (None, "a targets CSV (id,x_mm,y_mm)"),
+    "plan CSV": (None, "a plan CSV (`vision-cal plan` writes it)"),
+    "pixels CSV": (None, "a CSV of pixels (id,u_px,v_px)"),
+    "marks CSV": (None, "a marks CSV (docs/format.md: marks measured by an instrument)"),
+    "point list CSV": (None, "a program's point list (`--program csv`)"),
+}
+_TEXT = "a text file (JSON, YAML or CSV)"
+
+
+def expected(what: str) -> str:
+    """What a reader of ``what`` expects, in words (:data:`EXPECTED`)."""
+    return EXPECTED.get(what, (None, _TEXT))[1]
+
+
 def read_text(path, *, what: str = "file") -> str:
     """A UTF-8 text file (a leading byte-order mark, as Windows tools save, is dropped);
-    missing or unreadable is one clear line naming it."""
+    missing or unreadable is one clear line naming it, and a folder, a PDF, an image or a
+    path through a file says what to give instead (``what``: a key of :data:`EXPECTED`)."""
     path = Path(path)
     try:
         return path.read_text(encoding="utf-8-sig")
@@ -225,6 +280,10 @@ def read_text(path, *, what: str = "file") -> str:
         raise VisionCalError(f"{what} not found", file=str(path)) from e
     except IsADirectoryError as e:
         raise VisionCalError(_folder_given(path, what), file=str(path)) from e
+    except NotADirectoryError as e:   # sheet.pdf/session.json: a file given for a folder
+        above = next((q for q in path.parents if q.is_file()), path.parent)
+        raise VisionCalError(f"is a file, expected a folder (holding {path.name})",
+                             file=str(above)) from e
     except UnicodeDecodeError as e:
         raise VisionCalError(_binary_given(path, what), file=str(path)) from e
     except OSError as e:
@@ -232,16 +291,19 @@ def read_text(path, *, what: str = "file") -> str:
 
 
 def _folder_given(path: Path, what: str) -> str:
-    """A folder given where a file is wanted: name the files in it that may be meant."""
+    """A folder given where a file is wanted: the file in it that was meant, else what to
+    give."""
+    name = EXPECTED.get(what, (None, None))[0]
+    names = (name,) if name else () if what in EXPECTED else \
+        ("calibration.json", "session.json", "sheet.json", "robot.yaml")
     try:
-        known = [n for n in ("calibration.json", "session.json", "sheet.json", "robot.yaml")
-                 if (path / n).is_file()]
+        known = [n for n in names if (path / n).is_file()]
     except OSError:
         known = []
     if known:
         return (f"is a folder, expected a file (in it: {', '.join(known)}; give the one "
                 f"wanted, e.g. {path / known[0]})")
-    return "is a folder, expected a file"
+    return f"is a folder, expected {expected(what) if what in EXPECTED else 'a file'}"
 
 
 def _binary_given(path: Path, what: str) -> str:
@@ -252,14 +314,15 @@ def _binary_given(path: Path, what: str) -> str:
         head = b""
     if head.startswith(b"%PDF"):
         beside = path.with_suffix(".json")
-        sheets = beside.is_file() or "sheet" in f"{path.stem} {what}".lower()
+        sheets = what == "sheet file" or (what not in EXPECTED and (
+            beside.is_file() or "sheet" in path.stem.lower()))
         if not sheets:  # not the sheet's PDF: a calibration, robot file... saved as PDF
-            return "is a PDF, expected a text file (JSON, YAML or CSV)"
+            return f"is a PDF, expected {expected(what)}"
         return ("is the PDF to print, not the sheet's description: pass the sheet.json "
                 f"beside it{f' ({beside})' if beside.is_file() else ''}")
     if head.startswith((b"\x89PNG", b"\xff\xd8\xff")):
-        return "is an image, expected a text file (JSON, YAML or CSV)"
-    return "is not UTF-8 text (a binary file?), expected a text file (JSON, YAML or CSV)"
+        return f"is an image, expected {expected(what)}"
+    return f"is not UTF-8 text (a binary file?), expected {expected(what)}"
 
 
 def _line(text: str, pos: int) -> int:

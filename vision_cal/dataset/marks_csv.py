@@ -38,7 +38,7 @@ def session_from_marks_csv(path, robot_path, *, sigma_mm: float | None = None) -
                              field="--sigma-mm")
     robot = load_robot_file(robot_path)
     marks, seen = [], set()
-    rows = read_rows(path, REQUIRED)
+    rows = read_rows(path, REQUIRED, what="marks CSV")
     header = set(rows[0][1]) if rows else set()
     if ("approach1" in header) != ("approach2" in header):
         raise VisionCalError("approach1 and approach2 go together", file=str(path),

@@ -64,6 +64,8 @@ log = logging.getLogger(__name__)
 
 ROBOT_BLOCK = ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "home_deg", "repeatability_mm")
 DEFAULT_LIMITS_DEG = JOINT_LIMITS_DEG  # the defaults live in vision_cal.model.motion
+#: an output bit's number (the pen's, a camera trigger's): what controllers number
+OUTPUT_BITS = (0, 9999)
 
 
 @dataclass(frozen=True)
@@ -150,7 +152,7 @@ def travel_height_problem(safe, up, down, joint3_limits_mm) -> str | None:
 
 def read_robot_tree(path: Path) -> dict:
     if path.suffix.lower() == ".json":
-        tree = read_json(path)
+        tree = read_json(path, what="robot file")
     else:
         tree = read_yaml(path, what="robot file")
     if not isinstance(tree, dict):
@@ -306,9 +308,10 @@ def _read_program(r: FieldReader, p, path: Path) -> ProgramSettings:
     dwell = _positive(r, p["pen_dwell_s"], "program.pen_dwell_s", zero_ok=True) \
         if "pen_dwell_s" in p else d.pen_dwell_s
     bit = p.get("pen_output_bit")
+    lo, hi = OUTPUT_BITS
     if bit is not None and (isinstance(bit, bool) or not isinstance(bit, int)
-                            or not 0 <= bit <= 9999):
-        r.fail("program.pen_output_bit", f"expected an output bit number 0..9999, got {bit!r}")
+                            or not lo <= bit <= hi):
+        r.fail("program.pen_output_bit", f"expected an output bit number {lo}..{hi}, got {bit!r}")
     safe = r.number(p["safe_z_mm"], "program.safe_z_mm") if p.get("safe_z_mm") is not None \
         else None
     moff = p.get("motor_off", False)

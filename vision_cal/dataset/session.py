@@ -436,7 +436,7 @@ def load_session(folder) -> Session:
         if not folder.exists():
             raise VisionCalError("folder not found", file=str(folder))
         raise VisionCalError(MISSING_SESSION, file=str(path))
-    return session_from_raw(read_json(path), folder, str(path))
+    return session_from_raw(read_json(path, what="session"), folder, str(path))
 
 
 def session_from_raw(raw: dict, folder, where: str) -> Session:

@@ -13,7 +13,6 @@ measured against it.
 from __future__ import annotations
 
 import math
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +20,7 @@ import numpy as np
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset import photos
 from vision_cal.dataset.fields import FieldReader
-from vision_cal.dataset.io import atomic_write_json, read_json
+from vision_cal.dataset.io import atomic_write_bytes, atomic_write_json, read_json
 from vision_cal.dataset.session import NominalRobot, Session, Sheet, load_sheet_file
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.measure.asprinted import AsPrinted
@@ -126,7 +125,7 @@ def load_survey(path, sheet: Sheet | None) -> AsPrinted:
     """survey.json's as-printed layout, checked against ``sheet`` (the same markers,
     declared where the survey's sheet declared them); one-line errors naming the field."""
     path = Path(path)
-    d = read_json(path)
+    d = read_json(path, what="survey")
     r = FieldReader(str(path))
     if d.get("format") != FORMAT:
         r.fail("format", f"expected {FORMAT!r}, got {d.get('format')!r}")
@@ -171,8 +170,6 @@ def copy_survey(path, sheet: Sheet, out_dir) -> Path:
     folder, where the calibration finds it beside session.json."""
     load_survey(path, sheet)
     dest = Path(out_dir) / SURVEY_FILE
-    if Path(path).resolve() != dest.resolve():
-        tmp = dest.with_name(".survey.json.tmp")
-        shutil.copyfile(path, tmp)
-        tmp.replace(dest)
+    if Path(path).resolve() != dest.resolve():   # written as the design's own file
+        atomic_write_bytes(dest, Path(path).read_bytes())
     return dest

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.dataset.io import atomic_write_json
+from vision_cal.dataset.io import atomic_write_bytes, atomic_write_json
 from vision_cal.render.camera import distort_image
 from vision_cal.render.dataset import encode_image
 from vision_cal.render.photo import Photographer
@@ -131,7 +131,7 @@ def photograph_poses(folder, robot: TrueRobot, sheet, q, j4, files, X, *, K, siz
                                 noise_sigma=noise_sigma, rng=rng)
             if dist is not None and np.any(dist):
                 rgb = distort_image(np.asarray(rgb), K=K, dist=dist)
-            (folder / name).write_bytes(encode_image(np.asarray(rgb), None))
+            atomic_write_bytes(folder / name, encode_image(np.asarray(rgb), None))
     finally:
         if own:
             ph.close()

@@ -26,7 +26,8 @@ single photo.
 
 Everything is written into a hidden temporary folder next to ``out_dir`` that is renamed
 to ``out_dir`` at the end, so a failed render leaves nothing half-written. An existing
-``out_dir`` is replaced only when it is empty or a previous dataset (has session.json).
+``out_dir`` is replaced only when it is empty or a previous dataset (has session.json);
+``vision-cal render`` moves that one to ``previous/render/`` first (dataset/out_folder.py).
 
 Memory and time: the textures of the finished and of the mark-free sheet are built once
 (one pass: :func:`build_textures`; with ``jobs`` > 1 in this process, and handed to every
@@ -37,6 +38,7 @@ two textures (three in each rendering process) and one photo at a time.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing as mp
 import os
@@ -48,7 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.dataset.io import atomic_write_json
+from vision_cal.dataset.io import atomic_write_json, note_written
 from vision_cal.dataset.marker_geometry import marker_boxes_mm
 from vision_cal.errors import VisionCalError
 from vision_cal.plan import calibration_plan as cp
@@ -272,30 +274,47 @@ def _extra_image(kind: str, size_px, rng: np.random.Generator) -> bytes:
     return good[:64] + rng.integers(0, 256, size=256, dtype=np.uint8).tobytes()
 
 
+def _entries(out_dir: Path) -> list[Path]:
+    """What a dataset folder holds, without what vision-cal keeps beside a run (hidden
+    files: the lock, the record, a cache; ``previous/``: earlier runs)."""
+    return [p for p in out_dir.iterdir() if not p.name.startswith(".") and p.name != "previous"]
+
+
 def _prepare_out(out_dir: Path) -> None:
     if out_dir.exists():
         if not out_dir.is_dir():
             raise VisionCalError("exists and is not a folder", file=str(out_dir))
-        if any(out_dir.iterdir()) and not (out_dir / "session.json").exists():
+        if _entries(out_dir) and not (out_dir / "session.json").exists():
             raise VisionCalError("exists and is not a dataset folder; refusing to replace it "
                                  "(choose another --out or empty it)", file=str(out_dir))
     out_dir.parent.mkdir(parents=True, exist_ok=True)
 
 
 def _commit(tmp: Path, out_dir: Path) -> None:
-    """Move the finished temp folder to ``out_dir`` (replacing an old dataset)."""
+    """Move the finished temp folder to ``out_dir`` (replacing an old dataset; what
+    vision-cal keeps beside a run, :func:`_entries`, stays), each file told to the output
+    set being written (``vision-cal render``: the old dataset was moved to previous/ by
+    then)."""
     if not out_dir.exists():
         os.replace(tmp, out_dir)
+        note_written(out_dir)
         return
     old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old.", dir=out_dir.parent))
-    os.rmdir(old)
-    os.replace(out_dir, old)
+    moved = []
     try:
-        os.replace(tmp, out_dir)
+        for p in _entries(out_dir):
+            os.replace(p, old / p.name)
+            moved.append(p.name)
+        for p in sorted(tmp.iterdir()):
+            os.replace(p, out_dir / p.name)
+            note_written(out_dir / p.name)
     except BaseException:
-        os.replace(old, out_dir)
+        for name in moved:
+            with contextlib.suppress(OSError):
+                os.replace(old / name, out_dir / name)
         raise
     shutil.rmtree(old, ignore_errors=True)
+    shutil.rmtree(tmp, ignore_errors=True)
 
 
 def lens_effect(scene: Scene) -> dict | None:

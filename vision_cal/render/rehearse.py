@@ -34,15 +34,13 @@ This module is the synthetic world's: it uses the world's own true robot
 
 from __future__ import annotations
 
-import csv
-import io
 import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from vision_cal.dataset.csvio import read_plan, read_targets
+from vision_cal.dataset.csvio import read_plan, read_rows, read_targets
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.io import (atomic_write_bytes, atomic_write_json, read_json, read_text,
                                    read_yaml)
@@ -208,24 +206,24 @@ def program_moves(path: Path, *, pen_down_mm: float,
     point list (``_points.csv``): each ``mark`` row is a stop with the pen going down,
     ``home`` and ``via`` rows are driven through.
     """
-    text = read_text(path)
     moves = []
-    if path.suffix.lower() == ".csv":
-        for i, row in enumerate(csv.DictReader(io.StringIO(text))):
+    if path.suffix.lower() == ".csv":   # one CSV reader (a column named twice is refused)
+        for line, row in read_rows(path, ("kind", "j1_deg", "j2_deg"), what="point list CSV"):
             try:
                 q = (float(row["j1_deg"]), float(row["j2_deg"]))
                 kind = row["kind"]
                 j3 = float(row["j3_mm"]) if row.get("j3_mm") not in (None, "") else None
                 j4 = float(row["j4_deg"]) if row.get("j4_deg") not in (None, "") else 0.0
             except (KeyError, TypeError, ValueError) as e:
-                raise VisionCalError(f"row {i + 2}: unreadable point ({e})", file=str(path)) from e
+                raise VisionCalError(f"line {line}: unreadable point ({e})", file=str(path)) from e
             if kind not in ("home", "via", "mark"):
-                raise VisionCalError(f"row {i + 2}: unknown kind {kind!r} (expected home, via "
+                raise VisionCalError(f"line {line}: unknown kind {kind!r} (expected home, via "
                                      "or mark)", file=str(path))
-            moves.append(_Move(q, False, j3, j4, i + 2))
+            moves.append(_Move(q, False, j3, j4, line))
             if kind == "mark":
-                moves.append(_Move(q, True, pen_down_mm, j4, i + 2))
+                moves.append(_Move(q, True, pen_down_mm, j4, line))
         return moves
+    text = read_text(path)
     on = re.compile(rf"^\s*On\s+{pen_bit}\s*$", re.IGNORECASE) if pen_bit is not None else None
     for ln, line in enumerate(text.splitlines(), 1):
         code = _strip_comment(line)
