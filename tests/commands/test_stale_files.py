@@ -60,10 +60,13 @@ def test_a_plan_in_another_dialect_moves_the_earlier_program_aside(work, capsys)
     base = ["plan", work / "cal.json", work / "targets.csv", "-o", work / "p.csv", "--robot",
             work / "robot.yaml", "--force", "-q", "--program"]
     assert cli([*base, "val3"], capsys)[0] == 0
-    pgx = (work / "p.pgx").read_bytes()
+    app = {f.relative_to(work).as_posix(): f.read_bytes()   # the VAL3 application folder p/
+           for f in (work / "p").rglob("*") if f.is_file()}
+    assert "p/p.pjx" in app
     assert cli([*base, "spel"], capsys)[0] == 0
-    assert (work / "p.prg").is_file() and not (work / "p.pgx").exists()
-    assert (work / "previous" / "plan-p" / "p.pgx").read_bytes() == pgx
+    assert (work / "p.prg").is_file() and not (work / "p").exists()
+    for n, data in app.items():
+        assert (work / "previous" / "plan-p" / n).read_bytes() == data, n
 
 
 def test_two_plans_in_one_folder_keep_their_own_previous(work, capsys):  # noqa: F811
@@ -93,9 +96,10 @@ def test_a_design_in_another_dialect_leaves_no_earlier_program(tmp_path, calibra
     after = snapshot(tmp_path / "plan")
     assert set(_current(after)) == {"session.json", "program.prg", "trajectory.csv",
                                     "preview.png"}
-    for n, h in _current(earlier).items():   # program.pgx among them
+    for n, h in _current(earlier).items():   # the VAL3 application program/ among them
         assert after[f"previous/design/{n}"] == h, n
-    assert "program.pgx" in earlier
+    assert "program/program.pjx" in earlier
+    assert not (tmp_path / "plan" / "program").exists()
 
 
 # --------------------------------------------------------------------------- calibrate
