@@ -24,6 +24,7 @@ class SimulateRequest:
     targets: str | None = None     # targets program: targets.csv
     after: tuple[str, ...] = ()    # folders simulated before on the same sheet
     seed: int | None = None        # overrides the robot file's seed
+    photos: int | None = None      # overrides the simulated camera's number of photos
     quiet: bool = False
 
 
@@ -36,4 +37,4 @@ def simulate(req: SimulateRequest) -> SimulateResult:
     with writing_into(req.out, command="simulate", retire=False), written_together():
         return simulate_session(req.plan, req.truth, req.out, after=list(req.after),
                                 progress=not req.quiet, rng=req.seed, sheet_json=req.sheet,
-                                targets=req.targets)
+                                targets=req.targets, photos=req.photos)

@@ -29,11 +29,11 @@ import numpy as np
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.covariance import load_covariance
 from vision_cal.dataset.fields import FieldReader
-from vision_cal.dataset.io import atomic_write_bytes, atomic_write_json, read_json
+from vision_cal.dataset.io import atomic_write_bytes, atomic_write_json
 from vision_cal.dataset.photos import list_photos
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.dataset.session import (NominalRobot, SheetMarker, load_sheet_file,
-                                        resolve_approach)
+                                        resolve_approach, sheet_file_block)
 from vision_cal.dataset.valid_for import check as check_valid_for
 from vision_cal.dataset.valid_for import of as valid_for_of
 from vision_cal.dataset.sheet_identity import check_same_sheet
@@ -162,7 +162,7 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
     check of it when ``stage == "verify"``, with ``iso9283_cycles`` of ISO 9283's points)."""
     robot = load_robot_file(robot_path)
     sheet = load_sheet_file(sheet_path)
-    sheet_raw = read_json(sheet_path)
+    sheet_raw = sheet_file_block(sheet_path)[0]
     out = Path(out_dir)
     _check_out_dir(out)
     warnings = []
