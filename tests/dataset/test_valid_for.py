@@ -20,9 +20,8 @@ import yaml
 from vision_cal.commands.main import main
 from vision_cal.dataset import valid_for as vf_mod
 from vision_cal.dataset.calibration_result import CalibrationResult
-from vision_cal.dataset.trust import require_ready_pilot
+from vision_cal.dataset.trust import require_usable_pilot
 from vision_cal.diagnose.verdict import judge
-from vision_cal.errors import VisionCalError
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -105,13 +104,13 @@ def test_a_pilot_that_cannot_identify_backlash_is_never_ready(paper):
     assert v.within_valid_for is not None
     # the same document with both sides seen has no such reason
     assert not any("not identified" in r for r in judge(paper, stage="pilot").reasons)
-    # design --pilot: ready inside valid_for is accepted, a plain "check" is not
-    ok = {"verdict": {"status": "check", "within_valid_for": "ready", "reasons": ["x"]}}
-    require_ready_pilot(CalibrationResult.from_json(ok), "pilot.json")
-    with pytest.raises(VisionCalError, match="verdict.status"):
-        require_ready_pilot(CalibrationResult.from_json(
-            {"verdict": {"status": "check", "within_valid_for": "check", "reasons": ["x"]}}),
-            "pilot.json")
+    # the reasons valid_for adds are said as such (reason_codes): design --pilot takes the
+    # pilot, saying the informative plan is designed to fix them
+    codes = dict(zip(v.reasons, v.reason_codes))
+    assert [codes[r] for r in v.reasons if "not identified" in r] == ["not_identified"]
+    note = require_usable_pilot(CalibrationResult.from_json({"verdict": v.to_json()}),
+                                "pilot.json")
+    assert "effects a pilot cannot identify" in " ".join(note), note
 
 
 # --------------------------------------------------------------------------- plan

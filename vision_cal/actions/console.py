@@ -182,6 +182,9 @@ def report_line(path: Path, photos: Path) -> str:
 def simulate_line(r: SimulateResult) -> str:
     """``vision-cal simulate``: the marks drawn (off the paper, on a printed marker) and the
     photos taken."""
+    if r.blank:
+        return (f"the blank sheet photographed from {len(r.photos)} places -> {r.out_dir}/ "
+                "(truth.json: the markers as printed)")
     extra = []
     if r.off_paper:
         extra.append(f"{len(r.off_paper)} off the paper")
@@ -372,8 +375,9 @@ def stage_lines(o: StageDesigned) -> list[str]:
     """``vision-cal design``: the survey that goes with the plan, the plan's size and what
     it is for, the files written."""
     r = o.result
-    lines = ([f"the sheet as surveyed ({o.survey}) goes with the plan: {o.survey_copy}"]
-             if o.survey_copy is not None else [])
+    lines = list(o.pilot_note)
+    if o.survey_copy is not None:
+        lines.append(f"the sheet as surveyed ({o.survey}) goes with the plan: {o.survey_copy}")
     lines.append(f"{r.stage} plan: {r.n_marks} marks, {r.duration_s:.1f} s of motion")
     if r.stage == "pilot":
         lines.append(f"every mark stays {r.info['worst_case_clearance_mm']:.1f} mm clear of "
