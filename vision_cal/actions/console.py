@@ -360,15 +360,18 @@ def locate_lines(o: LocateOutcome) -> list[str]:
     return lines
 
 
-def _locate(o: LocateOutcome, quiet: bool) -> None:
-    for w in o.warnings:   # --force: the extrapolation (also in the CSV)
+def _locate(o: LocateOutcome, quiet: bool) -> int:
+    for w in o.warnings:   # --force: the extrapolation (also in the CSV); pixels not located
         print(f"vision-cal: warning: {w}", file=sys.stderr)
-    if o.point is not None:   # one pixel: the answer itself, even when quiet
+    if o.error:
+        print(f"vision-cal: error: {o.error}", file=sys.stderr)
+    elif o.point is not None:   # one pixel: the answer itself, even when quiet
         _print_lines(locate_lines(o))
     elif o.csv_text is not None:
         sys.stdout.write(o.csv_text)
     elif not quiet:
         print(f"located {o.n} pixels -> {o.path}")
+    return o.exit_code
 
 
 def stage_lines(o: StageDesigned) -> list[str]:
