@@ -124,7 +124,7 @@ def test_verify_finds_a_moved_joint_2_zero(rehearsal):
                  "vision-cal verify cal/calibration.json check2/"):
         type_command(line, tmp)
     v = json.loads((tmp / "check2_verify" / "verify.json").read_text())
-    assert v["verdict"].startswith("re-zero joint 2 by +"), v["reasons"]
+    assert v["verdict"].startswith("re-zero joint 2: add -"), v["reasons"]
     z2 = v["changes"]["z2_deg"]
     assert z2["moved"] and abs(z2["delta"] - MOVED_Z2_DEG) < 4 * z2["std"], z2
     assert not v["changes"]["L1_mm"]["moved"] and not v["changes"]["L2_mm"]["moved"]

@@ -66,7 +66,15 @@ def arm_camera_lines(o: ArmCameraOutcome) -> list[str]:
     v = Verdict.from_json(doc["verdict"])
     if v.floor_line:
         lines.append(v.floor_line)
-    return lines + [v.text, f"wrote {o.path}"]
+    return lines + _verdict_lines(v) + [f"wrote {o.path}"]
+
+
+def _verdict_lines(v) -> list[str]:
+    """A :class:`~vision_cal.diagnose.verdict.Verdict` as the console's lines (one reason a
+    line: :func:`vision_cal.report.summary.verdict_lines`)."""
+    from vision_cal.report.summary import verdict_lines
+
+    return verdict_lines({**v.to_json(), "text": v.text})
 
 
 def handeye_pairs_lines(o: HandeyePairsOutcome) -> list[str]:
@@ -85,7 +93,7 @@ def handeye_pairs_lines(o: HandeyePairsOutcome) -> list[str]:
     v = Verdict.from_json(o.document["verdict"])
     if v.floor_line:
         lines.append(v.floor_line)
-    return lines + [v.text, f"wrote {o.path}"]
+    return lines + _verdict_lines(v) + [f"wrote {o.path}"]
 
 
 def joint_lines(o: JointCalibrated) -> list[str]:
@@ -158,8 +166,10 @@ def verify_lines(o: VerifyOutcome) -> list[str]:
         lines += [f"  {name}: AP {v['AP_mm']:.4f} mm, RP {v['RP_mm']:.4f} mm ({v['n']} visits)"
                   for name, v in r.iso9283.items()]
     lines.append(f"verdict: {r.verdict}")
-    lines += [f"  {reason}" for reason in r.reasons]
-    return lines + [f"wrote {o.path}"]
+    lines += [f"  - {reason}" for reason in r.reasons]   # one finding or action a line
+    others = [p.name for p in o.written if p != o.path]
+    return lines + [f"wrote {o.path}" + (f" (and {', '.join(others)} beside it: the photos "
+                                          "as measured)" if others else "")]
 
 
 def loop_lines(o: LoopOutcome) -> list[str]:

@@ -230,12 +230,12 @@ def verdict_reasons(vf: dict | None, *, skip_labels=()) -> list[tuple[str, str]]
     for d in (vf or {}).get("not_identified") or []:
         if d.get("label") in skip_labels:
             continue
-        out.append(("check", f"not identified: {d['label']} ({d.get('reason', '')}); "
+        out.append(("check", f"not identified: {d['label']}: {d.get('reason', '')}; "
                              f"targets with {d.get('excited_by', 'it')} are outside what was "
-                             f"calibrated (plan refuses them); to identify it, "
-                             f"{d.get('fix', 'draw the informative plan')} (the informative "
-                             "plan does: vision-cal design ROBOT.yaml --sheet SHEET.json "
-                             "--pilot THIS/calibration.json)"))
+                             f"calibrated (plan leaves them out); to identify it, "
+                             f"{d.get('fix', 'draw the informative plan')}: the informative "
+                             "plan does (vision-cal design ROBOT.yaml --sheet SHEET.json "
+                             "--pilot CAL.json)"))
     return out
 
 

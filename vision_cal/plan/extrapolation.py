@@ -64,3 +64,15 @@ def std_limit_mm(model, doc: dict, *, file: str) -> float | None:
          or len([m for m in seen if m.get("role") == "validation"]) or len(seen))
     u = 1.0 / math.sqrt(2.0 * max(int(n), 1))
     return math.sqrt(s_ref**2 + e**2 * ((1.0 + u) ** 2 - 1.0) / C95**2)
+
+
+def std_at_mm(model, doc: dict, q_deg, approach, *, file: str) -> list | None:
+    """The predicted std (mm per axis) of commands ``q_deg`` (N, 2) with ``approach``
+    (N, 2) under calibration document ``doc`` (None: no usable covariance)."""
+    try:
+        cov = load_covariance(doc, model, file=file)
+    except VisionCalError:
+        return None
+    if cov is None or not len(q_deg):
+        return None
+    return [float(v) for v in predicted_std_mm(model, cov, q_deg, approach)]
