@@ -28,12 +28,12 @@ def test_targets_beyond_the_marks_joints_are_named(tmp_path, capsys):
     doc = json.loads(cal.read_text())
     # the paper's marks: joint 1 at -20, 0, 20 deg, joint 2 at -60, 0, 60 deg
     assert joints_covered_deg(doc) == [(-20.0, 20.0), (-60.0, 60.0)]
-    # the paper's five marks know little (expected error 1.3 mm): joint 2 at 100 deg, 40
-    # beyond, keeps that figure (std 0.50 mm against a limit of 0.59); joint 1 25 deg
-    # beyond does not (0.72 mm)
-    q = np.array([[10.0, 30.0], [-15.0, 45.0], [45.0, 30.0], [-45.0, 30.0], [5.0, 100.0]])
+    # the paper's five marks (expected error 1.3 mm, known to 1 / sqrt(10)): joint 2's 120
+    # deg span holds it 4.6 deg beyond, joint 1's 40 deg 1.5 deg; joint 2 at 62.5 deg (2.5
+    # beyond, std 0.37 mm within the 0.67 mm limit) is planned, 100 deg (40 beyond) is not
+    q = np.array([[10.0, 30.0], [-15.0, 45.0], [45.0, 30.0], [5.0, 100.0], [2.0, 62.5]])
     xy = forward(SM5, q)
-    names = ["in1", "in2", "q1out", "q1low", "q2edge"]
+    names = ["in1", "in2", "q1out", "q2out", "q2edge"]
     targets = tmp_path / "t.csv"
     targets.write_text("id,x_mm,y_mm\n" + "".join(
         f"{i},{x:.3f},{y:.3f}\n" for i, (x, y) in zip(names, xy)))
@@ -41,38 +41,39 @@ def test_targets_beyond_the_marks_joints_are_named(tmp_path, capsys):
     out = tmp_path / "p.csv"
     assert main(["plan", str(cal), str(targets), "-o", str(out), "-q"]) == 3
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "2 outside valid_for" in err[0] and "q1out, q1low" in err[0], err
+    assert len(err) == 1 and "2 outside valid_for" in err[0] and "q1out, q2out" in err[0], err
     planned = [r.split(",")[0] for r in out.read_text().splitlines()[1:]]
     assert planned == ["in1", "in2", "q2edge"], planned
     failed = {r[0]: r for r in csv.reader((tmp_path / "p.failed.csv").read_text().splitlines())}
-    assert sorted(failed) == ["id", "q1low", "q1out"], failed
+    assert sorted(failed) == ["id", "q1out", "q2out"], failed
     why = failed["q1out"][-1]
     assert "valid_for.joints" in why and "joint 1 -20.0..20.0 deg" in why, why
     assert "--joint" in why and "std" in why, why
     # with --force: written, the extrapolation stated in the file and on the console
     assert main(["plan", str(cal), str(targets), "-o", str(out), "-q", "--force"]) == 0
     err = [ln for ln in capsys.readouterr().err.splitlines() if "outside the joints" in ln]
-    assert len(err) == 1 and "q1out, q1low" in err[0] and "--force" in err[0], err
+    assert len(err) == 1 and "q1out, q2out" in err[0] and "--force" in err[0], err
     rows = {r.split(",")[0]: r.split(",")[-1] for r in out.read_text().splitlines()[1:]}
     assert out.read_text().splitlines()[0].endswith(",outside_valid_for")
-    assert rows == {"in1": "", "in2": "", "q1out": "joints", "q1low": "joints",
+    assert rows == {"in1": "", "in2": "", "q1out": "joints", "q2out": "joints",
                     "q2edge": ""}, rows
     # a mark left out as unreliable does not widen the range
     doc["marks"]["j1p"]["status"] = "unreliable"
     assert joints_covered_deg(doc)[0] == (-20.0, 0.0)
 
 
-def test_how_far_beyond_follows_the_calibrations_own_std():
-    """valid_for.check: beyond the covered range by more than the slack, an item is inside
-    while its std is within the limit that keeps the stated error, outside beyond it."""
+def test_how_far_beyond_follows_the_calibrations_own_expected_error():
+    """valid_for.check: up to ``beyond_deg`` past the covered range an item is inside while
+    its std is within the limit; further, or with a larger std, outside; without the
+    calibration's figures, the slack alone (a hard 1 deg, as before)."""
     from vision_cal.dataset.valid_for import check, per_item
 
     vf = {"joints_deg": [[-20.0, 20.0], [-60.0, 60.0]]}
-    q = [[22.5, 0.0], [22.5, 0.0], [0.0, 0.0]]
-    out = check(vf, ids=["a", "b", "c"], joints_deg=q, std_mm=[0.010, 0.013, 0.5],
-                std_limit_mm=0.012)
-    assert [o.ids for o in out] == [("b",)]      # c is inside the range: its std is not asked
+    q = [[22.5, 0.0], [22.5, 0.0], [25.0, 0.0], [0.0, 0.0]]
+    out = check(vf, ids=["a", "b", "c", "d"], joints_deg=q, std_mm=[0.010, 0.013, 0.010, 0.5],
+                std_limit_mm=0.012, beyond_deg=(3.0, 3.0))
+    assert [o.ids for o in out] == [("b", "c")]   # d is inside the range: its std not asked
     whole, items = per_item(out)
-    assert not whole and list(items) == ["b"] and "0.0130 mm" in items["b"][0]
-    # no std known: the slack alone, as before
+    assert not whole and list(items) == ["b", "c"] and "std 0.0130 mm" in items["b"][0]
     assert check(vf, ids=["a"], joints_deg=[[22.5, 0.0]])[0].ids == ("a",)
+    assert check(vf, ids=["a"], joints_deg=[[20.9, 0.0]]) == []

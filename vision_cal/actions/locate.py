@@ -25,7 +25,7 @@ from vision_cal.dataset.valid_for import per_item as outside_per_item
 from vision_cal.errors import EXIT_PARTIAL, VisionCalError
 from vision_cal.model.motion import JOINT4_LIMITS_DEG, JOINT_LIMITS_DEG
 from vision_cal.plan.compensate import plan_targets
-from vision_cal.plan.extrapolation import std_limit_mm
+from vision_cal.plan.extrapolation import beyond_deg, std_limit_mm
 from vision_cal.plan.uncertainty import predicted_std_mm
 
 
@@ -227,12 +227,14 @@ def _outside_valid_for(req: LocateRequest, doc: dict, ids, z, joints, model) -> 
         out += check_valid_for(vf, cal=cal, ids=["--joints"], joints_deg=[q[:2]],
                                approach=[(1, 1)],
                                joint4_deg=[q[2]] if len(q) == 3 else None,
-                               std_mm=std([q[:2]], [(1, 1)]), std_limit_mm=limit)
+                               std_mm=std([q[:2]], [(1, 1)]), std_limit_mm=limit,
+                               beyond_deg=beyond_deg(doc))
     ok = [(i, j) for i, j in zip(ids, joints) if j is not None and j.status == "ok"]
     if ok:
         qs, ap = [j.q_deg for _, j in ok], [j.approach for _, j in ok]
         out += check_valid_for(vf, cal=cal, ids=[i for i, _ in ok], joints_deg=qs,
-                               approach=ap, std_mm=std(qs, ap), std_limit_mm=limit)
+                               approach=ap, std_mm=std(qs, ap), std_limit_mm=limit,
+                               beyond_deg=beyond_deg(doc))
     return out
 
 

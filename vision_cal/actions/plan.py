@@ -24,7 +24,7 @@ from vision_cal.errors import EXIT_PARTIAL, VisionCalError
 from vision_cal.measure.printed import targets_on_print
 from vision_cal.model.motion import JOINT_LIMITS_DEG
 from vision_cal.plan.compensate import plan_targets, to_planned_marks, write_plan_trajectory
-from vision_cal.plan.extrapolation import std_limit_mm
+from vision_cal.plan.extrapolation import beyond_deg, std_limit_mm
 from vision_cal.plan.orient import controller_tool_mm, plan_poses
 from vision_cal.plan.trajectory import check_length
 from vision_cal.plan.uncertainty import predicted_std_mm
@@ -298,7 +298,8 @@ def _outside_valid_for(req, doc: dict, p: _Planned, robot, model) -> list:
                            cal=str(req.calibration), ids=ids,
                            joints_deg=[t.q_deg for t in ok], approach=approach,
                            joint4_deg=q4, pen_down_mm=pen, std_mm=p.std,
-                           std_limit_mm=std_limit_mm(model, doc, file=str(req.calibration)))
+                           std_limit_mm=std_limit_mm(model, doc, file=str(req.calibration)),
+                           beyond_deg=beyond_deg(doc))
 
 
 def _flagged_targets(outside) -> dict:

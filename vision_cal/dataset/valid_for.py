@@ -24,10 +24,9 @@ from dataclasses import dataclass
 
 from vision_cal.errors import VisionCalError
 
-#: a request within this of a covered joint range (deg) is inside it; beyond it, inside
-#: while the calibration's own expected error there (its std, which grows with the
-#: distance from the marks) is within what it states (``check``'s ``std_mm`` and
-#: ``std_limit_mm``: ``plan/extrapolation.std_limit_mm``)
+#: a request within this of a covered joint range (deg) is inside it; further, inside
+#: as far as the calibration's own expected error holds there (``check``'s ``beyond_deg``,
+#: ``std_mm`` and ``std_limit_mm``: ``plan/extrapolation``)
 RANGE_SLACK_DEG = 1.0
 #: the fields of ``valid_for`` a request's items are checked against one by one (``plan``
 #: and ``locate`` plan the rest: :func:`per_item`); the others are the whole request's
@@ -266,17 +265,18 @@ def _names(ids, first: int = 3) -> str:
 def check(vf: dict | None, *, cal: str = "CAL.json", ids=(), joints_deg=None,
           approach=None, joint4_deg=None, heights_mm=None, pen_down_mm=None,
           camera: int | None = None, whole_model: bool = False, std_mm=None,
-          std_limit_mm: float | None = None) -> list[Outside]:
+          std_limit_mm: float | None = None, beyond_deg=None) -> list[Outside]:
     """What of a request lies outside ``vf`` (empty: all inside, or ``vf`` None: an old file
     that does not say). ``ids`` names the request's items; per item ``joints_deg`` (q1, q2),
     ``approach`` (s1, s2[, s4]), ``joint4_deg``; ``heights_mm`` the heights asked (locate's
     ``--z-mm``) of ``camera`` (else the marks' heights); ``pen_down_mm`` the program's;
     ``whole_model`` (``export``: the model for every pose) each effect not identified.
-    ``std_mm`` (per item) the calibration's predicted std (per axis) at each item's joints
-    and ``std_limit_mm`` the largest that keeps its stated expected error
-    (``plan/extrapolation``): an item beyond the covered joint range by more than
-    :data:`RANGE_SLACK_DEG` is still inside while its std is no larger (how far the model
-    extrapolates is the calibration's own figure, not the last mark)."""
+    ``beyond_deg`` (per joint) how far beyond the covered range the calibration's stated
+    expected error holds, ``std_mm`` (per item) its predicted std (per axis) at each item's
+    joints and ``std_limit_mm`` the largest that keeps that error (``plan/extrapolation``):
+    an item up to ``beyond_deg`` beyond (never less than :data:`RANGE_SLACK_DEG`) is inside
+    while its std is within the limit (how far the model extrapolates is the calibration's
+    own figure, not the last mark)."""
     if not vf:
         return []
     ids = list(ids)
@@ -292,7 +292,7 @@ def check(vf: dict | None, *, cal: str = "CAL.json", ids=(), joints_deg=None,
                 f"{d.get('fix', '')}: {informative}"))
     rng = vf.get("joints_deg")
     if joints_deg is not None and rng:
-        out += _joints_outside(rng, ids, joints_deg, std_mm, std_limit_mm)
+        out += _joints_outside(rng, ids, joints_deg, std_mm, std_limit_mm, beyond_deg)
     sides = vf.get("approach_sides") or {}
     if approach is not None and sides:
         for j, name in ((0, "1"), (1, "2"), (2, "4")):
@@ -359,36 +359,39 @@ def check(vf: dict | None, *, cal: str = "CAL.json", ids=(), joints_deg=None,
     return out
 
 
-def _joints_outside(rng, ids, joints_deg, std_mm, std_limit_mm) -> list[Outside]:
-    """The items beyond the covered joint range (``rng``) by more than the slack and where
-    the calibration's std (``std_mm``, when given) exceeds the limit that keeps its stated
-    error (``std_limit_mm``): none, or one :class:`Outside` naming each."""
-    def beyond(q):
-        return any(not rng[j][0] - RANGE_SLACK_DEG <= q[j] <= rng[j][1] + RANGE_SLACK_DEG
-                   for j in range(2))
-
-    known = std_mm is not None and std_limit_mm is not None and math.isfinite(std_limit_mm)
+def _joints_outside(rng, ids, joints_deg, std_mm, std_limit_mm, beyond_deg) -> list[Outside]:
+    """The items beyond the covered joint range (``rng``) by more than the slack, which is
+    :data:`RANGE_SLACK_DEG`, or ``beyond_deg`` (per joint) where the item's std
+    (``std_mm``) is within ``std_limit_mm``: none, or one :class:`Outside` naming each."""
+    known = (std_mm is not None and std_limit_mm is not None and math.isfinite(std_limit_mm)
+             and beyond_deg is not None)
     stds = list(std_mm) if known else [None] * len(ids)
+
+    def slack(s, j):
+        ok = s is not None and math.isfinite(s) and s <= std_limit_mm
+        return max(RANGE_SLACK_DEG, float(beyond_deg[j])) if ok else RANGE_SLACK_DEG
+
     bad = [(i, q, s) for i, q, s in zip(ids, joints_deg, stds)
-           if beyond(q) and not (s is not None and math.isfinite(s) and s <= std_limit_mm)]
+           if any(not rng[j][0] - slack(s, j) <= q[j] <= rng[j][1] + slack(s, j)
+                  for j in range(2))]
     if not bad:
         return []
     cover = ("draw marks there (a sheet placed there: vision-cal design ... --pilot), or "
              "calibrate several placements together (vision-cal calibrate A/ B/ C/ --joint)")
     span = (f"joint 1 {rng[0][0]:.1f}..{rng[0][1]:.1f} deg, joint 2 "
             f"{rng[1][0]:.1f}..{rng[1][1]:.1f} deg")
-    grows = (f", where its predicted std grows beyond the {std_limit_mm:.4f} mm that keeps "
-             "its stated expected error" if known else "")
+    grows = (f"; its expected error holds {beyond_deg[0]:.1f} / {beyond_deg[1]:.1f} deg "
+             f"beyond, while the predicted std stays within {std_limit_mm:.4f} mm"
+             if known else "")
     each = tuple((i, f"joints {q[0]:.1f}, {q[1]:.1f} deg, beyond the {span} the marks "
-                     "covered" + (f", std {s:.4f} mm there, more than the {std_limit_mm:.4f} "
-                                  "mm that keeps the calibration's expected error"
-                                  if s is not None and math.isfinite(s) else ""))
+                     "covered" + (f" (std {s:.4f} mm there{grows})" if s is not None
+                                  and math.isfinite(s) else ""))
                  for i, q, s in bad)
     ids_out = [i for i, _, _ in bad]
     return [Outside(
         "joints", f"{len(ids_out)} of {len(ids)} outside the joints the calibration's marks "
-        f"covered ({span}){grows}: {_names(ids_out)}: the model is extrapolated there and its "
-        "expected error does not hold", cover, tuple(ids_out), each)]
+        f"covered ({span}{grows}): {_names(ids_out)}: the model is extrapolated there and "
+        "its expected error does not hold", cover, tuple(ids_out), each)]
 
 
 def per_item(outside: list[Outside]) -> tuple[list[Outside], dict]:

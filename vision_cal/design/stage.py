@@ -36,7 +36,7 @@ from vision_cal.dataset.session import (NominalRobot, SheetMarker, load_sheet_fi
                                         resolve_approach, sheet_file_block)
 from vision_cal.dataset.valid_for import check as check_valid_for
 from vision_cal.dataset.valid_for import of as valid_for_of
-from vision_cal.plan.extrapolation import std_at_mm, std_limit_mm
+from vision_cal.plan.extrapolation import beyond_deg, std_at_mm, std_limit_mm
 from vision_cal.dataset.sheet_identity import check_same_sheet
 from vision_cal.design.iso9283 import PITCH_MM, iso_marks
 from vision_cal.design.joint4 import circle_triples, joint4_vias, turn_joint4
@@ -399,7 +399,8 @@ def _against_valid_for(doc: dict, cal, marks, home_deg, joint4, stage, info: dic
                               approach=a, joint4_deg=None if not joint4 else
                               [joint4.get(i) for i in ids],
                               std_mm=std_at_mm(model, doc, q, a, file=str(cal)),
-                              std_limit_mm=std_limit_mm(model, doc, file=str(cal)))
+                              std_limit_mm=std_limit_mm(model, doc, file=str(cal)),
+                              beyond_deg=beyond_deg(doc))
     if not outside:
         return
     info["beyond_valid_for"] = [o.to_json() for o in outside]

@@ -49,7 +49,7 @@ from vision_cal.dataset.valid_for import enforce as enforce_valid_for
 from vision_cal.dataset.valid_for import of as valid_for_of
 from vision_cal.design.iso9283 import ap_rp
 from vision_cal.errors import CalibrationError, VisionCalError
-from vision_cal.plan.extrapolation import std_at_mm, std_limit_mm
+from vision_cal.plan.extrapolation import beyond_deg, std_at_mm, std_limit_mm
 from vision_cal.workflows.pipeline import measure_marks
 from vision_cal.model.rms import rms_2d
 
@@ -284,7 +284,7 @@ def verify_folder(cal_path, folder, *, out_dir, jobs: int | None = None,
         # beyond the marks' joints as far as the calibration's own expected error holds
         std_mm=std_at_mm(model, doc, [v[:2] for v in q], [v[:2] for v in a],
                          file=str(cal_path)),
-        std_limit_mm=std_limit_mm(model, doc, file=str(cal_path)))
+        std_limit_mm=std_limit_mm(model, doc, file=str(cal_path)), beyond_deg=beyond_deg(doc))
     said = enforce_valid_for(outside, file=str(cal_path), force=force,
                              what=f"{folder}/session.json marks")
     measurement, data, missing = measure_marks(session, out_dir=out_dir, jobs=jobs,
