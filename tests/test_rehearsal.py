@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 import yaml
 
+from tests.conftest import ROOT
 from tests.readme import blocks_under, type_line
 
 pytestmark = pytest.mark.render
@@ -113,6 +114,9 @@ def test_verify_finds_a_moved_joint_2_zero(rehearsal):
     assert v["verdict"].startswith("re-zero joint 2: add -"), v["reasons"]
     z2 = v["changes"]["z2_deg"]
     assert z2["moved"] and abs(z2["delta"] - MOVED_Z2_DEG) < 4 * z2["std"], z2
+    # the README quotes the verdict this run writes (not a figure typed apart from it)
+    assert f'Its verdict: "{v["verdict"]}"' in " ".join(
+        (ROOT / "README.md").read_text().split()), v["verdict"]
     assert not v["changes"]["L1_mm"]["moved"] and not v["changes"]["L2_mm"]["moved"]
 
 
