@@ -5,7 +5,7 @@ reference trajectory and a robot program, written together or not at all."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from vision_cal.dataset.calibration import load_calibration
@@ -230,8 +230,6 @@ def _write_outputs(req: PlanRequest, model, robot, p: _Planned, said, flagged: d
 def _without(p: _Planned, items: dict) -> _Planned:
     """``p`` with the targets outside ``valid_for`` (id -> its lines) moved from ``ok`` to
     ``failed``, each with why and what would cover it."""
-    from dataclasses import replace
-
     out = [replace(t, status="outside valid_for", reason=" | ".join(items[t.id]))
            for t in p.ok if t.id in items]
     keep = [(t, s) for t, s in zip(p.ok, p.std) if t.id not in items]

@@ -27,6 +27,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from vision_cal.config import DEFAULT, AssociationConfig
 
 
@@ -129,13 +131,13 @@ def infer_image_marks(n_images: int, usable: list[int], groups, mark_ids, files,
 
 def _n_known(groups, earlier_mm, tol_mm: float) -> int:
     """How many of the dot ``groups`` lie within ``tol_mm`` of a mark of an earlier plan."""
-    if earlier_mm is None or not len(earlier_mm) or not groups:
+    if earlier_mm is None or not groups:
         return 0
-    import numpy as np
-
     try:   # session.json's hint: a value that is not a list of [x, y] says nothing
         e = np.asarray(earlier_mm, float).reshape(-1, 2)
     except (TypeError, ValueError):
+        return 0
+    if not len(e) or not np.all(np.isfinite(e)):
         return 0
     return sum(bool(np.min(np.hypot(*(e - g.mean_mm).T)) <= tol_mm) for g in groups)
 
