@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test bench clean
+.PHONY: demo test bench clean figures
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -19,6 +19,12 @@ demo: $(STAMP)
 	$(BIN)/vision-cal loop renders/default.yaml --out out/demo
 	@echo "disk used by out/: $$(du -sh out | cut -f1)"
 	@echo "vision-cal is installed in $(BIN)/: type '. $(BIN)/activate' to run it as 'vision-cal' in this shell"
+
+# The README's headline table from docs/figures.json, the demo's rows from the demo's files
+# (bench/figures.py; tests/test_readme.py checks the README against docs/figures.json).
+figures: demo
+	$(BIN)/python bench/figures.py demo out
+	$(BIN)/python bench/figures.py readme
 
 # One BLAS thread per process: the tests (and the renders they run in worker processes)
 # share 2 cores, and threaded BLAS on a loaded machine made a bundle adjustment 20x slower.

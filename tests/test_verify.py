@@ -44,7 +44,7 @@ def test_unchanged_robot_on_a_sheet_placed_elsewhere_is_still_good(seed):
 @pytest.mark.parametrize("seed", [21, 22])
 def test_a_moved_joint_2_zero_is_found_within_4_std(seed):
     r = check(moved(CAL, z2=0.04, z1=-0.5, base=(5.0, 3.0)), seed)
-    assert r.verdict.startswith("re-zero joint 2 by +"), r.reasons
+    assert r.verdict.startswith("re-zero joint 2: add -"), r.reasons   # the zero grew
     z2 = r.changes["z2_deg"]
     assert z2["moved"] and abs(z2["delta"] - 0.04) < 4 * z2["std"]
     assert z2["sigmas"] > MOVED_SIGMA
@@ -85,3 +85,32 @@ def test_iso9283_visits_give_ap_and_rp_from_their_own_commanded_points():
         assert v["n"] == 30
         assert v["AP_mm"] < 4 * NOISE_MM * np.sqrt(2) / np.sqrt(30) + 0.01  # + the placement fit
         assert 1.5 * NOISE_MM < v["RP_mm"] < 5.0 * NOISE_MM
+
+
+def test_the_rezero_verdict_says_one_sign_and_one_action_a_line():
+    """Issue 38: the verdict, its actions and verify.json say the same figure in the
+    report's convention (what to add to the controller's offset: the zero grew by +0.04,
+    so add -0.04), each action on its own console line; the results' folder is named as
+    the user named the photos' folder (relative), and every file it holds is announced."""
+    from pathlib import Path
+
+    from vision_cal.actions.console import verify_lines
+    from vision_cal.actions.verify import VerifyOutcome, default_out
+
+    r = check(moved(CAL, z2=0.04, z1=-0.5, base=(5.0, 3.0)), 21)
+    add = r.rezero["add_to_offset_deg"]
+    assert add == -r.rezero["zero_moved_deg"] and add < 0
+    assert r.verdict == f"re-zero joint 2: add {add:+.3f} deg to its controller offset"
+    doc = r.to_json()
+    assert doc["rezero"]["add_to_offset_deg"] == add and "sign_convention" in doc
+    lines = verify_lines(VerifyOutcome(r, Path("check_verify/verify.json"), (),
+                                       (Path("check_verify/measurement.json"),
+                                        Path("check_verify/verify.json"))))
+    actions = [ln for ln in lines if ln.startswith("  - ")]
+    assert any(ln.startswith(f"  - on the controller: add {add:+.4f} deg") for ln in actions)
+    assert any(ln.startswith("  - or in the OLP: enter z2 =") for ln in actions)
+    assert all(ln.count("add ") <= 1 for ln in lines), lines   # one action a line
+    assert lines[-1] == ("wrote check_verify/verify.json (and measurement.json beside it: "
+                         "the photos as measured)")
+    assert default_out("check/") == Path("check_verify")
+    assert default_out("runs/check") == Path("runs/check_verify")

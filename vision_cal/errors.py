@@ -50,3 +50,8 @@ class Failure:
         reason = object.__getattribute__(self, "reason")
         raise FailureUsed(f"{type(self).__name__} has no {name!r}: the result could not be "
                           f"made ({reason}); check `if not result:` before using it")
+
+
+#: the exit code of a command that did part of what it was asked (``plan`` and ``locate
+#: --csv`` with some targets not planned: each listed with its reason)
+EXIT_PARTIAL = 3

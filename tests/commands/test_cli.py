@@ -72,7 +72,7 @@ def test_plan_command_writes_plan_and_trajectory(paper_folder, tmp_path, capsys)
     assert main([str(paper_folder), "--method", "paper", "--out", str(tmp_path), "-q"]) == 0
     cal = tmp_path / "calibration.json"
     assert main(["plan", str(cal), str(targets), "-o", str(tmp_path / "plan.csv"),
-                 "--trajectory", str(tmp_path / "traj.csv"), "--force"]) == 0   # valid_for
+                 "--trajectory", str(tmp_path / "traj.csv"), "--force"]) == 3   # far: partial
     err = capsys.readouterr().err
     assert "target far" in err and "out of reach" in err
     ids, q, s = read_plan(tmp_path / "plan.csv")
@@ -91,7 +91,7 @@ def test_plan_command_writes_plan_and_trajectory(paper_folder, tmp_path, capsys)
     assert sum(int(r.split(",")[-1]) for r in traj[1:]) >= 2
     # nominal model: a different plan
     assert main(["plan", str(cal), str(targets), "-o", str(tmp_path / "before.csv"),
-                 "--model", "nominal", "-q"]) == 0
+                 "--model", "nominal", "-q"]) == 3   # far: partial
     _, qn, _ = read_plan(tmp_path / "before.csv")
     assert abs(qn - q).max() > 1.0
 
@@ -135,7 +135,7 @@ def test_plan_trajectory_starts_at_home(paper_folder, tmp_path):
     def first_pose(*extra):
         traj = tmp_path / "traj.csv"
         assert main(["plan", str(cal), str(targets), "-o", str(tmp_path / "plan.csv"), "-q",
-                     "--trajectory", str(traj), "--force", *extra]) == 0   # valid_for
+                     "--trajectory", str(traj), "--force", *extra]) == 3   # far: partial
         row = traj.read_text().splitlines()[1].split(",")
         return float(row[1]), float(row[2])
 

@@ -1,7 +1,7 @@
 """``vision-cal design --pilot/--verify`` reads the calibration.json given as every reader
 does (``CalibrationResult``) and refuses one it cannot plan from in one line naming the file
 and the field (exit 2, nothing written): the robot-frame file of several placements, lengths
-in metres, a pilot whose verdict is not ready."""
+in metres, a pilot whose verdict is not reliable."""
 
 from __future__ import annotations
 
@@ -44,13 +44,17 @@ def test_design_refuses_a_calibration_it_cannot_plan_from(option, edit, field, s
 
 
 @pytest.mark.parametrize("verdict, refused", [
-    ({"status": "check", "reasons": ["few marks"]}, True),
-    ({"status": "check", "within_valid_for": "ready", "reasons": ["x"]}, False),
+    ({"status": "not reliable", "reasons": ["the robot changed while drawing"],
+      "reason_codes": ["drift"], "reason_levels": ["not reliable"]}, True),
+    ({"status": "check", "reasons": ["few marks"]}, False),
+    ({"status": "check", "within_valid_for": "check", "reasons": ["x", "y"],
+      "reason_codes": ["not_identified", "print_one_place"]}, False),
     ({"status": "ready", "reasons": []}, False),
 ])
-def test_design_takes_a_pilot_ready_inside_what_it_saw(verdict, refused, tmp_path, capsys):
-    """A pilot whose verdict is "check" is refused naming verdict.status; one ready inside
-    its valid_for (or ready) passes that check (and stops at the sheet, not given here)."""
+def test_design_refuses_only_a_pilot_not_reliable(verdict, refused, tmp_path, capsys):
+    """A pilot whose verdict is "not reliable" is refused naming verdict.status and its
+    reason; one "check" (for whatever reason: the informative plan needs its model to
+    millimetres) or ready passes that check (and stops at the sheet, not given here)."""
     doc = _doc()
     _set(["verdict"], verdict)(doc)
     cal = tmp_path / "calibration.json"
@@ -61,6 +65,6 @@ def test_design_takes_a_pilot_ready_inside_what_it_saw(verdict, refused, tmp_pat
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1, err
     if refused:
-        assert f"{cal}: verdict.status: " in err[0] and "few marks" in err[0], err[0]
+        assert f"{cal}: verdict.status: " in err[0] and "robot changed" in err[0], err[0]
     else:
         assert f"{cal}" not in err[0] and str(sheet) in err[0], err[0]

@@ -39,6 +39,8 @@ def test_robot_template_ships_in_the_package_and_loads_clean(tmp_path, caplog):
     ({"hidden": {"effects": [{"name": "joint_wobble", "joint": 2}]}}, "hidden.effects[0]"),
     ({"hidden": {"controller": "magic"}}, "hidden.controller"),
     ({"camera": {"photos": 0}}, "camera.photos"),
+    ({"print": {"deviation_rms_mm": -0.1}}, "print.deviation_rms_mm"),
+    ({"print": {"toner": 0.1}}, "print.toner"),
 ])
 def test_a_bad_simulated_robot_is_one_line_naming_the_field(tmp_path, capsys, edit, field):
     import yaml
@@ -136,3 +138,66 @@ def test_spel_options_pen_output_jump_limz_motor_off(tmp_path):
     (tmp_path / "robot.yaml").write_text(yaml.safe_dump(doc))
     with pytest.raises(VisionCalError, match="program.pen_output_bit"):
         load_robot_file(tmp_path / "robot.yaml")
+
+
+def test_the_blank_sheet_is_photographed_printed_off_its_layout(tmp_path, capsys):
+    """`vision-cal simulate SHEET.json` photographs the blank sheet (no marks) for a survey,
+    from several places, printed as the simulated robot's ``print`` says: truth.json's
+    markers as printed lie off the layout by the RMS asked (0.15 mm over the paper, about
+    as much at the markers), the same print on every rehearsal of one sheet (its field
+    drawn from the sheet's id, not the run's seed), and none with ``deviation_rms_mm: 0``.
+    A small camera keeps it cheap."""
+    import yaml
+
+    from vision_cal.templates import template_text
+
+    assert main(["sheet", "--size", "A4", "--out", str(tmp_path / "sheet"), "-q"]) == 0
+    (tmp_path / "robot.yaml").write_text(template_text("robot"))
+    doc = yaml.safe_load(template_text("simulated"))
+    assert doc["print"] == {"deviation_rms_mm": 0.0}          # the template: an exact print
+    doc["camera"].update(size_px=[320, 240], f_px=350.0)
+    doc["print"]["deviation_rms_mm"] = 0.15
+    (tmp_path / "true.yaml").write_text(yaml.safe_dump(doc))
+    sheet = json.loads((tmp_path / "sheet" / "sheet.json").read_text())
+    layout = {m["id"]: np.array(m["corners_mm"]) for m in sheet["markers"]}
+    off = []
+    for k, (seed, n) in enumerate(((1, 3), (2, 1))):
+        out = tmp_path / f"survey{k}"
+        assert main(["simulate", str(tmp_path / "sheet" / "sheet.json"), "--truth",
+                     str(tmp_path / "true.yaml"), "--out", str(out), "--photos", str(n),
+                     "--seed", str(seed)]) == 0
+        assert f"the blank sheet photographed from {n} places" in capsys.readouterr().out
+        truth = json.loads((out / "truth.json").read_text())
+        assert len(list(out.glob("IMG_*.png"))) == n == len(truth["camera"]["T_cam_sheet"])
+        assert truth["print"]["rms_mm"] == pytest.approx(0.15, rel=1e-6)
+        off.append(np.concatenate([np.array(truth["print"]["markers"][str(i)]) - c
+                                   for i, c in layout.items()]))
+    assert np.array_equal(off[0], off[1])                      # one sheet, one print
+    assert 0.05 < float(np.sqrt(np.mean(np.sum(off[0] ** 2, axis=1)))) < 0.3
+    doc["print"]["deviation_rms_mm"] = 0.0
+    (tmp_path / "true.yaml").write_text(yaml.safe_dump(doc))
+    assert main(["simulate", str(tmp_path / "sheet" / "sheet.json"), "--truth",
+                 str(tmp_path / "true.yaml"), "--out", str(tmp_path / "exact"), "--photos", "1",
+                 "-q"]) == 0
+    assert json.loads((tmp_path / "exact" / "truth.json").read_text())["print"] is None
+
+
+def test_a_sheet_is_read_from_the_session_json_designed_on_it(tmp_path):
+    """`survey --sheet` (and every --sheet) takes what the user has: a session.json carries
+    the sheet it was designed on, read as the sheet.json itself."""
+    from vision_cal.dataset.session import load_sheet_file
+
+    assert main(["sheet", "--size", "A4", "--out", str(tmp_path / "sheet"), "-q"]) == 0
+    sheet = json.loads((tmp_path / "sheet" / "sheet.json").read_text())
+    (tmp_path / "session.json").write_text(json.dumps({"format": "vision-cal/1",
+                                                       "sheet": sheet, "marks": []}))
+    a = load_sheet_file(tmp_path / "sheet" / "sheet.json")
+    b = load_sheet_file(tmp_path / "session.json")
+    assert a.corners_by_id().keys() == b.corners_by_id().keys()
+    assert all(np.array_equal(a.corners_by_id()[i], b.corners_by_id()[i])
+               for i in a.corners_by_id())
+    sheet["markers"][0]["corners_mm"] = "x"
+    (tmp_path / "session.json").write_text(json.dumps({"format": "vision-cal/1",
+                                                       "sheet": sheet, "marks": []}))
+    with pytest.raises(VisionCalError, match="sheet.markers"):
+        load_sheet_file(tmp_path / "session.json")

@@ -59,11 +59,13 @@ def test_not_reliable_is_refused_unless_forced(cal, tmp_path, capsys, sub):
         assert _run([sub, ok, *args, "-q"], capsys)[0] == 0
 
 
-def test_design_refuses_a_pilot_that_is_not_ready(cal, tmp_path, capsys):
+def test_design_refuses_a_pilot_that_is_not_reliable(cal, tmp_path, capsys):
+    """A pilot "not reliable" would place the plan wrong: refused (a "check" one is taken:
+    tests/design/test_pilot.py)."""
     sheet = tmp_path / "sheet"
     assert main(["sheet", "--size", "A2", "--out", str(sheet), "-q"]) == 0
     robot = ROOT / "fixtures" / "robot_sm5.yaml"
-    for status in ("check", "not reliable"):
+    for status in ("not reliable",):
         pilot = _with_verdict(cal, tmp_path, status)
         rc, err = _run(["design", robot, "--sheet", sheet / "sheet.json", "--pilot", pilot,
                         "--out", tmp_path / "plan", "-q"], capsys)

@@ -198,7 +198,7 @@ def test_any_mutated_calibration_is_one_line_or_plans(doc, model, capsys):
         cal.write_text(text)
         out = Path(tmp) / "plan.csv"
         rc, err = run_cli(["plan", cal, TARGETS, "-o", out, "--model", model, "-q"], capsys)
-        if rc == 0:  # one target of the fixture is out of reach: one warning line
+        if rc in (0, 3):  # one target of the fixture is out of reach (3: planned in part)
             assert "Traceback" not in err and len(err.strip().splitlines()) <= 1
             assert "nan" not in out.read_text().lower()
         else:

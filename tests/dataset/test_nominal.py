@@ -15,7 +15,7 @@ import yaml
 
 from vision_cal.commands.main import main
 from vision_cal.dataset.nominal import (SIGN_CONVENTION, controller_offsets, nominal_blocks,
-                                        rezero_text)
+                                        rezero)
 from vision_cal.report.headline import actions
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -46,8 +46,10 @@ def test_offsets_and_rezero_share_one_sign():
     o = controller_offsets(doc)
     assert [x["add_to_offset_deg"] for x in o] == [pytest.approx(3.0), pytest.approx(8.0)]
     assert "robot file's zero minus the calibrated zero" in SIGN_CONVENTION
-    assert "add -0.0400 deg to the controller's joint 2 offset" in rezero_text(2, 0.04, -8.0)
-    assert "z2 = -7.9600 deg" in rezero_text(2, 0.04, -8.0)
+    r = rezero(2, 0.04, -8.0)
+    assert r["add_to_offset_deg"] == pytest.approx(-0.04)
+    assert "add -0.0400 deg to joint 2's offset" in r["actions"][0]
+    assert "z2 = -7.9600 deg" in r["actions"][1]
 
 
 def test_a_calibration_of_a_plan_placed_with_a_pilot_tells_the_robot_files_offsets(
@@ -67,7 +69,8 @@ def test_a_calibration_of_a_plan_placed_with_a_pilot_tells_the_robot_files_offse
     assert cal["nominal"]["joint_zero_deg"] == [0.0, 0.0]
     assert cal["starting_model"]["L1_mm"] == s["robot"]["L1_mm"]
     z = cal["params"]["joint_zero_deg"]
-    line = next(ln for ln in out.splitlines() if ln.startswith("controller:"))
+    line = next(ln for ln in out.splitlines()
+                if ln.startswith("  - keep the robot file's model"))
     assert f"joint 1: {-z[0]:+.4f} deg" in line and f"joint 2: {-z[1]:+.4f} deg" in line
     assert "starting model" in out
     a = actions(cal)

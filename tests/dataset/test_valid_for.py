@@ -10,6 +10,7 @@ saw (one approach side, a tool never turned), as a pilot's would."""
 from __future__ import annotations
 
 import copy
+import csv
 import json
 from pathlib import Path
 
@@ -20,9 +21,8 @@ import yaml
 from vision_cal.commands.main import main
 from vision_cal.dataset import valid_for as vf_mod
 from vision_cal.dataset.calibration_result import CalibrationResult
-from vision_cal.dataset.trust import require_ready_pilot
+from vision_cal.dataset.trust import require_usable_pilot
 from vision_cal.diagnose.verdict import judge
-from vision_cal.errors import VisionCalError
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -105,13 +105,13 @@ def test_a_pilot_that_cannot_identify_backlash_is_never_ready(paper):
     assert v.within_valid_for is not None
     # the same document with both sides seen has no such reason
     assert not any("not identified" in r for r in judge(paper, stage="pilot").reasons)
-    # design --pilot: ready inside valid_for is accepted, a plain "check" is not
-    ok = {"verdict": {"status": "check", "within_valid_for": "ready", "reasons": ["x"]}}
-    require_ready_pilot(CalibrationResult.from_json(ok), "pilot.json")
-    with pytest.raises(VisionCalError, match="verdict.status"):
-        require_ready_pilot(CalibrationResult.from_json(
-            {"verdict": {"status": "check", "within_valid_for": "check", "reasons": ["x"]}}),
-            "pilot.json")
+    # the reasons valid_for adds are said as such (reason_codes): design --pilot takes the
+    # pilot, saying the informative plan is designed to fix them
+    codes = dict(zip(v.reasons, v.reason_codes))
+    assert [codes[r] for r in v.reasons if "not identified" in r] == ["not_identified"]
+    note = require_usable_pilot(CalibrationResult.from_json({"verdict": v.to_json()}),
+                                "pilot.json")
+    assert "effects a pilot cannot identify" in " ".join(note), note
 
 
 # --------------------------------------------------------------------------- plan
@@ -125,10 +125,14 @@ def test_plan_refuses_the_approach_side_never_seen(paper, tmp_path, capsys):
     assert "outside_valid_for" not in out.read_text()
     out.unlink()
     capsys.readouterr()
-    assert main(["plan", str(cal), str(t), "-o", str(out), "-q", "--approach", "-1", "-1"]) == 2
+    # every target outside: none planned (exit 1), each in the report with why and what
+    # would cover it
+    assert main(["plan", str(cal), str(t), "-o", str(out), "-q", "--approach", "-1", "-1"]) == 1
     (line,) = _err_lines(capsys)
-    assert "valid_for.approach2" in line and "joint 2" in line and "vision-cal design" in line
-    assert not out.exists()
+    assert "2 outside valid_for" in line and "p.failed.csv" in line, line
+    why = (tmp_path / "p.failed.csv").read_text()
+    assert "valid_for.approach2" in why and "joint 2" in why and "vision-cal design" in why
+    assert "outside_valid_for" not in (out.read_text() if out.exists() else "")
     assert main(["plan", str(cal), str(t), "-o", str(out), "-q", "--approach", "-1", "-1",
                  "--force"]) == 0
     err = _err_lines(capsys)
@@ -147,10 +151,11 @@ def test_plan_refuses_orientations_with_a_tool_never_turned(paper, tmp_path, cap
     cal = _write(tmp_path, d)
     t = _inside_targets(tmp_path, paper, theta=[0.0, 90.0])
     out = tmp_path / "p.csv"
-    assert main(["plan", str(cal), str(t), "-o", str(out), "-q"]) == 2
+    assert main(["plan", str(cal), str(t), "-o", str(out), "-q"]) == 1
     (line,) = _err_lines(capsys)
-    assert "valid_for.joint4" in line and "tool" in line and "tool_mm" in line, line
-    assert not out.exists()
+    assert "outside valid_for" in line, line
+    why = (tmp_path / "p.failed.csv").read_text()
+    assert "valid_for.joint4" in why and "tool" in why and "tool_mm" in why, why
     assert main(["plan", str(cal), str(t), "-o", str(out), "-q", "--force"]) == 0
     assert "joint4" in out.read_text()
 
@@ -179,11 +184,24 @@ def test_locate_refuses_heights_the_camera_cannot_locate(paper, tmp_path, capsys
     cal = _write(tmp_path, d)
     assert main(["locate", str(cal), "--pixel", "600", "450", "--z-mm", "50", "-q"]) == 0
     capsys.readouterr()
-    assert main(["locate", str(cal), "--pixel", "600", "450", "--z-mm", "-30", "-q"]) == 2
+    # one pixel outside: nothing located (exit 1), why and what would cover it
+    assert main(["locate", str(cal), "--pixel", "600", "450", "--z-mm", "-30", "-q"]) == 1
     (line,) = _err_lines(capsys)
-    assert "valid_for.heights" in line and "-30" in line, line
+    assert "valid_for.heights" in line and "-30" in line and "to cover it" in line, line
     assert main(["locate", str(cal), "--pixel", "600", "450", "--z-mm", "-30", "--force"]) == 0
     assert any("valid_for" in ln for ln in _err_lines(capsys))
+    # per pixel (issue 38): the rest is located, each one outside says why in its row,
+    # exit 3 (partial)
+    px = tmp_path / "px.csv"
+    px.write_text("id,u_px,v_px,z_mm\na,600,450,50\nb,600,450,-30\nc,610,440,\n")
+    out = tmp_path / "pts.csv"
+    assert main(["locate", str(cal), "--csv", str(px), "-o", str(out), "-q"]) == 3
+    (line,) = _err_lines(capsys)
+    assert "1 of 3 pixel(s)" in line and ": b " in line, line
+    rows = {r["id"]: r for r in csv.DictReader(out.read_text().splitlines())}
+    assert [rows[i]["status"] for i in "abc"] == ["ok", "outside valid_for", "ok"], rows
+    assert rows["b"]["x_mm"] == "" and "valid_for.heights" in rows["b"]["reason"], rows["b"]
+    assert float(rows["a"]["x_mm"]) and float(rows["c"]["x_mm"])
 
 
 def test_locate_refuses_a_joint_command_beyond_the_marks(paper, tmp_path, capsys):
@@ -192,7 +210,7 @@ def test_locate_refuses_a_joint_command_beyond_the_marks(paper, tmp_path, capsys
 
     p = ScaraParams.from_json(paper["params"])
     robot = ROOT / "fixtures" / "robot_sm5.yaml"
-    for q, rc in (([5.0, 30.0], 0), ([45.0, 30.0], 2)):    # joint 1 covered -20..20 deg
+    for q, rc in (([5.0, 30.0], 0), ([45.0, 30.0], 1)):    # joint 1 covered -20..20 deg
         over = forward(p, np.array([q]))[0]
         cal = _write(tmp_path, _with_camera(paper, 600.0, over_mm=over))
         capsys.readouterr()

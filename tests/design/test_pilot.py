@@ -1,6 +1,7 @@
 """The pilot lands on free paper wherever the robot really stands within its tolerance."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -114,3 +115,68 @@ def test_refuses_a_folder_that_already_holds_photos(tmp_path, sheet_json, capsys
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "\n" not in err and "IMG_0001.jpg" in err
     assert (out / "session.json").read_text() == "{}"
+
+
+def _pilot_calibration(tmp_path, pilot_dir, edit) -> Path:
+    """The pilot's nine marks drawn by a true robot (0.02 mm of noise, measured_mm: no
+    photos), calibrated, its document edited by ``edit`` and judged again as the pipeline
+    judges a pilot."""
+    from vision_cal.diagnose.verdict import judge
+    from vision_cal.render.truth_model import TrueRobot
+    from vision_cal.workflows.pipeline import calibrate_dataset
+
+    s = json.loads((pilot_dir / "session.json").read_text())
+    truth = TrueRobot(344.05, 259.87, (-2.57, -8.13), (-420.0, -230.0))
+    q = np.array([m["joints_deg"] for m in s["marks"]])
+    noise = np.random.default_rng(6).normal(0, 0.02, q.shape)
+    for m, p in zip(s["marks"], truth.pen_mm(q) + noise):
+        m["measured_mm"] = p.tolist()
+    (tmp_path / "pilot").mkdir()
+    (tmp_path / "pilot" / "session.json").write_text(json.dumps(s))
+    cal = calibrate_dataset(tmp_path / "pilot", out_dir=tmp_path / "pilot_cal").out_path
+    doc = json.loads(cal.read_text())
+    edit(doc)
+    doc["verdict"] = judge(doc, stage="pilot").to_json()
+    cal.write_text(json.dumps(doc))
+    return cal
+
+
+def _one_place(doc):
+    """What one phone photo of a real print gives (issue 38): the print's deviation seen
+    beyond the photo's mapping and not measured (calibration.json ``print``)."""
+    doc["print"] = {"source": "one place", "limit_mm": 0.098, "seen_rms_mm": 0.098}
+
+
+def _drift(doc):
+    doc["effects"] = [{"name": "drift", "size_mm": 0.4, "along": "x"}]
+
+
+def test_design_takes_a_pilot_photographed_once(tmp_path, pilot_dir, sheet_json, capsys):
+    """Issue 38: a pilot photographed once is "check" for what the informative plan exists
+    to fix (backlash not identified from one approach side, the print from one camera
+    place, each said by its reason_codes) and design --pilot designs the plan from it,
+    saying so; a pilot "not reliable" (the robot drifted) is refused naming verdict.status
+    and the reason (exit 2, nothing written)."""
+    from vision_cal.commands.main import main
+
+    cal = _pilot_calibration(tmp_path, pilot_dir, _one_place)
+    v = json.loads(cal.read_text())["verdict"]
+    assert v["status"] == "check", v
+    shortfalls = {c for c, lvl in zip(v["reason_codes"], v["reason_levels"]) if lvl != "ready"}
+    assert shortfalls == {"not_identified", "print_one_place"}, v
+    out = tmp_path / "plan"
+    code = main(["design", str(ROBOT), "--sheet", str(sheet_json), "--pilot", str(cal),
+                 "--out", str(out)])
+    said = capsys.readouterr().out
+    assert code == 0 and (out / "session.json").is_file(), said
+    assert ("designed to fix: effects a pilot cannot identify, the print from one camera "
+            "place") in said and "other reason" not in said, said
+    bad = _pilot_calibration(tmp_path / "drift", pilot_dir, _drift) if (
+        tmp_path / "drift").mkdir() is None else None
+    assert json.loads(bad.read_text())["verdict"]["status"] == "not reliable"
+    code = main(["design", str(ROBOT), "--sheet", str(sheet_json), "--pilot", str(bad),
+                 "--out", str(tmp_path / "plan2"), "-q"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1, err
+    assert "verdict.status" in err[0] and "robot changed while drawing" in err[0], err[0]
+    assert not (tmp_path / "plan2").exists()

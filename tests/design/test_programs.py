@@ -166,7 +166,7 @@ def test_plan_command_writes_std_and_the_compensated_program(tmp_path, robot):
     rc = main(["plan", str(tmp_path / "cal" / "calibration.json"), str(tmp_path / "t.csv"),
                "-o", str(tmp_path / "plan.csv"), "--program", "spel", "--robot", str(ROBOT),
                "-q", "--force"])   # the paper's five marks cover little (valid_for)
-    assert rc == 0
+    assert rc == 3   # far: partial
     rows = {r["id"]: r for r in csv.DictReader(io.StringIO((tmp_path / "plan.csv").read_text()))}
     assert all(0 < float(rows[i]["std_mm"]) < 5 for i in ("origin", "a"))
     assert "far" not in rows or rows["far"]["status"] == "failed"   # out of reach

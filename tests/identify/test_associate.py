@@ -109,3 +109,31 @@ def test_folder_association(tmp_path, mode):
             len(ids), DEFAULT.dots.views_per_dot)
         assert meas.marks[ids[-1]].n_photos == 1
     assert not meas.unassigned
+
+
+def test_an_earlier_plans_marks_are_named_as_such():
+    """Issue 38: the informative plan's photos also show the pilot's nine marks (the README
+    keeps them on the sheet): the extra dots near session.json design.earlier_marks_mm are
+    named the earlier plan's, not "left unassigned"; one elsewhere still is."""
+    from vision_cal.identify.infer import infer_image_marks
+
+    rng = np.random.default_rng(4)
+    plan = rng.uniform(-200, 200, (6, 2))
+    pilot = rng.uniform(-200, 200, (3, 2))
+    stray = np.array([[250.0, 250.0]])
+
+    def groups(points):
+        return [DotGroup(np.array([p, p]), np.eye(2)[None].repeat(2, 0) * 1e-4, (0, 1),
+                         (j, j)) for j, p in enumerate(points)]
+
+    ids = [f"m{i}" for i in range(6)]
+    said = infer_image_marks(2, [0, 1], groups(np.vstack([plan, pilot])), ids, ["a", "b"],
+                             earlier_mm=(pilot + 0.02).tolist(), tol_mm=1.0).warnings
+    assert len(said) == 1 and "3 are the marks of the earlier plan" in said[0], said
+    assert "unassigned" not in said[0]
+    said = infer_image_marks(2, [0, 1], groups(np.vstack([plan, pilot, stray])), ids,
+                             ["a", "b"], earlier_mm=pilot.tolist(), tol_mm=1.0).warnings
+    assert "3 are the marks of the earlier plan" in said[0] and "1 other" in said[0], said
+    said = infer_image_marks(2, [0, 1], groups(np.vstack([plan, pilot])), ids,
+                             ["a", "b"]).warnings
+    assert "left unassigned" in said[0]

@@ -33,7 +33,7 @@ def test_plan_writes_the_program_of_the_plan_joints(work, capsys, kind):
     rc, _, err = cli(["plan", work / "cal.json", work / "targets.csv", "-o", work / "p.csv",
                       "--program", kind, "--robot", work / "robot.yaml", "--force", "-q"],
                      capsys)   # the paper's marks cover joint 1 -20..20 only (valid_for)
-    assert rc == 0, err
+    assert rc == 3, err   # "far" is out of reach: planned in part
     ops, _ = read_program(kind, program_path(kind, work / "p"))
     with open(work / "p.csv", newline="") as f:
         rows = list(csv.DictReader(f))

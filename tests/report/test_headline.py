@@ -208,3 +208,29 @@ def test_the_sheet_height_figure_is_drawn_when_the_marks_have_a_grid_difference(
         m["local_minus_global_mm"] = [0.001 * k, -0.002]
     png = plots.sheet_height(d)
     assert isinstance(png, bytes) and png.startswith(b"\x89PNG")
+
+
+def test_the_console_says_one_reason_one_line_and_each_figure_by_its_own_name():
+    """Issue 38: a pilot's "check before use" was one line of about 900 characters, and
+    two different "noise floor" figures sat on consecutive lines: each reason is a line of
+    its own (wrapped at the console's width), the controller's two ways each a line, the
+    photos' noise named apart from the verdict's noise floor."""
+    from vision_cal.report.summary import WIDTH, format_summary, verdict_lines
+
+    reasons = ["not identified: joint_backlash(joint 1): " + "x " * 200, "the print's "
+               "deviation from its layout is not measured: survey the sheet"]
+    lines = verdict_lines({"status": "check", "reasons": reasons, "text": "check before use",
+                           "expected_target_error_mm": 0.036})
+    assert lines[0] == "check before use (expected target error 0.036 mm, 95 %): 2 reason(s)"
+    assert all(len(ln) <= WIDTH for ln in lines), lines
+    assert sum(ln.startswith("  - ") for ln in lines) == 2
+    d = {"params": {"L1_mm": 344.0, "L2_mm": 260.0, "joint_zero_deg": [-2.6, -8.1],
+                    "base_mm": [-420.0, -230.0]},
+         "nominal": {"joint_zero_deg": [0.0, 0.0]}, "noise_floor_mm": 0.0163,
+         "residual_rms_mm": {"base_model": 0.013, "final_model": 0.0128},
+         "verdict": {"status": "check", "reasons": reasons, "text": "x", "floor_line":
+                     "residual vs noise floor: 0.0128 mm vs 0.0176 mm (0.73x): within"}}
+    text = format_summary(d)
+    assert text.count("noise floor") == 1, text
+    assert "  - keep the robot file's model and add to the controller's joint offsets: " \
+           "joint 1: +2.6000 deg, joint 2: +8.1000 deg" in text.splitlines()

@@ -43,17 +43,59 @@ def rasterise_pdf(path, ppm: float):
     return rgb, (W / (w_pt * 25.4 / 72.0), H / (h_pt * 25.4 / 72.0))
 
 
-def rasterise_pdftoppm(path, ppm: float):
-    """Page 1 by poppler's ``pdftoppm`` at ``ppm`` px/mm. Poppler keeps the exact scale (the
-    last pixel row or column may be partly off the page). Returns (RGB, (ppm, ppm))."""
+def rasterise_mupdf(path, ppm: float):
+    """Page 1 by MuPDF (``pymupdf``, a test dependency: neither the writer nor pdfium) at
+    ``ppm`` px/mm. MuPDF keeps the exact scale and rounds the bitmap out to whole pixels
+    (the last row or column may be partly off the page). Returns (RGB, (ppm, ppm))."""
+    import pymupdf
+
+    doc = pymupdf.open(str(path))
+    try:
+        s = ppm * 25.4 / 72.0
+        pix = doc[0].get_pixmap(matrix=pymupdf.Matrix(s, s), alpha=False,
+                                colorspace=pymupdf.csRGB)
+        rgb = np.frombuffer(pix.samples, np.uint8).reshape(pix.height, pix.width, 3).copy()
+    finally:
+        doc.close()
+    return rgb, (float(ppm), float(ppm))
+
+
+#: a system tool a test uses, absent: what to install (the README's "Tests and the tools
+#: they use" lists the same); under CI (CI=true) a failure, not a skip: .ci/run installs it
+SYSTEM_TOOLS = {
+    "pdftoppm": "poppler's pdftoppm is not installed: install poppler-utils (Debian/Ubuntu: "
+                "sudo apt-get install poppler-utils; Fedora: sudo dnf install poppler-utils; "
+                "macOS: brew install poppler) so that `pdftoppm` is on PATH",
+}
+
+
+def require_tool(name: str) -> str:
+    """The path of system tool ``name``; absent, the test skips saying what to install
+    (fails under CI, whose .ci/run installs it)."""
+    import os
     import shutil
+
+    import pytest
+
+    exe = shutil.which(name)
+    if exe is None:
+        msg = SYSTEM_TOOLS[name]
+        if os.environ.get("CI", "").lower() in ("1", "true", "yes"):
+            pytest.fail(msg + "; CI must install it (.ci/run)")
+        pytest.skip(msg + ", then make test runs this check")
+    return exe
+
+
+def rasterise_pdftoppm(path, ppm: float):
+    """Page 1 by poppler's ``pdftoppm`` at ``ppm`` px/mm (a system tool: a test skips
+    without it, :func:`require_tool`). Poppler keeps the exact scale (the last pixel row or
+    column may be partly off the page). Returns (RGB, (ppm, ppm))."""
     import subprocess
     import tempfile
 
     from PIL import Image
 
-    exe = shutil.which("pdftoppm")
-    assert exe, "pdftoppm (poppler-utils) is needed: .ci/run installs it"
+    exe = require_tool("pdftoppm")
     with tempfile.TemporaryDirectory() as d:
         subprocess.run([exe, "-r", f"{ppm * 25.4:.6f}", "-singlefile", str(path),
                         f"{d}/p"], check=True, capture_output=True)

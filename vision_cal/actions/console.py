@@ -66,7 +66,15 @@ def arm_camera_lines(o: ArmCameraOutcome) -> list[str]:
     v = Verdict.from_json(doc["verdict"])
     if v.floor_line:
         lines.append(v.floor_line)
-    return lines + [v.text, f"wrote {o.path}"]
+    return lines + _verdict_lines(v) + [f"wrote {o.path}"]
+
+
+def _verdict_lines(v) -> list[str]:
+    """A :class:`~vision_cal.diagnose.verdict.Verdict` as the console's lines (one reason a
+    line: :func:`vision_cal.report.summary.verdict_lines`)."""
+    from vision_cal.report.summary import verdict_lines
+
+    return verdict_lines({**v.to_json(), "text": v.text})
 
 
 def handeye_pairs_lines(o: HandeyePairsOutcome) -> list[str]:
@@ -85,7 +93,7 @@ def handeye_pairs_lines(o: HandeyePairsOutcome) -> list[str]:
     v = Verdict.from_json(o.document["verdict"])
     if v.floor_line:
         lines.append(v.floor_line)
-    return lines + [v.text, f"wrote {o.path}"]
+    return lines + _verdict_lines(v) + [f"wrote {o.path}"]
 
 
 def joint_lines(o: JointCalibrated) -> list[str]:
@@ -158,8 +166,10 @@ def verify_lines(o: VerifyOutcome) -> list[str]:
         lines += [f"  {name}: AP {v['AP_mm']:.4f} mm, RP {v['RP_mm']:.4f} mm ({v['n']} visits)"
                   for name, v in r.iso9283.items()]
     lines.append(f"verdict: {r.verdict}")
-    lines += [f"  {reason}" for reason in r.reasons]
-    return lines + [f"wrote {o.path}"]
+    lines += [f"  - {reason}" for reason in r.reasons]   # one finding or action a line
+    others = [p.name for p in o.written if p != o.path]
+    return lines + [f"wrote {o.path}" + (f" (and {', '.join(others)} beside it: the photos "
+                                          "as measured)" if others else "")]
 
 
 def loop_lines(o: LoopOutcome) -> list[str]:
@@ -182,6 +192,9 @@ def report_line(path: Path, photos: Path) -> str:
 def simulate_line(r: SimulateResult) -> str:
     """``vision-cal simulate``: the marks drawn (off the paper, on a printed marker) and the
     photos taken."""
+    if r.blank:
+        return (f"the blank sheet photographed from {len(r.photos)} places -> {r.out_dir}/ "
+                "(truth.json: the markers as printed)")
     extra = []
     if r.off_paper:
         extra.append(f"{len(r.off_paper)} off the paper")
@@ -357,23 +370,27 @@ def locate_lines(o: LocateOutcome) -> list[str]:
     return lines
 
 
-def _locate(o: LocateOutcome, quiet: bool) -> None:
-    for w in o.warnings:   # --force: the extrapolation (also in the CSV)
+def _locate(o: LocateOutcome, quiet: bool) -> int:
+    for w in o.warnings:   # --force: the extrapolation (also in the CSV); pixels not located
         print(f"vision-cal: warning: {w}", file=sys.stderr)
-    if o.point is not None:   # one pixel: the answer itself, even when quiet
+    if o.error:
+        print(f"vision-cal: error: {o.error}", file=sys.stderr)
+    elif o.point is not None:   # one pixel: the answer itself, even when quiet
         _print_lines(locate_lines(o))
     elif o.csv_text is not None:
         sys.stdout.write(o.csv_text)
     elif not quiet:
         print(f"located {o.n} pixels -> {o.path}")
+    return o.exit_code
 
 
 def stage_lines(o: StageDesigned) -> list[str]:
     """``vision-cal design``: the survey that goes with the plan, the plan's size and what
     it is for, the files written."""
     r = o.result
-    lines = ([f"the sheet as surveyed ({o.survey}) goes with the plan: {o.survey_copy}"]
-             if o.survey_copy is not None else [])
+    lines = list(o.pilot_note)
+    if o.survey_copy is not None:
+        lines.append(f"the sheet as surveyed ({o.survey}) goes with the plan: {o.survey_copy}")
     lines.append(f"{r.stage} plan: {r.n_marks} marks, {r.duration_s:.1f} s of motion")
     if r.stage == "pilot":
         lines.append(f"every mark stays {r.info['worst_case_clearance_mm']:.1f} mm clear of "

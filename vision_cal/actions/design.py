@@ -10,12 +10,12 @@ from vision_cal.calibrate.plausible import check_links_against
 from vision_cal.camera.arm_design import check_design, design_camera_on_arm
 from vision_cal.dataset.calibration import refuse_robot_frame
 from vision_cal.dataset.calibration_result import CalibrationResult
-from vision_cal.dataset.io import read_json, written_together
+from vision_cal.dataset.io import written_together
 from vision_cal.dataset.out_folder import writing_into
 from vision_cal.dataset.photos import list_photos
 from vision_cal.dataset.robot import load_robot_file
-from vision_cal.dataset.session import load_sheet_file
-from vision_cal.dataset.trust import require_ready_pilot
+from vision_cal.dataset.session import load_sheet_file, sheet_file_block
+from vision_cal.dataset.trust import require_usable_pilot
 from vision_cal.design.placements import design_placements
 from vision_cal.design.stage import DesignResult, design_stage
 from vision_cal.errors import VisionCalError
@@ -58,6 +58,7 @@ class StageDesigned:
     survey_copy: Path | None = None   # its copy beside the plan
     verify: str | None = None         # the calibration a check plan checks
     out: str = ""
+    pilot_note: tuple[str, ...] = ()  # a "check" pilot: what the plan fixes, what is left
 
 
 @dataclass(frozen=True)
@@ -113,6 +114,7 @@ def design(req: DesignRequest) -> StageDesigned | PlacementsDesigned | CameraPos
         raise VisionCalError("give either --pilot (the informative plan) or --verify (a check "
                              "of a calibration), not both", field="--verify")
     given = req.pilot if req.pilot is not None else req.verify
+    pilot_note: tuple[str, ...] = ()
     if given is not None:
         # read as every reader of calibration.json reads it (the planner's strict reader,
         # load_calibration, follows in design_stage)
@@ -121,7 +123,7 @@ def design(req: DesignRequest) -> StageDesigned | PlacementsDesigned | CameraPos
         check_links_against(cal, load_robot_file(req.robot).nominal, file=given,
                             robot_file=req.robot)
         if req.pilot:
-            require_ready_pilot(cal, req.pilot)
+            pilot_note = require_usable_pilot(cal, req.pilot)
     # #28: measured against it; found beside the sheet (the sheet file is never the survey)
     survey = find_survey(req.survey) if req.survey else find_survey(Path(req.sheet).parent)
     if req.survey and survey is None:
@@ -145,7 +147,7 @@ def design(req: DesignRequest) -> StageDesigned | PlacementsDesigned | CameraPos
                          iso9283_cycles=req.iso9283 if check else 0)
         dest = (copy_survey(survey, load_sheet_file(req.sheet), r.session_path.parent)
                 if survey is not None else None)
-    return StageDesigned(r, survey, dest, req.verify, req.out)
+    return StageDesigned(r, survey, dest, req.verify, req.out, pilot_note)
 
 
 def _reads(req: DesignRequest) -> list:
@@ -215,7 +217,7 @@ def _camera_on_arm(req: DesignRequest) -> CameraPosesDesigned:
     with writing_into(req.out, command="design", reads=_reads(req), refuse=_no_photos,
                       quiet=req.quiet) as out:
         with written_together():   # session.json and program.prg both, or neither
-            a, b = design_camera_on_arm(robot, sheet, read_json(req.sheet), out,
+            a, b = design_camera_on_arm(robot, sheet, sheet_file_block(req.sheet)[0], out,
                                         n_poses=req.n_poses, mount=req.mount,
                                         trigger=req.trigger, output_bit=req.trigger_output,
                                         seed=req.seed, repeats=req.repeats,

@@ -13,6 +13,7 @@ import numpy as np
 from vision_cal.camera.arm import camera_for
 from vision_cal.camera.fixed import locate
 from vision_cal.dataset.calibration import load_calibration
+from vision_cal.dataset.covariance import load_covariance
 from vision_cal.dataset.csvio import number_field, read_rows
 from vision_cal.dataset.io import atomic_write_text
 from vision_cal.dataset.out_folder import output_file_of_kind, replacing_files
@@ -20,9 +21,13 @@ from vision_cal.dataset.robot import load_robot_file
 from vision_cal.dataset.valid_for import check as check_valid_for
 from vision_cal.dataset.valid_for import enforce as enforce_valid_for
 from vision_cal.dataset.valid_for import of as valid_for_of
-from vision_cal.errors import VisionCalError
+from vision_cal.dataset.valid_for import per_item as outside_per_item
+from vision_cal.errors import EXIT_PARTIAL, VisionCalError
 from vision_cal.model.motion import JOINT4_LIMITS_DEG, JOINT_LIMITS_DEG
 from vision_cal.plan.compensate import plan_targets
+from vision_cal.plan.extrapolation import beyond_deg, std_limit_mm
+from vision_cal.plan.uncertainty import predicted_std_mm
+
 
 
 #: the columns PIXELS.csv must have (z_mm optional)
@@ -81,6 +86,12 @@ class LocateOutcome:
     csv_text: str | None = None   # --csv without -o: the table for stdout
     path: Path | None = None      # --csv -o: the file written
     n: int = 0                    # pixels located
+    not_located: tuple[str, ...] = ()   # outside valid_for: the pixels' lines (why, cover)
+    error: str | None = None      # nothing located (exit 1)
+
+    @property
+    def exit_code(self) -> int:
+        return 1 if self.error else EXIT_PARTIAL if self.not_located else 0
 
 
 def locate_pixels(req: LocateRequest) -> LocateOutcome:
@@ -135,23 +146,43 @@ def locate_pixels(req: LocateRequest) -> LocateOutcome:
     if robot is not None:
         joints = plan_targets(model, ids, [p.sheet_mm[:2] for p in points], elbow=req.elbow,
                               joint_limits_deg=robot.joint_limits_deg)
-    outside = _outside_valid_for(req, doc, ids, z, joints)
-    said = enforce_valid_for(outside, file=str(req.calibration), force=req.force,
-                             what="--csv" if req.csv else "--pixel")
-    # said: --force, the extrapolation, for the console (and in the CSV)
+    outside = _outside_valid_for(req, doc, ids, z, joints, model)
+    whole, items = outside_per_item(outside)
+    what = "--csv" if req.csv else "--pixel"
+    # said: --force, the extrapolation, for the console (and in the CSV); without it a
+    # whole request outside is refused, each pixel outside is not located (why, and what
+    # would cover it, in its row)
+    said = enforce_valid_for(outside if req.force else whole, file=str(req.calibration),
+                             force=req.force, what=what)
+    if "--joints" in items:   # the arm's command is every pixel's
+        items = {i: items["--joints"] + items.get(i, []) for i in ids}
+    why = {} if req.force else {i: " | ".join(items[i]) for i in ids if i in items}
+    if why and len(why) == len(ids):
+        return LocateOutcome(tuple(said), not_located=tuple(why.values()), error=(
+            f"{what}: nothing located: {next(iter(why.values()))}"
+            + (f" (and {len(why) - 1} more: see the status column)" if len(why) > 1 else "")))
+    said = list(said) + ([f"{req.csv}: {len(why)} of {len(ids)} pixel(s) outside what "
+                          f"{req.calibration} was calibrated for (valid_for) not located: "
+                          f"{', '.join(list(why)[:3])}{' ...' if len(why) > 3 else ''} "
+                          "(why, and what would cover each: the status and reason "
+                          "columns; --force locates them, the extrapolation stated)"]
+                         if why else [])
     if req.csv:
         flagged: dict = {}
         for o in outside:
             for i in o.ids:
                 flagged[i] = (flagged.get(i, "") + " " + o.field).strip()
-        text = _csv_text(req, ids, points, joints, flagged if said else None)
+        text = _csv_text(req, ids, points, joints, flagged if req.force and outside else None,
+                         why)
         if req.out:   # the output set's one owner: an earlier file to previous/
             with replacing_files([("-o", req.out)], command="locate", quiet=req.quiet,
                                  inputs=[("CALIBRATION.json", req.calibration),
                                          ("--csv", req.csv), ("--robot", req.robot)]):
                 path = atomic_write_text(req.out, text)
-            return LocateOutcome(tuple(said), path=path, n=len(points))
-        return LocateOutcome(tuple(said), csv_text=text, n=len(points))
+            return LocateOutcome(tuple(said), path=path, n=len(points) - len(why),
+                                 not_located=tuple(why.values()))
+        return LocateOutcome(tuple(said), csv_text=text, n=len(points) - len(why),
+                             not_located=tuple(why.values()))
     return LocateOutcome(tuple(said), point=points[0], joint=joints[0], camera=req.camera,
                          elbow=req.elbow, n=1)
 
@@ -180,34 +211,49 @@ def _refuse_joints_beyond_limits(req: LocateRequest, doc: dict, robot) -> None:
                                  field="--joints")
 
 
-def _outside_valid_for(req: LocateRequest, doc: dict, ids, z, joints) -> list:
+def _outside_valid_for(req: LocateRequest, doc: dict, ids, z, joints, model) -> list:
     """What of the request lies outside calibration.json ``valid_for``
     (:func:`vision_cal.dataset.valid_for.check`): heights the camera cannot locate at, the
     arm's ``--joints`` beyond the poses' range or side, joint commands (``--robot``) beyond
-    the joints the calibration covered."""
+    the joints the calibration covered; beyond the joints only where the model's std there
+    grows beyond what keeps its stated error (: ``plan/extrapolation.std_limit_mm``)."""
     vf = valid_for_of(doc, file=str(req.calibration))
     cal = str(req.calibration)
     out = check_valid_for(vf, cal=cal, ids=ids, heights_mm=z, camera=req.camera)
+    limit = std_limit_mm(model, doc, file=cal)
+    cov = load_covariance(doc, model, file=cal) if limit is not None else None   # it read
+
+    def std(q, a):
+        return None if cov is None else list(predicted_std_mm(model, cov, q, a))
+
     if req.joints is not None:
         q = list(req.joints)
         out += check_valid_for(vf, cal=cal, ids=["--joints"], joints_deg=[q[:2]],
                                approach=[(1, 1)],
-                               joint4_deg=[q[2]] if len(q) == 3 else None)
+                               joint4_deg=[q[2]] if len(q) == 3 else None,
+                               std_mm=std([q[:2]], [(1, 1)]), std_limit_mm=limit,
+                               beyond_deg=beyond_deg(doc))
     ok = [(i, j) for i, j in zip(ids, joints) if j is not None and j.status == "ok"]
     if ok:
-        out += check_valid_for(vf, cal=cal, ids=[i for i, _ in ok],
-                               joints_deg=[j.q_deg for _, j in ok],
-                               approach=[j.approach for _, j in ok])
+        qs, ap = [j.q_deg for _, j in ok], [j.approach for _, j in ok]
+        out += check_valid_for(vf, cal=cal, ids=[i for i, _ in ok], joints_deg=qs,
+                               approach=ap, std_mm=std(qs, ap), std_limit_mm=limit,
+                               beyond_deg=beyond_deg(doc))
     return out
 
 
-def _csv_text(req: LocateRequest, ids, points, joints, flagged=None) -> str:
+def _csv_text(req: LocateRequest, ids, points, joints, flagged=None, why=None) -> str:
+    """The located pixels' CSV; ``why``: id -> why a pixel outside ``valid_for`` was not
+    located (its row's ``status`` "outside valid_for" and ``reason``, its numbers empty);
+    ``flagged`` (``--force``): id -> the fields each row lies outside."""
+    why = why or {}
     buf = io.StringIO()
     wr = csv.writer(buf, lineterminator="\n")
     head = ["id", "u_px", "v_px", "z_mm", "x_mm", "y_mm", "x_std_mm", "y_std_mm",
             "sheet_x_mm", "sheet_y_mm"]
     if req.robot:
-        head += ["q1_deg", "q2_deg", "approach1", "approach2", "status", "reason"]
+        head += ["q1_deg", "q2_deg", "approach1", "approach2"]
+    head += ["status", "reason"]
     if flagged is not None:   # written with --force: what lies outside valid_for
         head += ["outside_valid_for"]
     wr.writerow(head)
@@ -215,10 +261,16 @@ def _csv_text(req: LocateRequest, ids, points, joints, flagged=None) -> str:
         row = [i, f"{p.pixel[0]:.4f}", f"{p.pixel[1]:.4f}", f"{p.z_mm:g}",
                f"{p.robot_mm[0]:.5f}", f"{p.robot_mm[1]:.5f}", f"{p.robot_std_mm[0]:.5f}",
                f"{p.robot_std_mm[1]:.5f}", f"{p.sheet_mm[0]:.5f}", f"{p.sheet_mm[1]:.5f}"]
+        status, reason = "ok", ""
         if j is not None:
             ok = j.status == "ok"
             row += ([f"{j.q_deg[0]:.5f}", f"{j.q_deg[1]:.5f}"] if ok else ["", ""]) + \
-                   [j.approach[0], j.approach[1], j.status, j.reason]
+                   [j.approach[0], j.approach[1]]
+            status, reason = j.status, j.reason
+        if i in why:   # not located: no number that could be taken for a result
+            row = [i, row[1], row[2], row[3]] + [""] * (len(row) - 4)
+            status, reason = "outside valid_for", why[i]
+        row += [status, reason]
         if flagged is not None:
             row.append(flagged.get(i, ""))
         wr.writerow(row)

@@ -5,7 +5,7 @@ reference trajectory and a robot program, written together or not at all."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from vision_cal.dataset.calibration import load_calibration
@@ -19,10 +19,12 @@ from vision_cal.dataset.trust import refuse_unreliable
 from vision_cal.dataset.valid_for import check as check_valid_for
 from vision_cal.dataset.valid_for import enforce as enforce_valid_for
 from vision_cal.dataset.valid_for import of as valid_for_of
-from vision_cal.errors import VisionCalError
+from vision_cal.dataset.valid_for import per_item as outside_per_item
+from vision_cal.errors import EXIT_PARTIAL, VisionCalError
 from vision_cal.measure.printed import targets_on_print
 from vision_cal.model.motion import JOINT_LIMITS_DEG
 from vision_cal.plan.compensate import plan_targets, to_planned_marks, write_plan_trajectory
+from vision_cal.plan.extrapolation import beyond_deg, std_limit_mm
 from vision_cal.plan.orient import controller_tool_mm, plan_poses
 from vision_cal.plan.trajectory import check_length
 from vision_cal.plan.uncertainty import predicted_std_mm
@@ -54,17 +56,19 @@ class PlanOutcome:
     """What ``vision-cal plan`` did, for the console, in the order it is said: the
     calibration's trust (``--force`` over an unreliable one), the program written, the
     warnings (targets not planned, on the print, beyond ``valid_for``), the summary, and the
-    error when nothing could be planned (exit code 1)."""
+    error when nothing could be planned (exit code 1); ``partial``: some targets were not
+    planned (exit code :data:`vision_cal.errors.EXIT_PARTIAL`: PLAN.failed.csv lists them)."""
 
     summary: str
     trust_warning: str | None = None
     program: Path | None = None
     warnings: tuple[str, ...] = ()
     error: str | None = None
+    partial: bool = False
 
     @property
     def exit_code(self) -> int:
-        return 1 if self.error else 0
+        return 1 if self.error else EXIT_PARTIAL if self.partial else 0
 
 
 @dataclass(frozen=True)
@@ -99,13 +103,19 @@ def plan(req: PlanRequest) -> PlanOutcome:
                                  field="--trajectory") from e
     p = _plan_targets(req, model, doc, robot, ids, xy)
     # the request against what the calibration was calibrated for, before anything is
-    # written: refused, or with --force written with the extrapolation stated
-    outside = _outside_valid_for(req, doc, p.ok, p.pose_of, robot)
-    said = enforce_valid_for(outside, file=str(req.calibration), force=req.force,
-                             what=str(req.targets))
+    # written: a target outside is not planned (PLAN.failed.csv: why, and what covers it),
+    # a whole request outside (the program's pen height) refused; with --force every one
+    # written with the extrapolation stated
+    outside = _outside_valid_for(req, doc, p, robot, model)
+    whole, items = outside_per_item(outside)
+    said = enforce_valid_for(outside if req.force else whole, file=str(req.calibration),
+                             force=req.force, what=str(req.targets))
+    if items and not req.force:
+        p = _without(p, items)
     written_program = _write_outputs(req, model, robot, p, said, _flagged_targets(outside),
                                      home_deg, prg, report)
-    return _outcome(req, doc, p, said, warn, written_program, report)
+    return _outcome(req, doc, p, said, warn, written_program, report,
+                    n_outside=0 if req.force else len(items))
 
 
 def _check_outputs(req: PlanRequest) -> tuple[Path | None, Path]:
@@ -228,10 +238,22 @@ def _write_outputs(req: PlanRequest, model, robot, p: _Planned, said, flagged: d
     return written_program
 
 
+def _without(p: _Planned, items: dict) -> _Planned:
+    """``p`` with the targets outside ``valid_for`` (id -> its lines) moved from ``ok`` to
+    ``failed``, each with why and what would cover it."""
+    out = [replace(t, status="outside valid_for", reason=" | ".join(items[t.id]))
+           for t in p.ok if t.id in items]
+    keep = [(t, s) for t, s in zip(p.ok, p.std) if t.id not in items]
+    return _Planned([next((o for o in out if o.id == t.id), t) for t in p.planned],
+                    [t for t, _ in keep], p.failed + out, p.poses, p.pose_of,
+                    [s for _, s in keep])
+
+
 def _outcome(req: PlanRequest, doc: dict, p: _Planned, said, warn, written_program,
-             report) -> PlanOutcome:
+             report, *, n_outside: int = 0) -> PlanOutcome:
     """What the planning says: the failed targets, the targets on the print, the
-    extrapolations; the error when nothing could be planned."""
+    extrapolations; the error when nothing could be planned; partial when some were not
+    (``n_outside`` of them outside ``valid_for``)."""
     ok, failed, planned = p.ok, p.failed, p.planned
     warnings = []
     if failed and ok:  # when none is planned, the error below says it once
@@ -243,7 +265,7 @@ def _outcome(req: PlanRequest, doc: dict, p: _Planned, said, warn, written_progr
         tuple(warnings),
         None if ok else (f"{req.targets}: nothing could be planned with the {req.model} "
                          f"model of {req.calibration}: {summarise_failures(failed)}; "
-                         f"all in {report}"))
+                         f"all in {report}"), partial=bool(failed) and bool(ok))
 
 
 def _targets_on_print(req, doc: dict, ok) -> list[str]:
@@ -263,23 +285,26 @@ def _targets_on_print(req, doc: dict, ok) -> list[str]:
             "millimetres onto plain paper to check it"]
 
 
-def _outside_valid_for(req, doc: dict, ok, pose_of, robot) -> list:
+def _outside_valid_for(req, doc: dict, p: _Planned, robot, model) -> list:
     """What of the planned targets lies outside calibration.json ``valid_for``
-    (:func:`vision_cal.dataset.valid_for.check`): joints beyond the range the marks covered,
-    an approach side never seen, joint 4 turned with a tool never identified, a program
-    drawing at another height. The nominal model (``--model nominal``) is not a
-    calibration: nothing to check."""
+    (:func:`vision_cal.dataset.valid_for.check`): joints beyond the range the marks covered
+    where the model's std grows beyond what keeps its stated error, an approach side never seen,
+    joint 4 turned with a tool never identified, a program drawing at another height. The
+    nominal model (``--model nominal``) is not a calibration: nothing to check."""
+    ok, pose_of = p.ok, p.pose_of
     if req.model != "calibrated" or not ok:
         return []
-    ids = [p.id for p in ok]
-    approach = [tuple(p.approach) + ((pose_of[p.id].approach4,) if pose_of else ())
-                for p in ok]
-    q4 = [pose_of[p.id].q4_deg for p in ok] if pose_of else None
+    ids = [t.id for t in ok]
+    approach = [tuple(t.approach) + ((pose_of[t.id].approach4,) if pose_of else ())
+                for t in ok]
+    q4 = [pose_of[t.id].q4_deg for t in ok] if pose_of else None
     pen = robot.pen_down_mm if (robot is not None and req.program) else None
     return check_valid_for(valid_for_of(doc, file=str(req.calibration)),
                            cal=str(req.calibration), ids=ids,
-                           joints_deg=[p.q_deg for p in ok], approach=approach,
-                           joint4_deg=q4, pen_down_mm=pen)
+                           joints_deg=[t.q_deg for t in ok], approach=approach,
+                           joint4_deg=q4, pen_down_mm=pen, std_mm=p.std,
+                           std_limit_mm=std_limit_mm(model, doc, file=str(req.calibration)),
+                           beyond_deg=beyond_deg(doc))
 
 
 def _flagged_targets(outside) -> dict:
@@ -292,16 +317,28 @@ def _flagged_targets(outside) -> dict:
 
 
 def summarise_failures(failed, *, first: int = 3) -> str:
-    """One line for any number of failed targets: counts per kind of reason, the first few."""
+    """One line for any number of failed targets: counts per kind of reason, the first few
+    (those outside ``valid_for`` by name only: why, and what would cover each, are in the
+    failed targets' report)."""
     kinds: dict[str, int] = {}
     for p in failed:
-        k = next((k for k in ("out of reach", "singularity", "outside its limits",
-                              "could not be inverted") if k in p.reason), "other")
+        k = ("outside valid_for" if p.status == "outside valid_for" else
+             next((k for k in ("out of reach", "singularity", "outside its limits",
+                               "could not be inverted") if k in p.reason), "other"))
         kinds[k] = kinds.get(k, 0) + 1
     counts = ", ".join(f"{n} {k}" for k, n in sorted(kinds.items(), key=lambda kv: -kv[1]))
-    head = "; ".join(f"target {p.id}: {p.reason}" for p in failed[:first])
-    more = f" (and {len(failed) - first} more)" if len(failed) > first else ""
-    return f"{len(failed)} target(s) not planned ({counts}): {head}{more}"
+    plain = [p for p in failed if p.status != "outside valid_for"]
+    beyond = [p.id for p in failed if p.status == "outside valid_for"]
+    parts = [f"target {p.id}: {p.reason}" for p in plain[:first]]
+    if len(plain) > first:
+        parts[-1] += f" (and {len(plain) - first} more)"
+    if beyond:
+        names = ", ".join(beyond[:first]) + (f" and {len(beyond) - first} more"
+                                             if len(beyond) > first else "")
+        parts.append(f"outside what the calibration was calibrated for (valid_for): {names}, "
+                     "each with why and what would cover it in the report (--force plans "
+                     "them, the extrapolation stated)")
+    return f"{len(failed)} target(s) not planned ({counts}): {'; '.join(parts)}"
 
 
 def _home_deg(req, doc: dict, robot) -> tuple[float, float]:

@@ -26,6 +26,7 @@ class SimulateRequest:
     targets: str | None = None     # targets program: targets.csv
     after: tuple[str, ...] = ()    # folders simulated before on the same sheet
     seed: int | None = None        # overrides the robot file's seed
+    photos: int | None = None      # overrides the simulated camera's number of photos
     quiet: bool = False
 
 
@@ -43,7 +44,7 @@ def simulate(req: SimulateRequest) -> SimulateResult:
                       refuse=_no_other_photos, quiet=req.quiet), written_together():
         return simulate_session(req.plan, req.truth, req.out, after=list(req.after),
                                 progress=not req.quiet, rng=req.seed, sheet_json=req.sheet,
-                                targets=req.targets)
+                                targets=req.targets, photos=req.photos)
 
 
 def _no_other_photos(out: Path, moving) -> None:

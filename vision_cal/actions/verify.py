@@ -33,6 +33,18 @@ class VerifyOutcome:
     result: VerifyResult
     path: Path
     warnings: tuple[str, ...] = ()
+    written: tuple[Path, ...] = ()    # every file the check wrote into its folder
+
+
+def default_out(folder) -> Path:
+    """Where a check's results go without ``-o``: ``PHOTOS_verify`` beside the photos,
+    named as the user named the folder (``check/`` -> ``check_verify``: a relative path
+    stays relative, so the console says what the user typed, not the machine's path)."""
+    folder = Path(folder)
+    if folder.name in ("", ".", ".."):
+        here = folder.resolve()
+        return here.with_name(here.name + "_verify")
+    return folder.parent / f"{folder.name}_verify"
 
 
 def verify(req: VerifyRequest) -> VerifyOutcome:
@@ -40,8 +52,7 @@ def verify(req: VerifyRequest) -> VerifyOutcome:
     if req.jobs is not None and req.jobs < 1:
         raise VisionCalError(f"must be at least 1, got {req.jobs}", field="--jobs")
     folder = Path(req.folder)
-    here = folder.resolve()
-    out = Path(req.out) if req.out else here.with_name(here.name + "_verify")
+    out = Path(req.out) if req.out else default_out(folder)
     # the output folder: never the photos' folder nor the one holding CAL.json; an earlier
     # check's results go to previous/; locked while written (issue 30)
     with writing_into(out, command="verify", field="-o",
@@ -49,4 +60,6 @@ def verify(req: VerifyRequest) -> VerifyOutcome:
                       quiet=req.quiet) as out:
         r, path, said = verify_folder(req.calibration, folder, out_dir=out, jobs=req.jobs,
                                       progress=not req.quiet, force=req.force)
-    return VerifyOutcome(r, path, tuple(said))
+    written = tuple(sorted(p for p in Path(out).iterdir() if p.is_file()
+                           and not p.name.startswith(".")))
+    return VerifyOutcome(r, path, tuple(said), written)

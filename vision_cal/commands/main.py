@@ -1,7 +1,8 @@
 """``vision-cal``: calibrate a SCARA robot from photographs of the sheet it drew on.
 
 Exit codes: 0 done (skipped photos are warnings); 1 could not calibrate (too few usable
-marks, an unidentifiable plan); 2 bad arguments or dataset.
+marks, an unidentifiable plan) or plan; 2 bad arguments or dataset; 3 planned (located) in
+part: the targets not planned are listed with the reason.
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ exit codes:
   0  done (skipped photos are warnings)
   1  could not calibrate (too few usable marks, unidentifiable plan)
   2  bad arguments or dataset
+  3  planned (located) in part: plan and locate --csv list each target not planned
+     with the reason and what would cover it (PLAN.failed.csv, locate's status column)
 
 examples:
   vision-cal images/ --report              calibrate a folder (calibrate is the default)

@@ -12,6 +12,14 @@ examples:
   vision-cal plan /tmp/x/calibration.json fixtures/targets_origin.csv -o /tmp/x/plan.csv
   vision-cal plan /tmp/x/calibration.json fixtures/targets_origin.csv -o /tmp/x/before.csv \\
       --model nominal
+
+Targets outside what the calibration was calibrated for (calibration.json valid_for: joints
+beyond the marks' range where its expected error grows beyond its own at the marks, an
+approach side or a joint-4 angle never seen) are not planned: each goes to PLAN.failed.csv
+with the reason and the command that would cover it, as a target out of reach does.
+
+exit codes: 0 every target planned; 3 planned in part (the others in PLAN.failed.csv);
+1 none planned; 2 a bad argument or input
 """
 
 

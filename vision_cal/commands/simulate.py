@@ -19,6 +19,10 @@ examples:
       --targets targets.csv --out hits/
       the compensated targets on a fresh sheet; `vision-cal hits/ --out hits_cal/` then
       measures where each landed (calibration.json "targets")
+  vision-cal simulate sheet/sheet.json --truth true_robot.yaml --out survey_photos/
+      the blank sheet before any mark, 8 photos from several places tilted 10-30 deg,
+      printed off its layout as true_robot.yaml's `print` says; then
+      `vision-cal survey survey_photos/ --sheet sheet/sheet.json --out sheet/`
 
 The photos are what `vision-cal PLAN/` then calibrates; truth.json (where each mark really
 is, the true robot) is read only with --truth.
@@ -29,7 +33,9 @@ def add_arguments(p) -> None:
     p.add_argument("plan", metavar="PLAN_DIR",
                    help="a folder written by `vision-cal design` (session.json and the program),"
                         " or a targets program of `vision-cal plan --program` (PLAN.prg with "
-                        "PLAN.csv beside it; then give --sheet, and --targets)")
+                        "PLAN.csv beside it; then give --sheet, and --targets), or a "
+                        "sheet.json (or a session.json): the blank sheet, photographed for "
+                        "a survey")
     p.add_argument("--sheet", metavar="SHEET.json",
                    help="targets program: the sheet it is drawn on (sheet.json)")
     p.add_argument("--targets", metavar="TARGETS.csv",
@@ -45,6 +51,9 @@ def add_arguments(p) -> None:
                         "paper too (repeatable)")
     p.add_argument("--seed", type=SEED, default=None, metavar="N",
                    help="override the simulated robot file's seed")
+    p.add_argument("--photos", type=int, default=None, metavar="N",
+                   help="how many photos (default: the simulated robot's camera.photos; "
+                        "a blank sheet 8)")
 
 
 def run(args) -> int:

@@ -18,7 +18,8 @@ examples:
 def add_arguments(p) -> None:
     p.add_argument("photos", metavar="PHOTOS", help="folder of photos of the blank sheet")
     p.add_argument("--sheet", required=True, metavar="SHEET.json",
-                   help="the sheet's description (vision-cal sheet's sheet.json)")
+                   help="the sheet's description: vision-cal sheet's sheet.json, or a "
+                        "session.json designed on it (which carries it)")
     p.add_argument("-o", "--out", required=True, metavar="OUT",
                    help="output folder (OUT/survey.json)")
 

@@ -106,9 +106,17 @@ def offsets_text(offsets: list[dict]) -> str:
                         for o in offsets) + ".")
 
 
-def rezero_text(joint: int, zero_moved_deg: float, calibrated_zero_deg: float) -> str:
-    """``verify``'s action for a joint whose zero moved by ``zero_moved_deg`` since the
-    calibration: the OLP value and the controller offset, in :data:`SIGN_CONVENTION`."""
-    return (f"enter z{joint} = {calibrated_zero_deg + zero_moved_deg:.4f} deg in the OLP, or "
-            f"add {-zero_moved_deg:+.4f} deg to the controller's joint {joint} offset (the "
-            "offset is added to every command) so that the calibrated model holds again")
+def rezero(joint: int, zero_moved_deg: float, calibrated_zero_deg: float) -> dict:
+    """``verify``'s re-zeroing of a joint whose zero moved by ``zero_moved_deg`` since the
+    calibration, in :data:`SIGN_CONVENTION` (the report's: what to add to the controller's
+    joint offset): verify.json ``rezero`` and its two actions, one sentence each
+    (``actions``: the controller's offset, or the OLP's zero)."""
+    add = -float(zero_moved_deg)
+    olp = float(calibrated_zero_deg) + float(zero_moved_deg)
+    return {"joint": int(joint), "zero_moved_deg": float(zero_moved_deg),
+            "add_to_offset_deg": add, "olp_zero_deg": olp,
+            "actions": [f"on the controller: add {add:+.4f} deg to joint {joint}'s offset (an "
+                        "offset is added to every command: verify.json sign_convention)",
+                        f"or in the OLP: enter z{joint} = {olp:.4f} deg (the calibrated "
+                        f"{calibrated_zero_deg:.4f} deg plus the move) and leave the "
+                        "controller alone"]}

@@ -410,10 +410,23 @@ def _optional_object(r: FieldReader, obj: dict, where: str) -> dict | None:
     return v
 
 
-def load_sheet_file(path) -> Sheet:
-    """Read and validate a ``sheet.json`` (the session's sheet block on its own)."""
+def sheet_file_block(path) -> tuple[dict, str]:
+    """The raw sheet of a sheet file: ``(block, where)``, ``where`` its field in the file
+    (``""``: a ``sheet.json``; ``"sheet"``: a ``session.json``, which carries the sheet it
+    was designed on as its sheet block, so that a user who has that file has the sheet)."""
     path = Path(path)
-    return read_sheet_block(FieldReader(str(path)), read_json(path, what="sheet file"), "")
+    doc = read_json(path, what="sheet file")
+    if (isinstance(doc, dict) and "markers" not in doc and isinstance(doc.get("sheet"), dict)
+            and ("marks" in doc or "format" in doc)):
+        return doc["sheet"], "sheet"
+    return doc, ""
+
+
+def load_sheet_file(path) -> Sheet:
+    """Read and validate a ``sheet.json`` (the session's sheet block on its own), or the
+    sheet block of a ``session.json`` (:func:`sheet_file_block`)."""
+    block, where = sheet_file_block(path)
+    return read_sheet_block(FieldReader(str(path)), block, where)
 
 
 #: what a folder of photos without session.json needs (one line, issue 30)

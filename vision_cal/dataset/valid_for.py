@@ -24,8 +24,13 @@ from dataclasses import dataclass
 
 from vision_cal.errors import VisionCalError
 
-#: a request within this of a covered joint range (deg) is inside it
+#: a request within this of a covered joint range (deg) is inside it; further, inside
+#: as far as the calibration's own expected error holds there (``check``'s ``beyond_deg``,
+#: ``std_mm`` and ``std_limit_mm``: ``plan/extrapolation``)
 RANGE_SLACK_DEG = 1.0
+#: the fields of ``valid_for`` a request's items are checked against one by one (``plan``
+#: and ``locate`` plan the rest: :func:`per_item`); the others are the whole request's
+PER_ITEM = ("joints", "approach1", "approach2", "approach4", "joint4", "heights")
 #: a requested height within this of the heights seen (mm) is inside them
 HEIGHT_SLACK_MM = 0.5
 #: a joint-4 angle within this of one seen (deg) is that angle
@@ -224,12 +229,12 @@ def verdict_reasons(vf: dict | None, *, skip_labels=()) -> list[tuple[str, str]]
     for d in (vf or {}).get("not_identified") or []:
         if d.get("label") in skip_labels:
             continue
-        out.append(("check", f"not identified: {d['label']} ({d.get('reason', '')}); "
+        out.append(("check", f"not identified: {d['label']}: {d.get('reason', '')}; "
                              f"targets with {d.get('excited_by', 'it')} are outside what was "
-                             f"calibrated (plan refuses them); to identify it, "
-                             f"{d.get('fix', 'draw the informative plan')} (the informative "
-                             "plan does: vision-cal design ROBOT.yaml --sheet SHEET.json "
-                             "--pilot THIS/calibration.json)"))
+                             f"calibrated (plan leaves them out); to identify it, "
+                             f"{d.get('fix', 'draw the informative plan')}: the informative "
+                             "plan does (vision-cal design ROBOT.yaml --sheet SHEET.json "
+                             "--pilot CAL.json)"))
     return out
 
 
@@ -242,6 +247,7 @@ class Outside:
     reason: str
     cover: str
     ids: tuple = ()          # the request's items outside (targets, pixels, marks)
+    each: tuple = ()         # (id, why that item is outside) for each of ``ids``
 
     def line(self) -> str:
         return f"{self.reason}; to cover it: {self.cover}"
@@ -258,12 +264,19 @@ def _names(ids, first: int = 3) -> str:
 
 def check(vf: dict | None, *, cal: str = "CAL.json", ids=(), joints_deg=None,
           approach=None, joint4_deg=None, heights_mm=None, pen_down_mm=None,
-          camera: int | None = None, whole_model: bool = False) -> list[Outside]:
+          camera: int | None = None, whole_model: bool = False, std_mm=None,
+          std_limit_mm: float | None = None, beyond_deg=None) -> list[Outside]:
     """What of a request lies outside ``vf`` (empty: all inside, or ``vf`` None: an old file
     that does not say). ``ids`` names the request's items; per item ``joints_deg`` (q1, q2),
     ``approach`` (s1, s2[, s4]), ``joint4_deg``; ``heights_mm`` the heights asked (locate's
     ``--z-mm``) of ``camera`` (else the marks' heights); ``pen_down_mm`` the program's;
-    ``whole_model`` (``export``: the model for every pose) each effect not identified."""
+    ``whole_model`` (``export``: the model for every pose) each effect not identified.
+    ``beyond_deg`` (per joint) how far beyond the covered range the calibration's stated
+    expected error holds, ``std_mm`` (per item) its predicted std (per axis) at each item's
+    joints and ``std_limit_mm`` the largest that keeps that error (``plan/extrapolation``):
+    an item up to ``beyond_deg`` beyond (never less than :data:`RANGE_SLACK_DEG`) is inside
+    while its std is within the limit (how far the model extrapolates is the calibration's
+    own figure, not the last mark)."""
     if not vf:
         return []
     ids = list(ids)
@@ -279,18 +292,7 @@ def check(vf: dict | None, *, cal: str = "CAL.json", ids=(), joints_deg=None,
                 f"{d.get('fix', '')}: {informative}"))
     rng = vf.get("joints_deg")
     if joints_deg is not None and rng:
-        bad = [i for i, q in zip(ids, joints_deg)
-               if any(not rng[j][0] - RANGE_SLACK_DEG <= q[j] <= rng[j][1] + RANGE_SLACK_DEG
-                      for j in range(2))]
-        if bad:
-            out.append(Outside(
-                "joints", f"{len(bad)} of {len(ids)} outside the joints the calibration's marks "
-                f"covered (joint 1 {rng[0][0]:.1f}..{rng[0][1]:.1f} deg, joint 2 "
-                f"{rng[1][0]:.1f}..{rng[1][1]:.1f} deg): {_names(bad)}: the model is "
-                "extrapolated there and its expected error does not hold",
-                "draw marks there (a sheet placed there: vision-cal design ... --pilot), or "
-                "calibrate several placements together (vision-cal calibrate A/ B/ C/ --joint)",
-                tuple(bad)))
+        out += _joints_outside(rng, ids, joints_deg, std_mm, std_limit_mm, beyond_deg)
     sides = vf.get("approach_sides") or {}
     if approach is not None and sides:
         for j, name in ((0, "1"), (1, "2"), (2, "4")):
@@ -307,11 +309,17 @@ def check(vf: dict | None, *, cal: str = "CAL.json", ids=(), joints_deg=None,
                     f"reached joint {name} from {seen[0]:+d} only, so its backlash is not "
                     f"identified): {_names(bad)}",
                     f"plan with approach {seen[0]:+d} on joint {name}, or draw the informative "
-                    f"plan: {informative}", tuple(bad)))
+                    f"plan: {informative}", tuple(bad),
+                    tuple((i, f"approaches joint {name} from {s:+d}, a side the marks never "
+                              f"reached it from (its backlash is not identified)")
+                          for i in bad)))
     seen4 = vf.get("joint4_deg")
     if joint4_deg is not None and seen4 and vf.get("tool_identified") is not True:
-        bad = [i for i, q4 in zip(ids, joint4_deg)
+        bad = [(i, q4) for i, q4 in zip(ids, joint4_deg)
                if q4 is not None and min(abs(q4 - s) for s in seen4) > J4_SLACK_DEG]
+        each = tuple((i, f"turns joint 4 to {q4:g} deg, every mark was drawn at "
+                         f"{_names(seen4)} deg (the tool is not identified)") for i, q4 in bad)
+        bad = [i for i, _ in bad]
         if bad:
             out.append(Outside(
                 "joint4", f"{len(bad)} of {len(ids)} turn joint 4 away from the "
@@ -319,7 +327,7 @@ def check(vf: dict | None, *, cal: str = "CAL.json", ids=(), joints_deg=None,
                 f"identified (it is folded into L2 and z2, which hold at that joint-4 angle "
                 f"only; a tool r mm off the axis moves 1.41 r mm per 90 deg): {_names(bad)}",
                 "give the robot file's tool_mm (a ruler's guess) and draw the informative "
-                f"plan, which turns joint 4: {informative}", tuple(bad)))
+                f"plan, which turns joint 4: {informative}", tuple(bad), each))
     if heights_mm is not None:
         if camera is not None:
             cams = vf.get("cameras") or []
@@ -337,7 +345,9 @@ def check(vf: dict | None, *, cal: str = "CAL.json", ids=(), joints_deg=None,
                 f"where {what} can locate ({_names(f'{i} at {z:g} mm' for i, z in bad)})",
                 "photograph the sheet (or a plate) at that height, or declare the camera's "
                 "lens (camera K in session.json) and calibrate again",
-                tuple(i for i, _ in bad)))
+                tuple(i for i, _ in bad),
+                tuple((i, f"at {z:g} mm, outside {lo:g}..{hi:g} mm where {what} can locate")
+                      for i, z in bad)))
     pd = vf.get("pen_down_mm")
     if pen_down_mm is not None and _num(pd) and abs(pen_down_mm - pd) > HEIGHT_SLACK_MM:
         out.append(Outside(
@@ -347,6 +357,58 @@ def check(vf: dict | None, *, cal: str = "CAL.json", ids=(), joints_deg=None,
             "draw the calibration at the working height (the robot file's pen_down_mm)",
             tuple(ids)))
     return out
+
+
+def _joints_outside(rng, ids, joints_deg, std_mm, std_limit_mm, beyond_deg) -> list[Outside]:
+    """The items beyond the covered joint range (``rng``) by more than the slack, which is
+    :data:`RANGE_SLACK_DEG`, or ``beyond_deg`` (per joint) where the item's std
+    (``std_mm``) is within ``std_limit_mm``: none, or one :class:`Outside` naming each."""
+    known = (std_mm is not None and std_limit_mm is not None and math.isfinite(std_limit_mm)
+             and beyond_deg is not None)
+    stds = list(std_mm) if known else [None] * len(ids)
+
+    def slack(s, j):
+        ok = s is not None and math.isfinite(s) and s <= std_limit_mm
+        return max(RANGE_SLACK_DEG, float(beyond_deg[j])) if ok else RANGE_SLACK_DEG
+
+    bad = [(i, q, s) for i, q, s in zip(ids, joints_deg, stds)
+           if any(not rng[j][0] - slack(s, j) <= q[j] <= rng[j][1] + slack(s, j)
+                  for j in range(2))]
+    if not bad:
+        return []
+    cover = ("draw marks there (a sheet placed there: vision-cal design ... --pilot), or "
+             "calibrate several placements together (vision-cal calibrate A/ B/ C/ --joint)")
+    span = (f"joint 1 {rng[0][0]:.1f}..{rng[0][1]:.1f} deg, joint 2 "
+            f"{rng[1][0]:.1f}..{rng[1][1]:.1f} deg")
+    grows = (f"; its expected error holds {beyond_deg[0]:.1f} / {beyond_deg[1]:.1f} deg "
+             f"beyond, while the predicted std stays within {std_limit_mm:.4f} mm"
+             if known else "")
+    each = tuple((i, f"joints {q[0]:.1f}, {q[1]:.1f} deg, beyond the {span} the marks "
+                     "covered" + (f" (std {s:.4f} mm there{grows})" if s is not None
+                                  and math.isfinite(s) else ""))
+                 for i, q, s in bad)
+    ids_out = [i for i, _, _ in bad]
+    return [Outside(
+        "joints", f"{len(ids_out)} of {len(ids)} outside the joints the calibration's marks "
+        f"covered ({span}{grows}): {_names(ids_out)}: the model is extrapolated there and "
+        "its expected error does not hold", cover, tuple(ids_out), each)]
+
+
+def per_item(outside: list[Outside]) -> tuple[list[Outside], dict]:
+    """The whole request's parts outside (refused or forced as one: ``enforce``) and, for
+    the fields checked item by item (:data:`PER_ITEM`), each item's id -> its lines "outside
+    valid_for.FIELD: why; to cover it: COMMAND" (``plan`` and ``locate`` list those and do
+    the rest)."""
+    whole, items = [], {}
+    for o in outside:
+        if o.field not in PER_ITEM:
+            whole.append(o)
+            continue
+        why = dict(o.each)
+        for i in o.ids:
+            items.setdefault(i, []).append(
+                f"outside valid_for.{o.field}: {why.get(i, o.reason)}; to cover it: {o.cover}")
+    return whole, items
 
 
 def enforce(outside: list[Outside], *, file: str, force: bool, what: str) -> list[str]:

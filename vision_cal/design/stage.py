@@ -29,13 +29,14 @@ import numpy as np
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.covariance import load_covariance
 from vision_cal.dataset.fields import FieldReader
-from vision_cal.dataset.io import atomic_write_bytes, atomic_write_json, read_json
+from vision_cal.dataset.io import atomic_write_bytes, atomic_write_json
 from vision_cal.dataset.photos import list_photos
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.dataset.session import (NominalRobot, SheetMarker, load_sheet_file,
-                                        resolve_approach)
+                                        resolve_approach, sheet_file_block)
 from vision_cal.dataset.valid_for import check as check_valid_for
 from vision_cal.dataset.valid_for import of as valid_for_of
+from vision_cal.plan.extrapolation import beyond_deg, std_at_mm, std_limit_mm
 from vision_cal.dataset.sheet_identity import check_same_sheet
 from vision_cal.design.iso9283 import PITCH_MM, iso_marks
 from vision_cal.design.joint4 import circle_triples, joint4_vias, turn_joint4
@@ -138,6 +139,16 @@ def with_drawable_bands(sheet, paper):
     return replace(sheet, markers=tuple(sheet.markers) + tuple(extra))
 
 
+def _measured_marks(cal_doc: dict) -> list[list[float]]:
+    """The measured positions [x, y] (mm) of a calibration's marks."""
+    out = []
+    for m in (cal_doc.get("marks") or {}).values():
+        xy = m.get("measured_mm") if isinstance(m, dict) else None
+        if isinstance(xy, list) and len(xy) == 2:
+            out.append([float(xy[0]), float(xy[1])])
+    return out
+
+
 def with_pilot_marks(sheet, cal_doc: dict, diameter_mm: float):
     """The sheet with the pilot's measured marks as obstacles (small squares), so that
     the informative plan drawn on the same sheet keeps clear of them."""
@@ -162,7 +173,7 @@ def design_stage(robot_path, sheet_path, out_dir, *, pilot=None, program: str | 
     check of it when ``stage == "verify"``, with ``iso9283_cycles`` of ISO 9283's points)."""
     robot = load_robot_file(robot_path)
     sheet = load_sheet_file(sheet_path)
-    sheet_raw = read_json(sheet_path)
+    sheet_raw = sheet_file_block(sheet_path)[0]
     out = Path(out_dir)
     _check_out_dir(out)
     warnings = []
@@ -301,7 +312,10 @@ def _informative_plan(robot, sheet, paper, sheet_raw: dict, sheet_path, pilot, *
         raise VisionCalError(e.reason, file=str(sheet_path), field=e.field) from e
     info = {"stage": "informative", "pilot_calibration": str(pilot), "safety_mm": safety_mm,
             "n_calibration": n_calibration, "n_validation": n_validation, "seed": seed,
-            "n_repeats": sum(m.repeat_of is not None for m in marks)}
+            "n_repeats": sum(m.repeat_of is not None for m in marks),
+            # the marks already on this sheet (the pilot's, as measured): known, not this
+            # plan's (the measurement names them so)
+            "earlier_marks_mm": _measured_marks(doc)}
     joint4 = None
     if nominal.tool_mm is not None and any(nominal.tool_mm):   # an off-axis tool (#21)
         marks, joint4 = _turned_joint4(marks, p, robot, sheet, safety_mm, seed, stage, info)
@@ -379,10 +393,14 @@ def _against_valid_for(doc: dict, cal, marks, home_deg, joint4, stage, info: dic
     ids = [m.id for m in marks]
     q = [list(m.joints_deg) for m in marks]
     a = resolve_approach(marks, home_deg).astype(int).tolist()
+    model = load_calibration(cal)[0]   # as verify will judge them: the std rule too
     outside = check_valid_for(valid_for_of(doc, file=str(cal)), cal=str(cal), ids=ids,
                               joints_deg=q,
                               approach=a, joint4_deg=None if not joint4 else
-                              [joint4.get(i) for i in ids])
+                              [joint4.get(i) for i in ids],
+                              std_mm=std_at_mm(model, doc, q, a, file=str(cal)),
+                              std_limit_mm=std_limit_mm(model, doc, file=str(cal)),
+                              beyond_deg=beyond_deg(doc))
     if not outside:
         return
     info["beyond_valid_for"] = [o.to_json() for o in outside]

@@ -204,6 +204,11 @@ class Verdict:
     #: the status inside calibration.json ``valid_for`` when what it could not identify
     #: holds it back (None: nothing does)
     within_valid_for: str | None = None
+    #: one kind per reason, in the same order (:data:`REASON_CODES`; () in an old block),
+    #: and the status each reason gives on its own (``ready`` for what a pilot leaves to
+    #: the informative plan by design)
+    reason_codes: tuple[str, ...] = ()
+    reason_levels: tuple[str, ...] = ()
 
     @property
     def text(self) -> str:
@@ -235,7 +240,8 @@ class Verdict:
                    tuple(d.get("reasons") or ()), d.get("floor"), d.get("heldout_floor"),
                    d.get("repeatability_mm"),
                    d.get("repeatability_source", "default"), d.get("max_target_error"),
-                   d.get("within_valid_for"))
+                   d.get("within_valid_for"), tuple(d.get("reason_codes") or ()),
+                   tuple(d.get("reason_levels") or ()))
 
     def to_json(self) -> dict:
         d = {"status": self.status, "expected_target_error_mm": self.expected_target_error_mm,
@@ -250,6 +256,9 @@ class Verdict:
             d["max_target_error"] = self.max_target_error
         if self.within_valid_for is not None:
             d["within_valid_for"] = self.within_valid_for
+        if self.reason_codes:
+            d["reason_codes"] = list(self.reason_codes)
+            d["reason_levels"] = list(self.reason_levels)
         return d
 
 
@@ -311,14 +320,17 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
     n_par = int(ident.get("n_params") or 6)
     vf = doc.get("valid_for") if isinstance(doc.get("valid_for"), dict) else None
     reasons, outside = _plan_reasons(ident, vf, pilot)
+    # each reason's kind (reason_codes): by the stage that found it
+    outside = _coded(outside, "not_identified")
+    reasons = _coded(reasons[:len(reasons) - len(outside)], "plan") + outside
     effects = doc.get("effects") or []
-    reasons += _drift_reasons(effects)
+    reasons += _coded(_drift_reasons(effects), "drift")
     floors = _noise_floor(marks, outliers, n_par, rep, cfg, by_design)
-    reasons += floors.reasons
-    reasons += _structure_reasons(doc, effects, marks)
-    reasons += _left_out_reasons(outliers, marks)
+    reasons += _coded(floors.reasons, "noise_floor")
+    reasons += _coded(_structure_reasons(doc, effects, marks), "structure")
+    reasons += _coded(_left_out_reasons(outliers, marks), "left_out")
     acc = _accuracy(doc, marks, n_par, cfg, by_design)
-    reasons += acc.reasons
+    reasons += _coded(acc.reasons, "accuracy")
     v = _verdict(reasons, acc.r95, floors.floor, floors.hfloor, rep, source, floors.worst)
     if outside:   # the status inside valid_for (design --pilot accepts a pilot "ready" there)
         inner = _verdict([r for r in reasons if r not in outside], acc.r95, floors.floor,
@@ -500,8 +512,8 @@ def _accuracy(doc: dict, marks: dict, n_par: int, cfg: VerdictConfig,
     fitted one."""
     reasons: list[tuple[str, str]] = []
 
-    def add(status, text):
-        reasons.append((status, text))
+    def add(status, text, code=None):
+        reasons.append((status, text) if code is None else (status, text, code))
 
     v = doc.get("validation_rms_mm") or {}
     held_rms, fit_rms = v.get("final_model"), (doc.get("residual_rms_mm") or {}).get("final_model")
@@ -539,7 +551,7 @@ def _with_print(pr: dict | None, r95, add, cfg):
                      f"place cannot tell it from the lens; the markers show "
                      f"{pr.get('seen_rms_mm', float('nan')):.3f} mm beyond the photo's mapping, "
                      f"about {lim:.3f} mm RMS on every mark: survey the sheet (vision-cal "
-                     "survey) or photograph it from several places")
+                     "survey) or photograph it from several places", "print_one_place")
     return r95
 
 
@@ -592,12 +604,14 @@ def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
     hfloor = floor_test(heldout_mm, sigma_mm, rep, inflate=inflate, config=cfg)
     worst = max_error_test(list(range(n)) if ids is None else list(ids), heldout_mm, sigma_mm,
                            rep, of="held-out", inflate=inflate, config=cfg)
-    outside = valid_for_reasons(valid_for)
-    found = list(reasons) + outside + _floor_reasons(floor, hfloor, cfg) + _max_error_reasons(
-        worst, "photo", "look at that photo's markers and the pose it was taken at")
+    outside = _coded(valid_for_reasons(valid_for), "not_identified")
+    found = _coded(list(reasons), "camera") + outside + _coded(
+        _floor_reasons(floor, hfloor, cfg) + _max_error_reasons(
+            worst, "photo", "look at that photo's markers and the pose it was taken at"),
+        "noise_floor")
     if 2 * n - p < cfg.min_spare_dof:
         found.append(("check", f"{n} photos leave {2 * n - p} degrees of freedom to compare "
-                               "with the noise floor: add poses"))
+                               "with the noise floor: add poses", "accuracy"))
     held = np.asarray(heldout_mm, float).reshape(-1, 2)
     r95 = R95_PER_RMS * float(np.sqrt(np.mean(np.sum(held**2, axis=1)))) if n else None
     v = _verdict(found, r95, floor, hfloor, rep, source, worst)
@@ -608,15 +622,37 @@ def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
     return v
 
 
+#: the kinds of a verdict's reasons (``reason_codes``, docs/format.md): the stage that found
+#: each - ``plan`` (what the plan cannot identify at all), ``not_identified`` (an effect
+#: outside what the marks saw: ``valid_for``, what the informative plan identifies),
+#: ``drift``, ``noise_floor`` (the residual or a target error against the noise),
+#: ``structure`` (structure left, scans not run, photos moved, the grid), ``left_out``
+#: (outliers, unreliable marks), ``accuracy`` (the accuracy figure and its degrees of
+#: freedom), ``print_one_place`` (the print not measured: one camera place), ``camera``
+#: (a camera calibration's own: parameters the poses do not separate, the lens), ``other``
+REASON_CODES = ("plan", "not_identified", "drift", "noise_floor", "structure", "left_out",
+                "accuracy", "print_one_place", "camera", "other")
+
+
+def _coded(reasons, code: str) -> list[tuple[str, str, str]]:
+    """(status, sentence, kind) of (status, sentence[, kind]) reasons: ``code`` where none
+    is given."""
+    return [(r[0], r[1], r[2] if len(r) > 2 else code) for r in reasons]
+
+
 def _verdict(reasons, r95, floor, hfloor, rep, source, worst) -> Verdict:
-    """The block from the (status, sentence) reasons found: the worst status wins (``ready``
-    when none), its sentences first."""
-    status = max((st for st, _ in reasons), key=_RANK.get, default="ready")
-    ordered = [t for st, t in sorted(reasons, key=lambda st: -_RANK[st[0]])]
-    return Verdict(status, r95, floor.ratio if floor is not None else None, tuple(ordered),
+    """The block from the (status, sentence[, kind]) reasons found: the worst status wins
+    (``ready`` when none), its sentences first, each with its kind (``other`` unsaid)."""
+    reasons = _coded(reasons, "other")
+    status = max((r[0] for r in reasons), key=_RANK.get, default="ready")
+    ranked = sorted(reasons, key=lambda r: -_RANK[r[0]])
+    return Verdict(status, r95, floor.ratio if floor is not None else None,
+                   tuple(r[1] for r in ranked),
                    floor.to_json() if floor is not None else None,
                    hfloor.to_json() if hfloor is not None else None, rep, source,
-                   worst.to_json() if worst is not None else None)
+                   worst.to_json() if worst is not None else None,
+                   reason_codes=tuple(r[2] for r in ranked),
+                   reason_levels=tuple(r[0] for r in ranked))
 
 
 @dataclass(frozen=True)

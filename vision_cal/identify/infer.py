@@ -27,6 +27,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from vision_cal.config import DEFAULT, AssociationConfig
 
 
@@ -41,10 +43,14 @@ class Inferred:
 
 
 def infer_image_marks(n_images: int, usable: list[int], groups, mark_ids, files,
-                      config: AssociationConfig | None = None) -> Inferred:
+                      config: AssociationConfig | None = None, *, earlier_mm=None,
+                      tol_mm: float = 1.0) -> Inferred:
     """``usable``: indices of usable photos in capture order; ``groups``: DotGroups over
     them; ``mark_ids``: the plan's ids in drawing order; ``files``: names for messages;
-    ``config``: the finished-sheet share (default ``DEFAULT.association``)."""
+    ``config``: the finished-sheet share (default ``DEFAULT.association``);
+    ``earlier_mm`` (K, 2): marks known to be on the sheet from an earlier plan (session.json
+    ``design.earlier_marks_mm``: the pilot's), extra dots within ``tol_mm`` of one named
+    as such."""
     finished_fraction = (config or DEFAULT.association).finished_fraction
     mark_ids = [str(m) for m in mark_ids]
     N = len(mark_ids)
@@ -72,7 +78,8 @@ def infer_image_marks(n_images: int, usable: list[int], groups, mark_ids, files,
             out[k] = tuple(mark_ids)
         if P > N:
             warnings.append(f"{P} persistent dots in photos of the finished sheet, {N} marks "
-                            "planned: the extra dots are left unassigned")
+                            "planned: " + _extra_dots(P - N, [groups[gi] for gi in persistent],
+                                                      earlier_mm, tol_mm))
         elif P < N:
             warnings.append(f"{P} dots found for {N} planned marks: {N - P} mark(s) not seen "
                             "(not drawn, hidden, or too faint)")
@@ -83,9 +90,13 @@ def infer_image_marks(n_images: int, usable: list[int], groups, mark_ids, files,
         # series began (an earlier plan's marks, a blemish), seen from the first photo on
         pre = min(max(0, count[-1] - N), count[0])
         if pre:
+            known = _n_known([groups[gi] for gi in persistent if first_of[gi] == 0],
+                             earlier_mm, tol_mm)
             warnings.append(f"{pre} dot(s) already on the sheet in the first photo "
                             f"({files[usable[0]]}) and more dots than planned marks by the "
-                            "end: taken as marks made before this series, not counted")
+                            "end: taken as marks made before this series, not counted"
+                            + (f" ({min(known, pre)} of them the earlier plan's marks, "
+                               "session.json design.earlier_marks_mm)" if known else ""))
         sees = [sum(k in seen_by[gi] for gi in persistent) for k in usable]
         prev = 0
         for r, k in enumerate(usable):
@@ -116,3 +127,28 @@ def infer_image_marks(n_images: int, usable: list[int], groups, mark_ids, files,
                             f"{', '.join(mark_ids[prev:prev + 5])}"
                             f"{' ...' if N - prev > 5 else ''} were not photographed")
     return Inferred(tuple(out), mode, tuple(warnings))
+
+
+def _n_known(groups, earlier_mm, tol_mm: float) -> int:
+    """How many of the dot ``groups`` lie within ``tol_mm`` of a mark of an earlier plan."""
+    if earlier_mm is None or not groups:
+        return 0
+    try:   # session.json's hint: a value that is not a list of [x, y] says nothing
+        e = np.asarray(earlier_mm, float).reshape(-1, 2)
+    except (TypeError, ValueError):
+        return 0
+    if not len(e) or not np.all(np.isfinite(e)):
+        return 0
+    return sum(bool(np.min(np.hypot(*(e - g.mean_mm).T)) <= tol_mm) for g in groups)
+
+
+def _extra_dots(extra: int, groups, earlier_mm, tol_mm: float) -> str:
+    """The sentence on ``extra`` dots beyond the plan's marks: those that are an earlier
+    plan's marks on this sheet (the pilot's) named as such, the rest left unassigned."""
+    known = min(_n_known(groups, earlier_mm, tol_mm), extra)
+    if not known:
+        return "the extra dots are left unassigned"
+    rest = extra - known
+    return (f"{known} are the marks of the earlier plan on this sheet (the pilot's, session.json "
+            "design.earlier_marks_mm), known and not this plan's"
+            + (f"; {rest} other extra dot(s) left unassigned" if rest else ""))

@@ -100,7 +100,11 @@ def associate_dots(session: Session, items: list[Photo], images: list[ImageResul
         image_marks = [tuple(ph.listed_marks) for ph in items]
         inferred = None
     else:
-        inferred = infer_image_marks(len(items), idx_ok, groups, mark_ids, files, ac)
+        design = session.raw.get("design") if isinstance(session.raw, dict) else None
+        inferred = infer_image_marks(
+            len(items), idx_ok, groups, mark_ids, files, ac,
+            earlier_mm=(design or {}).get("earlier_marks_mm") if isinstance(design, dict)
+            else None, tol_mm=dia)
         image_marks = list(inferred.marks)
         warnings.extend(inferred.warnings)
         n_off = sum(1 for r in images if r.status != "ok")

@@ -34,8 +34,9 @@ This module is the synthetic world's: it uses the world's own true robot
 
 from __future__ import annotations
 
+import hashlib
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -46,13 +47,14 @@ from vision_cal.dataset.io import (atomic_write_bytes, atomic_write_json, read_j
                                    read_yaml)
 from vision_cal.dataset.photos import list_photos
 from vision_cal.dataset.robot import load_robot_file
-from vision_cal.dataset.session import read_sheet_block
+from vision_cal.dataset.session import read_sheet_block, sheet_file_block
 from vision_cal.errors import VisionCalError
 from vision_cal.progress import bar as progress_bar
 from vision_cal.render.arm_camera import T_flange_camera_true, photograph_poses
 from vision_cal.render.camera import camera_matrix, default_views
 from vision_cal.render.dataset import encode_image, marks_off_paper, marks_on_markers
 from vision_cal.render.photo import Photographer
+from vision_cal.render.print_deviation import PrintScene
 from vision_cal.render.printed import PrintedSheet, printed_texture
 from vision_cal.render.truth_model import TrueRobot
 from vision_cal.render.world import draw_marks, simulated_world
@@ -60,12 +62,17 @@ from vision_cal.sheet.png import rasterise
 from vision_cal.sheet.rebuild import layout_from_sheet_json
 
 CONTROLLERS = ("smc", "pd", "kinematic")
-SECTIONS = ("robot", "hidden", "camera", "seed")
+SECTIONS = ("robot", "hidden", "camera", "print", "seed")
 HIDDEN = ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "tool_mm", "effects",
           "repeatability_mm", "controller")
 CAMERA = ("size_px", "f_px", "photos", "tilt_deg", "vignetting", "noise_sigma", "fixed")
 #: the programs a designed folder may hold, in the order they are looked for
 PROGRAMS = ("program.prg", "program_points.csv")
+#: the blank sheet photographed for a survey (``simulate SHEET.json``): how many photos
+#: when ``--photos`` is not given, and their tilt off the vertical (deg), as docs/sheet.md
+#: asks of a phone: 6-10 photos from several places, tilted 10-30 deg
+SURVEY_PHOTOS = 8
+SURVEY_TILT_DEG = (10.0, 30.0)
 
 
 @dataclass(frozen=True)
@@ -85,7 +92,11 @@ class SimulatedRobot:
 
     ``truth``: the world's true robot (params = robot file + offsets, effects);
     ``effects``: the format effect dicts (truth.json); ``repeatability_mm`` per axis;
-    ``controller``: smc | pd | kinematic; ``camera``; ``seed`` (None: fresh every run).
+    ``controller``: smc | pd | kinematic; ``camera``; ``seed`` (None: fresh every run);
+    ``print``: the printer's deviation of the sheet from its layout
+    (:class:`vision_cal.render.print_deviation.PrintScene`; exact when absent), its field
+    drawn from the sheet's id so that every photo of one sheet (the blank one surveyed,
+    the pilot's, the plan's) shows the same print.
     """
 
     path: Path
@@ -97,6 +108,7 @@ class SimulatedRobot:
     controller: str
     camera: SimCamera
     seed: int | None
+    print: PrintScene = PrintScene()
 
 
 def load_simulated_robot(path) -> SimulatedRobot:
@@ -155,7 +167,20 @@ def load_simulated_robot(path) -> SimulatedRobot:
     seed = tree.get("seed")
     if seed is not None:
         seed = int(r.number(seed, "seed", lo=0, hi=2**32 - 1))
-    return SimulatedRobot(path, robot, truth, params, tuple(effects), rep, ctrl, cam, seed)
+    pr = r.section(tree.get("print"), "print", ("deviation_rms_mm",))
+    printer = PrintScene(r.number(pr.get("deviation_rms_mm", 0.0), "print.deviation_rms_mm",
+                                  lo=0, hi=2))
+    return SimulatedRobot(path, robot, truth, params, tuple(effects), rep, ctrl, cam, seed,
+                          printer)
+
+
+def print_field(sim: SimulatedRobot, sheet, sheet_id):
+    """The printer's field of this sheet (None: printed exactly), drawn from its id: every
+    rehearsal of one printed sheet photographs the same print."""
+    if sim.print.is_exact:
+        return None
+    seed = int.from_bytes(hashlib.sha256(str(sheet_id).encode()).digest()[:4], "little")
+    return sim.print.field(sheet.extent_mm, [m.corners_mm for m in sheet.markers], seed)
 
 
 # ----------------------------------------------------------------------- the program
@@ -341,6 +366,7 @@ class SimulateResult:
     off_paper: tuple[str, ...]
     on_marker: tuple[str, ...]
     truth_path: Path
+    blank: bool = False              # the blank sheet photographed (for a survey)
 
 
 def _simulate_arm(session: dict, session_path: Path, sim, out: Path, rng) -> SimulateResult:
@@ -438,7 +464,7 @@ def targets_session(program: Path, sim: SimulatedRobot, *, sheet_json, targets=N
         if mid in want:
             m["target_mm"] = [float(v) for v in want[mid]]
         marks.append(m)
-    return {"format": "vision-cal/1", "sheet": read_json(sheet_json),
+    return {"format": "vision-cal/1", "sheet": sheet_file_block(sheet_json)[0],
             "robot": {"L1_mm": n.L1_mm, "L2_mm": n.L2_mm,
                       "joint_zero_deg": list(n.joint_zero_deg), "base_mm": list(n.base_mm),
                       "home_deg": list(n.home_deg)},
@@ -464,7 +490,8 @@ def _same_ids(plan_ids: list, target_ids: list, plan_csv: Path, targets: Path) -
 
 
 def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool = False,
-                     rng=None, sheet_json=None, targets=None) -> SimulateResult:
+                     rng=None, sheet_json=None, targets=None,
+                     photos: int | None = None) -> SimulateResult:
     """The simulated robot of ``truth_path`` draws the plan in ``plan_dir`` on the printed
     sheet (with the true marks of the folders in ``after`` already on it) and photographs
     it into ``out_dir``. See the module docstring.
@@ -472,19 +499,34 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
     ``plan_dir`` may also be a targets program of ``vision-cal plan --program`` (``.prg``
     or ``_points.csv``): then ``sheet_json`` says the sheet, ``targets`` (targets.csv) the
     targets, and ``out_dir`` gets a session.json of the drawn targets (calibrate it to
-    measure where they landed: calibration.json ``targets``)."""
+    measure where they landed: calibration.json ``targets``). ``plan_dir`` a sheet.json (or
+    a session.json, whose sheet is used): the blank sheet, before any mark, photographed
+    for a survey (:func:`_simulate_blank`). ``photos``: how many photos (default: the
+    simulated robot's ``camera.photos``; a blank sheet :data:`SURVEY_PHOTOS`)."""
     plan_dir, out = Path(plan_dir), Path(out_dir)
     sim = load_simulated_robot(truth_path)
-    program, session, session_path, plan_dir = _open_plan(plan_dir, out, sim, sheet_json,
-                                                          targets)
+    blank = plan_dir.is_file() and plan_dir.suffix.lower() == ".json"
+    if blank and after:
+        raise VisionCalError("a blank sheet (a sheet.json given) has no marks drawn before "
+                             "it", field="--after")
+    if photos is not None and not 1 <= photos <= 50:
+        raise VisionCalError(f"expected 1..50 photos, got {photos}", field="--photos")
+    if not blank:
+        program, session, session_path, plan_dir = _open_plan(plan_dir, out, sim, sheet_json,
+                                                              targets)
     if out.exists() and not out.is_dir():
         raise VisionCalError("exists and is not a folder", file=str(out))
     if out.is_dir():
-        photos = list_photos(out)
-        if photos:
-            raise VisionCalError(f"holds photos already ({photos[0]}, ...): a rehearsal adds "
+        there = list_photos(out)
+        if there:
+            raise VisionCalError(f"holds photos already ({there[0]}, ...): a rehearsal adds "
                                  "its own; choose an empty folder", file=str(out))
     rng = np.random.default_rng(sim.seed if rng is None else rng)
+    if blank:
+        return _simulate_blank(plan_dir, sim, out, rng, photos or SURVEY_PHOTOS,
+                               progress=progress)
+    if photos is not None:
+        sim = replace(sim, camera=replace(sim.camera, photos=photos))
     if program is None and session.get("poses") and not session.get("marks"):
         return _simulate_arm(session, session_path, sim, out, rng)
     if program is not None:
@@ -507,8 +549,9 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
     pen = session.get("pen") or {}
     dia = float(pen.get("mark_diameter_mm", sim.robot.mark_diameter_mm))
     K = np.asarray(camera_matrix(size_px=sim.camera.size_px, f_px=sim.camera.f_px), dtype=float)
+    field = print_field(sim, sheet, sheet_id)
     images = _photograph(sim, printed, np.vstack([earlier_xy, world.xy_mm]), dia, K, rng,
-                         progress=progress, desc=f"simulate {out.name}")
+                         progress=progress, desc=f"simulate {out.name}", field=field)
     truth = {
         "params": sim.params, "effects": list(sim.effects),
         "marks": {mid: world.xy_mm[i].tolist() for i, mid in enumerate(world.ids)},
@@ -523,6 +566,9 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
         "simulated_robot": str(sim.path), "seed": sim.seed,
         "controller_report": getattr(source, "report", None),
     }
+    if field is not None:   # added field: the sheet as printed (render.print_deviation)
+        truth["print"] = field.to_json([m.id for m in sheet.markers],
+                                       [m.corners_mm for m in sheet.markers])
     # everything is computed: now write (truth.json last)
     out.mkdir(parents=True, exist_ok=True)
     if program is not None or out.resolve() != plan_dir.resolve():
@@ -582,13 +628,49 @@ def _draw(sim: SimulatedRobot, plan, rng):
     return source, world
 
 
+def _simulate_blank(sheet_path: Path, sim: SimulatedRobot, out: Path, rng, n: int, *,
+                    progress: bool) -> SimulateResult:
+    """The blank sheet of ``sheet_path`` (sheet.json, or a session.json's sheet), before any
+    mark, photographed ``n`` times from several places tilted :data:`SURVEY_TILT_DEG` (what
+    ``vision-cal survey`` measures), printed as the simulated robot's ``print`` says: the
+    photos and truth.json (the camera poses; ``print``, the markers as printed)."""
+    block = sheet_file_block(sheet_path)[0]
+    if not isinstance(block, dict):
+        raise VisionCalError("expected a sheet.json (or a session.json with its sheet block)",
+                             file=str(sheet_path))
+    cam = sim.camera
+    printed = printed_sheet(block, file=str(sheet_path), size_px=cam.size_px, f_px=cam.f_px)
+    sheet = printed.sheet
+    sheet_id = (block.get("printed") or {}).get("sheet_id")
+    field = print_field(sim, sheet, sheet_id)
+    K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px), dtype=float)
+    phone = replace(sim, camera=replace(cam, photos=n, tilt_deg=SURVEY_TILT_DEG, fixed=False))
+    images = _photograph(phone, printed, np.zeros((0, 2)), 1.0, K, rng, progress=progress,
+                         desc=f"simulate {out.name}", field=field)
+    truth = {"blank_sheet": str(sheet_path), "sheet_id": sheet_id,
+             "camera": {"size_px": list(cam.size_px), "K": K.tolist(), "dist": [0.0] * 5,
+                        "declared": False,
+                        "T_cam_sheet": {f: sim.truth.T_render(T).tolist()
+                                        for f, _, T in images}},
+             "print": (None if field is None else
+                       field.to_json([m.id for m in sheet.markers],
+                                     [m.corners_mm for m in sheet.markers])),
+             "simulated_robot": str(sim.path), "seed": sim.seed}
+    out.mkdir(parents=True, exist_ok=True)
+    paths = tuple(atomic_write_bytes(out / f, data) for f, data, _ in images)
+    truth_path_out = atomic_write_json(out / "truth.json", truth)
+    return SimulateResult(out, paths, 0, (), (), truth_path_out, blank=True)
+
+
 def _photograph(sim: SimulatedRobot, printed, marks_xy, dia: float, K, rng, *,
-                progress: bool, desc: str) -> list:
-    """The photos of the printed sheet with the marks ``marks_xy`` (mm) on it, from the
-    simulated camera's views (one place when it is fixed): ``[(file, png bytes, T)]``."""
+                progress: bool, desc: str, field=None) -> list:
+    """The photos of the printed sheet (its ink displaced by the printer's ``field``) with
+    the marks ``marks_xy`` (mm) on it, from the simulated camera's views (one place when
+    it is fixed): ``[(file, png bytes, T)]``."""
     cam = sim.camera
     sheet = printed.sheet
-    tex = printed_texture(printed, marks_xy_mm=marks_xy, mark_diameters_mm=dia, rng=rng)
+    tex = printed_texture(printed, marks_xy_mm=marks_xy, mark_diameters_mm=dia, rng=rng,
+                          print_field=field)
     views = default_views(sheet, n=cam.photos, size_px=cam.size_px, K=K,
                           tilt_deg=cam.tilt_deg, rng=rng, fill=0.96, target_jitter=0.02)
     if cam.fixed:   # a camera fixed over the work area: one place, several photos

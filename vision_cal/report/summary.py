@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import math
+import textwrap
 
 import numpy as np
 
-from vision_cal.dataset.nominal import controller_offsets, offsets_text
+from vision_cal.dataset.nominal import controller_offsets
 
 
 def _f(x, nd=3) -> str:
@@ -106,8 +107,12 @@ def _calibration_summary(doc: dict, reference: dict | None) -> str:
                      f"z1 {_f(sm['joint_zero_deg'][0], 4)}, z2 {_f(sm['joint_zero_deg'][1], 4)} "
                      "deg; every nominal and offset here is the robot file's)")
     offsets = controller_offsets(doc)
-    if offsets:
-        lines.append("controller: " + offsets_text(offsets))
+    if offsets:   # two ways, one a line (the sentence itself: offsets_text, the report's)
+        lines += ["controller: either",
+                  "  - enter the calibrated model in the OLP (and leave the controller alone), or",
+                  "  - keep the robot file's model and add to the controller's joint offsets: "
+                  + ", ".join(f"joint {o['joint']}: {o['add_to_offset_deg']:+.4f} deg"
+                              for o in offsets)]
     effects = [e for e in doc.get("effects", []) if e["name"] != "unexplained"]
     if effects:
         lines.append("effects found:")
@@ -139,11 +144,16 @@ def _calibration_summary(doc: dict, reference: dict | None) -> str:
                      f"{100 * ps['sheet_affine_beyond_printer']:+.3f} %")
         lines.append(line)
     if doc.get("noise_floor_mm") is not None:
-        lines.append(f"measurement noise floor [mm]: {_f(doc['noise_floor_mm'], 4)}")
+        # the photos' own noise on a mark: not the verdict's noise floor (which adds the
+        # robot's repeatability over the fitted marks), so named apart from it
+        lines.append(f"measurement noise of a mark (2-D RMS, the photos alone) [mm]: "
+                     f"{_f(doc['noise_floor_mm'], 4)}")
     for c in (doc.get("identifiability") or {}).get("high_correlations", []):
         lines.append(f"  correlated: {c['a']} ~ {c['b']} (r = {c['r']:+.3f})")
-    for note in doc.get("notes", []):
-        lines.append(f"  note: {note}")
+    for note in doc.get("notes", []):   # wrapped: a note is a sentence, not a screen line
+        lines += textwrap.wrap(f"note: {note}", WIDTH, initial_indent="  ",
+                               subsequent_indent="    ", break_on_hyphens=False,
+                               break_long_words=False)
     skipped = [im for im in doc.get("images", []) if im.get("status") != "ok"]
     if skipped:
         lines.append(f"skipped photos: {len(skipped)}")
@@ -153,7 +163,7 @@ def _calibration_summary(doc: dict, reference: dict | None) -> str:
         v = verdict_block(doc)
         if v.get("floor_line"):
             lines.append(v["floor_line"])
-        lines.append(v["text"])
+        lines += verdict_lines(v)
     lines += _camera_lines(doc)
     tc = doc.get("truth_comparison")
     if tc:
@@ -167,6 +177,29 @@ def _calibration_summary(doc: dict, reference: dict | None) -> str:
 
 #: what a calibration.json without a verdict block (written before verdicts) is shown as
 NO_VERDICT = "this calibration.json has no verdict (written by an older version)"
+
+
+#: the console's width for a verdict's reasons (each reason a bullet, wrapped under it)
+WIDTH = 100
+
+
+def verdict_lines(v: dict) -> list[str]:
+    """A verdict block (:func:`verdict_block`'s) as console lines: the judgement with its
+    expected target error on the first, then each reason on its own, wrapped (one reason,
+    one action: never one line of several hundred characters); a ``ready`` one is its
+    ``text``."""
+    reasons = [str(r) for r in v.get("reasons") or []]
+    if v.get("status") == "ready" or not reasons:
+        return [v["text"]]
+    head = {"check": "check before use", "not reliable": "not reliable"}.get(
+        v.get("status"), str(v.get("status")))
+    e = v.get("expected_target_error_mm")
+    fig = f" (expected target error {e:.3f} mm, 95 %)" if isinstance(e, (int, float)) else ""
+    out = [f"{head}{fig}: {len(reasons)} reason(s)"]
+    for r in reasons:
+        out += textwrap.wrap(r, WIDTH, initial_indent="  - ", subsequent_indent="    ",
+                             break_on_hyphens=False, break_long_words=False)
+    return out
 
 
 def verdict_block(doc: dict) -> dict:

@@ -18,10 +18,11 @@ the robot draws them on a sheet (a new one, anywhere within reach), and
    - ``still good``: nothing moved and the marks' RMS error (sheet placement taken out) is
      within ``TOLERANCE_FACTOR`` times what the calibration promised (its held-out RMS, or
      the check's own measurement noise when that is larger);
-   - ``re-zero joint 2 by +0.040 deg``: only ``z2`` moved and refitting it alone brings the
-     marks back within that bound (the sign: the joint's zero offset grew by that much;
-     enter ``z2 + delta`` in the OLP, or add ``-delta`` to the controller's joint offset:
-     ``vision_cal.dataset.nominal.rezero_text``, in its one sign convention);
+   - ``re-zero joint 2: add -0.040 deg to its controller offset``: only ``z2`` moved (by
+     +0.040 deg here) and refitting it alone brings the marks back within that bound; the
+     figure is what to add to the controller's joint offset, in the report's one sign
+     convention (``vision_cal.dataset.nominal.rezero``: or enter ``z2 + delta`` in the
+     OLP; verify.json ``rezero``);
    - ``recalibrate``: anything else (a link, several parameters, or errors no single zero
      explains: a changed backlash, a bent link).
 
@@ -41,13 +42,14 @@ from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.camera_block import check_cameras
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.io import atomic_write_json
-from vision_cal.dataset.nominal import SIGN_CONVENTION, rezero_text
+from vision_cal.dataset.nominal import SIGN_CONVENTION, rezero
 from vision_cal.dataset.session import load_session
 from vision_cal.dataset.valid_for import check as check_valid_for
 from vision_cal.dataset.valid_for import enforce as enforce_valid_for
 from vision_cal.dataset.valid_for import of as valid_for_of
 from vision_cal.design.iso9283 import ap_rp
 from vision_cal.errors import CalibrationError, VisionCalError
+from vision_cal.plan.extrapolation import beyond_deg, std_at_mm, std_limit_mm
 from vision_cal.workflows.pipeline import measure_marks
 from vision_cal.model.rms import rms_2d
 
@@ -77,14 +79,18 @@ class VerifyResult:
     verdict: str
     reasons: tuple[str, ...]
     iso9283: dict | None = None   # point -> {n, AP_mm, RP_mm, ...} (design --iso9283)
+    rezero: dict | None = None    # re-zero a joint: dataset/nominal.rezero (its actions)
 
     def to_json(self) -> dict:
-        return {"format": "vision-cal/verify/1", "verdict": self.verdict,
-                "reasons": list(self.reasons), "rms_mm": self.rms_mm,
-                "bound_mm": self.bound_mm, "changes": self.changes, "marks": self.marks,
-                "iso9283": self.iso9283,
-                "thresholds": {"moved_sigma": MOVED_SIGMA,
-                               "tolerance_factor": TOLERANCE_FACTOR}}
+        d = {"format": "vision-cal/verify/1", "verdict": self.verdict,
+             "reasons": list(self.reasons), "rms_mm": self.rms_mm,
+             "bound_mm": self.bound_mm, "changes": self.changes, "marks": self.marks,
+             "iso9283": self.iso9283,
+             "thresholds": {"moved_sigma": MOVED_SIGMA, "tolerance_factor": TOLERANCE_FACTOR}}
+        if self.rezero is not None:   # added fields: the re-zeroing, in one convention
+            d["rezero"] = {k: v for k, v in self.rezero.items() if k != "actions"}
+            d["sign_convention"] = SIGN_CONVENTION
+        return d
 
 
 def _fit(model, q, s, xy, free: tuple[int, ...], iters: int = 8):
@@ -141,7 +147,7 @@ def compare(model, cal_doc: dict, ids, q_deg, approach, xy_mm, *,
         (cal_doc.get("residual_rms_mm") or {}).get("final_model") or 0.0)
     bound = TOLERANCE_FACTOR * max(promised, float(noise_floor_mm or 0.0), 1e-6)
     rms = {"as_calibrated": rms_2d(raw), "sheet_placed": rms_2d(res_p), "refitted": rms_2d(res_f)}
-    reasons = []
+    reasons, rz = [], None
     if not moved and rms["sheet_placed"] <= bound:
         verdict = "still good"
         reasons.append(f"the marks miss the calibrated prediction by {rms['sheet_placed']:.4f} mm "
@@ -152,11 +158,14 @@ def compare(model, cal_doc: dict, ids, q_deg, approach, xy_mm, *,
         z2_only, res_z, _ = _fit(placed, q, s, xy, tuple(sorted(PLACEMENT + (3,))))
         d = float((z2_only.vector[3] - model.vector[3]) * UNIT[3])
         if rms_2d(res_z) <= bound:
-            verdict = f"re-zero joint 2 by {d:+.3f} deg"
-            reasons.append(f"joint 2's zero moved by {d:+.4f} deg ({changes['z2_deg']['sigmas']:.1f}"
-                           f" std); with it the marks miss by {rms_2d(res_z):.4f} mm RMS, within "
-                           f"{bound:.4f} mm: " + rezero_text(2, d, model.params.z2_deg)
-                           + f" ({SIGN_CONVENTION})")
+            rz = rezero(2, d, model.params.z2_deg)
+            verdict = (f"re-zero joint 2: add {rz['add_to_offset_deg']:+.3f} deg to its "
+                       "controller offset")
+            reasons.append(f"joint 2's zero moved by {d:+.4f} deg since the calibration "
+                           f"({changes['z2_deg']['sigmas']:.1f} std); with it refitted alone "
+                           f"the marks miss by {rms_2d(res_z):.4f} mm RMS, within the "
+                           f"{bound:.4f} mm bound")
+            reasons += rz["actions"]
         else:
             verdict = "recalibrate"
             reasons.append(f"joint 2's zero moved by {d:+.4f} deg, but the marks still miss by "
@@ -193,7 +202,7 @@ def compare(model, cal_doc: dict, ids, q_deg, approach, xy_mm, *,
                           "predicted_mm": (np.asarray(ixy[i]) - e[i]).tolist(),
                           "error_mm": e[i].tolist(), "error_norm_mm": float(np.hypot(*e[i])),
                           "iso9283_point": ipt[i]}
-    return VerifyResult(marks, rms, changes, float(bound), verdict, tuple(reasons), iso_out)
+    return VerifyResult(marks, rms, changes, float(bound), verdict, tuple(reasons), iso_out, rz)
 
 
 def check_verifiable(model, doc: dict, path, session) -> None:
@@ -267,12 +276,15 @@ def verify_folder(cal_path, folder, *, out_dir, jobs: int | None = None,
     if out_dir.resolve() == Path(folder).resolve():
         raise VisionCalError("is the check's folder: the input folder is never written to",
                              file=str(out_dir), field="--out")
+    q, a = session.joints_deg.tolist(), session.approach.astype(int).tolist()
     outside = check_valid_for(
         valid_for_of(doc, file=str(cal_path)), cal=str(cal_path),
-        ids=[m.id for m in session.marks],
-        joints_deg=session.joints_deg.tolist(),
-        approach=session.approach.astype(int).tolist(),
-        joint4_deg=session.j4_deg.tolist() if session.uses_joint4 else None)
+        ids=[m.id for m in session.marks], joints_deg=q, approach=a,
+        joint4_deg=session.j4_deg.tolist() if session.uses_joint4 else None,
+        # beyond the marks' joints as far as the calibration's own expected error holds
+        std_mm=std_at_mm(model, doc, [v[:2] for v in q], [v[:2] for v in a],
+                         file=str(cal_path)),
+        std_limit_mm=std_limit_mm(model, doc, file=str(cal_path)), beyond_deg=beyond_deg(doc))
     said = enforce_valid_for(outside, file=str(cal_path), force=force,
                              what=f"{folder}/session.json marks")
     measurement, data, missing = measure_marks(session, out_dir=out_dir, jobs=jobs,
