@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from vision_cal.commands import SEED, request
+from vision_cal.commands import SEED, bounded, request
 
 NAME = "simulate"
 HELP = ("rehearse without a robot: a simulated robot (your robot file plus hidden offsets and "
@@ -51,7 +51,7 @@ def add_arguments(p) -> None:
                         "paper too (repeatable)")
     p.add_argument("--seed", type=SEED, default=None, metavar="N",
                    help="override the simulated robot file's seed")
-    p.add_argument("--photos", type=int, default=None, metavar="N",
+    p.add_argument("--photos", type=bounded(1, 500, integer=True), default=None, metavar="N",
                    help="how many photos (default: the simulated robot's camera.photos; "
                         "a blank sheet 8)")
 
