@@ -4,8 +4,8 @@
 The stages (:func:`fit_handeye`):
 
 1. the lens: the one declared, else a start from the board's views alone (OpenCV's
-   ``calibrateCamera``, the distortion terms of ``config.lens_terms``), estimated with the
-   rest in stage 4;
+   ``calibrateCamera``), estimated with the rest in stage 4 with each distortion model of
+   ``config.lens_models``, the one whose held-out photos are predicted best kept;
 2. each photo's board pose (PnP): a photo whose corners its own pose cannot fit
    (``photo_fit_factor`` times the median photo's residual) does not show this board and
    is left out, named;
@@ -53,7 +53,7 @@ class HandeyeFit:
     (``views``) and left out (``left_out``: name -> reason); the residual of each photo
     (``residual_px`` RMS, 2-D) and each one's prediction from the others (``heldout``);
     the noise the residual shows; the closed-form start and the robot scale it found; each
-    photo's own pose fit (``pnp_px``)."""
+    photo's own pose fit (``pnp_px``); an estimated lens's models tried (``lens_models``)."""
 
     mount: str
     X: np.ndarray
@@ -75,7 +75,7 @@ class HandeyeFit:
     robot_scale: float
     pnp_px: dict
     size_px: tuple[int, int]
-    notes: tuple[str, ...] = field(default=())
+    lens_models: tuple = field(default=())   # (terms, held-out px, stated px) of each tried
 
     @property
     def std(self) -> np.ndarray:
@@ -179,7 +179,7 @@ def _rotation_rms(A, B) -> float:
 
 
 def check_conventions(views, C, mount: str, alternatives: dict,
-                      cfg: HandeyePhotosConfig, source: str) -> None:
+                      cfg: HandeyePhotosConfig, source: str | None) -> None:
     """The robot's rotations between photos are the board's: else the reading that makes
     them so (``alternatives``: name -> (n, 4, 4) poses read another way), or the poses
     shifted by one photo, is named (``VisionCalError``)."""
@@ -214,26 +214,67 @@ def check_conventions(views, C, mount: str, alternatives: dict,
                          "qz qw?", file=source, field="--robot-poses")
 
 
-def check_scale(A, C, cfg: HandeyePhotosConfig, source: str, units: str) -> float:
+def check_scale(A, C, cfg: HandeyePhotosConfig, source: str | None, units: str, *,
+                declared: bool = True) -> float:
     """The robot's translations and the board's as seen agree in scale (else the likely
-    unit, or the board's size, is named); the scale found."""
+    unit, or the board's size, is named); the scale found. With an estimated lens (its
+    start off by some %: ``declared`` False) only a unit's factor or more than
+    ``max_scale_error_estimated`` is refused."""
     s = solve_axzb(A, C, free_scale=True).scale
     if not np.isfinite(s) or s <= 0:
         raise CalibrationError("the robot's motion and the board's as seen cannot be put in "
                                "one scale (the poses hardly turn)")
-    if abs(s - 1.0) <= cfg.max_scale_error:
+    tol = cfg.max_scale_error if declared else cfg.max_scale_error_estimated
+    if abs(s - 1.0) <= tol and likely_unit(s, units) is None:
         return s
-    unit = likely_unit(s)
+    unit = likely_unit(s, units)
     if unit is not None:
-        raise VisionCalError(f"the robot moved {s:.4g} times farther than the board the camera "
-                             f"saw: the poses are in {unit} (read as "
-                             f"{'metres' if units == 'm' else 'millimetres'})", file=source,
+        raise VisionCalError(f"the robot moved {1 / s:.4g} times as far as the board the "
+                             f"camera saw: the poses are in {unit}, read as "
+                             f"{'metres' if units == 'm' else 'millimetres'}", file=source,
                              field="--robot-poses")
     raise CalibrationError(
         f"the robot's motion is {s:.4g} times the board's as the camera saw it (within "
-        f"{100 * cfg.max_scale_error:g} % of 1 expected): is the board's size right (its "
+        f"{100 * tol:g} % of 1 expected): is the board's size right (its "
         "square or marker size in sheet.json), the declared lens's focal length, and the "
         "poses' units?")
+
+
+def _disagreement(A, C, cfg: HandeyePhotosConfig, scale_tol: float) -> float:
+    """How far the photos' poses are from one hand-eye, in units of what is tolerated: the
+    closed form's rotation RMS over ``max_rotation_disagreement_deg``, or the robot
+    scale's distance from 1 over ``scale_tol`` (the larger)."""
+    sol = solve_axzb(A, C, free_scale=True)
+    if not np.isfinite(sol.scale):
+        return float("inf")
+    return max(sol.rotation_rms_deg / cfg.max_rotation_disagreement_deg,
+               abs(sol.scale - 1.0) / scale_tol)
+
+
+def consistent_photos(A, C, cfg: HandeyePhotosConfig, max_out: int, *,
+                      declared: bool = True) -> list[int] | None:
+    """The photos that agree with one hand-eye: all of them, or all but at most
+    ``max_out`` each of which alone makes the others disagree (leaving it out at least
+    halves the disagreement: a photo, not the whole set, is at fault); None when that does
+    not make them agree (the poses, the lens or the board as a whole contradict the photos:
+    the checks then name why)."""
+    keep = list(range(len(A)))
+    A, C = np.asarray(A), np.asarray(C)
+    tol = cfg.max_scale_error if declared else cfg.max_scale_error_estimated
+
+    def _dis(ks):
+        return _disagreement(A[ks], C[ks], cfg, tol)
+
+    bad = _dis(keep)
+    while bad > 1.0:
+        if len(keep) - 1 < max(3, len(A) - max_out):
+            return None
+        trial = min(([k for k in keep if k != i] for i in keep), key=_dis)
+        after = _dis(trial)
+        if after > bad / 2:
+            return None
+        keep, bad = trial, after
+    return keep
 
 
 # --------------------------------------------------------------------------- stages 4 and 5
@@ -258,6 +299,16 @@ def _judge(views, mount, X0, Y0, lens, free) -> _Judged:
     return _Judged(R, cov, noise, leave_one_out(views, mount, R, cov, noise))
 
 
+def _outlier_p(heldout) -> np.ndarray:
+    """Each photo's p-value of its held-out error against what is stated for it, the
+    statement first raised by the photos' median ratio when they are all predicted worse
+    than stated (an outlier is a photo the others do not predict, not a noise the fit
+    underrates for all of them)."""
+    r2 = np.array([h.sum_sq / h.expected_sq for h in heldout])
+    k2 = max(1.0, float(np.median(r2)))
+    return np.array([stats.chi2.sf(r / k2 * h.dof, h.dof) for r, h in zip(r2, heldout)])
+
+
 def _heldout_test(heldout) -> tuple[float, float]:
     """(ratio, p): held-out photos' error over what is stated (RMS), and the p-value of
     seeing that much or more (Satterthwaite chi-square of the summed squares)."""
@@ -268,32 +319,23 @@ def _heldout_test(heldout) -> tuple[float, float]:
     return float(np.sqrt(ss / ex)), float(stats.chi2.sf(ss / ex * dof, dof))
 
 
-def fit_handeye(views, mount: str, size_px, *, lens=None, alternatives=None,
-                source: str = "--robot-poses", units: str = "m",
-                config: HandeyePhotosConfig | None = None) -> HandeyeFit:
-    """The hand-eye of ``views`` (one :class:`View` a photo, in the photos' order) for a
-    camera ``mount``ed ``fixed`` or on the ``arm``; ``lens`` (K, dist) when declared;
-    ``alternatives`` (name -> (n, 4, 4)) the poses read under other conventions, to name
-    one the data prefer. Raises ``VisionCalError`` for poses that contradict the photos,
-    ``CalibrationError`` for what cannot be calibrated. Long because each stage's refusal
-    names what it saw and the stages share the photos kept."""
-    cfg = config or DEFAULT.handeye_photos
-    if mount not in MOUNTS:
-        raise VisionCalError(f"expected one of {', '.join(MOUNTS)}, got {mount!r}",
-                             field="--mount")
-    views = list(views)
+@dataclass(frozen=True)
+class _Prepared:
+    """Stages 1-3 done: the photos kept, their board poses, the closed form and the scale,
+    the photos left out so far (name -> reason), each photo's own pose fit."""
+
+    views: list
+    start: AxzbSolution
+    scale: float
+    left: dict
+    pnp_px: dict
+
+
+def _prepare(views, mount, size_px, lens0, declared, alternatives, source, units,
+             cfg: HandeyePhotosConfig) -> _Prepared:
+    """Stages 2 and 3 (the module docstring): the photos that fit the board and agree with
+    one hand-eye, the checks' refusals, the closed form."""
     left: dict = {}
-    if len(views) < cfg.min_photos:
-        raise CalibrationError(f"{len(views)} photos show the board: at least "
-                               f"{cfg.min_photos} needed")
-    declared = lens is not None
-    terms = tuple(cfg.lens_terms.split())
-    if declared:
-        lens0 = lens_vector(np.asarray(lens[0], float), lens[1])
-        free = np.zeros(9, bool)
-    else:
-        lens0 = lens_start(views, size_px, terms)
-        free = np.array([n in ("fx", "fy", "cx", "cy") + terms for n in LENS_NAMES])
     C, pnp = board_poses(views, lens0)
     pnp_px = {v.name: float(r) for v, r in zip(views, pnp)}
     bad = misfit_photos(pnp, cfg)
@@ -302,27 +344,84 @@ def fit_handeye(views, mount: str, size_px, *, lens=None, alternatives=None,
                                f"its own best pose, {np.median(pnp):.2g} px for the median "
                                "photo): another board, a misdetection, or a lens far off there")
     keep = [i for i in range(len(views)) if i not in bad]
-    views = [views[i] for i in keep]
-    C = [C[i] for i in keep]
+    views, C = [views[i] for i in keep], [C[i] for i in keep]
     alternatives = {k: np.asarray(v)[keep] for k, v in (alternatives or {}).items()}
     if len(views) < cfg.min_photos:
         raise CalibrationError(f"{len(views)} photos fit the board: at least "
                                f"{cfg.min_photos} needed")
-    F = np.array([v.T_robot_flange for v in views])
-    A = [_G(f, mount) for f in F]
+    A = [_G(v.T_robot_flange, mount) for v in views]
     check_motion(A, cfg)
-    check_conventions(views, C, mount, alternatives, cfg, source)
-    scale = check_scale(A, C, cfg, source, units)
-    start = solve_axzb(A, C)
-    X0, Y0 = start.Z, start.X       # G_i Y = X C_i: solve_axzb's X is our Y
     max_out = int(np.floor(cfg.max_outlier_fraction * len(views)))
+    agree = consistent_photos(A, C, cfg, max_out, declared=declared)
+    if agree is None:     # as a whole: the checks name why (or let the fit judge)
+        check_conventions(views, C, mount, alternatives, cfg, source)
+        check_scale(A, C, cfg, source, units, declared=declared)
+        agree = list(range(len(views)))
+    for i in sorted(set(range(len(views))) - set(agree)):
+        left[views[i].name] = ("its pose disagrees with the other photos' (the robot's turn "
+                               "or motion to it is not the board's as the camera saw it): "
+                               "a pose that is not this photo's, a board that moved on its "
+                               "mount, or another board")
+    views, A, C = [views[i] for i in agree], [A[i] for i in agree], [C[i] for i in agree]
+    scale = check_scale(A, C, cfg, source, units, declared=declared)
+    return _Prepared(views, solve_axzb(A, C), scale, left, pnp_px)
+
+
+def _free(terms) -> np.ndarray:
+    return np.array([n in ("fx", "fy", "cx", "cy") + tuple(terms) for n in LENS_NAMES])
+
+
+def _select_lens(views, mount, size_px, X0, Y0, cfg) -> tuple[np.ndarray, np.ndarray, list]:
+    """The undeclared lens's model chosen by the data: each of ``config.lens_models`` fitted
+    with the rest, the one whose held-out photos are predicted best kept; (lens start,
+    free terms, [(terms, held-out px, stated px)] of every model tried)."""
+    tried = []
+    for terms in (m.split() for m in cfg.lens_models.split(";")):
+        lens0 = lens_start(views, size_px, terms)
+        j = _judge(views, mount, X0, Y0, lens0, _free(terms))
+        n = sum(len(h.px) for h in j.heldout)
+        tried.append((" ".join(terms), float(np.sqrt(sum(h.sum_sq for h in j.heldout) / n)),
+                      float(np.sqrt(sum(h.expected_sq for h in j.heldout) / n)), lens0))
+    best = min(tried, key=lambda t: t[1])
+    return best[3], _free(best[0].split()), [t[:3] for t in tried]
+
+
+def fit_handeye(views, mount: str, size_px, *, lens=None, alternatives=None,
+                source: str | None = None, units: str = "m",
+                config: HandeyePhotosConfig | None = None) -> HandeyeFit:
+    """The hand-eye of ``views`` (one :class:`View` a photo, in the photos' order) for a
+    camera ``mount``ed ``fixed`` or on the ``arm``; ``lens`` (K, dist) when declared;
+    ``alternatives`` (name -> (n, 4, 4)) the poses read under other conventions, to name
+    one the data prefer. Raises ``VisionCalError`` for poses that contradict the photos,
+    ``CalibrationError`` for what cannot be calibrated."""
+    cfg = config or DEFAULT.handeye_photos
+    if mount not in MOUNTS:
+        raise VisionCalError(f"expected one of {', '.join(MOUNTS)}, got {mount!r}",
+                             field="--mount")
+    views = list(views)
+    if len(views) < cfg.min_photos:
+        raise CalibrationError(f"{len(views)} photos show the board: at least "
+                               f"{cfg.min_photos} needed")
+    declared = lens is not None
+    if declared:
+        lens0, free = lens_vector(np.asarray(lens[0], float), lens[1]), np.zeros(9, bool)
+    else:       # the richest model's start for the photos' own poses
+        richest = max(cfg.lens_models.split(";"), key=lambda m: len(m.split())).split()
+        lens0 = lens_start(views, size_px, richest)
+    prep = _prepare(views, mount, size_px, lens0, declared, alternatives, source, units, cfg)
+    views, left = prep.views, dict(prep.left)
+    X0, Y0 = prep.start.Z, prep.start.X       # G_i Y = X C_i: solve_axzb's X is our Y
+    models: list = []
+    if not declared:
+        lens0, free, models = _select_lens(views, mount, size_px, X0, Y0, cfg)
+    max_out = int(np.floor(cfg.max_outlier_fraction * (len(views) + len(left))))
     while True:
         j = _judge(views, mount, X0, Y0, lens0, free)
         n = len(views)
-        worst = min(range(n), key=lambda k: j.heldout[k].p_value)
+        p_out = _outlier_p(j.heldout)
+        worst = int(np.argmin(p_out))
         h = j.heldout[worst]
-        if (h.p_value >= cfg.outlier_alpha / n or len(left) - len(bad) >= max_out
-                or n - 1 < cfg.min_photos):
+        if p_out[worst] >= cfg.outlier_alpha / n or len(left) >= max_out or n - 1 < cfg.min_photos:
             break
         left[h.name] = (f"predicted from the others {h.rms_px:.3g} px RMS off ({h.rms_mm:.3g} "
                         f"mm at the board), {h.stated_px:.2g} px expected (p = "
@@ -337,5 +436,5 @@ def fit_handeye(views, mount: str, size_px, *, lens=None, alternatives=None,
              for i, v in enumerate(views)}
     return HandeyeFit(mount, R.X, R.Y, R.lens, free, declared, j.cov * inflation ** 2,
                       R.labels, tuple(views), left, resid, tuple(j.heldout), j.noise,
-                      inflation, ratio, p, start, scale, pnp_px,
-                      tuple(int(s) for s in size_px))
+                      inflation, ratio, p, prep.start, prep.scale, prep.pnp_px,
+                      tuple(int(s) for s in size_px), lens_models=tuple(models))

@@ -44,10 +44,12 @@ QUAT_TOL = 1e-3
 MAX_REACH_MM = 10000.0
 #: an arm moves its flange by more than this (mm) over a hand-eye session
 MIN_SPREAD_MM = 5.0
-#: the units a misread length most likely had, by the factor it is off
-LIKELY_UNITS = ((1000.0, "millimetres read as metres"), (25.4, "inches"),
-                (10.0, "centimetres"), (0.001, "metres read as millimetres"),
-                (1 / 25.4, "millimetres read as inches"))
+#: the unit lengths were really in, by the factor that turns the values read into mm
+#: (``mm`` read: 1000 for metres, 25.4 inches, 10 centimetres; ``m`` read: 0.001 mm)
+LIKELY_UNITS = {"mm": ((1000.0, "metres"), (25.4, "inches"), (10.0, "centimetres"),
+                       (0.001, "micrometres")),
+                "m": ((0.001, "millimetres"), (0.0254, "inches"), (0.01, "centimetres"),
+                      (1000.0, "kilometres"))}
 
 
 @dataclass(frozen=True)
@@ -146,10 +148,11 @@ def _read_csv(path: Path) -> list[RobotPose]:
     return out
 
 
-def likely_unit(factor: float, tol: float = 0.08) -> str | None:
-    """The unit mistake that multiplies lengths by about ``factor`` (within ``tol``), if
-    any of :data:`LIKELY_UNITS`."""
-    for f, name in LIKELY_UNITS:
+def likely_unit(factor: float, read_as: str = "mm", tol: float = 0.08) -> str | None:
+    """The unit the lengths were really in, when the values (read as ``read_as``: ``mm``
+    or ``m``, in mm once read) must be multiplied by about ``factor`` (within ``tol`` of
+    one of :data:`LIKELY_UNITS`) to be millimetres; None when no unit explains it."""
+    for f, name in LIKELY_UNITS[read_as]:
         if abs(math.log(factor / f)) < tol:
             return name
     return None

@@ -282,13 +282,16 @@ def sample_poses(world: World, n: int, rng, *, max_tries: int = 4000) -> np.ndar
     while len(out) < n and tries < max_tries:
         tries += 1
         T_cb = _desired_board_in_camera(world, rng)
+        if not _sees_board(world, T_cb, board):
+            continue
         if world.mount == "fixed":
             T_rf = world.X @ T_cb @ _inv(world.Y)
         else:
             T_rf = world.Y @ _inv(T_cb) @ _inv(world.X)
-        q0 = np.asarray(world.home_deg) + rng.normal(0, 20, 6)
+        q0 = (out[-1] if out and rng.random() < 0.7 else np.asarray(world.home_deg)) \
+            + rng.normal(0, 10, 6)
         q = world.nominal.solve(T_rf, q0)
-        if q is None or not _sees_board(world, T_cb, board):
+        if q is None:
             continue
         out.append(q)
     if len(out) < n:
@@ -346,10 +349,10 @@ def _texture(board: Board, px_per_mm: float) -> tuple[np.ndarray, float]:
     return cv2.copyMakeBorder(img, m, m, m, m, cv2.BORDER_CONSTANT, value=255), m
 
 
-def _normalised_grid(lens: Lens, ws: int, hs: int, s: int, step: int = 8) -> np.ndarray:
-    """(hs * ws, 2) the undistorted normalised coordinates of every supersampled pixel:
-    OpenCV's iterative undistortion on a grid every ``step`` pixels (the distortion is
-    smooth), interpolated cubically in between (1e-7 of the normalised plane)."""
+def _normalised_grid(lens: Lens, ws: int, hs: int, s: int, step: int = 8):
+    """(nx, ny) (hs, ws) each the undistorted normalised coordinates of every supersampled
+    pixel: OpenCV's iterative undistortion on a grid every ``step`` pixels (the distortion
+    is smooth), interpolated cubically in between (1e-7 of the normalised plane)."""
     gx = np.arange(0, ws + step, step, dtype=float)
     gy = np.arange(0, hs + step, step, dtype=float)
     gu, gv = np.meshgrid((gx + 0.5) / s - 0.5, (gy + 0.5) / s - 0.5)
@@ -358,11 +361,8 @@ def _normalised_grid(lens: Lens, ws: int, hs: int, s: int, step: int = 8) -> np.
                             (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-12))
     n = n.reshape(len(gy), len(gx), 2)
     xs, ys = np.arange(ws) / step, np.arange(hs) / step
-    out = np.empty((hs, ws, 2))
-    for k in range(2):
-        spl = RectBivariateSpline(np.arange(len(gy)), np.arange(len(gx)), n[:, :, k])
-        out[:, :, k] = spl(ys, xs)
-    return out.reshape(-1, 2)
+    return tuple(RectBivariateSpline(np.arange(len(gy)), np.arange(len(gx)), n[:, :, k])(
+        ys, xs).astype(np.float32) for k in range(2))
 
 
 def photograph(world: World, T_camera_board: np.ndarray, rng, *, blur_px: float = 0.6,
@@ -374,21 +374,23 @@ def photograph(world: World, T_camera_board: np.ndarray, rng, *, blur_px: float 
     px_per_mm = 8.0
     tex, margin = _texture(world.board, px_per_mm)
     tex = cv2.GaussianBlur(tex, (0, 0), 0.8)
-    norm = _normalised_grid(world.lens, w * s, h * s, s)
-    rays = np.c_[norm, np.ones(len(norm))]
+    nx, ny = _normalised_grid(world.lens, w * s, h * s, s)
     T_bc = _inv(T_camera_board)
-    o = T_bc[:3, 3]
-    d = rays @ T_bc[:3, :3].T
+    R, o = T_bc[:3, :3].astype(np.float32), T_bc[:3, 3].astype(np.float32)
+    # the ray (nx, ny, 1) from the camera's centre o meets the board's plane z = 0
+    dz = R[2, 0] * nx + R[2, 1] * ny + R[2, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
-        lam = -o[2] / d[:, 2]
-    p = o + lam[:, None] * d
+        lam = np.float32(-o[2]) / dz
+    px = o[0] + lam * (R[0, 0] * nx + R[0, 1] * ny + R[0, 2])
+    py = o[1] + lam * (R[1, 0] * nx + R[1, 1] * ny + R[1, 2])
     W, H = world.board.size_mm
     # sheet frame -> texture pixels (y down, origin at the margin's corner)
-    mx = ((p[:, 0] + W / 2.0) * px_per_mm + margin - 0.5).reshape(h * s, w * s)
-    my = ((H / 2.0 - p[:, 1]) * px_per_mm + margin - 0.5).reshape(h * s, w * s)
-    bad = ~(lam > 0).reshape(h * s, w * s)
+    f32 = np.float32
+    mx = (px + f32(W / 2.0)) * f32(px_per_mm) + f32(margin - 0.5)
+    my = (f32(H / 2.0) - py) * f32(px_per_mm) + f32(margin - 0.5)
+    bad = ~(lam > 0)
     mx[bad], my[bad] = -1e6, -1e6
-    grey = cv2.remap(tex, mx.astype(np.float32), my.astype(np.float32), cv2.INTER_LINEAR,
+    grey = cv2.remap(tex, mx, my, cv2.INTER_LINEAR,
                      borderMode=cv2.BORDER_CONSTANT, borderValue=90)
     img = cv2.resize(grey.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
     img = 20.0 + img * 0.85
