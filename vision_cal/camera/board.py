@@ -162,9 +162,7 @@ def find_board(image: np.ndarray, board: Board, *, min_points: int = 6) -> Board
     import cv2
 
     gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY) if image.ndim == 3 else image
-    ids_all, _ = detect_raw(gray, board.sheet.aruco_dictionary)
     own = {m.id for m in board.sheet.markers}
-    foreign = tuple(sorted({int(i) for i in ids_all if int(i) not in own}))
     if board.charuco is None:
         det = find_sheet_markers(gray, board.sheet)
         n = len(det.ids)
@@ -172,10 +170,14 @@ def find_board(image: np.ndarray, board: Board, *, min_points: int = 6) -> Board
         mm = np.c_[det.corners_mm.reshape(-1, 2), np.zeros(4 * n)]
         px = det.corners_px.reshape(-1, 2).astype(float)
         reason = det.reason
+        foreign = tuple(sorted({int(i) for i in detect_raw(gray, board.sheet.aruco_dictionary)[0]
+                                if int(i) not in own})) if det.n_foreign else ()
     else:
         d = _charuco_detector(board.charuco)
         cc, ci, _, mi = d.detector.detectBoard(gray)
-        n = 0 if mi is None else len(np.asarray(mi).ravel())
+        seen = [] if mi is None else [int(i) for i in np.asarray(mi).ravel()]
+        foreign = tuple(sorted({i for i in seen if i not in own}))
+        n = len(seen) - sum(1 for i in seen if i not in own)
         if ci is None or len(ci) == 0:
             ids, px = np.zeros(0, int), np.zeros((0, 2))
         else:

@@ -371,19 +371,19 @@ def _free(terms) -> np.ndarray:
     return np.array([n in ("fx", "fy", "cx", "cy") + tuple(terms) for n in LENS_NAMES])
 
 
-def _select_lens(views, mount, size_px, X0, Y0, cfg) -> tuple[np.ndarray, np.ndarray, list]:
+def _select_lens(views, mount, size_px, X0, Y0, cfg):
     """The undeclared lens's model chosen by the data: each of ``config.lens_models`` fitted
     with the rest, the one whose held-out photos are predicted best kept; (lens start,
-    free terms, [(terms, held-out px, stated px)] of every model tried)."""
+    free terms, [(terms, held-out px, stated px)] of every model tried, its judgement)."""
     tried = []
     for terms in (m.split() for m in cfg.lens_models.split(";")):
         lens0 = lens_start(views, size_px, terms)
         j = _judge(views, mount, X0, Y0, lens0, _free(terms))
         n = sum(len(h.px) for h in j.heldout)
         tried.append((" ".join(terms), float(np.sqrt(sum(h.sum_sq for h in j.heldout) / n)),
-                      float(np.sqrt(sum(h.expected_sq for h in j.heldout) / n)), lens0))
+                      float(np.sqrt(sum(h.expected_sq for h in j.heldout) / n)), lens0, j))
     best = min(tried, key=lambda t: t[1])
-    return best[3], _free(best[0].split()), [t[:3] for t in tried]
+    return best[3], _free(best[0].split()), [t[:3] for t in tried], best[4]
 
 
 def fit_handeye(views, mount: str, size_px, *, lens=None, alternatives=None,
@@ -412,11 +412,12 @@ def fit_handeye(views, mount: str, size_px, *, lens=None, alternatives=None,
     views, left = prep.views, dict(prep.left)
     X0, Y0 = prep.start.Z, prep.start.X       # G_i Y = X C_i: solve_axzb's X is our Y
     models: list = []
+    j = None
     if not declared:
-        lens0, free, models = _select_lens(views, mount, size_px, X0, Y0, cfg)
+        lens0, free, models, j = _select_lens(views, mount, size_px, X0, Y0, cfg)
     max_out = int(np.floor(cfg.max_outlier_fraction * (len(views) + len(left))))
     while True:
-        j = _judge(views, mount, X0, Y0, lens0, free)
+        j = j or _judge(views, mount, X0, Y0, lens0, free)
         n = len(views)
         p_out = _outlier_p(j.heldout)
         worst = int(np.argmin(p_out))
@@ -429,6 +430,7 @@ def fit_handeye(views, mount: str, size_px, *, lens=None, alternatives=None,
                         "moved on its mount, or another board")
         views = views[:worst] + views[worst + 1:]
         X0, Y0, lens0 = j.refined.X, j.refined.Y, j.refined.lens
+        j = None
     ratio, p = _heldout_test(j.heldout)
     inflation = ratio if (p < cfg.heldout_alpha and ratio > 1.0) else 1.0
     R = j.refined

@@ -402,8 +402,8 @@ def photograph(world: World, T_camera_board: np.ndarray, rng, *, blur_px: float 
 
 def pose_yaml(T_robot_flange: np.ndarray) -> str:
     """A ROS tool's pose file: x y z in metres, the quaternion qx qy qz qw."""
-    q = Rotation.from_matrix(T_robot_flange[:3, :3]).as_quat()
-    t = T_robot_flange[:3, 3] / 1000.0
+    q = [float(v) for v in Rotation.from_matrix(T_robot_flange[:3, :3]).as_quat()]
+    t = [float(v) / 1000.0 for v in T_robot_flange[:3, 3]]
     return (f"x: {t[0]!r}\ny: {t[1]!r}\nz: {t[2]!r}\nqx: {q[0]!r}\nqy: {q[1]!r}\n"
             f"qz: {q[2]!r}\nqw: {q[3]!r}\n")
 
