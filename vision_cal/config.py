@@ -407,6 +407,10 @@ class HandeyePhotosConfig:
                                       # board (or the lens is far off in that part)
     outlier_alpha: float = 0.001      # a photo predicted by the others beyond what is stated
                                       # for it at this level (alpha / n each) is left out
+    outlier_ratio: float = 4.0        # ... and only when also this many times farther off
+                                      # (RMS) than stated: a real arm's pose errors have
+                                      # heavier tails than a normal law (real session: up
+                                      # to 2x), a wrong pose or another board is off 10-30x
     max_outlier_fraction: float = 0.3  # never leave out more than this share of the photos
     heldout_alpha: float = 0.01       # held-out photos predicted worse than stated at this
                                       # level: the stds are raised to what they show, check
@@ -418,7 +422,10 @@ class HandeyePhotosConfig:
                                       # one whose held-out photos are predicted best is kept
                                       # (real session, 8 photos: 1.71, 1.67, 1.94 px)
     declared_lens_ratio: float = 1.5  # a declared lens whose held-out error is this many times
-                                      # an estimated lens's (and significantly so) is named
+                                      # an estimated lens's is named ...
+    declared_lens_std: float = 4.0    # ... or one whose fx, fy, cx or cy lies more than this
+                                      # many stds from the estimate (4 terms tested: a false
+                                      # alarm in 1 of 4000 when right)
 
 
 @dataclass(frozen=True)

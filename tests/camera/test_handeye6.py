@@ -9,10 +9,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from vision_cal.camera.handeye import fit_handeye
+from vision_cal.camera.handeye import estimated_lens_fit, fit_handeye
 from vision_cal.camera.handeye_closed import inv_T, robot_scale, solve_axzb
 from vision_cal.camera.handeye_lsq import Problem, View, lens_vector, pose_offset
-from vision_cal.camera.handeye_verdict import judge_handeye
+from vision_cal.camera.handeye_verdict import judge_handeye, lens_check
 from vision_cal.config import DEFAULT
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.render.six_axis import Lens, make_world, observe, shots
@@ -88,10 +88,12 @@ def test_recovers_both_transforms_within_their_std(mount, seed):
     assert judge_handeye(f).status == "ready"
 
 
-def test_declared_lens_ten_percent_off_is_never_ready():
+@pytest.mark.parametrize("seed", [23, 32])
+def test_declared_lens_ten_percent_off_is_never_ready(seed):
     """The focal length declared 10 % long: refused (the board's motion no longer matches
-    the robot's) or flagged, never ready."""
-    w, views = _views(23, "fixed", n=10, joint_noise_deg=0.02)
+    the robot's: seed 23) or named against a lens estimated from the same photos (seed
+    32), never ready."""
+    w, views = _views(seed, "fixed", n=10, joint_noise_deg=0.02)
     K = w.lens.K.copy()
     K[0, 0] *= 1.1
     K[1, 1] *= 1.1
@@ -100,7 +102,9 @@ def test_declared_lens_ten_percent_off_is_never_ready():
     except CalibrationError as e:
         assert "focal length" in str(e)
         return
-    assert judge_handeye(f).status != "ready"
+    free = estimated_lens_fit(views, f, config=ONE_MODEL)
+    v = judge_handeye(f, lens_check=lens_check(f, free))
+    assert v.status != "ready" and "the declared lens disagrees" in " ".join(v.reasons)
 
 
 def test_swapped_units_are_named():

@@ -165,3 +165,20 @@ def test_saddles_found_in_a_photo(tmp_path):
 def test_the_command_refuses_what_does_not_go_together(args, field, tmp_path, capsys):
     code = main(["handeye", "--robot-poses", "poses", "--out", str(tmp_path / "o"), *args])
     assert code == 2 and field in capsys.readouterr().err
+
+
+def test_the_files_follow_their_schemas(tmp_path):
+    """The world's pose files (as ROS tools write them), a ROS Pose message and `sheet
+    --charuco`'s sheet.json follow vision_cal/schema; a pose without qw does not."""
+    import jsonschema
+    import yaml
+
+    from vision_cal.schema import validate
+
+    for p in _pose_files(tmp_path / "p").iterdir():
+        validate(yaml.safe_load(p.read_text()), "robot_pose")
+    validate({"position": {"x": 0.5, "y": 0, "z": 0.4},
+              "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}}, "robot_pose")
+    with pytest.raises(jsonschema.ValidationError):
+        validate({"x": 0.5, "y": 0, "z": 0.4, "qx": 0, "qy": 0, "qz": 0}, "robot_pose")
+    validate(_charuco(tmp_path, "b"), "sheet")

@@ -24,10 +24,10 @@ from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.errors import CalibrationError
 # the photos-and-poses path (issue 40)
 from vision_cal.camera.board import find_board, load_board
-from vision_cal.camera.handeye import HandeyeFit, fit_handeye
+from vision_cal.camera.handeye import HandeyeFit, estimated_lens_fit, fit_handeye
 from vision_cal.camera.handeye_document import photos_document
 from vision_cal.camera.handeye_lsq import View
-from vision_cal.camera.handeye_verdict import judge_handeye, limited_by
+from vision_cal.camera.handeye_verdict import judge_handeye, lens_check, limited_by
 from vision_cal.camera.robot_poses import pair_with_photos, read_robot_poses
 from vision_cal.dataset.camera_block import read_lens
 from vision_cal.dataset.fields import FieldReader
@@ -230,35 +230,6 @@ def _detect(req: HandeyePhotosRequest, board, photos, poses, lens_size):
     return views, alts, skipped, size
 
 
-def lens_check(fit: HandeyeFit, free: HandeyeFit | None) -> str | None:
-    """A declared lens (``fit``) against one estimated from the same photos (``free``, None
-    when there are too few photos to estimate one): the sentence naming it when held-out
-    photos are predicted clearly better by the estimated one."""
-    if free is None:
-        return None
-    dec, est = fit.heldout_rms()[0], free.heldout_rms()[0]
-    if dec <= DEFAULT.handeye_photos.declared_lens_ratio * est:
-        return None
-    sd = dict(zip(free.labels, free.std))
-    terms = [f"{name} {fit.lens[k]:.1f} declared, {free.lens[k]:.1f} +- "
-             f"{sd.get(f'lens.{name}', 0.0):.1g}" for k, name in enumerate(("fx", "fy", "cx", "cy"))]
-    return (f"the declared lens predicts held-out photos {dec:.3g} px RMS, one estimated from "
-            f"these photos {est:.3g} px ({'; '.join(terms)}): is it this camera's lens, at "
-            "this focus and resolution? leave --camera out to estimate it")
-
-
-def _estimated_too(views, fit: HandeyeFit, size, alts, source, units) -> HandeyeFit | None:
-    """The same photos with the lens estimated (to judge a declared one), None when they
-    are too few for it or it cannot be made."""
-    if len(views) < 2 * DEFAULT.handeye_photos.min_photos:
-        return None
-    try:
-        return fit_handeye(views, fit.mount, size, alternatives=alts, source=source,
-                           units=units)
-    except VisionCalError:
-        return None
-
-
 def handeye_photos(req: HandeyePhotosRequest) -> HandeyePhotosOutcome:
     """Read the board, the poses and the photos; fit, judge and write OUT/calibration.json."""
     board = load_board(req.sheet)
@@ -282,8 +253,8 @@ def handeye_photos(req: HandeyePhotosRequest) -> HandeyePhotosOutcome:
                              field="camera.size_px")
     fit = fit_handeye(views, req.mount, size, lens=None if lens is None else lens[1:],
                       alternatives=alts, source=req.robot_poses, units=units)
-    free = (_estimated_too(views, fit, size, alts, req.robot_poses, units)
-            if lens is not None else None)
+    free = (estimated_lens_fit(views, fit, alternatives=alts, source=req.robot_poses,
+                               units=units) if lens is not None else None)
     verdict = judge_handeye(fit, lens_check=lens_check(fit, free))
     doc = photos_document(fit, verdict, board=board, req=req, units=units,
                           skipped=skipped, limit=limited_by(fit, DEFAULT.handeye_photos))

@@ -20,8 +20,9 @@ The stages (:func:`fit_handeye`):
 5. the statistics (:mod:`vision_cal.camera.handeye_stats`): the corners' and the robot's
    noise from the residual, the stds (sandwich), each photo predicted from the others
    against what is stated for it; a photo predicted beyond what it should be (at
-   ``outlier_alpha / n``) is left out and the fit made again; held-out photos predicted
-   worse than stated raise every std and stated error to what they show.
+   ``outlier_alpha / n``, and ``outlier_ratio`` times farther off than stated) is left out
+   and the fit made again; held-out photos predicted worse than stated raise every std and
+   stated error to what they show (the verdict says so when it is significant).
 """
 
 from __future__ import annotations
@@ -296,17 +297,19 @@ def _judge(views, mount, X0, Y0, lens, free) -> _Judged:
     Js, Jd = pr2.jacobians(p)
     noise = noise_components(R.residual_px, Js, Jd, R.view_of)
     cov = sandwich(Js, Jd, R.view_of, noise)
-    return _Judged(R, cov, noise, leave_one_out(views, mount, R, cov, noise))
+    return _Judged(R, cov, noise, leave_one_out(views, mount, R))
 
 
-def _outlier_p(heldout) -> np.ndarray:
+def _outlier_p(heldout, cfg: HandeyePhotosConfig) -> np.ndarray:
     """Each photo's p-value of its held-out error against what is stated for it, the
     statement first raised by the photos' median ratio when they are all predicted worse
     than stated (an outlier is a photo the others do not predict, not a noise the fit
-    underrates for all of them)."""
+    underrates for all of them); 1 for a photo less than ``outlier_ratio`` times farther
+    off than stated."""
     r2 = np.array([h.sum_sq / h.expected_sq for h in heldout])
     k2 = max(1.0, float(np.median(r2)))
-    return np.array([stats.chi2.sf(r / k2 * h.dof, h.dof) for r, h in zip(r2, heldout)])
+    return np.array([stats.chi2.sf(r / k2 * h.dof, h.dof) if r / k2 > cfg.outlier_ratio ** 2
+                     else 1.0 for r, h in zip(r2, heldout)])
 
 
 def _heldout_test(heldout) -> tuple[float, float]:
@@ -419,7 +422,7 @@ def fit_handeye(views, mount: str, size_px, *, lens=None, alternatives=None,
     while True:
         j = j or _judge(views, mount, X0, Y0, lens0, free)
         n = len(views)
-        p_out = _outlier_p(j.heldout)
+        p_out = _outlier_p(j.heldout, cfg)
         worst = int(np.argmin(p_out))
         h = j.heldout[worst]
         if p_out[worst] >= cfg.outlier_alpha / n or len(left) >= max_out or n - 1 < cfg.min_photos:
@@ -432,7 +435,7 @@ def fit_handeye(views, mount: str, size_px, *, lens=None, alternatives=None,
         X0, Y0, lens0 = j.refined.X, j.refined.Y, j.refined.lens
         j = None
     ratio, p = _heldout_test(j.heldout)
-    inflation = ratio if (p < cfg.heldout_alpha and ratio > 1.0) else 1.0
+    inflation = max(1.0, ratio)     # what is stated covers what held-out photos show
     R = j.refined
     resid = {v.name: float(np.sqrt(np.mean(np.sum(R.residual_px[R.view_of == i] ** 2, axis=1))))
              for i, v in enumerate(views)}
@@ -440,3 +443,18 @@ def fit_handeye(views, mount: str, size_px, *, lens=None, alternatives=None,
                       R.labels, tuple(views), left, resid, tuple(j.heldout), j.noise,
                       inflation, ratio, p, prep.start, prep.scale, prep.pnp_px,
                       tuple(int(s) for s in size_px), lens_models=tuple(models))
+
+
+def estimated_lens_fit(views, fit: HandeyeFit, *, alternatives=None, source=None,
+                       units: str = "m", config: HandeyePhotosConfig | None = None
+                       ) -> HandeyeFit | None:
+    """The same photos with the lens estimated, to judge a declared one (``fit``'s); None
+    when there are too few photos for it (2 x ``min_photos``) or it cannot be made."""
+    cfg = config or DEFAULT.handeye_photos
+    if len(views) < 2 * cfg.min_photos:
+        return None
+    try:
+        return fit_handeye(views, fit.mount, fit.size_px, alternatives=alternatives,
+                           source=source, units=units, config=cfg)
+    except VisionCalError:
+        return None

@@ -17,8 +17,9 @@ tell apart from another (the flange's rotation and translation move a camera on 
 view alike) is estimated jointly: only what the pixels see matters to the stds.
 
 Each photo's prediction from the others (leave one out, :func:`leave_one_out`) is judged
-against what the fit states for it: ``J_theta Cov J_theta^T + J_D Sigma_D J_D^T + sigma_d^2 I``
-(:func:`stated_covariance`).
+against what the fit of the others states for it: ``J_theta Cov J_theta^T + J_D Sigma_D
+J_D^T + sigma_d^2 I`` with that fit's own covariance and noise (deleted statistics: a photo
+far off cannot raise the noise it is judged by).
 """
 
 from __future__ import annotations
@@ -175,16 +176,23 @@ def held_out(problem_k: Problem, p_k: np.ndarray, cov_k: np.ndarray, noise: Nois
                    float(np.sqrt(tr / n)), stated_mm, ratio, dof, p, ss, tr, 2 * tr2)
 
 
-def leave_one_out(views, mount: str, fit: Refined, cov: np.ndarray, noise: Noise
-                  ) -> list[HeldOut]:
+def deleted_statistics(views, mount: str, fit: Refined) -> tuple[Refined, np.ndarray, Noise]:
+    """The fit of ``views`` started at ``fit``, its covariance and its noise (the photos'
+    own: used to judge a photo left out of them)."""
+    r = refine(Problem(views, mount, fit.X, fit.Y, fit.lens, fit.free))
+    pr = Problem(views, mount, r.X, r.Y, r.lens, fit.free)
+    Js, Jd = pr.jacobians(pr.start())
+    noise = noise_components(r.residual_px, Js, Jd, r.view_of)
+    return r, sandwich(Js, Jd, r.view_of, noise), noise
+
+
+def leave_one_out(views, mount: str, fit: Refined) -> list[HeldOut]:
     """Each photo predicted from a fit of the others (started at ``fit``), judged against
-    what the fit states: ``cov`` (the shared unknowns' covariance of the fit of all photos)
-    times n / (n - 1) (one photo fewer), and the noise."""
+    what that fit states: its own covariance of the unknowns and its own noise (a photo
+    far off does not raise the noise it is judged by: deleted statistics)."""
     out = []
-    n = len(views)
-    for k in range(n):
-        rest = views[:k] + views[k + 1:]
-        rk = refine(Problem(rest, mount, fit.X, fit.Y, fit.lens, fit.free))
+    for k in range(len(views)):
+        rk, cov_k, noise_k = deleted_statistics(views[:k] + views[k + 1:], mount, fit)
         one = Problem([views[k]], mount, rk.X, rk.Y, rk.lens, fit.free)
-        out.append(held_out(one, one.start(), cov * n / max(n - 1, 1), noise, views[k].name))
+        out.append(held_out(one, one.start(), cov_k, noise_k, views[k].name))
     return out

@@ -39,11 +39,37 @@ def limited_by(fit: HandeyeFit, cfg: HandeyePhotosConfig) -> str:
     return f"{det} and {rob} alike"
 
 
+def lens_check(fit: HandeyeFit, free: HandeyeFit | None,
+               config: HandeyePhotosConfig | None = None) -> str | None:
+    """A declared lens (``fit``'s) against one estimated from the same photos (``free``;
+    None: too few photos to estimate one): the sentence naming it when held-out photos are
+    predicted ``declared_lens_ratio`` times better by the estimated one, or when a focal
+    length or the principal point lies more than ``declared_lens_std`` of its std from the
+    estimate (a focal length wrong by some % moves the camera by as much along its axis,
+    which the robot's motion shows but the photos' predictions may hide)."""
+    cfg = config or DEFAULT.handeye_photos
+    if free is None:
+        return None
+    dec, est = fit.heldout_rms()[0], free.heldout_rms()[0]
+    sd = dict(zip(free.labels, free.std))
+    names = ("fx", "fy", "cx", "cy")
+    off = [k for k, n in enumerate(names)
+           if abs(fit.lens[k] - free.lens[k]) > cfg.declared_lens_std * sd[f"lens.{n}"]]
+    if dec <= cfg.declared_lens_ratio * est and not off:
+        return None
+    terms = [f"{n} {fit.lens[k]:.1f} declared, {free.lens[k]:.1f} +- {sd[f'lens.{n}']:.2g} "
+             "estimated" for k, n in enumerate(names)]
+    return (f"the declared lens disagrees with these photos: held-out photos {dec:.3g} px RMS "
+            f"with it, {est:.3g} px with a lens estimated from them ({'; '.join(terms)}): is "
+            "it this camera's lens, at this focus and resolution? leave --camera out to "
+            "estimate it")
+
+
 def _reasons(fit: HandeyeFit, cfg: HandeyePhotosConfig, lens_check: str | None
              ) -> list[tuple[str, str]]:
     out = []
     obs, st, obs_mm, st_mm = fit.heldout_rms()
-    if fit.inflation > 1.0:
+    if fit.inflation > 1.0 and fit.heldout_p < cfg.heldout_alpha:
         out.append(("check", f"held-out photos are predicted {fit.heldout_ratio:.2f}x worse than "
                              f"the fit's own noise says ({obs:.3g} px against "
                              f"{st / fit.inflation:.3g} px RMS, p = {fit.heldout_p:.2g}): the "
