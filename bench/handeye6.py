@@ -50,6 +50,7 @@ from vision_cal.camera.handeye_lsq import Problem, View, lens_vector, pose_offse
 from vision_cal.camera.handeye_verdict import judge_handeye, lens_check
 from vision_cal.camera.robot_poses import pair_with_photos, read_robot_poses
 from vision_cal.config import DEFAULT
+from vision_cal.diagnose.verdict import R95_PER_RMS
 from vision_cal.dataset.photos import list_photos, load_photo
 from vision_cal.errors import VisionCalError
 from vision_cal.render.six_axis import make_world, observe, shots
@@ -63,15 +64,19 @@ def _views(w, sh, rng):
     return [View(s.name, s.T_robot_flange, *observe(w, s, rng)) for s in sh]
 
 
-def _predict_rms(views, mount, X, Y, lens) -> float:
+def _predict_err(views, mount, X, Y, lens) -> np.ndarray:
+    """(N,) each corner's 2-D error (px) predicted from the robot's poses alone."""
     pr = Problem(views, mount, X, Y, lens, np.zeros(9, bool))
-    e = pr.predict(pr.start()) - pr.px
-    return float(np.sqrt(np.mean(np.sum(e ** 2, axis=1))))
+    return np.linalg.norm(pr.predict(pr.start()) - pr.px, axis=1)
+
+
+def _predict_rms(views, mount, X, Y, lens) -> float:
+    return float(np.sqrt(np.mean(_predict_err(views, mount, X, Y, lens) ** 2)))
 
 
 def synthetic(seeds, mount: str, n: int, dh_mm: float, joint_deg: float) -> None:
     """Parameters against the truth, the stated held-out error against fresh photos."""
-    z, ratio, status, zlens = [], [], {}, []
+    z, ratio, status, zlens, inside = [], [], {}, [], []
     for seed in seeds:
         w = make_world(seed, mount=mount, joint_noise_deg=joint_deg, dh_error_mm=dh_mm,
                        dh_error_deg=dh_mm / 10.0)
@@ -83,8 +88,10 @@ def synthetic(seeds, mount: str, n: int, dh_mm: float, joint_deg: float) -> None
         z.append(err / f.std[:12])
         truth = lens_vector(w.lens.K, w.lens.dist)
         zlens.append(((f.lens - truth)[f.free] / f.std[12:])[:4])
-        fresh = _predict_rms(views[n:], mount, f.X, f.Y, f.lens)
+        e = _predict_err(views[n:], mount, f.X, f.Y, f.lens)
+        fresh = float(np.sqrt(np.mean(e ** 2)))
         stated = f.heldout_rms()[1]
+        inside.append(np.mean(e <= R95_PER_RMS * stated))
         ratio.append(fresh / stated)
         v = judge_handeye(f).status
         status[v] = status.get(v, 0) + 1
@@ -97,7 +104,8 @@ def synthetic(seeds, mount: str, n: int, dh_mm: float, joint_deg: float) -> None
           f"error/std RMS {np.sqrt(np.mean(z ** 2)):.2f}; fx fy cx cy within 2 std "
           f"{100 * np.mean(np.abs(np.array(zlens)) < 2):.1f} %; fresh photos / stated: "
           f"median {np.median(ratio):.2f}, within stated {100 * np.mean(np.array(ratio) <= 1):.0f} %"
-          f", {100 * np.mean(np.array(ratio) <= 1.5):.0f} % within 1.5x; verdicts {status}")
+          f", {100 * np.mean(np.array(ratio) <= 1.5):.0f} % within 1.5x; fresh corners inside the "
+          f"stated 95 % radius {100 * np.mean(inside):.1f} %; verdicts {status}")
 
 
 def _outcome(fn, views=None) -> str:

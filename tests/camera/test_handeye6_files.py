@@ -182,3 +182,14 @@ def test_the_files_follow_their_schemas(tmp_path):
     with pytest.raises(jsonschema.ValidationError):
         validate({"x": 0.5, "y": 0, "z": 0.4, "qx": 0, "qy": 0, "qz": 0}, "robot_pose")
     validate(_charuco(tmp_path, "b"), "sheet")
+
+
+def test_help_shows_the_way_in(capsys):
+    """`handeye --help` and `sheet --help` show the photos-and-poses path and the board."""
+    for cmd, words in (("handeye", ("--robot-poses", "--sheet", "7.yaml for 7.png",
+                                    "T_flange_board")),
+                       ("sheet", ("--charuco", "--square-mm", "--legacy-pattern"))):
+        with pytest.raises(SystemExit):
+            main([cmd, "--help"])
+        out = capsys.readouterr().out
+        assert all(w in out for w in words), (cmd, [w for w in words if w not in out])

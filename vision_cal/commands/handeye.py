@@ -11,9 +11,8 @@ HELP = ("calibrate the robot and T_flange_camera from photos taken by the arm's 
         "(--robot-poses)")
 EXAMPLES = """\
 examples:
-  vision-cal handeye photos/ --robot-poses poses/ --sheet board/sheet.json --mount fixed \
-      --out he/                                     any arm: -> he/calibration.json
-                                                    (T_robot_camera, T_flange_board)
+  vision-cal handeye photos/ --robot-poses poses/ --sheet board/sheet.json --mount fixed -o he/
+      any arm: -> he/calibration.json (T_robot_camera, T_flange_board)
   vision-cal handeye arm_photos/ --out arm_cal/     -> arm_cal/calibration.json
   vision-cal handeye --poses pairs.json --out he/   -> he/calibration.json (T_flange_camera)
   vision-cal handeye --poses pairs.csv --units m --mount fixed --z-mm 12.5 --out he/
@@ -45,7 +44,8 @@ report.html yet (no --report); calibration.json's "poses" (each photo's residual
 
 def add_arguments(p) -> None:
     p.add_argument("folder", metavar="FOLDER", nargs="?", default=None,
-                   help="dataset folder with session.json poses (photos of the arm's camera)")
+                   help="dataset folder with session.json poses (photos of the arm's camera); "
+                        "with --robot-poses: the photos of the board")
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--poses", metavar="PAIRS", default=None,
                    help="pose pairs file (JSON vision-cal/poses/1, or CSV) instead of FOLDER")

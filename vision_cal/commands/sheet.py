@@ -15,10 +15,9 @@ examples:
   vision-cal sheet --size A2 --field --out field/          marker field for an arm camera
   vision-cal sheet --size A3 --measured-bar-mm 99.8 100.1 --out sheet/
       after printing: record the two 100 mm bars as measured on the paper
-  vision-cal sheet --charuco 5x7 --square-mm 36.195 --marker-mm 18.256 \
-      --dictionary DICT_6X6_250 --out board/
+  vision-cal sheet --charuco 5x7 --square-mm 36.195 --marker-mm 18.256 --dictionary DICT_6X6_250 -o b/
       an OpenCV ChArUco board (CharucoBoard((5, 7), 36.195, 18.256, DICT_6X6_250)) for
-      `vision-cal handeye PHOTOS/ --robot-poses ... --sheet board/sheet.json`
+      `vision-cal handeye PHOTOS/ --robot-poses ... --sheet b/sheet.json`
 
 Print sheet.pdf at 100 % (actual size, no fit-to-page) and measure both bars; paste
 sheet.json as the "sheet" block of session.json (vision-cal design does it for you).
