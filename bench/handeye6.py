@@ -306,7 +306,7 @@ def real(opencv_python: str | None) -> None:
     size = (1600, 1200)
     f = fit_handeye(views, "fixed", size)
     obs, st, omm, smm = f.heldout_rms()
-    print(f"real session, 8 photos: lens models {[(t, round(o, 3)) for t, o, _ in f.lens_models]}")
+    print(f"real session, 8 photos: lens models {[(t, round(o, 3)) for t, o in f.lens_models]}")
     for h in f.heldout:
         print(f"  {h.name}: residual {f.residual_px[h.name]:.2f} px, held out {h.rms_px:.2f} px"
               f" ({h.rms_mm:.2f} mm at the board), stated {h.stated_px * f.inflation:.2f} px")
@@ -358,6 +358,40 @@ def halves(views, size) -> None:
           f"{dict(zip(*np.unique([x[2] for x in rows], return_counts=True)))}")
 
 
+def rendered(seeds, mount: str, n: int) -> None:
+    """Photos rendered by the world (its own print of OpenCV's board through its lens),
+    read by the command as a user's folder: the board's saddles detected, the poses read
+    from the world's ROS-style files, the lens estimated."""
+    from vision_cal.actions.handeye import HandeyePhotosRequest, handeye_photos
+    from vision_cal.actions.sheet import SheetRequest, sheet
+    from vision_cal.render.six_axis import write_session
+
+    z = []
+    for seed in seeds:
+        w = make_world(seed, mount=mount, joint_noise_deg=0.02)
+        with tempfile.TemporaryDirectory() as d:
+            d = Path(d)
+            write_session(d / "s", w, n, seed)
+            sheet(SheetRequest(out=str(d / "b"), charuco="5x7", square_mm=w.board.square_mm,
+                               marker_mm=w.board.marker_mm, dictionary=w.board.dictionary,
+                               quiet=True))
+            out = handeye_photos(HandeyePhotosRequest(
+                folder=str(d / "s" / "images"), robot_poses=str(d / "s" / "poses"),
+                sheet=str(d / "b" / "sheet.json"), mount=mount, out=str(d / "o"), quiet=True))
+        f = out.fit
+        err = np.r_[pose_offset(w.X, f.X), pose_offset(w.Y, f.Y)]
+        z.append(err / f.std[:12])
+        fresh = _views(w, shots(w, 20, seed + 99), np.random.default_rng(seed))
+        e = _predict_rms(fresh, mount, f.X, f.Y, f.lens)
+        print(f"  rendered seed {seed} ({mount}): {len(f.views)} photos, within 2 std "
+              f"{np.mean(np.abs(z[-1]) < 2):.2f}, |error|/std max {np.abs(z[-1]).max():.2f}, "
+              f"held out {f.heldout_rms()[0]:.2f} px, stated {f.heldout_rms()[1]:.2f}, fresh "
+              f"poses {e:.2f}; {out.document['verdict']['status']}", flush=True)
+    z = np.array(z)
+    print(f"rendered ({mount}): pose parameters within 2 std {100 * np.mean(np.abs(z) < 2):.1f} %"
+          f" ({z.size})")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=0)
@@ -368,12 +402,16 @@ def main() -> None:
     ap.add_argument("--mounts", default="fixed,arm")
     ap.add_argument("--failures", type=int, default=0, help="seeds of failure cases")
     ap.add_argument("--real", action="store_true")
+    ap.add_argument("--render", type=int, default=0, help="seeds of rendered photos")
     ap.add_argument("--opencv-python", default=None)
     a = ap.parse_args()
     seeds = range(a.first_seed, a.first_seed + a.seeds)
     for mount in a.mounts.split(","):
         if a.seeds:
             synthetic(seeds, mount, a.photos, a.dh_mm, a.joint_deg)
+    if a.render:
+        for mount in a.mounts.split(","):
+            rendered(range(a.first_seed + 900, a.first_seed + 900 + a.render), mount, a.photos)
     if a.failures:
         failures(range(a.first_seed + 500, a.first_seed + 500 + a.failures))
     if a.real:

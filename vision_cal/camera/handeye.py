@@ -76,7 +76,7 @@ class HandeyeFit:
     robot_scale: float
     pnp_px: dict
     size_px: tuple[int, int]
-    lens_models: tuple = field(default=())   # (terms, held-out px, stated px) of each tried
+    lens_models: tuple = field(default=())   # (terms, held-out px) of each model tried
 
     @property
     def std(self) -> np.ndarray:
@@ -374,19 +374,30 @@ def _free(terms) -> np.ndarray:
     return np.array([n in ("fx", "fy", "cx", "cy") + tuple(terms) for n in LENS_NAMES])
 
 
+def _heldout_px(views, mount, X0, Y0, lens0, free) -> float:
+    """RMS (px, 2-D) of each photo predicted from a fit of the others (the errors alone:
+    what a lens model is chosen by)."""
+    R = refine(Problem(views, mount, X0, Y0, lens0, free))
+    ss, n = 0.0, 0
+    for k in range(len(views)):
+        rk = refine(Problem(views[:k] + views[k + 1:], mount, R.X, R.Y, R.lens, free))
+        one = Problem([views[k]], mount, rk.X, rk.Y, rk.lens, free)
+        ss += float(np.sum((one.predict(one.start()) - one.px) ** 2))
+        n += len(one.px)
+    return float(np.sqrt(ss / n))
+
+
 def _select_lens(views, mount, size_px, X0, Y0, cfg):
     """The undeclared lens's model chosen by the data: each of ``config.lens_models`` fitted
     with the rest, the one whose held-out photos are predicted best kept; (lens start,
-    free terms, [(terms, held-out px, stated px)] of every model tried, its judgement)."""
+    free terms, [(terms, held-out px)] of every model tried)."""
     tried = []
     for terms in (m.split() for m in cfg.lens_models.split(";")):
         lens0 = lens_start(views, size_px, terms)
-        j = _judge(views, mount, X0, Y0, lens0, _free(terms))
-        n = sum(len(h.px) for h in j.heldout)
-        tried.append((" ".join(terms), float(np.sqrt(sum(h.sum_sq for h in j.heldout) / n)),
-                      float(np.sqrt(sum(h.expected_sq for h in j.heldout) / n)), lens0, j))
+        tried.append((" ".join(terms),
+                      _heldout_px(views, mount, X0, Y0, lens0, _free(terms)), lens0))
     best = min(tried, key=lambda t: t[1])
-    return best[3], _free(best[0].split()), [t[:3] for t in tried], best[4]
+    return best[2], _free(best[0].split()), [t[:2] for t in tried]
 
 
 def fit_handeye(views, mount: str, size_px, *, lens=None, alternatives=None,
@@ -417,7 +428,7 @@ def fit_handeye(views, mount: str, size_px, *, lens=None, alternatives=None,
     models: list = []
     j = None
     if not declared:
-        lens0, free, models, j = _select_lens(views, mount, size_px, X0, Y0, cfg)
+        lens0, free, models = _select_lens(views, mount, size_px, X0, Y0, cfg)
     max_out = int(np.floor(cfg.max_outlier_fraction * (len(views) + len(left))))
     while True:
         j = j or _judge(views, mount, X0, Y0, lens0, free)

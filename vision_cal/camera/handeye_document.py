@@ -85,8 +85,7 @@ def photos_document(fit: HandeyeFit, verdict, *, board, req, units: str, skipped
                                           "describes": board.describe()},
             "robot_poses": str(req.robot_poses), "units_read": units,
             "lens_terms": [n for n, f in zip(LENS_NAMES, fit.free) if f],
-            "lens_models": [{"distortion": t, "heldout_px": o, "stated_px": st}
-                            for t, o, st in fit.lens_models],
+            "lens_models": [{"distortion": t, "heldout_px": o} for t, o in fit.lens_models],
             "noise": fit.noise.to_json(), "limited_by": limit,
             "heldout": {"rms_px": obs, "stated_px": st, "rms_mm": obs_mm, "stated_mm": st_mm,
                         "ratio": fit.heldout_ratio, "p_value": fit.heldout_p,
