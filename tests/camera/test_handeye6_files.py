@@ -153,6 +153,14 @@ def test_saddles_found_in_a_photo(tmp_path):
     assert np.abs(pts.px - truth).max() < 0.5
     other = find_board(np.full_like(img, 200), board)
     assert "too little of the board" in other.reason
+    # the same board described by its markers alone (a plain ArUco grid): their corners
+    doc = json.loads((tmp_path / "b" / "sheet.json").read_text())
+    del doc["charuco"]
+    (tmp_path / "grid.json").write_text(json.dumps(doc))
+    grid = find_board(img, load_board(tmp_path / "grid.json"))
+    assert grid.reason is None and len(grid.ids) >= 4 * 14
+    truth = lens.project(grid.board_mm @ T[:3, :3].T + T[:3, 3])
+    assert np.sqrt(np.mean(np.sum((grid.px - truth) ** 2, axis=1))) < 0.5
 
 
 @pytest.mark.parametrize("args,field", [
@@ -193,3 +201,22 @@ def test_help_shows_the_way_in(capsys):
             main([cmd, "--help"])
         out = capsys.readouterr().out
         assert all(w in out for w in words), (cmd, [w for w in words if w not in out])
+
+
+def test_the_declared_lens_is_read_and_checked(tmp_path):
+    """--camera: a JSON holding a camera block (session.json's) or the block itself; a
+    lens with more than five distortion terms is refused, naming the field."""
+    from vision_cal.actions.handeye import HandeyePhotosRequest, declared_lens
+
+    cam = {"size_px": [640, 480], "K": [[700, 0, 320], [0, 700, 240], [0, 0, 1]],
+           "dist": [-0.1, 0.05, 0, 0, 0]}
+    for i, doc in enumerate(({"camera": cam}, cam)):
+        (tmp_path / f"l{i}.json").write_text(json.dumps(doc))
+        req = HandeyePhotosRequest(str(tmp_path), "p", "s", "fixed", "o",
+                                   camera=str(tmp_path / f"l{i}.json"))
+        size, K, dist = declared_lens(req)
+        assert size == (640, 480) and K[0, 0] == 700 and dist[0] == -0.1
+    (tmp_path / "l8.json").write_text(json.dumps({**cam, "dist": [0, 0, 0, 0, 0, 0.1, 0, 0]}))
+    with pytest.raises(VisionCalError, match="camera.dist: only the 5-term lens"):
+        declared_lens(HandeyePhotosRequest(str(tmp_path), "p", "s", "fixed", "o",
+                                           camera=str(tmp_path / "l8.json")))

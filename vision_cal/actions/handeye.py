@@ -184,7 +184,7 @@ class HandeyePhotosOutcome:
     skipped: tuple[tuple[str, str], ...]
 
 
-def _declared_lens(req: HandeyePhotosRequest):
+def declared_lens(req: HandeyePhotosRequest):
     """(size_px, K, dist) of ``--camera`` (a JSON holding a ``camera`` block, as in
     session.json, or the block itself), or of PHOTOS/session.json's ``camera``; None."""
     path = Path(req.camera) if req.camera else Path(req.folder) / "session.json"
@@ -241,7 +241,7 @@ def handeye_photos(req: HandeyePhotosRequest) -> HandeyePhotosOutcome:
         raise VisionCalError("no photos (png, jpg, ...) in this folder", file=str(folder))
     poses, units = read_robot_poses(req.robot_poses)
     poses = pair_with_photos(poses, photos, req.robot_poses)
-    lens = _declared_lens(req)
+    lens = declared_lens(req)
     views, alts, skipped, size = _detect(req, board, photos, poses,
                                          None if lens is None else lens[0])
     if size is None or not views:
