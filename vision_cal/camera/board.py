@@ -12,7 +12,8 @@ Two kinds of board:
   a hand-written block that is not is refused naming the field);
 - any other sheet.json (a plain ArUco grid, ``vision-cal sheet --field``, or this
   project's ring sheet): its markers' four corners, found by the measurement's own
-  detector (:func:`vision_cal.measure.aruco.find_sheet_markers`).
+  detector (:func:`vision_cal.measure.aruco.find_sheet_markers`) and placed where the
+  markers' fitted sides meet (``edge_points``, ``corners_from_edges``).
 
 Points are in the board's frame: the sheet frame (x right, y up, origin where the sheet
 says), z = 0 on the board, out of the printed side.
@@ -28,7 +29,9 @@ import numpy as np
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.io import read_json
 from vision_cal.dataset.session import Sheet, read_sheet_block
-from vision_cal.measure.aruco import detect_raw, find_sheet_markers
+from vision_cal.dataset.marker_geometry import marker_geometry
+from vision_cal.measure.aruco import (corners_from_edges, detect_raw, edge_points,
+                                      find_sheet_markers)
 from vision_cal.sheet.charuco import CharucoSpec, MAX_SQUARES
 
 #: the points' kinds
@@ -168,7 +171,9 @@ def find_board(image: np.ndarray, board: Board, *, min_points: int = 6) -> Board
         n = len(det.ids)
         ids = (4 * np.repeat(det.ids, 4) + np.tile(np.arange(4), n)).astype(int)
         mm = np.c_[det.corners_mm.reshape(-1, 2), np.zeros(4 * n)]
-        px = det.corners_px.reshape(-1, 2).astype(float)
+        # the measurement's own corners: the four sides' sub-pixel edges, lines met
+        edges = edge_points(gray, det.corners_px, geometry=marker_geometry(board.sheet))
+        px = corners_from_edges(edges, det.corners_px).reshape(-1, 2)
         reason = det.reason
         foreign = tuple(sorted({int(i) for i in detect_raw(gray, board.sheet.aruco_dictionary)[0]
                                 if int(i) not in own})) if det.n_foreign else ()
