@@ -96,14 +96,16 @@ def synthetic(seeds, mount: str, n: int, dh_mm: float, joint_deg: float) -> None
         v = judge_handeye(f).status
         status[v] = status.get(v, 0) + 1
         print(f"  seed {seed}: within 2 std {np.mean(np.abs(z[-1]) < 2):.2f}, fresh photos "
-              f"{fresh:.2f} px against {stated:.2f} stated, {v}, lens {f.lens_models and min(f.lens_models, key=lambda t: t[1])[0]}",
+              f"{fresh:.2f} px against {stated:.2f} stated, {v}, lens "
+              f"{f.lens_models and min(f.lens_models, key=lambda t: t[1])[0]}",
               flush=True)
     z = np.array(z)
     print(f"{mount}, {n} photos, joint noise {joint_deg} deg, DH error {dh_mm} mm: pose "
           f"parameters within 2 std {100 * np.mean(np.abs(z) < 2):.1f} % ({z.size}), "
           f"error/std RMS {np.sqrt(np.mean(z ** 2)):.2f}; fx fy cx cy within 2 std "
           f"{100 * np.mean(np.abs(np.array(zlens)) < 2):.1f} %; fresh photos / stated: "
-          f"median {np.median(ratio):.2f}, within stated {100 * np.mean(np.array(ratio) <= 1):.0f} %"
+          f"median {np.median(ratio):.2f}, within stated "
+          f"{100 * np.mean(np.array(ratio) <= 1):.0f} %"
           f", {100 * np.mean(np.array(ratio) <= 1.5):.0f} % within 1.5x; fresh corners inside the "
           f"stated 95 % radius {100 * np.mean(inside):.1f} %; verdicts {status}")
 
@@ -352,8 +354,9 @@ def halves(views, size) -> None:
         act = _predict_rms(b, "fixed", f.X, f.Y, f.lens)
         rows.append((f.heldout_rms()[1], act, judge_handeye(f).status))
     r = np.array([x[:2] for x in rows])
-    print(f"  4 + 4 halves ({len(rows)} splits): the other half predicted {np.sqrt(np.mean(r[:, 1] ** 2)):.2f}"
-          f" px RMS (median {np.median(r[:, 1]):.2f}), stated {np.sqrt(np.mean(r[:, 0] ** 2)):.2f}; "
+    print(f"  4 + 4 halves ({len(rows)} splits): the other half predicted "
+          f"{np.sqrt(np.mean(r[:, 1] ** 2)):.2f} px RMS (median {np.median(r[:, 1]):.2f}), "
+          f"stated {np.sqrt(np.mean(r[:, 0] ** 2)):.2f}; "
           f"covered in {np.sum(r[:, 1] <= r[:, 0])}/{len(r)}; verdicts "
           f"{dict(zip(*np.unique([x[2] for x in rows], return_counts=True)))}")
 

@@ -200,9 +200,10 @@ def check_conventions(views, C, mount: str, alternatives: dict,
     for s in (1, -1):
         if n - 1 >= 3:
             idx = np.arange(max(0, s), n + min(0, s))
+            side = "before" if s > 0 else "after"
             tried.append((_rotation_rms([_G(F[i - s], mount) for i in idx],
                                         [C[i] for i in idx]),
-                          f"each photo paired with the pose of the photo {'before' if s > 0 else 'after'} it "
+                          f"each photo paired with the pose of the photo {side} it "
                           "(the poses shifted by one photo)"))
     best, name = min(tried)
     head = (f"the robot's rotations between photos disagree with the board's as the camera "

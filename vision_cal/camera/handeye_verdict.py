@@ -27,9 +27,9 @@ _RANK = {"ready": 0, "check": 1, "not reliable": 2}
 def limited_by(fit: HandeyeFit, cfg: HandeyePhotosConfig) -> str:
     """What limits the calibration: the robot's pose error or the corners' detection."""
     nz = fit.noise
+    apart = ", rotation and translation not told apart" if nz.confounded else ""
     rob = (f"the robot's own pose error (about {nz.sigma_mm:.2g} mm and {nz.sigma_rot_deg:.2g} "
-           f"deg per axis a photo{', rotation and translation not told apart' if nz.confounded else ''}"
-           f": {nz.pose_px:.2g} px per axis on the board's corners)")
+           f"deg per axis a photo{apart}: {nz.pose_px:.2g} px per axis on the board's corners)")
     det = f"the corners' detection ({nz.sigma_px:.2g} px per axis)"
     if nz.pose_px > cfg.dominant_pose_ratio * nz.sigma_px:
         return (f"{rob}, far above {det}: the arm's accuracy, not the camera, limits this "

@@ -32,15 +32,8 @@ from vision_cal import __version__
 from vision_cal.errors import VisionCalError
 from vision_cal.sheet.layout import (EDGE_MM, GENERATOR, ISO_SIZES_MM, MARKER_RGB, TEXT_MM,
                                      MarkerCells, Rect, SheetLayout, Text, aruco_dictionary,
+                                     rounded,
                                      marker_bits, page_size_mm, with_primitives)
-
-def _r(v, nd: int = 6):
-    """Floats (nested lists) rounded to ``nd`` decimals for the JSON (1 nm)."""
-    if isinstance(v, (list, tuple)):
-        return [_r(x, nd) for x in v]
-    v = round(float(v), nd)
-    return 0.0 if v == 0 else v
-
 
 #: the most squares a board may have along a side (OpenCV's boards go to a few dozen)
 MAX_SQUARES = 100
@@ -113,10 +106,11 @@ class CharucoSpec:
         return out
 
     def to_json(self) -> dict:
-        return {"squares": list(self.squares), "square_mm": _r(self.square_mm),
-                "marker_mm": _r(self.marker_mm), "legacy_pattern": bool(self.legacy_pattern),
+        return {"squares": list(self.squares), "square_mm": rounded(self.square_mm),
+                "marker_mm": rounded(self.marker_mm),
+                "legacy_pattern": bool(self.legacy_pattern),
                 "ids": [m for m, _, _ in self.marker_squares()],
-                "corners_mm": _r(self.chessboard_corners_mm().tolist())}
+                "corners_mm": rounded(self.chessboard_corners_mm().tolist())}
 
 
 def parse_squares(text: str) -> tuple[int, int]:
