@@ -28,6 +28,8 @@ recorded values, not today's defaults). The parts, by key:
 - ``discovery``: the scans for effects no candidate names (:mod:`vision_cal.diagnose.discover`);
 - ``joint4``: the joint-4 (tool offset) stage (:mod:`vision_cal.calibrate.joint4`);
 - ``handeye``: the hand-eye from pose pairs (:mod:`vision_cal.camera.pose_pairs`);
+- ``handeye_photos``: the hand-eye from photos and the robot's poses, any arm
+  (:mod:`vision_cal.camera.handeye`);
 - ``verdict``: the noise-floor gate and the status rule (:mod:`vision_cal.diagnose.verdict`,
   which judges a calibration.json with the config that file recorded).
 """
@@ -377,6 +379,56 @@ class HandeyeConfig:
 
 
 @dataclass(frozen=True)
+class HandeyePhotosConfig:
+    """The hand-eye from photos of a board and the robot's poses, any arm
+    (``vision_cal.camera.handeye``, issue 40)."""
+
+    min_photos: int = 4               # 12 unknowns (and the lens): three photos leave two
+                                      # motions, the least that fixes them; one more to judge
+    min_points: int = 6               # a photo with fewer board points cannot give a pose
+    min_rotation_spread_deg: float = 10.0  # the flange must turn this much between photos
+                                      # (else the camera's place on it is not seen)
+    min_axis_spread_deg: float = 2.0  # ... about more than one axis: all turns about one
+                                      # axis (a SCARA) leave the translation along it unseen
+    max_rotation_disagreement_deg: float = 3.0  # the closed form's rotations disagreeing by
+                                      # more (RMS) than this: the poses' convention is not
+                                      # the stated one (real session: 0.18 deg, 1.3 deg from
+                                      # 4 photos through a lens without distortion; a wrong
+                                      # convention or a shift by one photo: tens of deg)
+    max_scale_error: float = 0.05     # the robot's motion and the board's as seen differing
+                                      # in scale by more than this fraction: units, the
+                                      # board's size or the lens (real session: 0.8 %)
+    max_scale_error_estimated: float = 0.3  # the same when the lens is estimated: its start
+                                      # from a few views is off by several % (4 real photos:
+                                      # 8 %), which the least squares corrects
+    photo_fit_factor: float = 4.0     # a photo whose own pose fit (PnP) leaves more than
+                                      # this times the median photo's residual ...
+    photo_fit_px: float = 2.0         # ... and more than this (px RMS) does not show this
+                                      # board (or the lens is far off in that part)
+    outlier_alpha: float = 0.001      # a photo predicted by the others beyond what is stated
+                                      # for it at this level (alpha / n each) is left out
+    outlier_ratio: float = 4.0        # ... and only when also this many times farther off
+                                      # (RMS) than stated: a real arm's pose errors have
+                                      # heavier tails than a normal law (real session: up
+                                      # to 2x), a wrong pose or another board is off 10-30x
+    max_outlier_fraction: float = 0.3  # never leave out more than this share of the photos
+    heldout_alpha: float = 0.01       # held-out photos predicted worse than stated at this
+                                      # level: the stds are raised to what they show, check
+    dominant_pose_ratio: float = 2.0  # the robot's pose error is named as the limit when the
+                                      # pixels it moves a photo by exceed the corners' noise
+                                      # by this factor
+    lens_models: str = "k1; k1 k2; k1 k2 p1 p2"  # the distortion models an undeclared lens
+                                      # is tried with (with fx fy cx cy), ";" between: the
+                                      # one whose held-out photos are predicted best is kept
+                                      # (real session, 8 photos: 1.71, 1.67, 1.94 px)
+    declared_lens_ratio: float = 1.5  # a declared lens whose held-out error is this many times
+                                      # an estimated lens's is named ...
+    declared_lens_std: float = 4.0    # ... or one whose fx, fy, cx or cy lies more than this
+                                      # many stds from the estimate (4 terms tested: a false
+                                      # alarm in 1 of 4000 when right)
+
+
+@dataclass(frozen=True)
 class AsPrintedConfig:
     """The sheet as printed, from several views (``vision_cal.measure.asprinted``, #28)."""
 
@@ -434,6 +486,7 @@ class EstimatorConfig:
     joint4: Joint4Config = field(default_factory=Joint4Config)
     verdict: VerdictConfig = field(default_factory=VerdictConfig)
     handeye: HandeyeConfig = field(default_factory=HandeyeConfig)
+    handeye_photos: HandeyePhotosConfig = field(default_factory=HandeyePhotosConfig)
     as_printed: AsPrintedConfig = field(default_factory=AsPrintedConfig)
 
     def to_json(self) -> dict:

@@ -18,7 +18,7 @@ if TYPE_CHECKING:   # the outcomes' modules pull numpy, OpenCV and the renderer
                                               JointCalibrated, OutputsNamed, SurveyFound)
     from vision_cal.actions.design import CameraPosesDesigned, PlacementsDesigned, StageDesigned
     from vision_cal.actions.export import ExportOutcome
-    from vision_cal.actions.handeye import HandeyePairsOutcome
+    from vision_cal.actions.handeye import HandeyePairsOutcome, HandeyePhotosOutcome
     from vision_cal.actions.history import HistoryOutcome
     from vision_cal.actions.init import InitOutcome
     from vision_cal.actions.locate import LocateOutcome
@@ -94,6 +94,37 @@ def handeye_pairs_lines(o: HandeyePairsOutcome) -> list[str]:
     if v.floor_line:
         lines.append(v.floor_line)
     return lines + _verdict_lines(v) + [f"wrote {o.path}"]
+
+
+def handeye_photos_lines(o: HandeyePhotosOutcome) -> list[str]:
+    """``vision-cal handeye PHOTOS/ --robot-poses``: the photos, the two transforms with
+    their std, each photo predicted from the others, what limits it, and the verdict."""
+    # the action that returned ``o`` imported it already
+    from vision_cal.diagnose.verdict import Verdict
+
+    doc, fit = o.document, o.fit
+    he = doc["handeye"]
+    cam = doc["cameras"][0]
+    lines = [f"{len(fit.views)} photos used, {len(fit.left_out)} left out, {len(o.skipped)} "
+             f"skipped; board: {he['board']['describes']}; lens {cam['intrinsics']}"]
+    for name, T, sd in ((fit.names[0], cam[fit.names[0]], cam[f"{fit.names[0]}_std"]),
+                        (fit.names[1], doc[fit.names[1]], doc[f"{fit.names[1]}_std"])):
+        t = T[0][3], T[1][3], T[2][3]
+        lines.append(f"{name}: at {t[0]:.2f} {t[1]:.2f} {t[2]:.2f} mm (std "
+                     + " ".join(f"{v:.2f}" for v in sd["translation_mm"]) + " mm, "
+                     + " ".join(f"{v:.3f}" for v in sd["rotation_deg"]) + " deg)")
+    for im in doc["images"]:
+        if im["status"] == "ok":
+            lines.append(f"  {im['file']}: residual {im['residual_px']:.2f} px; predicted from "
+                         f"the others {im['heldout_px']:.2f} px ({im['heldout_mm']:.2f} mm at "
+                         f"the board), stated {im['stated_px']:.2f} px")
+        else:
+            lines.append(f"  {im['file']}: {im['status']}: {im['reason']}")
+    h = he["heldout"]
+    lines.append(f"held-out photos: {h['rms_px']:.2f} px RMS ({h['rms_mm']:.2f} mm at the "
+                 f"board), stated {h['stated_px']:.2f} px ({h['stated_mm']:.2f} mm)")
+    lines.append(f"limited by: {he['limited_by']}")
+    return lines + [Verdict.from_json(doc["verdict"]).text, f"wrote {o.path}"]
 
 
 def joint_lines(o: JointCalibrated) -> list[str]:
@@ -220,6 +251,11 @@ def _handeye_pairs(o: HandeyePairsOutcome, quiet: bool) -> None:
         _print_lines(handeye_pairs_lines(o))
 
 
+def _handeye_photos(o: HandeyePhotosOutcome, quiet: bool) -> None:
+    if not quiet:
+        _print_lines(handeye_photos_lines(o))
+
+
 def _outputs_named(o: OutputsNamed, quiet: bool) -> None:
     if not quiet:
         print("outputs: " + ", ".join(f"{f} -> {out}" for f, out in o.outputs))
@@ -300,6 +336,14 @@ def _simulate(r: SimulateResult, quiet: bool) -> None:
 def sheet_lines(o: SheetOutcome) -> list[str]:
     """``vision-cal sheet``: the page, the markers, the files, and how to print."""
     layout = o.layout
+    spec = getattr(layout, "spec", None)    # a ChArUco board (sheet/charuco.py)
+    if spec is not None:
+        return [f"sheet {layout.sheet_id}: ChArUco {spec.squares[0]}x{spec.squares[1]} "
+                f"squares of {spec.square_mm:g} mm, {len(layout.markers)} "
+                f"{layout.dictionary} markers of {spec.marker_mm:g} mm on {layout.page} "
+                f"{layout.orientation} -> " + ", ".join(str(p) for p in o.paths.values()),
+                f"print at 100 % (actual size) and check that a square measures "
+                f"{spec.square_mm:g} mm; glue it flat on a rigid plate"]
     return [f"sheet {layout.sheet_id}: {layout.page} {layout.orientation} "
             f"{layout.size_mm[0]:g} x {layout.size_mm[1]:g} mm, {len(layout.markers)} "
             f"{layout.dictionary} markers of {layout.marker_mm:g} mm -> "
@@ -468,6 +512,7 @@ PRINTERS = {"vision_cal.actions.arm_camera.ArmCameraOutcome": _arm_camera,
             "vision_cal.actions.design.CameraPosesDesigned": _camera_poses,
             "vision_cal.actions.plan.PlanOutcome": _plan,
             "vision_cal.actions.handeye.HandeyePairsOutcome": _handeye_pairs,
+            "vision_cal.actions.handeye.HandeyePhotosOutcome": _handeye_photos,
             "vision_cal.actions.calibrate.OutputsNamed": _outputs_named,
             "vision_cal.actions.calibrate.SurveyFound": _survey_found,
             "vision_cal.actions.calibrate.FolderCalibrated": _folder_calibrated,

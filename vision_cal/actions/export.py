@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from vision_cal.calibrate.plausible import check_units
 from vision_cal.camera.export import transform_path, write_opencv, write_ros
 from vision_cal.camera.fixed import camera_of
-from vision_cal.dataset.calibration import load_calibration
+from vision_cal.dataset.calibration import load_calibration_or_camera
 from vision_cal.dataset.io import distinct_outputs, written_together
 from vision_cal.dataset.out_folder import output_file_of_kind, replacing_files
 from vision_cal.dataset.robot import load_robot_file
@@ -57,12 +57,19 @@ def export_calibration(req: ExportRequest) -> ExportOutcome:
             output_file_of_kind(path, "text", field=opt)
     distinct_outputs(_outputs(req),
                      [("CALIBRATION.json", req.calibration), ("--robot", req.robot)])
-    model, doc = load_calibration(req.calibration, sheet_frame=False)
+    # a hand-eye's calibration holds a camera alone (no robot model: issue 40)
+    model, doc = load_calibration_or_camera(req.calibration, sheet_frame=False)
+    if model is None and (req.urdf or req.yaml or req.robot):
+        raise VisionCalError("this calibration holds a camera alone (a hand-eye's): only "
+                             "--opencv and --ros apply", file=req.calibration,
+                             field="--urdf" if req.urdf else ("--yaml" if req.yaml
+                                                             else "--robot"))
     robot = load_robot_file(req.robot) if req.robot else None
     # metres, radians: refused before anything is written (the owner: calibrate/plausible)
-    check_units(model, doc, file=str(req.calibration),
-                nominal=None if robot is None else robot.nominal,
-                nominal_of=f"the robot file {req.robot}")
+    if model is not None:
+        check_units(model, doc, file=str(req.calibration),
+                    nominal=None if robot is None else robot.nominal,
+                    nominal_of=f"the robot file {req.robot}")
 
     warn = refuse_unreliable(doc, req.calibration, force=req.force)
     said = []

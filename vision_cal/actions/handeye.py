@@ -2,7 +2,10 @@
 (:mod:`vision_cal.camera.poses_file`), the fit (:mod:`vision_cal.camera.pose_pairs`), the
 contract's verdict (:func:`vision_cal.diagnose.verdict.judge_camera_poses`, each pair's
 target position standing for a mark) and calibration.json (docs/format.md, "Hand-eye from
-pose pairs"). Returns what was found; :mod:`vision_cal.actions.console` prints it."""
+pose pairs"). Returns what was found; :mod:`vision_cal.actions.console` prints it.
+
+Also the hand-eye of any arm from photos and the robot's poses (``vision-cal handeye
+PHOTOS/ --robot-poses POSES``, :func:`handeye_photos`, at the end)."""
 
 from __future__ import annotations
 
@@ -19,6 +22,18 @@ from vision_cal.dataset.out_folder import writing_into
 from vision_cal.camera.poses_file import read_poses
 from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.errors import CalibrationError
+# the photos-and-poses path (issue 40)
+from vision_cal.camera.board import find_board, load_board
+from vision_cal.camera.handeye import HandeyeFit, estimated_lens_fit, fit_handeye
+from vision_cal.camera.handeye_document import photos_document
+from vision_cal.camera.handeye_lsq import View
+from vision_cal.camera.handeye_verdict import judge_handeye, lens_check, limited_by
+from vision_cal.camera.robot_poses import pair_with_photos, read_robot_poses
+from vision_cal.dataset.camera_block import read_lens
+from vision_cal.dataset.fields import FieldReader
+from vision_cal.dataset.io import read_json
+from vision_cal.dataset.photos import PhotoRefused, list_photos, load_photo
+from vision_cal.errors import VisionCalError
 
 #: what X and Y are, by mount (the contract's names)
 NAMES = {"arm": ("T_flange_camera", "T_robot_target", "robot"),
@@ -137,3 +152,114 @@ def handeye_pairs(req: HandeyeRequest) -> HandeyePairsOutcome:
                       quiet=req.quiet) as out:
         path = atomic_write_json(out / "calibration.json", doc)
     return HandeyePairsOutcome(fit, doc, path)
+
+
+# --------------------------------------------------------------------------- photos and poses
+# ``vision-cal handeye PHOTOS/ --robot-poses POSES --sheet BOARD --mount fixed|arm``: any
+# arm (issue 40), the photos' board and the robot's flange poses (docs/format.md, "Photos
+# and the robot's poses"); the fit is :mod:`vision_cal.camera.handeye`, its verdict
+# :mod:`vision_cal.camera.handeye_verdict`.
+
+
+@dataclass(frozen=True)
+class HandeyePhotosRequest:
+    """What ``vision-cal handeye PHOTOS/ --robot-poses`` was asked (see its ``--help``)."""
+
+    folder: str
+    robot_poses: str
+    sheet: str
+    mount: str
+    out: str
+    camera: str | None = None      # a JSON with the lens (``camera`` block); None: estimated
+    quiet: bool = False
+
+
+@dataclass(frozen=True)
+class HandeyePhotosOutcome:
+    """The fit, the calibration.json written from it, and where."""
+
+    fit: HandeyeFit
+    document: dict
+    path: Path
+    skipped: tuple[tuple[str, str], ...]
+
+
+def declared_lens(req: HandeyePhotosRequest):
+    """(size_px, K, dist) of ``--camera`` (a JSON holding a ``camera`` block, as in
+    session.json, or the block itself), or of PHOTOS/session.json's ``camera``; None."""
+    path = Path(req.camera) if req.camera else Path(req.folder) / "session.json"
+    if not req.camera and not path.is_file():
+        return None
+    doc = read_json(path, what="camera (lens)")
+    block = doc.get("camera", doc) if isinstance(doc, dict) else doc
+    if not req.camera and "camera" not in doc:
+        return None
+    size, K, dist = read_lens(FieldReader(str(path)), block,
+                              "camera" if isinstance(doc, dict) and "camera" in doc else "")
+    if len(dist) > 5 and np.any(np.asarray(dist[5:]) != 0):
+        raise VisionCalError("only the 5-term lens (k1 k2 p1 p2 k3) is read here",
+                             file=str(path), field="camera.dist")
+    return size, K, dist
+
+
+def _detect(req: HandeyePhotosRequest, board, photos, poses, lens_size):
+    """Each photo's board points; photos that cannot be used with their reason."""
+    views, alts, skipped, size = [], {"quaternion read as qw qx qy qz": [],
+                                      "T_flange_robot (the poses inverted)": []}, [], None
+    for name, pose in zip(photos, poses):
+        try:
+            bgr, header, _ = load_photo(req.folder, name, lens_size)
+        except PhotoRefused as e:
+            skipped.append((name, e.reason))
+            continue
+        if bgr is None:
+            skipped.append((name, "not decoded"))
+            continue
+        wh = (bgr.shape[1], bgr.shape[0])
+        if size is not None and wh != size:
+            raise VisionCalError(f"{wh[0]}x{wh[1]} px, the photos before it {size[0]}x{size[1]}"
+                                 ": one camera, one size", file=str(Path(req.folder) / name))
+        size = wh
+        pts = find_board(bgr, board, min_points=DEFAULT.handeye_photos.min_points)
+        if pts.reason:
+            skipped.append((name, pts.reason))
+            continue
+        views.append(View(name, pose.T, pts.ids, pts.board_mm, pts.px))
+        alts["quaternion read as qw qx qy qz"].append(pose.T_read_as("wxyz"))
+        alts["T_flange_robot (the poses inverted)"].append(pose.T_read_as("inverse"))
+    return views, alts, skipped, size
+
+
+def handeye_photos(req: HandeyePhotosRequest) -> HandeyePhotosOutcome:
+    """Read the board, the poses and the photos; fit, judge and write OUT/calibration.json."""
+    board = load_board(req.sheet)
+    folder = Path(req.folder)
+    if not folder.is_dir():
+        raise VisionCalError("not a folder of photos", file=str(folder))
+    photos = list_photos(folder)
+    if not photos:
+        raise VisionCalError("no photos (png, jpg, ...) in this folder", file=str(folder))
+    poses, units = read_robot_poses(req.robot_poses)
+    poses = pair_with_photos(poses, photos, req.robot_poses)
+    lens = declared_lens(req)
+    views, alts, skipped, size = _detect(req, board, photos, poses,
+                                         None if lens is None else lens[0])
+    if size is None or not views:
+        raise CalibrationError("no photo shows the board: " + "; ".join(
+            f"{n}: {r}" for n, r in skipped[:4]), file=str(folder))
+    if lens is not None and tuple(lens[0]) != tuple(size):
+        raise VisionCalError(f"the declared lens is for {lens[0][0]}x{lens[0][1]} px photos, "
+                             f"these are {size[0]}x{size[1]}", file=req.camera,
+                             field="camera.size_px")
+    fit = fit_handeye(views, req.mount, size, lens=None if lens is None else lens[1:],
+                      alternatives=alts, source=req.robot_poses, units=units)
+    free = (estimated_lens_fit(views, fit, alternatives=alts, source=req.robot_poses,
+                               units=units) if lens is not None else None)
+    verdict = judge_handeye(fit, lens_check=lens_check(fit, free))
+    doc = photos_document(fit, verdict, board=board, req=req, units=units,
+                          skipped=skipped, limit=limited_by(fit, DEFAULT.handeye_photos))
+    with writing_into(req.out, command="handeye",
+                      inputs=[("PHOTOS", req.folder), ("--robot-poses", req.robot_poses)],
+                      quiet=req.quiet) as out:
+        path = atomic_write_json(out / "calibration.json", doc)
+    return HandeyePhotosOutcome(fit, doc, path, tuple(skipped))

@@ -12,7 +12,7 @@ import numpy as np
 
 from vision_cal.camera.arm import camera_for
 from vision_cal.camera.fixed import locate
-from vision_cal.dataset.calibration import load_calibration
+from vision_cal.dataset.calibration import load_calibration_or_camera
 from vision_cal.dataset.covariance import load_covariance
 from vision_cal.dataset.csvio import number_field, read_rows
 from vision_cal.dataset.io import atomic_write_text
@@ -108,7 +108,11 @@ def locate_pixels(req: LocateRequest) -> LocateOutcome:
         output_file_of_kind(req.out, "csv", field="-o",
                             inputs=[("CALIBRATION.json", req.calibration), ("--csv", req.csv),
                                     ("--robot", req.robot)])
-    model, doc = load_calibration(req.calibration)
+    # a hand-eye's calibration holds a camera alone (no robot model: issue 40)
+    model, doc = load_calibration_or_camera(req.calibration)
+    if model is None and req.robot:
+        raise VisionCalError("this calibration holds a camera alone (a hand-eye's), no robot "
+                             "model to plan joints with", file=req.calibration, field="--robot")
     robot = load_robot_file(req.robot) if req.robot else None
     _refuse_joints_beyond_limits(req, doc, robot)
     cam = camera_for(doc, req.camera, joints_deg=req.joints, photo=req.photo,

@@ -11,6 +11,7 @@ from vision_cal.dataset.io import written_together
 from vision_cal.dataset.out_folder import refuse_other_sheet, writing_into
 from vision_cal.errors import VisionCalError
 from vision_cal.sheet import SheetLayout, make_layout, write_sheet
+from vision_cal.sheet.charuco import charuco_spec, make_charuco_layout, parse_squares
 from vision_cal.sheet.field import make_field_layout
 
 #: the markers' dictionary when none is given: a ruled sheet's, a marker field's
@@ -32,6 +33,9 @@ class SheetRequest:
     field: bool = False                            # a marker field for an arm camera
     png_dpi: float | None = None
     measured_bar_mm: tuple[float, float] | None = None
+    charuco: str | None = None                     # COLSxROWS: an OpenCV ChArUco board
+    square_mm: float | None = None                 # its squares (mm)
+    legacy_pattern: bool = False                   # OpenCV's pattern before 4.6
     quiet: bool = False
 
 
@@ -47,7 +51,13 @@ def sheet(req: SheetRequest) -> SheetOutcome:
     """Lay out the sheet of ``req`` and write it into ``req.out``."""
     if req.size is not None and req.custom is not None:
         raise VisionCalError("give either --size or --custom, not both", field="--custom")
-    if req.field:
+    if req.charuco is not None:
+        layout = _charuco_layout(req)
+    elif req.square_mm is not None or req.legacy_pattern:
+        raise VisionCalError("applies to --charuco only",
+                             field="--square-mm" if req.square_mm is not None
+                             else "--legacy-pattern")
+    elif req.field:
         layout = make_field_layout(
             size=req.size or "A3", landscape=req.landscape, custom_mm=req.custom,
             dictionary=req.dictionary or FIELD_DICT, marker_mm=req.marker_mm,
@@ -64,3 +74,18 @@ def sheet(req: SheetRequest) -> SheetOutcome:
     with writing_into(req.out, command="sheet", quiet=req.quiet) as out, written_together():
         paths = write_sheet(layout, out, png_dpi=req.png_dpi)
     return SheetOutcome(layout, paths)
+
+
+def _charuco_layout(req: SheetRequest):
+    """The ChArUco board of ``req`` (its options checked: no ring sheet's option with it)."""
+    for name, v in (("--field", req.field), ("--pitch-mm", req.pitch_mm),
+                    ("--measured-bar-mm", req.measured_bar_mm)):
+        if v:
+            raise VisionCalError("does not apply to a ChArUco board (--charuco)", field=name)
+    if req.dictionary is None:
+        raise VisionCalError("a ChArUco board needs its markers' dictionary (OpenCV's "
+                             "tutorial boards use DICT_6X6_250)", field="--dictionary")
+    spec = charuco_spec(parse_squares(req.charuco), req.square_mm, req.marker_mm,
+                        req.dictionary, req.legacy_pattern)
+    return make_charuco_layout(spec, size=req.size, landscape=req.landscape,
+                               custom_mm=req.custom)

@@ -15,6 +15,9 @@ examples:
   vision-cal sheet --size A2 --field --out field/          marker field for an arm camera
   vision-cal sheet --size A3 --measured-bar-mm 99.8 100.1 --out sheet/
       after printing: record the two 100 mm bars as measured on the paper
+  vision-cal sheet --charuco 5x7 --square-mm 36.195 --marker-mm 18.256 --dictionary DICT_6X6_250 -o b/
+      an OpenCV ChArUco board (CharucoBoard((5, 7), 36.195, 18.256, DICT_6X6_250)) for
+      `vision-cal handeye PHOTOS/ --robot-poses ... --sheet b/sheet.json`
 
 Print sheet.pdf at 100 % (actual size, no fit-to-page) and measure both bars; paste
 sheet.json as the "sheet" block of session.json (vision-cal design does it for you).
@@ -44,6 +47,16 @@ def add_arguments(p) -> None:
     p.add_argument("--field", action="store_true",
                    help="a marker field over the whole page for a camera on the arm (no "
                         "ruled grid; default DICT_5X5_1000, 18 mm markers every 36 mm)")
+    c = p.add_argument_group("ChArUco board (for vision-cal handeye PHOTOS/ --robot-poses)")
+    c.add_argument("--charuco", metavar="COLSxROWS", default=None,
+                   help="an OpenCV ChArUco board of COLS x ROWS squares (with --square-mm, "
+                        "--marker-mm and --dictionary): sheet.json describes its markers "
+                        "and its chessboard corners")
+    c.add_argument("--square-mm", type=bounded(1, 1000, unit="mm"), metavar="S", default=None,
+                   help="--charuco: the side of a square (mm)")
+    c.add_argument("--legacy-pattern", action="store_true",
+                   help="--charuco: OpenCV's pattern before 4.6 (boards with an even number "
+                        "of rows; CharucoBoard.setLegacyPattern(True))")
     p.add_argument("--png-dpi", type=bounded(10, 2400, unit="dpi"), metavar="N",
                    help="also write sheet.png at N dpi (254 = 10 px/mm); `vision-cal "
                         "simulate` does not need it (it rebuilds the print from sheet.json)")

@@ -168,6 +168,27 @@ def load_calibration(path, *, which: str = "calibrated",
     return RobotModel(nominal, ()), doc
 
 
+#: calibrations of a camera alone (no robot model: no ``params``): a hand-eye's
+CAMERA_ONLY_METHODS = ("handeye_photos", "pose_pairs")
+
+
+def load_calibration_or_camera(path, *, sheet_frame: bool = True
+                               ) -> tuple[RobotModel | None, dict]:
+    """:func:`load_calibration`, or for a calibration of a camera alone (a hand-eye's:
+    ``method`` in :data:`CAMERA_ONLY_METHODS`, no ``params``) no model and the document
+    (its format checked; its cameras are checked by whoever reads them)."""
+    path = Path(path)
+    doc = read_json(path)
+    if (isinstance(doc, dict) and doc.get("method") in CAMERA_ONLY_METHODS
+            and "params" not in doc):
+        r = FieldReader(str(path))
+        fmt = r.get(doc, "format", "")
+        if fmt != FORMAT:
+            r.fail("format", f"expected {FORMAT!r}, got {fmt!r}")
+        return None, doc
+    return load_calibration(path, sheet_frame=sheet_frame)
+
+
 def joints_covered_deg(doc: dict) -> list[tuple[float, float]] | None:
     """The commanded range ``[(lo, hi), (lo, hi)]`` (deg) of joints 1 and 2 over the marks a
     calibration fitted or held out (calibration.json ``marks[].joints_deg``; unreliable marks

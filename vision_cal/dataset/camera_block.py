@@ -81,10 +81,13 @@ def read_lens(r: FieldReader, cam, where: str = "camera", *, principal_inside: b
     return (w, h), K, dist
 
 
-def read_pose(r: FieldReader, v, where: str, *, reach_mm: float | None = None) -> np.ndarray:
+def read_pose(r: FieldReader, v, where: str, *, reach_mm: float | None = None,
+              sheet_below: bool = True) -> np.ndarray:
     """A camera pose (4, 4) in mm whose z axis is the sheet's normal (up) and whose origin
     lies in the sheet's plane (``T_robot_camera``, ``T_flange_camera``), checked: a
-    rotation, a camera above the sheet looking at it, millimetres."""
+    rotation, a camera above the sheet looking at it, millimetres. ``sheet_below`` False
+    (a camera entry's ``sheet_below: false``: a hand-eye of any arm, whose robot frame has
+    no sheet in its plane): the camera may stand and look anywhere."""
     T = _matrix(r, v, where, (4, 4))
     if not np.allclose(T[3], [0, 0, 0, 1], atol=1e-12):
         r.fail(where, f"expected a bottom row 0 0 0 1, got {T[3].tolist()}")
@@ -94,6 +97,8 @@ def read_pose(r: FieldReader, v, where: str, *, reach_mm: float | None = None) -
         r.fail(where, f"its 3x3 part is not a rotation (R^T R off the identity by {err:.3g}, "
                       f"det {np.linalg.det(R):.6g}): a scaled or mirrored matrix")
     height = float(T[2, 3])
+    if not sheet_below:
+        return T
     if not height >= MIN_HEIGHT_MM:
         r.fail(where, f"the camera is {height:.4g} mm above the sheet's plane (at least "
                       f"{MIN_HEIGHT_MM:g} mm for a camera that sees it): "
@@ -153,13 +158,16 @@ def check_camera_entry(entry, where: str, file: str, *, doc: dict | None = None)
             reach = float(params["L1_mm"]) + float(params["L2_mm"])
         except (KeyError, TypeError, ValueError):
             reach = None
+    below = entry.get("sheet_below", True) is not False
     if "T_flange_camera" in entry:
-        read_pose(r, entry["T_flange_camera"], f"{where}.T_flange_camera", reach_mm=reach)
+        read_pose(r, entry["T_flange_camera"], f"{where}.T_flange_camera", reach_mm=reach,
+                  sheet_below=below)
         read_std(r, entry.get("T_flange_camera_std"), f"{where}.T_flange_camera_std")
         if doc is not None:
             read_covariance(r, r.get(doc, "covariance", ""), "covariance")
     elif "T_robot_camera" in entry:
-        read_pose(r, entry["T_robot_camera"], f"{where}.T_robot_camera", reach_mm=reach)
+        read_pose(r, entry["T_robot_camera"], f"{where}.T_robot_camera", reach_mm=reach,
+                  sheet_below=below)
         read_std(r, entry.get("T_robot_camera_std"), f"{where}.T_robot_camera_std")
         if entry.get("covariance") is not None:
             read_covariance(r, entry["covariance"], f"{where}.covariance", n=7)

@@ -11,7 +11,7 @@ import json
 from functools import lru_cache
 from importlib import resources
 
-NAMES = ("session", "sheet", "robot", "calibration", "poses")
+NAMES = ("session", "sheet", "robot", "calibration", "poses", "robot_pose")
 
 
 @lru_cache(maxsize=None)

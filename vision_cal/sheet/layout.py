@@ -230,6 +230,10 @@ def _r(v, nd: int = 6):
     return 0.0 if v == 0 else v
 
 
+#: the JSON rounding of every layout's sheet.json (the ChArUco board's too)
+rounded = _r
+
+
 # --------------------------------------------------------------------------- page sizes
 
 #: the largest custom page side (mm): the largest SCARA reaches about 1 m, so its whole work

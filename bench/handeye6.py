@@ -1,0 +1,425 @@
+"""Hand-eye of any arm from photos and the robot's poses (issue 40): the estimator against the
+six-axis world's truth over seeds, its refusals, and the real session against the plain
+approaches.
+
+``--seeds N`` (synthetic, render/six_axis.py: a UR5e-like arm off its controller's model,
+joint noise, a lens the estimator is not told; projected corners with 0.15 px of detector
+noise): for each seed and mount, 12 photos fitted with the lens estimated; printed: the
+share of the 12 pose parameters (T_robot_camera / T_flange_camera and T_flange_board /
+T_robot_board, rotation and translation per axis) within 2 std of the truth (95 % when the
+stds are right), the RMS of error / std, the stated held-out error against the error on 20
+fresh photos of the same world, and the verdict. ``--dh-mm`` adds kinematic errors (the
+controller's model off by that much per DH length: a systematic, not a random, pose error).
+
+``--failures``: per seed, a lens declared 10 % long, poses in metres read as mm (and in
+inches), poses shifted by one photo, a photo of another board (other squares): the outcome
+(refused and the cause named, or the verdict and its first reason): never ready.
+
+``--real``: the eight real photos of ``../shared/real_photos/industrial_charuco_even``:
+each photo's residual and its prediction from the seven others (px, mm at the board), the
+verdict, the 35 splits 4 + 4 (fit four, predict the other four), and the plain approaches on
+the same detections: a joint least squares of the same unknowns (scipy, finite
+differences, every corner alike), the same with each photo's flange free under a prior
+(the sparse formulation), and, with ``--opencv-python`` (a Python whose cv2 is OpenCV 4:
+``python -m venv /tmp/cv4 && /tmp/cv4/bin/pip install "opencv-contrib-python-headless<5"``),
+OpenCV's calibrateCamera + solvePnP + calibrateRobotWorldHandEye (SHAH, LI) and
+calibrateHandEye (TSAI, PARK, HORAUD, ANDREFF, DANIILIDIS; the board's place on the flange
+averaged): each photo predicted from a fit of the others.
+
+    python bench/handeye6.py --seeds 20 --failures --real --opencv-python /tmp/cv4/bin/python
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import subprocess
+import tempfile
+import textwrap
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from vision_cal.camera.board import find_board, load_board
+from vision_cal.camera.handeye import estimated_lens_fit, fit_handeye
+from vision_cal.camera.handeye_closed import inv_T
+from vision_cal.camera.handeye_lsq import Problem, View, lens_vector, pose_offset, refine
+from vision_cal.camera.handeye_verdict import judge_handeye, lens_check
+from vision_cal.camera.robot_poses import pair_with_photos, read_robot_poses
+from vision_cal.config import DEFAULT
+from vision_cal.diagnose.verdict import R95_PER_RMS
+from vision_cal.dataset.photos import list_photos, load_photo
+from vision_cal.errors import VisionCalError
+from vision_cal.render.six_axis import make_world, observe, shots
+from vision_cal.sheet.charuco import charuco_spec, make_charuco_layout
+
+ROOT = Path(__file__).resolve().parents[1]
+REAL = ROOT.parent / "shared" / "real_photos" / "industrial_charuco_even"
+
+
+def _views(w, sh, rng):
+    return [View(s.name, s.T_robot_flange, *observe(w, s, rng)) for s in sh]
+
+
+def _predict_err(views, mount, X, Y, lens) -> np.ndarray:
+    """(N,) each corner's 2-D error (px) predicted from the robot's poses alone."""
+    pr = Problem(views, mount, X, Y, lens, np.zeros(9, bool))
+    return np.linalg.norm(pr.predict(pr.start()) - pr.px, axis=1)
+
+
+def _predict_rms(views, mount, X, Y, lens) -> float:
+    return float(np.sqrt(np.mean(_predict_err(views, mount, X, Y, lens) ** 2)))
+
+
+def synthetic(seeds, mount: str, n: int, dh_mm: float, joint_deg: float) -> None:
+    """Parameters against the truth, the stated held-out error against fresh photos."""
+    z, ratio, status, zlens, inside = [], [], {}, [], []
+    for seed in seeds:
+        w = make_world(seed, mount=mount, joint_noise_deg=joint_deg, dh_error_mm=dh_mm,
+                       dh_error_deg=dh_mm / 10.0)
+        rng = np.random.default_rng(seed + 1)
+        sh = shots(w, n + 20, seed)
+        views = _views(w, sh, rng)
+        f = fit_handeye(views[:n], mount, w.lens.size_px)
+        err = np.r_[pose_offset(w.X, f.X), pose_offset(w.Y, f.Y)]
+        z.append(err / f.std[:12])
+        truth = lens_vector(w.lens.K, w.lens.dist)
+        zlens.append(((f.lens - truth)[f.free] / f.std[12:])[:4])
+        e = _predict_err(views[n:], mount, f.X, f.Y, f.lens)
+        fresh = float(np.sqrt(np.mean(e ** 2)))
+        stated = f.heldout_rms()[1]
+        inside.append(np.mean(e <= R95_PER_RMS * stated))
+        ratio.append(fresh / stated)
+        v = judge_handeye(f).status
+        status[v] = status.get(v, 0) + 1
+        print(f"  seed {seed}: within 2 std {np.mean(np.abs(z[-1]) < 2):.2f}, fresh photos "
+              f"{fresh:.2f} px against {stated:.2f} stated, {v}, lens "
+              f"{f.lens_models and min(f.lens_models, key=lambda t: t[1])[0]}",
+              flush=True)
+    z = np.array(z)
+    print(f"{mount}, {n} photos, joint noise {joint_deg} deg, DH error {dh_mm} mm: pose "
+          f"parameters within 2 std {100 * np.mean(np.abs(z) < 2):.1f} % ({z.size}), "
+          f"error/std RMS {np.sqrt(np.mean(z ** 2)):.2f}; fx fy cx cy within 2 std "
+          f"{100 * np.mean(np.abs(np.array(zlens)) < 2):.1f} %; fresh photos / stated: "
+          f"median {np.median(ratio):.2f}, within stated "
+          f"{100 * np.mean(np.array(ratio) <= 1):.0f} %"
+          f", {100 * np.mean(np.array(ratio) <= 1.5):.0f} % within 1.5x; fresh corners inside the "
+          f"stated 95 % radius {100 * np.mean(inside):.1f} %; verdicts {status}")
+
+
+def _outcome(fn, views=None) -> str:
+    """The case's outcome; with ``views`` the lens was declared, and is judged against one
+    estimated from the same photos (as the command does)."""
+    try:
+        f = fn()
+    except VisionCalError as e:
+        return f"refused: {e.reason[:110]}"
+    said = lens_check(f, estimated_lens_fit(views, f)) if views is not None else None
+    v = judge_handeye(f, lens_check=said)
+    return f"{v.status}: {v.reasons[0][:110] if v.reasons else ''}"
+
+
+def failures(seeds) -> None:
+    """Each failure case: refused with its cause, or flagged; never ready."""
+    ready = 0
+    cases = 0
+    for seed in seeds:
+        w = make_world(seed, mount="fixed", joint_noise_deg=0.02)
+        rng = np.random.default_rng(seed + 1)
+        views = _views(w, shots(w, 10, seed), rng)
+        K10 = w.lens.K.copy()
+        K10[:2, :2] *= 1.1
+
+        def scaled(s):
+            out = []
+            for v in views:
+                T = v.T_robot_flange.copy()
+                T[:3, 3] *= s
+                out.append(View(v.name, T, v.ids, v.board_mm, v.px))
+            return out
+
+        shifted = [View(v.name, views[i + 1].T_robot_flange, v.ids, v.board_mm, v.px)
+                   for i, v in enumerate(views[:-1])]
+        other = make_world(seed, mount="fixed", joint_noise_deg=0.02,
+                           board={"square_mm": 30.0, "marker_mm": 15.0})
+        o = shots(other, 4, seed)[3]
+        ids, _, px = observe(other, o, rng)
+        another = list(views)
+        another[3] = View(views[3].name, views[3].T_robot_flange, ids, views[3].board_mm, px)
+        size = w.lens.size_px
+        res = {"lens 10 % long": lambda: fit_handeye(views, "fixed", size,
+                                                        lens=(K10, w.lens.dist)),
+               "metres as mm": lambda: fit_handeye(scaled(1e-3), "fixed", size, units="mm"),
+               "inches as mm": lambda: fit_handeye(scaled(1 / 25.4), "fixed", size, units="mm"),
+               "shifted by one": lambda: fit_handeye(shifted, "fixed", size),
+               "another board": lambda: fit_handeye(another, "fixed", size)}
+        for name, fn in res.items():
+            out = _outcome(fn, views if name.startswith("lens") else None)
+            cases += 1
+            ready += out.startswith("ready")
+            print(f"  seed {seed}, {name}: {out}", flush=True)
+    print(f"failure cases: {cases}, ready: {ready}")
+
+
+# --------------------------------------------------------------------------- the real session
+
+def real_views() -> list[View]:
+    """The eight real photos' saddles (a ChArUco board of `sheet --charuco`)."""
+    spec = charuco_spec((5, 7), 36.195, 18.256, "DICT_6X6_250")
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "sheet.json"
+        import json
+
+        p.write_text(json.dumps(make_charuco_layout(spec).to_sheet_json()))
+        board = load_board(p)
+    photos = list_photos(REAL / "images")
+    poses, _ = read_robot_poses(REAL / "poses")
+    poses = pair_with_photos(poses, photos, str(REAL / "poses"))
+    views = []
+    for name, pose in zip(photos, poses):
+        img, _, _ = load_photo(REAL / "images", name)
+        pts = find_board(img, board)
+        views.append(View(name, pose.T, pts.ids, pts.board_mm, pts.px))
+    return views
+
+
+def _plain(views, X0, Y0, lens0, free):
+    """A joint least squares of the same unknowns, every corner alike (scipy, finite
+    differences, its own projection: OpenCV's model)."""
+    import cv2   # the plain approach's own projection
+
+    def T(v):
+        M = np.eye(4)
+        M[:3, :3] = Rotation.from_rotvec(v[:3]).as_matrix()
+        M[:3, 3] = v[3:6]
+        return M
+
+    def pred(p, v):
+        L = lens0.copy()
+        L[free] = p[12:]
+        M = np.linalg.inv(T(p[:6])) @ v.T_robot_flange @ T(p[6:12])
+        K = np.array([[L[0], 0, L[2]], [0, L[1], L[3]], [0, 0, 1]])
+        return cv2.projectPoints(v.board_mm, cv2.Rodrigues(M[:3, :3])[0], M[:3, 3], K,
+                                 L[4:])[0].reshape(-1, 2)
+
+    p0 = np.r_[Rotation.from_matrix(X0[:3, :3]).as_rotvec(), X0[:3, 3],
+               Rotation.from_matrix(Y0[:3, :3]).as_rotvec(), Y0[:3, 3], lens0[free]]
+    p = least_squares(lambda q: np.concatenate([(pred(q, v) - v.px).ravel() for v in views]),
+                      p0, x_scale="jac").x
+    return lambda v: pred(p, v)
+
+
+def _loo(views, fit_fn) -> tuple[float, list]:
+    errs = []
+    for k in range(len(views)):
+        predict = fit_fn(views[:k] + views[k + 1:])
+        errs.append(predict(views[k]) - views[k].px)
+    per = [float(np.sqrt(np.mean(np.sum(e ** 2, axis=1)))) for e in errs]
+    return float(np.sqrt(np.mean(np.sum(np.vstack(errs) ** 2, axis=1)))), per
+
+
+_OPENCV4 = textwrap.dedent("""
+    import sys, json, numpy as np, cv2
+    d = np.load(sys.argv[1], allow_pickle=True)
+    views = d["views"]; size = tuple(int(s) for s in d["size"])
+    out = {}
+    def T(R, t):
+        M = np.eye(4); M[:3, :3] = R; M[:3, 3] = np.ravel(t); return M
+    for k in range(len(views)):
+        fit = [v for i, v in enumerate(views) if i != k]
+        objs = [np.asarray(v[1], np.float32) for v in fit]
+        imgs = [np.asarray(v[2], np.float32) for v in fit]
+        rms, K, dist, rv, tv = cv2.calibrateCamera(objs, imgs, size, None, None)
+        C = [T(cv2.Rodrigues(r)[0], t) for r, t in zip(rv, tv)]      # T_camera_board
+        F = [np.asarray(v[0], float) for v in fit]                    # T_robot_flange
+        ho = views[k]
+        res = {}
+        # robot-world: world = board, base = flange, gripper = robot base (camera fixed)
+        for m in ("SHAH", "LI"):
+            try:
+                Rb, tb, Rg, tg = cv2.calibrateRobotWorldHandEye(
+                    [c[:3, :3] for c in C], [c[:3, 3] for c in C],
+                    [f[:3, :3] for f in F], [f[:3, 3] for f in F],
+                    method=getattr(cv2, "CALIB_ROBOT_WORLD_HAND_EYE_" + m))
+                X = np.linalg.inv(T(Rg, tg)); Y = np.linalg.inv(T(Rb, tb))
+                res["RW_" + m] = (X, Y)
+            except cv2.error as e:
+                res["RW_" + m] = str(e).splitlines()[-1]
+        # hand-eye, eye-to-hand: the flange poses inverted give the camera in the base
+        Fi = [np.linalg.inv(f) for f in F]
+        for m in ("TSAI", "PARK", "HORAUD", "ANDREFF", "DANIILIDIS"):
+            try:
+                R, t = cv2.calibrateHandEye([f[:3, :3] for f in Fi], [f[:3, 3] for f in Fi],
+                                            [c[:3, :3] for c in C], [c[:3, 3] for c in C],
+                                            method=getattr(cv2, "CALIB_HAND_EYE_" + m))
+                X = T(R, t)                                 # T_robot_camera
+                Ys = [np.linalg.inv(f) @ X @ c for f, c in zip(F, C)]
+                Ym = np.mean(Ys, axis=0); U, _, Vt = np.linalg.svd(Ym[:3, :3])
+                Y = T(U @ Vt, Ym[:3, 3])
+                res["HE_" + m] = (X, Y)
+            except cv2.error as e:
+                res["HE_" + m] = str(e).splitlines()[-1]
+        for name, r in res.items():
+            if isinstance(r, str):
+                out.setdefault(name, []).append(None); continue
+            X, Y = r
+            M = np.linalg.inv(X) @ np.asarray(ho[0], float) @ Y
+            uv = cv2.projectPoints(np.asarray(ho[1], float), cv2.Rodrigues(M[:3, :3])[0],
+                                   M[:3, 3], K, dist)[0].reshape(-1, 2)
+            out.setdefault(name, []).append((uv - np.asarray(ho[2], float)).tolist())
+    print(json.dumps({"version": cv2.__version__, "out": out}))
+""")
+
+
+def opencv4(python: str, views, size) -> None:
+    """OpenCV 4's hand-eye in another Python, each photo predicted from the others."""
+    import json
+
+    with tempfile.TemporaryDirectory() as d:
+        src, script = Path(d) / "in.npz", Path(d) / "cv.py"
+        arr = np.empty(len(views), dtype=object)
+        for i, v in enumerate(views):
+            arr[i] = (v.T_robot_flange, v.board_mm, v.px)
+        np.savez(src, views=arr, size=np.array(size))
+        script.write_text(_OPENCV4)
+        r = subprocess.run([python, str(script), str(src)], capture_output=True, text=True,
+                           timeout=600)
+    if r.returncode:
+        print("  OpenCV 4: failed:", r.stderr.strip().splitlines()[-1:])
+        return
+    res = json.loads(r.stdout)
+    for name, errs in res["out"].items():
+        if any(e is None for e in errs):
+            print(f"  OpenCV {res['version']} {name}: failed on {sum(e is None for e in errs)}"
+                  " of the held-out fits")
+            continue
+        e = np.vstack([np.array(x) for x in errs])
+        per = [float(np.sqrt(np.mean(np.sum(np.array(x) ** 2, axis=1)))) for x in errs]
+        print(f"  OpenCV {res['version']} calibrateCamera + {name}: held out "
+              f"{np.sqrt(np.mean(np.sum(e ** 2, axis=1))):.2f} px RMS "
+              f"(per photo {' '.join(f'{x:.2f}' for x in per)})")
+
+
+def real(opencv_python: str | None) -> None:
+    views = real_views()
+    size = (1600, 1200)
+    f = fit_handeye(views, "fixed", size)
+    obs, st, omm, smm = f.heldout_rms()
+    print(f"real session, 8 photos: lens models {[(t, round(o, 3)) for t, o in f.lens_models]}")
+    for h in f.heldout:
+        print(f"  {h.name}: residual {f.residual_px[h.name]:.2f} px, held out {h.rms_px:.2f} px"
+              f" ({h.rms_mm:.2f} mm at the board), stated {h.stated_px * f.inflation:.2f} px")
+    v = judge_handeye(f)
+    print(f"  held out {obs:.3f} px ({omm:.3f} mm), stated {st:.3f} px ({smm:.3f} mm), "
+          f"inflation {f.inflation:.2f}; noise {f.noise}; {v.status}: {v.reasons}")
+    terms = [n for n, fr in zip(("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"), f.free)
+             if fr]
+    free = f.free.copy()
+    start_X, start_Y = f.start.Z, f.start.X
+    lens0 = f.lens.copy()
+    lens0[4:] = 0.0
+    plain, per = _loo(views, lambda vs: _plain(vs, start_X, start_Y, lens0, free))
+    print(f"  plain joint least squares ({' '.join(terms)}): held out {plain:.3f} px "
+          f"(per photo {' '.join(f'{x:.2f}' for x in per)})")
+    for sig in ((0.02, 0.2), (0.05, 0.5)):
+        def re_fit(vs, sig=sig):
+            R = refine(Problem(vs, "fixed", f.X, f.Y, f.lens, free, sigma_px=f.noise.sigma_px,
+                               pose_sigma=sig))
+            return lambda v: (Problem([v], "fixed", R.X, R.Y, R.lens, np.zeros(9, bool))
+                              .predict(np.zeros(12)))
+        re, per = _loo(views, re_fit)
+        print(f"  each photo's flange free under a prior {sig} (deg, mm; sparse Jacobian): "
+              f"held out {re:.3f} px (per photo {' '.join(f'{x:.2f}' for x in per)})")
+    if opencv_python:
+        opencv4(opencv_python, views, size)
+    halves(views, size)
+
+
+def halves(views, size) -> None:
+    """Fit four photos, predict the other four: the 35 splits."""
+    rows = []
+    for half in itertools.combinations(range(8), 4):
+        if 0 not in half:
+            continue
+        a = [views[i] for i in half]
+        b = [views[i] for i in range(8) if i not in half]
+        try:
+            f = fit_handeye(a, "fixed", size)
+        except VisionCalError as e:
+            print(f"  halves {half}: {e}")
+            continue
+        act = _predict_rms(b, "fixed", f.X, f.Y, f.lens)
+        rows.append((f.heldout_rms()[1], act, judge_handeye(f).status))
+    r = np.array([x[:2] for x in rows])
+    print(f"  4 + 4 halves ({len(rows)} splits): the other half predicted "
+          f"{np.sqrt(np.mean(r[:, 1] ** 2)):.2f} px RMS (median {np.median(r[:, 1]):.2f}), "
+          f"stated {np.sqrt(np.mean(r[:, 0] ** 2)):.2f}; "
+          f"covered in {np.sum(r[:, 1] <= r[:, 0])}/{len(r)}; verdicts "
+          f"{dict(zip(*np.unique([x[2] for x in rows], return_counts=True)))}")
+
+
+def rendered(seeds, mount: str, n: int) -> None:
+    """Photos rendered by the world (its own print of OpenCV's board through its lens),
+    read by the command as a user's folder: the board's saddles detected, the poses read
+    from the world's ROS-style files, the lens estimated."""
+    from vision_cal.actions.handeye import HandeyePhotosRequest, handeye_photos
+    from vision_cal.actions.sheet import SheetRequest, sheet
+    from vision_cal.render.six_axis import write_session
+
+    z = []
+    for seed in seeds:
+        w = make_world(seed, mount=mount, joint_noise_deg=0.02)
+        with tempfile.TemporaryDirectory() as d:
+            d = Path(d)
+            write_session(d / "s", w, n, seed)
+            sheet(SheetRequest(out=str(d / "b"), charuco="5x7", square_mm=w.board.square_mm,
+                               marker_mm=w.board.marker_mm, dictionary=w.board.dictionary,
+                               quiet=True))
+            out = handeye_photos(HandeyePhotosRequest(
+                folder=str(d / "s" / "images"), robot_poses=str(d / "s" / "poses"),
+                sheet=str(d / "b" / "sheet.json"), mount=mount, out=str(d / "o"), quiet=True))
+        f = out.fit
+        err = np.r_[pose_offset(w.X, f.X), pose_offset(w.Y, f.Y)]
+        z.append(err / f.std[:12])
+        fresh = _views(w, shots(w, 20, seed + 99), np.random.default_rng(seed))
+        e = _predict_rms(fresh, mount, f.X, f.Y, f.lens)
+        print(f"  rendered seed {seed} ({mount}): {len(f.views)} photos, within 2 std "
+              f"{np.mean(np.abs(z[-1]) < 2):.2f}, |error|/std max {np.abs(z[-1]).max():.2f}, "
+              f"held out {f.heldout_rms()[0]:.2f} px, stated {f.heldout_rms()[1]:.2f}, fresh "
+              f"poses {e:.2f}; {out.document['verdict']['status']}", flush=True)
+    z = np.array(z)
+    print(f"rendered ({mount}): pose parameters within 2 std {100 * np.mean(np.abs(z) < 2):.1f} %"
+          f" ({z.size})")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=0)
+    ap.add_argument("--first-seed", type=int, default=7000)
+    ap.add_argument("--photos", type=int, default=12)
+    ap.add_argument("--dh-mm", type=float, default=0.0)
+    ap.add_argument("--joint-deg", type=float, default=0.02)
+    ap.add_argument("--mounts", default="fixed,arm")
+    ap.add_argument("--failures", type=int, default=0, help="seeds of failure cases")
+    ap.add_argument("--real", action="store_true")
+    ap.add_argument("--render", type=int, default=0, help="seeds of rendered photos")
+    ap.add_argument("--opencv-python", default=None)
+    a = ap.parse_args()
+    seeds = range(a.first_seed, a.first_seed + a.seeds)
+    for mount in a.mounts.split(","):
+        if a.seeds:
+            synthetic(seeds, mount, a.photos, a.dh_mm, a.joint_deg)
+    if a.render:
+        for mount in a.mounts.split(","):
+            rendered(range(a.first_seed + 900, a.first_seed + 900 + a.render), mount, a.photos)
+    if a.failures:
+        failures(range(a.first_seed + 500, a.first_seed + 500 + a.failures))
+    if a.real:
+        real(a.opencv_python)
+
+
+if __name__ == "__main__":
+    main()
