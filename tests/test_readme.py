@@ -53,6 +53,10 @@ COVERED = {
     ("Calibrate your camera", "vision-cal calibrate marks.csv --robot robot.yaml --sigma-mm "
                               "0.02 --out cal/"):
         "tests/dataset/test_marks_csv.py (fixtures/tracker_example)",
+    ("Calibrate your camera", "vision-cal sheet --charuco 5x7 --square-mm 36.195 --marker-mm "
+                              "18.256 --dictionary DICT_6X6_250 --out board/"):
+        "tests/camera/test_handeye6_real.py (the real session's board and photos, the same "
+        "requests)",
     ("Commands", "vision-cal images/ --report"): "test_the_commands_block_is_complete_and_parses",
 }
 

@@ -262,7 +262,7 @@ def test_locate_refuses_heights_the_arm_camera_did_not_see(arm, tmp_path, capsys
     base = ["locate", str(cal), "--pixel", "320", "240", "--joints", *q, "-q"]
     assert main(base + ["--z-mm", "20"]) == 0
     capsys.readouterr()
-    assert main(base + ["--z-mm", "-30"]) == 2
+    assert main(base + ["--z-mm", "-30"]) == 1   # nothing located (a request per pixel)
     line = _err_line(capsys)
     assert "valid_for.heights" in line and "-30" in line, line
     (tmp_path / "px.csv").write_text("id,u_px,v_px,z_mm\na,320,240,-30\n")

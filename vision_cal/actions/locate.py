@@ -224,7 +224,8 @@ def _outside_valid_for(req: LocateRequest, doc: dict, ids, z, joints, model) -> 
     vf = valid_for_of(doc, file=str(req.calibration))
     cal = str(req.calibration)
     out = check_valid_for(vf, cal=cal, ids=ids, heights_mm=z, camera=req.camera)
-    limit = std_limit_mm(model, doc, file=cal)
+    # a camera-only calibration (hand-eye of any arm) has no robot model to extrapolate
+    limit = std_limit_mm(model, doc, file=cal) if model is not None else None
     cov = load_covariance(doc, model, file=cal) if limit is not None else None   # it read
 
     def std(q, a):

@@ -178,7 +178,7 @@ def load_calibration_or_camera(path, *, sheet_frame: bool = True
     ``method`` in :data:`CAMERA_ONLY_METHODS`, no ``params``) no model and the document
     (its format checked; its cameras are checked by whoever reads them)."""
     path = Path(path)
-    doc = read_json(path)
+    doc = read_json(path, what="calibration")
     if (isinstance(doc, dict) and doc.get("method") in CAMERA_ONLY_METHODS
             and "params" not in doc):
         r = FieldReader(str(path))
