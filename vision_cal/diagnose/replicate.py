@@ -113,6 +113,9 @@ def replicate(model: RobotModel, q_deg, xy_mm, approach, sigma_mm, *, residual_s
     sig = None if sigma_mm is None else np.asarray(sigma_mm, float).reshape(-1)
     P = len(model.vector)
     s2 = float(residual_scale) ** 2
+    if not (np.isfinite(s2) and s2 > 0):
+        return {"agree": None, "reason": "the full fit states no residual variance",
+                "text": "not replicated: the full fit states no residual variance"}
     why = []
     for h in candidate_splits(q, s, model.params.z2_deg):
         small = min(len(h.a), len(h.b))
@@ -125,8 +128,11 @@ def replicate(model: RobotModel, q_deg, xy_mm, approach, sigma_mm, *, residual_s
         if bad:
             why.append(f"{h.split}: {bad[0]}")
             continue
-        return _compared(h, halves, q, s, check_q, check_approach, check_label,
-                         shared_cov_mm2, cfg)
+        out = _compared(h, halves, q, s, check_q, check_approach, check_label,
+                        shared_cov_mm2, cfg)
+        if out["params"]["dof"] > 0:
+            return out
+        why.append(f"{h.split}: no degree of freedom to compare")
     return {"agree": None, "reason": "; ".join(why) or "no marks",
             "text": "not replicated: " + ("; ".join(why) or "no marks")}
 
