@@ -22,8 +22,9 @@ zeros +-1 deg, base +-10 mm), its repeatability 0.004-0.02 mm per axis, the info
 with 8 repeats, marks measured to a stated 0.003-0.008 mm: ``clean`` (no hidden effect) and
 ``effect`` (one of backlash, gear scale, cyclic error, sheet shrink, at random sizes).
 ``--render``: the renderer's scenes (renders/*.yaml) with new seeds, photographed and
-measured (the print off its layout seen from six places, or from one fixed camera, a clean
-world): slow, a few seeds each. ``--halves``: the replication's split against a model that
+measured (clean and a gear-scale error seen from six places, the print off its layout seen
+from six places or from one fixed camera, a clean world from one place): slow, a few seeds
+each. ``--halves``: the replication's split against a model that
 misses an effect (the elbows against marks taken alternately; the figure in
 diagnose/replicate.py's docstring).
 """
@@ -186,21 +187,29 @@ def kinematic(seeds: int, first: int) -> None:
 
 # ------------------------------------------------------------------------------- render
 
-SCENES = ("clean", "printed_off_six", "printed_off_fixed")
+#: six camera places, as renders/printed_off_six.yaml photographs its sheet
+SIX_PLACES = {"n_views": 6, "tilt_deg": [8.0, 20.0], "moving": True}
+#: the render worlds: name -> (scene file, camera overrides)
+SCENES = {"clean_six": ("clean", SIX_PLACES), "effect_six": ("scale_j2", SIX_PLACES),
+          "printed_off_six": ("printed_off_six", {}),
+          "printed_off_fixed": ("printed_off_fixed", {}), "clean_fixed": ("clean", {})}
 
 
-def render_world(scene_name: str, seed: int, out: Path):
-    """The scene with a new seed, lighter (1600 x 1200 photos, 20 + 6 marks), rendered
-    into ``out``; returns (true robot, repeatability, the paper's extent)."""
+def render_world(name: str, seed: int, out: Path):
+    """The world ``name`` (:data:`SCENES`: a scene file with a new seed and its camera's
+    places), lighter (1600 x 1200 photos, 20 + 6 marks), rendered into ``out``; returns
+    (true robot, repeatability, the paper's extent)."""
     import yaml
 
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.render.dataset import render_dataset
     from vision_cal.render.scene import scene_from_dict
 
-    raw = copy.deepcopy(yaml.safe_load((ROOT / "renders" / f"{scene_name}.yaml").read_text())
+    scene, places = SCENES[name]
+    raw = copy.deepcopy(yaml.safe_load((ROOT / "renders" / f"{scene}.yaml").read_text())
                         or {})
     raw["seed"] = seed
+    raw.setdefault("camera", {}).update(places)
     raw.setdefault("plan", {}).update({"n_calibration": 20, "n_validation": 6})
     cam = raw.setdefault("camera", {})
     f = float(cam.get("f_px", 2600.0)) * 1600.0 / float((cam.get("size_px") or [2400])[0])
@@ -280,7 +289,7 @@ def main() -> int:
     ap.add_argument("--seeds", type=int, default=None)
     ap.add_argument("--first-seed", type=int, default=5000)
     ap.add_argument("--render", action="store_true")
-    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--scenes", default=",".join(SCENES), help=", ".join(SCENES))
     ap.add_argument("--halves", action="store_true")
     a = ap.parse_args()
     if a.render:

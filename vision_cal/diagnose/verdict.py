@@ -13,8 +13,8 @@ The noise floor. Each mark's position carries the measurer's per-axis standard d
 marks drawn twice at the same command when at least ``verdict.min_repeat_pairs`` pairs
 resolve it from the measurement noise (an unbiased estimate with its std,
 :func:`repeatability_from_repeats`), else the robot block's ``repeatability_mm``, else
-``verdict.default_repeatability_mm``, capped by what the pairs allow; never 0 for want of
-evidence. If the model is right, the fitted residuals are that noise alone::
+``verdict.default_repeatability_mm`` (the pairs' upper bound said beside it); never 0 for
+want of evidence. If the model is right, the fitted residuals are that noise alone::
 
     chi2 = sum_i |res_i|^2 / (sigma_i^2 + r^2)     over the fitted marks (outliers out)
     dof  = 2 N - P                                  (P fitted parameters)
@@ -239,8 +239,8 @@ def repeatability_from_repeats(marks: dict, config: EstimatorConfig | None = Non
     noise, or a measurement noise stated too large), with the std ``std(t) / sqrt(n)``.
     With at least ``verdict.min_repeat_pairs`` pairs and the estimate above
     ``uncertainty.repeat_resolve_sigmas`` of its std, it is the repeatability (``measured``;
-    its std ``std(r^2) / 2 r``: 8 pairs give the floor's variance within about 35 %, the
-    gate's tolerance). Otherwise the pairs do not resolve it from the measurement noise,
+    its std ``std(r^2) / 2 r``: 8 pairs give the floor's variance within about 35 %,
+    inside the gate's tolerance of 1.25^2). Otherwise the pairs do not resolve it from the measurement noise,
     and the prior is used (``prior_mm``, the robot block's, named ``prior_source``; else
     ``verdict.default_repeatability_mm``, a catalogue's figure), the pairs' upper bound
     (``r^2 + resolve_sigmas std``) said beside it. A clip at 0 read a robot of 0.01 mm as
