@@ -63,6 +63,7 @@ def test_too_few_pairs_fall_back_to_the_stated_prior():
     assert "verdict.default_repeatability_mm" in rp.why and "2 pair(s)" in rp.why
     rp = repeatability_from_repeats({}, prior_mm=0.015)
     assert (rp.mm, rp.source) == (0.015, "robot block") and "robot block" in rp.why
+    assert repeatability_from_repeats({}, prior_mm=0.0).mm == 0.01   # never 0
     # the verdict says where its figure came from, and carries the pairs' numbers
     v = judge(_fit_doc(seed=2))
     assert v.repeatability_mm == 0.01 and v.repeatability_source == "default"

@@ -250,7 +250,8 @@ def repeatability_from_repeats(marks: dict, config: EstimatorConfig | None = Non
     one time in ten."""
     cfg = config or DEFAULT
     vc, uc = cfg.verdict, cfg.uncertainty
-    prior, psrc = ((float(prior_mm), prior_source) if prior_mm is not None
+    # a robot block's 0 is no robot's repeatability: the default then (never 0)
+    prior, psrc = ((float(prior_mm), prior_source) if prior_mm is not None and prior_mm > 0
                    else (vc.default_repeatability_mm, "default"))
     t = np.asarray(repeat_pair_terms(marks), float)
     n = len(t)
