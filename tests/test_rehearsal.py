@@ -96,9 +96,12 @@ def test_rehearsal_calibrates_the_hidden_robot(rehearsal):
     else:
         assert v["repeatability_source"] == "default" and "not resolved" in rp["why"], rp
         assert v["repeatability_mm"] == 0.01
-    # the print was measured from the photos' places (the simulated camera's four views):
-    # nothing unmeasured in the expected error, and the fit's two halves agree
-    assert cal["print"]["source"] == "views" and cal["print"]["n_places"] >= 3, cal["print"]
+    # two photos cannot measure the print (fewer than three camera places, no survey): said,
+    # never "ready", a printer's deviation in the expected error; the fit's halves agree
+    if cal["print"]["source"] == "one place":
+        assert v["status"] == "check" and any("not measured" in r and "survey" in r
+                                              for r in v["reasons"]), v["reasons"]
+        assert v["target_std"]["print_mm"] >= 0.07 / 2**0.5
     assert cal["replication"]["agree"], cal["replication"]
     assert (tmp / "cal" / "report.html").exists()
     assert (tmp / "targets_plan.prg").exists()
@@ -155,7 +158,8 @@ def test_the_compensated_targets_program_hits_its_targets(rehearsal):
     seen = np.array([r["error_mm"] for r in rows])
     assert np.all(np.hypot(*(seen - true_miss).T) < 0.05), (seen, true_miss)
     # the misses agree with what the plan predicted (targets_plan.csv std_mm: per axis, the
-    # calibration's covariance, the robot's repeatability, what the model leaves, the print):
+    # calibration's covariance, the robot's repeatability, what the model leaves, the print
+    # - here not measured, a printer's 0.07 mm, which this world's perfect print leaves unused):
     # per axis under 3 times it (the check bench/walkthrough.py makes on 27 targets), and
     # each miss inside its own 99.9 % radius (all six by noise alone 99.4 % of the time)
     import csv
