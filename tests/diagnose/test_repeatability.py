@@ -48,10 +48,12 @@ def test_a_measurer_that_overstates_its_noise_does_not_read_the_robot_as_zero():
         rp = repeatability_from_repeats(marks)
         assert rp.mm > 0.005, rp
         zeros += rp.r2_mm2 < 0
-        if not rp.measured:
-            assert "not resolved" in rp.why and (rp.mm, rp.source) == (0.01, "default")
+        if not rp.measured:   # the prior, or the pairs' estimate where it is above it
+            assert "not resolved" in rp.why and rp.mm >= 0.01
+            assert (rp.mm, rp.source) == (0.01, "default") or rp.mm**2 == pytest.approx(
+                rp.r2_mm2)
         big = repeatability_from_repeats(marks, prior_mm=0.02)
-        if not big.measured:
+        if not big.measured and big.r2_mm2 < 0.02**2:
             assert (big.mm, big.source) == (0.02, "robot block") and "at most" in big.why
     assert zeros >= 5    # the case that read 0.0 mm happens often
 
@@ -68,3 +70,24 @@ def test_too_few_pairs_fall_back_to_the_stated_prior():
     v = judge(_fit_doc(seed=2))
     assert v.repeatability_mm == 0.01 and v.repeatability_source == "default"
     assert v.repeatability["n_pairs"] == 0 and "0 pair(s)" in v.repeatability["why"]
+
+
+def test_a_floor_eight_pairs_measured_is_not_a_known_floor():
+    """8 pairs know the floor's variance within about 35 %: a residual 1.5 times a floor
+    they measured (variance 2.3 times, 70 dof) is what a floor read low by chance gives
+    (the kinematic bench's robots of 0.0125 mm read as 0.0076 mm: "the model misses
+    something" with nothing missing), so the F test of the two is not beyond the gate;
+    against a floor taken as known (a prior) it is."""
+    from vision_cal.diagnose.verdict import floor_test
+
+    res = np.tile([[0.015, 0.0]], (36, 1)) * np.sqrt(2.0)    # chi2 = 72 x 2.25 on 70 dof
+    known = floor_test(res, np.zeros(36), 0.01, n_params=2)
+    measured = floor_test(res, np.zeros(36), 0.01, n_params=2, floor_dof=16)
+    assert known.ratio == measured.ratio == pytest.approx(1.5 * np.sqrt(72 / 70))
+    assert known.beyond and not measured.beyond
+    assert 1e-3 < measured.p_value < 0.1
+    # a residual far beyond a floor the pairs measured still is
+    assert floor_test(2 * res, np.zeros(36), 0.01, n_params=2, floor_dof=16).beyond
+    rp = repeatability_from_repeats(_pairs(np.random.default_rng(1), 8, 0.02, 0.004, 0.004))
+    assert rp.measured and rp.floor_dof == 16
+    assert repeatability_from_repeats({}).floor_dof is None

@@ -20,7 +20,8 @@ want of evidence. If the model is right, the fitted residuals are that noise alo
     dof  = 2 N - P                                  (P fitted parameters)
 
 is chi-square with ``dof`` degrees of freedom; ``residual_over_floor = sqrt(chi2 / dof)``
-(1 where noise explains it all) and its p-value is ``chi2.sf(chi2, dof)``. The gate is
+(1 where noise explains it all) and its p-value is ``chi2.sf(chi2, dof)`` (a floor the
+pairs measured has its own ``2 n`` degrees of freedom: the F distribution's then). The gate is
 passed unless the p-value is below ``verdict.floor_alpha`` *and* the ratio above
 ``verdict.floor_ratio_tol`` (a ratio that small is within how well a measurer knows its own
 noise). Held-out marks are judged against the same floor, their variance raised by the
@@ -97,11 +98,16 @@ class FloorTest:
 
 def floor_test(residual_mm, sigma_mm, repeatability_mm: float | None = None, *,
                n_params: int = 0, inflate: float = 1.0,
-               config: VerdictConfig | None = None) -> FloorTest | None:
+               config: VerdictConfig | None = None,
+               floor_dof: int | None = None) -> FloorTest | None:
     """Chi-square of residuals (N, 2) against per-mark per-axis noise ``sigma_mm`` (N,)
     plus ``repeatability_mm`` (None: ``config.default_repeatability_mm``); ``n_params``
     fitted parameters (0 for held-out marks); ``inflate`` multiplies the variance (held-out
-    marks: 1 + P / 2N); ``config`` the gate's thresholds. None if no dof."""
+    marks: 1 + P / 2N); ``config`` the gate's thresholds. ``floor_dof``: the degrees of
+    freedom the floor itself was measured with (marks drawn twice: 2 a pair), its p-value
+    then the F distribution's of ``chi2 / dof`` (a floor 8 pairs measured is known within
+    35 % in variance, which a chi-square would read as a missing effect); None: the floor
+    is taken as known. None if no dof."""
     config = config or DEFAULT.verdict
     if repeatability_mm is None:
         repeatability_mm = config.default_repeatability_mm
@@ -114,7 +120,9 @@ def floor_test(residual_mm, sigma_mm, repeatability_mm: float | None = None, *,
     if dof <= 0:
         return None
     chi2 = float(np.sum(r[ok] ** 2 / var[ok, None]))
-    p, ratio = float(stats.chi2.sf(chi2, dof)), math.sqrt(chi2 / dof)
+    p = float(stats.chi2.sf(chi2, dof) if not floor_dof else
+              stats.f.sf(chi2 / dof, dof, floor_dof))
+    ratio = math.sqrt(chi2 / dof)
     return FloorTest(n, dof, chi2, p, ratio,
                      float(np.sqrt(np.mean(np.sum(r[ok] ** 2, axis=1)))),
                      float(np.sqrt(2 * np.mean(var[ok]) * dof / (2 * n))),
@@ -180,6 +188,13 @@ class Repeatability:
     why: str = ""
 
     @property
+    def floor_dof(self) -> int | None:
+        """The degrees of freedom of the floor when the pairs gave the figure (2 a pair:
+        their differences measure ``sigma^2 + r^2`` itself), else None (a prior, taken as
+        known)."""
+        return 2 * self.n_pairs if self.source.endswith("drawn at the same command") else None
+
+    @property
     def std_mm(self) -> float | None:
         """One std of :attr:`mm` when the pairs measured it (``r2_std / 2 r``), else None."""
         if not self.measured or not self.mm > 0 or self.r2_std_mm2 is None:
@@ -243,7 +258,9 @@ def repeatability_from_repeats(marks: dict, config: EstimatorConfig | None = Non
     inside the gate's tolerance of 1.25^2). Otherwise the pairs do not resolve it from the measurement noise,
     and the prior is used (``prior_mm``, the robot block's, named ``prior_source``; else
     ``verdict.default_repeatability_mm``, a catalogue's figure), the pairs' upper bound
-    (``r^2 + resolve_sigmas std``) said beside it. A clip at 0 read a robot of 0.01 mm as
+    (``r^2 + resolve_sigmas std``) said beside it, unless the pairs' estimate is above the
+    prior (then it: the pairs say at least that much; a robot of 0.016 mm under a default
+    of 0.01 read 1.36 times its floor). A clip at 0 read a robot of 0.01 mm as
     0.0 mm where the measurement's stated noise exceeded its real one (the README's
     rehearsal: ``sigma_mm`` 0.0104 mm against 0.0070 mm of real error, 8 pairs); a cap
     at the upper bound, whose std comes from 8 terms, fell below the true figure there
@@ -267,6 +284,11 @@ def repeatability_from_repeats(marks: dict, config: EstimatorConfig | None = Non
         return Repeatability(r, said, n, r2, sd, True, prior,
                              f"{said}: {r:.4f} +- {sd / (2 * r):.4f} mm")
     upper = math.sqrt(max(r2, 0.0) + uc.repeat_resolve_sigmas * sd)
+    if r2 > prior**2:   # not resolved from 0, but more than the prior: the pairs' figure
+        return Repeatability(math.sqrt(r2), said, n, r2, sd, False, prior,
+                             f"{said} give r^2 = {r2:.2e} +- {sd:.1e} mm^2, not resolved "
+                             f"from the measurement noise but above the {_prior_name(psrc)} "
+                             f"{prior:.4f} mm: {math.sqrt(r2):.4f} mm")
     return Repeatability(prior, psrc, n, r2, sd, False, prior,
                          f"{said} give r^2 = {r2:.2e} +- {sd:.1e} mm^2 (r at most {upper:.4f} "
                          f"mm), not resolved from the measurement noise: the "
@@ -414,7 +436,7 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
     reasons, outside = _plan_reasons(ident, vf, pilot)
     effects = doc.get("effects") or []
     reasons += _drift_reasons(effects)
-    floors = _noise_floor(marks, outliers, n_par, rep, cfg, by_design)
+    floors = _noise_floor(marks, outliers, n_par, rep, cfg, by_design, rp.floor_dof)
     reasons += floors.reasons
     reasons += _structure_reasons(doc, effects, marks)
     reasons += _left_out_reasons(outliers, marks)
@@ -502,10 +524,12 @@ class _Floors:
 
 
 def _noise_floor(marks: dict, outliers: set, n_par: int, rep: float, cfg: VerdictConfig,
-                 by_design: str | None) -> _Floors:
+                 by_design: str | None, floor_dof: int | None = None) -> _Floors:
     """The floor tests of the fitted calibration marks (outliers out) and of the validation
-    marks when every one carries its noise; without noise, a reason (``check``, or
-    ``by_design``'s level for a pilot) saying the residual cannot be compared."""
+    marks when every one carries its noise (``floor_dof``: the floor's own degrees of
+    freedom when marks drawn twice measured it, :func:`floor_test`); without noise, a
+    reason (``check``, or ``by_design``'s level for a pilot) saying the residual cannot be
+    compared."""
     fitted_ids = [k for k, m in marks.items() if m.get("role", "calibration") == "calibration"
                   and k not in outliers and m.get("status", "ok") == "ok"]
     held_ids = [k for k, m in marks.items() if m.get("role") == "validation"
@@ -516,13 +540,14 @@ def _noise_floor(marks: dict, outliers: set, n_par: int, rep: float, cfg: Verdic
     reasons: list[tuple[str, str]] = []
     if fitted and all(m.get("sigma_mm") is not None for m in fitted):
         floor = floor_test([m["residual_mm"] for m in fitted],
-                           [m["sigma_mm"] for m in fitted], rep, n_params=n_par, config=cfg)
+                           [m["sigma_mm"] for m in fitted], rep, n_params=n_par, config=cfg,
+                           floor_dof=floor_dof)
         worst = max_error_test(fitted_ids, [m["residual_mm"] for m in fitted],
                                [m["sigma_mm"] for m in fitted], rep, of="fitted", config=cfg)
         if held and all(m.get("sigma_mm") is not None for m in held):
             inflate = 1.0 + n_par / max(2 * len(fitted), 1)
             hfloor = floor_test([m["residual_mm"] for m in held], [m["sigma_mm"] for m in held],
-                                rep, inflate=inflate, config=cfg)
+                                rep, inflate=inflate, config=cfg, floor_dof=floor_dof)
             worst = max_error_test(held_ids, [m["residual_mm"] for m in held],
                                    [m["sigma_mm"] for m in held], rep, of="held-out",
                                    inflate=inflate, config=cfg)
