@@ -105,7 +105,7 @@ def test_calibration_json_says_how_it_was_obtained(paper_folder, tmp_path):
                                   "per_photo_offsets", "sheet_fit", "grid", "sheet_height",
                                   "plan_match", "photo_agreement", "grid_declaration",
                                   "smooth_residual", "discovery", "joint4", "verdict",
-                                  "handeye", "handeye_photos", "as_printed"}
+                                  "handeye", "handeye_photos", "as_printed", "uncertainty"}
     assert doc["config"]["selection"]["alpha"] == 0.01
     cfg = replace(DEFAULT, selection=SelectionConfig(alpha=1e-3, k_folds=3, max_effects=1))
     calibrate_dataset(paper_folder, out_dir=tmp_path / "c", config=cfg)

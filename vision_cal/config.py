@@ -31,7 +31,9 @@ recorded values, not today's defaults). The parts, by key:
 - ``handeye_photos``: the hand-eye from photos and the robot's poses, any arm
   (:mod:`vision_cal.camera.handeye`);
 - ``verdict``: the noise-floor gate and the status rule (:mod:`vision_cal.diagnose.verdict`,
-  which judges a calibration.json with the config that file recorded).
+  which judges a calibration.json with the config that file recorded);
+- ``uncertainty``: what a stated std holds beyond the fit's covariance (repeatability from
+  repeated marks, the print not measured, the paper's scale, the halves' replication).
 """
 
 from __future__ import annotations
@@ -466,6 +468,38 @@ class AsPrintedConfig:
 
 
 @dataclass(frozen=True)
+class UncertaintyConfig:
+    """What a stated std holds beyond the fit's covariance (issue 37): the repeatability the
+    repeated marks measure, the print when it is not measured, the paper's scale, the
+    replication of the fit by two halves of the marks (:mod:`vision_cal.diagnose.verdict`,
+    :mod:`vision_cal.diagnose.replicate`, :mod:`vision_cal.plan.uncertainty`)."""
+
+    repeat_resolve_sigmas: float = 2.0  # the pairs' unbiased estimate of r^2 must stand this
+                                      # many of its own std above 0 to be the repeatability;
+                                      # else they do not resolve it from the measurement
+                                      # noise and the prior is used, capped by the pairs'
+                                      # upper bound (r^2 + this many std): never 0
+    unmeasured_print_mm: float = 0.07  # the print not measured (no survey, photos from fewer
+                                      # than as_printed.min_places places: a fixed camera):
+                                      # its deviation on every mark (2-D RMS, shared, not
+                                      # averaged), at least: a printer puts ink 0.1-0.3 mm off
+                                      # its layout; the photos' mapping and the robot fit take
+                                      # the smooth part, a 0.17 mm RMS print left the marks
+                                      # 0.08 mm and the targets 0.07 mm RMS off (#28)
+    paper_scale_std: float = 0.002    # the paper's overall scale (one std, relative) when the
+                                      # printed bars were not measured: paper grows and shrinks
+                                      # 0.1-0.3 % with humidity and a printer's scale is within
+                                      # about 0.1 %; marks on the paper cannot tell it from the
+                                      # link lengths
+    bar_reading_mm: float = 0.05      # one std of a printed 100 mm bar measured with a caliper
+                                      # (the caliper reads 0.02 mm; setting its jaws on the
+                                      # printed ends by eye, about 0.05 mm)
+    min_half_dof: int = 4             # a half of the marks fitted alone keeps at least this
+                                      # many degrees of freedom (2 n - P), else the fit is not
+                                      # replicated
+
+
+@dataclass(frozen=True)
 class EstimatorConfig:
     """All the knobs, by part; the keys of calibration.json ``config``."""
 
@@ -488,6 +522,7 @@ class EstimatorConfig:
     handeye: HandeyeConfig = field(default_factory=HandeyeConfig)
     handeye_photos: HandeyePhotosConfig = field(default_factory=HandeyePhotosConfig)
     as_printed: AsPrintedConfig = field(default_factory=AsPrintedConfig)
+    uncertainty: UncertaintyConfig = field(default_factory=UncertaintyConfig)
 
     def to_json(self) -> dict:
         return asdict(self)

@@ -87,12 +87,15 @@ def test_repeatability_measured_from_marks_drawn_twice():
             marks[f"m{i}_{k}"] = {"joints_deg": q, "approach": [1, 1], "sigma_mm": sig,
                                   "measured_mm": (rng.normal(0, np.hypot(r_true, sig), 2)
                                                   ).tolist()}
-    r, pairs = repeatability_from_repeats(marks)
-    assert pairs == n
-    # std of r: (r^2 + sig^2) / (2 r sqrt(n)) = 0.52 um here; the bound r / sqrt(n) * 4 is
-    # about 8 of them (the relative std 1 / sqrt(n) the docstring promises, times 4)
-    assert abs(r - r_true) < 4 * r_true / np.sqrt(n)
-    assert repeatability_from_repeats(dict(list(marks.items())[:6])) is None   # 3 pairs
+    rp = repeatability_from_repeats(marks)
+    assert rp.n_pairs == n and rp.measured and rp.source == f"{n} pairs of marks drawn at " \
+        "the same command"
+    # std of r: (r^2 + sig^2) / (2 r sqrt(n)) = 0.52 um here, and the one it states
+    assert abs(rp.mm - r_true) < 4 * rp.std_mm
+    assert rp.std_mm == pytest.approx((r_true**2 + sig**2) / (2 * r_true * np.sqrt(n)), rel=0.2)
+    few = repeatability_from_repeats(dict(list(marks.items())[:6]))   # 3 pairs: the default
+    assert not few.measured and few.source == "default" and few.mm == 0.01
+    assert "3 pair(s)" in few.why and "4 needed" in few.why
 
 
 def test_one_target_far_off_is_read_though_the_rms_hides_it():

@@ -44,3 +44,27 @@ def test_a_layout_found_on_its_declaration_changes_nothing():
     v = judge({**doc, "print": {"source": "views", "applied": False, "rms_mm": 0.01,
                                 "unresolved_mm": 0.01, "limit_mm": 0.0}})
     assert v.status == "check" and v.expected_target_error_mm == judge(doc).expected_target_error_mm
+
+
+def test_a_print_not_measured_is_check_whatever_the_markers_show():
+    """One rule for a fixed camera without a survey (and any run whose photos come from
+    fewer than three places): the markers of a clean print show nothing beyond the photo's
+    mapping (limit 0), yet the print is not measured - a printer puts ink 0.1-0.3 mm off its
+    layout and a homography takes the smooth part: "check", with a printer's 0.07 mm in
+    the expected error and in a target's std; a pilot says it at the ready level; a print
+    measured from several places, found on its layout, adds nothing."""
+    doc = _fit_doc()
+    base = judge(doc)
+    one = {**doc, "print": {"source": "one place", "seen_rms_mm": 0.0, "limit_mm": 0.0,
+                            "sigma_mm": 0.0, "n_places": 1}}
+    v = judge(one)
+    assert v.status == "check" and any("not measured" in r and "0.070 mm" in r
+                                       for r in v.reasons), v.reasons
+    assert v.target_std["print_mm"] == pytest.approx(0.07 / 2**0.5)
+    assert v.expected_target_error_mm == pytest.approx(
+        (base.expected_target_error_mm ** 2 + (R95_PER_RMS * 0.07) ** 2) ** 0.5)
+    assert judge(one, stage="pilot").status == "ready"
+    views = {**doc, "print": {"source": "views", "applied": False, "limit_mm": 0.0,
+                              "n_places": 4}}
+    assert judge(views).status == "ready"
+    assert judge(views).expected_target_error_mm == base.expected_target_error_mm

@@ -82,10 +82,15 @@ def test_verdict_ready_only_when_the_plan_identifies_everything(doc):
     d["identifiability"]["not_identifiable"] = []
     d["effects"] = []
     d.pop("verdict", None)
+    d.pop("replication", None)     # the five marks' (not replicated), not these copies'
     d["validation_rms_mm"]["final_model"] = 0.012
     d["residual_rms_mm"]["final_model"] = 0.011
     v = judge(d)
-    assert v.status == "ready" and "0.021 mm (95 %)" in v.text
+    # the 95 % radius of a target's std: the calibration's part (6 / 34 of the residual's
+    # variance), the default repeatability 0.01 mm, nothing unexplained
+    assert v.target_std["unexplained_mm"] == 0.0
+    assert v.target_std["total_mm"] == pytest.approx(math.sqrt(4e-5 * 6 / 34 + 0.01**2))
+    assert v.status == "ready" and "0.025 mm (95 %)" in v.text
     d["identifiability"]["not_identifiable"] = [
         {"label": "joint_scale(joint 1)", "reason": "x", "fix": "add marks at q1 beyond +-60 deg"}]
     v = judge(d)

@@ -37,6 +37,7 @@ class CalibrateRequest:
     robot: str | None = None      # a marks CSV's robot file (issue 32)
     sigma_mm: float | None = None  # a marks CSV's stated accuracy (mm, one std per axis)
     survey: str | None = None     # survey.json (default: a survey.json in the folder)
+    bars_mm: tuple[float, float] | None = None   # the printed 100 mm bars as measured (x, y)
 
 
 @dataclass(frozen=True)
@@ -117,6 +118,9 @@ def calibrate_joint(req: CalibrateRequest) -> JointCalibrated:
     into OUT (robot frame) and OUT/<folder>/ (each placement's sheet frame)."""
     if req.method != "lsq":
         raise VisionCalError("--joint fits by least squares only", field="--method")
+    if req.bars_mm is not None:
+        raise VisionCalError("--joint reads each sheet's measured_bar_mm (sheet.json "
+                             "printed): give the bars there", field="--bars-mm")
     out = Path(req.out or "out")
     names = output_names(req.folders)
     for n in names:   # --out . with the placements in it: their folders are inputs
@@ -185,7 +189,8 @@ def calibrate_one(req: CalibrateRequest, folder: str, out: Path,
     with writing_into(out, command="calibrate", inputs=[("DIR", folder)], quiet=req.quiet):
         with written_together():   # measurement.json renamed with calibration.json
             run = calibrate_dataset(source, out_dir=out, method=req.method, jobs=req.jobs,
-                                    progress=not req.quiet, truth=req.truth, survey=survey)
+                                    progress=not req.quiet, truth=req.truth, survey=survey,
+                                    bars_mm=req.bars_mm)
         report = _write_report(run, out) if req.report else None
     return FolderCalibrated(str(folder), run, report)
 

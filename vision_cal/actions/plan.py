@@ -27,7 +27,7 @@ from vision_cal.plan.compensate import plan_targets, to_planned_marks, write_pla
 from vision_cal.plan.extrapolation import beyond_deg, std_limit_mm
 from vision_cal.plan.orient import controller_tool_mm, plan_poses
 from vision_cal.plan.trajectory import check_length
-from vision_cal.plan.uncertainty import predicted_std_mm
+from vision_cal.plan.uncertainty import target_std
 from vision_cal.program import KINDS as PROGRAM_KINDS
 from vision_cal.program import check_program, program_path, program_points, write_program
 
@@ -75,7 +75,9 @@ class PlanOutcome:
 class _Planned:
     """The targets planned: ``planned`` every target's result (``ok`` and ``failed`` of
     them), ``poses`` / ``pose_of`` (by target id) the full poses when joint 4 or the tool is
-    planned (else None), ``std`` the predicted std (mm) of each ``ok`` target (NaN unknown)."""
+    planned (else None), ``std`` each ``ok`` target's plan.csv std columns (``std_mm`` and
+    its parts, :func:`vision_cal.plan.uncertainty.target_std`; ``std_mm`` NaN alone when
+    unknown: the nominal model)."""
 
     planned: list
     ok: list
@@ -185,8 +187,8 @@ def _plan_targets(req: PlanRequest, model, doc: dict, robot, ids, xy) -> _Planne
     else:
         q_ok = [(*p.q_deg, pose_of[p.id].q4_deg) for p in ok]
         a_ok = [(*p.approach, pose_of[p.id].approach4) for p in ok]
-    std = (predicted_std_mm(model, cov, q_ok, a_ok)
-           if cov is not None and ok else [float("nan")] * len(ok))
+    std = (target_std(model, cov, q_ok, a_ok, [p.target_mm for p in ok], doc).rows()
+           if cov is not None and ok else [{"std_mm": float("nan")}] * len(ok))
     return _Planned(planned, ok, failed, poses, pose_of, std)
 
 
@@ -207,7 +209,8 @@ def _write_outputs(req: PlanRequest, model, robot, p: _Planned, said, flagged: d
         # the command file holds only what can be sent to the robot: no NaN, no failed row
         # (an unknown std, as with the nominal model, is left empty)
         write_plan(req.out, [dict(t.to_row() if poses is None else pose_of[t.id].to_row(),
-                                   std_mm=float(s) if math.isfinite(s) else "",
+                                   **{k: float(v) if math.isfinite(v) else ""
+                                      for k, v in s.items()},
                                    **({"outside_valid_for": flagged.get(t.id, "")}
                                       if said else {}))
                               for t, s in zip(ok, p.std)])

@@ -47,6 +47,12 @@ def add_arguments(p) -> None:
     p.add_argument("--survey", default=None, metavar="SURVEY.json",
                    help="the sheet as printed (vision-cal survey); default: a survey.json in "
                         "the dataset folder, if any")
+    p.add_argument("--bars-mm", type=float, nargs=2, default=None, dest="bars_mm",
+                   metavar=("X", "Y"),
+                   help="the sheet's two printed 100 mm bars as measured with a caliper (x, "
+                        "then y): the paper's scale, which the marks cannot tell from the link "
+                        "lengths (calibration.json printer_scale, paper_scale); default: the "
+                        "sheet's measured_bar_mm, else a prior of 0.2 %%")
     p.add_argument("--joint", action="store_true",
                    help="the folders are placements of one sheet (or several sheets) drawn by "
                         "one robot: fit one robot and one sheet pose each (robot frame R; "

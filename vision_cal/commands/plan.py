@@ -27,10 +27,11 @@ def add_arguments(p) -> None:
     p.add_argument("calibration", metavar="CALIBRATION.json", help="the calibration.json to plan with")
     p.add_argument("targets", metavar="TARGETS.csv", help="id,x_mm,y_mm")
     p.add_argument("-o", "--out", required=True, metavar="PLAN.csv",
-                   help="id,q1_deg,q2_deg,approach1,approach2, std_mm (how well each target "
-                        "is expected to be hit: one std per axis, from the calibration's "
-                        "covariance), status, reason; the targets that cannot be planned also "
-                        "go to PLAN.failed.csv beside it")
+                   help="id,q1_deg,q2_deg,approach1,approach2, status, reason, std_mm (how "
+                        "well each target is expected to be hit: one std per axis of where it "
+                        "lands) and its parts std_calibration_mm, std_repeatability_mm, "
+                        "std_unexplained_mm, std_print_mm, std_paper_scale_mm; the targets "
+                        "that cannot be planned also go to PLAN.failed.csv beside it")
     p.add_argument("--model", choices=("calibrated", "nominal"), default="calibrated",
                    help="plan with the calibrated model (default) or the nominal one (the "
                         "'before' column)")

@@ -9,17 +9,19 @@ photos (``vision-cal handeye``), each photo's flange position standing for a mar
 
 The noise floor. Each mark's position carries the measurer's per-axis standard deviation
 ``sigma_mm`` (calibration.json ``marks[].sigma_mm``); the robot adds its repeatability
-``r`` (measured from marks drawn twice at the same command when there are at least
-``verdict.min_repeat_pairs`` such pairs, else the robot block's ``repeatability_mm``, one
-standard deviation per axis, else ``verdict.default_repeatability_mm``; the synthetic world
-uses the same meaning). If the model
-is right, the fitted residuals are that noise alone::
+``r`` (one standard deviation per axis, the synthetic world's meaning too): measured from
+marks drawn twice at the same command when at least ``verdict.min_repeat_pairs`` pairs
+resolve it from the measurement noise (an unbiased estimate with its std,
+:func:`repeatability_from_repeats`), else the robot block's ``repeatability_mm``, else
+``verdict.default_repeatability_mm`` (the pairs' upper bound said beside it); never 0 for
+want of evidence. If the model is right, the fitted residuals are that noise alone::
 
     chi2 = sum_i |res_i|^2 / (sigma_i^2 + r^2)     over the fitted marks (outliers out)
     dof  = 2 N - P                                  (P fitted parameters)
 
 is chi-square with ``dof`` degrees of freedom; ``residual_over_floor = sqrt(chi2 / dof)``
-(1 where noise explains it all) and its p-value is ``chi2.sf(chi2, dof)``. The gate is
+(1 where noise explains it all) and its p-value is ``chi2.sf(chi2, dof)`` (a floor the
+pairs measured has its own ``2 n`` degrees of freedom: the F distribution's then). The gate is
 passed unless the p-value is below ``verdict.floor_alpha`` *and* the ratio above
 ``verdict.floor_ratio_tol`` (a ratio that small is within how well a measurer knows its own
 noise). Held-out marks are judged against the same floor, their variance raised by the
@@ -41,7 +43,16 @@ disagrees with the markers the way a lens error does - the scans for unnamed eff
 run, outliers or unreliable marks, too few marks, no noise known); ``ready`` only with no
 reason at all.
 
-The thresholds are calibration.json ``config.verdict`` (:class:`vision_cal.config.VerdictConfig`):
+The expected target error (``expected_target_error_mm``, the 95 % radius) is that of a
+target's error whose per-axis std holds the calibration's covariance, the repeatability,
+what the model leaves beyond the noise and the print (``target_std``; without the marks'
+noise, the held-out RMS with the print); the print not measured (no survey, photos from
+fewer than three camera places, a fixed camera) is ``check`` with a printer's deviation
+in it. ``ready`` also needs the fit's two halves to agree within what each states
+(calibration.json ``replication``, :mod:`vision_cal.diagnose.replicate`).
+
+The thresholds are calibration.json ``config.verdict`` (:class:`vision_cal.config.VerdictConfig`)
+and ``config.uncertainty``:
 :func:`judge` reads the ones the document recorded (the defaults for a file without them),
 so a calibration judged again is judged by its own rules.
 """
@@ -59,6 +70,8 @@ from vision_cal.dataset.valid_for import verdict_reasons as valid_for_reasons
 
 #: radius holding 95 % of a circular normal 2-D error per unit of its RMS
 R95_PER_RMS = math.sqrt(-2.0 * math.log(0.05)) / math.sqrt(2.0)
+#: radius holding 95 % of a circular normal 2-D error per unit of its per-axis std
+R95_PER_STD = math.sqrt(-2.0 * math.log(0.05))
 
 _RANK = {"ready": 0, "check": 1, "not reliable": 2}
 
@@ -85,11 +98,16 @@ class FloorTest:
 
 def floor_test(residual_mm, sigma_mm, repeatability_mm: float | None = None, *,
                n_params: int = 0, inflate: float = 1.0,
-               config: VerdictConfig | None = None) -> FloorTest | None:
+               config: VerdictConfig | None = None,
+               floor_dof: int | None = None) -> FloorTest | None:
     """Chi-square of residuals (N, 2) against per-mark per-axis noise ``sigma_mm`` (N,)
     plus ``repeatability_mm`` (None: ``config.default_repeatability_mm``); ``n_params``
     fitted parameters (0 for held-out marks); ``inflate`` multiplies the variance (held-out
-    marks: 1 + P / 2N); ``config`` the gate's thresholds. None if no dof."""
+    marks: 1 + P / 2N); ``config`` the gate's thresholds. ``floor_dof``: the degrees of
+    freedom the floor itself was measured with (marks drawn twice: 2 a pair), its p-value
+    then the F distribution's of ``chi2 / dof`` (a floor 8 pairs measured is known within
+    35 % in variance, which a chi-square would read as a missing effect); None: the floor
+    is taken as known. None if no dof."""
     config = config or DEFAULT.verdict
     if repeatability_mm is None:
         repeatability_mm = config.default_repeatability_mm
@@ -102,7 +120,9 @@ def floor_test(residual_mm, sigma_mm, repeatability_mm: float | None = None, *,
     if dof <= 0:
         return None
     chi2 = float(np.sum(r[ok] ** 2 / var[ok, None]))
-    p, ratio = float(stats.chi2.sf(chi2, dof)), math.sqrt(chi2 / dof)
+    p = float(stats.chi2.sf(chi2, dof) if not floor_dof else
+              stats.f.sf(chi2 / dof, dof, floor_dof))
+    ratio = math.sqrt(chi2 / dof)
     return FloorTest(n, dof, chi2, p, ratio,
                      float(np.sqrt(np.mean(np.sum(r[ok] ** 2, axis=1)))),
                      float(np.sqrt(2 * np.mean(var[ok]) * dof / (2 * n))),
@@ -148,19 +168,57 @@ def max_error_test(ids, residual_mm, sigma_mm, repeatability_mm: float, *, of: s
                         float(tail), n, of, bool(tail < config.floor_alpha))
 
 
-def repeatability_from_repeats(marks: dict, config: VerdictConfig | None = None
-                               ) -> tuple[float, int] | None:
-    """The robot's repeatability (mm, per axis, one std) from marks drawn twice, and the
-    number of pairs; None below ``config.min_repeat_pairs`` pairs.
+@dataclass(frozen=True)
+class Repeatability:
+    """The robot's repeatability the floor and the targets' std use (mm, per axis, one
+    std), where it comes from (``source``: ``default``, ``robot block`` or ``N pairs of
+    marks drawn at the same command``) and what the marks drawn twice said of it
+    (:func:`repeatability_from_repeats`): ``n_pairs``, their unbiased estimate of ``r^2``
+    (mm^2, may be below 0) and its std, ``measured`` when that estimate resolves it,
+    ``std_mm`` then its one std; ``prior_mm`` the figure used when it does not; ``why`` one
+    sentence."""
+
+    mm: float
+    source: str
+    n_pairs: int = 0
+    r2_mm2: float | None = None
+    r2_std_mm2: float | None = None
+    measured: bool = False
+    prior_mm: float | None = None
+    why: str = ""
+
+    @property
+    def floor_dof(self) -> int | None:
+        """The degrees of freedom of the floor when the pairs gave the figure (2 a pair:
+        their differences measure ``sigma^2 + r^2`` itself), else None (a prior, taken as
+        known)."""
+        return 2 * self.n_pairs if self.source.endswith("drawn at the same command") else None
+
+    @property
+    def std_mm(self) -> float | None:
+        """One std of :attr:`mm` when the pairs measured it (``r2_std / 2 r``), else None."""
+        if not self.measured or not self.mm > 0 or self.r2_std_mm2 is None:
+            return None
+        return self.r2_std_mm2 / (2 * self.mm)
+
+    def to_json(self) -> dict:
+        return {"mm": self.mm, "source": self.source, "n_pairs": self.n_pairs,
+                "r2_mm2": self.r2_mm2, "r2_std_mm2": self.r2_std_mm2,
+                "measured": self.measured, "std_mm": self.std_mm, "prior_mm": self.prior_mm,
+                "why": self.why}
+
+
+def repeat_pair_terms(marks: dict) -> list[float]:
+    """Each pair of marks drawn at the same command: ``|d|^2 / 4 - (sigma_a^2 + sigma_b^2) /
+    2`` (mm^2), an unbiased estimate of the robot's ``r^2`` (per axis) when each mark's
+    ``sigma_mm`` is its measurement noise.
 
     A pair is a mark and the one its ``repeat_of`` names (the design returns to a pose a
     few millimetres off, ``plan.calibration_plan.add_repeats``: their residuals differ by
     noise alone, the model taking the offset out), or two marks of the same command and
-    approach (their measured positions). Two marks a, b differ by noise of per-axis
-    variance ``sigma_a^2 + sigma_b^2 + 2 r^2``, so
-    ``r^2 = mean(|d|^2 / 2 - sigma_a^2 - sigma_b^2) / 2`` (floored at 0). The floor's
-    variance ``sigma^2 + r^2`` then has a relative std of about ``1 / sqrt(n)`` (its RMS
-    half that): 8 pairs give the floor within about 18 %, inside the gate's tolerance."""
+    approach (their measured positions). Two marks a, b differ per axis by noise of
+    variance ``sigma_a^2 + sigma_b^2 + 2 r^2``: ``E |d|^2 = 2 (sigma_a^2 + sigma_b^2) +
+    4 r^2`` over the two axes."""
     def usable(m) -> bool:
         return (m.get("status", "ok") == "ok" and m.get("sigma_mm") is not None
                 and m.get("joints_deg") is not None)
@@ -179,13 +237,67 @@ def repeatability_from_repeats(marks: dict, config: VerdictConfig | None = None
         groups.setdefault(key, []).append(m)
     for ms in groups.values():
         pairs += [(a, b, "measured_mm") for a, b in zip(ms[:-1], ms[1:])]
-    terms = []
+    out = []
     for a, b, field in pairs:
         d = np.subtract(a[field], b[field])
-        terms.append(float(d @ d) / 2 - a["sigma_mm"] ** 2 - b["sigma_mm"] ** 2)
-    if len(terms) < (config or DEFAULT.verdict).min_repeat_pairs:
-        return None
-    return math.sqrt(max(float(np.mean(terms)) / 2, 0.0)), len(terms)
+        out.append(float(d @ d) / 4 - (a["sigma_mm"] ** 2 + b["sigma_mm"] ** 2) / 2)
+    return out
+
+
+def repeatability_from_repeats(marks: dict, config: EstimatorConfig | None = None, *,
+                               prior_mm: float | None = None,
+                               prior_source: str = "robot block") -> Repeatability:
+    """The robot's repeatability from marks drawn twice (:func:`repeat_pair_terms`), never
+    biased to 0 and never 0 for want of evidence.
+
+    The pairs' terms ``t_i`` average to an unbiased ``r^2`` (it may come out below 0:
+    noise, or a measurement noise stated too large), with the std ``std(t) / sqrt(n)``.
+    With at least ``verdict.min_repeat_pairs`` pairs and the estimate above
+    ``uncertainty.repeat_resolve_sigmas`` of its std, it is the repeatability (``measured``;
+    its std ``std(r^2) / 2 r``: 8 pairs give the floor's variance within about 35 %,
+    inside the gate's tolerance of 1.25^2). Otherwise the pairs do not resolve it from the measurement noise,
+    and the prior is used (``prior_mm``, the robot block's, named ``prior_source``; else
+    ``verdict.default_repeatability_mm``, a catalogue's figure), the pairs' upper bound
+    (``r^2 + resolve_sigmas std``) said beside it, unless the pairs' estimate is above the
+    prior (then it: the pairs say at least that much; a robot of 0.016 mm under a default
+    of 0.01 read 1.36 times its floor). A clip at 0 read a robot of 0.01 mm as
+    0.0 mm where the measurement's stated noise exceeded its real one (the README's
+    rehearsal: ``sigma_mm`` 0.0104 mm against 0.0070 mm of real error, 8 pairs); a cap
+    at the upper bound, whose std comes from 8 terms, fell below the true figure there
+    one time in ten."""
+    cfg = config or DEFAULT
+    vc, uc = cfg.verdict, cfg.uncertainty
+    # a robot block's 0 is no robot's repeatability: the default then (never 0)
+    prior, psrc = ((float(prior_mm), prior_source) if prior_mm is not None and prior_mm > 0
+                   else (vc.default_repeatability_mm, "default"))
+    t = np.asarray(repeat_pair_terms(marks), float)
+    n = len(t)
+    if n < vc.min_repeat_pairs:
+        why = (f"{n} pair(s) of marks drawn at the same command, {vc.min_repeat_pairs} needed "
+               f"to measure it: the {_prior_name(psrc)} {prior:.4f} mm")
+        return Repeatability(prior, psrc, n, prior_mm=prior, why=why)
+    r2 = float(np.mean(t))
+    sd = float(np.std(t, ddof=1) / math.sqrt(n))
+    said = f"{n} pairs of marks drawn at the same command"
+    if r2 > uc.repeat_resolve_sigmas * sd:
+        r = math.sqrt(r2)
+        return Repeatability(r, said, n, r2, sd, True, prior,
+                             f"{said}: {r:.4f} +- {sd / (2 * r):.4f} mm")
+    upper = math.sqrt(max(r2, 0.0) + uc.repeat_resolve_sigmas * sd)
+    if r2 > prior**2:   # not resolved from 0, but more than the prior: the pairs' figure
+        return Repeatability(math.sqrt(r2), said, n, r2, sd, False, prior,
+                             f"{said} give r^2 = {r2:.2e} +- {sd:.1e} mm^2, not resolved "
+                             f"from the measurement noise but above the {_prior_name(psrc)} "
+                             f"{prior:.4f} mm: {math.sqrt(r2):.4f} mm")
+    return Repeatability(prior, psrc, n, r2, sd, False, prior,
+                         f"{said} give r^2 = {r2:.2e} +- {sd:.1e} mm^2 (r at most {upper:.4f} "
+                         f"mm), not resolved from the measurement noise: the "
+                         f"{_prior_name(psrc)} {prior:.4f} mm")
+
+
+def _prior_name(source: str) -> str:
+    return {"default": "default (config verdict.default_repeatability_mm)",
+            "robot block": "robot block's"}.get(source, source)
 
 
 @dataclass(frozen=True)
@@ -209,6 +321,10 @@ class Verdict:
     #: the informative plan by design)
     reason_codes: tuple[str, ...] = ()
     reason_levels: tuple[str, ...] = ()
+    #: :class:`Repeatability` as JSON (what the marks drawn twice said; None: not judged)
+    repeatability: dict | None = None
+    #: a target's error by part, one std per axis (``_target_parts``; None: noise unknown)
+    target_std: dict | None = None
 
     @property
     def text(self) -> str:
@@ -241,7 +357,8 @@ class Verdict:
                    d.get("repeatability_mm"),
                    d.get("repeatability_source", "default"), d.get("max_target_error"),
                    d.get("within_valid_for"), tuple(d.get("reason_codes") or ()),
-                   tuple(d.get("reason_levels") or ()))
+                   tuple(d.get("reason_levels") or ()), d.get("repeatability"),
+                   d.get("target_std"))
 
     def to_json(self) -> dict:
         d = {"status": self.status, "expected_target_error_mm": self.expected_target_error_mm,
@@ -259,6 +376,10 @@ class Verdict:
         if self.reason_codes:
             d["reason_codes"] = list(self.reason_codes)
             d["reason_levels"] = list(self.reason_levels)
+        if self.repeatability is not None:
+            d["repeatability"] = self.repeatability
+        if self.target_std is not None:
+            d["target_std"] = self.target_std
         return d
 
 
@@ -310,12 +431,15 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
     status: the plan (:func:`_plan_reasons`), a drift, the noise floor
     (:func:`_noise_floor`), structure left (:func:`_structure_reasons`), marks left out,
     the accuracy figure (:func:`_accuracy`)."""
-    cfg = EstimatorConfig.from_json(doc.get("config")).verdict
+    full = EstimatorConfig.from_json(doc.get("config"))
+    cfg = full.verdict
     pilot = stage == "pilot"
     by_design = "ready" if pilot else None
     outliers = set(doc.get("outliers") or [])
     marks = doc.get("marks") or {}
-    rep, source = _repeatability(marks, outliers, repeatability_mm, cfg)
+    rp = repeatability_from_repeats({k: m for k, m in marks.items() if k not in outliers},
+                                    full, prior_mm=repeatability_mm)
+    rep, source = rp.mm, rp.source
     ident = doc.get("identifiability") or {}
     n_par = int(ident.get("n_params") or 6)
     vf = doc.get("valid_for") if isinstance(doc.get("valid_for"), dict) else None
@@ -325,32 +449,41 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
     reasons = _coded(reasons[:len(reasons) - len(outside)], "plan") + outside
     effects = doc.get("effects") or []
     reasons += _coded(_drift_reasons(effects), "drift")
-    floors = _noise_floor(marks, outliers, n_par, rep, cfg, by_design)
+    floors = _noise_floor(marks, outliers, n_par, rep, cfg, by_design, rp.floor_dof)
     reasons += _coded(floors.reasons, "noise_floor")
     reasons += _coded(_structure_reasons(doc, effects, marks), "structure")
     reasons += _coded(_left_out_reasons(outliers, marks), "left_out")
-    acc = _accuracy(doc, marks, n_par, cfg, by_design)
+    reasons += _coded(_replication_reasons(doc.get("replication"), by_design), "replication")
+    acc = _accuracy(doc, marks, n_par, rep, full, by_design)
     reasons += _coded(acc.reasons, "accuracy")
     v = _verdict(reasons, acc.r95, floors.floor, floors.hfloor, rep, source, floors.worst)
     if outside:   # the status inside valid_for (design --pilot accepts a pilot "ready" there)
         inner = _verdict([r for r in reasons if r not in outside], acc.r95, floors.floor,
                          floors.hfloor, rep, source, floors.worst)
         v = replace(v, within_valid_for=inner.status)
-    return v
+    return replace(v, repeatability=rp.to_json(), target_std=acc.parts)
 
 
-def _repeatability(marks: dict, outliers: set, repeatability_mm: float | None,
-                   cfg: VerdictConfig) -> tuple[float, str]:
-    """The robot's repeatability the floor adds and where it comes from: measured from the
-    marks drawn twice (outliers out) when there are enough pairs, else ``repeatability_mm``
-    (the robot block's), else the config's default. Returns (mm, source)."""
-    rep = cfg.default_repeatability_mm if repeatability_mm is None else float(repeatability_mm)
-    source = "default" if repeatability_mm is None else "robot block"
-    measured = repeatability_from_repeats({k: m for k, m in marks.items()
-                                           if k not in outliers}, cfg)
-    if measured is not None:   # better than a catalogue figure: this robot, this day
-        rep, source = measured[0], f"{measured[1]} pairs of marks drawn at the same command"
-    return rep, source
+def _replication_reasons(rep: dict | None, by_design: str | None) -> list[tuple[str, str]]:
+    """(status, sentence) from calibration.json ``replication``
+    (:mod:`vision_cal.diagnose.replicate`): two halves of the marks that disagree beyond
+    what each states (``check``: the stated std understates what the halves see), or a fit
+    that could not be replicated (``check``; a pilot's at the ``ready`` level: its nine
+    marks cannot be halved by design). Nothing for a file without the block (written
+    before it, or by the paper's method)."""
+    if not isinstance(rep, dict):
+        return []
+    if rep.get("agree") is None:
+        return [(by_design or "check", "the fit could not be replicated by two halves of "
+                                       f"the marks: {rep.get('reason') or 'no halves'}")]
+    if rep["agree"]:
+        return []
+    worst = max((rep.get(k) or {} for k in ("params", "positions")),
+                key=lambda b: b.get("chi2_dof") or 0.0)
+    return [("check", f"two halves of the marks ({rep.get('split', 'two halves')}) disagree "
+                      f"beyond the std each states (chi2/dof {worst.get('chi2_dof', 0):.1f} on "
+                      f"{worst.get('dof', 0)} dof, p = {worst.get('p', 0):.2g}): the model or "
+                      "the noise differs between them, and the stated std understates it")]
 
 
 def _plan_reasons(ident: dict, vf: dict | None,
@@ -404,10 +537,12 @@ class _Floors:
 
 
 def _noise_floor(marks: dict, outliers: set, n_par: int, rep: float, cfg: VerdictConfig,
-                 by_design: str | None) -> _Floors:
+                 by_design: str | None, floor_dof: int | None = None) -> _Floors:
     """The floor tests of the fitted calibration marks (outliers out) and of the validation
-    marks when every one carries its noise; without noise, a reason (``check``, or
-    ``by_design``'s level for a pilot) saying the residual cannot be compared."""
+    marks when every one carries its noise (``floor_dof``: the floor's own degrees of
+    freedom when marks drawn twice measured it, :func:`floor_test`); without noise, a
+    reason (``check``, or ``by_design``'s level for a pilot) saying the residual cannot be
+    compared."""
     fitted_ids = [k for k, m in marks.items() if m.get("role", "calibration") == "calibration"
                   and k not in outliers and m.get("status", "ok") == "ok"]
     held_ids = [k for k, m in marks.items() if m.get("role") == "validation"
@@ -418,13 +553,14 @@ def _noise_floor(marks: dict, outliers: set, n_par: int, rep: float, cfg: Verdic
     reasons: list[tuple[str, str]] = []
     if fitted and all(m.get("sigma_mm") is not None for m in fitted):
         floor = floor_test([m["residual_mm"] for m in fitted],
-                           [m["sigma_mm"] for m in fitted], rep, n_params=n_par, config=cfg)
+                           [m["sigma_mm"] for m in fitted], rep, n_params=n_par, config=cfg,
+                           floor_dof=floor_dof)
         worst = max_error_test(fitted_ids, [m["residual_mm"] for m in fitted],
                                [m["sigma_mm"] for m in fitted], rep, of="fitted", config=cfg)
         if held and all(m.get("sigma_mm") is not None for m in held):
             inflate = 1.0 + n_par / max(2 * len(fitted), 1)
             hfloor = floor_test([m["residual_mm"] for m in held], [m["sigma_mm"] for m in held],
-                                rep, inflate=inflate, config=cfg)
+                                rep, inflate=inflate, config=cfg, floor_dof=floor_dof)
             worst = max_error_test(held_ids, [m["residual_mm"] for m in held],
                                    [m["sigma_mm"] for m in held], rep, of="held-out",
                                    inflate=inflate, config=cfg)
@@ -497,19 +633,26 @@ def _left_out_reasons(outliers: set, marks: dict) -> list[tuple[str, str]]:
 
 @dataclass(frozen=True)
 class _Accuracy:
-    """The expected target error (95 % radius, mm; None: no figure) and the (status,
-    sentence) reasons about it."""
+    """The expected target error (95 % radius, mm; None: no figure), the (status,
+    sentence) reasons about it and a target's std by part (:func:`_target_parts`)."""
 
     r95: float | None
     reasons: list[tuple[str, str]]
+    parts: dict | None = None
 
 
-def _accuracy(doc: dict, marks: dict, n_par: int, cfg: VerdictConfig,
+def _accuracy(doc: dict, marks: dict, n_par: int, rep: float, full: EstimatorConfig,
               by_design: str | None) -> _Accuracy:
-    """The expected target error from the held-out RMS, with the print's limit added
-    (:func:`_with_print`), and the reasons it gives: no held-out figure, too few spare
-    degrees of freedom (``by_design``'s level for a pilot), a held-out RMS well above the
-    fitted one."""
+    """The expected target error and the reasons it gives: no held-out figure, too few
+    spare degrees of freedom (``by_design``'s level for a pilot), the print not measured
+    (:func:`_print_part`), a held-out RMS well above the fitted one.
+
+    With every fitted mark's noise known, it is the 95 % radius of a target's error whose
+    per-axis std holds the calibration's covariance, the repeatability, what the model
+    leaves and the print (:func:`_target_parts`, calibration.json ``verdict.target_std``; a
+    planned target's ``std_mm`` is the same sum at its own place); else ``R95_PER_RMS``
+    times the held-out RMS, the print added in quadrature."""
+    cfg = full.verdict
     reasons: list[tuple[str, str]] = []
 
     def add(status, text, code=None):
@@ -527,32 +670,92 @@ def _accuracy(doc: dict, marks: dict, n_par: int, cfg: VerdictConfig,
         add(by_design or "check",
             f"{n_fit} fitted marks leave {2 * n_fit - n_par} degrees of freedom, too few to "
             "test for backlash, gear-ratio or sheet effects")
-    r95 = _with_print(doc.get("print"), r95, add, cfg)
+    print_mm = _print_part(doc.get("print"), add, full, by_design)
+    parts = _target_parts(doc, marks, n_par, rep, print_mm) if r95 is not None else None
+    if parts is not None:
+        r95 = R95_PER_STD * parts["total_mm"]
+    elif r95 is not None and print_mm > 0:
+        r95 = float(math.hypot(r95, R95_PER_STD * print_mm))
     if (r95 is not None and _finite(fit_rms) and fit_rms > 0
             and held_rms > cfg.heldout_warn_ratio * fit_rms):
         add("check", f"the held-out RMS ({held_rms:.4f} mm) is {held_rms / fit_rms:.1f} times "
                      "the fitted RMS: the model misses something on new poses")
-    return _Accuracy(r95, reasons)
+    return _Accuracy(r95, reasons, parts)
 
 
-def _with_print(pr: dict | None, r95, add, cfg):
-    """The print's limit on the marks (calibration.json ``print``, #28): its ``limit_mm``
-    (2-D RMS, the same at every mark and not averaged by the fit: the print is where it
-    is) added to the expected target error; from one camera place, where the print
-    cannot be told from the lens, a limit beyond ``cfg.print_check_mm`` makes the run
-    ``check``. Returns the expected target error."""
-    lim = (pr or {}).get("limit_mm")
-    if not _finite(lim) or lim <= 0:
-        return r95
-    if r95 is not None:
-        r95 = float(math.hypot(r95, R95_PER_RMS * lim))
-    if pr.get("source") == "one place" and lim > cfg.print_check_mm:
-        add("check", f"the print's deviation from its layout is not measured: one camera "
-                     f"place cannot tell it from the lens; the markers show "
-                     f"{pr.get('seen_rms_mm', float('nan')):.3f} mm beyond the photo's mapping, "
-                     f"about {lim:.3f} mm RMS on every mark: survey the sheet (vision-cal "
-                     "survey) or photograph it from several places", "print_one_place")
-    return r95
+def _print_part(pr: dict | None, add, full: EstimatorConfig, by_design: str | None) -> float:
+    """The print's part of a target's std (mm, per axis) from calibration.json ``print``
+    (#28). Measured (a survey, several camera places): its ``limit_mm`` (2-D RMS of what
+    the measurement leaves, the same at every mark and not averaged by the fit) over
+    sqrt 2. Not measured (``one place``: no survey and photos from fewer than
+    ``as_printed.min_places`` places, a fixed camera among them) the print's deviation is
+    unknown: every mark carries ``uncertainty.unmeasured_print_mm`` at least (what a
+    printer does), or the larger part the markers show beyond the photos' mapping, and the
+    run is ``check`` (``by_design``'s level for a pilot), with a fixed camera or not. No
+    ``print`` block (marks given as ``measured_mm``): 0."""
+    if not isinstance(pr, dict):
+        return 0.0
+    lim = pr.get("limit_mm")
+    lim = float(lim) if _finite(lim) and lim > 0 else 0.0
+    if pr.get("source") != "one place":
+        return lim / math.sqrt(2.0)
+    size = max(lim, full.uncertainty.unmeasured_print_mm)
+    if size > full.verdict.print_check_mm:
+        seen = pr.get("seen_rms_mm")
+        add(by_design or "check",
+            "the print's deviation from its layout is not measured (no survey, and the photos "
+            f"come from fewer than {full.as_printed.min_places} camera places; a fixed camera "
+            "sees it from one, where it cannot be told from the lens): about "
+            f"{size:.3f} mm RMS on every mark"
+            + (f" (the markers show {seen:.3f} mm beyond the photos' mapping)"
+               if _finite(seen) and seen > 0 else "")
+            + ", in the expected target error: survey the sheet (vision-cal survey) or "
+              "photograph it from several places", "print_one_place")
+    return size / math.sqrt(2.0)
+
+
+def _target_parts(doc: dict, marks: dict, n_par: int, rep: float,
+                  print_mm: float) -> dict | None:
+    """A target's error, one std per axis, by part (calibration.json ``verdict.target_std``):
+    ``calibration_mm`` (the fit's covariance at a mark: on average ``P / (2N - P)`` of the
+    fitted residual's variance), ``repeatability_mm``, ``unexplained_mm`` (the residual's
+    variance beyond the noise floor and the calibration's part, from the fitted marks,
+    leverage corrected, and the held-out ones - validation marks, else the
+    cross-validation figure - pooled by their degrees of freedom; 0 when noise explains
+    it), ``print_mm`` and ``total_mm`` (their root sum of squares), ``from`` (the marks it
+    was read on). None unless every fitted mark carries its noise."""
+    outl = set(doc.get("outliers") or [])
+    fit = [m for k, m in marks.items() if m.get("role", "calibration") == "calibration"
+           and m.get("status", "ok") == "ok" and m.get("residual_mm") is not None
+           and k not in outl]
+    if not fit or any(m.get("sigma_mm") is None for m in fit):
+        return None
+    n = len(fit)
+    res = np.array([m["residual_mm"] for m in fit], float).reshape(-1, 2)
+    sig2 = float(np.mean([m["sigma_mm"] ** 2 for m in fit]))
+    mse = float(np.mean(res**2))                       # per axis
+    dof_f = max(2 * n - n_par, 1)
+    c2 = mse * n_par / dof_f
+    u2_fit = mse * 2 * n / dof_f - sig2 - rep**2
+    held = [m for m in marks.values() if m.get("role") == "validation"
+            and m.get("status", "ok") == "ok" and m.get("residual_mm") is not None
+            and m.get("sigma_mm") is not None]
+    vr = (doc.get("validation_rms_mm") or {}).get("final_model")
+    if len(held) >= 3:
+        h = np.array([m["residual_mm"] for m in held], float).reshape(-1, 2)
+        u2_held = (float(np.mean(h**2)) - float(np.mean([m["sigma_mm"] ** 2 for m in held]))
+                   - rep**2 - c2)
+        dof_h, source = 2 * len(held), f"{n} fitted and {len(held)} held-out marks"
+    elif _finite(vr):
+        u2_held, dof_h = vr**2 / 2 - sig2 - rep**2 - c2, 2 * n
+        source = f"{n} fitted marks and their cross-validation"
+    else:
+        u2_held, dof_h, source = 0.0, 0, f"{n} fitted marks"
+    u2 = max((dof_f * u2_fit + dof_h * u2_held) / (dof_f + dof_h), 0.0)
+    total = math.sqrt(c2 + rep**2 + u2 + print_mm**2)
+    return {"calibration_mm": math.sqrt(c2), "repeatability_mm": rep,
+            "unexplained_mm": math.sqrt(u2), "print_mm": print_mm, "total_mm": total,
+            "from": source}
 
 
 def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
@@ -627,11 +830,12 @@ def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
 #: outside what the marks saw: ``valid_for``, what the informative plan identifies),
 #: ``drift``, ``noise_floor`` (the residual or a target error against the noise),
 #: ``structure`` (structure left, scans not run, photos moved, the grid), ``left_out``
-#: (outliers, unreliable marks), ``accuracy`` (the accuracy figure and its degrees of
+#: (outliers, unreliable marks), ``replication`` (the fit's two halves disagree, or it
+#: could not be halved), ``accuracy`` (the accuracy figure and its degrees of
 #: freedom), ``print_one_place`` (the print not measured: one camera place), ``camera``
 #: (a camera calibration's own: parameters the poses do not separate, the lens), ``other``
 REASON_CODES = ("plan", "not_identified", "drift", "noise_floor", "structure", "left_out",
-                "accuracy", "print_one_place", "camera", "other")
+                "replication", "accuracy", "print_one_place", "camera", "other")
 
 
 def _coded(reasons, code: str) -> list[tuple[str, str, str]]:

@@ -27,7 +27,7 @@ from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.io import atomic_write_json, atomic_write_text, read_json
 from vision_cal.report import plots
 from vision_cal.report.headline import STATISTICS, actions, headline, mark_rows, provenance
-from vision_cal.report.summary import describe_effect
+from vision_cal.report.summary import describe_effect, uncertainty_lines
 
 MAX_PHOTOS = 40
 # Every photo is embedded once, as a JPEG of the overlay (the full-size file is linked).
@@ -464,6 +464,7 @@ def _parameters_html(rep: dict) -> list[str]:
         parts.append(f"<p class=note>{_e(stats_help['held-out'])}</p>")
     if doc.get("noise_floor_mm") is not None:
         parts.append(f"<p>Measurement noise floor: {_f(doc['noise_floor_mm'])} mm (RMS, 2-D)</p>")
+    parts += [f"<p>{_e(line)}</p>" for line in uncertainty_lines(doc)]
     ident = doc.get("identifiability") or {}
     if ident:
         parts.append(f"<p class=note>condition number of the scaled Jacobian "

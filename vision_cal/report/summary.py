@@ -163,6 +163,7 @@ def _calibration_summary(doc: dict, reference: dict | None) -> str:
         v = verdict_block(doc)
         if v.get("floor_line"):
             lines.append(v["floor_line"])
+        lines += uncertainty_lines(doc)
         lines += verdict_lines(v)
     lines += _camera_lines(doc)
     tc = doc.get("truth_comparison")
@@ -173,6 +174,31 @@ def _calibration_summary(doc: dict, reference: dict | None) -> str:
         if "mark_rms_mm" in tc:
             lines.append(f"  mark position RMS error against truth: {_f(tc['mark_rms_mm'], 4)} mm")
     return "\n".join(lines)
+
+
+def uncertainty_lines(doc: dict) -> list[str]:
+    """What the stated figures hold (issue 37), from calibration.json alone: the
+    repeatability and where it comes from (``verdict.repeatability``), a target's std by
+    part (``verdict.target_std``), the fit replicated by two halves of its marks
+    (``replication.text``), the paper's scale (``paper_scale.text``); none for an older
+    file without them."""
+    out = []
+    v = doc.get("verdict") if isinstance(doc.get("verdict"), dict) else {}
+    rp = v.get("repeatability")
+    if isinstance(rp, dict) and rp.get("mm") is not None:
+        out.append(f"repeatability {rp['mm']:.4f} mm per axis ({rp.get('why', '')})")
+    ts = v.get("target_std")
+    if isinstance(ts, dict) and ts.get("total_mm") is not None:
+        out.append(f"a target's std per axis {ts['total_mm']:.4f} mm: calibration "
+                   f"{ts['calibration_mm']:.4f}, repeatability {ts['repeatability_mm']:.4f}, "
+                   f"unexplained {ts['unexplained_mm']:.4f}, print {ts['print_mm']:.4f} mm "
+                   f"(from {ts.get('from', '?')}; plan.csv std_mm adds the paper's scale off "
+                   "the paper)")
+    for key in ("replication", "paper_scale"):
+        b = doc.get(key)
+        if isinstance(b, dict) and b.get("text"):
+            out.append(b["text"])
+    return out
 
 
 #: what a calibration.json without a verdict block (written before verdicts) is shown as

@@ -21,6 +21,7 @@ import numpy as np
 from vision_cal.calibrate.joint4 import add_tool, fit_joint4_paper, joint4_stage
 from vision_cal.model.lsq import Fit
 from vision_cal.calibrate.paper import PaperResult, paper_method
+from vision_cal.calibrate.paper_scale import check_bars, paper_scale_block
 from vision_cal.calibrate.plausible import check_plausible
 from vision_cal.model.tool_fit import folded_statement
 from vision_cal.camera.fixed import cameras_json
@@ -35,6 +36,7 @@ from vision_cal.dataset.valid_for import build as valid_for_block
 from vision_cal.diagnose.candidates import default_candidates
 from vision_cal.diagnose.discover import trace
 from vision_cal.diagnose.photos import per_photo_offsets
+from vision_cal.diagnose.replicate import replicate
 from vision_cal.diagnose.select import Diagnosis, diagnose
 from vision_cal.diagnose.sheet import smooth_residual
 from vision_cal.diagnose.verdict import judge
@@ -208,17 +210,23 @@ class _Fitted:
 
 def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None = None,
                       progress: bool = False, truth: bool = False,
-                      config: EstimatorConfig | None = None, survey=None) -> CalibrationRun:
+                      config: EstimatorConfig | None = None, survey=None,
+                      bars_mm=None) -> CalibrationRun:
     """Measure (if needed), calibrate and diagnose a dataset folder; write calibration.json.
 
     The stages: :func:`measure_marks`, then :func:`fit_paper` or :func:`fit_lsq`, then
     :func:`document`. ``config``: the estimator's thresholds (:mod:`vision_cal.config`;
     default ``DEFAULT``), recorded in calibration.json's ``config``. ``survey``: the sheet
     as printed (survey.json's path, or None: a ``survey.json`` beside session.json's sheet
-    is not looked for here; :func:`vision_cal.measure.survey.find_survey` does that)."""
+    is not looked for here; :func:`vision_cal.measure.survey.find_survey` does that).
+    ``bars_mm``: the sheet's two printed 100 mm bars as measured (x, y), in place of
+    ``sheet.printed.measured_bar_mm`` (``calibrate --bars-mm``; calibration.json
+    ``printer_scale`` and ``paper_scale``)."""
     if method not in METHODS:
         raise VisionCalError(f"unknown method {method!r} (expected one of {', '.join(METHODS)})")
     config = config or DEFAULT
+    if bars_mm is not None:
+        bars_mm = check_bars(bars_mm)
     # a folder, or a session already read (a marks CSV: vision_cal.dataset.marks_csv)
     session = folder if isinstance(folder, Session) else load_session(folder)
     out_dir = Path(out_dir)
@@ -241,7 +249,7 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
             fitted = replace(fitted, blocks={**fitted.blocks, "tool": folded_statement(
                 cal.joint4[:, 0], session.robot.tool_mm or (0.0, 0.0))})
     result = document(session, data, missing, measurement, fitted, method=method,
-                      config=config, truth=truth)
+                      config=config, truth=truth, bars_mm=bars_mm)
     check_plausible(result.to_json(), session)  # radians, metres: stop before any file
     out_path = result.write(out_dir / "calibration.json")
     log.info("wrote %s", out_path)
@@ -350,7 +358,7 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
         notes=list(ff.notes),
         residual_scale=ff.residual_scale,
         covariance=covariance_json(ff.labels, ff.cov),
-    )
+        replication=_replication(ff, cal, val, measurement, config))
     if traced is not None:
         doc["diagnosis"]["discovery"] = traced.report
         if traced.drift is not None:
@@ -392,6 +400,25 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
     return _Fitted(doc, ff.model, residual_all, residual_base, diagnosis=diag)
 
 
+def _replication(ff: Fit, cal: MarkData, val: MarkData, measurement,
+                 config: EstimatorConfig) -> dict:
+    """calibration.json ``replication``: the final model refitted on two halves of its
+    fitted marks and compared (:func:`vision_cal.diagnose.replicate.replicate`), at the
+    validation marks' commands when there are three or more."""
+    keep = np.asarray(ff.inliers, bool)
+    nv = len(val.ids)
+    return replicate(
+        ff.model, cal.q_model[keep], cal.xy_mm[keep], cal.approach_model[keep],
+        None if cal.sigma_mm is None else cal.sigma_mm[keep],
+        residual_scale=ff.residual_scale,
+        check_q=val.q_model if nv >= 3 else None,
+        check_approach=val.approach_model if nv >= 3 else None,
+        check_label=f"the {nv} validation marks' commands",
+        shared_cov_mm2=print_field_cov(None if measurement is None
+                                       else measurement.print_summary, cal.xy_mm[keep]),
+        config=config)
+
+
 def _print_shared(diag: Diagnosis, cal: MarkData, measurement) -> Diagnosis:
     """The diagnosis with its fits' parameter covariance grown by the print's correlated
     part (measurement.json ``print`` ``field``): the as-printed layout's uncertainty moves
@@ -412,12 +439,16 @@ def _print_shared(diag: Diagnosis, cal: MarkData, measurement) -> Diagnosis:
 
 def document(session: Session, data: MarkData, missing: list[str],
              measurement: Measurement | None, fitted: _Fitted, *, method: str,
-             config: EstimatorConfig = DEFAULT, truth: bool = False) -> CalibrationResult:
+             config: EstimatorConfig = DEFAULT, truth: bool = False,
+             bars_mm=None) -> CalibrationResult:
     """The one :class:`CalibrationResult` of a run: the fit's blocks, per-photo checks, the
     model the OLP had, the lens and the sheet height found by measurement, every mark with
-    its residuals, images, targets, still cameras, and the verdict judged on all of it."""
+    its residuals, images, targets, still cameras, the paper's scale (``bars_mm``: the
+    printed bars as measured, over the sheet's), and the verdict judged on all of it."""
     blk = dict(fitted.blocks)
     effects = list(blk.pop("effects"))
+    replication = blk.pop("replication", None)
+    extra = {} if replication is None else {"replication": replication}
     diagnosis = blk.pop("diagnosis", None)
     notes = blk.pop("notes", None)
     if measurement is not None:
@@ -445,7 +476,10 @@ def document(session: Session, data: MarkData, missing: list[str],
     if measurement is not None:
         notes += unreliable_notes
     limits = session.robot.joint_limits_deg
-    printer = printer_scale(session.sheet, effects, blk["params"])
+    printer = printer_scale(session.sheet, effects, blk["params"], bars_mm=bars_mm)
+    paper = paper_scale_block(session.sheet, blk["params"], blk.get("std"), printer, config)
+    if paper is not None:
+        extra["paper_scale"] = paper
     cameras, camera_notes = cameras_json(session, measurement, fitted.model,
                                          covariance=blk.get("covariance"), std=blk.get("std"))
     if camera_notes:
@@ -466,9 +500,11 @@ def document(session: Session, data: MarkData, missing: list[str],
         printer_scale=printer,
         cameras=cameras or None,   # added: still cameras (vision_cal/camera/fixed.py)
         sheet=sheet_identity(session.raw.get("sheet")),  # which printed sheet: design --pilot
-        # added (#28): the print's deviation from its layout and its limit on the marks
-        extra={"print": measurement.print_summary}
-        if measurement is not None and measurement.print_summary is not None else {})
+        # added (#28): the print's deviation from its layout and its limit on the marks;
+        # (#37) the fit replicated by two halves of its marks
+        extra={**({"print": measurement.print_summary}
+                  if measurement is not None and measurement.print_summary is not None
+                  else {}), **extra})
     if truth:
         result = replace(result, truth_comparison=compare_truth(session.root / "truth.json",
                                                                 result.to_json()))
@@ -583,7 +619,8 @@ def compare_truth(path: Path, doc: dict) -> dict:
     return out
 
 
-def printer_scale(sheet, effects, params: dict | None = None) -> dict | None:
+def printer_scale(sheet, effects, params: dict | None = None, *,
+                  bars_mm=None) -> dict | None:
     """The printer's scale from the user's measurement of the printed bars, kept apart from
     ``sheet_affine`` (added field ``printer_scale`` of calibration.json).
 
@@ -596,16 +633,18 @@ def printer_scale(sheet, effects, params: dict | None = None) -> dict | None:
     ``sheet_affine_beyond_printer`` is what a found ``sheet_affine`` leaves once the
     printer's part is taken out (paper shrink, a tilted motion plane); ``physical_mm`` the
     calibrated link lengths times ``uniform``. None when the bars were not measured.
+    ``bars_mm``: the bars as measured given to the run (``calibrate --bars-mm``), over the
+    sheet's; ``source`` says which.
     """
     printed = (sheet.printed if sheet is not None else None) or {}
-    mb = printed.get("measured_bar_mm")
+    mb = printed.get("measured_bar_mm") if bars_mm is None else bars_mm
     if mb is None:
         return None
     bar = float(printed.get("scale_bar_length_mm", 100.0))
     sx, sy = float(mb[0]) / bar, float(mb[1]) / bar
     out = {"x": sx, "y": sy, "uniform": float(np.sqrt(sx * sy)), "uneven": sx / sy - 1.0,
            "measured_bar_mm": [float(mb[0]), float(mb[1])], "bar_mm": bar,
-           "source": "sheet.printed.measured_bar_mm"}
+           "source": ("sheet.printed.measured_bar_mm" if bars_mm is None else "--bars-mm")}
     if params:
         out["physical_mm"] = {k: float(params[k]) * out["uniform"] for k in ("L1_mm", "L2_mm")
                               if params.get(k) is not None}
