@@ -305,7 +305,9 @@ def _outside_valid_for(req, doc: dict, p: _Planned, robot, model) -> list:
     return check_valid_for(valid_for_of(doc, file=str(req.calibration)),
                            cal=str(req.calibration), ids=ids,
                            joints_deg=[t.q_deg for t in ok], approach=approach,
-                           joint4_deg=q4, pen_down_mm=pen, std_mm=p.std,
+                           joint4_deg=q4, pen_down_mm=pen,
+                           # the calibration's part: what the covered range's limit is of
+                           std_mm=[r["std_calibration_mm"] for r in p.std],
                            std_limit_mm=std_limit_mm(model, doc, file=str(req.calibration)),
                            beyond_deg=beyond_deg(doc))
 
