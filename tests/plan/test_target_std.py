@@ -127,9 +127,10 @@ def test_bars_that_cannot_be_a_100_mm_bar_are_refused(tmp_path, capsys):
     with pytest.raises(VisionCalError, match="measure it again") as e:
         check_bars((110.0, 100.0))
     assert e.value.field == "--bars-mm"
-    _session(tmp_path, 3, sheet=make_sheet())
-    assert main(["calibrate", str(tmp_path), "--out", str(tmp_path / "o"), "--bars-mm",
-                 "1000", "100", "-q"]) == 2
+    (tmp_path / "data").mkdir()
+    _session(tmp_path / "data", 3, sheet=make_sheet())
+    assert main(["calibrate", str(tmp_path / "data"), "--out", str(tmp_path / "o"),
+                 "--bars-mm", "110", "100", "-q"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--bars-mm" in err[0], err
     assert not (tmp_path / "o" / "calibration.json").exists()

@@ -47,7 +47,7 @@ def add_arguments(p) -> None:
     p.add_argument("--survey", default=None, metavar="SURVEY.json",
                    help="the sheet as printed (vision-cal survey); default: a survey.json in "
                         "the dataset folder, if any")
-    p.add_argument("--bars-mm", type=float, nargs=2, default=None, dest="bars_mm",
+    p.add_argument("--bars-mm", type=bounded(50, 150, unit="mm"), nargs=2, default=None, dest="bars_mm",
                    metavar=("X", "Y"),
                    help="the sheet's two printed 100 mm bars as measured with a caliper (x, "
                         "then y): the paper's scale, which the marks cannot tell from the link "
