@@ -35,7 +35,7 @@ def add_arguments(p) -> None:
     p.add_argument("-o", "--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--poses", metavar="PAIRS", default=None,
                    help="pose pairs file (JSON vision-cal/poses/1, or CSV) instead of FOLDER")
-    p.add_argument("--units", choices=("mm", "m"), default=None,
+    p.add_argument("--units", choices=("mm", "cm", "in", "m"), default=None,
                    help="--poses: the file's lengths (default: the file's units, else mm)")
     p.add_argument("--mount", choices=("arm", "fixed"), default=None,
                    help="--poses: the camera rides on the flange (arm, default) or stands "
