@@ -43,6 +43,14 @@ robustly: the median pair first, then the pairs within the level; the level ``3 
 nu)`` at ``handeye.outlier_alpha`` over the pairs) are left out one at a time, worst
 first, and named. The result
 is a :class:`PairsFit` (frozen), or a :class:`PairsFailed` (falsy, with the reason).
+
+Before the fit (issue 40, :mod:`vision_cal.camera.pairs_checks`): pairs at one flange pose
+are one pose; a consensus of random triples' closed forms leaves out the pairs far from
+the best one (up to 60 % of them may be wrong), and the closed form of the pairs it keeps
+is the start. After it: another reading of the file that agrees far better (a mount, an
+inverse, a transpose, degrees for radians), the target's scale against the flange's (two
+units), the flange's reach, directions no pair sees (a singular value at round-off: named,
+no std) and sizes no mount has are the ``findings``. The cost is linear in the pairs.
 """
 
 from __future__ import annotations
