@@ -275,11 +275,31 @@ def probes(seeds) -> dict:
 
 
 def _plain(A, B, z):
-    """What a user would write: one unweighted least squares of the 11 parameters from the
-    same closed form (no weights, no outliers, no checks)."""
-    from vision_cal.camera.pose_pairs import _solve, closed_form
+    """What a user would write: one unweighted least squares of the 11 parameters (X's
+    rotation vector and translation, Y's rotation vector and x, y) from the same closed
+    form, each pair's target translation (mm) and rotation (deg) against Y's (no weights,
+    no outliers, no checks)."""
+    from scipy.optimize import least_squares
+
+    from vision_cal.camera.pairs_geometry import closed_form, rotvec
+
     X0, Y0 = closed_form(A, B, z)
-    return _solve(A, B, X0, Y0, z, np.eye(6), np.zeros(11))[0]
+
+    def unpack(x):
+        X, Y = np.eye(4), np.eye(4)
+        X[:3, :3] = Rotation.from_rotvec(x[:3]).as_matrix() @ X0[:3, :3]
+        X[:3, 3] = X0[:3, 3] + x[3:6]
+        Y[:3, :3] = Rotation.from_rotvec(x[6:9]).as_matrix() @ Y0[:3, :3]
+        Y[:3, 3] = [Y0[0, 3] + x[9], Y0[1, 3] + x[10], z]
+        return X, Y
+
+    def residual(x):
+        X, Y = unpack(x)
+        P = A @ X @ B
+        return np.hstack([P[:, :3, 3] - Y[:3, 3],
+                          np.degrees(rotvec(Y[:3, :3].T @ P[:, :3, :3]))]).ravel()
+
+    return least_squares(residual, np.zeros(11), method="lm").x
 
 
 def speed(n: int) -> dict:
