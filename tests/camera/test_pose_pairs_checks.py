@@ -200,9 +200,11 @@ def test_repeated_poses_count_once():
 
 def test_heights_no_camera_can_have_are_refused(tmp_path):
     """A target height of 1e9 mm in the file, or --z-mm 1e6: refused naming the field; a
-    fit asked for one says why."""
+    fit asked for one says why; 5 m puts the camera 5 m above its flange: not reliable."""
     w = _world("arm")
     assert isinstance(fit_pose_pairs(_pairs(w["A"], w["B"]), "arm", z_mm=1e9), PairsFailed)
+    high = fit_pose_pairs(_pairs(w["A"], w["B"]), "arm", z_mm=5000.0)
+    assert any(st == "not reliable" and "the camera would sit" in t for st, t in high.findings)
     doc = {"format": "vision-cal/poses/1", "target_z_mm": 1e9,
            "pairs": [{"T_robot_flange": a.tolist(), "T_camera_target": b.tolist()}
                      for a, b in zip(w["A"], w["B"])]}
@@ -215,3 +217,24 @@ def test_heights_no_camera_can_have_are_refused(tmp_path):
     with pytest.raises(VisionCalError) as e:
         read_poses(tmp_path / "p.json", target_z_mm=1e6)
     assert e.value.field == "--z-mm"
+
+
+def test_the_file_keeps_the_numbers_it_wrote_and_reads_cm_and_inches(tmp_path):
+    """A CSV's yaw and rotation vector are kept as written (so that degrees for radians
+    can be tried on them), and --units cm / in scale every length."""
+    w = _world("arm")
+    rv = Rotation.from_matrix(w["B"][:, :3, :3]).as_rotvec()
+    yaw = np.degrees(np.arctan2(w["A"][:, 1, 0], w["A"][:, 0, 0]))
+    rows = ["id,x,y,z,yaw_deg,rvec_x,rvec_y,rvec_z,tvec_x,tvec_y,tvec_z"]
+    for i, (A, B) in enumerate(zip(w["A"], w["B"])):
+        vals = [*(A[:3, 3] / 10.0), yaw[i], *np.degrees(rv[i]), *(B[:3, 3] / 10.0)]
+        rows.append(",".join([f"p{i:02d}"] + [repr(float(v)) for v in vals]))
+    (tmp_path / "p.csv").write_text("\n".join(rows) + "\n")
+    pf = read_poses(tmp_path / "p.csv", units="cm")
+    assert pf.pairs[3].flange_yaw == pytest.approx(yaw[3])
+    assert pf.pairs[3].target_rvec == pytest.approx(tuple(np.degrees(rv[3])))
+    assert np.allclose(pf.pairs[3].T_robot_flange[:3, 3], w["A"][3, :3, 3])
+    assert read_poses(tmp_path / "p.csv", units="in").pairs[3].T_robot_flange[0, 3] == \
+        pytest.approx(w["A"][3, 0, 3] / 10.0 * 25.4)
+    fit = fit_pose_pairs(list(pf.pairs), "arm", z_mm=0.0)
+    assert fit.findings and "rvec in degrees" in fit.findings[0][1]
