@@ -56,6 +56,19 @@ def onto_z(h: np.ndarray) -> np.ndarray:
     return np.eye(3) + s * Kx + (1.0 - c) * Kx @ Kx          # Rodrigues: sin = s, cos = c
 
 
+def rotmat(v) -> np.ndarray:
+    """(3, 3) rotation of the rotation vector ``v`` (rad; Rodrigues' formula: scipy's
+    conversion costs ten times as much, and the fit unpacks its parameters thousands of
+    times)."""
+    v = np.asarray(v, float)
+    a = math.sqrt(float(v @ v))
+    if a < 1e-12:
+        return np.eye(3) + np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    k = v / a
+    Kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(a) * Kx + (1.0 - math.cos(a)) * (Kx @ Kx)
+
+
 def rotvec(R: np.ndarray) -> np.ndarray:
     """(N, 3) rotation vectors (rad) of rotations (N, 3, 3): the angle from both the trace
     and the skew part (exact at small angles), scipy's conversion near a half turn only

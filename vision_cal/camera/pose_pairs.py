@@ -61,12 +61,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 
 from vision_cal.camera import pairs_checks as checks
 from vision_cal.camera.pairs_geometry import T_of as _T
-from vision_cal.camera.pairs_geometry import (closed_form, closed_form_parts, rotvec,
-                                              yaw_spread_deg)
+from vision_cal.camera.pairs_geometry import (closed_form, closed_form_parts, rotmat,
+                                              rotvec, yaw_spread_deg)
 from vision_cal.config import DEFAULT, HandeyeConfig
 from vision_cal.errors import Failure
 from vision_cal.progress import bar
@@ -190,8 +189,8 @@ def _moving(T: np.ndarray, mount: str) -> np.ndarray:
 
 
 def _unpack(x, X0, Y0, z_mm) -> tuple[np.ndarray, np.ndarray]:
-    RX = Rotation.from_rotvec(np.radians(x[0:3])).as_matrix() @ X0[:3, :3]
-    RY = Rotation.from_rotvec(np.radians(x[6:9])).as_matrix() @ Y0[:3, :3]
+    RX = rotmat(np.radians(x[0:3])) @ X0[:3, :3]
+    RY = rotmat(np.radians(x[6:9])) @ Y0[:3, :3]
     return _T(RX, X0[:3, 3] + x[3:6]), _T(RY, [Y0[0, 3] + x[9], Y0[1, 3] + x[10], z_mm])
 
 
