@@ -384,8 +384,10 @@ def _deleted_t2(A, B, X0, Y0, z: float, x, inl: np.ndarray, alpha: float) -> np.
 def _fit_with_outliers(pairs: list[PosePair], A, B, X0, Y0, z: float,
                        cfg: HandeyeConfig, inl: np.ndarray, reasons: list[str]) -> _Robust:
     """The weighted fit of the pairs ``inl`` (those the consensus kept), leaving out the
-    worst pair (deleted T^2 over the Bonferroni level :func:`_outlier_level`) and fitting
-    again, until none is over it or ``cfg.max_outlier_fraction`` of them are out."""
+    pairs beyond the Bonferroni level :func:`_outlier_level` (deleted T^2), worst first,
+    and fitting again, until none is over it or ``cfg.max_outlier_fraction`` of them are
+    out. Every pair beyond the level goes in one round (the consensus has taken the gross
+    ones, which could hide or drag others): rounds stay few whatever the pairs' number."""
     n = len(pairs)
     inl = inl.copy()
     reasons = list(reasons)
@@ -397,18 +399,21 @@ def _fit_with_outliers(pairs: list[PosePair], A, B, X0, Y0, z: float,
         x = fit.x
         chi = _deleted_t2(A, B, X0, Y0, z, x, inl, cfg.outlier_alpha / n)
         idx = np.flatnonzero(inl)
-        worst = idx[np.argmax(chi[idx])]
-        if chi[worst] <= limit:
+        beyond = idx[chi[idx] > limit]
+        if not len(beyond):
             break
-        if (~inl).sum() >= max_out or inl.sum() - 1 < cfg.min_pairs:
+        room = min(max_out - int((~inl).sum()), int(inl.sum()) - cfg.min_pairs)
+        if room <= 0:
             reasons.append(f"more pairs disagree than {cfg.max_outlier_fraction:.0%} of them: "
                            "none more left out (a wrong mount, units or frame convention?)")
             break
-        inl[worst] = False
-        dt_w, dr_w, _ = _raw_residuals(x, A[worst:worst + 1], B[worst:worst + 1], X0, Y0, z)
-        reasons.append(f"pair {pairs[worst].id}: {float(np.linalg.norm(dt_w)):.3f} mm, "
-                       f"{float(np.linalg.norm(dr_w)):.3f} deg from where the others put the "
-                       f"target (T^2 {chi[worst]:.0f}, the level {limit:.0f} for {len(idx)} pairs)")
+        out = beyond[np.argsort(-chi[beyond])][:room]
+        inl[out] = False
+        dt_w, dr_w, _ = _raw_residuals(x, A[out], B[out], X0, Y0, z)
+        reasons += [f"pair {pairs[i].id}: {float(np.linalg.norm(a)):.3f} mm, "
+                    f"{float(np.linalg.norm(b)):.3f} deg from where the others put the "
+                    f"target (T^2 {chi[i]:.0f}, the level {limit:.0f} for {len(idx)} pairs)"
+                    for i, a, b in zip(out, dt_w, dr_w)]
     return _Robust(fit, inl, tuple(reasons))
 
 
