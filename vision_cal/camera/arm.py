@@ -803,11 +803,16 @@ def camera_for(doc: dict, index: int, *, joints_deg=None, photo: str | None = No
     # taken as declared; the views' check of it is calibration.json's lens_check)
     idx = [labels.index(lab) for lab in LABELS]
     lens = [labels.index(lab) for lab in LENS_LABELS if lab in labels]
-    keep = idx + (lens if len(lens) == len(LENS_LABELS) else [])
-    return _camera_at(params, X, full[np.ix_(keep, keep)], q, j4, K=K, dist=dist, size=size,
-                      rep=rep, f_sd=float(entry.get("f_px_std") or 0.0),
-                      intrinsics=str(entry.get("intrinsics", "declared")),
-                      images=tuple(entry.get("images") or ()))
+    lens = lens if len(lens) == len(LENS_LABELS) else []
+    how = str(entry.get("intrinsics", "declared"))
+    cov = full[np.ix_(idx + lens, idx + lens)]
+    if lens and how == UNDETERMINED:
+        # only the sheet's plane is located, where the focal length's trade with the
+        # height is not seen: the covariance given the lens (its terms conditioned away)
+        cov = cov[:12, :12] - cov[:12, 12:] @ np.linalg.pinv(cov[12:, 12:]) @ cov[12:, :12]
+    return _camera_at(params, X, cov, q, j4, K=K, dist=dist, size=size, rep=rep,
+                      f_sd=0.0 if lens else float(entry.get("f_px_std") or 0.0),
+                      intrinsics=how, images=tuple(entry.get("images") or ()))
 
 
 def _camera_at(params: ScaraParams, X, cov_p, q, j4, *, K, dist, size, rep, f_sd, intrinsics,
