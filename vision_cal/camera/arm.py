@@ -23,6 +23,13 @@ What it cannot find: with ``q4`` the same in every photo (or a camera on link 2)
 camera's offset along link 2 and ``L2`` (and its sideways offset and ``z2``) move every
 photo alike; the covariance then shows them unidentified (``not_identifiable``): turn
 joint 4 between photos (``vision-cal design --camera-on-arm`` plans it).
+
+An undeclared lens (issue 37): its focal length trades with the camera's height, so the
+lens's covariance (:func:`estimate_lens`, clustered by photo) is carried through the fit
+into the parameters' (:func:`fit_arm_camera` ``lens_cov``), and :func:`camera_for` hands
+``locate`` the camera's 9x9 covariance with the lens's terms: the sheet's plane keeps its
+std, a point above it carries the focal length's. Markers found pixels off their photo's
+own pose fit are left out first (:func:`without_misdetected`).
 """
 
 from __future__ import annotations
@@ -74,8 +81,9 @@ class ArmView:
 
 @dataclass(frozen=True)
 class ArmFit:
-    """``params`` the robot; ``T_flange_camera`` (4, 4); ``cov`` (12, 12) in
-    :data:`LABELS` units; ``rms_px`` the corner reprojection RMS, ``view_rms_px`` (N,)."""
+    """``params`` the robot; ``T_flange_camera`` (4, 4); ``cov`` (P, P) in :attr:`labels`
+    units (the 12 of :data:`LABELS`, any backlash, an estimated lens's (f, k1, k2));
+    ``rms_px`` the corner reprojection RMS, ``view_rms_px`` (N,)."""
 
     params: ScaraParams
     T_flange_camera: np.ndarray
