@@ -11,6 +11,19 @@ has it: the pip build of OpenCV 5.0 does not) its error and its time on the same
 
     python bench/handeye_pairs.py --seeds 30 --pairs 20
     python bench/handeye_pairs.py --opencv-python /tmp/cv4/bin/python   # an OpenCV 4 elsewhere
+    python bench/handeye_pairs.py --probes --seeds 20     # issue 40's broken files
+    python bench/handeye_pairs.py --speed 10000            # issue 41: the cost per pair
+
+``--probes``: on each seed's clean pairs, the cases issue 40 names (an arm parked while only
+joint 4 turns, the target's rotation transposed under a tilted camera, pairs in cm and in
+inches, 8 and 11 of 20 boards misdetected by 5-19 mm, 20 poses written 100 times, a
+flange in metres with the board in mm, either transform inverted, a fixed camera read as
+on the arm, a rotation vector in degrees, a height of 1e9 mm): the verdict of each and
+whether its first reason names the cause; none may be "ready" (the repeats excepted: they
+are counted once, and then "ready" is right). ``--speed N``: ``handeye --poses``' fit of N
+distinct pairs against a plain least squares of the same 11 parameters from the same
+closed form (one unweighted ``scipy.optimize.least_squares``: what a user would write),
+in one process; the fit's cost per pair at 1,000 and N pairs (linear: the same).
 
 ``--opencv-python``: a Python whose cv2 has ``calibrateRobotWorldHandEye``; the pairs are
 handed to it through a temporary .npz and its X read back (the project's venv keeps its
@@ -43,8 +56,10 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from vision_cal.actions.handeye import pairs_document
 from vision_cal.camera.pose_pairs import PosePair, fit_pose_pairs
-from vision_cal.render.pose_pairs import simulate_pairs
+from vision_cal.render.arm_camera import T_flange_camera_true
+from vision_cal.render.pose_pairs import simulate_many_pairs, simulate_pairs
 from vision_cal.render.truth_model import TrueRobot
 
 TRUTH = TrueRobot(344.05, 259.87, (-2.57, -8.13), (-424.26, -230.35))
@@ -181,6 +196,133 @@ def photo_comparison(seeds, n_poses: int = 16) -> None:
               f"{np.median([r[1] for r in v]) * 1e3:.0f} ms")
 
 
+def _broken(seed: int) -> dict:
+    """Issue 40's cases on the world of ``seed``: name -> (pairs, mount, z_mm, the words
+    the first reason must hold, truth X)."""
+    w = simulate_many_pairs(TRUTH, 20, seed=seed)
+    X = w["X"]
+    rng = np.random.default_rng(seed)
+    mk = (lambda A, B, rv=None, yw=None: [
+        PosePair(f"p{i:02d}", a, b, None if yw is None else float(yw[i]),
+                 None if rv is None else tuple(rv[i])) for i, (a, b) in enumerate(zip(A, B))])
+    rv = Rotation.from_matrix(w["B"][:, :3, :3]).as_rotvec()
+    cases = {"clean": (mk(w["A"], w["B"]), "arm", 0.0, "", X)}
+    q = w["q"][np.argmin(np.linalg.norm(w["A"][:, :2, 3] - w["Y"][:2, 3], axis=1))]
+    try:
+        wp = simulate_pairs(TRUTH, 16, seed=seed, mount="arm", X=X, reach_mm=150.0,
+                            commands=[(q[0], q[1], j) for j in np.linspace(-170, 170, 80)])
+        cases["parked, joint 4 turns"] = (mk(wp["A"], wp["B"]), "arm", 0.0, "one place", X)
+    except ValueError:
+        pass
+    Xt = T_flange_camera_true(rng, tilt_deg=(15.0, 25.0))
+    wt = simulate_many_pairs(TRUTH, 20, seed=seed + 1, X=Xt, reach_mm=80.0)
+    Bt = wt["B"].copy()
+    Bt[:, :3, :3] = np.transpose(Bt[:, :3, :3], (0, 2, 1))
+    cases["target R transposed (tilted)"] = (mk(wt["A"], Bt), "arm", 0.0, "transposed", Xt)
+    for unit, f in (("cm", 10.0), ("inches", 25.4)):
+        A, B = w["A"].copy(), w["B"].copy()
+        A[:, :3, 3] /= f
+        B[:, :3, 3] /= f
+        cases[f"pairs in {unit}"] = (mk(A, B), "arm", 0.0, "centimetres or inches", X)
+    for n_bad in (8, 11):
+        B = w["B"].copy()
+        for i in rng.choice(20, n_bad, replace=False):
+            d = rng.normal(size=3)
+            B[i, :3, 3] += d / np.linalg.norm(d) * rng.uniform(5.0, 19.0)
+        cases[f"{n_bad}/20 misdetected"] = (mk(w["A"], B), "arm", 0.0, "disagree", X)
+    cases["20 poses x 100"] = (mk(np.tile(w["A"], (100, 1, 1)), np.tile(w["B"], (100, 1, 1))),
+                               "arm", 0.0, "", X)
+    A = w["A"].copy()
+    A[:, :3, 3] /= 1000.0
+    cases["flange m, board mm"] = (mk(A, w["B"]), "arm", 0.0, "metres", X)
+    cases["flange inverted"] = (mk(np.linalg.inv(w["A"]), w["B"]), "arm", 0.0, "--mount fixed", X)
+    cases["target inverted"] = (mk(w["A"], np.linalg.inv(w["B"])), "arm", 0.0, "inverted", X)
+    Bd = w["B"].copy()
+    Bd[:, :3, :3] = Rotation.from_rotvec(np.degrees(rv)).as_matrix()
+    cases["rvec in degrees"] = (mk(w["A"], Bd, np.degrees(rv)), "arm", 0.0, "degrees", X)
+    wf = simulate_pairs(TRUTH, 20, seed=seed, mount="fixed", noise_px=0.1)
+    cases["fixed read as arm"] = (mk(wf["A"], wf["B"]), "arm", 0.0, "--mount fixed", wf["X"])
+    cases["height 1e9 mm"] = (mk(w["A"], w["B"]), "arm", 1e9, "height", X)
+    return cases
+
+
+def probes(seeds) -> dict:
+    """Issue 40's cases over ``seeds``: per case the verdicts and how often the first
+    reason (or the refusal) names the cause."""
+    table: dict = {}
+    for seed in seeds:
+        for name, (pairs, mount, z, words, X) in _broken(seed).items():
+            fit = fit_pose_pairs(pairs, mount, z_mm=z)
+            if not fit:
+                status, first = "refused", fit.reason
+            else:
+                v = pairs_document(fit, source="bench", units="mm")["verdict"]
+                status, first = v["status"], (v["reasons"] or [""])[0]
+            row = table.setdefault(name, {"status": {}, "named": 0, "n": 0, "err_mm": []})
+            row["status"][status] = row["status"].get(status, 0) + 1
+            row["named"] += int(words in first)
+            row["n"] += 1
+            if fit:
+                row["err_mm"].append(float(np.linalg.norm(fit.X[:3, 3] - X[:3, 3])))
+    print(f"issue 40's cases over seeds {seeds[0]}-{seeds[-1]} (verdict counts; the first "
+          "reason names the cause; median |t error| of X):")
+    for name, row in table.items():
+        err = f"{np.median(row['err_mm']):.3g} mm" if row["err_mm"] else "-"
+        print(f"  {name:30s} {json.dumps(row['status']):45s} cause named {row['named']}/"
+              f"{row['n']}  error {err}")
+        row["err_mm"] = float(np.median(row["err_mm"])) if row["err_mm"] else None
+    return table
+
+
+def _plain(A, B, z):
+    """What a user would write: one unweighted least squares of the 11 parameters (X's
+    rotation vector and translation, Y's rotation vector and x, y) from the same closed
+    form, each pair's target translation (mm) and rotation (deg) against Y's (no weights,
+    no outliers, no checks)."""
+    from scipy.optimize import least_squares
+
+    from vision_cal.camera.pairs_geometry import closed_form, rotvec
+
+    X0, Y0 = closed_form(A, B, z)
+
+    def unpack(x):
+        X, Y = np.eye(4), np.eye(4)
+        X[:3, :3] = Rotation.from_rotvec(x[:3]).as_matrix() @ X0[:3, :3]
+        X[:3, 3] = X0[:3, 3] + x[3:6]
+        Y[:3, :3] = Rotation.from_rotvec(x[6:9]).as_matrix() @ Y0[:3, :3]
+        Y[:3, 3] = [Y0[0, 3] + x[9], Y0[1, 3] + x[10], z]
+        return X, Y
+
+    def residual(x):
+        X, Y = unpack(x)
+        P = A @ X @ B
+        return np.hstack([P[:, :3, 3] - Y[:3, 3],
+                          np.degrees(rotvec(Y[:3, :3].T @ P[:, :3, :3]))]).ravel()
+
+    return least_squares(residual, np.zeros(11), method="lm").x
+
+
+def speed(n: int) -> dict:
+    """The fit's cost at 1,000 and ``n`` distinct pairs against the plain least squares."""
+    out = {}
+    for m in sorted({1000, n}):
+        w = simulate_many_pairs(TRUTH, m, seed=4141)
+        pairs = [PosePair(str(i), a, b) for i, (a, b) in enumerate(zip(w["A"], w["B"]))]
+        t0, c0 = time.perf_counter(), time.process_time()
+        fit = fit_pose_pairs(pairs, "arm", z_mm=0.0, progress=True)
+        t1, c1 = time.perf_counter(), time.process_time()
+        _plain(w["A"], w["B"], 0.0)
+        t2, c2 = time.perf_counter(), time.process_time()
+        out[m] = {"fit_s": t1 - t0, "fit_cpu_s": c1 - c0, "plain_s": t2 - t1,
+                  "plain_cpu_s": c2 - c1, "per_pair_ms": 1e3 * (c1 - c0) / m,
+                  "outliers": len(fit.outliers), "findings": len(fit.findings)}
+        print(f"handeye --poses, {m} pairs: {t1 - t0:.1f} s wall, {c1 - c0:.1f} s CPU "
+              f"({1e3 * (c1 - c0) / m:.2f} ms a pair); plain least squares {c2 - c1:.1f} s CPU: "
+              f"{(c1 - c0) / max(c2 - c1, 1e-9):.1f}x; {len(fit.outliers)} pairs left out, "
+              f"{len(fit.findings)} findings")
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=20)
@@ -191,7 +333,19 @@ def main() -> None:
     ap.add_argument("--json", default=None, help="also write the figures here")
     ap.add_argument("--photos", action="store_true",
                     help="also compare with the photo-based handeye on the same robot")
+    ap.add_argument("--probes", action="store_true", help="issue 40's broken files only")
+    ap.add_argument("--speed", type=int, default=None, metavar="N",
+                    help="the fit's cost with N pairs only (issue 41)")
     a = ap.parse_args()
+    if a.probes or a.speed:
+        figures = {}
+        if a.probes:
+            figures["probes"] = probes(list(range(a.first_seed, a.first_seed + a.seeds)))
+        if a.speed:
+            figures["speed"] = speed(a.speed)
+        if a.json:
+            Path(a.json).write_text(json.dumps(figures, indent=1))
+        return
     if a.photos:
         photo_comparison(range(a.first_seed, a.first_seed + min(a.seeds, 10)))
     print(f"installed cv2 {cv2.__version__}: calibrateRobotWorldHandEye "
@@ -199,7 +353,7 @@ def main() -> None:
     figures = {}
     for mount in ("arm", "fixed"):
         for noise, kw in NOISE.items():
-            zs, times, falses, unseen, ocv, own = [], [], 0, 0, {}, []
+            zs, times, falses, unseen, ocv, own, found = [], [], 0, 0, {}, [], 0
             for seed in range(a.first_seed, a.first_seed + a.seeds):
                 w = simulate_pairs(TRUTH, a.pairs, seed=seed, mount=mount, **kw)
                 pairs = [PosePair(str(i), p, q) for i, (p, q) in enumerate(zip(w["A"], w["B"]))]
@@ -209,6 +363,7 @@ def main() -> None:
                 free = fit_pose_pairs(pairs, mount)     # without the height: flagged?
                 unseen += int(any(d["label"] == "X_z_mm" for d in free.not_identifiable))
                 falses += len(fit.outliers)
+                found += len(fit.findings)
                 zs.append(_err(fit.X, w["X"]) / np.sqrt(np.diag(fit.cov))[:6])
                 if mount == "arm":
                     res = (_opencv_there(a.opencv_python, w["A"], w["B"]) if a.opencv_python
@@ -224,11 +379,13 @@ def main() -> None:
             zs = np.array(zs)
             row = {"rms_error_over_std": np.sqrt(np.mean(zs**2, axis=0)).round(2).tolist(),
                    "within_2_std": float(np.mean(np.abs(zs) < 2.0)),
-                   "false_outliers": falses, "height_flagged": f"{unseen}/{a.seeds}",
+                   "false_outliers": falses, "false_findings": found,
+                   "height_flagged": f"{unseen}/{a.seeds}",
                    "median_time_s": float(np.median(times))}
             print(f"{mount:5s} {noise:4s}: error/std RMS (rot x y z, t x y z) "
                   f"{row['rms_error_over_std']}, within 2 std {row['within_2_std']:.1%}, "
-                  f"pairs falsely left out {falses} in {a.seeds} sets, height flagged "
+                  f"pairs falsely left out {falses} in {a.seeds} sets, findings {found}, "
+                  "height flagged "
                   f"{row['height_flagged']}, {row['median_time_s'] * 1e3:.0f} ms")
             if mount == "arm":
                 row["pair_rms_mm"] = float(np.median(own))

@@ -378,6 +378,30 @@ class HandeyeConfig:
     max_outlier_fraction: float = 0.3  # never leave out more than this share of the pairs
     unidentified_std_mm: float = 5.0  # a translation whose std is above this (mm) ...
     unidentified_std_deg: float = 2.0  # ... or a rotation above this (deg): not identifiable
+    # issue 40-41: the pairs checked against each other (camera/pairs_checks.py)
+    max_pairs: int = 100_000          # more pairs are refused (the fit is linear in them:
+                                      # 10,000 take seconds, bench/handeye_pairs.py --speed)
+    progress_pairs: int = 2_000       # from this many pairs on, a progress line a stage
+    repeat_mm: float = 1e-3           # flange poses within this (mm) ...
+    repeat_deg: float = 1e-3          # ... and this (deg) are one pose, counted once
+    consensus_trials: int = 220       # random triples tried (every one of fewer pairs): with
+                                      # 60 % of the pairs bad, a clean one unfound 1 in 10^6
+    consensus_share: float = 0.4      # a triple is scored by the pairs' spread at this
+                                      # quantile: up to 60 % of the pairs may be wrong
+    consensus_cut: float = 5.0        # pairs beyond this many times that spread are left out
+                                      # before the weighted fit tests the rest one by one
+    convention_ratio: float = 4.0     # another reading of the pairs (mount, an inverse, a
+                                      # transpose, degrees) agreeing this many times better
+                                      # than the one given is named as the likely cause
+    convention_sample: int = 500      # pairs (spread over the file) the readings are tried on
+    unit_ratio: float = 1.5           # the target's translations this many times the flange's
+                                      # motion (or less): two units
+    scale_min_rel: float = 0.01       # ... off 1 by more than this share and scale_sigma
+    scale_sigma: float = 5.0          # std: the board's size declared to its detector off?
+    min_reach_mm: float = 100.0       # a flange never this far from the robot's axis: not a
+                                      # SCARA in mm (Yamaha's YK120 reaches 120 mm)
+    max_mount_mm: float = 2_000.0     # a camera or a target further from the flange: no mount
+    max_robot_mm: float = 10_000.0    # ... or from the robot's base: no workcell
 
 
 @dataclass(frozen=True)

@@ -85,7 +85,9 @@ def handeye_pairs_lines(o: HandeyePairsOutcome) -> list[str]:
 
     fit, xname = o.fit, o.camera_name
     t, sd = fit.X[:3, 3], o.document["cameras"][0][f"{xname}_std"]["translation_mm"]
-    lines = [f"{len(fit.ids)} pairs, {len(fit.outliers)} left out; pair scatter "
+    lines = [(f"{len(fit.ids) + len(fit.repeats)} pairs at {len(fit.ids)} distinct flange "
+              "poses (a repeated pose counted once), " if fit.repeats else
+              f"{len(fit.ids)} pairs, ") + f"{len(fit.outliers)} left out; pair scatter "
              f"{fit.sigma_mm:.3f} mm, {fit.sigma_deg:.3f} deg (one std per axis)",
              f"{xname}: at {t[0]:.3f} {t[1]:.3f} {t[2]:.3f} mm (std "
              + ", ".join("not identifiable" if v is None else f"{v:.3f}" for v in sd) + ")"]

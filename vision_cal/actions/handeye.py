@@ -66,6 +66,59 @@ class HandeyeRequest:
     quiet: bool = False
 
 
+def _pair_reasons(fit: PairsFit, xname: str, yframe: str) -> list[tuple[str, str]]:
+    """The verdict's (status, sentence) of a pairs fit: its checks' findings first (a wrong
+    unit or reading leaves every std meaningless: then nothing that follows from it), the
+    unseen height, the directions no pair sees, stds too large, the pairs left out."""
+    reasons: list[tuple[str, str]] = list(fit.findings)
+    wrong = any(st == "not reliable" for st, _ in fit.findings)
+    if not fit.z_given:
+        reasons.append(("check", f"the camera's height ({xname} z) is not identifiable from a "
+                                 "SCARA's poses: taken with the target's origin at z = 0 in "
+                                 f"the {yframe} frame; give its height with --z-mm (or "
+                                 "target_z_mm in the file)"))
+    for sentence in dict.fromkeys(d["reason"] for d in fit.not_identifiable
+                                  if d["label"] in fit.unseen and not wrong):
+        reasons.append(("not reliable", sentence))
+    others = [d for d in fit.not_identifiable
+              if d["label"] != "X_z_mm" and d["label"] not in fit.unseen]
+    if others and not wrong:
+        reasons.append(("not reliable", "the pairs do not determine "
+                        + ", ".join(d["label"] for d in others)
+                        + ": turn the flange more between pairs, over more places"))
+    for r in fit.outlier_reasons:
+        if r.startswith("more pairs disagree") and not fit.findings:
+            reasons.append(("not reliable", r))
+    if fit.outliers:
+        reasons.append(("check", f"{len(fit.outliers)} pair(s) left out as disagreeing with "
+                                 "the others beyond their scatter: " + ", ".join(fit.outliers)))
+    return reasons
+
+
+def _pair_table(fit: PairsFit) -> list[dict]:
+    """calibration.json ``pairs``: every pair, its status (``ok``, ``outlier`` with the
+    reason, ``repeat`` of an earlier pair's pose) and residuals."""
+    why_out = {r.split(":")[0].removeprefix("pair "): r for r in fit.outlier_reasons}
+    table = []
+    for i, pid in enumerate(fit.ids):
+        ok = bool(fit.inlier[i])
+        row = {"id": pid, "status": "ok" if ok else "outlier",
+               "residual_mm": float(np.linalg.norm(fit.residual_mm[i])),
+               "residual_deg": float(np.linalg.norm(fit.residual_deg[i])),
+               "residual_xyz_mm": [float(v) for v in fit.residual_mm[i]],
+               "heldout_xyz_mm": [float(v) for v in fit.heldout_mm[i]],
+               "sigma_xy_mm": float(fit.sigma_xy_mm[i])}
+        if not ok:
+            row["reason"] = why_out.get(pid, "left out")
+        table.append(row)
+    for k, (pid, first) in enumerate(fit.repeats):
+        table.append({"id": pid, "status": "repeat", "repeat_of": first,
+                      "residual_mm": float(np.linalg.norm(fit.repeat_residual_mm[k])),
+                      "residual_deg": float(np.linalg.norm(fit.repeat_residual_deg[k])),
+                      "residual_xyz_mm": [float(v) for v in fit.repeat_residual_mm[k]]})
+    return table
+
+
 def pairs_document(fit: PairsFit, *, source: str, units: str,
                    config: EstimatorConfig | None = None) -> dict:
     """calibration.json (as a dict) of a hand-eye from pose pairs."""
@@ -74,40 +127,12 @@ def pairs_document(fit: PairsFit, *, source: str, units: str,
     std = fit.std()
     inl = fit.inlier
     ids = [i for i, ok in zip(fit.ids, inl) if ok]
-    reasons: list[tuple[str, str]] = []
-    if not fit.z_given:
-        reasons.append(("check", f"the camera's height ({xname} z) is not identifiable from a "
-                                 "SCARA's poses: taken with the target's origin at z = 0 in "
-                                 f"the {yframe} frame; give its height with --z-mm (or "
-                                 "target_z_mm in the file)"))
-    others = [d for d in fit.not_identifiable if d["label"] != "X_z_mm"]
-    if others:
-        reasons.append(("not reliable", "the pairs do not determine "
-                        + ", ".join(d["label"] for d in others)
-                        + ": turn the flange more between pairs, over more places"))
-    for r in fit.outlier_reasons:
-        if r.startswith("more pairs disagree"):
-            reasons.append(("not reliable", r))
-    if fit.outliers:
-        reasons.append(("check", f"{len(fit.outliers)} pair(s) left out as disagreeing with "
-                                 "the others beyond their scatter: " + ", ".join(fit.outliers)))
     verdict = judge_camera_poses(
         fit.residual_mm[inl, :2], fit.sigma_xy_mm[inl], fit.heldout_mm[inl, :2],
-        n_params=fit.n_params_xy, reasons=reasons, config=config.verdict, ids=ids,
+        n_params=fit.n_params_xy, reasons=_pair_reasons(fit, xname, yframe),
+        config=config.verdict, ids=ids,
         # the pairs' scatter holds the robot's repeatability already: not added twice
         repeatability_mm=0.0)
-    why_out = {r.split(":")[0].removeprefix("pair "): r for r in fit.outlier_reasons}
-    table = []
-    for i, pid in enumerate(fit.ids):
-        row = {"id": pid, "status": "ok" if inl[i] else "outlier",
-               "residual_mm": float(np.linalg.norm(fit.residual_mm[i])),
-               "residual_deg": float(np.linalg.norm(fit.residual_deg[i])),
-               "residual_xyz_mm": [float(v) for v in fit.residual_mm[i]],
-               "heldout_xyz_mm": [float(v) for v in fit.heldout_mm[i]],
-               "sigma_xy_mm": float(fit.sigma_xy_mm[i])}
-        if not inl[i]:
-            row["reason"] = why_out.get(pid, "left out")
-        table.append(row)
     z_from = ("given" if fit.z_given else
               "assumed: the target's origin at z = 0 (not identifiable)")
     cam = {"mount": fit.mount, "pairs": ids,
@@ -129,20 +154,28 @@ def pairs_document(fit: PairsFit, *, source: str, units: str,
                "noise",),
         extra={
             "poses_file": source, "units_read": units, "mount": fit.mount,
-            "not_identifiable": list(fit.not_identifiable), "pairs": table,
+            "not_identifiable": list(fit.not_identifiable), "pairs": _pair_table(fit),
             "pair_rms": {"residual_mm": float(np.sqrt(np.mean(np.sum(inl_mm**2, axis=1)))),
                          "residual_deg": float(np.sqrt(np.mean(np.sum(inl_deg**2, axis=1))))},
             "pair_scatter": {"sigma_mm": fit.sigma_mm, "sigma_deg": fit.sigma_deg,
                              "labels": ["x_mm", "y_mm", "z_mm", "rot_x_deg", "rot_y_deg",
                                         "rot_z_deg"],
-                             "covariance_camera": fit.noise_cov.tolist()}}).to_json()
+                             "covariance_camera": fit.noise_cov.tolist()},
+            "pair_checks": {
+                "pairs": len(fit.ids) + len(fit.repeats), "distinct_poses": len(fit.ids),
+                "repeats": len(fit.repeats),
+                "unit_scale": fit.scale if np.isfinite(fit.scale) else None,
+                "unit_scale_std": fit.scale_std if np.isfinite(fit.scale_std) else None,
+                "unseen": list(fit.unseen),
+                "findings": [{"status": st, "reason": t} for st, t in fit.findings]}}
+    ).to_json()
 
 
 def handeye_pairs(req: HandeyeRequest) -> HandeyePairsOutcome:
     """Read, fit, judge and write ``OUT/calibration.json``."""
     pf = read_poses(req.poses, units=req.units, mount=req.mount, target_z_mm=req.z_mm)
     fit = fit_pose_pairs(list(pf.pairs), pf.mount, z_mm=pf.target_z_mm,
-                         config=DEFAULT.handeye)
+                         config=DEFAULT.handeye, progress=not req.quiet)
     if not fit:
         raise CalibrationError(fit.reason, file=str(pf.path))
     doc = pairs_document(fit, source=str(pf.path), units=pf.units)

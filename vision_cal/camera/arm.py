@@ -23,11 +23,18 @@ What it cannot find: with ``q4`` the same in every photo (or a camera on link 2)
 camera's offset along link 2 and ``L2`` (and its sideways offset and ``z2``) move every
 photo alike; the covariance then shows them unidentified (``not_identifiable``): turn
 joint 4 between photos (``vision-cal design --camera-on-arm`` plans it).
+
+An undeclared lens (issue 37): its focal length trades with the camera's height, so the
+lens's covariance (:func:`estimate_lens`, clustered by photo) is carried through the fit
+into the parameters' (:func:`fit_arm_camera` ``lens_cov``), and :func:`camera_for` hands
+``locate`` the camera's 9x9 covariance with the lens's terms: the sheet's plane keeps its
+std, a point above it carries the focal length's. Markers found pixels off their photo's
+own pose fit are left out first (:func:`without_misdetected`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -74,8 +81,9 @@ class ArmView:
 
 @dataclass(frozen=True)
 class ArmFit:
-    """``params`` the robot; ``T_flange_camera`` (4, 4); ``cov`` (12, 12) in
-    :data:`LABELS` units; ``rms_px`` the corner reprojection RMS, ``view_rms_px`` (N,)."""
+    """``params`` the robot; ``T_flange_camera`` (4, 4); ``cov`` (P, P) in :attr:`labels`
+    units (the 12 of :data:`LABELS`, any backlash, an estimated lens's (f, k1, k2));
+    ``rms_px`` the corner reprojection RMS, ``view_rms_px`` (N,)."""
 
     params: ScaraParams
     T_flange_camera: np.ndarray
@@ -98,10 +106,16 @@ class ArmFit:
     #: joints (1, 2) whose backlash was fitted: parameters 12, 13 ... (full band, deg)
     backlash_joints: tuple[int, ...] = ()
     backlash_band_deg: tuple[float, ...] = ()
+    #: an estimated lens's parameters (:data:`LENS_LABELS`) last in ``cov``: the fit's
+    #: covariance with the lens's carried through it (the camera's height trades with the
+    #: focal length); ``cov_given_lens`` the fit's own, the lens held (P, P)
+    lens_labels: tuple[str, ...] = ()
+    cov_given_lens: np.ndarray | None = None
 
     @property
     def labels(self) -> tuple[str, ...]:
-        return LABELS + tuple(f"backlash{j}_deg" for j in self.backlash_joints)
+        return (LABELS + tuple(f"backlash{j}_deg" for j in self.backlash_joints)
+                + self.lens_labels)
 
     @property
     def backlash_deg(self) -> dict[int, float]:
@@ -113,7 +127,19 @@ class ArmFit:
 
     @property
     def not_identifiable(self) -> list[str]:
-        return [lab for lab, s in zip(self.labels, self.std) if not s < UNIDENTIFIED_STD]
+        """The robot's and the mount's parameters (not the lens's) whose std is above
+        :data:`UNIDENTIFIED_STD` (mm or deg)."""
+        return [lab for lab, s in zip(self.labels, self.std)
+                if lab not in self.lens_labels and not s < UNIDENTIFIED_STD]
+
+    @property
+    def not_identifiable_given_lens(self) -> list[str]:
+        """:attr:`not_identifiable` with the lens held: what the poses leave undetermined
+        whatever the lens (the rest is the lens's: its focal length moves the height)."""
+        if self.cov_given_lens is None:
+            return self.not_identifiable
+        sd = np.sqrt(np.clip(np.diag(self.cov_given_lens), 0.0, None))
+        return [lab for lab, s in zip(self.labels, sd) if not s < UNIDENTIFIED_STD]
 
     def high_correlations(self, limit: float = 0.9) -> list[dict]:
         """Pairs of parameters whose correlation is above ``limit`` in size."""
@@ -144,37 +170,69 @@ class ArmFit:
                                     "high_correlations": self.high_correlations()}}
 
 
-def _focal_std(obj, img, K, dist, rvecs, tvecs) -> float:
-    """The focal length's std (px) at a ``calibrateCamera`` solution: the reprojection
-    Jacobian in (f, k1, k2) with every view's pose profiled out (Schur complement), scaled
-    by the residual variance. (OpenCV's own figure assumes the problem well posed and says
-    0.01 px for views that leave f free.)"""
+@dataclass(frozen=True)
+class _LensInfo:
+    """What the views say about a lens's (f px, k1, k2) at a ``calibrateCamera``
+    solution, every view's pose profiled out (Schur complement): ``cov`` (3, 3) the
+    residuals' own (scaled by their pooled variance), ``cov_robust`` the same clustered by
+    photo (the sandwich: a photo's corners share its blur, its print and its view, so their
+    errors are not independent, and a rendered series put the focal length 3 of its own
+    std off), the larger of the two along the focal length; ``s2_view`` the median view's
+    residual variance (px^2 per axis: the corners' noise)."""
+
+    cov: np.ndarray
+    cov_robust: np.ndarray
+    s2_view: float
+
+
+def _lens_info(obj, img, K, dist, rvecs, tvecs) -> _LensInfo:
+    """:class:`_LensInfo` of views ``obj`` (sheet mm) seen at ``img`` (px) with the lens
+    ``(K, dist)`` and the views' poses ``rvecs``, ``tvecs``."""
     S = np.zeros((3, 3))
+    scores, per_view = [], []
     ssr, n_rows = 0.0, 0
     for o, m, rv, tv in zip(obj, img, rvecs, tvecs):
         uv, J = cv2.projectPoints(o.reshape(-1, 1, 3).astype(np.float64), rv, tv, K, dist)
         r = (uv.reshape(-1, 2) - m.reshape(-1, 2)).ravel()
         ssr += float(r @ r)
         n_rows += len(r)
+        per_view.append(float(r @ r) / max(len(r) - 6, 1))
         A = np.column_stack([J[:, 6] + J[:, 7], J[:, 10], J[:, 11]])   # f, k1, k2
         B = J[:, :6]                                                    # rvec, tvec
-        S += A.T @ A - A.T @ B @ np.linalg.solve(B.T @ B, B.T @ A)
-    s2 = ssr / max(n_rows - 6 * len(obj) - 3, 1)
-    cov = lsq_covariance(np.linalg.cholesky(S + 1e-300 * np.eye(3)).T, s2) \
-        if np.all(np.linalg.eigvalsh(S) > 0) else np.full((3, 3), np.inf)
-    return float(np.sqrt(cov[0, 0]))
+        Ap = A - B @ np.linalg.solve(B.T @ B, B.T @ A)                  # the pose profiled out
+        S += A.T @ Ap
+        scores.append(Ap.T @ r)
+    n = len(scores)
+    s2 = ssr / max(n_rows - 6 * n - 3, 1)
+    try:
+        Si = np.linalg.inv(S)
+    except np.linalg.LinAlgError:
+        inf = np.full((3, 3), np.inf)
+        return _LensInfo(inf, inf, float(np.median(per_view)) if per_view else s2)
+    g = np.array(scores)
+    sandwich = Si @ (g.T @ g) @ Si * n / max(n - 3, 1)
+    model = Si * s2
+    inflate = max(1.0, float(sandwich[0, 0] / model[0, 0])) if model[0, 0] > 0 else 1.0
+    return _LensInfo(model, model * inflate, float(np.median(per_view)) if per_view else s2)
+
+
+#: the lens parameters whose covariance an estimated lens carries into the arm camera's
+#: (calibration.json ``covariance``, after the robot's and the mount's)
+LENS_LABELS = ("f_px", "k1", "k2")
 
 
 @dataclass(frozen=True)
 class Lens:
     """The arm camera's lens estimated from its views: ``K`` (3, 3), ``dist`` (5,), how
-    (``estimated`` or :data:`~vision_cal.camera.fixed.UNDETERMINED`), ``f_px_std``."""
+    (``estimated`` or :data:`~vision_cal.camera.fixed.UNDETERMINED`), ``f_px_std``, and
+    ``cov`` (3, 3) over :data:`LENS_LABELS` (clustered by photo; None: undetermined)."""
 
     K: np.ndarray
     dist: np.ndarray
     intrinsics: str
     f_px_std: float
     reason: str = ""
+    cov: np.ndarray | None = None
 
 
 def estimate_lens(views: list["ArmView"], size_px) -> Lens:
@@ -201,44 +259,45 @@ def estimate_lens(views: list["ArmView"], size_px) -> Lens:
     except cv2.error as e:
         raise CalibrationError(f"the lens could not be estimated from the views: {e}") from e
     K, dist = out[1], np.asarray(out[2], float).ravel()[:5]
-    f_sd = _focal_std(obj, img, K, dist, out[3], out[4])
+    info = _lens_info(obj, img, K, dist, out[3], out[4])
+    f_sd = float(np.sqrt(info.cov_robust[0, 0])) if np.isfinite(info.cov_robust[0, 0]) \
+        else float("inf")
     if K[0, 0] > 0 and f_sd < F_REL_STD_MAX * K[0, 0]:
-        return Lens(np.asarray(K, float), dist, "estimated", f_sd)
+        return Lens(np.asarray(K, float), dist, "estimated", f_sd, cov=info.cov_robust)
     # f free trades with the height: keep the plane's mapping, distortion with f fixed
     out = cv2.calibrateCameraExtended(obj, img, (w, h), K0.copy(), np.zeros(5),
                                       flags=flags | cv2.CALIB_FIX_FOCAL_LENGTH)
-    return Lens(np.asarray(out[1], float), np.asarray(out[2], float).ravel()[:5], UNDETERMINED,
-                f_sd if np.isfinite(f_sd) else float("inf"),
+    Ku, du = np.asarray(out[1], float), np.asarray(out[2], float).ravel()[:5]
+    return Lens(Ku, du, UNDETERMINED, f_sd if np.isfinite(f_sd) else float("inf"),
                 f"the lens was not declared and the views (all at the same tilt to the sheet, "
                 f"{f_sd / max(K[0, 0], 1e-9):.0%} relative std of the focal length) cannot "
                 "tell its focal length from the camera's height: T_flange_camera's z and "
                 "heights off the sheet's plane are unknown (the robot and the sheet's plane "
                 "are not affected); declare camera K in session.json, or tilt the camera "
-                "15 deg or more")
+                "15 deg or more",
+                _capped(_lens_info(obj, img, Ku, du, out[3], out[4]).cov_robust,
+                        UNDETERMINED_F_REL * Ku[0, 0]))
 
 
-def _lens_cov(obj, img, K, dist, rvecs, tvecs) -> tuple[np.ndarray, float, int]:
-    """Covariance (3, 3) of (f px, k1, k2) at a ``calibrateCamera`` solution, every view's
-    pose profiled out (Schur complement), scaled by the residual variance (pooled: a bad
-    view widens it); the median view's residual variance (px^2 per axis: the corners'
-    noise) and the corners' rows."""
-    S = np.zeros((3, 3))
-    ssr, n_rows, per_view = 0.0, 0, []
-    for o, m, rv, tv in zip(obj, img, rvecs, tvecs):
-        uv, J = cv2.projectPoints(o.reshape(-1, 1, 3).astype(np.float64), rv, tv, K, dist)
-        r = (uv.reshape(-1, 2) - m.reshape(-1, 2)).ravel()
-        ssr += float(r @ r)
-        n_rows += len(r)
-        per_view.append(float(r @ r) / max(len(r) - 6, 1))
-        A = np.column_stack([J[:, 6] + J[:, 7], J[:, 10], J[:, 11]])   # f, k1, k2
-        B = J[:, :6]                                                    # rvec, tvec
-        S += A.T @ A - A.T @ B @ np.linalg.solve(B.T @ B, B.T @ A)
-    s2 = ssr / max(n_rows - 6 * len(obj) - 3, 1)
-    try:
-        cov = np.linalg.inv(S) * s2
-    except np.linalg.LinAlgError:
-        cov = np.full((3, 3), np.inf)
-    return cov, float(np.median(per_view)) if per_view else s2, n_rows
+#: an undetermined focal length's std is carried as this share of itself at most (its
+#: trade with the height is what matters: the sheet's plane stays where the views put it)
+UNDETERMINED_F_REL = 0.5
+
+
+def _capped(cov: np.ndarray, f_sd_max: float) -> np.ndarray:
+    """``cov`` over (f, k1, k2) with the focal length's std at most ``f_sd_max`` (its
+    correlations kept); an infinite or undefined one is that with no correlation."""
+    cov = np.array(cov, float)
+    if not np.all(np.isfinite(cov)):
+        out = np.zeros((3, 3))
+        out[0, 0] = f_sd_max**2
+        return out
+    sd = np.sqrt(max(cov[0, 0], 0.0))
+    if sd > f_sd_max:
+        c = f_sd_max / sd
+        cov[0, :] *= c
+        cov[:, 0] *= c
+    return cov
 
 
 @dataclass(frozen=True)
@@ -315,8 +374,8 @@ def check_declared_lens(views: list["ArmView"], size_px, K, dist,
             raise CalibrationError(f"the declared lens could not be checked against the "
                                    f"views: {e}") from e
         Kv, dv = np.asarray(out[1], float), np.asarray(out[2], float).ravel()
-        cov, s2, _ = _lens_cov(obj, img, Kv, dv, out[3], out[4])
-        return Kv, dv, cov, s2
+        info = _lens_info(obj, img, Kv, dv, out[3], out[4])
+        return Kv, dv, info.cov_robust, info.s2_view
 
     Kv, dv, cov, s2 = calibrate(0)
     f_v, f_sd = float(Kv[0, 0]), float(np.sqrt(max(cov[0, 0], 0.0)))
@@ -421,6 +480,56 @@ def _residuals(x, views, K, dist, R0, bl=()) -> np.ndarray:
     return np.concatenate(out)
 
 
+#: a marker whose corners sit further from its photo's own pose fit than this many times
+#: the photo's corner noise ...
+MARKER_OUTLIER_SIGMA = 8.0
+#: ... and than this (px) is misdetected (cut by the image's edge or a reflection)
+MARKER_OUTLIER_PX = 0.5
+#: never more than this share of a photo's markers is left out (a wrong lens bends them all)
+MARKER_OUTLIER_SHARE = 0.25
+
+
+def without_misdetected(views: list[ArmView], K, dist) -> tuple[list[ArmView], dict]:
+    """Each photo's markers found pixels off left out, worst first: a marker whose corners'
+    RMS distance from the photo's own pose fit (PnP through ``(K, dist)``, the others
+    holding it) is beyond :data:`MARKER_OUTLIER_SIGMA` times the photo's corner noise (the
+    median corner's, Rayleigh) and :data:`MARKER_OUTLIER_PX`, at most
+    :data:`MARKER_OUTLIER_SHARE` of them. A marker cut by the image's edge, or by a
+    reflection, is found with corners 5-15 px off in a photo whose corners are 0.03 px
+    good; kept, its photo's flange would read as the robot's. Returns the views and, per
+    photo with markers left out, how many."""
+    out, dropped = [], {}
+    for v in views:
+        keep = np.ones(len(v.corners_mm) // 4, bool)
+        for _ in range(int(MARKER_OUTLIER_SHARE * len(keep))):
+            idx = np.repeat(keep, 4)
+            obj = np.column_stack([v.corners_mm[idx], np.zeros(int(idx.sum()))])
+            ok, rvec, tvec = cv2.solvePnP(obj.reshape(-1, 1, 3),
+                                          v.corners_px[idx].reshape(-1, 1, 2), K, dist,
+                                          flags=cv2.SOLVEPNP_ITERATIVE)
+            if not ok:
+                break
+            obj_all = np.column_stack([v.corners_mm, np.zeros(len(v.corners_mm))])
+            uv = cv2.projectPoints(obj_all.reshape(-1, 1, 3), rvec, tvec, K, dist)[0]
+            r = np.linalg.norm(uv.reshape(-1, 2) - v.corners_px, axis=1)
+            sigma = float(np.median(r[idx])) / 1.1774        # a 2-D normal's median radius
+            per = np.sqrt(np.mean(r.reshape(-1, 4) ** 2, axis=1))
+            per[~keep] = -1.0
+            worst = int(np.argmax(per))
+            if per[worst] <= max(MARKER_OUTLIER_SIGMA * sigma, MARKER_OUTLIER_PX):
+                break
+            keep[worst] = False
+        if keep.all():
+            out.append(v)
+            continue
+        idx = np.repeat(keep, 4)
+        dropped[v.file] = int((~keep).sum())
+        out.append(replace(v, corners_mm=v.corners_mm[idx], corners_px=v.corners_px[idx],
+                           edges_px=None if v.edges_px is None else v.edges_px[keep],
+                           detected_px=None if v.detected_px is None else v.detected_px[keep]))
+    return out, dropped
+
+
 def camera_pose(view: ArmView, K, dist) -> np.ndarray:
     """T_sheet_camera (4, 4) of one photo from its corners alone."""
     obj = np.column_stack([view.corners_mm, np.zeros(len(view.corners_mm))])
@@ -432,7 +541,8 @@ def camera_pose(view: ArmView, K, dist) -> np.ndarray:
 
 
 def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams, *,
-                   corner_sigma_px: float | None = None) -> ArmFit:
+                   corner_sigma_px: float | None = None,
+                   lens_cov: np.ndarray | None = None) -> ArmFit:
     """Robot and ``T_flange_camera`` from photos taken by the arm's camera (``K``, ``dist``
     declared); starts from ``nominal`` and the first photo's pose. A joint reached from
     both sides in the photos (their ``approach``) has its backlash fitted as well (the
@@ -441,7 +551,8 @@ def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams, *,
     ``corner_sigma_px``: the corners' noise (px, per axis) the noise floor is built from,
     what the detector does (the views' own lens: :func:`check_declared_lens`); None: the
     photos' own pose fits with ``K`` and ``dist`` (a wrong declared lens then inflates it
-    and hides itself)."""
+    and hides itself). ``lens_cov`` (3, 3): an estimated lens's covariance over
+    :data:`LENS_LABELS`, carried into the parameters' (:func:`_with_lens`)."""
     bl = tuple(j for j in (1, 2) if len({v.approach[j - 1] for v in views}) > 1)
     if len(views) < MIN_POSES:
         raise CalibrationError(f"{len(views)} usable photos: at least {MIN_POSES} are needed "
@@ -477,15 +588,71 @@ def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams, *,
         C_pnp = C_pnp * (corner_sigma_px / max(sigma_px, 1e-12)) ** 2
         sigma_px = float(corner_sigma_px)
     x2 = np.concatenate([sol.x[:6], np.zeros(3), sol.x[9:]])
-    x3, cov, rms_pose, lev = _pose_level_fit(x2, views, M, R0, bl)
+    x3, cov, rms_pose, lev, jac, w = _pose_level_fit(x2, views, M, R0, bl)
     p, X = _unpack(x3, R0)          # the estimate the covariance belongs to
     e = _pose_residuals(x3, views, M, R0, bl)
     sig = _floor_terms(x3, views, M, C_pnp, R0, bl)
     keep = np.clip(1.0 - lev[:, :2], 1e-3, None)
     held = e[:, :2] / keep
-    return ArmFit(p, X, cov, rms_2d(r.reshape(-1, 2)), view_rms, n // 2, rms_pose,
-                  e[:, :2].copy(), sig, held, float(lev[:, :2].sum()), sigma_px,
-                  np.mean(1.0 / keep, axis=1), bl, tuple(float(v) for v in x3[12:]))
+    lens = {}
+    if lens_cov is not None:
+        lens = {"cov": _with_lens(cov, lens_cov, _lens_sensitivity(
+                    x3, views, M, R0, bl, K, dist, jac, w)),
+                "lens_labels": LENS_LABELS, "cov_given_lens": cov}
+    return ArmFit(p, X, lens.get("cov", cov), rms_2d(r.reshape(-1, 2)), view_rms, n // 2,
+                  rms_pose, e[:, :2].copy(), sig, held, float(lev[:, :2].sum()), sigma_px,
+                  np.mean(1.0 / keep, axis=1), bl, tuple(float(v) for v in x3[12:]),
+                  lens.get("lens_labels", ()), lens.get("cov_given_lens"))
+
+
+def _lens_sensitivity(x, views, M, R0, bl, K, dist, jac, w) -> np.ndarray:
+    """(P, 3) how the photo-level fit's parameters move with the lens's (f px, k1, k2):
+    each photo's pose solved again with the lens moved (PnP from its own pose), the fit's
+    weighted pose residuals moved with it, the Gauss-Newton step they ask for
+    (``-(J^T J)^-1 J^T de``, ``jac`` the weighted Jacobian at ``x``, ``w`` the weights)."""
+    K = np.asarray(K, float)
+    d0 = np.zeros(max(5, len(np.ravel(dist))))
+    d0[:len(np.ravel(dist))] = np.ravel(dist)
+    steps = (1e-3 * K[0, 0], 1e-4, 1e-4)
+    G = np.zeros((len(x), 3))
+    for j, h in enumerate(steps):
+        e = []
+        for sgn in (1.0, -1.0):
+            Kj, dj = K.copy(), d0.copy()
+            if j == 0:
+                Kj[0, 0] += sgn * h
+                Kj[1, 1] += sgn * h
+            else:
+                dj[j - 1] += sgn * h
+            Mj = np.array([_pnp_again(v, Mi, Kj, dj) for v, Mi in zip(views, M)])
+            e.append((_pose_residuals(x, views, Mj, R0, bl) * w).ravel())
+        G[:, j] = -np.linalg.lstsq(jac, (e[0] - e[1]) / (2 * h), rcond=None)[0]
+    return G
+
+
+def _pnp_again(view: ArmView, T_sheet_camera: np.ndarray, K, dist) -> np.ndarray:
+    """The photo's ``T_sheet_camera`` solved again with the lens ``(K, dist)``, from its
+    pose ``T_sheet_camera``."""
+    T_cs = np.linalg.inv(T_sheet_camera)
+    obj = np.column_stack([view.corners_mm, np.zeros(len(view.corners_mm))])
+    _, rvec, tvec = cv2.solvePnP(obj.reshape(-1, 1, 3), view.corners_px.reshape(-1, 1, 2),
+                                 K, dist, cv2.Rodrigues(T_cs[:3, :3])[0], T_cs[:3, 3].copy(),
+                                 useExtrinsicGuess=True, flags=cv2.SOLVEPNP_ITERATIVE)
+    return np.linalg.inv(homogeneous(cv2.Rodrigues(rvec)[0], tvec))
+
+
+def _with_lens(cov: np.ndarray, lens_cov: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """The (P + 3) covariance of the parameters and the lens: the fit's ``cov`` (the lens
+    held) plus the lens's carried through the sensitivity ``G`` (P, 3), and their cross
+    terms (the two errors independent: the lens from the corners' shape within each photo,
+    the fit from where the photos stand)."""
+    P = len(cov)
+    out = np.zeros((P + 3, P + 3))
+    out[:P, :P] = cov + G @ lens_cov @ G.T
+    out[:P, P:] = G @ lens_cov
+    out[P:, :P] = out[:P, P:].T
+    out[P:, P:] = lens_cov
+    return out
 
 
 def _view_poses(views, K, dist) -> tuple[np.ndarray, np.ndarray, float]:
@@ -549,10 +716,10 @@ def _pose_residuals(x, views, M, R0, bl=()) -> np.ndarray:
 _GROUPS = ((0, 1), (2,), (3, 4), (5,))
 
 
-def _pose_level_fit(x, views, M, R0, bl=()) -> tuple[np.ndarray, np.ndarray, dict, np.ndarray]:
+def _pose_level_fit(x, views, M, R0, bl=()) -> tuple:
     """The parameters refitted on the photo-level residuals with each group's variance as
-    its weight, their covariance (12, 12), the RMS of each group (mm, deg) and the
-    residuals' leverages (N, 6)."""
+    its weight, their covariance (12, 12), the RMS of each group (mm, deg), the
+    residuals' leverages (N, 6), the weighted Jacobian (6N, P) and the weights (6,)."""
     w = np.ones(6)
     n, P = len(views), len(x)
     for _ in range(3):
@@ -578,7 +745,7 @@ def _pose_level_fit(x, views, M, R0, bl=()) -> tuple[np.ndarray, np.ndarray, dic
     # row consumes, and a row's leave-one-out residual e / (1 - h)
     Q, _ = np.linalg.qr(sol.jac / np.maximum(np.linalg.norm(sol.jac, axis=0), 1e-300))
     lev = np.sum(Q**2, axis=1).reshape(n, 6)
-    return x, cov, rms, lev
+    return x, cov, rms, lev, sol.jac, w
 
 
 # --------------------------------------------------------------------------- pixel -> robot
@@ -629,8 +796,9 @@ def camera_for(doc: dict, index: int, *, joints_deg=None, photo: str | None = No
         K = np.asarray(entry["K"], float).reshape(3, 3)
         dist = np.asarray(entry["dist"], float).ravel()
         size = tuple(int(v) for v in entry["size_px"])
-        cov12 = np.asarray(doc["covariance"]["matrix"], float)[:12, :12]
-    except (KeyError, TypeError, ValueError) as e:
+        labels = list(doc["covariance"].get("params") or LABELS)
+        full = np.asarray(doc["covariance"]["matrix"], float)
+    except (KeyError, TypeError, ValueError, AttributeError) as e:
         raise VisionCalError(f"expected params, covariance and {where}'s T_flange_camera, K, "
                              "dist, size_px", file=file, field=where) from e
     q = np.array(q[:2], float)
@@ -638,26 +806,33 @@ def camera_for(doc: dict, index: int, *, joints_deg=None, photo: str | None = No
         if isinstance(e, dict) and e.get("name") == "joint_backlash" and e.get("joint") in (1, 2):
             q[e["joint"] - 1] -= float(approach[e["joint"] - 1]) * float(e["deg"]) / 2.0
     rep = float((doc.get("verdict") or {}).get("repeatability_mm", 0.0))
-    f_sd = float(entry.get("f_px_std") or 0.0)
-    lens_f_sd = 0.0
-    chk = entry.get("lens_check")
-    if not f_sd and isinstance(chk, dict) and chk.get("f_std_px"):
-        # a declared lens the views confirmed within their std: heights off the sheet's
-        # plane carry that std (the calibration's height rests on the declared f)
-        lens_f_sd = float(chk["f_std_px"])
-    return _camera_at(params, X, cov12, q, j4, K=K, dist=dist, size=size, rep=rep,
-                      f_sd=f_sd or lens_f_sd, add_height=bool(lens_f_sd),
-                      intrinsics=str(entry.get("intrinsics", "declared")),
-                      images=tuple(entry.get("images") or ()))
+    # the robot and mount (12), and an estimated lens's (f, k1, k2) where the covariance
+    # carries them: the camera's height trades with the focal length (a declared lens is
+    # taken as declared; the views' check of it is calibration.json's lens_check)
+    idx = [labels.index(lab) for lab in LABELS]
+    lens = [labels.index(lab) for lab in LENS_LABELS if lab in labels]
+    lens = lens if len(lens) == len(LENS_LABELS) else []
+    how = str(entry.get("intrinsics", "declared"))
+    cov = full[np.ix_(idx + lens, idx + lens)]
+    if lens and how == UNDETERMINED:
+        # only the sheet's plane is located, where the focal length's trade with the
+        # height is not seen: the covariance given the lens (its terms conditioned away)
+        cov = cov[:12, :12] - cov[:12, 12:] @ np.linalg.pinv(cov[12:, 12:]) @ cov[12:, :12]
+    return _camera_at(params, X, cov, q, j4, K=K, dist=dist, size=size, rep=rep,
+                      f_sd=0.0 if lens else float(entry.get("f_px_std") or 0.0),
+                      intrinsics=how, images=tuple(entry.get("images") or ()))
 
 
-def _camera_at(params: ScaraParams, X, cov12, q, j4, *, K, dist, size, rep, f_sd, intrinsics,
-               images, add_height: bool = False) -> FixedCamera:
+def _camera_at(params: ScaraParams, X, cov_p, q, j4, *, K, dist, size, rep, f_sd, intrinsics,
+               images) -> FixedCamera:
     """The arm camera at command (q, j4) as a :class:`FixedCamera`: ``T_robot_camera`` and
-    its covariance from the fit's (12, 12), the robot's repeatability ``rep`` added to its
-    in-plane place (the arm stands there within it), ``f_sd`` the focal length's std
-    (``add_height``: the fit's covariance does not hold it yet, so the camera's height
-    takes it too: f and the height move together, the sheet's plane stays)."""
+    its covariance from the fit's (``cov_p``: the 12 of :data:`LABELS`, then (f px, k1, k2)
+    when the lens was estimated), the robot's repeatability ``rep`` added to its in-plane
+    place (the arm stands there within it). With the lens's terms the camera's covariance
+    is (9, 9): its pose's 6, the focal length and k1, k2, with the cross terms the fit
+    gave them (the height moves with the focal length: the sheet's plane stays, a point
+    above it does not); without them (7, 7), ``f_sd`` the focal length's std alone (an
+    undetermined lens: only the sheet's plane is located)."""
     R0 = X[:3, :3]
     x0 = np.concatenate([[params.L1_mm, params.L2_mm, params.z1_deg, params.z2_deg,
                           params.base_x_mm, params.base_y_mm], np.zeros(3), X[:3, 3]])
@@ -674,16 +849,18 @@ def _camera_at(params: ScaraParams, X, cov12, q, j4, *, K, dist, size, rep, f_sd
         d = np.zeros(12)
         d[k] = steps[k]
         J[:, k] = (pose_delta(T_rc(x0 + d), T0) - pose_delta(T_rc(x0 - d), T0)) / (2 * steps[k])
-    cov = np.zeros((7, 7))
-    cov[:6, :6] = J @ cov12 @ J.T
     s = np.array([np.degrees(1.0)] * 3 + [1.0] * 3)
-    cov[:6, :6] *= np.outer(s, s)
+    Js = J * s[:, None]
+    n = 9 if len(cov_p) == 15 else 7
+    cov = np.zeros((n, n))
+    cov[:6, :6] = Js @ cov_p[:12, :12] @ Js.T
+    if n == 9:
+        cov[:6, 6:] = Js @ cov_p[:12, 12:]
+        cov[6:, :6] = cov[:6, 6:].T
+        cov[6:, 6:] = cov_p[12:, 12:]
+    elif f_sd > 0:
+        cov[6, 6] = f_sd**2
     cov[3, 3] += rep**2
     cov[4, 4] += rep**2
-    if f_sd > 0:     # f and the camera's height move together (the fit's cam_z holds it)
-        if add_height:
-            cov[5, 5] += (T0[2, 3] * f_sd / K[0, 0]) ** 2
-        cov[6, 6] = f_sd**2
-        cov[5, 6] = cov[6, 5] = f_sd**2 * T0[2, 3] / K[0, 0]
     return FixedCamera(images, size, K, dist, intrinsics, T0, cov, float("nan"), 0,
                        params.z1_deg, (params.base_x_mm, params.base_y_mm), np.eye(2))

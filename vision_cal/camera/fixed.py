@@ -86,7 +86,9 @@ def _perturb(T: np.ndarray, d: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class FixedCamera:
     """One still camera. ``K`` (3, 3), ``dist`` (n,), ``T_robot_camera`` (4, 4);
-    ``cov`` (7, 7) in :data:`COV_PARAMS` (``f_px`` variance 0 when ``K`` was declared);
+    ``cov`` (7, 7) in :data:`COV_PARAMS` (``f_px`` variance 0 when ``K`` was declared), or
+    (9, 9) with ``k1``, ``k2`` after them (an arm camera whose lens was estimated, at one
+    command: ``camera/arm.camera_for``);
     ``sheet_matrix`` (2, 2) the calibration's sheet_affine (identity without one)."""
 
     images: tuple[str, ...]
@@ -428,19 +430,25 @@ def locate(cam: FixedCamera, uv_px, z_mm: float = 0.0) -> list[Located]:
                              "session.json and calibrate again", field="--z-mm")
     T = cam.T_robot_camera
     p = _ray_to_plane(uv, cam.K, cam.dist, T, z_mm)
-    # std: the 7 covariance parameters perturbed (deg, mm, px), central differences
-    J = np.zeros((len(uv), 3, 7))
-    steps = np.array([1e-4] * 3 + [1e-3] * 3 + [1e-2])
-    for k in range(7):
+    # std: the covariance's parameters perturbed (deg, mm, px; then k1, k2 where the
+    # camera carries its estimated lens's: an arm camera's), central differences
+    n = len(cam.cov)
+    J = np.zeros((len(uv), 3, n))
+    steps = np.array([1e-4] * 3 + [1e-3] * 3 + [1e-2] + [1e-5] * (n - 7))
+    dist0 = np.zeros(max(5, len(np.ravel(cam.dist))))
+    dist0[:len(np.ravel(cam.dist))] = np.ravel(cam.dist)
+    for k in range(n):
         dp = []
         for sgn in (1.0, -1.0):
-            d = np.zeros(7)
+            d = np.zeros(n)
             d[k] = sgn * steps[k]
             Tk = _perturb(T, np.concatenate([np.radians(d[:3]), d[3:6]]))
             Kk = cam.K.copy()
             Kk[0, 0] += d[6]
             Kk[1, 1] += d[6]
-            dp.append(_ray_to_plane(uv, Kk, cam.dist, Tk, z_mm))
+            dk = dist0.copy()
+            dk[:n - 7] += d[7:]
+            dp.append(_ray_to_plane(uv, Kk, dk, Tk, z_mm))
         J[:, :, k] = (dp[0] - dp[1]) / (2 * steps[k])
     var = np.einsum("nik,kl,nil->ni", J, cam.cov, J)
     std = np.sqrt(np.clip(var, 0.0, None))

@@ -43,6 +43,14 @@ robustly: the median pair first, then the pairs within the level; the level ``3 
 nu)`` at ``handeye.outlier_alpha`` over the pairs) are left out one at a time, worst
 first, and named. The result
 is a :class:`PairsFit` (frozen), or a :class:`PairsFailed` (falsy, with the reason).
+
+Before the fit (issue 40, :mod:`vision_cal.camera.pairs_checks`): pairs at one flange pose
+are one pose; a consensus of random triples' closed forms leaves out the pairs far from
+the best one (up to 60 % of them may be wrong), and the closed form of the pairs it keeps
+is the start. After it: another reading of the file that agrees far better (a mount, an
+inverse, a transpose, degrees for radians), the target's scale against the flange's (two
+units), the flange's reach, directions no pair sees (a singular value at round-off: named,
+no std) and sizes no mount has are the ``findings``. The cost is linear in the pairs.
 """
 
 from __future__ import annotations
@@ -53,10 +61,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 
+from vision_cal.camera import pairs_checks as checks
+from vision_cal.camera.pairs_geometry import T_of as _T
+from vision_cal.camera.pairs_geometry import (closed_form, closed_form_parts, rotmat,
+                                              rotvec, yaw_spread_deg)
 from vision_cal.config import DEFAULT, HandeyeConfig
 from vision_cal.errors import Failure
+from vision_cal.progress import bar
 
 MOUNTS = ("arm", "fixed")
 #: the 11 fitted parameters (a small rotation about each frame's own parent axes, then the
@@ -71,11 +83,16 @@ _TINY = 1e-9
 
 @dataclass(frozen=True)
 class PosePair:
-    """One pair: ``T_robot_flange`` and ``T_camera_target`` (4, 4), mm."""
+    """One pair: ``T_robot_flange`` and ``T_camera_target`` (4, 4), mm; ``flange_yaw`` and
+    ``target_rvec``: the numbers the file wrote for the flange's yaw and the target's
+    rotation vector where it gave them so (None: as matrices), kept to try the readings a
+    tool may have meant (:mod:`vision_cal.camera.pairs_checks`)."""
 
     id: str
     T_robot_flange: np.ndarray
     T_camera_target: np.ndarray
+    flange_yaw: float | None = None
+    target_rvec: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -127,6 +144,19 @@ class PairsFit:
     start_Y: np.ndarray
     outlier_reasons: tuple[str, ...] = ()
     not_identifiable: tuple[dict, ...] = ()
+    #: (status, sentence) of the checks of the pairs against each other (units,
+    #: conventions, degenerate motion, sizes, outliers beyond the share allowed)
+    findings: tuple[tuple[str, str], ...] = ()
+    #: pairs at a flange pose an earlier pair has (counted once, their target averaged
+    #: into it): (id, the first pair's id) each, and their own residuals (R, 3) mm, deg
+    repeats: tuple[tuple[str, str], ...] = ()
+    repeat_residual_mm: np.ndarray | None = None
+    repeat_residual_deg: np.ndarray | None = None
+    #: the labels a direction the pairs do not see moves (their std is not stated)
+    unseen: tuple[str, ...] = ()
+    #: the closed form's scale of the target's translations against the flange's, its std
+    scale: float = 1.0
+    scale_std: float = float("inf")
 
     def __bool__(self) -> bool:
         return True
@@ -138,44 +168,14 @@ class PairsFit:
     def std(self) -> dict:
         """One std of X and Y: ``rotation_deg`` (about the parent frame's axes) and
         ``translation_mm``; the unseen height (X's z when not given) is None."""
-        sd = np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
-        x_t = [float(v) for v in sd[3:6]]
+        sd = [None if lab in self.unseen else float(v)
+              for lab, v in zip(LABELS, np.sqrt(np.clip(np.diag(self.cov), 0.0, None)))]
+        x_t = sd[3:6]
         if not self.z_given:
             x_t[2] = None
-        return {"X": {"rotation_deg": [float(v) for v in sd[0:3]], "translation_mm": x_t},
-                "Y": {"rotation_deg": [float(v) for v in sd[6:9]],
-                      "translation_mm": [float(sd[9]), float(sd[10]),
-                                         0.0 if self.z_given else None]}}
-
-
-def _rz(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def _T(R, t) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, t
-    return T
-
-
-def _project_so3(M: np.ndarray) -> np.ndarray:
-    U, _, Vt = np.linalg.svd(M)
-    R = U @ Vt
-    if np.linalg.det(R) < 0:
-        U[:, -1] *= -1
-        R = U @ Vt
-    return R
-
-
-def _onto_z(h: np.ndarray) -> np.ndarray:
-    """The smallest rotation turning unit ``h`` onto z."""
-    z = np.array([0.0, 0.0, 1.0])
-    axis = np.cross(h, z)
-    s, c = np.linalg.norm(axis), float(np.dot(h, z))
-    if s < 1e-12:
-        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    return Rotation.from_rotvec(axis / s * math.atan2(s, c)).as_matrix()
+        return {"X": {"rotation_deg": sd[0:3], "translation_mm": x_t},
+                "Y": {"rotation_deg": sd[6:9],
+                      "translation_mm": [sd[9], sd[10], 0.0 if self.z_given else None]}}
 
 
 def flange_tilt_deg(T_robot_flange: np.ndarray) -> float:
@@ -183,53 +183,14 @@ def flange_tilt_deg(T_robot_flange: np.ndarray) -> float:
     return math.degrees(math.acos(np.clip(T_robot_flange[2, 2], -1.0, 1.0)))
 
 
-def _moving(pairs: list[PosePair], mount: str) -> tuple[np.ndarray, np.ndarray]:
-    """(A' (N, 4, 4), B (N, 4, 4))."""
-    A = np.array([p.T_robot_flange for p in pairs], float)
-    B = np.array([p.T_camera_target for p in pairs], float)
-    return (A if mount == "arm" else np.linalg.inv(A)), B
-
-
-def closed_form(A: np.ndarray, B: np.ndarray, z_mm: float = 0.0
-                ) -> tuple[np.ndarray, np.ndarray]:
-    """The 4-DOF start (module docstring): (X, Y) from ``A'`` and ``B`` (N, 4, 4), ``Y``'s
-    origin at height ``z_mm``; of the two signs of the robot's z, the one whose pairs agree
-    best."""
-    n = len(A)
-    M = np.zeros((3 * n, 6))
-    for i in range(n):
-        M[3 * i:3 * i + 3, :3] = B[i, :3, :3]
-        M[3 * i:3 * i + 3, 3:] = -np.eye(3)
-    v = np.linalg.svd(M)[2][-1]
-    best = None
-    for sign in (1.0, -1.0):
-        h = sign * v[3:] / np.linalg.norm(v[3:])
-        Rh = _onto_z(h)
-        D = _project_so3(sum(A[i, :3, :3] @ Rh @ B[i, :3, :3] for i in range(n)))
-        rows, rhs = [], []
-        for i in range(n):
-            Rz2 = A[i, :2, :2]
-            w = Rh @ B[i, :3, 3]
-            V = np.array([[w[0], -w[1]], [w[1], w[0]]])
-            rows.append(np.hstack([Rz2, Rz2 @ V, -np.eye(2)]))
-            rhs.append(-A[i, :2, 3])
-        u = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
-        a = math.atan2(u[3], u[2])
-        RX = _rz(a) @ Rh
-        RY = _rz(a) @ D
-        dz = np.mean([-A[i, 2, 3] - (RX @ B[i, :3, 3])[2] for i in range(n)])
-        X = _T(RX, [u[0], u[1], z_mm + dz])
-        Y = _T(RY, [u[4], u[5], z_mm])
-        P = A @ X @ B
-        cost = float(np.sum((P[:, :3, 3] - Y[:3, 3]) ** 2))
-        if best is None or cost < best[0]:
-            best = (cost, X, Y)
-    return best[1], best[2]
+def _moving(T: np.ndarray, mount: str) -> np.ndarray:
+    """``A'`` (N, 4, 4) of flange poses ``T`` (N, 4, 4): themselves (arm) or their inverse."""
+    return T if mount == "arm" else np.linalg.inv(T)
 
 
 def _unpack(x, X0, Y0, z_mm) -> tuple[np.ndarray, np.ndarray]:
-    RX = Rotation.from_rotvec(np.radians(x[0:3])).as_matrix() @ X0[:3, :3]
-    RY = Rotation.from_rotvec(np.radians(x[6:9])).as_matrix() @ Y0[:3, :3]
+    RX = rotmat(np.radians(x[0:3])) @ X0[:3, :3]
+    RY = rotmat(np.radians(x[6:9])) @ Y0[:3, :3]
     return _T(RX, X0[:3, 3] + x[3:6]), _T(RY, [Y0[0, 3] + x[9], Y0[1, 3] + x[10], z_mm])
 
 
@@ -241,10 +202,11 @@ def _raw_residuals(x, A, B, X0, Y0, z_mm) -> tuple[np.ndarray, np.ndarray, np.nd
     AX = A @ X
     P = AX @ B
     dt = P[:, :3, 3] - Y[:3, 3]
-    dR = np.einsum("ji,njk->nik", Y[:3, :3], P[:, :3, :3])
-    dr = np.degrees(Rotation.from_matrix(dR).as_rotvec())      # in the target's frame
-    cam = np.hstack([np.einsum("nji,nj->ni", AX[:, :3, :3], dt),
-                     np.einsum("nij,nj->ni", B[:, :3, :3], dr)])
+    dR = Y[:3, :3].T @ P[:, :3, :3]
+    dr = np.degrees(rotvec(dR))                                # in the target's frame
+    # (matmul, not einsum: several times faster on thousands of 3x3 blocks)
+    cam = np.hstack([(dt[:, None, :] @ AX[:, :3, :3])[:, 0],
+                     (B[:, :3, :3] @ dr[:, :, None])[..., 0]])
     return dt, dr, cam
 
 
@@ -321,13 +283,15 @@ class _Weighted:
     """A fit of pairs weighted by their own scatter: ``x`` (11,) the parameters (about the
     closed form), ``S`` (6, 6) the pairs' noise covariance in the camera frame, ``W`` its
     whitener, ``cov`` (11, 11) the parameters' covariance (before the inverse Wishart's
-    correction) and ``hat`` (n, 6, 6) the hat matrix's diagonal blocks, of the pairs fitted."""
+    correction), ``hat`` (n, 6, 6) the hat matrix's diagonal blocks, of the pairs fitted,
+    and ``J`` (6n, 11) the whitened Jacobian."""
 
     x: np.ndarray
     S: np.ndarray
     W: np.ndarray
     cov: np.ndarray
     hat: np.ndarray
+    J: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -340,21 +304,31 @@ class _Robust:
     reasons: tuple[str, ...]
 
 
-def _refused(pairs: list[PosePair], mount: str, cfg: HandeyeConfig) -> PairsFailed | None:
-    """Why ``pairs`` cannot make a hand-eye before any fit (an unknown mount, too few pairs,
-    a flange that hardly turns); None: they can."""
+def _refused(pairs: list[PosePair], mount: str, cfg: HandeyeConfig,
+             z_mm: float | None) -> PairsFailed | None:
+    """Why ``pairs`` cannot make a hand-eye before any fit (an unknown mount, too few or
+    too many pairs, a height no target has, a flange that hardly turns); None: they can."""
     if mount not in MOUNTS:
         return PairsFailed(f"mount {mount!r}: expected one of {', '.join(MOUNTS)}")
     n = len(pairs)
     if n < cfg.min_pairs:
         return PairsFailed(f"{n} pairs: at least {cfg.min_pairs} are needed")
-    A, _ = _moving(pairs, mount)
-    yaw = np.degrees(np.arctan2(A[:, 1, 0], A[:, 0, 0]))
-    spread = float(np.degrees(np.abs(np.angle(np.exp(1j * np.radians(yaw - yaw[0]))))).max())
+    if n > cfg.max_pairs:
+        return PairsFailed(f"{n} pairs: at most {cfg.max_pairs} are read (the fit's cost "
+                           "grows with them and a few hundred distinct poses fix the camera "
+                           "as well as it can be): keep a subset")
+    if z_mm is not None and not abs(z_mm) <= cfg.max_robot_mm:
+        return PairsFailed(f"the target's height {z_mm:g} mm: a target within "
+                           f"{cfg.max_robot_mm:g} mm of the {'robot' if mount == 'arm' else 'flange'}"
+                           " frame's origin is expected (--z-mm and target_z_mm are in mm)")
+    spread = yaw_spread_deg(np.array([p.T_robot_flange for p in pairs], float))
     if spread < cfg.min_yaw_spread_deg:
-        return PairsFailed(f"the flange turns by at most {spread:.2f} deg between pairs: a "
-                           "camera's place on the flange needs turns of joint 4 (or of the "
-                           f"arm) of at least {cfg.min_yaw_spread_deg:g} deg")
+        yaws = [p.flange_yaw for p in pairs if p.flange_yaw is not None]
+        rad = (" (every yaw written within +-3.15: in radians? yaw_deg is in degrees)"
+               if yaws and max(abs(y) for y in yaws) <= 3.15 else "")
+        return PairsFailed(f"the flange turns by at most {spread:.2f} deg between pairs{rad}: "
+                           "a camera's place on the flange needs turns of joint 4 (or of "
+                           f"the arm) of at least {cfg.min_yaw_spread_deg:g} deg")
     return None
 
 
@@ -372,7 +346,14 @@ def _weighted_fit(A, B, X0, Y0, z: float, x, trim_alpha: float) -> _Weighted:
     W = _whitener(S)
     x, J = _solve(A, B, X0, Y0, z, W, x)
     cov, hat = _cov_and_hat(J)
-    return _Weighted(x, S, W, cov, hat)
+    return _Weighted(x, S, W, cov, hat, J)
+
+
+def _deleted(hat: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Deleted residuals ``(I - H_ii)^-1 w_i`` (k, 6) of whitened residuals ``w`` (k, 6)
+    and their covariances ``(I - H_ii)^-1`` (k, 6, 6), from the hat blocks (k, 6, 6)."""
+    Sd = np.linalg.inv(np.eye(6) - hat + 1e-12 * np.eye(6))
+    return np.einsum("kij,kj->ki", Sd, w), Sd
 
 
 def _deleted_t2(A, B, X0, Y0, z: float, x, inl: np.ndarray, alpha: float) -> np.ndarray:
@@ -392,24 +373,24 @@ def _deleted_t2(A, B, X0, Y0, z: float, x, inl: np.ndarray, alpha: float) -> np.
     # per axis only (6 variances, not 21 terms, from so few pairs: a far lower level)
     W_in = np.diag(1.0 / np.sqrt(np.diag(np.linalg.inv(W_in.T @ W_in))))
     hat_in = _cov_and_hat(_solve(A[inl], B[inl], X0, Y0, z, W_in, x, target=True)[1])[1]
-    w_test = seen @ W_in.T
+    d, Sd = _deleted(hat_in, (seen @ W_in.T)[inl])      # each at half the level
     chi = np.zeros(n)
-    for k, i in enumerate(np.flatnonzero(inl)):   # each at half the level
-        d = np.linalg.solve(np.eye(6) - hat_in[k] + 1e-12 * np.eye(6), w_test[i])
-        Sd = np.linalg.inv(np.eye(6) - hat_in[k] + 1e-12 * np.eye(6))
-        chi[i] = max(float(d[:3] @ np.linalg.solve(Sd[:3, :3], d[:3])),
-                     float(d[3:] @ np.linalg.solve(Sd[3:, 3:], d[3:])))
+    chi[inl] = np.maximum(
+        np.einsum("ki,ki->k", d[:, :3], np.linalg.solve(Sd[:, :3, :3], d[:, :3, None])[..., 0]),
+        np.einsum("ki,ki->k", d[:, 3:], np.linalg.solve(Sd[:, 3:, 3:], d[:, 3:, None])[..., 0]))
     return chi
 
 
 def _fit_with_outliers(pairs: list[PosePair], A, B, X0, Y0, z: float,
-                       cfg: HandeyeConfig) -> _Robust:
-    """The weighted fit, leaving out the worst pair (deleted T^2 over the Bonferroni level
-    :func:`_outlier_level`) and fitting again, until none is over it or
-    ``cfg.max_outlier_fraction`` of them are out."""
+                       cfg: HandeyeConfig, inl: np.ndarray, reasons: list[str]) -> _Robust:
+    """The weighted fit of the pairs ``inl`` (those the consensus kept), leaving out the
+    pairs beyond the Bonferroni level :func:`_outlier_level` (deleted T^2), worst first,
+    and fitting again, until none is over it or ``cfg.max_outlier_fraction`` of them are
+    out. Every pair beyond the level goes in one round (the consensus has taken the gross
+    ones, which could hide or drag others): rounds stay few whatever the pairs' number."""
     n = len(pairs)
-    inl = np.ones(n, bool)
-    reasons: list[str] = []
+    inl = inl.copy()
+    reasons = list(reasons)
     max_out = int(math.floor(cfg.max_outlier_fraction * n))
     x = np.zeros(11)
     while True:
@@ -418,18 +399,21 @@ def _fit_with_outliers(pairs: list[PosePair], A, B, X0, Y0, z: float,
         x = fit.x
         chi = _deleted_t2(A, B, X0, Y0, z, x, inl, cfg.outlier_alpha / n)
         idx = np.flatnonzero(inl)
-        worst = idx[np.argmax(chi[idx])]
-        if chi[worst] <= limit:
+        beyond = idx[chi[idx] > limit]
+        if not len(beyond):
             break
-        if (~inl).sum() >= max_out or inl.sum() - 1 < cfg.min_pairs:
+        room = min(max_out - int((~inl).sum()), int(inl.sum()) - cfg.min_pairs)
+        if room <= 0:
             reasons.append(f"more pairs disagree than {cfg.max_outlier_fraction:.0%} of them: "
                            "none more left out (a wrong mount, units or frame convention?)")
             break
-        inl[worst] = False
-        dt_w, dr_w, _ = _raw_residuals(x, A[worst:worst + 1], B[worst:worst + 1], X0, Y0, z)
-        reasons.append(f"pair {pairs[worst].id}: {float(np.linalg.norm(dt_w)):.3f} mm, "
-                       f"{float(np.linalg.norm(dr_w)):.3f} deg from where the others put the "
-                       f"target (T^2 {chi[worst]:.0f}, the level {limit:.0f} for {len(idx)} pairs)")
+        out = beyond[np.argsort(-chi[beyond])][:room]
+        inl[out] = False
+        dt_w, dr_w, _ = _raw_residuals(x, A[out], B[out], X0, Y0, z)
+        reasons += [f"pair {pairs[i].id}: {float(np.linalg.norm(a)):.3f} mm, "
+                    f"{float(np.linalg.norm(b)):.3f} deg from where the others put the "
+                    f"target (T^2 {chi[i]:.0f}, the level {limit:.0f} for {len(idx)} pairs)"
+                    for i, a, b in zip(out, dt_w, dr_w)]
     return _Robust(fit, inl, tuple(reasons))
 
 
@@ -441,37 +425,37 @@ def _per_pair(A, B, X0, Y0, z: float, r: _Robust) -> tuple[np.ndarray, np.ndarra
     f, inl = r.fit, r.inlier
     X, _ = _unpack(f.x, X0, Y0, z)
     dt_all, _, cam_all = _raw_residuals(f.x, A, B, X0, Y0, z)
-    w_all = cam_all @ f.W.T
     Winv = np.linalg.inv(f.W)
-    AX = A @ X
+    Rc = (A @ X)[:, :3, :3]
+    St = np.einsum("nij,jk,nlk->nil", Rc, f.S[:3, :3], Rc)
+    sig_xy = np.sqrt(np.maximum((St[:, 0, 0] + St[:, 1, 1]) / 2.0, 0.0))
     held = dt_all.copy()
-    sig_xy = np.zeros(len(A))
-    for i in range(len(A)):
-        Rc = AX[i, :3, :3]
-        St = Rc @ f.S[:3, :3] @ Rc.T
-        sig_xy[i] = math.sqrt(max(float(St[0, 0] + St[1, 1]) / 2.0, 0.0))
-    for k, i in enumerate(np.flatnonzero(inl)):
-        d = Winv @ np.linalg.solve(np.eye(6) - f.hat[k] + 1e-12 * np.eye(6), w_all[i])
-        held[i] = AX[i, :3, :3] @ d[:3]
-    p_xy = 0.0
-    for k, i in enumerate(np.flatnonzero(inl)):
-        Rc = AX[i, :3, :3]
-        T = Rc @ Winv[:3, :] @ f.hat[k] @ f.W[:, :3] @ Rc.T
-        p_xy += float(T[0, 0] + T[1, 1])
+    d, _ = _deleted(f.hat, (cam_all @ f.W.T)[inl])
+    held[inl] = np.einsum("kij,kj->ki", Rc[inl], d @ Winv[:3, :].T)
+    T = np.einsum("kij,jl,klm,mp,kqp->kiq", Rc[inl], Winv[:3, :], f.hat, f.W[:, :3], Rc[inl])
+    p_xy = float(np.sum(T[:, 0, 0] + T[:, 1, 1]))
     return held, sig_xy, p_xy
 
 
-def _not_identifiable(cov: np.ndarray, z_given: bool, cfg: HandeyeConfig) -> tuple[dict, ...]:
+def _not_identifiable(cov: np.ndarray, z_given: bool, cfg: HandeyeConfig,
+                      unseen: list[tuple[list[str], str]]) -> tuple[dict, ...]:
     """The parameters the pairs do not determine (label, std, reason): the camera's height
-    when the target's is not given, and any whose std is over ``cfg``'s limits."""
+    when the target's is not given, those a direction no pair sees moves (``unseen``:
+    (labels, sentence) each; no std), and any whose std is over ``cfg``'s limits."""
     ni = [] if z_given else [{
         "label": "X_z_mm", "std": None,
         "reason": "a SCARA turns about its vertical axis only: the pairs see the difference "
                   "of the camera's and the target's heights, not either one; taken with the "
                   "target's origin at z = 0 (give the target's height: --z-mm)"}]
+    named = {d["label"] for d in ni}
+    for labels, sentence in unseen:
+        for lab in labels:
+            if lab not in named:
+                named.add(lab)
+                ni.append({"label": lab, "std": None, "reason": sentence})
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     for k, lab in enumerate(LABELS):
-        if lab == "X_z_mm" and not z_given:
+        if lab in named:
             continue
         lim = cfg.unidentified_std_deg if lab.endswith("_deg") else cfg.unidentified_std_mm
         if sd[k] > lim:
@@ -481,18 +465,99 @@ def _not_identifiable(cov: np.ndarray, z_given: bool, cfg: HandeyeConfig) -> tup
     return tuple(ni)
 
 
+def _consensus_out(pairs, A, B, X0, Y0, z: float, x, keep: np.ndarray, cfg: HandeyeConfig
+                   ) -> list[str]:
+    """Why each pair the consensus left out was (its distance from the fit ``x``)."""
+    idx = np.flatnonzero(~keep)
+    if not len(idx):
+        return []
+    dt, dr, _ = _raw_residuals(x, A[idx], B[idx], X0, Y0, z)
+    return [f"pair {pairs[i].id}: {float(np.linalg.norm(a)):.3f} mm, "
+            f"{float(np.linalg.norm(b)):.3f} deg from where the others put the target "
+            f"(beyond {cfg.consensus_cut:g} times the agreement of the {int(keep.sum())} "
+            "pairs that agree)" for i, a, b in zip(idx, dt, dr)]
+
+
+def _findings(pairs, T, A, B, X, Y, z: float, mount: str, z_given: bool, r: _Robust,
+              cfg: HandeyeConfig) -> tuple[list, list, object]:
+    """The checks of :mod:`vision_cal.camera.pairs_checks` on the fitted pairs: findings
+    ((status, sentence)), the unseen directions ((labels, sentence)) and the closed form's
+    scale (on the inliers). A reading or a unit that explains the pairs far better comes
+    first and alone: what else the fit says follows from it (a flange in metres "stands
+    still", a wrong mount leaves half the pairs "outliers")."""
+    inl = r.inlier
+    yaws = [p.flange_yaw for p in pairs]
+    rvecs = [p.target_rvec for p in pairs]
+    cf = closed_form_parts(A[inl], B[inl], z)
+    length = float(np.median(np.linalg.norm(B[:, :3, 3], axis=1)))
+    unseen = [checks.null_sentence(v, LABELS, T[inl], length)
+              for v in checks.null_directions(r.fit.J, LABELS, length)]
+    conv = checks.convention_finding(
+        T, B, mount, z, ratio=cfg.convention_ratio, sample=cfg.convention_sample,
+        rvec=None if any(v is None for v in rvecs) else np.array(rvecs, float),
+        yaw=None if any(v is None for v in yaws) else np.array(yaws, float))
+    if conv:
+        return [conv], unseen, cf
+    units = checks.scale_finding(cf, unit_ratio=cfg.unit_ratio, min_rel=cfg.scale_min_rel,
+                                 n_std=cfg.scale_sigma)
+    if units and units[0] == "not reliable":
+        return [units], unseen, cf
+    found = [units] if units and not unseen else []
+    reach = checks.reach_finding(T, min_reach_mm=cfg.min_reach_mm)
+    if reach:
+        found.append(reach)
+    found += checks.size_findings(X, Y, B, mount, max_mount_mm=cfg.max_mount_mm,
+                                  max_robot_mm=cfg.max_robot_mm, z_given=z_given)
+    if (~inl).sum() > cfg.max_outlier_fraction * len(A):
+        found.append(("not reliable", f"{int((~inl).sum())} of {len(A)} pairs disagree with the "
+                                      f"others (more than {cfg.max_outlier_fraction:.0%}): the "
+                                      "target's detection or the flange poses are suspect"))
+    return found, unseen, cf
+
+
+def _repeat_rows(pairs, d: checks.Distinct, x, A_all, B_all, X0, Y0, z: float):
+    """The pairs at an earlier pair's flange pose: (id, first id) each, and their own
+    residuals (R, 3) mm and deg at the fit ``x``."""
+    rep = np.setdiff1d(np.arange(len(pairs)), d.first)
+    if not len(rep):
+        return (), None, None
+    dt, dr, _ = _raw_residuals(x, A_all[rep], B_all[rep], X0, Y0, z)
+    return (tuple((pairs[i].id, pairs[d.first[d.group[i]]].id) for i in rep), dt, dr)
+
+
 def fit_pose_pairs(pairs: list[PosePair], mount: str = "arm", *, z_mm: float | None = None,
-                   config: HandeyeConfig | None = None) -> PairsFit | PairsFailed:
+                   config: HandeyeConfig | None = None, progress: bool = False
+                   ) -> PairsFit | PairsFailed:
     """The hand-eye of ``pairs`` (module docstring); ``z_mm`` the target origin's height in
-    ``Y``'s parent frame (None: not known, 0 taken and the camera's height flagged)."""
+    ``Y``'s parent frame (None: not known, 0 taken and the camera's height flagged);
+    ``progress``: one line a stage on long work (thousands of pairs)."""
     cfg = config or DEFAULT.handeye
-    failed = _refused(pairs, mount, cfg)
+    failed = _refused(pairs, mount, cfg, z_mm)
     if failed is not None:
         return failed
-    A, B = _moving(pairs, mount)
+    T_all = np.array([p.T_robot_flange for p in pairs], float)
+    B_all = np.array([p.T_camera_target for p in pairs], float)
+    d = checks.distinct_poses(T_all, B_all, cfg.repeat_mm, cfg.repeat_deg)
+    if len(d.first) < cfg.min_pairs:
+        return PairsFailed(f"{len(pairs)} pairs hold {len(d.first)} distinct flange poses: at "
+                           f"least {cfg.min_pairs} are needed (a pose repeated counts once)")
+    stages = bar(progress and len(pairs) >= cfg.progress_pairs, total=4, unit="stage",
+                 desc="hand-eye from pose pairs", note=f"{len(pairs)} pairs")
+    distinct = [pairs[i] for i in d.first]
+    T, B = d.A, d.B
+    A = _moving(T, mount)
     z = 0.0 if z_mm is None else float(z_mm)
-    X0, Y0 = closed_form(A, B, z)
-    r = _fit_with_outliers(pairs, A, B, X0, Y0, z, cfg)
+    cons = checks.consensus(A, B, z, trials=cfg.consensus_trials, share=cfg.consensus_share,
+                            cut=cfg.consensus_cut, min_yaw_deg=cfg.min_yaw_spread_deg)
+    stages.update()
+    # the start from the pairs that agree (the fit's rotations are small turns about it)
+    X0, Y0 = closed_form(A[cons.inlier], B[cons.inlier], z)
+    stages.update()
+    r = _fit_with_outliers(distinct, A, B, X0, Y0, z, cfg, cons.inlier, [])
+    if not cons.inlier.all():
+        why = _consensus_out(distinct, A, B, X0, Y0, z, r.fit.x, cons.inlier, cfg)
+        r = _Robust(r.fit, r.inlier, tuple(why) + r.reasons)
+    stages.update()
     x, inl = r.fit.x, r.inlier
     X, Y = _unpack(x, X0, Y0, z)
     dt_all, dr_all, _ = _raw_residuals(x, A, B, X0, Y0, z)
@@ -502,6 +567,12 @@ def fit_pose_pairs(pairs: list[PosePair], mount: str = "arm", *, z_mm: float | N
     nu = inl.sum() - 11.0 / 6.0
     cov = r.fit.cov * (nu / (nu - 7.0) if nu > 9.0 else 3.0)
     held, sig_xy, p_xy = _per_pair(A, B, X0, Y0, z, r)
-    return PairsFit(mount, tuple(p.id for p in pairs), X, Y, cov, dt_all, dr_all, held, inl,
+    found, unseen, cf = _findings(distinct, T, A, B, X, Y, z, mount, z_mm is not None, r, cfg)
+    reps, rep_mm, rep_deg = _repeat_rows(pairs, d, x, _moving(T_all, mount), B_all, X0, Y0, z)
+    stages.update()
+    stages.close()
+    return PairsFit(mount, tuple(p.id for p in distinct), X, Y, cov, dt_all, dr_all, held, inl,
                     r.fit.S, sig_xy, p_xy, z, z_mm is not None, X0, Y0, r.reasons,
-                    _not_identifiable(cov, z_mm is not None, cfg))
+                    _not_identifiable(cov, z_mm is not None, cfg, unseen), tuple(found),
+                    reps, rep_mm, rep_deg, tuple(lab for labs, _ in unseen for lab in labs),
+                    cf.scale, cf.scale_std)

@@ -9,9 +9,12 @@ docs/format.md, schema ``vision_cal/schema/poses.schema.json``)::
                  "target_rvec": [rx, ry, rz], "target_tvec": [tx, ty, tz]} ]}
 
 CSV: ``id,x,y,z,yaw_deg,rvec_x,rvec_y,rvec_z,tvec_x,tvec_y,tvec_z`` (``id`` optional), one
-pair a row. Lengths in ``units`` (``mm`` or ``m``; the command's ``--units`` for a CSV);
-``rvec`` is OpenCV's (radians, Rodrigues). Every bad field is one line naming the file and
-the field (or line and column).
+pair a row. Lengths in ``units`` (``mm``, ``cm``, ``in`` or ``m``; the command's
+``--units`` for a CSV); ``rvec`` is OpenCV's (radians, Rodrigues). Every bad field is one
+line naming the file and the field (or line and column); a target height beyond what a
+workcell holds (``HandeyeConfig.max_robot_mm``) too. The yaw and rotation vector numbers
+are kept as written (:class:`~vision_cal.camera.pose_pairs.PosePair`), so that the fit's
+checks can try the readings a tool may have meant (degrees for radians, and back).
 """
 
 from __future__ import annotations
@@ -24,13 +27,14 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from vision_cal.camera.pose_pairs import MOUNTS, PosePair, flange_tilt_deg
+from vision_cal.config import DEFAULT
 from vision_cal.dataset.csvio import number_field, read_rows
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.io import read_json
 from vision_cal.errors import VisionCalError
 
 FORMAT = "vision-cal/poses/1"
-UNITS = {"mm": 1.0, "m": 1000.0}
+UNITS = {"mm": 1.0, "cm": 10.0, "in": 25.4, "m": 1000.0}
 CSV_FIELDS = ("x", "y", "z", "yaw_deg", "rvec_x", "rvec_y", "rvec_z", "tvec_x", "tvec_y",
               "tvec_z")
 #: a SCARA's flange turns about the vertical only: a reported tilt beyond this (deg) is
@@ -108,7 +112,20 @@ def read_poses(path, *, units: str | None = None, mount: str | None = None,
     else:
         pf = _read_json(path, units, mount, target_z_mm)
     _check_distances(pf)
+    _check_height(pf, given=target_z_mm is not None)
     return pf
+
+
+def _check_height(pf: PosesFile, *, given: bool) -> None:
+    """A target height no workcell has (beyond ``max_robot_mm`` of the frame's origin)
+    refused, naming the option or the field it came from."""
+    z, limit = pf.target_z_mm, DEFAULT.handeye.max_robot_mm
+    if z is not None and not abs(z) <= limit:
+        raise VisionCalError(f"the target's height {z:g} mm: expected within {limit:g} mm of "
+                             f"the {'robot' if pf.mount == 'arm' else 'flange'} frame's origin "
+                             "(millimetres; in micrometres or a typo?)",
+                             file=None if given else str(pf.path),
+                             field="--z-mm" if given else "target_z_mm")
 
 
 def _read_json(path: Path, units, mount, target_z_mm) -> PosesFile:
@@ -141,6 +158,7 @@ def _read_json(path: Path, units, mount, target_z_mm) -> PosesFile:
         if pid in seen:
             r.fail(f"{w}.id", f"duplicate pair id {pid!r}")
         seen.add(pid)
+        raw_yaw, raw_rvec = None, None
         if "T_robot_flange" in p:
             A = _matrix(r, p["T_robot_flange"], f"{w}.T_robot_flange", scale)
             where_a = f"{w}.T_robot_flange"
@@ -148,6 +166,7 @@ def _read_json(path: Path, units, mount, target_z_mm) -> PosesFile:
             x, y, zz, yaw = r.vector(p["flange_pose"], f"{w}.flange_pose", 4)
             A = _flange(x, y, zz, yaw, scale)
             where_a = f"{w}.flange_pose"
+            raw_yaw = float(yaw)
         else:
             r.fail(w, "missing T_robot_flange (4x4) or flange_pose [x, y, z, yaw_deg]")
         if "T_camera_target" in p:
@@ -156,6 +175,7 @@ def _read_json(path: Path, units, mount, target_z_mm) -> PosesFile:
             rv = r.vector(r.get(p, "target_rvec", w), f"{w}.target_rvec", 3)
             tv = r.vector(r.get(p, "target_tvec", w), f"{w}.target_tvec", 3)
             B = _target(rv, tv, scale)
+            raw_rvec = tuple(float(v) for v in rv)
         else:
             r.fail(w, "missing T_camera_target (4x4) or target_rvec and target_tvec")
         tilt = flange_tilt_deg(A)
@@ -163,7 +183,7 @@ def _read_json(path: Path, units, mount, target_z_mm) -> PosesFile:
             r.fail(where_a, f"the flange is tilted {tilt:.1f} deg from the vertical: a SCARA's "
                             "flange turns about z only (a 6-axis robot's pose, or T_A_B "
                             "transposed?)")
-        pairs.append(PosePair(pid, A, B))
+        pairs.append(PosePair(pid, A, B, raw_yaw, raw_rvec))
     return PosesFile(path, tuple(pairs), m, u, z)
 
 
@@ -181,18 +201,25 @@ def _read_csv(path: Path, units: str, mount: str, target_z_mm) -> PosesFile:
         seen.add(pid)
         v = {k: number_field(row[k], path, line, k) for k in CSV_FIELDS}
         A = _flange(v["x"], v["y"], v["z"], v["yaw_deg"], scale)
-        B = _target([v["rvec_x"], v["rvec_y"], v["rvec_z"]],
-                    [v["tvec_x"], v["tvec_y"], v["tvec_z"]], scale)
-        pairs.append(PosePair(pid, A, B))
+        rv = (v["rvec_x"], v["rvec_y"], v["rvec_z"])
+        B = _target(rv, [v["tvec_x"], v["tvec_y"], v["tvec_z"]], scale)
+        pairs.append(PosePair(pid, A, B, v["yaw_deg"], rv))
     if not pairs:
         raise VisionCalError("no pairs", file=str(path))
     return PosesFile(path, tuple(pairs), mount, units, target_z_mm)
 
 
 def _check_distances(pf: PosesFile) -> None:
+    """A camera closer to its target than any can focus: the lengths in metres (both, or
+    the target's only when the flange's look like millimetres, reaching as a SCARA does)."""
     d = np.array([np.linalg.norm(p.T_camera_target[:3, 3]) for p in pf.pairs])
-    if float(np.median(d)) < MIN_CAMERA_DISTANCE_MM:
-        raise VisionCalError(
-            f"the camera is {float(np.median(d)):.3g} mm from the target (median over the "
-            f"pairs): the lengths are in metres? (--units m)", file=str(pf.path),
-            field="units")
+    if float(np.median(d)) >= MIN_CAMERA_DISTANCE_MM:
+        return
+    reach = max(float(np.hypot(*p.T_robot_flange[:2, 3])) for p in pf.pairs)
+    mixed = reach >= DEFAULT.handeye.min_reach_mm
+    raise VisionCalError(
+        f"the camera is {float(np.median(d)):.3g} {pf.units} from the target (median over "
+        "the pairs): " + (f"T_camera_target in metres while T_robot_flange (reaching "
+                          f"{reach:.0f} {pf.units}) is not? Give both in one unit"
+                          if mixed else "the lengths are in metres? (--units m)"),
+        file=str(pf.path), field="units")

@@ -57,7 +57,7 @@ def add_arguments(p) -> None:
     p.add_argument("--camera", metavar="LENS", default=None,
                    help="--robot-poses: the lens (a JSON with a camera block: size_px, K, dist; "
                         "default: estimated from the photos)")
-    p.add_argument("--units", choices=("mm", "m"), default=None,
+    p.add_argument("--units", choices=("mm", "cm", "in", "m"), default=None,
                    help="--poses: the file's lengths (default: the file's units, else mm)")
     p.add_argument("--mount", choices=("arm", "fixed"), default=None,
                    help="--poses, --robot-poses: the camera rides on the flange (arm, --poses' "

@@ -36,7 +36,7 @@ METHODS_EXTRA = {
     "lsq-placements": ("frame", "placements", "placement"),
     "arm_camera": ("not_identifiable", "pose_rms", "poses"),
     "pose_pairs": ("poses_file", "units_read", "mount", "not_identifiable", "pairs",
-                   "pair_rms", "pair_scatter"),
+                   "pair_rms", "pair_scatter", "pair_checks"),
 }
 
 

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from vision_cal.dataset.io import atomic_write_bytes, atomic_write_json
-from vision_cal.render.camera import distort_image
+from vision_cal.render.camera import distort_image, ideal_K
 from vision_cal.render.dataset import encode_image
 from vision_cal.render.photo import Photographer
 from vision_cal.render.sheet import make_sheet, sheet_texture
@@ -116,21 +116,29 @@ def photograph_poses(folder, robot: TrueRobot, sheet, q, j4, files, X, *, K, siz
     commands ``q`` (N, 2), ``j4`` (N,) into ``folder``/``files``; the flange misses its
     commanded place by ``repeatability_mm`` (per axis) in each photo; ``approach`` (N, 2)
     the joints' last motion signs (the robot's backlash), None: +1; ``dist`` the lens's
-    distortion (OpenCV coefficients, None: a pinhole), the ideal render warped through it.
-    Returns the true ``T_cam_sheet`` (N, 4, 4)."""
+    distortion (OpenCV coefficients, None: a pinhole), applied to the supersampled ideal
+    render, which (our own photographer) is wide enough to fill the photo's corners
+    (``render.camera.ideal_K``: a real lens leaves no black corners, and markers cut by
+    them are found pixels off). Returns the true ``T_cam_sheet`` (N, 4, 4)."""
     tex = sheet_texture(sheet, marks_xy_mm=np.zeros((0, 2)), px_per_mm=px_per_mm, rng=rng)
     own = photographer is None
-    ph = Photographer(size_px=size_px, K=K) if own else photographer
+    lens = dist is not None and np.any(dist)
+    ph = (Photographer(size_px=size_px, K=ideal_K(size_px, K, dist) if lens else K)
+          if own else photographer)
     # the robot's repeatability: each photo's flange off its commanded place (per axis)
     T_sf = T_sheet_flange(robot, q, j4, approach)
     T_sf[:, :2, 3] += rng.normal(0.0, repeatability_mm, (len(q), 2))
     Ts = np.linalg.inv(T_sf @ np.asarray(X, float))
     try:
         for name, T in zip(files, Ts):
-            rgb = ph.photograph(tex, extent_mm=sheet.extent_mm, T_cam_sheet=T,
-                                noise_sigma=noise_sigma, rng=rng)
-            if dist is not None and np.any(dist):
-                rgb = distort_image(np.asarray(rgb), K=K, dist=dist)
+            if own and lens:
+                rgb = ph.photograph(tex, extent_mm=sheet.extent_mm, T_cam_sheet=T,
+                                    noise_sigma=noise_sigma, rng=rng, dist=dist, K_dist=K)
+            else:
+                rgb = ph.photograph(tex, extent_mm=sheet.extent_mm, T_cam_sheet=T,
+                                    noise_sigma=noise_sigma, rng=rng)
+                if lens:
+                    rgb = distort_image(np.asarray(rgb), K=K, dist=dist)
             atomic_write_bytes(folder / name, encode_image(np.asarray(rgb), None))
     finally:
         if own:

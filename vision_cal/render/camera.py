@@ -160,6 +160,36 @@ _CV2_INTERPOLATION = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC,
                       "lanczos4": cv2.INTER_LANCZOS4}
 
 
+def ideal_K(size_px, K, dist) -> np.ndarray:
+    """K (3, 3) of the ideal pinhole render a lens ``(K, dist)`` needs to fill the whole
+    photo of ``size_px``: ``K`` itself, except for a lens that pulls the corners in
+    (barrel): then a shorter focal length (same principal point) wide enough to hold every
+    undistorted photo corner, which ``Photographer.photograph(K_dist=K, dist=...)`` maps
+    back (without it the photo's corners come out black, and markers cut by the black
+    are found with corners pixels off)."""
+    K = np.asarray(K, dtype=float)
+    if dist is None or not any(dist):
+        return K
+    w, h = size_px
+    border = np.concatenate([
+        np.column_stack([np.linspace(0, w - 1, 33), np.zeros(33)]),
+        np.column_stack([np.linspace(0, w - 1, 33), np.full(33, h - 1.0)]),
+        np.column_stack([np.zeros(25), np.linspace(0, h - 1, 25)]),
+        np.column_stack([np.full(25, w - 1.0), np.linspace(0, h - 1, 25)])])
+    crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
+    xn = cv2.undistortPoints(border.reshape(-1, 1, 2), K, np.asarray(dist, float),
+                             criteria=crit).reshape(-1, 2)
+    c = K[:2, 2]
+    # the ideal render (focal f') must hold f' * xn + c inside [-0.5, size - 0.5]
+    need = np.max(np.abs(xn) / np.maximum(np.abs(np.column_stack([
+        np.where(xn[:, 0] < 0, c[0] + 0.5, w - 0.5 - c[0]),
+        np.where(xn[:, 1] < 0, c[1] + 0.5, h - 0.5 - c[1])])), 1e-9), axis=0).max()
+    f_ideal = min(K[0, 0], 0.995 / need)
+    Ki = K.copy()
+    Ki[0, 0] = Ki[1, 1] = f_ideal
+    return Ki
+
+
 def distort_image(img, *, K, dist, K_ideal=None, interpolation: str = "spline3",
                   border_value=0) -> np.ndarray:
     """The photo a lens with ``(K, dist)`` takes, from an ideal pinhole render ``img``.

@@ -55,7 +55,7 @@ from vision_cal.dataset.marker_geometry import marker_boxes_mm
 from vision_cal.errors import VisionCalError
 from vision_cal.plan import calibration_plan as cp
 from vision_cal.plan.calibration_plan import paper_plan
-from vision_cal.render.camera import camera_matrix, default_views
+from vision_cal.render.camera import camera_matrix, default_views, ideal_K
 from vision_cal.render.photo import Photographer
 from vision_cal.render.printed import load_printed_sheet, printed_textures
 from vision_cal.render.scene import Scene
@@ -352,33 +352,11 @@ def photographer_K(scene: Scene) -> np.ndarray:
     ideal render uses a shorter focal length (same principal point) wide enough to hold
     every undistorted photo corner, and ``photograph(K_dist=K, dist=...)`` maps it back.
     """
-    # OpenCV takes 0.2 s to import: loaded here, when used
-    import cv2
-
     cam = scene.camera
     # the shortest focal length any photo has (phones: camera.f_scatter)
     K = np.asarray(camera_matrix(size_px=cam.size_px, f_px=cam.f_px * (1.0 - cam.f_scatter),
                                  principal_px=cam.principal_px), dtype=float)
-    if not any(cam.dist):
-        return K
-    w, h = cam.size_px
-    border = np.concatenate([
-        np.column_stack([np.linspace(0, w - 1, 33), np.zeros(33)]),
-        np.column_stack([np.linspace(0, w - 1, 33), np.full(33, h - 1.0)]),
-        np.column_stack([np.zeros(25), np.linspace(0, h - 1, 25)]),
-        np.column_stack([np.full(25, w - 1.0), np.linspace(0, h - 1, 25)])])
-    crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
-    xn = cv2.undistortPoints(border.reshape(-1, 1, 2), K, np.asarray(cam.dist, float),
-                             criteria=crit).reshape(-1, 2)
-    c = K[:2, 2]
-    # the ideal render (focal f') must hold f' * xn + c inside [-0.5, size - 0.5]
-    need = np.max(np.abs(xn) / np.maximum(np.abs(np.column_stack([
-        np.where(xn[:, 0] < 0, c[0] + 0.5, w - 0.5 - c[0]),
-        np.where(xn[:, 1] < 0, c[1] + 0.5, h - 0.5 - c[1])])), 1e-9), axis=0).max()
-    f_ideal = min(K[0, 0], 0.995 / need)
-    Ki = K.copy()
-    Ki[0, 0] = Ki[1, 1] = f_ideal
-    return Ki
+    return ideal_K(cam.size_px, K, cam.dist)
 
 
 @dataclass(frozen=True)

@@ -62,7 +62,8 @@ def _seen(T_cam_target, K, noise_px, noise_mm, noise_deg, rng, board) -> np.ndar
 def simulate_pairs(robot: TrueRobot, n: int, *, seed: int = 0, mount: str = "arm",
                    noise_px: float | None = 0.1, noise_mm: float = 0.0,
                    noise_deg: float = 0.0, f_px: float = 900.0, K=None,
-                   X=None, board_at_mm=(0.0, 0.0), reach_mm: float = 60.0) -> dict:
+                   X=None, board_at_mm=(0.0, 0.0), reach_mm: float = 60.0,
+                   commands=None) -> dict:
     """``n`` pairs with the truth: ``{"A": (n, 4, 4) T_robot_flange, "B": (n, 4, 4)
     T_camera_target, "X": the true T_flange_camera or T_robot_camera, "Y": the true
     T_robot_target or T_flange_target, "q": (n, 2), "j4": (n,)}``.
@@ -71,7 +72,8 @@ def simulate_pairs(robot: TrueRobot, n: int, *, seed: int = 0, mount: str = "arm
     lying flat at ``board_at_mm`` on the sheet; each pose puts the camera's view of the
     sheet within ``reach_mm`` of the board, joint 4 turned at random. ``mount="fixed"``: a
     camera 600 mm above ``board_at_mm`` looks down at a board (160 x 120 mm) riding 30 mm off
-    the flange."""
+    the flange. ``commands`` ((M, 3) q1, q2, j4 in degrees): the arm's commands, taken in
+    turn (those whose view misses the board skipped), instead of drawn at random."""
     rng = np.random.default_rng(seed)
     K = np.array([[f_px, 0, 399.5], [0, f_px, 299.5], [0, 0, 1.0]]) if K is None else K
     # a board sized to the view: 60 x 40 mm under a camera 150-250 mm away, 160 x 120 mm
@@ -99,10 +101,15 @@ def simulate_pairs(robot: TrueRobot, n: int, *, seed: int = 0, mount: str = "arm
         tries += 1
         if tries > 500 * n:
             raise ValueError(f"only {len(A_all)} of {n} poses see the board")
-        q = np.array([rng.uniform(-120, 120), rng.uniform(-150, 150)])
-        if abs(q[1]) < 20:
-            continue
-        j4 = float(rng.uniform(-170, 170))
+        if commands is not None:
+            if tries > len(commands):
+                raise ValueError(f"only {len(A_all)} of {n} commands see the board")
+            q, j4 = np.asarray(commands[tries - 1][:2], float), float(commands[tries - 1][2])
+        else:
+            q = np.array([rng.uniform(-120, 120), rng.uniform(-150, 150)])
+            if abs(q[1]) < 20:
+                continue
+            j4 = float(rng.uniform(-170, 170))
         T_sf = T_sheet_flange(robot, q[None], np.array([j4]))[0]
         A = T_rs @ T_sf
         if mount == "arm":
@@ -131,3 +138,45 @@ def simulate_pairs(robot: TrueRobot, n: int, *, seed: int = 0, mount: str = "arm
         B_all.append(_seen(T_ct, K, noise_px, noise_mm, noise_deg, rng, board))
     return {"A": np.array(A_all), "B": np.array(B_all), "X": X, "Y": Y,
             "q": np.array(q_all), "j4": np.array(j4_all), "K": K}
+
+
+def simulate_many_pairs(robot: TrueRobot, n: int, *, seed: int = 0, noise_px: float = 0.1,
+                        f_px: float = 900.0, reach_mm: float = 60.0, X=None) -> dict:
+    """:func:`simulate_pairs`' arm-mounted camera for thousands of pairs (benches of the
+    fit's cost): the commands drawn and screened in batches (the same rules: both elbows,
+    joint 4 at random, the view within ``reach_mm`` of the board, every corner in the
+    image), each board pose then seen through PnP with ``noise_px``. Its draws are its
+    own: the same ``seed`` gives other pairs than :func:`simulate_pairs`; ``X`` the camera
+    on the flange (None: drawn); returns :func:`simulate_pairs`' keys."""
+    rng = np.random.default_rng(seed)
+    K = np.array([[f_px, 0, 399.5], [0, f_px, 299.5], [0, 0, 1.0]])
+    board = board_points()
+    X = T_flange_camera_true(rng) if X is None else np.asarray(X, float)
+    T_rs = np.linalg.inv(T_sheet_robot(robot))
+    Y = T_rs.copy()
+    A_all, B_all, q_all, j4_all = [], [], [], []
+    while sum(len(a) for a in A_all) < n:
+        m = 50 * n
+        q = np.column_stack([rng.uniform(-120, 120, m), rng.uniform(-150, 150, m)])
+        j4 = rng.uniform(-170, 170, m)
+        keep = np.abs(q[:, 1]) >= 20
+        q, j4 = q[keep], j4[keep]
+        T_sf = T_sheet_flange(robot, q, j4)
+        T_sc = T_sf @ X
+        o, d = T_sc[:, :3, 3], T_sc[:, :3, 2]
+        ok = d[:, 2] < -0.5
+        hit = o - d * (o[:, 2] / np.where(ok, d[:, 2], -1.0))[:, None]
+        ok &= np.linalg.norm(hit[:, :2], axis=1) <= reach_mm
+        T_ct = np.linalg.inv(T_rs @ T_sc[ok]) @ Y
+        P = np.einsum("nij,kj->nki", T_ct[:, :3, :3], board) + T_ct[:, None, :3, 3]
+        uv = P[..., :2] / P[..., 2:3] * K[0, 0] + K[:2, 2]
+        good = (np.all(P[..., 2] >= 50, axis=1) & np.all(uv >= 5, axis=(1, 2))
+                & np.all(uv[..., 0] <= 794, axis=1) & np.all(uv[..., 1] <= 594, axis=1))
+        A_all.append((T_rs @ T_sf[ok])[good])
+        B_all.append(T_ct[good])
+        q_all.append(q[ok][good])
+        j4_all.append(j4[ok][good])
+    A = np.concatenate(A_all)[:n]
+    B = np.array([_seen(T, K, noise_px, 0.0, 0.0, rng, board) for T in np.concatenate(B_all)[:n]])
+    return {"A": A, "B": B, "X": X, "Y": Y, "K": K, "q": np.concatenate(q_all)[:n],
+            "j4": np.concatenate(j4_all)[:n]}

@@ -24,7 +24,7 @@ import numpy as np
 
 from vision_cal.calibrate.plausible import RADIAN_RANGE, radians_given
 from vision_cal.camera.arm import (MAX_POSES, MIN_POSES, ArmView, check_declared_lens,
-                                   estimate_lens, fit_arm_camera)
+                                   estimate_lens, fit_arm_camera, without_misdetected)
 from vision_cal.camera.fixed import UNDETERMINED
 from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.camera_block import read_lens
@@ -112,10 +112,12 @@ def repeat_pairs(views) -> list[tuple[int, int]]:
 
 
 def undetermined_reasons(fit, mount: str, *, undetermined: bool = False) -> list[tuple[str, str]]:
-    """(status, sentence) of what the poses leave undetermined (the camera's height, with a
-    lens whose focal length the views cannot tell, is the lens's sentence)."""
+    """(status, sentence) of what the poses leave undetermined whatever the lens (the
+    camera's height, where only the lens's focal length leaves it open, is the lens's
+    sentence: :func:`lens_height_reason`, or the undetermined lens's own)."""
     out = []
-    ni = [n for n in fit.not_identifiable if not (undetermined and n == "cam_z_mm")]
+    ni = [n for n in fit.not_identifiable_given_lens
+          if not (undetermined and n == "cam_z_mm")]
     if ni:
         out.append(("not reliable", "the poses do not separate "
                     + ", ".join(ni)
@@ -124,6 +126,33 @@ def undetermined_reasons(fit, mount: str, *, undetermined: bool = False) -> list
                        " from the rest (a camera on link 2 cannot separate L2 from its own "
                        "offset along it)")))
     return out
+
+
+#: the height above the sheet ``lens_height_reason`` states a point's std at (mm)
+ABOVE_MM = 50.0
+
+
+def lens_height_reason(fit, K) -> list[tuple[str, str]]:
+    """``check`` when an estimated lens leaves the camera's height open beyond
+    :data:`~vision_cal.camera.arm.UNIDENTIFIED_STD` (its focal length and the height trade:
+    the sheet's plane is not affected, a point above it is), with the std of the height,
+    of the focal length, and of a point :data:`ABOVE_MM` above the sheet at the view's
+    edge, and what would fix it."""
+    if "cam_z_mm" not in fit.not_identifiable or "cam_z_mm" in fit.not_identifiable_given_lens:
+        return []
+    k = fit.labels.index("cam_z_mm")
+    h_sd = float(np.sqrt(fit.cov[k, k]))
+    f_sd = float(np.sqrt(fit.cov[fit.labels.index("f_px"), fit.labels.index("f_px")]))
+    height = abs(float(fit.T_flange_camera[2, 3]))
+    # a point at the edge of the view (half the height away) ABOVE_MM up: its place moves
+    # by that distance times the height's relative error over what is left of the height
+    edge = 0.5 * height * ABOVE_MM / max(height - ABOVE_MM, 1e-9) * h_sd / max(height, 1e-9)
+    return [("check", f"the lens was estimated from the views (focal length {K[0, 0]:.0f} +- "
+                      f"{f_sd:.0f} px), which trades with the camera's height: T_flange_camera's"
+                      f" z is known to {h_sd:.2g} mm, a point {ABOVE_MM:g} mm above the sheet to "
+                      f"about {edge:.2g} mm (the sheet's plane is not affected; locate states "
+                      "it); declare camera K in session.json, or tilt the camera 15 deg or "
+                      "more")]
 
 
 def _pose_table(views, fit) -> list[dict]:
@@ -263,7 +292,8 @@ def calibrate_arm_camera(folder, *, progress: bool = False, jobs: int = 1) -> di
     if camera is None:
         size = sizes.pop()
         lens = estimate_lens(views, size)
-        if np.any(lens.dist):   # the corners again in the estimated lens's ideal pixels
+        views, dropped = without_misdetected(views, lens.K, lens.dist)
+        if np.any(lens.dist) or dropped:  # the corners again in its ideal pixels
             views = [in_lens(v, lens.K, lens.dist) for v in views]
             lens = estimate_lens(views, size)
         K, dist, how, f_sd = lens.K, lens.dist, lens.intrinsics, lens.f_px_std
@@ -271,22 +301,23 @@ def calibrate_arm_camera(folder, *, progress: bool = False, jobs: int = 1) -> di
             lens_reason = [("check", lens.reason)]
     else:
         (size, K, dist), how, f_sd = camera, "declared", 0.0
+        views, dropped = without_misdetected(views, K, dist)
         # the declared lens against the views' own: a focal length or a distortion they
         # contradict is named; the floor is the corners' noise with the views' lens
         check = check_declared_lens(views, size, K, dist)
         lens_reason = list(check.reasons)
+    # an estimated lens's covariance (f, k1, k2) carried into the fit's: the focal
+    # length's error moves the camera's height with it (f / height is what the views fix)
     fit = fit_arm_camera(views, K, dist, nominal,
-                         corner_sigma_px=None if check is None else check.corner_sigma_px)
-    if how != "declared" and f_sd > 0:
-        # the focal length's error moves the camera's height with it (f / height is what
-        # the views fix): into T_flange_camera's z; a focal length the views cannot tell
-        # leaves the height not identifiable, with that std
-        cov = fit.cov.copy()
-        cov[11, 11] += (fit.T_flange_camera[2, 3] * min(f_sd, 1e6) / K[0, 0]) ** 2
-        fit = replace(fit, cov=cov)
+                         corner_sigma_px=None if check is None else check.corner_sigma_px,
+                         lens_cov=None if camera is not None else lens.cov)
+    if how == "estimated":
+        lens_reason += lens_height_reason(fit, K)
     d = fit.to_json()
     for entry, v, rms in zip([e for e in images if e["status"] == "ok"], views, fit.view_rms_px):
         entry["corner_rms_px"] = float(rms)
+        if v.file in dropped:   # markers found pixels off its own pose fit: left out
+            entry["markers_left_out"] = dropped[v.file]
     cam = {"images": [v.file for v in views], "size_px": list(size), "K": K.tolist(),
            "dist": dist.tolist(), "T_flange_camera": d["T_flange_camera"],
            "mount": mount, "T_flange_camera_std": d["T_flange_camera_std"],
