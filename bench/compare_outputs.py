@@ -293,7 +293,9 @@ def main(argv=None) -> int:
         tokens = [(str(a), str(b)), (str(sides[0][1]), str(sides[1][1]))]
     else:
         a, b = Path(args.dirs[0]), Path(args.dirs[1])
-        tokens = [(str(a), str(b))]
+        # folders of --refs runs: their source trees are named in the outputs too
+        tokens = [(str(a), str(b)), (str(a.parent / "trees" / a.name),
+                                     str(b.parent / "trees" / b.name))]
     diff = Differences(args.rtol, args.atol, args.ignore, tokens)
     one_sided = compare_dirs(a, b, diff)
     return report(diff, one_sided, codes)
