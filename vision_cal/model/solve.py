@@ -94,6 +94,14 @@ class Covariance:
         s = np.sqrt(np.clip(np.diag(self.matrix), 0.0, None))
         return np.where(self.fixed, s, np.inf)
 
+    @property
+    def stated(self) -> np.ndarray:
+        """:attr:`matrix` with its diagonal the stated variances (:attr:`std` squared, inf
+        where the data fix nothing): for a caller that keeps a plain matrix."""
+        out = self.matrix.copy()
+        out[np.diag_indices(len(out))] = self.std ** 2
+        return out
+
     def std_of(self, G) -> np.ndarray:
         """(K,) std of the quantities ``G @ x`` (``G`` (K, P), the gradients): inf for a row
         that moves along a not-fixed direction."""
@@ -214,8 +222,9 @@ def solve(residual, x0, *, jac=None, free=None, loss: str = "linear", f_scale: f
     the free ones are used); None: forward differences. ``loss``, ``f_scale``: a robust loss
     (scipy's names: ``soft_l1``, ``huber``, ...). ``bounds`` ((P,), (P,)) and ``x_scale``
     (P,) or ``"jac"`` over the full vector. ``method``: scipy's; by default ``lm`` for a
-    plain problem, else ``trf``; a sparse Jacobian takes ``tr_solver="lsmr"``. Returns a :class:`Solution`, or a
-    :class:`StoppedSolve` when it stopped on ``max_nfev`` or the residual is not finite."""
+    plain problem, else ``trf``; a sparse Jacobian takes ``tr_solver="lsmr"``. Returns a
+    :class:`Solution`, or a :class:`StoppedSolve` when it stopped on ``max_nfev`` or the
+    residual is not finite."""
     x0 = np.asarray(x0, float)
     P = len(x0)
     free = np.ones(P, bool) if free is None else np.asarray(free, bool)
