@@ -21,7 +21,9 @@ The cases file (default ``bench/compare_cases.txt``): one case a line, ``name: c
 ``{shared}`` a folder both sides read (inputs made once: a case whose name starts with
 ``setup`` runs once, with the first side's code, before any other case), ``{tree}`` the
 side's source tree (fixtures/ and renders/ of that version) and ``{root}`` this worktree.
-Commands run in the side's tree with ``OMP_NUM_THREADS=1`` and ``nice``.
+Commands run in the side's tree with one thread for BLAS and OpenCV (``OMP_NUM_THREADS=1``,
+``OPENCV_FOR_THREADS_NUM=1``: OpenCV's threads sum in another order each run, and a lens
+estimated from the photos then moves by 1e-8 to 5e-5 from one run to the next) and ``nice``.
 
 What is compared: every ``*.json`` and ``*.csv`` file under the two folders (paths
 relative to them), value by value: numbers equal within ``rtol * max(|a|, |b|) + atol``;
@@ -96,7 +98,7 @@ def run_case(name: str, cmd: str, *, tree: Path, out: Path, shared: Path, log: P
     fill = {"out": str(out), "shared": str(shared), "tree": str(tree), "root": str(ROOT)}
     args = [a.format(**fill) for a in shlex.split(cmd)]
     env = dict(os.environ, PYTHONPATH=str(tree), OMP_NUM_THREADS="1",
-               OPENBLAS_NUM_THREADS="1", PYTHONHASHSEED="0")
+               OPENBLAS_NUM_THREADS="1", OPENCV_FOR_THREADS_NUM="1", PYTHONHASHSEED="0")
     if args[0] == "python":
         full = [sys.executable, *args[1:]]
     else:
