@@ -7,6 +7,7 @@ place (``actions/console.py``)."""
 from __future__ import annotations
 
 import ast
+import functools
 import re
 from pathlib import Path
 
@@ -37,6 +38,12 @@ COMMANDS_EXCEPT = {
 PRINTS = {"vision_cal.actions.console", "vision_cal.commands.main"}
 
 
+@functools.lru_cache(maxsize=None)
+def parsed(path: Path) -> ast.Module:
+    """The syntax tree of ``path``, parsed once per test session (every rule reads it)."""
+    return ast.parse(path.read_text(encoding="utf-8"), str(path))
+
+
 def modules(package: Path = PACKAGE) -> dict[str, Path]:
     """Dotted name -> file of every module (a package is its ``__init__``)."""
     out = {}
@@ -59,7 +66,7 @@ def imports_of(name: str, path: Path, known: dict) -> set[str]:
 
     here = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
     out = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+    for node in ast.walk(parsed(path)):
         if isinstance(node, ast.Import):
             out |= {module(a.name) for a in node.names if a.name.split(".")[0] == "vision_cal"}
         elif isinstance(node, ast.ImportFrom):
@@ -146,7 +153,7 @@ def printing_modules(package: Path = PACKAGE) -> set[str]:
     for name, path in modules(package).items():
         if name.split(".")[1:2] not in (["actions"], ["commands"]):
             continue
-        tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+        tree = parsed(path)
         if any(isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == "print"
                for n in ast.walk(tree)):
             out.add(name)
@@ -258,7 +265,7 @@ def long_functions(package: Path = PACKAGE) -> dict[str, int]:
     ``MAX_FUNCTION_LINES`` whose docstring gives no reason (no sentence "Long because ...")."""
     out = {}
     for name, path in modules(package).items():
-        tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+        tree = parsed(path)
         todo = [(name, node) for node in tree.body]
         while todo:
             prefix, node = todo.pop()
@@ -472,6 +479,7 @@ SOLVER_PENDING = {
                                     "now (issues 37, 40, 41)",
 }
 _INVERSES = {"inv", "pinv", "solve", "lstsq", "cholesky", "cho_factor", "cho_solve"}
+_TRANSPOSED = re.compile(r"\.T\s*@")
 
 
 def _is_gram(node) -> bool:
@@ -487,7 +495,10 @@ def solver_violations(package: Path = PACKAGE) -> dict[str, list[str]]:
     """Module -> where it imports a scipy solver or inverts normal equations (line: what)."""
     out = {}
     for name, path in modules(package).items():
-        tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+        text = path.read_text(encoding="utf-8")
+        if "optimize" not in text and not _TRANSPOSED.search(text):
+            continue                   # no solver, no Gram: nothing to read
+        tree = parsed(path)
         grams = set()                  # names bound to a Gram anywhere in the module
         for n in ast.walk(tree):
             if isinstance(n, ast.Assign):
