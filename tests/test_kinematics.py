@@ -4,7 +4,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from vision_cal.errors import VisionCalError
-from vision_cal.model.kinematics import ScaraParams, forward, inverse, jacobian
+from vision_cal.model.kinematics import ParamMask, ScaraParams, forward, inverse, jacobian
 
 P = ScaraParams(344.05, 259.87, -2.57, -8.13, -424.26, -230.35)
 
@@ -55,3 +55,13 @@ def test_singularity_guard():
     xy = forward(P, [[10.0, 8.13 + 0.01]])  # phi2 = 0.01 deg: nearly straight
     with pytest.raises(VisionCalError, match="singularity"):
         inverse(P, xy, min_sin_q2=0.01)
+
+
+def test_a_param_mask_names_the_free_base_parameters_and_holds_the_effects():
+    """verify's problems: where the sheet lies, then L1 L2 z2 on top; a typo is refused."""
+    placement = ParamMask.of("z1", "base_x_mm", "base_y_mm")
+    both = placement | ParamMask.of("L1_mm", "L2_mm", "z2")
+    assert placement.labels == ("z1", "base_x_mm", "base_y_mm") and all(both.free)
+    assert placement.over(9).tolist() == [False, False, True, False, True, True] + [False] * 3
+    with pytest.raises(VisionCalError, match="no base parameter"):
+        ParamMask.of("base_z_mm")

@@ -7,7 +7,8 @@ that share a joint-1 angle lie on a circle about the elbow (joint-2 axis).
 circumcircle). :meth:`Circle.from_estimate` fits any number of points with the *Hyper*
 algebraic fit (Al-Sharadqah and Chernov 2009; unbiased to second order, unlike Kasa's
 fit, which pulls short arcs towards small radii), refined by the geometric (orthogonal
-distance) fit, with the covariance of (cx, cy, r) from the residual variance.
+distance) fit (:func:`vision_cal.model.solve.solve`), with the covariance of (cx, cy, r)
+by the one policy (:func:`vision_cal.model.solve.covariance`, ``s^2 = SSR / dof``).
 
 Arc span limits a circle fit: over an arc of span ``s`` (rad) the centre's uncertainty
 along the arc's bisector grows roughly like ``sigma / (1 - cos(s/2))``, so the paper's
@@ -25,15 +26,16 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import eig
-from scipy.optimize import least_squares
 
 from vision_cal.model.lsq import FailedFit
 from vision_cal.model.rms import rms
+from vision_cal.model.solve import solve
 
 
 @dataclass(frozen=True)
 class Circle:
-    """A fitted circle in sheet mm. ``cov`` is the (3, 3) covariance of (cx, cy, r)."""
+    """A fitted circle in sheet mm. ``cov`` is the (3, 3) covariance of (cx, cy, r) (its
+    diagonal inf for what the points do not fix)."""
 
     center_mm: tuple[float, float]
     radius_mm: float
@@ -82,19 +84,14 @@ class Circle:
         cx, cy, r = h
         if not refine:
             return cls((cx, cy), r, None, arc_span_deg(p, (cx, cy)), rms(_dist(p, (cx, cy, r))), len(p))
-        sol = least_squares(lambda v: _dist(p, v), np.array([cx, cy, r]),
-                            jac=lambda v: _dist_jac(p, v), method="lm", xtol=1e-15, ftol=1e-15)
+        sol = solve(lambda v: _dist(p, v), np.array([cx, cy, r]),
+                    jac=lambda v: _dist_jac(p, v), xtol=1e-15, ftol=1e-15)
+        if not sol:
+            return FailedFit(f"the circle's geometric fit: {sol.reason}")
         v = sol.x
         res = _dist(p, v)
-        dof = len(p) - 3
-        J = sol.jac
-        cov = None
-        if dof > 0:
-            s2 = float(res @ res) / dof
-            try:
-                cov = s2 * np.linalg.inv(J.T @ J)
-            except np.linalg.LinAlgError:
-                cov = None
+        # the one policy (s^2 = SSR / dof): what the arc cannot fix has an infinite variance
+        cov = sol.covariance(("cx", "cy", "r")).stated if sol.dof > 0 else None
         return cls((float(v[0]), float(v[1])), float(abs(v[2])), cov,
                    arc_span_deg(p, v[:2]), rms(res), len(p))
 

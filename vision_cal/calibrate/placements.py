@@ -25,7 +25,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
-from scipy.optimize import least_squares
 
 from vision_cal.model import joint_terms as jt
 from vision_cal.model.lsq import Fit
@@ -35,6 +34,7 @@ from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import (Effect, JointBacklash, JointCyclic, JointScale, JointTerms,
                               RobotModel, Tool)
 from vision_cal.model.rms import rms_2d
+from vision_cal.model.solve import solve
 
 
 @dataclass(frozen=True)
@@ -151,27 +151,27 @@ def _solve(places: list[Placement], shared, poses, effects,
         return _full_jacobian(places, models(v), w)
 
     v0 = _vector(shared, poses, effects)
-    sol = least_squares(fun, v0, jac=jac, method="lm", xtol=1e-14, ftol=1e-14)
-    J = jac(sol.x)
-    r = fun(sol.x)
-    dof = len(r) - P
-    if dof <= 0:
-        raise CalibrationError(f"{len(r) // 2} marks over {n_place} placements give {len(r)} "
+    n_rows = 2 * sum(len(p.xy_mm) for p in places)
+    if n_rows <= P:
+        raise CalibrationError(f"{n_rows // 2} marks over {n_place} placements give {n_rows} "
                                f"equations for {P} unknowns: more marks are needed")
-    s = np.linalg.svd(J / np.where(np.linalg.norm(J, axis=0) > 0,
-                                   np.linalg.norm(J, axis=0), 1.0), compute_uv=False)
-    if s[-1] * condition_limit < s[0]:   # config fit.condition_number_limit
-        raise CalibrationError("the placements cannot tell the shared parameters apart")
-    ssr = float(r @ r)
-    cov = np.linalg.pinv(J.T @ J) * ssr / dof
+    sol = solve(fun, v0, jac=jac)
+    if not sol:
+        raise CalibrationError(f"the placements' fit: {sol.reason}")
+    labels = tuple(["L1_mm", "L2_mm", "z2"] + [f"{p.name}.{x}" for p in places
+                                               for x in ("a", "base_x_mm", "base_y_mm")]
+                   + [f"{e.label}.{n}" for e in effects for n in e.param_names])
+    cov = sol.covariance(labels, cond_limit=condition_limit)  # config fit.condition_number_limit
+    if cov.not_fixed:
+        raise CalibrationError("the placements cannot tell the shared parameters apart ("
+                               f"{cov.reason()})")
+    ssr, dof = sol.ssr, sol.dof
     sh, po, ef = _unpack(sol.x, n_place, effects)
-    fitted = PlacementsFit(sh, ef, po, cov, (), tuple(p.name for p in places), (), ssr, dof)
+    fitted = PlacementsFit(sh, ef, po, cov.matrix, (), tuple(p.name for p in places), (), ssr,
+                           dof)
     res = tuple(p.xy_mm - fitted.model_on(k).predict(p.q_deg, p.approach)
                 for k, p in enumerate(places))
-    labels = (["L1_mm", "L2_mm", "z2"] + [f"{p.name}.{x}" for p in places
-                                         for x in ("a", "base_x_mm", "base_y_mm")]
-              + [f"{e.label}.{n}" for e in ef for n in e.param_names])
-    return PlacementsFit(sh, ef, po, cov, tuple(labels), fitted.names, res, ssr, dof)
+    return PlacementsFit(sh, ef, po, cov.matrix, labels, fitted.names, res, ssr, dof)
 
 
 def _start(places: list[Placement], tool: Tool | None) -> tuple[ScaraParams, tuple]:
@@ -231,14 +231,11 @@ def best_alternative(places: list[Placement], fit: PlacementsFit, effect: Effect
     y = np.concatenate([(r * wk[:, None]).ravel() for r, wk in zip(fit.residuals_mm, w)])
     norms = np.linalg.norm(X, axis=0)
     usable = norms > 1e-8 * norms.max()
-    G, b = X.T @ X, X.T @ y
 
     def drop(idx) -> float:
-        idx = list(idx)
-        try:
-            return float(b[idx] @ np.linalg.solve(G[np.ix_(idx, idx)], b[idx]))
-        except np.linalg.LinAlgError:
-            return 0.0
+        """What the columns ``idx`` explain of ``y``: ``|projection of y|^2``."""
+        Xi = X[:, list(idx)]
+        return float(y @ (Xi @ np.linalg.lstsq(Xi, y, rcond=None)[0]))
 
     ok = [i for i in range(n_dict) if usable[i]]
     best, best_drop = None, -np.inf

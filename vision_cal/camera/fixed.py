@@ -30,13 +30,13 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
 
 from vision_cal.dataset.camera_block import check_camera_entry
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.mapping import undistort_px
 from vision_cal.model.rms import rms_2d
+from vision_cal.model.solve import solve
 
 #: photos whose marker mappings differ by less than this at every marker corner (px) were
 #: taken from one camera pose
@@ -47,6 +47,8 @@ SAME_POSE_PX = 0.5
 F_REL_STD_MAX = 0.1
 UNDETERMINED = "focal length undetermined"
 COV_PARAMS = ("rot_x_deg", "rot_y_deg", "rot_z_deg", "x_mm", "y_mm", "z_mm", "f_px")
+#: the pose fit's parameters (``T_camera_sheet``'s rotation vector and translation, f)
+POSE_PARAMS = ("rvec_x", "rvec_y", "rvec_z", "tvec_x_mm", "tvec_y_mm", "tvec_z_mm", "f_px")
 
 
 # --------------------------------------------------------------------------- transforms
@@ -217,8 +219,9 @@ def mean_corners(images, idx) -> tuple[np.ndarray, np.ndarray]:
 def lsq_covariance(J: np.ndarray, s2: float) -> np.ndarray:
     """Covariance (P, P) of a least-squares fit with Jacobian ``J`` (N, P) and residual
     variance ``s2``. Columns scaled before inverting, and no pseudo-inverse: a direction
-    the data do not fix (f against the distance for a camera square to the sheet) shows a
-    huge std, not the minimum-norm one."""
+    the data do not fix shows a huge std, not the minimum-norm one. Only ``camera/arm.py``
+    uses it (being changed by another branch now): it moves to the one policy,
+    :func:`vision_cal.model.solve.covariance`, with it (issue 39), and this goes."""
     sc = 1.0 / np.maximum(np.linalg.norm(J, axis=0), 1e-300)
     _, sv, vt = np.linalg.svd(J * sc, full_matrices=False)
     sv = np.maximum(sv, sv[0] * 1e-15)
@@ -236,7 +239,10 @@ def _project(p, obj, K, dist, free_f):
 def fit_pose(obj_mm: np.ndarray, img_px: np.ndarray, K, dist, *, free_f: bool
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """``T_camera_sheet`` (4, 4), ``K`` used, covariance (7, 7) of (rvec rad, tvec mm, f px)
-    and the corner RMS (px) from sheet points ``obj_mm`` (N, 2) seen at ``img_px`` (N, 2)."""
+    and the corner RMS (px) from sheet points ``obj_mm`` (N, 2) seen at ``img_px`` (N, 2).
+    The covariance by the one policy (:func:`vision_cal.model.solve.covariance`): a
+    direction the corners do not fix (f against the distance for a camera square to the
+    sheet) has an infinite variance; f's row is zero when it is not fitted."""
     obj = np.column_stack([obj_mm, np.zeros(len(obj_mm))]).astype(np.float64)
     img = np.asarray(img_px, np.float64).reshape(-1, 2)
     K = np.asarray(K, float).copy()
@@ -252,13 +258,14 @@ def fit_pose(obj_mm: np.ndarray, img_px: np.ndarray, K, dist, *, free_f: bool
         p = np.concatenate([x, p0[n_free:]])
         return (_project(p, obj, K, dist, free_f) - img).ravel()
 
-    sol = least_squares(res, p0[:n_free], method="lm", x_scale="jac")
+    sol = solve(res, p0[:n_free], x_scale="jac", xtol=1e-8, ftol=1e-8)
+    if not sol:
+        raise VisionCalError(f"the camera pose could not be fitted: {sol.reason}")
     p = np.concatenate([sol.x, p0[n_free:]])
-    r = sol.fun
-    dof = max(len(r) - n_free, 1)
-    s2 = float(r @ r) / dof
+    r = sol.residuals
     cov = np.zeros((7, 7))
-    cov[:n_free, :n_free] = lsq_covariance(sol.jac, s2)
+    cov[:n_free, :n_free] = sol.covariance(POSE_PARAMS[:n_free], s2=float(r @ r) / max(
+        len(r) - n_free, 1)).stated
     if free_f:
         K[0, 0] = K[1, 1] = p[6]
     T = homogeneous(cv2.Rodrigues(p[:3].reshape(3, 1))[0], p[3:6])

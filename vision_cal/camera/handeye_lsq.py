@@ -13,9 +13,12 @@ error by a prior (``pose_sigma``: rotation deg, translation mm per axis): the ph
 own parameters, which make the Jacobian sparse (``jac_sparsity``: a corner depends on the
 shared unknowns and its own photo's six).
 
-Residuals are in units of the corner noise (``sigma_px``); the result's ``cov`` is the
-covariance of the shared unknowns from the Jacobian at the solution (the prior's
-parameters marginalised), in the order of :attr:`Refined.labels`.
+Residuals are in units of the corner noise (``sigma_px``); the solve is the one solver
+(:func:`vision_cal.model.solve.solve`: a solve stopped on its evaluation limit is refused)
+and the result's ``cov`` the covariance of the shared unknowns by the one policy
+(:func:`vision_cal.model.solve.covariance`, ``s^2 = 1``: the prior's parameters
+marginalised, a direction the photos do not fix with an infinite variance), in the order of
+:attr:`Refined.labels`.
 """
 
 from __future__ import annotations
@@ -23,11 +26,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 from scipy.sparse import csr_matrix, hstack
 from scipy.spatial.transform import Rotation
 
 from vision_cal.camera.handeye_closed import inv_T
+from vision_cal.errors import VisionCalError
+from vision_cal.model.solve import covariance, solve
 
 #: the lens terms, in the order of the lens vector
 LENS_NAMES = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
@@ -143,7 +147,7 @@ class Refined:
     (the lens terms fitted), each photo's pose error ``D`` (n, 6) (zeros without a prior),
     the residual ``residual_px`` (N, 2) with ``view_of`` (N,) its photo index, ``cov``
     (P, P) of ``labels`` (X's six, Y's six, the free lens terms), ``cost`` (half the sum
-    of squared normalised residuals), ``dof`` and whether the solver converged."""
+    of squared normalised residuals) and ``dof``."""
 
     X: np.ndarray
     Y: np.ndarray
@@ -156,7 +160,6 @@ class Refined:
     labels: tuple[str, ...]
     cost: float
     dof: int
-    converged: bool
     jac_shared: np.ndarray      # (2N, P) d residual_px / d shared unknowns (px per unit)
 
     @property
@@ -286,18 +289,20 @@ def refine(problem: Problem, p0: np.ndarray | None = None, *, max_nfev: int = 10
     (the pose errors marginalised)."""
     p0 = problem.start() if p0 is None else p0
     sparse = problem.pose_sigma is not None
-    r = least_squares(problem.residual, p0, jac=problem.jac, method="trf",
-                      tr_solver="lsmr" if sparse else "exact", x_scale=problem.x_scale(),
-                      max_nfev=max_nfev, xtol=1e-10, ftol=1e-10)
+    r = solve(problem.residual, p0, jac=problem.jac, method="trf",
+              tr_solver="lsmr" if sparse else "exact", x_scale=problem.x_scale(),
+              max_nfev=max_nfev, xtol=1e-10, ftol=1e-10)
+    if not r:
+        raise VisionCalError(f"the hand-eye's least squares: {r.reason}")
     J = problem.jac(r.x)
     J = J.toarray() if sparse else J
-    cov_all = np.linalg.pinv(J.T @ J, rcond=1e-12, hermitian=True)
     ns = problem.n_shared
     X, Y, lens, D = problem.unpack(r.x)
     resid = problem.predict(r.x) - problem.px
     n_obs = 2 * len(problem.px)
     labels = (tuple(f"X.{n}" for n in POSE_NAMES) + tuple(f"Y.{n}" for n in POSE_NAMES)
               + tuple(f"lens.{n}" for n, f in zip(LENS_NAMES, problem.free) if f))
+    cov_all = covariance(J, labels=labels + tuple(f"D.{i}" for i in range(J.shape[1] - ns)))
     return Refined(X, Y, lens, problem.free.copy(), D, resid, problem.view_of,
-                   cov_all[:ns, :ns], labels, float(r.cost), n_obs - ns, bool(r.status > 0),
+                   cov_all.stated[:ns, :ns], labels, r.cost, n_obs - ns,
                    J[:n_obs, :ns] * problem.sigma_px)

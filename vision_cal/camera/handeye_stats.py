@@ -6,8 +6,9 @@ corner on its own) and the robot, whose flange was not exactly where the control
 rotation ``sigma_rot`` deg and translation ``sigma_mm`` mm per axis). The least squares
 weighs every corner alike (the plain joint least squares: on the real session it predicts
 held-out photos better than letting each photo's pose float under a prior, docs/measured.md),
-so its covariance is the sandwich ``H^-1 J^T Sigma J H^-1`` with ``Sigma`` block-diagonal by
-photo: ``sigma_d^2 I + J_Di diag(sigma_rot^2, sigma_mm^2) J_Di^T``.
+so its covariance is the sandwich ``H^-1 J^T Sigma J H^-1`` (the one policy,
+:func:`vision_cal.model.solve.covariance`) with ``Sigma`` block-diagonal by photo:
+``sigma_d^2 I + J_Di diag(sigma_rot^2, sigma_mm^2) J_Di^T``.
 
 The three variances are estimated from the residual itself (:func:`noise_components`,
 MINQUE: the quadratic forms ``r^T V_c r`` of the residual matched to their expectations
@@ -31,6 +32,7 @@ from scipy import stats
 
 from vision_cal.camera.handeye_closed import inv_T
 from vision_cal.camera.handeye_lsq import Problem, Refined, refine
+from vision_cal.model.solve import covariance
 
 @dataclass(frozen=True)
 class Noise:
@@ -71,7 +73,7 @@ def noise_components(r: np.ndarray, Js: np.ndarray, Jd: np.ndarray, view_of: np.
     component estimated negative is dropped and the others estimated again."""
     r = np.asarray(r, float).ravel()
     blocks = _blocks(view_of)
-    Hi = np.linalg.pinv(Js.T @ Js, hermitian=True)
+    Hi = covariance(Js).matrix          # (J^T J)^-1 over what the photos fix: M below
     Us = [_low_rank(Jd, blocks, [0, 1, 2]), _low_rank(Jd, blocks, [3, 4, 5])]
     MU = [U - Js @ (Hi @ (Js.T @ U)) for U in Us]
     n2, P = len(r), Js.shape[1]
@@ -114,13 +116,15 @@ def photo_covariance(Jd_i: np.ndarray, noise: Noise) -> np.ndarray:
 
 
 def sandwich(Js: np.ndarray, Jd: np.ndarray, view_of: np.ndarray, noise: Noise) -> np.ndarray:
-    """(P, P) covariance of the plain least squares' shared unknowns under ``noise``."""
-    Hi = np.linalg.pinv(Js.T @ Js, hermitian=True)
-    meat = np.zeros_like(Hi)
+    """(P, P) covariance of the plain least squares' shared unknowns under ``noise``: the
+    one policy's sandwich (:func:`vision_cal.model.solve.covariance`; a direction the photos
+    do not fix has an infinite variance)."""
+    P = Js.shape[1]
+    meat = np.zeros((P, P))
     for b in _blocks(view_of):
         Jb = Js[b]
         meat += Jb.T @ photo_covariance(Jd[b], noise) @ Jb
-    return Hi @ meat @ Hi
+    return covariance(Js, meat=meat).stated
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ import numpy as np
 
 from vision_cal.errors import VisionCalError
 from vision_cal.model.rms import rms_2d
+from vision_cal.model.solve import covariance
 
 _UNDIST_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 60, 1e-12)
 
@@ -196,10 +197,8 @@ def fit_mapping(sheet_mm, raw_px, *, K=None, dist=None) -> SheetMapping:
     else:
         s2 = float(np.sum(res_mm**2)) / max(2 * len(obj) - 8, 1)
     s2 *= Td[0, 0] ** 2
-    try:
-        cov = s2 * np.linalg.inv(J.T @ J)
-    except np.linalg.LinAlgError:
-        cov = None
+    c = covariance(J, s2=s2)      # the one policy; corners that do not fix it: no covariance
+    cov = None if c.not_fixed else c.matrix
     return SheetMapping(H, None if K is None else np.asarray(K, float),
                         None if dist is None else np.asarray(dist, float),
                         rms_px, rms_mm, len(obj), cov, Ts, Td)

@@ -36,6 +36,7 @@ import cv2
 import numpy as np
 
 from vision_cal.config import DEFAULT, SheetFitConfig
+from vision_cal.model.solve import solve
 
 MISFIT = "markers do not fit the declared sheet"
 
@@ -189,9 +190,10 @@ class MisfitParts:
         return f"{lens}, {smooth}, {self.left_mm:.2g} mm left"
 
 
-def _lens_residual(theta, q, mm):
-    """Sheet residual (flattened) of corners ``q`` (normalised px) through lens terms
-    ``theta[8:12]`` (k1 k2 p1 p2) then the homography ``theta[:8]`` (h33 = 1)."""
+def _lens_model(theta, q):
+    """Corners ``q`` (normalised px) through lens terms ``theta[8:12]`` (k1 k2 p1 p2), then
+    the homography ``theta[:8]`` (h33 = 1): the sheet points (u, v) and the parts their
+    derivatives need."""
     k1, k2, p1, p2 = theta[8:12]
     x, y = q[:, 0], q[:, 1]
     r2 = x * x + y * y
@@ -202,38 +204,46 @@ def _lens_residual(theta, q, mm):
     w = H[2, 0] * xu + H[2, 1] * yu + H[2, 2]
     u = (H[0, 0] * xu + H[0, 1] * yu + H[0, 2]) / w
     v = (H[1, 0] * xu + H[1, 1] * yu + H[1, 2]) / w
+    return u, v, xu, yu, w, H, (x, y, r2)
+
+
+def _lens_residual(theta, q, mm):
+    """Sheet residual (flattened: all u, then all v) of corners ``q`` (normalised px)
+    through :func:`_lens_model`."""
+    u, v = _lens_model(theta, q)[:2]
     return np.concatenate([u - mm[:, 0], v - mm[:, 1]])
 
 
-def _levenberg_marquardt(fun, x0, args, iterations: int = 20):
-    """The residual of ``fun`` after a few Levenberg-Marquardt steps from ``x0`` (forward
-    differences): a sheet described right converges in about five; a wrong one need not
-    converge to be told apart (it leaves about the marker side)."""
-    x = np.asarray(x0, float).copy()
-    r = fun(x, *args)
-    cost, lam = float(r @ r), 1e-3
-    for _ in range(iterations):
-        h = 1e-7 * np.maximum(np.abs(x), 1e-3)
-        J = np.stack([(fun(x + np.eye(len(x))[k] * h[k], *args) - r) / h[k]
-                      for k in range(len(x))], axis=1)
-        A, g = J.T @ J, J.T @ r
-        improved = False
-        while lam < 1e9:
-            try:
-                dx = np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), -g)
-            except np.linalg.LinAlgError:
-                lam *= 10.0
-                continue
-            rn = fun(x + dx, *args)
-            cn = float(rn @ rn)
-            if np.isfinite(cn) and cn < cost:
-                improved = cost - cn > 1e-10 * cost
-                x, r, cost, lam = x + dx, rn, cn, max(lam / 3.0, 1e-9)
-                break
-            lam *= 5.0
-        if not improved:
-            break
-    return r
+def _lens_jacobian(theta, q, mm):
+    """(2N, 12) the derivatives of :func:`_lens_residual` by ``theta``."""
+    u, v, xu, yu, w, H, (x, y, r2) = _lens_model(theta, q)
+    n = len(u)
+    J = np.zeros((2 * n, 12))
+    one = np.ones(n)
+    J[:n, 0:3] = np.column_stack([xu, yu, one]) / w[:, None]
+    J[n:, 3:6] = J[:n, 0:3]
+    J[:n, 6:8] = -np.column_stack([u * xu, u * yu]) / w[:, None]
+    J[n:, 6:8] = -np.column_stack([v * xu, v * yu]) / w[:, None]
+    # through the undistorted point: d(xu, yu) / d(k1, k2, p1, p2)
+    dxu = np.column_stack([x * r2, x * r2 * r2, 2 * x * y, r2 + 2 * x * x])
+    dyu = np.column_stack([y * r2, y * r2 * r2, r2 + 2 * y * y, 2 * x * y])
+    J[:n, 8:] = (((H[0, 0] - u * H[2, 0]) / w)[:, None] * dxu
+                 + ((H[0, 1] - u * H[2, 1]) / w)[:, None] * dyu)
+    J[n:, 8:] = (((H[1, 0] - v * H[2, 0]) / w)[:, None] * dxu
+                 + ((H[1, 1] - v * H[2, 1]) / w)[:, None] * dyu)
+    return J
+
+
+def _lens_fit_residual(x0, q, mm, iterations: int = 20) -> np.ndarray:
+    """The residual of :func:`_lens_residual` after the lens terms and the homography are
+    fitted from ``x0`` (the one solver, :func:`vision_cal.model.solve.solve`, with the
+    analytic Jacobian, at most ``iterations`` times the evaluations a step takes): a sheet
+    described right converges in about five; a wrong one need not converge to be told apart
+    (it leaves about the marker side), so a solve stopped on its limit is read where it
+    stopped, on purpose: what a lens leaves is at most that."""
+    sol = solve(lambda x: _lens_residual(x, q, mm), x0, jac=lambda x: _lens_jacobian(x, q, mm),
+                xtol=1e-10, ftol=1e-10, max_nfev=5 * iterations)
+    return sol.residuals if sol else sol.last.residuals
 
 
 def _field_basis(xy: np.ndarray, n_corners: int) -> np.ndarray:
@@ -274,7 +284,7 @@ def misfit_parts(corners_mm, corners_px, *, size_px=None,
         H0, _ = cv2.findHomography(q, mm, 0)
         if H0 is not None and np.all(np.isfinite(H0)) and abs(H0[2, 2]) > 1e-12:
             x0 = np.append((H0 / H0[2, 2]).ravel()[:8], np.zeros(4))
-            r = _levenberg_marquardt(_lens_residual, x0, (q, mm)).reshape(2, -1).T
+            r = _lens_fit_residual(x0, q, mm).reshape(2, -1).T
             rms = float(np.sqrt(np.mean(np.sum(r * r, axis=1))))
             if np.isfinite(rms) and rms <= total:
                 after_lens, lens_fitted, res = rms, True, r

@@ -79,15 +79,45 @@ class ScaraParams:
                    float(d["joint_zero_deg"][1]), float(d["base_mm"][0]), float(d["base_mm"][1]))
 
 
+#: the base vector's entries (:attr:`ScaraParams.vector`; a model's labels begin so)
+BASE_LABELS = ("L1_mm", "L2_mm", "z1", "z2", "base_x_mm", "base_y_mm")
+
+
 @dataclass(frozen=True)
 class ParamMask:
-    """Which of the six base parameters are free in a fit (pybotics style)."""
+    """Which of the six base parameters are free in a fit (pybotics style), by the labels of
+    :data:`BASE_LABELS`; a model's effects are held (:meth:`over`)::
+
+        placement = ParamMask.of("z1", "base_x_mm", "base_y_mm")
+        solve(residual, model.vector, jac=jac, free=placement.over(len(model.vector)))
+    """
 
     free: tuple[bool, ...] = field(default=(True,) * 6)
+
+    @classmethod
+    def of(cls, *labels: str) -> "ParamMask":
+        unknown = [x for x in labels if x not in BASE_LABELS]
+        if unknown:
+            raise VisionCalError(f"no base parameter {unknown}: expected {BASE_LABELS}")
+        return cls(tuple(x in labels for x in BASE_LABELS))
+
+    def __or__(self, other: "ParamMask") -> "ParamMask":
+        return ParamMask(tuple(a or b for a, b in zip(self.free, other.free)))
 
     @property
     def array(self) -> np.ndarray:
         return np.array(self.free, dtype=bool)
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        """The free parameters' labels, in the vector's order."""
+        return tuple(x for x, f in zip(BASE_LABELS, self.free) if f)
+
+    def over(self, n_params: int) -> np.ndarray:
+        """(n_params,) bool over a model's whole vector (base, then effects, held)."""
+        out = np.zeros(n_params, bool)
+        out[:6] = self.free
+        return out
 
 
 def _as_q_rad(q_deg) -> np.ndarray:

@@ -5,7 +5,9 @@
 
 - the start comes from the closed-form linear solve (:mod:`vision_cal.model.linear`),
   so the solve never depends on the nominal model being close; effects start at zero;
-- scipy ``least_squares`` with the analytic Jacobian of :class:`vision_cal.model.robot.RobotModel`;
+- the one solver (:func:`vision_cal.model.solve.solve`: MINPACK's Levenberg-Marquardt) with
+  the analytic Jacobian of :class:`vision_cal.model.robot.RobotModel`; a solve that stops on
+  its evaluation limit is a :class:`FailedFit` with that reason;
 - a robust pass (soft-L1 loss scaled to the residual spread) names outliers (normalised
   residual above ``outlier_sigma``), which are left out of the final solve;
 - identifiability is checked on the column-scaled Jacobian (rank and condition number)
@@ -14,8 +16,10 @@
   names the problem (as ``skimage.measure.fit`` returns a ``FailedEstimation``); callers
   that branch on it test ``if not fit``, callers that cannot go on raise
   :class:`vision_cal.errors.CalibrationError` with that reason (:meth:`FailedFit.or_raise`);
-- standard deviations from the covariance scaled by the residual variance
-  ``s^2 = SSR / (2N - P)``, and correlations (pairs above 0.9 are flagged).
+- standard deviations from the one covariance policy (:func:`vision_cal.model.solve.covariance`,
+  scaled by the residual variance ``s^2 = SSR / (2N - P)``; a direction the data do not fix
+  is a :class:`FailedFit` naming its parameters), and correlations (pairs above 0.9 are
+  flagged).
 
 Thresholds (outlier rule, condition number limit): the ``config`` passed in
 (:class:`vision_cal.config.EstimatorConfig`, default :data:`vision_cal.config.DEFAULT`).
@@ -29,7 +33,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from vision_cal.model.linear import explain_degeneracy, linear_init
 from vision_cal.config import DEFAULT, EstimatorConfig
@@ -37,6 +40,7 @@ from vision_cal.errors import CalibrationError, Failure
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import RobotModel, Tool
 from vision_cal.model.rms import rms_2d
+from vision_cal.model.solve import covariance, solve
 
 
 
@@ -105,9 +109,11 @@ class Fit:
         if 2 * n <= P:
             return FailedFit(f"{n} marks give {2 * n} equations for {P} unknowns "
                              f"({', '.join(start.param_labels())}): more marks are needed")
+        labels = tuple(start.param_labels())
         J0 = (start.jacobian(q, s_app) * w[:, None, None]).reshape(-1, P)
-        if _conditioning(J0, cond_limit)[1] < P:
-            return FailedFit(_confounded(J0, start.param_labels()))
+        c0 = covariance(J0, labels=labels, cond_limit=cond_limit)
+        if c0.not_fixed:
+            return FailedFit(_confounded(c0))
 
         def fun(v, keep):
             m = start.with_vector(v)
@@ -118,39 +124,38 @@ class Fit:
             m = start.with_vector(v)
             return (m.jacobian(q[keep], s_app[keep]) * w[keep, None, None]).reshape(-1, P)
 
+        def solved(x0, keep, **robust_loss):
+            return solve(lambda v: fun(v, keep), x0, jac=lambda v: jac(v, keep),
+                         **robust_loss)
+
         keep = np.ones(n, dtype=bool)
-        v0 = start.vector
-        sol = least_squares(fun, v0, jac=jac, args=(keep,), method="lm", xtol=1e-14, ftol=1e-14)
+        sol = solved(start.vector, keep)
         notes = []
-        if robust and n * 2 - P >= 4:
-            r = fun(sol.x, keep).reshape(-1, 2)
+        if sol and robust and n * 2 - P >= 4:
+            r = sol.residuals.reshape(-1, 2)
             scale = 1.4826 * np.median(np.abs(r)) + 1e-12
             if np.any(np.abs(r) > outlier_sigma * scale):
-                rob = least_squares(fun, sol.x, jac=jac, args=(keep,), loss="soft_l1",
-                                    f_scale=2.0 * scale, method="trf", xtol=1e-14, ftol=1e-14)
-                r = fun(rob.x, keep).reshape(-1, 2)
+                rob = solved(sol.x, keep, loss="soft_l1", f_scale=2.0 * scale)
+                if not rob:
+                    return FailedFit(f"the robust pass: {rob.reason}")
+                r = rob.residuals.reshape(-1, 2)
                 scale = 1.4826 * np.median(np.abs(r)) + 1e-12
                 bad = np.hypot(r[:, 0], r[:, 1]) > outlier_sigma * scale * np.sqrt(2)
                 if bad.any() and (n - bad.sum()) * 2 > P + 2:
                     keep = ~bad
                     notes.append("outliers left out: " + ", ".join(
                         ids[i] for i in np.flatnonzero(bad)))
-                    sol = least_squares(fun, rob.x, jac=jac, args=(keep,), method="lm",
-                                        xtol=1e-14, ftol=1e-14)
-        v = sol.x
-        fitted = start.with_vector(v)
-        J = jac(v, keep)
-        res_w = fun(v, keep)
-        dof = int(J.shape[0] - P)
-        ssr = float(res_w @ res_w)
-        s2 = ssr / dof if dof > 0 else float("nan")
-        cond, rank = _conditioning(J, cond_limit)
-        if rank < P:
-            return FailedFit(_confounded(J, start.param_labels()))
-        cov = np.linalg.pinv(J.T @ J) * (s2 if np.isfinite(s2) else np.nan)
+                    sol = solved(rob.x, keep)
+        if not sol:
+            return FailedFit(sol.reason)
+        fitted = start.with_vector(sol.x)
+        s2 = sol.residual_variance
+        cov = sol.covariance(labels, cond_limit=cond_limit)
+        if cov.not_fixed:
+            return FailedFit(_confounded(cov))
         residuals = xy - fitted.predict(q, s_app)
-        return cls(fitted, cov, tuple(start.param_labels()), residuals, keep, ids, cond, rank,
-                   float(np.sqrt(s2)) if np.isfinite(s2) else float("nan"), dof, init, P,
+        return cls(fitted, cov.matrix, labels, residuals, keep, ids, cov.cond, cov.rank,
+                   float(np.sqrt(s2)) if np.isfinite(s2) else float("nan"), sol.dof, init, P,
                    tuple(notes))
 
     def or_raise(self) -> "Fit":
@@ -171,12 +176,12 @@ class Fit:
         keep = np.asarray(self.inliers, bool)
         w = np.ones(len(q)) if sigma_mm is None else 1.0 / np.asarray(sigma_mm, float)
         P = len(self.model.vector)
-        J = self.model.jacobian(q[keep], app[keep]).reshape(-1, P)
-        W = np.repeat(w[keep] ** 2, 2)
-        G = np.linalg.pinv(J.T @ (W[:, None] * J)) @ (J.T * W)
+        w2 = np.repeat(w[keep], 2)
+        Jw = self.model.jacobian(q[keep], app[keep]).reshape(-1, P) * w2[:, None]
         rows = np.column_stack([2 * np.flatnonzero(keep), 2 * np.flatnonzero(keep) + 1]).ravel()
-        C = np.asarray(cov_mm2, float)[np.ix_(rows, rows)]
-        return replace(self, cov=self.cov + G @ C @ G.T)
+        Cw = np.asarray(cov_mm2, float)[np.ix_(rows, rows)] * np.outer(w2, w2)
+        shared = covariance(Jw, labels=self.labels, meat=Jw.T @ Cw @ Jw)
+        return replace(self, cov=self.cov + shared.matrix)
 
     # -- results --------------------------------------------------------------------------
     @property
@@ -231,25 +236,8 @@ class Fit:
         return np.asarray(xy_mm, dtype=float) - self.predict(q_deg, approach)
 
 
-def _scaled(J):
-    norms = np.linalg.norm(J, axis=0)
-    norms = np.where(norms > 0, norms, 1.0)
-    return J / norms
-
-
-def _conditioning(J, cond_limit: float) -> tuple[float, int]:
-    s = np.linalg.svd(_scaled(J), compute_uv=False)
-    if s[0] == 0:
-        return float("inf"), 0
-    rank = int(np.sum(s > s[0] / cond_limit))
-    cond = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
-    return cond, rank
-
-
-def _confounded(J, labels) -> str:
-    Js = _scaled(J)
-    _, s, vt = np.linalg.svd(Js, full_matrices=False)
-    v = vt[-1]
-    big = [labels[i] for i in np.argsort(-np.abs(v)) if abs(v[i]) > 0.2][:4]
+def _confounded(cov) -> str:
+    """The reason of a fit whose ``cov`` (:class:`vision_cal.model.solve.Covariance`) has a
+    direction the data do not fix: its smallest, by the (at most four) parameters it moves."""
     return ("the plan cannot tell these parameters apart (condition number "
-            f"{s[0] / max(s[-1], 1e-300):.3g}): {' ~ '.join(big)}")
+            f"{cov.cond:.3g}): {' ~ '.join(cov.not_fixed[-1].labels[:4])}")

@@ -9,10 +9,12 @@ the robot draws them on a sheet (a new one, anywhere within reach), and
    a new sheet sits at another place and angle, so the base (x, y) and ``z1`` (which is
    the robot's rotation to the sheet plus joint 1's zero, ``docs/conventions.md``) are
    refitted first, always. Joint 1's zero therefore cannot be checked on a new sheet.
-2. **Which parameters moved**: ``L1``, ``L2`` and ``z2`` refitted on top (Gauss-Newton from
-   the calibration, the calibrated effects kept), each change with its std (covariance
-   scaled by the residual variance ``SSR / (2N - P)``, ``docs/conventions.md``). A change
-   beyond ``MOVED_SIGMA`` std is "moved".
+2. **Which parameters moved**: ``L1``, ``L2`` and ``z2`` refitted on top (the one solver
+   from the calibration, posed by which base parameters are free,
+   :class:`vision_cal.model.kinematics.ParamMask`; the calibrated effects kept), each change
+   with its std (the one covariance policy, scaled by the residual variance
+   ``SSR / (2N - P)``, ``docs/conventions.md``). A change beyond ``MOVED_SIGMA`` std is
+   "moved".
 3. **The verdict**:
 
    - ``still good``: nothing moved and the marks' RMS error (sheet placement taken out) is
@@ -51,15 +53,17 @@ from vision_cal.design.iso9283 import ap_rp
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.plan.extrapolation import beyond_deg, std_at_mm, std_limit_mm
 from vision_cal.workflows.pipeline import measure_marks
+from vision_cal.model.kinematics import ParamMask
 from vision_cal.model.rms import rms_2d
+from vision_cal.model.solve import solve
 
 #: the calibrations verify can check: pen marks fitted in one sheet's frame (a joint
 #: calibration's placements too: OUT/<folder>/calibration.json)
 CHECKABLE_METHODS = ("lsq", "paper", "lsq-placements")
 MOVED_SIGMA = 4.0          # a parameter moved when its change exceeds this many std
 TOLERANCE_FACTOR = 2.0     # still good: RMS within this factor of the promised error
-PLACEMENT = (2, 4, 5)      # z1, base x, base y: where the sheet lies (always refitted)
-CHECKED = (0, 1, 3)        # L1, L2, z2: what a new sheet can check
+PLACEMENT = ParamMask.of("z1", "base_x_mm", "base_y_mm")   # where the sheet lies (always refitted)
+CHECKED = ParamMask.of("L1_mm", "L2_mm", "z2")              # what a new sheet can check
 LABELS = ("L1_mm", "L2_mm", "z1_deg", "z2_deg", "base_x_mm", "base_y_mm")
 UNIT = (1.0, 1.0, 180 / np.pi, 180 / np.pi, 1.0, 1.0)   # internal vector -> file units
 
@@ -93,23 +97,25 @@ class VerifyResult:
         return d
 
 
-def _fit(model, q, s, xy, free: tuple[int, ...], iters: int = 8):
-    """Gauss-Newton on the base-vector entries ``free``; (model, residual (N, 2), cov)."""
-    for _ in range(iters):
-        r = (xy - model.predict(q, s)).reshape(-1)
-        J = model.jacobian(q, s)[:, :, list(free)].reshape(-1, len(free))
-        step, *_ = np.linalg.lstsq(J, r, rcond=None)
-        v = model.vector.copy()
-        v[list(free)] += step
-        model = model.with_vector(v)
-        if np.max(np.abs(step)) < 1e-12:
-            break
-    res = xy - model.predict(q, s)
-    J = model.jacobian(q, s)[:, :, list(free)].reshape(-1, len(free))
-    dof = max(2 * len(q) - len(free), 1)
-    sigma2 = float(np.sum(res**2)) / dof
-    cov = np.linalg.pinv(J.T @ J) * sigma2
-    return model, res, cov
+def _fit(model, q, s, xy, free: ParamMask):
+    """The base parameters ``free`` refitted from ``model`` (its effects held): (model,
+    residual (N, 2), std (6,) of the base vector, internal units: NaN where held, inf
+    where the check cannot fix it)."""
+    P = len(model.vector)
+
+    def residual(v):
+        return (model.with_vector(v).predict(q, s) - xy).ravel()
+
+    def jac(v):
+        return model.with_vector(v).jacobian(q, s).reshape(-1, P)
+
+    sol = solve(residual, model.vector, jac=jac, free=free.over(P))
+    if not sol:
+        raise CalibrationError(f"the check's marks could not be fitted: {sol.reason}")
+    fitted = model.with_vector(sol.x)
+    std = np.full(6, np.nan)
+    std[free.array] = sol.covariance(free.labels).std
+    return fitted, xy - fitted.predict(q, s), std
 
 
 def compare(model, cal_doc: dict, ids, q_deg, approach, xy_mm, *,
@@ -126,20 +132,18 @@ def compare(model, cal_doc: dict, ids, q_deg, approach, xy_mm, *,
                                "(L1, L2, z2 and where the sheet lies)")
     raw = xy - model.predict(q, s)
     placed, res_p, _ = _fit(model, q, s, xy, PLACEMENT)
-    full = tuple(sorted(PLACEMENT + CHECKED))
-    refit, res_f, cov = _fit(placed, q, s, xy, full)
+    refit, res_f, std = _fit(placed, q, s, xy, PLACEMENT | CHECKED)
     delta = (refit.vector[:6] - model.vector[:6]) * np.array(UNIT)
-    std = np.sqrt(np.clip(np.diag(cov), 0, None)) * np.array([UNIT[i] for i in full])
-    std_of = dict(zip(full, std))
+    std_of = dict(enumerate(std * np.array(UNIT)))
     changes, moved = {}, []
-    for i in CHECKED:
+    for i in map(int, np.flatnonzero(CHECKED.array)):
         sig = float(abs(delta[i]) / std_of[i]) if std_of[i] > 0 else float("inf")
         m = sig > MOVED_SIGMA
         changes[LABELS[i]] = {"delta": float(delta[i]), "std": float(std_of[i]),
                               "sigmas": sig, "moved": m}
         if m:
             moved.append(i)
-    for i in PLACEMENT:   # where the sheet lies: reported, never judged
+    for i in map(int, np.flatnonzero(PLACEMENT.array)):   # the sheet: reported, never judged
         changes[LABELS[i]] = {"delta": float(delta[i]), "std": float(std_of[i]),
                               "sheet_placement": True}
     val = (cal_doc.get("validation_rms_mm") or {}).get("final_model")
@@ -155,7 +159,7 @@ def compare(model, cal_doc: dict, ids, q_deg, approach, xy_mm, *,
                        f"({TOLERANCE_FACTOR:g} x the promised {promised:.4f} mm); no parameter "
                        f"moved beyond {MOVED_SIGMA:g} std")
     elif moved == [3]:
-        z2_only, res_z, _ = _fit(placed, q, s, xy, tuple(sorted(PLACEMENT + (3,))))
+        z2_only, res_z, _ = _fit(placed, q, s, xy, PLACEMENT | ParamMask.of("z2"))
         d = float((z2_only.vector[3] - model.vector[3]) * UNIT[3])
         if rms_2d(res_z) <= bound:
             rz = rezero(2, d, model.params.z2_deg)
