@@ -177,7 +177,7 @@ def replicate(views, ap: AsPrinted, K, dist, size_px, *, lens_free: bool,
                                 split=halves.split, files_a=tuple(files[0]),
                                 files_b=tuple(files[1]))
         half_aps.append(h)
-    return _compare_halves(half_aps[0], half_aps[1], halves.split, files, cfg)
+    return compare_layouts(half_aps[0], half_aps[1], cfg, split=halves.split, files=files)
 
 
 def _common(a: AsPrinted, b: AsPrinted):
@@ -200,11 +200,18 @@ def _in_common_gauge(h: AsPrinted, rows: np.ndarray, rel: np.ndarray, Q: np.ndar
     return Q @ d, Q @ C @ Q.T
 
 
-def _compare_halves(a: AsPrinted, b: AsPrinted, split: str, files, cfg: AsPrintedConfig
-                    ) -> Replication:
+def compare_layouts(a: AsPrinted, b: AsPrinted, config: AsPrintedConfig | None = None, *,
+                    split: str | None = None, files=((), ())) -> Replication:
+    """Two layouts of one print (two halves, or two surveys: two cameras) compared on the
+    corners both released, in one gauge over those, against the joint covariance each
+    states (``corner_cov_mm2``; module docstring)."""
+    cfg = config or DEFAULT.as_printed
     declared, rel, ka, kb = _common(a, b)
     n = int(rel.sum())
     common = dict(split=split, files_a=tuple(files[0]), files_b=tuple(files[1]), n_corners=n)
+    if a.corner_cov_mm2 is None or b.corner_cov_mm2 is None:
+        return _not_checked("a layout without its corners' joint covariance (singular)",
+                            cfg, **common)
     if n < cfg.replication_min_corners:
         return _not_checked(f"the halves moved only {n} corners in common, fewer than "
                             f"{cfg.replication_min_corners}: photograph the whole sheet in "

@@ -57,7 +57,21 @@ def run_survey(photos_dir, sheet_json, out_dir, *, config: EstimatorConfig | Non
     ``out_dir/survey.json`` (docs/format.md) and return it. ``out_dir`` is the output
     owner's (``actions/survey``: checked against the inputs, locked)."""
     config = config or DEFAULT
-    root, out_dir = Path(photos_dir), Path(out_dir)
+    ap, dets, warnings, sheet = survey_layout(photos_dir, sheet_json, config=config)
+    doc = survey_document(sheet_json, sheet, dets, ap, claim_of(ap, config.as_printed),
+                          warnings, config)
+    atomic_write_json(Path(out_dir) / SURVEY_FILE, doc)
+    return doc
+
+
+def survey_layout(photos_dir, sheet_json, *, config: EstimatorConfig | None = None):
+    """The sheet as printed from the photos in ``photos_dir`` (``source`` survey, with its
+    significance and replication, applied or not: :func:`vision_cal.measure.replicate.claim_of`
+    says which), every photo's detection, the warnings and the sheet; raises when fewer
+    than ``config.as_printed.min_places`` places were photographed or the views do not fix
+    the corners."""
+    config = config or DEFAULT
+    root = Path(photos_dir)
     if not root.is_dir():
         raise VisionCalError("not a folder of photos", file=str(root))
     sheet = load_sheet_file(sheet_json)
@@ -73,7 +87,7 @@ def run_survey(photos_dir, sheet_json, out_dir, *, config: EstimatorConfig | Non
     if ap is None:
         raise VisionCalError(
             f"{len(ok)} usable photo(s) from fewer than {config.as_printed.min_places} camera "
-            "places: a survey needs photos from several places (docs/sheet.md: 5-10 photos, "
+            "places: a survey needs photos from several places (docs/sheet.md: 6-10 photos, "
             "the phone moved and tilted 10-30 deg each time)", file=str(root))
     if claim_of(ap, config.as_printed).status == NOT_RESOLVED:
         # the corners are held by the prior alone: the views do not fix the sheet
@@ -83,11 +97,7 @@ def run_survey(photos_dir, sheet_json, out_dir, *, config: EstimatorConfig | Non
             "printer can be off; check that --sheet describes the sheet in the photos (its "
             "markers' ids, size and places), then photograph it from further places, tilted "
             "more (docs/sheet.md)", file=str(sheet_json))
-    ap = replace(ap, source="survey")
-    doc = survey_document(sheet_json, sheet, dets, ap, claim_of(ap, config.as_printed),
-                          warnings, config)
-    atomic_write_json(out_dir / SURVEY_FILE, doc)
-    return doc
+    return replace(ap, source="survey"), dets, warnings, sheet
 
 
 def survey_document(sheet_json, sheet: Sheet, dets, ap: AsPrinted, claim: Claim,
