@@ -137,3 +137,37 @@ def test_the_halves_are_camera_places_else_photos():
     h = split_halves([0, 0, 1, 1, 2, 2, 3], 3)   # 4 places, repeated photos
     assert h.split == "photos" and h.a == (0, 2, 4, 6) and h.b == (1, 3, 5)
     assert split_halves([0, 1, 2, 3, 4], 3) is None
+
+
+def test_a_field_not_applied_moves_no_mark_and_carries_the_print_in_their_variance(world):
+    """measurement.json ``print`` of a layout found but not applied (its halves disagree):
+    ``applied`` false with the status and the reason, and the print the photos' mappings
+    leave (each marker 0.1 mm off, the same in every photo) carried in every mark's
+    variance as from one place; a failed solve writes no figure of its layout."""
+    from types import SimpleNamespace
+
+    from vision_cal.measure.asprinted import AsPrinted
+    from vision_cal.measure.print_stage import print_stage
+
+    ids, declared, dev = world
+    rel = np.ones(declared.shape[:2], bool)
+    ap = AsPrinted(ids, declared, declared + dev, np.full(declared.shape, 0.01), rel, K,
+                   DIST, SIZE, True, (), (), (), 8, "views",
+                   replication={"status": DISAGREE, "reason": "the halves' fields differ"},
+                   significance={"chi2_dof": 50.0, "dof": 90, "p_value": 0.0})
+    shift = np.random.default_rng(3).normal(0, 0.1 / np.sqrt(2), (len(ids), 2))
+    images = [SimpleNamespace(status="ok", marker_ids=ids,
+                              markers_px=declared + shift[:, None, :],
+                              mapping=SimpleNamespace(image_to_sheet=lambda p: p))
+              for _ in range(3)]
+    session = SimpleNamespace(sheet=SimpleNamespace(markers=[
+        SimpleNamespace(id=i, corners_mm=c) for i, c in zip(ids, declared)]))
+    pr = print_stage(session, images, None, DEFAULT, kept_declared=ap)
+    assert pr["applied"] is False and pr["status"] == NOT_REPLICATED
+    assert "the halves' fields differ" in pr["reason"]
+    seen = float(np.sqrt(np.mean(np.sum(shift**2, axis=1))))
+    assert abs(pr["limit_mm"] - seen) < 1e-9 and abs(pr["sigma_mm"] - seen / np.sqrt(2)) < 1e-9
+    assert pr["replication"]["status"] == DISAGREE and pr["rms_mm"] > 0
+    failed = print_stage(session, images, None, DEFAULT,
+                         kept_declared=replace(ap, stopped="the bundle adjustment stopped"))
+    assert failed["status"] == FAILED and "rms_mm" not in failed and failed["limit_mm"] > 0

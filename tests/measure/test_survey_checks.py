@@ -122,3 +122,29 @@ def test_calibrate_says_in_one_line_that_a_survey_beside_it_is_not_applied(tmp_p
     assert (tmp_path / "out" / "calibration.json").is_file()
     show(SurveyNotApplied(data / "survey.json", FAILED, "stopped"), quiet=True)
     assert "failed: stopped" in capsys.readouterr().err
+
+
+def test_a_survey_whose_solve_stopped_is_a_failure_with_no_layout(tmp_path, capsys):
+    """The bundle adjustment stopped on its evaluation limit: survey.json says ``failed``
+    with the reason, writes no layout, no lens and no residuals, the command exits 1 saying
+    so even when quiet, and the file is never applied."""
+    from dataclasses import replace
+
+    from vision_cal.actions.survey import SurveyOutcome
+    from vision_cal.config import DEFAULT
+    from vision_cal.measure.replicate import claim_of
+    from vision_cal.measure.survey import survey_document
+
+    sheet = sm.small_sheet()
+    ap = AsPrinted.from_json(_survey(sheet)["as_printed"])
+    ap = replace(ap, stopped="the bundle adjustment stopped at its evaluation limit (100) "
+                             "before converging (100 evaluations)")
+    doc = survey_document(tmp_path / "sheet.json", sheet, [], ap, claim_of(ap), [], DEFAULT)
+    assert doc["verdict"]["status"] == "failed" and "evaluation limit" in doc["verdict"]["text"]
+    assert doc["as_printed"] is None and doc["lens"] is None
+    assert doc["print"]["claimed"] is False and doc["print"]["status"] == FAILED
+    assert doc["solve"]["status"] == "stopped"
+    f = _write(tmp_path / "survey.json", doc)
+    assert show(SurveyOutcome(doc, f), quiet=True) == 1
+    assert capsys.readouterr().err.startswith(f"{f}: failed: the bundle adjustment stopped")
+    assert applicable(f).status == FAILED
