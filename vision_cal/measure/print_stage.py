@@ -21,7 +21,8 @@ log = logging.getLogger(__name__)
 
 
 def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEstimate | None,
-                     config: EstimatorConfig, *, survey: AsPrinted | None = None):
+                     config: EstimatorConfig, *, survey: AsPrinted | None = None,
+                     replicate_all: bool = False):
     """The sheet as printed (:mod:`vision_cal.measure.asprinted`): the survey's layout when
     one is given, else estimated from these photos when they were taken from at least
     ``config.as_printed.min_places`` places and off its layout beyond
@@ -29,7 +30,9 @@ def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEs
     (as_printed or None, lens, detections
     with their markers' corners as printed); an estimated lens is then the one solved with
     the layout (the stage-2 lens absorbed part of the print), when stage 2 kept one; and
-    the layout found but not used (None when used or not found)."""
+    the layout found but not used (None when used or not found). The layout is replicated
+    (:func:`vision_cal.measure.replicate.with_replication`) when it is significant, or
+    always with ``replicate_all`` (a survey reports its halves whatever they say)."""
     ap = survey
     if ap is None:
         ok = [d for d in dets if d.status == "ok"]
@@ -52,7 +55,7 @@ def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEs
         # issue 37: the field again from two halves of the places, and applied only when
         # it converged, is significant and replicates (measure/replicate.claim_of)
         ap = with_replication(ap, views, K, dist, size, lens_free=session.camera is None,
-                              config=config.as_printed)
+                              config=config.as_printed, only_significant=not replicate_all)
         claim = claim_of(ap, config.as_printed)
         if not claim.applied:
             log.info("as printed: not applied (%s): %s", claim.status, claim.reason)

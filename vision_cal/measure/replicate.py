@@ -250,18 +250,22 @@ def significance(ap: AsPrinted) -> Comparison | None:
 
 
 def with_replication(ap: AsPrinted, views, K, dist, size_px, *, lens_free: bool,
-                     config: AsPrintedConfig | None = None) -> AsPrinted:
+                     config: AsPrintedConfig | None = None,
+                     only_significant: bool = False) -> AsPrinted:
     """``ap`` with its ``significance`` (:func:`significance`) and ``replication``
     (:func:`replicate`) blocks; a solve that stopped on a limit is neither (it is no
-    result)."""
+    result). ``only_significant``: a field not significant is not replicated (it is not
+    applied whatever its halves say: the calibration's own stage spares the two solves)."""
     if ap.stopped:
         return ap
+    cfg = config or DEFAULT.as_printed
     sig = significance(ap)
-    rep = replicate(views, ap, K, dist, size_px, lens_free=lens_free, config=config)
-    return replace(ap, replication=rep.to_json(),
-                   significance=None if sig is None else {
-                       "chi2_dof": _num(sig.chi2_dof), "dof": int(sig.dof),
-                       "p_value": _num(sig.p_value)})
+    ap = replace(ap, significance=None if sig is None else {
+        "chi2_dof": _num(sig.chi2_dof), "dof": int(sig.dof), "p_value": _num(sig.p_value)})
+    if only_significant and _not_significant(ap, cfg):
+        return ap
+    rep = replicate(views, ap, K, dist, size_px, lens_free=lens_free, config=cfg)
+    return replace(ap, replication=rep.to_json())
 
 
 # ---------------------------------------------------------------------- the rule

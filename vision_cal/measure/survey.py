@@ -81,7 +81,8 @@ def survey_layout(photos_dir, sheet_json, *, config: EstimatorConfig | None = No
         raise VisionCalError("no photos (JPEG or PNG) in the folder", file=str(root))
     dets = [detect_image(root / n, session, root=root, name=n, config=config) for n in names]
     lens, warnings = lens_of_photos(session, dets)
-    ap, lens, _, not_applied = as_printed_stage(session, dets, lens, config)
+    ap, lens, _, not_applied = as_printed_stage(session, dets, lens, config,
+                                                replicate_all=True)
     ap = ap or not_applied   # a survey reports the layout it found, applied or not
     ok = [d for d in dets if d.status == "ok"]
     if ap is None:
