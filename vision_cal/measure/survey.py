@@ -79,7 +79,8 @@ def survey_layout(photos_dir, sheet_json, *, config: EstimatorConfig | None = No
     names = photos.list_photos(root)
     if not names:
         raise VisionCalError("no photos (JPEG or PNG) in the folder", file=str(root))
-    dets = [detect_image(root / n, session, root=root, name=n, config=config) for n in names]
+    dets = [detect_image(root / n, session, root=root, name=n, config=config, dots=False)
+            for n in names]   # the blank sheet: no pen marks to look for
     lens, warnings = lens_of_photos(session, dets)
     ap, lens, _, not_applied = as_printed_stage(session, dets, lens, config,
                                                 replicate_all=True)
