@@ -171,6 +171,14 @@ class TableWorld:
         """(M, 4, 2) every marker's corners as printed on the paper (the truth)."""
         return self.field.printed_corners(np.array([m.corners_mm for m in self.sheet.markers]))
 
+    def straight_side_corners(self) -> np.ndarray:
+        """(M, 4, 2) where each printed marker's straight-fitted sides meet
+        (``PrintField.straight_side_corners``: a corner detector fitting lines to the sides
+        reads these, the field's curvature along a side moving them off the corner points
+        by about 0.4 h^2 times the curvature)."""
+        return self.field.straight_side_corners(
+            np.array([m.corners_mm for m in self.sheet.markers]))
+
     def corners_3d(self) -> np.ndarray:
         """(M, 4, 3) every printed corner where it lies in space (on the waves)."""
         c = self.printed_corners()
@@ -337,10 +345,12 @@ def table_world(seed: int, *, grid=(6, 8), marker_mm: float = 28.0, pitch_mm: fl
 
 
 def survey_poses(world: TableWorld, cam: TableCamera, n: int, rng, *,
-                 tilt_deg=(10.0, 30.0), fill: float = 0.85) -> list[np.ndarray]:
+                 tilt_deg=(10.0, 30.0), fill: float = 0.85, aim_mm: float = 10.0
+                 ) -> list[np.ndarray]:
     """``n`` places round the sheet, as docs/sheet.md asks of a survey: azimuths spread
-    round it (jittered), tilted ``tilt_deg`` from straight down, the whole paper in frame
-    (its corners inside the central ``fill`` of the image), a small roll."""
+    round it (jittered), tilted ``tilt_deg`` from straight down, aimed within ``aim_mm``
+    of the sheet's centre, the whole paper in frame (its corners inside the central
+    ``fill`` of the image), a small roll."""
     rng = np.random.default_rng(rng)
     x0, y0, x1, y1 = (float(v) for v in world.sheet.extent_mm)
     paper = np.array([[x0, y0, 0], [x1, y0, 0], [x1, y1, 0], [x0, y1, 0]], float)
@@ -351,7 +361,7 @@ def survey_poses(world: TableWorld, cam: TableCamera, n: int, rng, *,
         az = a0 + 2 * np.pi * k / n + rng.uniform(-0.3, 0.3)
         tilt = np.radians(rng.uniform(*tilt_deg))
         roll = np.radians(rng.uniform(-8, 8))
-        target = np.array([(x0 + x1) / 2, (y0 + y1) / 2]) + rng.uniform(-10, 10, 2)
+        target = np.array([(x0 + x1) / 2, (y0 + y1) / 2]) + rng.uniform(-aim_mm, aim_mm, 2)
         direction = np.array([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az),
                               np.cos(tilt)])
         up = np.array([-np.sin(roll), np.cos(roll), 0.0])
