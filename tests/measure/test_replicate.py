@@ -171,3 +171,15 @@ def test_a_field_not_applied_moves_no_mark_and_carries_the_print_in_their_varian
     failed = print_stage(session, images, None, DEFAULT,
                          kept_declared=replace(ap, stopped="the bundle adjustment stopped"))
     assert failed["status"] == FAILED and "rms_mm" not in failed and failed["limit_mm"] > 0
+    # applied, its halves scattering 1.3 times what they state: the limit on the marks and
+    # the field's shared covariance grow by that (the std the halves showed)
+    agreed = replace(ap, replication={"status": AGREE, "chi2_dof": 1.69},
+                     field_read={"basis": "homography", "centre_mm": [0, 0], "scale_mm": 1.0,
+                                 "cov_mm2": np.eye(8).tolist()})
+    pr = print_stage(session, images, agreed, DEFAULT)
+    assert pr["applied"] and pr["stated_scale"] == pytest.approx(1.3)
+    assert pr["limit_mm"] == pytest.approx(1.3 * agreed.unresolved_mm)
+    assert np.allclose(pr["field"]["cov_mm2"], 1.69 * np.eye(8))
+    calm = print_stage(session, images, replace(agreed, replication={"status": AGREE,
+                                                                     "chi2_dof": 0.5}), DEFAULT)
+    assert calm["limit_mm"] == pytest.approx(agreed.unresolved_mm)

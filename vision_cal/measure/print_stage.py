@@ -14,7 +14,8 @@ from vision_cal.dataset.session import Session
 from vision_cal.measure.asprinted import AsPrinted, estimate_as_printed, field_basis
 from vision_cal.measure.finish import lens_of
 from vision_cal.measure.mapping import LensEstimate
-from vision_cal.measure.replicate import APPLIED, FAILED, claim_of, with_replication
+from vision_cal.measure.replicate import (APPLIED, FAILED, claim_of, stated_scale,
+                                          with_replication)
 from vision_cal.measure.types import ImageDetections, ImageResult
 
 log = logging.getLogger(__name__)
@@ -90,17 +91,22 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
     if kept_declared is not None:
         return _not_applied(kept_declared, _beyond_mapping(session, images, config), config)
     if as_printed is not None:
+        # the halves' scatter beyond what each stated scales what the field leaves (#37)
+        k = stated_scale(as_printed.replication)
+        field = as_printed.field
+        if field is not None and k > 1.0:
+            field = {**field, "cov_mm2": (k * k * np.asarray(field["cov_mm2"])).tolist()}
         return {"source": as_printed.source, "applied": True, "status": APPLIED,
                 "rms_mm": as_printed.rms_mm,
                 "max_mm": as_printed.max_mm, "growth_mm": as_printed.growth_mm,
                 "field_rms_mm": as_printed.field_rms_mm,
                 "unresolved_mm": as_printed.unresolved_mm,
-                "limit_mm": as_printed.unresolved_mm,
-                "sigma_mm": as_printed.unresolved_mm / np.sqrt(2.0),
+                "limit_mm": k * as_printed.unresolved_mm,
+                "sigma_mm": k * as_printed.unresolved_mm / np.sqrt(2.0),
                 "height_rms_mm": as_printed.height_rms_mm,
                 "n_places": as_printed.n_places,
-                **({"field": as_printed.field} if as_printed.field is not None else {}),
-                **({"replication": as_printed.replication}
+                **({"field": field} if field is not None else {}),
+                **({"replication": as_printed.replication, "stated_scale": k}
                    if as_printed.replication is not None else {})}
     seen = _beyond_mapping(session, images, config)
     return None if seen is None else {"source": "one place", **seen, "n_places": 1}

@@ -268,6 +268,18 @@ def with_replication(ap: AsPrinted, views, K, dist, size_px, *, lens_free: bool,
     return replace(ap, replication=rep.to_json())
 
 
+def stated_scale(replication: dict | None) -> float:
+    """How much larger than stated the halves show the layout's std to be: sqrt(chi2/dof)
+    of halves that agree, when above 1 (1 otherwise: halves that scatter less than stated
+    do not shrink it, and a field whose halves disagree is not applied). The applied
+    field's limit on the marks and its shared covariance are scaled by it."""
+    r = replication or {}
+    c = r.get("chi2_dof")
+    if r.get("status") != AGREE or c is None or not math.isfinite(c):
+        return 1.0
+    return float(math.sqrt(max(1.0, c)))
+
+
 # ---------------------------------------------------------------------- the rule
 
 #: the claim's statuses: applied, or why not

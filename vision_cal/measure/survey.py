@@ -39,7 +39,8 @@ from vision_cal.measure.print_stage import as_printed_stage
 from vision_cal.measure.detect import detect_image
 from vision_cal.measure.finish import lens_of_photos
 from vision_cal.measure.replicate import (FAILED, NOT_REPLICATED, NOT_RESOLVED,
-                                          NOT_SIGNIFICANT, Claim, claim_of, replication_line)
+                                          NOT_SIGNIFICANT, Claim, claim_of, replication_line,
+                                          stated_scale)
 
 FORMAT = "vision-cal/survey/1"
 SURVEY_FILE = "survey.json"
@@ -154,7 +155,7 @@ def survey_verdict(ap: AsPrinted, config: EstimatorConfig | None = None,
     sentence (:func:`vision_cal.measure.replicate.replication_line`)."""
     cfg = (config or DEFAULT).as_printed
     claim = claim or claim_of(ap, cfg)
-    good_to = ap.unresolved_mm
+    good_to = ap.unresolved_mm * stated_scale(ap.replication)   # as the halves showed it
     rep = replication_line(ap.replication)
     if claim.status == FAILED:
         return {"status": "failed", "good_to_mm": None, "text": claim.reason,
@@ -171,8 +172,11 @@ def survey_verdict(ap: AsPrinted, config: EstimatorConfig | None = None,
     if n_rel < ap.released.size:
         limits.append(f"{ap.released.size - n_rel} marker corners were seen in fewer than "
                       "two photos and are taken as declared")
-    text = (f"the sheet as printed is known to {good_to:.3f} mm (RMS); it deviates from its "
-            f"layout by {ap.rms_mm:.3f} mm RMS, {ap.max_mm:.3f} mm at most")
+    k = stated_scale(ap.replication)
+    text = (f"the sheet as printed is known to {good_to:.3f} mm (RMS"
+            + (f"; its halves scatter {k:.2f} times what they state" if k > 1 else "")
+            + f"); it deviates from its layout by {ap.rms_mm:.3f} mm RMS, "
+            f"{ap.max_mm:.3f} mm at most")
     return {"status": "limited" if limits else "good", "good_to_mm": good_to,
             "text": text, "limits": limits, "replication": rep}
 
