@@ -415,13 +415,19 @@ class AsPrintedConfig:
                                       # evaluations; one that stops there has not converged
                                       # and is a failed solve, never a result (issue 37: a
                                       # DSLR survey stopped there and its field was applied)
-    replication_max_chi2_dof: float = 2.0  # the print field is applied only when the two
+    replication_max_chi2_dof: float = 3.0  # the print field is applied only when the two
                                       # halves' fields (camera places split in two) agree:
                                       # chi2/dof of their difference against the covariance
-                                      # each half states at most this. 2: twice the scatter
-                                      # stated (chance exceeds 1.45 once in a thousand at 100
-                                      # dof); two cameras' fields of one print that disagreed
-                                      # gave 4.8, real halves of one camera 0.7 (issue 37)
+                                      # each half states at most this, i.e. they scatter at
+                                      # most 1.7 times the std stated (chance alone exceeds
+                                      # 1.45 once in a thousand at 100 dof); within it the
+                                      # field is the paper's and its std is scaled by
+                                      # sqrt(chi2/dof) (print.stated_scale). Two cameras'
+                                      # fields of one print that did not describe one print:
+                                      # 4.8 (issue 37); real halves of one camera 0.4-0.7;
+                                      # the rendered print-off world 1.55-1.89 (a 0.17 mm
+                                      # field, halves 0.04 mm apart: applied, marks 0.005-
+                                      # 0.008 mm)
     replication_min_corners: int = 8  # corners both halves released below this: the halves
                                       # cannot be compared (8 x 2 values less the gauge's 4)
     field_alpha: float = 0.001        # a print field is significant when its chi-square
