@@ -14,11 +14,14 @@ states (:func:`vision_cal.model.replication.compare`).
 - The comparison (:func:`replicate`): each half's corners as printed, taken into one gauge
   over the corners both released (:func:`vision_cal.measure.asprinted.gauge_projector`),
   with each half's joint covariance taken into it the same way.
-- The rule (:func:`claim_of`): a field is applied only when its solve converged, it is off
-  its layout beyond ``config.min_deviation_ratio`` times what the views leave unresolved
-  (significant), and its halves agree (``chi2/dof`` at most
-  ``config.replication_max_chi2_dof``). Otherwise it moves no mark, and the print's size is
-  carried in every mark's variance (``measure/print_stage``), with what would resolve it.
+- The rule (:func:`claim_of`): a field is applied only when its solve converged, it is
+  significant against its own covariance (:func:`significance`: p below
+  ``config.field_alpha``; from the calibration's own photos also off its layout beyond
+  ``config.min_deviation_ratio`` times what the views leave unresolved), and its halves
+  agree (``chi2/dof`` at most ``config.replication_max_chi2_dof``). Otherwise it moves no
+  mark, and the print's size is carried in every mark's variance (``measure/print_stage``),
+  with what would resolve it. Halves that agree but scatter more than stated scale the
+  applied field's std (:func:`stated_scale`).
 """
 
 from __future__ import annotations
