@@ -125,34 +125,37 @@ class TableCamera:
     blur_px: float = 0.6
 
 
+def _lens_matrix(rng, size_px, fov_deg: float, f_spread: float, pp_spread: float):
+    """A camera matrix of ``fov_deg`` across (within ``f_spread`` of it), its principal
+    point within ``pp_spread`` of the image size off the centre: (K, f)."""
+    w, h = size_px
+    f = w / 2 / np.tan(np.radians(fov_deg / 2)) * rng.uniform(1 - f_spread, 1 + f_spread)
+    K = camera_matrix(size_px=size_px, f_px=f,
+                      principal_px=((w - 1) / 2 + rng.uniform(-pp_spread, pp_spread) * w,
+                                    (h - 1) / 2 + rng.uniform(-pp_spread, pp_spread) * h))
+    return K, f
+
+
 def phone_camera(seed: int, *, size_px=(1200, 900)) -> TableCamera:
     """A phone's main camera (26 mm equivalent: 69 deg across), its principal point off
     the centre by a few tenths of a percent, barrel k1, and the tangential and thin-prism
     terms of the size real phone photos show (``render/camera.phone_lens``); JPEG 95."""
     rng = np.random.default_rng([int(seed), 3701])
-    w, h = size_px
-    f = w / 2 / np.tan(np.radians(69.0 / 2)) * rng.uniform(0.97, 1.03)
-    K = camera_matrix(size_px=size_px, f_px=f,
-                      principal_px=((w - 1) / 2 + rng.uniform(-0.004, 0.004) * w,
-                                    (h - 1) / 2 + rng.uniform(-0.004, 0.004) * h))
+    K, f = _lens_matrix(rng, size_px, 69.0, 0.03, 0.004)
     dist = phone_lens(f_px=f, size_px=size_px, k1=rng.uniform(0.04, 0.10),
                       k2=rng.uniform(-0.15, -0.05), rng=rng)
-    return TableCamera("phone", (int(w), int(h)), K, np.array(dist), noise=2.0,
-                       jpeg_quality=95, blur_px=0.7)
+    return TableCamera("phone", (int(size_px[0]), int(size_px[1])), K, np.array(dist),
+                       noise=2.0, jpeg_quality=95, blur_px=0.7)
 
 
 def dslr_camera(seed: int, *, size_px=(1350, 900)) -> TableCamera:
     """A DSLR with a 35 mm lens on APS-C (about 38 deg across), barrel distortion only,
     its principal point near the centre, 3:2; PNG (a camera's raw converted)."""
     rng = np.random.default_rng([int(seed), 3702])
-    w, h = size_px
-    f = w / 2 / np.tan(np.radians(38.0 / 2)) * rng.uniform(0.98, 1.02)
-    K = camera_matrix(size_px=size_px, f_px=f,
-                      principal_px=((w - 1) / 2 + rng.uniform(-0.002, 0.002) * w,
-                                    (h - 1) / 2 + rng.uniform(-0.002, 0.002) * h))
+    K, _ = _lens_matrix(rng, size_px, 38.0, 0.02, 0.002)
     dist = np.array([rng.uniform(-0.12, -0.05), rng.uniform(0.02, 0.10), 0.0, 0.0, 0.0])
-    return TableCamera("dslr", (int(w), int(h)), K, dist, noise=1.0, jpeg_quality=None,
-                       blur_px=0.5)
+    return TableCamera("dslr", (int(size_px[0]), int(size_px[1])), K, dist, noise=1.0,
+                       jpeg_quality=None, blur_px=0.5)
 
 
 @dataclass(frozen=True)
