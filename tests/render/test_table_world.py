@@ -11,19 +11,19 @@ import pytest
 from vision_cal.render.camera import camera_matrix, look_at, phone_lens
 from vision_cal.render.table_world import Box, TableCamera, table_world
 
-SIZE = (640, 480)
+SIZE = (480, 360)
 
 
 @pytest.fixture(scope="module")
 def world():
     """3 x 2 markers of 40 mm, waves of 3 mm (so that the heights show), no block."""
     return table_world(5, grid=(3, 2), marker_mm=40.0, pitch_mm=70.0, waves_mm=3.0,
-                       box=False, ppm=5.0, dictionary="DICT_5X5_100")
+                       box=False, ppm=4.0, dictionary="DICT_5X5_100")
 
 
 def _camera():
-    f = 700.0
-    K = camera_matrix(size_px=SIZE, f_px=f, principal_px=(322.0, 236.5))
+    f = 525.0
+    K = camera_matrix(size_px=SIZE, f_px=f, principal_px=(241.5, 177.0))
     dist = np.array(phone_lens(f_px=f, size_px=SIZE, k1=0.08, k2=-0.1, tangential_px=3.0,
                                prism_px=3.0, rng=2))
     return TableCamera("test", SIZE, K, dist, noise=0.5, blur_px=0.4)
