@@ -30,7 +30,7 @@ from vision_cal.diagnose.select import diagnose
 from vision_cal.errors import CalibrationError
 from vision_cal.identify import associate, infer, plan_match
 from vision_cal.measure import (asprinted, dots, grid, grid_declaration, height,
-                                photo_agreement, sheetfit, survey)
+                                photo_agreement, replicate, sheetfit, survey)
 from vision_cal.measure.finish import measure_image
 from vision_cal.measure.cache import session_fingerprint
 from vision_cal.workflows.pipeline import MarkData, calibrate_dataset
@@ -44,7 +44,7 @@ CONFIGURED = {dots: (), grid: (), sheetfit: (), discover: (), joint4: (),
               verdict: ("R95_PER_RMS",), associate: (), height: (), plan_match: (),
               photo_agreement: (), grid_declaration: (), placements: (), infer: (),
               pose_pairs: ("_TINY",),   # a numerical guard (exact synthetic pairs)
-              asprinted: (), survey: (),
+              asprinted: (), survey: (), replicate: (),
               # the smoother's cost bounds (not judgements: the test stays exact)
               sheet: ("EXACT_MAX_MARKS", "GRID_PER_LENGTH", "MAX_GRID_CELLS")}
 

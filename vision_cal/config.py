@@ -489,6 +489,39 @@ class AsPrintedConfig:
                                       # a few mm at most; holds the heights' gauge)
     survey_good_mm: float = 0.02      # a survey whose corners are known to this (2-D RMS of
                                       # their std) says "good"; else what limits it
+    max_evaluations: int = 100        # each bundle adjustment stops after this many
+                                      # evaluations; one that stops there has not converged
+                                      # and is a failed solve, never a result (issue 37: a
+                                      # DSLR survey stopped there and its field was applied)
+    replication_max_chi2_dof: float = 3.0  # the print field is applied only when the two
+                                      # halves' fields (camera places split in two) agree:
+                                      # chi2/dof of their difference against the covariance
+                                      # each half states at most this, i.e. they scatter at
+                                      # most 1.7 times the std stated (chance alone exceeds
+                                      # 1.45 once in a thousand at 100 dof); within it the
+                                      # field is the paper's and its std is scaled by
+                                      # sqrt(chi2/dof) (print.stated_scale). Two cameras'
+                                      # fields of one print that did not describe one print:
+                                      # 4.8 (issue 37); real halves of one camera 0.4-0.7;
+                                      # the rendered print-off world 1.55-1.89 (a 0.17 mm
+                                      # field, halves 0.04 mm apart: applied, marks 0.005-
+                                      # 0.008 mm)
+    replication_min_corners: int = 8  # corners both halves released below this: the halves
+                                      # cannot be compared (8 x 2 values less the gauge's 4)
+    field_alpha: float = 0.001        # a print field is significant when its chi-square
+                                      # against its own covariance has a p-value below this
+                                      # (a layout on its declared one passes this once in a
+                                      # thousand); a layout from the calibration's own photos
+                                      # must also exceed min_deviation_ratio (a bumped
+                                      # sheet's false print replicates)
+    gauge_tolerance_mm: float = 0.001  # a survey read back: its layout's best-fitting
+                                      # similarity to the declared one moves no released
+                                      # corner more than this (the solve fixes it to the
+                                      # identity, 1e-12 mm; a file scaled by 1.01 after it
+                                      # was written moves them 1-2 mm: refused)
+    max_deviation_mm: float = 5.0     # a survey read back: no corner further than this off
+                                      # its layout (printers are tenths off; the prior,
+                                      # prior_mm, holds 1 mm at one sigma)
 
 
 @dataclass(frozen=True)

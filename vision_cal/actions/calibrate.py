@@ -16,7 +16,7 @@ from vision_cal.dataset.io import atomic_write_json, written_together
 from vision_cal.dataset.marks_csv import session_from_marks_csv
 from vision_cal.dataset.out_folder import output_names, refuse_input_folder, writing_into
 from vision_cal.errors import VisionCalError
-from vision_cal.measure.survey import find_survey
+from vision_cal.measure.survey import applicable, find_survey
 from vision_cal.workflows.pipeline import CalibrationRun, calibrate_dataset
 from vision_cal.workflows.placements import calibrate_placements
 from vision_cal.report.html import write_report
@@ -53,6 +53,17 @@ class SurveyFound:
     """The sheet as surveyed that a folder is measured against (told before measuring)."""
 
     path: Path
+
+
+@dataclass(frozen=True)
+class SurveyNotApplied:
+    """A survey found (or given) that claims no print field (its solve stopped, its field
+    is not significant or does not replicate: ``vision_cal.measure.survey.applicable``):
+    the folder is measured without it (told before measuring)."""
+
+    path: Path
+    status: str
+    reason: str
 
 
 @dataclass(frozen=True)
@@ -184,8 +195,13 @@ def calibrate_one(req: CalibrateRequest, folder: str, out: Path,
     survey = None if is_csv else find_survey(req.survey or folder)   # #28: as printed
     if req.survey and survey is None:
         raise VisionCalError("not found", file=str(req.survey))
-    if survey is not None:
-        tell(SurveyFound(survey))
+    if survey is not None:   # issue 37: applied only when it claims a field
+        claim = applicable(survey)
+        if claim.applied:
+            tell(SurveyFound(survey))
+        else:
+            tell(SurveyNotApplied(survey, claim.status, claim.reason))
+            survey = None
     with writing_into(out, command="calibrate", inputs=[("DIR", folder)], quiet=req.quiet):
         with written_together():   # measurement.json renamed with calibration.json
             run = calibrate_dataset(source, out_dir=out, method=req.method, jobs=req.jobs,

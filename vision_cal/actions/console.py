@@ -15,7 +15,8 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:   # the outcomes' modules pull numpy, OpenCV and the renderer
     from vision_cal.actions.arm_camera import ArmCameraOutcome
     from vision_cal.actions.calibrate import (CalibrateOutcome, FolderCalibrated, FolderFailed,
-                                              JointCalibrated, OutputsNamed, SurveyFound)
+                                              JointCalibrated, OutputsNamed, SurveyFound,
+                                              SurveyNotApplied)
     from vision_cal.actions.design import CameraPosesDesigned, PlacementsDesigned, StageDesigned
     from vision_cal.actions.export import ExportOutcome
     from vision_cal.actions.handeye import HandeyePairsOutcome, HandeyePhotosOutcome
@@ -268,6 +269,12 @@ def _survey_found(o: SurveyFound, quiet: bool) -> None:
         print(f"measuring against the sheet as surveyed: {o.path}")
 
 
+def _survey_not_applied(o: SurveyNotApplied, quiet: bool) -> None:
+    """Said even when quiet (stderr): the survey beside the folder is not used."""
+    print(f"not applying the sheet as surveyed ({o.path}): {o.status}: {o.reason}",
+          file=sys.stderr)
+
+
 def _folder_calibrated(o: FolderCalibrated, quiet: bool) -> None:
     """The summary, then the photos skipped and what was inferred (stderr), the report and
     the file written (said even when quiet)."""
@@ -354,10 +361,13 @@ def sheet_lines(o: SheetOutcome) -> list[str]:
 
 
 def survey_lines(o: SurveyOutcome) -> list[str]:
-    """``vision-cal survey``: the verdict and what limits it."""
+    """``vision-cal survey``: the verdict, the halves' agreement (issue 37) and what limits
+    it (what would resolve it, when it claims no field)."""
     v = o.survey["verdict"]
+    head = "limited by" if v["status"] in ("good", "limited") else "to resolve"
     return ([f"{o.path}: {v['status']}: {v['text']}"]
-            + [f"  limited by: {line}" for line in v["limits"]])
+            + ([f"  replication: {v['replication']}"] if v.get("replication") else [])
+            + [f"  {head}: {line}" for line in v["limits"]])
 
 
 def _render(o: RenderOutcome, quiet: bool) -> None:
@@ -377,9 +387,15 @@ def _sheet(o: SheetOutcome, quiet: bool) -> None:
         _print_lines(sheet_lines(o))
 
 
-def _survey(o: SurveyOutcome, quiet: bool) -> None:
+def _survey(o: SurveyOutcome, quiet: bool) -> int:
+    """The lines; exit 1 when the survey failed (its solve stopped: no result), said on
+    stderr even when quiet."""
+    failed = o.survey["verdict"]["status"] == "failed"
     if not quiet:
         _print_lines(survey_lines(o))
+    elif failed:
+        print(survey_lines(o)[0], file=sys.stderr)
+    return 1 if failed else 0
 
 
 
@@ -437,6 +453,9 @@ def stage_lines(o: StageDesigned) -> list[str]:
     lines = list(o.pilot_note)
     if o.survey_copy is not None:
         lines.append(f"the sheet as surveyed ({o.survey}) goes with the plan: {o.survey_copy}")
+    if o.survey_not_applied:   # issue 37: a survey that claims no print field
+        lines.append(f"not applying the sheet as surveyed ({o.survey}): "
+                     f"{o.survey_not_applied}")
     lines.append(f"{r.stage} plan: {r.n_marks} marks, {r.duration_s:.1f} s of motion")
     if r.stage == "pilot":
         lines.append(f"every mark stays {r.info['worst_case_clearance_mm']:.1f} mm clear of "
@@ -517,6 +536,7 @@ PRINTERS = {"vision_cal.actions.arm_camera.ArmCameraOutcome": _arm_camera,
             "vision_cal.actions.handeye.HandeyePhotosOutcome": _handeye_photos,
             "vision_cal.actions.calibrate.OutputsNamed": _outputs_named,
             "vision_cal.actions.calibrate.SurveyFound": _survey_found,
+            "vision_cal.actions.calibrate.SurveyNotApplied": _survey_not_applied,
             "vision_cal.actions.calibrate.FolderCalibrated": _folder_calibrated,
             "vision_cal.actions.calibrate.FolderFailed": _folder_failed,
             "vision_cal.actions.calibrate.CalibrateOutcome": _calibrate,

@@ -10,8 +10,10 @@ HELP = ("measure the printed sheet as it really is (markers' corners, lens) from
 EXAMPLES = """\
 examples:
   vision-cal survey survey-photos/ --sheet sheet/sheet.json --out sheet/
-      5-10 photos of the sheet taped in place, from several places (docs/sheet.md);
-      sheet/survey.json is then found beside sheet.json by design and calibrate
+      6-10 photos of the sheet taped in place, each from another place (docs/sheet.md);
+      sheet/survey.json is then found beside sheet.json by design and calibrate, which
+      apply it only when it claims its print field: the solve converged, the print is
+      significant and the two halves of the places agree (exit 1: the solve stopped)
 """
 
 

@@ -34,7 +34,7 @@ import numpy as np
 
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.model.lsq import Fit
-from vision_cal.model.replication import Replication, compare
+from vision_cal.model.replication import Comparison, compare
 from vision_cal.model.robot import RobotModel
 
 
@@ -103,7 +103,7 @@ def replicate(model: RobotModel, q_deg, xy_mm, approach, sigma_mm, *, residual_s
     ``check_q`` / ``check_approach`` (default the marks' own; ``check_label`` says what
     they are); ``shared_cov_mm2`` (2N, 2N) an error the marks share (the print's field),
     or None. Keys: ``split``, ``halves`` ([n_a, n_b]), ``params`` and ``positions``
-    (:class:`Replication` as JSON, ``positions.at``), ``agree``, ``text``; when no split
+    (:class:`~vision_cal.model.replication.Comparison` as JSON, ``positions.at``), ``agree``, ``text``; when no split
     can be fitted, ``agree`` None and the ``reason``."""
     cfg = config or DEFAULT
     q = np.asarray(q_deg, float)
@@ -170,10 +170,10 @@ def _compared(h: Halves, halves: list, q, s, check_q, check_approach, check_labe
             "agree": bool(agree), "text": _text(h, par, pos, agree)}
 
 
-def _text(h: Halves, par: Replication, pos: Replication, agree: bool) -> str:
+def _text(h: Halves, par: Comparison, pos: Comparison, agree: bool) -> str:
     """One line for the console and the report."""
     return (f"replication ({h.split}, {len(h.a)} | {len(h.b)} marks): parameters chi2/dof "
-            f"{par.chi2_dof:.2f} on {par.dof} dof (p = {par.p:.2g}), target positions "
-            f"{pos.chi2_dof:.2f} on {pos.dof} dof (p = {pos.p:.2g}): "
+            f"{par.chi2_dof:.2f} on {par.dof} dof (p = {par.p_value:.2g}), target positions "
+            f"{pos.chi2_dof:.2f} on {pos.dof} dof (p = {pos.p_value:.2g}): "
             + ("the halves agree within their stated std" if agree else
                "the halves disagree beyond their stated std"))

@@ -38,11 +38,34 @@ def _detector(dictionary: str) -> cv2.aruco.ArucoDetector:
 def detect_raw(gray: np.ndarray, dictionary: str) -> tuple[np.ndarray, np.ndarray]:
     """All markers of ``dictionary``: ids (M,) int and corners (M, 4, 2) raw px float64."""
     corners, ids, _ = _detector(dictionary).detectMarkers(gray)
+    return _as_arrays(ids, corners)
+
+
+def _as_arrays(ids, corners) -> tuple[np.ndarray, np.ndarray]:
     if ids is None or len(ids) == 0:
         return np.zeros(0, int), np.zeros((0, 4, 2))
     ids = np.asarray(ids).reshape(-1).astype(int)
     c = np.asarray(corners, dtype=np.float64).reshape(len(ids), 4, 2)
     return ids, c
+
+
+def detect_with_layout(gray: np.ndarray, sheet: Sheet) -> tuple[np.ndarray, np.ndarray]:
+    """The sheet's markers found again with its layout (issue 37): OpenCV's
+    ``refineDetectedMarkers`` projects the markers not found through the homography of
+    those found and reads the rejected candidates at their places, with OpenCV's default
+    tolerance for their bits (a candidate must lie where the layout puts that id). Small
+    markers seen obliquely (a real ChArUco board, 30 px markers tilted 50 deg: 6 of 17
+    read, all 17 here) lose bits the plain detector will not correct."""
+    det = _detector(sheet.aruco_dictionary)
+    corners, ids, rejected = det.detectMarkers(gray)
+    if ids is None or len(ids) == 0:
+        return _as_arrays(ids, corners)
+    obj = [np.column_stack([np.asarray(m.corners_mm, np.float32).reshape(4, 2),
+                            np.zeros(4, np.float32)]) for m in sheet.markers]
+    board = cv2.aruco.Board(obj, det.getDictionary(),
+                            np.array([int(m.id) for m in sheet.markers], np.int32))
+    corners, ids, _, _ = det.refineDetectedMarkers(gray, board, corners, ids, rejected)
+    return _as_arrays(ids, corners)
 
 
 @dataclass(frozen=True)
@@ -67,6 +90,18 @@ def find_sheet_markers(gray: np.ndarray, sheet: Sheet, *,
     (thresholds: ``config``, default ``vision_cal.config.DEFAULT.markers``)."""
     cfg = config or DEFAULT.markers
     ids, c = detect_raw(gray, sheet.aruco_dictionary)
+    found = _sheet_markers(gray, sheet, ids, c, cfg)
+    if found.reason is not None and len(found.ids) and not found.reason.startswith("wrong"):
+        # refused for too few markers where some of the sheet's were read: the others
+        # are looked for where the layout puts them before the photo is refused
+        found = _sheet_markers(gray, sheet, *detect_with_layout(gray, sheet), cfg)
+    return found
+
+
+def _sheet_markers(gray: np.ndarray, sheet: Sheet, ids: np.ndarray, c: np.ndarray,
+                   cfg: MarkerConfig) -> MarkerDetection:
+    """The markers ``ids``, ``c`` that are the sheet's, and the reason the photo is refused
+    (None: kept)."""
     by_id = sheet.corners_by_id()
     keep = np.array([int(i) in by_id for i in ids], dtype=bool)
     # a marker id seen twice is not trusted

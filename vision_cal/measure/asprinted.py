@@ -89,6 +89,16 @@ class AsPrinted:
     corner_cov_mm2: np.ndarray | None = None
     #: a ``field`` block read from a file (used when ``corner_cov_mm2`` is None)
     field_read: dict | None = None
+    #: why the bundle adjustment stopped before it converged (its evaluation limit), None
+    #: when it converged: a solve that stopped is a failure, never a result (issue 37)
+    stopped: str | None = None
+    #: each photo's camera place (``files``' order; :func:`place_labels`), () when unknown
+    places: tuple[int, ...] = ()
+    #: the halves' agreement (:mod:`vision_cal.measure.replicate`), None when not run
+    replication: dict | None = None
+    #: the field against its own covariance (``chi2_dof``, ``dof``, ``p_value``,
+    #: :mod:`vision_cal.measure.replicate`), None when not computed
+    significance: dict | None = None
 
     # ------------------------------------------------------------------ figures
     @property
@@ -189,8 +199,10 @@ class AsPrinted:
             "n_places": int(self.n_places), "lens_free": bool(self.lens_free),
             "K": np.asarray(self.K).tolist(), "dist": np.asarray(self.dist).tolist(),
             "size_px": list(self.size_px),
-            "photos": [{"file": f, "corner_rms_px_before": b, "corner_rms_px_after": a}
-                       for f, b, a in zip(self.files, self.rms_px_before, self.rms_px_after)],
+            "photos": [{"file": f, "corner_rms_px_before": b, "corner_rms_px_after": a,
+                        **({"place": int(self.places[k])} if self.places else {})}
+                       for k, (f, b, a) in enumerate(zip(self.files, self.rms_px_before,
+                                                        self.rms_px_after))],
             "markers": [{"id": int(i), "corners_mm": p.tolist(), "declared_mm": d.tolist(),
                          "std_mm": s.tolist(), "released": [bool(r) for r in rel],
                          **({} if self.heights_mm is None else
@@ -201,6 +213,9 @@ class AsPrinted:
                             self.released))],
             "notes": list(self.notes),
             "field": self.field,
+            "stopped": self.stopped,
+            "replication": self.replication,
+            "significance": self.significance,
         }
 
     @classmethod
@@ -222,7 +237,11 @@ class AsPrinted:
                    *((np.array([m["height_mm"] for m in ms], float).reshape(-1, 4),
                       np.array([m["height_std_mm"] for m in ms], float).reshape(-1, 4))
                      if ms and all("height_mm" in m for m in ms) else (None, None)),
-                   None, d.get("field"))
+                   None, d.get("field"),
+                   stopped=None if d.get("stopped") is None else str(d["stopped"]),
+                   places=(tuple(int(p["place"]) for p in ph)
+                           if ph and all("place" in p for p in ph) else ()),
+                   replication=d.get("replication"), significance=d.get("significance"))
 
 
 # ---------------------------------------------------------------------- projection
@@ -293,16 +312,27 @@ def _apply_similarity(s, p):
 def count_places(rvecs, tvecs, *, min_move_mm: float, min_turn_deg: float) -> int:
     """Distinct camera places among poses (sheet -> camera): greedy clusters of camera
     centres within ``min_move_mm`` and view directions within ``min_turn_deg``."""
-    places = []
+    labels = place_labels(rvecs, tvecs, min_move_mm=min_move_mm, min_turn_deg=min_turn_deg)
+    return int(labels.max()) + 1 if len(labels) else 0
+
+
+def place_labels(rvecs, tvecs, *, min_move_mm: float, min_turn_deg: float) -> np.ndarray:
+    """Each pose's camera place (V,) int, numbered in order of first appearance: the first
+    earlier place whose camera centre is within ``min_move_mm`` and whose view direction is
+    within ``min_turn_deg``, else a new one (:func:`count_places`' clusters)."""
+    places, labels = [], []
     for r, t in zip(rvecs, tvecs):
         R = cv2.Rodrigues(np.asarray(r, float))[0]
         C = -R.T @ np.asarray(t, float).ravel()
         z = R[2]
-        if not any(np.linalg.norm(C - c) < min_move_mm and
-                   np.degrees(np.arccos(np.clip(z @ zz, -1, 1))) < min_turn_deg
-                   for c, zz in places):
+        k = next((k for k, (c, zz) in enumerate(places)
+                  if np.linalg.norm(C - c) < min_move_mm and
+                  np.degrees(np.arccos(np.clip(z @ zz, -1, 1))) < min_turn_deg), None)
+        if k is None:
             places.append((C, z))
-    return len(places)
+            k = len(places) - 1
+        labels.append(k)
+    return np.array(labels, int)
 
 
 # ---------------------------------------------------------------------- the solve
@@ -546,9 +576,10 @@ def _problem(obs: _Observations, released: np.ndarray, lens0: np.ndarray, lens_f
                     cfg.noise_px / cfg.focal_scatter, view_rows)
 
 
-def _solve(pb: _Problem, huber_px: float):
+def _solve(pb: _Problem, huber_px: float, max_nfev: int):
     """The two solves, as scipy results: ``before`` (the declared layout, the lens and the
-    poses free) and the solution from it (the released corners free too)."""
+    poses free) and the solution from it (the released corners free too), each stopped
+    after ``max_nfev`` evaluations at most."""
     x0 = pb.start()
     n_delta = pb.n_delta
     nb = pb.n_lens + pb.n_pose
@@ -557,10 +588,10 @@ def _solve(pb: _Problem, huber_px: float):
                            x0[:nb], jac=lambda x: pb.jacobian(np.concatenate(
                                [x, np.zeros(n_delta)]))[:mb, :nb],
                            method="trf", loss="huber", f_scale=huber_px, x_scale="jac",
-                           max_nfev=100)
+                           max_nfev=max_nfev)
     x0 = np.concatenate([before.x, np.zeros(n_delta)])
     sol = least_squares(pb.residuals, x0, jac=pb.jacobian, method="trf", loss="huber",
-                        f_scale=huber_px, x_scale="jac", max_nfev=100)
+                        f_scale=huber_px, x_scale="jac", max_nfev=max_nfev)
     return before, sol
 
 
@@ -642,13 +673,14 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
     dist0[:len(dd)] = dd
     obs = _observe(views, K, dist0)
     scale = float(np.median(np.abs(obs.tvecs[:, 2])))
-    n_places = count_places(obs.rvecs, obs.tvecs, min_move_mm=cfg.place_move * scale,
-                            min_turn_deg=cfg.place_turn_deg)
+    places = place_labels(obs.rvecs, obs.tvecs, min_move_mm=cfg.place_move * scale,
+                          min_turn_deg=cfg.place_turn_deg)
+    n_places = int(places.max()) + 1
     if n_places < cfg.min_places:
         return None
     released = _released(obs, cfg.min_views)
     pb = _problem(obs, released, _lens_vector(K, dist0), lens_free, cfg)
-    before, sol = _solve(pb, cfg.huber_px)
+    before, sol = _solve(pb, cfg.huber_px, cfg.max_evaluations)
     lens, _, delta = pb.unpack(sol.x)
     std, hstd, full = _corner_std(pb, sol, n_places)
     delta, heights = _in_gauge(pb, delta)
@@ -663,4 +695,51 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
                      tuple(v[0] for v in views), pb.per_view_rms(before.fun),
                      pb.per_view_rms(sol.fun), n_places, source, tuple(notes),
                      heights.reshape(-1, 4) if nd == 3 else None,
-                     hstd.reshape(-1, 4) if nd == 3 else None, full)
+                     hstd.reshape(-1, 4) if nd == 3 else None, full,
+                     stopped=stopped_reason(sol, cfg.max_evaluations),
+                     places=tuple(int(p) for p in places))
+
+
+def stopped_reason(sol, max_nfev: int) -> str | None:
+    """Why a scipy ``least_squares`` result stopped before converging (its evaluation limit,
+    or a failure), None when it converged (``status`` > 0: a tolerance was met)."""
+    if sol.status > 0:
+        return None
+    if sol.status == 0:
+        return (f"the bundle adjustment stopped at its evaluation limit ({max_nfev}) before "
+                f"converging ({sol.nfev} evaluations)")
+    return f"the bundle adjustment failed: {sol.message}"
+
+
+def _released_design(declared_mm, released):
+    """The released corners of ``declared_mm`` (M, 4, 2) (``released`` (M, 4)): their
+    similarity design (:func:`_similarity_design`) and the gauge's fit of a small
+    similarity with each marker's growth beside it (:func:`_gauge_matrix`)."""
+    dec = np.asarray(declared_mm, float).reshape(-1, 4, 2)
+    rel = np.asarray(released, bool).reshape(-1, 4).ravel()
+    p = dec.reshape(-1, 2)[rel]
+    marker = np.repeat(np.arange(len(dec)), 4)[rel]
+    sign = np.sign(dec - dec.mean(axis=1, keepdims=True)).reshape(-1, 2)[rel]
+    return _similarity_design(p), _gauge_matrix(p, marker, sign)
+
+
+def layout_similarity(declared_mm, released, deviation_mm):
+    """The small similarity of ``deviation_mm`` (M, 4, 2) over the ``released`` (M, 4)
+    corners of ``declared_mm``, each marker's growth aside (what the gauge sets to zero):
+    (shift (2,) mm, scale - 1, turn rad, the largest displacement it makes at those
+    corners, mm)."""
+    A, G = _released_design(declared_mm, released)
+    rel = np.asarray(released, bool).reshape(-1, 4).ravel()
+    s = G @ np.asarray(deviation_mm, float).reshape(-1, 2)[rel].ravel()
+    worst = float(np.linalg.norm((A @ s).reshape(-1, 2), axis=1).max()) if len(A) else 0.0
+    return s[:2], float(s[2]), float(s[3]), worst
+
+
+def gauge_projector(declared_mm, released) -> np.ndarray:
+    """(2 n, 2 n) over the ``released`` (M, 4) corners of ``declared_mm`` (M, 4, 2), rows x0,
+    y0, x1, y1, ... in their order: displacements less their best-fitting small similarity,
+    each marker's growth fitted beside it (the layout's gauge, :func:`_gauge_matrix`). Two
+    layouts fixed in the gauge over different corners agree on the corners both know only
+    once both are taken into the gauge over those (:mod:`vision_cal.measure.replicate`)."""
+    A, G = _released_design(declared_mm, released)
+    return np.eye(len(A)) - A @ G

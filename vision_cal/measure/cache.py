@@ -36,7 +36,7 @@ from vision_cal.measure.types import ImageDetections
 log = logging.getLogger(__name__)
 
 #: bump when anything that changes a detection changes
-CODE_VERSION = "measure-5"  # 5: grid patches (local reference)
+CODE_VERSION = "measure-6"  # 6: markers looked for with the layout before a refusal
 #: largest entry read (uncompressed bytes of all members)
 MAX_ENTRY_BYTES = 256 * 1024 * 1024
 #: a temporary file older than this is left over from a killed run

@@ -78,9 +78,12 @@ def _drop_deformed_markers(d: ImageDetections, K, dist, *, min_markers: int | No
 
 
 def detect_image_bytes(data: bytes, file: str, session: Session, *,
-                       config: EstimatorConfig | None = None) -> ImageDetections:
+                       config: EstimatorConfig | None = None, dots: bool = True
+                       ) -> ImageDetections:
     """Stage 1 on one photo's bytes (pure function of its inputs; ``config``: the
-    ``markers`` and ``dots`` thresholds, default ``vision_cal.config.DEFAULT``)."""
+    ``markers`` and ``dots`` thresholds, default ``vision_cal.config.DEFAULT``). ``dots``
+    False: the markers and the mapping only, no pen marks looked for (a survey's photos
+    of the blank sheet)."""
     config = config or DEFAULT
     cam = session.camera
     rgb, why = _decode(data, file, None if cam is None else cam.size_px)
@@ -112,6 +115,8 @@ def detect_image_bytes(data: bytes, file: str, session: Session, *,
                              out.corners_for(K, dist).reshape(-1, 2), K=K, dist=dist)
     except VisionCalError as e:
         return skipped(file, f"no mapping: {e.reason}", size)
+    if not dots:
+        return out
     cand = find_candidates(rgb, approx, session.sheet, dia_mm=session.pen_mark_diameter_mm,
                            config=config.dots)
     gp, go = None, None
@@ -144,13 +149,14 @@ def _grid_patches(rgb, mapping, uv_px, half_mm: float):
 
 def detect_image(path, session: Session, *, root=None, name: str | None = None,
                  sha256: str | None = None, identity: tuple | None = None,
-                 config: EstimatorConfig | None = None) -> ImageDetections:
+                 config: EstimatorConfig | None = None, dots: bool = True) -> ImageDetections:
     """Stage 1 on one photo file: ``root``/``name`` (``name`` the photo's relative path,
     kept in the result), or ``path`` itself. ``sha256``: the content the caller checked
     (header, cache key); a file that changed since is skipped. ``identity``: the file's
     identity when the caller hashed it (:func:`photos.read_photo_identity`): read back
     unchanged, the bytes are the ones hashed (any write changes the file's change time)
-    and are not hashed again; otherwise they are."""
+    and are not hashed again; otherwise they are. ``dots``: as
+    :func:`detect_image_bytes`."""
     path = Path(path)
     root = Path(root) if root is not None else path.parent
     name = name if name is not None else path.name
@@ -161,7 +167,7 @@ def detect_image(path, session: Session, *, root=None, name: str | None = None,
     if sha256 is not None and (identity is None or tuple(now) != tuple(identity)) \
             and hashlib.sha256(data).hexdigest() != sha256:
         return skipped(name, "changed while being measured: run again")
-    return detect_image_bytes(data, name, session, config=config)
+    return detect_image_bytes(data, name, session, config=config, dots=dots)
 
 
 def _worker(args):

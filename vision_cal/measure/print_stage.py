@@ -14,13 +14,16 @@ from vision_cal.dataset.session import Session
 from vision_cal.measure.asprinted import AsPrinted, estimate_as_printed, field_basis
 from vision_cal.measure.finish import lens_of
 from vision_cal.measure.mapping import LensEstimate
+from vision_cal.measure.replicate import (APPLIED, FAILED, claim_of, stated_scale,
+                                          with_replication)
 from vision_cal.measure.types import ImageDetections, ImageResult
 
 log = logging.getLogger(__name__)
 
 
 def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEstimate | None,
-                     config: EstimatorConfig, *, survey: AsPrinted | None = None):
+                     config: EstimatorConfig, *, survey: AsPrinted | None = None,
+                     replicate_all: bool = False):
     """The sheet as printed (:mod:`vision_cal.measure.asprinted`): the survey's layout when
     one is given, else estimated from these photos when they were taken from at least
     ``config.as_printed.min_places`` places and off its layout beyond
@@ -28,7 +31,9 @@ def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEs
     (as_printed or None, lens, detections
     with their markers' corners as printed); an estimated lens is then the one solved with
     the layout (the stage-2 lens absorbed part of the print), when stage 2 kept one; and
-    the layout found but not used (None when used or not found)."""
+    the layout found but not used (None when used or not found). The layout is replicated
+    (:func:`vision_cal.measure.replicate.with_replication`) when it is significant, or
+    always with ``replicate_all`` (a survey reports its halves whatever they say)."""
     ap = survey
     if ap is None:
         ok = [d for d in dets if d.status == "ok"]
@@ -48,10 +53,13 @@ def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEs
                                  config=config.as_printed)
         if ap is None:
             return None, lens, dets, None
-        if not ap.rms_mm > config.as_printed.min_deviation_ratio * ap.unresolved_mm:
-            # the views see no print off its layout beyond what they cannot resolve
-            log.info("as printed: %.4f mm RMS off the layout, within %.4f mm the views leave "
-                     "unresolved: the declared layout is kept", ap.rms_mm, ap.unresolved_mm)
+        # issue 37: the field again from two halves of the places, and applied only when
+        # it converged, is significant and replicates (measure/replicate.claim_of)
+        ap = with_replication(ap, views, K, dist, size, lens_free=session.camera is None,
+                              config=config.as_printed, only_significant=not replicate_all)
+        claim = claim_of(ap, config.as_printed)
+        if not claim.applied:
+            log.info("as printed: not applied (%s): %s", claim.status, claim.reason)
             return None, lens, dets, ap
         if session.camera is None and lens is not None and lens.kept:
             lens = replace(lens, K=ap.K, dist=ap.dist)   # the held-out test kept a lens
@@ -76,23 +84,51 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
     photo's mapping (the part of the print a homography cannot take; RMS over the markers,
     less what the corners' own noise, seen within each marker, explains), times
     ``config.as_printed.single_view_factor`` for what it took; ``sigma_mm`` is then added to
-    every mark's variance per axis."""
-    if kept_declared is not None:   # the views saw the print on its layout: nothing added
-        return {"source": kept_declared.source, "applied": False,
-                "rms_mm": kept_declared.rms_mm, "max_mm": kept_declared.max_mm,
-                "unresolved_mm": kept_declared.unresolved_mm, "limit_mm": 0.0,
-                "height_rms_mm": kept_declared.height_rms_mm,
-                "n_places": kept_declared.n_places}
+    every mark's variance per axis. A layout found from several places but not applied
+    (``kept_declared``: its solve stopped, it is not significant or does not replicate,
+    :func:`vision_cal.measure.replicate.claim_of`) moves no mark: its ``status`` and
+    ``reason``, and the print's size is carried as from one place (issue 37)."""
+    if kept_declared is not None:
+        return _not_applied(kept_declared, _beyond_mapping(session, images, config), config)
     if as_printed is not None:
-        return {"source": as_printed.source, "applied": True, "rms_mm": as_printed.rms_mm,
+        # the halves' scatter beyond what each stated scales what the field leaves (#37)
+        k = stated_scale(as_printed.replication)
+        field = as_printed.field
+        if field is not None and k > 1.0:
+            field = {**field, "cov_mm2": (k * k * np.asarray(field["cov_mm2"])).tolist()}
+        return {"source": as_printed.source, "applied": True, "status": APPLIED,
+                "rms_mm": as_printed.rms_mm,
                 "max_mm": as_printed.max_mm, "growth_mm": as_printed.growth_mm,
                 "field_rms_mm": as_printed.field_rms_mm,
                 "unresolved_mm": as_printed.unresolved_mm,
-                "limit_mm": as_printed.unresolved_mm,
-                "sigma_mm": as_printed.unresolved_mm / np.sqrt(2.0),
+                "limit_mm": k * as_printed.unresolved_mm,
+                "sigma_mm": k * as_printed.unresolved_mm / np.sqrt(2.0),
                 "height_rms_mm": as_printed.height_rms_mm,
                 "n_places": as_printed.n_places,
-                **({"field": as_printed.field} if as_printed.field is not None else {})}
+                **({"field": field} if field is not None else {}),
+                **({"replication": as_printed.replication, "stated_scale": k}
+                   if as_printed.replication is not None else {})}
+    seen = _beyond_mapping(session, images, config)
+    return None if seen is None else {"source": "one place", **seen, "n_places": 1}
+
+
+def _not_applied(ap: AsPrinted, seen: dict | None, config: EstimatorConfig) -> dict:
+    """measurement.json ``print`` of a layout found but not applied (:func:`print_stage`)."""
+    claim = claim_of(ap, config.as_printed)
+    out = {"source": ap.source, "applied": False, **claim.to_json()}
+    if claim.status != FAILED:   # a solve that stopped is no result: no figure of it
+        out.update({"rms_mm": ap.rms_mm, "max_mm": ap.max_mm,
+                    "unresolved_mm": ap.unresolved_mm, "height_rms_mm": ap.height_rms_mm,
+                    "replication": ap.replication})
+    out["n_places"] = ap.n_places
+    return {**out, **(seen or {"limit_mm": 0.0})}
+
+
+def _beyond_mapping(session: Session, images: list[ImageResult], config: EstimatorConfig
+                    ) -> dict | None:
+    """The print as the photos' mappings leave it (:func:`print_stage`, from one place):
+    ``seen_rms_mm``, ``corner_noise_mm``, ``limit_mm``, ``sigma_mm``; None without a
+    photo measured."""
     declared = {int(m.id): np.asarray(m.corners_mm, float) for m in session.sheet.markers}
     means, noise = [], []
     for im in images:
@@ -116,9 +152,8 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
     s2 = float(np.sum(nz**2)) / max(nz.shape[0] * 5, 1)
     excess = float(np.sqrt(max(seen**2 - s2 / 2.0, 0.0)))
     limit = config.as_printed.single_view_factor * excess
-    return {"source": "one place", "seen_rms_mm": excess, "corner_noise_mm": float(np.sqrt(s2)),
-            "limit_mm": limit,
-            "sigma_mm": limit / np.sqrt(2.0), "n_places": 1}
+    return {"seen_rms_mm": excess, "corner_noise_mm": float(np.sqrt(s2)),
+            "limit_mm": limit, "sigma_mm": limit / np.sqrt(2.0)}
 
 
 def print_field_cov(summary: dict | None, xy_mm) -> np.ndarray | None:

@@ -23,6 +23,11 @@ from scipy.ndimage import map_coordinates
 from vision_cal.errors import VisionCalError
 
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
+#: sizes (px at the image corner, per 1000 px of image half-diagonal) of the lens terms
+#: beyond k1 k2 in a real photo (render/photo's module docstring: 0.2 px each at the corner
+#: of the 400 px half-diagonal of fixtures/real_charuco_opencv, 0.5 per 1000 px, rounded up)
+PHONE_TANGENTIAL_PX = 0.6
+PHONE_PRISM_PX = 0.6
 
 
 def camera_matrix(*, size_px, f_px: float, principal_px=None) -> np.ndarray:
@@ -232,3 +237,40 @@ def distort_image(img, *, K, dist, K_ideal=None, interpolation: str = "spline3",
             v = np.clip(np.rint(v), info.min, info.max)
         out[..., c] = v
     return out[..., 0] if img.ndim == 2 else out
+
+
+def phone_lens(*, f_px: float, size_px, k1: float = 0.0, k2: float = 0.0,
+               tangential_px: float | None = None, prism_px: float | None = None,
+               rng=None) -> tuple[float, ...]:
+    """OpenCV's 12 lens coefficients (k1 k2 p1 p2 k3 k4 k5 k6 s1 s2 s3 s4): radial ``k1``
+    ``k2`` and tangential and thin-prism terms that move the image corner by
+    ``tangential_px`` and ``prism_px`` pixels each (default: ``PHONE_TANGENTIAL_PX`` and
+    ``PHONE_PRISM_PX`` per 1000 px of the image's half-diagonal), in directions drawn
+    from ``rng`` (a seed or a Generator)."""
+    rng = np.random.default_rng(rng)
+    half = float(np.hypot(*size_px)) / 2.0
+    tangential_px = PHONE_TANGENTIAL_PX * half / 1000.0 if tangential_px is None else tangential_px
+    prism_px = PHONE_PRISM_PX * half / 1000.0 if prism_px is None else prism_px
+    # the corner of an image of aspect w:h, in normalised units; each family's shape is drawn
+    # at random, then scaled so that its largest shift over the four corners is the size
+    x, y = size_px[0] / 2.0 / float(f_px), size_px[1] / 2.0 / float(f_px)
+    a = rng.uniform(0, 2 * np.pi)
+    p = np.array([np.cos(a), np.sin(a)])
+    s = rng.standard_normal(4)
+    d_t = corner_shift((0, 0, p[0], p[1], 0, 0, 0, 0, 0, 0, 0, 0), x, y)
+    d_s = corner_shift((0, 0, 0, 0, 0, 0, 0, 0, *s), x, y)
+    p = p * (tangential_px / f_px / max(d_t, 1e-12))
+    s = s * (prism_px / f_px / max(d_s, 1e-12))
+    return (float(k1), float(k2), float(p[0]), float(p[1]), 0.0, 0.0, 0.0, 0.0,
+            *(float(v) for v in s))
+
+
+def corner_shift(dist, x: float, y: float) -> float:
+    """Largest shift (normalised units) the non-radial ``dist`` terms give over the four
+    image corners (+-x, +-y)."""
+    out = 0.0
+    for sx, sy in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+        P = np.array([[sx * x, sy * y, 1.0]])
+        q, _ = cv2.projectPoints(P, np.zeros(3), np.zeros(3), np.eye(3), np.asarray(dist, float))
+        out = max(out, float(np.hypot(*(q.ravel() - P[0, :2]))))
+    return out

@@ -70,13 +70,9 @@ import pyrender  # noqa: E402
 import trimesh  # noqa: E402
 
 from vision_cal.errors import VisionCalError  # noqa: E402
-from vision_cal.render.camera import distort_image  # noqa: E402
+from vision_cal.render.camera import (PHONE_PRISM_PX, PHONE_TANGENTIAL_PX,  # noqa: E402,F401
+                                      distort_image, phone_lens)
 
-#: sizes (px at the image corner, per 1000 px of image half-diagonal) of the lens terms
-#: beyond k1 k2 in a real photo (module docstring: 0.2 px each at the corner of the 400 px
-#: half-diagonal of fixtures/real_charuco_opencv, 0.5 per 1000 px, rounded up)
-PHONE_TANGENTIAL_PX = 0.6
-PHONE_PRISM_PX = 0.6
 #: the JPEG quality of the real photos kept (fixtures/real_charuco_opencv: 95)
 PHONE_JPEG_QUALITY = 95
 
@@ -578,43 +574,6 @@ class Photographer:
         timing["total_s"] += post
         self.last_timing = timing
         return img
-
-
-def phone_lens(*, f_px: float, size_px, k1: float = 0.0, k2: float = 0.0,
-               tangential_px: float | None = None, prism_px: float | None = None,
-               rng=None) -> tuple[float, ...]:
-    """OpenCV's 12 lens coefficients (k1 k2 p1 p2 k3 k4 k5 k6 s1 s2 s3 s4): radial ``k1``
-    ``k2`` and tangential and thin-prism terms that move the image corner by
-    ``tangential_px`` and ``prism_px`` pixels each (default: ``PHONE_TANGENTIAL_PX`` and
-    ``PHONE_PRISM_PX`` per 1000 px of the image's half-diagonal), in directions drawn
-    from ``rng`` (a seed or a Generator)."""
-    rng = np.random.default_rng(rng)
-    half = float(np.hypot(*size_px)) / 2.0
-    tangential_px = PHONE_TANGENTIAL_PX * half / 1000.0 if tangential_px is None else tangential_px
-    prism_px = PHONE_PRISM_PX * half / 1000.0 if prism_px is None else prism_px
-    # the corner of an image of aspect w:h, in normalised units; each family's shape is drawn
-    # at random, then scaled so that its largest shift over the four corners is the size
-    x, y = size_px[0] / 2.0 / float(f_px), size_px[1] / 2.0 / float(f_px)
-    a = rng.uniform(0, 2 * np.pi)
-    p = np.array([np.cos(a), np.sin(a)])
-    s = rng.standard_normal(4)
-    d_t = _corner_shift((0, 0, p[0], p[1], 0, 0, 0, 0, 0, 0, 0, 0), x, y)
-    d_s = _corner_shift((0, 0, 0, 0, 0, 0, 0, 0, *s), x, y)
-    p = p * (tangential_px / f_px / max(d_t, 1e-12))
-    s = s * (prism_px / f_px / max(d_s, 1e-12))
-    return (float(k1), float(k2), float(p[0]), float(p[1]), 0.0, 0.0, 0.0, 0.0,
-            *(float(v) for v in s))
-
-
-def _corner_shift(dist, x: float, y: float) -> float:
-    """Largest shift (normalised units) the non-radial ``dist`` terms give over the four
-    image corners (+-x, +-y)."""
-    out = 0.0
-    for sx, sy in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
-        P = np.array([[sx * x, sy * y, 1.0]])
-        q, _ = cv2.projectPoints(P, np.zeros(3), np.zeros(3), np.eye(3), np.asarray(dist, float))
-        out = max(out, float(np.hypot(*(q.ravel() - P[0, :2]))))
-    return out
 
 
 def _height_mesh(xs, ys, Z, extent_mm):

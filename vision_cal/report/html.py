@@ -351,18 +351,25 @@ def _print_html(pr: dict) -> str:
                 f"mapping; every mark carries about {_f(pr.get('limit_mm'), 3)} mm (RMS) for it. "
                 "Survey the sheet (vision-cal survey) or photograph it from several places."
                 "</p>")
+    rep = (f"<p>Replication: {_e((pr.get('replication') or {}).get('text'))}.</p>"
+           if (pr.get("replication") or {}).get("text") else "")
     if pr.get("applied") is False:
+        why = (f"not applied ({_e(pr.get('status'))}): {_e(pr.get('reason'))}"
+               if pr.get("reason") else
+               f"on its layout within what they resolve ({_f(pr.get('rms_mm'), 3)} mm RMS "
+               f"against {_f(pr.get('unresolved_mm'), 3)} mm)")
+        size = (f" Every mark carries {_f(pr.get('limit_mm'), 3)} mm (RMS) for the print "
+                f"the photos' mappings leave ({_f(pr.get('seen_rms_mm'), 3)} mm seen)."
+                if pr.get("limit_mm") else "")
         return (f"<p>Measured from the {_e(pr.get('source'))} ({pr.get('n_places')} camera "
-                f"places): on its layout within what they resolve ({_f(pr.get('rms_mm'), 3)} "
-                f"mm RMS against {_f(pr.get('unresolved_mm'), 3)} mm); the declared layout is "
-                "kept.</p>")
+                f"places): {why}; the declared layout is kept.{size}</p>" + rep)
     return (f"<p>Measured from {_e(pr.get('source'))} ({pr.get('n_places')} camera places): "
             f"the markers' corners are {_f(pr.get('rms_mm'), 3)} mm RMS, "
             f"{_f(pr.get('max_mm'), 3)} mm at most, off their layout; the markers grew "
             f"{_f(pr.get('growth_mm'), 3)} mm a side (toner), the rest moved "
             f"{_f(pr.get('field_rms_mm'), 3)} mm RMS. The views leave "
             f"{_f(pr.get('unresolved_mm'), 4)} mm (RMS) not separated from the lens. The marks "
-            "are measured against the markers as printed.</p>")
+            "are measured against the markers as printed.</p>" + rep)
 
 
 def tool_html(doc: dict) -> str:

@@ -85,6 +85,18 @@ def _camera_lines(doc: dict) -> list[str]:
     return out
 
 
+def _print_replication_lines(pr) -> list[str]:
+    """calibration.json ``print`` measured from several places (issue 37): applied or why
+    not, and the halves' sentence."""
+    if not isinstance(pr, dict) or pr.get("source") == "one place" or "status" not in pr:
+        return []
+    head = (f"sheet as printed ({pr.get('source')}, {pr.get('n_places')} places): "
+            + ("applied" if pr.get("applied") else
+               f"not applied ({pr.get('status')}): {pr.get('reason')}"))
+    rep = (pr.get("replication") or {}).get("text")
+    return [head] + ([f"  replication: {rep}"] if rep else [])
+
+
 def _calibration_summary(doc: dict, reference: dict | None) -> str:
     ref = (reference or {}).get("params")
     head = f"{'parameter':<12}{'robot file':>11}{'calibrated':>13}{'std':>10}"
@@ -143,6 +155,7 @@ def _calibration_summary(doc: dict, reference: dict | None) -> str:
             line += (f"; sheet_affine beyond the printer "
                      f"{100 * ps['sheet_affine_beyond_printer']:+.3f} %")
         lines.append(line)
+    lines += _print_replication_lines(doc.get("print"))
     if doc.get("noise_floor_mm") is not None:
         # the photos' own noise on a mark: not the verdict's noise floor (which adds the
         # robot's repeatability over the fitted marks), so named apart from it
