@@ -23,7 +23,7 @@ def test_compare_is_the_chi_square_of_the_difference():
     # hand-computed: d = (1, 0) against diag(1, 1) + diag(1, 1): chi2 = 1 / 2 on 2 dof
     r = compare([1.0, 0.0], np.eye(2), [0.0, 0.0], np.eye(2))
     assert (r.chi2, r.dof, r.chi2_dof) == (0.5, 2, 0.25)
-    assert r.p == pytest.approx(stats.chi2.sf(0.5, 2))
+    assert r.p_value == pytest.approx(stats.chi2.sf(0.5, 2))
     # a direction neither half states (a shared gauge) is not a degree of freedom
     C = np.array([[1.0, 1.0], [1.0, 1.0]])
     r = compare([1.0, 1.0], C, [0.0, 0.0], C)

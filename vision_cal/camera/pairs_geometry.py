@@ -23,6 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from vision_cal.model.solve import covariance
+
 
 def rz(a: float) -> np.ndarray:
     c, s = math.cos(a), math.sin(a)
@@ -128,7 +130,7 @@ def _scale_std(G: np.ndarray, rhs: np.ndarray, u: np.ndarray) -> float:
     if dof <= 0 or s[-1] < 1e-9 * max(s[0], 1e-300):
         return float("inf")
     r = G @ u - rhs
-    cov = np.linalg.inv(G.T @ G) * float(r @ r) / dof
+    cov = covariance(G, s2=float(r @ r) / dof).matrix
     d = u[2:4] / max(float(np.hypot(u[2], u[3])), 1e-300)
     return float(np.sqrt(max(d @ cov[2:4, 2:4] @ d, 0.0)))
 

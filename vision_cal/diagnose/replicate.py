@@ -35,6 +35,7 @@ import numpy as np
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.model.lsq import Fit
 from vision_cal.model.replication import Comparison, compare
+from vision_cal.model.solve import covariance
 from vision_cal.model.robot import RobotModel
 
 
@@ -90,7 +91,7 @@ def _fit_half(model: RobotModel, q, xy, s, sigma, s2: float, config) -> "_Half |
     w = np.ones(len(q)) if sigma is None else 1.0 / np.asarray(sigma, float)
     J = f.model.jacobian(q, s).reshape(-1, P)
     W = np.repeat(w**2, 2)
-    unit = np.linalg.pinv(J.T @ (W[:, None] * J))
+    unit = covariance(J * np.sqrt(W)[:, None]).matrix   # the one policy, unit noise
     return _Half(f, unit * s2, unit @ (J.T * W))
 
 
