@@ -201,7 +201,7 @@ def render_world(name: str, seed: int, out: Path):
     (true robot, repeatability, the paper's extent)."""
     import yaml
 
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
     from vision_cal.render.dataset import render_dataset
     from vision_cal.render.scene import scene_from_dict
 

@@ -80,7 +80,7 @@ def render_grid(seeds: int, width: int, only: str | None = None) -> None:
     import yaml
 
     from vision_cal.workflows.pipeline import calibrate_dataset
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
     from vision_cal.render.dataset import photographer_K, render_dataset
     from vision_cal.render.photo import Photographer
     from vision_cal.render.scene import scene_from_dict

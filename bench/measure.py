@@ -57,7 +57,7 @@ sys.path.insert(0, str(ROOT))
 
 
 def render_folder(folder: Path, n_photos: int) -> None:
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
     from vision_cal.render.dataset import render_dataset
     from vision_cal.render.scene import scene_from_dict
 
@@ -127,7 +127,7 @@ def _without_grid(folder: Path, tmp: Path) -> Path:
 def reference_table(scenes: list[str], root: Path, seed: int | None) -> None:
     """Mark error against truth.json, marker mapping (global) versus the printed grid
     (local), flat and bumped scenes, in one table; time per photo of both."""
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
     from vision_cal.dataset.session import load_session
     from vision_cal.workflows.measure_folder import measure_folder
     from vision_cal.render.dataset import render_dataset
@@ -187,7 +187,7 @@ def plain_all(files: list[Path], dictionary: str) -> tuple[float, float]:
 def whole_run(folder: Path) -> None:
     """The whole calibration against plain decode + detect (see the module docstring)."""
     from vision_cal.workflows import pipeline
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
     from vision_cal.dataset.session import load_session
     from vision_cal.render.dataset import render_dataset
     from vision_cal.render.scene import load_scene

@@ -327,7 +327,7 @@ LAYERS = [
     {"sheet"},
     {"measure"},
     {"identify"},
-    {"calibrate"},
+    {"estimate"},
     {"diagnose"},
     {"plan"},
     {"program", "simulate"},
@@ -342,7 +342,7 @@ LAYERS = [
 #: sheet/ (the sheet's own print rebuilt from its layout, to see what lies under a dot:
 #: sheet/ draws the sheet and imports only dataset/, so it is below measure, beside the
 #: data); the root's config (thresholds), errors and progress (the bar). Nothing that tells
-#: which dot is which mark (identify/), fits (calibrate/) or plans.
+#: which dot is which mark (identify/), fits (estimate/) or plans.
 MEASURE_MAY_IMPORT = {"measure", "dataset", "model", "sheet", "config", "errors", "progress"}
 
 
@@ -402,16 +402,16 @@ def test_no_package_reaches_up_a_layer(graph):
 def test_measure_imports_nothing_above_dataset_and_model(graph):
     """measure/ turns photos into sheet millimetres: it imports dataset/, model/, sheet/ and
     the root's config, errors and progress (:data:`MEASURE_MAY_IMPORT`), never identify/,
-    calibrate/ or anything above."""
+    estimate/ or anything above."""
     assert "vision_cal.measure.finish" in graph and graph["vision_cal.measure.finish"]
     assert imports_beyond(graph, "measure", MEASURE_MAY_IMPORT) == {}
 
 
 def test_identify_imports_nothing_above_it(graph):
     """identify/ (which dot is which mark, the tool's first guess) imports its layer and the
-    ones below (measure/, sheet/, dataset/, model/, the root's), never calibrate/ or above."""
+    ones below (measure/, sheet/, dataset/, model/, the root's), never estimate/ or above."""
     assert "vision_cal.identify.match" in graph and graph["vision_cal.identify.match"]
-    assert "calibrate" not in at_or_below("identify")
+    assert "estimate" not in at_or_below("identify")
     assert imports_beyond(graph, "identify", at_or_below("identify")) == {}
 
 
@@ -431,29 +431,29 @@ def test_the_layer_checks_see_what_they_guard(tmp_path):
 
 
 def test_the_measure_and_identify_checks_see_what_they_guard(tmp_path):
-    """measure/ importing identify/ inside a function, and identify/ importing calibrate/,
+    """measure/ importing identify/ inside a function, and identify/ importing estimate/,
     are found; measure/ reading the sheet's layout and identify/ importing measure/ are not."""
     pkg = tmp_path / "vision_cal"
-    for d in ("measure", "identify", "calibrate", "sheet", "dataset"):
+    for d in ("measure", "identify", "estimate", "sheet", "dataset"):
         (pkg / d).mkdir(parents=True)
         (pkg / d / "__init__.py").write_text("")
     (pkg / "__init__.py").write_text("")
     (pkg / "config.py").write_text("")
     (pkg / "sheet" / "layout.py").write_text("from vision_cal.dataset import io\n")
     (pkg / "dataset" / "io.py").write_text("")
-    (pkg / "calibrate" / "tool.py").write_text("")
+    (pkg / "estimate" / "tool.py").write_text("")
     (pkg / "measure" / "printed.py").write_text(
         "from vision_cal.sheet import layout\nfrom vision_cal import config\n")
     (pkg / "measure" / "finish.py").write_text(
         "def f():\n    from ..identify import match\n")
     (pkg / "identify" / "match.py").write_text(
-        "from vision_cal.measure import printed\nfrom vision_cal.calibrate.tool import fit\n")
+        "from vision_cal.measure import printed\nfrom vision_cal.estimate.tool import fit\n")
     g = import_graph(pkg)
     assert imports_beyond(g, "measure", MEASURE_MAY_IMPORT) == {
         "vision_cal.measure.finish": ["vision_cal.identify.match"]}
     assert imports_beyond(g, "identify", at_or_below("identify")) == {
-        "vision_cal.identify.match": ["vision_cal.calibrate.tool"]}
-    assert upward_imports(g) == {("measure", "identify"), ("identify", "calibrate")}
+        "vision_cal.identify.match": ["vision_cal.estimate.tool"]}
+    assert upward_imports(g) == {("measure", "identify"), ("identify", "estimate")}
 
 
 #: the one solver and covariance policy (docs/conventions.md "Uncertainty"): no other module

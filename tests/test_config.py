@@ -18,7 +18,7 @@ from tests.measure import synth_measure as sm
 from tests.measure.test_measure_grid import _mapping_shifted
 from tests.measure.test_measure_no_images import _groups
 from tests.tool.test_placements import _kinematic_places
-from vision_cal.calibrate import joint4, placements
+from vision_cal.estimate import joint4, placements
 from vision_cal.camera import pose_pairs
 from vision_cal.config import (DEFAULT, AssociationConfig, DiscoveryConfig, DotConfig,
                                EstimatorConfig, GridConfig, GridDeclarationConfig, Joint4Config,

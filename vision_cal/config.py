@@ -26,7 +26,7 @@ recorded values, not today's defaults). The parts, by key:
   (:mod:`vision_cal.measure.grid_declaration`);
 - ``smooth_residual``: a spatially smooth residual (:mod:`vision_cal.diagnose.sheet`);
 - ``discovery``: the scans for effects no candidate names (:mod:`vision_cal.diagnose.discover`);
-- ``joint4``: the joint-4 (tool offset) stage (:mod:`vision_cal.calibrate.joint4`);
+- ``joint4``: the joint-4 (tool offset) stage (:mod:`vision_cal.estimate.joint4`);
 - ``handeye``: the hand-eye from pose pairs (:mod:`vision_cal.camera.pose_pairs`);
 - ``handeye_photos``: the hand-eye from photos and the robot's poses, any arm
   (:mod:`vision_cal.camera.handeye`);
@@ -328,7 +328,7 @@ class DiscoveryConfig:
 @dataclass(frozen=True)
 class Joint4Config:
     """The joint-4 stage: the tool's offset from the joint-4 axis
-    (``vision_cal.calibrate.joint4``)."""
+    (``vision_cal.estimate.joint4``)."""
 
     accept_sigma: float = 4.0         # an offset term is kept only when its estimate exceeds
                                       # this many reported std (two terms tested: by chance

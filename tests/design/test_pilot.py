@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from tests.design.conftest import ROBOT, border_sheet
-from vision_cal.calibrate.paper import paper_method
+from vision_cal.estimate.paper import paper_method
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.design.pilot import design_pilot, pens_mm
 from vision_cal.errors import VisionCalError

@@ -12,7 +12,7 @@ know are kept in ``extra`` and written back, so a file round-trips unchanged:
 ``CalibrationResult.from_json(d).to_json() == d`` (same keys and values). Every field but
 ``format`` is optional: a placement calibration, the arm camera's and the pose pairs' write
 what they have. Every writer of calibration.json builds one (the pipeline,
-``calibrate/placements``, ``camera/arm_session``, ``actions/handeye``); :data:`FORMAT` is
+``estimate/placements``, ``camera/arm_session``, ``actions/handeye``); :data:`FORMAT` is
 the one spelling of the format string.
 """
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vision_cal.calibrate.plausible import RADIAN_RANGE, radians_given
+from vision_cal.estimate.plausible import RADIAN_RANGE, radians_given
 from vision_cal.camera.arm import (MAX_POSES, MIN_POSES, ArmView, check_declared_lens,
                                    estimate_lens, fit_arm_camera, without_misdetected)
 from vision_cal.camera.fixed import UNDETERMINED

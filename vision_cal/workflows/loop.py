@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.calibrate.paper import pilot_params
+from vision_cal.estimate.paper import pilot_params
 from vision_cal.dataset.csvio import write_plan, write_targets
 from vision_cal.dataset.io import atomic_write_json, read_json
 from vision_cal.dataset.marker_geometry import quiet_boxes_mm

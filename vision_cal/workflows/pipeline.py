@@ -18,11 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.calibrate.joint4 import add_tool, fit_joint4_paper, joint4_stage
+from vision_cal.estimate.joint4 import add_tool, fit_joint4_paper, joint4_stage
 from vision_cal.model.lsq import Fit
-from vision_cal.calibrate.paper import PaperResult, paper_method
-from vision_cal.calibrate.paper_scale import check_bars, paper_scale_block
-from vision_cal.calibrate.plausible import check_plausible
+from vision_cal.estimate.paper import PaperResult, paper_method
+from vision_cal.estimate.paper_scale import check_bars, paper_scale_block
+from vision_cal.estimate.plausible import check_plausible
 from vision_cal.model.tool_fit import folded_statement
 from vision_cal.camera.fixed import cameras_json
 from vision_cal.config import DEFAULT, METHODS, EstimatorConfig
@@ -302,7 +302,7 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
             config: EstimatorConfig, base_effects: tuple = ()) -> _Fitted:
     """Least squares, then the diagnosis that adds the effects the base model lacks.
     ``base_effects``: the tool and joint-4 effects every model holds (marks at several
-    ``j4_deg``, :mod:`vision_cal.calibrate.joint4`); the joints then carry joint 4."""
+    ``j4_deg``, :mod:`vision_cal.estimate.joint4`); the joints then carry joint 4."""
     not_flat = (measurement is not None and measurement.height_map is not None
                 and measurement.height_map.claimed)
     cands = None

@@ -1,7 +1,7 @@
 """``vision-cal calibrate A/ B/ C/ --joint``: one robot from several placements of the sheet,
 the workflow (measure each folder, fit them together with
-:func:`vision_cal.calibrate.placements.fit_placements`, judge, write every file together).
-The fit itself lives in calibrate/; this module orchestrates and writes."""
+:func:`vision_cal.estimate.placements.fit_placements`, judge, write every file together).
+The fit itself lives in estimate/; this module orchestrates and writes."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.calibrate.placements import (Placement, PlacementsFit, cv_residuals,
+from vision_cal.estimate.placements import (Placement, PlacementsFit, cv_residuals,
                                              fit_placements, placement_cov,
                                              robot_frame_json, unexplained_seen)
 from vision_cal.model.tool_fit import joint4_values

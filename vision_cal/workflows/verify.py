@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.calibrate.plausible import LINK_RATIO, own_marks_offset
+from vision_cal.estimate.plausible import LINK_RATIO, own_marks_offset
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.camera_block import check_cameras
 from vision_cal.dataset.fields import FieldReader
@@ -257,7 +257,7 @@ def check_verifiable(model, doc: dict, path, session) -> None:
 
 def _check_own_marks(model, doc: dict, r: FieldReader) -> None:
     """The calibration's own marks lie where its parameters put them (its units are the
-    marks': mm and degrees; the owner: ``calibrate/plausible.own_marks_offset``)."""
+    marks': mm and degrees; the owner: ``estimate/plausible.own_marks_offset``)."""
     off = own_marks_offset(model, doc)
     if off is not None:
         r.fail("params", f"its own marks lie {off[0]:.3g} mm RMS from where its parameters "

@@ -7,7 +7,7 @@ error, each kept only when its estimate exceeds ``joint4.accept_sigma`` (config)
 (clean data claims nothing); :func:`vision_cal.workflows.pipeline.fit_lsq` then runs the usual
 diagnosis (joint-1/2 effects, sheet, scans, discovery) with those held in every model, and
 :func:`add_tool` writes the tool's part. The paper method (:func:`fit_joint4_paper`):
-:func:`vision_cal.calibrate.tool.paper_tool`, with std by linear propagation of the mark
+:func:`vision_cal.estimate.tool.paper_tool`, with std by linear propagation of the mark
 noise (the least-squares fit's residual scale); it searches no effect (a note says so).
 """
 
@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vision_cal.model.tool_fit import ToolFit, fit_tool
-from vision_cal.calibrate.tool import paper_tool
+from vision_cal.estimate.tool import paper_tool
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.model.robot import JointBacklash, JointScale
 from vision_cal.dataset.covariance import covariance_json
