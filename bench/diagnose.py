@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from vision_cal.diagnose.select import diagnose
+from vision_cal.estimate.select import diagnose
 from vision_cal.model.kinematics import ScaraParams, forward
 from vision_cal.model.robot import JointBacklash, JointCyclic, JointScale, SheetAffine
 from vision_cal.render.truth_model import TrueRobot

@@ -45,7 +45,7 @@ sys.path.insert(0, str(ROOT))
 
 from vision_cal.estimate.placements import Placement, fit_placements
 from vision_cal.model.tool_fit import fit_tool
-from vision_cal.diagnose.verdict import judge
+from vision_cal.estimate.verdict import judge
 from vision_cal.model.robot import JointBacklash, JointScale
 from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.plan.orient import plan_poses

@@ -328,7 +328,6 @@ LAYERS = [
     {"measure"},
     {"identify"},
     {"estimate"},
-    {"diagnose"},
     {"plan"},
     {"program", "simulate"},
     {"camera", "design", "render"},

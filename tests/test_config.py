@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import vision_cal
-from tests.diagnose.test_discover import _world
-from tests.diagnose.test_verdict import REP, _fit_doc
+from tests.estimate.test_discover import _world
+from tests.estimate.test_verdict import REP, _fit_doc
 from tests.measure import synth_measure as sm
 from tests.measure.test_measure_grid import _mapping_shifted
 from tests.measure.test_measure_no_images import _groups
@@ -25,8 +25,8 @@ from vision_cal.config import (DEFAULT, AssociationConfig, DiscoveryConfig, DotC
                                PhotoAgreementConfig, PlanMatchConfig, SelectionConfig,
                                SheetHeightConfig, SmoothResidualConfig, VerdictConfig)
 from vision_cal.dataset.session import SheetGrid, load_session
-from vision_cal.diagnose import discover, sheet, verdict
-from vision_cal.diagnose.select import diagnose
+from vision_cal.estimate import discover, sheet, verdict
+from vision_cal.estimate.select import diagnose
 from vision_cal.errors import CalibrationError
 from vision_cal.identify import associate, infer, plan_match
 from vision_cal.measure import (asprinted, dots, grid, grid_declaration, height,
@@ -159,7 +159,7 @@ def test_the_verdict_judges_by_the_thresholds_the_file_recorded():
 
 
 def test_a_discovery_setting_passed_in_changes_the_search():
-    """A coupling discovery names by default (tests/diagnose/test_discover.py) is not
+    """A coupling discovery names by default (tests/estimate/test_discover.py) is not
     searched for with ``max_terms = 0``, and the scans' level follows ``scan_level``."""
     _, q, s, t, xy = _world([{"name": "joint_terms", "joint": 2,
                               "terms": [{"feature": "q1", "coef": 0.003}]}], seed=7)

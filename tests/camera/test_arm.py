@@ -11,7 +11,7 @@ import pytest
 import dataclasses
 
 from vision_cal.camera.arm import (LABELS, ArmView, fit_arm_camera, relative_motion)
-from vision_cal.diagnose.verdict import judge_camera_poses
+from vision_cal.estimate.verdict import judge_camera_poses
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.render import arm_camera as world
 from vision_cal.render.sheet import make_sheet

@@ -121,7 +121,7 @@ def _pilot_calibration(tmp_path, pilot_dir, edit) -> Path:
     """The pilot's nine marks drawn by a true robot (0.02 mm of noise, measured_mm: no
     photos), calibrated, its document edited by ``edit`` and judged again as the pipeline
     judges a pilot."""
-    from vision_cal.diagnose.verdict import judge
+    from vision_cal.estimate.verdict import judge
     from vision_cal.render.truth_model import TrueRobot
     from vision_cal.workflows.pipeline import calibrate_dataset
 

@@ -80,7 +80,7 @@ class CalibrationResult:
     home_deg: tuple[float, float] | None = None   # where plans start
     marks: dict | None = None                 # id -> mark entry
     images: tuple[dict, ...] | None = None    # per photo: status, reason, counts
-    verdict: dict | None = None               # diagnose/verdict.judge's block
+    verdict: dict | None = None               # estimate/verdict.judge's block
     base_model_params: dict | None = None
     base_model_std: dict | None = None
     initial_guess: dict | None = None

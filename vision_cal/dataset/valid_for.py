@@ -9,7 +9,7 @@ target that excites it misses by as much as the effect is large (a pilot "ready 
 mm" landed targets approached from the other side 0.43-0.46 mm off).
 
 :func:`build` writes the block from a calibration document; :func:`verdict_reasons` is
-what the verdict (``diagnose/verdict.judge``, its owner) adds for it; :func:`check` is the
+what the verdict (``estimate/verdict.judge``, its owner) adds for it; :func:`check` is the
 one check every consumer runs on its request before it writes anything (``plan``,
 ``locate``, ``export``, ``verify``, ``design --pilot``), and :func:`enforce` refuses
 (exit 2, one line with the reason and the command that would cover it) or, with

@@ -283,7 +283,7 @@ def _cv_rms(places: list[Placement], fit: PlacementsFit, effects, k_folds: int,
 def fit_placements(places: list[Placement], *, candidates=None, tool: Tool | None = None,
                    config: EstimatorConfig | None = None) -> tuple[PlacementsFit, list]:
     """The shared robot from every placement, effects chosen by forward selection with the
-    single-sheet diagnosis's rule (:mod:`vision_cal.diagnose.select`): a candidate is kept
+    single-sheet diagnosis's rule (:mod:`vision_cal.estimate.select`): a candidate is kept
     when its F-test passes at ``alpha / n_candidates`` (``alpha``, ``max_effects`` and
     ``k_folds``: ``config.selection``, default ``DEFAULT``), the BIC drops *and* the k-fold
     cross-validated error over the marks of every placement goes down; among those that
@@ -304,7 +304,7 @@ def fit_placements(places: list[Placement], *, candidates=None, tool: Tool | Non
     fit = _solve(places, shared, poses, base_effects, limit)
     cands = list(default_candidates() if candidates is None else candidates)
     # claimed against every column of the joint-term dictionary, so tested at the level the
-    # dictionary's own selection uses (alpha split over its columns, vision_cal.diagnose.
+    # dictionary's own selection uses (alpha split over its columns, vision_cal.estimate.
     # discover): alpha / n_candidates alone let an F-test claim a joint_scale that q1^3 or
     # q1*q2 explain as well (1 in 200 datasets, bench/tool_joint4.py seed 1502)
     alpha_each = alpha / max(len(cands), 2 * len(jt.DICTIONARY))

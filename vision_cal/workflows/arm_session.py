@@ -34,7 +34,7 @@ from vision_cal.dataset.photos import PhotoRefused, load_photo, normalise_name
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.session import read_robot_block, read_sheet_block
 from vision_cal.dataset.valid_for import build as valid_for_block
-from vision_cal.diagnose.verdict import judge_camera_poses
+from vision_cal.estimate.verdict import judge_camera_poses
 from vision_cal.errors import CalibrationError, Failure, VisionCalError
 from vision_cal.measure.workers import exit_with_parent
 from vision_cal.progress import bar

@@ -33,13 +33,13 @@ from vision_cal.dataset.nominal import nominal_blocks
 from vision_cal.dataset.session import Session, load_session
 from vision_cal.dataset.sheet_identity import sheet_identity
 from vision_cal.dataset.valid_for import build as valid_for_block
-from vision_cal.diagnose.candidates import default_candidates
-from vision_cal.diagnose.discover import trace
-from vision_cal.diagnose.photos import per_photo_offsets
-from vision_cal.diagnose.replicate import replicate
-from vision_cal.diagnose.select import Diagnosis, diagnose
-from vision_cal.diagnose.sheet import smooth_residual
-from vision_cal.diagnose.verdict import judge
+from vision_cal.estimate.candidates import default_candidates
+from vision_cal.estimate.discover import trace
+from vision_cal.estimate.photos import per_photo_offsets
+from vision_cal.estimate.replicate import replicate
+from vision_cal.estimate.select import Diagnosis, diagnose
+from vision_cal.estimate.sheet import smooth_residual
+from vision_cal.estimate.verdict import judge
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.model.kinematics import forward
 from vision_cal.workflows.measure_folder import measure_folder
@@ -363,7 +363,7 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
         doc["diagnosis"]["discovery"] = traced.report
         if traced.drift is not None:
             doc["effects"].append(traced.drift)
-    else:   # said, and read by the verdict (diagnose/verdict.judge)
+    else:   # said, and read by the verdict (estimate/verdict.judge)
         doc["diagnosis"]["discovery"] = {"skipped": untraced}
         doc["notes"].append(untraced)
     res_cal = ff.residuals_mm
@@ -403,7 +403,7 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
 def _replication(ff: Fit, cal: MarkData, val: MarkData, measurement,
                  config: EstimatorConfig) -> dict:
     """calibration.json ``replication``: the final model refitted on two halves of its
-    fitted marks and compared (:func:`vision_cal.diagnose.replicate.replicate`), at the
+    fitted marks and compared (:func:`vision_cal.estimate.replicate.replicate`), at the
     validation marks' commands when there are three or more."""
     keep = np.asarray(ff.inliers, bool)
     nv = len(val.ids)
@@ -519,7 +519,7 @@ def document(session: Session, data: MarkData, missing: list[str],
 
 
 def _judged(result: CalibrationResult, session: Session) -> CalibrationResult:
-    """The run's verdict (one owner: :mod:`vision_cal.diagnose.verdict`); a residual beyond
+    """The run's verdict (one owner: :mod:`vision_cal.estimate.verdict`); a residual beyond
     the noise floor is ``unexplained`` with its ratio unless an effect entry already says
     what is left."""
     v = judge(result.to_json(), repeatability_mm=session.robot.repeatability_mm,

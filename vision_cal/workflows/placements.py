@@ -24,7 +24,7 @@ from vision_cal.dataset.out_folder import output_names
 from vision_cal.dataset.photos import list_photos
 from vision_cal.dataset.session import load_session
 from vision_cal.dataset.valid_for import build as valid_for_block
-from vision_cal.diagnose.verdict import judge_placements
+from vision_cal.estimate.verdict import judge_placements
 from vision_cal.errors import CalibrationError
 from vision_cal.model.robot import Tool
 from vision_cal.workflows.pipeline import measure_marks
@@ -46,7 +46,7 @@ def _mark_json(place: Placement, j: int, xy, r) -> dict:
 def _verdicts(places: list[Placement], sessions, fit: PlacementsFit, log,
               config: EstimatorConfig):
     """The contract's verdict of the joint fit and of each placement, and each placement's
-    agreement with the others (:func:`vision_cal.diagnose.verdict.judge_placements`): the
+    agreement with the others (:func:`vision_cal.estimate.verdict.judge_placements`): the
     residuals under the shared robot, the k-fold held-out ones, the robot block's
     repeatability (the first session that gives one)."""
     held = cv_residuals(places, fit, fit.effects, config.selection.k_folds,

@@ -5,9 +5,9 @@ calibration.json, measurement.json and loop.json).
 - :func:`add_to_calibration` (called by :func:`vision_cal.workflows.pipeline.calibrate_dataset` before
   calibration.json is written): the input folder (``dataset``), each fitted mark's residual
   as joint-angle errors under the base and the final model (``residual_base_joint_deg``,
-  ``residual_joint_deg``: :func:`vision_cal.diagnose.candidates.joint_residuals_deg` with
+  ``residual_joint_deg``: :func:`vision_cal.estimate.candidates.joint_residuals_deg` with
   the final parameters), and the verdict's sentences (``verdict.text``,
-  ``verdict.floor_line``: :class:`vision_cal.diagnose.verdict.Verdict`, the one owner).
+  ``verdict.floor_line``: :class:`vision_cal.estimate.verdict.Verdict`, the one owner).
 - :func:`loop_trajectories` (called by :func:`vision_cal.workflows.loop.run_loop` before loop.json is
   written): the joint reference trajectories of the targets planned before and after
   (:func:`vision_cal.plan.trajectory.plan_trajectory`), loop.json ``trajectories``.
@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.diagnose.candidates import joint_residuals_deg
-from vision_cal.diagnose.verdict import Verdict
+from vision_cal.estimate.candidates import joint_residuals_deg
+from vision_cal.estimate.verdict import Verdict
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import RobotModel
 from vision_cal.model.motion import TRAJECTORY_DT_S

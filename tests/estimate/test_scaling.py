@@ -6,8 +6,8 @@ import tracemalloc
 
 import numpy as np
 
-import vision_cal.diagnose.sheet as sheet
-from vision_cal.diagnose.structure import sheet_scan
+import vision_cal.estimate.sheet as sheet
+from vision_cal.estimate.structure import sheet_scan
 
 
 def _marks(n, seed=11):

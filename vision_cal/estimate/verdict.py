@@ -49,7 +49,7 @@ what the model leaves beyond the noise and the print (``target_std``; without th
 noise, the held-out RMS with the print); the print not measured (no survey, photos from
 fewer than three camera places, a fixed camera) is ``check`` with a printer's deviation
 in it. ``ready`` also needs the fit's two halves to agree within what each states
-(calibration.json ``replication``, :mod:`vision_cal.diagnose.replicate`).
+(calibration.json ``replication``, :mod:`vision_cal.estimate.replicate`).
 
 The thresholds are calibration.json ``config.verdict`` (:class:`vision_cal.config.VerdictConfig`)
 and ``config.uncertainty``:
@@ -466,7 +466,7 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
 
 def _replication_reasons(rep: dict | None, by_design: str | None) -> list[tuple[str, str]]:
     """(status, sentence) from calibration.json ``replication``
-    (:mod:`vision_cal.diagnose.replicate`): two halves of the marks that disagree beyond
+    (:mod:`vision_cal.estimate.replicate`): two halves of the marks that disagree beyond
     what each states (``check``: the stated std understates what the halves see), or a fit
     that could not be replicated (``check``; a pilot's at the ``ready`` level: its nine
     marks cannot be halved by design). Nothing for a file without the block (written

@@ -1,7 +1,7 @@
 """Residuals traced to effects: forward selection with held-out evidence.
 
 Start from the base model. Each round fits the current model plus each candidate
-(:mod:`vision_cal.diagnose.candidates`) that the plan can identify, and keeps the one
+(:mod:`vision_cal.estimate.candidates`) that the plan can identify, and keeps the one
 that most lowers the held-out error (validation marks when there are at least three,
 else k-fold cross-validation over the calibration marks), provided
 
@@ -25,8 +25,8 @@ from scipy import stats
 
 from vision_cal.model.lsq import FailedFit, Fit
 from vision_cal.config import DEFAULT, EstimatorConfig
-from vision_cal.diagnose.candidates import Candidate, default_candidates, joint_residuals_deg
-from vision_cal.diagnose.structure import harmonic_scan, sheet_scan
+from vision_cal.estimate.candidates import Candidate, default_candidates, joint_residuals_deg
+from vision_cal.estimate.structure import harmonic_scan, sheet_scan
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import JointCyclic, RobotModel, SheetAffine, Tool
 from vision_cal.model.rms import rms, rms_2d
