@@ -101,7 +101,7 @@ class CalibrationResult:
     printer_scale: dict | None = None
     cameras: list | None = None
     sheet: dict | None = None                 # which printed sheet (sheet_identity)
-    dataset: str | None = None                # the input folder (report_data, for the report)
+    dataset: str | None = None                # the input folder (estimate/report_data, for the report)
     starting_model: dict | None = None        # the model the plan was placed with (a pilot's)
     valid_for: dict | None = None             # what it was calibrated for (dataset/valid_for)
     # the method-specific blocks (METHODS_EXTRA, docs/format.md) and the keys this

@@ -38,15 +38,15 @@ from vision_cal.errors import VisionCalError
 from vision_cal.model.kinematics import ScaraParams, inverse
 from vision_cal.workflows.measure_folder import measure_folder
 from vision_cal.model.robot import RobotModel
-from vision_cal.model.motion import JOINT_LIMITS_DEG
+from vision_cal.model.motion import JOINT_LIMITS_DEG, TRAJECTORY_DT_S
 from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.plan.calibration_plan import sheet_clearance_mm
-from vision_cal.plan.compensate import plan_targets, to_planned_marks
+from vision_cal.plan.compensate import PlannedTarget, plan_targets, to_planned_marks
+from vision_cal.plan.trajectory import plan_trajectory
 from vision_cal.progress import stage_line
 from vision_cal.render.dataset import render_dataset
 from vision_cal.render.scene import load_scene
 from vision_cal.report.plots import loop_joints, loop_paths
-from vision_cal.workflows.report_data import loop_trajectories
 from vision_cal.model.rms import rms
 
 log = logging.getLogger(__name__)
@@ -305,3 +305,20 @@ def format_table(doc: dict) -> str:
             lines.append(f"{k}: RMS {v['rms_mm']:.4f} mm, max {v['max_mm']:.4f} mm over "
                          f"{v['n_measured']} of {s['n_targets']} targets measured")
     return "\n".join(lines)
+
+
+def loop_trajectories(loop: dict) -> dict:
+    """loop.json ``trajectories``: ``dt_s`` and, for ``before`` / ``after``, ``t_s`` (K,)
+    and ``q_deg`` (K, 2) of the targets planned with that model, from ``home_deg``."""
+    home = loop.get("home_deg", (0.0, 0.0))
+    out: dict = {"dt_s": TRAJECTORY_DT_S}
+    for name in ("before", "after"):
+        planned = [PlannedTarget(r["id"], tuple(r["target_mm"]), tuple(r[name]["q_deg"]),
+                                 tuple(int(s) for s in r[name]["approach"]))
+                   for r in loop["targets"] if "q_deg" in r[name]]
+        if not planned:
+            continue
+        tr = plan_trajectory(to_planned_marks(planned), home_deg=home)
+        out[name] = {"t_s": np.asarray(tr.t_s, float).tolist(),
+                     "q_deg": np.asarray(tr.q_deg, float).tolist()}
+    return out

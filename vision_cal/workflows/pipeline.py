@@ -48,7 +48,7 @@ from vision_cal.measure.printed import printed_content_json
 from vision_cal.measure.survey import load_survey
 from vision_cal.measure.types import Measurement
 from vision_cal.model.robot import JointBacklash, RobotModel, SheetAffine
-from vision_cal.workflows.report_data import add_to_calibration
+from vision_cal.estimate.report_data import add_to_calibration
 from vision_cal.model.rms import rms_2d
 
 log = logging.getLogger(__name__)

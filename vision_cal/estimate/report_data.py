@@ -1,16 +1,15 @@
-"""What the report draws that needs the estimator, computed once here and written into the
-files the report reads (``vision_cal.report`` imports nothing of the estimator: it renders
+"""What the report draws that needs the estimator, computed once here and written into
+calibration.json (``vision_cal.report`` imports nothing of the estimator: it renders
 calibration.json, measurement.json and loop.json).
 
-- :func:`add_to_calibration` (called by :func:`vision_cal.workflows.pipeline.calibrate_dataset` before
-  calibration.json is written): the input folder (``dataset``), each fitted mark's residual
-  as joint-angle errors under the base and the final model (``residual_base_joint_deg``,
-  ``residual_joint_deg``: :func:`vision_cal.estimate.candidates.joint_residuals_deg` with
-  the final parameters), and the verdict's sentences (``verdict.text``,
-  ``verdict.floor_line``: :class:`vision_cal.estimate.verdict.Verdict`, the one owner).
-- :func:`loop_trajectories` (called by :func:`vision_cal.workflows.loop.run_loop` before loop.json is
-  written): the joint reference trajectories of the targets planned before and after
-  (:func:`vision_cal.plan.trajectory.plan_trajectory`), loop.json ``trajectories``.
+:func:`add_to_calibration` (called by :func:`vision_cal.workflows.pipeline.calibrate_dataset`
+before calibration.json is written): the input folder (``dataset``), each fitted mark's
+residual as joint-angle errors under the base and the final model
+(``residual_base_joint_deg``, ``residual_joint_deg``:
+:func:`vision_cal.estimate.candidates.joint_residuals_deg` with the final parameters), and
+the verdict's sentences (``verdict.text``, ``verdict.floor_line``:
+:class:`vision_cal.estimate.verdict.Verdict`, the one owner). loop.json's trajectories are
+the closed loop's (:func:`vision_cal.workflows.loop.loop_trajectories`).
 """
 
 from __future__ import annotations
@@ -23,9 +22,6 @@ from vision_cal.estimate.candidates import joint_residuals_deg
 from vision_cal.estimate.verdict import Verdict
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import RobotModel
-from vision_cal.model.motion import TRAJECTORY_DT_S
-from vision_cal.plan.compensate import PlannedTarget, to_planned_marks
-from vision_cal.plan.trajectory import plan_trajectory
 
 
 def add_to_calibration(doc: dict, session) -> None:
@@ -58,20 +54,3 @@ def joint_residuals(doc: dict) -> dict[str, dict]:
     db, df = joint_residuals_deg(model, q, s, rb), joint_residuals_deg(model, q, s, rf)
     return {i: {"residual_base_joint_deg": db[k].tolist(), "residual_joint_deg": df[k].tolist()}
             for k, i in enumerate(ids)}
-
-
-def loop_trajectories(loop: dict) -> dict:
-    """loop.json ``trajectories``: ``dt_s`` and, for ``before`` / ``after``, ``t_s`` (K,)
-    and ``q_deg`` (K, 2) of the targets planned with that model, from ``home_deg``."""
-    home = loop.get("home_deg", (0.0, 0.0))
-    out: dict = {"dt_s": TRAJECTORY_DT_S}
-    for name in ("before", "after"):
-        planned = [PlannedTarget(r["id"], tuple(r["target_mm"]), tuple(r[name]["q_deg"]),
-                                 tuple(int(s) for s in r[name]["approach"]))
-                   for r in loop["targets"] if "q_deg" in r[name]]
-        if not planned:
-            continue
-        tr = plan_trajectory(to_planned_marks(planned), home_deg=home)
-        out[name] = {"t_s": np.asarray(tr.t_s, float).tolist(),
-                     "q_deg": np.asarray(tr.q_deg, float).tolist()}
-    return out
