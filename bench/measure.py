@@ -213,15 +213,15 @@ def whole_run(folder: Path) -> None:
     plain_all(files[:1], s.sheet.aruco_dictionary)          # warm-up: imports, first call
     before = plain_all(files, s.sheet.aruco_dictionary)
     out = Path(tempfile.mkdtemp(prefix="bench-whole-"))
-    orig = pipeline.measure_marks, pipeline.fit_lsq
+    orig = pipeline.measure_marks, pipeline.fit_marks
     pipeline.measure_marks = timed("measure", orig[0])
-    pipeline.fit_lsq = timed("fit + diagnosis", orig[1])
+    pipeline.fit_marks = timed("fit + diagnosis", orig[1])
     try:
         t, c = time.perf_counter(), time.process_time()
         run = pipeline.calibrate_dataset(folder, out_dir=out, jobs=1)
         whole, whole_cpu = time.perf_counter() - t, time.process_time() - c
     finally:
-        pipeline.measure_marks, pipeline.fit_lsq = orig
+        pipeline.measure_marks, pipeline.fit_marks = orig
         shutil.rmtree(out, ignore_errors=True)
     after = plain_all(files, s.sheet.aruco_dictionary)
     plain, plain_cpu = 0.5 * (before[0] + after[0]), 0.5 * (before[1] + after[1])

@@ -1,6 +1,6 @@
 """calibration.json as one typed value: :class:`CalibrationResult` (docs/format.md).
 
-The pipeline builds it once (:func:`vision_cal.workflows.pipeline.document`), writes it once
+The pipeline builds it once (:func:`vision_cal.estimate.document.document`), writes it once
 (:meth:`CalibrationResult.write`) and whoever reads a calibration back without planning
 with it (the report, history, verify, design's ``--pilot`` and ``--verify``) takes
 :meth:`CalibrationResult.from_json`; the planner's strict reader of the model is :func:`vision_cal.dataset.calibration.load_calibration`.

@@ -4,7 +4,7 @@ branch for the tool and joint 4; contract "Joint 4 and the tool", docs/format.md
 Least squares: :func:`joint4_stage` fits the base model with ``tool_mm``
 (:func:`vision_cal.model.tool_fit.fit_tool`), then joint 4's backlash and gear-ratio
 error, each kept only when its estimate exceeds ``joint4.accept_sigma`` (config) reported std
-(clean data claims nothing); :func:`vision_cal.workflows.pipeline.fit_lsq` then runs the usual
+(clean data claims nothing); :func:`vision_cal.estimate.fit.fit_lsq` then runs the usual
 diagnosis (joint-1/2 effects, sheet, scans, discovery) with those held in every model, and
 :func:`add_tool` writes the tool's part. The paper method (:func:`fit_joint4_paper`):
 :func:`vision_cal.estimate.tool.paper_tool`, with std by linear propagation of the mark
@@ -77,7 +77,7 @@ def joint4_stage(cal, config: EstimatorConfig | None = None) -> Joint4Stage:
 
 def add_tool(doc: dict, diagnosis, stage: Joint4Stage) -> None:
     """Complete a least-squares document whose models hold the tool (``doc`` from
-    :func:`vision_cal.workflows.pipeline.fit_lsq` with ``stage.effects``): ``params.tool_mm``,
+    :func:`vision_cal.estimate.fit.fit_lsq` with ``stage.effects``): ``params.tool_mm``,
     ``std.tool_mm``, the ``tool`` block, ``base_model_params.tool_mm`` and
     ``diagnosis.joint4``."""
     final = ToolFit(diagnosis.final_fit)
@@ -94,7 +94,7 @@ def add_tool(doc: dict, diagnosis, stage: Joint4Stage) -> None:
 
 def fit_joint4_paper(cal, val):
     """The circle method with joint 4: (doc, model, residual_all, residual_base) for marks
-    ``cal`` / ``val`` (:class:`vision_cal.workflows.pipeline.MarkData` with ``joint4``)."""
+    ``cal`` / ``val`` (:class:`vision_cal.estimate.marks.MarkData` with ``joint4``)."""
     q, app = cal.q_model, cal.approach_model
     has_val = len(val.ids) > 0
     qv, appv = (val.q_model, val.approach_model) if has_val else (np.zeros((0, 3)),
