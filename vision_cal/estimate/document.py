@@ -14,7 +14,7 @@ import numpy as np
 
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.calibration_result import CalibrationResult
-from vision_cal.dataset.io import as_json, read_json
+from vision_cal.dataset.io import read_json
 from vision_cal.dataset.nominal import nominal_blocks
 from vision_cal.dataset.session import Session
 from vision_cal.dataset.sheet_identity import sheet_identity
@@ -23,7 +23,7 @@ from vision_cal.estimate.fit import Fitted
 from vision_cal.estimate.marks import MarkData
 from vision_cal.estimate.paper_scale import paper_scale_block
 from vision_cal.estimate.photos import per_photo_offsets
-from vision_cal.estimate.report_data import add_to_calibration
+from vision_cal.estimate.report_data import with_report_data
 from vision_cal.estimate.verdict import judge
 from vision_cal.measure.printed import printed_content_json
 from vision_cal.measure.types import Measurement
@@ -39,48 +39,22 @@ def document(session: Session, data: MarkData, missing: list[str],
     its residuals, images, targets, still cameras, the paper's scale (``bars_mm``: the
     printed bars as measured, over the sheet's), and the verdict judged on all of it.
     ``cameras``: (calibration.json ``cameras``, the notes about them) of the still cameras
-    (:func:`vision_cal.camera.fixed.cameras_json`, from ``fitted``'s model), or None."""
-    blk = dict(fitted.blocks)
-    effects = list(blk.pop("effects"))
-    replication = blk.pop("replication", None)
-    extra = {} if replication is None else {"replication": replication}
-    diagnosis = blk.pop("diagnosis", None)
-    notes = blk.pop("notes", None)
-    if measurement is not None:
-        notes = list(notes or [])
-    if measurement is not None and fitted.diagnosis is not None:
-        photos = per_photo_offsets(measurement, fitted.diagnosis.final_fit.model,
-                                   dict(zip(data.ids, data.q_model)),
-                                   dict(zip(data.ids, data.approach_model)),
-                                   config=config.per_photo_offsets)
-        diagnosis = {**diagnosis, "per_photo_offsets": photos}
-        flagged = [p["file"] for p in photos if p["flagged"]]
-        if flagged:
-            notes.append("photos whose marks are shifted together beyond the noise "
-                         "(a bad sheet mapping?): " + ", ".join(flagged))
-    if measurement is not None and measurement.lens is not None and measurement.lens.kept:
-        effects.insert(0, measurement.lens.to_effect_json())
-    if measurement is not None and measurement.height_map is not None:
-        hm = measurement.height_map
-        if hm.claimed:
-            effects.append(hm.to_effect_json())
-        elif hm.not_claimed:
-            notes.append(f"sheet_height not claimed: {hm.not_claimed}")
-        diagnosis = {**(diagnosis or {}), "sheet_height": hm.to_json()}
+    (:func:`vision_cal.camera.fixed.cameras_json`, from ``fitted``'s model), or None.
+    Returned as written (:meth:`CalibrationResult.as_written`: what is read back)."""
+    fit = fitted.result
+    effects, diagnosis, notes = _measured(data, measurement, fitted, config)
     marks, unreliable_notes = _marks_json(session, data, measurement, fitted)
     if measurement is not None:
         notes += unreliable_notes
     limits = session.robot.joint_limits_deg
-    printer = printer_scale(session.sheet, effects, blk["params"], bars_mm=bars_mm)
-    paper = paper_scale_block(session.sheet, blk["params"], blk.get("std"), printer, config)
-    if paper is not None:
-        extra["paper_scale"] = paper
+    printer = printer_scale(session.sheet, effects, fit.params, bars_mm=bars_mm)
+    paper = paper_scale_block(session.sheet, fit.params, fit.std, printer, config)
     cameras, camera_notes = cameras or ([], [])
     if camera_notes:
         notes = list(notes or []) + camera_notes
-    result = CalibrationResult(
-        method=method, config=config.to_json(), effects=tuple(effects), diagnosis=diagnosis,
-        notes=None if notes is None else tuple(notes), **blk,
+    result = replace(
+        fit, method=method, config=config.to_json(), effects=tuple(effects),
+        diagnosis=diagnosis, notes=None if notes is None else tuple(notes),
         **nominal_blocks(session.raw, session.robot.params.to_json()),  # the robot file
         home_deg=tuple(float(v) for v in session.robot.home_deg),  # added: where plans start
         printed_content=printed_content_json(session.sheet) or None,  # added: for plan
@@ -95,28 +69,60 @@ def document(session: Session, data: MarkData, missing: list[str],
         cameras=cameras or None,   # added: still cameras (vision_cal/camera/fixed.py)
         sheet=sheet_identity(session.raw.get("sheet")),  # which printed sheet: design --pilot
         # added (#28): the print's deviation from its layout and its limit on the marks;
-        # (#37) the fit replicated by two halves of its marks
+        # (#37) the fit replicated by two halves of its marks; the paper's scale
         extra={**({"print": measurement.print_summary}
                   if measurement is not None and measurement.print_summary is not None
-                  else {}), **extra})
+                  else {}), **fit.extra,
+               **({} if paper is None else {"paper_scale": paper})})
     if truth:
         result = replace(result, truth_comparison=compare_truth(session.root / "truth.json",
-                                                                result.to_json()))
+                                                                result))
     design = session.raw.get("design") if isinstance(session.raw, dict) else None
     pen = (design or {}).get("pen_down_mm") if isinstance(design, dict) else None
     result = replace(result, valid_for=valid_for_block(
-        result.to_json(), pen_down_mm=pen if isinstance(pen, (int, float)) else None))
-    doc = _judged(result, session).to_json()
-    add_to_calibration(doc, session)   # what the report draws: it reads only the files
-    # the values exactly as written (NaN as null, numpy as Python): what is read back
-    return CalibrationResult.from_json(as_json(doc))
+        result, pen_down_mm=pen if isinstance(pen, (int, float)) else None))
+    # what the report draws: it reads only the files
+    return with_report_data(_judged(result, session), session).as_written()
+
+
+def _measured(data: MarkData, measurement: Measurement | None, fitted: Fitted,
+              config: EstimatorConfig) -> tuple[list, dict | None, list | None]:
+    """(effects, diagnosis, notes): the fit's, with what the photos add: per-photo offsets
+    (:func:`vision_cal.estimate.photos.per_photo_offsets`), the lens found, the sheet's
+    height (claimed or why not). Notes are a list when there is a measurement."""
+    fit = fitted.result
+    effects, diagnosis = list(fit.effects or ()), fit.diagnosis
+    notes = None if fit.notes is None else list(fit.notes)
+    if measurement is None:
+        return effects, diagnosis, notes
+    notes = list(notes or [])
+    if fitted.diagnosis is not None:
+        photos = per_photo_offsets(measurement, fitted.diagnosis.final_fit.model,
+                                   dict(zip(data.ids, data.q_model)),
+                                   dict(zip(data.ids, data.approach_model)),
+                                   config=config.per_photo_offsets)
+        diagnosis = {**diagnosis, "per_photo_offsets": photos}
+        flagged = [p["file"] for p in photos if p["flagged"]]
+        if flagged:
+            notes.append("photos whose marks are shifted together beyond the noise "
+                         "(a bad sheet mapping?): " + ", ".join(flagged))
+    if measurement.lens is not None and measurement.lens.kept:
+        effects.insert(0, measurement.lens.to_effect_json())
+    if measurement.height_map is not None:
+        hm = measurement.height_map
+        if hm.claimed:
+            effects.append(hm.to_effect_json())
+        elif hm.not_claimed:
+            notes.append(f"sheet_height not claimed: {hm.not_claimed}")
+        diagnosis = {**(diagnosis or {}), "sheet_height": hm.to_json()}
+    return effects, diagnosis, notes
 
 
 def _judged(result: CalibrationResult, session: Session) -> CalibrationResult:
     """The run's verdict (one owner: :mod:`vision_cal.estimate.verdict`); a residual beyond
     the noise floor is ``unexplained`` with its ratio unless an effect entry already says
     what is left."""
-    v = judge(result.to_json(), repeatability_mm=session.robot.repeatability_mm,
+    v = judge(result, repeatability_mm=session.robot.repeatability_mm,
               stage=session.design_stage)
     effects = [dict(e) for e in result.effects]
     f = v.floor
@@ -194,16 +200,16 @@ def _target_errors(session: Session, data: MarkData) -> list[dict]:
     return out
 
 
-def compare_truth(path: Path, doc: dict) -> dict:
+def compare_truth(path: Path, cal: CalibrationResult) -> dict:
     """Calibrated minus true parameters (synthetic data only; read only when asked)."""
     t = read_json(path)
-    tp, cp = t["params"], doc["params"]
+    tp, cp = t["params"], cal.params
     out = {"L1_mm": cp["L1_mm"] - tp["L1_mm"], "L2_mm": cp["L2_mm"] - tp["L2_mm"],
            "joint_zero_deg": [cp["joint_zero_deg"][k] - tp["joint_zero_deg"][k] for k in (0, 1)],
            "base_mm": [cp["base_mm"][k] - tp["base_mm"][k] for k in (0, 1)],
            "true_effects": t.get("effects", [])}
     tm = t.get("marks", {})
-    errs = [np.subtract(v["measured_mm"], tm[k]) for k, v in doc["marks"].items() if k in tm]
+    errs = [np.subtract(v["measured_mm"], tm[k]) for k, v in cal.marks.items() if k in tm]
     if errs:
         out["mark_rms_mm"] = rms_2d(np.array(errs))
     return out

@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from vision_cal.config import DEFAULT, EstimatorConfig
-from vision_cal.dataset.calibration_result import ModelRms
+from vision_cal.dataset.calibration_result import CalibrationResult, ModelRms
 from vision_cal.dataset.covariance import covariance_json
 from vision_cal.dataset.session import Session
 from vision_cal.estimate.candidates import default_candidates
@@ -55,10 +55,10 @@ def _paper_std(q, xy, sigma_mm: float) -> tuple[dict, np.ndarray]:
 @dataclass(frozen=True)
 class Fitted:
     """What one calibration method leaves for the document: its blocks of calibration.json
-    (``blocks``: :class:`CalibrationResult` field name -> JSON value), the final model and
-    each mark's residual under the final and the base model."""
+    (``result``: a :class:`CalibrationResult` holding the fields the method fills), the
+    final model and each mark's residual under the final and the base model."""
 
-    blocks: dict
+    result: CalibrationResult
     model: RobotModel
     residual_all: dict
     residual_base: dict
@@ -79,13 +79,12 @@ def fit_marks(session: Session, data: MarkData, measurement=None, *, method: str
         # the tool and joint 4's effects first, then the diagnosis with them
         stage = joint4_stage(cal, config)
         fitted = fit_lsq(session, cal, val, measurement, config, stage.effects)
-        add_tool(fitted.blocks, fitted.diagnosis, stage)
-        return fitted
+        return replace(fitted, result=add_tool(fitted.result, fitted.diagnosis, stage))
     fitted = (fit_paper(cal, val, config) if method == "paper"
               else fit_lsq(session, cal, val, measurement, config))
     if cal.joint4 is not None:   # one j4_deg: the tool is folded into L2 and z2
-        fitted = replace(fitted, blocks={**fitted.blocks, "tool": folded_statement(
-            cal.joint4[:, 0], session.robot.tool_mm or (0.0, 0.0))})
+        fitted = replace(fitted, result=replace(fitted.result, tool=folded_statement(
+            cal.joint4[:, 0], session.robot.tool_mm or (0.0, 0.0))))
     return fitted
 
 
@@ -99,13 +98,12 @@ def fit_paper(cal: MarkData, val: MarkData, config: EstimatorConfig = DEFAULT) -
     res_cal = cal.xy_mm - _predict(params, cal)
     res_val = val.xy_mm - _predict(params, val) if len(val.ids) else np.zeros((0, 2))
     rv = rms_2d(res_val) if len(val.ids) else None
-    blocks = dict(params=params.to_json(), std=std, effects=[],
-                  residual_rms_mm=ModelRms(rms_2d(res_cal), rms_2d(res_cal)),
-                  validation_rms_mm=ModelRms(rv, rv, "validation marks" if len(val.ids)
-                                             else "none"),
-                  circles={"base": paper.circle_base.to_json(),
-                           "elbow": paper.circle_elbow.to_json()},
-                  covariance=covariance_json(RobotModel(params).param_labels(), cov))
+    blocks = CalibrationResult(
+        params=params.to_json(), std=std, effects=(),
+        residual_rms_mm=ModelRms(rms_2d(res_cal), rms_2d(res_cal)),
+        validation_rms_mm=ModelRms(rv, rv, "validation marks" if len(val.ids) else "none"),
+        circles={"base": paper.circle_base.to_json(), "elbow": paper.circle_elbow.to_json()},
+        covariance=covariance_json(RobotModel(params).param_labels(), cov))
     residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
     residual_all.update({i: r for i, r in zip(val.ids, res_val)})
     return Fitted(blocks, RobotModel(params), residual_all, residual_all, paper=paper)
@@ -113,9 +111,79 @@ def fit_paper(cal: MarkData, val: MarkData, config: EstimatorConfig = DEFAULT) -
 
 def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
             config: EstimatorConfig, base_effects: tuple = ()) -> Fitted:
-    """Least squares, then the diagnosis that adds the effects the base model lacks.
-    ``base_effects``: the tool and joint-4 effects every model holds (marks at several
-    ``j4_deg``, :mod:`vision_cal.estimate.joint4`); the joints then carry joint 4."""
+    """Least squares, then the diagnosis that adds the effects the base model lacks
+    (:func:`_diagnosed`), and its blocks of calibration.json. ``base_effects``: the tool and
+    joint-4 effects every model holds (marks at several ``j4_deg``,
+    :mod:`vision_cal.estimate.joint4`); the joints then carry joint 4."""
+    diag, traced, cands, not_flat = _diagnosed(session, cal, val, measurement, config,
+                                               base_effects)
+    fb, ff = diag.base_fit, diag.final_fit
+    has_val = len(val.ids) >= 3
+    vb = rms_2d(val.xy_mm - fb.predict(val.q_model, val.approach_model)) if has_val else diag.heldout_base_mm
+    vf = rms_2d(val.xy_mm - ff.predict(val.q_model, val.approach_model)) if has_val else diag.heldout_final_mm
+    effects, notes = diag.effects_json(), list(ff.notes)
+    diagnosis = {"heldout": diag.heldout_kind,
+                 "accepted": [e.to_json() for e in diag.accepted],
+                 "rejected": [e.to_json() for e in diag.rejected],
+                 "residual_analysis": diag.analysis,
+                 "thresholds": diag.thresholds}
+    if traced is not None:
+        diagnosis["discovery"] = traced.report
+        if traced.drift is not None:
+            effects.append(traced.drift)
+    else:   # said, and read by the verdict (estimate/verdict.judge)
+        diagnosis["discovery"] = {"skipped": UNTRACED}
+        notes.append(UNTRACED)
+    res_cal = ff.residuals_mm
+    res_val = val.xy_mm - ff.predict(val.q_model, val.approach_model)
+    if not_flat:
+        notes.append("sheet_affine not tried: the sheet is not flat (sheet_height); "
+                     "its smooth residual is the paper's height"
+                     + ("" if len(cands) > 2 else "; joint_scale and joint_cyclic "
+                        "not tried either: marks not measured against a printed "
+                        "grid cannot tell their smooth signature from it"))
+    if session.sheet is not None:
+        _add_smooth_residual(effects, session, cal, val, res_cal, res_val, config)
+    residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
+    residual_all.update({i: r for i, r in zip(val.ids, res_val)})
+    residual_base = {i: r for i, r in zip(cal.ids, fb.residuals_mm)}
+    residual_base.update({i: r for i, r in zip(
+        val.ids, val.xy_mm - fb.predict(val.q_model, val.approach_model))})
+    outliers = [i for i, k in zip(cal.ids, ff.inliers) if not k]
+    # circle fits, where the plan has paper-style groups (the tool-less model)
+    pm = paper_method(cal.q_deg, cal.xy_mm) if not base_effects else None
+    result = CalibrationResult(
+        params=ff.params.to_json(), std=ff.base_std_json, effects=tuple(effects),
+        residual_rms_mm=ModelRms(fb.rms_mm, ff.rms_mm),
+        validation_rms_mm=ModelRms(vb, vf, diag.heldout_kind),
+        base_model_params=fb.params.to_json(), base_model_std=fb.base_std_json,
+        initial_guess={"method": "closed-form linear solve (generalised circle fits)",
+                       "params": fb.initial.to_json()},
+        identifiability={"condition_number": ff.cond, "rank": ff.rank,
+                         "n_params": ff.n_params, "labels": list(ff.labels),
+                         "high_correlations": [
+                             {"a": a, "b": b, "r": r} for a, b, r in ff.high_correlations()],
+                         "not_identifiable": list(diag.not_identifiable)},
+        diagnosis=diagnosis, notes=tuple(notes), residual_scale=ff.residual_scale,
+        covariance=covariance_json(ff.labels, ff.cov), outliers=tuple(outliers) or None,
+        circles=({"base": pm.circle_base.to_json(), "elbow": pm.circle_elbow.to_json()}
+                 if pm else None),
+        extra={"replication": _replication(ff, cal, val, measurement, config)})
+    return Fitted(result, ff.model, residual_all, residual_base, diagnosis=diag)
+
+
+#: said when the scans for unnamed effects do not run (read by the verdict)
+UNTRACED = ("the scans for effects the library lacks (time, polynomial, coupling, elbow, "
+            "approach) did not run: the sheet is not flat (sheet_height), and a joint error "
+            "would stand in for its height")
+
+
+def _diagnosed(session: Session, cal: MarkData, val: MarkData, measurement,
+               config: EstimatorConfig, base_effects: tuple):
+    """(the diagnosis with the print's shared error, the discovery's trace or None, the
+    candidates tried (None: every one), whether the sheet is not flat): the selection
+    (:func:`vision_cal.estimate.select.diagnose`), then the scans for what the library
+    lacks (:func:`vision_cal.estimate.discover.trace`) unless the sheet is not flat."""
     not_flat = (measurement is not None and measurement.height_map is not None
                 and measurement.height_map.claimed)
     cands = None
@@ -132,11 +200,7 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
                     approach_val=val.approach_model if len(val.ids) else None,
                     candidates=cands, base_effects=tuple(base_effects), config=config)
     traced = None
-    if not_flat:  # a sheet's height would be read as a joint error: not traced then
-        untraced = ("the scans for effects the library lacks (time, polynomial, coupling, "
-                    "elbow, approach) did not run: the sheet is not flat (sheet_height), and "
-                    "a joint error would stand in for its height")
-    else:
+    if not not_flat:  # a sheet's height would be read as a joint error: not traced then
         t_of = {m.id: i / max(len(session.marks) - 1, 1) for i, m in enumerate(session.marks)}
         traced = trace(diag, cal.q_model, cal.xy_mm, cal.approach_model,
                        np.array([t_of[i] for i in cal.ids]), sigma_mm=cal.sigma_mm,
@@ -146,71 +210,24 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
                        alpha=config.selection.alpha, k_folds=config.selection.k_folds,
                        config=config)
         diag = traced.diagnosis
-    diag = _print_shared(diag, cal, measurement)
-    fb, ff = diag.base_fit, diag.final_fit
-    has_val = len(val.ids) >= 3
-    vb = rms_2d(val.xy_mm - fb.predict(val.q_model, val.approach_model)) if has_val else diag.heldout_base_mm
-    vf = rms_2d(val.xy_mm - ff.predict(val.q_model, val.approach_model)) if has_val else diag.heldout_final_mm
-    doc = dict(
-        params=ff.params.to_json(), std=ff.base_std_json, effects=diag.effects_json(),
-        residual_rms_mm=ModelRms(fb.rms_mm, ff.rms_mm),
-        validation_rms_mm=ModelRms(vb, vf, diag.heldout_kind),
-        base_model_params=fb.params.to_json(), base_model_std=fb.base_std_json,
-        initial_guess={"method": "closed-form linear solve (generalised circle fits)",
-                       "params": fb.initial.to_json()},
-        identifiability={"condition_number": ff.cond, "rank": ff.rank,
-                         "n_params": ff.n_params, "labels": list(ff.labels),
-                         "high_correlations": [
-                             {"a": a, "b": b, "r": r} for a, b, r in ff.high_correlations()],
-                         "not_identifiable": list(diag.not_identifiable)},
-        diagnosis={"heldout": diag.heldout_kind,
-                   "accepted": [e.to_json() for e in diag.accepted],
-                   "rejected": [e.to_json() for e in diag.rejected],
-                   "residual_analysis": diag.analysis,
-                   "thresholds": diag.thresholds},
-        notes=list(ff.notes),
-        residual_scale=ff.residual_scale,
-        covariance=covariance_json(ff.labels, ff.cov),
-        replication=_replication(ff, cal, val, measurement, config))
-    if traced is not None:
-        doc["diagnosis"]["discovery"] = traced.report
-        if traced.drift is not None:
-            doc["effects"].append(traced.drift)
-    else:   # said, and read by the verdict (estimate/verdict.judge)
-        doc["diagnosis"]["discovery"] = {"skipped": untraced}
-        doc["notes"].append(untraced)
-    res_cal = ff.residuals_mm
-    res_val = val.xy_mm - ff.predict(val.q_model, val.approach_model)
-    if not_flat:
-        doc["notes"].append("sheet_affine not tried: the sheet is not flat (sheet_height); "
-                            "its smooth residual is the paper's height"
-                            + ("" if len(cands) > 2 else "; joint_scale and joint_cyclic "
-                               "not tried either: marks not measured against a printed "
-                               "grid cannot tell their smooth signature from it"))
-    if session.sheet is not None:
-        sm = smooth_residual(np.concatenate([cal.xy_mm, val.xy_mm]),
-                             np.concatenate([res_cal, res_val]), session.sheet.extent_mm,
-                             config=config.smooth_residual)
-        if sm is not None:
-            ex = next((e for e in doc["effects"] if e["name"] == "unexplained"), None)
-            if ex is None:
-                doc["effects"].append({"name": "unexplained", **sm})
-            else:
-                ex["seen"] = list(ex.get("seen", [])) + sm["seen"]
-                ex.update({k: v for k, v in sm.items() if k != "seen"})
-    residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
-    residual_all.update({i: r for i, r in zip(val.ids, res_val)})
-    residual_base = {i: r for i, r in zip(cal.ids, fb.residuals_mm)}
-    residual_base.update({i: r for i, r in zip(
-        val.ids, val.xy_mm - fb.predict(val.q_model, val.approach_model))})
-    outliers = [i for i, k in zip(cal.ids, ff.inliers) if not k]
-    if outliers:
-        doc["outliers"] = outliers
-    # circle fits, where the plan has paper-style groups (the tool-less model)
-    pm = paper_method(cal.q_deg, cal.xy_mm) if not base_effects else None
-    if pm:
-        doc["circles"] = {"base": pm.circle_base.to_json(), "elbow": pm.circle_elbow.to_json()}
-    return Fitted(doc, ff.model, residual_all, residual_base, diagnosis=diag)
+    return _print_shared(diag, cal, measurement), traced, cands, not_flat
+
+
+def _add_smooth_residual(effects: list, session: Session, cal: MarkData, val: MarkData,
+                         res_cal, res_val, config: EstimatorConfig) -> None:
+    """A residual smooth over the sheet (:func:`vision_cal.estimate.sheet.smooth_residual`)
+    into the ``unexplained`` entry of ``effects`` (added when there is none)."""
+    sm = smooth_residual(np.concatenate([cal.xy_mm, val.xy_mm]),
+                         np.concatenate([res_cal, res_val]), session.sheet.extent_mm,
+                         config=config.smooth_residual)
+    if sm is None:
+        return
+    ex = next((e for e in effects if e["name"] == "unexplained"), None)
+    if ex is None:
+        effects.append({"name": "unexplained", **sm})
+    else:
+        ex["seen"] = list(ex.get("seen", [])) + sm["seen"]
+        ex.update({k: v for k, v in sm.items() if k != "seen"})
 
 
 def _replication(ff: Fit, cal: MarkData, val: MarkData, measurement,

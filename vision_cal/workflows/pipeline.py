@@ -124,11 +124,10 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                                                else load_survey(survey, session.sheet))
     fitted = fit_marks(session, data, measurement, method=method, config=config)
     cameras = cameras_json(session, measurement, fitted.model,
-                           covariance=fitted.blocks.get("covariance"),
-                           std=fitted.blocks.get("std"))
+                           covariance=fitted.result.covariance, std=fitted.result.std)
     result = document(session, data, missing, measurement, fitted, method=method,
                       config=config, truth=truth, bars_mm=bars_mm, cameras=cameras)
-    check_plausible(result.to_json(), session)  # radians, metres: stop before any file
+    check_plausible(result, session)  # radians, metres: stop before any file
     out_path = result.write(out_dir / "calibration.json")
     log.info("wrote %s", out_path)
     return CalibrationRun(session, result, out_path, fitted.model, fitted.diagnosis,
