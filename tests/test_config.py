@@ -26,6 +26,7 @@ from vision_cal.config import (DEFAULT, AssociationConfig, DiscoveryConfig, DotC
                                SheetHeightConfig, SmoothResidualConfig, VerdictConfig)
 from vision_cal.dataset.session import SheetGrid, load_session
 from vision_cal.estimate import discover, sheet, verdict
+from vision_cal.estimate import verify as check
 from vision_cal.estimate.select import diagnose
 from vision_cal.errors import CalibrationError
 from vision_cal.identify import associate, infer, plan_match
@@ -42,7 +43,7 @@ from vision_cal.report.headline import configuration
 #: the modules whose thresholds moved into config.py, and the module-level numbers they may
 #: still keep (physical, format or statistical constants, not thresholds)
 CONFIGURED = {dots: (), grid: (), sheetfit: (), discover: (), joint4: (),
-              verdict: ("R95_PER_RMS",), associate: (), height: (), plan_match: (),
+              verdict: ("R95_PER_RMS",), check: (), associate: (), height: (), plan_match: (),
               photo_agreement: (), grid_declaration: (), placements: (), infer: (),
               pose_pairs: ("_TINY",),   # a numerical guard (exact synthetic pairs)
               asprinted: (), survey: (), replicate: (),
@@ -106,7 +107,7 @@ def test_calibration_json_says_how_it_was_obtained(paper_folder, tmp_path):
                                   "per_photo_offsets", "sheet_fit", "grid", "sheet_height",
                                   "plan_match", "photo_agreement", "grid_declaration",
                                   "smooth_residual", "discovery", "joint4", "verdict",
-                                  "handeye", "handeye_photos", "as_printed", "uncertainty"}
+                                  "verify", "handeye", "handeye_photos", "as_printed", "uncertainty"}
     assert doc["config"]["selection"]["alpha"] == 0.01
     cfg = replace(DEFAULT, selection=SelectionConfig(alpha=1e-3, k_folds=3, max_effects=1))
     calibrate_dataset(paper_folder, out_dir=tmp_path / "c", config=cfg)

@@ -32,6 +32,8 @@ recorded values, not today's defaults). The parts, by key:
   (:mod:`vision_cal.camera.handeye`);
 - ``verdict``: the noise-floor gate and the status rule (:mod:`vision_cal.estimate.verdict`,
   which judges a calibration.json with the config that file recorded);
+- ``verify``: the check of a calibration on a new sheet, what moved and what still holds
+  (:mod:`vision_cal.estimate.verify`, with the config the calibration recorded);
 - ``uncertainty``: what a stated std holds beyond the fit's covariance (repeatability from
   repeated marks, the print not measured, the paper's scale, the halves' replication).
 """
@@ -363,6 +365,21 @@ class VerdictConfig:
 
 
 @dataclass(frozen=True)
+class VerifyConfig:
+    """The check of a calibration on a new sheet (``vision-cal verify``,
+    ``vision_cal.estimate.verify``): when a base parameter moved and when the marks still
+    hold what the calibration promised. Judged with the calibrated file's own record (the
+    defaults for a file written before it)."""
+
+    moved_sigma: float = 4.0          # a parameter moved when its change exceeds this many of
+                                      # its std (the one covariance policy, scaled by the
+                                      # check's residual variance)
+    tolerance_factor: float = 2.0     # still good: the marks' RMS (the sheet's placement taken
+                                      # out) within this many times the promised error (its
+                                      # held-out RMS, or the check's own noise when larger)
+
+
+@dataclass(frozen=True)
 class HandeyeConfig:
     """The hand-eye from pose pairs (``vision_cal.camera.pose_pairs``, issue 32)."""
 
@@ -576,6 +593,7 @@ class EstimatorConfig:
     discovery: DiscoveryConfig = field(default_factory=DiscoveryConfig)
     joint4: Joint4Config = field(default_factory=Joint4Config)
     verdict: VerdictConfig = field(default_factory=VerdictConfig)
+    verify: VerifyConfig = field(default_factory=VerifyConfig)
     handeye: HandeyeConfig = field(default_factory=HandeyeConfig)
     handeye_photos: HandeyePhotosConfig = field(default_factory=HandeyePhotosConfig)
     as_printed: AsPrintedConfig = field(default_factory=AsPrintedConfig)
