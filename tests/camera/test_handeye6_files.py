@@ -103,9 +103,9 @@ def test_sheet_charuco_is_opencvs_board(tmp_path):
 
 
 def test_sheet_charuco_agrees_with_the_survey_fixture(tmp_path):
-    """The industrial session's board as the survey helper wrote it by hand (fixtures/
+    """The industrial session's board as its fixture describes it (fixtures/
     industrial_charuco_even/sheet.json, CharucoBoard((5, 7), 36.195, 18.256,
-    DICT_6X6_250)) and as `sheet --charuco` writes it: the same markers."""
+    DICT_6X6_250)) and as `sheet --charuco` writes it: the same markers and corners."""
     if not INDUSTRIAL_FIXTURE.is_file():
         pytest.skip("fixtures/industrial_charuco_even/sheet.json is not merged yet")
     ref = json.loads(INDUSTRIAL_FIXTURE.read_text())
@@ -114,6 +114,8 @@ def test_sheet_charuco_agrees_with_the_survey_fixture(tmp_path):
     assert set(got) == {m["id"] for m in ref["markers"]}
     for m in ref["markers"]:
         assert np.abs(got[m["id"]] - np.array(m["corners_mm"])).max() < 1e-3
+    assert np.abs(np.array(doc["charuco"]["corners_mm"])
+                  - np.array(ref["charuco"]["corners_mm"])).max() < 1e-3
 
 
 def test_legacy_pattern_and_refusals(tmp_path):

@@ -192,7 +192,11 @@ def calibrate_one(req: CalibrateRequest, folder: str, out: Path,
     is_csv = _is_csv(folder)
     source = (session_from_marks_csv(folder, req.robot, sigma_mm=req.sigma_mm)
               if is_csv else folder)
-    survey = None if is_csv else find_survey(req.survey or folder)   # #28: as printed
+    # #28: as printed; --survey names the file, else survey.json in the dataset folder (a
+    # file given as the folder is never taken for a survey: the dataset reader says what
+    # it is)
+    survey = (None if is_csv else find_survey(req.survey) if req.survey
+              else find_survey(folder) if Path(folder).is_dir() else None)
     if req.survey and survey is None:
         raise VisionCalError("not found", file=str(req.survey))
     if survey is not None:   # issue 37: applied only when it claims a field
