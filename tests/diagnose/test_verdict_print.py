@@ -68,3 +68,24 @@ def test_a_print_not_measured_is_check_whatever_the_markers_show():
                               "n_places": 4}}
     assert judge(views).status == "ready"
     assert judge(views).expected_target_error_mm == base.expected_target_error_mm
+
+
+def test_a_print_field_found_but_not_held_is_not_a_measured_print():
+    """Issue 37: a layout found from several places (or a survey) whose field does not hold
+    (it does not replicate, its solve stopped, the views leave it unresolved) measured
+    nothing: "check", the size it found (or a printer's) in every target's std; one found
+    on its layout (not significant) measured the print: nothing added."""
+    doc = _fit_doc()
+    base = judge(doc)
+    held = judge({**doc, "print": {"source": "survey", "applied": False,
+                                   "status": "not significant", "reason": "on its layout",
+                                   "rms_mm": 0.01, "unresolved_mm": 0.01, "limit_mm": 0.0}})
+    assert held.status == base.status
+    assert held.expected_target_error_mm == pytest.approx(base.expected_target_error_mm)
+    for status in ("not replicated", "failed", "not resolved"):
+        v = judge({**doc, "print": {"source": "views", "applied": False, "status": status,
+                                    "reason": "the halves disagree", "rms_mm": 0.2,
+                                    "limit_mm": 0.0}})
+        assert v.status == "check", (status, v.reasons)
+        assert any("not measured" in r and status in r for r in v.reasons), v.reasons
+        assert v.target_std["print_mm"] == pytest.approx(0.2 / 2**0.5)

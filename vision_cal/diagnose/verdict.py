@@ -691,21 +691,34 @@ def _print_part(pr: dict | None, add, full: EstimatorConfig, by_design: str | No
     ``as_printed.min_places`` places, a fixed camera among them) the print's deviation is
     unknown: every mark carries ``uncertainty.unmeasured_print_mm`` at least (what a
     printer does), or the larger part the markers show beyond the photos' mapping, and the
-    run is ``check`` (``by_design``'s level for a pilot), with a fixed camera or not. No
+    run is ``check`` (``by_design``'s level for a pilot), with a fixed camera or not; so is
+    a layout found but not applied for any reason but ``not significant`` (its solve
+    stopped, it is not resolved or does not replicate: issue 37), with the size it found.
+    A survey or several places that found the print on its layout measured it. No
     ``print`` block (marks given as ``measured_mm``): 0."""
     if not isinstance(pr, dict):
         return 0.0
     lim = pr.get("limit_mm")
     lim = float(lim) if _finite(lim) and lim > 0 else 0.0
-    if pr.get("source") != "one place":
+    one_place = pr.get("source") == "one place"
+    # a layout found but not applied measured the print only when it found it on its
+    # layout (``not significant``); failed, unresolved or unreplicated, it tells nothing
+    found_not_held = (not one_place and pr.get("applied") is False   # (no status: before
+                      and pr.get("status") not in (None, "not significant"))   # issue 37)
+    if not one_place and not found_not_held:
         return lim / math.sqrt(2.0)
-    size = max(lim, full.uncertainty.unmeasured_print_mm)
+    found = pr.get("rms_mm") if found_not_held else None
+    size = max(lim, float(found) if _finite(found) else 0.0,
+               full.uncertainty.unmeasured_print_mm)
     if size > full.verdict.print_check_mm:
         seen = pr.get("seen_rms_mm")
+        why = (f"the print field found does not hold ({pr.get('status')}: "
+               f"{pr.get('reason')})" if found_not_held else
+               f"no survey, and the photos come from fewer than "
+               f"{full.as_printed.min_places} camera places; a fixed camera sees it from one, "
+               "where it cannot be told from the lens")
         add(by_design or "check",
-            "the print's deviation from its layout is not measured (no survey, and the photos "
-            f"come from fewer than {full.as_printed.min_places} camera places; a fixed camera "
-            "sees it from one, where it cannot be told from the lens): about "
+            f"the print's deviation from its layout is not measured ({why}): about "
             f"{size:.3f} mm RMS on every mark"
             + (f" (the markers show {seen:.3f} mm beyond the photos' mapping)"
                if _finite(seen) and seen > 0 else "")

@@ -27,7 +27,9 @@ def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEs
     """The sheet as printed (:mod:`vision_cal.measure.asprinted`): the survey's layout when
     one is given, else estimated from these photos when they were taken from at least
     ``config.as_printed.min_places`` places and off its layout beyond
-    ``config.as_printed.min_deviation_ratio`` times what they leave unresolved. Returns
+    ``config.as_printed.min_deviation_ratio`` times what they leave unresolved (a survey
+    that claims no field, :func:`vision_cal.measure.replicate.claim_of`, is returned as the
+    layout found but not used). Returns
     (as_printed or None, lens, detections
     with their markers' corners as printed); an estimated lens is then the one solved with
     the layout (the stage-2 lens absorbed part of the print), when stage 2 kept one; and
@@ -35,6 +37,10 @@ def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEs
     (:func:`vision_cal.measure.replicate.with_replication`) when it is significant, or
     always with ``replicate_all`` (a survey reports its halves whatever they say)."""
     ap = survey
+    if ap is not None and not claim_of(ap, config.as_printed).applied:
+        # a survey on its layout as far as its photos tell (not significant): the print is
+        # measured, no field moves a mark (print_stage's kept_declared, issue 37)
+        return None, lens, dets, ap
     if ap is None:
         ok = [d for d in dets if d.status == "ok"]
         sizes = sorted({d.size_px for d in ok}, key=lambda s: -sum(x.size_px == s for x in ok))
