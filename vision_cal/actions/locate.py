@@ -321,6 +321,10 @@ def _flange_rows(req: LocateRequest, doc: dict):
             raise VisionCalError("give either --flange-pose or --photo", field="--photo")
         single = flange.pose_of(req.flange_pose, joints=req.joints)
     elif req.photo is not None:
+        if req.joints is not None:
+            raise VisionCalError("--joints goes with --flange-pose: --photo's pose has its "
+                                 "own joints (joints_deg of its pose file, or of the "
+                                 "calibration's photo)", field="--joints")
         single = flange.find_pose(req.photo, table, what=what, file=req.robot_poses,
                                   field="--photo")
     elif req.joints is not None:
@@ -403,7 +407,7 @@ def _locate_on_flange(req: LocateRequest, doc: dict) -> LocateOutcome:
     if not req.csv:
         return LocateOutcome(tuple(said), point=points[0], camera=req.camera,
                              flange=poses[0].source, n=1)
-    flagged = {i: FIELD_FLANGE for o in outside for i in o.ids} if req.force else None
+    flagged = {i: handeye_valid.FIELD for o in outside for i in o.ids} if req.force else None
     text = _flange_csv_text(ids, points, poses, plane, flagged, why)
     if req.out:
         with replacing_files([("-o", req.out)], command="locate", quiet=req.quiet,
@@ -415,8 +419,6 @@ def _locate_on_flange(req: LocateRequest, doc: dict) -> LocateOutcome:
     return LocateOutcome(tuple(said), csv_text=text, n=len(points) - len(why),
                          not_located=tuple(why.values()))
 
-
-FIELD_FLANGE = handeye_valid.FIELD
 
 
 def _flange_csv_text(ids, points, poses, plane, flagged, why) -> str:

@@ -10,18 +10,21 @@ the point projected through ``X``, ``F`` and the lens lands on the pixel; a few 
 from the ray's undistorted start), and its std by implicit differentiation of the same
 model: the pixel held, the point moves with the calibration's unknowns (``X``, ``Y``, the
 lens terms it fitted: calibration.json ``covariance``) and with the robot's own pose error
-at ``F`` (``handeye.noise``: per photo and kinematic, in full), all raised by the held-out
-inflation the calibration found. The pixel itself is taken as exact.
+at ``F`` (``handeye.noise``: per photo and kinematic, less what the unknowns took of the
+kinematic error there, ``handeye.kinematic``), all raised by the held-out inflation the
+calibration found. The pixel itself is taken as exact.
+
+The flange poses a request gives (:class:`FlangePose`: ``--flange-pose``, the calibration's
+own photos', a ``--robot-poses`` source's) are checked for their units against the
+calibration's photos' distance from the robot's base (:func:`check_units`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-
-import numpy as np
-
 from pathlib import Path
 
+import numpy as np
 from scipy.spatial.transform import Rotation
 
 from vision_cal.camera import handeye_valid
@@ -140,11 +143,11 @@ def _shared_of(doc: dict, block, P: int, file) -> Shared | None:
     if not isinstance(block, dict) or block.get("over") not in ("joints", "flange poses"):
         raise VisionCalError("expected over: joints | flange poses, length_rad, lever_mm, G",
                              file=file, field="handeye.kinematic")
-    near = handeye_valid.read({"valid_for": {"flange_poses": {
-        "over": block["over"], "max_distance_rad": block.get("length_rad"),
-        "lever_mm": block.get("lever_mm")}}, "images": doc.get("images")}, file=file)
-    G = _matrix(block.get("G"), (len(near["F"]), P, 6), file, "handeye.kinematic.G")
-    return Shared(G, near["F"], near["joints"], near["max"], near["lever"])
+    F, Q = handeye_valid.photo_poses(doc, over=block["over"], file=file)
+    length = handeye_valid.number(block, "length_rad", file, "handeye.kinematic")
+    lever = handeye_valid.number(block, "lever_mm", file, "handeye.kinematic")
+    G = _matrix(block.get("G"), (len(F), P, 6), file, "handeye.kinematic.G")
+    return Shared(G, F, Q, length, lever)
 
 
 def from_fit(fit) -> FlangeCamera:

@@ -46,24 +46,22 @@ def of_views(views, *, lever_mm: float, length_rad: float) -> dict:
             "joints": None if joints is None else np.array(joints, float)}
 
 
-def _number(block, key, file, lo=0.0):
+def _number(block, key, file, lo=0.0, where="valid_for.flange_poses"):
     v = block.get(key)
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not lo < v < 1e9:
         raise VisionCalError(f"expected a number above {lo:g}, got {v!r}", file=file,
-                             field=f"valid_for.flange_poses.{key}")
+                             field=f"{where}.{key}")
     return float(v)
 
 
-def read(doc: dict, *, file: str | None = None) -> dict | None:
-    """calibration.json ``valid_for.flange_poses`` with its photos' poses (``images[]`` of
-    status ok), every field checked; None: the file does not say."""
-    vf = doc.get("valid_for") if isinstance(doc, dict) else None
-    block = vf.get("flange_poses") if isinstance(vf, dict) else None
-    if block is None:
-        return None
-    if not isinstance(block, dict) or block.get("over") not in ("joints", "flange poses"):
-        raise VisionCalError(f"expected an object with over: joints | flange poses, got "
-                             f"{block!r}", file=file, field="valid_for.flange_poses")
+def number(block: dict, key: str, file, where: str) -> float:
+    """A positive finite number of a calibration.json block (one line naming it)."""
+    return _number(block, key, file, where=where)
+
+
+def photo_poses(doc: dict, *, over: str, file: str | None = None):
+    """The calibration's photos' flange poses (n, 4, 4) and, ``over`` joints, their joints
+    (n, J) (``images[]`` of status ok; every field checked)."""
     F, Q = [], []
     for k, im in enumerate(doc.get("images") or []):
         if not isinstance(im, dict) or im.get("status") != "ok":
@@ -84,13 +82,27 @@ def read(doc: dict, *, file: str | None = None) -> dict | None:
     if not F:
         raise VisionCalError("no photo with its flange pose (images[].T_robot_flange)",
                              file=file, field="images")
-    over = block["over"]
-    if over == "joints" and (any(q is None for q in Q) or len({len(q) for q in Q}) > 1):
+    if over != "joints":
+        return np.array(F), None
+    if any(q is None for q in Q) or len({len(q) for q in Q}) > 1:
         raise VisionCalError("over joints, but not every photo lists the same joints",
                              file=file, field="images[].joints_deg")
-    return {"over": over, "max": _number(block, "max_distance_rad", file),
-            "lever": _number(block, "lever_mm", file), "F": np.array(F),
-            "joints": np.array(Q, float) if over == "joints" else None}
+    return np.array(F), np.array(Q, float)
+
+
+def read(doc: dict, *, file: str | None = None) -> dict | None:
+    """calibration.json ``valid_for.flange_poses`` with its photos' poses (``images[]`` of
+    status ok), every field checked; None: the file does not say."""
+    vf = doc.get("valid_for") if isinstance(doc, dict) else None
+    block = vf.get("flange_poses") if isinstance(vf, dict) else None
+    if block is None:
+        return None
+    if not isinstance(block, dict) or block.get("over") not in ("joints", "flange poses"):
+        raise VisionCalError(f"expected an object with over: joints | flange poses, got "
+                             f"{block!r}", file=file, field="valid_for.flange_poses")
+    F, Q = photo_poses(doc, over=block["over"], file=file)
+    return {"over": block["over"], "max": _number(block, "max_distance_rad", file),
+            "lever": _number(block, "lever_mm", file), "F": F, "joints": Q}
 
 
 def nearest(vf: dict, F: np.ndarray, q=None) -> tuple[float, str]:
