@@ -4,12 +4,19 @@ approaches.
 
 ``--seeds N`` (synthetic, render/six_axis.py: a UR5e-like arm off its controller's model,
 joint noise, a lens the estimator is not told; projected corners with 0.15 px of detector
-noise): for each seed and mount, 12 photos fitted with the lens estimated; printed: the
-share of the 12 pose parameters (T_robot_camera / T_flange_camera and T_flange_board /
-T_robot_board, rotation and translation per axis) within 2 std of the truth (95 % when the
-stds are right), the RMS of error / std, the stated held-out error against the error on 20
-fresh photos of the same world, and the verdict. ``--dh-mm`` adds kinematic errors (the
-controller's model off by that much per DH length: a systematic, not a random, pose error).
+noise; the poses with the commanded joints unless ``--no-joints``): for each seed and mount,
+12 photos fitted with the lens estimated; printed: the share of the 12 pose parameters
+(T_robot_camera / T_flange_camera and T_flange_board / T_robot_board, rotation and
+translation per axis) within 2 std of the truth (95 % when the stds are right), in the
+world's frames and in the controller's (joint 1's zero and offset and joint 6's errors
+absorbed: what no pose of the arm tells from the transforms), the RMS of error / std, the
+share of 20 fresh photos' corners inside the 95 % radius stated for each (at poses inside
+``valid_for.flange_poses`` and outside it), the verdict; a camera on the arm: the fresh
+photos' corners located on the board's plane (``vision-cal locate``'s code) inside their
+stated 95 % ellipse. ``--dh-mm`` adds kinematic errors (the controller's model off by that
+much per DH length, a tenth of it in degrees per angle: a systematic, not a random, pose
+error); ``--kinematic-length 0`` fits without the kinematic error term (the robot's pose
+error independent from photo to photo, as before).
 
 ``--failures``: per seed, a lens declared 10 % long, poses in metres read as mm (and in
 inches), poses shifted by one photo, a photo of another board (other squares): the outcome
@@ -43,7 +50,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from vision_cal.camera import handeye_valid
+from vision_cal.camera import handeye_locate, handeye_valid
 from vision_cal.camera.board import find_board, load_board
 from vision_cal.camera.handeye import estimated_lens_fit, fit_handeye, stated_new_px
 from vision_cal.camera.handeye_closed import inv_T
@@ -94,6 +101,36 @@ def _fresh(f, views, mount) -> tuple[list, list, int]:
     return inside, outside, len(outside)
 
 
+def _located(f, w, fresh_shots, joints: bool) -> tuple[list, list]:
+    """A camera on the arm used: each fresh photo's board corners (projected, the pixel
+    exact) located on the board's plane from the controller's flange pose
+    (``camera/handeye_locate``), against the board's corners in the controller's frames:
+    the share of corners inside their stated 95 % ellipse (x, y), at poses inside and
+    outside valid_for."""
+    cam = handeye_locate.from_fit(f)
+    vf = handeye_valid.of_views(f.views, lever_mm=f.noise.lever_mm or 1.0,
+                                length_rad=DEFAULT.handeye_photos.kinematic_length_rad)
+    _, Yc = w.controller_frames()
+    C = w.board.corners()
+    inside, outside = [], []
+    for s in fresh_shots:
+        q = s.q_deg if joints else None
+        P = C @ s.T_camera_board[:3, :3].T + s.T_camera_board[:3, 3]
+        pts = handeye_locate.locate_at(cam, s.T_robot_flange, w.lens.project(P), 0.0,
+                                       joints=q)
+        e = np.array([p.robot_mm - (Yc[:3, :3] @ c + Yc[:3, 3]) for p, c in zip(pts, C)])
+        sd = np.array([p.robot_std_mm for p in pts])
+        d2 = np.sum((e[:, :2] / sd[:, :2]) ** 2, axis=1)
+        out = handeye_valid.check(vf, cal="", ids=[s.name], poses=[s.T_robot_flange],
+                                  joints=[q])
+        (outside if out else inside).append(float(np.mean(d2 <= CHI2_2_95)))
+    return inside, outside
+
+
+#: chi-square with 2 degrees of freedom at 95 %
+CHI2_2_95 = 5.991
+
+
 def synthetic(seeds, mount: str, n: int, dh_mm: float, joint_deg: float, *, joints=True,
               config=None) -> None:
     """Parameters against the truth (the world's frames, and the controller's: joint 1's
@@ -101,6 +138,7 @@ def synthetic(seeds, mount: str, n: int, dh_mm: float, joint_deg: float, *, join
     transforms), the stated error for a new pose against fresh photos of the same world,
     inside and outside valid_for."""
     zw, zc, status, zlens, inside, outside, n_out = [], [], {}, [], [], [], 0
+    loc_in, loc_out = [], []
     for seed in seeds:
         w = make_world(seed, mount=mount, joint_noise_deg=joint_deg, dh_error_mm=dh_mm,
                        dh_error_deg=dh_mm / 10.0)
@@ -117,6 +155,10 @@ def synthetic(seeds, mount: str, n: int, dh_mm: float, joint_deg: float, *, join
         inside += ins
         outside += outs
         n_out += k
+        if mount == "arm":
+            li, lo = _located(f, w, sh[n:], joints)
+            loc_in += li
+            loc_out += lo
         v = judge_handeye(f).status
         status[v] = status.get(v, 0) + 1
         print(f"  seed {seed}: within 2 std {np.mean(np.abs(zw[-1]) < 2):.2f} (controller's "
@@ -137,6 +179,12 @@ def synthetic(seeds, mount: str, n: int, dh_mm: float, joint_deg: float, *, join
           f"({len(inside)} photos), "
           f"{100 * np.mean(outside) if outside else float('nan'):.1f} % outside ({n_out} "
           f"photos flagged), {100 * np.mean(inside + outside):.1f} % all; verdicts {status}")
+    if loc_in or loc_out:
+        print(f"  located (vision-cal locate, the board's plane): corners inside their stated "
+              f"95 % ellipse {100 * np.mean(loc_in) if loc_in else float('nan'):.1f} % at "
+              f"poses inside valid_for ({len(loc_in)} photos), "
+              f"{100 * np.mean(loc_out) if loc_out else float('nan'):.1f} % outside "
+              f"({len(loc_out)})")
 
 
 def _outcome(fn, views=None) -> str:
