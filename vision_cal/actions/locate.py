@@ -284,23 +284,34 @@ def _csv_text(req: LocateRequest, ids, points, joints, flagged=None, why=None) -
         head += ["outside_valid_for"]
     wr.writerow(head)
     for i, p, j in zip(ids, points, joints):
-        row = [i, f"{p.pixel[0]:.4f}", f"{p.pixel[1]:.4f}", f"{p.z_mm:g}",
-               f"{p.robot_mm[0]:.5f}", f"{p.robot_mm[1]:.5f}", f"{p.robot_std_mm[0]:.5f}",
-               f"{p.robot_std_mm[1]:.5f}", f"{p.sheet_mm[0]:.5f}", f"{p.sheet_mm[1]:.5f}"]
+        row = _cells(i, p)
         status, reason = "ok", ""
         if j is not None:
             ok = j.status == "ok"
             row += ([f"{j.q_deg[0]:.5f}", f"{j.q_deg[1]:.5f}"] if ok else ["", ""]) + \
                    [j.approach[0], j.approach[1]]
             status, reason = j.status, j.reason
-        if i in why:   # not located: no number that could be taken for a result
-            row = [i, row[1], row[2], row[3]] + [""] * (len(row) - 4)
-            status, reason = "outside valid_for", why[i]
-        row += [status, reason]
-        if flagged is not None:
-            row.append(flagged.get(i, ""))
-        wr.writerow(row)
+        wr.writerow(_finished(row, i, status, reason, why, flagged, len(row)))
     return buf.getvalue()
+
+
+def _cells(i, p) -> list:
+    """A located point's first cells: id, pixel, height, robot x y and their std, sheet."""
+    return [i, f"{p.pixel[0]:.4f}", f"{p.pixel[1]:.4f}", f"{p.z_mm:g}",
+            f"{p.robot_mm[0]:.5f}", f"{p.robot_mm[1]:.5f}", f"{p.robot_std_mm[0]:.5f}",
+            f"{p.robot_std_mm[1]:.5f}", f"{p.sheet_mm[0]:.5f}", f"{p.sheet_mm[1]:.5f}"]
+
+
+def _finished(row, i, status, reason, why, flagged, numbers: int) -> list:
+    """``row`` with its status, reason (and ``outside_valid_for``); a pixel not located
+    (``why``) keeps its pixel and height, its first ``numbers`` cells' results emptied."""
+    if i in why:   # not located: no number that could be taken for a result
+        row = row[:4] + [""] * (numbers - 4) + row[numbers:]
+        status, reason = "outside valid_for", why[i]
+    row = row + [status, reason]
+    if flagged is not None:
+        row.append(flagged.get(i, ""))
+    return row
 
 
 # --------------------------------------------------------------------------- a six-axis arm
@@ -434,16 +445,7 @@ def _flange_csv_text(ids, points, poses, plane, flagged, why) -> str:
         head.append("outside_valid_for")
     wr.writerow(head)
     for i, p, f in zip(ids, points, poses):
-        row = [i, f"{p.pixel[0]:.4f}", f"{p.pixel[1]:.4f}", f"{p.z_mm:g}",
-               f"{p.robot_mm[0]:.5f}", f"{p.robot_mm[1]:.5f}", f"{p.robot_std_mm[0]:.5f}",
-               f"{p.robot_std_mm[1]:.5f}", f"{p.sheet_mm[0]:.5f}", f"{p.sheet_mm[1]:.5f}",
-               f"{p.robot_mm[2]:.5f}", f"{p.robot_std_mm[2]:.5f}", plane, f.source]
-        status, reason = "ok", ""
-        if i in why:   # not located: no number that could be taken for a result
-            row = row[:4] + [""] * 8 + row[12:]
-            status, reason = "outside valid_for", why[i]
-        row += [status, reason]
-        if flagged is not None:
-            row.append(flagged.get(i, ""))
-        wr.writerow(row)
+        row = _cells(i, p) + [f"{p.robot_mm[2]:.5f}", f"{p.robot_std_mm[2]:.5f}", plane,
+                              f.source]
+        wr.writerow(_finished(row, i, "ok", "", why, flagged, 12))
     return buf.getvalue()
