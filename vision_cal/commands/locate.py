@@ -9,7 +9,7 @@ FLANGE_POSE = bounded(-10000, 10000)
 
 NAME = "locate"
 HELP = ("map a pixel of a calibrated camera (calibration.json cameras: still, or on the arm at "
-        "given joints) to the robot frame")
+        "given joints or flange pose) to the robot frame")
 EXAMPLES = """\
 examples:
   vision-cal locate out/calibration.json --pixel 812.5 433.0
@@ -50,7 +50,7 @@ def add_arguments(p) -> None:
                         "camera's (`vision-cal handeye`)")
     p.add_argument("--pixel", type=bounded(-1, 100000, unit="px"), nargs=2, metavar=("U", "V"),
                    help="pixel (OpenCV convention: the top-left pixel's centre is 0 0)")
-    p.add_argument("--csv", metavar="PIXELS.csv", help="a list: id,u_px,v_px[,z_mm]")
+    p.add_argument("--csv", metavar="PIXELS.csv", help="a list: id,u_px,v_px[,z_mm][,photo]")
     p.add_argument("-o", "--out", metavar="POINTS.csv", help="with --csv: write here "
                    "(default: print)")
     p.add_argument("--camera", type=CAMERA, default=0, metavar="N",
