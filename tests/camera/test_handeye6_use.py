@@ -142,17 +142,20 @@ def test_locate_and_export_a_six_axis_arms_camera(fitted, tmp_path, capsys):
     (tmp_path / "poses").mkdir()
     for x in sh:
         (tmp_path / "poses" / f"{x.name}.yaml").write_text(pose_yaml(x.T_robot_flange, x.q_deg))
+    far = s.q_deg.copy()
+    far[5] += 170.0        # the same flange pose, the wrist half a turn away: not seen
+    (tmp_path / "poses" / "far.yaml").write_text(pose_yaml(s.T_robot_flange, far))
     (tmp_path / "px.csv").write_text(f"id,u_px,v_px,photo\na,{uv[0]},{uv[1]},{s.name}\n"
-                                     f"b,320,240,{sh[0].name}\n")
+                                     f"b,320,240,{sh[0].name}\nc,320,240,far\n")
     capsys.readouterr()
     assert main(["locate", str(cal), "--csv", str(tmp_path / "px.csv"), "--robot-poses",
-                 str(tmp_path / "poses"), "--plane", "robot", "--z-mm", "0"]) == 0
+                 str(tmp_path / "poses"), "--plane", "robot", "--z-mm", "0"]) == 3
     rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
-    assert [r["flange_pose"] for r in rows] == [s.name, sh[0].name]
-    assert [r["status"] for r in rows] == ["ok", "ok"] and float(rows[0]["robot_z_mm"]) == 0.0
-    # far from every photo: the wrist turned half a turn (joints), not located
-    far = s.q_deg.copy()
-    far[5] += 170.0
+    assert [r["flange_pose"] for r in rows] == [s.name, sh[0].name, "far"]
+    assert [r["status"] for r in rows] == ["ok", "ok", "outside valid_for"]
+    assert float(rows[0]["robot_z_mm"]) == 0.0 and rows[2]["x_mm"] == ""
+    assert "valid_for.flange_pose" in rows[2]["reason"]
+    # a single pixel far from every photo: not located
     bad = args[:-6] + [f"{q:.10g}" for q in far]
     assert main(bad) == 1
     assert "valid_for.flange_pose" in capsys.readouterr().err
