@@ -78,6 +78,27 @@ def test_ros_pose_messages_are_read(tmp_path):
     assert np.allclose(poses[1].T[:3, :3] @ [1, 0, 0], [0, 1, 0], atol=1e-6)
 
 
+def test_the_arms_joints_are_read_with_the_poses(tmp_path):
+    """joints_deg in a pose file and q1_deg... in the CSV (degrees); a pose without them
+    when the others have them is refused, naming it."""
+    d = tmp_path / "p"
+    d.mkdir()
+    w = make_world(1, mount="fixed")
+    sh = shots(w, 3, 1)
+    for s in sh:
+        (d / f"{s.name}.yaml").write_text(pose_yaml(s.T_robot_flange, s.q_deg))
+    poses, _ = read_robot_poses(d)
+    assert np.allclose(poses[2].joints_deg, sh[2].q_deg)
+    rows = ["photo,x_mm,y_mm,z_mm,qx,qy,qz,qw,q1_deg,q2_deg"]
+    rows += [f"{i},{400 + 50 * i},{10 * i},500,0,0,0,1,{i},{-90 + i}" for i in range(3)]
+    (tmp_path / "p.csv").write_text("\n".join(rows) + "\n")
+    poses, _ = read_robot_poses(tmp_path / "p.csv")
+    assert np.allclose(poses[1].joints_deg, [1.0, -89.0])
+    (d / "1.yaml").write_text(pose_yaml(sh[1].T_robot_flange))
+    with pytest.raises(VisionCalError, match=r"1\.yaml: joints_deg: the poses list different"):
+        read_robot_poses(d)
+
+
 def _charuco(tmp_path, name, **kw) -> dict:
     args = dict(charuco="5x7", square_mm=40.0, marker_mm=20.0, dictionary="DICT_6X6_250")
     args.update(kw)
