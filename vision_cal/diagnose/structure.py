@@ -98,11 +98,23 @@ def predicted_places(xy_mm, residual_mm) -> tuple[np.ndarray, int]:
     return place.reshape(-1), len(count)
 
 
-def _permutations(r: np.ndarray, n_perm: int, rng) -> np.ndarray:
-    """``n_perm`` random permutations of the residuals (n_perm, N, 2)."""
+#: residual values (N x 2 x permutations) held at once by the permutation tests: 100,000
+#: marks take 999 permutations 10 at a time (32 MB a block, not 1.6 GB at once)
+PERMUTATION_BLOCK = 2_000_000
+
+
+def _permuted(r: np.ndarray, n_perm: int, rng, stat) -> np.ndarray:
+    """``stat`` (permuted residuals (m, N, 2) -> (m,)) of ``n_perm`` random permutations of
+    the residuals, drawn in order from ``rng`` a block at a time
+    (:data:`PERMUTATION_BLOCK`): the same values as all at once, in memory linear in N."""
     n = len(r)
-    idx = np.array([rng.permutation(n) for _ in range(n_perm)], dtype=np.intp).reshape(-1, n)
-    return r[idx]
+    block = max(1, PERMUTATION_BLOCK // (2 * n))
+    out = [np.zeros(0)]
+    for start in range(0, n_perm, block):
+        m = min(block, n_perm - start)
+        idx = np.array([rng.permutation(n) for _ in range(m)], dtype=np.intp).reshape(-1, n)
+        out.append(stat(r[idx]))
+    return np.concatenate(out)
 
 
 def _by_mark(xy, r, k, n_perm, rng):
@@ -115,11 +127,14 @@ def _by_mark(xy, r, k, n_perm, rng):
     W = sparse.csr_matrix((np.full(n * k, 1.0 / (n * k)), (np.repeat(np.arange(n), k),
                                                            nb.ravel())), shape=(n, n))
     s0 = float(np.sum(r * (W @ r)))
-    # every permutation at once: one sparse product over (N, 2 n_perm) columns (the same
-    # sums, column by column, as one product per permutation)
-    rp = _permutations(r, n_perm, rng)                              # (n_perm, N, 2)
-    wr = (W @ rp.transpose(1, 0, 2).reshape(n, -1)).reshape(n, -1, 2).transpose(1, 0, 2)
-    perm = np.sum(np.ascontiguousarray(rp * wr).reshape(len(rp), 2 * n), axis=1)
+
+    def stat(rp):   # (m, N, 2) -> (m,)
+        # a block of permutations at once: one sparse product over (N, 2 m) columns (the
+        # same sums, column by column, as one product per permutation)
+        wr = (W @ rp.transpose(1, 0, 2).reshape(n, -1)).reshape(n, -1, 2).transpose(1, 0, 2)
+        return np.sum(np.ascontiguousarray(rp * wr).reshape(len(rp), 2 * n), axis=1)
+
+    perm = _permuted(r, n_perm, rng, stat)
     return s0, perm, (r[nb].sum(axis=1) + r) / (k + 1), xy
 
 
@@ -147,8 +162,8 @@ def _by_place(xy, r, place, n_places, k, n_perm, rng):
         return np.sum((member @ x) * (near @ x), axis=0) / n
 
     s0 = float(np.sum(stat(r)))
-    rp = _permutations(r, n_perm, rng)                              # (n_perm, N, 2)
-    perm = stat(rp.transpose(1, 0, 2).reshape(n, -1)).reshape(-1, 2).sum(axis=1)
+    perm = _permuted(r, n_perm, rng, lambda rp: stat(rp.transpose(1, 0, 2).reshape(n, -1))
+                     .reshape(-1, 2).sum(axis=1))
     smooth = ((near @ r) * k + mean @ r) / (k + 1)                  # (P, 2) per place
     return s0, perm, smooth, at
 

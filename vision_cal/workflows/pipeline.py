@@ -48,8 +48,14 @@ from vision_cal.measure.types import Measurement
 from vision_cal.model.robot import JointBacklash, RobotModel, SheetAffine
 from vision_cal.workflows.report_data import add_to_calibration
 from vision_cal.model.rms import rms_2d
+from vision_cal.progress import bar
 
 log = logging.getLogger(__name__)
+
+#: marks from which the fit + diagnosis and the writing of calibration.json each print a
+#: progress line when they start and end (a marks CSV of 2,000 marks takes seconds, of
+#: 100,000 minutes: docs/format.md, "Marks from other instruments")
+PROGRESS_MARKS = 2000
 
 
 @dataclass(frozen=True)
@@ -227,6 +233,9 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                                                survey=None if survey is None
                                                else load_survey(survey, session.sheet))
     cal, val = data.select("calibration"), data.select("validation")
+    n_marks = len(cal.ids) + len(val.ids)
+    stage = bar(progress and n_marks >= PROGRESS_MARKS, total=n_marks, unit="mark",
+                desc="fit + diagnosis")
     if cal.joint4 is not None and len(np.unique(np.round(cal.joint4[:, 0], 6))) > 1:
         if method == "paper":
             fitted = _Fitted(*fit_joint4_paper(cal, val))
@@ -240,10 +249,16 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
         if cal.joint4 is not None:   # one j4_deg: the tool is folded into L2 and z2
             fitted = replace(fitted, blocks={**fitted.blocks, "tool": folded_statement(
                 cal.joint4[:, 0], session.robot.tool_mm or (0.0, 0.0))})
+    stage.update(n_marks)
+    stage.close()
+    stage = bar(progress and n_marks >= PROGRESS_MARKS, total=n_marks, unit="mark",
+                desc="calibration.json")
     result = document(session, data, missing, measurement, fitted, method=method,
                       config=config, truth=truth)
     check_plausible(result.to_json(), session)  # radians, metres: stop before any file
     out_path = result.write(out_dir / "calibration.json")
+    stage.update(n_marks)
+    stage.close()
     log.info("wrote %s", out_path)
     return CalibrationRun(session, result, out_path, fitted.model, fitted.diagnosis,
                           fitted.paper, measurement)
