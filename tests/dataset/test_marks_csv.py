@@ -174,3 +174,16 @@ def test_a_marks_csv_in_metres_or_a_pdf_is_named_as_what_it_is(tmp_path, capsys)
     err = capsys.readouterr().err
     assert "is a PDF" in err and "sheet" not in err
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+def test_a_marks_csv_beyond_the_bound_is_one_line_naming_it(tmp_path, monkeypatch):
+    """More marks than marks_csv.MAX_MARKS (100,000: docs/format.md) are refused naming the
+    bound, before any fit (here the bound lowered to 3 for a 4-row file)."""
+    import vision_cal.dataset.marks_csv as marks_csv
+
+    rows = (FIXTURE / "marks.csv").read_text().splitlines()[:5]
+    (tmp_path / "m.csv").write_text("\n".join(rows) + "\n")
+    monkeypatch.setattr(marks_csv, "MAX_MARKS", 3)
+    with pytest.raises(VisionCalError) as e:
+        session_from_marks_csv(tmp_path / "m.csv", FIXTURE / "robot.yaml")
+    assert "at most 3" in str(e.value) and e.value.file == str(tmp_path / "m.csv")
