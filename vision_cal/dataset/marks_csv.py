@@ -25,7 +25,7 @@ from vision_cal.errors import VisionCalError
 REQUIRED = ("id", "q1_deg", "q2_deg", "x_mm", "y_mm")
 ROLES = ("calibration", "validation")
 #: marks a CSV may hold: 4,000 poses commanded 25 times; the calibration of as many takes
-#: about 90 s and 1 GB on one core (bench/speed.py --rows 100000), linear in marks
+#: 1.5 to 3 CPU-minutes and 1 GB (bench/speed.py --rows 100000), linear in marks
 MAX_MARKS = 100_000
 
 

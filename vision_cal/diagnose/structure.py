@@ -14,7 +14,8 @@ angles nor on where on the sheet the mark is. Two scans look for the opposite.
   the mean residual of its ``k`` nearest neighbours on the sheet, its p-value from random
   permutations of the residuals over the marks (no distribution assumed). The map: the
   residual smoothed over neighbours at each mark, the largest one (where and how big), and
-  mean residual vectors over a coarse grid of the marked area.
+  mean residual vectors over a coarse grid of the marked area. Marks the model puts at one
+  place (a pose's repeats) are one place: their neighbours are the nearest other places.
 """
 
 from __future__ import annotations
@@ -92,7 +93,8 @@ def predicted_places(xy_mm, residual_mm) -> tuple[np.ndarray, int]:
     place (predicted ``xy - residual`` within 1 nm: the repeats of one commanded pose, as a
     repeatability study or ISO 9283 draws them) share a place; every other mark is its own.
     """
-    pred = np.asarray(xy_mm, float).reshape(-1, 2) - np.asarray(residual_mm, float).reshape(-1, 2)
+    pred = (np.asarray(xy_mm, float).reshape(-1, 2)
+            - np.asarray(residual_mm, float).reshape(-1, 2))
     _, place, count = np.unique(np.round(pred * 1e6), axis=0, return_inverse=True,
                                return_counts=True)
     return place.reshape(-1), len(count)
