@@ -54,7 +54,9 @@ def timed_make(target: str, cwd: Path, log: Path) -> dict:
     wall = time.perf_counter() - t
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    tail = log.read_text().strip().splitlines()[-1:] or [""]
+    lines = log.read_text().strip().splitlines()
+    # the test run's summary ("N failed, M passed ... in S s") when there is one
+    tail = [ln for ln in lines if " passed" in ln or " failed" in ln][-1:] or lines[-1:] or [""]
     return {"wall_s": round(wall, 1), "cpu_s": round(cpu, 1), "exit": rc,
             "load_before": round(load0, 1), "load_after": round(os.getloadavg()[0], 1),
             "last_line": tail[0][:200]}
@@ -75,9 +77,10 @@ def measured_row(res: dict) -> str:
     for name, cmd in (("demo", "fresh clone `make demo`"), ("test", "`make test`")):
         if name in res:
             r = res[name]
+            said = f": {r['last_line'].strip(' =')}" if name == "test" else ""
             cells.append(f"{cmd} {clock(r['wall_s'])} wall, {clock(r['cpu_s'])} CPU, load "
-                         f"{r['load_before']:.1f} -> {r['load_after']:.1f}, exit {r['exit']} "
-                         f"(goal {clock(GOALS_S[name])} on 2 idle cores)")
+                         f"{r['load_before']:.1f} -> {r['load_after']:.1f}, exit {r['exit']}"
+                         f"{said} (goal {clock(GOALS_S[name])} on 2 idle cores)")
     return (f"| the README's two commands ({res['measured']}, {res['commit']}) | "
             + "; ".join(cells) + " | `bench/setup_times.py` |")
 
