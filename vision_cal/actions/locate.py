@@ -146,16 +146,7 @@ def locate_pixels(req: LocateRequest) -> LocateOutcome:
             f, fld = where(line, "--pixel")
             raise VisionCalError(f"pixel {u:g} {v:g} ({i}) is outside the camera's "
                                  f"{w}x{h} image", file=f, field=fld)
-    points = []
-    for p, zz, line in zip(uv, z, lines):
-        try:
-            points.append(locate(cam, [p], zz)[0])
-        except VisionCalError as e:   # the ray misses the plane: the height's fault
-            f, fld = where(line, "--z-mm" if line is None else "z_mm")
-            cam_z = float(cam.T_robot_camera[2, 3])
-            raise VisionCalError(f"{e.reason} (the camera is at z {cam_z:.1f} mm in the robot "
-                                 f"frame; the height given is {zz:g} mm)", file=f,
-                                 field=fld) from e
+    points = _located(cam, uv, z, lines, where)
     joints = [None] * len(points)
     if robot is not None:
         joints = plan_targets(model, ids, [p.sheet_mm[:2] for p in points], elbow=req.elbow,
@@ -210,6 +201,35 @@ def _refuse_flange_options(req: LocateRequest) -> None:
                              "camera of vision-cal handeye PHOTOS/ --robot-poses POSES --mount "
                              "arm): a still camera needs no flange pose, a SCARA's camera "
                              "takes --joints or --photo", file=req.calibration, field=given[0])
+
+
+def _located(cam, uv, z, lines, where) -> list:
+    """The pixels located, each at its height: one :func:`locate` call per height (issue 41:
+    100,000 pixels of one height in seconds, not one call each); the first pixel whose ray
+    misses its plane named by its line (or the option given)."""
+    uv, z = np.asarray(uv, float).reshape(-1, 2), np.asarray(z, float)
+    points = [None] * len(uv)
+    for zz in np.unique(z):
+        at = np.flatnonzero(z == zz)
+        try:
+            for i, p in zip(at, locate(cam, uv[at], float(zz))):
+                points[i] = p
+        except VisionCalError as e:   # the ray misses the plane: the height's fault
+            i = next((i for i in at if not _meets_plane(cam, uv[i], zz)), at[0])
+            f, fld = where(lines[i], "--z-mm" if lines[i] is None else "z_mm")
+            cam_z = float(cam.T_robot_camera[2, 3])
+            raise VisionCalError(f"{e.reason} (the camera is at z {cam_z:.1f} mm in the robot "
+                                 f"frame; the height given is {zz:g} mm)", file=f,
+                                 field=fld) from e
+    return points
+
+
+def _meets_plane(cam, pixel, z_mm) -> bool:
+    try:
+        locate(cam, [pixel], float(z_mm))
+        return True
+    except VisionCalError:
+        return False
 
 
 def _refuse_joints_beyond_limits(req: LocateRequest, doc: dict, robot) -> None:

@@ -62,7 +62,7 @@ from vision_cal.model.lsq import FailedFit, Fit
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.diagnose.select import (Diagnosis, Evidence, enough_away, heldout_rms,
                                         local_map, marks_away_from)
-from vision_cal.diagnose.structure import sheet_scan
+from vision_cal.diagnose.structure import predicted_places, sheet_scan
 from vision_cal.model.robot import (JointBacklash, JointCyclic, JointEffect, JointScale, JointTerms,
                               RobotModel, SheetAffine)
 
@@ -475,7 +475,8 @@ def _away_from_local(f0: Fit, xy, sheet_alpha: float, config: EstimatorConfig
     scan = local_map(xy, f0, config.selection.min_sheet_marks)
     if not scan["p_value"] < sheet_alpha:
         return None
-    outside, radius = marks_away_from(xy, scan)
+    # counted in places, as the map counts them: a pose's repeats are one (issue 41)
+    outside, radius = marks_away_from(xy, scan, predicted_places(xy, f0.residuals_mm)[0])
     return _Away(outside, enough_away(outside),
                  {"p_value": scan["p_value"], "peak_mm": list(scan["peak_mm"]),
                   "excluded_radius_mm": radius, "excluded_marks": int((~outside).sum())})
