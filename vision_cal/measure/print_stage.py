@@ -70,17 +70,26 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
                 config: EstimatorConfig, kept_declared: AsPrinted | None = None) -> dict | None:
     """measurement.json ``print``: the print's deviation from its layout and the limit it
     leaves on the marks (``limit_mm``, 2-D RMS). As printed (a survey or several places):
-    its figures, the limit the corners' uncertainty (``sigma_mm``: per axis, added to every
-    mark's variance as below). From one place, where the print cannot
+    its figures, the limit what the solve leaves on marks between the markers (the corners'
+    uncertainty, the lens's and the poses', ``AsPrinted.limit_mm``; ``sigma_mm``: per
+    axis, added to every mark's variance as below). Seen from several places but kept as
+    declared (within what the views resolve): the deviation they saw is the limit. From one place, where the print cannot
     be told from the lens and the pose: each marker's mean corner residual beyond the
     photo's mapping (the part of the print a homography cannot take; RMS over the markers,
     less what the corners' own noise, seen within each marker, explains), times
     ``config.as_printed.single_view_factor`` for what it took; ``sigma_mm`` is then added to
     every mark's variance per axis."""
-    if kept_declared is not None:   # the views saw the print on its layout: nothing added
+    if kept_declared is not None:
+        # the views saw the print within what they cannot resolve: the declared layout is
+        # kept, and what they saw of it stays on every mark (issue 37: four views of a
+        # print 0.3 mm off, unresolved 0.14 mm, added nothing and said "ready" with marks
+        # 0.14 mm off)
+        lim = max(kept_declared.rms_mm, kept_declared.limit_mm)
         return {"source": kept_declared.source, "applied": False,
                 "rms_mm": kept_declared.rms_mm, "max_mm": kept_declared.max_mm,
-                "unresolved_mm": kept_declared.unresolved_mm, "limit_mm": 0.0,
+                "unresolved_mm": kept_declared.unresolved_mm,
+                "interior_mm": kept_declared.interior_mm, "limit_mm": lim,
+                "sigma_mm": lim / np.sqrt(2.0),
                 "height_rms_mm": kept_declared.height_rms_mm,
                 "n_places": kept_declared.n_places}
     if as_printed is not None:
@@ -88,8 +97,9 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
                 "max_mm": as_printed.max_mm, "growth_mm": as_printed.growth_mm,
                 "field_rms_mm": as_printed.field_rms_mm,
                 "unresolved_mm": as_printed.unresolved_mm,
-                "limit_mm": as_printed.unresolved_mm,
-                "sigma_mm": as_printed.unresolved_mm / np.sqrt(2.0),
+                "interior_mm": as_printed.interior_mm,
+                "limit_mm": as_printed.limit_mm,
+                "sigma_mm": as_printed.limit_mm / np.sqrt(2.0),
                 "height_rms_mm": as_printed.height_rms_mm,
                 "n_places": as_printed.n_places,
                 **({"field": as_printed.field} if as_printed.field is not None else {})}
