@@ -44,3 +44,22 @@ def test_a_layout_found_on_its_declaration_changes_nothing():
     v = judge({**doc, "print": {"source": "views", "applied": False, "rms_mm": 0.01,
                                 "unresolved_mm": 0.01, "limit_mm": 0.0}})
     assert v.status == "check" and v.expected_target_error_mm == judge(doc).expected_target_error_mm
+
+
+def test_a_measured_print_that_leaves_its_mark_is_named_as_a_cause():
+    """Issue 37: a print measured from several places whose layout, between the markers,
+    the views cannot tell from the lens leaves about as much on every mark as the marks'
+    own noise: the verdict names the print (and what would lower it), and the expected
+    target error carries it; a print measured to a few micrometres adds no reason."""
+    doc = _fit_doc()
+    base = judge(doc)
+    pr = {"source": "views", "applied": True, "rms_mm": 0.25, "field_rms_mm": 0.24,
+          "n_places": 6, "unresolved_mm": 0.03, "interior_mm": 0.04, "limit_mm": 0.04}
+    v = judge({**doc, "print": pr})
+    assert v.status == "check"
+    (named,) = [r for r in v.reasons if r.startswith("the print:")]
+    assert "0.040 mm RMS on every mark" in named and "declare the camera's lens" in named
+    assert v.expected_target_error_mm == pytest.approx(
+        (base.expected_target_error_mm ** 2 + (R95_PER_RMS * 0.04) ** 2) ** 0.5)
+    small = judge({**doc, "print": {**pr, "interior_mm": 0.004, "limit_mm": 0.004}})
+    assert small.status == "ready" and not [r for r in small.reasons if "the print:" in r]

@@ -540,6 +540,21 @@ def _with_print(pr: dict | None, r95, add, cfg):
                      f"{pr.get('seen_rms_mm', float('nan')):.3f} mm beyond the photo's mapping, "
                      f"about {lim:.3f} mm RMS on every mark: survey the sheet (vision-cal "
                      "survey) or photograph it from several places")
+    elif pr.get("applied") and lim > cfg.print_check_mm:
+        # measured (several places, a survey), yet what the solve leaves between the
+        # markers is a cause of the target error of its own (issue 37)
+        add("check", f"the print: {pr.get('field_rms_mm', float('nan')):.3f} mm RMS off its "
+                     f"layout, measured from {pr.get('n_places', '?')} camera places, leaves "
+                     f"about {lim:.3f} mm RMS on every mark (what the views cannot tell from "
+                     "the lens and the paper's shape), in the expected target error: declare "
+                     "the camera's lens, or survey the sheet from more places")
+    elif pr.get("applied") is False and lim > cfg.print_check_mm:
+        add("check", f"the print: the {pr.get('n_places', '?')} camera places see it "
+                     f"{pr.get('rms_mm', float('nan')):.3f} mm RMS off its layout, within what "
+                     f"they cannot resolve ({pr.get('unresolved_mm', float('nan')):.3f} mm): "
+                     f"the declared layout is kept and about {lim:.3f} mm RMS stays on every "
+                     "mark, in the expected target error: declare the camera's lens, "
+                     "photograph from more places, or survey the sheet")
     return r95
 
 
