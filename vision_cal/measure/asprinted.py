@@ -33,7 +33,10 @@ projection for the poses and the lens.
 What the views cannot separate from the lens is stated with its size: ``unresolved_mm``,
 the RMS over the released corners of their standard deviation (from the Jacobian at the
 solution, the residual's own scale, times sqrt(photos / places): repeated photos from one
-place repeat its detection errors), the lens free.
+place repeat its detection errors), the lens free. ``interior_mm`` is what the shared lens
+and corners leave on marks between the markers, each photo's pose refitted to the corners as
+its mapping is (:func:`_interior_cov`); the print's limit on the marks is the larger of the
+two (``limit_mm``).
 """
 
 from __future__ import annotations
@@ -638,37 +641,67 @@ def interior_points(pb: _Problem, n=(6, 4)) -> np.ndarray:
     return np.column_stack([X.ravel(), Y.ravel()])
 
 
-def _interior_cov(pb: _Problem, sol, cov_x: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """(2 P, 2 P): the joint covariance of marks at sheet points ``P`` (P, 2) measured
-    through every photo (averaged over the photos) with the solution's lens and poses, in
-    the gauge: what the solve leaves on the marks between the markers, where the print
-    and the lens trade against each other (an undeclared lens's radial terms against a
-    print that grows outward, the paper's heights against the focal length). The lens's
-    and poses' part by central differences of each photo's pixel-to-sheet map, the
-    corners' part through the gauge (the similarity of their deltas moves every mark)."""
-    x0 = np.asarray(sol.x, float)
-    px = []
-    for v in range(pb.V):
-        lens, poses, _ = pb.unpack(x0)
-        K, dist = _lens_matrices(lens)
-        if pb.lens_free:
-            K[0, 0] = K[1, 1] = K[0, 0] * (1.0 + poses[v, 6])
-        px.append(cv2.projectPoints(np.column_stack([P, np.zeros(len(P))]), poses[v, :3],
-                                    poses[v, 3:6], K, dist)[0].reshape(-1, 2))
-    G = np.zeros((2 * len(P), len(x0)))
-    for j in range(pb.n_lens + pb.n_pose):
+def _map_derivatives(pb: _Problem, x0: np.ndarray, v: int, px: np.ndarray,
+                     cols) -> np.ndarray:
+    """(2 P, len(cols)): how photo ``v``'s pixel-to-sheet map moves pixels ``px`` (P, 2)
+    per unit of the unknowns ``cols`` (central differences)."""
+    out = np.zeros((2 * len(px), len(cols)))
+    for k, j in enumerate(cols):
         h = 1e-6 * max(abs(x0[j]), 1.0)
         xp, xm = x0.copy(), x0.copy()
         xp[j] += h
         xm[j] -= h
-        G[:, j] = np.mean([_sheet_point(pb, xp, v, px[v]) - _sheet_point(pb, xm, v, px[v])
-                           for v in range(pb.V)], axis=0).ravel() / (2 * h)
+        out[:, k] = (_sheet_point(pb, xp, v, px) - _sheet_point(pb, xm, v, px)).ravel() / (2 * h)
+    return out
+
+
+def _interior_cov(pb: _Problem, sol, cov_x: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """(2 P, 2 P): the joint covariance of marks at sheet points ``P`` (P, 2) measured
+    through every photo (averaged over the photos), in the gauge, from what every photo
+    shares: the lens and the printed corners. Each photo's map is fitted to the corners
+    again, so its pose follows them (the pose's own noise is each photo's, in the marks'
+    scatter already): a shared change ``ds`` moves the pose by ``-(A'A)^-1 A' B ds`` (``A``,
+    ``B`` the photo's rows of the Jacobian in its pose and in the shared unknowns) and the
+    mark by the map's derivatives in the lens and the pose; the corners' in-plane part also
+    through the gauge (the similarity of their deltas moves every mark), their heights less
+    their plane. What the solve leaves between the markers, where the print and an
+    undeclared lens trade against each other (its radial terms against a print that grows
+    outward, the paper's heights)."""
+    x0 = np.asarray(sol.x, float)
+    J = pb.jacobian(x0)[:pb.m_obs]
+    lens_cols = list(range(pb.n_lens))
+    shared = np.concatenate([np.arange(pb.n_lens), pb.n_fixed + np.arange(pb.n_delta)])
+    G = np.zeros((2 * len(P), len(shared)))
+    lens, poses, _ = pb.unpack(x0)
+    for v, rows in enumerate(pb.view_rows):
+        K, dist = _lens_matrices(lens)
+        if pb.lens_free:
+            K[0, 0] = K[1, 1] = K[0, 0] * (1.0 + poses[v, 6])
+        px = cv2.projectPoints(np.column_stack([P, np.zeros(len(P))]), poses[v, :3],
+                               poses[v, 3:6], K, dist)[0].reshape(-1, 2)
+        pose_cols = list(pb.n_lens + pb.npv * v + np.arange(pb.npv))
+        r2 = np.column_stack([2 * rows, 2 * rows + 1]).ravel()
+        follow = -np.linalg.lstsq(J[np.ix_(r2, pose_cols)], J[np.ix_(r2, shared)],
+                                  rcond=None)[0]                     # (npv, shared)
+        Gv = _map_derivatives(pb, x0, v, px, pose_cols) @ follow
+        if lens_cols:
+            Gv[:, :pb.n_lens] += _map_derivatives(pb, x0, v, px, lens_cols)
+        G += Gv / pb.V
     if len(pb.rel_idx) >= 3:
         sim = _similarity_design(P) @ pb.gauge()               # (2 P, 2 n_rel)
-        cols = pb.n_fixed + pb.nd * np.arange(len(pb.rel_idx))
+        cols = pb.n_lens + pb.nd * np.arange(len(pb.rel_idx))
         G[:, cols] -= sim[:, 0::2]
         G[:, cols + 1] -= sim[:, 1::2]
-    return G @ cov_x @ G.T
+    C = cov_x[np.ix_(shared, shared)]
+    if pb.nd == 3 and len(pb.rel_idx) >= 3:
+        # the heights in their gauge (less their best-fitting plane): a plane of the corners
+        # is the paper's, which the marks lie on too
+        plane = pb.heights_plane()
+        T = np.eye(len(shared))
+        hc = pb.n_lens + pb.nd * np.arange(len(pb.rel_idx)) + 2
+        T[np.ix_(hc, hc)] = np.eye(len(hc)) - plane @ np.linalg.pinv(plane)
+        C = T @ C @ T.T
+    return G @ C @ G.T
 
 
 def _corner_std(pb: _Problem, sol, n_places: int

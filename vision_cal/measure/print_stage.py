@@ -73,7 +73,8 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
     its figures, the limit what the solve leaves on marks between the markers (the corners'
     uncertainty, the lens's and the poses', ``AsPrinted.limit_mm``; ``sigma_mm``: per
     axis, added to every mark's variance as below). Seen from several places but kept as
-    declared (within what the views resolve): the deviation they saw is the limit. From one place, where the print cannot
+    declared (within what the views resolve): the deviation they saw beyond what they
+    leave unresolved (RMS, in quadrature) is the limit. From one place, where the print cannot
     be told from the lens and the pose: each marker's mean corner residual beyond the
     photo's mapping (the part of the print a homography cannot take; RMS over the markers,
     less what the corners' own noise, seen within each marker, explains), times
@@ -81,10 +82,11 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
     every mark's variance per axis."""
     if kept_declared is not None:
         # the views saw the print within what they cannot resolve: the declared layout is
-        # kept, and what they saw of it stays on every mark (issue 37: four views of a
-        # print 0.3 mm off, unresolved 0.14 mm, added nothing and said "ready" with marks
-        # 0.14 mm off)
-        lim = max(kept_declared.rms_mm, kept_declared.limit_mm)
+        # kept, and what they saw of it beyond their own noise stays on every mark (issue
+        # 37: four views of a print 0.3 mm off, unresolved 0.14 mm, added nothing and said
+        # "ready" with marks 0.14 mm off)
+        lim = float(np.sqrt(max(kept_declared.rms_mm ** 2 - kept_declared.unresolved_mm ** 2,
+                                0.0)))
         return {"source": kept_declared.source, "applied": False,
                 "rms_mm": kept_declared.rms_mm, "max_mm": kept_declared.max_mm,
                 "unresolved_mm": kept_declared.unresolved_mm,
