@@ -528,10 +528,14 @@ def _with_print(pr: dict | None, r95, add, cfg):
     (2-D RMS, the same at every mark and not averaged by the fit: the print is where it
     is) added to the expected target error; from one camera place, where the print
     cannot be told from the lens, a limit beyond ``cfg.print_check_mm`` makes the run
-    ``check``. Returns the expected target error."""
+    ``check``; measured (or seen and kept as declared), such a limit is named as a cause,
+    ``check`` where it is at least the rest of the expected error. Returns the expected
+    target error."""
     lim = (pr or {}).get("limit_mm")
     if not _finite(lim) or lim <= 0:
         return r95
+    # the print a cause to check where it is at least the rest of the expected error
+    level = "check" if r95 is None or R95_PER_RMS * lim >= r95 else "ready"
     if r95 is not None:
         r95 = float(math.hypot(r95, R95_PER_RMS * lim))
     if pr.get("source") == "one place" and lim > cfg.print_check_mm:
@@ -542,14 +546,15 @@ def _with_print(pr: dict | None, r95, add, cfg):
                      "survey) or photograph it from several places")
     elif pr.get("applied") and lim > cfg.print_check_mm:
         # measured (several places, a survey), yet what the solve leaves between the
-        # markers is a cause of the target error of its own (issue 37)
-        add("check", f"the print: {pr.get('field_rms_mm', float('nan')):.3f} mm RMS off its "
+        # markers is a cause of the target error of its own (issue 37): named, and to
+        # check where it is at least the rest of it
+        add(level, f"the print: {pr.get('field_rms_mm', float('nan')):.3f} mm RMS off its "
                      f"layout, measured from {pr.get('n_places', '?')} camera places, leaves "
                      f"about {lim:.3f} mm RMS on every mark (what the views cannot tell from "
                      "the lens and the paper's shape), in the expected target error: declare "
                      "the camera's lens, or survey the sheet from more places")
     elif pr.get("applied") is False and lim > cfg.print_check_mm:
-        add("check", f"the print: the {pr.get('n_places', '?')} camera places see it "
+        add(level, f"the print: the {pr.get('n_places', '?')} camera places see it "
                      f"{pr.get('rms_mm', float('nan')):.3f} mm RMS off its layout, within what "
                      f"they cannot resolve ({pr.get('unresolved_mm', float('nan')):.3f} mm): "
                      f"the declared layout is kept and about {lim:.3f} mm RMS stays on every "
