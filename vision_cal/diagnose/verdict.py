@@ -672,6 +672,7 @@ def _accuracy(doc: dict, marks: dict, n_par: int, rep: float, full: EstimatorCon
             "test for backlash, gear-ratio or sheet effects")
     print_mm = _print_part(doc.get("print"), add, full, by_design)
     parts = _target_parts(doc, marks, n_par, rep, print_mm) if r95 is not None else None
+    _print_named(doc.get("print"), parts, add, cfg)
     if parts is not None:
         r95 = R95_PER_STD * parts["total_mm"]
     elif r95 is not None and print_mm > 0:
@@ -771,6 +772,36 @@ def _target_parts(doc: dict, marks: dict, n_par: int, rep: float,
             "from": source}
 
 
+def _print_named(pr: dict | None, parts: dict | None, add, cfg) -> None:
+    """The print measured (several places, a survey; applied, or seen and kept as declared)
+    yet leaving beyond ``cfg.print_check_mm`` on every mark is named as a cause of the
+    target error of its own (issue 37), ``check`` where it is at least the rest of it
+    (``parts``: :func:`_target_parts`), else at the ``ready`` level."""
+    if not isinstance(pr, dict) or pr.get("source") == "one place":
+        return
+    lim = pr.get("limit_mm")
+    if not _finite(lim) or lim <= cfg.print_check_mm:
+        return
+    if pr.get("applied") is False and pr.get("status") not in (None, "not significant"):
+        return   # not measured: _print_part said so
+    rest2 = (None if parts is None else
+             parts["total_mm"] ** 2 - parts["print_mm"] ** 2)
+    level = "check" if rest2 is None or parts["print_mm"] ** 2 >= rest2 else "ready"
+    if pr.get("applied") is False:
+        add(level, f"the print: the {pr.get('n_places', '?')} camera places see it "
+                   f"{pr.get('rms_mm', float('nan')):.3f} mm RMS off its layout, within what "
+                   f"they cannot resolve ({pr.get('unresolved_mm', float('nan')):.3f} mm): "
+                   f"the declared layout is kept and about {lim:.3f} mm RMS stays on every "
+                   "mark, in the expected target error: declare the camera's lens, "
+                   "photograph from more places, or survey the sheet", "print")
+    else:
+        add(level, f"the print: {pr.get('field_rms_mm', float('nan')):.3f} mm RMS off its "
+                   f"layout, measured from {pr.get('n_places', '?')} camera places, leaves "
+                   f"about {lim:.3f} mm RMS on every mark (what the views cannot tell from "
+                   "the lens and the paper's shape), in the expected target error: declare "
+                   "the camera's lens, or survey the sheet from more places", "print")
+
+
 def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
                        repeatability_mm: float | None = None,
                        reasons: list[tuple[str, str]] = (),
@@ -845,10 +876,11 @@ def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
 #: ``structure`` (structure left, scans not run, photos moved, the grid), ``left_out``
 #: (outliers, unreliable marks), ``replication`` (the fit's two halves disagree, or it
 #: could not be halved), ``accuracy`` (the accuracy figure and its degrees of
-#: freedom), ``print_one_place`` (the print not measured: one camera place), ``camera``
+#: freedom), ``print_one_place`` (the print not measured: one camera place), ``print`` (the
+#: print measured, a cause of the target error of its own), ``camera``
 #: (a camera calibration's own: parameters the poses do not separate, the lens), ``other``
 REASON_CODES = ("plan", "not_identified", "drift", "noise_floor", "structure", "left_out",
-                "replication", "accuracy", "print_one_place", "camera", "other")
+                "replication", "accuracy", "print_one_place", "print", "camera", "other")
 
 
 def _coded(reasons, code: str) -> list[tuple[str, str, str]]:

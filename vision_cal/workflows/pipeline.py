@@ -39,7 +39,7 @@ from vision_cal.diagnose.discover import trace
 from vision_cal.diagnose.photos import per_photo_offsets
 from vision_cal.diagnose.replicate import replicate
 from vision_cal.diagnose.select import Diagnosis, diagnose
-from vision_cal.diagnose.sheet import smooth_residual
+from vision_cal.diagnose.sheet import NOT_FLAT, PRINT_BETWEEN, smooth_residual
 from vision_cal.diagnose.verdict import judge
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.model.kinematics import forward
@@ -399,7 +399,7 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
     if session.sheet is not None:
         sm = smooth_residual(np.concatenate([cal.xy_mm, val.xy_mm]),
                              np.concatenate([res_cal, res_val]), session.sheet.extent_mm,
-                             config=config.smooth_residual)
+                             config=config.smooth_residual, cause=_smooth_cause(measurement))
         if sm is not None:
             ex = next((e for e in doc["effects"] if e["name"] == "unexplained"), None)
             if ex is None:
@@ -439,6 +439,11 @@ def _replication(ff: Fit, cal: MarkData, val: MarkData, measurement,
         shared_cov_mm2=print_field_cov(None if measurement is None
                                        else measurement.print_summary, cal.xy_mm[keep]),
         config=config)
+def _smooth_cause(measurement) -> str:
+    """What a smooth residual is named for: the print between the markers where the sheet's
+    print was measured and the marks are against its markers, else a sheet not flat."""
+    pr = (None if measurement is None else measurement.print_summary) or {}
+    return PRINT_BETWEEN if pr.get("applied") else NOT_FLAT
 
 
 def _print_shared(diag: Diagnosis, cal: MarkData, measurement) -> Diagnosis:
