@@ -14,8 +14,8 @@ from vision_cal.dataset.session import Session
 from vision_cal.measure.asprinted import AsPrinted, estimate_as_printed, field_basis
 from vision_cal.measure.finish import lens_of
 from vision_cal.measure.mapping import LensEstimate
-from vision_cal.measure.replicate import (APPLIED, FAILED, claim_of, stated_scale,
-                                          with_replication)
+from vision_cal.measure.replicate import (APPLIED, FAILED, NOT_SIGNIFICANT, claim_of,
+                                          stated_scale, with_replication)
 from vision_cal.measure.types import ImageDetections, ImageResult
 
 log = logging.getLogger(__name__)
@@ -134,9 +134,12 @@ def _not_applied(ap: AsPrinted, seen: dict | None, config: EstimatorConfig) -> d
                     "replication": ap.replication})
     out["n_places"] = ap.n_places
     out = {**out, **(seen or {"limit_mm": 0.0})}
-    if claim.status != FAILED:   # what the views saw beyond what they cannot resolve
-        views = float(np.sqrt(max(ap.rms_mm ** 2 - ap.unresolved_mm ** 2, 0.0)))
+    if claim.status != FAILED:
         out["interior_mm"] = ap.interior_mm
+    if claim.status == NOT_SIGNIFICANT:   # on its layout as far as the views tell: what they
+        # saw of it beyond what they cannot resolve stays on every mark (the others are not
+        # a measured print: the verdict carries the size they found)
+        views = float(np.sqrt(max(ap.rms_mm ** 2 - ap.unresolved_mm ** 2, 0.0)))
         if views > out.get("limit_mm", 0.0):
             out.update({"limit_mm": views, "sigma_mm": views / np.sqrt(2.0)})
     return out
