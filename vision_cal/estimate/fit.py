@@ -26,7 +26,7 @@ from vision_cal.estimate.marks import MarkData
 from vision_cal.estimate.paper import PaperResult, paper_method
 from vision_cal.estimate.replicate import replicate
 from vision_cal.estimate.select import Diagnosis, diagnose
-from vision_cal.estimate.sheet import smooth_residual
+from vision_cal.estimate.sheet import NOT_FLAT, PRINT_BETWEEN, smooth_residual
 from vision_cal.measure.print_stage import print_field_cov
 from vision_cal.model.kinematics import forward
 from vision_cal.model.lsq import Fit
@@ -143,7 +143,8 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
                         "not tried either: marks not measured against a printed "
                         "grid cannot tell their smooth signature from it"))
     if session.sheet is not None:
-        _add_smooth_residual(effects, session, cal, val, res_cal, res_val, config)
+        _add_smooth_residual(effects, session, cal, val, res_cal, res_val, config,
+                             measurement)
     residual_all = {i: r for i, r in zip(cal.ids, res_cal)}
     residual_all.update({i: r for i, r in zip(val.ids, res_val)})
     residual_base = {i: r for i, r in zip(cal.ids, fb.residuals_mm)}
@@ -214,12 +215,12 @@ def _diagnosed(session: Session, cal: MarkData, val: MarkData, measurement,
 
 
 def _add_smooth_residual(effects: list, session: Session, cal: MarkData, val: MarkData,
-                         res_cal, res_val, config: EstimatorConfig) -> None:
+                         res_cal, res_val, config: EstimatorConfig, measurement) -> None:
     """A residual smooth over the sheet (:func:`vision_cal.estimate.sheet.smooth_residual`)
     into the ``unexplained`` entry of ``effects`` (added when there is none)."""
     sm = smooth_residual(np.concatenate([cal.xy_mm, val.xy_mm]),
                          np.concatenate([res_cal, res_val]), session.sheet.extent_mm,
-                         config=config.smooth_residual)
+                         config=config.smooth_residual, cause=_smooth_cause(measurement))
     if sm is None:
         return
     ex = next((e for e in effects if e["name"] == "unexplained"), None)
@@ -228,6 +229,13 @@ def _add_smooth_residual(effects: list, session: Session, cal: MarkData, val: Ma
     else:
         ex["seen"] = list(ex.get("seen", [])) + sm["seen"]
         ex.update({k: v for k, v in sm.items() if k != "seen"})
+
+
+def _smooth_cause(measurement) -> str:
+    """What a smooth residual is named for: the print between the markers where the sheet's
+    print was measured and the marks are against its markers, else a sheet not flat."""
+    pr = (None if measurement is None else measurement.print_summary) or {}
+    return PRINT_BETWEEN if pr.get("applied") else NOT_FLAT
 
 
 def _replication(ff: Fit, cal: MarkData, val: MarkData, measurement,

@@ -12,6 +12,7 @@ rendered from the written files.
 from __future__ import annotations
 
 import logging
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -31,9 +32,15 @@ from vision_cal.estimate.select import Diagnosis
 from vision_cal.measure.survey import load_survey
 from vision_cal.measure.types import Measurement
 from vision_cal.model.robot import RobotModel
+from vision_cal.progress import bar
 from vision_cal.workflows.measure_folder import measure_folder
 
 log = logging.getLogger(__name__)
+
+#: marks from which the fit + diagnosis and the writing of calibration.json each print a
+#: progress line when they start and end (a marks CSV of 2,000 marks takes seconds, of
+#: 100,000 minutes: docs/format.md, "Marks from other instruments")
+PROGRESS_MARKS = 2000
 
 
 @dataclass(frozen=True)
@@ -122,16 +129,31 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                                                progress=progress, config=config,
                                                survey=None if survey is None
                                                else load_survey(survey, session.sheet))
-    fitted = fit_marks(session, data, measurement, method=method, config=config)
-    cameras = cameras_json(session, measurement, fitted.model,
-                           covariance=fitted.result.covariance, std=fitted.result.std)
-    result = document(session, data, missing, measurement, fitted, method=method,
-                      config=config, truth=truth, bars_mm=bars_mm, cameras=cameras)
-    check_plausible(result, session)  # radians, metres: stop before any file
-    out_path = result.write(out_dir / "calibration.json")
+    n_marks = sum(r in ("calibration", "validation") for r in data.roles)
+    with _long_stage(progress, n_marks, "fit + diagnosis"):
+        fitted = fit_marks(session, data, measurement, method=method, config=config)
+    with _long_stage(progress, n_marks, "calibration.json"):
+        cameras = cameras_json(session, measurement, fitted.model,
+                               covariance=fitted.result.covariance, std=fitted.result.std)
+        result = document(session, data, missing, measurement, fitted, method=method,
+                          config=config, truth=truth, bars_mm=bars_mm, cameras=cameras)
+        check_plausible(result, session)  # radians, metres: stop before any file
+        out_path = result.write(out_dir / "calibration.json")
     log.info("wrote %s", out_path)
     return CalibrationRun(session, result, out_path, fitted.model, fitted.diagnosis,
                           fitted.paper, measurement)
+
+
+@contextmanager
+def _long_stage(progress: bool, n_marks: int, desc: str):
+    """A progress line as the stage ``desc`` starts and ends, from ``PROGRESS_MARKS``
+    marks (with ``progress``); a stage that fails ends its line at 0 marks."""
+    line = bar(progress and n_marks >= PROGRESS_MARKS, total=n_marks, unit="mark", desc=desc)
+    try:
+        yield
+        line.update(n_marks)
+    finally:
+        line.close()
 
 
 def measure_marks(session: Session, *, out_dir: Path, jobs: int | None = None,
