@@ -1,0 +1,71 @@
+"""Inputs of ``bench/compare_outputs.py``'s camera-on-the-arm and pose-pair cases (its
+``setup_arm`` case): four sessions of the arm's camera rendered by the world
+(``tests/camera/test_arm_render.py``'s robot and sizes): the lens declared (seed 23, a
+photo listed that is missing), declared with a barrel distortion (seed 5, k1 -0.045), left
+out and tilted 20-25 deg so the views estimate it (seed 29), left out and square to the
+sheet so they cannot (seed 31); and three files of pose pairs from the world's own
+controller and detector (a fixed camera, 30 pairs; an arm camera, 300 pairs with 0.1 px
+of corner noise; an arm camera, 20 pairs, 1 mm / 0.5 deg of board pose noise).
+
+    python bench/compare_setup_arm.py SHARED_FOLDER
+
+It runs with the first side's package, so it finds the world where that version keeps it
+(``vision_cal.world`` since issue 39, ``vision_cal.render`` before).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+try:                                  # the world's place since issue 39's move
+    from vision_cal.world.arm_camera import render_arm_dataset
+    from vision_cal.world.pose_pairs import simulate_pairs
+    from vision_cal.world.truth_model import TrueRobot
+except ImportError:                   # a version before it
+    from vision_cal.render.arm_camera import render_arm_dataset
+    from vision_cal.render.pose_pairs import simulate_pairs
+    from vision_cal.render.truth_model import TrueRobot
+
+TRUTH = {"L1_mm": 344.05, "L2_mm": 259.87, "joint_zero_deg": [-2.57, -8.13],
+         "base_mm": [-424.26, -230.35]}
+NOMINAL = {"L1_mm": 350.0, "L2_mm": 260.0, "joint_zero_deg": [0.0, 0.0],
+           "base_mm": [-410.0, -240.0]}
+ARM = {"truth": TRUTH, "nominal": NOMINAL, "size_px": (640, 480), "f_px": 720.0}
+
+
+def arm_sessions(shared: Path) -> None:
+    folder = render_arm_dataset(shared / "arm", n_poses=12, seed=23, **ARM)
+    s = json.loads((folder / "session.json").read_text())
+    s["poses"].append({"image": "missing.png", "joints_deg": [0.0, 90.0], "j4_deg": 0.0})
+    (folder / "session.json").write_text(json.dumps(s))
+    render_arm_dataset(shared / "arm_dist", n_poses=12, seed=5,
+                       dist=[-0.045, 0.0, 0.0, 0.0, 0.0], **ARM)
+    render_arm_dataset(shared / "arm_nocam", n_poses=10, seed=29, tilt_deg=(20.0, 25.0),
+                       declare_lens=False, **ARM)
+    render_arm_dataset(shared / "arm_square", n_poses=8, seed=31, tilt_deg=0.5,
+                       declare_lens=False, **ARM)
+
+
+def pairs_files(shared: Path) -> None:
+    robot = TrueRobot(344.05, 259.87, (-2.57, -8.13), (-424.26, -230.35))
+    for name, n, seed, mount, noise in (
+            ("pairs_fixed", 30, 3901, "fixed", {"noise_px": 0.1}),
+            ("pairs_many", 300, 3902, "arm", {"noise_px": 0.1}),
+            ("pairs_pose", 20, 3903, "arm", {"noise_px": None, "noise_mm": 1.0,
+                                              "noise_deg": 0.5})):
+        w = simulate_pairs(robot, n, seed=seed, mount=mount, **noise)
+        doc = {"format": "vision-cal/poses/1", "mount": mount,
+               "target_z_mm": float(w["Y"][2, 3]),
+               "pairs": [{"id": f"p{i:03d}", "T_robot_flange": a.tolist(),
+                          "T_camera_target": b.tolist()}
+                         for i, (a, b) in enumerate(zip(w["A"], w["B"]))]}
+        (shared / f"{name}.json").write_text(json.dumps(doc))
+
+
+if __name__ == "__main__":
+    out = Path(sys.argv[1])
+    out.mkdir(parents=True, exist_ok=True)
+    arm_sessions(out)
+    pairs_files(out)
