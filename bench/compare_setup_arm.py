@@ -15,18 +15,22 @@ It runs with the first side's package, so it finds the world where that version 
 
 from __future__ import annotations
 
+import importlib
 import json
 import sys
 from pathlib import Path
 
-try:                                  # the world's place since issue 39's move
-    from vision_cal.world.arm_camera import render_arm_dataset
-    from vision_cal.world.pose_pairs import simulate_pairs
-    from vision_cal.world.truth_model import TrueRobot
-except ImportError:                   # a version before it
-    from vision_cal.render.arm_camera import render_arm_dataset
-    from vision_cal.render.pose_pairs import simulate_pairs
-    from vision_cal.render.truth_model import TrueRobot
+
+def world(name: str):
+    """The world's module ``name`` where this version keeps it: ``vision_cal.world`` since
+    issue 39's move, ``vision_cal.render`` (or ``vision_cal.simulate``) before."""
+    for package in ("vision_cal.world", "vision_cal.render", "vision_cal.simulate"):
+        try:
+            return importlib.import_module(f"{package}.{name}")
+        except ModuleNotFoundError:
+            continue
+    raise ModuleNotFoundError(f"no world module {name!r}")
+
 
 TRUTH = {"L1_mm": 344.05, "L2_mm": 259.87, "joint_zero_deg": [-2.57, -8.13],
          "base_mm": [-424.26, -230.35]}
@@ -36,6 +40,7 @@ ARM = {"truth": TRUTH, "nominal": NOMINAL, "size_px": (640, 480), "f_px": 720.0}
 
 
 def arm_sessions(shared: Path) -> None:
+    render_arm_dataset = world("arm_camera").render_arm_dataset
     folder = render_arm_dataset(shared / "arm", n_poses=12, seed=23, **ARM)
     s = json.loads((folder / "session.json").read_text())
     s["poses"].append({"image": "missing.png", "joints_deg": [0.0, 90.0], "j4_deg": 0.0})
@@ -49,13 +54,13 @@ def arm_sessions(shared: Path) -> None:
 
 
 def pairs_files(shared: Path) -> None:
-    robot = TrueRobot(344.05, 259.87, (-2.57, -8.13), (-424.26, -230.35))
+    robot = world("truth_model").TrueRobot(344.05, 259.87, (-2.57, -8.13), (-424.26, -230.35))
     for name, n, seed, mount, noise in (
             ("pairs_fixed", 30, 3901, "fixed", {"noise_px": 0.1}),
             ("pairs_many", 300, 3902, "arm", {"noise_px": 0.1}),
             ("pairs_pose", 20, 3903, "arm", {"noise_px": None, "noise_mm": 1.0,
                                               "noise_deg": 0.5})):
-        w = simulate_pairs(robot, n, seed=seed, mount=mount, **noise)
+        w = world("pose_pairs").simulate_pairs(robot, n, seed=seed, mount=mount, **noise)
         doc = {"format": "vision-cal/poses/1", "mount": mount,
                "target_z_mm": float(w["Y"][2, 3]),
                "pairs": [{"id": f"p{i:03d}", "T_robot_flange": a.tolist(),
