@@ -330,7 +330,7 @@ LAYERS = [
     {"calibrate"},
     {"diagnose"},
     {"plan"},
-    {"program", "simulate"},
+    {"program", "simulate", "world"},
     {"camera", "design", "render"},
     {"report"},
     {"workflows"},

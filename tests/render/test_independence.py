@@ -31,7 +31,7 @@ def _imports(path: Path):
 
 def test_world_imports_nothing_of_the_estimator():
     bad = []
-    for sub in ("render", "simulate"):
+    for sub in ("render", "simulate", "world"):
         for path in sorted((ROOT / sub).glob("*.py")):
             for module, names in _imports(path):
                 if not module.startswith(ESTIMATOR):

@@ -8,7 +8,7 @@ import pytest
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import JointBacklash, RobotModel
 from vision_cal.plan.calibration_plan import PlannedMark
-from vision_cal.simulate.dynamics import ScaraDynamics, Stepper
+from vision_cal.world.dynamics import ScaraDynamics, Stepper
 from vision_cal.simulate.run import simulate_plan
 
 DYN = ScaraDynamics()

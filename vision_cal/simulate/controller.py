@@ -25,7 +25,7 @@ import math
 from dataclasses import dataclass, field
 
 from vision_cal.errors import VisionCalError
-from vision_cal.simulate.dynamics import ScaraDynamics
+from vision_cal.world.dynamics import ScaraDynamics
 
 
 def _sat(x: float) -> float:

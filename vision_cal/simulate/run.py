@@ -4,7 +4,7 @@ Conventions: angles in degrees at the API, in the *commanded* joint frame (befor
 model's zero offsets ``z1, z2``): ``link_deg`` is what :func:`vision_cal.model.kinematics.forward`
 (or :class:`vision_cal.model.robot.RobotModel` without its joint effects) turns into a pen
 position. Inside, radians at a fixed step ``dt_s`` (semi-implicit Euler, see
-:class:`~vision_cal.simulate.dynamics.Stepper`), plain floats in one lean loop.
+:class:`~vision_cal.world.dynamics.Stepper`), plain floats in one lean loop.
 
 At each mark's pen-down time (end of the dwell, from :mod:`vision_cal.plan.trajectory`)
 the arm must be settled: both encoder errors below ``settle_tol_deg`` and both speeds
@@ -31,7 +31,7 @@ from vision_cal.errors import VisionCalError
 from vision_cal.model.motion import TRAJECTORY_DT_S
 from vision_cal.plan.trajectory import Trajectory, plan_trajectory
 from vision_cal.simulate.controller import make_controller
-from vision_cal.simulate.dynamics import ScaraDynamics, Stepper
+from vision_cal.world.dynamics import ScaraDynamics, Stepper
 
 
 @dataclass(frozen=True, eq=False)
