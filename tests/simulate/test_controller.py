@@ -9,7 +9,7 @@ from vision_cal.errors import VisionCalError
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.plan.calibration_plan import PlannedMark, informative_plan, paper_plan
 from vision_cal.dataset.session import Sheet, SheetMarker, resolve_approach
-from vision_cal.simulate.controller import PDController, SlidingModeController, make_controller
+from vision_cal.world.controller import PDController, SlidingModeController, make_controller
 from vision_cal.world.dynamics import ScaraDynamics, Stepper
 from vision_cal.simulate.run import simulate_plan
 

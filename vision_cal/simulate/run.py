@@ -30,7 +30,7 @@ import numpy as np
 from vision_cal.errors import VisionCalError
 from vision_cal.model.motion import TRAJECTORY_DT_S
 from vision_cal.plan.trajectory import Trajectory, plan_trajectory
-from vision_cal.simulate.controller import make_controller
+from vision_cal.world.controller import make_controller
 from vision_cal.world.dynamics import ScaraDynamics, Stepper
 
 
