@@ -11,7 +11,7 @@ from vision_cal.plan.calibration_plan import PlannedMark, informative_plan, pape
 from vision_cal.dataset.session import Sheet, SheetMarker, resolve_approach
 from vision_cal.world.controller import PDController, SlidingModeController, make_controller
 from vision_cal.world.dynamics import ScaraDynamics, Stepper
-from vision_cal.simulate.run import simulate_plan
+from vision_cal.world.simulate import simulate_plan
 
 NOMINAL = ScaraParams(350.0, 260.0, 0.0, 0.0, -400.0, -250.0)
 

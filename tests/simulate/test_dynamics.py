@@ -9,7 +9,7 @@ from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import JointBacklash, RobotModel
 from vision_cal.plan.calibration_plan import PlannedMark
 from vision_cal.world.dynamics import ScaraDynamics, Stepper
-from vision_cal.simulate.run import simulate_plan
+from vision_cal.world.simulate import simulate_plan
 
 DYN = ScaraDynamics()
 

@@ -29,7 +29,7 @@ import numpy as np
 
 from vision_cal.errors import VisionCalError
 from vision_cal.render.truth_model import TrueRobot
-from vision_cal.simulate.run import simulate_plan
+from vision_cal.world.simulate import simulate_plan
 
 JointSource = Callable[[Sequence, Sequence[float]], tuple[np.ndarray, np.ndarray]]
 
@@ -144,7 +144,7 @@ def simulated_world(truth: TrueRobot, *, controller: str = "smc", rng=None,
     The truth's ``joint_backlash`` effects become the simulator's gear play (the links
     really lag, and the simulator reports the side in contact), so they are taken out of
     the returned model; every other effect stays in it and acts on the reached link angles.
-    ``sim_kwargs`` go to :func:`vision_cal.simulate.run.simulate_plan`.
+    ``sim_kwargs`` go to :func:`vision_cal.world.simulate.simulate_plan`.
     """
     truth = _true(truth)
     band = np.asarray(truth.backlash_deg, dtype=float)
