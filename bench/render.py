@@ -23,7 +23,7 @@ import time
 import cv2
 import numpy as np
 
-from vision_cal.render.camera import camera_matrix, default_views, project
+from vision_cal.world.camera import camera_matrix, default_views, project
 from vision_cal.render.photo import Photographer
 from vision_cal.render.sheet import make_sheet, sheet_texture
 

@@ -92,7 +92,7 @@ def photograph(folder: Path, sheet_dir: Path, world, photographer, rng, *, n: in
     (``also_xy_mm``: earlier marks already on the sheet)."""
     import cv2
 
-    from vision_cal.render.camera import camera_matrix, default_views
+    from vision_cal.world.camera import camera_matrix, default_views
     from vision_cal.render.printed import load_printed_sheet, printed_texture
 
     printed = load_printed_sheet(sheet_dir / "sheet.json")
@@ -116,7 +116,7 @@ def walkthrough(tmp: Path) -> dict:
     from vision_cal.dataset.csvio import read_plan, write_targets
     from vision_cal.dataset.session import load_sheet_file
     from vision_cal.workflows.loop import default_targets
-    from vision_cal.render.camera import camera_matrix
+    from vision_cal.world.camera import camera_matrix
     from vision_cal.render.photo import Photographer
 
     tmp.mkdir(parents=True, exist_ok=True)

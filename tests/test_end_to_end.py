@@ -132,7 +132,7 @@ def test_phone_principal_point_off_centre_and_focal_per_photo(tmp_path):
     it, and the measurer (no lens to find here) assumes neither."""
     import cv2
 
-    from vision_cal.render.camera import project
+    from vision_cal.world.camera import project
 
     # a series of 16 photos (one after each of 12 + 4 marks): enough focal lengths to span
     # the 6 % and marks to check the base against its std, at two thirds of 24's cost

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from vision_cal.dataset.session import load_session
-from vision_cal.render.camera import camera_matrix, look_at
+from vision_cal.world.camera import camera_matrix, look_at
 from vision_cal.render.sheet import make_sheet, sheet_texture, sheet_to_texture_pixel
 
 SIZE = (1000, 750)

@@ -10,7 +10,7 @@ PX_PER_MM = 8.0
 
 @pytest.fixture(scope="session")
 def K():
-    from vision_cal.render.camera import camera_matrix
+    from vision_cal.world.camera import camera_matrix
 
     return camera_matrix(size_px=SIZE_PX, f_px=F_PX)
 

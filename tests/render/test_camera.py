@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from vision_cal.errors import VisionCalError
-from vision_cal.render.camera import (_undistort_maps, camera_matrix, default_views,
+from vision_cal.world.camera import (_undistort_maps, camera_matrix, default_views,
                                       distort_image, look_at, project)
 from vision_cal.render.sheet import make_sheet
 

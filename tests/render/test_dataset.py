@@ -11,7 +11,7 @@ from vision_cal.dataset.session import load_session
 from vision_cal.errors import VisionCalError
 from vision_cal.calibrate.paper import pilot_params
 from vision_cal.render import dataset as ds
-from vision_cal.render.camera import project
+from vision_cal.world.camera import project
 from vision_cal.render.scene import load_scene
 from vision_cal.render.sheet import make_sheet, sheet_texture
 
@@ -249,7 +249,7 @@ def test_cli_render(tmp_path, monkeypatch, capsys):
 def test_photographer_K_widens_only_for_barrel_lenses():
     from dataclasses import replace
 
-    from vision_cal.render.camera import camera_matrix
+    from vision_cal.world.camera import camera_matrix
 
     K = camera_matrix(size_px=SMALL.camera.size_px, f_px=SMALL.camera.f_px)
     np.testing.assert_array_equal(ds.photographer_K(SMALL), K)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from vision_cal.render.camera import look_at, project
+from vision_cal.world.camera import look_at, project
 from vision_cal.render.height import Bump, Curl, HeightField, HeightScene, RandomBumps
 from vision_cal.render.sheet import sheet_texture
 

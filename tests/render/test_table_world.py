@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from vision_cal.render.camera import camera_matrix, look_at, phone_lens
+from vision_cal.world.camera import camera_matrix, look_at, phone_lens
 from vision_cal.render.table_world import Box, TableCamera, table_world
 
 SIZE = (480, 360)

@@ -55,7 +55,7 @@ from vision_cal.dataset.marker_geometry import marker_boxes_mm
 from vision_cal.errors import VisionCalError
 from vision_cal.plan import calibration_plan as cp
 from vision_cal.plan.calibration_plan import paper_plan
-from vision_cal.render.camera import camera_matrix, default_views, ideal_K
+from vision_cal.world.camera import camera_matrix, default_views, ideal_K
 from vision_cal.render.photo import Photographer
 from vision_cal.render.printed import load_printed_sheet, printed_textures
 from vision_cal.render.scene import Scene

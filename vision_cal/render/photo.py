@@ -2,7 +2,7 @@
 
 Conventions
 -----------
-- Cameras follow OpenCV (see :mod:`vision_cal.render.camera`): ``T_cam_sheet`` maps sheet
+- Cameras follow OpenCV (see :mod:`vision_cal.world.camera`): ``T_cam_sheet`` maps sheet
   points (x, y, z) (z up out of the paper, mm) to the camera frame (x right, y down, z
   forward); pixels are (u, v) = (col, row), integer at pixel centres.
 - The sheet is a textured quad spanning ``extent_mm`` on z = 0, drawn with pyrender's FLAT
@@ -70,7 +70,7 @@ import pyrender  # noqa: E402
 import trimesh  # noqa: E402
 
 from vision_cal.errors import VisionCalError  # noqa: E402
-from vision_cal.render.camera import (PHONE_PRISM_PX, PHONE_TANGENTIAL_PX,  # noqa: E402,F401
+from vision_cal.world.camera import (PHONE_PRISM_PX, PHONE_TANGENTIAL_PX,  # noqa: E402,F401
                                       distort_image, phone_lens)
 
 #: the JPEG quality of the real photos kept (fixtures/real_charuco_opencv: 95)

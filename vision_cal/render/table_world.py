@@ -12,7 +12,7 @@ renders:
   from each camera and cutting the markers at its edges;
 - the print is off its layout (``render/print_deviation``: a smooth field and toner);
 - two cameras (:class:`TableCamera`): a phone (wide, 4:3, its lens with the tangential and
-  thin-prism terms real phone photos show, ``render/camera.phone_lens``, JPEG) and a DSLR
+  thin-prism terms real phone photos show, ``world/camera.phone_lens``, JPEG) and a DSLR
   (a longer lens, 3:2, radial distortion only, another resolution), each photographing
   from its own places round the sheet (:func:`survey_poses`).
 
@@ -37,7 +37,7 @@ import cv2
 import numpy as np
 
 from vision_cal.dataset.session import Sheet
-from vision_cal.render.camera import camera_matrix, look_at, phone_lens, project
+from vision_cal.world.camera import camera_matrix, look_at, phone_lens, project
 from vision_cal.render.print_deviation import PrintField, PrintScene
 from vision_cal.render.sheet import make_sheet, sheet_texture, sheet_to_texture_pixel
 
@@ -139,7 +139,7 @@ def _lens_matrix(rng, size_px, fov_deg: float, f_spread: float, pp_spread: float
 def phone_camera(seed: int, *, size_px=(1200, 900)) -> TableCamera:
     """A phone's main camera (26 mm equivalent: 69 deg across), its principal point off
     the centre by a few tenths of a percent, barrel k1, and the tangential and thin-prism
-    terms of the size real phone photos show (``render/camera.phone_lens``); JPEG 95."""
+    terms of the size real phone photos show (``world/camera.phone_lens``); JPEG 95."""
     rng = np.random.default_rng([int(seed), 3701])
     K, f = _lens_matrix(rng, size_px, 69.0, 0.03, 0.004)
     dist = phone_lens(f_px=f, size_px=size_px, k1=rng.uniform(0.04, 0.10),
