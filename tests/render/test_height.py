@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from vision_cal.world.camera import look_at, project
-from vision_cal.render.height import Bump, Curl, HeightField, HeightScene, RandomBumps
+from vision_cal.world.height import Bump, Curl, HeightField, HeightScene, RandomBumps
 from vision_cal.render.sheet import sheet_texture
 
 pytestmark = pytest.mark.render

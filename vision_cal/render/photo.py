@@ -532,7 +532,7 @@ class Photographer:
         corners): build the Photographer with a shorter focal length to avoid that.
         ``height_grid`` = (xs (nx,), ys (ny,), Z (ny, nx)) mm: the paper is not flat; the
         texel of sheet point (x, y) is drawn at (x, y, h) (bilinear mesh over the grid,
-        see :mod:`vision_cal.render.height`).
+        see :mod:`vision_cal.world.height`).
         """
         rng = np.random.default_rng(rng)
         lens = None

@@ -48,7 +48,7 @@ Sections and fields::
         curls: [{edge: right, height_mm: 1.5, width_mm: 40}]  # left|right|bottom|top
         sag_mm: 0.3               # the middle lower than the edges by this much
         random: {n: 4, height_mm: [0.3, 0.65], sigma_mm: [25, 60], signed: true}
-                                  # bumps drawn from the seed (see render/height.py)
+                                  # bumps drawn from the seed (see world/height.py)
       print:                      # printed off the layout (absent: exactly on it)
         deviation_rms_mm: 0.17    # a smooth field in the paper's plane (feed wave, bow,
                                   # skew; no overall shift, turn or scale), its RMS
@@ -108,7 +108,7 @@ from vision_cal.dataset.fields import FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import Effect, RobotModel, effect_from_json
-from vision_cal.render.height import HeightScene, height_scene_from_dict
+from vision_cal.world.height import HeightScene, height_scene_from_dict
 from vision_cal.render.print_deviation import PrintScene
 from vision_cal.render.printed import load_printed_sheet
 from vision_cal.render.sheet import make_sheet
@@ -182,7 +182,7 @@ class SheetScene:
     marker_mm: float = 30.0
     grid: tuple[int, int] = (6, 4)
     margin_mm: float = 15.0
-    height: HeightScene | None = None   # not flat: vision_cal.render.height
+    height: HeightScene | None = None   # not flat: vision_cal.world.height
     printed: str | None = None   # a vision-cal sheet's sheet.json: photograph its own raster
     print: PrintScene | None = None   # printed off its layout: render.print_deviation
 

@@ -7,7 +7,7 @@ renders:
 
 - the paper lies on the table in waves (:class:`Waves`: two plane waves, about 1 mm high,
   never below the table): the point printed at (x, y) sits at (x, y, h(x, y)), as
-  ``render/height.py`` places it;
+  ``world/height.py`` places it;
 - an object stands on the paper (:class:`Box`, a mug-sized block), hiding what is behind it
   from each camera and cutting the markers at its edges;
 - the print is off its layout (``render/print_deviation``: a smooth field and toner);
