@@ -74,7 +74,7 @@ def printed_texture(printed: PrintedSheet, *, marks_xy_mm, mark_diameters_mm=1.2
                     paper_grain: bool = True, print_field=None) -> np.ndarray:
     """The printed sheet with its pen marks: (H, W, 3) uint8 RGB, like ``sheet_texture``.
 
-    ``print_field`` (:class:`vision_cal.render.print_deviation.PrintField`): the raster's
+    ``print_field`` (:class:`vision_cal.world.print_deviation.PrintField`): the raster's
     ink displaced by its field (its toner growth is not applied to a raster).
 
     ``px_per_mm``, when given, must be the raster's own (the print is not resampled).

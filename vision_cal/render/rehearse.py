@@ -54,7 +54,7 @@ from vision_cal.render.arm_camera import T_flange_camera_true, photograph_poses
 from vision_cal.world.camera import camera_matrix, default_views
 from vision_cal.render.dataset import encode_image, marks_off_paper, marks_on_markers
 from vision_cal.render.photo import Photographer
-from vision_cal.render.print_deviation import PrintScene
+from vision_cal.world.print_deviation import PrintScene
 from vision_cal.render.printed import PrintedSheet, printed_texture
 from vision_cal.render.truth_model import TrueRobot
 from vision_cal.render.world import draw_marks, simulated_world
@@ -94,7 +94,7 @@ class SimulatedRobot:
     ``effects``: the format effect dicts (truth.json); ``repeatability_mm`` per axis;
     ``controller``: smc | pd | kinematic; ``camera``; ``seed`` (None: fresh every run);
     ``print``: the printer's deviation of the sheet from its layout
-    (:class:`vision_cal.render.print_deviation.PrintScene`; exact when absent), its field
+    (:class:`vision_cal.world.print_deviation.PrintScene`; exact when absent), its field
     drawn from the sheet's id so that every photo of one sheet (the blank one surveyed,
     the pilot's, the plan's) shows the same print.
     """

@@ -53,7 +53,7 @@ Sections and fields::
         deviation_rms_mm: 0.17    # a smooth field in the paper's plane (feed wave, bow,
                                   # skew; no overall shift, turn or scale), its RMS
         toner_mm: 0.06            # the markers' black squares grown this much a side
-                                  # (see render/print_deviation.py)
+                                  # (see world/print_deviation.py)
     plan:
       kind: informative           # informative | paper (the seed paper's 5 poses)
       n_calibration: 30
@@ -109,7 +109,7 @@ from vision_cal.errors import VisionCalError
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import Effect, RobotModel, effect_from_json
 from vision_cal.world.height import HeightScene, height_scene_from_dict
-from vision_cal.render.print_deviation import PrintScene
+from vision_cal.world.print_deviation import PrintScene
 from vision_cal.render.printed import load_printed_sheet
 from vision_cal.render.sheet import make_sheet
 from vision_cal.render.truth_model import DRIFT_PARAMS, TrueRobot

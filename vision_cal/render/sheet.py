@@ -229,7 +229,7 @@ def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm
     a scalar or (N,) nominal diameters. Each dot is an ellipse of random size (+-10 %), aspect
     (1..1.15) and orientation, centred exactly on its mark. ``grid=False`` leaves out the
     plotting-paper lines, ``paper_grain=False`` gives a uniform paper (test helpers).
-    ``print_field``: a :class:`vision_cal.render.print_deviation.PrintField`: the markers'
+    ``print_field``: a :class:`vision_cal.world.print_deviation.PrintField`: the markers'
     black squares grown by its toner and the printed layer (grid, markers) displaced by its
     field (the pen's dots are not).
     """

@@ -10,7 +10,7 @@ renders:
   ``world/height.py`` places it;
 - an object stands on the paper (:class:`Box`, a mug-sized block), hiding what is behind it
   from each camera and cutting the markers at its edges;
-- the print is off its layout (``render/print_deviation``: a smooth field and toner);
+- the print is off its layout (``world/print_deviation``: a smooth field and toner);
 - two cameras (:class:`TableCamera`): a phone (wide, 4:3, its lens with the tangential and
   thin-prism terms real phone photos show, ``world/camera.phone_lens``, JPEG) and a DSLR
   (a longer lens, 3:2, radial distortion only, another resolution), each photographing
@@ -38,7 +38,7 @@ import numpy as np
 
 from vision_cal.dataset.session import Sheet
 from vision_cal.world.camera import camera_matrix, look_at, phone_lens, project
-from vision_cal.render.print_deviation import PrintField, PrintScene
+from vision_cal.world.print_deviation import PrintField, PrintScene
 from vision_cal.render.sheet import make_sheet, sheet_texture, sheet_to_texture_pixel
 
 #: fixed-point steps of the ray against the waved paper (converges by ~0.05 a step: four
