@@ -465,7 +465,7 @@ NOT_A_SOLVER = {"linear_sum_assignment"}
 #: the world's own code: it never uses the estimator's (docs/architecture.md), so its arm's
 #: inverse kinematics keeps its own solve
 SOLVER_WORLD = {
-    "vision_cal.render.six_axis": "the six-axis world's inverse kinematics: the world never "
+    "vision_cal.world.six_axis": "the six-axis world's inverse kinematics: the world never "
                                   "runs the estimator's code",
 }
 #: modules other engineers are changing now; each moves to the one solver after they merge
