@@ -21,7 +21,7 @@ from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.render import arm_camera as world
 from vision_cal.render.sheet import make_sheet
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 SIZE = (1280, 960)
 K = np.array([[1100.0, 0, 639.5], [0, 1100.0, 479.5], [0, 0, 1]])

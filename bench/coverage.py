@@ -50,7 +50,7 @@ from vision_cal.model.kinematics import ScaraParams  # noqa: E402
 from vision_cal.plan.calibration_plan import informative_plan  # noqa: E402
 from vision_cal.plan.compensate import plan_targets  # noqa: E402
 from vision_cal.plan.uncertainty import target_std  # noqa: E402
-from vision_cal.render.truth_model import TrueRobot  # noqa: E402
+from vision_cal.world.truth_model import TrueRobot  # noqa: E402
 from vision_cal.workflows.pipeline import calibrate_dataset  # noqa: E402
 
 SM5 = ScaraParams(344.05, 259.87, -2.57, -8.13, -424.26, -230.35)

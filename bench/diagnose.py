@@ -31,7 +31,7 @@ from scipy.optimize import least_squares
 from vision_cal.diagnose.select import diagnose
 from vision_cal.model.kinematics import ScaraParams, forward
 from vision_cal.model.robot import JointBacklash, JointCyclic, JointScale, SheetAffine
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 TRUTH = ScaraParams(344.05, 259.87, -2.57, -8.13, -424.26, -230.35)
 

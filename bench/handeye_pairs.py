@@ -60,7 +60,7 @@ from vision_cal.actions.handeye import pairs_document
 from vision_cal.camera.pose_pairs import PosePair, fit_pose_pairs
 from vision_cal.render.arm_camera import T_flange_camera_true
 from vision_cal.render.pose_pairs import simulate_many_pairs, simulate_pairs
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 TRUTH = TrueRobot(344.05, 259.87, (-2.57, -8.13), (-424.26, -230.35))
 NOISE = {"px": {"noise_px": 0.1}, "pose": {"noise_px": None, "noise_mm": 1.0, "noise_deg": 0.5}}

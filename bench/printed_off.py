@@ -33,7 +33,7 @@ sys.path.insert(0, str(ROOT))
 def evaluate(folder: Path, out: Path) -> dict:
     from vision_cal.dataset.calibration import load_calibration
     from vision_cal.plan.compensate import plan_targets
-    from vision_cal.render.truth_model import TrueRobot
+    from vision_cal.world.truth_model import TrueRobot
 
     truth = json.loads((folder / "truth.json").read_text())
     cal = json.loads((out / "calibration.json").read_text())

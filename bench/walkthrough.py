@@ -35,7 +35,7 @@ from tests.design.test_programs import parse_spel  # noqa: E402
 from vision_cal.commands.main import main as cli_main  # noqa: E402
 from vision_cal.model.kinematics import ScaraParams  # noqa: E402
 from vision_cal.plan.calibration_plan import PlannedMark  # noqa: E402
-from vision_cal.render.truth_model import TrueRobot  # noqa: E402
+from vision_cal.world.truth_model import TrueRobot  # noqa: E402
 
 ROBOT = ROOT / "fixtures" / "robot_sm5.yaml"
 TRUTH = TrueRobot.from_json(

@@ -23,7 +23,7 @@ from vision_cal.dataset.calibration_result import METHODS_EXTRA, CalibrationResu
 from vision_cal.camera.poses_file import read_poses
 from vision_cal.errors import VisionCalError
 from vision_cal.render.pose_pairs import simulate_pairs
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 from vision_cal.schema import validate
 
 TRUTH = TrueRobot(344.05, 259.87, (-2.57, -8.13), (-424.26, -230.35))

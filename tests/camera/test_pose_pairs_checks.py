@@ -22,7 +22,7 @@ from vision_cal.camera.poses_file import read_poses
 from vision_cal.errors import VisionCalError
 from vision_cal.render.arm_camera import T_flange_camera_true
 from vision_cal.render.pose_pairs import simulate_many_pairs, simulate_pairs
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 TRUTH = TrueRobot(344.05, 259.87, (-2.57, -8.13), (-424.26, -230.35))
 REGION_6 = float(stats.chi2.ppf(0.95, 6))

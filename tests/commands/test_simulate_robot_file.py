@@ -173,7 +173,7 @@ def test_simulate_draws_with_the_robot_files_tool_and_joint_4(tmp_path, monkeypa
     25 mm from the flange, along the flange's direction (truth.json's marks); the program's
     joint 4 at 90 deg turns it a quarter turn."""
     import vision_cal.render.rehearse as rehearse
-    from vision_cal.render.truth_model import TrueRobot
+    from vision_cal.world.truth_model import TrueRobot
 
     monkeypatch.setattr(rehearse, "Photographer", _Blank)
     robot_path = _robot(tmp_path, tool_mm=[25.0, 0.0])

@@ -15,7 +15,7 @@ from vision_cal.errors import VisionCalError
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import JointBacklash, JointCyclic, JointScale, RobotModel, SheetAffine
 from vision_cal.plan.calibration_plan import PlannedMark, paper_plan
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 from vision_cal.render.world import (arm_boxes, arm_points, draw_marks, kinematic_joints,
                                      parking_pose)
 

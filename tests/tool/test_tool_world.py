@@ -1,10 +1,10 @@
-"""The world's own tool and joint 4 (render/truth_model.py): hand-computed anchors."""
+"""The world's own tool and joint 4 (world/truth_model.py): hand-computed anchors."""
 
 import numpy as np
 import pytest
 
 from vision_cal.errors import VisionCalError
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 PARAMS = {"L1_mm": 300.0, "L2_mm": 200.0, "joint_zero_deg": [0.0, 0.0], "base_mm": [0.0, 0.0]}
 

@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 from vision_cal.render.arm_camera import T_flange_camera_true, T_sheet_flange
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 
 def T_sheet_robot(robot: TrueRobot) -> np.ndarray:

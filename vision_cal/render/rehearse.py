@@ -29,7 +29,7 @@ Everything is computed and rendered in memory before anything is written; each f
 written atomically and ``truth.json`` last.
 
 This module is the synthetic world's: it uses the world's own true robot
-(:mod:`vision_cal.render.truth_model`) and simulator, never the estimator's model.
+(:mod:`vision_cal.world.truth_model`) and simulator, never the estimator's model.
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ from vision_cal.render.dataset import encode_image, marks_off_paper, marks_on_ma
 from vision_cal.render.photo import Photographer
 from vision_cal.world.print_deviation import PrintScene
 from vision_cal.render.printed import PrintedSheet, printed_texture
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 from vision_cal.render.world import draw_marks, simulated_world
 from vision_cal.sheet.png import rasterise
 from vision_cal.sheet.rebuild import layout_from_sheet_json

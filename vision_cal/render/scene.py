@@ -28,7 +28,7 @@ Sections and fields::
                                   # [{feature: q1, coef: 0.001}]}), drift ({name: drift,
                                   # param: z1_deg | z2_deg | L1_mm | L2_mm | base_x_mm |
                                   # base_y_mm, change: 0.02, shape: linear | warmup,
-                                  # tau: 0.2}; see render/truth_model.py)
+                                  # tau: 0.2}; see world/truth_model.py)
       repeatability_mm: 0.01      # sigma of the isotropic noise of each mark, per axis
       pen_diameter_mm: 1.2        # nominal diameter of a pen mark (session.json pen)
       controller: smc             # smc (default) | pd: vision_cal.simulate runs the plan
@@ -112,7 +112,7 @@ from vision_cal.world.height import HeightScene, height_scene_from_dict
 from vision_cal.world.print_deviation import PrintScene
 from vision_cal.render.printed import load_printed_sheet
 from vision_cal.render.sheet import make_sheet
-from vision_cal.render.truth_model import DRIFT_PARAMS, TrueRobot
+from vision_cal.world.truth_model import DRIFT_PARAMS, TrueRobot
 
 PLAN_KINDS = ("informative", "paper")
 PHOTO_MODES = ("series", "single", "survey")
@@ -160,7 +160,7 @@ class RobotScene:
 
     @property
     def true_robot(self):
-        """The world's own robot (:mod:`vision_cal.render.truth_model`), built from the
+        """The world's own robot (:mod:`vision_cal.world.truth_model`), built from the
         truth's JSON blocks only."""
         return TrueRobot.from_json(self.truth_params_json,
                                    [e.to_json() for e in self.effects] + list(self.drift))
@@ -321,7 +321,7 @@ def _robot(r: _R, d) -> RobotScene:
 
 
 def _drift(r: _R, e: dict, where: str) -> dict:
-    """A world drift effect (render/truth_model.py): one parameter changing with time."""
+    """A world drift effect (world/truth_model.py): one parameter changing with time."""
     e = r.section(e, where, ("name", "param", "change", "shape", "tau"))
     param = r.choice(e.get("param"), f"{where}.param", DRIFT_PARAMS)
     change = r.number(e.get("change"), f"{where}.change", lo=-10, hi=10)

@@ -16,7 +16,7 @@ controller can be plugged in with the same signature::
 or PD controller, dynamics, gear play).
 
 The true mark is ``truth.pen_mm(link_q_deg, approach)`` (every hidden effect of the
-world's own :class:`~vision_cal.render.truth_model.TrueRobot` included, never the
+world's own :class:`~vision_cal.world.truth_model.TrueRobot` included, never the
 estimator's model) plus isotropic Gaussian noise of ``repeatability_mm`` per axis.
 """
 
@@ -28,7 +28,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from vision_cal.errors import VisionCalError
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 from vision_cal.world.simulate import simulate_plan
 
 JointSource = Callable[[Sequence, Sequence[float]], tuple[np.ndarray, np.ndarray]]
