@@ -72,7 +72,7 @@ def warp_folder(folder: Path, n_photos: int) -> None:
     """Fallback: the test helper's warp of the sheet texture (no pyrender)."""
     from tests.measure import synth_measure as sm
     from vision_cal.world.camera import camera_matrix, look_at
-    from vision_cal.render.sheet import make_sheet
+    from vision_cal.world.sheet import make_sheet
 
     folder.mkdir(parents=True, exist_ok=True)
     sheet = make_sheet()

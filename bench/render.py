@@ -25,7 +25,7 @@ import numpy as np
 
 from vision_cal.world.camera import camera_matrix, default_views, project
 from vision_cal.render.photo import Photographer
-from vision_cal.render.sheet import make_sheet, sheet_texture
+from vision_cal.world.sheet import make_sheet, sheet_texture
 
 
 def main(argv=None) -> int:
@@ -142,7 +142,7 @@ def main(argv=None) -> int:
 
 def _dot_centres(img, bare, guesses_px, *, r=6):
     """Ink-coverage centroids near ``guesses_px`` (photo with and without the dots)."""
-    from vision_cal.render.sheet import DOT_RGB
+    from vision_cal.world.sheet import DOT_RGB
 
     img = img[..., 0].astype(float)
     bare = bare[..., 0].astype(float)

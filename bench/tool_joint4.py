@@ -168,7 +168,7 @@ def render_case(seed: int, *, width_px: int = 1600, keep: Path | None = None) ->
     from vision_cal.model.kinematics import forward
     from vision_cal.render import dataset as ds
     from vision_cal.render.scene import scene_from_dict
-    from vision_cal.render.sheet import make_sheet
+    from vision_cal.world.sheet import make_sheet
 
     rng = np.random.default_rng(seed)
     r, ang = rng.uniform(15, 35), rng.uniform(-np.pi, np.pi)

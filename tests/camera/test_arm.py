@@ -14,7 +14,7 @@ from vision_cal.camera.arm import (LABELS, ArmView, fit_arm_camera, relative_mot
 from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.render import arm_camera as world
-from vision_cal.render.sheet import make_sheet
+from vision_cal.world.sheet import make_sheet
 from vision_cal.world.truth_model import TrueRobot
 
 N_STD = 4.0

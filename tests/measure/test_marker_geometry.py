@@ -73,7 +73,7 @@ def test_dots_next_to_other_quiet_zones_measure_as_well(dictionary, quiet, tmp_p
     marks 0.8-1.6 mm outside the quiet zones (where a wrong blank box biases the
     background model). Deliberate bug caught: the old fixed geometry (7 modules, 2-module
     quiet zone) gives 54 um RMS / max |z| 22 (4x4, 1 module) and 12 um / 6.3 (6x6, 3)."""
-    from vision_cal.render.sheet import make_sheet
+    from vision_cal.world.sheet import make_sheet
 
     sheet = make_sheet(size_mm=(240.0, 180.0), bottom_left_mm=(-120.0, -90.0),
                        dictionary=dictionary, marker_mm=20.0, grid=(4, 3), margin_mm=8.0)

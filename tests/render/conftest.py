@@ -27,7 +27,7 @@ def photographer(K):
 @pytest.fixture(scope="session")
 def small_sheet():
     """A 200 x 150 mm sheet with 3 x 2 markers: at 640 x 480 about 0.38 mm per pixel."""
-    from vision_cal.render.sheet import make_sheet
+    from vision_cal.world.sheet import make_sheet
 
     return make_sheet(size_mm=(200.0, 150.0), bottom_left_mm=(-100.0, -60.0), marker_mm=20.0,
                       grid=(3, 2), margin_mm=10.0)

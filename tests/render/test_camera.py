@@ -7,7 +7,7 @@ import pytest
 from vision_cal.errors import VisionCalError
 from vision_cal.world.camera import (_undistort_maps, camera_matrix, default_views,
                                       distort_image, look_at, project)
-from vision_cal.render.sheet import make_sheet
+from vision_cal.world.sheet import make_sheet
 
 
 def test_camera_matrix_centres_the_principal_point():

@@ -13,7 +13,7 @@ from vision_cal.calibrate.paper import pilot_params
 from vision_cal.render import dataset as ds
 from vision_cal.world.camera import project
 from vision_cal.render.scene import load_scene
-from vision_cal.render.sheet import make_sheet, sheet_texture
+from vision_cal.world.sheet import make_sheet, sheet_texture
 
 RENDERS = Path(__file__).resolve().parents[2] / "renders"
 SMALL = load_scene(RENDERS / "small.yaml")

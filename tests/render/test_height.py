@@ -5,7 +5,7 @@ import pytest
 
 from vision_cal.world.camera import look_at, project
 from vision_cal.world.height import Bump, Curl, HeightField, HeightScene, RandomBumps
-from vision_cal.render.sheet import sheet_texture
+from vision_cal.world.sheet import sheet_texture
 
 pytestmark = pytest.mark.render
 

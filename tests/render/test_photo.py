@@ -7,7 +7,7 @@ import pytest
 from vision_cal.errors import VisionCalError
 from vision_cal.world.camera import default_views, look_at, project
 from vision_cal.render.photo import SHADOW_STRENGTH
-from vision_cal.render.sheet import DOT_RGB, sheet_texture
+from vision_cal.world.sheet import DOT_RGB, sheet_texture
 
 pytestmark = pytest.mark.render
 

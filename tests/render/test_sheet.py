@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from vision_cal.errors import VisionCalError
-from vision_cal.render.sheet import (DOT_RGB, make_sheet, sheet_texture,
+from vision_cal.world.sheet import (DOT_RGB, make_sheet, sheet_texture,
                                      sheet_to_texture_pixel, texture_pixel_to_sheet)
 
 SMALL = dict(size_mm=(200.0, 150.0), bottom_left_mm=(-100.0, -60.0), marker_mm=20.0,

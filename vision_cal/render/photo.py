@@ -7,7 +7,7 @@ Conventions
   forward); pixels are (u, v) = (col, row), integer at pixel centres.
 - The sheet is a textured quad spanning ``extent_mm`` on z = 0, drawn with pyrender's FLAT
   (unlit) shader, so a texel's RGB reaches the image unchanged (no lighting, no sRGB
-  conversion). The texture follows the pixel convention of :mod:`vision_cal.render.sheet`.
+  conversion). The texture follows the pixel convention of :mod:`vision_cal.world.sheet`.
 - Sampling: the scene is rendered at ``supersample`` times the image size with
   trilinear-mipmapped texture look-ups at the (supersampled) pixel centres, then averaged
   down in s x s blocks (cv2.INTER_AREA). The camera matrix of the big render is

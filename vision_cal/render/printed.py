@@ -2,11 +2,11 @@
 
 ``vision-cal sheet --png-dpi N`` writes ``sheet.png`` next to ``sheet.json``; this module
 lets the synthetic world photograph exactly that print instead of the analytic sheet of
-:mod:`vision_cal.render.sheet`: the raster is the ink on the paper, the paper colour and
-grain are added here, the pen dots by :func:`vision_cal.render.sheet.ink_marks` (the
+:mod:`vision_cal.world.sheet`: the raster is the ink on the paper, the paper colour and
+grain are added here, the pen dots by :func:`vision_cal.world.sheet.ink_marks` (the
 analytic sheet's dot model).
 
-Texture convention: the same as :mod:`vision_cal.render.sheet` (row 0 at the top,
+Texture convention: the same as :mod:`vision_cal.world.sheet` (row 0 at the top,
 ``px_per_mm`` = dpi / 25.4, the paper a whole number of pixels).
 """
 
@@ -21,7 +21,7 @@ from PIL import Image
 
 from vision_cal.dataset.session import Sheet, load_sheet_file
 from vision_cal.errors import VisionCalError
-from vision_cal.render.sheet import (PAPER_RGB, displacement_maps, ink_marks, paper_field,
+from vision_cal.world.sheet import (PAPER_RGB, displacement_maps, ink_marks, paper_field,
                                      texture_shape)
 
 

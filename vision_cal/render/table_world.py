@@ -20,7 +20,7 @@ Rendering (:meth:`TableWorld.photograph`) is ray casting, one ray per (supersamp
 the pixel undistorted by OpenCV's own model (``cv2.undistortPoints``, iterated to
 1e-10: 5, 8, 12 or 14 coefficients), the ray met with the waved paper by a fixed-point iteration on its height
 (it converges by the waves' slope times the ray's, below 0.05 a step), the box's faces in
-front of it, the table around the paper. The paper's texture (``render/sheet.sheet_texture``
+front of it, the table around the paper. The paper's texture (``world/sheet.sheet_texture``
 with the print) is looked up where the ray meets the paper; the box and the table are
 shaded flat under a light from above. Then the supersampled image is averaged down, blurred
 (the optics), vignetted, given signal-dependent noise and, for the phone, a JPEG round trip.
@@ -39,7 +39,7 @@ import numpy as np
 from vision_cal.dataset.session import Sheet
 from vision_cal.world.camera import camera_matrix, look_at, phone_lens, project
 from vision_cal.world.print_deviation import PrintField, PrintScene
-from vision_cal.render.sheet import make_sheet, sheet_texture, sheet_to_texture_pixel
+from vision_cal.world.sheet import make_sheet, sheet_texture, sheet_to_texture_pixel
 
 #: fixed-point steps of the ray against the waved paper (converges by ~0.05 a step: four
 #: leave 1e-5 of the waves' height)
