@@ -138,7 +138,7 @@ def _raised_plate(sc, truth, cam, z_mm, T_rs, rng):
     2-D RMS error in px against the true projection."""
     from vision_cal.dataset.marker_geometry import marker_geometry
     from vision_cal.measure.aruco import corners_from_edges, edge_points, find_sheet_markers
-    from vision_cal.render.photo import Photographer
+    from vision_cal.world.photo import Photographer
     from vision_cal.world.sheet import make_sheet, sheet_texture
 
     _, T_cs, K, dist = _truth_T(truth)

@@ -132,7 +132,7 @@ def fixture_table() -> int:
 
 def worlds(seed: int):
     from tests.render.test_bumped import scene_dict
-    from vision_cal.render.photo import PHONE_JPEG_QUALITY, phone_lens
+    from vision_cal.world.photo import PHONE_JPEG_QUALITY, phone_lens
 
     base = scene_dict(None, seed=seed)
     base["plan"]["n_calibration"] = 14

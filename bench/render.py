@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 
 from vision_cal.world.camera import camera_matrix, default_views, project
-from vision_cal.render.photo import Photographer
+from vision_cal.world.photo import Photographer
 from vision_cal.world.sheet import make_sheet, sheet_texture
 
 

@@ -117,7 +117,7 @@ def walkthrough(tmp: Path) -> dict:
     from vision_cal.dataset.session import load_sheet_file
     from vision_cal.workflows.loop import default_targets
     from vision_cal.world.camera import camera_matrix
-    from vision_cal.render.photo import Photographer
+    from vision_cal.world.photo import Photographer
 
     tmp.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(2026)

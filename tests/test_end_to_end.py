@@ -42,7 +42,7 @@ def scene(effects=(), seed=12, dist=None):
 
 @pytest.fixture(scope="session")
 def photographer():
-    from vision_cal.render.photo import Photographer
+    from vision_cal.world.photo import Photographer
 
     s = scene()
     return Photographer(size_px=s.camera.size_px, K=ds.photographer_K(s))

@@ -17,7 +17,7 @@ def K():
 
 @pytest.fixture(scope="session")
 def photographer(K):
-    from vision_cal.render.photo import Photographer
+    from vision_cal.world.photo import Photographer
 
     ph = Photographer(size_px=SIZE_PX, K=K)
     yield ph

@@ -22,7 +22,7 @@ SMALL = load_scene(RENDERS / "small.yaml")
 @pytest.fixture(scope="session")
 def small_photographer():
     """One renderer for every test that photographs the small scene's camera."""
-    from vision_cal.render.photo import Photographer
+    from vision_cal.world.photo import Photographer
 
     return Photographer(size_px=SMALL.camera.size_px, K=ds.photographer_K(SMALL))
 

@@ -6,7 +6,7 @@ import pytest
 
 from vision_cal.errors import VisionCalError
 from vision_cal.world.camera import default_views, look_at, project
-from vision_cal.render.photo import SHADOW_STRENGTH
+from vision_cal.world.photo import SHADOW_STRENGTH
 from vision_cal.world.sheet import DOT_RGB, sheet_texture
 
 pytestmark = pytest.mark.render
@@ -241,7 +241,7 @@ def test_colour_only_read_back_is_pyrenders_own(photographer, small_sheet, full_
 def test_shadow_window_is_the_whole_resize_where_a_shadow_shows():
     """The shadow mask resized in its window only: the same values as the whole image's
     resize there, and below the visible level everywhere else."""
-    from vision_cal.render.photo import SHADOW_VISIBLE, _shadow_window
+    from vision_cal.world.photo import SHADOW_VISIBLE, _shadow_window
 
     q, hs, ws = 4, 96, 160
     for blob, sigma in (((10, 17), 1.5), ((0, 0), 2.0), ((23, 39), 0.8)):
@@ -269,7 +269,7 @@ def test_depth_window_is_pyrenders_depth(photographer, small_sheet, full_texture
     """The shadows' depth, read back in a window, is pyrender's whole depth image there."""
     import pyrender
 
-    from vision_cal.render.photo import _read_depth_window
+    from vision_cal.world.photo import _read_depth_window
 
     tex, _ = full_textures
     T = look_at(eye_mm=(20.0, -40.0, 520.0), target_mm=(0.0, 15.0))

@@ -56,7 +56,7 @@ from vision_cal.errors import VisionCalError
 from vision_cal.plan import calibration_plan as cp
 from vision_cal.plan.calibration_plan import paper_plan
 from vision_cal.world.camera import camera_matrix, default_views, ideal_K
-from vision_cal.render.photo import Photographer
+from vision_cal.world.photo import Photographer
 from vision_cal.render.printed import load_printed_sheet, printed_textures
 from vision_cal.render.scene import Scene
 from vision_cal.world.sheet import make_sheet, sheet_textures

@@ -24,7 +24,7 @@ from vision_cal.errors import VisionCalError
 
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
 #: sizes (px at the image corner, per 1000 px of image half-diagonal) of the lens terms
-#: beyond k1 k2 in a real photo (render/photo's module docstring: 0.2 px each at the corner
+#: beyond k1 k2 in a real photo (world/photo's module docstring: 0.2 px each at the corner
 #: of the 400 px half-diagonal of fixtures/real_charuco_opencv, 0.5 per 1000 px, rounded up)
 PHONE_TANGENTIAL_PX = 0.6
 PHONE_PRISM_PX = 0.6
