@@ -93,7 +93,7 @@ def photograph(folder: Path, sheet_dir: Path, world, photographer, rng, *, n: in
     import cv2
 
     from vision_cal.world.camera import camera_matrix, default_views
-    from vision_cal.render.printed import load_printed_sheet, printed_texture
+    from vision_cal.world.printed import load_printed_sheet, printed_texture
 
     printed = load_printed_sheet(sheet_dir / "sheet.json")
     sheet = printed.sheet

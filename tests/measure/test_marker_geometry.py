@@ -113,7 +113,7 @@ PPM = 10.0
 @pytest.fixture(scope="module", params=[("DICT_4X4_50", 1.0, 15.0), ("DICT_6X6_250", 3.0, 16.0)],
                 ids=["4x4-quiet1", "6x6-quiet3"])
 def printed(request, tmp_path_factory):
-    from vision_cal.render.printed import load_printed_sheet
+    from vision_cal.world.printed import load_printed_sheet
     from vision_cal.sheet import make_layout, write_sheet
 
     dictionary, quiet, marker = request.param
@@ -127,7 +127,7 @@ def printed(request, tmp_path_factory):
 def test_prints_of_vision_cal_sheet_measure_through_the_raster_texture(printed, tmp_path):
     """``vision-cal sheet`` prints (other dictionaries and quiet zones) photographed with the
     renderer's printed-raster texture: every mark measured, within its reported std."""
-    from vision_cal.render.printed import printed_texture
+    from vision_cal.world.printed import printed_texture
 
     pr, lay = printed
     sheet = pr.sheet

@@ -9,7 +9,7 @@ import pytest
 from vision_cal.calibrate.paper import pilot_params
 from vision_cal.commands.main import main
 from vision_cal.errors import VisionCalError
-from vision_cal.render.printed import load_printed_sheet, printed_texture
+from vision_cal.world.printed import load_printed_sheet, printed_texture
 from vision_cal.render.scene import load_scene
 
 RENDERS = Path(__file__).resolve().parents[2] / "renders"

@@ -57,7 +57,7 @@ from vision_cal.plan import calibration_plan as cp
 from vision_cal.plan.calibration_plan import paper_plan
 from vision_cal.world.camera import camera_matrix, default_views, ideal_K
 from vision_cal.world.photo import Photographer
-from vision_cal.render.printed import load_printed_sheet, printed_textures
+from vision_cal.world.printed import load_printed_sheet, printed_textures
 from vision_cal.render.scene import Scene
 from vision_cal.world.sheet import make_sheet, sheet_textures
 from vision_cal.progress import bar as progress_bar
@@ -147,7 +147,7 @@ class Textures:
 
     def __init__(self, sheet, xy_mm, diameters_mm, *, px_per_mm, seed, printed=None,
                  print_field=None, built=None):
-        if printed is not None:  # the printed sheet's own raster (vision_cal.render.printed)
+        if printed is not None:  # the printed sheet's own raster (vision_cal.world.printed)
             px_per_mm = printed.px_per_mm
         self.xy_mm = np.asarray(xy_mm, float)
         self.d_mm = np.asarray(diameters_mm, float)
@@ -617,7 +617,7 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
     :func:`photographer_K`) to reuse (tests share one); by default one is built.
     ``joint_source``: see :mod:`vision_cal.render.world` (overrides ``robot.controller``;
     the truth model then predicts with every effect, backlash included).
-    ``printed``: a :class:`vision_cal.render.printed.PrintedSheet` (``vision-cal sheet``'s
+    ``printed``: a :class:`vision_cal.world.printed.PrintedSheet` (``vision-cal sheet``'s
     sheet.json and PNG) photographed instead of the scene's analytic sheet.
     ``jobs``: processes that render photos (contiguous runs of the series, one renderer
     each; only with the default photographer); the photos are the same for any number.

@@ -55,7 +55,7 @@ from vision_cal.world.camera import camera_matrix, default_views
 from vision_cal.render.dataset import encode_image, marks_off_paper, marks_on_markers
 from vision_cal.world.photo import Photographer
 from vision_cal.world.print_deviation import PrintScene
-from vision_cal.render.printed import PrintedSheet, printed_texture
+from vision_cal.world.printed import PrintedSheet, printed_texture
 from vision_cal.world.truth_model import TrueRobot
 from vision_cal.render.world import draw_marks, simulated_world
 from vision_cal.sheet.png import rasterise

@@ -110,7 +110,7 @@ from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import Effect, RobotModel, effect_from_json
 from vision_cal.world.height import HeightScene, height_scene_from_dict
 from vision_cal.world.print_deviation import PrintScene
-from vision_cal.render.printed import load_printed_sheet
+from vision_cal.world.printed import load_printed_sheet
 from vision_cal.world.sheet import make_sheet
 from vision_cal.world.truth_model import DRIFT_PARAMS, TrueRobot
 
