@@ -203,7 +203,7 @@ def render_world(name: str, seed: int, out: Path):
 
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.render.dataset import render_dataset
-    from vision_cal.render.scene import scene_from_dict
+    from vision_cal.world.scene import scene_from_dict
 
     scene, places = SCENES[name]
     raw = copy.deepcopy(yaml.safe_load((ROOT / "renders" / f"{scene}.yaml").read_text())

@@ -83,7 +83,7 @@ def render_grid(seeds: int, width: int, only: str | None = None) -> None:
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.render.dataset import photographer_K, render_dataset
     from vision_cal.world.photo import Photographer
-    from vision_cal.render.scene import scene_from_dict
+    from vision_cal.world.scene import scene_from_dict
 
     root = Path(__file__).resolve().parents[1]
     base = yaml.safe_load((root / "renders" / "default.yaml").read_text())

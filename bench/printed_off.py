@@ -91,7 +91,7 @@ def main() -> int:
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.workflows.pipeline import calibrate_dataset
     from vision_cal.render.dataset import render_dataset
-    from vision_cal.render.scene import load_scene
+    from vision_cal.world.scene import load_scene
 
     for seed in a.seeds or [None]:
         sc = load_scene(a.scene).with_overrides(seed=seed)

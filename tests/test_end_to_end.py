@@ -17,7 +17,7 @@ from vision_cal.dataset.io import read_json
 from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.calibrate.paper import pilot_params
 from vision_cal.render import dataset as ds
-from vision_cal.render.scene import scene_from_dict
+from vision_cal.world.scene import scene_from_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE = yaml.safe_load((ROOT / "renders" / "small.yaml").read_text())

@@ -11,7 +11,7 @@ import pytest
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.csvio import read_plan, read_targets
 from vision_cal.workflows.loop import format_table, run_loop
-from vision_cal.render.scene import load_scene
+from vision_cal.world.scene import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 

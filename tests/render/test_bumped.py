@@ -29,7 +29,7 @@ def scene_dict(height, *, seed=5, moving=False) -> dict:
 
 
 def _scene(height, *, seed=5, moving=False):
-    from vision_cal.render.scene import scene_from_dict
+    from vision_cal.world.scene import scene_from_dict
 
     return scene_from_dict(scene_dict(height, seed=seed, moving=moving))
 

@@ -12,7 +12,7 @@ from vision_cal.errors import VisionCalError
 from vision_cal.calibrate.paper import pilot_params
 from vision_cal.render import dataset as ds
 from vision_cal.world.camera import project
-from vision_cal.render.scene import load_scene
+from vision_cal.world.scene import load_scene
 from vision_cal.world.sheet import make_sheet, sheet_texture
 
 RENDERS = Path(__file__).resolve().parents[2] / "renders"
@@ -138,7 +138,7 @@ def test_textures_built_once_equal_two_builds():
 def test_single_photo_undeclared_lens_jpeg_and_extras(tmp_path, small_photographer):
     from dataclasses import replace
 
-    from vision_cal.render.scene import ExtraFile
+    from vision_cal.world.scene import ExtraFile
 
     scene = replace(SMALL,
                     camera=replace(SMALL.camera, dist=(0.05, -0.01, 0.0, 0.0, 0.0),

@@ -72,7 +72,7 @@ def test_rendered_dataset_records_the_field(tmp_path):
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.dataset.io import read_json
     from vision_cal.render.dataset import render_dataset
-    from vision_cal.render.scene import scene_from_dict
+    from vision_cal.world.scene import scene_from_dict
 
     sc = scene_from_dict({"seed": 3, "robot": {"controller": "kinematic", "nominal": {
         "L1_mm": 344.0, "L2_mm": 260.0, "joint_zero_deg": [-2.5, -8.0],

@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 
 from vision_cal.world.print_deviation import PrintField, PrintScene, _similarity_fit
-from vision_cal.render.scene import scene_from_dict
+from vision_cal.world.scene import scene_from_dict
 from vision_cal.world.sheet import make_sheet, sheet_texture
 
 

@@ -10,7 +10,7 @@ from vision_cal.calibrate.paper import pilot_params
 from vision_cal.commands.main import main
 from vision_cal.errors import VisionCalError
 from vision_cal.world.printed import load_printed_sheet, printed_texture
-from vision_cal.render.scene import load_scene
+from vision_cal.world.scene import load_scene
 
 RENDERS = Path(__file__).resolve().parents[2] / "renders"
 SMALL = load_scene(RENDERS / "small.yaml")   # an A2 sheet, textures at 2 px/mm
@@ -81,7 +81,7 @@ def test_rendered_photos_of_the_print_measure_where_truth_is(sheet_dir, tmp_path
 
 
 def test_a_scene_can_name_a_printed_sheet(sheet_dir, tmp_path):
-    from vision_cal.render.scene import load_scene
+    from vision_cal.world.scene import load_scene
 
     scene_yaml = (RENDERS / "small.yaml").read_text()
     (tmp_path / "s.yaml").write_text(scene_yaml + f"sheet:\n  printed: {sheet_dir}/sheet.json\n")

@@ -12,7 +12,7 @@ import pytest
 from vision_cal.errors import VisionCalError
 from vision_cal.world.camera import distort_image
 from vision_cal.world.camera import corner_shift as _corner_shift, phone_lens
-from vision_cal.render.scene import scene_from_dict
+from vision_cal.world.scene import scene_from_dict
 
 SIZE = (800, 600)
 F = 700.0

@@ -8,7 +8,7 @@ import pytest
 from vision_cal.errors import VisionCalError
 from vision_cal.model.kinematics import forward
 from vision_cal.model.robot import JointBacklash, SheetAffine
-from vision_cal.render.scene import Scene, load_scene, scene_from_dict
+from vision_cal.world.scene import Scene, load_scene, scene_from_dict
 
 RENDERS = Path(__file__).resolve().parents[2] / "renders"
 SCENES = sorted(RENDERS.glob("*.yaml"))

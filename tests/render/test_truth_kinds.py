@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from vision_cal.errors import VisionCalError
-from vision_cal.render.scene import scene_from_dict
+from vision_cal.world.scene import scene_from_dict
 from vision_cal.world.truth_model import TrueRobot
 
 P = {"L1_mm": 300.0, "L2_mm": 200.0, "joint_zero_deg": [0.0, 0.0], "base_mm": [0.0, 0.0]}

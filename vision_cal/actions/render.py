@@ -12,7 +12,7 @@ from vision_cal.calibrate.paper import pilot_params
 from vision_cal.dataset.out_folder import writing_into
 from vision_cal.errors import VisionCalError
 from vision_cal.render.dataset import render_dataset
-from vision_cal.render.scene import load_scene
+from vision_cal.world.scene import load_scene
 
 
 @dataclass(frozen=True)

@@ -58,7 +58,7 @@ from vision_cal.plan.calibration_plan import paper_plan
 from vision_cal.world.camera import camera_matrix, default_views, ideal_K
 from vision_cal.world.photo import Photographer
 from vision_cal.world.printed import load_printed_sheet, printed_textures
-from vision_cal.render.scene import Scene
+from vision_cal.world.scene import Scene
 from vision_cal.world.sheet import make_sheet, sheet_textures
 from vision_cal.progress import bar as progress_bar
 from vision_cal.render.world import WorldMarks, arm_boxes, draw_marks, parking_pose, simulated_world
