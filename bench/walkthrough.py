@@ -76,7 +76,7 @@ def draw(prg: Path, rng):
     the arm's dynamics through every point (the backlash is real gear play there); where
     the pen really marks (sheet mm)."""
     from vision_cal.dataset.robot import load_robot_file
-    from vision_cal.render.world import draw_marks, simulated_world
+    from vision_cal.world.drawing import draw_marks, simulated_world
 
     robot = load_robot_file(ROBOT)
     up, down = robot.require_pen_heights()

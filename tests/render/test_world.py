@@ -16,7 +16,7 @@ from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import JointBacklash, JointCyclic, JointScale, RobotModel, SheetAffine
 from vision_cal.plan.calibration_plan import PlannedMark, paper_plan
 from vision_cal.world.truth_model import TrueRobot
-from vision_cal.render.world import (arm_boxes, arm_points, draw_marks, kinematic_joints,
+from vision_cal.world.drawing import (arm_boxes, arm_points, draw_marks, kinematic_joints,
                                      parking_pose)
 
 TRUTH = ScaraParams(344.05, 259.87, -2.57, -8.13, -420.0, -230.0)
@@ -215,7 +215,7 @@ def test_parking_pose_is_over_the_sheet():
 
 
 def test_simulated_world_moves_backlash_into_the_controller():
-    from vision_cal.render.world import simulated_world
+    from vision_cal.world.drawing import simulated_world
 
     truth = _true(TRUTH, JointBacklash(2, 0.2), JointScale(1, 0.002))
     rng = np.random.default_rng(4)

@@ -30,7 +30,7 @@ def test_world_joint4_effects():
 
 def test_world_draws_with_joint4_and_tracks_its_side():
     from vision_cal.plan.calibration_plan import PlannedMark
-    from vision_cal.render.world import draw_marks, joint4_sides
+    from vision_cal.world.drawing import draw_marks, joint4_sides
 
     np.testing.assert_array_equal(joint4_sides([30, 30, -10, 50]), [1, 1, -1, 1])
     w = TrueRobot.from_json({**PARAMS, "tool_mm": [0.0, 40.0]},

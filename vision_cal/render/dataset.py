@@ -61,7 +61,7 @@ from vision_cal.world.printed import load_printed_sheet, printed_textures
 from vision_cal.world.scene import Scene
 from vision_cal.world.sheet import make_sheet, sheet_textures
 from vision_cal.progress import bar as progress_bar
-from vision_cal.render.world import WorldMarks, arm_boxes, draw_marks, parking_pose, simulated_world
+from vision_cal.world.drawing import WorldMarks, arm_boxes, draw_marks, parking_pose, simulated_world
 
 log = logging.getLogger(__name__)
 
@@ -615,7 +615,7 @@ def render_dataset(scene: Scene, out_dir, *, progress: bool = False, photographe
 
     ``photographer``: an existing ``Photographer`` for this scene's camera (size K from
     :func:`photographer_K`) to reuse (tests share one); by default one is built.
-    ``joint_source``: see :mod:`vision_cal.render.world` (overrides ``robot.controller``;
+    ``joint_source``: see :mod:`vision_cal.world.drawing` (overrides ``robot.controller``;
     the truth model then predicts with every effect, backlash included).
     ``printed``: a :class:`vision_cal.world.printed.PrintedSheet` (``vision-cal sheet``'s
     sheet.json and PNG) photographed instead of the scene's analytic sheet.

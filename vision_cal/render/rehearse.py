@@ -57,7 +57,7 @@ from vision_cal.world.photo import Photographer
 from vision_cal.world.print_deviation import PrintScene
 from vision_cal.world.printed import PrintedSheet, printed_texture
 from vision_cal.world.truth_model import TrueRobot
-from vision_cal.render.world import draw_marks, simulated_world
+from vision_cal.world.drawing import draw_marks, simulated_world
 from vision_cal.sheet.png import rasterise
 from vision_cal.sheet.rebuild import layout_from_sheet_json
 
