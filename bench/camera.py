@@ -54,7 +54,7 @@ from vision_cal.calibrate.paper import pilot_params
 from vision_cal.camera.fixed import camera_of, locate
 from vision_cal.dataset.io import read_json
 from vision_cal.workflows.pipeline import calibrate_dataset
-from vision_cal.render import dataset as ds
+from vision_cal.world import dataset as ds
 from vision_cal.world.scene import scene_from_dict
 
 ROOT = Path(__file__).resolve().parents[1]

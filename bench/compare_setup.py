@@ -21,7 +21,7 @@ import yaml
 from tests.tool.test_placements import _places
 from vision_cal.calibrate.paper import pilot_params
 from vision_cal.commands.main import main
-from vision_cal.render import dataset as ds
+from vision_cal.world import dataset as ds
 from vision_cal.world.scene import scene_from_dict
 
 ROOT = Path.cwd()

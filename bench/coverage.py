@@ -202,7 +202,7 @@ def render_world(name: str, seed: int, out: Path):
     import yaml
 
     from vision_cal.calibrate.paper import pilot_params
-    from vision_cal.render.dataset import render_dataset
+    from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import scene_from_dict
 
     scene, places = SCENES[name]

@@ -81,7 +81,7 @@ def render_grid(seeds: int, width: int, only: str | None = None) -> None:
 
     from vision_cal.workflows.pipeline import calibrate_dataset
     from vision_cal.calibrate.paper import pilot_params
-    from vision_cal.render.dataset import photographer_K, render_dataset
+    from vision_cal.world.dataset import photographer_K, render_dataset
     from vision_cal.world.photo import Photographer
     from vision_cal.world.scene import scene_from_dict
 

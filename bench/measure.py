@@ -58,7 +58,7 @@ sys.path.insert(0, str(ROOT))
 
 def render_folder(folder: Path, n_photos: int) -> None:
     from vision_cal.calibrate.paper import pilot_params
-    from vision_cal.render.dataset import render_dataset
+    from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import scene_from_dict
 
     n_val = max(n_photos // 6, 1)
@@ -130,7 +130,7 @@ def reference_table(scenes: list[str], root: Path, seed: int | None) -> None:
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.dataset.session import load_session
     from vision_cal.workflows.measure_folder import measure_folder
-    from vision_cal.render.dataset import render_dataset
+    from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import load_scene
 
     rows = []
@@ -189,7 +189,7 @@ def whole_run(folder: Path) -> None:
     from vision_cal.workflows import pipeline
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.dataset.session import load_session
-    from vision_cal.render.dataset import render_dataset
+    from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import load_scene
 
     if not (folder / "session.json").exists():

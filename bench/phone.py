@@ -107,7 +107,7 @@ def lenses() -> int:
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.measure import mapping
     from vision_cal.workflows.pipeline import calibrate_dataset
-    from vision_cal.render.dataset import render_dataset
+    from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import scene_from_dict
 
     base = yaml.safe_load((ROOT / "renders" / "small.yaml").read_text())

@@ -90,7 +90,7 @@ def main() -> int:
         return 0
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.workflows.pipeline import calibrate_dataset
-    from vision_cal.render.dataset import render_dataset
+    from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import load_scene
 
     for seed in a.seeds or [None]:

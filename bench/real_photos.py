@@ -160,7 +160,7 @@ def world_table(seeds) -> int:
     from vision_cal.model.kinematics import ScaraParams
     from vision_cal.model.robot import RobotModel, effect_from_json
     from vision_cal.workflows.pipeline import calibrate_dataset
-    from vision_cal.render.dataset import render_dataset
+    from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import scene_from_dict
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-real-worlds-"))

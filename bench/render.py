@@ -51,7 +51,7 @@ def main(argv=None) -> int:
     t_init = time.perf_counter() - t0
 
     # as render_dataset does: both textures built once, each photo patches in its new dot
-    from vision_cal.render.dataset import Textures, encode_image
+    from vision_cal.world.dataset import Textures, encode_image
 
     d = np.full(36 + args.n, 1.2)
     t0 = time.perf_counter()

@@ -75,7 +75,7 @@ def false_claims(seeds, only: str | None = None) -> int:
     ``only``: the worlds whose name holds it."""
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.workflows.measure_folder import measure_folder
-    from vision_cal.render.dataset import render_dataset
+    from vision_cal.world.dataset import render_dataset
 
     worlds = [("flat, tilt 0, undeclared k1 -0.06", 0.0, -0.06, False, None),
               ("flat, tilt 11, undeclared k1 -0.06", 11.0, -0.06, False, None),

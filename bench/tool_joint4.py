@@ -166,7 +166,7 @@ def render_case(seed: int, *, width_px: int = 1600, keep: Path | None = None) ->
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.design.joint4 import circle_triples, turn_joint4
     from vision_cal.model.kinematics import forward
-    from vision_cal.render import dataset as ds
+    from vision_cal.world import dataset as ds
     from vision_cal.world.scene import scene_from_dict
     from vision_cal.world.sheet import make_sheet
 

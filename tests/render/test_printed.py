@@ -53,7 +53,7 @@ def test_rasters_that_do_not_fit_are_refused(sheet_dir, tmp_path):
 def test_rendered_photos_of_the_print_measure_where_truth_is(sheet_dir, tmp_path):
     from vision_cal.dataset.session import load_session
     from vision_cal.workflows.measure_folder import measure_folder
-    from vision_cal.render.dataset import render_dataset
+    from vision_cal.world.dataset import render_dataset
 
     pr = load_printed_sheet(sheet_dir / "sheet.json")
     scene = SMALL.with_overrides(mode="single")

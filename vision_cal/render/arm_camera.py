@@ -22,7 +22,7 @@ import numpy as np
 
 from vision_cal.dataset.io import atomic_write_bytes, atomic_write_json
 from vision_cal.world.camera import distort_image, ideal_K
-from vision_cal.render.dataset import encode_image
+from vision_cal.world.dataset import encode_image
 from vision_cal.world.photo import Photographer
 from vision_cal.world.sheet import make_sheet, sheet_texture
 from vision_cal.world.truth_model import TrueRobot

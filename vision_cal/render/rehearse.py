@@ -52,7 +52,7 @@ from vision_cal.errors import VisionCalError
 from vision_cal.progress import bar as progress_bar
 from vision_cal.render.arm_camera import T_flange_camera_true, photograph_poses
 from vision_cal.world.camera import camera_matrix, default_views
-from vision_cal.render.dataset import encode_image, marks_off_paper, marks_on_markers
+from vision_cal.world.dataset import encode_image, marks_off_paper, marks_on_markers
 from vision_cal.world.photo import Photographer
 from vision_cal.world.print_deviation import PrintScene
 from vision_cal.world.printed import PrintedSheet, printed_texture
