@@ -19,7 +19,7 @@ from vision_cal.camera.arm import ArmView, check_declared_lens, fit_arm_camera
 from vision_cal.workflows.arm_session import corners_in_lens
 from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.model.kinematics import ScaraParams
-from vision_cal.render import arm_camera as world
+from vision_cal.world import arm_camera as world
 from vision_cal.world.sheet import make_sheet
 from vision_cal.world.truth_model import TrueRobot
 

@@ -210,7 +210,7 @@ def arm(seed: int, out: Path) -> None:
     import json
 
     from vision_cal.commands.main import main as cli
-    from vision_cal.render.arm_camera import render_arm_dataset
+    from vision_cal.world.arm_camera import render_arm_dataset
 
     # the pen method on a rendered series of the same true robot (no hidden effect)
     d = yaml.safe_load((ROOT / "renders" / "small.yaml").read_text())

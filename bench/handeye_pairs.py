@@ -58,7 +58,7 @@ from scipy.spatial.transform import Rotation
 
 from vision_cal.actions.handeye import pairs_document
 from vision_cal.camera.pose_pairs import PosePair, fit_pose_pairs
-from vision_cal.render.arm_camera import T_flange_camera_true
+from vision_cal.world.arm_camera import T_flange_camera_true
 from vision_cal.render.pose_pairs import simulate_many_pairs, simulate_pairs
 from vision_cal.world.truth_model import TrueRobot
 
@@ -153,7 +153,7 @@ def photo_comparison(seeds, n_poses: int = 16) -> None:
     from tests.camera.test_arm import K, NOMINAL, TRUTH as T_ARM, _plan, _views
     from vision_cal.camera.arm import camera_pose, fit_arm_camera
     from vision_cal.model.kinematics import ScaraParams
-    from vision_cal.render import arm_camera as world
+    from vision_cal.world import arm_camera as world
 
     def controller(params: ScaraParams, q, j4):
         """The flange a controller with ``params`` reports in its own frame (base at its

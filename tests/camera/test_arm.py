@@ -1,4 +1,4 @@
-"""A camera on the arm: the world's camera (render/arm_camera.py, its own robot code) sees a
+"""A camera on the arm: the world's camera (world/arm_camera.py, its own robot code) sees a
 dense marker field; its corners (projected, 0.1 px noise) feed the estimator.
 
 Bounds are 4 reported std (one std from the fit's covariance scaled by its residual)."""
@@ -13,7 +13,7 @@ import dataclasses
 from vision_cal.camera.arm import (LABELS, ArmView, fit_arm_camera, relative_motion)
 from vision_cal.diagnose.verdict import judge_camera_poses
 from vision_cal.model.kinematics import ScaraParams
-from vision_cal.render import arm_camera as world
+from vision_cal.world import arm_camera as world
 from vision_cal.world.sheet import make_sheet
 from vision_cal.world.truth_model import TrueRobot
 

@@ -1,6 +1,6 @@
 """The arm's camera on rendered photos: ``vision-cal handeye`` end to end.
 
-The world (render/arm_camera.py) photographs a dense marker field from a camera on the true
+The world (world/arm_camera.py) photographs a dense marker field from a camera on the true
 robot (0.01 mm repeatability per photo); the estimator reads session.json ``poses`` and the
 photos. Bounds: 4 reported std."""
 
@@ -16,7 +16,7 @@ from vision_cal.camera.fixed import UNDETERMINED, locate
 from vision_cal.commands.main import main
 from vision_cal.dataset.calibration_result import METHODS_EXTRA, CalibrationResult
 from vision_cal.dataset.io import read_json
-from vision_cal.render.arm_camera import render_arm_dataset
+from vision_cal.world.arm_camera import render_arm_dataset
 
 TRUTH = {"L1_mm": 344.05, "L2_mm": 259.87, "joint_zero_deg": [-2.57, -8.13],
          "base_mm": [-424.26, -230.35]}

@@ -20,7 +20,7 @@ from vision_cal.actions.handeye import pairs_document
 from vision_cal.camera.pose_pairs import PairsFailed, PosePair, fit_pose_pairs
 from vision_cal.camera.poses_file import read_poses
 from vision_cal.errors import VisionCalError
-from vision_cal.render.arm_camera import T_flange_camera_true
+from vision_cal.world.arm_camera import T_flange_camera_true
 from vision_cal.render.pose_pairs import simulate_many_pairs, simulate_pairs
 from vision_cal.world.truth_model import TrueRobot
 

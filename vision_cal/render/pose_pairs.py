@@ -16,7 +16,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from vision_cal.render.arm_camera import T_flange_camera_true, T_sheet_flange
+from vision_cal.world.arm_camera import T_flange_camera_true, T_sheet_flange
 from vision_cal.world.truth_model import TrueRobot
 
 

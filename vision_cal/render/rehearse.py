@@ -50,7 +50,7 @@ from vision_cal.dataset.robot import load_robot_file
 from vision_cal.dataset.session import read_sheet_block, sheet_file_block
 from vision_cal.errors import VisionCalError
 from vision_cal.progress import bar as progress_bar
-from vision_cal.render.arm_camera import T_flange_camera_true, photograph_poses
+from vision_cal.world.arm_camera import T_flange_camera_true, photograph_poses
 from vision_cal.world.camera import camera_matrix, default_views
 from vision_cal.world.dataset import encode_image, marks_off_paper, marks_on_markers
 from vision_cal.world.photo import Photographer
