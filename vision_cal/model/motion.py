@@ -11,7 +11,7 @@ One owner for each of these conventions; everything else calls it.
   :data:`TRAJECTORY_DT_S`: the period at which reference trajectories are sampled
   (the seed paper's 16 ms). :class:`MotionLimits` bundles them for one robot.
 
-The synthetic world (``vision_cal.render``, ``vision_cal.simulate``) deliberately does *not*
+The synthetic world (``vision_cal.world``) deliberately does *not*
 use :func:`approach_signs`: it tracks the side each joint really arrived from through its
 own motion, so a convention error here cannot cancel against the truth.
 """

@@ -12,7 +12,7 @@ controller can be plugged in with the same signature::
 
     joint_source(plan, home_deg) -> (link_q_deg (N, 2), approach (N, 2))
 
-:func:`simulated_world` builds one from ``vision_cal.simulate`` (trajectory, sliding-mode
+:func:`simulated_world` builds one from :mod:`vision_cal.world.simulate` (trajectory, sliding-mode
 or PD controller, dynamics, gear play).
 
 The true mark is ``truth.pen_mm(link_q_deg, approach)`` (every hidden effect of the

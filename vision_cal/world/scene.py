@@ -31,7 +31,7 @@ Sections and fields::
                                   # tau: 0.2}; see world/truth_model.py)
       repeatability_mm: 0.01      # sigma of the isotropic noise of each mark, per axis
       pen_diameter_mm: 1.2        # nominal diameter of a pen mark (session.json pen)
-      controller: smc             # smc (default) | pd: vision_cal.simulate runs the plan
+      controller: smc             # smc (default) | pd: vision_cal.world.simulate runs the plan
                                   # (trajectory, controller, dynamics, gear play = the
                                   # joint_backlash effects) and the pen touches down where
                                   # the joints settle | kinematic: links reach each

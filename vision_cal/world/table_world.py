@@ -25,7 +25,7 @@ with the print) is looked up where the ray meets the paper; the box and the tabl
 shaded flat under a light from above. Then the supersampled image is averaged down, blurred
 (the optics), vignetted, given signal-dependent noise and, for the phone, a JPEG round trip.
 
-The world's own code: it imports ``render/``, ``dataset/`` (the sheet's description) and
+The world's own code: it imports ``world/``, ``dataset/`` (the sheet's description) and
 OpenCV, never the estimator (``measure/``, ``model/``, ``identify/``).
 """
 
