@@ -1,6 +1,6 @@
 """Bench: the synthetic world against real photos (issue 28 section 3).
 
-Default: the small world of tests/render/test_bumped.py (240 x 180 mm sheet, 900 x 680 px,
+Default: the small world of tests/world/test_bumped.py (240 x 180 mm sheet, 900 x 680 px,
 a fixed camera tilted 15 deg, 14 marks, kinematic robot) in three worlds per seed:
 
 - ``clean``: today's world (no lens, PNG);
@@ -131,7 +131,7 @@ def fixture_table() -> int:
 
 
 def worlds(seed: int):
-    from tests.render.test_bumped import scene_dict
+    from tests.world.test_bumped import scene_dict
     from vision_cal.world.photo import PHONE_JPEG_QUALITY, phone_lens
 
     base = scene_dict(None, seed=seed)

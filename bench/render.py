@@ -157,7 +157,7 @@ def _dot_centres(img, bare, guesses_px, *, r=6):
 
 
 def accuracy() -> None:
-    """Rendered dot centres minus cv2.projectPoints (px), as tests/render/test_photo.py
+    """Rendered dot centres minus cv2.projectPoints (px), as tests/world/test_photo.py
     checks them, printed as figures."""
     size = (640, 480)
     K = camera_matrix(size_px=size, f_px=800.0)

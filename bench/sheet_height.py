@@ -59,8 +59,8 @@ def plan_miss_mm(model, truth_model, extent_mm) -> float:
 
 
 def _flat_scene(seed: int, tilt_deg: float, k1: float, *, bumps: bool, declared: bool):
-    """tests/render/test_bumped.py's small world, its camera tilted and its lens set."""
-    from tests.render.test_bumped import BUMPS, scene_dict
+    """tests/world/test_bumped.py's small world, its camera tilted and its lens set."""
+    from tests.world.test_bumped import BUMPS, scene_dict
     from vision_cal.world.scene import scene_from_dict
 
     d = scene_dict(BUMPS if bumps else None, seed=seed)

@@ -15,7 +15,7 @@ Conventions
   over its own footprint. pyrender's ``IntrinsicsCamera`` takes an OpenGL principal point,
   which is the OpenCV one + 0.5. ``bench/render.py --accuracy`` prints where rendered dot
   centres land against ``cv2.projectPoints`` (flat, tilted 20-30 deg, with a lens);
-  tests/render/test_photo.py bounds them. Mean colours come out slightly brighter than the
+  tests/world/test_photo.py bounds them. Mean colours come out slightly brighter than the
   texture's (llvmpipe rounds up when it builds mipmaps and filters), equally in all
   channels.
 - Texture resolution: aim for about 2 texels per supersampled pixel (8 px/mm for an A2

@@ -9,7 +9,7 @@ from vision_cal.world.sheet import sheet_texture
 
 pytestmark = pytest.mark.render
 
-from tests.render.test_photo import _dot_centres  # noqa: E402
+from tests.world.test_photo import _dot_centres  # noqa: E402
 
 
 def test_height_field_parts():
