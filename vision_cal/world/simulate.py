@@ -61,11 +61,6 @@ class SimResult:
     motor_trace_deg: np.ndarray
     link_trace_deg: np.ndarray
 
-    @property
-    def arrival_sign(self) -> np.ndarray:
-        """Old name of :attr:`approach`."""
-        return self.approach
-
 
 def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), controller="smc",
                   dynamics: ScaraDynamics | None = None, dt_s: float = 0.001,
