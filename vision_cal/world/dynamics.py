@@ -34,8 +34,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 
 @dataclass(frozen=True)
 class ScaraDynamics:
@@ -70,60 +68,6 @@ class ScaraDynamics:
         """Rotor inertia seen at each joint, J N^2 (kg m^2)."""
         return (self.rotor_inertia_kgm2[0] * self.gear_ratio[0] ** 2,
                 self.rotor_inertia_kgm2[1] * self.gear_ratio[1] ** 2)
-
-    # -- vectorised model (numpy, for analysis and tests) -----------------------------
-    def mass_matrix(self, q_rad) -> np.ndarray:
-        """M(q): (..., 2, 2) for q (..., 2)."""
-        q = np.asarray(q_rad, dtype=float)
-        a, b, d = self.inertia_constants
-        r1, r2 = self.reflected_inertia
-        c2 = np.cos(q[..., 1])
-        m = np.empty(q.shape[:-1] + (2, 2))
-        m[..., 0, 0] = a + 2 * b * c2 + r1
-        m[..., 0, 1] = m[..., 1, 0] = d + b * c2
-        m[..., 1, 1] = d + r2
-        return m
-
-    def coriolis_matrix(self, q_rad, qd_rad_s) -> np.ndarray:
-        """C(q, qd) (..., 2, 2) with C qd the Coriolis/centrifugal torque; M' - 2C is skew."""
-        q = np.asarray(q_rad, dtype=float)
-        qd = np.asarray(qd_rad_s, dtype=float)
-        _, b, _ = self.inertia_constants
-        h = -b * np.sin(q[..., 1])
-        c = np.empty(q.shape[:-1] + (2, 2))
-        c[..., 0, 0] = h * qd[..., 1]
-        c[..., 0, 1] = h * (qd[..., 0] + qd[..., 1])
-        c[..., 1, 0] = -h * qd[..., 0]
-        c[..., 1, 1] = 0.0
-        return c
-
-    def friction(self, qd_rad_s) -> np.ndarray:
-        """Friction torque (..., 2) opposing the motion (it is subtracted from the drive)."""
-        qd = np.asarray(qd_rad_s, dtype=float)
-        b = np.asarray(self.viscous_nms)
-        fc = np.asarray(self.coulomb_nm)
-        return b * qd + fc * np.tanh(qd / self.coulomb_velocity_rad_s)
-
-    def inverse_dynamics(self, q_rad, qd_rad_s, qdd_rad_s2) -> np.ndarray:
-        """Torque (..., 2) that produces ``qdd`` at ``(q, qd)``."""
-        m = self.mass_matrix(q_rad)
-        c = self.coriolis_matrix(q_rad, qd_rad_s)
-        qd = np.asarray(qd_rad_s, dtype=float)
-        return (np.einsum("...ij,...j->...i", m, np.asarray(qdd_rad_s2, dtype=float))
-                + np.einsum("...ij,...j->...i", c, qd) + self.friction(qd))
-
-    def forward_dynamics(self, q_rad, qd_rad_s, torque_nm) -> np.ndarray:
-        """Acceleration (..., 2) under ``torque_nm`` (..., 2)."""
-        m = self.mass_matrix(q_rad)
-        c = self.coriolis_matrix(q_rad, qd_rad_s)
-        qd = np.asarray(qd_rad_s, dtype=float)
-        rhs = np.asarray(torque_nm, dtype=float) - np.einsum("...ij,...j->...i", c, qd) \
-            - self.friction(qd)
-        return np.linalg.solve(m, rhs[..., None])[..., 0]
-
-    def kinetic_energy(self, q_rad, qd_rad_s) -> np.ndarray:
-        qd = np.asarray(qd_rad_s, dtype=float)
-        return 0.5 * np.einsum("...i,...ij,...j->...", qd, self.mass_matrix(q_rad), qd)
 
 
 class Stepper:
