@@ -5,8 +5,7 @@ import numpy as np
 import pytest
 
 from vision_cal.errors import VisionCalError
-from vision_cal.world.sheet import (DOT_RGB, make_sheet, sheet_texture,
-                                     sheet_to_texture_pixel, texture_pixel_to_sheet)
+from vision_cal.world.sheet import DOT_RGB, make_sheet, sheet_texture, sheet_to_texture_pixel
 
 SMALL = dict(size_mm=(200.0, 150.0), bottom_left_mm=(-100.0, -60.0), marker_mm=20.0,
              grid=(3, 2), margin_mm=10.0)
@@ -47,7 +46,7 @@ def test_pixel_convention_round_trip():
     uv = sheet_to_texture_pixel(xy, extent_mm=ext, px_per_mm=4.0)
     np.testing.assert_allclose(uv[0], [0.0, 0.0], atol=1e-12)     # centre of pixel (0, 0)
     np.testing.assert_allclose(uv[1], [399.5, 359.5])
-    np.testing.assert_allclose(texture_pixel_to_sheet(uv, extent_mm=ext, px_per_mm=4.0), xy)
+    np.testing.assert_allclose(uv[2], [(99.9 + 100) * 4 - 0.5, (90 + 59.0) * 4 - 0.5])
 
 
 def test_markers_in_texture_are_where_the_sheet_says():
@@ -58,9 +57,10 @@ def test_markers_in_texture_are_where_the_sheet_says():
     corners, ids, _ = _detector().detectMarkers(cv2.cvtColor(tex, cv2.COLOR_RGB2GRAY))
     by_id = sheet.corners_by_id()
     assert sorted(np.ravel(ids).tolist()) == sorted(by_id)
-    err = np.concatenate([
-        texture_pixel_to_sheet(c.reshape(4, 2), extent_mm=sheet.extent_mm, px_per_mm=ppm)
-        - by_id[int(i)] for c, i in zip(corners, np.ravel(ids))])
+    err = np.concatenate([   # texture px -> mm (the sheet's y is the rows' -v)
+        c.reshape(4, 2) - sheet_to_texture_pixel(by_id[int(i)], extent_mm=sheet.extent_mm,
+                                                 px_per_mm=ppm)
+        for c, i in zip(corners, np.ravel(ids))]) / ppm
     # cornerSubPix on a lone square corner is biased ~0.1 px inwards: 0.0125 mm here
     assert np.sqrt(np.mean(err ** 2)) < 0.02
     assert np.abs(err).max() < 0.04
@@ -79,14 +79,13 @@ def test_ink_dots_are_centred_on_their_marks(ppm):
     alpha = (bare[..., 0] - tex[..., 0]) / (bare[..., 0] - DOT_RGB[0])
     uv = sheet_to_texture_pixel(marks, extent_mm=sheet.extent_mm, px_per_mm=ppm)
     vv, uu = np.mgrid[0:tex.shape[0], 0:tex.shape[1]]
-    for (u, v), d, xy in zip(uv, dia, marks):
+    for (u, v), d in zip(uv, dia):
         win = (np.abs(uu - u) < d * ppm) & (np.abs(vv - v) < d * ppm)
         a = alpha[win]
         cu = np.sum(a * uu[win]) / a.sum()
         cv_ = np.sum(a * vv[win]) / a.sum()
-        got = texture_pixel_to_sheet([[cu, cv_]], extent_mm=sheet.extent_mm, px_per_mm=ppm)[0]
         # exact coverage up to uint8 rounding of the edge pixels: 0.02 texture px
-        np.testing.assert_allclose(got, xy, atol=0.02 / ppm)
+        np.testing.assert_allclose([cu, cv_], [u, v], atol=0.02)
         area_mm2 = a.sum() / ppm ** 2
         assert 0.75 < area_mm2 / (np.pi * d * d / 4) < 1.25
 

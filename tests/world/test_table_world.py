@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from vision_cal.world.camera import camera_matrix, look_at, phone_lens
-from vision_cal.world.table_world import Box, TableCamera, table_world
+from vision_cal.world.table_world import Box, TableCamera, _rays, table_world
 
 SIZE = (480, 360)
 
@@ -53,8 +53,8 @@ def test_the_ray_caster_inverts_opencvs_projection_of_the_raised_print(world):
     P = world.corners_3d().reshape(-1, 3)
     rvec = cv2.Rodrigues(T[:3, :3])[0]
     uv = cv2.projectPoints(P, rvec, T[:3, 3], cam.K, cam.dist)[0].reshape(-1, 2)
-    xy, hidden = world.cast(cam, T, uv)
-    assert np.abs(xy - P[:, :2]).max() < 1e-4 and not hidden.any()
+    xy, _, on = world._meet_paper(*_rays(cam, T, uv))    # the photograph's own rays
+    assert np.abs(xy - P[:, :2]).max() < 1e-4 and on.all() and not world.hidden(T).any()
     flat = np.column_stack([P[:, :2], np.zeros(len(P))])
     off = cv2.projectPoints(flat, rvec, T[:3, 3], cam.K, cam.dist)[0].reshape(-1, 2)
     assert np.linalg.norm(off - uv, axis=1).max() > 1.0

@@ -15,7 +15,7 @@ nominal robot and the first photo's pose.
 
 Why the height is found: SCARA motion is planar (rotations about z, translations in the
 plane), so relative motions between photos, which is what classic hand-eye (AX = XB) uses,
-are the same for every camera height (:func:`relative_motion`). The sheet's plane is the
+are the same for every camera height (``tests/camera/test_arm.py``). The sheet's plane is the
 flange frame's z = 0 by definition, and each photo's pose *in the sheet frame* gives the
 camera's height above it directly.
 
@@ -440,13 +440,6 @@ def T_sheet_flange(params: ScaraParams, q_deg, j4_deg) -> np.ndarray:
     T[:, 0, 0], T[:, 0, 1], T[:, 1, 0], T[:, 1, 1] = np.cos(a), -np.sin(a), np.sin(a), np.cos(a)
     T[:, :2, 3] = p
     return T
-
-
-def relative_motion(params: ScaraParams, q_deg, j4_deg, T_flange_camera) -> np.ndarray:
-    """(N-1, 4, 4) camera motion from photo 0 to each later photo (camera frames): what
-    AX = XB hand-eye sees. It does not depend on ``T_flange_camera``'s z (planar motion)."""
-    T = T_sheet_flange(params, q_deg, j4_deg) @ np.asarray(T_flange_camera, float)
-    return np.array([np.linalg.inv(T[0]) @ Ti for Ti in T[1:]])
 
 
 def _unpack(x: np.ndarray, R0: np.ndarray) -> tuple[ScaraParams, np.ndarray]:

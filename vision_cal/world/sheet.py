@@ -12,9 +12,9 @@ Frames and conventions
 
       x = x_min + (j + 0.5) / px_per_mm,     y = y_max - (i + 0.5) / px_per_mm
 
-  and covers the square of side 1/px_per_mm around it. ``texture_pixel_to_sheet`` and
-  ``sheet_to_texture_pixel`` convert between sheet mm and OpenCV-style texture pixel
-  coordinates (u, v) = (col, row), integer at pixel centres.
+  and covers the square of side 1/px_per_mm around it. ``sheet_to_texture_pixel`` converts
+  sheet mm to OpenCV-style texture pixel coordinates (u, v) = (col, row), integer at pixel
+  centres.
 
 Photometry (so that a measurement can rely on it)
 -------------------------------------------------
@@ -115,16 +115,9 @@ def texture_shape(extent_mm, px_per_mm: float) -> tuple[int, int]:
     return H, W
 
 
-def texture_pixel_to_sheet(uv_px, *, extent_mm, px_per_mm: float) -> np.ndarray:
-    """Texture pixel coordinates (N, 2) (u = col, v = row; integer at pixel centres) to sheet mm."""
-    uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
-    x0, _, _, y1 = (float(v) for v in extent_mm)
-    return np.column_stack([x0 + (uv[:, 0] + 0.5) / px_per_mm,
-                            y1 - (uv[:, 1] + 0.5) / px_per_mm])
-
-
 def sheet_to_texture_pixel(xy_mm, *, extent_mm, px_per_mm: float) -> np.ndarray:
-    """Sheet mm (N, 2) to texture pixel coordinates (u = col, v = row), inverse of the above."""
+    """Sheet mm (N, 2) to texture pixel coordinates (u = col, v = row; integer at pixel
+    centres)."""
     xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
     x0, _, _, y1 = (float(v) for v in extent_mm)
     return np.column_stack([(xy[:, 0] - x0) * px_per_mm - 0.5,

@@ -213,17 +213,6 @@ class TableWorld:
         img = cv2.resize(rgb, (w, h), interpolation=cv2.INTER_AREA) if s > 1 else rgb
         return _sensor(img, cam, rng)
 
-    def cast(self, cam: TableCamera, T_cam_sheet, uv_px) -> tuple[np.ndarray, np.ndarray]:
-        """Where the rays of pixels ``uv_px`` (N, 2) meet the paper or the table: the point's
-        (x, y) (N, 2) (on the paper: where it is printed, its height on the waves), and
-        whether the block is in front of it (N,) bool."""
-        C, d = _rays(cam, T_cam_sheet, np.asarray(uv_px, float).reshape(-1, 2))
-        p, t, _ = self._meet_paper(C, d)
-        if self.box is None:
-            return p, np.zeros(len(p), bool)
-        tb, _ = self.box.hit(C, d)
-        return p, tb < t
-
     def _meet_paper(self, C, d):
         """The rays ``C`` + t ``d`` (N, 3) met with the waved paper (the table at z = 0
         around it): (x, y) (N, 2), t (N,), on the paper (N,) bool."""
