@@ -38,16 +38,16 @@ from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
 
 from vision_cal.camera.fixed import (F_REL_STD_MAX, UNDETERMINED, FixedCamera, T_sheet_robot,
-                                     camera_of, fit_pose, homogeneous, lsq_covariance,
+                                     camera_of, fit_pose, homogeneous,
                                      pose_delta)
 from vision_cal.config import DEFAULT, VerdictConfig
 from vision_cal.dataset.camera_block import check_camera_entry
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.model.kinematics import ScaraParams, flange_angle_rad, forward
 from vision_cal.model.rms import rms_2d
+from vision_cal.model.solve import covariance, solve
 
 LABELS = ("L1_mm", "L2_mm", "z1_deg", "z2_deg", "base_x_mm", "base_y_mm",
           "cam_rot_x_deg", "cam_rot_y_deg", "cam_rot_z_deg", "cam_x_mm", "cam_y_mm",
@@ -187,9 +187,11 @@ class _LensInfo:
 
 def _lens_info(obj, img, K, dist, rvecs, tvecs) -> _LensInfo:
     """:class:`_LensInfo` of views ``obj`` (sheet mm) seen at ``img`` (px) with the lens
-    ``(K, dist)`` and the views' poses ``rvecs``, ``tvecs``."""
-    S = np.zeros((3, 3))
-    scores, per_view = [], []
+    ``(K, dist)`` and the views' poses ``rvecs``, ``tvecs``: the one covariance policy
+    (:func:`vision_cal.model.solve.covariance`) on the lens's Jacobian with each view's
+    pose projected out of its rows (the Schur complement's Gram), the residuals' variance
+    pooled, and clustered by photo (the sandwich of the views' scores)."""
+    rows, scores, per_view = [], [], []
     ssr, n_rows = 0.0, 0
     for o, m, rv, tv in zip(obj, img, rvecs, tvecs):
         uv, J = cv2.projectPoints(o.reshape(-1, 1, 3).astype(np.float64), rv, tv, K, dist)
@@ -199,21 +201,22 @@ def _lens_info(obj, img, K, dist, rvecs, tvecs) -> _LensInfo:
         per_view.append(float(r @ r) / max(len(r) - 6, 1))
         A = np.column_stack([J[:, 6] + J[:, 7], J[:, 10], J[:, 11]])   # f, k1, k2
         B = J[:, :6]                                                    # rvec, tvec
-        Ap = A - B @ np.linalg.solve(B.T @ B, B.T @ A)                  # the pose profiled out
-        S += A.T @ Ap
+        Ap = A - B @ np.linalg.lstsq(B, A, rcond=None)[0]               # the pose profiled out
+        rows.append(Ap)
         scores.append(Ap.T @ r)
     n = len(scores)
     s2 = ssr / max(n_rows - 6 * n - 3, 1)
-    try:
-        Si = np.linalg.inv(S)
-    except np.linalg.LinAlgError:
+    s2_view = float(np.median(per_view)) if per_view else s2
+    Jp = np.vstack(rows)
+    lens = covariance(Jp, labels=LENS_LABELS, s2=s2)
+    if lens.not_fixed:
         inf = np.full((3, 3), np.inf)
-        return _LensInfo(inf, inf, float(np.median(per_view)) if per_view else s2)
+        return _LensInfo(inf, inf, s2_view)
     g = np.array(scores)
-    sandwich = Si @ (g.T @ g) @ Si * n / max(n - 3, 1)
-    model = Si * s2
+    sandwich = covariance(Jp, meat=g.T @ g).matrix * n / max(n - 3, 1)
+    model = lens.matrix
     inflate = max(1.0, float(sandwich[0, 0] / model[0, 0])) if model[0, 0] > 0 else 1.0
-    return _LensInfo(model, model * inflate, float(np.median(per_view)) if per_view else s2)
+    return _LensInfo(model, model * inflate, s2_view)
 
 
 #: the lens parameters whose covariance an estimated lens carries into the arm camera's
@@ -460,6 +463,16 @@ def _link_commands(x, views, bl) -> np.ndarray:
     return q
 
 
+def _solved(residual, x0, what: str):
+    """The one solver (:func:`vision_cal.model.solve.solve`: Levenberg-Marquardt, the
+    parameters scaled by the Jacobian's columns, scipy's default tolerances) on ``residual``
+    from ``x0``; a solve stopped on its limit ends the calibration with the reason."""
+    sol = solve(residual, x0, method="lm", x_scale="jac", xtol=1e-8, ftol=1e-8, gtol=1e-8)
+    if not sol:
+        raise CalibrationError(f"the arm camera's {what} did not converge: {sol.reason}")
+    return sol
+
+
 def _residuals(x, views, K, dist, R0, bl=()) -> np.ndarray:
     p, X = _unpack(x, R0)
     T_sc = T_sheet_flange(p, _link_commands(x, views, bl), [v.j4_deg for v in views]) @ X
@@ -559,15 +572,13 @@ def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams, *,
                           nominal.base_x_mm, nominal.base_y_mm],
                          np.zeros(3), X0[:3, 3], np.zeros(len(bl))])
     R0 = X0[:3, :3]
-    sol = least_squares(_residuals, x0, args=(views, K, dist, R0, bl), method="lm",
-                        x_scale="jac")
+    sol = _solved(lambda x: _residuals(x, views, K, dist, R0, bl), x0, "fit to the corners")
     # again about the solution, so the rotation's covariance is about the found frame
     p1, X1 = _unpack(sol.x, R0)
     R0 = X1[:3, :3]
     x1 = np.concatenate([sol.x[:6], np.zeros(3), sol.x[9:]])
-    sol = least_squares(_residuals, x1, args=(views, K, dist, R0, bl), method="lm",
-                        x_scale="jac")
-    r = sol.fun
+    sol = _solved(lambda x: _residuals(x, views, K, dist, R0, bl), x1, "fit to the corners")
+    r = sol.residuals
     n = len(r)
     p, X = _unpack(sol.x, R0)
     sizes = np.cumsum([0] + [2 * len(v.corners_mm) for v in views])
@@ -718,7 +729,7 @@ def _pose_level_fit(x, views, M, R0, bl=()) -> tuple:
     for _ in range(3):
         def f(z):
             return (_pose_residuals(z, views, M, R0, bl) * w).ravel()
-        sol = least_squares(f, x, method="lm", x_scale="jac")
+        sol = _solved(f, x, "photo-level fit")
         x = sol.x
         e = _pose_residuals(x, views, M, R0, bl)
         var = np.empty(6)
@@ -727,18 +738,21 @@ def _pose_level_fit(x, views, M, R0, bl=()) -> tuple:
             dof = max(n * len(g) - P * len(g) / 6.0, 1.0)
             var[list(g)] = max(float(np.sum(e[:, list(g)] ** 2)) / dof, 1e-30)
         w = 1.0 / np.sqrt(var)
-    sol = least_squares(lambda z: (_pose_residuals(z, views, M, R0, bl) * w).ravel(), x,
-                        method="lm", x_scale="jac")
-    cov = lsq_covariance(sol.jac, 1.0)
+    sol = _solved(lambda z: (_pose_residuals(z, views, M, R0, bl) * w).ravel(), x,
+                  "photo-level fit")
+    # the one policy, the residuals in units of their std: a direction the photos do not
+    # fix (L2 against the camera's offset along link 2 without joint-4 turns) is not stated
+    cov = covariance(sol.jacobian, s2=1.0).stated
     x = sol.x
     rms = {"position_mm": float(np.sqrt(var[0])), "height_mm": float(np.sqrt(var[2])),
            "tilt_deg": float(np.degrees(np.sqrt(var[3]))),
            "turn_deg": float(np.degrees(np.sqrt(var[5])))}
     # leverages (the hat matrix's diagonal, per residual component): the parameters each
     # row consumes, and a row's leave-one-out residual e / (1 - h)
-    Q, _ = np.linalg.qr(sol.jac / np.maximum(np.linalg.norm(sol.jac, axis=0), 1e-300))
+    J = np.asarray(sol.jacobian)
+    Q, _ = np.linalg.qr(J / np.maximum(np.linalg.norm(J, axis=0), 1e-300))
     lev = np.sum(Q**2, axis=1).reshape(n, 6)
-    return x, cov, rms, lev, sol.jac, w
+    return x, cov, rms, lev, J, w
 
 
 # --------------------------------------------------------------------------- pixel -> robot
