@@ -556,10 +556,6 @@ SOLVER_WORLD = {
 SOLVER_PENDING = {
     "vision_cal.measure.asprinted": "the as-printed bundle adjustment: helpers survey and "
                                     "printoff are changing it now (issue 37)",
-    "vision_cal.camera.arm": "the arm camera's fit: helper scaracam is changing it now "
-                             "(issues 37, 40, 41)",
-    "vision_cal.camera.pose_pairs": "the pose pairs' hand-eye: helper scaracam is changing it "
-                                    "now (issues 37, 40, 41)",
 }
 _INVERSES = {"inv", "pinv", "solve", "lstsq", "cholesky", "cho_factor", "cho_solve"}
 _TRANSPOSED = re.compile(r"\.T\s*@")
