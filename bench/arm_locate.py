@@ -122,7 +122,7 @@ def calibrate(folder: Path, declared: bool) -> dict:
             if not (case / f.name).exists():
                 os.link(f, case / f.name)         # a hard link: photos stay inside the folder
     atomic_write_json(case / "session.json", session)
-    return calibrate_arm_camera(case)
+    return calibrate_arm_camera(case, cache_dir=folder.parent / f".cache-{case.name}")
 
 
 def main() -> None:
