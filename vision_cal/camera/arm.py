@@ -60,17 +60,17 @@ UNIDENTIFIED_STD = 1.0
 
 
 def lens_corners(det: ImageDetections, K=None, dist=None) -> np.ndarray:
-    """(4M, 2) a photo's marker corners in raw px, the markers' borders fitted as straight
-    lines in the lens ``(K, dist)``'s ideal pixels, as the pen's measurement finds them
-    (:meth:`vision_cal.measure.types.ImageDetections.corners_for`); a lens without
-    distortion, or none, fits them in the photo's own pixels. A marker's straight border is
-    curved in a distorted photo: a line fitted to it there biases the corner by a few
-    hundredths of a pixel, differently across the image (with k1 -0.045 declared and
-    nothing else missing, that bias put the arm camera's residual 1.4 times its floor).
+    """(4M, 2) a photo's marker corners in raw px, found in the lens ``(K, dist)``.
 
-        view = ArmView(pose.image, q, j4, det.corners_mm.reshape(-1, 2),
-                       lens_corners(det, K, dist), pose.approach, det)
-    """
+        corners_px = lens_corners(det, K, dist)       # det: stage 1's ImageDetections
+
+    The markers' borders are fitted as straight lines in the lens's ideal pixels, as the
+    pen's measurement finds them (:meth:`vision_cal.measure.types.ImageDetections.corners_for`);
+    a lens without distortion, or none, fits them in the photo's own pixels. A marker's
+    straight border is curved in a distorted photo: a line fitted to it there biases the
+    corner by a few hundredths of a pixel, differently across the image (with k1 -0.045
+    declared and nothing else missing, that bias put the arm camera's residual 1.4 times
+    its floor)."""
     lens = (K, dist) if K is not None and dist is not None and np.any(dist) else (None, None)
     return np.asarray(det.corners_for(*lens), float).reshape(-1, 2)
 
@@ -567,8 +567,12 @@ def camera_pose(view: ArmView, K, dist) -> np.ndarray:
 def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams, *,
                    corner_sigma_px: float | None = None,
                    lens_cov: np.ndarray | None = None) -> ArmFit:
-    """Robot and ``T_flange_camera`` from photos taken by the arm's camera (``K``, ``dist``
-    declared); starts from ``nominal`` and the first photo's pose. A joint reached from
+    """Robot and ``T_flange_camera`` from photos taken by the arm's camera.
+
+        fit = fit_arm_camera(views, K, dist, session.robot.params)   # fit.params, fit.cov
+
+    ``K``, ``dist``: the lens (declared, or :func:`estimate_lens`'s); it starts from
+    ``nominal`` and the first photo's pose. A joint reached from
     both sides in the photos (their ``approach``) has its backlash fitted as well (the
     contract's ``joint_backlash``; from one side only it is part of the joint's zero).
 

@@ -545,7 +545,12 @@ def _repeat_rows(pairs, d: checks.Distinct, x, A_all, B_all, X0, Y0, z: float):
 def fit_pose_pairs(pairs: list[PosePair], mount: str = "arm", *, z_mm: float | None = None,
                    config: HandeyeConfig | None = None, progress: bool = False
                    ) -> PairsFit | PairsFailed:
-    """The hand-eye of ``pairs`` (module docstring); ``z_mm`` the target origin's height in
+    """The hand-eye of ``pairs`` (module docstring).
+
+        fit = fit_pose_pairs(read_poses("pairs.json").pairs, "arm", z_mm=0.0)
+        if not fit: print(fit.reason)                          # a PairsFailed
+
+    ``z_mm`` the target origin's height in
     ``Y``'s parent frame (None: not known, 0 taken and the camera's height flagged);
     ``progress``: one line a stage on long work (thousands of pairs)."""
     cfg = config or DEFAULT.handeye

@@ -619,15 +619,15 @@ class Pose:
 
 
 def load_arm_session(folder) -> Session:
-    """The photos of a camera on the arm (``docs/format.md``, "Cameras"): session.json's
-    ``poses`` (each photo and the command it was taken at), ``camera_mount``, the lens when
-    declared, the ``sheet`` (its marker field) and ``robot`` blocks; every field checked,
-    one line naming it. The photos are the session's ``images`` (no marks), in the poses'
-    order, so the measurement lists, checks and detects them as any session's.
+    """The photos of a camera on the arm and the commands they were taken at.
 
-        session = load_arm_session("arm/")
-        session.poses[0].joints_deg, session.camera_mount, session.camera
-    """
+        session = load_arm_session("arm/")    # session.poses[0].joints_deg, .camera_mount
+
+    session.json (``docs/format.md``, "Cameras"): ``poses`` (each photo and its command),
+    ``camera_mount``, the lens when declared, the ``sheet`` (its marker field) and
+    ``robot`` blocks; every field checked, one line naming it. The photos are the
+    session's ``images`` (no marks), in the poses' order, so the measurement lists, checks
+    and detects them as any session's."""
     folder = Path(folder)
     path = folder / "session.json"
     if folder.is_dir() and not path.exists():

@@ -197,7 +197,12 @@ def _pool_initializer(parent_pid: int) -> None:
 def detect_all(items: list[Photo], session: Session, cache: DetectionCache, *,
                jobs: int | None = None, progress=None,
                config: EstimatorConfig | None = None, dots: bool = True) -> list[str]:
-    """Stage 1 of every photo not skipped yet (``ph.det`` filled): from the cache, else in
+    """Stage 1 of every photo not skipped yet (``ph.det`` filled).
+
+        items, warnings, notes = photos_to_measure(session)
+        warnings += detect_all(items, session, DetectionCache("out/.cache"), jobs=4)
+
+    From the cache, else in
     ``jobs`` worker processes (fewer when large photos would not fit
     :data:`MAX_PIXELS_IN_FLIGHT`), with a progress bar. ``dots`` False: the markers only
     (the arm camera's photos of the marker field), cached apart. Returns the warnings."""

@@ -46,16 +46,16 @@ log = logging.getLogger(__name__)
 def measure_arm_photos(session: Session, *, cache_dir, jobs: int | None = 1, progress=False,
                        config: EstimatorConfig | None = None
                        ) -> tuple[list[ArmView], list[dict]]:
-    """The arm camera's photos measured as every photo is: the listing and its checks
-    (:func:`vision_cal.measure.listing.photos_to_measure`), stage 1 on the markers only,
-    cached in ``cache_dir`` and run in ``jobs`` processes
+    """The arm camera's photos measured as every photo is.
+
+        views, images = measure_arm_photos(load_arm_session("arm/"), cache_dir="out/.cache")
+
+    The listing and its checks (:func:`vision_cal.measure.listing.photos_to_measure`),
+    stage 1 on the markers only, cached in ``cache_dir`` and run in ``jobs`` processes
     (:func:`vision_cal.measure.detect.detect_all`), each photo's corners in the declared
     lens (:func:`vision_cal.camera.arm.lens_corners`). Returns the views of the photos
     measured, in the poses' order, and every photo's ``images[]`` entry (``ok`` with its
-    markers and size, or ``skipped`` with the measurement's reason).
-
-        views, images = measure_arm_photos(load_arm_session("arm/"), cache_dir="out/.cache")
-    """
+    markers and size, or ``skipped`` with the measurement's reason)."""
     items, warnings, _ = photos_to_measure(session)
     warnings += detect_all(items, session, DetectionCache(Path(cache_dir)), jobs=jobs,
                            progress=progress, config=config or DEFAULT, dots=False)
@@ -147,14 +147,15 @@ def _pose_table(views, fit) -> list[dict]:
 
 
 def calibrate_arm_camera(folder, *, cache_dir, progress: bool = False, jobs: int = 1) -> dict:
-    """calibration.json (as a dict) of an arm-camera dataset: the robot's base parameters
-    with std and covariance, and the ``cameras`` entry with ``T_flange_camera``.
-    ``cache_dir``: the detections' cache (the output folder's ``.cache``); ``progress``: a
-    bar (or one line per stage) while the photos are measured; ``jobs``: processes
-    measuring them (each photo's result is the same for any number).
+    """calibration.json (as a dict) of an arm-camera dataset.
 
         doc = calibrate_arm_camera("arm/", cache_dir="out/.cache", jobs=4)
-    """
+
+    The robot's base parameters with std and covariance, and the ``cameras`` entry with
+    ``T_flange_camera``. ``cache_dir``: the detections' cache (the output folder's
+    ``.cache``); ``progress``: a bar (or one line per stage) while the photos are
+    measured; ``jobs``: processes measuring them (each photo's result is the same for any
+    number)."""
     session = load_arm_session(folder)
     folder, mount, camera = Path(session.root), session.camera_mount, session.camera
     if radians_given([p.joints_deg for p in session.poses]):
