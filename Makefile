@@ -35,6 +35,7 @@ clean:
 	rm -rf out .pytest_cache
 
 bench: $(STAMP)
+	$(BIN)/python bench/speed.py
 	$(BIN)/python bench/diagnose.py
 	$(BIN)/python bench/measure.py
 	$(BIN)/python bench/measure.py --whole

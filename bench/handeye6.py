@@ -4,12 +4,19 @@ approaches.
 
 ``--seeds N`` (synthetic, world/six_axis.py: a UR5e-like arm off its controller's model,
 joint noise, a lens the estimator is not told; projected corners with 0.15 px of detector
-noise): for each seed and mount, 12 photos fitted with the lens estimated; printed: the
-share of the 12 pose parameters (T_robot_camera / T_flange_camera and T_flange_board /
-T_robot_board, rotation and translation per axis) within 2 std of the truth (95 % when the
-stds are right), the RMS of error / std, the stated held-out error against the error on 20
-fresh photos of the same world, and the verdict. ``--dh-mm`` adds kinematic errors (the
-controller's model off by that much per DH length: a systematic, not a random, pose error).
+noise; the poses with the commanded joints unless ``--no-joints``): for each seed and mount,
+12 photos fitted with the lens estimated; printed: the share of the 12 pose parameters
+(T_robot_camera / T_flange_camera and T_flange_board / T_robot_board, rotation and
+translation per axis) within 2 std of the truth (95 % when the stds are right), in the
+world's frames and in the controller's (joint 1's zero and offset and joint 6's errors
+absorbed: what no pose of the arm tells from the transforms), the RMS of error / std, the
+share of 20 fresh photos' corners inside the 95 % radius stated for each (at poses inside
+``valid_for.flange_poses`` and outside it), the verdict; a camera on the arm: the fresh
+photos' corners located on the board's plane (``vision-cal locate``'s code) inside their
+stated 95 % ellipse. ``--dh-mm`` adds kinematic errors (the controller's model off by that
+much per DH length, a tenth of it in degrees per angle: a systematic, not a random, pose
+error); ``--kinematic-length 0`` fits without the kinematic error term (the robot's pose
+error independent from photo to photo, as before).
 
 ``--failures``: per seed, a lens declared 10 % long, poses in metres read as mm (and in
 inches), poses shifted by one photo, a photo of another board (other squares): the outcome
@@ -43,8 +50,9 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from vision_cal.camera import handeye_locate, handeye_valid
 from vision_cal.camera.board import find_board, load_board
-from vision_cal.camera.handeye import estimated_lens_fit, fit_handeye
+from vision_cal.camera.handeye import estimated_lens_fit, fit_handeye, stated_new_px
 from vision_cal.camera.handeye_closed import inv_T
 from vision_cal.camera.handeye_lsq import Problem, View, lens_vector, pose_offset, refine
 from vision_cal.camera.handeye_verdict import judge_handeye, lens_check
@@ -60,8 +68,11 @@ ROOT = Path(__file__).resolve().parents[1]
 REAL = ROOT.parent / "shared" / "real_photos" / "industrial_charuco_even"
 
 
-def _views(w, sh, rng):
-    return [View(s.name, s.T_robot_flange, *observe(w, s, rng)) for s in sh]
+def _views(w, sh, rng, joints: bool = True):
+    """The world's photos as the estimator gets them: the controller's pose (and commanded
+    joints, unless ``joints`` is False) and the corners the detector reports."""
+    return [View(s.name, s.T_robot_flange, *observe(w, s, rng),
+                 joints_deg=s.q_deg if joints else None) for s in sh]
 
 
 def _predict_err(views, mount, X, Y, lens) -> np.ndarray:
@@ -74,40 +85,106 @@ def _predict_rms(views, mount, X, Y, lens) -> float:
     return float(np.sqrt(np.mean(_predict_err(views, mount, X, Y, lens) ** 2)))
 
 
-def synthetic(seeds, mount: str, n: int, dh_mm: float, joint_deg: float) -> None:
-    """Parameters against the truth, the stated held-out error against fresh photos."""
-    z, ratio, status, zlens, inside = [], [], {}, [], []
+def _fresh(f, views, mount) -> tuple[list, list, int]:
+    """Fresh photos predicted from ``f``, each corner's error against the stated 95 %
+    radius: (inside valid_for: each photo's share of corners inside, outside: the same,
+    how many outside)."""
+    vf = handeye_valid.of_views(f.views, lever_mm=f.noise.lever_mm or 1.0,
+                                length_rad=DEFAULT.handeye_photos.kinematic_length_rad)
+    inside, outside = [], []
+    for v in views:
+        e = _predict_err([v], mount, f.X, f.Y, f.lens)
+        st = stated_new_px(f, v)
+        out = handeye_valid.check(vf, cal="", ids=[v.name], poses=[v.T_robot_flange],
+                                  joints=[v.joints_deg])
+        (outside if out else inside).append(np.mean(e <= R95_PER_RMS * st))
+    return inside, outside, len(outside)
+
+
+def _located(f, w, fresh_shots, joints: bool) -> tuple[list, list]:
+    """A camera on the arm used: each fresh photo's board corners (projected, the pixel
+    exact) located on the board's plane from the controller's flange pose
+    (``camera/handeye_locate``), against the board's corners in the controller's frames:
+    the share of corners inside their stated 95 % ellipse (x, y), at poses inside and
+    outside valid_for."""
+    cam = handeye_locate.from_fit(f)
+    vf = handeye_valid.of_views(f.views, lever_mm=f.noise.lever_mm or 1.0,
+                                length_rad=DEFAULT.handeye_photos.kinematic_length_rad)
+    _, Yc = w.controller_frames()
+    C = w.board.corners()
+    inside, outside = [], []
+    for s in fresh_shots:
+        q = s.q_deg if joints else None
+        P = C @ s.T_camera_board[:3, :3].T + s.T_camera_board[:3, 3]
+        pts = handeye_locate.locate_at(cam, s.T_robot_flange, w.lens.project(P), 0.0,
+                                       joints=q)
+        e = np.array([p.robot_mm - (Yc[:3, :3] @ c + Yc[:3, 3]) for p, c in zip(pts, C)])
+        sd = np.array([p.robot_std_mm for p in pts])
+        d2 = np.sum((e[:, :2] / sd[:, :2]) ** 2, axis=1)
+        out = handeye_valid.check(vf, cal="", ids=[s.name], poses=[s.T_robot_flange],
+                                  joints=[q])
+        (outside if out else inside).append(float(np.mean(d2 <= CHI2_2_95)))
+    return inside, outside
+
+
+#: chi-square with 2 degrees of freedom at 95 %
+CHI2_2_95 = 5.991
+
+
+def synthetic(seeds, mount: str, n: int, dh_mm: float, joint_deg: float, *, joints=True,
+              config=None) -> None:
+    """Parameters against the truth (the world's frames, and the controller's: joint 1's
+    zero and offset and joint 6's errors absorbed, which no pose can tell from the
+    transforms), the stated error for a new pose against fresh photos of the same world,
+    inside and outside valid_for."""
+    zw, zc, status, zlens, inside, outside, n_out = [], [], {}, [], [], [], 0
+    loc_in, loc_out = [], []
     for seed in seeds:
         w = make_world(seed, mount=mount, joint_noise_deg=joint_deg, dh_error_mm=dh_mm,
                        dh_error_deg=dh_mm / 10.0)
         rng = np.random.default_rng(seed + 1)
         sh = shots(w, n + 20, seed)
-        views = _views(w, sh, rng)
-        f = fit_handeye(views[:n], mount, w.lens.size_px)
-        err = np.r_[pose_offset(w.X, f.X), pose_offset(w.Y, f.Y)]
-        z.append(err / f.std[:12])
+        views = _views(w, sh, rng, joints)
+        f = fit_handeye(views[:n], mount, w.lens.size_px, config=config)
+        zw.append(np.r_[pose_offset(w.X, f.X), pose_offset(w.Y, f.Y)] / f.std[:12])
+        Xc, Yc = w.controller_frames()
+        zc.append(np.r_[pose_offset(Xc, f.X), pose_offset(Yc, f.Y)] / f.std[:12])
         truth = lens_vector(w.lens.K, w.lens.dist)
         zlens.append(((f.lens - truth)[f.free] / f.std[12:])[:4])
-        e = _predict_err(views[n:], mount, f.X, f.Y, f.lens)
-        fresh = float(np.sqrt(np.mean(e ** 2)))
-        stated = f.heldout_rms()[1]
-        inside.append(np.mean(e <= R95_PER_RMS * stated))
-        ratio.append(fresh / stated)
+        ins, outs, k = _fresh(f, views[n:], mount)
+        inside += ins
+        outside += outs
+        n_out += k
+        if mount == "arm":
+            li, lo = _located(f, w, sh[n:], joints)
+            loc_in += li
+            loc_out += lo
         v = judge_handeye(f).status
         status[v] = status.get(v, 0) + 1
-        print(f"  seed {seed}: within 2 std {np.mean(np.abs(z[-1]) < 2):.2f}, fresh photos "
-              f"{fresh:.2f} px against {stated:.2f} stated, {v}, lens "
-              f"{f.lens_models and min(f.lens_models, key=lambda t: t[1])[0]}",
+        print(f"  seed {seed}: within 2 std {np.mean(np.abs(zw[-1]) < 2):.2f} (controller's "
+              f"frames {np.mean(np.abs(zc[-1]) < 2):.2f}), fresh photos inside the stated 95 % "
+              f"radius {np.mean(ins) if ins else float('nan'):.2f} ({len(ins)} inside "
+              f"valid_for), {np.mean(outs) if outs else float('nan'):.2f} ({k} outside); "
+              f"kinematic {f.noise.kin_mm:.3f} mm over {f.noise.kin_over or '-'}; {v}",
               flush=True)
-    z = np.array(z)
-    print(f"{mount}, {n} photos, joint noise {joint_deg} deg, DH error {dh_mm} mm: pose "
-          f"parameters within 2 std {100 * np.mean(np.abs(z) < 2):.1f} % ({z.size}), "
-          f"error/std RMS {np.sqrt(np.mean(z ** 2)):.2f}; fx fy cx cy within 2 std "
-          f"{100 * np.mean(np.abs(np.array(zlens)) < 2):.1f} %; fresh photos / stated: "
-          f"median {np.median(ratio):.2f}, within stated "
-          f"{100 * np.mean(np.array(ratio) <= 1):.0f} %"
-          f", {100 * np.mean(np.array(ratio) <= 1.5):.0f} % within 1.5x; fresh corners inside the "
-          f"stated 95 % radius {100 * np.mean(inside):.1f} %; verdicts {status}")
+    zw, zc = np.array(zw), np.array(zc)
+    share = 100 * np.mean(inside) if inside else float("nan")
+    print(f"{mount}, {n} photos, joint noise {joint_deg} deg, DH error {dh_mm} mm, joints "
+          f"{'given' if joints else 'not given'}: pose parameters within 2 std "
+          f"{100 * np.mean(np.abs(zw) < 2):.1f} % of {zw.size} (error/std RMS "
+          f"{np.sqrt(np.mean(zw ** 2)):.2f}), in the controller's frames "
+          f"{100 * np.mean(np.abs(zc) < 2):.1f} % ({np.sqrt(np.mean(zc ** 2)):.2f}); fx fy cx "
+          f"cy within 2 std {100 * np.mean(np.abs(np.array(zlens)) < 2):.1f} %; fresh "
+          f"corners inside the stated 95 % radius: {share:.1f} % at poses inside valid_for "
+          f"({len(inside)} photos), "
+          f"{100 * np.mean(outside) if outside else float('nan'):.1f} % outside ({n_out} "
+          f"photos flagged), {100 * np.mean(inside + outside):.1f} % all; verdicts {status}")
+    if loc_in or loc_out:
+        print(f"  located (vision-cal locate, the board's plane): corners inside their stated "
+              f"95 % ellipse {100 * np.mean(loc_in) if loc_in else float('nan'):.1f} % at "
+              f"poses inside valid_for ({len(loc_in)} photos), "
+              f"{100 * np.mean(loc_out) if loc_out else float('nan'):.1f} % outside "
+              f"({len(loc_out)})")
 
 
 def _outcome(fn, views=None) -> str:
@@ -407,11 +484,19 @@ def main() -> None:
     ap.add_argument("--real", action="store_true")
     ap.add_argument("--render", type=int, default=0, help="seeds of rendered photos")
     ap.add_argument("--opencv-python", default=None)
+    ap.add_argument("--no-joints", action="store_true",
+                    help="the poses without the arm's joints (the kinematic error's "
+                         "correlation over flange poses, valid_for without joints)")
+    ap.add_argument("--kinematic-length", type=float, default=None,
+                    help="config.handeye_photos.kinematic_length_rad (0: no kinematic term)")
     a = ap.parse_args()
     seeds = range(a.first_seed, a.first_seed + a.seeds)
+    cfg = (None if a.kinematic_length is None else
+           replace(DEFAULT.handeye_photos, kinematic_length_rad=a.kinematic_length))
     for mount in a.mounts.split(","):
         if a.seeds:
-            synthetic(seeds, mount, a.photos, a.dh_mm, a.joint_deg)
+            synthetic(seeds, mount, a.photos, a.dh_mm, a.joint_deg, joints=not a.no_joints,
+                      config=cfg)
     if a.render:
         for mount in a.mounts.split(","):
             rendered(range(a.first_seed + 900, a.first_seed + 900 + a.render), mount, a.photos)

@@ -184,8 +184,9 @@ def plain_all(files: list[Path], dictionary: str) -> tuple[float, float]:
     return time.perf_counter() - t, time.process_time() - c
 
 
-def whole_run(folder: Path) -> None:
-    """The whole calibration against plain decode + detect (see the module docstring)."""
+def whole_run(folder: Path) -> dict:
+    """The whole calibration against plain decode + detect (see the module docstring),
+    printed; returns the figures (``bench/speed.py`` writes them to docs/speed.json)."""
     from vision_cal.workflows import pipeline
     from vision_cal.calibrate.paper import pilot_params
     from vision_cal.dataset.session import load_session
@@ -243,6 +244,11 @@ def whole_run(folder: Path) -> None:
     per_mark = spent["fit + diagnosis"] / max(n_marks, 1)
     print(f"fit + diagnosis per mark {1e3 * per_mark:.1f} ms CPU = "
           f"{per_mark / (plain_cpu / len(files)):.3f}x plain decode + detect per photo")
+    return {"photos": len(files), "marks": n_marks, "plain_cpu_s": plain_cpu,
+            "whole_cpu_s": whole_cpu, "ratio_cpu": whole_cpu / plain_cpu,
+            "ratio_wall": whole / plain, "measure_ratio_cpu": spent["measure"] / plain_cpu,
+            "fit_per_mark_ratio": per_mark / (plain_cpu / len(files)),
+            "dots_per_mark": views / max(n_marks, 1)}
 
 
 def _rerasterised(a4: Path, raster: str) -> Path:

@@ -8,7 +8,7 @@ For each seed: the scene is rendered (unless already there), calibrated (``--tru
 then
 - marks: measured minus truth.json ``marks`` (RMS, calibration and validation marks),
 - targets: the calibration's compensated plan for every mark's true position, run on the
-  world's true robot (``render.truth_model``, kinematic, no repeatability noise), miss RMS
+  world's true robot (``world.truth_model``, kinematic, no repeatability noise), miss RMS
   and max against the targets,
 - print: the reported deviation (``print.field_rms_mm``, ``growth_mm``) against truth.json
   ``print`` (the field at the markers' corners, the toner),

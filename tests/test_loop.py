@@ -149,3 +149,71 @@ def test_landing_note_says_where_the_pen_went(loop):
 
     if sheet_clearance_mm(sheet, np.array([free]))[0] > 0:
         assert landing_note(sheet, At(free), p).startswith("not measured")
+
+
+@pytest.mark.parametrize("status, used", [("not significant", True), ("applied", True),
+                                          ("not replicated", False), ("failed", False),
+                                          ("raises", False)])
+def test_a_survey_block_surveys_first_and_the_calibration_uses_what_measured_the_print(
+        tmp_path, monkeypatch, status, used):
+    """The scene's ``survey`` block: the blank sheet of the same world is rendered into
+    survey_photos/ before the session, surveyed into survey/survey.json and passed to the
+    calibration when it measured the print (a field applied, or the print found on its
+    layout), never when it did not (not replicated, failed, no survey at all); loop.json's
+    block and the console line say which. The renders, the survey and the calibration
+    are stand-ins: what is checked is what the loop passes between them."""
+    from types import SimpleNamespace
+
+    from vision_cal.errors import VisionCalError
+    from vision_cal.measure.replicate import Claim
+    from vision_cal.world.scene import scene_from_dict
+    from vision_cal.workflows import loop as lp
+
+    rendered, calibrated = [], []
+
+    def render(scene, out_dir, **kw):
+        rendered.append((scene, Path(out_dir).name))
+        Path(out_dir).mkdir(parents=True)
+        return Path(out_dir)
+
+    def survey(photos, sheet_json, out_dir):
+        assert Path(photos).name == "survey_photos" and Path(sheet_json).parent == photos
+        if status == "raises":
+            raise VisionCalError("2 usable photo(s) from fewer than 3 camera places")
+        return {"photos": [{"status": "ok"}] * 6, "verdict": {"status": "no field",
+                                                              "text": f"survey {status}"}}
+
+    def calibrate(folder, *, out_dir, survey=None, **kw):
+        calibrated.append(survey)
+        return SimpleNamespace(document={"marks": {}})
+
+    monkeypatch.setattr(lp, "render_dataset", render)
+    monkeypatch.setattr(lp, "run_survey", survey)
+    monkeypatch.setattr(lp, "applicable", lambda path: Claim(status, "why"))
+    monkeypatch.setattr(lp, "calibrate_dataset", calibrate)
+    scene = scene_from_dict({"seed": 4, "survey": {"n_views": 6, "tilt_deg": [10, 30]}})
+    _, block = lp._calibrate_scene(scene, tmp_path, jobs=1, render_jobs=2, progress=False,
+                                   photographer=None, stages={})
+    (sv, where), (session, _) = rendered
+    assert where == "survey_photos" and sv.photos.mode == "survey"
+    assert (sv.seed, sv.sheet, sv.camera.n_views, sv.camera.tilt_deg) == (
+        4, scene.sheet, 6, (10.0, 30.0))
+    assert session is scene
+    assert block["used"] is used
+    assert calibrated == [str(tmp_path / "survey" / "survey.json") if used else None]
+    assert block["status"] == ("failed" if status == "raises" else status)
+    line = lp.format_table({"targets": [], "summary": {
+        "n_targets": 0, "before": {"rms_mm": None}, "after": {"rms_mm": None}},
+        "survey": block})
+    assert ("used by the calibration" in line) is used and "survey of the blank sheet" in line
+    from vision_cal.report.html import _targets_html   # the report's Table 3 says it too
+
+    row = {"id": "t", "target_mm": [0.0, 0.0], "before_error_mm": 1.0, "after_error_mm": 0.01}
+    page = "".join(_targets_html({"loop": {"targets": [row], "survey": block}}))
+    assert ("used by the calibration" in page) is used and "survey of the blank sheet" in page
+
+    rendered.clear(), calibrated.clear()
+    _, block = lp._calibrate_scene(scene_from_dict({}), tmp_path / "none", jobs=1,
+                                   render_jobs=2, progress=False, photographer=None,
+                                   stages={})
+    assert block is None and calibrated == [None] and [w for _, w in rendered] == ["session"]

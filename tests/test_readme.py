@@ -57,6 +57,10 @@ COVERED = {
                               "18.256 --dictionary DICT_6X6_250 --out board/"):
         "tests/camera/test_handeye6_real.py (the real session's board and photos, the same "
         "requests)",
+    ("Calibrate your camera", "vision-cal handeye photos/ --robot-poses poses/ --sheet "
+                              "board/sheet.json --mount arm --out arm_he/"):
+        "tests/camera/test_handeye6_use.py (the same locate and export requests on a six-axis "
+        "world's calibration)",
     ("Commands", "vision-cal images/ --report"): "test_the_commands_block_is_complete_and_parses",
 }
 

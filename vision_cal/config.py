@@ -452,6 +452,13 @@ class HandeyePhotosConfig:
     declared_lens_std: float = 4.0    # ... or one whose fx, fy, cx or cy lies more than this
                                       # many stds from the estimate (4 terms tested: a false
                                       # alarm in 1 of 4000 when right)
+    kinematic_length_rad: float = 1.0  # the robot's kinematic error is shared by two photos
+                                      # as exp(-d^2 / 2 L^2) of their distance d over the
+                                      # joints (rad; without joints: flange position over
+                                      # the arm's reach and rotation): a model length or
+                                      # angle off turns with its joint, so one radian apart
+                                      # shares about cos 1 of it (0: no kinematic term, the
+                                      # pose error independent from photo to photo)
 
 
 @dataclass(frozen=True)

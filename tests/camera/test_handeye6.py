@@ -12,6 +12,8 @@ import pytest
 from vision_cal.camera.handeye import estimated_lens_fit, fit_handeye
 from vision_cal.camera.handeye_closed import inv_T, robot_scale, solve_axzb
 from vision_cal.camera.handeye_lsq import Problem, View, lens_vector, pose_offset
+from vision_cal.camera.handeye_stats import (_kinematic_low_rank, _low_rank, kinematic_kernel,
+                                             noise_components, sandwich)
 from vision_cal.camera.handeye_verdict import judge_handeye, lens_check
 from vision_cal.config import DEFAULT
 from vision_cal.errors import CalibrationError, VisionCalError
@@ -185,3 +187,39 @@ def test_too_few_photos():
     w, views = _views(29, "fixed", n=3)
     with pytest.raises(CalibrationError, match="at least"):
         _fit(views, w, "fixed")
+
+
+@pytest.mark.parametrize("mount", ["fixed", "arm"])
+def test_a_kinematic_error_shared_by_nearby_poses_is_in_the_stds(mount):
+    """Photos taken in nearby configurations (each joint within about 6 deg) share most of the
+    robot's kinematic error, which the unknowns absorb unseen. Residuals drawn from the
+    noise model (the detector's, a per-photo pose error, and a kinematic error of 0.3 mm
+    shared by the kernel over the joints): the noise estimated from each residual states
+    the unknowns' covariance that the draws show (each variance within 0.5x..2x of what
+    the draws give; the robot's error taken as independent states 2-7x too little)."""
+    w = make_world(7, mount=mount, lens=LENS)
+    rng = np.random.default_rng(3)
+    s0 = shots(w, 1, 7)[0]
+    views = []
+    for i in range(10):
+        q = s0.q_deg + (rng.normal(0.0, 6.0, 6) if i else 0.0)
+        s = replace(s0, name=str(i), q_deg=q, q_true_deg=q,
+                    T_robot_flange=w.nominal.flange(q), T_camera_board=w.T_camera_board(q))
+        views.append(View(s.name, s.T_robot_flange, *observe(w, s, rng), joints_deg=q))
+    pr = Problem(views, mount, w.X, w.Y, lens_vector(LENS.K, LENS.dist), np.zeros(9, bool))
+    Js, Jd = pr.jacobians(pr.start())
+    kin = kinematic_kernel(views, 1.0)
+    blocks = [np.flatnonzero(np.repeat(pr.view_of, 2) == i) for i in range(len(views))]
+    U = [_low_rank(Jd, blocks, [0, 1, 2]), _low_rank(Jd, blocks, [3, 4, 5]),
+         _kinematic_low_rank(Jd, blocks, kin)]
+    sd = (0.15, 0.01, 0.05, 0.3)        # px, deg, mm per photo, mm kinematic
+    Hi = np.linalg.pinv(Js.T @ Js)
+    theta, stated = [], []
+    for _ in range(60):
+        e = sd[0] * rng.standard_normal(len(Js)) + sum(
+            s * (u @ rng.standard_normal(u.shape[1])) for s, u in zip(sd[1:], U))
+        theta.append(Hi @ Js.T @ e)
+        noise = noise_components((e - Js @ theta[-1]).reshape(-1, 2), Js, Jd, pr.view_of, kin)
+        stated.append(np.diag(sandwich(Js, Jd, pr.view_of, noise, kin)))
+    ratio = np.var(np.array(theta), axis=0) / np.mean(stated, axis=0)
+    assert np.all((ratio > 0.5) & (ratio < 2.0)), ratio.round(2)

@@ -78,6 +78,27 @@ def test_ros_pose_messages_are_read(tmp_path):
     assert np.allclose(poses[1].T[:3, :3] @ [1, 0, 0], [0, 1, 0], atol=1e-6)
 
 
+def test_the_arms_joints_are_read_with_the_poses(tmp_path):
+    """joints_deg in a pose file and q1_deg... in the CSV (degrees); a pose without them
+    when the others have them is refused, naming it."""
+    d = tmp_path / "p"
+    d.mkdir()
+    w = make_world(1, mount="fixed")
+    sh = shots(w, 3, 1)
+    for s in sh:
+        (d / f"{s.name}.yaml").write_text(pose_yaml(s.T_robot_flange, s.q_deg))
+    poses, _ = read_robot_poses(d)
+    assert np.allclose(poses[2].joints_deg, sh[2].q_deg)
+    rows = ["photo,x_mm,y_mm,z_mm,qx,qy,qz,qw,q1_deg,q2_deg"]
+    rows += [f"{i},{400 + 50 * i},{10 * i},500,0,0,0,1,{i},{-90 + i}" for i in range(3)]
+    (tmp_path / "p.csv").write_text("\n".join(rows) + "\n")
+    poses, _ = read_robot_poses(tmp_path / "p.csv")
+    assert np.allclose(poses[1].joints_deg, [1.0, -89.0])
+    (d / "1.yaml").write_text(pose_yaml(sh[1].T_robot_flange))
+    with pytest.raises(VisionCalError, match=r"1\.yaml: joints_deg: the poses list different"):
+        read_robot_poses(d)
+
+
 def _charuco(tmp_path, name, **kw) -> dict:
     args = dict(charuco="5x7", square_mm=40.0, marker_mm=20.0, dictionary="DICT_6X6_250")
     args.update(kw)
@@ -103,9 +124,9 @@ def test_sheet_charuco_is_opencvs_board(tmp_path):
 
 
 def test_sheet_charuco_agrees_with_the_survey_fixture(tmp_path):
-    """The industrial session's board as the survey helper wrote it by hand (fixtures/
+    """The industrial session's board as its fixture describes it (fixtures/
     industrial_charuco_even/sheet.json, CharucoBoard((5, 7), 36.195, 18.256,
-    DICT_6X6_250)) and as `sheet --charuco` writes it: the same markers."""
+    DICT_6X6_250)) and as `sheet --charuco` writes it: the same markers and corners."""
     if not INDUSTRIAL_FIXTURE.is_file():
         pytest.skip("fixtures/industrial_charuco_even/sheet.json is not merged yet")
     ref = json.loads(INDUSTRIAL_FIXTURE.read_text())
@@ -114,6 +135,8 @@ def test_sheet_charuco_agrees_with_the_survey_fixture(tmp_path):
     assert set(got) == {m["id"] for m in ref["markers"]}
     for m in ref["markers"]:
         assert np.abs(got[m["id"]] - np.array(m["corners_mm"])).max() < 1e-3
+    assert np.abs(np.array(doc["charuco"]["corners_mm"])
+                  - np.array(ref["charuco"]["corners_mm"])).max() < 1e-3
 
 
 def test_legacy_pattern_and_refusals(tmp_path):

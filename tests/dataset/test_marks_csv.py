@@ -174,3 +174,36 @@ def test_a_marks_csv_in_metres_or_a_pdf_is_named_as_what_it_is(tmp_path, capsys)
     err = capsys.readouterr().err
     assert "is a PDF" in err and "sheet" not in err
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+def test_a_marks_csv_beyond_the_bound_is_one_line_naming_it(tmp_path, monkeypatch):
+    """More marks than marks_csv.MAX_MARKS (100,000: docs/format.md) are refused naming the
+    bound, before any fit (here the bound lowered to 3 for a 4-row file)."""
+    import vision_cal.dataset.marks_csv as marks_csv
+
+    rows = (FIXTURE / "marks.csv").read_text().splitlines()[:5]
+    (tmp_path / "m.csv").write_text("\n".join(rows) + "\n")
+    monkeypatch.setattr(marks_csv, "MAX_MARKS", 3)
+    with pytest.raises(VisionCalError) as e:
+        session_from_marks_csv(tmp_path / "m.csv", FIXTURE / "robot.yaml")
+    assert "at most 3" in str(e.value) and e.value.file == str(tmp_path / "m.csv")
+
+
+def test_a_long_calibration_says_when_each_stage_starts_and_ends(tmp_path, monkeypatch, capsys):
+    """From pipeline.PROGRESS_MARKS marks (2,000; lowered to the fixture's 40 here) the fit +
+    diagnosis and the writing of calibration.json each print a progress line as they start
+    and as they end; below it, none."""
+    import vision_cal.workflows.pipeline as pipeline
+
+    argv = ["calibrate", str(FIXTURE / "marks.csv"), "--robot", str(FIXTURE / "robot.yaml"),
+            "--sigma-mm", str(SIGMA), "--out", str(tmp_path / "o")]
+    monkeypatch.setattr(pipeline, "PROGRESS_MARKS", N)
+    assert main(argv) == 0
+    err = [ln for ln in capsys.readouterr().err.splitlines() if "progress:" in ln]
+    for stage in ("fit + diagnosis", "calibration.json"):
+        assert f"vision-cal: progress: {stage}: {N} marks ..." in err
+        assert any(ln.startswith(f"vision-cal: progress: {stage}: {N}/{N} marks in ")
+                   for ln in err), err
+    monkeypatch.setattr(pipeline, "PROGRESS_MARKS", N + 1)
+    assert main(argv) == 0
+    assert "progress: fit" not in capsys.readouterr().err

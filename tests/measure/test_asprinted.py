@@ -190,3 +190,35 @@ def test_the_field_the_marks_share_is_the_corners_covariance_on_a_mappings_field
     Bm = field_basis(xy, centre, scale)
     assert np.allclose(print_field_cov({"field": back.field}, xy), Bm @ C8 @ Bm.T, atol=1e-12)
     assert print_field_cov({"source": "one place"}, xy) is None
+
+
+@pytest.mark.parametrize("seed", [5, 8])
+def test_the_marks_between_the_markers_are_within_what_the_solve_states(seed):
+    """Issue 37: the marks lie between the markers, where each photo's mapping is what the
+    solved lens and poses make of the printed corners: marks measured there (mapped from the
+    true pixels through the photos' mappings, averaged over the photos) are within twice the
+    std the solve states for them (``interior_mm``), which is also the print's limit on the
+    marks when larger than the corners' own (``limit_mm``) and is written and read back."""
+    from vision_cal.measure.mapping import fit_mapping
+
+    rng = np.random.default_rng(seed)
+    ids, declared = _layout()
+    dev = _deviation(declared.reshape(-1, 2), 0.17).reshape(declared.shape)
+    views = [(f, i, declared, px) for f, i, _, px in _views(declared + dev, ids, PLACES6, rng)]
+    K0 = K.copy()
+    K0[0, 0] = K0[1, 1] = 2560.0
+    ap = estimate_as_printed(views, K0, DIST * 0.7, SIZE, lens_free=True)
+    P = ap.interior_xy_mm
+    err = []
+    for k, (rx, ry, tx, ty) in enumerate(PLACES6):
+        rvec = np.array([np.pi + np.radians(rx), np.radians(ry), 0.02 * k])
+        t = -cv2.Rodrigues(rvec)[0] @ np.array([tx, ty, 720.0])
+        px, _ = cv2.projectPoints(np.column_stack([P, np.zeros(len(P))]), rvec, t, K, DIST)
+        m = fit_mapping(ap.printed_mm.reshape(-1, 2), views[k][3].reshape(-1, 2), K=ap.K,
+                        dist=ap.dist)
+        err.append(m.image_to_sheet(px.reshape(-1, 2)) - P)
+    e = np.mean(err, axis=0)
+    assert np.sqrt(np.mean(np.sum(e**2, axis=1))) < 2 * ap.interior_mm
+    assert ap.limit_mm == max(ap.unresolved_mm, ap.interior_mm)
+    back = AsPrinted.from_json(ap.to_json())
+    assert back.interior_mm == pytest.approx(ap.interior_mm) and back.limit_mm == ap.limit_mm

@@ -184,3 +184,11 @@ def test_a_field_not_applied_moves_no_mark_and_carries_the_print_in_their_varian
     calm = print_stage(session, images, replace(agreed, replication={"status": AGREE,
                                                                      "chi2_dof": 0.5}), DEFAULT)
     assert calm["limit_mm"] == pytest.approx(agreed.unresolved_mm)
+
+
+def test_only_a_field_applied_or_found_on_its_layout_measured_the_print():
+    from vision_cal.measure.replicate import (APPLIED, FAILED, NOT_REPLICATED, NOT_RESOLVED,
+                                              NOT_SIGNIFICANT, Claim, measures_the_print)
+    assert measures_the_print(Claim(APPLIED)) and measures_the_print(Claim(NOT_SIGNIFICANT, "."))
+    assert not any(measures_the_print(Claim(s, ".")) for s in (FAILED, NOT_REPLICATED,
+                                                               NOT_RESOLVED))

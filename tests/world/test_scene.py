@@ -81,6 +81,26 @@ def test_empty_scene_is_the_default_world():
     assert s.robot.effects == ()
 
 
+def test_the_survey_block_photographs_the_same_world_blank():
+    """``survey``: the default is no survey; the block's photos are the same world (seed,
+    robot, sheet and its print, lens) with the blank sheet seen from its places."""
+    assert scene_from_dict({}).survey is None
+    s = scene_from_dict({"seed": 5, "sheet": {"print": {"deviation_rms_mm": 0.1}},
+                         "camera": {"moving": False}, "photos": {"arm_parked": True},
+                         "survey": {"n_views": 7, "tilt_deg": 25}})
+    assert (s.survey.n_views, s.survey.tilt_deg) == (7, (0.0, 25.0))
+    assert s.photos.mode == "series" and s.camera.n_views == 4   # the session's own
+    sv = s.survey_photos()
+    assert (sv.seed, sv.robot, sv.sheet) == (s.seed, s.robot, s.sheet)
+    assert (sv.camera.size_px, sv.camera.f_px, sv.camera.dist) == (
+        s.camera.size_px, s.camera.f_px, s.camera.dist)
+    assert (sv.camera.n_views, sv.camera.tilt_deg) == (7, (0.0, 25.0))
+    assert sv.photos.mode == "survey" and not sv.photos.arm_parked
+    assert scene_from_dict({"survey": {}}).survey.n_views == 6
+    with pytest.raises(VisionCalError, match="survey: the scene has no survey block"):
+        scene_from_dict({}).survey_photos()
+
+
 def test_overrides():
     s = scene_from_dict({"seed": 3}).with_overrides(seed=9, mode="single")
     assert s.seed == 9 and s.photos.mode == "single"
@@ -118,6 +138,12 @@ def test_overrides():
     ({"photos": {"extra_files": [{"file": "../x.png"}]}}, "photos.extra_files[0].file"),
     ({"photos": {"extra_files": [{"file": "b.png", "kind": "torn"}]}},
      "photos.extra_files[0].kind"),
+    ({"survey": {"n_views": 2}}, "survey.n_views"),
+    ({"survey": {"n_views": 51}}, "survey.n_views"),
+    ({"survey": {"tilt_deg": [30, 10]}}, "survey.tilt_deg"),
+    ({"survey": {"tilt_deg": [10, 61]}}, "survey.tilt_deg[1]"),
+    ({"survey": {"views": 6}}, "survey.views"),
+    ({"survey": 6}, "survey"),
     ({"lights": {}}, "lights"),
     ([1, 2], None),
 ])

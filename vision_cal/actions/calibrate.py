@@ -16,6 +16,7 @@ from vision_cal.dataset.io import atomic_write_json, written_together
 from vision_cal.dataset.marks_csv import session_from_marks_csv
 from vision_cal.dataset.out_folder import output_names, refuse_input_folder, writing_into
 from vision_cal.errors import VisionCalError
+from vision_cal.measure.replicate import measures_the_print
 from vision_cal.measure.survey import applicable, find_survey
 from vision_cal.workflows.pipeline import CalibrationRun, calibrate_dataset
 from vision_cal.workflows.placements import calibrate_placements
@@ -192,7 +193,11 @@ def calibrate_one(req: CalibrateRequest, folder: str, out: Path,
     is_csv = _is_csv(folder)
     source = (session_from_marks_csv(folder, req.robot, sigma_mm=req.sigma_mm)
               if is_csv else folder)
-    survey = None if is_csv else find_survey(req.survey or folder)   # #28: as printed
+    # #28: as printed; --survey names the file, else survey.json in the dataset folder (a
+    # file given as the folder is never taken for a survey: the dataset reader says what
+    # it is)
+    survey = (None if is_csv else find_survey(req.survey) if req.survey
+              else find_survey(folder) if Path(folder).is_dir() else None)
     if req.survey and survey is None:
         raise VisionCalError("not found", file=str(req.survey))
     if survey is not None:   # issue 37: applied only when it claims a field
@@ -201,7 +206,8 @@ def calibrate_one(req: CalibrateRequest, folder: str, out: Path,
             tell(SurveyFound(survey))
         else:
             tell(SurveyNotApplied(survey, claim.status, claim.reason))
-            survey = None
+            if not measures_the_print(claim):
+                survey = None
     with writing_into(out, command="calibrate", inputs=[("DIR", folder)], quiet=req.quiet):
         with written_together():   # measurement.json renamed with calibration.json
             run = calibrate_dataset(source, out_dir=out, method=req.method, jobs=req.jobs,

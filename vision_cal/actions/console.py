@@ -421,6 +421,14 @@ def locate_lines(o: LocateOutcome) -> list[str]:
     """``vision-cal locate --pixel``: the pixel in the robot and sheet frames, and the joint
     command that reaches it (with --robot)."""
     p, j = o.point, o.joint
+    if o.flange:   # a camera on any arm's flange (issue 40)
+        return [f"pixel {p.pixel[0]:g} {p.pixel[1]:g} at z {p.z_mm:g} mm (camera {o.camera}, "
+                f"flange pose {o.flange})",
+                f"  robot frame: x {p.robot_mm[0]:.4f} y {p.robot_mm[1]:.4f} z "
+                f"{p.robot_mm[2]:.4f} mm  (std {p.robot_std_mm[0]:.4f} {p.robot_std_mm[1]:.4f} "
+                f"{p.robot_std_mm[2]:.4f} mm)",
+                f"  board frame: x {p.sheet_mm[0]:.4f} y {p.sheet_mm[1]:.4f} z "
+                f"{p.sheet_mm[2]:.4f} mm"]
     lines = [f"pixel {p.pixel[0]:g} {p.pixel[1]:g} at z {p.z_mm:g} mm (camera {o.camera})",
              f"  robot frame: x {p.robot_mm[0]:.4f} y {p.robot_mm[1]:.4f} z "
              f"{p.robot_mm[2]:.4f} mm  (std {p.robot_std_mm[0]:.4f} {p.robot_std_mm[1]:.4f} mm)",

@@ -19,6 +19,7 @@ from vision_cal.dataset.trust import require_usable_pilot
 from vision_cal.design.placements import design_placements
 from vision_cal.design.stage import DesignResult, design_stage
 from vision_cal.errors import VisionCalError
+from vision_cal.measure.replicate import measures_the_print
 from vision_cal.measure.survey import applicable, copy_survey, find_survey, load_survey
 
 
@@ -129,12 +130,14 @@ def design(req: DesignRequest) -> StageDesigned | PlacementsDesigned | CameraPos
     survey = find_survey(req.survey) if req.survey else find_survey(Path(req.sheet).parent)
     if req.survey and survey is None:
         raise VisionCalError("not found", file=str(req.survey))
-    not_applied = None
+    not_applied, goes_along = None, False
     if survey is not None:   # checked against the sheet before anything is written
         load_survey(survey, load_sheet_file(req.sheet))
         claim = applicable(survey)   # issue 37: not applied when it claims no field
         if not claim.applied:
             not_applied = f"{claim.status}: {claim.reason}"
+        # one that found the print on its layout goes with the plan too: it measured it
+        goes_along = measures_the_print(claim)
     check = req.verify is not None
     if not 0 <= req.iso9283 <= 30:
         raise VisionCalError(f"expected 1..30 cycles, got {req.iso9283}", field="--iso9283")
@@ -151,7 +154,7 @@ def design(req: DesignRequest) -> StageDesigned | PlacementsDesigned | CameraPos
                          stage="verify" if check else None,
                          iso9283_cycles=req.iso9283 if check else 0)
         dest = (copy_survey(survey, load_sheet_file(req.sheet), r.session_path.parent)
-                if survey is not None and not_applied is None else None)
+                if survey is not None and goes_along else None)
     return StageDesigned(r, survey, dest, req.verify, req.out, pilot_note, not_applied)
 
 

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from vision_cal.calibrate.plausible import check_units
 from vision_cal.camera.export import transform_path, write_opencv, write_ros
 from vision_cal.camera.fixed import camera_of
+from vision_cal.camera.handeye_locate import flange_camera_of, is_flange_camera
 from vision_cal.dataset.calibration import load_calibration_or_camera
 from vision_cal.dataset.io import distinct_outputs, written_together
 from vision_cal.dataset.out_folder import output_file_of_kind, replacing_files
@@ -88,8 +89,10 @@ def export_calibration(req: ExportRequest) -> ExportOutcome:
     with replacing_files(_outputs(req), command="export", quiet=req.quiet,
                          inputs=[("CALIBRATION.json", req.calibration), ("--robot", req.robot)]
                          ), written_together():
-        if req.opencv or req.ros:
-            cam = camera_of(doc, req.camera, file=req.calibration)
+        if req.opencv or req.ros:   # a still camera, or one on any arm's flange (issue 40)
+            cam = (flange_camera_of(doc, req.camera, file=req.calibration)
+                   if is_flange_camera(doc, req.camera) else
+                   camera_of(doc, req.camera, file=req.calibration))
             written += [write_opencv(req.opencv, cam)] if req.opencv else []
             written += write_ros(req.ros, cam) if req.ros else []
         if req.urdf or req.yaml:

@@ -257,7 +257,7 @@ def _detect(req: HandeyePhotosRequest, board, photos, poses, lens_size):
         if pts.reason:
             skipped.append((name, pts.reason))
             continue
-        views.append(View(name, pose.T, pts.ids, pts.board_mm, pts.px))
+        views.append(View(name, pose.T, pts.ids, pts.board_mm, pts.px, pose.joints_deg))
         alts["quaternion read as qw qx qy qz"].append(pose.T_read_as("wxyz"))
         alts["T_flange_robot (the poses inverted)"].append(pose.T_read_as("inverse"))
     return views, alts, skipped, size

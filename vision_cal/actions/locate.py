@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from vision_cal.camera import handeye_locate as flange
+from vision_cal.camera import handeye_valid
 from vision_cal.camera.arm import camera_for
 from vision_cal.camera.fixed import locate
 from vision_cal.dataset.calibration import load_calibration_or_camera
@@ -70,6 +72,10 @@ class LocateRequest:
     photo: str | None = None
     elbow: int = 1
     force: bool = False   # locate outside valid_for, the extrapolation stated
+    # a camera on a six-axis arm's flange (vision-cal handeye PHOTOS/ --mount arm)
+    flange_pose: tuple[float, ...] | None = None   # x y z (mm) qx qy qz qw
+    robot_poses: str | None = None   # per-photo pose files or a CSV, as handeye reads them
+    plane: str | None = None         # board (default) | robot
 
 
 @dataclass(frozen=True)
@@ -81,6 +87,7 @@ class LocateOutcome:
     warnings: tuple[str, ...] = ()
     point: object = None          # camera.fixed's located point (one --pixel)
     joint: object = None          # its joint command (with --robot), else None
+    flange: str | None = None     # a six-axis arm's camera: the flange pose's source
     camera: int = 0
     elbow: int = 1
     csv_text: str | None = None   # --csv without -o: the table for stdout
@@ -110,6 +117,9 @@ def locate_pixels(req: LocateRequest) -> LocateOutcome:
                                     ("--robot", req.robot)])
     # a hand-eye's calibration holds a camera alone (no robot model: issue 40)
     model, doc = load_calibration_or_camera(req.calibration)
+    if flange.is_flange_camera(doc, req.camera):
+        return _locate_on_flange(req, doc)
+    _refuse_flange_options(req)
     if model is None and req.robot:
         raise VisionCalError("this calibration holds a camera alone (a hand-eye's), no robot "
                              "model to plan joints with", file=req.calibration, field="--robot")
@@ -136,16 +146,7 @@ def locate_pixels(req: LocateRequest) -> LocateOutcome:
             f, fld = where(line, "--pixel")
             raise VisionCalError(f"pixel {u:g} {v:g} ({i}) is outside the camera's "
                                  f"{w}x{h} image", file=f, field=fld)
-    points = []
-    for p, zz, line in zip(uv, z, lines):
-        try:
-            points.append(locate(cam, [p], zz)[0])
-        except VisionCalError as e:   # the ray misses the plane: the height's fault
-            f, fld = where(line, "--z-mm" if line is None else "z_mm")
-            cam_z = float(cam.T_robot_camera[2, 3])
-            raise VisionCalError(f"{e.reason} (the camera is at z {cam_z:.1f} mm in the robot "
-                                 f"frame; the height given is {zz:g} mm)", file=f,
-                                 field=fld) from e
+    points = _located(cam, uv, z, lines, where)
     joints = [None] * len(points)
     if robot is not None:
         joints = plan_targets(model, ids, [p.sheet_mm[:2] for p in points], elbow=req.elbow,
@@ -189,6 +190,46 @@ def locate_pixels(req: LocateRequest) -> LocateOutcome:
                              not_located=tuple(why.values()))
     return LocateOutcome(tuple(said), point=points[0], joint=joints[0], camera=req.camera,
                          elbow=req.elbow, n=1)
+
+
+def _refuse_flange_options(req: LocateRequest) -> None:
+    """A flange pose or plane given for a camera that is not on any arm's flange."""
+    given = [o for o, v in (("--flange-pose", req.flange_pose),
+                            ("--robot-poses", req.robot_poses), ("--plane", req.plane)) if v]
+    if given:
+        raise VisionCalError(f"camera {req.camera} is not on a six-axis arm's flange (a "
+                             "camera of vision-cal handeye PHOTOS/ --robot-poses POSES --mount "
+                             "arm): a still camera needs no flange pose, a SCARA's camera "
+                             "takes --joints or --photo", file=req.calibration, field=given[0])
+
+
+def _located(cam, uv, z, lines, where) -> list:
+    """The pixels located, each at its height: one :func:`locate` call per height (issue 41:
+    100,000 pixels of one height in seconds, not one call each); the first pixel whose ray
+    misses its plane named by its line (or the option given)."""
+    uv, z = np.asarray(uv, float).reshape(-1, 2), np.asarray(z, float)
+    points = [None] * len(uv)
+    for zz in np.unique(z):
+        at = np.flatnonzero(z == zz)
+        try:
+            for i, p in zip(at, locate(cam, uv[at], float(zz))):
+                points[i] = p
+        except VisionCalError as e:   # the ray misses the plane: the height's fault
+            i = next((i for i in at if not _meets_plane(cam, uv[i], zz)), at[0])
+            f, fld = where(lines[i], "--z-mm" if lines[i] is None else "z_mm")
+            cam_z = float(cam.T_robot_camera[2, 3])
+            raise VisionCalError(f"{e.reason} (the camera is at z {cam_z:.1f} mm in the robot "
+                                 f"frame; the height given is {zz:g} mm)", file=f,
+                                 field=fld) from e
+    return points
+
+
+def _meets_plane(cam, pixel, z_mm) -> bool:
+    try:
+        locate(cam, [pixel], float(z_mm))
+        return True
+    except VisionCalError:
+        return False
 
 
 def _refuse_joints_beyond_limits(req: LocateRequest, doc: dict, robot) -> None:
@@ -263,20 +304,168 @@ def _csv_text(req: LocateRequest, ids, points, joints, flagged=None, why=None) -
         head += ["outside_valid_for"]
     wr.writerow(head)
     for i, p, j in zip(ids, points, joints):
-        row = [i, f"{p.pixel[0]:.4f}", f"{p.pixel[1]:.4f}", f"{p.z_mm:g}",
-               f"{p.robot_mm[0]:.5f}", f"{p.robot_mm[1]:.5f}", f"{p.robot_std_mm[0]:.5f}",
-               f"{p.robot_std_mm[1]:.5f}", f"{p.sheet_mm[0]:.5f}", f"{p.sheet_mm[1]:.5f}"]
+        row = _cells(i, p)
         status, reason = "ok", ""
         if j is not None:
             ok = j.status == "ok"
             row += ([f"{j.q_deg[0]:.5f}", f"{j.q_deg[1]:.5f}"] if ok else ["", ""]) + \
                    [j.approach[0], j.approach[1]]
             status, reason = j.status, j.reason
-        if i in why:   # not located: no number that could be taken for a result
-            row = [i, row[1], row[2], row[3]] + [""] * (len(row) - 4)
-            status, reason = "outside valid_for", why[i]
-        row += [status, reason]
-        if flagged is not None:
-            row.append(flagged.get(i, ""))
-        wr.writerow(row)
+        wr.writerow(_finished(row, i, status, reason, why, flagged, len(row)))
+    return buf.getvalue()
+
+
+def _cells(i, p) -> list:
+    """A located point's first cells: id, pixel, height, robot x y and their std, sheet."""
+    return [i, f"{p.pixel[0]:.4f}", f"{p.pixel[1]:.4f}", f"{p.z_mm:g}",
+            f"{p.robot_mm[0]:.5f}", f"{p.robot_mm[1]:.5f}", f"{p.robot_std_mm[0]:.5f}",
+            f"{p.robot_std_mm[1]:.5f}", f"{p.sheet_mm[0]:.5f}", f"{p.sheet_mm[1]:.5f}"]
+
+
+def _finished(row, i, status, reason, why, flagged, numbers: int) -> list:
+    """``row`` with its status, reason (and ``outside_valid_for``); a pixel not located
+    (``why``) keeps its pixel and height, its first ``numbers`` cells' results emptied."""
+    if i in why:   # not located: no number that could be taken for a result
+        row = row[:4] + [""] * (numbers - 4) + row[numbers:]
+        status, reason = "outside valid_for", why[i]
+    row = row + [status, reason]
+    if flagged is not None:
+        row.append(flagged.get(i, ""))
+    return row
+
+
+# --------------------------------------------------------------------------- a six-axis arm
+
+def _flange_rows(req: LocateRequest, doc: dict):
+    """(ids, pixels, heights, lines, poses) of the request for a camera on a six-axis arm's
+    flange: each pixel's flange pose from --flange-pose, --photo (one of the calibration's
+    photos, or of --robot-poses) or the CSV's ``photo`` column."""
+    cal = str(req.calibration)
+    own = flange.own_poses(doc)
+    table, what, units = own, f"{cal} (its photos)", "mm"
+    if req.robot_poses:
+        table, units = flange.poses_from_file(req.robot_poses)
+        what = str(req.robot_poses)
+    single = None
+    if req.flange_pose is not None:
+        if req.photo is not None:
+            raise VisionCalError("give either --flange-pose or --photo", field="--photo")
+        single = flange.pose_of(req.flange_pose, joints=req.joints)
+    elif req.photo is not None:
+        if req.joints is not None:
+            raise VisionCalError("--joints goes with --flange-pose: --photo's pose has its "
+                                 "own joints (joints_deg of its pose file, or of the "
+                                 "calibration's photo)", field="--joints")
+        single = flange.find_pose(req.photo, table, what=what, file=req.robot_poses,
+                                  field="--photo")
+    elif req.joints is not None:
+        raise VisionCalError("--joints goes with --flange-pose (the arm's joints at that "
+                             "pose): a six-axis arm's camera needs the flange pose",
+                             field="--joints")
+    if req.csv:
+        ids, uv, z, lines = _read_pixels(req.csv, req.z_mm)
+        names = {line: (row.get("photo") or "").strip()
+                 for line, row in read_rows(req.csv, CSV_IN, what="pixels CSV")}
+    else:
+        ids, uv, z, lines, names = ["pixel"], [req.pixel], [req.z_mm], [None], {}
+    poses = []
+    for line in lines:
+        name = names.get(line, "")
+        if name:
+            poses.append(flange.find_pose(name, table, what=what,
+                                          file=req.robot_poses or req.csv,
+                                          field=f"line {line}: photo"))
+        elif single is not None:
+            poses.append(single)
+        else:
+            raise VisionCalError("a camera on the arm: give the flange pose the photo was "
+                                 "taken at, --flange-pose X Y Z QX QY QZ QW (mm), --photo NAME "
+                                 "(one of the calibration's photos, or of --robot-poses) or a "
+                                 "photo column in --csv", file=req.csv if line else None,
+                                 field="--flange-pose" if line is None else f"line {line}")
+    ref = [p.T for p in own.values()]
+    if req.flange_pose is not None:
+        flange.check_units([single], np.array(ref), read_as="mm", file=None,
+                           field="--flange-pose")
+    if req.robot_poses:
+        flange.check_units(list(table.values()), np.array(ref), read_as=units,
+                           file=req.robot_poses, field="--robot-poses")
+    return ids, uv, z, lines, poses
+
+
+def _locate_on_flange(req: LocateRequest, doc: dict) -> LocateOutcome:
+    """Pixels of a camera on a six-axis arm's flange located (``camera/handeye_locate``),
+    each at its flange pose, checked against ``valid_for.flange_poses``."""
+    if req.robot:
+        raise VisionCalError("this calibration holds a camera alone (a hand-eye's), no robot "
+                             "model to plan joints with", file=req.calibration, field="--robot")
+    cam = flange.flange_camera_of(doc, req.camera, file=req.calibration)
+    plane = req.plane or "board"
+    ids, uv, z, lines, poses = _flange_rows(req, doc)
+    w, h = cam.size_px
+    for i, (u, v), line in zip(ids, uv, lines):
+        if not (-0.5 <= u <= w - 0.5 and -0.5 <= v <= h - 0.5):
+            raise VisionCalError(f"pixel {u:g} {v:g} ({i}) is outside the camera's {w}x{h} "
+                                 "image", file=req.csv if line else None,
+                                 field="--pixel" if line is None else f"line {line}: u_px, v_px")
+    points = []
+    for (u, v), zz, p, line in zip(uv, z, poses, lines):
+        try:
+            points.append(flange.locate_at(cam, p.T, [(u, v)], zz, plane=plane,
+                                           joints=p.joints)[0])
+        except VisionCalError as e:
+            raise VisionCalError(e.reason, file=req.csv if line else None,
+                                 field=("--z-mm" if line is None else f"line {line}: z_mm")
+                                 ) from e
+    cal = str(req.calibration)
+    outside = handeye_valid.check(handeye_valid.read(doc, file=cal), cal=cal, ids=ids,
+                                  poses=[p.T for p in poses], joints=[p.joints for p in poses])
+    _, items = outside_per_item(outside)
+    what = "--csv" if req.csv else "--pixel"
+    said = [] if not req.force else [
+        f"{what}: outside valid_for of {cal} (located because of --force): {o.line()}"
+        for o in outside]
+    why = {} if req.force else {i: " | ".join(items[i]) for i in ids if i in items}
+    if why and len(why) == len(ids):
+        return LocateOutcome(tuple(said), not_located=tuple(why.values()), error=(
+            f"{what}: nothing located: {next(iter(why.values()))}"
+            + (f" (and {len(why) - 1} more: see the status column)" if len(why) > 1 else "")))
+    if why:
+        said.append(f"{req.csv}: {len(why)} of {len(ids)} pixel(s) at flange poses outside "
+                    f"what {cal} was calibrated for (valid_for) not located: "
+                    f"{', '.join(list(why)[:3])}{' ...' if len(why) > 3 else ''} (the status "
+                    "and reason columns; --force locates them, the extrapolation stated)")
+    if not req.csv:
+        return LocateOutcome(tuple(said), point=points[0], camera=req.camera,
+                             flange=poses[0].source, n=1)
+    flagged = {i: handeye_valid.FIELD for o in outside for i in o.ids} if req.force else None
+    text = _flange_csv_text(ids, points, poses, plane, flagged, why)
+    if req.out:
+        with replacing_files([("-o", req.out)], command="locate", quiet=req.quiet,
+                             inputs=[("CALIBRATION.json", req.calibration), ("--csv", req.csv),
+                                     ("--robot-poses", req.robot_poses)]):
+            path = atomic_write_text(req.out, text)
+        return LocateOutcome(tuple(said), path=path, n=len(points) - len(why),
+                             not_located=tuple(why.values()))
+    return LocateOutcome(tuple(said), csv_text=text, n=len(points) - len(why),
+                         not_located=tuple(why.values()))
+
+
+
+def _flange_csv_text(ids, points, poses, plane, flagged, why) -> str:
+    """The located pixels' CSV of a six-axis arm's camera: the still camera's columns (the
+    board's frame as the sheet's), then ``robot_z_mm``, ``z_std_mm``, ``plane`` and
+    ``flange_pose`` (where each pixel's flange pose came from)."""
+    buf = io.StringIO()
+    wr = csv.writer(buf, lineterminator="\n")
+    head = ["id", "u_px", "v_px", "z_mm", "x_mm", "y_mm", "x_std_mm", "y_std_mm",
+            "sheet_x_mm", "sheet_y_mm", "robot_z_mm", "z_std_mm", "plane", "flange_pose",
+            "status", "reason"]
+    if flagged is not None:
+        head.append("outside_valid_for")
+    wr.writerow(head)
+    for i, p, f in zip(ids, points, poses):
+        row = _cells(i, p) + [f"{p.robot_mm[2]:.5f}", f"{p.robot_std_mm[2]:.5f}", plane,
+                              f.source]
+        wr.writerow(_finished(row, i, "ok", "", why, flagged, 12))
     return buf.getvalue()

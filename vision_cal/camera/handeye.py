@@ -27,7 +27,7 @@ The stages (:func:`fit_handeye`):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
@@ -36,8 +36,8 @@ from vision_cal.camera.handeye_closed import (AxzbSolution, axis_spread, inv_T,
                                               rotation_spread_deg, solve_axzb)
 from vision_cal.camera.handeye_lsq import (LENS_NAMES, MOUNTS, Problem, Refined, View,
                                            lens_K, lens_vector, refine)
-from vision_cal.camera.handeye_stats import (HeldOut, Noise, leave_one_out, noise_components,
-                                             sandwich)
+from vision_cal.camera.handeye_stats import (HeldOut, Noise, Shared, leave_one_out,
+                                             predicted_covariance, statistics)
 from vision_cal.camera.robot_poses import likely_unit
 from vision_cal.config import DEFAULT, HandeyePhotosConfig
 from vision_cal.errors import CalibrationError, VisionCalError
@@ -77,6 +77,8 @@ class HandeyeFit:
     pnp_px: dict
     size_px: tuple[int, int]
     lens_models: tuple = field(default=())   # (terms, held-out px) of each model tried
+    shared: Shared | None = None      # what the unknowns took of the kinematic error
+                                      # (its G raised by inflation^2, as cov)
 
     @property
     def std(self) -> np.ndarray:
@@ -287,18 +289,14 @@ class _Judged:
     cov: np.ndarray
     noise: Noise
     heldout: list
+    shared: Shared | None
 
 
-def _judge(views, mount, X0, Y0, lens, free) -> _Judged:
+def _judge(views, mount, X0, Y0, lens, free, kinematic: float) -> _Judged:
     """The least squares, its noise and stds, and each photo predicted from the others."""
-    pr = Problem(views, mount, X0, Y0, lens, free)
-    R = refine(pr)
-    p = np.r_[np.zeros(12), R.lens[free]]
-    pr2 = Problem(views, mount, R.X, R.Y, R.lens, free)
-    Js, Jd = pr2.jacobians(p)
-    noise = noise_components(R.residual_px, Js, Jd, R.view_of)
-    cov = sandwich(Js, Jd, R.view_of, noise)
-    return _Judged(R, cov, noise, leave_one_out(views, mount, R))
+    R = refine(Problem(views, mount, X0, Y0, lens, free))
+    cov, noise, shared = statistics(views, mount, R, kinematic=kinematic)
+    return _Judged(R, cov, noise, leave_one_out(views, mount, R, kinematic=kinematic), shared)
 
 
 def _outlier_p(heldout, cfg: HandeyePhotosConfig) -> np.ndarray:
@@ -432,7 +430,7 @@ def fit_handeye(views, mount: str, size_px, *, lens=None, alternatives=None,
         lens0, free, models = _select_lens(views, mount, size_px, X0, Y0, cfg)
     max_out = int(np.floor(cfg.max_outlier_fraction * (len(views) + len(left))))
     while True:
-        j = j or _judge(views, mount, X0, Y0, lens0, free)
+        j = j or _judge(views, mount, X0, Y0, lens0, free, cfg.kinematic_length_rad)
         n = len(views)
         p_out = _outlier_p(j.heldout, cfg)
         worst = int(np.argmin(p_out))
@@ -451,10 +449,26 @@ def fit_handeye(views, mount: str, size_px, *, lens=None, alternatives=None,
     R = j.refined
     resid = {v.name: float(np.sqrt(np.mean(np.sum(R.residual_px[R.view_of == i] ** 2, axis=1))))
              for i, v in enumerate(views)}
+    shared = (None if j.shared is None else
+              replace(j.shared, G=j.shared.G * inflation ** 2))
     return HandeyeFit(mount, R.X, R.Y, R.lens, free, declared, j.cov * inflation ** 2,
                       R.labels, tuple(views), left, resid, tuple(j.heldout), j.noise,
                       inflation, ratio, p, prep.start, prep.scale, prep.pnp_px,
-                      tuple(int(s) for s in size_px), lens_models=tuple(models))
+                      tuple(int(s) for s in size_px), lens_models=tuple(models),
+                      shared=shared)
+
+
+def stated_new_px(fit: HandeyeFit, view: View, *, credit: bool = True) -> float:
+    """The RMS (px per corner, 2-D) ``fit`` states for the board's points of ``view`` seen
+    from a new pose (its pixels are not used): the unknowns' covariance, the corners' noise
+    and the robot's pose error there, less what the unknowns took of the kinematic error
+    there (``credit`` False: none), raised by ``inflation``."""
+    pr = Problem([view], fit.mount, fit.X, fit.Y, fit.lens, fit.free)
+    Js, Jd = pr.jacobians(pr.start())
+    cross = (None if fit.shared is None or not credit
+             else fit.shared.cross(view.T_robot_flange, view.joints_deg))
+    C = predicted_covariance(Js, Jd, fit.cov, fit.noise, cross, fit.inflation)
+    return float(np.sqrt(np.trace(C) / len(view.px)))
 
 
 def estimated_lens_fit(views, fit: HandeyeFit, *, alternatives=None, source=None,

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vision_cal.camera import handeye_valid
 from vision_cal.camera.handeye import HandeyeFit
 from vision_cal.camera.handeye_lsq import LENS_NAMES, lens_K
 from vision_cal.config import DEFAULT
@@ -43,6 +44,9 @@ def _images(fit: HandeyeFit, skipped) -> list[dict]:
     for v in fit.views:
         h = held[v.name]
         rows.append({"file": v.name, "status": "ok", "n_points": int(len(v.px)),
+                     "T_robot_flange": np.asarray(v.T_robot_flange, float).tolist(),
+                     "joints_deg": (None if v.joints_deg is None
+                                    else [float(q) for q in v.joints_deg]),
                      "residual_px": fit.residual_px[v.name],
                      "own_pose_residual_px": fit.pnp_px.get(v.name),
                      "heldout_px": h.rms_px, "heldout_mm": h.rms_mm,
@@ -54,6 +58,22 @@ def _images(fit: HandeyeFit, skipped) -> list[dict]:
     for name, why in skipped:
         rows.append({"file": name, "status": "skipped", "reason": why})
     return rows
+
+
+def _lever(fit: HandeyeFit) -> float:
+    return float(np.median(np.linalg.norm(
+        np.array([v.T_robot_flange[:3, 3] for v in fit.views]), axis=1)))
+
+
+def _kinematic(fit: HandeyeFit) -> dict | None:
+    """``handeye.kinematic``: how the robot's kinematic error is shared, and what the
+    unknowns took of it (``G``, one (P, 6) per photo of ``images`` with status ok, raised by
+    the inflation; ``vision-cal locate`` credits a new pose with it)."""
+    sh = fit.shared
+    if sh is None:
+        return None
+    return {"over": fit.noise.kin_over, "length_rad": sh.length_rad, "lever_mm": sh.lever_mm,
+            "G": sh.G.tolist()}
 
 
 def photos_document(fit: HandeyeFit, verdict, *, board, req, units: str, skipped,
@@ -92,7 +112,16 @@ def photos_document(fit: HandeyeFit, verdict, *, board, req, units: str, skipped
                         "inflation": fit.inflation,
                         "kind": "each photo predicted from a fit of the others"},
             "robot_scale": fit.robot_scale,
-            "left_out": dict(fit.left_out)}}
+            "left_out": dict(fit.left_out), "kinematic": _kinematic(fit)}}
+    vf = None
+    if fit.mount == "arm":      # a new flange pose is checked against the photos' (locate)
+        near = handeye_valid.of_views(
+            fit.views, lever_mm=fit.noise.lever_mm or _lever(fit),
+            length_rad=(DEFAULT.handeye_photos.kinematic_length_rad if fit.shared is None
+                        else fit.shared.length_rad))
+        vf = {"flange_poses": handeye_valid.build(near["F"], near["joints"],
+                                                  lever_mm=near["lever"],
+                                                  length_rad=near["max"])}
     return CalibrationResult(
         method=METHOD, config=DEFAULT.to_json(), cameras=[cam],
         images=tuple(_images(fit, skipped)),
@@ -102,7 +131,7 @@ def photos_document(fit: HandeyeFit, verdict, *, board, req, units: str, skipped
                        xname: fit.start.Z.tolist(), yname: fit.start.X.tolist(),
                        "rotation_rms_deg": fit.start.rotation_rms_deg,
                        "translation_rms_mm": fit.start.translation_rms_mm},
-        verdict=verdict.to_json(), outliers=tuple(fit.left_out),
+        verdict=verdict.to_json(), outliers=tuple(fit.left_out), valid_for=vf,
         notes=(f"{xname} and {yname} from {len(fit.views)} photos of "
                f"{Path(board.path).name} and the robot's flange poses; the held-out figures "
                "are each photo predicted from a fit of the others, the stated ones what the "

@@ -132,13 +132,14 @@ def _small_T(d: np.ndarray) -> np.ndarray:
 class View:
     """One photo: its name, the flange pose the controller reported (4, 4, mm), and the
     board's points seen: ``ids`` (N,), ``board_mm`` (N, 3) in the board's frame, ``px``
-    (N, 2) where the camera saw them."""
+    (N, 2) where the camera saw them; the arm's joints (deg) when the poses give them."""
 
     name: str
     T_robot_flange: np.ndarray
     ids: np.ndarray
     board_mm: np.ndarray
     px: np.ndarray
+    joints_deg: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

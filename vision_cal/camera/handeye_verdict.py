@@ -28,13 +28,18 @@ def limited_by(fit: HandeyeFit, cfg: HandeyePhotosConfig) -> str:
     """What limits the calibration: the robot's pose error or the corners' detection."""
     nz = fit.noise
     apart = ", rotation and translation not told apart" if nz.confounded else ""
+    kin = (f"; its kinematic error, shared by nearby configurations (over the {nz.kin_over}), "
+           f"about {nz.kin_mm:.2g} mm and {nz.kin_deg:.2g} deg per axis: {nz.kin_px:.2g} px"
+           if nz.kin_mm > 0 else "")
+    robot_px = float(np.hypot(nz.pose_px, nz.kin_px))
     rob = (f"the robot's own pose error (about {nz.sigma_mm:.2g} mm and {nz.sigma_rot_deg:.2g} "
-           f"deg per axis a photo{apart}: {nz.pose_px:.2g} px per axis on the board's corners)")
+           f"deg per axis a photo{apart}: {nz.pose_px:.2g} px per axis on the board's "
+           f"corners{kin})")
     det = f"the corners' detection ({nz.sigma_px:.2g} px per axis)"
-    if nz.pose_px > cfg.dominant_pose_ratio * nz.sigma_px:
+    if robot_px > cfg.dominant_pose_ratio * nz.sigma_px:
         return (f"{rob}, far above {det}: the arm's accuracy, not the camera, limits this "
                 "calibration (more photos average it down; a calibrated arm does better)")
-    if nz.sigma_px > cfg.dominant_pose_ratio * nz.pose_px:
+    if nz.sigma_px > cfg.dominant_pose_ratio * robot_px:
         return f"{det}, above {rob}: sharper photos or a larger board help most"
     return f"{det} and {rob} alike"
 
@@ -73,10 +78,10 @@ def _reasons(fit: HandeyeFit, cfg: HandeyePhotosConfig, lens_check: str | None
         out.append(("check", f"held-out photos are predicted {fit.heldout_ratio:.2f}x worse than "
                              f"the fit's own noise says ({obs:.3g} px against "
                              f"{st / fit.inflation:.3g} px RMS, p = {fit.heldout_p:.2g}): the "
-                             "robot's pose error is not independent from photo to photo (its "
-                             "kinematics), or the lens or the board is not what the model "
-                             f"says; every std and stated error is raised {fit.inflation:.2f}x "
-                             "to what they show"))
+                             "robot's pose error varies with its configuration more than the "
+                             "photos' residual shows (its kinematics), or the lens or the "
+                             "board is not what the model says; every std and stated error is "
+                             f"raised {fit.inflation:.2f}x to what they show"))
     if fit.left_out:
         out.append(("check", f"{len(fit.left_out)} photo(s) left out: "
                              + "; ".join(f"{k}: {v}" for k, v in fit.left_out.items())))
@@ -100,5 +105,5 @@ def judge_handeye(fit: HandeyeFit, *, lens_check: str | None = None,
     status = max((s for s, _ in reasons), key=_RANK.get, default="ready")
     ordered = tuple(t for s, t in sorted(reasons, key=lambda r: -_RANK[r[0]]))
     return Verdict(status, float(R95_PER_RMS * st_mm), float(fit.heldout_ratio), ordered,
-                   repeatability_mm=float(np.hypot(fit.noise.sigma_mm, 0.0)),
+                   repeatability_mm=float(fit.noise.sigma_mm),
                    repeatability_source="the robot's pose error, from the residual")

@@ -11,6 +11,12 @@ Two layouts (docs/format.md, "Photos and the robot's poses"; schema
 - a CSV ``photo,x_mm,y_mm,z_mm,qx,qy,qz,qw`` in **millimetres** (``photo`` the photo's
   file name or stem).
 
+Either may add the arm's joints when the photo was taken (``joints_deg: [q1, ..., qN]`` in
+a pose file, columns ``q1_deg ... qN_deg`` in the CSV; degrees, every pose the same number):
+the flange pose alone does not say which configuration (elbow, wrist flipped) the arm was
+in, and the robot's kinematic error is a function of the joints (``handeye_stats``'s
+kinematic term, ``valid_for.flange_poses.joints_deg``).
+
 Every value is checked (one line naming the file and the field): a quaternion of norm 1
 within ``QUAT_TOL`` (normalised), finite lengths, and the units by plausibility: an arm's
 flange lies within ``MAX_REACH_MM`` of its base and its poses spread over more than
@@ -61,6 +67,7 @@ class RobotPose:
     source: str
     t_mm: np.ndarray
     quat_xyzw: np.ndarray
+    joints_deg: np.ndarray | None = None   # the arm's joints, when the source gives them
 
     @property
     def T(self) -> np.ndarray:
@@ -110,7 +117,46 @@ def _read_pose_file(path: Path, stem: str) -> RobotPose:
         q = [r.number(r.get(raw, k, ""), k) for k in ("qx", "qy", "qz", "qw")]
         qwhere = "qx, qy, qz, qw"
     t_mm = np.asarray(t, float) * 1000.0
-    return RobotPose(stem, str(path), t_mm, _quaternion(r, q, qwhere))
+    return RobotPose(stem, str(path), t_mm, _quaternion(r, q, qwhere), _joints(r, raw))
+
+
+#: the most joints an arm's pose may list (a 7-axis arm on a linear track, and some)
+MAX_JOINTS = 12
+
+
+def _joints(r: FieldReader, raw: dict) -> np.ndarray | None:
+    """A pose file's ``joints_deg`` (degrees, finite, within +-720), or None."""
+    v = raw.get("joints_deg")
+    if v is None:
+        return None
+    q = r.list_(v, "joints_deg", nonempty=True)
+    if len(q) > MAX_JOINTS:
+        r.fail("joints_deg", f"expected at most {MAX_JOINTS} joints, got {len(q)}")
+    return np.array([r.number(x, f"joints_deg[{k}]", lo=-720.0, hi=720.0, what="angle (deg)")
+                     for k, x in enumerate(q)])
+
+
+def _csv_joints(row: dict, path, line: int, names: list[str]) -> np.ndarray | None:
+    if not names:
+        return None
+    q = [number_field(row.get(k) or "", path, line, k) for k in names]
+    bad = [k for k, x in zip(names, q) if abs(x) > 720.0]
+    if bad:
+        raise VisionCalError("expected a joint in degrees within +-720", file=str(path),
+                             field=f"line {line}: {bad[0]}")
+    return np.asarray(q, float)
+
+
+def _check_joints(poses: list[RobotPose], source: str) -> None:
+    """Every pose lists the same joints, or none does."""
+    n = {None if p.joints_deg is None else len(p.joints_deg) for p in poses}
+    if len(n) > 1:
+        odd = next(p for p in poses if (p.joints_deg is None) != (poses[0].joints_deg is None)
+                   or (p.joints_deg is not None and len(p.joints_deg) != len(
+                       poses[0].joints_deg)))
+        raise VisionCalError("the poses list different joints (joints_deg): every pose gives "
+                             "the arm's joints, or none does", file=odd.source,
+                             field="joints_deg")
 
 
 def _read_folder(folder: Path) -> list[RobotPose]:
@@ -131,7 +177,12 @@ def _read_folder(folder: Path) -> list[RobotPose]:
 def _read_csv(path: Path) -> list[RobotPose]:
     out, seen = [], {}
     r = FieldReader(str(path))
-    for line, row in read_rows(path, CSV_FIELDS):
+    rows = read_rows(path, CSV_FIELDS)
+    names: list[str] = []
+    if rows:    # q1_deg, q2_deg, ... consecutive from q1_deg
+        while f"q{len(names) + 1}_deg" in rows[0][1] and len(names) < MAX_JOINTS:
+            names.append(f"q{len(names) + 1}_deg")
+    for line, row in rows:
         name = (row.get("photo") or "").strip()
         if not name:
             raise VisionCalError("empty photo name", file=str(path), field=f"line {line}: photo")
@@ -142,7 +193,8 @@ def _read_csv(path: Path) -> list[RobotPose]:
         seen[stem] = line
         v = [number_field(row.get(k) or "", path, line, k) for k in CSV_FIELDS[1:]]
         out.append(RobotPose(stem, f"{path}:{line}", np.asarray(v[:3], float),
-                             _quaternion(r, v[3:], f"line {line}: qx, qy, qz, qw")))
+                             _quaternion(r, v[3:], f"line {line}: qx, qy, qz, qw"),
+                             _csv_joints(row, path, line, names)))
     if not out:
         raise VisionCalError("no poses", file=str(path), field="--robot-poses")
     return out
@@ -158,10 +210,11 @@ def likely_unit(factor: float, read_as: str = "mm", tol: float = 0.08) -> str | 
     return None
 
 
-def _check_units(poses: list[RobotPose], source: str, metres: bool) -> None:
+def _check_units(poses: list[RobotPose], source: str, metres: bool, *,
+                 spread: bool = True) -> None:
     t = np.array([p.t_mm for p in poses])
     far = float(np.linalg.norm(t, axis=1).max())
-    spread = float(np.linalg.norm(t - t.mean(axis=0), axis=1).max()) if len(t) > 1 else 0.0
+    moved = float(np.linalg.norm(t - t.mean(axis=0), axis=1).max()) if len(t) > 1 else 0.0
     given = "metres" if metres else "millimetres"
     if far > MAX_REACH_MM:
         hint = ("the file is in millimetres (x y z are metres in a pose file)" if metres
@@ -169,29 +222,33 @@ def _check_units(poses: list[RobotPose], source: str, metres: bool) -> None:
         raise VisionCalError(f"read as {given}, the flange lies {far / 1000:.4g} m from the "
                              f"robot's base (no arm reaches beyond {MAX_REACH_MM / 1000:g} m): "
                              f"{hint}", file=source, field="--robot-poses")
-    if len(t) > 1 and spread < MIN_SPREAD_MM:
+    if spread and len(t) > 1 and moved < MIN_SPREAD_MM:
         hint = ("the lengths are in metres (the CSV's x_mm y_mm z_mm are millimetres)"
                 if not metres else "the robot hardly moved between photos")
-        raise VisionCalError(f"read as {given}, the flange moves by {spread:.3g} mm over all "
+        raise VisionCalError(f"read as {given}, the flange moves by {moved:.3g} mm over all "
                              f"the photos: {hint}", file=source, field="--robot-poses")
 
 
-def read_robot_poses(path) -> tuple[list[RobotPose], str]:
-    """The poses of a folder of per-photo files or of a CSV, units checked; and the unit
-    the source was read in (``m`` for a folder, ``mm`` for a CSV)."""
+def read_robot_poses(path, *, spread: bool = True) -> tuple[list[RobotPose], str]:
+    """The poses of a folder of per-photo files or of a CSV, units checked (``spread``
+    False: the poses need not spread over the workspace, as a few poses to locate pixels
+    at need not); and the unit the source was read in (``m`` for a folder, ``mm`` for a
+    CSV)."""
     path = Path(path)
     if not path.exists():
         raise VisionCalError("not found", file=str(path), field="--robot-poses")
     if path.is_dir():
         poses = _read_folder(path)
-        _check_units(poses, str(path), metres=True)
+        _check_units(poses, str(path), metres=True, spread=spread)
+        _check_joints(poses, str(path))
         return poses, "m"
     if path.suffix.lower() != ".csv":
         raise VisionCalError("expected a folder of per-photo pose files (7.yaml for 7.png) "
                              "or a CSV photo,x_mm,y_mm,z_mm,qx,qy,qz,qw", file=str(path),
                              field="--robot-poses")
     poses = _read_csv(path)
-    _check_units(poses, str(path), metres=False)
+    _check_units(poses, str(path), metres=False, spread=spread)
+    _check_joints(poses, str(path))
     return poses, "mm"
 
 

@@ -14,7 +14,9 @@ examples:
   vision-cal export /tmp/x/calibration.json --yaml /tmp/x/calibration.yaml
 
 --opencv and --ros need a calibration with a still camera (calibration.json "cameras":
-photos of the robot's sheet taken from one place, README "Calibrate your camera"); the
+photos of the robot's sheet taken from one place, README "Calibrate your camera"), or a
+camera on any arm's flange (vision-cal handeye PHOTOS/ --robot-poses POSES --mount arm:
+T_flange_camera, and the ROS transform from the flange, tool0, as a static transform); the
 paper's calibration has none. For example, with the photos of a still camera in plan/:
   vision-cal plan/ --out cal/
   vision-cal export cal/calibration.json --opencv camera.yaml --ros camera_info.yaml
@@ -36,9 +38,11 @@ def add_arguments(p) -> None:
                         "valid_for: a backlash seen from one side, a tool never turned), the "
                         "extrapolation stated in the files written and on the console")
     p.add_argument("--opencv", metavar="FILE.yaml", help="a still camera as OpenCV FileStorage "
-                   "YAML: camera_matrix, distortion_coefficients, T_robot_camera (mm)")
+                   "YAML: camera_matrix, distortion_coefficients, T_robot_camera (mm; a camera "
+                   "on any arm's flange: T_flange_camera and T_robot_board)")
     p.add_argument("--ros", metavar="FILE.yaml", help="a still camera as ROS camera_info YAML, "
-                   "and FILE.transform.yaml: robot -> camera optical frame")
+                   "and FILE.transform.yaml: robot -> camera optical frame (a camera on any "
+                   "arm's flange: tool0 -> camera optical frame)")
     p.add_argument("--camera", type=CAMERA, default=0, metavar="N",
                    help="which of calibration.json's cameras (default 0)")
 

@@ -24,6 +24,9 @@ from vision_cal.errors import VisionCalError
 
 REQUIRED = ("id", "q1_deg", "q2_deg", "x_mm", "y_mm")
 ROLES = ("calibration", "validation")
+#: marks a CSV may hold: 4,000 poses commanded 25 times; the calibration of as many takes
+#: 1.5 to 3 CPU-minutes and 1 GB (bench/speed.py --rows 100000), linear in marks
+MAX_MARKS = 100_000
 
 
 def session_from_marks_csv(path, robot_path, *, sigma_mm: float | None = None) -> Session:
@@ -39,6 +42,10 @@ def session_from_marks_csv(path, robot_path, *, sigma_mm: float | None = None) -
     robot = load_robot_file(robot_path)
     marks, seen = [], set()
     rows = read_rows(path, REQUIRED, what="marks CSV")
+    if len(rows) > MAX_MARKS:
+        raise VisionCalError(f"{len(rows):,} marks: at most {MAX_MARKS:,} (a repeatability "
+                             f"study of 4,000 poses x 25); calibrate from a subset, e.g. "
+                             f"fewer repeats of each pose", file=str(path))
     header = set(rows[0][1]) if rows else set()
     if ("approach1" in header) != ("approach2" in header):
         raise VisionCalError("approach1 and approach2 go together", file=str(path),

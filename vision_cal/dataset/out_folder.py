@@ -74,7 +74,7 @@ WRITES = {
     "simulate": ("truth.json",),
     "render": ("session.json", "truth.json"),
     "loop": ("loop.json", "targets.csv", "plan_*.csv", "session/", "calibration/",
-             "sheet_*/", "measure_*/"),
+             "sheet_*/", "measure_*/", "survey_photos/", "survey/"),
 }
 
 

@@ -30,7 +30,8 @@ from vision_cal.errors import VisionCalError
 RANGE_SLACK_DEG = 1.0
 #: the fields of ``valid_for`` a request's items are checked against one by one (``plan``
 #: and ``locate`` plan the rest: :func:`per_item`); the others are the whole request's
-PER_ITEM = ("joints", "approach1", "approach2", "approach4", "joint4", "heights")
+PER_ITEM = ("joints", "approach1", "approach2", "approach4", "joint4", "heights",
+            "flange_pose")     # a six-axis arm's camera: camera/handeye_valid
 #: a requested height within this of the heights seen (mm) is inside them
 HEIGHT_SLACK_MM = 0.5
 #: a joint-4 angle within this of one seen (deg) is that angle

@@ -130,6 +130,26 @@ class ClearanceMap:
         return out
 
 
+def _worst_clearance(clear, placements: np.ndarray, Q: np.ndarray, need: float,
+                     block: int = 16) -> np.ndarray:
+    """The smallest clearance (n,) of each pattern ``Q`` (n, 9, 2) over every placement
+    (P, 6), placements a block at a time: a pattern below ``need`` is out and dropped
+    (its value then some clearance below ``need``), the others' exact (the same values as
+    all placements at once; an impossible tolerance no longer checks every placement of
+    300 patterns that the first block already rules out)."""
+    worst = np.full(len(Q), np.inf)
+    alive = np.arange(len(Q))
+    for s in range(0, len(placements), block):
+        if not len(alive):
+            break
+        p = placements[s:s + block]
+        xy = pens_mm(p, Q[alive].reshape(-1, 2))                      # (p, n*9, 2)
+        w = clear(xy.reshape(len(p), len(alive), -1, 2)).min(axis=(0, 2))
+        worst[alive] = np.minimum(worst[alive], w)
+        alive = alive[worst[alive] >= need]
+    return worst
+
+
 def design_pilot(robot, sheet, *, margin_mm: float = 3.0, min_separation_mm: float = 8.0,
                  min_sin_elbow: float = 0.1, step_deg: float = 2.0) -> PilotDesign:
     """The pilot plan for ``robot`` (a :class:`vision_cal.dataset.robot.RobotFile`) on
@@ -174,8 +194,7 @@ def design_pilot(robot, sheet, *, margin_mm: float = 3.0, min_separation_mm: flo
             continue
         K, c0 = K[keep], c0[keep]
         order = K[np.argsort(-c0)][:300]
-        xy = pens_mm(placements, Q[order].reshape(-1, 2))                 # (P, n*9, 2)
-        worst = clear(xy.reshape(len(placements), len(order), -1, 2)).min(axis=(0, 2))
+        worst = _worst_clearance(clear, placements, Q[order], need)
         good = worst >= need
         if not good.any():
             continue

@@ -15,6 +15,28 @@ from scipy import stats
 from vision_cal.config import DEFAULT, PhotoOffsetConfig
 
 
+def _as_the_marks(im, marks: dict) -> tuple[np.ndarray, np.ndarray]:
+    """A photo's dots (K, 2) and their covariances (K, 2, 2) against the reference their
+    marks were combined in: a mark measured through the markers (``markers (sheet flat)``:
+    the sheet as printed, or a flat sheet whose printed grid is off its layout) is compared
+    with each photo's marker mapping of its dot, not with its printed-grid position (which
+    carries the print's displacement at the mark, the same in every photo: on a sheet
+    printed 0.2 mm off its layout five of six photos were flagged as moved together)."""
+    xy = np.array(im.dots_xy_mm, float)
+    cov = np.array(im.dots_cov_mm2, float)
+    g_xy = np.asarray(getattr(im, "dots_global_xy_mm", ()), float).reshape(-1, 2)
+    g_cov = np.asarray(getattr(im, "dots_global_cov_mm2", ()), float).reshape(-1, 2, 2)
+    names = tuple(getattr(im, "dots_mark", ()) or ())
+    if len(names) != len(xy) or len(g_xy) != len(xy) or len(g_cov) != len(xy):
+        return xy, cov
+    for j, mid in enumerate(names):
+        m = marks.get(mid) if mid else None
+        if getattr(m, "reference", None) == "markers (sheet flat)" \
+                and np.all(np.isfinite(g_xy[j])):
+            xy[j], cov[j] = g_xy[j], g_cov[j]
+    return xy, cov
+
+
 def per_photo_offsets(measurement, model, q_by_id: dict, approach_by_id: dict, *,
                       config: PhotoOffsetConfig | None = None) -> list[dict]:
     """One entry per measured photo: mean residual (mm), its std, chi2 p-value, flag
@@ -33,13 +55,14 @@ def per_photo_offsets(measurement, model, q_by_id: dict, approach_by_id: dict, *
     for im in measurement.images:
         if im.status != "ok" or not len(im.dots_xy_mm):
             continue
-        d = np.linalg.norm(im.dots_xy_mm[:, None] - mxy[None], axis=2)
+        xy, cov_all = _as_the_marks(im, marks)
+        d = np.linalg.norm(xy[:, None] - mxy[None], axis=2)
         k = np.argmin(d, axis=1)
         ok = d[np.arange(len(k)), k] < gate_mm
         if ok.sum() < 2:
             continue
-        r = im.dots_xy_mm[ok] - pred[k[ok]]
-        cov = np.asarray(im.dots_cov_mm2)[ok]
+        r = xy[ok] - pred[k[ok]]
+        cov = cov_all[ok]
         w = np.linalg.inv(cov + 1e-12 * np.eye(2))
         W = w.sum(axis=0)
         mean = np.linalg.solve(W, np.einsum("nij,nj->i", w, r))

@@ -303,13 +303,28 @@ def _problem(q_deg, xy_mm, approach, *, sigma_mm, ids, q_val, xy_val, approach_v
                     len(base_effects), sel_cfg.min_sheet_marks, config)
 
 
-def marks_away_from(xy, sheet_map: dict) -> tuple[np.ndarray, float]:
+def marks_away_from(xy, sheet_map: dict, place=None) -> tuple[np.ndarray, float]:
     """The marks a local structure found by the sheet map (:func:`sheet_scan`: its peak and
     neighbourhood size ``k``) does not touch: farther from the peak than 1.5 times its
-    ``k``-th nearest mark. Returns (mask over ``xy``, that radius in mm)."""
+    ``k``-th nearest mark, or with ``place`` (N,) ints (the repeats of one commanded pose
+    share one: :func:`commanded_places`) its ``k``-th nearest place, as the map counts
+    its neighbours. Returns (mask over ``xy``, that radius in mm)."""
     d = np.linalg.norm(np.asarray(xy, float) - np.asarray(sheet_map["peak_mm"]), axis=1)
-    radius = 1.5 * np.sort(d)[min(sheet_map["k"], len(d) - 1)]
+    if place is not None:       # each place at its mark nearest the peak
+        _, place = np.unique(place, return_inverse=True)
+        near = np.full(place.max() + 1 if len(d) else 0, np.inf)
+        np.minimum.at(near, place.reshape(-1), d)
+    else:
+        near = d
+    radius = 1.5 * np.sort(near)[min(sheet_map["k"], len(near) - 1)]
     return d > radius, float(radius)
+
+
+def commanded_places(q, app) -> np.ndarray:
+    """The place of each mark (N,) ints: marks commanded to the same joints from the same
+    sides (a pose's repeats) share one."""
+    rows = np.column_stack([np.asarray(q, float), np.asarray(app, float)])
+    return np.unique(rows, axis=0, return_inverse=True)[1].reshape(-1)
 
 
 def enough_away(outside: np.ndarray) -> bool:
@@ -364,7 +379,8 @@ def _away_from_local(pb: _Problem, found: _Found, base: Fit) -> tuple[_Found, di
         sheet_map = seen if before_only else sheet_map
     if sheet_map["p_value"] >= level:
         return found, sheet_map
-    outside, radius = marks_away_from(pb.xy, sheet_map)
+    place = commanded_places(pb.q, pb.app)
+    outside, radius = marks_away_from(pb.xy, sheet_map, place)
     if not enough_away(outside) and before_only:
         return found, after     # nothing to check it on: the selection's own map stands
     sheet_map["excluded_radius_mm"] = float(radius)
@@ -377,7 +393,7 @@ def _away_from_local(pb: _Problem, found: _Found, base: Fit) -> tuple[_Found, di
         if again["p_value"] >= level:
             break
         wider = outside.copy()
-        wider[outside] = marks_away_from(pb.xy[outside], again)[0]
+        wider[outside] = marks_away_from(pb.xy[outside], again, place[outside])[0]
         if not enough_away(wider):
             break
         outside, away = wider, pb.select_on(wider)

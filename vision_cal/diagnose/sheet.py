@@ -103,14 +103,25 @@ def _agreement(r, pred):
     return float(np.sum(r * pred) / den) if den > 0 else 0.0
 
 
+#: the likely cause of a smooth residual, by default (a sheet measured against markers only)
+NOT_FLAT = ("the sheet is probably not flat (measure the marks against its printed grid: "
+            "declare sheet.grid)")
+#: ... and where the sheet's print was measured and the marks are against its markers
+PRINT_BETWEEN = ("the print between the markers, with the lens and the paper's shape the "
+                 "views cannot tell it from (calibration.json print: declare the camera's "
+                 "lens, or survey the sheet)")
+
+
 def smooth_residual(xy_mm, residual_mm, extent_mm, *, alpha: float | None = None,
                     length_mm: float | None = None, n_perm: int | None = None, rng=None,
-                    config: SmoothResidualConfig | None = None) -> dict | None:
+                    config: SmoothResidualConfig | None = None,
+                    cause: str = NOT_FLAT) -> dict | None:
     """The ``unexplained`` entry for a spatially smooth residual, or None.
 
     ``xy_mm`` (N, 2) mark positions, ``residual_mm`` (N, 2) after the final model;
     ``config`` the test's level, length, map step and permutations (default
-    ``DEFAULT.smooth_residual``; ``alpha``, ``length_mm``, ``n_perm`` override it).
+    ``DEFAULT.smooth_residual``; ``alpha``, ``length_mm``, ``n_perm`` override it);
+    ``cause`` what the sentence names (:data:`NOT_FLAT`, :data:`PRINT_BETWEEN`).
     """
     cfg = config or DEFAULT.smooth_residual
     alpha = cfg.alpha if alpha is None else alpha
@@ -146,8 +157,7 @@ def smooth_residual(xy_mm, residual_mm, extent_mm, *, alpha: float | None = None
     rms = float(np.sqrt(np.mean(np.sum(pred**2, axis=1))))
     return {"seen": [f"a residual that varies smoothly over the sheet (neighbouring marks "
                      f"agree, permutation p = {p:.2g}, smooth part {1000 * rms:.1f} um RMS) "
-                     "that no robot effect explains: the sheet is probably not flat (measure "
-                     "the marks against its printed grid: declare sheet.grid)"],
+                     f"that no robot effect explains: {cause}"],
             "kind": "sheet",
             "map": {"x_mm": xs.tolist(), "y_mm": ys.tolist(),
                     "dx_mm": np.round(field[:, 0].reshape(X.shape), 5).tolist(),

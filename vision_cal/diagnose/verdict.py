@@ -672,6 +672,7 @@ def _accuracy(doc: dict, marks: dict, n_par: int, rep: float, full: EstimatorCon
             "test for backlash, gear-ratio or sheet effects")
     print_mm = _print_part(doc.get("print"), add, full, by_design)
     parts = _target_parts(doc, marks, n_par, rep, print_mm) if r95 is not None else None
+    _print_named(doc.get("print"), parts, add, cfg)
     if parts is not None:
         r95 = R95_PER_STD * parts["total_mm"]
     elif r95 is not None and print_mm > 0:
@@ -691,21 +692,34 @@ def _print_part(pr: dict | None, add, full: EstimatorConfig, by_design: str | No
     ``as_printed.min_places`` places, a fixed camera among them) the print's deviation is
     unknown: every mark carries ``uncertainty.unmeasured_print_mm`` at least (what a
     printer does), or the larger part the markers show beyond the photos' mapping, and the
-    run is ``check`` (``by_design``'s level for a pilot), with a fixed camera or not. No
+    run is ``check`` (``by_design``'s level for a pilot), with a fixed camera or not; so is
+    a layout found but not applied for any reason but ``not significant`` (its solve
+    stopped, it is not resolved or does not replicate: issue 37), with the size it found.
+    A survey or several places that found the print on its layout measured it. No
     ``print`` block (marks given as ``measured_mm``): 0."""
     if not isinstance(pr, dict):
         return 0.0
     lim = pr.get("limit_mm")
     lim = float(lim) if _finite(lim) and lim > 0 else 0.0
-    if pr.get("source") != "one place":
+    one_place = pr.get("source") == "one place"
+    # a layout found but not applied measured the print only when it found it on its
+    # layout (``not significant``); failed, unresolved or unreplicated, it tells nothing
+    found_not_held = (not one_place and pr.get("applied") is False   # (no status: before
+                      and pr.get("status") not in (None, "not significant"))   # issue 37)
+    if not one_place and not found_not_held:
         return lim / math.sqrt(2.0)
-    size = max(lim, full.uncertainty.unmeasured_print_mm)
+    found = pr.get("rms_mm") if found_not_held else None
+    size = max(lim, float(found) if _finite(found) else 0.0,
+               full.uncertainty.unmeasured_print_mm)
     if size > full.verdict.print_check_mm:
         seen = pr.get("seen_rms_mm")
+        why = (f"the print field found does not hold ({pr.get('status')}: "
+               f"{pr.get('reason')})" if found_not_held else
+               f"no survey, and the photos come from fewer than "
+               f"{full.as_printed.min_places} camera places; a fixed camera sees it from one, "
+               "where it cannot be told from the lens")
         add(by_design or "check",
-            "the print's deviation from its layout is not measured (no survey, and the photos "
-            f"come from fewer than {full.as_printed.min_places} camera places; a fixed camera "
-            "sees it from one, where it cannot be told from the lens): about "
+            f"the print's deviation from its layout is not measured ({why}): about "
             f"{size:.3f} mm RMS on every mark"
             + (f" (the markers show {seen:.3f} mm beyond the photos' mapping)"
                if _finite(seen) and seen > 0 else "")
@@ -756,6 +770,36 @@ def _target_parts(doc: dict, marks: dict, n_par: int, rep: float,
     return {"calibration_mm": math.sqrt(c2), "repeatability_mm": rep,
             "unexplained_mm": math.sqrt(u2), "print_mm": print_mm, "total_mm": total,
             "from": source}
+
+
+def _print_named(pr: dict | None, parts: dict | None, add, cfg) -> None:
+    """The print measured (several places, a survey; applied, or seen and kept as declared)
+    yet leaving beyond ``cfg.print_check_mm`` on every mark is named as a cause of the
+    target error of its own (issue 37), ``check`` where it is at least the rest of it
+    (``parts``: :func:`_target_parts`), else at the ``ready`` level."""
+    if not isinstance(pr, dict) or pr.get("source") == "one place":
+        return
+    lim = pr.get("limit_mm")
+    if not _finite(lim) or lim <= cfg.print_check_mm:
+        return
+    if pr.get("applied") is False and pr.get("status") not in (None, "not significant"):
+        return   # not measured: _print_part said so
+    rest2 = (None if parts is None else
+             parts["total_mm"] ** 2 - parts["print_mm"] ** 2)
+    level = "check" if rest2 is None or parts["print_mm"] ** 2 >= rest2 else "ready"
+    if pr.get("applied") is False:
+        add(level, f"the print: the {pr.get('n_places', '?')} camera places see it "
+                   f"{pr.get('rms_mm', float('nan')):.3f} mm RMS off its layout, within what "
+                   f"they cannot resolve ({pr.get('unresolved_mm', float('nan')):.3f} mm): "
+                   f"the declared layout is kept and about {lim:.3f} mm RMS stays on every "
+                   "mark, in the expected target error: declare the camera's lens, "
+                   "photograph from more places, or survey the sheet", "print")
+    else:
+        add(level, f"the print: {pr.get('field_rms_mm', float('nan')):.3f} mm RMS off its "
+                   f"layout, measured from {pr.get('n_places', '?')} camera places, leaves "
+                   f"about {lim:.3f} mm RMS on every mark (what the views cannot tell from "
+                   "the lens and the paper's shape), in the expected target error: declare "
+                   "the camera's lens, or survey the sheet from more places", "print")
 
 
 def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
@@ -832,10 +876,11 @@ def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
 #: ``structure`` (structure left, scans not run, photos moved, the grid), ``left_out``
 #: (outliers, unreliable marks), ``replication`` (the fit's two halves disagree, or it
 #: could not be halved), ``accuracy`` (the accuracy figure and its degrees of
-#: freedom), ``print_one_place`` (the print not measured: one camera place), ``camera``
+#: freedom), ``print_one_place`` (the print not measured: one camera place), ``print`` (the
+#: print measured, a cause of the target error of its own), ``camera``
 #: (a camera calibration's own: parameters the poses do not separate, the lens), ``other``
 REASON_CODES = ("plan", "not_identified", "drift", "noise_floor", "structure", "left_out",
-                "replication", "accuracy", "print_one_place", "camera", "other")
+                "replication", "accuracy", "print_one_place", "print", "camera", "other")
 
 
 def _coded(reasons, code: str) -> list[tuple[str, str, str]]:

@@ -33,7 +33,10 @@ projection for the poses and the lens.
 What the views cannot separate from the lens is stated with its size: ``unresolved_mm``,
 the RMS over the released corners of their standard deviation (from the Jacobian at the
 solution, the residual's own scale, times sqrt(photos / places): repeated photos from one
-place repeat its detection errors), the lens free.
+place repeat its detection errors), the lens free. ``interior_mm`` is what the shared lens
+and corners leave on marks between the markers, each photo's pose refitted to the corners as
+its mapping is (:func:`_interior_cov`); the print's limit on the marks is the larger of the
+two (``limit_mm``).
 """
 
 from __future__ import annotations
@@ -99,6 +102,13 @@ class AsPrinted:
     #: the field against its own covariance (``chi2_dof``, ``dof``, ``p_value``,
     #: :mod:`vision_cal.measure.replicate`), None when not computed
     significance: dict | None = None
+    #: (P, 2) sheet points between the markers and (2 P, 2 P) the joint covariance of marks
+    #: measured there (:func:`_interior_cov`); not written (``interior_mm`` and ``field``
+    #: are)
+    interior_xy_mm: np.ndarray | None = None
+    interior_cov_mm2: np.ndarray | None = None
+    #: ``interior_mm`` read from a file (used when ``interior_cov_mm2`` is None)
+    interior_read: float | None = None
 
     # ------------------------------------------------------------------ figures
     @property
@@ -154,6 +164,24 @@ class AsPrinted:
         return float(np.sqrt(np.mean(np.sum(s**2, axis=1)))) if len(s) else float("nan")
 
     @property
+    def interior_mm(self) -> float | None:
+        """RMS (2-D) of the std of marks measured between the markers (the print's and the
+        lens's trade included): what the layout leaves on the marks. None without the
+        interior covariance."""
+        if self.interior_cov_mm2 is None:
+            return self.interior_read
+        d = np.clip(np.diag(np.asarray(self.interior_cov_mm2, float)), 0, None)
+        return float(np.sqrt(2.0 * np.mean(d)))
+
+    @property
+    def limit_mm(self) -> float:
+        """The print's limit on the marks (2-D RMS): the interior's when known, never below
+        the corners' own (``unresolved_mm``)."""
+        inner = self.interior_mm
+        return max(self.unresolved_mm, inner) if inner is not None and np.isfinite(inner) \
+            else self.unresolved_mm
+
+    @property
     def field(self) -> dict | None:
         """What the layout's uncertainty does to every photo's mapping, hence to the marks:
         the corners' joint covariance (``corner_cov_mm2``, in the gauge) projected on the
@@ -170,9 +198,14 @@ class AsPrinted:
         scale = float(np.abs(P[rel] - centre).max())
         rc = np.column_stack([2 * np.flatnonzero(rel), 2 * np.flatnonzero(rel) + 1]).ravel()
         L = np.linalg.pinv(field_basis(P[rel], centre, scale))
-        C = np.asarray(self.corner_cov_mm2, float)[np.ix_(rc, rc)]
+        C = L @ np.asarray(self.corner_cov_mm2, float)[np.ix_(rc, rc)] @ L.T
+        if self.interior_cov_mm2 is not None:   # the marks' own, where they are drawn
+            Li = np.linalg.pinv(field_basis(self.interior_xy_mm, centre, scale))
+            Ci = Li @ np.asarray(self.interior_cov_mm2, float) @ Li.T
+            if np.trace(Ci) > np.trace(C):
+                C = Ci
         return {"basis": "homography", "centre_mm": centre.tolist(), "scale_mm": scale,
-                "cov_mm2": (L @ C @ L.T).tolist()}
+                "cov_mm2": C.tolist()}
 
     def corners_for(self, ids, declared_mm) -> np.ndarray:
         """The printed corners of markers ``ids`` (their declared ``declared_mm`` where this
@@ -194,7 +227,7 @@ class AsPrinted:
                      "aside, = identity",
             "rms_mm": self.rms_mm, "max_mm": self.max_mm, "growth_mm": self.growth_mm,
             "field_rms_mm": self.field_rms_mm, "unresolved_mm": self.unresolved_mm,
-            "height_rms_mm": self.height_rms_mm,
+            "interior_mm": self.interior_mm, "height_rms_mm": self.height_rms_mm,
             "height_unresolved_mm": self.height_unresolved_mm,
             "n_places": int(self.n_places), "lens_free": bool(self.lens_free),
             "K": np.asarray(self.K).tolist(), "dist": np.asarray(self.dist).tolist(),
@@ -241,7 +274,9 @@ class AsPrinted:
                    stopped=None if d.get("stopped") is None else str(d["stopped"]),
                    places=(tuple(int(p["place"]) for p in ph)
                            if ph and all("place" in p for p in ph) else ()),
-                   replication=d.get("replication"), significance=d.get("significance"))
+                   replication=d.get("replication"), significance=d.get("significance"),
+                   interior_read=(None if d.get("interior_mm") is None
+                                  else float(d["interior_mm"])))
 
 
 # ---------------------------------------------------------------------- projection
@@ -442,6 +477,11 @@ class _Problem:
         return self.npv * self.V
 
     @property
+    def n_fixed(self) -> int:
+        """The unknowns before the corners' (the lens, the poses)."""
+        return self.n_lens + self.n_pose
+
+    @property
     def n_delta(self) -> int:
         """The released corners' unknowns."""
         return self.nd * len(self.rel_idx)
@@ -469,7 +509,7 @@ class _Problem:
             lens[:7] = x[:7]
         poses = x[self.n_lens:self.n_lens + self.n_pose].reshape(self.V, self.npv)
         delta = np.zeros((len(self.obs.P0), 3))
-        delta[self.rel_idx, :self.nd] = x[self.n_lens + self.n_pose:].reshape(-1, self.nd)
+        delta[self.rel_idx, :self.nd] = x[self.n_fixed:].reshape(-1, self.nd)
         return lens, poses, delta
 
     def model(self, x, with_jac: bool):
@@ -510,7 +550,7 @@ class _Problem:
                     ps, _ = cv2.projectPoints(Ps, poses[v, :3], poses[v, 3:6], Kv, dx)
                     dp = (ps.reshape(-1, 2) - pv.reshape(-1, 2)) / eps
                     rr = rows[rel]
-                    cc = n_lens + n_pose + nd * cols[rel] + j
+                    cc = self.n_fixed + nd * cols[rel] + j
                     J[2 * rr, cc] = dp[rel, 0]
                     J[2 * rr + 1, cc] = dp[rel, 1]
         return pred, J
@@ -520,12 +560,12 @@ class _Problem:
         pred, _ = self.model(x, False)
         return np.concatenate([(pred - self.obs.px).ravel(),
                                self.w_foc * x[self.foc_cols[:self.n_foc]],
-                               self.w_delta * x[self.n_lens + self.n_pose:]])
+                               self.w_delta * x[self.n_fixed:]])
 
     def jacobian(self, x) -> np.ndarray:
         """The residuals' dense Jacobian at ``x``."""
         _, J = self.model(x, True)
-        n_foc, n_fixed = self.n_foc, self.n_lens + self.n_pose
+        n_foc, n_fixed = self.n_foc, self.n_fixed
         F = np.zeros((n_foc, len(x)))
         F[np.arange(n_foc), self.foc_cols[:n_foc]] = self.w_foc
         D = np.hstack([np.zeros((self.n_delta, n_fixed)), np.diag(self.w_delta)])
@@ -582,7 +622,7 @@ def _solve(pb: _Problem, huber_px: float, max_nfev: int):
     after ``max_nfev`` evaluations at most."""
     x0 = pb.start()
     n_delta = pb.n_delta
-    nb = pb.n_lens + pb.n_pose
+    nb = pb.n_fixed
     mb = pb.m_obs + pb.n_foc
     before = least_squares(lambda x: pb.residuals(np.concatenate([x, np.zeros(n_delta)]))[:mb],
                            x0[:nb], jac=lambda x: pb.jacobian(np.concatenate(
@@ -595,6 +635,107 @@ def _solve(pb: _Problem, huber_px: float, max_nfev: int):
     return before, sol
 
 
+def _solution_cov(pb: _Problem, sol, n_places: int) -> np.ndarray:
+    """The covariance of every unknown at the solution ``sol``, from the Jacobian and the
+    residual's own scale (raises ``LinAlgError`` when the normal matrix is singular)."""
+    J = pb.jacobian(sol.x)   # the plain Jacobian (sol.jac is scaled by the loss)
+    r_obs = sol.fun[:pb.m_obs]
+    dof = max(pb.m_obs - (len(sol.x) - 4), 1)
+    # photos from one place see the corners with the same detection errors (the same
+    # pixels): they carry one view's information, not one each; the variance counts
+    # places (38 photos from 4 places: the std was 3 times too small, and a bumped sheet's
+    # model error passed for 0.012 mm of print at 5 times it)
+    s2 = float(np.sum(r_obs**2)) / dof * pb.V / max(n_places, 1)
+    return s2 * np.linalg.inv(J.T @ J)
+
+
+def _sheet_point(pb: _Problem, x, v: int, px: np.ndarray) -> np.ndarray:
+    """Where pixels ``px`` (N, 2) of photo ``v`` meet the paper's plane (N, 2) mm, through
+    the lens and the pose of ``x``."""
+    lens, poses, _ = pb.unpack(x)
+    K, dist = _lens_matrices(lens)
+    if pb.lens_free:
+        K[0, 0] = K[1, 1] = K[0, 0] * (1.0 + poses[v, 6])
+    R = cv2.Rodrigues(np.asarray(poses[v, :3], float))[0]
+    n = cv2.undistortPoints(np.asarray(px, float).reshape(-1, 1, 2), K, dist).reshape(-1, 2)
+    ray = np.column_stack([n, np.ones(len(n))]) @ R          # in the sheet frame
+    C = -R.T @ poses[v, 3:6]
+    return C[:2] + (-C[2] / ray[:, 2])[:, None] * ray[:, :2]
+
+
+def interior_points(pb: _Problem, n=(6, 4)) -> np.ndarray:
+    """(P, 2): a grid over the inner part of the released corners' extent (where marks
+    are drawn: between the markers)."""
+    P = pb.obs.P0[pb.rel_idx]
+    lo, hi = P.min(axis=0), P.max(axis=0)
+    lo, hi = lo + 0.15 * (hi - lo), hi - 0.15 * (hi - lo)
+    X, Y = np.meshgrid(np.linspace(lo[0], hi[0], n[0]), np.linspace(lo[1], hi[1], n[1]))
+    return np.column_stack([X.ravel(), Y.ravel()])
+
+
+def _map_derivatives(pb: _Problem, x0: np.ndarray, v: int, px: np.ndarray,
+                     cols) -> np.ndarray:
+    """(2 P, len(cols)): how photo ``v``'s pixel-to-sheet map moves pixels ``px`` (P, 2)
+    per unit of the unknowns ``cols`` (central differences)."""
+    out = np.zeros((2 * len(px), len(cols)))
+    for k, j in enumerate(cols):
+        h = 1e-6 * max(abs(x0[j]), 1.0)
+        xp, xm = x0.copy(), x0.copy()
+        xp[j] += h
+        xm[j] -= h
+        out[:, k] = (_sheet_point(pb, xp, v, px) - _sheet_point(pb, xm, v, px)).ravel() / (2 * h)
+    return out
+
+
+def _interior_cov(pb: _Problem, sol, cov_x: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """(2 P, 2 P): the joint covariance of marks at sheet points ``P`` (P, 2) measured
+    through every photo (averaged over the photos), in the gauge, from what every photo
+    shares: the lens and the printed corners. Each photo's map is fitted to the corners
+    again, so its pose follows them (the pose's own noise is each photo's, in the marks'
+    scatter already): a shared change ``ds`` moves the pose by ``-(A'A)^-1 A' B ds`` (``A``,
+    ``B`` the photo's rows of the Jacobian in its pose and in the shared unknowns) and the
+    mark by the map's derivatives in the lens and the pose; the corners' in-plane part also
+    through the gauge (the similarity of their deltas moves every mark), their heights less
+    their plane. What the solve leaves between the markers, where the print and an
+    undeclared lens trade against each other (its radial terms against a print that grows
+    outward, the paper's heights)."""
+    x0 = np.asarray(sol.x, float)
+    J = pb.jacobian(x0)[:pb.m_obs]
+    lens_cols = list(range(pb.n_lens))
+    shared = np.concatenate([np.arange(pb.n_lens), pb.n_fixed + np.arange(pb.n_delta)])
+    G = np.zeros((2 * len(P), len(shared)))
+    lens, poses, _ = pb.unpack(x0)
+    for v, rows in enumerate(pb.view_rows):
+        K, dist = _lens_matrices(lens)
+        if pb.lens_free:
+            K[0, 0] = K[1, 1] = K[0, 0] * (1.0 + poses[v, 6])
+        px = cv2.projectPoints(np.column_stack([P, np.zeros(len(P))]), poses[v, :3],
+                               poses[v, 3:6], K, dist)[0].reshape(-1, 2)
+        pose_cols = list(pb.n_lens + pb.npv * v + np.arange(pb.npv))
+        r2 = np.column_stack([2 * rows, 2 * rows + 1]).ravel()
+        follow = -np.linalg.lstsq(J[np.ix_(r2, pose_cols)], J[np.ix_(r2, shared)],
+                                  rcond=None)[0]                     # (npv, shared)
+        Gv = _map_derivatives(pb, x0, v, px, pose_cols) @ follow
+        if lens_cols:
+            Gv[:, :pb.n_lens] += _map_derivatives(pb, x0, v, px, lens_cols)
+        G += Gv / pb.V
+    if len(pb.rel_idx) >= 3:
+        sim = _similarity_design(P) @ pb.gauge()               # (2 P, 2 n_rel)
+        cols = pb.n_lens + pb.nd * np.arange(len(pb.rel_idx))
+        G[:, cols] -= sim[:, 0::2]
+        G[:, cols + 1] -= sim[:, 1::2]
+    C = cov_x[np.ix_(shared, shared)]
+    if pb.nd == 3 and len(pb.rel_idx) >= 3:
+        # the heights in their gauge (less their best-fitting plane): a plane of the corners
+        # is the paper's, which the marks lie on too
+        plane = pb.heights_plane()
+        T = np.eye(len(shared))
+        hc = pb.n_lens + pb.nd * np.arange(len(pb.rel_idx)) + 2
+        T[np.ix_(hc, hc)] = np.eye(len(hc)) - plane @ np.linalg.pinv(plane)
+        C = T @ C @ T.T
+    return G @ C @ G.T
+
+
 def _corner_std(pb: _Problem, sol, n_places: int
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """The released corners' std at the solution ``sol``, from the Jacobian and the
@@ -604,20 +745,12 @@ def _corner_std(pb: _Problem, sol, n_places: int
     zero where not released (``AsPrinted.corner_cov_mm2``). NaN std and no covariance
     (None) when the normal matrix is singular; 0 for the corners not released."""
     P0, rel_idx, nd, n_delta = pb.obs.P0, pb.rel_idx, pb.nd, pb.n_delta
-    J = pb.jacobian(sol.x)   # the plain Jacobian (sol.jac is scaled by the loss)
-    r_obs = sol.fun[:pb.m_obs]
-    dof = max(pb.m_obs - (len(sol.x) - 4), 1)
-    # photos from one place see the corners with the same detection errors (the same
-    # pixels): they carry one view's information, not one each; the variance counts
-    # places (38 photos from 4 places: the std was 3 times too small, and a bumped sheet's
-    # model error passed for 0.012 mm of print at 5 times it)
-    s2 = float(np.sum(r_obs**2)) / dof * pb.V / max(n_places, 1)
     std = np.zeros_like(P0)
     hstd = np.zeros(len(P0))
     plane = pb.heights_plane()
     gauge = pb.gauge()
     try:
-        cov3 = s2 * np.linalg.inv(J.T @ J)[pb.n_lens + pb.n_pose:, pb.n_lens + pb.n_pose:]
+        cov3 = _solution_cov(pb, sol, n_places)[pb.n_fixed:, pb.n_fixed:]
         inplane = (np.arange(n_delta) % nd) < 2
         cov = cov3[np.ix_(inplane, inplane)]
         if nd == 3 and len(rel_idx) >= 3:   # heights less their best-fitting plane
@@ -683,6 +816,12 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
     before, sol = _solve(pb, cfg.huber_px, cfg.max_evaluations)
     lens, _, delta = pb.unpack(sol.x)
     std, hstd, full = _corner_std(pb, sol, n_places)
+    inner_xy = interior_points(pb) if len(pb.rel_idx) >= 3 else None
+    try:
+        inner = None if inner_xy is None else _interior_cov(
+            pb, sol, _solution_cov(pb, sol, n_places), inner_xy)
+    except np.linalg.LinAlgError:
+        inner = None
     delta, heights = _in_gauge(pb, delta)
     Kf, df = _lens_matrices(lens)
     notes = []
@@ -697,7 +836,9 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
                      heights.reshape(-1, 4) if nd == 3 else None,
                      hstd.reshape(-1, 4) if nd == 3 else None, full,
                      stopped=stopped_reason(sol, cfg.max_evaluations),
-                     places=tuple(int(p) for p in places))
+                     places=tuple(int(p) for p in places),
+                     interior_xy_mm=None if inner is None else inner_xy,
+                     interior_cov_mm2=inner)
 
 
 def stopped_reason(sol, max_nfev: int) -> str | None:

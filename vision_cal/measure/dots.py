@@ -214,7 +214,8 @@ def _ink(rgb: np.ndarray, mapping: SheetMapping, sheet: Sheet, dia: float, cfg: 
     dia_px_max = dia / max(float(mmpp.min()), 1e-6)
     k = int(2.4 * dia_px_max) + 3
     k += 1 - k % 2
-    V = cv2.max(cv2.max(rgb[:, :, 0], rgb[:, :, 1]), rgb[:, :, 2])
+    # numpy on the channel views: cv2.max copies each strided channel first (2x the time)
+    V = np.maximum(np.maximum(rgb[:, :, 0], rgb[:, :, 1]), rgb[:, :, 2])
     bg = cv2.morphologyEx(V, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_RECT, (k, k)))
     thr = cv2.multiply(bg, 1.0 - cfg.ink_darkening, dtype=cv2.CV_8U)
     ink = cv2.compare(V, thr, cv2.CMP_LT)

@@ -14,8 +14,8 @@ from vision_cal.dataset.session import Session
 from vision_cal.measure.asprinted import AsPrinted, estimate_as_printed, field_basis
 from vision_cal.measure.finish import lens_of
 from vision_cal.measure.mapping import LensEstimate
-from vision_cal.measure.replicate import (APPLIED, FAILED, claim_of, stated_scale,
-                                          with_replication)
+from vision_cal.measure.replicate import (APPLIED, FAILED, NOT_SIGNIFICANT, claim_of,
+                                          stated_scale, with_replication)
 from vision_cal.measure.types import ImageDetections, ImageResult
 
 log = logging.getLogger(__name__)
@@ -27,7 +27,9 @@ def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEs
     """The sheet as printed (:mod:`vision_cal.measure.asprinted`): the survey's layout when
     one is given, else estimated from these photos when they were taken from at least
     ``config.as_printed.min_places`` places and off its layout beyond
-    ``config.as_printed.min_deviation_ratio`` times what they leave unresolved. Returns
+    ``config.as_printed.min_deviation_ratio`` times what they leave unresolved (a survey
+    that claims no field, :func:`vision_cal.measure.replicate.claim_of`, is returned as the
+    layout found but not used). Returns
     (as_printed or None, lens, detections
     with their markers' corners as printed); an estimated lens is then the one solved with
     the layout (the stage-2 lens absorbed part of the print), when stage 2 kept one; and
@@ -35,6 +37,10 @@ def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEs
     (:func:`vision_cal.measure.replicate.with_replication`) when it is significant, or
     always with ``replicate_all`` (a survey reports its halves whatever they say)."""
     ap = survey
+    if ap is not None and not claim_of(ap, config.as_printed).applied:
+        # a survey on its layout as far as its photos tell (not significant): the print is
+        # measured, no field moves a mark (print_stage's kept_declared, issue 37)
+        return None, lens, dets, ap
     if ap is None:
         ok = [d for d in dets if d.status == "ok"]
         sizes = sorted({d.size_px for d in ok}, key=lambda s: -sum(x.size_px == s for x in ok))
@@ -78,8 +84,11 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
                 config: EstimatorConfig, kept_declared: AsPrinted | None = None) -> dict | None:
     """measurement.json ``print``: the print's deviation from its layout and the limit it
     leaves on the marks (``limit_mm``, 2-D RMS). As printed (a survey or several places):
-    its figures, the limit the corners' uncertainty (``sigma_mm``: per axis, added to every
-    mark's variance as below). From one place, where the print cannot
+    its figures, the limit what the solve leaves on marks between the markers (the corners'
+    uncertainty, the lens's and the poses', ``AsPrinted.limit_mm``; ``sigma_mm``: per
+    axis, added to every mark's variance as below). Seen from several places but kept as
+    declared (within what the views resolve): the deviation they saw beyond what they
+    leave unresolved (RMS, in quadrature) is the limit. From one place, where the print cannot
     be told from the lens and the pose: each marker's mean corner residual beyond the
     photo's mapping (the part of the print a homography cannot take; RMS over the markers,
     less what the corners' own noise, seen within each marker, explains), times
@@ -87,7 +96,9 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
     every mark's variance per axis. A layout found from several places but not applied
     (``kept_declared``: its solve stopped, it is not significant or does not replicate,
     :func:`vision_cal.measure.replicate.claim_of`) moves no mark: its ``status`` and
-    ``reason``, and the print's size is carried as from one place (issue 37)."""
+    ``reason``, and the print's size is carried: as from one place, or what the views saw
+    of it beyond what they cannot resolve when larger (issue 37: four views of a print 0.3
+    mm off, unresolved 0.14 mm, added nothing and said "ready" with marks 0.14 mm off)."""
     if kept_declared is not None:
         return _not_applied(kept_declared, _beyond_mapping(session, images, config), config)
     if as_printed is not None:
@@ -101,8 +112,9 @@ def print_stage(session: Session, images: list[ImageResult], as_printed: AsPrint
                 "max_mm": as_printed.max_mm, "growth_mm": as_printed.growth_mm,
                 "field_rms_mm": as_printed.field_rms_mm,
                 "unresolved_mm": as_printed.unresolved_mm,
-                "limit_mm": k * as_printed.unresolved_mm,
-                "sigma_mm": k * as_printed.unresolved_mm / np.sqrt(2.0),
+                "interior_mm": as_printed.interior_mm,
+                "limit_mm": k * as_printed.limit_mm,
+                "sigma_mm": k * as_printed.limit_mm / np.sqrt(2.0),
                 "height_rms_mm": as_printed.height_rms_mm,
                 "n_places": as_printed.n_places,
                 **({"field": field} if field is not None else {}),
@@ -121,7 +133,16 @@ def _not_applied(ap: AsPrinted, seen: dict | None, config: EstimatorConfig) -> d
                     "unresolved_mm": ap.unresolved_mm, "height_rms_mm": ap.height_rms_mm,
                     "replication": ap.replication})
     out["n_places"] = ap.n_places
-    return {**out, **(seen or {"limit_mm": 0.0})}
+    out = {**out, **(seen or {"limit_mm": 0.0})}
+    if claim.status != FAILED:
+        out["interior_mm"] = ap.interior_mm
+    if claim.status == NOT_SIGNIFICANT:   # on its layout as far as the views tell: what they
+        # saw of it beyond what they cannot resolve stays on every mark (the others are not
+        # a measured print: the verdict carries the size they found)
+        views = float(np.sqrt(max(ap.rms_mm ** 2 - ap.unresolved_mm ** 2, 0.0)))
+        if views > out.get("limit_mm", 0.0):
+            out.update({"limit_mm": views, "sigma_mm": views / np.sqrt(2.0)})
+    return out
 
 
 def _beyond_mapping(session: Session, images: list[ImageResult], config: EstimatorConfig

@@ -308,6 +308,13 @@ class Claim:
         return {"status": self.status, "reason": self.reason}
 
 
+def measures_the_print(claim: Claim) -> bool:
+    """A layout that measured the print, applied or found on its layout (``not
+    significant``: the print is where the layout says, within what the views leave
+    unresolved); a failed, unresolved or unreplicated one tells nothing of it."""
+    return claim.status in (APPLIED, NOT_SIGNIFICANT)
+
+
 def claim_of(ap: AsPrinted, config: AsPrintedConfig | None = None) -> Claim:
     """The rule (module docstring) for the layout ``ap`` with its ``replication``."""
     cfg = config or DEFAULT.as_printed

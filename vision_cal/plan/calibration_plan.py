@@ -152,7 +152,13 @@ def sheet_clearance_mm(sheet, xy_mm) -> np.ndarray:
     edge = np.minimum.reduce([xy[:, 0] - x0, x1 - xy[:, 0], xy[:, 1] - y0, y1 - xy[:, 1]])
     out = edge
     for m in sheet.markers:
-        out = np.minimum(out, _polygon_distance_mm(xy, np.asarray(m.corners_mm, dtype=float)))
+        poly = np.asarray(m.corners_mm, dtype=float)
+        # a point farther from the marker's bounding box than its clearance so far keeps
+        # it (the box is never farther than the square): the exact distance only for the
+        # others (40,000 candidates x 24 markers: 0.45 -> 0.05 s)
+        gap = np.maximum(np.maximum(poly.min(axis=0) - xy, xy - poly.max(axis=0)), 0.0)
+        near = np.flatnonzero(np.hypot(gap[:, 0], gap[:, 1]) <= out + 1e-6)
+        out[near] = np.minimum(out[near], _polygon_distance_mm(xy[near], poly))
     return out
 
 

@@ -27,7 +27,7 @@ from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.io import atomic_write_json, atomic_write_text, read_json
 from vision_cal.report import plots
 from vision_cal.report.headline import STATISTICS, actions, headline, mark_rows, provenance
-from vision_cal.report.summary import describe_effect, uncertainty_lines
+from vision_cal.report.summary import describe_effect, survey_line, uncertainty_lines
 
 MAX_PHOTOS = 40
 # Every photo is embedded once, as a JPEG of the overlay (the full-size file is linked).
@@ -587,6 +587,8 @@ def _targets_html(rep: dict) -> list[str]:
     if not loop.get("targets"):
         return []
     parts = ["<h2>Targets (Table 3)</h2>"]
+    if loop.get("survey"):   # the blank sheet surveyed before the robot drew
+        parts.append(f"<p>{html.escape(survey_line(loop['survey']))}.</p>")
     reasons = {}
     rows = []
     for t in loop["targets"]:

@@ -303,3 +303,12 @@ def describe_effect(e: dict, *, evidence: bool = True) -> str:
         b, a = ev["heldout_rms_mm"]
         s += f"; held-out RMS {b:.4f} -> {a:.4f} mm, F = {ev['F']:.1f}, p = {ev['p_value']:.2g}"
     return s
+
+
+def survey_line(sv: dict) -> str:
+    """loop.json ``survey`` (``vision-cal loop`` with a scene's survey block) in one line:
+    the photos, the survey's verdict, whether the calibration measured against it."""
+    used = ("used by the calibration (the print measured)" if sv.get("used") else
+            f"not used ({sv.get('status')}): the print is not measured")
+    return (f"survey of the blank sheet ({sv.get('n_used')} of {sv.get('n_photos')} photos): "
+            f"{sv.get('verdict')}; {used}")

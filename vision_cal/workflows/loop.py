@@ -3,9 +3,14 @@
 What ``vision-cal loop SCENE.yaml --out DIR`` (and ``make demo``) runs, the seed paper's
 Table 3 for every target:
 
+0. with the scene's ``survey`` block: photograph the blank sheet of the same world (seed,
+   print, lens) from several places, tilted, before the robot draws  -> DIR/survey_photos/
+   and survey it (``vision-cal survey``'s code)                      -> DIR/survey/survey.json
 1. render the scene's calibration session (a robot with hidden effects draws the plan;
    pyrender photographs the sheet)                                   -> DIR/session/
 2. calibrate it from the photographs (measure, fit, diagnose)        -> DIR/calibration/
+   against the survey when it measured the print (a field claimed, or the print found on
+   its layout: ``measure.replicate.measures_the_print``, as ``vision-cal calibrate`` does)
 3. choose validation targets: the sheet origin (as in the paper), a grid of points over
    the reachable free paper and a short drawn path                   -> DIR/targets.csv
 4. plan them with the nominal and with the calibrated model (every effect found
@@ -35,6 +40,8 @@ from vision_cal.dataset.io import atomic_write_json, read_json
 from vision_cal.dataset.marker_geometry import quiet_boxes_mm
 from vision_cal.dataset.session import load_session
 from vision_cal.errors import VisionCalError
+from vision_cal.measure.replicate import measures_the_print
+from vision_cal.measure.survey import SURVEY_FILE, applicable, run_survey
 from vision_cal.model.kinematics import ScaraParams, inverse
 from vision_cal.workflows.measure_folder import measure_folder
 from vision_cal.model.robot import RobotModel
@@ -46,10 +53,14 @@ from vision_cal.progress import stage_line
 from vision_cal.world.dataset import render_dataset
 from vision_cal.world.scene import load_scene
 from vision_cal.report.plots import loop_joints, loop_paths
+from vision_cal.report.summary import survey_line
 from vision_cal.workflows.report_data import loop_trajectories
 from vision_cal.model.rms import rms
 
 log = logging.getLogger(__name__)
+
+#: the fewest survey photos worth a rendering process of their own
+PHOTOS_PER_PROCESS = 8
 
 
 def default_targets(sheet, params: ScaraParams, *, n_grid: int = 20, n_path: int = 12,
@@ -136,8 +147,8 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
     scene = load_scene(scene_path)
     stages = {}
     render_jobs = jobs or os.cpu_count() or 1
-    run = _calibrate_scene(scene, out, jobs=jobs, render_jobs=render_jobs, progress=progress,
-                           photographer=photographer, stages=stages)
+    run, survey = _calibrate_scene(scene, out, jobs=jobs, render_jobs=render_jobs,
+                                   progress=progress, photographer=photographer, stages=stages)
     calibrated = run.model                      # kept in memory, not read back
     nominal = RobotModel(run.session.robot.params)
     sheet = run.session.sheet
@@ -154,6 +165,8 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
             progress=progress, photographer=photographer, stages=stages)
         results[name] = _target_results(plans[name], m, targets, sheet, calibrated)
     doc = _loop_document(scene_path, ids, targets, results, stages, controller, run)
+    if survey is not None:
+        doc["survey"] = survey
     if progress:
         stage_line("loop", sum(stages.values()), note="; ".join(
             f"{k} {v:.1f} s" for k, v in stages.items()))
@@ -165,11 +178,58 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
     return doc, run
 
 
+def _survey_sheet(scene, out: Path, *, render_jobs: int, progress: bool, photographer,
+                  stages: dict) -> dict | None:
+    """Step 0, with the scene's ``survey`` block (None without): the blank sheet of the same
+    world photographed from the survey's places into ``out/survey_photos``, surveyed by
+    ``vision-cal survey``'s code into ``out/survey/survey.json``; loop.json's ``survey``:
+    the photos, the file, its verdict, its claim (``status``, ``reason``) and ``used``:
+    whether the calibration measures the marks against it (it measured the print: a field
+    claimed, or the print found on its layout; a failed, unresolved or unreplicated survey
+    is not used, and the verdict then says the print is not measured). Each step's seconds
+    go to ``stages``."""
+    if scene.survey is None:
+        return None
+    t = time.perf_counter()
+    # a rendering process's start (imports, its OpenGL context) costs about what 2-3 photos
+    # do: the demo's six survey photos render here (rendered and surveyed in 11.5 CPU-s,
+    # 16.6 with two rendering processes)
+    jobs = max(1, min(render_jobs, scene.survey.n_views // PHOTOS_PER_PROCESS))
+    photos = render_dataset(scene.survey_photos(), out / "survey_photos", progress=progress,
+                            photographer=photographer, pilot=pilot_params, jobs=jobs)
+    stages["render survey photos"] = time.perf_counter() - t
+    t = time.perf_counter()
+    (out / "survey").mkdir(exist_ok=True)
+    path = out / "survey" / SURVEY_FILE
+    try:
+        doc = run_survey(photos, photos / "session.json", out / "survey")
+    except VisionCalError as e:   # too few places, or views that do not fix the sheet
+        doc, claim, path = {"verdict": {"status": "failed", "text": e.reason}}, None, None
+    else:
+        claim = applicable(path)
+    stages["survey"] = time.perf_counter() - t
+    verdict = doc.get("verdict") or {}
+    if progress:
+        stage_line("survey", stages["survey"], n=len(doc.get("photos") or []), unit="photo",
+                   note=verdict.get("status", ""))
+    return {"photos": str(photos), "file": None if path is None else str(path),
+            "n_photos": len(doc.get("photos") or []),
+            "n_used": sum(p.get("status") == "ok" for p in doc.get("photos") or []),
+            "verdict": verdict.get("text"),
+            "status": claim.status if claim else "failed",
+            "reason": claim.reason if claim else verdict.get("text"),
+            "used": bool(claim and measures_the_print(claim))}
+
+
 def _calibrate_scene(scene, out: Path, *, jobs, render_jobs: int, progress: bool,
                      photographer, stages: dict):
-    """Steps 1-2: render the scene's calibration session into ``out/session`` and calibrate
-    it into ``out/calibration``; return the ``CalibrationRun``. Each step's seconds go to
-    ``stages``."""
+    """Steps 0-2: the sheet surveyed (the scene's ``survey`` block: :func:`_survey_sheet`),
+    the scene's calibration session rendered into ``out/session`` and calibrated into
+    ``out/calibration``, against the survey when it measured the print; return the
+    ``CalibrationRun`` and loop.json's ``survey`` (None without a survey block). Each
+    step's seconds go to ``stages``."""
+    survey = _survey_sheet(scene, out, render_jobs=render_jobs, progress=progress,
+                           photographer=photographer, stages=stages)
     t = time.perf_counter()
     session_dir = render_dataset(scene, out / "session", progress=progress,
                                  photographer=photographer, pilot=pilot_params,
@@ -177,12 +237,13 @@ def _calibrate_scene(scene, out: Path, *, jobs, render_jobs: int, progress: bool
     stages["render calibration session"] = time.perf_counter() - t
     t = time.perf_counter()
     run = calibrate_dataset(session_dir, out_dir=out / "calibration", jobs=jobs,
-                            progress=progress)
+                            progress=progress,
+                            survey=survey["file"] if survey and survey["used"] else None)
     stages["measure + calibrate + diagnose"] = time.perf_counter() - t
     if progress:
         stage_line("measure + calibrate + diagnose", stages["measure + calibrate + diagnose"],
                    n=len(run.document.get("marks", {})), unit="mark")
-    return run
+    return run, survey
 
 
 def _plan_both(out: Path, ids, xy, nominal, calibrated, *, elbow: int) -> dict:
@@ -299,9 +360,13 @@ def format_table(doc: dict) -> str:
                      f"{c['tracking_rms_deg'][0]:.4f} / {c['tracking_rms_deg'][1]:.4f} deg, settle "
                      f"residual max {max(c['settle_residual_max_deg']):.1e} deg, "
                      f"{c['duration_s']:.1f} s of motion")
+    sv = doc.get("survey")
+    if sv:
+        lines.append(survey_line(sv))
     for k in ("before", "after"):
         v = s[k]
         if v["rms_mm"] is not None:
             lines.append(f"{k}: RMS {v['rms_mm']:.4f} mm, max {v['max_mm']:.4f} mm over "
                          f"{v['n_measured']} of {s['n_targets']} targets measured")
     return "\n".join(lines)
+

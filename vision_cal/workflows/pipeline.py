@@ -12,6 +12,7 @@ calibration method is one more ``fit_*`` returning ``_Fitted``.
 from __future__ import annotations
 
 import logging
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
@@ -38,7 +39,7 @@ from vision_cal.diagnose.discover import trace
 from vision_cal.diagnose.photos import per_photo_offsets
 from vision_cal.diagnose.replicate import replicate
 from vision_cal.diagnose.select import Diagnosis, diagnose
-from vision_cal.diagnose.sheet import smooth_residual
+from vision_cal.diagnose.sheet import NOT_FLAT, PRINT_BETWEEN, smooth_residual
 from vision_cal.diagnose.verdict import judge
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.model.kinematics import forward
@@ -50,8 +51,14 @@ from vision_cal.measure.types import Measurement
 from vision_cal.model.robot import JointBacklash, RobotModel, SheetAffine
 from vision_cal.workflows.report_data import add_to_calibration
 from vision_cal.model.rms import rms_2d
+from vision_cal.progress import bar
 
 log = logging.getLogger(__name__)
+
+#: marks from which the fit + diagnosis and the writing of calibration.json each print a
+#: progress line when they start and end (a marks CSV of 2,000 marks takes seconds, of
+#: 100,000 minutes: docs/format.md, "Marks from other instruments")
+PROGRESS_MARKS = 2000
 
 
 @dataclass(frozen=True)
@@ -235,26 +242,41 @@ def calibrate_dataset(folder, *, out_dir, method: str = "lsq", jobs: int | None 
                                                survey=None if survey is None
                                                else load_survey(survey, session.sheet))
     cal, val = data.select("calibration"), data.select("validation")
-    if cal.joint4 is not None and len(np.unique(np.round(cal.joint4[:, 0], 6))) > 1:
-        if method == "paper":
-            fitted = _Fitted(*fit_joint4_paper(cal, val))
-        else:   # the tool and joint 4's effects first, then the diagnosis with them
-            stage = joint4_stage(cal, config)
-            fitted = fit_lsq(session, cal, val, measurement, config, stage.effects)
-            add_tool(fitted.blocks, fitted.diagnosis, stage)
-    else:
-        fitted = (fit_paper(cal, val, config) if method == "paper"
-                  else fit_lsq(session, cal, val, measurement, config))
-        if cal.joint4 is not None:   # one j4_deg: the tool is folded into L2 and z2
-            fitted = replace(fitted, blocks={**fitted.blocks, "tool": folded_statement(
-                cal.joint4[:, 0], session.robot.tool_mm or (0.0, 0.0))})
-    result = document(session, data, missing, measurement, fitted, method=method,
-                      config=config, truth=truth, bars_mm=bars_mm)
-    check_plausible(result.to_json(), session)  # radians, metres: stop before any file
-    out_path = result.write(out_dir / "calibration.json")
+    n_marks = len(cal.ids) + len(val.ids)
+    with _long_stage(progress, n_marks, "fit + diagnosis"):
+        if cal.joint4 is not None and len(np.unique(np.round(cal.joint4[:, 0], 6))) > 1:
+            if method == "paper":
+                fitted = _Fitted(*fit_joint4_paper(cal, val))
+            else:   # the tool and joint 4's effects first, then the diagnosis with them
+                stage = joint4_stage(cal, config)
+                fitted = fit_lsq(session, cal, val, measurement, config, stage.effects)
+                add_tool(fitted.blocks, fitted.diagnosis, stage)
+        else:
+            fitted = (fit_paper(cal, val, config) if method == "paper"
+                      else fit_lsq(session, cal, val, measurement, config))
+            if cal.joint4 is not None:   # one j4_deg: the tool is folded into L2 and z2
+                fitted = replace(fitted, blocks={**fitted.blocks, "tool": folded_statement(
+                    cal.joint4[:, 0], session.robot.tool_mm or (0.0, 0.0))})
+    with _long_stage(progress, n_marks, "calibration.json"):
+        result = document(session, data, missing, measurement, fitted, method=method,
+                          config=config, truth=truth, bars_mm=bars_mm)
+        check_plausible(result.to_json(), session)  # radians, metres: stop before any file
+        out_path = result.write(out_dir / "calibration.json")
     log.info("wrote %s", out_path)
     return CalibrationRun(session, result, out_path, fitted.model, fitted.diagnosis,
                           fitted.paper, measurement)
+
+
+@contextmanager
+def _long_stage(progress: bool, n_marks: int, desc: str):
+    """A progress line as the stage ``desc`` starts and ends, from ``PROGRESS_MARKS``
+    marks (with ``progress``); a stage that fails ends its line at 0 marks."""
+    line = bar(progress and n_marks >= PROGRESS_MARKS, total=n_marks, unit="mark", desc=desc)
+    try:
+        yield
+        line.update(n_marks)
+    finally:
+        line.close()
 
 
 def measure_marks(session: Session, *, out_dir: Path, jobs: int | None = None,
@@ -377,7 +399,7 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
     if session.sheet is not None:
         sm = smooth_residual(np.concatenate([cal.xy_mm, val.xy_mm]),
                              np.concatenate([res_cal, res_val]), session.sheet.extent_mm,
-                             config=config.smooth_residual)
+                             config=config.smooth_residual, cause=_smooth_cause(measurement))
         if sm is not None:
             ex = next((e for e in doc["effects"] if e["name"] == "unexplained"), None)
             if ex is None:
@@ -417,6 +439,11 @@ def _replication(ff: Fit, cal: MarkData, val: MarkData, measurement,
         shared_cov_mm2=print_field_cov(None if measurement is None
                                        else measurement.print_summary, cal.xy_mm[keep]),
         config=config)
+def _smooth_cause(measurement) -> str:
+    """What a smooth residual is named for: the print between the markers where the sheet's
+    print was measured and the marks are against its markers, else a sheet not flat."""
+    pr = (None if measurement is None else measurement.print_summary) or {}
+    return PRINT_BETWEEN if pr.get("applied") else NOT_FLAT
 
 
 def _print_shared(diag: Diagnosis, cal: MarkData, measurement) -> Diagnosis:

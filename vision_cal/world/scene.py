@@ -92,6 +92,12 @@ Sections and fields::
                                   # {file: bad.png, kind: blank | noise | corrupt}; listed
                                   # in session.json with all marks, so a calibrator must
                                   # skip them with a reason
+    survey:                       # vision-cal loop only (absent: no survey): the blank
+                                  # sheet of the same world (seed, print, lens) surveyed
+                                  # before the robot draws, as docs/sheet.md asks of a user
+      n_views: 6                  # photos, each from another place (3..50)
+      tilt_deg: [10.0, 30.0]      # each tilted from straight down by an angle drawn in
+                                  # [min, max] (a number t means [0, t]); 0..60
 
 The default robot is the seed's SM5 as measured, placed so that the sheet origin is
 comfortably reachable (``|pen - base|`` well inside ``[|L1-L2|, L1+L2]``) and most of
@@ -228,6 +234,15 @@ class PhotosScene:
 
 
 @dataclass(frozen=True)
+class SurveyScene:
+    """``survey``: the blank sheet photographed from ``n_views`` places, each tilted by an
+    angle drawn in ``tilt_deg``, before the robot draws (``vision-cal loop`` surveys it)."""
+
+    n_views: int = 6
+    tilt_deg: tuple[float, float] = (10.0, 30.0)
+
+
+@dataclass(frozen=True)
 class Scene:
     """A whole synthetic world (see the module docstring for the YAML layout)."""
 
@@ -238,6 +253,7 @@ class Scene:
     camera: CameraScene = field(default_factory=CameraScene)
     photos: PhotosScene = field(default_factory=PhotosScene)
     source: str = "<default>"
+    survey: SurveyScene | None = None   # the blank sheet surveyed first (vision-cal loop)
 
     def with_overrides(self, *, seed: int | None = None, mode: str | None = None) -> "Scene":
         """The same scene with a command-line ``--seed`` / ``--mode`` applied."""
@@ -250,6 +266,19 @@ class Scene:
                                      field="--mode")
             s = replace(s, photos=replace(s.photos, mode=mode))
         return s
+
+    def survey_photos(self) -> "Scene":
+        """The scene of its ``survey``: the same world (seed, sheet, print, lens) with the
+        blank sheet photographed once from each of ``survey.n_views`` places tilted
+        ``survey.tilt_deg`` (``photos.mode: survey``), the arm away, no bad files."""
+        if self.survey is None:
+            raise VisionCalError("the scene has no survey block", file=self.source,
+                                 field="survey")
+        sv = self.survey
+        return replace(self, camera=replace(self.camera, n_views=sv.n_views,
+                                            tilt_deg=sv.tilt_deg),
+                       photos=replace(self.photos, mode="survey", arm_parked=False,
+                                      extra_files=()))
 
 
 # ---------------------------------------------------------------------------- reading
@@ -435,13 +464,7 @@ def _camera(r: _R, d) -> CameraScene:
     dist = r.vector(dist_raw, "camera.dist", len(dist_raw))
     declared = r.boolean(d.get("declared", dflt.declared), "camera.declared")
     nv = r.integer(d.get("n_views", dflt.n_views), "camera.n_views", lo=1)
-    tilt_raw = d.get("tilt_deg", list(dflt.tilt_deg))
-    if isinstance(tilt_raw, (list, tuple)):
-        tilt = r.vector(tilt_raw, "camera.tilt_deg", 2, lo=0, hi=60)
-        if tilt[0] > tilt[1]:
-            r.fail("camera.tilt_deg", f"expected [min, max], got {tilt_raw!r}")
-    else:
-        tilt = (0.0, r.number(tilt_raw, "camera.tilt_deg", lo=0, hi=60))
+    tilt = _tilt(r, d.get("tilt_deg", list(dflt.tilt_deg)), "camera.tilt_deg")
     moving = r.boolean(d.get("moving", dflt.moving), "camera.moving")
     fill = r.number(d.get("fill", dflt.fill), "camera.fill", lo=0.3, hi=1.0)
     pp = d.get("principal_px")
@@ -455,6 +478,26 @@ def _camera(r: _R, d) -> CameraScene:
         r.fail("camera.f_scatter", "a focal length that changes between photos cannot be "
                                    "declared (session.json has one K): set declared: false")
     return CameraScene(size, f, dist, declared, nv, tilt, moving, fill, pp, fs)
+
+
+def _tilt(r: _R, raw, where: str) -> tuple[float, float]:
+    """Views' tilt off straight down: ``[min, max]`` or a number ``t`` (``[0, t]``), deg."""
+    if isinstance(raw, (list, tuple)):
+        tilt = r.vector(raw, where, 2, lo=0, hi=60)
+        if tilt[0] > tilt[1]:
+            r.fail(where, f"expected [min, max], got {raw!r}")
+        return tilt
+    return (0.0, r.number(raw, where, lo=0, hi=60))
+
+
+def _survey(r: _R, d) -> SurveyScene | None:
+    """``survey``: the blank sheet's survey photos (absent or null: no survey)."""
+    if d is None:
+        return None
+    d = r.section(d, "survey", ("n_views", "tilt_deg"))
+    dflt = SurveyScene()
+    nv = r.integer(d.get("n_views", dflt.n_views), "survey.n_views", lo=3, hi=50)
+    return SurveyScene(nv, _tilt(r, d.get("tilt_deg", list(dflt.tilt_deg)), "survey.tilt_deg"))
 
 
 def _photos(r: _R, d) -> PhotosScene:
@@ -490,11 +533,11 @@ def _photos(r: _R, d) -> PhotosScene:
 def scene_from_dict(d: dict | None, *, file: str = "<scene>") -> Scene:
     """Validate a parsed YAML tree into a :class:`Scene` (errors name ``file`` and field)."""
     r = _R(file)
-    d = r.section(d, "", ("seed", "robot", "sheet", "plan", "camera", "photos"))
+    d = r.section(d, "", ("seed", "robot", "sheet", "plan", "camera", "photos", "survey"))
     seed = r.integer(d.get("seed", 0), "seed", lo=0)
     scene = Scene(seed, _robot(r, d.get("robot")), _sheet(r, d.get("sheet")),
                   _plan(r, d.get("plan")), _camera(r, d.get("camera")),
-                  _photos(r, d.get("photos")), file)
+                  _photos(r, d.get("photos")), file, _survey(r, d.get("survey")))
     ppm = scene.photos.texture_px_per_mm
     for axis, size in zip("xy", scene.sheet.size_mm):
         if abs(size * ppm - round(size * ppm)) > 1e-6:

@@ -210,7 +210,12 @@ def paper_field(shape, rng: np.random.Generator) -> np.ndarray:
     lo = cv2.GaussianBlur(lo, (0, 0), 1.0)
     lo = cv2.resize(lo, (W, H), interpolation=cv2.INTER_CUBIC)
     grain = rng.standard_normal((H, W), dtype=np.float32)
-    return 1.0 + 0.006 * lo + 0.004 * grain
+    # 1 + 0.006 lo + 0.004 grain, in place (the same float32 operations in the same order)
+    lo *= 0.006
+    lo += 1.0
+    grain *= 0.004
+    lo += grain
+    return lo
 
 
 def sheet_texture(sheet: Sheet, *, marks_xy_mm, mark_diameters_mm=1.2, px_per_mm: float = 8.0,
@@ -406,4 +411,5 @@ def ink_marks(texture_rgb: np.ndarray, *, extent_mm, px_per_mm: float, marks_xy_
                                       shape=out.shape[:2], rng=rng):
         out[rs, cs] = out[rs, cs] * (1.0 - alpha[..., None]) + \
             np.asarray(DOT_RGB, np.float32) * alpha[..., None]
-    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
+    np.rint(out, out=out)   # in place: no raster-sized temporaries
+    return np.clip(out, 0, 255, out=out).astype(np.uint8)

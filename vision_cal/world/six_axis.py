@@ -203,6 +203,26 @@ class World:
             return _inv(self.X) @ F @ self.Y
         return _inv(self.X) @ _inv(F) @ self.Y
 
+    def controller_frames(self) -> tuple[np.ndarray, np.ndarray]:
+        """(X, Y) in the frames the controller's model defines: the true arm is
+        ``C_base F'(q) C_flange`` with ``F'`` its inner joints' errors only, ``C_base`` the
+        turn and lift of joint 1's zero and offset along its axis (the whole arm turned or
+        lifted) and ``C_flange`` joint 6's errors (the flange moved on the last link). No
+        pose of the arm tells these apart from where the camera and the board are: any
+        hand-eye against the controller's poses finds X and Y with them absorbed, and they
+        are the ones that put a commanded pose where the camera saw it."""
+        n, t = self.nominal, self.true
+        Cb = _T(_rot([0.0, 0.0, t.theta0_deg[0] - n.theta0_deg[0]]),
+                [0.0, 0.0, t.d_mm[0] - n.d_mm[0]])
+        a0, al0 = n.a_mm[5], n.alpha_deg[5]
+        Cf = (_T(_rot([-al0, 0.0, 0.0])) @ _T(t=[-a0, 0.0, 0.0])
+              @ _T(_rot([0.0, 0.0, t.theta0_deg[5] - n.theta0_deg[5]]),
+                   [0.0, 0.0, t.d_mm[5] - n.d_mm[5]])
+              @ _T(t=[t.a_mm[5], 0.0, 0.0]) @ _T(_rot([t.alpha_deg[5], 0.0, 0.0])))
+        if self.mount == "fixed":
+            return _inv(Cb) @ self.X, Cf @ self.Y
+        return Cf @ self.X, _inv(Cb) @ self.Y
+
     def truth(self) -> dict:
         names = (("T_robot_camera", "T_flange_board") if self.mount == "fixed"
                  else ("T_flange_camera", "T_robot_board"))
@@ -400,17 +420,23 @@ def photograph(world: World, T_camera_board: np.ndarray, rng, *, blur_px: float 
     return np.clip(np.round(img), 0, 255).astype(np.uint8)
 
 
-def pose_yaml(T_robot_flange: np.ndarray) -> str:
-    """A ROS tool's pose file: x y z in metres, the quaternion qx qy qz qw."""
+def pose_yaml(T_robot_flange: np.ndarray, joints_deg=None) -> str:
+    """A ROS tool's pose file: x y z in metres, the quaternion qx qy qz qw (and the
+    commanded joints, deg, when given: ``joints_deg``)."""
     q = [float(v) for v in Rotation.from_matrix(T_robot_flange[:3, :3]).as_quat()]
     t = [float(v) / 1000.0 for v in T_robot_flange[:3, 3]]
-    return (f"x: {t[0]!r}\ny: {t[1]!r}\nz: {t[2]!r}\nqx: {q[0]!r}\nqy: {q[1]!r}\n"
-            f"qz: {q[2]!r}\nqw: {q[3]!r}\n")
+    out = (f"x: {t[0]!r}\ny: {t[1]!r}\nz: {t[2]!r}\nqx: {q[0]!r}\nqy: {q[1]!r}\n"
+           f"qz: {q[2]!r}\nqw: {q[3]!r}\n")
+    if joints_deg is not None:
+        out += "joints_deg: [" + ", ".join(repr(float(v)) for v in joints_deg) + "]\n"
+    return out
 
 
-def write_session(folder, world: World, n: int, seed: int, *, render: bool = True) -> dict:
-    """``folder/images/N.png``, ``folder/poses/N.yaml`` and ``folder/truth.json``; returns
-    the truth (with each photo's true board pose)."""
+def write_session(folder, world: World, n: int, seed: int, *, render: bool = True,
+                  joints: bool = True) -> dict:
+    """``folder/images/N.png``, ``folder/poses/N.yaml`` (with the commanded joints unless
+    ``joints`` is False) and ``folder/truth.json``; returns the truth (with each photo's
+    true board pose)."""
     folder = Path(folder)
     (folder / "images").mkdir(parents=True, exist_ok=True)
     (folder / "poses").mkdir(parents=True, exist_ok=True)
@@ -421,7 +447,8 @@ def write_session(folder, world: World, n: int, seed: int, *, render: bool = Tru
         if render:
             cv2.imwrite(str(folder / "images" / f"{s.name}.png"),
                         photograph(world, s.T_camera_board, rng))
-        (folder / "poses" / f"{s.name}.yaml").write_text(pose_yaml(s.T_robot_flange))
+        (folder / "poses" / f"{s.name}.yaml").write_text(
+            pose_yaml(s.T_robot_flange, s.q_deg if joints else None))
         truth["photos"].append({"file": f"images/{s.name}.png", "q_deg": s.q_deg.tolist(),
                                 "q_true_deg": s.q_true_deg.tolist(),
                                 "T_camera_board": s.T_camera_board.tolist()})
