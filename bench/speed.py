@@ -53,7 +53,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
 from vision_cal.commands.main import main as vision_cal  # noqa: E402
-from vision_cal.render.truth_model import TrueRobot  # noqa: E402
+from vision_cal.world.truth_model import TrueRobot  # noqa: E402
 
 SPEED_JSON = ROOT / "docs" / "speed.json"
 SM5 = (344.05, 259.87, (-2.57, -8.13), (-424.26, -230.35))
@@ -202,7 +202,7 @@ print(f"RESULT {how} {time.perf_counter() - t:.2f} {time.process_time() - c:.2f}
 
 
 def write_pairs(path: Path, n: int, seed: int) -> None:
-    from vision_cal.render.pose_pairs import simulate_pairs
+    from vision_cal.world.pose_pairs import simulate_pairs
 
     w = simulate_pairs(TrueRobot(*SM5), n, seed=seed, mount="arm", noise_px=None,
                        noise_mm=1.0, noise_deg=0.5)

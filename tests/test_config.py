@@ -34,8 +34,8 @@ from vision_cal.measure import (asprinted, dots, grid, grid_declaration, height,
 from vision_cal.measure.finish import measure_image
 from vision_cal.measure.cache import session_fingerprint
 from vision_cal.workflows.pipeline import MarkData, calibrate_dataset
-from vision_cal.render.camera import project
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.camera import project
+from vision_cal.world.truth_model import TrueRobot
 from vision_cal.report.headline import configuration
 
 #: the modules whose thresholds moved into config.py, and the module-level numbers they may
