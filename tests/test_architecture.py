@@ -471,8 +471,6 @@ SOLVER_WORLD = {
 #: modules other engineers are changing now; each moves to the one solver after they merge
 #: (issue 39), and leaves this set when it does
 SOLVER_PENDING = {
-    "vision_cal.measure.asprinted": "the as-printed bundle adjustment: helpers survey and "
-                                    "printoff are changing it now (issue 37)",
     "vision_cal.camera.arm": "the arm camera's fit: helper scaracam is changing it now "
                              "(issues 37, 40, 41)",
     "vision_cal.camera.pose_pairs": "the pose pairs' hand-eye: helper scaracam is changing it "
