@@ -635,13 +635,15 @@ def _solve(pb: _Problem, huber_px: float, max_nfev: int):
     ``Solution``, or a ``StoppedSolve`` after ``max_nfev`` evaluations: ``before`` (the
     declared layout, the lens and the poses free) and the solution from where it reached
     (the released corners free too)."""
-    x0 = pb.start()
-    mb = pb.m_obs + pb.n_foc
+    nb, mb, no_delta = pb.n_fixed, pb.m_obs + pb.n_foc, np.zeros(pb.n_delta)
     kw = dict(method="trf", loss="huber", f_scale=huber_px, x_scale="jac", max_nfev=max_nfev,
               xtol=1e-8, ftol=1e-8, gtol=1e-8)
-    before = solve(lambda x: pb.residuals(x)[:mb], x0, jac=lambda x: pb.jacobian(x)[:mb],
-                   free=np.arange(len(x0)) < pb.n_fixed, **kw)
-    sol = solve(pb.residuals, reached(before).x, jac=pb.jacobian, **kw)
+    # posed on the lens and poses alone (a slice of the Jacobian: a free mask's column copy
+    # is stored in another order, and its rounding moved the solution by 1e-9)
+    before = solve(lambda x: pb.residuals(np.concatenate([x, no_delta]))[:mb], pb.start()[:nb],
+                   jac=lambda x: pb.jacobian(np.concatenate([x, no_delta]))[:mb, :nb], **kw)
+    sol = solve(pb.residuals, np.concatenate([reached(before).x, no_delta]), jac=pb.jacobian,
+                **kw)
     return before, sol
 
 
