@@ -554,8 +554,6 @@ SOLVER_WORLD = {
 #: modules other engineers are changing now; each moves to the one solver after they merge
 #: (issue 39), and leaves this set when it does
 SOLVER_PENDING = {
-    "vision_cal.measure.asprinted": "the as-printed bundle adjustment: helpers survey and "
-                                    "printoff are changing it now (issue 37)",
 }
 _INVERSES = {"inv", "pinv", "solve", "lstsq", "cholesky", "cho_factor", "cho_solve"}
 _TRANSPOSED = re.compile(r"\.T\s*@")
