@@ -15,13 +15,13 @@ import argparse
 import cv2
 import numpy as np
 
-from vision_cal.camera.arm import ArmView, check_declared_lens, fit_arm_camera
-from vision_cal.workflows.arm_session import corners_in_lens
+from vision_cal.camera.arm import ArmView, check_declared_lens, fit_arm_camera, lens_corners
 from vision_cal.estimate.verdict import judge_camera_poses
+from vision_cal.measure.types import ImageDetections
 from vision_cal.model.kinematics import ScaraParams
-from vision_cal.render import arm_camera as world
-from vision_cal.render.sheet import make_sheet
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world import arm_camera as world
+from vision_cal.world.sheet import make_sheet
+from vision_cal.world.truth_model import TrueRobot
 
 SIZE = (1280, 960)
 K = np.array([[1100.0, 0, 639.5], [0, 1100.0, 479.5], [0, 0, 1]])
@@ -69,8 +69,8 @@ def views(seed, noise, n=24):
         c = uv[sides.size // 2:].reshape(mk.shape)
         ok = np.all((c[..., 0] > 5) & (c[..., 0] < SIZE[0] - 6) & (c[..., 1] > 5)
                     & (c[..., 1] < SIZE[1] - 6), axis=1)
-        cr = corners_in_lens(e[ok], c[ok] + 0.3)
-        cl = corners_in_lens(e[ok], c[ok] + 0.3, K, DIST)
+        det = ImageDetections(f"p{i}", "ok", corners_px=c[ok] + 0.3, edges_px=e[ok])
+        cr, cl = lens_corners(det), lens_corners(det, K, DIST)
         raw.append(ArmView(f"p{i}", q[i], j4[i], mk[ok].reshape(-1, 2), cr.reshape(-1, 2)))
         lens.append(ArmView(f"p{i}", q[i], j4[i], mk[ok].reshape(-1, 2), cl.reshape(-1, 2)))
     return raw, lens

@@ -17,9 +17,9 @@ from vision_cal.camera.arm import ArmView, check_declared_lens, estimate_lens, f
 from vision_cal.workflows.arm_session import undetermined_reasons
 from vision_cal.estimate.verdict import judge_camera_poses
 from vision_cal.model.kinematics import ScaraParams
-from vision_cal.render import arm_camera as world
-from vision_cal.render.sheet import make_sheet
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world import arm_camera as world
+from vision_cal.world.sheet import make_sheet
+from vision_cal.world.truth_model import TrueRobot
 
 
 SIZE = (1280, 960)

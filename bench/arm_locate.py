@@ -1,7 +1,7 @@
 """The arm camera's stated std against the truth (issue 37): ``locate`` on the sheet and
 50 mm above it, with the lens declared and undeclared, over rendered worlds.
 
-Each seed renders the world's camera on the true robot (render/arm_camera.py: 24 poses,
+Each seed renders the world's camera on the true robot (world/arm_camera.py: 24 poses,
 1280 x 960 px, 0.01 mm repeatability per photo, a mount drawn 150-250 mm above the flange
 and tilted up to 4 deg; odd seeds add a lens with k1 -0.045) and calibrates the same photos
 twice: with session.json's lens (``declared``) and without it (``undeclared``: the lens
@@ -35,7 +35,7 @@ from vision_cal.camera.arm import camera_for
 from vision_cal.camera.fixed import locate
 from vision_cal.dataset.io import atomic_write_json, read_json
 from vision_cal.errors import VisionCalError
-from vision_cal.render.arm_camera import render_arm_dataset
+from vision_cal.world.arm_camera import render_arm_dataset
 from vision_cal.workflows.arm_session import calibrate_arm_camera
 
 TRUTH = {"L1_mm": 344.05, "L2_mm": 259.87, "joint_zero_deg": [-2.57, -8.13],
@@ -122,7 +122,7 @@ def calibrate(folder: Path, declared: bool) -> dict:
             if not (case / f.name).exists():
                 os.link(f, case / f.name)         # a hard link: photos stay inside the folder
     atomic_write_json(case / "session.json", session)
-    return calibrate_arm_camera(case)
+    return calibrate_arm_camera(case, cache_dir=folder.parent / f".cache-{case.name}")
 
 
 def main() -> None:

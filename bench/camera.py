@@ -54,8 +54,8 @@ from vision_cal.estimate.paper import pilot_params
 from vision_cal.camera.fixed import camera_of, locate
 from vision_cal.dataset.io import read_json
 from vision_cal.workflows.pipeline import calibrate_dataset
-from vision_cal.render import dataset as ds
-from vision_cal.render.scene import scene_from_dict
+from vision_cal.world import dataset as ds
+from vision_cal.world.scene import scene_from_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -138,8 +138,8 @@ def _raised_plate(sc, truth, cam, z_mm, T_rs, rng):
     2-D RMS error in px against the true projection."""
     from vision_cal.dataset.marker_geometry import marker_geometry
     from vision_cal.measure.aruco import corners_from_edges, edge_points, find_sheet_markers
-    from vision_cal.render.photo import Photographer
-    from vision_cal.render.sheet import make_sheet, sheet_texture
+    from vision_cal.world.photo import Photographer
+    from vision_cal.world.sheet import make_sheet, sheet_texture
 
     _, T_cs, K, dist = _truth_T(truth)
     w, h = sc.camera.size_px
@@ -210,7 +210,7 @@ def arm(seed: int, out: Path) -> None:
     import json
 
     from vision_cal.commands.main import main as cli
-    from vision_cal.render.arm_camera import render_arm_dataset
+    from vision_cal.world.arm_camera import render_arm_dataset
 
     # the pen method on a rendered series of the same true robot (no hidden effect)
     d = yaml.safe_load((ROOT / "renders" / "small.yaml").read_text())

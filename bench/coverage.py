@@ -50,7 +50,7 @@ from vision_cal.model.kinematics import ScaraParams  # noqa: E402
 from vision_cal.plan.calibration_plan import informative_plan  # noqa: E402
 from vision_cal.plan.compensate import plan_targets  # noqa: E402
 from vision_cal.plan.uncertainty import target_std  # noqa: E402
-from vision_cal.render.truth_model import TrueRobot  # noqa: E402
+from vision_cal.world.truth_model import TrueRobot  # noqa: E402
 from vision_cal.workflows.pipeline import calibrate_dataset  # noqa: E402
 
 SM5 = ScaraParams(344.05, 259.87, -2.57, -8.13, -424.26, -230.35)
@@ -202,8 +202,8 @@ def render_world(name: str, seed: int, out: Path):
     import yaml
 
     from vision_cal.estimate.paper import pilot_params
-    from vision_cal.render.dataset import render_dataset
-    from vision_cal.render.scene import scene_from_dict
+    from vision_cal.world.dataset import render_dataset
+    from vision_cal.world.scene import scene_from_dict
 
     scene, places = SCENES[name]
     raw = copy.deepcopy(yaml.safe_load((ROOT / "renders" / f"{scene}.yaml").read_text())

@@ -31,7 +31,7 @@ from scipy.optimize import least_squares
 from vision_cal.estimate.select import diagnose
 from vision_cal.model.kinematics import ScaraParams, forward
 from vision_cal.model.robot import JointBacklash, JointCyclic, JointScale, SheetAffine
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 TRUTH = ScaraParams(344.05, 259.87, -2.57, -8.13, -424.26, -230.35)
 
@@ -81,9 +81,9 @@ def render_grid(seeds: int, width: int, only: str | None = None) -> None:
 
     from vision_cal.workflows.pipeline import calibrate_dataset
     from vision_cal.estimate.paper import pilot_params
-    from vision_cal.render.dataset import photographer_K, render_dataset
-    from vision_cal.render.photo import Photographer
-    from vision_cal.render.scene import scene_from_dict
+    from vision_cal.world.dataset import photographer_K, render_dataset
+    from vision_cal.world.photo import Photographer
+    from vision_cal.world.scene import scene_from_dict
 
     root = Path(__file__).resolve().parents[1]
     base = yaml.safe_load((root / "renders" / "default.yaml").read_text())

@@ -3,7 +3,7 @@
 Usage: .venv/bin/python bench/discover.py [--clean 200] [--seeds 10] [--first-seed 5000]
        (also run by ``bench/diagnose.py --scans``)
 
-Kinematic and fast: the world's own robot (render/truth_model.py) draws 46 marks of a
+Kinematic and fast: the world's own robot (world/truth_model.py) draws 46 marks of a
 random plan (every sixth held out), with robot noise 0.01 mm and a measurer's 0.003 mm
 per axis; the estimator sees the marks, their per-mark noise and the drawing order.
 
@@ -34,7 +34,7 @@ from vision_cal.estimate.select import diagnose  # noqa: E402
 from vision_cal.estimate.verdict import judge  # noqa: E402
 from vision_cal.model.kinematics import ScaraParams  # noqa: E402
 from vision_cal.plan.compensate import plan_targets  # noqa: E402
-from vision_cal.render.truth_model import TrueRobot  # noqa: E402
+from vision_cal.world.truth_model import TrueRobot  # noqa: E402
 
 TRUTH = ScaraParams(344.05, 259.87, -2.57, -8.13, -424.26, -230.35)
 N, ROBOT, MEAS = 46, 0.01, 0.003

@@ -1,7 +1,7 @@
 """Hand-eye from pose pairs (issue 32): the solver against the world's truth over seeds, and
 against OpenCV's ``calibrateRobotWorldHandEye`` on the same pairs.
 
-For each seed the world (render/pose_pairs.py: the true SM5, a camera drawn on its flange
+For each seed the world (world/pose_pairs.py: the true SM5, a camera drawn on its flange
 or standing over the work area, a board) gives N pose pairs with either 0.1 px of corner
 noise solved by PnP (``px``) or 1 mm / 0.5 deg on the board's pose (``pose``). Printed per
 case: the RMS over seeds of error / reported std for each of X's six parameters (1 when
@@ -58,9 +58,9 @@ from scipy.spatial.transform import Rotation
 
 from vision_cal.actions.handeye import pairs_document
 from vision_cal.camera.pose_pairs import PosePair, fit_pose_pairs
-from vision_cal.render.arm_camera import T_flange_camera_true
-from vision_cal.render.pose_pairs import simulate_many_pairs, simulate_pairs
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.arm_camera import T_flange_camera_true
+from vision_cal.world.pose_pairs import simulate_many_pairs, simulate_pairs
+from vision_cal.world.truth_model import TrueRobot
 
 TRUTH = TrueRobot(344.05, 259.87, (-2.57, -8.13), (-424.26, -230.35))
 NOISE = {"px": {"noise_px": 0.1}, "pose": {"noise_px": None, "noise_mm": 1.0, "noise_deg": 0.5}}
@@ -153,7 +153,7 @@ def photo_comparison(seeds, n_poses: int = 16) -> None:
     from tests.camera.test_arm import K, NOMINAL, TRUTH as T_ARM, _plan, _views
     from vision_cal.camera.arm import camera_pose, fit_arm_camera
     from vision_cal.model.kinematics import ScaraParams
-    from vision_cal.render import arm_camera as world
+    from vision_cal.world import arm_camera as world
 
     def controller(params: ScaraParams, q, j4):
         """The flange a controller with ``params`` reports in its own frame (base at its

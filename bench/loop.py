@@ -67,8 +67,8 @@ def _serial_render(a, doc) -> None:
     import os
     from pathlib import Path
 
-    from vision_cal.render.dataset import render_dataset
-    from vision_cal.render.scene import load_scene
+    from vision_cal.world.dataset import render_dataset
+    from vision_cal.world.scene import load_scene
 
     jobs = a.jobs or os.cpu_count() or 1
     t = time.perf_counter()

@@ -40,7 +40,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def marks(n: int, seed: int = 7):
-    from vision_cal.render.truth_model import TrueRobot
+    from vision_cal.world.truth_model import TrueRobot
 
     rng = np.random.default_rng(seed)
     truth = TrueRobot(344.05, 259.87, (-2.57, -8.13), (-424.26, -230.35))

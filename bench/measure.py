@@ -58,8 +58,8 @@ sys.path.insert(0, str(ROOT))
 
 def render_folder(folder: Path, n_photos: int) -> None:
     from vision_cal.estimate.paper import pilot_params
-    from vision_cal.render.dataset import render_dataset
-    from vision_cal.render.scene import scene_from_dict
+    from vision_cal.world.dataset import render_dataset
+    from vision_cal.world.scene import scene_from_dict
 
     n_val = max(n_photos // 6, 1)
     scene = scene_from_dict({"seed": 11, "plan": {"n_calibration": n_photos - n_val,
@@ -71,8 +71,8 @@ def render_folder(folder: Path, n_photos: int) -> None:
 def warp_folder(folder: Path, n_photos: int) -> None:
     """Fallback: the test helper's warp of the sheet texture (no pyrender)."""
     from tests.measure import synth_measure as sm
-    from vision_cal.render.camera import camera_matrix, look_at
-    from vision_cal.render.sheet import make_sheet
+    from vision_cal.world.camera import camera_matrix, look_at
+    from vision_cal.world.sheet import make_sheet
 
     folder.mkdir(parents=True, exist_ok=True)
     sheet = make_sheet()
@@ -130,8 +130,8 @@ def reference_table(scenes: list[str], root: Path, seed: int | None) -> None:
     from vision_cal.estimate.paper import pilot_params
     from vision_cal.dataset.session import load_session
     from vision_cal.workflows.measure_folder import measure_folder
-    from vision_cal.render.dataset import render_dataset
-    from vision_cal.render.scene import load_scene
+    from vision_cal.world.dataset import render_dataset
+    from vision_cal.world.scene import load_scene
 
     rows = []
     for name in scenes:
@@ -190,8 +190,8 @@ def whole_run(folder: Path) -> dict:
     from vision_cal.workflows import pipeline
     from vision_cal.estimate.paper import pilot_params
     from vision_cal.dataset.session import load_session
-    from vision_cal.render.dataset import render_dataset
-    from vision_cal.render.scene import load_scene
+    from vision_cal.world.dataset import render_dataset
+    from vision_cal.world.scene import load_scene
 
     if not (folder / "session.json").exists():
         t = time.perf_counter()

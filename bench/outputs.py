@@ -59,8 +59,8 @@ def render_demo() -> None:
         return
     sys.path.insert(0, str(ROOT))
     from vision_cal.estimate.paper import pilot_params
-    from vision_cal.render.dataset import render_dataset
-    from vision_cal.render.scene import load_scene
+    from vision_cal.world.dataset import render_dataset
+    from vision_cal.world.scene import load_scene
 
     render_dataset(load_scene(ROOT / "renders" / "default.yaml"), DEMO, progress=True,
                    pilot=pilot_params, jobs=None)

@@ -107,8 +107,8 @@ def lenses() -> int:
     from vision_cal.estimate.paper import pilot_params
     from vision_cal.measure import mapping
     from vision_cal.workflows.pipeline import calibrate_dataset
-    from vision_cal.render.dataset import render_dataset
-    from vision_cal.render.scene import scene_from_dict
+    from vision_cal.world.dataset import render_dataset
+    from vision_cal.world.scene import scene_from_dict
 
     base = yaml.safe_load((ROOT / "renders" / "small.yaml").read_text())
     base["camera"].update(size_px=[1000, 750], f_px=1084.0, n_views=1, moving=False)

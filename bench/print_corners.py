@@ -1,6 +1,6 @@
 """A sheet printed off its layout: the measured marker corners against the world's two
 readings of a printed marker's corners (the points, and where its straight-fitted sides
-meet: render/print_deviation.py).
+meet: world/print_deviation.py).
 
 Usage: .venv/bin/python bench/print_corners.py DATASET OUT [DATASET OUT ...]
 
@@ -27,7 +27,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from vision_cal.render.print_deviation import PrintField  # noqa: E402
+from vision_cal.world.print_deviation import PrintField  # noqa: E402
 
 
 def truth_corners(folder: Path) -> dict:

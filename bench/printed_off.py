@@ -8,7 +8,7 @@ For each seed: the scene is rendered (unless already there), calibrated (``--tru
 then
 - marks: measured minus truth.json ``marks`` (RMS, calibration and validation marks),
 - targets: the calibration's compensated plan for every mark's true position, run on the
-  world's true robot (``render.truth_model``, kinematic, no repeatability noise), miss RMS
+  world's true robot (``world.truth_model``, kinematic, no repeatability noise), miss RMS
   and max against the targets,
 - print: the reported deviation (``print.field_rms_mm``, ``growth_mm``) against truth.json
   ``print`` (the field at the markers' corners, the toner),
@@ -33,7 +33,7 @@ sys.path.insert(0, str(ROOT))
 def evaluate(folder: Path, out: Path) -> dict:
     from vision_cal.dataset.calibration import load_calibration
     from vision_cal.plan.compensate import plan_targets
-    from vision_cal.render.truth_model import TrueRobot
+    from vision_cal.world.truth_model import TrueRobot
 
     truth = json.loads((folder / "truth.json").read_text())
     cal = json.loads((out / "calibration.json").read_text())
@@ -90,8 +90,8 @@ def main() -> int:
         return 0
     from vision_cal.estimate.paper import pilot_params
     from vision_cal.workflows.pipeline import calibrate_dataset
-    from vision_cal.render.dataset import render_dataset
-    from vision_cal.render.scene import load_scene
+    from vision_cal.world.dataset import render_dataset
+    from vision_cal.world.scene import load_scene
 
     for seed in a.seeds or [None]:
         sc = load_scene(a.scene).with_overrides(seed=seed)

@@ -1,6 +1,6 @@
 """Bench: the synthetic world against real photos (issue 28 section 3).
 
-Default: the small world of tests/render/test_bumped.py (240 x 180 mm sheet, 900 x 680 px,
+Default: the small world of tests/world/test_bumped.py (240 x 180 mm sheet, 900 x 680 px,
 a fixed camera tilted 15 deg, 14 marks, kinematic robot) in three worlds per seed:
 
 - ``clean``: today's world (no lens, PNG);
@@ -131,8 +131,8 @@ def fixture_table() -> int:
 
 
 def worlds(seed: int):
-    from tests.render.test_bumped import scene_dict
-    from vision_cal.render.photo import PHONE_JPEG_QUALITY, phone_lens
+    from tests.world.test_bumped import scene_dict
+    from vision_cal.world.photo import PHONE_JPEG_QUALITY, phone_lens
 
     base = scene_dict(None, seed=seed)
     base["plan"]["n_calibration"] = 14
@@ -160,8 +160,8 @@ def world_table(seeds) -> int:
     from vision_cal.model.kinematics import ScaraParams
     from vision_cal.model.robot import RobotModel, effect_from_json
     from vision_cal.workflows.pipeline import calibrate_dataset
-    from vision_cal.render.dataset import render_dataset
-    from vision_cal.render.scene import scene_from_dict
+    from vision_cal.world.dataset import render_dataset
+    from vision_cal.world.scene import scene_from_dict
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-real-worlds-"))
     print(f"{'seed':>4s} {'world':8s} {'marks um':>8s} {'targets um':>10s} "

@@ -23,9 +23,9 @@ import time
 import cv2
 import numpy as np
 
-from vision_cal.render.camera import camera_matrix, default_views, project
-from vision_cal.render.photo import Photographer
-from vision_cal.render.sheet import make_sheet, sheet_texture
+from vision_cal.world.camera import camera_matrix, default_views, project
+from vision_cal.world.photo import Photographer
+from vision_cal.world.sheet import make_sheet, sheet_texture
 
 
 def main(argv=None) -> int:
@@ -51,7 +51,7 @@ def main(argv=None) -> int:
     t_init = time.perf_counter() - t0
 
     # as render_dataset does: both textures built once, each photo patches in its new dot
-    from vision_cal.render.dataset import Textures, encode_image
+    from vision_cal.world.dataset import Textures, encode_image
 
     d = np.full(36 + args.n, 1.2)
     t0 = time.perf_counter()
@@ -142,7 +142,7 @@ def main(argv=None) -> int:
 
 def _dot_centres(img, bare, guesses_px, *, r=6):
     """Ink-coverage centroids near ``guesses_px`` (photo with and without the dots)."""
-    from vision_cal.render.sheet import DOT_RGB
+    from vision_cal.world.sheet import DOT_RGB
 
     img = img[..., 0].astype(float)
     bare = bare[..., 0].astype(float)
@@ -157,7 +157,7 @@ def _dot_centres(img, bare, guesses_px, *, r=6):
 
 
 def accuracy() -> None:
-    """Rendered dot centres minus cv2.projectPoints (px), as tests/render/test_photo.py
+    """Rendered dot centres minus cv2.projectPoints (px), as tests/world/test_photo.py
     checks them, printed as figures."""
     size = (640, 480)
     K = camera_matrix(size_px=size, f_px=800.0)

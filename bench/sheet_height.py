@@ -59,9 +59,9 @@ def plan_miss_mm(model, truth_model, extent_mm) -> float:
 
 
 def _flat_scene(seed: int, tilt_deg: float, k1: float, *, bumps: bool, declared: bool):
-    """tests/render/test_bumped.py's small world, its camera tilted and its lens set."""
-    from tests.render.test_bumped import BUMPS, scene_dict
-    from vision_cal.render.scene import scene_from_dict
+    """tests/world/test_bumped.py's small world, its camera tilted and its lens set."""
+    from tests.world.test_bumped import BUMPS, scene_dict
+    from vision_cal.world.scene import scene_from_dict
 
     d = scene_dict(BUMPS if bumps else None, seed=seed)
     d["plan"]["n_calibration"] = 14
@@ -75,7 +75,7 @@ def false_claims(seeds, only: str | None = None) -> int:
     ``only``: the worlds whose name holds it."""
     from vision_cal.estimate.paper import pilot_params
     from vision_cal.workflows.measure_folder import measure_folder
-    from vision_cal.render.dataset import render_dataset
+    from vision_cal.world.dataset import render_dataset
 
     worlds = [("flat, tilt 0, undeclared k1 -0.06", 0.0, -0.06, False, None),
               ("flat, tilt 11, undeclared k1 -0.06", 11.0, -0.06, False, None),

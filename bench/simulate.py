@@ -21,8 +21,8 @@ from vision_cal.dataset.session import Sheet, SheetMarker
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.plan.calibration_plan import informative_plan, paper_plan
 from vision_cal.plan.trajectory import plan_trajectory
-from vision_cal.simulate.controller import PDController
-from vision_cal.simulate.run import simulate_plan
+from vision_cal.world.controller import PDController
+from vision_cal.world.simulate import simulate_plan
 
 NOMINAL = ScaraParams(350.0, 260.0, 0.0, 0.0, -400.0, -250.0)   # SM5 CAD, base a rough guess
 PAPER_S = 47.6

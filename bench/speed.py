@@ -53,7 +53,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
 from vision_cal.commands.main import main as vision_cal  # noqa: E402
-from vision_cal.render.truth_model import TrueRobot  # noqa: E402
+from vision_cal.world.truth_model import TrueRobot  # noqa: E402
 
 SPEED_JSON = ROOT / "docs" / "speed.json"
 SM5 = (344.05, 259.87, (-2.57, -8.13), (-424.26, -230.35))
@@ -202,7 +202,7 @@ print(f"RESULT {how} {time.perf_counter() - t:.2f} {time.process_time() - c:.2f}
 
 
 def write_pairs(path: Path, n: int, seed: int) -> None:
-    from vision_cal.render.pose_pairs import simulate_pairs
+    from vision_cal.world.pose_pairs import simulate_pairs
 
     w = simulate_pairs(TrueRobot(*SM5), n, seed=seed, mount="arm", noise_px=None,
                        noise_mm=1.0, noise_deg=0.5)
@@ -262,7 +262,6 @@ def whole_section(folder: Path) -> dict:
 
 README = ROOT / "README.md"
 #: the README's quotes of the whole run: its headline row, and the sentence under `make demo`
-ROW_RE = r"\| whole calibration run \(38 photos, one job, no cache\) \|[^\n]*\|"
 TEXT_RE = r"costs [0-9.]+ times plain(\s+)OpenCV decoding"
 
 
@@ -271,16 +270,26 @@ def readme_text(whole: dict) -> str:
 
 
 def write_readme(whole: dict) -> None:
-    """The README's quotes of the whole run made from ``whole`` (its row and sentence)."""
+    """The README's quotes of the whole run made from ``whole``: its row of the headline
+    table through docs/figures.json (bench/figures.py renders the table, one owner) and its
+    sentence."""
+    import importlib.util
     import re
 
+    spec = importlib.util.spec_from_file_location("figures", ROOT / "bench" / "figures.py")
+    figures = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(figures)
+    doc = figures.load()
+    figures.set_row(doc, "whole_run", readme_row(whole).split(" | ", 1)[1].rstrip(" |"),
+                    source="bench/speed.py --write (docs/speed.json)")
+    figures.save(doc)
+    figures.write_readme(doc)
     old = README.read_text()
-    new = re.sub(ROW_RE, lambda _: readme_row(whole), old, count=1)
     new = re.sub(TEXT_RE, lambda m: readme_text(whole).replace(" OpenCV",
                                                                m.group(1) + "OpenCV"),
-                 new, count=1)
+                 old, count=1)
     README.write_text(new)
-    print("README: " + ("updated" if new != old else "unchanged"))
+    print("README: the whole run's row (docs/figures.json) and sentence written")
 
 
 def readme_row(whole: dict) -> str:

@@ -3,7 +3,7 @@
 Usage: nice -n 10 .venv/bin/python bench/survey_two_cameras.py [--seeds 201 202 203]
            [--photos 3 6] [--root /tmp/bench-survey-two] [--supersample 2]
 
-For each seed the world of ``render/table_world.py`` (a 272 x 360 mm ArUco grid printed
+For each seed the world of ``world/table_world.py`` (a 272 x 360 mm ArUco grid printed
 0.2 mm off its layout with 0.05 mm of toner, lying on a table in waves of about 1 mm, a
 block standing on it) is photographed by a phone (69 deg, tangential and thin-prism lens
 terms, JPEG) and by a DSLR (38 deg, radial only, PNG), each from its own places round the
@@ -42,7 +42,7 @@ def render(seed: int, n: int, root: Path, supersample: int) -> Path:
     """The seed's photos (``n`` per camera) and sheet.json under ``root/seed``."""
     import cv2
 
-    from vision_cal.render.table_world import (dslr_camera, phone_camera, survey_poses,
+    from vision_cal.world.table_world import (dslr_camera, phone_camera, survey_poses,
                                                table_world)
 
     base = root / str(seed)

@@ -4,7 +4,7 @@ Usage: .venv/bin/python bench/tool_joint4.py [--seeds 10] [--first 1000] [--sigm
        [--render N] [--keep DIR] [--alone]
 
 Seeds ``first .. first + seeds - 1`` (the tests use 2024, 77, 100, 5, 7, 11, 21: not these).
-Marks come from the world's own truth model (render/truth_model.py) with isotropic noise
+Marks come from the world's own truth model (world/truth_model.py) with isotropic noise
 ``sigma`` mm per axis, as ``measured_mm`` would carry them; ``--render N`` adds N cases
 measured from a rendered photograph (:func:`render_case`, seeds ``first + 1 ..``).
 
@@ -49,7 +49,7 @@ from vision_cal.estimate.verdict import judge
 from vision_cal.model.robot import JointBacklash, JointScale
 from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.plan.orient import plan_poses
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 SM5 = {"L1_mm": 344.05, "L2_mm": 259.87, "joint_zero_deg": [-2.57, -8.13],
        "base_mm": [-424.26, -230.35]}
@@ -166,9 +166,9 @@ def render_case(seed: int, *, width_px: int = 1600, keep: Path | None = None) ->
     from vision_cal.estimate.paper import pilot_params
     from vision_cal.design.joint4 import circle_triples, turn_joint4
     from vision_cal.model.kinematics import forward
-    from vision_cal.render import dataset as ds
-    from vision_cal.render.scene import scene_from_dict
-    from vision_cal.render.sheet import make_sheet
+    from vision_cal.world import dataset as ds
+    from vision_cal.world.scene import scene_from_dict
+    from vision_cal.world.sheet import make_sheet
 
     rng = np.random.default_rng(seed)
     r, ang = rng.uniform(15, 35), rng.uniform(-np.pi, np.pi)

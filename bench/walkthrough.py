@@ -35,7 +35,7 @@ from tests.design.test_programs import parse_spel  # noqa: E402
 from vision_cal.commands.main import main as cli_main  # noqa: E402
 from vision_cal.model.kinematics import ScaraParams  # noqa: E402
 from vision_cal.plan.calibration_plan import PlannedMark  # noqa: E402
-from vision_cal.render.truth_model import TrueRobot  # noqa: E402
+from vision_cal.world.truth_model import TrueRobot  # noqa: E402
 
 ROBOT = ROOT / "fixtures" / "robot_sm5.yaml"
 TRUTH = TrueRobot.from_json(
@@ -76,7 +76,7 @@ def draw(prg: Path, rng):
     the arm's dynamics through every point (the backlash is real gear play there); where
     the pen really marks (sheet mm)."""
     from vision_cal.dataset.robot import load_robot_file
-    from vision_cal.render.world import draw_marks, simulated_world
+    from vision_cal.world.drawing import draw_marks, simulated_world
 
     robot = load_robot_file(ROBOT)
     up, down = robot.require_pen_heights()
@@ -92,8 +92,8 @@ def photograph(folder: Path, sheet_dir: Path, world, photographer, rng, *, n: in
     (``also_xy_mm``: earlier marks already on the sheet)."""
     import cv2
 
-    from vision_cal.render.camera import camera_matrix, default_views
-    from vision_cal.render.printed import load_printed_sheet, printed_texture
+    from vision_cal.world.camera import camera_matrix, default_views
+    from vision_cal.world.printed import load_printed_sheet, printed_texture
 
     printed = load_printed_sheet(sheet_dir / "sheet.json")
     sheet = printed.sheet
@@ -116,8 +116,8 @@ def walkthrough(tmp: Path) -> dict:
     from vision_cal.dataset.csvio import read_plan, write_targets
     from vision_cal.dataset.session import load_sheet_file
     from vision_cal.workflows.loop import default_targets
-    from vision_cal.render.camera import camera_matrix
-    from vision_cal.render.photo import Photographer
+    from vision_cal.world.camera import camera_matrix
+    from vision_cal.world.photo import Photographer
 
     tmp.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(2026)

@@ -1,8 +1,9 @@
 """The house's rules, read from the source (ast, nothing imported): ``report/`` renders the
 written files and imports nothing of the estimator, no import circle exists among the
 package's modules (imports inside functions count as much as those at the top), a command
-only parses its arguments and calls an action, and the actions' results are printed in one
-place (``actions/console.py``)."""
+only parses its arguments and calls an action, the actions' results are printed in one
+place (``actions/console.py``), the packages import no layer above their own, the synthetic
+world (``world/``) nothing of the estimator, and one module solves least squares."""
 
 from __future__ import annotations
 
@@ -331,8 +332,8 @@ LAYERS = [
     {"identify"},
     {"estimate"},
     {"plan"},
-    {"program", "simulate"},
-    {"camera", "design", "render"},
+    {"program", "world"},
+    {"camera", "design"},
     {"report"},
     {"workflows"},
     {"actions"},
@@ -636,27 +637,103 @@ def test_the_file_check_sees_what_it_guards(tmp_path):
         ("8", " measurement.json"), ("9", " measurement.json")}
 
 
+#: what the synthetic world (world/) may import, and why: its own package; dataset/ (the
+#: format's files and the sheet's description), sheet/ (the printable layout it
+#: photographs), plan/ (the plans and trajectories a user runs, made from the nominal robot
+#: as a user makes them), model/motion (the joint limits and the 16 ms period: one owner)
+#: and the root's errors and progress. Nothing that estimates (the robot model, the
+#: kinematics, measure/, identify/, estimate/, camera/): a convention error
+#: there would cancel between the data and the fit, and no test could see it
+WORLD_MAY_IMPORT = {"world", "dataset", "sheet", "plan", "errors", "progress",
+                    "vision_cal.model.motion"}
+#: (module of world/, estimator module) -> the names it may take from it: the format's JSON
+#: blocks read with the estimator's readers (scene files; tests compare the two codes)
+WORLD_READS = {
+    ("vision_cal.world.scene", "vision_cal.model.robot"): {"Effect", "RobotModel",
+                                                           "effect_from_json"},
+    ("vision_cal.world.scene", "vision_cal.model.kinematics"): {"ScaraParams"},
+}
+
+
+def world_violations(package: Path = PACKAGE) -> list[str]:
+    """``module: from X import names`` of each import of world/ (anywhere in the file)
+    beyond :data:`WORLD_MAY_IMPORT` and :data:`WORLD_READS`."""
+    out = []
+    for name, path in modules(package).items():
+        if package_of(name) != "world":
+            continue
+        here = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+        for node in ast.walk(parsed(path)):
+            if isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    base = ".".join(here[:len(here) - node.level + 1] + ([base] if base else []))
+                found = [(base, {a.name for a in node.names})]
+            elif isinstance(node, ast.Import):
+                found = [(a.name, {a.name}) for a in node.names]
+            else:
+                continue
+            for mod, names in found:
+                if mod.split(".")[0] != "vision_cal":
+                    continue
+                if mod == "vision_cal":           # from vision_cal import errors, ...
+                    bad = {n for n in names if n not in WORLD_MAY_IMPORT}
+                elif package_of(mod) in WORLD_MAY_IMPORT or any(
+                        mod == m or mod.startswith(m + ".") for m in WORLD_MAY_IMPORT):
+                    bad = set()
+                else:
+                    bad = names - WORLD_READS.get((name, mod), set())
+                if bad:
+                    out.append(f"{name}: from {mod} import {', '.join(sorted(bad))}")
+    return sorted(out)
+
+
+def test_the_world_imports_nothing_of_the_estimator():
+    """world/ (the synthetic world) computes every effect, the kinematics and the camera with
+    its own code: it imports its package, dataset/, sheet/, plan/, model/motion and the
+    root's errors and progress, and the format's readers in scene.py, nothing else."""
+    assert "vision_cal.world.drawing" in modules()
+    assert world_violations() == []
+
+
+def test_the_world_check_sees_what_it_guards(tmp_path):
+    """The world reaching into the robot model outside the scene reader, into measure/ inside
+    a function and into camera/ by a relative import are found; the scene reading an
+    effect, a photo reading the sheet's layout and the period of model/motion are not."""
+    pkg = tmp_path / "vision_cal"
+    for d in ("world", "model", "measure", "camera", "sheet"):
+        (pkg / d).mkdir(parents=True)
+        (pkg / d / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "world" / "scene.py").write_text(
+        "from vision_cal.model.robot import effect_from_json\n"
+        "from vision_cal.model.motion import TRAJECTORY_DT_S\n")
+    (pkg / "world" / "photo.py").write_text(
+        "from vision_cal.model.robot import RobotModel\nfrom vision_cal.sheet import layout\n"
+        "from vision_cal import errors, config\n\n"
+        "def f():\n    from vision_cal.measure.aruco import find\n    from ..camera import arm\n")
+    assert world_violations(pkg) == [
+        "vision_cal.world.photo: from vision_cal import config",
+        "vision_cal.world.photo: from vision_cal.camera import arm",
+        "vision_cal.world.photo: from vision_cal.measure.aruco import find",
+        "vision_cal.world.photo: from vision_cal.model.robot import RobotModel"]
+
+
 #: the one solver and covariance policy (docs/conventions.md "Uncertainty"): no other module
 #: imports a scipy solver or inverts normal equations (a Gram ``J.T @ J``, ``J.T @ (w * J)``,
 #: given to inv, pinv, solve, lstsq or a Cholesky, directly or through a name bound to it)
 SOLVER_OWNER = "vision_cal.model.solve"
 #: scipy.optimize's names that are no least-squares solver
 NOT_A_SOLVER = {"linear_sum_assignment"}
-#: the world's own code: it never uses the estimator's (docs/architecture.md), so its arm's
-#: inverse kinematics keeps its own solve
+#: the world's own code: it never uses the estimator's (:data:`WORLD_MAY_IMPORT`), so its
+#: arm's inverse kinematics keeps its own solve
 SOLVER_WORLD = {
-    "vision_cal.render.six_axis": "the six-axis world's inverse kinematics: the world never "
+    "vision_cal.world.six_axis": "the six-axis world's inverse kinematics: the world never "
                                   "runs the estimator's code",
 }
 #: modules other engineers are changing now; each moves to the one solver after they merge
 #: (issue 39), and leaves this set when it does
 SOLVER_PENDING = {
-    "vision_cal.measure.asprinted": "the as-printed bundle adjustment: helpers survey and "
-                                    "printoff are changing it now (issue 37)",
-    "vision_cal.camera.arm": "the arm camera's fit: helper scaracam is changing it now "
-                             "(issues 37, 40, 41)",
-    "vision_cal.camera.pose_pairs": "the pose pairs' hand-eye: helper scaracam is changing it "
-                                    "now (issues 37, 40, 41)",
 }
 _INVERSES = {"inv", "pinv", "solve", "lstsq", "cholesky", "cho_factor", "cho_solve"}
 _TRANSPOSED = re.compile(r"\.T\s*@")

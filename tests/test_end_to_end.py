@@ -16,8 +16,8 @@ import yaml
 from vision_cal.dataset.io import read_json
 from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.estimate.paper import pilot_params
-from vision_cal.render import dataset as ds
-from vision_cal.render.scene import scene_from_dict
+from vision_cal.world import dataset as ds
+from vision_cal.world.scene import scene_from_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE = yaml.safe_load((ROOT / "renders" / "small.yaml").read_text())
@@ -42,7 +42,7 @@ def scene(effects=(), seed=12, dist=None):
 
 @pytest.fixture(scope="session")
 def photographer():
-    from vision_cal.render.photo import Photographer
+    from vision_cal.world.photo import Photographer
 
     s = scene()
     return Photographer(size_px=s.camera.size_px, K=ds.photographer_K(s))
@@ -132,7 +132,7 @@ def test_phone_principal_point_off_centre_and_focal_per_photo(tmp_path):
     it, and the measurer (no lens to find here) assumes neither."""
     import cv2
 
-    from vision_cal.render.camera import project
+    from vision_cal.world.camera import project
 
     # a series of 16 photos (one after each of 12 + 4 marks): enough focal lengths to span
     # the 6 % and marks to check the base against its std, at two thirds of 24's cost

@@ -9,13 +9,12 @@ import pickle
 import pytest
 
 from vision_cal.model.lsq import FailedFit
-from vision_cal.workflows.arm_session import SkippedPhoto, measure_view
 from vision_cal.camera.pose_pairs import PairsFailed
 from vision_cal.errors import CalibrationError, FailureUsed
 from vision_cal.identify.associate import NoMatch
 
 FAILURES = [FailedFit("only 3 marks"), NoMatch("only 3 marks matched"),
-            SkippedPhoto("a.png", "only 3 markers found"), PairsFailed("only 3 pairs")]
+            PairsFailed("only 3 pairs")]
 
 
 @pytest.mark.parametrize("f", FAILURES, ids=lambda f: type(f).__name__)
@@ -34,8 +33,8 @@ def test_a_failure_used_as_the_success_raises_with_the_reason_and_a_hint(f):
 
 @pytest.mark.parametrize("f", FAILURES, ids=lambda f: type(f).__name__)
 def test_a_failure_copies_and_pickles(f):
-    """Protocol lookups (``__deepcopy__``, ``__setstate__``) are not taken as a use: the
-    arm camera's photos come back from worker processes pickled."""
+    """Protocol lookups (``__deepcopy__``, ``__setstate__``) are not taken as a use: a
+    failure crosses to and from worker processes pickled."""
     assert copy.deepcopy(f) == f
     assert pickle.loads(pickle.dumps(f)) == f
 
@@ -43,12 +42,3 @@ def test_a_failure_copies_and_pickles(f):
 def test_failed_fit_still_ends_the_run_on_request():
     with pytest.raises(CalibrationError, match="only 3 marks"):
         FailedFit("only 3 marks").or_raise()
-
-
-def test_an_unreadable_arm_photo_is_a_skipped_photo_with_its_entry(tmp_path):
-    (tmp_path / "a.png").write_bytes(b"not a png")
-    v, entry = measure_view(tmp_path, None, None, "a.png", (0.0, -90.0, 0.0), 0.0)
-    assert isinstance(v, SkippedPhoto) and not v and v.file == "a.png"
-    assert entry == {"file": "a.png", "status": "skipped", "reason": v.reason} and v.reason
-    with pytest.raises(FailureUsed, match="corners_px"):
-        v.corners_px

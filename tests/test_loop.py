@@ -11,7 +11,7 @@ import pytest
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.csvio import read_plan, read_targets
 from vision_cal.workflows.loop import format_table, run_loop
-from vision_cal.render.scene import load_scene
+from vision_cal.world.scene import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -166,7 +166,7 @@ def test_a_survey_block_surveys_first_and_the_calibration_uses_what_measured_the
 
     from vision_cal.errors import VisionCalError
     from vision_cal.measure.replicate import Claim
-    from vision_cal.render.scene import scene_from_dict
+    from vision_cal.world.scene import scene_from_dict
     from vision_cal.workflows import loop as lp
 
     rendered, calibrated = [], []

@@ -36,7 +36,7 @@ class Failure:
     it, as if it were the success, raises :class:`FailureUsed` with the reason and a hint
     (scikit-image's ``FailedEstimation`` does the same). Subclasses are frozen dataclasses
     with ``reason`` as a field (``vision_cal.model.lsq.FailedFit``,
-    ``vision_cal.identify.associate.NoMatch``, ``vision_cal.workflows.arm_session.SkippedPhoto``).
+    ``vision_cal.identify.associate.NoMatch``, ``vision_cal.camera.pose_pairs.PairsFailed``).
     """
 
     __slots__ = ()

@@ -20,10 +20,6 @@ from tqdm import tqdm
 PREFIX = "vision-cal: progress: "  # every progress line starts so (errors: "vision-cal: error:")
 
 
-def is_progress_line(line: str) -> bool:
-    return line.startswith(PREFIX)
-
-
 def _tty() -> bool:
     try:
         return sys.stderr.isatty()

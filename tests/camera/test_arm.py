@@ -1,4 +1,4 @@
-"""A camera on the arm: the world's camera (render/arm_camera.py, its own robot code) sees a
+"""A camera on the arm: the world's camera (world/arm_camera.py, its own robot code) sees a
 dense marker field; its corners (projected, 0.1 px noise) feed the estimator.
 
 Bounds are 4 reported std (one std from the fit's covariance scaled by its residual)."""
@@ -10,12 +10,12 @@ import pytest
 
 import dataclasses
 
-from vision_cal.camera.arm import (LABELS, ArmView, fit_arm_camera, relative_motion)
+from vision_cal.camera.arm import LABELS, ArmView, T_sheet_flange, fit_arm_camera
 from vision_cal.estimate.verdict import judge_camera_poses
 from vision_cal.model.kinematics import ScaraParams
-from vision_cal.render import arm_camera as world
-from vision_cal.render.sheet import make_sheet
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world import arm_camera as world
+from vision_cal.world.sheet import make_sheet
+from vision_cal.world.truth_model import TrueRobot
 
 N_STD = 4.0
 SIZE = (800, 600)
@@ -82,6 +82,13 @@ def test_robot_and_T_flange_camera_found_within_their_std(seed):
     assert np.all(np.abs(dr) < N_STD * sd[6:9]), (dr, sd[6:9])
     assert fit.not_identifiable == []
     assert fit.rms_px < 0.2          # the 0.1 px noise, per axis, is all that is left
+
+
+def relative_motion(params: ScaraParams, q_deg, j4_deg, T_flange_camera) -> np.ndarray:
+    """(N-1, 4, 4) camera motion from photo 0 to each later photo (camera frames): what
+    AX = XB hand-eye sees."""
+    T = T_sheet_flange(params, q_deg, j4_deg) @ np.asarray(T_flange_camera, float)
+    return np.array([np.linalg.inv(T[0]) @ Ti for Ti in T[1:]])
 
 
 def test_planar_motion_leaves_the_height_to_the_sheet_plane():

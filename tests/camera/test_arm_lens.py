@@ -14,7 +14,7 @@ from tests.camera.test_arm import NOMINAL, TRUTH, _field, _plan
 from vision_cal.camera.arm import ArmView, check_declared_lens, fit_arm_camera
 from vision_cal.workflows.arm_session import lens_height_reason, undetermined_reasons
 from vision_cal.estimate.verdict import judge_camera_poses
-from vision_cal.render import arm_camera as world
+from vision_cal.world import arm_camera as world
 
 SIZE = (1280, 960)
 F = 1100.0
@@ -188,8 +188,9 @@ def test_corners_are_found_in_the_declared_lenss_ideal_pixels():
     there put the corner off by a few hundredths of a pixel (a bias that changes across the
     image, which no pose absorbs). Fitted in the lens's ideal pixels, the corners are where
     the lens puts them."""
-    from vision_cal.workflows.arm_session import corners_in_lens
+    from vision_cal.camera.arm import lens_corners
     from vision_cal.measure.mapping import distort_px
+    from vision_cal.measure.types import ImageDetections
 
     ideal = np.array([[1000.0, 750.0], [1120.0, 750.0], [1120.0, 870.0], [1000.0, 870.0]])
     t = np.linspace(0.15, 0.85, 24)
@@ -197,8 +198,8 @@ def test_corners_are_found_in_the_declared_lenss_ideal_pixels():
     edges = np.array([distort_px(s, K, DIST) for s in sides])[None]      # (1, 4, n, 2)
     truth = distort_px(ideal, K, DIST)
     start = truth + 0.5                                                   # the detector's
-    raw = corners_in_lens(edges, start[None])[0]
-    lens = corners_in_lens(edges, start[None], K, DIST)[0]
+    det = ImageDetections("a.png", "ok", corners_px=start[None], edges_px=edges)
+    raw, lens = lens_corners(det), lens_corners(det, K, DIST)
     assert np.max(np.hypot(*(lens - truth).T)) < 1e-3
     assert np.max(np.hypot(*(raw - truth).T)) > 0.02
 

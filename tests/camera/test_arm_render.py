@@ -1,6 +1,6 @@
 """The arm's camera on rendered photos: ``vision-cal handeye`` end to end.
 
-The world (render/arm_camera.py) photographs a dense marker field from a camera on the true
+The world (world/arm_camera.py) photographs a dense marker field from a camera on the true
 robot (0.01 mm repeatability per photo); the estimator reads session.json ``poses`` and the
 photos. Bounds: 4 reported std."""
 
@@ -16,7 +16,7 @@ from vision_cal.camera.fixed import UNDETERMINED, locate
 from vision_cal.commands.main import main
 from vision_cal.dataset.calibration_result import METHODS_EXTRA, CalibrationResult
 from vision_cal.dataset.io import read_json
-from vision_cal.render.arm_camera import render_arm_dataset
+from vision_cal.world.arm_camera import render_arm_dataset
 
 TRUTH = {"L1_mm": 344.05, "L2_mm": 259.87, "joint_zero_deg": [-2.57, -8.13],
          "base_mm": [-424.26, -230.35]}
@@ -193,13 +193,19 @@ def test_an_undeclared_lens_seen_tilted_is_estimated(tmp_path):
     assert abs(dz) < N_STD * cam["T_flange_camera_std"]["translation_mm"][2], dz
 
 
-def test_one_job_measures_the_same_as_several(arm, tmp_path):
+def test_one_job_measures_the_same_as_several(arm, tmp_path, capsys):
     """handeye --jobs: the photos measured in one process give the same calibration as
-    the fixture's run in every core's (issue 30)."""
+    the fixture's run in every core's (issue 30); run again into the same folder, the
+    detections come from its cache, as a pen calibration's do (issue 39)."""
     folder, doc, _ = arm
     assert main(["handeye", str(folder), "--out", str(tmp_path / "one"), "-q", "-j", "1"]) == 0
     one = read_json(tmp_path / "one" / "calibration.json")
     assert one["params"] == doc["params"] and one["images"] == doc["images"]
+    capsys.readouterr()
+    assert main(["handeye", str(folder), "--out", str(tmp_path / "one"), "-j", "1"]) == 0
+    err = capsys.readouterr().err
+    assert "12/12 photos" in err and "all from the cache" in err, err
+    assert read_json(tmp_path / "one" / "calibration.json")["params"] == doc["params"]
 
 
 # ------------------------------------------------ what the poses covered (issue 29, valid_for)

@@ -22,8 +22,8 @@ from vision_cal.camera.fixed import camera_of, locate
 from vision_cal.commands.main import main
 from vision_cal.dataset.io import read_json
 from vision_cal.workflows.pipeline import calibrate_dataset
-from vision_cal.render import dataset as ds
-from vision_cal.render.scene import scene_from_dict
+from vision_cal.world import dataset as ds
+from vision_cal.world.scene import scene_from_dict
 
 ROOT = Path(__file__).resolve().parents[2]
 N_STD = 4.0

@@ -12,7 +12,7 @@ from tests.commands.test_trust import TARGETS, assert_one_line, calibration  # n
 from vision_cal.commands.main import main
 from vision_cal.dataset.out_folder import writing_into
 from vision_cal.errors import VisionCalError
-from vision_cal.render.rehearse import _earlier_marks
+from vision_cal.world.rehearse import _earlier_marks
 
 ROOT = Path(__file__).resolve().parents[2]
 PDF = b"%PDF-1.4\n%\xe2\xe3\xcf\xd3\n1 0 obj<<>>endobj\n"

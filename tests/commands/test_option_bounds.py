@@ -83,7 +83,7 @@ def test_through_main_nothing_is_written(tmp_path, capsys):
 
 def test_the_ranges_agree_with_the_library():
     """Where the library checks the same number, the command line's range is the same."""
-    from vision_cal.camera.arm import MAX_POSES
+    from vision_cal.dataset.session import MAX_POSES
     from vision_cal.dataset.robot import OUTPUT_BITS
     from vision_cal.sheet.layout import MAX_PAGE_MM
 

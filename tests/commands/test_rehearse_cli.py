@@ -15,7 +15,7 @@ from vision_cal.errors import VisionCalError
 
 def test_robot_template_ships_in_the_package_and_loads_clean(tmp_path, caplog):
     from vision_cal.dataset.robot import load_robot_file
-    from vision_cal.render.rehearse import load_simulated_robot
+    from vision_cal.world.rehearse import load_simulated_robot
 
     assert main(["robot-template", "-o", str(tmp_path / "robot.yaml"), "-q"]) == 0
     assert main(["robot-template", "--simulated", "-o", str(tmp_path / "true.yaml"), "-q"]) == 0
@@ -87,7 +87,7 @@ def test_the_program_is_followed_and_must_be_the_plans(tmp_path):
     from vision_cal.dataset.robot import load_robot_file
     from vision_cal.plan.calibration_plan import PlannedMark
     from vision_cal.program import program_points, write_program
-    from vision_cal.render.rehearse import marks_from_program
+    from vision_cal.world.rehearse import marks_from_program
     from vision_cal.templates import template_text
 
     (tmp_path / "robot.yaml").write_text(template_text("robot"))
@@ -114,7 +114,7 @@ def test_spel_options_pen_output_jump_limz_motor_off(tmp_path):
     from vision_cal.dataset.robot import load_robot_file
     from vision_cal.plan.calibration_plan import PlannedMark
     from vision_cal.program import program_points, write_program
-    from vision_cal.render.rehearse import marks_from_program
+    from vision_cal.world.rehearse import marks_from_program
     from vision_cal.templates import template_text
 
     doc = yaml.safe_load(template_text("robot"))

@@ -50,7 +50,7 @@ def _plan():
 def test_the_simulated_pen_is_the_robot_files_tool(tmp_path):
     """A robot file with tool_mm [25, 0]: the true robot carries it (not a pen on the
     flange axis), and hidden.tool_mm offsets it."""
-    from vision_cal.render.rehearse import load_simulated_robot
+    from vision_cal.world.rehearse import load_simulated_robot
 
     _robot(tmp_path, tool_mm=[25.0, 0.0])
     sim = load_simulated_robot(_simulated(tmp_path, tool_mm=[0.5, -0.25]))
@@ -61,7 +61,7 @@ def test_the_simulated_pen_is_the_robot_files_tool(tmp_path):
 def test_the_program_s_joint_4_turns_the_tool(tmp_path):
     """Joint 4 as the program commands it reaches each mark: a 90 deg turn moves a 25 mm
     tool by 25 sqrt 2 mm on the paper."""
-    from vision_cal.render.rehearse import marks_from_program
+    from vision_cal.world.rehearse import marks_from_program
 
     robot_path = _robot(tmp_path, tool_mm=[25.0, 0.0], j4_deg=0.0)
     plan = _plan()
@@ -85,7 +85,7 @@ def test_the_program_s_joint_4_turns_the_tool(tmp_path):
     ("    Arch 0, 10, 10", "does not know"),
 ])
 def test_a_program_the_robot_file_would_not_run_is_refused(tmp_path, bad, what):
-    from vision_cal.render.rehearse import marks_from_program
+    from vision_cal.world.rehearse import marks_from_program
 
     prg, robot = _program(tmp_path, _plan(), _robot(tmp_path))
     lines = prg.read_text().splitlines()
@@ -99,7 +99,7 @@ def test_a_program_the_robot_file_would_not_run_is_refused(tmp_path, bad, what):
 
 
 def test_the_point_list_is_held_to_the_limits_too(tmp_path):
-    from vision_cal.render.rehearse import marks_from_program
+    from vision_cal.world.rehearse import marks_from_program
 
     prg, robot = _program(tmp_path, _plan(), _robot(tmp_path), name="p_points.csv", kind="csv")
     text = prg.read_text().replace("10.000000,20.000000", "10.000000,160.000000")
@@ -130,7 +130,7 @@ def test_a_folder_without_its_program_is_refused(tmp_path, capsys):
 
 
 def test_targets_whose_ids_are_not_the_plans_are_refused(tmp_path, capsys):
-    from vision_cal.render.rehearse import _same_ids
+    from vision_cal.world.rehearse import _same_ids
 
     _same_ids(["a", "b"], ["b", "a"], Path("p.csv"), Path("t.csv"))       # same marks
     with pytest.raises(VisionCalError, match="targets not in the plan.*: c") as e:
@@ -172,8 +172,8 @@ def test_simulate_draws_with_the_robot_files_tool_and_joint_4(tmp_path, monkeypa
     """The whole command: a targets program drawn by a robot file with a 25 mm tool lands
     25 mm from the flange, along the flange's direction (truth.json's marks); the program's
     joint 4 at 90 deg turns it a quarter turn."""
-    import vision_cal.render.rehearse as rehearse
-    from vision_cal.render.truth_model import TrueRobot
+    import vision_cal.world.rehearse as rehearse
+    from vision_cal.world.truth_model import TrueRobot
 
     monkeypatch.setattr(rehearse, "Photographer", _Blank)
     robot_path = _robot(tmp_path, tool_mm=[25.0, 0.0])
@@ -200,7 +200,7 @@ def test_simulate_draws_with_the_robot_files_tool_and_joint_4(tmp_path, monkeypa
 def test_the_robot_files_speed_limits_shape_the_simulated_motion(tmp_path, monkeypatch):
     """The simulated controller follows a trajectory planned with the robot file's speed
     and acceleration limits, not the defaults."""
-    import vision_cal.render.rehearse as rehearse
+    import vision_cal.world.rehearse as rehearse
 
     seen = {}
 

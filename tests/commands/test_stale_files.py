@@ -186,7 +186,7 @@ def _csv_readers(tmp_path):
     from vision_cal.camera.poses_file import read_poses
     from vision_cal.dataset.csvio import read_plan, read_target_theta, read_targets
     from vision_cal.dataset.marks_csv import session_from_marks_csv
-    from vision_cal.render.rehearse import program_moves
+    from vision_cal.world.rehearse import program_moves
 
     return [
         ("targets", "id,x_mm,y_mm,x_mm\nt1,100,200,0\n", read_targets),

@@ -42,9 +42,9 @@ def cli(argv, capsys) -> tuple[int, str, str]:
 def assert_one_line(err: str, *names: str) -> str:
     """Exactly one line on stderr, naming each of ``names`` (file, field; a name starting
     with "-" is a command-line option, looked for as ": -o:")."""
-    from vision_cal.progress import is_progress_line
+    from vision_cal.progress import PREFIX
 
-    lines = [ln for ln in err.strip().splitlines() if not is_progress_line(ln)]
+    lines = [ln for ln in err.strip().splitlines() if not ln.startswith(PREFIX)]
     assert len(lines) == 1, err
     for n in names:
         n = f": {n}:" if str(n).startswith("-") else str(n)

@@ -42,8 +42,8 @@ def rendered_run(tmp_path_factory):
     from dataclasses import replace
 
     from vision_cal.workflows.pipeline import calibrate_dataset
-    from vision_cal.render.dataset import render_dataset
-    from vision_cal.render.scene import load_scene
+    from vision_cal.world.dataset import render_dataset
+    from vision_cal.world.scene import load_scene
 
     tmp = tmp_path_factory.mktemp("schema")
     sc = load_scene(ROOT / "renders" / "small.yaml").with_overrides(mode="single")

@@ -17,7 +17,7 @@ from vision_cal.commands.main import main
 from vision_cal.dataset.marks_csv import session_from_marks_csv
 from vision_cal.errors import VisionCalError
 from vision_cal.workflows.pipeline import calibrate_dataset
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 N, SIGMA = 40, 0.02            # marks; the instrument's accuracy, one std per axis (mm)
 BACKLASH = {"name": "joint_backlash", "joint": 2, "deg": 0.08}

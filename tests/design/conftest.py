@@ -49,7 +49,7 @@ def informative_dir(tmp_path_factory, pilot_dir, sheet_json):
     0.02 mm of noise: the plan's structure, not its accuracy, is under test here)."""
     from vision_cal.design.stage import design_stage
     from vision_cal.workflows.pipeline import calibrate_dataset
-    from vision_cal.render.truth_model import TrueRobot
+    from vision_cal.world.truth_model import TrueRobot
 
     s = json.loads((pilot_dir / "session.json").read_text())
     truth = TrueRobot(344.05, 259.87, (-2.57, -8.13), (-420.0, -230.0))

@@ -7,7 +7,7 @@ import numpy as np
 
 from tests.design.conftest import ROBOT, border_sheet
 from vision_cal.plan.calibration_plan import sheet_clearance_mm
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 TOOL = [21.0, -7.0]
 TRUTH = TrueRobot.from_json(

@@ -39,7 +39,7 @@ def test_every_mark_clears_markers_and_edges_for_any_placement(design):
     """Catches: a design checked at the nominal placement only (marks then land on a
     marker or off the paper for a real robot 35 mm / 10 deg away)."""
     robot, sheet, d = design
-    from vision_cal.render.truth_model import TrueRobot
+    from vision_cal.world.truth_model import TrueRobot
 
     q = np.array([m.joints_deg for m in d.marks])
     P = random_placements(robot, 2000, np.random.default_rng(1))
@@ -122,7 +122,7 @@ def _pilot_calibration(tmp_path, pilot_dir, edit) -> Path:
     photos), calibrated, its document edited by ``edit`` and judged again as the pipeline
     judges a pilot."""
     from vision_cal.estimate.verdict import judge
-    from vision_cal.render.truth_model import TrueRobot
+    from vision_cal.world.truth_model import TrueRobot
     from vision_cal.workflows.pipeline import calibrate_dataset
 
     s = json.loads((pilot_dir / "session.json").read_text())

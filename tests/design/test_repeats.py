@@ -11,7 +11,7 @@ from tests.design.conftest import border_sheet
 from vision_cal.design.stage import DESIGN_REPEATS
 from vision_cal.errors import VisionCalError
 from vision_cal.plan.calibration_plan import REPEAT_GAP, REPEAT_SHIFT_MM, sheet_clearance_mm
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 TRUTH = TrueRobot.from_json(
     {"L1_mm": 344.05, "L2_mm": 259.87, "joint_zero_deg": [-2.57, -8.13],

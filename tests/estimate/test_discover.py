@@ -13,7 +13,7 @@ from vision_cal.estimate.select import diagnose
 from vision_cal.model.motion import approach_signs
 from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.plan.compensate import plan_targets
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 from vision_cal.schema import validate
 
 N, SIGMA, MEAS = 46, 0.01, 0.003      # marks, robot noise per axis, measurer's std

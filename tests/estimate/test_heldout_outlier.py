@@ -6,7 +6,7 @@ import numpy as np
 
 from tests.conftest import SM5, random_plan
 from vision_cal.estimate.select import diagnose
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 
 def test_backlash_found_beside_a_gross_outlier():

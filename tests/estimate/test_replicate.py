@@ -16,7 +16,7 @@ from vision_cal.model.lsq import Fit
 from vision_cal.model.replication import compare
 from vision_cal.model.robot import JointBacklash, RobotModel
 from vision_cal.plan.calibration_plan import informative_plan
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 
 def test_compare_is_the_chi_square_of_the_difference():

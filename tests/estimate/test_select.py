@@ -9,7 +9,7 @@ import pytest
 from tests.conftest import SM5, random_plan
 from vision_cal.estimate.select import diagnose
 from vision_cal.model.robot import JointBacklash, JointCyclic, JointScale, SheetAffine
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 CASES = [
     (JointBacklash(joint=1, deg=0.05), "deg", 0.05),

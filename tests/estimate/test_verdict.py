@@ -9,7 +9,7 @@ from tests.conftest import SM5, random_plan
 from vision_cal.model.lsq import Fit
 from vision_cal.estimate.verdict import (Verdict, floor_test, judge, judge_camera_poses,
                                         repeatability_from_repeats)
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 SIGMA = 0.006   # measurer's per-axis std
 REP = 0.01      # robot repeatability, per axis

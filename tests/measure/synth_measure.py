@@ -1,6 +1,6 @@
 """Test helper: synthetic photographs of a sheet with known truth (fast, no pyrender).
 
-A texture from ``vision_cal.render.sheet.sheet_texture`` is looked up, through the lens
+A texture from ``vision_cal.world.sheet.sheet_texture`` is looked up, through the lens
 (accurate inverse map via ``cv2.undistortPoints``) and a pinhole camera at ``T_cam_sheet``,
 for every photo pixel in one ``cv2.remap``; then blur (in the texture) and noise.
 """
@@ -14,8 +14,8 @@ import cv2
 import numpy as np
 
 from vision_cal.dataset.session import load_session
-from vision_cal.render.camera import camera_matrix, look_at
-from vision_cal.render.sheet import make_sheet, sheet_texture, sheet_to_texture_pixel
+from vision_cal.world.camera import camera_matrix, look_at
+from vision_cal.world.sheet import make_sheet, sheet_texture, sheet_to_texture_pixel
 
 SIZE = (1000, 750)
 

@@ -7,7 +7,7 @@ import pytest
 
 from vision_cal.measure.height import HeightMap, height_from_grid, offset_evidence
 from vision_cal.measure.mapping import fit_mapping
-from vision_cal.render.camera import camera_matrix, look_at, project
+from vision_cal.world.camera import camera_matrix, look_at, project
 
 EXTENT = (-297.0, -210.0, 297.0, 210.0)
 K = camera_matrix(size_px=(2400, 1800), f_px=2600.0)

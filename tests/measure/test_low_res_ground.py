@@ -19,7 +19,7 @@ from tests.measure.synth_measure import jpeg_bytes, photo, view, one_mark_sessio
 from vision_cal.config import DEFAULT
 from vision_cal.measure.detect import detect_image_bytes
 from vision_cal.measure.finish import finish_all
-from vision_cal.render.printed import load_printed_sheet, printed_texture
+from vision_cal.world.printed import load_printed_sheet, printed_texture
 from vision_cal.sheet import make_layout, write_sheet
 
 ON_INK = {"x number": (30.0, 74.1), "y number": (117.8, 20.0), "title": (-80.0, -72.2),

@@ -73,7 +73,7 @@ def test_dots_next_to_other_quiet_zones_measure_as_well(dictionary, quiet, tmp_p
     marks 0.8-1.6 mm outside the quiet zones (where a wrong blank box biases the
     background model). Deliberate bug caught: the old fixed geometry (7 modules, 2-module
     quiet zone) gives 54 um RMS / max |z| 22 (4x4, 1 module) and 12 um / 6.3 (6x6, 3)."""
-    from vision_cal.render.sheet import make_sheet
+    from vision_cal.world.sheet import make_sheet
 
     sheet = make_sheet(size_mm=(240.0, 180.0), bottom_left_mm=(-120.0, -90.0),
                        dictionary=dictionary, marker_mm=20.0, grid=(4, 3), margin_mm=8.0)
@@ -113,7 +113,7 @@ PPM = 10.0
 @pytest.fixture(scope="module", params=[("DICT_4X4_50", 1.0, 15.0), ("DICT_6X6_250", 3.0, 16.0)],
                 ids=["4x4-quiet1", "6x6-quiet3"])
 def printed(request, tmp_path_factory):
-    from vision_cal.render.printed import load_printed_sheet
+    from vision_cal.world.printed import load_printed_sheet
     from vision_cal.sheet import make_layout, write_sheet
 
     dictionary, quiet, marker = request.param
@@ -127,7 +127,7 @@ def printed(request, tmp_path_factory):
 def test_prints_of_vision_cal_sheet_measure_through_the_raster_texture(printed, tmp_path):
     """``vision-cal sheet`` prints (other dictionaries and quiet zones) photographed with the
     renderer's printed-raster texture: every mark measured, within its reported std."""
-    from vision_cal.render.printed import printed_texture
+    from vision_cal.world.printed import printed_texture
 
     pr, lay = printed
     sheet = pr.sheet

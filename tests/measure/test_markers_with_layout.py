@@ -7,7 +7,7 @@ import numpy as np
 
 from tests.measure import synth_measure as sm
 from vision_cal.measure.aruco import detect_raw, find_sheet_markers
-from vision_cal.render.sheet import sheet_to_texture_pixel
+from vision_cal.world.sheet import sheet_to_texture_pixel
 
 PPM = 8.0
 

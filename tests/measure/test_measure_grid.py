@@ -9,7 +9,7 @@ from vision_cal.dataset.session import SheetGrid
 from vision_cal.measure.grid import grid_offset
 from vision_cal.measure.height import HeightMap, camera_centre_mm, height_from_grid
 from vision_cal.measure.mapping import fit_mapping
-from vision_cal.render.camera import project
+from vision_cal.world.camera import project
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +64,7 @@ def test_grid_offset_refuses_bare_paper(scene):
 
 def test_height_from_the_grid_offset():
     """d = z (p - C_xy) / C_z: the height comes back, and the camera centre from H and K."""
-    from vision_cal.render.camera import camera_matrix, look_at
+    from vision_cal.world.camera import camera_matrix, look_at
 
     K = camera_matrix(size_px=(800, 600), f_px=900.0)
     C = np.array([60.0, -150.0, 700.0])

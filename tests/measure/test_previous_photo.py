@@ -20,7 +20,7 @@ from vision_cal.dataset.session import load_session
 from vision_cal.measure.detect import detect_image_bytes
 from vision_cal.measure.finish import finish_image
 from vision_cal.measure.previous_photo import PreviousPhoto, previous_photos
-from vision_cal.render.printed import load_printed_sheet, printed_texture
+from vision_cal.world.printed import load_printed_sheet, printed_texture
 from vision_cal.sheet import make_layout, write_sheet
 
 OLD = {"p1": (20.5, 30.5), "p2": (-40.5, 20.5), "p3": (50.5, -30.5)}

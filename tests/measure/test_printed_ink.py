@@ -17,7 +17,7 @@ from tests.measure.synth_measure import photo, view, one_mark_session
 from vision_cal.measure.detect import detect_image_bytes
 from vision_cal.measure.finish import finish_image
 from vision_cal.measure.printed import printed_reference
-from vision_cal.render.printed import load_printed_sheet, printed_texture
+from vision_cal.world.printed import load_printed_sheet, printed_texture
 from vision_cal.sheet import make_layout, write_sheet
 
 #: sheet mm on the A4 layout: where each kind of printed content is

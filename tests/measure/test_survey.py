@@ -10,7 +10,7 @@ from vision_cal.commands.main import main
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.asprinted import _similarity
 from vision_cal.measure.survey import load_survey
-from vision_cal.render.print_deviation import PrintScene
+from vision_cal.world.print_deviation import PrintScene
 
 #: (tilt, azimuth): one nearly straight down, five tilted round the sheet
 PLACES = [(3, 0), (22, 0), (22, 72), (22, 144), (22, 216), (22, 288)]

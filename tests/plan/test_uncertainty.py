@@ -16,7 +16,7 @@ def test_std_mm_matches_the_spread_of_real_misses():
     sampling error of 300 draws, ~4 %, plus first-order error). Catches: the diagonal
     std used without correlations (L1, z and base are strongly correlated), the trace
     not halved, degrees and radians mixed in the file's covariance."""
-    from vision_cal.render.truth_model import TrueRobot
+    from vision_cal.world.truth_model import TrueRobot
 
     rng = np.random.default_rng(0)
     truth = TrueRobot.from_json(SM5.to_json(), [{"name": "joint_backlash", "joint": 2,

@@ -6,7 +6,7 @@ from vision_cal.design.joint4 import turn_joint4
 from vision_cal.model.kinematics import ScaraParams, forward
 from vision_cal.plan.calibration_plan import PlannedMark
 from vision_cal.plan.orient import folded_params
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 TRUE = {"L1_mm": 344.05, "L2_mm": 259.87, "joint_zero_deg": [-2.57, -8.13],
         "base_mm": [-424.26, -230.35], "tool_mm": [21.0, -7.0]}

@@ -10,7 +10,7 @@ from vision_cal.estimate.placements import Placement, fit_placements
 from vision_cal.commands.main import main
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.calibration_result import METHODS_EXTRA, CalibrationResult
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 CYCLIC = {"name": "joint_cyclic", "joint": 1, "harmonic": 1, "deg": 0.003, "phase_deg": 70.0}
 # (centre of the joint-1 range the sheet spans, sheet angle z1, base in the sheet frame)

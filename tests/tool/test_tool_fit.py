@@ -8,7 +8,7 @@ from vision_cal.model.tool_fit import fit_tool, folded_statement
 from vision_cal.estimate.tool import paper_tool
 from vision_cal.errors import CalibrationError
 from vision_cal.model.robot import JointBacklash, JointScale
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 
 def _r(deg, r):

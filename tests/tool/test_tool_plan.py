@@ -7,7 +7,7 @@ from vision_cal.model.tool_fit import fit_tool
 from vision_cal.model.robot import JointBacklash, JointScale, RobotModel, Tool
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.plan.orient import folded_params, plan_poses
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 
 def test_folded_params_by_hand():

@@ -1,10 +1,10 @@
-"""The world's own tool and joint 4 (render/truth_model.py): hand-computed anchors."""
+"""The world's own tool and joint 4 (world/truth_model.py): hand-computed anchors."""
 
 import numpy as np
 import pytest
 
 from vision_cal.errors import VisionCalError
-from vision_cal.render.truth_model import TrueRobot
+from vision_cal.world.truth_model import TrueRobot
 
 PARAMS = {"L1_mm": 300.0, "L2_mm": 200.0, "joint_zero_deg": [0.0, 0.0], "base_mm": [0.0, 0.0]}
 
@@ -30,7 +30,7 @@ def test_world_joint4_effects():
 
 def test_world_draws_with_joint4_and_tracks_its_side():
     from vision_cal.plan.calibration_plan import PlannedMark
-    from vision_cal.render.world import draw_marks, joint4_sides
+    from vision_cal.world.drawing import draw_marks, joint4_sides
 
     np.testing.assert_array_equal(joint4_sides([30, 30, -10, 50]), [1, 1, -1, 1])
     w = TrueRobot.from_json({**PARAMS, "tool_mm": [0.0, 40.0]},

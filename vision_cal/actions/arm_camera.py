@@ -1,5 +1,6 @@
 """The arm's camera calibrates the robot and finds its mount (``vision-cal handeye FOLDER``):
-the photos measured and fitted (:func:`vision_cal.workflows.arm_session.calibrate_arm_camera`),
+the photos measured and fitted (:func:`vision_cal.workflows.arm_session.calibrate_arm_camera`;
+the detections cached in the output folder's ``.cache`` as a pen calibration's are),
 calibration.json written into an output folder that is never the photos'. Returns what was
 found; :mod:`vision_cal.actions.console` prints it. (``handeye --poses`` is
 :func:`vision_cal.actions.handeye.handeye_pairs`.)"""
@@ -42,7 +43,7 @@ def calibrate_arm(req: ArmCameraRequest) -> ArmCameraOutcome:
     # or a pen calibration's) go to previous/ first; locked while written (issue 30)
     with writing_into(req.out, command="handeye", inputs=[("FOLDER", req.folder)],
                       quiet=req.quiet) as out:
-        doc = calibrate_arm_camera(req.folder, progress=not req.quiet,
+        doc = calibrate_arm_camera(req.folder, cache_dir=out / ".cache", progress=not req.quiet,
                                    jobs=req.jobs or os.cpu_count() or 1)
         path = CalibrationResult.from_json(doc).write(out / "calibration.json")
     return ArmCameraOutcome(doc, path)

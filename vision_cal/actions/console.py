@@ -30,7 +30,7 @@ if TYPE_CHECKING:   # the outcomes' modules pull numpy, OpenCV and the renderer
     from vision_cal.actions.sheet import SheetOutcome
     from vision_cal.actions.survey import SurveyOutcome
     from vision_cal.actions.verify import VerifyOutcome
-    from vision_cal.render.rehearse import SimulateResult
+    from vision_cal.world.rehearse import SimulateResult
 
 
 def show(outcome, *, quiet: bool = False) -> int:
@@ -528,7 +528,7 @@ PRINTERS = {"vision_cal.actions.arm_camera.ArmCameraOutcome": _arm_camera,
             "vision_cal.actions.verify.VerifyOutcome": _verify,
             "vision_cal.actions.loop.LoopOutcome": _loop,
             "vision_cal.actions.history.HistoryOutcome": _history,
-            "vision_cal.render.rehearse.SimulateResult": _simulate,
+            "vision_cal.world.rehearse.SimulateResult": _simulate,
             "vision_cal.actions.render.RenderOutcome": _render,
             "vision_cal.actions.robot_template.RobotTemplateOutcome": _robot_template,
             "vision_cal.actions.sheet.SheetOutcome": _sheet,

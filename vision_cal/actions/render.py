@@ -1,5 +1,5 @@
 """A synthetic dataset from a scene file (``vision-cal render``): the scene read with the
-command's overrides and rendered (:func:`vision_cal.render.dataset.render_dataset`), its
+command's overrides and rendered (:func:`vision_cal.world.dataset.render_dataset`), its
 pilot plan given by the estimator's side (the synthetic world imports none of it)."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ from pathlib import Path
 from vision_cal.estimate.paper import pilot_params
 from vision_cal.dataset.out_folder import writing_into
 from vision_cal.errors import VisionCalError
-from vision_cal.render.dataset import render_dataset
-from vision_cal.render.scene import load_scene
+from vision_cal.world.dataset import render_dataset
+from vision_cal.world.scene import load_scene
 
 
 @dataclass(frozen=True)

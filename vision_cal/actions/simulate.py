@@ -1,5 +1,5 @@
 """The robot's part rehearsed (``vision-cal simulate``): a simulated robot draws a plan and
-photographs it (:func:`vision_cal.render.rehearse.simulate_session`), the photos, session.json
+photographs it (:func:`vision_cal.world.rehearse.simulate_session`), the photos, session.json
 and truth.json renamed into place together. Returns what was drawn;
 :mod:`vision_cal.actions.console` prints it."""
 
@@ -12,7 +12,7 @@ from vision_cal.dataset.io import written_together
 from vision_cal.dataset.out_folder import writing_into
 from vision_cal.dataset.photos import list_photos
 from vision_cal.errors import VisionCalError
-from vision_cal.render.rehearse import SimulateResult, simulate_session
+from vision_cal.world.rehearse import SimulateResult, simulate_session
 
 
 @dataclass(frozen=True)

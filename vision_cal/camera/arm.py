@@ -15,7 +15,7 @@ nominal robot and the first photo's pose.
 
 Why the height is found: SCARA motion is planar (rotations about z, translations in the
 plane), so relative motions between photos, which is what classic hand-eye (AX = XB) uses,
-are the same for every camera height (:func:`relative_motion`). The sheet's plane is the
+are the same for every camera height (``tests/camera/test_arm.py``). The sheet's plane is the
 flange frame's z = 0 by definition, and each photo's pose *in the sheet frame* gives the
 camera's height above it directly.
 
@@ -38,34 +38,49 @@ from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
 
 from vision_cal.camera.fixed import (F_REL_STD_MAX, UNDETERMINED, FixedCamera, T_sheet_robot,
-                                     camera_of, fit_pose, homogeneous, lsq_covariance,
+                                     camera_of, fit_pose, homogeneous,
                                      pose_delta)
 from vision_cal.config import DEFAULT, VerdictConfig
 from vision_cal.dataset.camera_block import check_camera_entry
 from vision_cal.errors import CalibrationError, VisionCalError
+from vision_cal.measure.types import ImageDetections
 from vision_cal.model.kinematics import ScaraParams, flange_angle_rad, forward
 from vision_cal.model.rms import rms_2d
+from vision_cal.model.solve import covariance, solve
 
 LABELS = ("L1_mm", "L2_mm", "z1_deg", "z2_deg", "base_x_mm", "base_y_mm",
           "cam_rot_x_deg", "cam_rot_y_deg", "cam_rot_z_deg", "cam_x_mm", "cam_y_mm",
           "cam_z_mm")
 #: fewer photos leave too few degrees of freedom to estimate the photo-level variances
 MIN_POSES = 6
-#: more photos than this a user could not mean (a typo, a generated list): refused before
-#: anything is measured (each photo takes about a second to measure; 500 is several times
-#: what the fit needs; issue 30, docs/format.md "Cameras")
-MAX_POSES = 500
 #: a parameter whose std is above this (its unit: mm or deg) is reported not identifiable
 UNIDENTIFIED_STD = 1.0
+
+
+def lens_corners(det: ImageDetections, K=None, dist=None) -> np.ndarray:
+    """(4M, 2) a photo's marker corners in raw px, found in the lens ``(K, dist)``.
+
+        corners_px = lens_corners(det, K, dist)       # det: stage 1's ImageDetections
+
+    The markers' borders are fitted as straight lines in the lens's ideal pixels, as the
+    pen's measurement finds them (:meth:`vision_cal.measure.types.ImageDetections.corners_for`);
+    a lens without distortion, or none, fits them in the photo's own pixels. A marker's
+    straight border is curved in a distorted photo: a line fitted to it there biases the
+    corner by a few hundredths of a pixel, differently across the image (with k1 -0.045
+    declared and nothing else missing, that bias put the arm camera's residual 1.4 times
+    its floor)."""
+    lens = (K, dist) if K is not None and dist is not None and np.any(dist) else (None, None)
+    return np.asarray(det.corners_for(*lens), float).reshape(-1, 2)
 
 
 @dataclass(frozen=True)
 class ArmView:
     """One photo: commanded joints ``q_deg`` (2,), ``j4_deg``, marker corners in sheet mm
-    ``corners_mm`` (N, 2) and where they were seen ``corners_px`` (N, 2)."""
+    ``corners_mm`` (N, 2) and where they were seen ``corners_px`` (N, 2); ``det`` the
+    measurement's detections it came from (the markers' borders), kept to find the
+    corners again in another lens (:meth:`in_lens`)."""
 
     file: str
     q_deg: np.ndarray
@@ -73,10 +88,14 @@ class ArmView:
     corners_mm: np.ndarray
     corners_px: np.ndarray
     approach: tuple[float, float] = (1.0, 1.0)   # each joint's last motion sign
-    #: the markers' border edge points (M, 4, n, 2) raw px and the detector's corners
-    #: (M, 4, 2), kept to find the corners again in another lens's ideal pixels
-    edges_px: np.ndarray | None = None
-    detected_px: np.ndarray | None = None
+    det: ImageDetections | None = None
+
+    def in_lens(self, K, dist) -> "ArmView":
+        """The view with its corners found again in the lens ``(K, dist)``
+        (:func:`lens_corners`); as it is without its detections."""
+        if self.det is None:
+            return self
+        return replace(self, corners_px=lens_corners(self.det, K, dist))
 
 
 @dataclass(frozen=True)
@@ -187,9 +206,11 @@ class _LensInfo:
 
 def _lens_info(obj, img, K, dist, rvecs, tvecs) -> _LensInfo:
     """:class:`_LensInfo` of views ``obj`` (sheet mm) seen at ``img`` (px) with the lens
-    ``(K, dist)`` and the views' poses ``rvecs``, ``tvecs``."""
-    S = np.zeros((3, 3))
-    scores, per_view = [], []
+    ``(K, dist)`` and the views' poses ``rvecs``, ``tvecs``: the one covariance policy
+    (:func:`vision_cal.model.solve.covariance`) on the lens's Jacobian with each view's
+    pose projected out of its rows (the Schur complement's Gram), the residuals' variance
+    pooled, and clustered by photo (the sandwich of the views' scores)."""
+    rows, scores, per_view = [], [], []
     ssr, n_rows = 0.0, 0
     for o, m, rv, tv in zip(obj, img, rvecs, tvecs):
         uv, J = cv2.projectPoints(o.reshape(-1, 1, 3).astype(np.float64), rv, tv, K, dist)
@@ -199,21 +220,22 @@ def _lens_info(obj, img, K, dist, rvecs, tvecs) -> _LensInfo:
         per_view.append(float(r @ r) / max(len(r) - 6, 1))
         A = np.column_stack([J[:, 6] + J[:, 7], J[:, 10], J[:, 11]])   # f, k1, k2
         B = J[:, :6]                                                    # rvec, tvec
-        Ap = A - B @ np.linalg.solve(B.T @ B, B.T @ A)                  # the pose profiled out
-        S += A.T @ Ap
+        Ap = A - B @ np.linalg.lstsq(B, A, rcond=None)[0]               # the pose profiled out
+        rows.append(Ap)
         scores.append(Ap.T @ r)
     n = len(scores)
     s2 = ssr / max(n_rows - 6 * n - 3, 1)
-    try:
-        Si = np.linalg.inv(S)
-    except np.linalg.LinAlgError:
+    s2_view = float(np.median(per_view)) if per_view else s2
+    Jp = np.vstack(rows)
+    lens = covariance(Jp, labels=LENS_LABELS, s2=s2)
+    if lens.not_fixed:
         inf = np.full((3, 3), np.inf)
-        return _LensInfo(inf, inf, float(np.median(per_view)) if per_view else s2)
+        return _LensInfo(inf, inf, s2_view)
     g = np.array(scores)
-    sandwich = Si @ (g.T @ g) @ Si * n / max(n - 3, 1)
-    model = Si * s2
+    sandwich = covariance(Jp, meat=g.T @ g).matrix * n / max(n - 3, 1)
+    model = lens.matrix
     inflate = max(1.0, float(sandwich[0, 0] / model[0, 0])) if model[0, 0] > 0 else 1.0
-    return _LensInfo(model, model * inflate, float(np.median(per_view)) if per_view else s2)
+    return _LensInfo(model, model * inflate, s2_view)
 
 
 #: the lens parameters whose covariance an estimated lens carries into the arm camera's
@@ -442,13 +464,6 @@ def T_sheet_flange(params: ScaraParams, q_deg, j4_deg) -> np.ndarray:
     return T
 
 
-def relative_motion(params: ScaraParams, q_deg, j4_deg, T_flange_camera) -> np.ndarray:
-    """(N-1, 4, 4) camera motion from photo 0 to each later photo (camera frames): what
-    AX = XB hand-eye sees. It does not depend on ``T_flange_camera``'s z (planar motion)."""
-    T = T_sheet_flange(params, q_deg, j4_deg) @ np.asarray(T_flange_camera, float)
-    return np.array([np.linalg.inv(T[0]) @ Ti for Ti in T[1:]])
-
-
 def _unpack(x: np.ndarray, R0: np.ndarray) -> tuple[ScaraParams, np.ndarray]:
     """Robot and T_flange_camera; the camera's rotation is a small turn (deg, about the
     flange axes) of ``R0`` (the start), so the parameters stay far from any singularity."""
@@ -465,6 +480,16 @@ def _link_commands(x, views, bl) -> np.ndarray:
         s = np.array([v.approach[j - 1] for v in views], float)
         q[:, j - 1] -= s * x[12 + k] / 2.0
     return q
+
+
+def _solved(residual, x0, what: str):
+    """The one solver (:func:`vision_cal.model.solve.solve`: Levenberg-Marquardt, the
+    parameters scaled by the Jacobian's columns, scipy's default tolerances) on ``residual``
+    from ``x0``; a solve stopped on its limit ends the calibration with the reason."""
+    sol = solve(residual, x0, method="lm", x_scale="jac", xtol=1e-8, ftol=1e-8, gtol=1e-8)
+    if not sol:
+        raise CalibrationError(f"the arm camera's {what} did not converge: {sol.reason}")
+    return sol
 
 
 def _residuals(x, views, K, dist, R0, bl=()) -> np.ndarray:
@@ -525,8 +550,7 @@ def without_misdetected(views: list[ArmView], K, dist) -> tuple[list[ArmView], d
         idx = np.repeat(keep, 4)
         dropped[v.file] = int((~keep).sum())
         out.append(replace(v, corners_mm=v.corners_mm[idx], corners_px=v.corners_px[idx],
-                           edges_px=None if v.edges_px is None else v.edges_px[keep],
-                           detected_px=None if v.detected_px is None else v.detected_px[keep]))
+                           det=None if v.det is None else v.det.keep_markers(keep)))
     return out, dropped
 
 
@@ -543,8 +567,12 @@ def camera_pose(view: ArmView, K, dist) -> np.ndarray:
 def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams, *,
                    corner_sigma_px: float | None = None,
                    lens_cov: np.ndarray | None = None) -> ArmFit:
-    """Robot and ``T_flange_camera`` from photos taken by the arm's camera (``K``, ``dist``
-    declared); starts from ``nominal`` and the first photo's pose. A joint reached from
+    """Robot and ``T_flange_camera`` from photos taken by the arm's camera.
+
+        fit = fit_arm_camera(views, K, dist, session.robot.params)   # fit.params, fit.cov
+
+    ``K``, ``dist``: the lens (declared, or :func:`estimate_lens`'s); it starts from
+    ``nominal`` and the first photo's pose. A joint reached from
     both sides in the photos (their ``approach``) has its backlash fitted as well (the
     contract's ``joint_backlash``; from one side only it is part of the joint's zero).
 
@@ -566,15 +594,13 @@ def fit_arm_camera(views: list[ArmView], K, dist, nominal: ScaraParams, *,
                           nominal.base_x_mm, nominal.base_y_mm],
                          np.zeros(3), X0[:3, 3], np.zeros(len(bl))])
     R0 = X0[:3, :3]
-    sol = least_squares(_residuals, x0, args=(views, K, dist, R0, bl), method="lm",
-                        x_scale="jac")
+    sol = _solved(lambda x: _residuals(x, views, K, dist, R0, bl), x0, "fit to the corners")
     # again about the solution, so the rotation's covariance is about the found frame
     p1, X1 = _unpack(sol.x, R0)
     R0 = X1[:3, :3]
     x1 = np.concatenate([sol.x[:6], np.zeros(3), sol.x[9:]])
-    sol = least_squares(_residuals, x1, args=(views, K, dist, R0, bl), method="lm",
-                        x_scale="jac")
-    r = sol.fun
+    sol = _solved(lambda x: _residuals(x, views, K, dist, R0, bl), x1, "fit to the corners")
+    r = sol.residuals
     n = len(r)
     p, X = _unpack(sol.x, R0)
     sizes = np.cumsum([0] + [2 * len(v.corners_mm) for v in views])
@@ -725,7 +751,7 @@ def _pose_level_fit(x, views, M, R0, bl=()) -> tuple:
     for _ in range(3):
         def f(z):
             return (_pose_residuals(z, views, M, R0, bl) * w).ravel()
-        sol = least_squares(f, x, method="lm", x_scale="jac")
+        sol = _solved(f, x, "photo-level fit")
         x = sol.x
         e = _pose_residuals(x, views, M, R0, bl)
         var = np.empty(6)
@@ -734,18 +760,21 @@ def _pose_level_fit(x, views, M, R0, bl=()) -> tuple:
             dof = max(n * len(g) - P * len(g) / 6.0, 1.0)
             var[list(g)] = max(float(np.sum(e[:, list(g)] ** 2)) / dof, 1e-30)
         w = 1.0 / np.sqrt(var)
-    sol = least_squares(lambda z: (_pose_residuals(z, views, M, R0, bl) * w).ravel(), x,
-                        method="lm", x_scale="jac")
-    cov = lsq_covariance(sol.jac, 1.0)
+    sol = _solved(lambda z: (_pose_residuals(z, views, M, R0, bl) * w).ravel(), x,
+                  "photo-level fit")
+    # the one policy, the residuals in units of their std: a direction the photos do not
+    # fix (L2 against the camera's offset along link 2 without joint-4 turns) is not stated
+    cov = covariance(sol.jacobian, s2=1.0).stated
     x = sol.x
     rms = {"position_mm": float(np.sqrt(var[0])), "height_mm": float(np.sqrt(var[2])),
            "tilt_deg": float(np.degrees(np.sqrt(var[3]))),
            "turn_deg": float(np.degrees(np.sqrt(var[5])))}
     # leverages (the hat matrix's diagonal, per residual component): the parameters each
     # row consumes, and a row's leave-one-out residual e / (1 - h)
-    Q, _ = np.linalg.qr(sol.jac / np.maximum(np.linalg.norm(sol.jac, axis=0), 1e-300))
+    J = np.asarray(sol.jacobian)
+    Q, _ = np.linalg.qr(J / np.maximum(np.linalg.norm(J, axis=0), 1e-300))
     lev = np.sum(Q**2, axis=1).reshape(n, 6)
-    return x, cov, rms, lev, sol.jac, w
+    return x, cov, rms, lev, J, w
 
 
 # --------------------------------------------------------------------------- pixel -> robot

@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.camera.arm import MAX_POSES
 from vision_cal.dataset.io import atomic_write_json, atomic_write_text
 from vision_cal.dataset.robot import OUTPUT_BITS
+from vision_cal.dataset.session import MAX_POSES
 from vision_cal.errors import VisionCalError
 from vision_cal.model.kinematics import forward
 from vision_cal.model.motion import approach_signs

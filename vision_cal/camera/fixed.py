@@ -216,18 +216,6 @@ def mean_corners(images, idx) -> tuple[np.ndarray, np.ndarray]:
 
 # --------------------------------------------------------------------------- the pose fit
 
-def lsq_covariance(J: np.ndarray, s2: float) -> np.ndarray:
-    """Covariance (P, P) of a least-squares fit with Jacobian ``J`` (N, P) and residual
-    variance ``s2``. Columns scaled before inverting, and no pseudo-inverse: a direction
-    the data do not fix shows a huge std, not the minimum-norm one. Only ``camera/arm.py``
-    uses it (being changed by another branch now): it moves to the one policy,
-    :func:`vision_cal.model.solve.covariance`, with it (issue 39), and this goes."""
-    sc = 1.0 / np.maximum(np.linalg.norm(J, axis=0), 1e-300)
-    _, sv, vt = np.linalg.svd(J * sc, full_matrices=False)
-    sv = np.maximum(sv, sv[0] * 1e-15)
-    return (vt.T / sv**2) @ vt * np.outer(sc, sc) * s2
-
-
 def _project(p, obj, K, dist, free_f):
     Kp = K.copy()
     if free_f:

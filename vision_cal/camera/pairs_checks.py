@@ -60,10 +60,6 @@ class Distinct:
     A: np.ndarray
     B: np.ndarray
 
-    @property
-    def repeated(self) -> bool:
-        return len(self.first) < len(self.group)
-
 
 def distinct_poses(A: np.ndarray, B: np.ndarray, tol_mm: float, tol_deg: float) -> Distinct:
     """Pairs whose flange poses agree within ``tol_mm`` and ``tol_deg`` are one pose; its

@@ -60,7 +60,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
-from scipy.optimize import least_squares
 
 from vision_cal.camera import pairs_checks as checks
 from vision_cal.camera.pairs_geometry import T_of as _T
@@ -68,6 +67,7 @@ from vision_cal.camera.pairs_geometry import (closed_form, closed_form_parts, ro
                                               rotvec, yaw_spread_deg)
 from vision_cal.config import DEFAULT, HandeyeConfig
 from vision_cal.errors import Failure
+from vision_cal.model.solve import covariance, solve
 from vision_cal.progress import bar
 
 MOUNTS = ("arm", "fixed")
@@ -217,27 +217,40 @@ def _weighted(x, A, B, X0, Y0, z_mm, W, target=False) -> np.ndarray:
     return (cam @ W.T).ravel()
 
 
-def _solve(A, B, X0, Y0, z_mm, W, x0, target=False):
-    sol = least_squares(_weighted, x0, args=(A, B, X0, Y0, z_mm, W, target), method="lm")
-    return sol.x, sol.jac
+class _Stopped(Exception):
+    """The least squares of the pairs stopped on its limit (the one solver's reason)."""
 
 
-def _cov_and_hat(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(cov (11, 11), hat diagonal blocks (N, 6, 6)) of the whitened Jacobian (6N, 11); a
-    direction the pairs do not see gets a huge variance instead of a pseudo-inverse's 0."""
-    U, s, Vt = np.linalg.svd(J, full_matrices=False)
-    s_safe = np.maximum(s, 1e-12 * max(s[0], 1e-300))
-    cov = (Vt.T / s_safe**2) @ Vt
+def _solve(A, B, X0, Y0, z_mm, W, x0, target=False) -> tuple[np.ndarray, np.ndarray]:
+    """The parameters (11,) and the whitened Jacobian (6N, 11) at them: the one solver
+    (:func:`vision_cal.model.solve.solve`, Levenberg-Marquardt, scipy's default
+    tolerances); a solve stopped on its limit raises :class:`_Stopped`."""
+    sol = solve(lambda x: _weighted(x, A, B, X0, Y0, z_mm, W, target), x0, method="lm",
+                xtol=1e-8, ftol=1e-8, gtol=1e-8)
+    if not sol:
+        raise _Stopped(sol.reason)
+    return sol.x, np.asarray(sol.jacobian)
+
+
+def _hat(J: np.ndarray) -> np.ndarray:
+    """The hat matrix's diagonal blocks (N, 6, 6) of the whitened Jacobian (6N, 11)."""
+    U, s, _ = np.linalg.svd(J, full_matrices=False)
     Uk = U[:, s > 1e-9 * s[0]]
     Ub = Uk.reshape(J.shape[0] // 6, 6, -1)
-    return cov, np.einsum("nik,njk->nij", Ub, Ub)
+    return np.einsum("nik,njk->nij", Ub, Ub)
+
+
+def _floored(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The eigenvalues (6,), floored at :data:`_TINY` squared, and eigenvectors (6, 6) of a
+    6x6 covariance ``S`` (symmetrised, :data:`_TINY` squared added)."""
+    vals, vecs = np.linalg.eigh(0.5 * (S + S.T) + _TINY**2 * np.eye(6))
+    return np.maximum(vals, _TINY**2), vecs
 
 
 def _whitener(S: np.ndarray) -> np.ndarray:
     """W with W S W^T = I (S: the residuals' 6x6 covariance, floored)."""
-    S = 0.5 * (S + S.T) + _TINY**2 * np.eye(6)
-    vals, vecs = np.linalg.eigh(S)
-    return (vecs / np.sqrt(np.maximum(vals, _TINY**2))).T
+    vals, vecs = _floored(S)
+    return (vecs / np.sqrt(vals)).T
 
 
 def _noise(cam: np.ndarray, trim_alpha: float, W=None, hat=None) -> np.ndarray:
@@ -282,8 +295,8 @@ def _outlier_level(alpha: float, n_in: int) -> float:
 class _Weighted:
     """A fit of pairs weighted by their own scatter: ``x`` (11,) the parameters (about the
     closed form), ``S`` (6, 6) the pairs' noise covariance in the camera frame, ``W`` its
-    whitener, ``cov`` (11, 11) the parameters' covariance (before the inverse Wishart's
-    correction), ``hat`` (n, 6, 6) the hat matrix's diagonal blocks, of the pairs fitted,
+    whitener, ``cov`` (11, 11) the parameters' covariance by the one policy (before the
+    inverse Wishart's correction; a direction the pairs do not see: inf), ``hat`` (n, 6, 6) the hat matrix's diagonal blocks, of the pairs fitted,
     and ``J`` (6n, 11) the whitened Jacobian."""
 
     x: np.ndarray
@@ -341,12 +354,12 @@ def _weighted_fit(A, B, X0, Y0, z: float, x, trim_alpha: float) -> _Weighted:
     for _ in range(3):
         W = _whitener(S)
         x, J = _solve(A, B, X0, Y0, z, W, x)
-        cov, hat = _cov_and_hat(J)
-        S = _noise(_raw_residuals(x, A, B, X0, Y0, z)[2], 0.0, W, hat)
+        S = _noise(_raw_residuals(x, A, B, X0, Y0, z)[2], 0.0, W, _hat(J))
     W = _whitener(S)
     x, J = _solve(A, B, X0, Y0, z, W, x)
-    cov, hat = _cov_and_hat(J)
-    return _Weighted(x, S, W, cov, hat, J)
+    # the residuals whitened by the pairs' own scatter: s^2 = 1
+    cov = covariance(J, labels=LABELS, s2=1.0).stated
+    return _Weighted(x, S, W, cov, _hat(J), J)
 
 
 def _deleted(hat: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -366,13 +379,17 @@ def _deleted_t2(A, B, X0, Y0, z: float, x, inl: np.ndarray, alpha: float) -> np.
     _, dr_all, cam_all = _raw_residuals(x, A, B, X0, Y0, z)
     # (a detector's rotation error is the same in every pair in the target's frame)
     seen = np.hstack([cam_all[:, :3], dr_all])
-    W_in = _whitener(_noise(seen[inl], alpha))
+    S_in = _noise(seen[inl], alpha)
+    W_in = _whitener(S_in)
     for _ in range(2):   # what the fit takes from each direction given back
-        hat_in = _cov_and_hat(_solve(A[inl], B[inl], X0, Y0, z, W_in, x, target=True)[1])[1]
-        W_in = _whitener(_noise(seen[inl], alpha, W_in, hat_in))
-    # per axis only (6 variances, not 21 terms, from so few pairs: a far lower level)
-    W_in = np.diag(1.0 / np.sqrt(np.diag(np.linalg.inv(W_in.T @ W_in))))
-    hat_in = _cov_and_hat(_solve(A[inl], B[inl], X0, Y0, z, W_in, x, target=True)[1])[1]
+        hat_in = _hat(_solve(A[inl], B[inl], X0, Y0, z, W_in, x, target=True)[1])
+        S_in = _noise(seen[inl], alpha, W_in, hat_in)
+        W_in = _whitener(S_in)
+    # per axis only (6 variances, not 21 terms, from so few pairs: a far lower level); the
+    # variances of the floored scatter the whitener holds
+    vals, vecs = _floored(S_in)
+    W_in = np.diag(1.0 / np.sqrt(np.einsum("ij,j,ij->i", vecs, vals, vecs)))
+    hat_in = _hat(_solve(A[inl], B[inl], X0, Y0, z, W_in, x, target=True)[1])
     d, Sd = _deleted(hat_in, (seen @ W_in.T)[inl])      # each at half the level
     chi = np.zeros(n)
     chi[inl] = np.maximum(
@@ -528,7 +545,12 @@ def _repeat_rows(pairs, d: checks.Distinct, x, A_all, B_all, X0, Y0, z: float):
 def fit_pose_pairs(pairs: list[PosePair], mount: str = "arm", *, z_mm: float | None = None,
                    config: HandeyeConfig | None = None, progress: bool = False
                    ) -> PairsFit | PairsFailed:
-    """The hand-eye of ``pairs`` (module docstring); ``z_mm`` the target origin's height in
+    """The hand-eye of ``pairs`` (module docstring).
+
+        fit = fit_pose_pairs(read_poses("pairs.json").pairs, "arm", z_mm=0.0)
+        if not fit: print(fit.reason)                          # a PairsFailed
+
+    ``z_mm`` the target origin's height in
     ``Y``'s parent frame (None: not known, 0 taken and the camera's height flagged);
     ``progress``: one line a stage on long work (thousands of pairs)."""
     cfg = config or DEFAULT.handeye
@@ -553,7 +575,11 @@ def fit_pose_pairs(pairs: list[PosePair], mount: str = "arm", *, z_mm: float | N
     # the start from the pairs that agree (the fit's rotations are small turns about it)
     X0, Y0 = closed_form(A[cons.inlier], B[cons.inlier], z)
     stages.update()
-    r = _fit_with_outliers(distinct, A, B, X0, Y0, z, cfg, cons.inlier, [])
+    try:
+        r = _fit_with_outliers(distinct, A, B, X0, Y0, z, cfg, cons.inlier, [])
+    except _Stopped as e:
+        stages.close()
+        return PairsFailed(f"the least squares of the pairs did not converge: {e}")
     if not cons.inlier.all():
         why = _consensus_out(distinct, A, B, X0, Y0, z, r.fit.x, cons.inlier, cfg)
         r = _Robust(r.fit, r.inlier, tuple(why) + r.reasons)

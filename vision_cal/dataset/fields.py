@@ -2,7 +2,7 @@
 
 :class:`FieldReader` is the one owner of "a field from a file, checked, or one line naming
 the file and the field": session.json, sheet.json, calibration.json, the robot file and
-the scene files all read through it (scene files add bounds in ``render/scene._R``).
+the scene files all read through it (scene files add bounds in ``world/scene._R``).
 """
 
 from __future__ import annotations

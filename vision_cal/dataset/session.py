@@ -1,7 +1,11 @@
 """Reading and validating ``session.json`` (format ``vision-cal/1``).
 
+    session = load_session("run/")            # marks the pen drew, the photos of them
+    session = load_arm_session("arm/")        # poses the arm's camera took its photos at
+
 Every malformed input raises :class:`VisionCalError` with one line naming the file, the
-field (``marks[3].joints_deg[0]``) and what was expected.
+field (``marks[3].joints_deg[0]``) and what was expected. Either session lists its photos
+in ``images``, which the measurement reads the same way (``measure/listing.py``).
 """
 
 from __future__ import annotations
@@ -210,6 +214,10 @@ class Session:
     #: the file the session was read from when it is not ``root/session.json`` (a marks
     #: CSV, :mod:`vision_cal.dataset.marks_csv`): what errors name
     source: Path | None = field(default=None, compare=False)
+    #: a camera on the arm (:func:`load_arm_session`): each photo's command, in the order of
+    #: ``images``, and where the camera sits (:data:`CAMERA_MOUNTS`); no marks then
+    poses: tuple["Pose", ...] = ()
+    camera_mount: str | None = None
 
     @property
     def path(self) -> Path:
@@ -585,3 +593,84 @@ def _read_camera(r: FieldReader, cam) -> Camera:
     :func:`vision_cal.dataset.camera_block.read_lens`)."""
     size, K, dist = read_lens(r, cam, "camera", principal_inside=False)
     return Camera(size, K, dist)
+
+
+# --------------------------------------------------------------------------- a camera on the arm
+
+#: where the arm's camera sits (session.json ``camera_mount``): on the flange, turning with
+#: joint 4, or on link 2
+CAMERA_MOUNTS = ("flange", "link2")
+#: more photos than this a user could not mean (a typo, a generated list): refused before
+#: anything is measured (each photo takes about a second to measure; 500 is several times
+#: what the fit needs; issue 30, docs/format.md "Cameras")
+MAX_POSES = 500
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A photo the arm's camera took: ``image`` (its path in the folder), the commanded
+    ``joints_deg`` (q1, q2) and ``j4_deg``, and each joint's ``approach`` sign (the format's
+    rule over the poses in order, from the robot's home)."""
+
+    image: str
+    joints_deg: tuple[float, float]
+    j4_deg: float
+    approach: tuple[float, float]
+
+
+def load_arm_session(folder) -> Session:
+    """The photos of a camera on the arm and the commands they were taken at.
+
+        session = load_arm_session("arm/")    # session.poses[0].joints_deg, .camera_mount
+
+    session.json (``docs/format.md``, "Cameras"): ``poses`` (each photo and its command),
+    ``camera_mount``, the lens when declared, the ``sheet`` (its marker field) and
+    ``robot`` blocks; every field checked, one line naming it. The photos are the
+    session's ``images`` (no marks), in the poses' order, so the measurement lists, checks
+    and detects them as any session's."""
+    folder = Path(folder)
+    path = folder / "session.json"
+    if folder.is_dir() and not path.exists():
+        raise VisionCalError("missing: a camera-on-arm folder needs a session.json (the poses "
+                             "the photos were taken at): `vision-cal design --camera-on-arm` "
+                             "writes it", file=str(path))
+    raw = read_json(path)
+    r = FieldReader(str(path))
+    fmt = r.get(raw, "format", "")
+    if fmt != FORMAT:
+        r.fail("format", f"expected {FORMAT!r}, got {fmt!r}")
+    robot = read_robot_block(r, r.get(raw, "robot", ""), "robot")
+    sheet = read_sheet_block(r, r.get(raw, "sheet", ""), "sheet")
+    cam = raw.get("camera")
+    camera = None if cam is None else Camera(*read_lens(r, cam, "camera"))
+    mount = raw.get("camera_mount", "flange")
+    if mount not in CAMERA_MOUNTS:
+        r.fail("camera_mount", f"expected one of {', '.join(CAMERA_MOUNTS)}, got {mount!r}")
+    poses = _read_poses(r, raw, mount)
+    signs = approach_signs([q for _, q, _ in poses], robot.home_deg)
+    poses = tuple(Pose(img, (float(q[0]), float(q[1])), j4, (float(s[0]), float(s[1])))
+                  for (img, q, j4), s in zip(poses, signs))
+    return Session(folder, sheet, robot, (), tuple(ImageEntry(p.image, ()) for p in poses),
+                   camera, None, raw, True, None, poses, mount)
+
+
+def _read_poses(r: FieldReader, raw: dict, mount: str) -> list[tuple[str, np.ndarray, float]]:
+    """The ``poses`` list (non-empty, at most :data:`MAX_POSES`): (image, q (2,), j4)."""
+    poses = []
+    listed = r.list_(r.get(raw, "poses", ""), "poses", nonempty=True)
+    if len(listed) > MAX_POSES:
+        r.fail("poses", f"{len(listed)} poses: at most {MAX_POSES} (more adds nothing the fit "
+                        "can use, and measuring them would take hours); keep a subset")
+    for i, p in enumerate(listed):
+        w = f"poses[{i}]"
+        try:
+            img = normalise_name(r.string(r.get(p, "image", w), f"{w}.image"))
+        except ValueError as e:
+            r.fail(f"{w}.image", f"{e}: the photos sit in the folder beside session.json")
+        q = r.angles(r.get(p, "joints_deg", w), f"{w}.joints_deg")
+        j4 = r.number(p.get("j4_deg", 0.0), f"{w}.j4_deg")
+        if mount == "link2" and j4 != 0.0:
+            r.fail(f"{w}.j4_deg", "a camera on link 2 does not turn with joint 4: leave "
+                                  "j4_deg out or set camera_mount: flange")
+        poses.append((img, np.asarray(q, float), float(j4)))
+    return poses

@@ -43,9 +43,10 @@ MAX_ENTRY_BYTES = 256 * 1024 * 1024
 STALE_TMP_S = 3600.0
 
 
-def session_fingerprint(session, config=None) -> str:
-    """What stage 1 depends on besides the photo: the sheet, pen, camera and the
-    ``markers``/``dots``/``grid`` thresholds of ``config`` (an ``EstimatorConfig``)."""
+def session_fingerprint(session, config=None, *, dots: bool = True) -> str:
+    """What stage 1 depends on besides the photo: the sheet, pen, camera, the
+    ``markers``/``dots``/``grid`` thresholds of ``config`` (an ``EstimatorConfig``) and
+    whether the dots were looked for (``dots`` False: the markers only)."""
     cam = session.camera
     parts = {"sheet": session.sheet.to_json() if session.sheet else None,
              "pen": session.pen_mark_diameter_mm,
@@ -57,6 +58,8 @@ def session_fingerprint(session, config=None) -> str:
         # stage 1's thresholds, when not the defaults (default runs keep their old keys)
         parts["config"] = {"markers": asdict(config.markers), "dots": asdict(config.dots),
                            "grid": asdict(config.grid)}
+    if not dots:   # the markers only (a pen session's keys stay as they were)
+        parts["markers_only"] = True
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
 
 

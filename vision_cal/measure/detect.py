@@ -171,9 +171,9 @@ def detect_image(path, session: Session, *, root=None, name: str | None = None,
 
 
 def _worker(args):
-    root, name, session, sha, identity, config = args
+    root, name, session, sha, identity, config, dots = args
     return detect_image(Path(root) / name, session, root=root, name=name, sha256=sha,
-                        identity=identity, config=config)
+                        identity=identity, config=config, dots=dots)
 
 
 #: pixels decoded at once over all workers: each photo is at most ``photos.MAX_PIXELS``
@@ -196,14 +196,20 @@ def _pool_initializer(parent_pid: int) -> None:
 
 def detect_all(items: list[Photo], session: Session, cache: DetectionCache, *,
                jobs: int | None = None, progress=None,
-               config: EstimatorConfig | None = None) -> list[str]:
-    """Stage 1 of every photo not skipped yet (``ph.det`` filled): from the cache, else in
+               config: EstimatorConfig | None = None, dots: bool = True) -> list[str]:
+    """Stage 1 of every photo not skipped yet (``ph.det`` filled).
+
+        items, warnings, notes = photos_to_measure(session)
+        warnings += detect_all(items, session, DetectionCache("out/.cache"), jobs=4)
+
+    From the cache, else in
     ``jobs`` worker processes (fewer when large photos would not fit
-    :data:`MAX_PIXELS_IN_FLIGHT`), with a progress bar. Returns the warnings."""
+    :data:`MAX_PIXELS_IN_FLIGHT`), with a progress bar. ``dots`` False: the markers only
+    (the arm camera's photos of the marker field), cached apart. Returns the warnings."""
     root = Path(session.root)
     warnings: list[str] = []
     config = config or DEFAULT
-    fp = session_fingerprint(session, config)
+    fp = session_fingerprint(session, config, dots=dots)
     todo = []
     for i, ph in enumerate(items):
         if ph.det is not None:
@@ -227,10 +233,11 @@ def detect_all(items: list[Photo], session: Session, cache: DetectionCache, *,
                        desc=f"measure {root.name}", unit="photo",
                        note=(f"{min(jobs, max(len(todo), 1))} job(s)"
                              + (f", {n_cached} more from the cache" if n_cached else ""))
-                       if todo else "all from the cache")
+                       if todo else "all from the cache" if n_cached else
+                       "none to measure: every photo refused before")
     if not todo and bar:
         bar.update(n_cached)
-    args = [(root, items[i].file, session, items[i].sha256, items[i].identity, config)
+    args = [(root, items[i].file, session, items[i].sha256, items[i].identity, config, dots)
             for i in todo]
     try:
         if jobs <= 1 or len(todo) <= 1:

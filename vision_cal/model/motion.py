@@ -9,16 +9,14 @@ One owner for each of these conventions; everything else calls it.
 - :data:`JOINT_LIMITS_DEG`, :data:`SPEED_DEG_S`, :data:`ACCEL_DEG_S2`: the default
   (SM5-like) robot's limits, in degrees, deg/s and deg/s^2, joint 1 then joint 2;
   :data:`TRAJECTORY_DT_S`: the period at which reference trajectories are sampled
-  (the seed paper's 16 ms). :class:`MotionLimits` bundles them for one robot.
+  (the seed paper's 16 ms).
 
-The synthetic world (``vision_cal.render``, ``vision_cal.simulate``) deliberately does *not*
+The synthetic world (``vision_cal.world``) deliberately does *not*
 use :func:`approach_signs`: it tracks the side each joint really arrived from through its
 own motion, so a convention error here cannot cancel against the truth.
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -35,16 +33,6 @@ SPEED_DEG_S = (90.0, 120.0)
 ACCEL_DEG_S2 = (300.0, 400.0)
 #: sampling period (s) of reference trajectories (the seed paper's cubic splines)
 TRAJECTORY_DT_S = 0.016
-
-
-@dataclass(frozen=True)
-class MotionLimits:
-    """The limits of one robot (the robot file's optional fields; defaults above)."""
-
-    joint_limits_deg: tuple = JOINT_LIMITS_DEG   # [[lo, hi], [lo, hi]] deg, commanded
-    speed_deg_s: tuple = SPEED_DEG_S             # peak speed per joint, deg/s
-    accel_deg_s2: tuple = ACCEL_DEG_S2           # peak acceleration per joint, deg/s^2
-    dt_s: float = TRAJECTORY_DT_S                # trajectory sampling period, s
 
 
 def approach_signs(poses_deg, home_deg=(0.0, 0.0), given=None) -> np.ndarray:

@@ -57,11 +57,6 @@ class Trajectory:
     def duration_s(self) -> float:
         return float(self.t_s[-1])
 
-    @property
-    def pen_events(self) -> list[tuple[int, float]]:
-        """(mark index, pen-down time) in drawing order."""
-        return [(i, float(t)) for i, t in enumerate(self.pen_t_s)]
-
     def evaluate(self, t_s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Reference at times ``t_s`` (K,) (a scalar is K = 1): (q_deg, qd_deg_s,
         qdd_deg_s2), each (K, 2).

@@ -48,7 +48,7 @@ GENERATOR = "vision-cal sheet"
 ISO_SIZES_MM = {"A0": (841.0, 1189.0), "A1": (594.0, 841.0), "A2": (420.0, 594.0),
                 "A3": (297.0, 420.0), "A4": (210.0, 297.0)}
 
-# printed look (the renderer's analytic sheet, vision_cal.render.sheet, uses the same values)
+# printed look (the renderer's analytic sheet, vision_cal.world.sheet, uses the same values)
 PAPER_RGB = (255, 255, 255)         # no ink
 FINE_RGB = (196, 228, 222)          # 1 mm lines (light cyan-green)
 BOLD_RGB = (150, 205, 196)          # 10 mm lines

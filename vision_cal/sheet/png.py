@@ -1,6 +1,6 @@
 """The sheet as a raster at a chosen dpi (exact area coverage, no rasteriser library).
 
-Pixel convention (the same as the renderer's textures, ``vision_cal.render.sheet``): row 0
+Pixel convention (the same as the renderer's textures, ``vision_cal.world.sheet``): row 0
 at the top (y = y_max); pixel (row i, col j) covers the square of side 1/px_per_mm whose
 centre is ``x = x_min + (j + 0.5) / ppm``, ``y = y_max - (i + 0.5) / ppm``, with
 ``ppm = dpi / 25.4``. Rectangles and marker modules are painted with their exact pixel

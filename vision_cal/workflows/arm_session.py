@@ -1,99 +1,80 @@
 """A dataset of photos taken by the arm's camera: session.json ``poses``, measured and fitted.
 
+    doc = calibrate_arm_camera("arm/", cache_dir="out/.cache")    # calibration.json's dict
+
 session.json (``docs/format.md``, "Cameras")::
 
-    "camera": {"size_px": [w, h], "K": [[...]], "dist": [...]},     required: declared lens
+    "camera": {"size_px": [w, h], "K": [[...]], "dist": [...]},     optional: declared lens
     "camera_mount": "flange",           "flange" (turns with joint 4) or "link2"
     "poses": [ {"image": "pose_000.png", "joints_deg": [q1, q2], "j4_deg": 30.0} ]
 
 with the contract's ``sheet`` (the marker field, ``vision-cal sheet --field``) and
-``robot`` blocks. ``marks`` may be absent. Each photo's marker corners come from the
-measurement stage's own detector and sub-pixel edge fit (``measure/aruco.py``); a photo
-that cannot be used is skipped with its reason and the others go on.
+``robot`` blocks; read by :func:`vision_cal.dataset.session.load_arm_session`. The photos go
+through the measurement every photo goes through (:func:`measure_arm_photos`): listed and
+checked before anything is decoded (``measure/listing.py``), their markers detected in
+parallel and cached by content (``measure/detect.py``, the markers only), a photo that
+cannot be used skipped with the same reason as anywhere else; then the corners in the lens
+(``camera/arm.lens_corners``) and the fit (``camera/arm.py``).
 """
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, replace
+import logging
+from dataclasses import replace
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from vision_cal.estimate.plausible import RADIAN_RANGE, radians_given
-from vision_cal.camera.arm import (MAX_POSES, MIN_POSES, ArmView, check_declared_lens,
-                                   estimate_lens, fit_arm_camera, without_misdetected)
+from vision_cal.camera.arm import (MIN_POSES, ArmView, check_declared_lens, estimate_lens,
+                                   fit_arm_camera, lens_corners, without_misdetected)
 from vision_cal.camera.fixed import UNDETERMINED
+from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.calibration_result import CalibrationResult
-from vision_cal.dataset.camera_block import read_lens
-from vision_cal.dataset.io import read_json
-from vision_cal.dataset.marker_geometry import marker_geometry
-from vision_cal.dataset.photos import PhotoRefused, load_photo, normalise_name
 from vision_cal.dataset.fields import FieldReader
-from vision_cal.dataset.session import read_robot_block, read_sheet_block
+from vision_cal.dataset.session import Session, load_arm_session
 from vision_cal.dataset.valid_for import build as valid_for_block
 from vision_cal.estimate.verdict import judge_camera_poses
-from vision_cal.errors import CalibrationError, Failure, VisionCalError
-from vision_cal.measure.workers import exit_with_parent
-from vision_cal.progress import bar
-from vision_cal.model.kinematics import ScaraParams
-from vision_cal.model.motion import approach_signs
-from vision_cal.measure.aruco import corners_from_edges, edge_points, find_sheet_markers
-from vision_cal.measure.mapping import distort_px, undistort_px
+from vision_cal.errors import CalibrationError
+from vision_cal.measure.cache import DetectionCache
+from vision_cal.measure.detect import detect_all
+from vision_cal.measure.listing import photos_to_measure
 
-MOUNTS = ("flange", "link2")
-FORMAT = "vision-cal/1"
+log = logging.getLogger(__name__)
 
 
-def read_arm_session(folder):
-    """(folder, sheet, nominal ScaraParams, (size_px, K, dist), mount, poses) where poses is a
-    list of (image, q_deg (2,), j4_deg); every field checked, one line naming it."""
-    folder = Path(folder)
-    path = folder / "session.json"
-    if folder.is_dir() and not path.exists():
-        raise VisionCalError("missing: a camera-on-arm folder needs a session.json (the poses "
-                             "the photos were taken at): `vision-cal design --camera-on-arm` "
-                             "writes it", file=str(path))
-    raw = read_json(path)
-    r = FieldReader(str(path))
-    fmt = r.get(raw, "format", "")
-    if fmt != FORMAT:
-        r.fail("format", f"expected {FORMAT!r}, got {fmt!r}")
-    robot = read_robot_block(r, r.get(raw, "robot", ""), "robot")
-    sheet = read_sheet_block(r, r.get(raw, "sheet", ""), "sheet")
-    cam = raw.get("camera")
-    camera = None if cam is None else read_lens(r, cam, "camera")  # the one validator
-    mount = raw.get("camera_mount", "flange")
-    if mount not in MOUNTS:
-        r.fail("camera_mount", f"expected one of {', '.join(MOUNTS)}, got {mount!r}")
-    poses = []
-    listed = r.list_(r.get(raw, "poses", ""), "poses", nonempty=True)
-    if len(listed) > MAX_POSES:
-        r.fail("poses", f"{len(listed)} poses: at most {MAX_POSES} (more adds nothing the fit "
-                        "can use, and measuring them would take hours); keep a subset")
-    for i, p in enumerate(listed):
-        w = f"poses[{i}]"
-        try:
-            img = normalise_name(r.string(r.get(p, "image", w), f"{w}.image"))
-        except ValueError as e:
-            r.fail(f"{w}.image", f"{e}: the photos sit in the folder beside session.json")
-        q = r.angles(r.get(p, "joints_deg", w), f"{w}.joints_deg")
-        j4 = r.number(p.get("j4_deg", 0.0), f"{w}.j4_deg")
-        if mount == "link2" and j4 != 0.0:
-            r.fail(f"{w}.j4_deg", "a camera on link 2 does not turn with joint 4: leave "
-                                  "j4_deg out or set camera_mount: flange")
-        poses.append((img, np.asarray(q, float), float(j4)))
-    if radians_given([q for _, q, _ in poses]):
-        r.fail("poses", f"every joint angle is within +-{RADIAN_RANGE:.2f}: written in radians? "
-                        "joints_deg are degrees (multiply by 57.2958)")
-    nominal = ScaraParams(robot.L1_mm, robot.L2_mm, robot.joint_zero_deg[0],
-                          robot.joint_zero_deg[1], robot.base_mm[0], robot.base_mm[1])
-    # each joint's approach (the format's rule: its last motion, over every pose in order)
-    signs = approach_signs([q for _, q, _ in poses], robot.home_deg)
-    poses = [(img, q, j4, tuple(float(v) for v in sg)) for (img, q, j4), sg in zip(poses, signs)]
-    return folder, sheet, nominal, camera, mount, poses, robot.repeatability_mm
+def measure_arm_photos(session: Session, *, cache_dir, jobs: int | None = 1, progress=False,
+                       config: EstimatorConfig | None = None
+                       ) -> tuple[list[ArmView], list[dict]]:
+    """The arm camera's photos measured as every photo is.
+
+        views, images = measure_arm_photos(load_arm_session("arm/"), cache_dir="out/.cache")
+
+    The listing and its checks (:func:`vision_cal.measure.listing.photos_to_measure`),
+    stage 1 on the markers only, cached in ``cache_dir`` and run in ``jobs`` processes
+    (:func:`vision_cal.measure.detect.detect_all`), each photo's corners in the declared
+    lens (:func:`vision_cal.camera.arm.lens_corners`). Returns the views of the photos
+    measured, in the poses' order, and every photo's ``images[]`` entry (``ok`` with its
+    markers and size, or ``skipped`` with the measurement's reason)."""
+    items, warnings, _ = photos_to_measure(session)
+    warnings += detect_all(items, session, DetectionCache(Path(cache_dir)), jobs=jobs,
+                           progress=progress, config=config or DEFAULT, dots=False)
+    for w in warnings:
+        log.warning(w)
+    cam = session.camera
+    lens = (None, None) if cam is None else (cam.K, cam.dist)
+    views, images = [], []
+    for ph, pose in zip(items, session.poses):
+        d = ph.det
+        if d.status != "ok":
+            images.append({"file": pose.image, "status": "skipped", "reason": d.reason})
+            continue
+        views.append(ArmView(pose.image, np.asarray(pose.joints_deg, float), pose.j4_deg,
+                             np.asarray(d.corners_mm, float).reshape(-1, 2),
+                             lens_corners(d, *lens), pose.approach, d))
+        images.append({"file": pose.image, "status": "ok", "n_markers": int(len(d.marker_ids)),
+                       "size_px": [int(d.size_px[0]), int(d.size_px[1])]})
+    return views, images
 
 
 def repeat_pairs(views) -> list[tuple[int, int]]:
@@ -165,112 +146,26 @@ def _pose_table(views, fit) -> list[dict]:
                                   fit.flange_heldout_mm)]
 
 
-def corners_in_lens(edges, fallback, K=None, dist=None) -> np.ndarray:
-    """Marker corners (M, 4, 2) in raw px: the border edges fitted as straight lines in
-    the lens's ideal pixels, as the pen measurement does
-    (``measure/types.ImageDetections.corners_for``). A marker's straight edge is curved in
-    a distorted photo; a straight line fitted to it there biases the corner by a few
-    hundredths of a pixel, differently across the image: with k1 -0.045 declared and
-    nothing else missing, that bias put the arm camera's residual 1.4 times its floor."""
-    fallback = np.asarray(fallback, float).reshape(-1, 4, 2)
-    if edges is None:
-        return fallback
-    if K is None or dist is None or not np.any(np.asarray(dist, float)):
-        return corners_from_edges(edges, fallback)
-    e = np.asarray(edges, float)
-    ideal = undistort_px(e.reshape(-1, 2), K, dist).reshape(e.shape)
-    c0 = undistort_px(fallback.reshape(-1, 2), K, dist).reshape(-1, 4, 2)
-    c = corners_from_edges(ideal, c0)
-    return distort_px(c.reshape(-1, 2), K, dist).reshape(-1, 4, 2)
+def calibrate_arm_camera(folder, *, cache_dir, progress: bool = False, jobs: int = 1) -> dict:
+    """calibration.json (as a dict) of an arm-camera dataset.
 
+        doc = calibrate_arm_camera("arm/", cache_dir="out/.cache", jobs=4)
 
-def in_lens(view: ArmView, K, dist) -> ArmView:
-    """The view with its corners found again in the lens ``(K, dist)``'s ideal pixels."""
-    if view.edges_px is None:
-        return view
-    c = corners_in_lens(view.edges_px, view.detected_px, K, dist)
-    return replace(view, corners_px=np.asarray(c, float).reshape(-1, 2))
-
-
-@dataclass(frozen=True)
-class SkippedPhoto(Failure):
-    """A photo :func:`measure_view` could not use, and why (falsy; reading an
-    :class:`ArmView`'s attribute from it raises with the reason)."""
-
-    file: str
-    reason: str
-
-    def to_json(self) -> dict:
-        """Its calibration.json ``images[]`` entry."""
-        return {"file": self.file, "status": "skipped", "reason": self.reason}
-
-
-def _skipped(image: str, reason: str) -> tuple[SkippedPhoto, dict]:
-    s = SkippedPhoto(image, reason)
-    return s, s.to_json()
-
-
-def measure_view(folder, sheet, size, image: str, q, j4, approach=(1.0, 1.0), lens=None
-                 ) -> tuple[ArmView | SkippedPhoto, dict]:
-    """One photo's corners (sub-pixel) as an :class:`ArmView` (or a falsy
-    :class:`SkippedPhoto` with the reason), and its ``images[]`` entry (``size_px`` of the
-    photo); ``size``: the declared camera's, or None; ``lens``: its ``(K, dist)`` when
-    declared (the corners are then found in its ideal pixels)."""
-    try:
-        bgr, _, _ = load_photo(folder, image, size)
-    except PhotoRefused as e:
-        return _skipped(image, e.reason)
-    if bgr is None:
-        return _skipped(image, "not a readable image")
-    gray = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
-    det = find_sheet_markers(gray, sheet)
-    if det.reason:
-        return _skipped(image, det.reason)
-    edges = edge_points(gray, det.corners_px, geometry=marker_geometry(sheet))
-    K, dist = lens if lens is not None else (None, None)
-    corners = corners_in_lens(edges, det.corners_px, K, dist)
-    view = ArmView(image, np.asarray(q, float), float(j4),
-                   np.asarray(det.corners_mm, float).reshape(-1, 2),
-                   np.asarray(corners, float).reshape(-1, 2), tuple(approach),
-                   np.asarray(edges, float), np.asarray(det.corners_px, float).reshape(-1, 4, 2))
-    return view, {"file": image, "status": "ok", "n_markers": int(len(det.ids)),
-                  "size_px": [int(gray.shape[1]), int(gray.shape[0])]}
-
-
-def _measure_one(a):
-    *args, lens = a
-    return measure_view(*args, lens=lens)
-
-
-def calibrate_arm_camera(folder, *, progress: bool = False, jobs: int = 1) -> dict:
-    """calibration.json (as a dict) of an arm-camera dataset: the robot's base parameters
-    with std and covariance, and the ``cameras`` entry with ``T_flange_camera``.
-    ``progress``: a bar (or one line per stage) while the photos are measured; ``jobs``:
-    processes measuring them (each photo's result is the same for any number)."""
-    folder, sheet, nominal, camera, mount, poses, rep = read_arm_session(folder)
-    views, images = [], []
-    size0 = None if camera is None else camera[0]
-    lens0 = None if camera is None else camera[1:]
-    args = [(folder, sheet, size0, img, q, j4, sg, lens0) for img, q, j4, sg in poses]
-    pbar = bar(progress, total=len(poses), desc="measure arm photos", unit="photo",
-               note=f"{jobs} job(s)")
-    pool = None
-    try:
-        if jobs > 1 and len(args) > 1:
-            pool = ProcessPoolExecutor(max_workers=min(jobs, len(args)),
-                                       initializer=exit_with_parent, initargs=(os.getpid(),))
-            results = pool.map(_measure_one, args, chunksize=1)
-        else:
-            results = map(_measure_one, args)
-        for v, entry in results:
-            images.append(entry)
-            pbar.update()
-            if v:   # a SkippedPhoto is falsy: its entry says why
-                views.append(v)
-    finally:
-        if pool is not None:
-            pool.shutdown(wait=True, cancel_futures=True)
-        pbar.close()
+    The robot's base parameters with std and covariance, and the ``cameras`` entry with
+    ``T_flange_camera``. ``cache_dir``: the detections' cache (the output folder's
+    ``.cache``); ``progress``: a bar (or one line per stage) while the photos are
+    measured; ``jobs``: processes measuring them (each photo's result is the same for any
+    number)."""
+    session = load_arm_session(folder)
+    folder, mount, camera = Path(session.root), session.camera_mount, session.camera
+    if radians_given([p.joints_deg for p in session.poses]):
+        FieldReader(str(session.path)).fail(
+            "poses", f"every joint angle is within +-{RADIAN_RANGE:.2f}: written in radians? "
+                     "joints_deg are degrees (multiply by 57.2958)")
+    nominal, rep = session.robot.params, session.robot.repeatability_mm
+    poses = session.poses
+    views, images = measure_arm_photos(session, cache_dir=cache_dir, jobs=jobs,
+                                       progress=progress)
     sizes = {tuple(e["size_px"]) for e in images if e["status"] == "ok"}
     if camera is None and len(sizes) > 1:
         raise CalibrationError(f"photos of {len(sizes)} sizes ({', '.join(f'{a}x{b}' for a, b in sorted(sizes))}) "
@@ -294,13 +189,13 @@ def calibrate_arm_camera(folder, *, progress: bool = False, jobs: int = 1) -> di
         lens = estimate_lens(views, size)
         views, dropped = without_misdetected(views, lens.K, lens.dist)
         if np.any(lens.dist) or dropped:  # the corners again in its ideal pixels
-            views = [in_lens(v, lens.K, lens.dist) for v in views]
+            views = [v.in_lens(lens.K, lens.dist) for v in views]
             lens = estimate_lens(views, size)
         K, dist, how, f_sd = lens.K, lens.dist, lens.intrinsics, lens.f_px_std
         if lens.reason:
             lens_reason = [("check", lens.reason)]
     else:
-        (size, K, dist), how, f_sd = camera, "declared", 0.0
+        (size, K, dist), how, f_sd = (camera.size_px, camera.K, camera.dist), "declared", 0.0
         views, dropped = without_misdetected(views, K, dist)
         # the declared lens against the views' own: a focal length or a distortion they
         # contradict is named; the floor is the corners' noise with the views' lens

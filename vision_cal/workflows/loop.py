@@ -51,8 +51,8 @@ from vision_cal.plan.calibration_plan import sheet_clearance_mm
 from vision_cal.plan.compensate import PlannedTarget, plan_targets, to_planned_marks
 from vision_cal.plan.trajectory import plan_trajectory
 from vision_cal.progress import stage_line
-from vision_cal.render.dataset import render_dataset
-from vision_cal.render.scene import load_scene
+from vision_cal.world.dataset import render_dataset
+from vision_cal.world.scene import load_scene
 from vision_cal.report.plots import loop_joints, loop_paths
 from vision_cal.report.summary import survey_line
 from vision_cal.model.rms import rms

@@ -1,1 +1,0 @@
-"""The synthetic world: a robot with hidden effects draws on a sheet; pyrender photographs it."""

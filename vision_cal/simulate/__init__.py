@@ -1,1 +1,0 @@
-"""Simulated controller: SCARA dynamics, gear backlash, sliding-mode and PD tracking."""
