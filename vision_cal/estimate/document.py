@@ -34,7 +34,11 @@ def document(session: Session, data: MarkData, missing: list[str],
              measurement: Measurement | None, fitted: Fitted, *, method: str,
              config: EstimatorConfig = DEFAULT, truth: bool = False,
              bars_mm=None, cameras=None) -> CalibrationResult:
-    """The one :class:`CalibrationResult` of a run: the fit's blocks, per-photo checks, the
+    """The one :class:`CalibrationResult` of a run.
+
+        result = document(session, data, missing, measurement, fitted, method="lsq")
+
+    The fit's blocks, per-photo checks, the
     model the OLP had, the lens and the sheet height found by measurement, every mark with
     its residuals, images, targets, still cameras, the paper's scale (``bars_mm``: the
     printed bars as measured, over the sheet's), and the verdict judged on all of it.

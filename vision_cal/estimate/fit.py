@@ -68,8 +68,11 @@ class Fitted:
 
 def fit_marks(session: Session, data: MarkData, measurement=None, *, method: str = "lsq",
               config: EstimatorConfig = DEFAULT) -> Fitted:
-    """The calibration marks of ``data`` fitted by ``method`` (``lsq`` or ``paper``), the
-    validation marks scored: marks at several ``j4_deg`` take the tool and joint 4's
+    """The calibration marks of ``data`` fitted by ``method`` (``lsq`` or ``paper``).
+
+        fitted = fit_marks(session, collect_marks(session, measurement)[0], measurement)
+
+    The validation marks scored: marks at several ``j4_deg`` take the tool and joint 4's
     effects first (the paper's circles for them with ``paper``); one ``j4_deg`` folds the
     tool into L2 and z2, and says so (calibration.json ``tool``)."""
     cal, val = data.select("calibration"), data.select("validation")

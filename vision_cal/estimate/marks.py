@@ -46,7 +46,11 @@ class MarkData:
 
 
 def collect_marks(session: Session, measurement=None) -> tuple[MarkData, list[str]]:
-    """Marks with a position: ``measured_mm`` from the session, else from the photos."""
+    """Marks with a position: ``measured_mm`` from the session, else from the photos, and
+    the ids of the marks without one.
+
+        data, missing = collect_marks(load_session("run/"), measurement)
+    """
     app = session.approach
     j4 = np.column_stack([session.j4_deg, session.approach4]) if session.uses_joint4 else None
     ids, q, a, xy, sig, roles, missing, k4 = [], [], [], [], [], [], [], []

@@ -484,7 +484,11 @@ def placement_of(name: str, cal: MarkData) -> Placement:
 def calibrate_placed(names, sessions, cals: list[MarkData],
                      config: EstimatorConfig = DEFAULT
                      ) -> tuple[CalibrationResult, list[CalibrationResult]]:
-    """One robot from several placements (``calibrate --joint``), the estimator's problem:
+    """One robot from several placements (``calibrate --joint``).
+
+        robot_frame, per_placement = calibrate_placed(["place0", "place1"], sessions, cals)
+
+    The estimator's problem:
     each placement's calibration marks (``cals``, with its ``sessions`` and sub-folder
     ``names``) fitted together (:func:`fit_placements`), judged (:func:`_verdicts`), and
     the calibrations: the robot frame's (R) and each placement's in its sheet frame (for
