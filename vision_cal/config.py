@@ -504,6 +504,14 @@ class AsPrintedConfig:
                                       # systematic uncertainty (2-D): the pose takes part of
                                       # the print, the robot fit part of what is left (a 0.17
                                       # mm print: 0.15 mm seen, marks 0.08 mm off)
+    lens_free_interior_factor: float = 2.0   # an undeclared lens solved with the print: what
+                                      # it leaves on the marks between the markers
+                                      # (``interior_mm``, from the solve's own Jacobian) times
+                                      # this is carried (limit, sigma, field): the radial terms
+                                      # trade with the paper's unmeasured shape between the
+                                      # markers and the edges' bias, which the covariance
+                                      # does not hold (issue 37, world2 seeds 101-105: the
+                                      # marks' field-shaped error 1.2-2.4x, median 1.95x it)
     release_heights: bool = True      # each released corner's height off the paper's plane
                                       # is solved too: paper that is not flat shows parallax
                                       # between places, which in-plane shifts alone take
