@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from vision_cal.config import DEFAULT
-from vision_cal.diagnose.verdict import _print_part
+from vision_cal.estimate.verdict import _print_part
 from vision_cal.measure.asprinted import AsPrinted
 from vision_cal.measure.print_stage import print_stage
 

@@ -49,7 +49,7 @@ def arm_camera_lines(o: ArmCameraOutcome) -> list[str]:
     """``vision-cal handeye FOLDER``: the photos used, the arm, the camera's mount, the
     effects and the verdict."""
     # the action that returned ``o`` imported it already
-    from vision_cal.diagnose.verdict import Verdict
+    from vision_cal.estimate.verdict import Verdict
 
     doc = o.calibration
     cam = doc["cameras"][0]
@@ -71,7 +71,7 @@ def arm_camera_lines(o: ArmCameraOutcome) -> list[str]:
 
 
 def _verdict_lines(v) -> list[str]:
-    """A :class:`~vision_cal.diagnose.verdict.Verdict` as the console's lines (one reason a
+    """A :class:`~vision_cal.estimate.verdict.Verdict` as the console's lines (one reason a
     line: :func:`vision_cal.report.summary.verdict_lines`)."""
     from vision_cal.report.summary import verdict_lines
 
@@ -82,7 +82,7 @@ def handeye_pairs_lines(o: HandeyePairsOutcome) -> list[str]:
     """``vision-cal handeye --poses``: the pairs, the camera's pose with its std, the pairs
     left out, and the verdict."""
     # the action that returned ``o`` imported it already
-    from vision_cal.diagnose.verdict import Verdict
+    from vision_cal.estimate.verdict import Verdict
 
     fit, xname = o.fit, o.camera_name
     t, sd = fit.X[:3, 3], o.document["cameras"][0][f"{xname}_std"]["translation_mm"]
@@ -103,7 +103,7 @@ def handeye_photos_lines(o: HandeyePhotosOutcome) -> list[str]:
     """``vision-cal handeye PHOTOS/ --robot-poses``: the photos, the two transforms with
     their std, each photo predicted from the others, what limits it, and the verdict."""
     # the action that returned ``o`` imported it already
-    from vision_cal.diagnose.verdict import Verdict
+    from vision_cal.estimate.verdict import Verdict
 
     doc, fit = o.document, o.fit
     he = doc["handeye"]
@@ -134,7 +134,7 @@ def joint_lines(o: JointCalibrated) -> list[str]:
     """``vision-cal calibrate --joint``: each placement's sheet pose and residual, the
     effects, each placement's verdict and the robot's."""
     # the action that returned ``o`` imported it already
-    from vision_cal.diagnose.verdict import Verdict
+    from vision_cal.estimate.verdict import Verdict
 
     doc = o.document
     lines = [f"{pl['folder']}: sheet at {pl['angle_deg']:.3f} deg, base "
