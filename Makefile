@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 # The seed paper's Table 2 side by side with ours, then the whole loop on the default
-# scene: render, calibrate from the photos, plan, simulate, photograph, measure (~2 min).
+# scene: render, calibrate from the photos, plan, simulate, photograph, measure (~4 min, README).
 demo: $(STAMP)
 	$(BIN)/vision-cal fixtures/paper_sm5 --method paper --out out/paper_sm5
 	$(BIN)/vision-cal loop renders/default.yaml --out out/demo

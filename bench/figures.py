@@ -72,8 +72,9 @@ def from_demo(doc: dict, out: Path) -> None:
             f"{s['before']['rms_mm']:.2f} mm RMS before, {s['after']['rms_mm']:.4f} mm after "
             f"(max {s['after']['max_mm']:.3f})",
             what=f"demo loop, {s['n_targets']} targets on the true robot")
-    cal_path = Path(loop["calibration"])
-    cal = json.loads((cal_path if cal_path.is_absolute() else ROOT / cal_path).read_text())
+    cal_path = Path(loop["calibration"])   # relative to where the demo ran: OUT's parent
+    cal = json.loads((cal_path if cal_path.is_absolute() else out.resolve().parent / cal_path)
+                     .read_text())
     bl = [e for e in cal.get("effects", []) if e.get("name") == "joint_backlash"]
     found = (f"found {bl[0]['deg']:.4f} +- {bl[0]['std']:.4f} deg" if bl else "not found")
     set_row(doc, "demo_backlash", f"{found}; \"{cal['verdict']['text']}\"")

@@ -129,3 +129,32 @@ def test_the_headline_figures_are_generated_not_typed():
     assert figures.readme_block(doc) in (ROOT / "README.md").read_text()
     assert all(r.get("source") for r in doc["rows"]), doc["rows"]
     assert {"paper", "demo_loop", "demo_backlash"} <= {r["key"] for r in doc["rows"]}
+
+
+def test_the_demo_rows_read_a_demo_run_in_another_folder(tmp_path):
+    """`bench/figures.py demo OTHER/out` (a fresh clone's demo): loop.json names its
+    calibration relative to where the demo ran, OUT's parent, not this repository."""
+    import importlib.util
+    import json
+
+    from tests.conftest import ROOT
+
+    spec = importlib.util.spec_from_file_location("figures", ROOT / "bench" / "figures.py")
+    figures = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(figures)
+    out = tmp_path / "out"
+    for rel, doc in {
+            "paper_sm5/calibration.json": {"params": {"L1_mm": 344.0, "L2_mm": 259.9,
+                                                      "joint_zero_deg": [-2.6, -8.1]}},
+            "demo/loop.json": {"calibration": "out/demo/calibration/calibration.json",
+                               "summary": {"n_targets": 3, "before": {"rms_mm": 9.0},
+                                           "after": {"rms_mm": 0.0123, "max_mm": 0.02}}},
+            "demo/calibration/calibration.json": {
+                "effects": [{"name": "joint_backlash", "deg": 0.0987, "std": 0.0007}],
+                "verdict": {"text": "ready to use: elsewhere"}}}.items():
+        (out / rel).parent.mkdir(parents=True, exist_ok=True)
+        (out / rel).write_text(json.dumps(doc))
+    doc = json.loads((ROOT / "docs" / "figures.json").read_text())
+    figures.from_demo(doc, out)
+    row = next(r for r in doc["rows"] if r["key"] == "demo_backlash")
+    assert row["figure"].startswith("found 0.0987") and "elsewhere" in row["figure"], row

@@ -1,10 +1,12 @@
+import importlib
 import json
+import re
 import subprocess
 import sys
 
 import pytest
 
-from vision_cal.commands.main import main
+from vision_cal.commands.main import SUBCOMMANDS, main
 
 
 def test_paper_method_writes_table2(paper_folder, tmp_path, capsys):
@@ -157,3 +159,13 @@ def test_calibration_run_keeps_the_model_calibration_json_holds(paper_folder, tm
         q = np.array([[10.0, 20.0], [-30.0, 80.0], [45.0, -60.0]])
         s = np.array([[1, -1], [-1, 1], [1, 1]])
         np.testing.assert_allclose(run.model.predict(q, s), back.predict(q, s), atol=1e-9)
+
+
+def test_help_examples_keep_their_line_breaks():
+    """A ``\\`` ending an example line inside a help string joins it to the next (the
+    continuation's indent left inside the command): type ``\\\\``. ``simulate --help``
+    showed ``--sheet sheet/sheet.json       --targets ...`` on one line."""
+    for sub in SUBCOMMANDS:
+        mod = importlib.import_module(f"vision_cal.commands.{sub.replace('-', '_')}")
+        for line in (getattr(mod, "EXAMPLES", "") or "").splitlines():
+            assert not re.search(r"\S {3,}--\w", line), (sub, line)

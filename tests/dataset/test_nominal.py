@@ -73,6 +73,8 @@ def test_a_calibration_of_a_plan_placed_with_a_pilot_tells_the_robot_files_offse
                 if ln.startswith("  - keep the robot file's model"))
     assert f"joint 1: {-z[0]:+.4f} deg" in line and f"joint 2: {-z[1]:+.4f} deg" in line
     assert "starting model" in out
+    note = next(ln for ln in out.splitlines() if "starting model" in ln)
+    assert "pilot_cal/calibration.json" in note and note.count("placed with") == 1, note
     a = actions(cal)
     assert [o["add_to_offset_deg"] for o in a["controller_offsets"]] == [
         pytest.approx(-z[0]), pytest.approx(-z[1])]

@@ -39,6 +39,10 @@ def test_history_is_in_date_order_with_std(tmp_path, capsys):
     assert (tmp_path / "h.png").stat().st_size > 10_000
     out = capsys.readouterr().out
     assert "350.0000 +-0.0050" in out and "350.0200 +-0.0040" in out
+    # each console row names its calibration's folder (the CSV's calibration column)
+    by_row = {ln.split()[2]: ln for ln in out.splitlines() if "+-" in ln}
+    assert "350.0000 +-0.0050" in by_row[str(tmp_path / "b_first")]
+    assert "350.0200 +-0.0040" in by_row[str(tmp_path / "a_later")]
 
 
 def test_history_names_a_bad_file(tmp_path, capsys):

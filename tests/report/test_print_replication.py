@@ -31,3 +31,16 @@ def test_an_applied_print_shows_its_agreement_and_one_place_says_nothing_of_halv
                                              "  replication: " + agree["text"]]
     assert "chi2/dof 0.70" in _print_html(pr)
     assert _print_replication_lines({"source": "one place", "limit_mm": 0.1}) == []
+
+
+def test_a_print_on_its_layout_is_measured_not_refused():
+    """``not significant``: the views measured the print and found it on its layout, so the
+    calibration counts it measured (the loop's survey line says "used"): never "not
+    applied", which read as the survey refused."""
+    pr = {"source": "survey", "applied": False, "status": "not significant", "n_places": 6,
+          "reason": "the print is 0.008 mm RMS off its layout: on its layout as far as they "
+                    "can tell"}
+    line = _print_replication_lines(pr)[0]
+    assert line.startswith("sheet as printed (survey, 6 places): measured, no field to apply "
+                           "(not significant): the print is 0.008 mm"), line
+    assert "not applied" not in line

@@ -15,7 +15,7 @@ examples:
       draw pilot/program.prg, photograph the sheet into pilot/ (IMG_0001.png ..., truth.json)
   vision-cal simulate plan/ --truth true_robot.yaml --after pilot/ --out plan/
       the informative plan on the same sheet: the pilot's marks are on it too
-  vision-cal simulate targets_plan.prg --truth true_robot.yaml --sheet sheet/sheet.json \
+  vision-cal simulate targets_plan.prg --truth true_robot.yaml --sheet sheet/sheet.json \\
       --targets targets.csv --out hits/
       the compensated targets on a fresh sheet; `vision-cal hits/ --out hits_cal/` then
       measures where each landed (calibration.json "targets")

@@ -59,8 +59,7 @@ def nominal_blocks(session_raw: dict | None, session_params: dict) -> dict:
     src = d.get("pilot_calibration") or d.get("calibration")
     return {"nominal": rf,
             "starting_model": {**_base(session_params), "source": (
-                f"the calibration {src} the plan was placed with" if src else
-                "session.json robot block (the plan was placed with it)")}}
+                f"the calibration {src}" if src else "the session.json robot block")}}
 
 
 def _same(a: dict, b: dict) -> bool:

@@ -101,18 +101,21 @@ def history_csv(rows: list[HistoryRow]) -> str:
 
 
 def history_table(rows: list[HistoryRow]) -> str:
-    """The console table: one line per calibration, each parameter as value +-std."""
-    head = f"{'date (UTC)':<20}" + "".join(f"{label:>22}" for label, _, _ in PARAMS) + \
-        f"{'held-out':>10}  effects"
+    """The console table: one line per calibration (its folder named, as the CSV's
+    ``calibration`` column names its file), each parameter as value +-std."""
+    where = [str(r.path.parent) for r in rows]
+    w = max(len("calibration"), *map(len, where)) + 2
+    head = f"{'date (UTC)':<20}{'calibration':<{w}}" + "".join(
+        f"{label:>22}" for label, _, _ in PARAMS) + f"{'held-out':>10}  effects"
     out = [head, "-" * len(head)]
-    for r in rows:
+    for r, folder in zip(rows, where):
         cells = []
         for label, _, _ in PARAMS:
             v, s = r.values[label]
             cells.append(f"{'-' if v is None else f'{v:.4f}'}"
                          f"{'' if s is None else f' +-{s:.4f}'}")
         rms = "-" if r.heldout_rms_mm is None else f"{r.heldout_rms_mm:.4f}"
-        out.append(f"{r.date_utc[:19]:<20}" + "".join(f"{c:>22}" for c in cells)
+        out.append(f"{r.date_utc[:19]:<20}{folder:<{w}}" + "".join(f"{c:>22}" for c in cells)
                    + f"{rms:>10}  {r.effects}" + ("" if r.dated_by == "report.json"
                                                     else " (dated by file time)"))
     return "\n".join(out)

@@ -90,9 +90,13 @@ def _print_replication_lines(pr) -> list[str]:
     not, and the halves' sentence."""
     if not isinstance(pr, dict) or pr.get("source") == "one place" or "status" not in pr:
         return []
-    head = (f"sheet as printed ({pr.get('source')}, {pr.get('n_places')} places): "
-            + ("applied" if pr.get("applied") else
-               f"not applied ({pr.get('status')}): {pr.get('reason')}"))
+    if pr.get("applied"):
+        how = "applied"
+    elif pr.get("status") == "not significant":   # measured, on its layout (measure/replicate)
+        how = f"measured, no field to apply ({pr.get('status')}): {pr.get('reason')}"
+    else:
+        how = f"not applied ({pr.get('status')}): {pr.get('reason')}"
+    head = f"sheet as printed ({pr.get('source')}, {pr.get('n_places')} places): " + how
     rep = (pr.get("replication") or {}).get("text")
     return [head] + ([f"  replication: {rep}"] if rep else [])
 
