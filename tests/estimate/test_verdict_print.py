@@ -112,3 +112,16 @@ def test_a_measured_print_that_leaves_its_mark_is_named_as_a_cause():
     assert 0.012 / 2 ** 0.5 < rest
     part = judge({**doc, "print": {**pr, "limit_mm": 0.012}})
     assert part.status == "ready" and [r for r in part.reasons if r.startswith("the print:")]
+
+
+def test_every_effect_the_plan_cannot_separate_is_named_in_its_one_reason():
+    """Two effects the plan cannot separate: the reason names the first and the others by
+    label (it said "and 1 more, listed below", and nothing was listed below)."""
+    from vision_cal.estimate.verdict import _plan_reasons
+
+    ni = [{"label": "joint 2 backlash", "fix": "approach from both sides"},
+          {"label": "joint 1 scale", "fix": "spread joint 1"}]
+    out, _ = _plan_reasons({"not_identifiable": ni}, None, pilot=False)
+    (status, text), = out
+    assert status == "not reliable"
+    assert "joint 2 backlash" in text and "joint 1 scale" in text and "below" not in text

@@ -510,7 +510,8 @@ def _plan_reasons(ident: dict, vf: dict | None,
         ni = [d for d in ni if d.get("label") not in vf_labels]
     if ni:
         d = ni[0]
-        more = f" (and {len(ni) - 1} more, listed below)" if len(ni) > 1 else ""
+        more = (" (nor " + ", ".join(str(e.get("label")) for e in ni[1:]) + ")"
+                if len(ni) > 1 else "")
         out.append(("ready" if pilot else "not reliable",
                     f"the plan cannot separate {d['label']} from the base model{more}; "
                     f"{d['fix']}" + ("; a pilot leaves that to the informative plan"
