@@ -133,3 +133,20 @@ def test_the_rezero_verdict_says_one_sign_and_one_action_a_line():
                          "the photos as measured)")
     assert default_out("check/") == Path("check_verify")
     assert default_out("runs/check") == Path("runs/check_verify")
+
+
+def test_still_good_names_what_its_bound_is_a_multiple_of():
+    """The bound is the tolerance factor times the larger of the promised error and the
+    check's noise floor: "still good" names that one with its value (it always said "the
+    promised", also when the floor set the bound)."""
+    rng = np.random.default_rng(11)
+    q, s = random_plan(10, rng)
+    xy = CAL.predict(q, s) + rng.normal(0, NOISE_MM, (10, 2))
+    ids = [f"c{i:02d}" for i in range(10)]
+    promised = CAL_DOC["validation_rms_mm"]["final_model"]
+    r = compare(CAL, CAL_DOC, ids, q, s, xy)
+    assert r.verdict == "still good" and f"the promised {promised:.4f} mm" in r.reasons[0]
+    r = compare(CAL, CAL_DOC, ids, q, s, xy, noise_floor_mm=2 * promised)
+    assert r.verdict == "still good" and "promised" not in r.reasons[0]
+    assert f"2 x the check's noise floor {2 * promised:.4f} mm" in r.reasons[0]
+    assert abs(r.bound_mm - 4 * promised) < 1e-12

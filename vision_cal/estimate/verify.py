@@ -159,10 +159,13 @@ def compare(model, cal, ids, q_deg, approach, xy_mm, *,
     val = None if val is None else val.final_model
     promised = float(val) if isinstance(val, (int, float)) else float(
         (None if fit_rms is None else fit_rms.final_model) or 0.0)
-    bound = cfg.tolerance_factor * max(promised, float(noise_floor_mm or 0.0), 1e-6)
+    floor = float(noise_floor_mm or 0.0)
+    bound = cfg.tolerance_factor * max(promised, floor, 1e-6)
+    basis = (f"the check's noise floor {floor:.4f} mm" if floor > promised
+             else f"the promised {promised:.4f} mm")
     rms = {"as_calibrated": rms_2d(raw), "sheet_placed": rms_2d(res_p), "refitted": rms_2d(res_f)}
     verdict, reasons, rz = _verdict(model, placed, (q, s, xy), moved, changes, rms, bound,
-                                    promised, cfg)
+                                    basis, cfg)
     pred = placed.predict(q, s)
     marks = {mid: {"measured_mm": xy[k].tolist(), "predicted_mm": pred[k].tolist(),
                    "error_mm": (xy[k] - pred[k]).tolist(),
@@ -186,17 +189,18 @@ def compare(model, cal, ids, q_deg, approach, xy_mm, *,
 
 
 def _verdict(model, placed, marks, moved: list, changes: dict, rms: dict, bound: float,
-             promised: float, cfg: VerifyConfig) -> tuple[str, list[str], dict | None]:
+             basis: str, cfg: VerifyConfig) -> tuple[str, list[str], dict | None]:
     """(verdict, reasons, the re-zeroing or None) of a check (the module's rule): ``marks``
     (q, s, xy) the check's, ``moved`` the indices of the base parameters beyond
-    ``cfg.moved_sigma``."""
+    ``cfg.moved_sigma``, ``basis`` what the bound is a multiple of (the promised error or
+    the check's noise floor, the larger, with its value)."""
     q, s, xy = marks
     reasons, rz = [], None
     if not moved and rms["sheet_placed"] <= bound:
         verdict = "still good"
         reasons.append(f"the marks miss the calibrated prediction by {rms['sheet_placed']:.4f} mm "
                        f"RMS (the sheet's placement taken out), within {bound:.4f} mm "
-                       f"({cfg.tolerance_factor:g} x the promised {promised:.4f} mm); no "
+                       f"({cfg.tolerance_factor:g} x {basis}); no "
                        f"parameter moved beyond {cfg.moved_sigma:g} std")
     elif moved == [3]:
         z2_only, res_z, _ = refit(placed, q, s, xy, PLACEMENT | ParamMask.of("z2"))
