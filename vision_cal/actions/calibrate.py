@@ -1,26 +1,29 @@
 """The calibration action (``vision-cal calibrate``): one or several dataset folders
 measured and calibrated (:func:`vision_cal.workflows.pipeline.calibrate_dataset`), or one robot from
 several placements (:func:`vision_cal.workflows.placements.calibrate_placements`), with the
-optional report and, for several folders, ``summary.json``. Returns what was found;
-:mod:`vision_cal.actions.console` prints it. Several folders take minutes each, so each
-folder's outcome (and the notices before its measuring) goes to the ``tell`` callback as it
-is done, not at the end."""
+optional report and, for several folders, ``summary.json``. Returns what was found,
+which prints itself. Several folders take minutes each, so each folder's outcome (and the
+notices before its measuring) goes to the ``tell`` callback as it is done, not at the end."""
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from vision_cal.actions.console import error, say, warn
 from vision_cal.dataset.io import atomic_write_json, written_together
 from vision_cal.dataset.marks_csv import session_from_marks_csv
 from vision_cal.dataset.out_folder import output_names, refuse_input_folder, writing_into
+from vision_cal.diagnose.verdict import Verdict
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.replicate import measures_the_print
 from vision_cal.measure.survey import applicable, find_survey
 from vision_cal.workflows.pipeline import CalibrationRun, calibrate_dataset
 from vision_cal.workflows.placements import calibrate_placements
 from vision_cal.report.html import write_report
+from vision_cal.report.summary import format_summary
 
 
 @dataclass(frozen=True)
@@ -48,12 +51,22 @@ class OutputsNamed:
 
     outputs: tuple[tuple[str, Path], ...]   # (folder as given, its output folder)
 
+    def show(self, quiet: bool = False) -> int:
+        if not quiet:
+            print("outputs: " + ", ".join(f"{f} -> {out}" for f, out in self.outputs))
+        return 0
+
 
 @dataclass(frozen=True)
 class SurveyFound:
     """The sheet as surveyed that a folder is measured against (told before measuring)."""
 
     path: Path
+
+    def show(self, quiet: bool = False) -> int:
+        if not quiet:
+            print(f"measuring against the sheet as surveyed: {self.path}")
+        return 0
 
 
 @dataclass(frozen=True)
@@ -66,6 +79,12 @@ class SurveyNotApplied:
     status: str
     reason: str
 
+    def show(self, quiet: bool = False) -> int:
+        """Said even when quiet (stderr): the survey beside the folder is not used."""
+        print(f"not applying the sheet as surveyed ({self.path}): {self.status}: "
+              f"{self.reason}", file=sys.stderr)
+        return 0
+
 
 @dataclass(frozen=True)
 class FolderCalibrated:
@@ -76,6 +95,23 @@ class FolderCalibrated:
     run: CalibrationRun
     report: Path | None = None
 
+    def show(self, quiet: bool = False) -> int:
+        """The summary, then the photos skipped and what was inferred (stderr), the report
+        and the file written (said even when quiet)."""
+        run = self.run
+        if not quiet:
+            print(format_summary(run.document, reference=run.session.raw.get("reference")))
+        for im in run.document.get("images", []):
+            if im.get("status") != "ok":
+                warn(f"{self.folder}/{im['file']}: skipped: {im.get('reason')}")
+        meas = run.measurement
+        for note in (meas.inferred_notes if meas is not None else ()):  # no images list
+            warn(f"{self.folder}: {note}")
+        if self.report is not None:
+            print(f"report: {self.report} ({self.report.stat().st_size / 1e6:.1f} MB)")
+        print(f"wrote {run.out_path}")
+        return 0
+
 
 @dataclass(frozen=True)
 class FolderFailed:
@@ -83,6 +119,10 @@ class FolderFailed:
 
     folder: str
     reason: str
+
+    def show(self, quiet: bool = False) -> int:
+        error(f"{self.folder}: {self.reason}")
+        return 0
 
 
 @dataclass(frozen=True)
@@ -98,6 +138,28 @@ class CalibrateOutcome:
     def failures(self) -> int:
         return sum(r["status"] != "ok" for r in self.rows)
 
+    def table(self) -> str:
+        """``vision-cal calibrate A/ B/``: one line per folder (summary.json's rows)."""
+        def f(x):
+            return "-" if x is None else f"{x:.4f}"
+
+        lines = [f"{'folder':<28}{'status':<8}{'marks':>6}{'skipped':>8}{'rms [mm]':>10}"
+                 f"{'held-out':>10}  effects"]
+        for r in self.rows:
+            if r["status"] != "ok":
+                lines.append(f"{r['folder'][-28:]:<28}{'failed':<8}  {r['reason']}")
+                continue
+            lines.append(f"{r['folder'][-28:]:<28}{'ok':<8}{r['marks']:>6}"
+                         f"{r['skipped_photos']:>8}{f(r['residual_rms_mm']):>10}"
+                         f"{f(r['validation_rms_mm']):>10}  {', '.join(r['effects']) or 'none'}")
+        return "\n".join(lines)
+
+    def show(self, quiet: bool = False) -> int:
+        if self.summary is not None:   # several folders: the table even when quiet
+            print(self.table())
+            print(f"wrote {self.summary}")
+        return 1 if self.failures else 0
+
 
 @dataclass(frozen=True)
 class JointCalibrated:
@@ -106,6 +168,26 @@ class JointCalibrated:
 
     document: dict
     path: Path
+
+    def lines(self) -> list[str]:
+        """``vision-cal calibrate --joint``: each placement's sheet pose and residual, the
+        effects, each placement's verdict and the robot's."""
+        doc = self.document
+        lines = [f"{pl['folder']}: sheet at {pl['angle_deg']:.3f} deg, base "
+                 f"({pl['base_mm'][0]:.3f}, {pl['base_mm'][1]:.3f}) mm, rms "
+                 f"{pl['residual_rms_mm']:.4f} mm" for pl in doc["placements"]]
+        lines.append("effects: " + (", ".join(e["name"] + (f"(joint {e['joint']})"
+                                                           if "joint" in e else "")
+                                              for e in doc["effects"]) or "none"))
+        lines += [f"{pl['folder']}: {Verdict.from_json(pl['verdict']).text}"
+                  for pl in doc["placements"]]
+        return lines + [f"verdict: {Verdict.from_json(doc['verdict']).text}"]
+
+    def show(self, quiet: bool = False) -> int:
+        if not quiet:
+            say(self.lines())
+        print(f"wrote {self.path}")
+        return 0
 
 
 def _ignore(outcome) -> None:

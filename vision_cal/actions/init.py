@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+
+from vision_cal.actions.console import warn
 
 from vision_cal.dataset.io import atomic_write_json, distinct_outputs
 from vision_cal.dataset.out_folder import replacing_files
@@ -32,6 +35,15 @@ class InitOutcome:
     out: str | None
     warnings: tuple[str, ...]
     summary: str
+
+    def show(self, quiet: bool = False) -> int:
+        for w in self.warnings:
+            warn(w)
+        if self.out is None:   # the session itself is the output
+            sys.stdout.write(json.dumps(self.session, indent=2) + "\n")
+        if not quiet:
+            print(self.summary, file=sys.stderr)
+        return 0
 
 
 def init_session(req: InitSessionRequest) -> InitOutcome:

@@ -1,16 +1,17 @@
 """The closed loop on a synthetic scene (``vision-cal loop``): :func:`vision_cal.workflows.loop.run_loop`
-in a locked output folder, then the report. Returns what was found;
-:mod:`vision_cal.actions.console` prints it."""
+in a locked output folder, then the report. Returns what was found, which prints itself."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
 
+from vision_cal.actions.console import say
 from vision_cal.dataset.out_folder import writing_into
 from vision_cal.errors import VisionCalError
-from vision_cal.workflows.loop import run_loop
+from vision_cal.workflows.loop import format_table, run_loop
 from vision_cal.report.html import write_report
+from vision_cal.report.summary import format_summary
 
 
 @dataclass(frozen=True)
@@ -34,6 +35,25 @@ class LoopOutcome:
     calibration: dict
     out: Path
     report: Path | None = None
+
+    def lines(self) -> list[str]:
+        """``vision-cal loop``: the calibration's summary and the targets' table (Table 3)."""
+        return [format_summary(self.calibration), "",
+                "absolute error of each target, measured from the photographs (Table 3):",
+                format_table(self.loop)]
+
+    def report_line(self) -> str:
+        """Where the report is, its size, and where the photos it links are."""
+        path, photos = self.report, self.out
+        return (f"report: {path.resolve()} ({path.stat().st_size / 1e6:.1f} MB; the photos it "
+                f"links are in {photos.resolve()})")
+
+    def show(self, quiet: bool = False) -> int:
+        if not quiet:
+            say(self.lines())
+        if self.report is not None:   # said even when quiet: where to look
+            print(self.report_line())
+        return 0
 
 
 def loop(req: LoopRequest) -> LoopOutcome:

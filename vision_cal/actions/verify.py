@@ -1,13 +1,14 @@
 """The check of a calibration (``vision-cal verify``): the check's photos measured and
 compared with calibration.json (:func:`vision_cal.workflows.verify.verify_folder`), written into an
 output folder that is never an input's (:func:`vision_cal.dataset.out_folder.writing_into`).
-Returns what was found; :mod:`vision_cal.actions.console` prints it."""
+Returns what was found, which prints itself."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
 
+from vision_cal.actions.console import say, warn
 from vision_cal.dataset.out_folder import writing_into
 from vision_cal.errors import VisionCalError
 from vision_cal.workflows.verify import VerifyResult, verify_folder
@@ -34,6 +35,41 @@ class VerifyOutcome:
     path: Path
     warnings: tuple[str, ...] = ()
     written: tuple[Path, ...] = ()    # every file the check wrote into its folder
+
+    def lines(self) -> list[str]:
+        """``vision-cal verify``: each mark's error, the RMS and its bound, which parameters
+        moved, ISO 9283 and the verdict with its reasons."""
+        r = self.result
+        lines = [f"{'mark':<8}{'error x':>10}{'error y':>10}{'|error|':>10}  [mm, the sheet's "
+                 "placement taken out]"]
+        for mid, m in r.marks.items():
+            ex, ey = m["error_mm"]
+            lines.append(f"{mid:<8}{ex:>+10.4f}{ey:>+10.4f}{m['error_norm_mm']:>10.4f}")
+        lines.append(f"RMS {r.rms_mm['sheet_placed']:.4f} mm (bound for 'still good': "
+                     f"{r.bound_mm:.4f} mm)")
+        lines.append(f"{'parameter':<12}{'change':>10}{'std':>9}  moved?")
+        for label, c in r.changes.items():
+            if c.get("sheet_placement"):
+                continue
+            lines.append(f"{label:<12}{c['delta']:>+10.4f}{c['std']:>9.4f}  "
+                         f"{'yes' if c['moved'] else 'no'} ({c['sigmas']:.1f} std)")
+        if r.iso9283:
+            lines.append("ISO 9283 (each visit's own commanded point taken out; assumes the "
+                         "robot's error is the same over each point's few-mm grid of visits):")
+            lines += [f"  {name}: AP {v['AP_mm']:.4f} mm, RP {v['RP_mm']:.4f} mm "
+                      f"({v['n']} visits)" for name, v in r.iso9283.items()]
+        lines.append(f"verdict: {r.verdict}")
+        lines += [f"  - {reason}" for reason in r.reasons]   # one finding or action a line
+        others = [p.name for p in self.written if p != self.path]
+        return lines + [f"wrote {self.path}" + (f" (and {', '.join(others)} beside it: the "
+                                                 "photos as measured)" if others else "")]
+
+    def show(self, quiet: bool = False) -> int:
+        for w in self.warnings:   # --force: the check compared beyond what was calibrated
+            warn(w)
+        if not quiet:
+            say(self.lines())
+        return 0
 
 
 def default_out(folder) -> Path:
