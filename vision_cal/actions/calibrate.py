@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from vision_cal.actions.console import error, say, warn
+from vision_cal.actions.console import Outcome, error, say, warn
 from vision_cal.dataset.io import atomic_write_json, written_together
 from vision_cal.dataset.marks_csv import session_from_marks_csv
 from vision_cal.dataset.out_folder import output_names, refuse_input_folder, writing_into
@@ -195,7 +195,7 @@ def _ignore(outcome) -> None:
 
 
 def calibrate(req: CalibrateRequest,
-              tell: Callable[[object], None] = _ignore) -> CalibrateOutcome | JointCalibrated:
+              tell: Callable[[Outcome], None] = _ignore) -> CalibrateOutcome | JointCalibrated:
     """Calibrate each folder of ``req`` (or one robot from all of them, ``req.joint``).
     Each folder's outcome (:class:`FolderCalibrated`, :class:`FolderFailed`) and the notices
     before it (:class:`OutputsNamed`, :class:`SurveyFound`) go to ``tell`` when they happen;
@@ -228,7 +228,7 @@ def calibrate_joint(req: CalibrateRequest) -> JointCalibrated:
     return JointCalibrated(doc, out / "calibration.json")
 
 
-def calibrate_folders(req: CalibrateRequest, tell: Callable[[object], None]) -> CalibrateOutcome:
+def calibrate_folders(req: CalibrateRequest, tell: Callable[[Outcome], None]) -> CalibrateOutcome:
     """Each folder (or marks CSV) into its own output folder, one after the other; with
     several, a folder that fails is told and skipped, and summary.json written at the end."""
     several = len(req.folders) > 1
@@ -266,7 +266,7 @@ def calibrate_folders(req: CalibrateRequest, tell: Callable[[object], None]) -> 
 
 
 def calibrate_one(req: CalibrateRequest, folder: str, out: Path,
-                  tell: Callable[[object], None]) -> FolderCalibrated:
+                  tell: Callable[[Outcome], None]) -> FolderCalibrated:
     """One dataset folder (or marks CSV) measured, calibrated and written into ``out``
     (with the report, ``--report``)."""
     # OUT holds one run: an earlier run's results go to OUT/previous/ first, so a

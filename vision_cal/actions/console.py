@@ -9,9 +9,17 @@ soon as it is done)."""
 from __future__ import annotations
 
 import sys
-from typing import Iterable
+from typing import Iterable, Protocol
 
 from vision_cal.report.summary import verdict_lines as _summary_verdict_lines
+
+
+class Outcome(Protocol):
+    """What an action returns (or tells as it goes): it prints itself."""
+
+    def show(self, quiet: bool = False) -> int:
+        """Print the command's lines (nothing but warnings and what a quiet run still says,
+        when ``quiet``); the command's exit code."""
 
 
 def say(lines: Iterable[str]) -> None:
