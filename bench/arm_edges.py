@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from vision_cal.camera.arm import ArmView, check_declared_lens, fit_arm_camera, lens_corners
-from vision_cal.diagnose.verdict import judge_camera_poses
+from vision_cal.estimate.verdict import judge_camera_poses
 from vision_cal.measure.types import ImageDetections
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.world import arm_camera as world

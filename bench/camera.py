@@ -50,7 +50,7 @@ import cv2
 import numpy as np
 import yaml
 
-from vision_cal.calibrate.paper import pilot_params
+from vision_cal.estimate.paper import pilot_params
 from vision_cal.camera.fixed import camera_of, locate
 from vision_cal.dataset.io import read_json
 from vision_cal.workflows.pipeline import calibrate_dataset

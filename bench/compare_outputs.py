@@ -125,6 +125,7 @@ def run_side(label: str, tree: Path, out: Path, shared: Path, cases, *, setup: b
             continue
         codes[name] = run_case(name, cmd, tree=tree, out=out, shared=shared,
                                log=out / "_log")
+    (out / "_log").mkdir(exist_ok=True)   # a cases file may have no setup case
     (out / "_log" / "exit_codes.json").write_text(json.dumps(codes, indent=1))
     return codes
 

@@ -30,7 +30,7 @@ from pathlib import Path
 import yaml
 
 from tests.tool.test_placements import _places
-from vision_cal.calibrate.paper import pilot_params
+from vision_cal.estimate.paper import pilot_params
 from vision_cal.commands.main import main
 
 ROOT = Path.cwd()

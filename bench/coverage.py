@@ -26,7 +26,7 @@ measured (clean and a gear-scale error seen from six places, the print off its l
 from six places or from one fixed camera, a clean world from one place): slow, a few seeds
 each. ``--halves``: the replication's split against a model that
 misses an effect (the elbows against marks taken alternately; the figure in
-diagnose/replicate.py's docstring).
+estimate/replicate.py's docstring).
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from vision_cal.dataset.calibration import load_calibration  # noqa: E402
 from vision_cal.dataset.covariance import load_covariance  # noqa: E402
 from vision_cal.dataset.session import Sheet, SheetMarker  # noqa: E402
-from vision_cal.diagnose.verdict import R95_PER_STD  # noqa: E402
+from vision_cal.estimate.verdict import R95_PER_STD  # noqa: E402
 from vision_cal.model.kinematics import ScaraParams  # noqa: E402
 from vision_cal.plan.calibration_plan import informative_plan  # noqa: E402
 from vision_cal.plan.compensate import plan_targets  # noqa: E402
@@ -201,7 +201,7 @@ def render_world(name: str, seed: int, out: Path):
     (true robot, repeatability, the paper's extent)."""
     import yaml
 
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
     from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import scene_from_dict
 
@@ -246,7 +246,7 @@ def render(seeds: int, first: int, scenes) -> None:
 def halves(seeds: int, first: int) -> None:
     """The split's power: a model that misses a gear-scale or cyclic error, and a right one,
     replicated by the elbows and by marks taken alternately."""
-    from vision_cal.diagnose import replicate as rp
+    from vision_cal.estimate import replicate as rp
     from vision_cal.model.lsq import Fit
     from vision_cal.model.robot import JointBacklash, RobotModel
 

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from vision_cal.diagnose.select import diagnose
+from vision_cal.estimate.select import diagnose
 from vision_cal.model.kinematics import ScaraParams, forward
 from vision_cal.model.robot import JointBacklash, JointCyclic, JointScale, SheetAffine
 from vision_cal.world.truth_model import TrueRobot
@@ -80,7 +80,7 @@ def render_grid(seeds: int, width: int, only: str | None = None) -> None:
     import yaml
 
     from vision_cal.workflows.pipeline import calibrate_dataset
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
     from vision_cal.world.dataset import photographer_K, render_dataset
     from vision_cal.world.photo import Photographer
     from vision_cal.world.scene import scene_from_dict

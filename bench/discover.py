@@ -29,9 +29,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from vision_cal.diagnose.discover import trace  # noqa: E402
-from vision_cal.diagnose.select import diagnose  # noqa: E402
-from vision_cal.diagnose.verdict import judge  # noqa: E402
+from vision_cal.estimate.discover import trace  # noqa: E402
+from vision_cal.estimate.select import diagnose  # noqa: E402
+from vision_cal.estimate.verdict import judge  # noqa: E402
 from vision_cal.model.kinematics import ScaraParams  # noqa: E402
 from vision_cal.plan.compensate import plan_targets  # noqa: E402
 from vision_cal.world.truth_model import TrueRobot  # noqa: E402

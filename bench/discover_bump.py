@@ -28,8 +28,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from tests.conftest import SM5, random_plan  # noqa: E402
-from vision_cal.diagnose.discover import trace  # noqa: E402
-from vision_cal.diagnose.select import diagnose  # noqa: E402
+from vision_cal.estimate.discover import trace  # noqa: E402
+from vision_cal.estimate.select import diagnose  # noqa: E402
 from vision_cal.world.truth_model import TrueRobot  # noqa: E402
 
 N, SIGMA, MEAS = 46, 0.01, 0.003

@@ -58,7 +58,7 @@ from vision_cal.camera.handeye_lsq import Problem, View, lens_vector, pose_offse
 from vision_cal.camera.handeye_verdict import judge_handeye, lens_check
 from vision_cal.camera.robot_poses import pair_with_photos, read_robot_poses
 from vision_cal.config import DEFAULT
-from vision_cal.diagnose.verdict import R95_PER_RMS
+from vision_cal.estimate.verdict import R95_PER_RMS
 from vision_cal.dataset.photos import list_photos, load_photo
 from vision_cal.errors import VisionCalError
 from vision_cal.world.six_axis import make_world, observe, shots

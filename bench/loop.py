@@ -72,7 +72,7 @@ def _serial_render(a, doc) -> None:
 
     jobs = a.jobs or os.cpu_count() or 1
     t = time.perf_counter()
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
 
     serial = render_dataset(load_scene(a.scene), Path(a.out) / "session_serial", jobs=1,
                             pilot=pilot_params)

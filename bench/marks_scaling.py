@@ -8,9 +8,9 @@ first, untraced run) on marks of the SM5-like truth drawn with the
 bench's pose spread and 12 um noise (seed 7: not a seed any test uses), and times:
 
 - ``sheet_scan``: the k-nearest-neighbour sheet map with its 999 permutations
-  (``diagnose/structure.py``);
+  (``estimate/structure.py``);
 - ``smooth_residual``: the smooth-residual test with its 1999 permutations
-  (``diagnose/sheet.py``);
+  (``estimate/sheet.py``);
 - ``diagnose``: the whole effect selection (base fit, candidates, k-fold held-out RMS,
   periodogram, sheet map), i.e. the calibration after measurement.
 
@@ -51,9 +51,9 @@ def marks(n: int, seed: int = 7):
 
 
 def child(n: int, with_diagnose: bool) -> dict:
-    from vision_cal.diagnose.select import diagnose
-    from vision_cal.diagnose.sheet import smooth_residual
-    from vision_cal.diagnose.structure import sheet_scan
+    from vision_cal.estimate.select import diagnose
+    from vision_cal.estimate.sheet import smooth_residual
+    from vision_cal.estimate.structure import sheet_scan
 
     q, s, xy = marks(n)
     out = {"marks": n}

@@ -57,7 +57,7 @@ sys.path.insert(0, str(ROOT))
 
 
 def render_folder(folder: Path, n_photos: int) -> None:
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
     from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import scene_from_dict
 
@@ -127,7 +127,7 @@ def _without_grid(folder: Path, tmp: Path) -> Path:
 def reference_table(scenes: list[str], root: Path, seed: int | None) -> None:
     """Mark error against truth.json, marker mapping (global) versus the printed grid
     (local), flat and bumped scenes, in one table; time per photo of both."""
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
     from vision_cal.dataset.session import load_session
     from vision_cal.workflows.measure_folder import measure_folder
     from vision_cal.world.dataset import render_dataset
@@ -188,7 +188,7 @@ def whole_run(folder: Path) -> dict:
     """The whole calibration against plain decode + detect (see the module docstring),
     printed; returns the figures (``bench/speed.py`` writes them to docs/speed.json)."""
     from vision_cal.workflows import pipeline
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
     from vision_cal.dataset.session import load_session
     from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import load_scene
@@ -214,15 +214,15 @@ def whole_run(folder: Path) -> dict:
     plain_all(files[:1], s.sheet.aruco_dictionary)          # warm-up: imports, first call
     before = plain_all(files, s.sheet.aruco_dictionary)
     out = Path(tempfile.mkdtemp(prefix="bench-whole-"))
-    orig = pipeline.measure_marks, pipeline.fit_lsq
+    orig = pipeline.measure_marks, pipeline.fit_marks
     pipeline.measure_marks = timed("measure", orig[0])
-    pipeline.fit_lsq = timed("fit + diagnosis", orig[1])
+    pipeline.fit_marks = timed("fit + diagnosis", orig[1])
     try:
         t, c = time.perf_counter(), time.process_time()
         run = pipeline.calibrate_dataset(folder, out_dir=out, jobs=1)
         whole, whole_cpu = time.perf_counter() - t, time.process_time() - c
     finally:
-        pipeline.measure_marks, pipeline.fit_lsq = orig
+        pipeline.measure_marks, pipeline.fit_marks = orig
         shutil.rmtree(out, ignore_errors=True)
     after = plain_all(files, s.sheet.aruco_dictionary)
     plain, plain_cpu = 0.5 * (before[0] + after[0]), 0.5 * (before[1] + after[1])

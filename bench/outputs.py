@@ -58,7 +58,7 @@ def render_demo() -> None:
     if (DEMO / "session.json").exists():
         return
     sys.path.insert(0, str(ROOT))
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
     from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import load_scene
 

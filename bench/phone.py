@@ -104,7 +104,7 @@ def main() -> int:
 def lenses() -> int:
     import yaml
 
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
     from vision_cal.measure import mapping
     from vision_cal.workflows.pipeline import calibrate_dataset
     from vision_cal.world.dataset import render_dataset

@@ -154,7 +154,7 @@ def worlds(seed: int):
 
 def world_table(seeds) -> int:
     from bench.sheet_height import ROBOT_EFFECTS, plan_miss_mm
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
     from vision_cal.dataset.calibration import load_calibration
     from vision_cal.errors import VisionCalError
     from vision_cal.model.kinematics import ScaraParams

@@ -73,7 +73,7 @@ def _flat_scene(seed: int, tilt_deg: float, k1: float, *, bumps: bool, declared:
 def false_claims(seeds, only: str | None = None) -> int:
     """The flat-sheet false-claim rate and the bumped detection rate (module docstring);
     ``only``: the worlds whose name holds it."""
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
     from vision_cal.workflows.measure_folder import measure_folder
     from vision_cal.world.dataset import render_dataset
 

@@ -43,9 +43,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from vision_cal.calibrate.placements import Placement, fit_placements
+from vision_cal.estimate.placements import Placement, fit_placements
 from vision_cal.model.tool_fit import fit_tool
-from vision_cal.diagnose.verdict import judge
+from vision_cal.estimate.verdict import judge
 from vision_cal.model.robot import JointBacklash, JointScale
 from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.plan.orient import plan_poses
@@ -163,7 +163,7 @@ def render_case(seed: int, *, width_px: int = 1600, keep: Path | None = None) ->
 
     import yaml
 
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
     from vision_cal.design.joint4 import circle_triples, turn_joint4
     from vision_cal.model.kinematics import forward
     from vision_cal.world import dataset as ds

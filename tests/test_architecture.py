@@ -20,7 +20,9 @@ PACKAGE = Path(__file__).resolve().parents[1] / "vision_cal"
 #: what report/ may import besides itself and dataset/: the package root (``__version__``
 #: for the provenance) and the one exception type
 REPORT_MAY_IMPORT = ("vision_cal.report", "vision_cal.dataset")
-REPORT_ALSO = {"vision_cal", "vision_cal.errors"}
+#: ... and measurement.json's one class (``Measurement.read``: the photos, the refused
+#: marks, the sheet as printed), the file's reader, not the estimator
+REPORT_ALSO = {"vision_cal", "vision_cal.errors", "vision_cal.measure.types"}
 
 #: what a command module may import: the actions, the commands package (its ``request``
 #: helper), the one exception type and the progress lines (argparse and the standard
@@ -420,8 +422,7 @@ LAYERS = [
     {"sheet"},
     {"measure"},
     {"identify"},
-    {"calibrate"},
-    {"diagnose"},
+    {"estimate"},
     {"plan"},
     {"program", "world"},
     {"camera", "design"},
@@ -435,7 +436,7 @@ LAYERS = [
 #: sheet/ (the sheet's own print rebuilt from its layout, to see what lies under a dot:
 #: sheet/ draws the sheet and imports only dataset/, so it is below measure, beside the
 #: data); the root's config (thresholds), errors and progress (the bar). Nothing that tells
-#: which dot is which mark (identify/), fits (calibrate/) or plans.
+#: which dot is which mark (identify/), fits (estimate/) or plans.
 MEASURE_MAY_IMPORT = {"measure", "dataset", "model", "sheet", "config", "errors", "progress"}
 
 
@@ -495,16 +496,16 @@ def test_no_package_reaches_up_a_layer(graph):
 def test_measure_imports_nothing_above_dataset_and_model(graph):
     """measure/ turns photos into sheet millimetres: it imports dataset/, model/, sheet/ and
     the root's config, errors and progress (:data:`MEASURE_MAY_IMPORT`), never identify/,
-    calibrate/ or anything above."""
+    estimate/ or anything above."""
     assert "vision_cal.measure.finish" in graph and graph["vision_cal.measure.finish"]
     assert imports_beyond(graph, "measure", MEASURE_MAY_IMPORT) == {}
 
 
 def test_identify_imports_nothing_above_it(graph):
     """identify/ (which dot is which mark, the tool's first guess) imports its layer and the
-    ones below (measure/, sheet/, dataset/, model/, the root's), never calibrate/ or above."""
+    ones below (measure/, sheet/, dataset/, model/, the root's), never estimate/ or above."""
     assert "vision_cal.identify.match" in graph and graph["vision_cal.identify.match"]
-    assert "calibrate" not in at_or_below("identify")
+    assert "estimate" not in at_or_below("identify")
     assert imports_beyond(graph, "identify", at_or_below("identify")) == {}
 
 
@@ -524,29 +525,208 @@ def test_the_layer_checks_see_what_they_guard(tmp_path):
 
 
 def test_the_measure_and_identify_checks_see_what_they_guard(tmp_path):
-    """measure/ importing identify/ inside a function, and identify/ importing calibrate/,
+    """measure/ importing identify/ inside a function, and identify/ importing estimate/,
     are found; measure/ reading the sheet's layout and identify/ importing measure/ are not."""
     pkg = tmp_path / "vision_cal"
-    for d in ("measure", "identify", "calibrate", "sheet", "dataset"):
+    for d in ("measure", "identify", "estimate", "sheet", "dataset"):
         (pkg / d).mkdir(parents=True)
         (pkg / d / "__init__.py").write_text("")
     (pkg / "__init__.py").write_text("")
     (pkg / "config.py").write_text("")
     (pkg / "sheet" / "layout.py").write_text("from vision_cal.dataset import io\n")
     (pkg / "dataset" / "io.py").write_text("")
-    (pkg / "calibrate" / "tool.py").write_text("")
+    (pkg / "estimate" / "tool.py").write_text("")
     (pkg / "measure" / "printed.py").write_text(
         "from vision_cal.sheet import layout\nfrom vision_cal import config\n")
     (pkg / "measure" / "finish.py").write_text(
         "def f():\n    from ..identify import match\n")
     (pkg / "identify" / "match.py").write_text(
-        "from vision_cal.measure import printed\nfrom vision_cal.calibrate.tool import fit\n")
+        "from vision_cal.measure import printed\nfrom vision_cal.estimate.tool import fit\n")
     g = import_graph(pkg)
     assert imports_beyond(g, "measure", MEASURE_MAY_IMPORT) == {
         "vision_cal.measure.finish": ["vision_cal.identify.match"]}
     assert imports_beyond(g, "identify", at_or_below("identify")) == {
-        "vision_cal.identify.match": ["vision_cal.calibrate.tool"]}
-    assert upward_imports(g) == {("measure", "identify"), ("identify", "calibrate")}
+        "vision_cal.identify.match": ["vision_cal.estimate.tool"]}
+    assert upward_imports(g) == {("measure", "identify"), ("identify", "estimate")}
+
+
+#: what estimate/ (marks in, a calibration out) may import: the layers below it, never the
+#: cameras, the planner, the world, the report or the front above it
+ESTIMATE_MAY_IMPORT = {"estimate", "model", "dataset", "sheet", "measure", "identify",
+                       "config", "errors"}
+
+
+def test_estimate_imports_nothing_above_it(graph):
+    """estimate/ (the fits, the diagnosis, the verdict, the calibration's document) imports
+    model/, dataset/, sheet/, measure/, identify/, config and errors, nothing above it
+    (:data:`ESTIMATE_MAY_IMPORT`)."""
+    assert "vision_cal.estimate.document" in graph and graph["vision_cal.estimate.document"]
+    assert imports_beyond(graph, "estimate", ESTIMATE_MAY_IMPORT) == {}
+
+
+def test_the_estimate_check_sees_what_it_guards(tmp_path):
+    """estimate/ reaching for a camera inside a function, and for the front, is found;
+    estimate/ reading the measurement and a file's class is not."""
+    pkg = tmp_path / "vision_cal"
+    for d in ("estimate", "camera", "workflows", "measure", "dataset"):
+        (pkg / d).mkdir(parents=True)
+        (pkg / d / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    for m in ("camera/fixed.py", "workflows/measure_folder.py", "measure/types.py",
+              "dataset/calibration_result.py"):
+        (pkg / m).write_text("")
+    (pkg / "estimate" / "document.py").write_text(
+        "from vision_cal.measure.types import Measurement\n"
+        "from vision_cal.dataset.calibration_result import CalibrationResult\n\n"
+        "def f():\n    from vision_cal.camera.fixed import cameras_json\n")
+    (pkg / "estimate" / "marks.py").write_text(
+        "import vision_cal.workflows.measure_folder\n")
+    g = import_graph(pkg)
+    assert imports_beyond(g, "estimate", ESTIMATE_MAY_IMPORT) == {
+        "vision_cal.estimate.document": ["vision_cal.camera.fixed"],
+        "vision_cal.estimate.marks": ["vision_cal.workflows.measure_folder"]}
+
+
+#: one file, one class: the module whose class alone reads and writes each file (its
+#: ``read`` and ``write``), how a path names the file, and how an argument given for it does
+#: (the file named, a reader's ``what``, a name for its path)
+FILE_OWNERS = {
+    "calibration.json": ("vision_cal.dataset.calibration_result",
+                         re.compile(r"calibration\.json"),
+                         re.compile(r"calibration\.json|what=['\"]calibration['\"]"
+                                    r"|\bcal(ibration)?_path\b")),
+    "measurement.json": ("vision_cal.measure.types",
+                         re.compile(r"measurement\.json"),
+                         re.compile(r"measurement\.json|what=['\"]measurement['\"]"
+                                    r"|\bmeas(urement)?_path\b")),
+}
+#: what reads or writes a file -> which argument is the file (None: the path whose method
+#: it is): the JSON readers and writers, open, a path's own
+_FILE_IO = {"read_json": 0, "atomic_write_json": 0, "atomic_write_text": 0,
+            "atomic_write_bytes": 0, "load": 0, "loads": 0, "dump": 1, "open": 0,
+            "read_text": None, "write_text": None, "read_bytes": None, "write_bytes": None}
+
+
+def _io_calls(nodes, io: dict) -> list:
+    """(call, the file it reads or writes, as written) of the calls among ``nodes`` to a
+    reader or writer of ``io``."""
+    out = []
+    for n in nodes:
+        if not isinstance(n, ast.Call):
+            continue
+        f = n.func
+        name = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", "")
+        if name not in io:
+            continue
+        k = io[name]
+        if k is None:
+            what = ast.unparse(f.value) if isinstance(f, ast.Attribute) else ""
+        else:
+            what = ast.unparse(n.args[k]) if len(n.args) > k else ""
+        what += "".join(f" what={ast.unparse(w.value)}" for w in n.keywords if w.arg == "what")
+        out.append((n, what))
+    return out
+
+
+def _bindings(nodes, the_file) -> set[str]:
+    """The names bound among ``nodes`` to an expression naming ``the_file``."""
+    out = set()
+    for n in nodes:
+        if isinstance(n, ast.Assign):
+            value, target = n.value, n.targets[0]
+        elif isinstance(n, ast.For):
+            value, target = n.iter, n.target
+        elif isinstance(n, ast.withitem) and n.optional_vars is not None:
+            value, target = n.context_expr, n.optional_vars
+        else:
+            continue
+        if the_file.search(ast.unparse(value)):
+            out |= {t.id for t in ast.walk(target) if isinstance(t, ast.Name)}
+    return out
+
+
+def file_io_violations(package: Path = PACKAGE) -> dict[str, list[str]]:
+    """Module -> where it reads or writes a file of :data:`FILE_OWNERS` by other means than
+    its class (line: file: the call): a JSON reader or writer given the file's path (named
+    there, or a name bound to an expression naming the file: ``for p in
+    folder.rglob("calibration.json")``; a path naming another file, ``cal_path.parent /
+    "session.json"``, is that file's), directly or through a function of the module that
+    reads or writes its argument."""
+    out: dict[str, list[str]] = {}
+    for name, path in modules(package).items():
+        text = path.read_text(encoding="utf-8")
+        files = {k: v for k, v in FILE_OWNERS.items() if name != v[0] and v[2].search(text)}
+        if not files:
+            continue                   # the module never names the files: nothing to read
+        tree = parsed(path)
+        funcs = [n for n in ast.walk(tree) if isinstance(n, (ast.FunctionDef,
+                                                              ast.AsyncFunctionDef))]
+        top = [x for n in tree.body if not isinstance(n, (ast.FunctionDef,
+                                                            ast.AsyncFunctionDef, ast.ClassDef))
+               for x in ast.walk(n)]
+        scopes = [top] + [list(ast.walk(f)) for f in funcs]
+        io = dict(_FILE_IO)   # the module's own wrappers: _read(path) -> read_json(path)
+        for f, nodes in zip(funcs, scopes[1:]):
+            params = [a.arg for a in f.args.args]
+            hit = [params.index(w) for _, what in _io_calls(nodes, io)
+                   for w in [what.split(" what=")[0]] if w in params]
+            if hit:
+                io[f.name] = hit[0]
+        for file, (owner, the_file, names_it) in files.items():
+            for nodes in scopes:
+                bound = _bindings(nodes, the_file) if the_file.search(text) else set()
+                for call, what in _io_calls(nodes, io):
+                    other = {m for m in re.findall(r"[\w.-]+\.json", what) if m != file}
+                    if other:           # a path that names another file (a folder's)
+                        continue
+                    if names_it.search(what) or any(
+                            re.search(rf"\b{re.escape(b)}\b", what) for b in bound):
+                        out.setdefault(name, []).append(
+                            f"{call.lineno}: {file}: {ast.unparse(call)[:70]}")
+    return {k: sorted(set(v), key=lambda s: int(s.split(":")[0])) for k, v in out.items()}
+
+
+def test_one_writer_and_one_reader_per_file():
+    """calibration.json is read and written by CalibrationResult alone, measurement.json
+    by Measurement alone: no other module gives the file's path to a JSON reader or
+    writer (:func:`file_io_violations`)."""
+    assert file_io_violations() == {}
+
+
+def test_the_file_check_sees_what_it_guards(tmp_path):
+    """A dict written to calibration.json, calibration.json found by a glob and read, a
+    calibration read by ``what``, a path read through the module's own helper, and
+    measurement.json loaded with json, are found; the owners' own reading and writing,
+    the class's reader called elsewhere and another file read are not."""
+    pkg = tmp_path / "vision_cal"
+    for d in ("dataset", "measure", "actions", "report"):
+        (pkg / d).mkdir(parents=True)
+        (pkg / d / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "dataset" / "calibration_result.py").write_text(
+        "def read(path):\n    return read_json(path, what='calibration')\n\n"
+        "def write(doc, path):\n    atomic_write_json(path, doc)\n")
+    (pkg / "measure" / "types.py").write_text(
+        "def write(m, out):\n    atomic_write_json(out / 'measurement.json', m)\n")
+    (pkg / "actions" / "handeye.py").write_text(
+        "def run(out, doc):\n    return atomic_write_json(out / 'calibration.json', doc)\n")
+    (pkg / "report" / "history.py").write_text(
+        "def rows(folder):\n    for p in sorted(folder.rglob('calibration.json')):\n"
+        "        yield read_json(p)\n\n"
+        "def one(path):\n    return read_json(path, what='calibration')\n")
+    (pkg / "report" / "html.py").write_text(
+        "import json\n\ndef _read(path):\n    return read_json(path)\n\n"
+        "def build(cal_path, out):\n    cal = CalibrationResult.read(cal_path)\n"
+        "    meas = _read(cal_path.parent / 'measurement.json')\n"
+        "    m = json.loads((out / 'measurement.json').read_text())\n"
+        "    session = _read(out / 'session.json')\n    return cal, meas, m, session\n")
+    found = file_io_violations(pkg)
+    assert set(found) == {"vision_cal.actions.handeye", "vision_cal.report.history",
+                          "vision_cal.report.html"}, found
+    assert [s.split(":")[:2] for s in found["vision_cal.report.history"]] == [
+        ["3", " calibration.json"], ["6", " calibration.json"]]
+    assert {tuple(s.split(":")[:2]) for s in found["vision_cal.report.html"]} == {
+        ("8", " measurement.json"), ("9", " measurement.json")}
 
 
 #: what the synthetic world (world/) may import, and why: its own package; dataset/ (the
@@ -554,7 +734,7 @@ def test_the_measure_and_identify_checks_see_what_they_guard(tmp_path):
 #: photographs), plan/ (the plans and trajectories a user runs, made from the nominal robot
 #: as a user makes them), model/motion (the joint limits and the 16 ms period: one owner)
 #: and the root's errors and progress. Nothing that estimates (the robot model, the
-#: kinematics, measure/, identify/, calibrate/, diagnose/, camera/): a convention error
+#: kinematics, measure/, identify/, estimate/, camera/): a convention error
 #: there would cancel between the data and the fit, and no test could see it
 WORLD_MAY_IMPORT = {"world", "dataset", "sheet", "plan", "errors", "progress",
                     "vision_cal.model.motion"}
@@ -646,8 +826,6 @@ SOLVER_WORLD = {
 #: modules other engineers are changing now; each moves to the one solver after they merge
 #: (issue 39), and leaves this set when it does
 SOLVER_PENDING = {
-    "vision_cal.measure.asprinted": "the as-printed bundle adjustment: helpers survey and "
-                                    "printoff are changing it now (issue 37)",
 }
 _INVERSES = {"inv", "pinv", "solve", "lstsq", "cholesky", "cho_factor", "cho_solve"}
 _TRANSPOSED = re.compile(r"\.T\s*@")

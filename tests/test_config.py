@@ -12,28 +12,30 @@ import numpy as np
 import pytest
 
 import vision_cal
-from tests.diagnose.test_discover import _world
-from tests.diagnose.test_verdict import REP, _fit_doc
+from tests.estimate.test_discover import _world
+from tests.estimate.test_verdict import REP, _fit_doc
 from tests.measure import synth_measure as sm
 from tests.measure.test_measure_grid import _mapping_shifted
 from tests.measure.test_measure_no_images import _groups
 from tests.tool.test_placements import _kinematic_places
-from vision_cal.calibrate import joint4, placements
+from vision_cal.estimate import joint4, placements
 from vision_cal.camera import pose_pairs
 from vision_cal.config import (DEFAULT, AssociationConfig, DiscoveryConfig, DotConfig,
                                EstimatorConfig, GridConfig, GridDeclarationConfig, Joint4Config,
                                PhotoAgreementConfig, PlanMatchConfig, SelectionConfig,
                                SheetHeightConfig, SmoothResidualConfig, VerdictConfig)
 from vision_cal.dataset.session import SheetGrid, load_session
-from vision_cal.diagnose import discover, sheet, verdict
-from vision_cal.diagnose.select import diagnose
+from vision_cal.estimate import discover, sheet, verdict
+from vision_cal.estimate import verify as check
+from vision_cal.estimate.select import diagnose
 from vision_cal.errors import CalibrationError
 from vision_cal.identify import associate, infer, plan_match
 from vision_cal.measure import (asprinted, dots, grid, grid_declaration, height,
                                 photo_agreement, replicate, sheetfit, survey)
 from vision_cal.measure.finish import measure_image
 from vision_cal.measure.cache import session_fingerprint
-from vision_cal.workflows.pipeline import MarkData, calibrate_dataset
+from vision_cal.estimate.marks import MarkData
+from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.world.camera import project
 from vision_cal.world.truth_model import TrueRobot
 from vision_cal.report.headline import configuration
@@ -41,7 +43,7 @@ from vision_cal.report.headline import configuration
 #: the modules whose thresholds moved into config.py, and the module-level numbers they may
 #: still keep (physical, format or statistical constants, not thresholds)
 CONFIGURED = {dots: (), grid: (), sheetfit: (), discover: (), joint4: (),
-              verdict: ("R95_PER_RMS",), associate: (), height: (), plan_match: (),
+              verdict: ("R95_PER_RMS",), check: (), associate: (), height: (), plan_match: (),
               photo_agreement: (), grid_declaration: (), placements: (), infer: (),
               pose_pairs: ("_TINY",),   # a numerical guard (exact synthetic pairs)
               asprinted: (), survey: (), replicate: (),
@@ -105,7 +107,7 @@ def test_calibration_json_says_how_it_was_obtained(paper_folder, tmp_path):
                                   "per_photo_offsets", "sheet_fit", "grid", "sheet_height",
                                   "plan_match", "photo_agreement", "grid_declaration",
                                   "smooth_residual", "discovery", "joint4", "verdict",
-                                  "handeye", "handeye_photos", "as_printed", "uncertainty"}
+                                  "verify", "handeye", "handeye_photos", "as_printed", "uncertainty"}
     assert doc["config"]["selection"]["alpha"] == 0.01
     cfg = replace(DEFAULT, selection=SelectionConfig(alpha=1e-3, k_folds=3, max_effects=1))
     calibrate_dataset(paper_folder, out_dir=tmp_path / "c", config=cfg)
@@ -159,7 +161,7 @@ def test_the_verdict_judges_by_the_thresholds_the_file_recorded():
 
 
 def test_a_discovery_setting_passed_in_changes_the_search():
-    """A coupling discovery names by default (tests/diagnose/test_discover.py) is not
+    """A coupling discovery names by default (tests/estimate/test_discover.py) is not
     searched for with ``max_terms = 0``, and the scans' level follows ``scan_level``."""
     _, q, s, t, xy = _world([{"name": "joint_terms", "joint": 2,
                               "terms": [{"feature": "q1", "coef": 0.003}]}], seed=7)

@@ -1,4 +1,4 @@
-"""vision_cal.workflows.verify.compare on kinematic data (no photos): the verdict and the moved
+"""vision_cal.estimate.verify.compare on kinematic data (no photos): the verdict and the moved
 parameters, with bounds from the reported std and the noise put in."""
 
 from __future__ import annotations
@@ -9,7 +9,10 @@ import pytest
 from tests.conftest import SM5, random_plan
 from vision_cal.errors import CalibrationError
 from vision_cal.model.robot import JointBacklash, RobotModel
-from vision_cal.workflows.verify import MOVED_SIGMA, compare
+from vision_cal.config import DEFAULT
+from vision_cal.estimate.verify import compare
+
+MOVED_SIGMA = DEFAULT.verify.moved_sigma
 
 NOISE_MM = 0.01                      # per axis, as the rendered photos measure
 CAL_DOC = {"validation_rms_mm": {"final_model": NOISE_MM * np.sqrt(2)}}
@@ -57,6 +60,22 @@ def test_a_changed_link_or_backlash_means_recalibrate():
     r = check(RobotModel(SM5, (JointBacklash(2, 0.25),)), 32)
     assert r.verdict == "recalibrate", r.reasons
     assert r.rms_mm["refitted"] > r.bound_mm
+
+
+def test_the_thresholds_are_the_calibrations_own():
+    """The check is judged with the ``config.verify`` the calibration recorded (verify.json
+    says which): a moved zero is no move where the file asks for more std."""
+    r = check(moved(CAL, z2=0.04, z1=-0.5, base=(5.0, 3.0)), 21)
+    lax = dict(CAL_DOC, config={"verify": {"moved_sigma": 1e6, "tolerance_factor": 1e3}})
+    rng = np.random.default_rng(21)
+    q, s = random_plan(10, rng)
+    xy = moved(CAL, z2=0.04, z1=-0.5, base=(5.0, 3.0)).predict(q, s) + rng.normal(
+        0, NOISE_MM, (10, 2))
+    r2 = compare(CAL, lax, [f"c{i:02d}" for i in range(10)], q, s, xy)
+    assert r.changes["z2_deg"]["moved"] and not r2.changes["z2_deg"]["moved"]
+    assert r2.verdict == "still good" and r2.to_json()["thresholds"] == {
+        "moved_sigma": 1e6, "tolerance_factor": 1e3}
+    assert r.to_json()["thresholds"] == {"moved_sigma": MOVED_SIGMA, "tolerance_factor": 2.0}
 
 
 def test_too_few_marks_is_a_calibration_error():

@@ -11,7 +11,7 @@ import pytest
 import dataclasses
 
 from vision_cal.camera.arm import LABELS, ArmView, T_sheet_flange, fit_arm_camera
-from vision_cal.diagnose.verdict import judge_camera_poses
+from vision_cal.estimate.verdict import judge_camera_poses
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.world import arm_camera as world
 from vision_cal.world.sheet import make_sheet

@@ -13,7 +13,7 @@ import pytest
 from tests.camera.test_arm import NOMINAL, TRUTH, _field, _plan
 from vision_cal.camera.arm import ArmView, check_declared_lens, fit_arm_camera
 from vision_cal.workflows.arm_session import lens_height_reason, undetermined_reasons
-from vision_cal.diagnose.verdict import judge_camera_poses
+from vision_cal.estimate.verdict import judge_camera_poses
 from vision_cal.world import arm_camera as world
 
 SIZE = (1280, 960)

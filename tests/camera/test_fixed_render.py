@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import yaml
 
-from vision_cal.calibrate.paper import pilot_params
+from vision_cal.estimate.paper import pilot_params
 from vision_cal.camera.export import quaternion_xyzw, transform_path
 from vision_cal.camera.fixed import camera_of, locate
 from vision_cal.commands.main import main

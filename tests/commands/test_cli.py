@@ -78,7 +78,7 @@ def test_plan_command_writes_plan_and_trajectory(paper_folder, tmp_path, capsys)
     ids, q, s = read_plan(tmp_path / "plan.csv")
     assert ids == ["origin", "p1"] and (s == 1).all()
     # consistency (FK of the planned IK, not a paper figure; the paper's Table 3 is checked
-    # against its measured numbers in tests/calibrate/test_paper.py): the calibrated
+    # against its measured numbers in tests/estimate/test_paper.py): the calibrated
     # model puts the planned command on the sheet origin
     doc = json.loads(cal.read_text())
     from vision_cal.model.kinematics import ScaraParams, forward

@@ -1,7 +1,7 @@
 """`vision-cal export` refuses a calibration.json whose units are implausible (issue 29:
 "radian limits into the URDF"): lengths in metres, joint zeros or joint limits in radians,
 one line naming the file and the field, nothing written. The check's owner is
-calibrate/plausible.py (verify uses the same)."""
+estimate/plausible.py (verify uses the same)."""
 
 from __future__ import annotations
 

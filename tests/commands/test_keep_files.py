@@ -263,7 +263,7 @@ def test_ctrl_c_during_a_joint_run_leaves_nothing_that_looks_current(tmp_path, c
     def interrupted(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(placements, "fit_placements", interrupted)
+    monkeypatch.setattr(placements, "calibrate_placed", interrupted)
     rc, _, _ = cli(["calibrate", *places, "--joint", "--out", out, "-q"], capsys)
     assert rc == 130
     after = snapshot(out)

@@ -367,8 +367,7 @@ def test_ctrl_c_after_the_photos_are_measured_leaves_nothing_that_looks_current(
         raise KeyboardInterrupt
 
     monkeypatch.setattr(pipeline, "measure_marks", spy)
-    monkeypatch.setattr(pipeline, "fit_lsq", interrupted)
-    monkeypatch.setattr(pipeline, "fit_paper", interrupted)
+    monkeypatch.setattr(pipeline, "fit_marks", interrupted)
     rc, _, _ = cli([folder, "-o", out, "-j", "1", "-q"], capsys)
     assert rc == 130
     assert measured and measured[0] is not None      # the photos were measured, then Ctrl-C

@@ -48,7 +48,7 @@ def rendered_run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("schema")
     sc = load_scene(ROOT / "renders" / "small.yaml").with_overrides(mode="single")
     sc = replace(sc, plan=replace(sc.plan, n_calibration=12, n_validation=3))
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
 
     folder = render_dataset(sc, tmp / "data", pilot=pilot_params)
     run = calibrate_dataset(folder, out_dir=tmp / "out", jobs=1)

@@ -22,7 +22,7 @@ from vision_cal.commands.main import main
 from vision_cal.dataset import valid_for as vf_mod
 from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.trust import require_usable_pilot
-from vision_cal.diagnose.verdict import judge
+from vision_cal.estimate.verdict import judge
 
 ROOT = Path(__file__).resolve().parents[2]
 

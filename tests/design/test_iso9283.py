@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from tests.conftest import SM5
-from vision_cal.design.iso9283 import ap_rp, iso_marks, iso_points_mm, offsets_mm
+from vision_cal.design.iso9283 import iso_marks, iso_points_mm, offsets_mm
+from vision_cal.estimate.verify import ap_rp
 from vision_cal.model.robot import RobotModel
 
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from tests.design.conftest import ROBOT, border_sheet
-from vision_cal.calibrate.paper import paper_method
+from vision_cal.estimate.paper import paper_method
 from vision_cal.dataset.robot import load_robot_file
 from vision_cal.design.pilot import design_pilot, pens_mm
 from vision_cal.errors import VisionCalError
@@ -121,7 +121,7 @@ def _pilot_calibration(tmp_path, pilot_dir, edit) -> Path:
     """The pilot's nine marks drawn by a true robot (0.02 mm of noise, measured_mm: no
     photos), calibrated, its document edited by ``edit`` and judged again as the pipeline
     judges a pilot."""
-    from vision_cal.diagnose.verdict import judge
+    from vision_cal.estimate.verdict import judge
     from vision_cal.world.truth_model import TrueRobot
     from vision_cal.workflows.pipeline import calibrate_dataset
 

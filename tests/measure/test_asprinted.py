@@ -222,3 +222,28 @@ def test_the_marks_between_the_markers_are_within_what_the_solve_states(seed):
     assert ap.limit_mm == max(ap.unresolved_mm, ap.interior_mm)
     back = AsPrinted.from_json(ap.to_json())
     assert back.interior_mm == pytest.approx(ap.interior_mm) and back.limit_mm == ap.limit_mm
+
+
+def test_a_lens_the_views_do_not_fix_leaves_the_corners_std_unknown(monkeypatch):
+    """The one covariance policy (``vision_cal.model.solve.covariance``): a direction of the
+    lens or the corners the views do not fix is named and gives the corners no std (NaN,
+    no covariance, nothing claimed between the markers), never the small one a
+    pseudo-inverse gives it. Three places at a condition limit of 1e4 stand in for a
+    geometry that cannot tell the focal length from the distances (the lens free); with the
+    lens declared the same limit fixes everything the photos share."""
+    import vision_cal.measure.asprinted as asprinted
+    from vision_cal.model import solve
+
+    monkeypatch.setattr(asprinted, "covariance",
+                        lambda J, **kw: solve.covariance(J, cond_limit=1e4, **kw))
+    ids, declared = _layout()
+    dev = _deviation(declared.reshape(-1, 2), 0.17).reshape(declared.shape)
+    views = [(f, i, declared, px) for f, i, _, px in
+             _views(declared + dev, ids, PLACES6[:3], np.random.default_rng(3))]
+    free = estimate_as_printed(views, K, DIST, SIZE, lens_free=True)
+    assert free.notes[-1].startswith("the views do not fix f ~ ")
+    assert np.isnan(free.std_mm[free.released]).all()
+    assert free.corner_cov_mm2 is None and free.interior_cov_mm2 is None
+    held = estimate_as_printed(views, K, DIST, SIZE, lens_free=False)
+    assert held.notes == ()
+    assert np.isfinite(held.std_mm).all() and held.corner_cov_mm2 is not None

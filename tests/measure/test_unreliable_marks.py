@@ -11,7 +11,8 @@ from vision_cal.identify import marks as identify_marks
 from vision_cal.identify.match import AssociatedDots
 from vision_cal.identify.associate import DotGroup
 from vision_cal.measure.types import MarkMeasurement, Measurement
-from vision_cal.workflows.pipeline import _unreliable_marks, collect_marks
+from vision_cal.estimate.document import _unreliable_marks
+from vision_cal.estimate.marks import collect_marks
 from vision_cal.report.headline import mark_rows
 
 from pathlib import Path

@@ -10,7 +10,7 @@ import pytest
 
 from tests.conftest import SM5
 from tests.plan.test_calibration_plan import NOMINAL, make_sheet
-from vision_cal.calibrate.paper_scale import check_bars, paper_scale_block
+from vision_cal.estimate.paper_scale import check_bars, paper_scale_block
 from vision_cal.commands.main import main
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.covariance import load_covariance

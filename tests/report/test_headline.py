@@ -10,7 +10,7 @@ import math
 import pytest
 
 from vision_cal.commands.main import main
-from vision_cal.diagnose.verdict import R95_PER_RMS, Verdict, judge
+from vision_cal.estimate.verdict import R95_PER_RMS, Verdict, judge
 from vision_cal.report import headline as hl
 from vision_cal.report import plots
 

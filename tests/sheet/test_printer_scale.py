@@ -11,7 +11,7 @@ import pytest
 from tests.conftest import ROOT
 from vision_cal.commands.main import main
 from vision_cal.dataset.session import Sheet
-from vision_cal.workflows.pipeline import printer_scale
+from vision_cal.estimate.document import printer_scale
 
 
 def _sheet(measured):

@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 
-from vision_cal.calibrate.placements import Placement, fit_placements
+from vision_cal.estimate.placements import Placement, fit_placements
 from vision_cal.commands.main import main
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.calibration_result import METHODS_EXTRA, CalibrationResult
@@ -109,7 +109,7 @@ def test_a_cubic_joint_error_is_not_named_joint_scale():
     assert "joint_scale(joint 1)" not in [e.label for e in fit.effects]
     scale = next(r for r in log if r["effect"] == "joint_scale(joint 1)")
     assert not scale["accepted"] and "q1^3 (joint 1)" in scale["alternative"]
-    from vision_cal.calibrate.placements import unexplained_seen
+    from vision_cal.estimate.placements import unexplained_seen
 
     assert any("q1^3 (joint 1)" in s and "joint_scale(joint 1)" in s
                for s in unexplained_seen(log))

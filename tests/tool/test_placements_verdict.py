@@ -13,7 +13,7 @@ import pytest
 
 from tests.tool.test_placements import _places
 from vision_cal.commands.main import main
-from vision_cal.diagnose.verdict import judge_placements
+from vision_cal.estimate.verdict import judge_placements
 
 ROOT = Path(__file__).resolve().parents[2]
 

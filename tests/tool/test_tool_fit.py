@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from vision_cal.model.tool_fit import fit_tool, folded_statement
-from vision_cal.calibrate.tool import paper_tool
+from vision_cal.estimate.tool import paper_tool
 from vision_cal.errors import CalibrationError
 from vision_cal.model.robot import JointBacklash, JointScale
 from vision_cal.world.truth_model import TrueRobot

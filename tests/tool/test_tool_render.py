@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from vision_cal.calibrate.paper import pilot_params
+from vision_cal.estimate.paper import pilot_params
 from vision_cal.design.joint4 import turn_joint4
 from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.world import dataset as ds

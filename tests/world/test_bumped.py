@@ -42,7 +42,7 @@ def _measure(tmp_path, scene, name, *, drop_grid=False):
     from vision_cal.workflows.measure_folder import measure_folder
     from vision_cal.world.dataset import render_dataset
 
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
 
     folder = render_dataset(scene, tmp_path / name, pilot=pilot_params)
     if drop_grid:

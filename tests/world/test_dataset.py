@@ -9,7 +9,7 @@ import pytest
 
 from vision_cal.dataset.session import load_session
 from vision_cal.errors import VisionCalError
-from vision_cal.calibrate.paper import pilot_params
+from vision_cal.estimate.paper import pilot_params
 from vision_cal.world import dataset as ds
 from vision_cal.world.camera import project
 from vision_cal.world.scene import load_scene

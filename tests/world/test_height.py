@@ -69,7 +69,7 @@ def test_raised_ink_moves_by_z_r_over_H(photographer, K, small_sheet, small_mark
 
 
 def test_rendered_dataset_records_the_field(tmp_path):
-    from vision_cal.calibrate.paper import pilot_params
+    from vision_cal.estimate.paper import pilot_params
     from vision_cal.dataset.io import read_json
     from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import scene_from_dict

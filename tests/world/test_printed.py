@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vision_cal.calibrate.paper import pilot_params
+from vision_cal.estimate.paper import pilot_params
 from vision_cal.commands.main import main
 from vision_cal.errors import VisionCalError
 from vision_cal.world.printed import load_printed_sheet, printed_texture

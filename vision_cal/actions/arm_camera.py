@@ -13,9 +13,9 @@ from pathlib import Path
 
 from vision_cal.actions.console import say, verdict_lines
 from vision_cal.workflows.arm_session import calibrate_arm_camera
-from vision_cal.dataset.io import atomic_write_json
+from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.out_folder import writing_into
-from vision_cal.diagnose.verdict import Verdict
+from vision_cal.estimate.verdict import Verdict
 from vision_cal.errors import VisionCalError
 
 
@@ -85,5 +85,5 @@ def calibrate_arm(req: ArmCameraRequest) -> ArmCameraOutcome:
                       quiet=req.quiet) as out:
         doc = calibrate_arm_camera(req.folder, cache_dir=out / ".cache", progress=not req.quiet,
                                    jobs=req.jobs or os.cpu_count() or 1)
-        path = atomic_write_json(out / "calibration.json", doc)
+        path = CalibrationResult.from_json(doc).write(out / "calibration.json")
     return ArmCameraOutcome(doc, path)

@@ -16,7 +16,7 @@ from vision_cal.actions.console import Outcome, error, say, warn
 from vision_cal.dataset.io import atomic_write_json, written_together
 from vision_cal.dataset.marks_csv import session_from_marks_csv
 from vision_cal.dataset.out_folder import output_names, refuse_input_folder, writing_into
-from vision_cal.diagnose.verdict import Verdict
+from vision_cal.estimate.verdict import Verdict
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.replicate import measures_the_print
 from vision_cal.measure.survey import applicable, find_survey

@@ -39,6 +39,6 @@ def error(text: str) -> None:
 
 
 def verdict_lines(v) -> list[str]:
-    """A :class:`~vision_cal.diagnose.verdict.Verdict` as the console's lines (one reason a
+    """A :class:`~vision_cal.estimate.verdict.Verdict` as the console's lines (one reason a
     line: :func:`vision_cal.report.summary.verdict_lines`)."""
     return _summary_verdict_lines({**v.to_json(), "text": v.text})

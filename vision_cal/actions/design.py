@@ -8,7 +8,7 @@ from pathlib import Path
 
 from vision_cal.actions.console import say, warn
 
-from vision_cal.calibrate.plausible import check_links_against
+from vision_cal.estimate.plausible import check_links_against
 from vision_cal.camera.arm_design import check_design, design_camera_on_arm
 from vision_cal.dataset.calibration import refuse_robot_frame
 from vision_cal.dataset.calibration_result import CalibrationResult

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 from vision_cal.actions.console import say, warn
 
-from vision_cal.calibrate.plausible import check_units
+from vision_cal.estimate.plausible import check_units
 from vision_cal.camera.export import transform_path, write_opencv, write_ros
 from vision_cal.camera.fixed import camera_of
 from vision_cal.camera.handeye_locate import flange_camera_of, is_flange_camera
@@ -78,7 +78,7 @@ def export_calibration(req: ExportRequest) -> ExportOutcome:
                              field="--urdf" if req.urdf else ("--yaml" if req.yaml
                                                              else "--robot"))
     robot = load_robot_file(req.robot) if req.robot else None
-    # metres, radians: refused before anything is written (the owner: calibrate/plausible)
+    # metres, radians: refused before anything is written (the owner: estimate/plausible)
     if model is not None:
         check_units(model, doc, file=str(req.calibration),
                     nominal=None if robot is None else robot.nominal,

@@ -1,6 +1,6 @@
 """The hand-eye from pose pairs (``vision-cal handeye --poses FILE``): the file read
 (:mod:`vision_cal.camera.poses_file`), the fit (:mod:`vision_cal.camera.pose_pairs`), the
-contract's verdict (:func:`vision_cal.diagnose.verdict.judge_camera_poses`, each pair's
+contract's verdict (:func:`vision_cal.estimate.verdict.judge_camera_poses`, each pair's
 target position standing for a mark) and calibration.json (docs/format.md, "Hand-eye from
 pose pairs"). Returns what was found, which prints itself.
 
@@ -18,10 +18,9 @@ from vision_cal.actions.console import say, verdict_lines
 from vision_cal.camera.pose_pairs import LABELS, PairsFit, fit_pose_pairs
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.calibration_result import CalibrationResult
-from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.out_folder import writing_into
 from vision_cal.camera.poses_file import read_poses
-from vision_cal.diagnose.verdict import Verdict, judge_camera_poses
+from vision_cal.estimate.verdict import Verdict, judge_camera_poses
 from vision_cal.errors import CalibrationError
 # the photos-and-poses path (issue 40)
 from vision_cal.camera.board import find_board, load_board
@@ -206,7 +205,7 @@ def handeye_pairs(req: HandeyeRequest) -> HandeyePairsOutcome:
     # earlier run's results go to previous/; locked while written
     with writing_into(req.out, command="handeye", inputs=[("--poses", req.poses)],
                       quiet=req.quiet) as out:
-        path = atomic_write_json(out / "calibration.json", doc)
+        path = CalibrationResult.from_json(doc).write(out / "calibration.json")
     return HandeyePairsOutcome(fit, doc, path)
 
 
@@ -350,5 +349,5 @@ def handeye_photos(req: HandeyePhotosRequest) -> HandeyePhotosOutcome:
     with writing_into(req.out, command="handeye",
                       inputs=[("PHOTOS", req.folder), ("--robot-poses", req.robot_poses)],
                       quiet=req.quiet) as out:
-        path = atomic_write_json(out / "calibration.json", doc)
+        path = CalibrationResult.from_json(doc).write(out / "calibration.json")
     return HandeyePhotosOutcome(fit, doc, path, tuple(skipped))

@@ -8,7 +8,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from vision_cal.calibrate.paper import pilot_params
+from vision_cal.estimate.paper import pilot_params
 from vision_cal.dataset.out_folder import writing_into
 from vision_cal.errors import VisionCalError
 from vision_cal.world.dataset import render_dataset

@@ -11,7 +11,8 @@ from pathlib import Path
 from vision_cal.actions.console import say, warn
 from vision_cal.dataset.out_folder import writing_into
 from vision_cal.errors import VisionCalError
-from vision_cal.workflows.verify import VerifyResult, verify_folder
+from vision_cal.estimate.verify import VerifyResult
+from vision_cal.workflows.verify import verify_folder
 
 
 @dataclass(frozen=True)

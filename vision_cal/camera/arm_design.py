@@ -40,7 +40,7 @@ def add_repeats(poses: list[dict], n_repeats: int, home_deg=(0.0, 0.0),
     on each joint's approach side (``via_deg``: program only, no photo) and comes back, so
     the second photo (``repeat_of``) is reached from the same sides after a real move: the
     two differ by the robot's repeatability alone, which the verdict then measures
-    (``diagnose/verdict.judge_camera_poses``). Images renumbered in driving order."""
+    (``estimate/verdict.judge_camera_poses``). Images renumbered in driving order."""
     if n_repeats <= 0:
         return poses
     q = np.array([p["joints_deg"] for p in poses], float)

@@ -19,7 +19,7 @@ import numpy as np
 
 from vision_cal.camera.handeye import HandeyeFit
 from vision_cal.config import DEFAULT, HandeyePhotosConfig
-from vision_cal.diagnose.verdict import R95_PER_RMS, Verdict
+from vision_cal.estimate.verdict import R95_PER_RMS, Verdict
 
 _RANK = {"ready": 0, "check": 1, "not reliable": 2}
 

@@ -25,7 +25,7 @@ These checks read the pairs against each other, never against an assumed noise:
   carries it than any mount or robot is.
 
 Each finding is ``(status, sentence)`` for the verdict (the status rule of
-:mod:`vision_cal.diagnose.verdict`).
+:mod:`vision_cal.estimate.verdict`).
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ The block is in file units (mm, degrees, unitless scale)::
 
 Without it (files written before it existed) :func:`load_covariance` takes the ``std``
 block's diagonal for the six base parameters, correlations ignored (said in a warning).
-The calibration writes it (``pipeline``, ``calibrate/``), the planner reads it
+The calibration writes it (``pipeline``, ``estimate/``), the planner reads it
 (:mod:`vision_cal.plan.uncertainty`): it lives with the file formats, so the calibration
 does not import the planner for it.
 """

@@ -246,6 +246,7 @@ def atomic_write_json(path, obj) -> Path:
 #: another kind of file instead: (the file's usual name in a folder, what to give)
 EXPECTED = {
     "calibration": ("calibration.json", "the calibration.json `vision-cal calibrate` wrote"),
+    "measurement": ("measurement.json", "the measurement.json `vision-cal calibrate` wrote"),
     "sheet file": ("sheet.json", "the sheet.json `vision-cal sheet` wrote"),
     "robot file": ("robot.yaml", "the robot file (YAML; `vision-cal robot-template -o "
                                  "robot.yaml` writes one to fill in)"),

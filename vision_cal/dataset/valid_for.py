@@ -9,7 +9,7 @@ target that excites it misses by as much as the effect is large (a pilot "ready 
 mm" landed targets approached from the other side 0.43-0.46 mm off).
 
 :func:`build` writes the block from a calibration document; :func:`verdict_reasons` is
-what the verdict (``diagnose/verdict.judge``, its owner) adds for it; :func:`check` is the
+what the verdict (``estimate/verdict.judge``, its owner) adds for it; :func:`check` is the
 one check every consumer runs on its request before it writes anything (``plan``,
 ``locate``, ``export``, ``verify``, ``design --pilot``), and :func:`enforce` refuses
 (exit 2, one line with the reason and the command that would cover it) or, with
@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.errors import VisionCalError
 
 #: a request within this of a covered joint range (deg) is inside it; further, inside
@@ -61,10 +62,20 @@ def _entries(doc: dict) -> list[dict]:
             + [p for p in (poses if isinstance(poses, list) else []) if _usable(p)])
 
 
-def build(doc: dict, *, pen_down_mm: float | None = None) -> dict | None:
-    """calibration.json's ``valid_for`` from the document's marks (or poses), ``tool``,
-    ``identifiability``, ``effects`` and ``cameras``; None when it has no joints to say it
-    from (marks given without ``joints_deg``)."""
+def _fields(cal: CalibrationResult) -> dict:
+    """The fields of a calibration :func:`build` reads, by their names in the file."""
+    return {"marks": cal.marks, "poses": cal.extra.get("poses"), "tool": cal.tool,
+            "method": cal.method, "identifiability": cal.identifiability,
+            "effects": list(cal.effects or ()), "cameras": cal.cameras}
+
+
+def build(doc, *, pen_down_mm: float | None = None) -> dict | None:
+    """calibration.json's ``valid_for`` from a calibration's marks (or poses), ``tool``,
+    ``identifiability``, ``effects`` and ``cameras`` (``doc``: its
+    :class:`~vision_cal.dataset.calibration_result.CalibrationResult`, or the document);
+    None when it has no joints to say it from (marks given without ``joints_deg``)."""
+    if isinstance(doc, CalibrationResult):
+        doc = _fields(doc)
     if not isinstance(doc, dict):
         return None
     ms = _entries(doc)

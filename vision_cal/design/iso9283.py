@@ -7,7 +7,7 @@ visit is a pen mark, so repeated visits of one point would put every dot on the 
 each visit ``j`` of point ``P`` is commanded to ``P + offset_j`` instead, the offsets a
 small grid (``PITCH_MM`` apart, wider than a dot) centred on ``P``.
 
-How the offsets are taken out (``vision_cal.workflows.verify``): each visit's error is its measured
+How the offsets are taken out (``vision_cal.estimate.verify``): each visit's error is its measured
 mark minus *its own* commanded position (``P + offset_j`` through the calibrated model,
 with the sheet's placement refitted), so the offset cancels exactly. This assumes the
 robot's systematic error is the same over the few millimetres of the grid (the visits
@@ -15,7 +15,8 @@ differ in joint angles by about the grid's size over the reach: hundredths of a 
 a gear error with a period of millimetres would show up as repeatability.
 
 Then, per point, with ``e_j`` the visits' 2-D errors (mm): AP = |mean(e_j)| (ISO's
-AP_P in the plane), ``l_j = |e_j - mean(e)|``, RP = mean(l) + 3 std(l) (sample std).
+AP_P in the plane), ``l_j = |e_j - mean(e)|``, RP = mean(l) + 3 std(l) (sample std):
+:func:`vision_cal.estimate.verify.ap_rp`.
 """
 
 from __future__ import annotations
@@ -99,14 +100,3 @@ def iso_marks(model, box, n_cycles: int, *, elbow: int = 1, overshoot_deg: float
         raise VisionCalError(f"ISO 9283 point {bad[0].id} cannot be planned: {bad[0].reason}",
                              field="--iso9283")
     return to_planned_marks(planned, overshoot_deg=overshoot_deg), info
-
-
-def ap_rp(errors_mm: np.ndarray) -> dict:
-    """AP and RP (mm) of one point from its visits' 2-D errors (N, 2)."""
-    e = np.asarray(errors_mm, float).reshape(-1, 2)
-    mean = e.mean(axis=0)
-    ell = np.hypot(*(e - mean).T)
-    sd = float(np.std(ell, ddof=1)) if len(ell) > 1 else float("nan")
-    return {"n": int(len(e)), "AP_mm": float(np.hypot(*mean)), "mean_error_mm": mean.tolist(),
-            "RP_mm": float(ell.mean() + 3 * sd), "l_mean_mm": float(ell.mean()),
-            "l_std_mm": sd}

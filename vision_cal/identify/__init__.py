@@ -1,5 +1,5 @@
 """Which dot is which mark: the stage between measure/ (photos -> dots in sheet millimetres)
-and calibrate/ (marks -> the robot model).
+and estimate/ (marks -> the robot model).
 
 Modules: ``associate`` (dots grouped across photos, matched to the plan through the robot
 model), ``infer`` (which marks each photo shows, when session.json does not list them),

@@ -27,8 +27,10 @@ in at least ``min_views`` photos, and the lens when it was not declared (f, prin
 k1, k2, p1, p2; and each photo's focal length within ``focal_scatter`` of it: a phone
 refocuses). A weak prior (``prior_mm``) holds the deltas the views do not fix at zero
 (the gauge, and any mode the lens can take over); the similarity is then removed. Solved by
-``scipy.optimize.least_squares`` (trf, Huber loss), with OpenCV's derivatives of its
-projection for the poses and the lens.
+the one solver (:func:`vision_cal.model.solve.solve`: trf, Huber loss), with OpenCV's
+derivatives of its projection for the poses and the lens; the covariance under its one
+policy (a direction the views do not fix in the lens or the corners leaves their std
+unknown, never small).
 
 What the views cannot separate from the lens is stated with its size: ``unresolved_mm``,
 the RMS over the released corners of their standard deviation (from the Jacobian at the
@@ -45,10 +47,10 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
 
 from vision_cal.config import DEFAULT, AsPrintedConfig
 from vision_cal.model.rms import rms_2d
+from vision_cal.model.solve import Covariance, Solution, covariance, solve
 
 #: lens parameters freed when the lens was not declared, in this order
 LENS_FREE = ("f", "cx", "cy", "k1", "k2", "p1", "p2")
@@ -501,6 +503,17 @@ class _Problem:
         """Each photo's focal factor's column in ``x`` (V,; used only with the lens free)."""
         return self.n_lens + self.npv * np.arange(self.V) + 6
 
+    def labels(self) -> tuple[str, ...]:
+        """Each unknown's name, for what the covariance reports: the lens's (``f``, ...),
+        each photo's pose (``rx@2``, ``tz@2``, ``df@2``: photo 2) and each released corner's
+        (``x@7.1``: marker 7's corner 1)."""
+        pose = ("rx", "ry", "rz", "tx", "ty", "tz", "df")[:self.npv]
+        corner = ("x", "y", "z")[:self.nd]
+        ids = self.obs.ids
+        return (LENS_FREE[:self.n_lens]
+                + tuple(f"{p}@{v}" for v in range(self.V) for p in pose)
+                + tuple(f"{c}@{ids[i // 4]}.{i % 4}" for i in self.rel_idx for c in corner))
+
     def unpack(self, x):
         """The lens vector (8,), the poses (V, npv) and every corner's delta (4 M, 3) of
         ``x``."""
@@ -617,36 +630,48 @@ def _problem(obs: _Observations, released: np.ndarray, lens0: np.ndarray, lens_f
 
 
 def _solve(pb: _Problem, huber_px: float, max_nfev: int):
-    """The two solves, as scipy results: ``before`` (the declared layout, the lens and the
-    poses free) and the solution from it (the released corners free too), each stopped
-    after ``max_nfev`` evaluations at most."""
-    x0 = pb.start()
-    n_delta = pb.n_delta
-    nb = pb.n_fixed
-    mb = pb.m_obs + pb.n_foc
-    before = least_squares(lambda x: pb.residuals(np.concatenate([x, np.zeros(n_delta)]))[:mb],
-                           x0[:nb], jac=lambda x: pb.jacobian(np.concatenate(
-                               [x, np.zeros(n_delta)]))[:mb, :nb],
-                           method="trf", loss="huber", f_scale=huber_px, x_scale="jac",
-                           max_nfev=max_nfev)
-    x0 = np.concatenate([before.x, np.zeros(n_delta)])
-    sol = least_squares(pb.residuals, x0, jac=pb.jacobian, method="trf", loss="huber",
-                        f_scale=huber_px, x_scale="jac", max_nfev=max_nfev)
+    """The two solves (the one solver, :func:`vision_cal.model.solve.solve`: trf, a Huber
+    loss of ``huber_px``, the Jacobian's scale, scipy's default tolerances), each a
+    ``Solution``, or a ``StoppedSolve`` after ``max_nfev`` evaluations: ``before`` (the
+    declared layout, the lens and the poses free) and the solution from where it reached
+    (the released corners free too)."""
+    nb, mb, no_delta = pb.n_fixed, pb.m_obs + pb.n_foc, np.zeros(pb.n_delta)
+    kw = dict(method="trf", loss="huber", f_scale=huber_px, x_scale="jac", max_nfev=max_nfev,
+              xtol=1e-8, ftol=1e-8, gtol=1e-8)
+    # posed on the lens and poses alone (a slice of the Jacobian: a free mask's column copy
+    # is stored in another order, and its rounding moved the solution by 1e-9)
+    before = solve(lambda x: pb.residuals(np.concatenate([x, no_delta]))[:mb], pb.start()[:nb],
+                   jac=lambda x: pb.jacobian(np.concatenate([x, no_delta]))[:mb, :nb], **kw)
+    sol = solve(pb.residuals, np.concatenate([reached(before).x, no_delta]), jac=pb.jacobian,
+                **kw)
     return before, sol
 
 
-def _solution_cov(pb: _Problem, sol, n_places: int) -> np.ndarray:
-    """The covariance of every unknown at the solution ``sol``, from the Jacobian and the
-    residual's own scale (raises ``LinAlgError`` when the normal matrix is singular)."""
-    J = pb.jacobian(sol.x)   # the plain Jacobian (sol.jac is scaled by the loss)
-    r_obs = sol.fun[:pb.m_obs]
+def reached(sol) -> Solution:
+    """Where a solve ended: the ``Solution``, or where a ``StoppedSolve`` stopped."""
+    return sol if sol else sol.last
+
+
+def _solution_cov(pb: _Problem, sol: Solution, n_places: int) -> Covariance:
+    """The covariance of every unknown at the solution ``sol``, under the one policy
+    (:func:`vision_cal.model.solve.covariance`), from the plain Jacobian (not the one the
+    Huber loss weighs) and the residual's own scale."""
+    r_obs = sol.residuals[:pb.m_obs]
     dof = max(pb.m_obs - (len(sol.x) - 4), 1)
     # photos from one place see the corners with the same detection errors (the same
     # pixels): they carry one view's information, not one each; the variance counts
     # places (38 photos from 4 places: the std was 3 times too small, and a bumped sheet's
     # model error passed for 0.012 mm of print at 5 times it)
     s2 = float(np.sum(r_obs**2)) / dof * pb.V / max(n_places, 1)
-    return s2 * np.linalg.inv(J.T @ J)
+    return covariance(pb.jacobian(sol.x), labels=pb.labels(), s2=s2)
+
+
+def _shared_fixed(pb: _Problem, cov: Covariance) -> bool:
+    """Whether the data fix every unknown the photos share (the lens, the corners): a
+    direction the views do not fix that moves one leaves the corners' covariance unknown
+    (the poses' own aside)."""
+    shared = np.concatenate([np.arange(pb.n_lens), pb.n_fixed + np.arange(pb.n_delta)])
+    return bool(cov.fixed[shared].all())
 
 
 def _sheet_point(pb: _Problem, x, v: int, px: np.ndarray) -> np.ndarray:
@@ -736,39 +761,39 @@ def _interior_cov(pb: _Problem, sol, cov_x: np.ndarray, P: np.ndarray) -> np.nda
     return G @ C @ G.T
 
 
-def _corner_std(pb: _Problem, sol, n_places: int
+def _corner_std(pb: _Problem, cov: Covariance | None
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """The released corners' std at the solution ``sol``, from the Jacobian and the
-    residual's own scale: in-plane (4 M, 2), in the gauge (less the best-fitting
+    """The released corners' std from the solution's covariance ``cov``
+    (:func:`_solution_cov`): in-plane (4 M, 2), in the gauge (less the best-fitting
     similarity, each marker's growth aside), and the heights' (4 M,), less their
     best-fitting plane; and the in-plane joint covariance in the gauge (2 M 4, 2 M 4),
     zero where not released (``AsPrinted.corner_cov_mm2``). NaN std and no covariance
-    (None) when the normal matrix is singular; 0 for the corners not released."""
+    (None) when ``cov`` is None (the views do not fix the lens or the corners); 0 for the
+    corners not released."""
     P0, rel_idx, nd, n_delta = pb.obs.P0, pb.rel_idx, pb.nd, pb.n_delta
     std = np.zeros_like(P0)
     hstd = np.zeros(len(P0))
-    plane = pb.heights_plane()
-    gauge = pb.gauge()
-    try:
-        cov3 = _solution_cov(pb, sol, n_places)[pb.n_fixed:, pb.n_fixed:]
-        inplane = (np.arange(n_delta) % nd) < 2
-        cov = cov3[np.ix_(inplane, inplane)]
-        if nd == 3 and len(rel_idx) >= 3:   # heights less their best-fitting plane
-            Qh = np.eye(len(plane)) - plane @ np.linalg.pinv(plane)
-            ch = cov3[np.ix_(~inplane, ~inplane)]
-            hstd[rel_idx] = np.sqrt(np.clip(np.diag(Qh @ ch @ Qh.T), 0, None))
-        # in the gauge: the deviations less their best-fitting similarity (growth aside)
-        A = _similarity_design(P0[rel_idx])
-        Q = np.eye(len(A)) - A @ gauge
-        cov = Q @ cov @ Q.T
-        std[rel_idx] = np.sqrt(np.clip(np.diag(cov), 0, None)).reshape(-1, 2)
-        full = np.zeros((2 * len(P0), 2 * len(P0)))
-        rc = np.column_stack([2 * rel_idx, 2 * rel_idx + 1]).ravel()
-        full[np.ix_(rc, rc)] = cov
-    except np.linalg.LinAlgError:
+    if cov is None:
         std[rel_idx] = np.nan
         hstd[rel_idx] = np.nan
-        full = None
+        return std, hstd, None
+    plane = pb.heights_plane()
+    gauge = pb.gauge()
+    cov3 = cov.matrix[pb.n_fixed:, pb.n_fixed:]
+    inplane = (np.arange(n_delta) % nd) < 2
+    c2 = cov3[np.ix_(inplane, inplane)]
+    if nd == 3 and len(rel_idx) >= 3:   # heights less their best-fitting plane
+        Qh = np.eye(len(plane)) - plane @ np.linalg.pinv(plane)
+        ch = cov3[np.ix_(~inplane, ~inplane)]
+        hstd[rel_idx] = np.sqrt(np.clip(np.diag(Qh @ ch @ Qh.T), 0, None))
+    # in the gauge: the deviations less their best-fitting similarity (growth aside)
+    A = _similarity_design(P0[rel_idx])
+    Q = np.eye(len(A)) - A @ gauge
+    c2 = Q @ c2 @ Q.T
+    std[rel_idx] = np.sqrt(np.clip(np.diag(c2), 0, None)).reshape(-1, 2)
+    full = np.zeros((2 * len(P0), 2 * len(P0)))
+    rc = np.column_stack([2 * rel_idx, 2 * rel_idx + 1]).ravel()
+    full[np.ix_(rc, rc)] = c2
     return std, hstd, full
 
 
@@ -814,25 +839,25 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
     released = _released(obs, cfg.min_views)
     pb = _problem(obs, released, _lens_vector(K, dist0), lens_free, cfg)
     before, sol = _solve(pb, cfg.huber_px, cfg.max_evaluations)
-    lens, _, delta = pb.unpack(sol.x)
-    std, hstd, full = _corner_std(pb, sol, n_places)
+    end = reached(sol)
+    lens, _, delta = pb.unpack(end.x)
+    cov = _solution_cov(pb, end, n_places)
+    notes = [] if sol else [f"the bundle adjustment stopped: {end.status}"]
+    if not _shared_fixed(pb, cov):
+        notes.append(f"the views do not fix {cov.reason()}: the corners' std is unknown")
+        cov = None
+    std, hstd, full = _corner_std(pb, cov)
     inner_xy = interior_points(pb) if len(pb.rel_idx) >= 3 else None
-    try:
-        inner = None if inner_xy is None else _interior_cov(
-            pb, sol, _solution_cov(pb, sol, n_places), inner_xy)
-    except np.linalg.LinAlgError:
-        inner = None
+    inner = None if inner_xy is None or cov is None else _interior_cov(
+        pb, end, cov.matrix, inner_xy)
     delta, heights = _in_gauge(pb, delta)
     Kf, df = _lens_matrices(lens)
-    notes = []
-    if not sol.success:
-        notes.append(f"the bundle adjustment stopped: {sol.message}")
     nd = pb.nd
     return AsPrinted(obs.ids, obs.declared, (obs.P0 + delta).reshape(-1, 4, 2),
                      std.reshape(-1, 4, 2), released.reshape(-1, 4), Kf, df,
                      (int(size_px[0]), int(size_px[1])), bool(lens_free),
-                     tuple(v[0] for v in views), pb.per_view_rms(before.fun),
-                     pb.per_view_rms(sol.fun), n_places, source, tuple(notes),
+                     tuple(v[0] for v in views), pb.per_view_rms(reached(before).residuals),
+                     pb.per_view_rms(end.residuals), n_places, source, tuple(notes),
                      heights.reshape(-1, 4) if nd == 3 else None,
                      hstd.reshape(-1, 4) if nd == 3 else None, full,
                      stopped=stopped_reason(sol, cfg.max_evaluations),
@@ -842,14 +867,14 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
 
 
 def stopped_reason(sol, max_nfev: int) -> str | None:
-    """Why a scipy ``least_squares`` result stopped before converging (its evaluation limit,
-    or a failure), None when it converged (``status`` > 0: a tolerance was met)."""
-    if sol.status > 0:
+    """Why a solve (:func:`vision_cal.model.solve.solve`) stopped before converging (its
+    evaluation limit, or a failure), None when it converged."""
+    if sol:
         return None
-    if sol.status == 0:
+    if sol.on_limit:
         return (f"the bundle adjustment stopped at its evaluation limit ({max_nfev}) before "
-                f"converging ({sol.nfev} evaluations)")
-    return f"the bundle adjustment failed: {sol.message}"
+                f"converging ({sol.last.nfev} evaluations)")
+    return f"the bundle adjustment failed: {sol.last.status}"
 
 
 def _released_design(declared_mm, released):

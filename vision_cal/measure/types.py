@@ -3,10 +3,11 @@ measured mark are, the whole measurement, and their JSON.
 
 ``ImageDetections`` (stage 1, cached by :mod:`vision_cal.measure.cache`), ``ImageResult``
 (one photo measured), ``MarkMeasurement`` (one pen mark on the sheet) and ``Measurement``
-(everything :func:`vision_cal.workflows.measure_folder.measure_folder` returns). ``Measurement.to_json``
-is ``OUT/measurement.json`` (docs/format.md) and ``Measurement.from_json`` reads it back;
-``ImageResult.summary_json`` is a photo's entry of calibration.json ``images[]``. The report
-reads measurement.json, never these objects (``vision_cal.report``).
+(everything :func:`vision_cal.workflows.measure_folder.measure_folder` returns).
+``OUT/measurement.json`` (docs/format.md) is written by ``Measurement.write`` alone and read
+by ``Measurement.read`` alone (the report reads it so: the photos, the refused marks, the
+sheet as printed; ``tests/test_architecture.py`` finds any other reader or writer);
+``ImageResult.summary_json`` is a photo's entry of calibration.json ``images[]``.
 
 Arrays: ``(K, 2)`` sheet mm or raw px per dot, ``(K, 2, 2)`` covariances (mm^2),
 ``(M, 4, 2)`` marker corners (raw px), ``(M,)`` marker ids.
@@ -15,9 +16,12 @@ Arrays: ``(K, 2)`` sheet mm or raw px per dot, ``(K, 2, 2)`` covariances (mm^2),
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
+from vision_cal.dataset.fields import FieldReader
+from vision_cal.dataset.io import atomic_write_json, read_json
 from vision_cal.measure.aruco import corners_from_edges
 from vision_cal.measure.asprinted import AsPrinted
 from vision_cal.measure.dots import DotCandidates
@@ -348,6 +352,20 @@ class Measurement:
                 "height_note": self.height_note,
                 "as_printed": None if self.as_printed is None else self.as_printed.to_json(),
                 "print": self.print_summary}
+
+    def write(self, path) -> Path:
+        """measurement.json, atomically (nothing half-written): its one writer."""
+        return atomic_write_json(Path(path), self.to_json())
+
+    @classmethod
+    def read(cls, path) -> "Measurement":
+        """measurement.json at ``path``, its one reader: the format checked (one line
+        naming the file and the field), then :meth:`from_json`."""
+        d = read_json(Path(path), what="measurement")
+        fmt = FieldReader(str(path)).get(d, "format", "")
+        if fmt != FORMAT:
+            FieldReader(str(path)).fail("format", f"expected {FORMAT!r}, got {fmt!r}")
+        return cls.from_json(d)
 
     @classmethod
     def from_json(cls, d: dict) -> "Measurement":

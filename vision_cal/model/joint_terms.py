@@ -11,7 +11,7 @@ and approach signs:
 joined by ``*`` (``q1*q2``, ``q2*approach1``). ``t`` (drawing order) is *not* a joint
 term: what depends on when a mark was drawn is ``drift``, never compensated.
 
-:data:`DICTIONARY` is the list the discovery selects from (vision_cal.diagnose.discover).
+:data:`DICTIONARY` is the list the discovery selects from (vision_cal.estimate.discover).
 Inside the fit a feature is divided by :func:`unit` (100 deg per power of an angle), so
 every column is of order one.
 """

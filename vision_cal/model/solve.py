@@ -207,10 +207,13 @@ class Solution:
 @dataclass(frozen=True)
 class StoppedSolve(Failure):
     """A solve that did not converge (its evaluation limit reached, or a residual not
-    finite): falsy, with the ``reason``; ``last`` the :class:`Solution` where it stopped."""
+    finite): falsy, with the ``reason``; ``last`` the :class:`Solution` where it stopped;
+    ``on_limit`` True when it stopped on its evaluation limit (``max_nfev``), False when it
+    failed."""
 
     reason: str
     last: Solution
+    on_limit: bool = False
 
 
 def solve(residual, x0, *, jac=None, free=None, loss: str = "linear", f_scale: float = 1.0,
@@ -264,7 +267,7 @@ def solve(residual, x0, *, jac=None, free=None, loss: str = "linear", f_scale: f
                    float(0.5 * r @ r), int(sol.nfev), str(sol.message))
     if sol.status == 0:
         return StoppedSolve(f"the least squares stopped after {sol.nfev} evaluations without "
-                            f"converging (cost {out.cost:.6g})", out)
+                            f"converging (cost {out.cost:.6g})", out, on_limit=True)
     if sol.status < 0 or not np.all(np.isfinite(r)) or not np.all(np.isfinite(sol.x)):
         return StoppedSolve(f"the least squares failed: {sol.message}", out)
     return out

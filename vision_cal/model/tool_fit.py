@@ -1,7 +1,7 @@
 """The tool offset and joint 4 by least squares (contract "Joint 4 and the tool",
 docs/format.md): :func:`fit_tool` fits ``tool_mm`` (and joint-4 effects, when asked) jointly
 with the base parameters and any other effect, through :class:`vision_cal.model.lsq.Fit` on
-joints ``[q1, q2, q4]``; std and correlations from its covariance. Used by calibrate/ (the
+joints ``[q1, q2, q4]``; std and correlations from its covariance. Used by estimate/ (the
 tool's calibration) and identify/ (the tool's first guess, fitted to the marks a first
 association matched). When every mark has the same ``j4_deg`` the tool cannot be told from
 link 2: :func:`folded_statement` says so, and what marks would separate it.

@@ -61,7 +61,7 @@ def add_repeats(plan: list[PlannedMark], nominal, sheet, n_repeats: int, *,
     the edges and markers and ``min_separation_mm`` from every other mark), and is drawn
     ``REPEAT_GAP`` marks after it. Its ``repeat_of`` names the twin: the pair's residuals
     differ by measurement noise and twice the robot's repeatability alone
-    (``vision_cal.diagnose.verdict.repeatability_from_repeats``). A twin with no such spot
+    (``vision_cal.estimate.verdict.repeatability_from_repeats``). A twin with no such spot
     is replaced by another calibration mark; fewer than asked come back only when none is
     left."""
     if n_repeats <= 0:

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vision_cal.calibrate.paper_scale import outside_mm
+from vision_cal.estimate.paper_scale import outside_mm
 
 
 def predicted_std_mm(model, cov, q_deg, approach=None) -> np.ndarray:

@@ -7,7 +7,7 @@ computed twice: the RMS values are calibration.json's, copied, never recomputed.
 The verdict's "expected target error (95 %)" is the radius that holds 95 % of the errors
 of a circular normal 2-D error whose RMS is the held-out RMS of the final model:
 ``r95 = sqrt(-2 ln 0.05) / sqrt(2) * rms = 1.731 * rms``
-(:data:`vision_cal.diagnose.verdict.R95_PER_RMS`). The
+(:data:`vision_cal.estimate.verdict.R95_PER_RMS`). The
 held-out marks were not fitted, so their RMS includes both the model's uncertainty and
 the measurement noise of the marks themselves (a conservative figure).
 """
@@ -73,7 +73,7 @@ def _size(e: dict) -> dict:
 
 def verdict(doc: dict, loop: dict | None = None) -> dict:
     """``{"status": ready | check | not reliable, "text": ..., "expected_r95_mm"}``: the
-    document's own ``verdict`` block (written by :mod:`vision_cal.diagnose.verdict`), never
+    document's own ``verdict`` block (written by :mod:`vision_cal.estimate.verdict`), never
     judged here; the loop's measured figures appended."""
     v = verdict_block(doc)
     tail = ""

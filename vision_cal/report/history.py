@@ -6,7 +6,7 @@ Each calibration is dated by its ``report.json`` (``provenance.created_utc``, wr
 parameter is given with its std (1 sigma, calibration.json ``std``), the effects found, the
 held-out RMS and the verdict when the file carries one.
 
-Nothing here fits anything: it reads the files (``CalibrationResult.from_json``) and lays them
+Nothing here fits anything: it reads the files (``CalibrationResult.read``) and lays them
 out.
 """
 
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.dataset.calibration_result import FORMAT, CalibrationResult, ModelRms
+from vision_cal.dataset.calibration_result import CalibrationResult, ModelRms
 from vision_cal.dataset.io import read_json
 from vision_cal.errors import VisionCalError
 
@@ -68,12 +68,7 @@ def read_history(folder) -> list[HistoryRow]:
         raise VisionCalError("not a folder", file=str(folder))
     rows = []
     for p in sorted(folder.rglob("calibration.json")):
-        doc = read_json(p)
-        fmt = doc.get("format") if isinstance(doc, dict) else None
-        if fmt != FORMAT:
-            raise VisionCalError(f"expected {FORMAT!r}, got {fmt!r}", file=str(p),
-                                 field="format")
-        cal = CalibrationResult.from_json(doc)
+        cal = CalibrationResult.read(p)     # its one reader: the format and fields checked
         date, how = _date(p)
         values = {label: (_get(cal.params, key, k), _get(cal.std, key, k))
                   for label, key, k in PARAMS}

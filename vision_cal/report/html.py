@@ -1,9 +1,10 @@
 """report.json, then report.html rendered from it (one self-contained file).
 
 ``build_report(calibration_path)`` collects the statistics into a dict that is written as
-``OUT/report.json``, from the files alone: calibration.json (read through
-``CalibrationResult.from_json``, as every reader of it), the measurement.json beside it
-(when the calibration measured photos: marker corners and dots drawn on each photo), the
+``OUT/report.json``, from the files alone: calibration.json (read by
+``CalibrationResult.read``, its one reader), the measurement.json beside it (when the
+calibration measured photos: marker corners and dots drawn on each photo; read by
+``Measurement.read``, its one reader), the
 dataset's session.json (the published ``reference`` and the declared ``camera``, when it is
 still there) and loop.json (a closed loop's targets). ``render_html(report)`` makes the
 HTML from that dict alone, with every figure and photo embedded as a data URI so the file
@@ -25,6 +26,7 @@ import numpy as np
 from vision_cal.dataset import photos as photo_files
 from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.io import atomic_write_json, atomic_write_text, read_json
+from vision_cal.measure.types import ImageResult, Measurement
 from vision_cal.report import plots
 from vision_cal.report.headline import STATISTICS, actions, headline, mark_rows, provenance
 from vision_cal.report.summary import describe_effect, survey_line, uncertainty_lines
@@ -49,13 +51,15 @@ def build_report(calibration_path, *, loop=None, out_dir=None) -> dict:
     contents). ``out_dir``: where report.html goes (default: next to calibration.json);
     photo links are relative to it."""
     cal_path = Path(calibration_path)
-    cal = CalibrationResult.read(cal_path)   # every reader of calibration.json: from_json
+    cal = CalibrationResult.read(cal_path)   # calibration.json's one reader
     doc = cal.to_json()   # the report carries it as JSON (report.json ``calibration``)
     loop = _read(loop) if isinstance(loop, (str, Path)) else loop
     out_dir = Path(out_dir) if out_dir is not None else cal_path.parent
-    # the photos measured for this calibration (a folder of marks given in mm has none)
-    meas = _read(cal_path.parent / "measurement.json") if cal.images else None
-    dataset = cal.dataset or (meas or {}).get("dataset")
+    # the photos measured for this calibration (a folder of marks given in mm has none):
+    # measurement.json, read by its one reader
+    mpath = cal_path.parent / "measurement.json"
+    meas = Measurement.read(mpath) if cal.images and mpath.is_file() else None
+    dataset = cal.dataset or (None if meas is None else meas.dataset)
     session = (_read(Path(dataset) / "session.json") if dataset else None) or {}
     where = str(dataset) if dataset else "not recorded (an older calibration.json)"
     rep = {"format": "vision-cal/report/1", "dataset": where, "calibration": doc,
@@ -65,30 +69,30 @@ def build_report(calibration_path, *, loop=None, out_dir=None) -> dict:
     rep["provenance"] = provenance(
         doc, dataset=where, out_dir=str(out_dir.resolve()), camera=session.get("camera"),
         created_utc=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC"))
-    rep["marks_table"] = mark_rows(doc, (meas or {}).get("refused"))
+    rep["marks_table"] = mark_rows(doc, None if meas is None else meas.refused)
     rep["statistics"] = STATISTICS
-    rep["photos"] = [_photo_entry(im, dataset, out_dir) for im in (meas or {}).get("images", [])]
-    if (meas or {}).get("as_printed"):   # #28: the sheet as printed (measurement.json)
-        rep["as_printed"] = meas["as_printed"]
+    rep["photos"] = [_photo_entry(im, dataset, out_dir) for im in
+                     (meas.images if meas is not None else [])]
+    if meas is not None and meas.as_printed is not None:   # #28: the sheet as printed
+        rep["as_printed"] = meas.as_printed.to_json()
     if loop:
         rep["loop"] = loop
     return rep
 
 
-def _photo_entry(im: dict, dataset, out_dir: Path) -> dict:
+def _photo_entry(im: ImageResult, dataset, out_dir: Path) -> dict:
     """A photo of measurement.json ``images[]`` as the report draws it: where it is, its
     markers (id, corners in px) and its dots (the mark each was taken for, px)."""
-    path = Path(dataset) / im["file"]
-    dots = im.get("dots") or {}
-    names = dots.get("mark") or []
-    return {"file": im["file"], "path": str(path),
+    path = Path(dataset) / im.file
+    names = list(im.dots_mark)
+    return {"file": im.file, "path": str(path),
             "link": os.path.relpath(path.resolve(), out_dir.resolve()),
-            "status": im.get("status"), "reason": im.get("reason") or "",
-            "size_px": im.get("size_px"),
-            "markers_px": [[int(i), c] for i, c in zip(im.get("marker_ids") or [],
-                                                        im.get("markers_px") or [])],
+            "status": im.status, "reason": im.reason or "",
+            "size_px": None if im.size_px is None else list(im.size_px),
+            "markers_px": [[int(i), np.asarray(c, float).tolist()]
+                           for i, c in zip(im.marker_ids, im.markers_px)],
             "dots_px": [[(names[k] or None) if k < len(names) else None, float(uv[0]),
-                         float(uv[1])] for k, uv in enumerate(dots.get("uv_px") or [])]}
+                         float(uv[1])] for k, uv in enumerate(im.dots_uv_px)]}
 
 
 def _plain(v):

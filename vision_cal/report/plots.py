@@ -91,7 +91,7 @@ def _mm(x) -> str:
 def joint_residuals(report: dict) -> bytes:
     """Residuals as joint-angle errors against each joint angle, split by approach: the
     marks' ``residual_base_joint_deg`` / ``residual_joint_deg`` (calibration.json, computed
-    by the pipeline: :mod:`vision_cal.workflows.report_data`)."""
+    by the pipeline: :mod:`vision_cal.estimate.report_data`)."""
     plt = _plt()
     m = report["marks"]
     ids, xy, rb, rf, q, s, _ = _marks(report)
@@ -277,7 +277,7 @@ def loop_paths(loop: dict) -> bytes:
 def loop_joints(loop: dict) -> bytes:
     """Joint reference trajectories of the planned targets before and after (paper
     Fig. 10), from loop.json's ``trajectories`` (planned by the loop from ``home_deg``:
-    :func:`vision_cal.workflows.report_data.loop_trajectories`)."""
+    :func:`vision_cal.workflows.loop.loop_trajectories`)."""
     plt = _plt()
     fig, axes = plt.subplots(2, 1, figsize=(9, 6), layout="constrained", sharex=True)
     tr = loop.get("trajectories") or {}

@@ -243,7 +243,7 @@ def verdict_lines(v: dict) -> list[str]:
 
 def verdict_block(doc: dict) -> dict:
     """calibration.json's ``verdict`` (status, reasons, ``text``, ``floor_line``: the
-    sentences :mod:`vision_cal.diagnose.verdict` wrote), read and never judged here; an older
+    sentences :mod:`vision_cal.estimate.verdict` wrote), read and never judged here; an older
     file's block without its ``text`` shows status and reasons, a file without a block
     :data:`NO_VERDICT`."""
     v = doc.get("verdict")

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.calibrate.plausible import RADIAN_RANGE, radians_given
+from vision_cal.estimate.plausible import RADIAN_RANGE, radians_given
 from vision_cal.camera.arm import (MIN_POSES, ArmView, check_declared_lens, estimate_lens,
                                    fit_arm_camera, lens_corners, without_misdetected)
 from vision_cal.camera.fixed import UNDETERMINED
@@ -34,7 +34,7 @@ from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.dataset.session import Session, load_arm_session
 from vision_cal.dataset.valid_for import build as valid_for_block
-from vision_cal.diagnose.verdict import judge_camera_poses
+from vision_cal.estimate.verdict import judge_camera_poses
 from vision_cal.errors import CalibrationError
 from vision_cal.measure.cache import DetectionCache
 from vision_cal.measure.detect import detect_all

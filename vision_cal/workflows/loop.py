@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.calibrate.paper import pilot_params
+from vision_cal.estimate.paper import pilot_params
 from vision_cal.dataset.csvio import write_plan, write_targets
 from vision_cal.dataset.io import atomic_write_json, read_json
 from vision_cal.dataset.marker_geometry import quiet_boxes_mm
@@ -45,16 +45,16 @@ from vision_cal.measure.survey import SURVEY_FILE, applicable, run_survey
 from vision_cal.model.kinematics import ScaraParams, inverse
 from vision_cal.workflows.measure_folder import measure_folder
 from vision_cal.model.robot import RobotModel
-from vision_cal.model.motion import JOINT_LIMITS_DEG
+from vision_cal.model.motion import JOINT_LIMITS_DEG, TRAJECTORY_DT_S
 from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.plan.calibration_plan import sheet_clearance_mm
-from vision_cal.plan.compensate import plan_targets, to_planned_marks
+from vision_cal.plan.compensate import PlannedTarget, plan_targets, to_planned_marks
+from vision_cal.plan.trajectory import plan_trajectory
 from vision_cal.progress import stage_line
 from vision_cal.world.dataset import render_dataset
 from vision_cal.world.scene import load_scene
 from vision_cal.report.plots import loop_joints, loop_paths
 from vision_cal.report.summary import survey_line
-from vision_cal.workflows.report_data import loop_trajectories
 from vision_cal.model.rms import rms
 
 log = logging.getLogger(__name__)
@@ -370,3 +370,19 @@ def format_table(doc: dict) -> str:
                          f"{v['n_measured']} of {s['n_targets']} targets measured")
     return "\n".join(lines)
 
+
+def loop_trajectories(loop: dict) -> dict:
+    """loop.json ``trajectories``: ``dt_s`` and, for ``before`` / ``after``, ``t_s`` (K,)
+    and ``q_deg`` (K, 2) of the targets planned with that model, from ``home_deg``."""
+    home = loop.get("home_deg", (0.0, 0.0))
+    out: dict = {"dt_s": TRAJECTORY_DT_S}
+    for name in ("before", "after"):
+        planned = [PlannedTarget(r["id"], tuple(r["target_mm"]), tuple(r[name]["q_deg"]),
+                                 tuple(int(s) for s in r[name]["approach"]))
+                   for r in loop["targets"] if "q_deg" in r[name]]
+        if not planned:
+            continue
+        tr = plan_trajectory(to_planned_marks(planned), home_deg=home)
+        out[name] = {"t_s": np.asarray(tr.t_s, float).tolist(),
+                     "q_deg": np.asarray(tr.q_deg, float).tolist()}
+    return out

@@ -19,8 +19,8 @@ Pipeline (``measure_folder``):
    sheet's height (:mod:`vision_cal.identify.marks`, ``vision_cal.measure.height``).
 
 Each stage is one function (:func:`measure_folder` lists them); what they return are the
-types of :mod:`vision_cal.measure.types`, and ``OUT/measurement.json`` is
-``Measurement.to_json``. Nothing is ever written into the input folder: results and the
+types of :mod:`vision_cal.measure.types`, and ``OUT/measurement.json`` is written by
+``Measurement.write``. Nothing is ever written into the input folder: results and the
 cache go to ``out_dir``. It calls measure/ and identify/, so it lives above both.
 """
 
@@ -33,7 +33,6 @@ from pathlib import Path
 import numpy as np
 
 from vision_cal.config import DEFAULT, EstimatorConfig
-from vision_cal.dataset.io import atomic_write_json
 from vision_cal.dataset.session import Session, load_session
 from vision_cal.errors import VisionCalError
 from vision_cal.identify.marks import mark_measurements, sheet_height_stage
@@ -121,5 +120,5 @@ def measure_folder(session, *, out_dir, jobs: int | None = None, cache_dir=None,
         marks = {k: replace(m, cov_mm2=m.cov_mm2 + print_summary["sigma_mm"] ** 2 * np.eye(2))
                  for k, m in meas.marks.items()}
         meas = replace(meas, marks=marks)
-    atomic_write_json(out_dir / "measurement.json", meas.to_json())
+    meas.write(out_dir / "measurement.json")
     return meas

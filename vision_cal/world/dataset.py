@@ -111,7 +111,7 @@ def build_plan(scene: Scene, sheet, *, pilot=None, rng=None) -> list:
     """The scene's plan (``list[PlannedMark]``), computed from the nominal model, or with
     ``plan.pilot`` (the default) from a pilot calibration: the world draws
     :func:`pilot_marks` and ``pilot(q_deg, xy_mm) -> ScaraParams`` calibrates them (the
-    caller passes the calibrator, e.g. ``vision_cal.calibrate.paper.pilot_params``: the
+    caller passes the calibrator, e.g. ``vision_cal.estimate.paper.pilot_params``: the
     world does not import the estimator). The catalogue model misses by tens of
     millimetres (SM5: zeros 2.6 and 8.1 deg off), too much to keep marks off the printed
     markers; the pilot model misses by about a millimetre."""
@@ -120,7 +120,7 @@ def build_plan(scene: Scene, sheet, *, pilot=None, rng=None) -> list:
     if scene.plan.pilot:
         if pilot is None:
             raise VisionCalError("the scene plans from a pilot calibration (plan.pilot): "
-                                 "pass a calibrator, pilot=vision_cal.calibrate.paper."
+                                 "pass a calibrator, pilot=vision_cal.estimate.paper."
                                  "pilot_params", field="pilot")
         rng = np.random.default_rng(rng)
         model = pilot(*pilot_marks(scene, rng=rng))

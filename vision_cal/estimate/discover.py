@@ -12,8 +12,8 @@ the final fit on such columns, after projecting out what the fitted model alread
     elbow     each joint's column times the elbow sign  (error that flips with the elbow)
     approach  each joint's column times its approach    (what a backlash leaves)
 
-(joint harmonics 1-8 and the sheet map are :mod:`vision_cal.diagnose.structure`'s; the
-per-photo offsets :mod:`vision_cal.diagnose.photos`'.) The family is tested at ``alpha``
+(joint harmonics 1-8 and the sheet map are :mod:`vision_cal.estimate.structure`'s; the
+per-photo offsets :mod:`vision_cal.estimate.photos`'.) The family is tested at ``alpha``
 split over the scans (Bonferroni): on clean data at most ``alpha`` of datasets raise any
 alarm; ``bench/diagnose.py --scans`` measures it over 200 clean kinematic datasets.
 
@@ -51,10 +51,10 @@ up" where the robot had not changed).
 Local structure is not a joint term: when neighbouring marks share the residual of the model
 without joint effects (a bump of the sheet), the selection and the held-out test run on the
 marks away from it only, by the selection's own rule
-(:func:`vision_cal.diagnose.select.marks_away_from`); a joint term is claimed only for what
+(:func:`vision_cal.estimate.select.marks_away_from`); a joint term is claimed only for what
 those marks show (a 0.15 mm bump was taken for joint 1's ``cos(q2)`` or ``q1*q2`` on 6 of 10
 bump-only worlds before; ``bench/discover_bump.py``). When the shared residual covers most
-of the sheet (too few marks away from it, :func:`vision_cal.diagnose.select.enough_away`) it
+of the sheet (too few marks away from it, :func:`vision_cal.estimate.select.enough_away`) it
 is not local, and a joint-space effect (a coupling) makes neighbours share a residual too:
 the search then runs on every mark, and its joint terms are claimed only when the sheet map
 of the residual they leave no longer finds the structure (:func:`_explains`: a bump is a
@@ -71,9 +71,9 @@ from scipy import stats
 from vision_cal.model import joint_terms as jt
 from vision_cal.model.lsq import FailedFit, Fit
 from vision_cal.config import DEFAULT, EstimatorConfig
-from vision_cal.diagnose.select import (Diagnosis, Evidence, enough_away, heldout_rms,
+from vision_cal.estimate.select import (Diagnosis, Evidence, enough_away, heldout_rms,
                                         local_map, marks_away_from)
-from vision_cal.diagnose.structure import predicted_places, sheet_scan
+from vision_cal.estimate.structure import predicted_places, sheet_scan
 from vision_cal.model.robot import (JointBacklash, JointCyclic, JointEffect, JointScale, JointTerms,
                               RobotModel, SheetAffine)
 
@@ -450,7 +450,7 @@ def _trace(diag: Diagnosis, q_deg, xy_mm, approach, t, *, sigma_mm=None, ids=Non
     alpha = config.discovery.scan_level * alpha
     report = {"scans": axis_scans(final, q, app, t, sigma_mm=sigma_mm, alpha=alpha),
               "method": "forward stepwise selection, F-test at alpha / columns left and "
-                        "k-fold cross-validation (vision_cal.diagnose.discover)",
+                        "k-fold cross-validation (vision_cal.estimate.discover)",
               "dictionary": list(jt.DICTIONARY), "alpha": alpha}
     nonjoint = tuple(e for e in final.model.effects if not _dictionary_joint(e))
     f0 = refit_with(final.model, nonjoint, q, xy, app, sigma_mm, ids, config)
@@ -557,9 +557,9 @@ def _away_from_local(f0: Fit, xy, sheet_alpha: float, config: EstimatorConfig
                      ) -> _Away | None:
     """When the residual of the model without joint effects (``f0``) is shared by
     neighbouring marks (sheet map p below ``sheet_alpha``, the selection's level), the marks
-    away from it (:func:`vision_cal.diagnose.select.marks_away_from`, the selection's own
+    away from it (:func:`vision_cal.estimate.select.marks_away_from`, the selection's own
     rule) and whether they are enough to search on
-    (:func:`vision_cal.diagnose.select.enough_away`); else None."""
+    (:func:`vision_cal.estimate.select.enough_away`); else None."""
     scan = local_map(xy, f0, config.selection.min_sheet_marks)
     if not scan["p_value"] < sheet_alpha:
         return None

@@ -13,27 +13,38 @@ The flat vector is ``[L1, L2, z2, (a_k, bx_k, by_k) for each placement, effects.
 the ~135 deg one sheet spans almost like a constant (``a_k``) plus a slope
 (``joint_scale``); over the combined range of three placements it does not.
 
-Effects are chosen by forward selection with the single-sheet diagnosis's rule
-(:func:`fit_placements`): significant (F-test at ``alpha / n_candidates``), BIC down and
-the cross-validated error down, at most ``max_effects``.
+Effects are chosen by the estimator's one forward selection
+(:mod:`vision_cal.estimate.forward`), the placements posed as its problem
+(:func:`fit_placements`): significant (F-test at ``alpha`` over the dictionary's columns),
+BIC down and the cross-validated error down, at most ``max_effects``, no joint-term
+alternative better.
 """
 
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import stats
 
 from vision_cal.model import joint_terms as jt
-from vision_cal.model.lsq import Fit
+from vision_cal.model.lsq import FailedFit, Fit
 from vision_cal.config import DEFAULT, EstimatorConfig
+from vision_cal.dataset.calibration_result import CalibrationResult
+from vision_cal.dataset.covariance import covariance_json
+from vision_cal.dataset.nominal import nominal_blocks
+from vision_cal.dataset.valid_for import build as valid_for_block
 from vision_cal.errors import CalibrationError
+from vision_cal.estimate.candidates import Candidate, default_candidates
+from vision_cal.estimate.forward import Problem, Trial, forward_select
+from vision_cal.estimate.marks import MarkData
+from vision_cal.estimate.verdict import judge_placements
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import (Effect, JointBacklash, JointCyclic, JointScale, JointTerms,
-                              RobotModel, Tool)
+                              RobotModel, SheetAffine, Tool)
 from vision_cal.model.rms import rms_2d
+from vision_cal.model.tool_fit import joint4_values
 from vision_cal.model.solve import solve
 
 
@@ -48,11 +59,11 @@ class Placement:
     sigma_mm: np.ndarray | None = None   # (N,) measurement std, when known
 
 
-def default_candidates() -> list[Effect]:
-    """Joint effects tried on the combined marks."""
-    return [JointCyclic(joint=1, harmonic=1), JointCyclic(joint=1, harmonic=2),
-            JointCyclic(joint=2, harmonic=1), JointScale(joint=1), JointScale(joint=2),
-            JointBacklash(joint=1), JointBacklash(joint=2)]
+def shared_candidates() -> list[Candidate]:
+    """The effects tried on the combined marks: the estimator's one list
+    (:func:`vision_cal.estimate.candidates.default_candidates`) but a sheet's
+    (``sheet_affine`` is one placement's paper, not the shared robot's)."""
+    return [c for c in default_candidates() if not isinstance(c.effect, SheetAffine)]
 
 
 @dataclass(frozen=True)
@@ -280,19 +291,69 @@ def _cv_rms(places: list[Placement], fit: PlacementsFit, effects, k_folds: int,
     return float("nan") if res is None else rms_2d(np.concatenate(res))
 
 
+class _PlacementsProblem(Problem):
+    """Several placements posed to the forward selection
+    (:mod:`vision_cal.estimate.forward`): the shared lengths, ``z2`` and effects free with
+    one sheet pose per placement (:func:`_solve`), the weighted residual sum of squares and
+    degrees of freedom of that solve, the k-fold cross-validated error over every
+    placement's marks as the held-out error, trials ranked by p then F; an effect vetoed
+    when a joint-term alternative with as many parameters removes significantly more of
+    the residual (:func:`best_alternative`)."""
+
+    def __init__(self, places: list[Placement], alpha_each: float, k_folds: int,
+                 condition_limit: float):
+        self.places, self.alpha_each = places, alpha_each
+        self.k_folds, self.limit = k_folds, condition_limit
+        self.n_obs = 2 * sum(len(p.xy_mm) for p in places)
+
+    def fit_with(self, current: PlacementsFit, c: Candidate):
+        try:
+            return _solve(self.places, current.shared, current.poses,
+                          current.effects + (c.effect,), self.limit)
+        except CalibrationError as e:
+            return FailedFit(e.reason)
+
+    def rss(self, fit: PlacementsFit) -> float:
+        return fit.ssr
+
+    def n_params(self, fit: PlacementsFit) -> int:
+        return len(fit.cov)
+
+    def dof(self, fit: PlacementsFit) -> int:
+        return fit.dof
+
+    def held(self, fit: PlacementsFit) -> float:
+        return _cv_rms(self.places, fit, fit.effects, self.k_folds, self.limit)
+
+    def order(self, trials: list) -> list:
+        return sorted(trials, key=lambda t: (t.p, -t.F))
+
+    def veto(self, current: PlacementsFit, t: Trial):
+        """The joint-term columns that beat ``t``'s effect (its excess drop over the
+        effect's own, in units of the residual variance, significant at ``alpha_each``), or
+        None."""
+        alt = best_alternative(self.places, current, t.candidate.effect)
+        beaten = alt is not None and (alt[1] - alt[2]) / (t.fit.ssr / t.fit.dof) > \
+            stats.f.isf(self.alpha_each, 1, t.fit.dof)
+        return alt[0] if beaten else None
+
+
 def fit_placements(places: list[Placement], *, candidates=None, tool: Tool | None = None,
                    config: EstimatorConfig | None = None) -> tuple[PlacementsFit, list]:
-    """The shared robot from every placement, effects chosen by forward selection with the
-    single-sheet diagnosis's rule (:mod:`vision_cal.diagnose.select`): a candidate is kept
-    when its F-test passes at ``alpha / n_candidates`` (``alpha``, ``max_effects`` and
-    ``k_folds``: ``config.selection``, default ``DEFAULT``), the BIC drops *and* the k-fold
-    cross-validated error over the marks of every placement goes down; among those that
-    pass, the one with the lowest cross-validated error. An F-test alone claimed an extra
-    ``joint_scale`` beside a true once-per-turn error in about 1 of 200 clean-noise
-    datasets (bench/tool_joint4.py, seed 1502).
+    """The shared robot from every placement, effects chosen by the estimator's one forward
+    selection (:func:`vision_cal.estimate.forward.forward_select`) posed as
+    :class:`_PlacementsProblem`: a candidate (:func:`shared_candidates`, or ``candidates``)
+    is kept when its F-test passes at ``alpha / max(n_candidates, the dictionary's
+    columns)`` (``alpha``, ``max_effects`` and ``k_folds``: ``config.selection``, default
+    ``DEFAULT``), the BIC drops *and* the k-fold cross-validated error over the marks of
+    every placement goes down; among those, the one with the lowest cross-validated error
+    that no joint-term alternative beats. An F-test alone claimed an extra ``joint_scale``
+    beside a true once-per-turn error in about 1 of 200 clean-noise datasets
+    (bench/tool_joint4.py, seed 1502).
 
-    Returns the fit and the selection log (one dict per round: the best candidate, F, p,
-    delta BIC, cross-validated RMS before and after)."""
+    Returns the fit and the selection log (one dict per candidate ranked in a round: F, p,
+    delta BIC, cross-validated RMS before and after, accepted, the alternative that beat
+    it; a round where none passed logs its most significant candidate)."""
     if len(places) < 1:
         raise CalibrationError("no placement given")
     config = config or DEFAULT
@@ -302,57 +363,29 @@ def fit_placements(places: list[Placement], *, candidates=None, tool: Tool | Non
     shared, poses = _start(places, tool)
     base_effects = (tool,) if tool is not None else ()
     fit = _solve(places, shared, poses, base_effects, limit)
-    cands = list(default_candidates() if candidates is None else candidates)
+    cands = list(shared_candidates() if candidates is None else candidates)
     # claimed against every column of the joint-term dictionary, so tested at the level the
-    # dictionary's own selection uses (alpha split over its columns, vision_cal.diagnose.
+    # dictionary's own selection uses (alpha split over its columns, vision_cal.estimate.
     # discover): alpha / n_candidates alone let an F-test claim a joint_scale that q1^3 or
     # q1*q2 explain as well (1 in 200 datasets, bench/tool_joint4.py seed 1502)
     alpha_each = alpha / max(len(cands), 2 * len(jt.DICTIONARY))
-    n_obs = 2 * sum(len(p.xy_mm) for p in places)
-    cv_cur = _cv_rms(places, fit, fit.effects, k_folds, limit)
+    problem = _PlacementsProblem(places, alpha_each, k_folds, limit)
+    rounds, fit, _ = forward_select(problem, fit, cands, alpha_each=alpha_each,
+                                    max_effects=max_effects)
     log = []
-    while cands and len(fit.effects) - len(base_effects) < max_effects:
-        trials = []
-        for c in cands:
-            try:
-                t = _solve(places, fit.shared, fit.poses, fit.effects + (c,), limit)
-            except CalibrationError:
-                continue
-            k = len(c.theta)
-            F = ((fit.ssr - t.ssr) / k) / (t.ssr / t.dof) if t.ssr > 0 else np.inf
-            p = float(stats.f.sf(F, k, t.dof)) if np.isfinite(F) else 0.0
-            dbic = n_obs * np.log(max(t.ssr, 1e-300) / max(fit.ssr, 1e-300)) + k * np.log(n_obs)
-            trials.append((p, -F, c, t, float(dbic)))
-        if not trials:
-            break
-        trials.sort(key=lambda x: (x[0], x[1]))
-        passed = [(_cv_rms(places, t, t.effects, k_folds, limit), tr)
-                  for tr in trials for t in [tr[3]] if tr[0] < alpha_each and tr[4] < 0]
-        passed = sorted((x for x in passed if np.isfinite(x[0]) and x[0] < cv_cur),
-                        key=lambda x: x[0])
-        chosen = None
-        for cv, tr in passed:   # the best that no alternative with as many parameters beats
-            alt = best_alternative(places, fit, tr[2])
-            # beaten: the alternative removes significantly more (its excess over the
-            # effect's own drop, in units of the residual variance, at alpha_each)
-            beaten = alt is not None and (alt[1] - alt[2]) / (tr[3].ssr / tr[3].dof) > \
-                stats.f.isf(alpha_each, 1, tr[3].dof)
-            log.append({"effect": tr[2].label, "F": float(-tr[1]), "p_value": tr[0],
-                        "delta_bic": tr[4], "cv_rms_mm": [cv_cur, cv], "accepted": not beaten,
-                        **({"alternative": [f"{f} (joint {j})" for j, f in alt[0]]}
-                           if beaten else {})})
-            if not beaten:
-                chosen = (cv, tr)
-                break
-        if not passed:
-            p, negF, c, t, dbic = trials[0]
-            log.append({"effect": c.label, "F": float(-negF), "p_value": p, "delta_bic": dbic,
-                        "cv_rms_mm": [cv_cur, None], "accepted": False})
-        if chosen is None:
-            break
-        cv, (p, negF, c, t, dbic) = chosen
-        fit, cv_cur = t, cv
-        cands = [x for x in cands if x is not c]
+    for r in rounds:
+        ranked = [(t, cv, alt) for t, cv, alt in r.vetoed] + (
+            [(*r.chosen, None)] if r.chosen is not None else [])
+        for t, cv, alt in ranked:
+            log.append({"effect": t.candidate.label, "F": t.F, "p_value": t.p,
+                        "delta_bic": t.dbic, "cv_rms_mm": [r.held, cv],
+                        "accepted": alt is None,
+                        **({"alternative": [f"{f} (joint {j})" for j, f in alt]}
+                           if alt is not None else {})})
+        if not ranked:           # none passed: the most significant, not accepted
+            t = r.trials[0]
+            log.append({"effect": t.candidate.label, "F": t.F, "p_value": t.p,
+                        "delta_bic": t.dbic, "cv_rms_mm": [r.held, None], "accepted": False})
     return fit, log
 
 
@@ -401,3 +434,117 @@ def placement_cov(fit: PlacementsFit, k: int) -> np.ndarray:
     n = len(fit.poses)
     idx = [0, 1, 3 + 3 * k, 2, 4 + 3 * k, 5 + 3 * k] + list(range(3 + 3 * n, len(fit.cov)))
     return fit.cov[np.ix_(idx, idx)]
+
+
+# --------------------------------------------------------------------------- the calibrations
+
+def _mark_json(place: Placement, j: int, xy, r) -> dict:
+    """A placement calibration's ``marks`` entry: where it was measured, its residual under
+    the shared robot, its command and approach, its noise when measured by camera."""
+    d = {"measured_mm": xy.tolist(), "residual_mm": r.tolist(), "role": "calibration",
+         "joints_deg": [float(v) for v in place.q_deg[j, :2]],
+         "approach": [int(v) for v in place.approach[j, :2]]}
+    if place.q_deg.shape[1] == 3:
+        d["j4_deg"] = float(place.q_deg[j, 2])
+    if place.sigma_mm is not None:
+        d["sigma_mm"] = float(place.sigma_mm[j])
+    return d
+
+
+def _verdicts(places: list[Placement], sessions, fit: PlacementsFit, log,
+              config: EstimatorConfig):
+    """The contract's verdict of the joint fit and of each placement, and each placement's
+    agreement with the others (:func:`vision_cal.estimate.verdict.judge_placements`): the
+    residuals under the shared robot, the k-fold held-out ones, the robot block's
+    repeatability (the first session that gives one)."""
+    held = cv_residuals(places, fit, fit.effects, config.selection.k_folds,
+                         config.fit.condition_number_limit)
+    if held is None:
+        held = [np.full((len(p.xy_mm), 2), np.nan) for p in places]
+    rep = next((s.robot.repeatability_mm for s in sessions
+                if s.robot.repeatability_mm is not None), None)
+    seen = unexplained_seen(log)
+    reasons = [("check", "structure no candidate explains is left in the residual ("
+                + "; ".join(seen) + ")")] if seen else []
+    return judge_placements([p.name for p in places], list(fit.residuals_mm),
+                            [p.sigma_mm for p in places], held, n_params=len(fit.cov),
+                            repeatability_mm=rep, reasons=reasons, config=config.verdict)
+
+
+def placement_of(name: str, cal: MarkData) -> Placement:
+    """A placement's calibration marks (:class:`~vision_cal.estimate.marks.MarkData`), joint 4
+    in the joints when the session gives it."""
+    q, a = cal.q_deg, cal.approach
+    if cal.joint4 is not None:
+        q = np.column_stack([q, cal.joint4[:, 0]])
+        a = np.column_stack([a, cal.joint4[:, 1]])
+    return Placement(name, q, cal.xy_mm, a, cal.sigma_mm)
+
+
+def calibrate_placed(names, sessions, cals: list[MarkData],
+                     config: EstimatorConfig = DEFAULT
+                     ) -> tuple[CalibrationResult, list[CalibrationResult]]:
+    """One robot from several placements (``calibrate --joint``).
+
+        robot_frame, per_placement = calibrate_placed(["place0", "place1"], sessions, cals)
+
+    The estimator's problem:
+    each placement's calibration marks (``cals``, with its ``sessions`` and sub-folder
+    ``names``) fitted together (:func:`fit_placements`), judged (:func:`_verdicts`), and
+    the calibrations: the robot frame's (R) and each placement's in its sheet frame (for
+    ``plan``)."""
+    places = [placement_of(n, c) for n, c in zip(names, cals)]
+    with_j4 = [p for p in places if p.q_deg.shape[1] == 3]
+    if with_j4 and len(with_j4) != len(places):
+        raise CalibrationError("some placements give j4_deg and others do not: give it in "
+                               "every session.json or in none")
+    tool = None
+    if with_j4 and len(joint4_values(np.concatenate([p.q_deg[:, 2] for p in places]))) > 1:
+        tool = Tool()
+    fit, log = fit_placements(places, tool=tool, config=config)
+    joint_v, place_v, agree = _verdicts(places, sessions, fit, log, config)
+    rf = robot_frame_json(fit, names)
+    effects = list(rf["effects"])
+    seen = unexplained_seen(log)
+    if seen:   # significant structure that a library effect would only stand in for
+        effects.append({"name": "unexplained", "seen": seen})
+    for pl, v, a in zip(rf["placements"], place_v, agree):
+        pl["verdict"] = v.to_json()
+        if a is not None:
+            pl["agreement"] = a.to_json()
+    joint = CalibrationResult(
+        method="lsq-placements", params=rf["params"], std=rf["std"], effects=tuple(effects),
+        residual_rms_mm=rf["residual_rms_mm"],
+        diagnosis={"selection": log, "alpha": config.selection.alpha},
+        config=config.to_json(),
+        covariance=covariance_json(list(fit.labels), fit.cov),
+        notes=("one robot from several placements: params in the robot frame R "
+               "(docs/format.md); each placement's sheet-frame calibration in its "
+               "sub-folder",),
+        verdict=joint_v.to_json(),
+        extra={"frame": rf["frame"], "placements": rf["placements"]})
+    subs = []
+    for k, (session, cal) in enumerate(zip(sessions, cals)):
+        m = fit.model_on(k)
+        params = m.params.to_json()
+        if m.tool is not None:
+            params["tool_mm"] = list(m.tool.tool_mm)
+        placement = rf["placements"][k]
+        sub = CalibrationResult(
+            method="lsq-placements", params=params,
+            effects=tuple(e.to_json(fit.effect_std(i)) for i, e in enumerate(fit.effects)
+                          if not isinstance(e, Tool)),
+            covariance=covariance_json(m.param_labels(), placement_cov(fit, k)),
+            # the robot file the controller runs (dataset/nominal), not the pilot's model
+            **nominal_blocks(session.raw, session.robot.params.to_json()),
+            home_deg=tuple(float(v) for v in session.robot.home_deg),
+            residual_rms_mm={"final_model": placement["residual_rms_mm"]},
+            verdict=place_v[k].to_json(),
+            marks={i: _mark_json(places[k], j, xy, r)
+                   for j, (i, xy, r) in enumerate(zip(cal.ids, cal.xy_mm,
+                                                      fit.residuals_mm[k]))},
+            extra={"placement": placement})
+        # what plan checks its targets against
+        sub = replace(sub, valid_for=valid_for_block(sub))
+        subs.append(sub)
+    return joint, subs

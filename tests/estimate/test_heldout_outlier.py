@@ -5,7 +5,7 @@ away made a 0.05 deg backlash fail "held-out error not lowered")."""
 import numpy as np
 
 from tests.conftest import SM5, random_plan
-from vision_cal.diagnose.select import diagnose
+from vision_cal.estimate.select import diagnose
 from vision_cal.world.truth_model import TrueRobot
 
 

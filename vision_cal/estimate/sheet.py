@@ -93,11 +93,6 @@ class _Smoother:
         return np.where(s > self.floor, num / np.maximum(s, self.floor), 0.0)
 
 
-def _loo_smooth(xy, r, length_mm):
-    sm = _Smoother(np.asarray(xy, float), length_mm)
-    return sm(np.asarray(r, float)), sm.s
-
-
 def _agreement(r, pred):
     den = np.sqrt(np.sum(r**2) * np.sum(pred**2))
     return float(np.sum(r * pred) / den) if den > 0 else 0.0

@@ -49,7 +49,7 @@ what the model leaves beyond the noise and the print (``target_std``; without th
 noise, the held-out RMS with the print); the print not measured (no survey, photos from
 fewer than three camera places, a fixed camera) is ``check`` with a printer's deviation
 in it. ``ready`` also needs the fit's two halves to agree within what each states
-(calibration.json ``replication``, :mod:`vision_cal.diagnose.replicate`).
+(calibration.json ``replication``, :mod:`vision_cal.estimate.replicate`).
 
 The thresholds are calibration.json ``config.verdict`` (:class:`vision_cal.config.VerdictConfig`)
 and ``config.uncertainty``:
@@ -66,6 +66,7 @@ import numpy as np
 from scipy import stats
 
 from vision_cal.config import DEFAULT, EstimatorConfig, VerdictConfig
+from vision_cal.dataset.calibration_result import CalibrationResult, ModelRms
 from vision_cal.dataset.valid_for import verdict_reasons as valid_for_reasons
 
 #: radius holding 95 % of a circular normal 2-D error per unit of its RMS
@@ -412,15 +413,16 @@ def _finite(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
-def verdict_of(doc: dict) -> Verdict:
-    """The document's own ``verdict`` block (judged now for a document without one)."""
-    v = doc.get("verdict")
-    return Verdict.from_json(v) if isinstance(v, dict) and "status" in v else judge(doc)
+def _final(rms: ModelRms | None) -> float | None:
+    """The final model's RMS of a ``residual_rms_mm`` / ``validation_rms_mm`` block."""
+    return None if rms is None else rms.final_model
 
 
-def judge(doc: dict, *, repeatability_mm: float | None = None,
+def judge(cal, *, repeatability_mm: float | None = None,
           stage: str | None = None) -> Verdict:
-    """The verdict of a calibration document (see the module docstring). ``stage``: the
+    """The verdict of a calibration (see the module docstring): its
+    :class:`~vision_cal.dataset.calibration_result.CalibrationResult`, or a document (read
+    into one). ``stage``: the
     design stage of the session (session.json ``design.stage``). A ``pilot`` is a rough
     model for designing the informative plan: what its nine marks cannot do by design
     (test effects, compare marks given as ``measured_mm`` with a noise floor) is said among
@@ -431,30 +433,33 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
     status: the plan (:func:`_plan_reasons`), a drift, the noise floor
     (:func:`_noise_floor`), structure left (:func:`_structure_reasons`), marks left out,
     the accuracy figure (:func:`_accuracy`)."""
-    full = EstimatorConfig.from_json(doc.get("config"))
+    if not isinstance(cal, CalibrationResult):
+        cal = CalibrationResult.from_json(cal)
+    full = EstimatorConfig.from_json(cal.config)
     cfg = full.verdict
     pilot = stage == "pilot"
     by_design = "ready" if pilot else None
-    outliers = set(doc.get("outliers") or [])
-    marks = doc.get("marks") or {}
+    outliers = set(cal.outliers or [])
+    marks = cal.marks or {}
     rp = repeatability_from_repeats({k: m for k, m in marks.items() if k not in outliers},
                                     full, prior_mm=repeatability_mm)
     rep, source = rp.mm, rp.source
-    ident = doc.get("identifiability") or {}
+    ident = cal.identifiability or {}
     n_par = int(ident.get("n_params") or 6)
-    vf = doc.get("valid_for") if isinstance(doc.get("valid_for"), dict) else None
+    vf = cal.valid_for if isinstance(cal.valid_for, dict) else None
     reasons, outside = _plan_reasons(ident, vf, pilot)
     # each reason's kind (reason_codes): by the stage that found it
     outside = _coded(outside, "not_identified")
     reasons = _coded(reasons[:len(reasons) - len(outside)], "plan") + outside
-    effects = doc.get("effects") or []
+    effects = list(cal.effects or [])
     reasons += _coded(_drift_reasons(effects), "drift")
     floors = _noise_floor(marks, outliers, n_par, rep, cfg, by_design, rp.floor_dof)
     reasons += _coded(floors.reasons, "noise_floor")
-    reasons += _coded(_structure_reasons(doc, effects, marks), "structure")
+    reasons += _coded(_structure_reasons(cal, effects, marks), "structure")
     reasons += _coded(_left_out_reasons(outliers, marks), "left_out")
-    reasons += _coded(_replication_reasons(doc.get("replication"), by_design), "replication")
-    acc = _accuracy(doc, marks, n_par, rep, full, by_design)
+    reasons += _coded(_replication_reasons(cal.extra.get("replication"), by_design),
+                      "replication")
+    acc = _accuracy(cal, marks, n_par, rep, full, by_design)
     reasons += _coded(acc.reasons, "accuracy")
     v = _verdict(reasons, acc.r95, floors.floor, floors.hfloor, rep, source, floors.worst)
     if outside:   # the status inside valid_for (design --pilot accepts a pilot "ready" there)
@@ -466,7 +471,7 @@ def judge(doc: dict, *, repeatability_mm: float | None = None,
 
 def _replication_reasons(rep: dict | None, by_design: str | None) -> list[tuple[str, str]]:
     """(status, sentence) from calibration.json ``replication``
-    (:mod:`vision_cal.diagnose.replicate`): two halves of the marks that disagree beyond
+    (:mod:`vision_cal.estimate.replicate`): two halves of the marks that disagree beyond
     what each states (``check``: the stated std understates what the halves see), or a fit
     that could not be replicated (``check``; a pilot's at the ``ready`` level: its nine
     marks cannot be halved by design). Nothing for a file without the block (written
@@ -573,7 +578,8 @@ def _noise_floor(marks: dict, outliers: set, n_par: int, rep: float, cfg: Verdic
     return _Floors(floor, hfloor, worst, reasons)
 
 
-def _structure_reasons(doc: dict, effects: list, marks: dict) -> list[tuple[str, str]]:
+def _structure_reasons(cal: CalibrationResult, effects: list,
+                       marks: dict) -> list[tuple[str, str]]:
     """(status, sentence) for structure the model leaves: an ``unexplained`` effect, the
     scans for unnamed effects skipped, photos whose marks moved together, a printed grid
     that disagrees with the markers (``ready`` when the print was measured and the marks
@@ -584,7 +590,7 @@ def _structure_reasons(doc: dict, effects: list, marks: dict) -> list[tuple[str,
         seen = "; ".join(unexplained[0].get("seen", [])) or "structure"
         out.append(("check", f"structure no candidate explains is left in the residual "
                              f"({seen})"))
-    diagnosis = doc.get("diagnosis") or {}
+    diagnosis = cal.diagnosis or {}
     skipped = (diagnosis.get("discovery") or {}).get("skipped")
     if skipped:
         out.append(("check", skipped))
@@ -595,7 +601,7 @@ def _structure_reasons(doc: dict, effects: list, marks: dict) -> list[tuple[str,
                              "noise (a bad sheet mapping?): " + ", ".join(moved[:5])))
     sh = diagnosis.get("sheet_height") or {}
     as_ = sh.get("not_claimed_as")
-    pr = doc.get("print") or {}
+    pr = cal.extra.get("print") or {}
     printed_measured = pr.get("source") in ("views", "survey") and pr.get("applied", True)
     if not sh.get("claimed") and as_ == "mapping" and printed_measured:
         # the sheet as printed was measured (#28): the grid is off its layout as the markers
@@ -641,8 +647,8 @@ class _Accuracy:
     parts: dict | None = None
 
 
-def _accuracy(doc: dict, marks: dict, n_par: int, rep: float, full: EstimatorConfig,
-              by_design: str | None) -> _Accuracy:
+def _accuracy(cal: CalibrationResult, marks: dict, n_par: int, rep: float,
+              full: EstimatorConfig, by_design: str | None) -> _Accuracy:
     """The expected target error and the reasons it gives: no held-out figure, too few
     spare degrees of freedom (``by_design``'s level for a pilot), the print not measured
     (:func:`_print_part`), a held-out RMS well above the fitted one.
@@ -658,8 +664,7 @@ def _accuracy(doc: dict, marks: dict, n_par: int, rep: float, full: EstimatorCon
     def add(status, text, code=None):
         reasons.append((status, text) if code is None else (status, text, code))
 
-    v = doc.get("validation_rms_mm") or {}
-    held_rms, fit_rms = v.get("final_model"), (doc.get("residual_rms_mm") or {}).get("final_model")
+    held_rms, fit_rms = _final(cal.validation_rms_mm), _final(cal.residual_rms_mm)
     r95 = R95_PER_RMS * held_rms if _finite(held_rms) else None
     if r95 is None:
         add("check", "no held-out marks and no cross-validation figure: the fitted RMS "
@@ -670,9 +675,9 @@ def _accuracy(doc: dict, marks: dict, n_par: int, rep: float, full: EstimatorCon
         add(by_design or "check",
             f"{n_fit} fitted marks leave {2 * n_fit - n_par} degrees of freedom, too few to "
             "test for backlash, gear-ratio or sheet effects")
-    print_mm = _print_part(doc.get("print"), add, full, by_design)
-    parts = _target_parts(doc, marks, n_par, rep, print_mm) if r95 is not None else None
-    _print_named(doc.get("print"), parts, add, cfg)
+    print_mm = _print_part(cal.extra.get("print"), add, full, by_design)
+    parts = _target_parts(cal, marks, n_par, rep, print_mm) if r95 is not None else None
+    _print_named(cal.extra.get("print"), parts, add, cfg)
     if parts is not None:
         r95 = R95_PER_STD * parts["total_mm"]
     elif r95 is not None and print_mm > 0:
@@ -728,7 +733,7 @@ def _print_part(pr: dict | None, add, full: EstimatorConfig, by_design: str | No
     return size / math.sqrt(2.0)
 
 
-def _target_parts(doc: dict, marks: dict, n_par: int, rep: float,
+def _target_parts(cal: CalibrationResult, marks: dict, n_par: int, rep: float,
                   print_mm: float) -> dict | None:
     """A target's error, one std per axis, by part (calibration.json ``verdict.target_std``):
     ``calibration_mm`` (the fit's covariance at a mark: on average ``P / (2N - P)`` of the
@@ -738,7 +743,7 @@ def _target_parts(doc: dict, marks: dict, n_par: int, rep: float,
     cross-validation figure - pooled by their degrees of freedom; 0 when noise explains
     it), ``print_mm`` and ``total_mm`` (their root sum of squares), ``from`` (the marks it
     was read on). None unless every fitted mark carries its noise."""
-    outl = set(doc.get("outliers") or [])
+    outl = set(cal.outliers or [])
     fit = [m for k, m in marks.items() if m.get("role", "calibration") == "calibration"
            and m.get("status", "ok") == "ok" and m.get("residual_mm") is not None
            and k not in outl]
@@ -754,7 +759,7 @@ def _target_parts(doc: dict, marks: dict, n_par: int, rep: float,
     held = [m for m in marks.values() if m.get("role") == "validation"
             and m.get("status", "ok") == "ok" and m.get("residual_mm") is not None
             and m.get("sigma_mm") is not None]
-    vr = (doc.get("validation_rms_mm") or {}).get("final_model")
+    vr = _final(cal.validation_rms_mm)
     if len(held) >= 3:
         h = np.array([m["residual_mm"] for m in held], float).reshape(-1, 2)
         u2_held = (float(np.mean(h**2)) - float(np.mean([m["sigma_mm"] ** 2 for m in held]))

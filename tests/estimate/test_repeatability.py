@@ -4,8 +4,8 @@ own std, never 0 for want of evidence, a stated prior when the pairs cannot reso
 import numpy as np
 import pytest
 
-from tests.diagnose.test_verdict import _fit_doc
-from vision_cal.diagnose.verdict import judge, repeatability_from_repeats
+from tests.estimate.test_verdict import _fit_doc
+from vision_cal.estimate.verdict import judge, repeatability_from_repeats
 
 
 def _pairs(rng, n_pairs, r_true, sig_true, sig_stated):
@@ -78,7 +78,7 @@ def test_a_floor_eight_pairs_measured_is_not_a_known_floor():
     (the kinematic bench's robots of 0.0125 mm read as 0.0076 mm: "the model misses
     something" with nothing missing), so the F test of the two is not beyond the gate;
     against a floor taken as known (a prior) it is."""
-    from vision_cal.diagnose.verdict import floor_test
+    from vision_cal.estimate.verdict import floor_test
 
     res = np.tile([[0.015, 0.0]], (36, 1)) * np.sqrt(2.0)    # chi2 = 72 x 2.25 on 70 dof
     known = floor_test(res, np.zeros(36), 0.01, n_params=2)

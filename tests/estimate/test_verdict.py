@@ -7,7 +7,7 @@ from scipy import stats
 
 from tests.conftest import SM5, random_plan
 from vision_cal.model.lsq import Fit
-from vision_cal.diagnose.verdict import (Verdict, floor_test, judge, judge_camera_poses,
+from vision_cal.estimate.verdict import (Verdict, floor_test, judge, judge_camera_poses,
                                         repeatability_from_repeats)
 from vision_cal.world.truth_model import TrueRobot
 

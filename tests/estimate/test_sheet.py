@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from vision_cal.diagnose.sheet import smooth_residual
+from vision_cal.estimate.sheet import smooth_residual
 
 EXT = (-297.0, -210.0, 297.0, 210.0)
 

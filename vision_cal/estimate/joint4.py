@@ -4,23 +4,24 @@ branch for the tool and joint 4; contract "Joint 4 and the tool", docs/format.md
 Least squares: :func:`joint4_stage` fits the base model with ``tool_mm``
 (:func:`vision_cal.model.tool_fit.fit_tool`), then joint 4's backlash and gear-ratio
 error, each kept only when its estimate exceeds ``joint4.accept_sigma`` (config) reported std
-(clean data claims nothing); :func:`vision_cal.workflows.pipeline.fit_lsq` then runs the usual
+(clean data claims nothing); :func:`vision_cal.estimate.fit.fit_lsq` then runs the usual
 diagnosis (joint-1/2 effects, sheet, scans, discovery) with those held in every model, and
 :func:`add_tool` writes the tool's part. The paper method (:func:`fit_joint4_paper`):
-:func:`vision_cal.calibrate.tool.paper_tool`, with std by linear propagation of the mark
+:func:`vision_cal.estimate.tool.paper_tool`, with std by linear propagation of the mark
 noise (the least-squares fit's residual scale); it searches no effect (a note says so).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from vision_cal.model.tool_fit import ToolFit, fit_tool
-from vision_cal.calibrate.tool import paper_tool
+from vision_cal.estimate.tool import paper_tool
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.model.robot import JointBacklash, JointScale
+from vision_cal.dataset.calibration_result import CalibrationResult, ModelRms
 from vision_cal.dataset.covariance import covariance_json
 from vision_cal.model.rms import rms_2d
 
@@ -75,26 +76,28 @@ def joint4_stage(cal, config: EstimatorConfig | None = None) -> Joint4Stage:
     return Joint4Stage(effects, tuple(accepted), tuple(rejected), tuple(notes), accept)
 
 
-def add_tool(doc: dict, diagnosis, stage: Joint4Stage) -> None:
-    """Complete a least-squares document whose models hold the tool (``doc`` from
-    :func:`vision_cal.workflows.pipeline.fit_lsq` with ``stage.effects``): ``params.tool_mm``,
-    ``std.tool_mm``, the ``tool`` block, ``base_model_params.tool_mm`` and
-    ``diagnosis.joint4``."""
+def add_tool(result: CalibrationResult, diagnosis, stage: Joint4Stage) -> CalibrationResult:
+    """A least-squares calibration whose models hold the tool (``result`` from
+    :func:`vision_cal.estimate.fit.fit_lsq` with ``stage.effects``) completed:
+    ``params.tool_mm``, ``std.tool_mm``, the ``tool`` block, ``base_model_params.tool_mm``
+    and ``diagnosis.joint4``."""
     final = ToolFit(diagnosis.final_fit)
-    doc["params"]["tool_mm"] = final.tool_mm.tolist()
-    doc["std"]["tool_mm"] = final.tool_std_mm.tolist()
-    doc["tool"] = final.to_json()
-    if "base_model_params" in doc:
-        doc["base_model_params"]["tool_mm"] = ToolFit(diagnosis.base_fit).tool_mm.tolist()
-    doc.setdefault("diagnosis", {})["joint4"] = stage.to_json()
-    doc["notes"] = list(doc.get("notes", [])) + list(stage.notes) + [
-        "marks at several j4_deg: tool_mm and joint-4 effects fitted first, then joint-1/2 "
-        "effects selected with them"]
+    base = result.base_model_params
+    return replace(
+        result, params={**result.params, "tool_mm": final.tool_mm.tolist()},
+        std={**result.std, "tool_mm": final.tool_std_mm.tolist()}, tool=final.to_json(),
+        base_model_params=None if base is None else {
+            **base, "tool_mm": ToolFit(diagnosis.base_fit).tool_mm.tolist()},
+        diagnosis={**(result.diagnosis or {}), "joint4": stage.to_json()},
+        notes=tuple(result.notes or ()) + tuple(stage.notes) + (
+            "marks at several j4_deg: tool_mm and joint-4 effects fitted first, then "
+            "joint-1/2 effects selected with them",))
 
 
 def fit_joint4_paper(cal, val):
-    """The circle method with joint 4: (doc, model, residual_all, residual_base) for marks
-    ``cal`` / ``val`` (:class:`vision_cal.workflows.pipeline.MarkData` with ``joint4``)."""
+    """The circle method with joint 4: (its blocks of calibration.json, model,
+    residual_all, residual_base) for marks ``cal`` / ``val``
+    (:class:`vision_cal.estimate.marks.MarkData` with ``joint4``)."""
     q, app = cal.q_model, cal.approach_model
     has_val = len(val.ids) > 0
     qv, appv = (val.q_model, val.approach_model) if has_val else (np.zeros((0, 3)),
@@ -115,21 +118,21 @@ def fit_joint4_paper(cal, val):
         G[:, k] = (np.r_[a.params.vector, a.tool_mm] - np.r_[b.params.vector, b.tool_mm]) / (2 * h)
     cov = G @ G.T * noise**2
     std = np.sqrt(np.clip(np.diag(cov), 0, None))
-    doc = dict(params={**model.params.to_json(), "tool_mm": list(pt.tool_mm)},
-               std=_std_json(std[:6], std[6:]), effects=[],
-               tool={**pt.to_json(), "std_mm": std[6:].tolist()},
-               covariance=covariance_json(model.param_labels(), cov))
-    notes = ["marks at several j4_deg: tool_mm by the circle method on joint 4; effects are "
-             "not searched by the paper method (the residual is reported as it is)"]
     res_cal = cal.xy_mm - model.predict(q, app)
     res_val = val.xy_mm - model.predict(qv, appv) if has_val else np.zeros((0, 2))
     base_cal = cal.xy_mm - base_model.predict(q, app)
     base_val = val.xy_mm - base_model.predict(qv, appv) if has_val else np.zeros((0, 2))
-    doc["residual_rms_mm"] = {"base_model": rms_2d(base_cal), "final_model": rms_2d(res_cal)}
-    doc["validation_rms_mm"] = {"base_model": rms_2d(base_val) if has_val else None,
-                                "final_model": rms_2d(res_val) if has_val else None,
-                                "kind": "validation marks" if has_val else "none"}
-    doc["notes"] = notes
+    result = CalibrationResult(
+        params={**model.params.to_json(), "tool_mm": list(pt.tool_mm)},
+        std=_std_json(std[:6], std[6:]), effects=(),
+        tool={**pt.to_json(), "std_mm": std[6:].tolist()},
+        covariance=covariance_json(model.param_labels(), cov),
+        residual_rms_mm=ModelRms(rms_2d(base_cal), rms_2d(res_cal)),
+        validation_rms_mm=ModelRms(rms_2d(base_val) if has_val else None,
+                                   rms_2d(res_val) if has_val else None,
+                                   "validation marks" if has_val else "none"),
+        notes=("marks at several j4_deg: tool_mm by the circle method on joint 4; effects "
+               "are not searched by the paper method (the residual is reported as it is)",))
     residual_all = dict(zip(cal.ids, res_cal)) | dict(zip(val.ids, res_val))
     residual_base = dict(zip(cal.ids, base_cal)) | dict(zip(val.ids, base_val))
-    return doc, model, residual_all, residual_base
+    return result, model, residual_all, residual_base

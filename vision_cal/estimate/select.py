@@ -1,7 +1,7 @@
 """Residuals traced to effects: forward selection with held-out evidence.
 
 Start from the base model. Each round fits the current model plus each candidate
-(:mod:`vision_cal.diagnose.candidates`) that the plan can identify, and keeps the one
+(:mod:`vision_cal.estimate.candidates`) that the plan can identify, and keeps the one
 that most lowers the held-out error (validation marks when there are at least three,
 else k-fold cross-validation over the calibration marks), provided
 
@@ -25,8 +25,9 @@ from scipy import stats
 
 from vision_cal.model.lsq import FailedFit, Fit
 from vision_cal.config import DEFAULT, EstimatorConfig
-from vision_cal.diagnose.candidates import Candidate, default_candidates, joint_residuals_deg
-from vision_cal.diagnose.structure import harmonic_scan, sheet_scan
+from vision_cal.estimate.candidates import Candidate, default_candidates, joint_residuals_deg
+from vision_cal.estimate.forward import Problem, Trial, forward_select
+from vision_cal.estimate.structure import harmonic_scan, sheet_scan
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import JointCyclic, RobotModel, SheetAffine, Tool
 from vision_cal.model.rms import rms, rms_2d
@@ -504,73 +505,86 @@ def _at_zero(e):
     return e if isinstance(e, Tool) else e.with_theta(np.zeros(len(e.theta)))
 
 
+class _SheetProblem(Problem):
+    """One sheet's marks posed to the forward selection (:mod:`vision_cal.estimate.forward`):
+    every parameter of the model free, the candidates' effects added one at a time
+    (:func:`_fit`); the residual sum of squares of a fit's inliers weighted by ``1 /
+    sigma``, the degrees of freedom from the base fit's inliers, the held-out error
+    ``held``; a sheet scale along x or along y kept for the alternative whose printed scale
+    shrinks, one below what the scale bars can be measured to never claimed; a candidate
+    that cannot be fitted reported not identifiable with the plan change that fixes it."""
+
+    def __init__(self, base: Fit, q, xy, app, sigma, ids, held, config: EstimatorConfig):
+        self.q, self.xy, self.app, self.sigma, self.ids = q, xy, app, sigma, ids
+        self.held_of, self.config = held, config
+        self.n_obs = 2 * int(base.inliers.sum())
+        self.not_ident: list[dict] = []
+
+    def fit_with(self, current: Fit, c: Candidate):
+        return _fit(current.model.with_effect(c.effect), self.q, self.xy, self.app,
+                    self.sigma, self.ids, self.config)
+
+    def rss(self, fit: Fit) -> float:
+        return _rss_w(fit, self.sigma)
+
+    def n_params(self, fit: Fit) -> int:
+        return fit.n_params
+
+    def dof(self, fit: Fit) -> int:
+        return max(self.n_obs - fit.n_params, 1)
+
+    def held(self, fit: Fit) -> float:
+        return self.held_of(fit.model, fit=fit)
+
+    def order(self, trials: list) -> list:
+        return _prefer_shrink(trials)
+
+    def too_small(self, t: Trial) -> bool:
+        return _below_paper_floor(t.candidate, t.fit, self.config)
+
+    def failed(self, c: Candidate, f) -> None:
+        if not any(d["label"] == c.label for d in self.not_ident):
+            self.not_ident.append({"label": c.label, "reason": f.reason, "fix": c.fix})
+
+    def excludes(self, chosen: Candidate, c: Candidate) -> bool:
+        return c.key == chosen.key      # alternatives (a sheet scale along x or y): one
+
+
 def _select(base: Fit, nuisance: tuple, cands, q, xy, app, sigma, ids, held, alpha_each,
             max_effects, config: EstimatorConfig) -> _Selection:
     """Forward selection from the base model (plus ``nuisance`` effects, fitted but never
-    reported: structure no candidate explains)."""
+    reported: structure no candidate explains), by the estimator's one rule
+    (:func:`vision_cal.estimate.forward.forward_select`) on this sheet's problem
+    (:class:`_SheetProblem`); the accepted effects with their evidence, and the last
+    round's rejected candidates with the reason each was not added."""
     if nuisance:
         current = _fit(RobotModel(base.params, base.model.effects + nuisance), q, xy, app,
                        sigma, ids, config).or_raise()
     else:
         current = base
+    problem = _SheetProblem(base, q, xy, app, sigma, ids, held, config)
     # the selection's fits are of these marks, robust, as the held-out test's: reused
-    current_held = held(current.model, fit=current)
-    base_held = current_held
-    accepted, rejected, not_ident = [], [], []
-    used_keys: set[str] = set()
-    n_obs = 2 * int(base.inliers.sum())
-    while len(accepted) < max_effects:
-        trials = []
-        for c in cands:
-            if c.key in used_keys:
-                continue
-            model = current.model.with_effect(c.effect)
-            f = _fit(model, q, xy, app, sigma, ids, config)
-            if not f:
-                if not any(d["label"] == c.label for d in not_ident):
-                    not_ident.append({"label": c.label, "reason": f.reason, "fix": c.fix})
-                continue
-            rss0, rss1 = _rss_w(current, sigma), _rss_w(f, sigma)
-            k = f.n_params - current.n_params
-            dof1 = max(n_obs - f.n_params, 1)
-            F = ((rss0 - rss1) / k) / (rss1 / dof1) if rss1 > 0 else float("inf")
-            p = float(stats.f.sf(F, k, dof1)) if np.isfinite(F) else 0.0
-            dbic = n_obs * np.log(max(rss1, 1e-300) / max(rss0, 1e-300)) + k * np.log(n_obs)
-            trials.append((c, f, rss0, rss1, F, p, dbic))
-        if not trials:
-            break
-        # sheet scale along x or y: the same fit (one is the other with the lengths scaled);
-        # the sheet shrinks, so keep the alternative whose printed scale is above one.
-        trials = _prefer_shrink(trials)
-        small = {id(t[0]) for t in trials if _below_paper_floor(t[0], t[1], config)}
-        sig = [t for t in trials if t[5] < alpha_each and t[6] < 0 and id(t[0]) not in small]
-        scored = []
-        for t in sig:
-            scored.append((held(t[1].model, fit=t[1]), t))
-        best = min(scored, key=lambda s: s[0]) if scored else None
-        round_rejected = []
-        for c, f, rss0, rss1, F, p, dbic in trials:
-            h = next((s[0] for s in scored if s[1][0] is c), float("nan"))
-            if best is not None and c is best[1][0] and h < current_held:
-                continue
-            why = ("not significant" if p >= alpha_each or dbic >= 0 else
+    rounds, fit, fit_held = forward_select(problem, current, cands, alpha_each=alpha_each,
+                                           max_effects=max_effects)
+    base_held = rounds[0].held if rounds else fit_held
+    accepted, rejected = [], []
+    for r in rounds:
+        if r.chosen is not None:
+            t, h = r.chosen
+            accepted.append(Evidence(t.candidate.label, r.held, h, t.rss0, t.rss1, t.F, t.p,
+                                     t.dbic, True, "significant and lowers the held-out error",
+                                     t.fit.model.effects[-1].to_json()))
+            continue
+        for t in r.trials:              # the last round: why each was not added
+            h = r.held_of(t)
+            why = ("not significant" if t.p >= alpha_each or t.dbic >= 0 else
                    f"smaller than the {config.selection.min_sheet_affine:.2%} the printed "
-                   "scale bars can be measured to" if id(c) in small else
-                   "held-out error not lowered" if not (h < current_held) else
+                   "scale bars can be measured to" if problem.too_small(t) else
+                   "held-out error not lowered" if not (h < r.held) else
                    "another candidate explains more")
-            round_rejected.append(Evidence(c.label, current_held, h, rss0, rss1, float(F), p,
-                                           float(dbic), False, why))
-        if best is None or not (best[0] < current_held):
-            rejected.extend(round_rejected)
-            break
-        c, f, rss0, rss1, F, p, dbic = best[1]
-        eff = f.model.effects[-1]
-        accepted.append(Evidence(c.label, current_held, best[0], rss0, rss1, float(F), p,
-                                 float(dbic), True, "significant and lowers the held-out error",
-                                 eff.to_json()))
-        used_keys.add(c.key)
-        current, current_held = f, best[0]
-    return _Selection(current, current_held, base_held, accepted, rejected, not_ident)
+            rejected.append(Evidence(t.candidate.label, r.held, h, t.rss0, t.rss1, t.F, t.p,
+                                     t.dbic, False, why))
+    return _Selection(fit, fit_held, base_held, accepted, rejected, problem.not_ident)
 
 
 def _unexplained_harmonics(fit: Fit, q, app, sigma, cands, alpha, *, ids=None, xy=None,
@@ -623,12 +637,15 @@ def _below_paper_floor(c: Candidate, f: Fit, config: EstimatorConfig) -> bool:
     return bool(len(theta)) and float(np.max(np.abs(theta))) < config.selection.min_sheet_affine
 
 
-def _prefer_shrink(trials):
-    sheet = [t for t in trials if isinstance(t[0].effect, SheetAffine) and t[0].effect.dof in "xy"]
+def _prefer_shrink(trials: list) -> list:
+    """A sheet scale along x or along y: the same fit (one is the other with the lengths
+    scaled); the sheet shrinks, so the alternative whose printed scale is above one stays."""
+    sheet = [t for t in trials if isinstance(t.candidate.effect, SheetAffine)
+             and t.candidate.effect.dof in "xy"]
     if len(sheet) == 2:
         a, b = sheet
-        if abs(a[3] - b[3]) <= 0.05 * max(a[3], b[3]):
-            drop = a if a[1].model.effects[-1].theta[0] < 0 else b
+        if abs(a.rss1 - b.rss1) <= 0.05 * max(a.rss1, b.rss1):
+            drop = a if a.fit.model.effects[-1].theta[0] < 0 else b
             trials = [t for t in trials if t is not drop]
     return trials
 

@@ -8,8 +8,8 @@ import pytest
 
 from tests.conftest import SM5, random_plan
 from vision_cal.dataset.io import atomic_write_json
-from vision_cal.diagnose.discover import axis_scans, trace
-from vision_cal.diagnose.select import diagnose
+from vision_cal.estimate.discover import axis_scans, trace
+from vision_cal.estimate.select import diagnose
 from vision_cal.model.motion import approach_signs
 from vision_cal.workflows.pipeline import calibrate_dataset
 from vision_cal.plan.compensate import plan_targets

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vision_cal.calibrate.circles import Circle
+from vision_cal.estimate.circles import Circle
 from vision_cal.model.lsq import FailedFit
 from vision_cal.model.kinematics import ScaraParams
 

@@ -41,10 +41,10 @@ def _likely_cause(joints_deg: np.ndarray, ratio: float) -> str:
     return "check the units of joints_deg (degrees) and of the robot block (mm)"
 
 
-def check_plausible(doc: dict, session) -> None:
+def check_plausible(cal: CalibrationResult, session) -> None:
     """Raise :class:`VisionCalError` (one line naming session.json) when the fitted
-    ``doc`` is implausible for ``session``'s nominal robot."""
-    p = doc.get("params", {})
+    calibration ``cal`` is implausible for ``session``'s nominal robot."""
+    p = cal.params or {}
     nominal = session.robot
     for name, nom in (("L1_mm", nominal.L1_mm), ("L2_mm", nominal.L2_mm)):
         got = p.get(name)
@@ -56,7 +56,7 @@ def check_plausible(doc: dict, session) -> None:
                 f"implausible calibration: {name[:2]} = {float(got):.6g} mm against the "
                 f"nominal {nom:g} mm ({ratio:.3g}x); {_likely_cause(session.joints_deg, ratio)}",
                 file=str(session.path), field="marks")
-    for e in doc.get("effects", []):
+    for e in cal.effects or ():
         if e.get("name") != "sheet_affine":
             continue
         m = np.asarray(e.get("matrix", [[1, 0], [0, 1]]), float)

@@ -3,7 +3,7 @@ from types import SimpleNamespace as NS
 import numpy as np
 
 from tests.conftest import SM5, random_plan
-from vision_cal.diagnose.photos import per_photo_offsets
+from vision_cal.estimate.photos import per_photo_offsets
 from vision_cal.model.robot import RobotModel
 
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import SM5, random_plan
-from vision_cal.diagnose.select import diagnose
+from vision_cal.estimate.select import diagnose
 from vision_cal.model.robot import JointBacklash, JointCyclic, JointScale, SheetAffine
 from vision_cal.world.truth_model import TrueRobot
 

@@ -1,6 +1,6 @@
 """Replication (issue 37): two halves' estimates against what each states
 (``model/replication.compare``), and the robot fit replicated by two halves of its marks
-(``diagnose/replicate``) on kinematic worlds."""
+(``estimate/replicate``) on kinematic worlds."""
 
 import functools
 
@@ -10,8 +10,8 @@ from scipy import stats
 
 from tests.conftest import SM5
 from tests.plan.test_calibration_plan import NOMINAL, make_sheet
-from vision_cal.diagnose.replicate import candidate_splits, replicate
-from vision_cal.diagnose.verdict import judge
+from vision_cal.estimate.replicate import candidate_splits, replicate
+from vision_cal.estimate.verdict import judge
 from vision_cal.model.lsq import Fit
 from vision_cal.model.replication import compare
 from vision_cal.model.robot import JointBacklash, RobotModel

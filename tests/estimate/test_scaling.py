@@ -6,9 +6,9 @@ import tracemalloc
 
 import numpy as np
 
-import vision_cal.diagnose.sheet as sheet
-from vision_cal.diagnose.select import marks_away_from
-from vision_cal.diagnose.structure import sheet_scan
+import vision_cal.estimate.sheet as sheet
+from vision_cal.estimate.select import marks_away_from
+from vision_cal.estimate.structure import sheet_scan
 
 
 def _marks(n, seed=11):
@@ -131,7 +131,7 @@ def test_marks_away_from_a_structure_count_places_not_repeats():
 def test_permutations_in_blocks_are_the_same_test(monkeypatch):
     """The permutations drawn a few at a time (memory linear in marks: 100,000 marks held
     1.6 GB at once) give the same p-value as all at once, with and without repeats."""
-    import vision_cal.diagnose.structure as structure
+    import vision_cal.estimate.structure as structure
 
     _, xy, r = _marks(300)
     r = r - 0.018 * np.sin(xy / 90.0)                               # a weaker structure

@@ -23,7 +23,7 @@ covariance with its cross terms. The positions compared: the validation marks' c
 
 The halves agree unless ``p < verdict.floor_alpha`` and ``chi2/dof >
 verdict.floor_ratio_tol^2`` for the parameters or the positions (the noise floor's
-rule); the verdict is not ``ready`` otherwise (:func:`vision_cal.diagnose.verdict.judge`).
+rule); the verdict is not ``ready`` otherwise (:func:`vision_cal.estimate.verdict.judge`).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from vision_cal.calibrate.circles import Circle
+from vision_cal.estimate.circles import Circle
 from vision_cal.errors import CalibrationError
 
 

@@ -28,8 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vision_cal.calibrate.circles import Circle
-from vision_cal.calibrate.paper import paper_method
+from vision_cal.estimate.circles import Circle
+from vision_cal.estimate.paper import paper_method
 from vision_cal.errors import CalibrationError
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.model.robot import RobotModel, Tool

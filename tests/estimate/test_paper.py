@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import PAPER_Q, PAPER_XY
-from vision_cal.calibrate.paper import paper_method
+from vision_cal.estimate.paper import paper_method
 from vision_cal.errors import CalibrationError
 from vision_cal.model.kinematics import ScaraParams, forward, inverse
 

@@ -3,8 +3,8 @@ expected target error covers it."""
 
 import pytest
 
-from tests.diagnose.test_verdict import _fit_doc
-from vision_cal.diagnose.verdict import R95_PER_RMS, judge
+from tests.estimate.test_verdict import _fit_doc
+from vision_cal.estimate.verdict import R95_PER_RMS, judge
 
 
 def test_one_place_print_makes_check_and_adds_to_the_expected_error():

@@ -1,1 +1,0 @@
-"""Diagnosis: residuals traced to the effects the base model lacks."""
