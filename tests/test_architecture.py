@@ -427,7 +427,6 @@ LAYERS = [
     {"program", "world"},
     {"camera", "design"},
     {"report"},
-    {"workflows"},
     {"actions"},
     {"commands"},
 ]
@@ -568,11 +567,11 @@ def test_the_estimate_check_sees_what_it_guards(tmp_path):
     """estimate/ reaching for a camera inside a function, and for the front, is found;
     estimate/ reading the measurement and a file's class is not."""
     pkg = tmp_path / "vision_cal"
-    for d in ("estimate", "camera", "workflows", "measure", "dataset"):
+    for d in ("estimate", "camera", "actions", "measure", "dataset"):
         (pkg / d).mkdir(parents=True)
         (pkg / d / "__init__.py").write_text("")
     (pkg / "__init__.py").write_text("")
-    for m in ("camera/fixed.py", "workflows/measure_folder.py", "measure/types.py",
+    for m in ("camera/fixed.py", "actions/measure_folder.py", "measure/types.py",
               "dataset/calibration_result.py"):
         (pkg / m).write_text("")
     (pkg / "estimate" / "document.py").write_text(
@@ -580,11 +579,11 @@ def test_the_estimate_check_sees_what_it_guards(tmp_path):
         "from vision_cal.dataset.calibration_result import CalibrationResult\n\n"
         "def f():\n    from vision_cal.camera.fixed import cameras_json\n")
     (pkg / "estimate" / "marks.py").write_text(
-        "import vision_cal.workflows.measure_folder\n")
+        "import vision_cal.actions.measure_folder\n")
     g = import_graph(pkg)
     assert imports_beyond(g, "estimate", ESTIMATE_MAY_IMPORT) == {
         "vision_cal.estimate.document": ["vision_cal.camera.fixed"],
-        "vision_cal.estimate.marks": ["vision_cal.workflows.measure_folder"]}
+        "vision_cal.estimate.marks": ["vision_cal.actions.measure_folder"]}
 
 
 #: one file, one class: the module whose class alone reads and writes each file (its

@@ -17,7 +17,7 @@ from vision_cal.dataset.io import atomic_write_json, distinct_outputs
 from vision_cal.dataset.out_folder import replacing_files
 from vision_cal.dataset.session import load_session
 from vision_cal.errors import VisionCalError
-from vision_cal.workflows.measure_folder import measure_folder
+from vision_cal.actions.measure_folder import measure_folder
 
 
 @dataclass(frozen=True)
