@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from vision_cal.camera.arm import ArmView, check_declared_lens, estimate_lens, fit_arm_camera
-from vision_cal.workflows.arm_session import undetermined_reasons
+from vision_cal.actions.arm_camera import undetermined_reasons
 from vision_cal.estimate.verdict import judge_camera_poses
 from vision_cal.model.kinematics import ScaraParams
 from vision_cal.world import arm_camera as world

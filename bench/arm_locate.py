@@ -36,7 +36,7 @@ from vision_cal.camera.fixed import locate
 from vision_cal.dataset.io import atomic_write_json, read_json
 from vision_cal.errors import VisionCalError
 from vision_cal.world.arm_camera import render_arm_dataset
-from vision_cal.workflows.arm_session import calibrate_arm_camera
+from vision_cal.actions.arm_camera import calibrate_arm_camera
 
 TRUTH = {"L1_mm": 344.05, "L2_mm": 259.87, "joint_zero_deg": [-2.57, -8.13],
          "base_mm": [-424.26, -230.35]}

@@ -35,7 +35,7 @@ def main(folders: list[str]) -> int:
         return 0
     from vision_cal.config import DEFAULT
     from vision_cal.dataset.session import load_session
-    from vision_cal.workflows.measure_folder import measure_folder
+    from vision_cal.actions.measure_folder import measure_folder
 
     ways = {"off": replace(DEFAULT, as_printed=replace(DEFAULT.as_printed, min_places=10**6)),
             "in-plane only": replace(DEFAULT, as_printed=replace(DEFAULT.as_printed,

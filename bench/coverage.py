@@ -51,7 +51,7 @@ from vision_cal.plan.calibration_plan import informative_plan  # noqa: E402
 from vision_cal.plan.compensate import plan_targets  # noqa: E402
 from vision_cal.plan.uncertainty import target_std  # noqa: E402
 from vision_cal.world.truth_model import TrueRobot  # noqa: E402
-from vision_cal.workflows.pipeline import calibrate_dataset  # noqa: E402
+from vision_cal.actions.pipeline import calibrate_dataset  # noqa: E402
 
 SM5 = ScaraParams(344.05, 259.87, -2.57, -8.13, -424.26, -230.35)
 NOMINAL = ScaraParams(350.0, 260.0, 0.0, 0.0, -400.0, -250.0)

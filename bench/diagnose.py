@@ -79,7 +79,7 @@ def render_grid(seeds: int, width: int, only: str | None = None) -> None:
 
     import yaml
 
-    from vision_cal.workflows.pipeline import calibrate_dataset
+    from vision_cal.actions.pipeline import calibrate_dataset
     from vision_cal.estimate.paper import pilot_params
     from vision_cal.world.dataset import photographer_K, render_dataset
     from vision_cal.world.photo import Photographer

@@ -87,7 +87,7 @@ def run_case(case: str, folder: Path) -> dict:
     import numpy as np
 
     from vision_cal.dataset.session import load_session
-    from vision_cal.workflows.measure_folder import measure_folder
+    from vision_cal.actions.measure_folder import measure_folder
 
     out = Path(tempfile.mkdtemp(prefix="vision-cal-limits-"))
     try:

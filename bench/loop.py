@@ -28,7 +28,7 @@ def main() -> None:
     a = ap.parse_args()
     from vision_cal.dataset.calibration import load_calibration
     from vision_cal.model.kinematics import inverse
-    from vision_cal.workflows.loop import format_table, run_loop
+    from vision_cal.actions.loop import format_table, run_loop
     from vision_cal.plan.compensate import plan_targets
 
     t0 = time.perf_counter()

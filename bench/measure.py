@@ -129,7 +129,7 @@ def reference_table(scenes: list[str], root: Path, seed: int | None) -> None:
     (local), flat and bumped scenes, in one table; time per photo of both."""
     from vision_cal.estimate.paper import pilot_params
     from vision_cal.dataset.session import load_session
-    from vision_cal.workflows.measure_folder import measure_folder
+    from vision_cal.actions.measure_folder import measure_folder
     from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import load_scene
 
@@ -187,7 +187,7 @@ def plain_all(files: list[Path], dictionary: str) -> tuple[float, float]:
 def whole_run(folder: Path) -> dict:
     """The whole calibration against plain decode + detect (see the module docstring),
     printed; returns the figures (``bench/speed.py`` writes them to docs/speed.json)."""
-    from vision_cal.workflows import pipeline
+    from vision_cal.actions import pipeline
     from vision_cal.estimate.paper import pilot_params
     from vision_cal.dataset.session import load_session
     from vision_cal.world.dataset import render_dataset
@@ -347,7 +347,7 @@ def main() -> int:
 
     from vision_cal.dataset.session import load_session
     from vision_cal.measure.detect import detect_image
-    from vision_cal.workflows.measure_folder import measure_folder
+    from vision_cal.actions.measure_folder import measure_folder
 
     folder = Path(a.folder)
     if not (folder / "session.json").exists():

@@ -37,7 +37,7 @@ def gate_table(n_series: int, first_seed: int) -> int:
     from vision_cal.config import DEFAULT
     from vision_cal.measure.detect import detect_image
     from vision_cal.measure.finish import finish_image
-    from vision_cal.workflows.measure_folder import measure_folder
+    from vision_cal.actions.measure_folder import measure_folder
     from vision_cal.measure.sheetfit import MISFIT, marker_side_mm
 
     # per photo and lens case: (corner_rms_mm, mm_per_px at the markers, marker side mm)
@@ -106,7 +106,7 @@ def lenses() -> int:
 
     from vision_cal.estimate.paper import pilot_params
     from vision_cal.measure import mapping
-    from vision_cal.workflows.pipeline import calibrate_dataset
+    from vision_cal.actions.pipeline import calibrate_dataset
     from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import scene_from_dict
 

@@ -89,7 +89,7 @@ def main() -> int:
         print(json.dumps(evaluate(Path(a.folder[0]), Path(a.folder[1])), indent=1))
         return 0
     from vision_cal.estimate.paper import pilot_params
-    from vision_cal.workflows.pipeline import calibrate_dataset
+    from vision_cal.actions.pipeline import calibrate_dataset
     from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import load_scene
 

@@ -85,7 +85,7 @@ def fixture_table() -> int:
 
     from vision_cal.dataset.session import load_session
     from vision_cal.measure.detect import detect_image
-    from vision_cal.workflows.measure_folder import measure_folder
+    from vision_cal.actions.measure_folder import measure_folder
 
     sheet = json.loads((FIXTURE / "sheet.json").read_text())
     tmp = Path(tempfile.mkdtemp(prefix="bench-real-"))
@@ -159,7 +159,7 @@ def world_table(seeds) -> int:
     from vision_cal.errors import VisionCalError
     from vision_cal.model.kinematics import ScaraParams
     from vision_cal.model.robot import RobotModel, effect_from_json
-    from vision_cal.workflows.pipeline import calibrate_dataset
+    from vision_cal.actions.pipeline import calibrate_dataset
     from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import scene_from_dict
 

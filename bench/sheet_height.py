@@ -74,7 +74,7 @@ def false_claims(seeds, only: str | None = None) -> int:
     """The flat-sheet false-claim rate and the bumped detection rate (module docstring);
     ``only``: the worlds whose name holds it."""
     from vision_cal.estimate.paper import pilot_params
-    from vision_cal.workflows.measure_folder import measure_folder
+    from vision_cal.actions.measure_folder import measure_folder
     from vision_cal.world.dataset import render_dataset
 
     worlds = [("flat, tilt 0, undeclared k1 -0.06", 0.0, -0.06, False, None),
@@ -119,7 +119,7 @@ def main() -> int:
     from vision_cal.dataset.calibration import load_calibration
     from vision_cal.model.kinematics import ScaraParams
     from vision_cal.model.robot import RobotModel, effect_from_json
-    from vision_cal.workflows.pipeline import calibrate_dataset
+    from vision_cal.actions.pipeline import calibrate_dataset
 
     print(f"{'dataset':34s} {'marks um':>8s} {'backlash %':>10s} {'claimed':30s} "
           f"{'plan um':>7s} {'nominal plan um':>15s}")

@@ -47,7 +47,7 @@ from vision_cal.estimate.placements import Placement, fit_placements
 from vision_cal.model.tool_fit import fit_tool
 from vision_cal.estimate.verdict import judge
 from vision_cal.model.robot import JointBacklash, JointScale
-from vision_cal.workflows.pipeline import calibrate_dataset
+from vision_cal.actions.pipeline import calibrate_dataset
 from vision_cal.plan.orient import plan_poses
 from vision_cal.world.truth_model import TrueRobot
 

@@ -115,7 +115,7 @@ def photograph(folder: Path, sheet_dir: Path, world, photographer, rng, *, n: in
 def walkthrough(tmp: Path) -> dict:
     from vision_cal.dataset.csvio import read_plan, write_targets
     from vision_cal.dataset.session import load_sheet_file
-    from vision_cal.workflows.loop import default_targets
+    from vision_cal.actions.loop import default_targets
     from vision_cal.world.camera import camera_matrix
     from vision_cal.world.photo import Photographer
 

@@ -1,8 +1,9 @@
 """The house's rules, read from the source (ast, nothing imported): ``report/`` renders the
 written files and imports nothing of the estimator, no import circle exists among the
 package's modules (imports inside functions count as much as those at the top), a command
-only parses its arguments and calls an action, the actions' results are printed in one
-place (``actions/console.py``), the packages import no layer above their own, the synthetic
+only parses its arguments and calls an action, every outcome an action returns prints
+itself (its ``show`` method; no registry of class names), nothing else of the front prints,
+the packages import no layer above their own, the synthetic
 world (``world/``) nothing of the estimator, and one module solves least squares."""
 
 from __future__ import annotations
@@ -36,9 +37,11 @@ COMMANDS_EXCEPT = {
         "--method's choices are config.METHODS, the one list of methods; config imports "
         "nothing (no numpy), so building the parser stays instant",
 }
-#: the modules of actions/ and commands/ that may call print(): the console, and main's
-#: one line per error
+#: the modules of actions/ and commands/ that may call print() outside an outcome's
+#: ``show``: the console's shared helpers (say, warn, error), and main's one line per error
 PRINTS = {"vision_cal.actions.console", "vision_cal.commands.main"}
+#: the method by which an outcome prints itself (returns the command's exit code)
+SHOW = "show"
 
 
 @functools.lru_cache(maxsize=None)
@@ -150,17 +153,70 @@ def command_violations(graph: dict[str, set[str]]) -> dict[str, list[str]]:
             if bad}
 
 
+def _prints(node: ast.AST) -> bool:
+    return any(isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == "print"
+               for n in ast.walk(node))
+
+
 def printing_modules(package: Path = PACKAGE) -> set[str]:
-    """The modules of actions/ and commands/ that call ``print`` anywhere."""
+    """The modules of actions/ and commands/ that call ``print`` outside an outcome's
+    ``show`` method (a method of that name of a class)."""
     out = set()
     for name, path in modules(package).items():
         if name.split(".")[1:2] not in (["actions"], ["commands"]):
             continue
         tree = parsed(path)
+        shows = [f for c in ast.walk(tree) if isinstance(c, ast.ClassDef) for f in c.body
+                 if isinstance(f, ast.FunctionDef) and f.name == SHOW]
+        inside = {id(n) for f in shows for n in ast.walk(f)}
         if any(isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == "print"
-               for n in ast.walk(tree)):
+               and id(n) not in inside for n in ast.walk(tree)):
             out.add(name)
     return out
+
+
+def _names(annotation: ast.AST | None) -> set[str]:
+    """The plain names of a return annotation (``A | B`` -> {A, B}; a string annotation
+    parsed)."""
+    if annotation is None:
+        return set()
+    if isinstance(annotation, ast.Constant) and isinstance(annotation.value, str):
+        annotation = ast.parse(annotation.value, mode="eval").body
+    if isinstance(annotation, ast.BinOp):
+        return _names(annotation.left) | _names(annotation.right)
+    return {annotation.id} if isinstance(annotation, ast.Name) else set()
+
+
+def outcomes_without_show(package: Path = PACKAGE) -> dict[str, str]:
+    """Outcome type -> what is wrong with it, for every type an action returns (the return
+    annotation of a public function of actions/ whose first argument is a ``...Request``) or
+    tells (a ``tell(Outcome(...))`` call): each must be a class of actions/ with a ``show``
+    method (a type of another package, the world's, is wrapped by a thin outcome of the
+    front: the world imports nothing of it)."""
+    found, classes = {}, {}
+    for name, path in modules(package).items():
+        if package_of(name) != "actions":
+            continue
+        tree = parsed(path)
+        for node in tree.body:
+            if isinstance(node, ast.ClassDef):
+                classes[node.name] = any(isinstance(f, ast.FunctionDef) and f.name == SHOW
+                                         for f in node.body)
+            elif (isinstance(node, ast.FunctionDef) and not node.name.startswith("_")
+                  and node.args.args and node.args.args[0].annotation is not None
+                  and any(n.endswith("Request")
+                          for n in _names(node.args.args[0].annotation))):
+                found.update({t: f"{name}.{node.name}" for t in _names(node.returns)
+                              if t != "None"})
+        for n in ast.walk(tree):
+            if (isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == "tell"
+                    and n.args and isinstance(n.args[0], ast.Call)
+                    and isinstance(n.args[0].func, ast.Name)
+                    and n.args[0].func.id[:1].isupper()):
+                found.setdefault(n.args[0].func.id, f"{name} (told)")
+    return {t: (f"returned by {where}: not a class of actions/" if t not in classes else
+                f"returned by {where}: no {SHOW}() method")
+            for t, where in found.items() if not classes.get(t)}
 
 
 @pytest.fixture(scope="module")
@@ -204,19 +260,50 @@ def test_commands_only_parse_and_call_an_action(graph):
     assert stale == set(), "gone: remove from COMMANDS_EXCEPT"
 
 
-def test_results_are_printed_in_one_place():
-    """Only actions/console.py (and main's error line) print: every action returns a typed
-    outcome that the console prints (a long one tells each step's outcome to a callback
-    the command gives, as ``calibrate`` does per folder)."""
+def test_each_outcome_prints_itself_and_nothing_else_prints():
+    """Every action returns a typed outcome that prints itself (``show``; a long action
+    tells each step's outcome to a callback the command gives, as ``calibrate`` does per
+    folder): no registry of class names, so a renamed outcome cannot lose its printer. Only
+    outcomes' ``show`` methods, the console's shared helpers and main's error line print."""
+    assert outcomes_without_show() == {}
     printing = printing_modules()
     assert "vision_cal.actions.console" in printing
     assert printing - PRINTS == set()
 
 
+def test_the_outcome_check_sees_what_it_guards(tmp_path):
+    """An action returning a class without ``show``, one returning another package's type,
+    and an event told without ``show`` are found; an outcome with ``show`` (one of a union,
+    one told) and a helper taking no request are not."""
+    pkg = tmp_path / "vision_cal"
+    for d in ("actions", "world"):
+        (pkg / d).mkdir(parents=True)
+        (pkg / d / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "world" / "sim.py").write_text("class SimResult:\n    pass\n")
+    (pkg / "actions" / "go.py").write_text(
+        "from vision_cal.world.sim import SimResult\n\n"
+        "class GoRequest:\n    pass\n\n"
+        "class Done:\n    def show(self, quiet=False):\n        print(1)\n\n"
+        "class Told:\n    def show(self, quiet=False):\n        return 0\n\n"
+        "class Half:\n    def lines(self):\n        return []\n\n"
+        "class Noted:\n    pass\n\n"
+        "def go(req: GoRequest, tell) -> Done | Half:\n"
+        "    tell(Told())\n    tell(Noted())\n    return Done()\n\n"
+        "def sim(req: 'GoRequest') -> SimResult:\n    return SimResult()\n\n"
+        "def helper(x: int) -> Half:\n    return Half()\n")
+    assert outcomes_without_show(pkg) == {
+        "Half": "returned by vision_cal.actions.go.go: no show() method",
+        "Noted": "returned by vision_cal.actions.go (told): no show() method",
+        "SimResult": "returned by vision_cal.actions.go.sim: not a class of actions/"}
+    assert printing_modules(pkg) == set()     # print inside an outcome's show
+
+
 def test_the_command_checks_see_what_they_guard(tmp_path):
     """A command reaching into the library inside its run(), and an action or a command
-    printing, are found; a command importing an action, errors and the commands package, and
-    the console printing, are not."""
+    printing outside an outcome's ``show``, are found; a command importing an action, errors
+    and the commands package, the console printing, and an outcome's ``show`` printing, are
+    not."""
     pkg = tmp_path / "vision_cal"
     for d in ("commands", "actions", "measure"):
         (pkg / d).mkdir(parents=True)
@@ -225,6 +312,9 @@ def test_the_command_checks_see_what_they_guard(tmp_path):
     (pkg / "errors.py").write_text("")
     (pkg / "measure" / "batch.py").write_text("")
     (pkg / "actions" / "go.py").write_text("def go(req):\n    print(req)\n")
+    (pkg / "actions" / "done.py").write_text(
+        "class Done:\n    def show(self, quiet=False):\n        print(self)\n\n"
+        "def lines(o):\n    print(o)\n")
     (pkg / "actions" / "console.py").write_text("def show(o):\n    print(o)\n")
     (pkg / "commands" / "good.py").write_text(
         "from vision_cal.commands import request\n\ndef run(args):\n"
@@ -234,8 +324,10 @@ def test_the_command_checks_see_what_they_guard(tmp_path):
         "def run(args):\n    from ..measure import batch\n    print(batch)\n")
     g = import_graph(pkg)
     assert command_violations(g) == {"vision_cal.commands.bad": ["vision_cal.measure.batch"]}
+    (pkg / "actions" / "shown.py").write_text(
+        "class Shown:\n    def show(self, quiet=False):\n        print(self)\n")
     assert printing_modules(pkg) == {"vision_cal.actions.go", "vision_cal.actions.console",
-                                     "vision_cal.commands.bad"}
+                                     "vision_cal.commands.bad", "vision_cal.actions.done"}
 
 
 def test_every_command_is_on_the_command_line():
@@ -335,7 +427,6 @@ LAYERS = [
     {"program", "world"},
     {"camera", "design"},
     {"report"},
-    {"workflows"},
     {"actions"},
     {"commands"},
 ]
@@ -476,11 +567,11 @@ def test_the_estimate_check_sees_what_it_guards(tmp_path):
     """estimate/ reaching for a camera inside a function, and for the front, is found;
     estimate/ reading the measurement and a file's class is not."""
     pkg = tmp_path / "vision_cal"
-    for d in ("estimate", "camera", "workflows", "measure", "dataset"):
+    for d in ("estimate", "camera", "actions", "measure", "dataset"):
         (pkg / d).mkdir(parents=True)
         (pkg / d / "__init__.py").write_text("")
     (pkg / "__init__.py").write_text("")
-    for m in ("camera/fixed.py", "workflows/measure_folder.py", "measure/types.py",
+    for m in ("camera/fixed.py", "actions/measure_folder.py", "measure/types.py",
               "dataset/calibration_result.py"):
         (pkg / m).write_text("")
     (pkg / "estimate" / "document.py").write_text(
@@ -488,11 +579,11 @@ def test_the_estimate_check_sees_what_it_guards(tmp_path):
         "from vision_cal.dataset.calibration_result import CalibrationResult\n\n"
         "def f():\n    from vision_cal.camera.fixed import cameras_json\n")
     (pkg / "estimate" / "marks.py").write_text(
-        "import vision_cal.workflows.measure_folder\n")
+        "import vision_cal.actions.measure_folder\n")
     g = import_graph(pkg)
     assert imports_beyond(g, "estimate", ESTIMATE_MAY_IMPORT) == {
         "vision_cal.estimate.document": ["vision_cal.camera.fixed"],
-        "vision_cal.estimate.marks": ["vision_cal.workflows.measure_folder"]}
+        "vision_cal.estimate.marks": ["vision_cal.actions.measure_folder"]}
 
 
 #: one file, one class: the module whose class alone reads and writes each file (its

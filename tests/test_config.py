@@ -35,7 +35,7 @@ from vision_cal.measure import (asprinted, dots, grid, grid_declaration, height,
 from vision_cal.measure.finish import measure_image
 from vision_cal.measure.cache import session_fingerprint
 from vision_cal.estimate.marks import MarkData
-from vision_cal.workflows.pipeline import calibrate_dataset
+from vision_cal.actions.pipeline import calibrate_dataset
 from vision_cal.world.camera import project
 from vision_cal.world.truth_model import TrueRobot
 from vision_cal.report.headline import configuration

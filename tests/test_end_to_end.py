@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from vision_cal.dataset.io import read_json
-from vision_cal.workflows.pipeline import calibrate_dataset
+from vision_cal.actions.pipeline import calibrate_dataset
 from vision_cal.estimate.paper import pilot_params
 from vision_cal.world import dataset as ds
 from vision_cal.world.scene import scene_from_dict

@@ -10,7 +10,7 @@ import pytest
 
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.csvio import read_plan, read_targets
-from vision_cal.workflows.loop import format_table, run_loop
+from vision_cal.actions.loop import format_table, run_loop
 from vision_cal.world.scene import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -126,7 +126,7 @@ def test_loop_report_headline_photos_once_and_linked(loop):
 
 
 def test_landing_note_says_where_the_pen_went(loop):
-    from vision_cal.workflows.loop import landing_note
+    from vision_cal.actions.loop import landing_note
     from vision_cal.plan.compensate import PlannedTarget
 
     _, _, run = loop
@@ -167,7 +167,7 @@ def test_a_survey_block_surveys_first_and_the_calibration_uses_what_measured_the
     from vision_cal.errors import VisionCalError
     from vision_cal.measure.replicate import Claim
     from vision_cal.world.scene import scene_from_dict
-    from vision_cal.workflows import loop as lp
+    from vision_cal.actions import loop as lp
 
     rendered, calibrated = [], []
 

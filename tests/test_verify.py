@@ -113,7 +113,6 @@ def test_the_rezero_verdict_says_one_sign_and_one_action_a_line():
     the user named the photos' folder (relative), and every file it holds is announced."""
     from pathlib import Path
 
-    from vision_cal.actions.console import verify_lines
     from vision_cal.actions.verify import VerifyOutcome, default_out
 
     r = check(moved(CAL, z2=0.04, z1=-0.5, base=(5.0, 3.0)), 21)
@@ -122,9 +121,9 @@ def test_the_rezero_verdict_says_one_sign_and_one_action_a_line():
     assert r.verdict == f"re-zero joint 2: add {add:+.3f} deg to its controller offset"
     doc = r.to_json()
     assert doc["rezero"]["add_to_offset_deg"] == add and "sign_convention" in doc
-    lines = verify_lines(VerifyOutcome(r, Path("check_verify/verify.json"), (),
-                                       (Path("check_verify/measurement.json"),
-                                        Path("check_verify/verify.json"))))
+    lines = VerifyOutcome(r, Path("check_verify/verify.json"), (),
+                          (Path("check_verify/measurement.json"),
+                           Path("check_verify/verify.json"))).lines()
     actions = [ln for ln in lines if ln.startswith("  - ")]
     assert any(ln.startswith(f"  - on the controller: add {add:+.4f} deg") for ln in actions)
     assert any(ln.startswith("  - or in the OLP: enter z2 =") for ln in actions)

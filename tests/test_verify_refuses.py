@@ -88,7 +88,7 @@ def test_verify_refuses_what_it_cannot_check_naming_the_field(tmp_path, capsys, 
     # its marks are measured_mm, so it compares)
     from vision_cal.dataset.calibration import load_calibration
     from vision_cal.dataset.session import load_session
-    from vision_cal.workflows.verify import check_verifiable
+    from vision_cal.actions.verify import check_verifiable
 
     model, doc = load_calibration(good)
     check_verifiable(model, doc, good, load_session(CHECK))

@@ -19,7 +19,7 @@ from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.io import read_json
 from vision_cal.plan.compensate import plan_targets
 from vision_cal.schema import validate
-from vision_cal.workflows.pipeline import calibrate_dataset
+from vision_cal.actions.pipeline import calibrate_dataset
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))   # world2 is not installed (world2/README.md)

@@ -4,7 +4,7 @@ calibration.json (field ``config``) so that a result says how it was obtained.
 Every threshold the measurement and the selection use is a field below, with its unit and
 why it has its value. No module copies a field at import: each function reads the config it
 is given when it is called (``config=None`` meaning :data:`DEFAULT`), so a config passed to
-:func:`vision_cal.workflows.pipeline.calibrate_dataset` (an :class:`EstimatorConfig`) changes every
+:func:`vision_cal.actions.pipeline.calibrate_dataset` (an :class:`EstimatorConfig`) changes every
 stage, and all of it is written to calibration.json ``config`` (the report shows the
 recorded values, not today's defaults). The parts, by key:
 
@@ -43,7 +43,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, fields
 
 
-#: the calibration methods (``vision-cal --method``, :func:`vision_cal.workflows.pipeline.calibrate_dataset`):
+#: the calibration methods (``vision-cal --method``, :func:`vision_cal.actions.pipeline.calibrate_dataset`):
 #: least squares with the effect diagnosis, and the seed paper's three-point circles
 METHODS = ("lsq", "paper")
 

@@ -151,7 +151,7 @@ def test_poses_that_do_not_separate_a_parameter_are_not_reliable():
     rng = np.random.default_rng(5)
     X = world.T_flange_camera_true(rng)
     fit = fit_arm_camera(_views(_plan(16, rng, turn_j4=False), X, rng), K, None, NOMINAL)
-    from vision_cal.workflows.arm_session import undetermined_reasons
+    from vision_cal.actions.arm_camera import undetermined_reasons
 
     v = _verdict(fit, reasons=undetermined_reasons(fit, "flange"))
     assert v.status == "not reliable" and "L2_mm" in v.reasons[0], v.reasons

@@ -12,7 +12,7 @@ import pytest
 
 from tests.camera.test_arm import NOMINAL, TRUTH, _field, _plan
 from vision_cal.camera.arm import ArmView, check_declared_lens, fit_arm_camera
-from vision_cal.workflows.arm_session import lens_height_reason, undetermined_reasons
+from vision_cal.actions.arm_camera import lens_height_reason, undetermined_reasons
 from vision_cal.estimate.verdict import judge_camera_poses
 from vision_cal.world import arm_camera as world
 
@@ -230,7 +230,7 @@ def test_repeated_poses_measure_the_robots_repeatability():
     the residual sits on the floor."""
     from tests.camera.test_arm import K as K0
     from tests.camera.test_arm import _views as views0
-    from vision_cal.workflows.arm_session import repeat_pairs
+    from vision_cal.actions.arm_camera import repeat_pairs
 
     rng = np.random.default_rng(21)
     X = world.T_flange_camera_true(rng)

@@ -16,7 +16,7 @@ from vision_cal.dataset.session import MAX_POSES, Session, load_arm_session, loa
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.cache import session_fingerprint
 from vision_cal.measure.listing import photos_to_measure
-from vision_cal.workflows.arm_session import measure_arm_photos
+from vision_cal.actions.arm_camera import measure_arm_photos
 from vision_cal.world.arm_camera import field_sheet
 
 ROBOT = {"L1_mm": 350.0, "L2_mm": 260.0, "joint_zero_deg": [0.0, 0.0],

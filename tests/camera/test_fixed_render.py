@@ -21,7 +21,7 @@ from vision_cal.camera.export import quaternion_xyzw, transform_path
 from vision_cal.camera.fixed import camera_of, locate
 from vision_cal.commands.main import main
 from vision_cal.dataset.io import read_json
-from vision_cal.workflows.pipeline import calibrate_dataset
+from vision_cal.actions.pipeline import calibrate_dataset
 from vision_cal.world import dataset as ds
 from vision_cal.world.scene import scene_from_dict
 

@@ -151,7 +151,7 @@ def test_calibration_run_keeps_the_model_calibration_json_holds(paper_folder, tm
     import numpy as np
 
     from vision_cal.dataset.calibration import load_calibration
-    from vision_cal.workflows.pipeline import calibrate_dataset
+    from vision_cal.actions.pipeline import calibrate_dataset
 
     for method in ("lsq", "paper"):
         run = calibrate_dataset(paper_folder, out_dir=tmp_path / method, method=method)

@@ -18,7 +18,7 @@ import pytest
 from tests.commands.test_trust import (PAPER, ROOT, TARGETS, assert_one_line,
                                        calibration, cli, snapshot)  # noqa: F401
 import vision_cal.actions.calibrate as calibrate_action
-import vision_cal.workflows.placements as placements
+import vision_cal.actions.calibrate as placements
 from tests.tool.test_placements import _places
 from vision_cal.dataset.session import MAX_POSES
 from vision_cal.commands.main import main

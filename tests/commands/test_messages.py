@@ -15,7 +15,7 @@ from tests.commands.test_keep_files import ROBOT, arm, field_sheet  # noqa: F401
 from tests.commands.test_trust import (TARGETS, assert_one_line, calibration,  # noqa: F401
                                        cli)
 from tests.tool.test_placements import _places
-from vision_cal.actions.console import flange_camera_line
+from vision_cal.actions.arm_camera import flange_camera_line
 from vision_cal.commands.main import _LowerLevelFormatter, main
 from vision_cal.report.summary import format_summary
 

@@ -347,7 +347,7 @@ def test_ctrl_c_after_the_photos_are_measured_leaves_nothing_that_looks_current(
     """Issue 30: a run stopped between measuring and fitting left a new measurement.json
     beside the earlier calibration (moved to previous/). measurement.json is now renamed
     into OUT with calibration.json at the end; the detection cache is kept."""
-    import vision_cal.workflows.pipeline as pipeline
+    import vision_cal.actions.pipeline as pipeline
 
     folder = dataset(tmp_path, lambda s: None, src=rendered)
     out = tmp_path / "out"

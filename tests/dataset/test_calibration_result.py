@@ -7,7 +7,7 @@ import pytest
 
 from vision_cal.dataset.calibration_result import (FORMAT, METHODS_EXTRA, CalibrationResult,
                                                    ModelRms)
-from vision_cal.workflows.pipeline import calibrate_dataset
+from vision_cal.actions.pipeline import calibrate_dataset
 
 
 @pytest.mark.parametrize("method", ["paper", "lsq"])

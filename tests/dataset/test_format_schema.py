@@ -41,7 +41,7 @@ def rendered_run(tmp_path_factory):
     """A one-photo rendered session and its calibration."""
     from dataclasses import replace
 
-    from vision_cal.workflows.pipeline import calibrate_dataset
+    from vision_cal.actions.pipeline import calibrate_dataset
     from vision_cal.world.dataset import render_dataset
     from vision_cal.world.scene import load_scene
 
@@ -65,7 +65,7 @@ def test_rendered_session_and_its_calibration_validate(rendered_run):
 
 
 def test_paper_calibration_validates(tmp_path, paper_folder):
-    from vision_cal.workflows.pipeline import calibrate_dataset
+    from vision_cal.actions.pipeline import calibrate_dataset
 
     for method in ("lsq", "paper"):
         run = calibrate_dataset(paper_folder, out_dir=tmp_path / method, method=method)
@@ -109,7 +109,7 @@ def test_added_fields_are_allowed(paper_folder):
 
 
 def test_calibration_schema_refuses_a_broken_document(tmp_path, paper_folder):
-    from vision_cal.workflows.pipeline import calibrate_dataset
+    from vision_cal.actions.pipeline import calibrate_dataset
 
     doc = json.loads(calibrate_dataset(paper_folder, out_dir=tmp_path).out_path.read_text())
     for brk in (lambda d: d.pop("std"), lambda d: d["residual_rms_mm"].pop("final_model"),

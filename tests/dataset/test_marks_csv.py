@@ -16,7 +16,7 @@ from tests.conftest import ROOT, SM5, random_plan
 from vision_cal.commands.main import main
 from vision_cal.dataset.marks_csv import session_from_marks_csv
 from vision_cal.errors import VisionCalError
-from vision_cal.workflows.pipeline import calibrate_dataset
+from vision_cal.actions.pipeline import calibrate_dataset
 from vision_cal.world.truth_model import TrueRobot
 
 N, SIGMA = 40, 0.02            # marks; the instrument's accuracy, one std per axis (mm)
@@ -193,7 +193,7 @@ def test_a_long_calibration_says_when_each_stage_starts_and_ends(tmp_path, monke
     """From pipeline.PROGRESS_MARKS marks (2,000; lowered to the fixture's 40 here) the fit +
     diagnosis and the writing of calibration.json each print a progress line as they start
     and as they end; below it, none."""
-    import vision_cal.workflows.pipeline as pipeline
+    import vision_cal.actions.pipeline as pipeline
 
     argv = ["calibrate", str(FIXTURE / "marks.csv"), "--robot", str(FIXTURE / "robot.yaml"),
             "--sigma-mm", str(SIGMA), "--out", str(tmp_path / "o")]

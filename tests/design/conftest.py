@@ -48,7 +48,7 @@ def informative_dir(tmp_path_factory, pilot_dir, sheet_json):
     """The informative stage from a pilot calibration (a true robot's pilot marks with
     0.02 mm of noise: the plan's structure, not its accuracy, is under test here)."""
     from vision_cal.design.stage import design_stage
-    from vision_cal.workflows.pipeline import calibrate_dataset
+    from vision_cal.actions.pipeline import calibrate_dataset
     from vision_cal.world.truth_model import TrueRobot
 
     s = json.loads((pilot_dir / "session.json").read_text())

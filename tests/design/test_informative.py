@@ -19,7 +19,7 @@ TRUTH = TrueRobot.from_json(
 def informative(tmp_path_factory, pilot_dir, sheet_json):
     """The pilot drawn by the true robot, measured to 0.02 mm, calibrated; then designed."""
     from vision_cal.design.stage import design_stage
-    from vision_cal.workflows.pipeline import calibrate_dataset
+    from vision_cal.actions.pipeline import calibrate_dataset
 
     rng = np.random.default_rng(3)
     s = json.loads((pilot_dir / "session.json").read_text())

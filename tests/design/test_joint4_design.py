@@ -17,7 +17,7 @@ TRUTH = TrueRobot.from_json(
 
 def test_design_turns_joint4_and_marks_stay_on_free_paper(tmp_path, pilot_dir, sheet_json):
     from vision_cal.design.stage import design_stage
-    from vision_cal.workflows.pipeline import calibrate_dataset
+    from vision_cal.actions.pipeline import calibrate_dataset
 
     rng = np.random.default_rng(4)
     s = json.loads((pilot_dir / "session.json").read_text())

@@ -123,7 +123,7 @@ def _pilot_calibration(tmp_path, pilot_dir, edit) -> Path:
     judges a pilot."""
     from vision_cal.estimate.verdict import judge
     from vision_cal.world.truth_model import TrueRobot
-    from vision_cal.workflows.pipeline import calibrate_dataset
+    from vision_cal.actions.pipeline import calibrate_dataset
 
     s = json.loads((pilot_dir / "session.json").read_text())
     truth = TrueRobot(344.05, 259.87, (-2.57, -8.13), (-420.0, -230.0))

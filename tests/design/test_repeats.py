@@ -45,7 +45,7 @@ def test_calibration_reports_the_measured_repeatability(tmp_path, informative_di
     measured to 0.005 mm: the verdict's floor uses the pairs' figure, not the robot file's
     0.01 mm; within 4 of its std, (sigma^2 + r^2) / (2 r sqrt(n)) = 3.8 um for 8 pairs."""
     from vision_cal.estimate.verdict import judge
-    from vision_cal.workflows.pipeline import calibrate_dataset
+    from vision_cal.actions.pipeline import calibrate_dataset
 
     r_true, sig = 0.02, 0.005
     rng = np.random.default_rng(41)

@@ -11,7 +11,7 @@ from vision_cal.dataset.io import atomic_write_json
 from vision_cal.estimate.discover import axis_scans, trace
 from vision_cal.estimate.select import diagnose
 from vision_cal.model.motion import approach_signs
-from vision_cal.workflows.pipeline import calibrate_dataset
+from vision_cal.actions.pipeline import calibrate_dataset
 from vision_cal.plan.compensate import plan_targets
 from vision_cal.world.truth_model import TrueRobot
 from vision_cal.schema import validate

@@ -11,7 +11,7 @@ from vision_cal.dataset.session import load_session
 from vision_cal.errors import FailureUsed
 from vision_cal.model.kinematics import ScaraParams, forward
 from vision_cal.identify.associate import DotGroup, associate, combine, match_to_plan
-from vision_cal.workflows.measure_folder import measure_folder
+from vision_cal.actions.measure_folder import measure_folder
 
 NOMINAL = ScaraParams(350.0, 260.0, 3.0 + 10.0, -4.0 - 10.0, -250.0 + 70.0, 210.0 - 70.0)
 

@@ -16,7 +16,7 @@ import pytest
 from tests.measure import synth_measure as sm
 from vision_cal.dataset.session import load_session
 from vision_cal.measure import detect
-from vision_cal.workflows.measure_folder import measure_folder
+from vision_cal.actions.measure_folder import measure_folder
 from vision_cal.measure.cache import (DetectionCache, cache_key, decode_detections,
                                      encode_detections, session_fingerprint)
 

@@ -14,7 +14,7 @@ import pytest
 
 from tests.measure import synth_measure as sm
 from vision_cal.dataset.session import Sheet, SheetMarker, load_session
-from vision_cal.workflows.measure_folder import measure_folder
+from vision_cal.actions.measure_folder import measure_folder
 from vision_cal.measure.dots import blank_regions
 from vision_cal.dataset.marker_geometry import (DEFAULT_QUIET_MODULES, marker_geometry,
                                                 quiet_boxes_mm)

@@ -16,7 +16,7 @@ from vision_cal.dataset.session import Session, load_session
 from vision_cal.errors import VisionCalError
 from vision_cal.measure import detect, types
 from vision_cal.measure.detect import _drop_deformed_markers, detect_image_bytes
-from vision_cal.workflows.measure_folder import measure_folder
+from vision_cal.actions.measure_folder import measure_folder
 
 
 @pytest.fixture(scope="module")

@@ -20,7 +20,7 @@ from PIL import Image
 from tests.measure import synth_measure as sm
 from vision_cal.commands.main import main
 from vision_cal.dataset.session import load_session
-from vision_cal.workflows.measure_folder import measure_folder
+from vision_cal.actions.measure_folder import measure_folder
 
 N = 6
 

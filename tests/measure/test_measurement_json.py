@@ -12,7 +12,7 @@ import pytest
 
 from tests.measure import synth_measure as sm
 from vision_cal.dataset.session import load_session
-from vision_cal.workflows.measure_folder import measure_folder
+from vision_cal.actions.measure_folder import measure_folder
 from vision_cal.measure.height import HeightMap, MarkHeight
 from vision_cal.measure.mapping import LensEstimate, SheetMapping
 from vision_cal.measure.types import ImageResult, Measurement

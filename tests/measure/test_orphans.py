@@ -21,7 +21,7 @@ CHILD = textwrap.dedent("""
     sys.path.insert(0, {root!r})
     from tests.measure import synth_measure as sm
     from vision_cal.measure import detect
-    from vision_cal.workflows.measure_folder import measure_folder
+    from vision_cal.actions.measure_folder import measure_folder
     from vision_cal.dataset.session import load_session
 
     src, pids = Path(sys.argv[1]), Path(sys.argv[2])

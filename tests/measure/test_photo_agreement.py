@@ -7,7 +7,7 @@ import numpy as np
 
 from tests.measure import synth_measure as sm
 from vision_cal.dataset.session import load_session
-from vision_cal.workflows.measure_folder import measure_folder
+from vision_cal.actions.measure_folder import measure_folder
 
 def _run(tmp_path, shift_mm):
     src = tmp_path / "in"

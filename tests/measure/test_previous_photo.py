@@ -106,7 +106,7 @@ def test_a_series_in_a_folder_measures_its_new_marks_against_the_photo_before(se
     measure_folder finds the photo before by itself; the new marks on print are measured,
     none unreliable."""
     from tests.measure import synth_measure as sm
-    from vision_cal.workflows.measure_folder import measure_folder
+    from vision_cal.actions.measure_folder import measure_folder
 
     session, ((img_a, _), (img_b, _)), new = series
     rng = np.random.default_rng(3)

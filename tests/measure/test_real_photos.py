@@ -20,7 +20,7 @@ from vision_cal.config import DEFAULT
 from vision_cal.dataset.session import load_session
 from vision_cal.measure.detect import detect_image
 from vision_cal.measure.finish import finish_image
-from vision_cal.workflows.measure_folder import measure_folder
+from vision_cal.actions.measure_folder import measure_folder
 from vision_cal.measure.sheetfit import MISFIT
 
 ROOT = Path(__file__).resolve().parents[2]

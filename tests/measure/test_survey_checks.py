@@ -11,7 +11,6 @@ import pytest
 
 from tests.measure import synth_measure as sm
 from vision_cal.actions.calibrate import SurveyNotApplied
-from vision_cal.actions.console import show
 from vision_cal.commands.main import main
 from vision_cal.errors import VisionCalError
 from vision_cal.measure.asprinted import AsPrinted, gauge_projector
@@ -120,7 +119,7 @@ def test_calibrate_says_in_one_line_that_a_survey_beside_it_is_not_applied(tmp_p
                              "not replicated: the print field (")
     assert err[0].endswith("does not replicate: the halves' fields differ by 0.5 mm RMS")
     assert (tmp_path / "out" / "calibration.json").is_file()
-    show(SurveyNotApplied(data / "survey.json", FAILED, "stopped"), quiet=True)
+    SurveyNotApplied(data / "survey.json", FAILED, "stopped").show(quiet=True)
     assert "failed: stopped" in capsys.readouterr().err
 
 
@@ -145,6 +144,6 @@ def test_a_survey_whose_solve_stopped_is_a_failure_with_no_layout(tmp_path, caps
     assert doc["print"]["claimed"] is False and doc["print"]["status"] == FAILED
     assert doc["solve"]["status"] == "stopped"
     f = _write(tmp_path / "survey.json", doc)
-    assert show(SurveyOutcome(doc, f), quiet=True) == 1
+    assert SurveyOutcome(doc, f).show(quiet=True) == 1
     assert capsys.readouterr().err.startswith(f"{f}: failed: the bundle adjustment stopped")
     assert applicable(f).status == FAILED

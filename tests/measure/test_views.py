@@ -18,7 +18,7 @@ from vision_cal.measure.photo_agreement import disagreeing_photos
 from vision_cal.measure.types import ImageResult
 from vision_cal.identify.plan_match import check_plan_match
 from vision_cal.measure.views import ViewCount
-from vision_cal.workflows.measure_folder import measure_folder
+from vision_cal.actions.measure_folder import measure_folder
 
 
 def test_a_dot_is_wanted_until_it_has_its_reliable_views():

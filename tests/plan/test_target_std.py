@@ -21,7 +21,7 @@ from vision_cal.plan.calibration_plan import informative_plan
 from vision_cal.plan.compensate import plan_targets
 from vision_cal.plan.uncertainty import target_std
 from vision_cal.world.truth_model import TrueRobot
-from vision_cal.workflows.pipeline import calibrate_dataset
+from vision_cal.actions.pipeline import calibrate_dataset
 
 BACKLASH = [{"name": "joint_backlash", "joint": 2, "deg": 0.1}]
 REP, SIG = 0.012, 0.005

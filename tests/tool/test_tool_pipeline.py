@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from vision_cal.dataset.calibration import load_calibration
-from vision_cal.workflows.pipeline import calibrate_dataset
+from vision_cal.actions.pipeline import calibrate_dataset
 from vision_cal.world.truth_model import TrueRobot
 
 PARAMS = {"L1_mm": 344.05, "L2_mm": 259.87, "joint_zero_deg": [-2.57, -8.13],

@@ -11,7 +11,7 @@ import yaml
 
 from vision_cal.estimate.paper import pilot_params
 from vision_cal.design.joint4 import turn_joint4
-from vision_cal.workflows.pipeline import calibrate_dataset
+from vision_cal.actions.pipeline import calibrate_dataset
 from vision_cal.world import dataset as ds
 from vision_cal.world.scene import scene_from_dict
 from vision_cal.world.sheet import make_sheet

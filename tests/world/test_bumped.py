@@ -39,7 +39,7 @@ BUMPS = {"bumps": [{"centre_mm": [40.0, 20.0], "sigma_mm": 35.0, "height_mm": 1.
 
 
 def _measure(tmp_path, scene, name, *, drop_grid=False):
-    from vision_cal.workflows.measure_folder import measure_folder
+    from vision_cal.actions.measure_folder import measure_folder
     from vision_cal.world.dataset import render_dataset
 
     from vision_cal.estimate.paper import pilot_params

@@ -52,7 +52,7 @@ def test_rasters_that_do_not_fit_are_refused(sheet_dir, tmp_path):
 @pytest.mark.render
 def test_rendered_photos_of_the_print_measure_where_truth_is(sheet_dir, tmp_path):
     from vision_cal.dataset.session import load_session
-    from vision_cal.workflows.measure_folder import measure_folder
+    from vision_cal.actions.measure_folder import measure_folder
     from vision_cal.world.dataset import render_dataset
 
     pr = load_printed_sheet(sheet_dir / "sheet.json")

@@ -1,5 +1,5 @@
 """What each ``vision-cal`` subcommand does (OpenSfM-style actions): ``commands/`` parse the
 arguments into an action's request (a frozen dataclass) and call one function here, which
-does the work and returns a typed outcome; :mod:`vision_cal.actions.console` prints it (the
-one place results are printed). A few actions still print their own results and return an
-exit code (``PRINTS_PENDING`` in tests/test_architecture.py)."""
+does the work and returns a typed outcome that prints itself: its ``show(quiet=...)`` method,
+beside its class, prints the command's lines and returns the exit code
+(:mod:`vision_cal.actions.console`: what several outcomes say the same way)."""

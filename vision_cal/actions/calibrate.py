@@ -1,26 +1,35 @@
 """The calibration action (``vision-cal calibrate``): one or several dataset folders
-measured and calibrated (:func:`vision_cal.workflows.pipeline.calibrate_dataset`), or one robot from
-several placements (:func:`vision_cal.workflows.placements.calibrate_placements`), with the
-optional report and, for several folders, ``summary.json``. Returns what was found;
-:mod:`vision_cal.actions.console` prints it. Several folders take minutes each, so each
-folder's outcome (and the notices before its measuring) goes to the ``tell`` callback as it
-is done, not at the end."""
+measured and calibrated (:func:`vision_cal.actions.pipeline.calibrate_dataset`), or one robot
+from several placements (:func:`calibrate_placements`, at the end: refuse a placement given
+twice, measure each folder, pose the placements to the estimator,
+:func:`vision_cal.estimate.placements.calibrate_placed`, and write every file together), with the
+optional report and, for several folders, ``summary.json``. Returns what was found,
+which prints itself. Several folders take minutes each, so each folder's outcome (and the
+notices before its measuring) goes to the ``tell`` callback as it is done, not at the end."""
 
 from __future__ import annotations
 
+import hashlib
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from vision_cal.actions.console import Outcome, error, say, warn
+from vision_cal.actions.pipeline import CalibrationRun, calibrate_dataset, measure_marks
+from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.io import atomic_write_json, written_together
 from vision_cal.dataset.marks_csv import session_from_marks_csv
 from vision_cal.dataset.out_folder import output_names, refuse_input_folder, writing_into
-from vision_cal.errors import VisionCalError
+from vision_cal.dataset.photos import list_photos
+from vision_cal.dataset.session import load_session
+from vision_cal.errors import CalibrationError, VisionCalError
+from vision_cal.estimate.placements import calibrate_placed
+from vision_cal.estimate.verdict import Verdict
 from vision_cal.measure.replicate import measures_the_print
 from vision_cal.measure.survey import applicable, find_survey
-from vision_cal.workflows.pipeline import CalibrationRun, calibrate_dataset
-from vision_cal.workflows.placements import calibrate_placements
 from vision_cal.report.html import write_report
+from vision_cal.report.summary import format_summary
 
 
 @dataclass(frozen=True)
@@ -48,12 +57,22 @@ class OutputsNamed:
 
     outputs: tuple[tuple[str, Path], ...]   # (folder as given, its output folder)
 
+    def show(self, quiet: bool = False) -> int:
+        if not quiet:
+            print("outputs: " + ", ".join(f"{f} -> {out}" for f, out in self.outputs))
+        return 0
+
 
 @dataclass(frozen=True)
 class SurveyFound:
     """The sheet as surveyed that a folder is measured against (told before measuring)."""
 
     path: Path
+
+    def show(self, quiet: bool = False) -> int:
+        if not quiet:
+            print(f"measuring against the sheet as surveyed: {self.path}")
+        return 0
 
 
 @dataclass(frozen=True)
@@ -66,6 +85,12 @@ class SurveyNotApplied:
     status: str
     reason: str
 
+    def show(self, quiet: bool = False) -> int:
+        """Said even when quiet (stderr): the survey beside the folder is not used."""
+        print(f"not applying the sheet as surveyed ({self.path}): {self.status}: "
+              f"{self.reason}", file=sys.stderr)
+        return 0
+
 
 @dataclass(frozen=True)
 class FolderCalibrated:
@@ -76,6 +101,23 @@ class FolderCalibrated:
     run: CalibrationRun
     report: Path | None = None
 
+    def show(self, quiet: bool = False) -> int:
+        """The summary, then the photos skipped and what was inferred (stderr), the report
+        and the file written (said even when quiet)."""
+        run = self.run
+        if not quiet:
+            print(format_summary(run.document, reference=run.session.raw.get("reference")))
+        for im in run.document.get("images", []):
+            if im.get("status") != "ok":
+                warn(f"{self.folder}/{im['file']}: skipped: {im.get('reason')}")
+        meas = run.measurement
+        for note in (meas.inferred_notes if meas is not None else ()):  # no images list
+            warn(f"{self.folder}: {note}")
+        if self.report is not None:
+            print(f"report: {self.report} ({self.report.stat().st_size / 1e6:.1f} MB)")
+        print(f"wrote {run.out_path}")
+        return 0
+
 
 @dataclass(frozen=True)
 class FolderFailed:
@@ -83,6 +125,10 @@ class FolderFailed:
 
     folder: str
     reason: str
+
+    def show(self, quiet: bool = False) -> int:
+        error(f"{self.folder}: {self.reason}")
+        return 0
 
 
 @dataclass(frozen=True)
@@ -98,6 +144,28 @@ class CalibrateOutcome:
     def failures(self) -> int:
         return sum(r["status"] != "ok" for r in self.rows)
 
+    def table(self) -> str:
+        """``vision-cal calibrate A/ B/``: one line per folder (summary.json's rows)."""
+        def f(x):
+            return "-" if x is None else f"{x:.4f}"
+
+        lines = [f"{'folder':<28}{'status':<8}{'marks':>6}{'skipped':>8}{'rms [mm]':>10}"
+                 f"{'held-out':>10}  effects"]
+        for r in self.rows:
+            if r["status"] != "ok":
+                lines.append(f"{r['folder'][-28:]:<28}{'failed':<8}  {r['reason']}")
+                continue
+            lines.append(f"{r['folder'][-28:]:<28}{'ok':<8}{r['marks']:>6}"
+                         f"{r['skipped_photos']:>8}{f(r['residual_rms_mm']):>10}"
+                         f"{f(r['validation_rms_mm']):>10}  {', '.join(r['effects']) or 'none'}")
+        return "\n".join(lines)
+
+    def show(self, quiet: bool = False) -> int:
+        if self.summary is not None:   # several folders: the table even when quiet
+            print(self.table())
+            print(f"wrote {self.summary}")
+        return 1 if self.failures else 0
+
 
 @dataclass(frozen=True)
 class JointCalibrated:
@@ -107,13 +175,33 @@ class JointCalibrated:
     document: dict
     path: Path
 
+    def lines(self) -> list[str]:
+        """``vision-cal calibrate --joint``: each placement's sheet pose and residual, the
+        effects, each placement's verdict and the robot's."""
+        doc = self.document
+        lines = [f"{pl['folder']}: sheet at {pl['angle_deg']:.3f} deg, base "
+                 f"({pl['base_mm'][0]:.3f}, {pl['base_mm'][1]:.3f}) mm, rms "
+                 f"{pl['residual_rms_mm']:.4f} mm" for pl in doc["placements"]]
+        lines.append("effects: " + (", ".join(e["name"] + (f"(joint {e['joint']})"
+                                                           if "joint" in e else "")
+                                              for e in doc["effects"]) or "none"))
+        lines += [f"{pl['folder']}: {Verdict.from_json(pl['verdict']).text}"
+                  for pl in doc["placements"]]
+        return lines + [f"verdict: {Verdict.from_json(doc['verdict']).text}"]
+
+    def show(self, quiet: bool = False) -> int:
+        if not quiet:
+            say(self.lines())
+        print(f"wrote {self.path}")
+        return 0
+
 
 def _ignore(outcome) -> None:
     pass
 
 
 def calibrate(req: CalibrateRequest,
-              tell: Callable[[object], None] = _ignore) -> CalibrateOutcome | JointCalibrated:
+              tell: Callable[[Outcome], None] = _ignore) -> CalibrateOutcome | JointCalibrated:
     """Calibrate each folder of ``req`` (or one robot from all of them, ``req.joint``).
     Each folder's outcome (:class:`FolderCalibrated`, :class:`FolderFailed`) and the notices
     before it (:class:`OutputsNamed`, :class:`SurveyFound`) go to ``tell`` when they happen;
@@ -126,7 +214,7 @@ def calibrate(req: CalibrateRequest,
 
 
 def calibrate_joint(req: CalibrateRequest) -> JointCalibrated:
-    """``--joint``: one robot from several placements (workflows/placements.py), written
+    """``--joint``: one robot from several placements (actions/calibrate.py), written
     into OUT (robot frame) and OUT/<folder>/ (each placement's sheet frame)."""
     if req.method != "lsq":
         raise VisionCalError("--joint fits by least squares only", field="--method")
@@ -146,7 +234,7 @@ def calibrate_joint(req: CalibrateRequest) -> JointCalibrated:
     return JointCalibrated(doc, out / "calibration.json")
 
 
-def calibrate_folders(req: CalibrateRequest, tell: Callable[[object], None]) -> CalibrateOutcome:
+def calibrate_folders(req: CalibrateRequest, tell: Callable[[Outcome], None]) -> CalibrateOutcome:
     """Each folder (or marks CSV) into its own output folder, one after the other; with
     several, a folder that fails is told and skipped, and summary.json written at the end."""
     several = len(req.folders) > 1
@@ -184,7 +272,7 @@ def calibrate_folders(req: CalibrateRequest, tell: Callable[[object], None]) -> 
 
 
 def calibrate_one(req: CalibrateRequest, folder: str, out: Path,
-                  tell: Callable[[object], None]) -> FolderCalibrated:
+                  tell: Callable[[Outcome], None]) -> FolderCalibrated:
     """One dataset folder (or marks CSV) measured, calibrated and written into ``out``
     (with the report, ``--report``)."""
     # OUT holds one run: an earlier run's results go to OUT/previous/ first, so a
@@ -244,3 +332,63 @@ def _write_report(result, out: Path) -> Path:
 
 def _inputs(folders) -> list:
     return [("DIR", f) for f in folders]
+
+
+def refuse_same_evidence(sessions) -> None:
+    """Refuse placements that share a photo (the same content, whatever its name) or whose
+    marks are the same measurements: one placement counted twice shrinks every std by
+    sqrt 2 and tests nothing (the same photos under two names took L1's std from 0.0043 to
+    0.0030 mm)."""
+    seen: dict[str, tuple[Path, Path]] = {}     # content hash -> (folder, photo)
+    marks_seen: dict[str, Path] = {}
+    for s in sessions:
+        root = Path(s.root)
+        files = ([im.file for im in s.images] if s.images_listed and s.images
+                 else list_photos(root) if root.is_dir() else [])
+        for f in files:
+            p = root / f
+            try:
+                h = hashlib.sha256(p.read_bytes()).hexdigest()
+            except OSError:
+                continue        # the measurement says why it cannot read it
+            if h in seen and seen[h][0].resolve() != root.resolve():
+                raise CalibrationError(f"{p} and {seen[h][1]} are the same photo (same "
+                                       "content): each placement is a sheet placed and "
+                                       "photographed on its own; give each folder once")
+            seen.setdefault(h, (root, p))
+        given = [(m.joints_deg, m.measured_mm) for m in s.marks if m.measured_mm is not None]
+        if given:
+            h = hashlib.sha256(repr(sorted(given)).encode()).hexdigest()
+            if h in marks_seen:
+                raise CalibrationError(f"{s.path} and {marks_seen[h]} give the same marks "
+                                       "(same commands, same measured_mm): one placement "
+                                       "given twice; give each folder once")
+            marks_seen[h] = s.path
+
+
+def calibrate_placements(folders, *, out_dir, jobs: int | None = None,
+                         progress: bool = False,
+                         config: EstimatorConfig | None = None, names=None) -> dict:
+    """``vision-cal calibrate A/ B/ C/ --joint --out X``: measure each folder, fit one robot
+    and one sheet pose per placement, write ``X/calibration.json`` (robot frame R) and
+    ``X/<folder>/calibration.json`` (each placement's sheet frame, for ``plan``).
+    Returns the robot-frame document. ``config``: the thresholds (default ``DEFAULT``),
+    recorded as its ``config``. ``names``: each placement's sub-folder (default
+    :func:`~vision_cal.dataset.out_folder.output_names`: ``d1-plan`` and ``d2-plan`` for two
+    folders named ``plan``)."""
+    config = config or DEFAULT
+    out_dir = Path(out_dir)
+    names = list(names) if names is not None else output_names(folders)
+    loaded = [load_session(folder) for folder in folders]
+    refuse_same_evidence(loaded)
+    cals = []
+    for session, name in zip(loaded, names):
+        _, data, _ = measure_marks(session, out_dir=out_dir / name, jobs=jobs, progress=progress,
+                                   config=config)
+        cals.append(data.select("calibration"))
+    joint, subs = calibrate_placed(names, loaded, cals, config)
+    with written_together():   # every placement's file and the top one, or none
+        for name, sub in zip(names, subs):
+            sub.write(out_dir / name / "calibration.json")
+        joint.write(out_dir / "calibration.json")
+    return joint.to_json()

@@ -6,6 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from vision_cal.actions.console import say, warn
+
 from vision_cal.estimate.plausible import check_links_against
 from vision_cal.camera.arm_design import check_design, design_camera_on_arm
 from vision_cal.dataset.calibration import refuse_robot_frame
@@ -62,12 +64,56 @@ class StageDesigned:
     pilot_note: tuple[str, ...] = ()  # a "check" pilot: what the plan fixes, what is left
     survey_not_applied: str | None = None   # why the survey found is not applied (#37)
 
+    def lines(self) -> list[str]:
+        """``vision-cal design``: the survey that goes with the plan, the plan's size and
+        what it is for, the files written."""
+        r = self.result
+        lines = list(self.pilot_note)
+        if self.survey_copy is not None:
+            lines.append(f"the sheet as surveyed ({self.survey}) goes with the plan: "
+                         f"{self.survey_copy}")
+        if self.survey_not_applied:   # issue 37: a survey that claims no print field
+            lines.append(f"not applying the sheet as surveyed ({self.survey}): "
+                         f"{self.survey_not_applied}")
+        lines.append(f"{r.stage} plan: {r.n_marks} marks, {r.duration_s:.1f} s of motion")
+        if r.stage == "pilot":
+            lines.append(f"every mark stays {r.info['worst_case_clearance_mm']:.1f} mm clear "
+                         f"of markers and edges for {r.info['placements_checked']} placements "
+                         "within the robot file's placement_tolerance")
+        elif r.stage == "verify":
+            lines.append(f"a check of {self.verify}: draw it on a fresh sheet, photograph it "
+                         f"into {self.out}, then: vision-cal verify {self.verify} {self.out}")
+        else:
+            lines.append(f"placed with the pilot's model, {r.info['safety_mm']:.1f} mm of "
+                         "safety")
+            beyond = r.info.get("beyond_valid_for") or []
+            if beyond:   # by design: the informative plan identifies what the pilot could not
+                lines.append("the pilot's model is this plan's starting model (not the "
+                             "nominal: that stays the robot file); the plan goes beyond what "
+                             "the pilot saw, by design (" + ", ".join(b["field"] for b in beyond)
+                             + "): its calibration identifies them (session.json "
+                             "design.beyond_valid_for)")
+        return lines + [f"wrote {p}" for p in (r.session_path, r.trajectory_path,
+                                                r.program_path) if p is not None]
+
+    def show(self, quiet: bool = False) -> int:
+        for w in self.result.info.get("warnings", []):
+            warn(w)
+        if not quiet:
+            say(self.lines())
+        return 0
+
 
 @dataclass(frozen=True)
 class PlacementsDesigned:
     """Several placements' pilots: each folder with its instruction."""
 
     placements: tuple[dict, ...]
+
+    def show(self, quiet: bool = False) -> int:
+        if not quiet:
+            say(f"{p['folder']}: {p['instruction']}" for p in self.placements)
+        return 0
 
 
 @dataclass(frozen=True)
@@ -80,6 +126,19 @@ class CameraPosesDesigned:
     session: Path
     program: Path
     out: Path
+
+    def lines(self) -> list[str]:
+        """``vision-cal design --camera-on-arm``: the poses, where the photos go, what next."""
+        return [f"camera poses: {self.n_poses}, {self.repeats} of them taken twice (the "
+                f"robot's repeatability, measured) ({self.mount} mount); put the photos beside "
+                f"{self.session} (and your camera's lens in it if you know it: camera: "
+                f"size_px, K, dist), then vision-cal handeye {self.out} --out CAL/",
+                f"wrote {self.session}", f"wrote {self.program}"]
+
+    def show(self, quiet: bool = False) -> int:
+        if not quiet:
+            say(self.lines())
+        return 0
 
 
 def design(req: DesignRequest) -> StageDesigned | PlacementsDesigned | CameraPosesDesigned:

@@ -3,7 +3,10 @@ YAML."""
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
+
+from vision_cal.actions.console import say, warn
 
 from vision_cal.estimate.plausible import check_units
 from vision_cal.camera.export import transform_path, write_opencv, write_ros
@@ -45,6 +48,15 @@ class ExportOutcome:
     written: tuple[str, ...]
     warnings: tuple[str, ...] = ()
     said: tuple[str, ...] = ()
+
+    def show(self, quiet: bool = False) -> int:
+        for w in self.warnings:
+            print(w, file=sys.stderr)
+        for w in self.said:   # --force: exported beyond what was calibrated
+            warn(w)
+        if not quiet:
+            say(f"wrote {p}" for p in self.written)
+        return 0
 
 
 def export_calibration(req: ExportRequest) -> ExportOutcome:

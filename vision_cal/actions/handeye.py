@@ -2,7 +2,7 @@
 (:mod:`vision_cal.camera.poses_file`), the fit (:mod:`vision_cal.camera.pose_pairs`), the
 contract's verdict (:func:`vision_cal.estimate.verdict.judge_camera_poses`, each pair's
 target position standing for a mark) and calibration.json (docs/format.md, "Hand-eye from
-pose pairs"). Returns what was found; :mod:`vision_cal.actions.console` prints it.
+pose pairs"). Returns what was found, which prints itself.
 
 Also the hand-eye of any arm from photos and the robot's poses (``vision-cal handeye
 PHOTOS/ --robot-poses POSES``, :func:`handeye_photos`, at the end)."""
@@ -14,12 +14,13 @@ from pathlib import Path
 
 import numpy as np
 
+from vision_cal.actions.console import say, verdict_lines
 from vision_cal.camera.pose_pairs import LABELS, PairsFit, fit_pose_pairs
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.calibration_result import CalibrationResult
 from vision_cal.dataset.out_folder import writing_into
 from vision_cal.camera.poses_file import read_poses
-from vision_cal.estimate.verdict import judge_camera_poses
+from vision_cal.estimate.verdict import Verdict, judge_camera_poses
 from vision_cal.errors import CalibrationError
 # the photos-and-poses path (issue 40)
 from vision_cal.camera.board import find_board, load_board
@@ -51,6 +52,28 @@ class HandeyePairsOutcome:
     def camera_name(self) -> str:
         """What the fitted X is called (the mount's name of the camera's pose)."""
         return NAMES[self.fit.mount][0]
+
+    def lines(self) -> list[str]:
+        """``vision-cal handeye --poses``: the pairs, the camera's pose with its std, the
+        pairs left out, and the verdict."""
+        fit, xname = self.fit, self.camera_name
+        t, sd = fit.X[:3, 3], self.document["cameras"][0][f"{xname}_std"]["translation_mm"]
+        lines = [(f"{len(fit.ids) + len(fit.repeats)} pairs at {len(fit.ids)} distinct flange "
+                  "poses (a repeated pose counted once), " if fit.repeats else
+                  f"{len(fit.ids)} pairs, ") + f"{len(fit.outliers)} left out; pair scatter "
+                 f"{fit.sigma_mm:.3f} mm, {fit.sigma_deg:.3f} deg (one std per axis)",
+                 f"{xname}: at {t[0]:.3f} {t[1]:.3f} {t[2]:.3f} mm (std "
+                 + ", ".join("not identifiable" if v is None else f"{v:.3f}" for v in sd) + ")"]
+        lines += [f"left out: {r}" for r in fit.outlier_reasons]
+        v = Verdict.from_json(self.document["verdict"])
+        if v.floor_line:
+            lines.append(v.floor_line)
+        return lines + verdict_lines(v) + [f"wrote {self.path}"]
+
+    def show(self, quiet: bool = False) -> int:
+        if not quiet:
+            say(self.lines())
+        return 0
 
 
 @dataclass(frozen=True)
@@ -214,6 +237,39 @@ class HandeyePhotosOutcome:
     document: dict
     path: Path
     skipped: tuple[tuple[str, str], ...]
+
+    def lines(self) -> list[str]:
+        """``vision-cal handeye PHOTOS/ --robot-poses``: the photos, the two transforms with
+        their std, each photo predicted from the others, what limits it, and the verdict."""
+        doc, fit = self.document, self.fit
+        he = doc["handeye"]
+        cam = doc["cameras"][0]
+        lines = [f"{len(fit.views)} photos used, {len(fit.left_out)} left out, "
+                 f"{len(self.skipped)} skipped; board: {he['board']['describes']}; lens "
+                 f"{cam['intrinsics']}"]
+        for name, T, sd in ((fit.names[0], cam[fit.names[0]], cam[f"{fit.names[0]}_std"]),
+                            (fit.names[1], doc[fit.names[1]], doc[f"{fit.names[1]}_std"])):
+            t = T[0][3], T[1][3], T[2][3]
+            lines.append(f"{name}: at {t[0]:.2f} {t[1]:.2f} {t[2]:.2f} mm (std "
+                         + " ".join(f"{v:.2f}" for v in sd["translation_mm"]) + " mm, "
+                         + " ".join(f"{v:.3f}" for v in sd["rotation_deg"]) + " deg)")
+        for im in doc["images"]:
+            if im["status"] == "ok":
+                lines.append(f"  {im['file']}: residual {im['residual_px']:.2f} px; predicted "
+                             f"from the others {im['heldout_px']:.2f} px ({im['heldout_mm']:.2f}"
+                             f" mm at the board), stated {im['stated_px']:.2f} px")
+            else:
+                lines.append(f"  {im['file']}: {im['status']}: {im['reason']}")
+        h = he["heldout"]
+        lines.append(f"held-out photos: {h['rms_px']:.2f} px RMS ({h['rms_mm']:.2f} mm at the "
+                     f"board), stated {h['stated_px']:.2f} px ({h['stated_mm']:.2f} mm)")
+        lines.append(f"limited by: {he['limited_by']}")
+        return lines + [Verdict.from_json(doc["verdict"]).text, f"wrote {self.path}"]
+
+    def show(self, quiet: bool = False) -> int:
+        if not quiet:
+            say(self.lines())
+        return 0
 
 
 def declared_lens(req: HandeyePhotosRequest):

@@ -1,14 +1,16 @@
 """A robot's calibrations over time (``vision-cal history``): every calibration.json under a
 folder read (:mod:`vision_cal.report.history`), the CSV and the plot written together.
-Returns the rows; :mod:`vision_cal.actions.console` prints the table."""
+Returns the rows, which print themselves as the table."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from vision_cal.actions.console import say
 from vision_cal.dataset.io import atomic_write_bytes, atomic_write_text, written_together
 from vision_cal.dataset.out_folder import output_file_of_kind, replacing_files
-from vision_cal.report.history import HistoryRow, history_csv, history_png, read_history
+from vision_cal.report.history import (HistoryRow, history_csv, history_png, history_table,
+                                       read_history)
 
 
 @dataclass(frozen=True)
@@ -27,6 +29,12 @@ class HistoryOutcome:
 
     rows: tuple[HistoryRow, ...]
     written: tuple[str, ...] = ()
+
+    def show(self, quiet: bool = False) -> int:
+        if not quiet:
+            print(history_table(list(self.rows)))
+            say(f"wrote {p}" for p in self.written)
+        return 0
 
 
 def history(req: HistoryRequest) -> HistoryOutcome:

@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import csv
 import io
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from vision_cal.actions.console import error, say, warn
 from vision_cal.camera import handeye_locate as flange
 from vision_cal.camera import handeye_valid
 from vision_cal.camera.arm import camera_for
@@ -99,6 +101,44 @@ class LocateOutcome:
     @property
     def exit_code(self) -> int:
         return 1 if self.error else EXIT_PARTIAL if self.not_located else 0
+
+    def lines(self) -> list[str]:
+        """``vision-cal locate --pixel``: the pixel in the robot and sheet frames, and the
+        joint command that reaches it (with --robot)."""
+        p, j = self.point, self.joint
+        if self.flange:   # a camera on any arm's flange (issue 40)
+            return [f"pixel {p.pixel[0]:g} {p.pixel[1]:g} at z {p.z_mm:g} mm (camera "
+                    f"{self.camera}, flange pose {self.flange})",
+                    f"  robot frame: x {p.robot_mm[0]:.4f} y {p.robot_mm[1]:.4f} z "
+                    f"{p.robot_mm[2]:.4f} mm  (std {p.robot_std_mm[0]:.4f} "
+                    f"{p.robot_std_mm[1]:.4f} {p.robot_std_mm[2]:.4f} mm)",
+                    f"  board frame: x {p.sheet_mm[0]:.4f} y {p.sheet_mm[1]:.4f} z "
+                    f"{p.sheet_mm[2]:.4f} mm"]
+        lines = [f"pixel {p.pixel[0]:g} {p.pixel[1]:g} at z {p.z_mm:g} mm (camera "
+                 f"{self.camera})",
+                 f"  robot frame: x {p.robot_mm[0]:.4f} y {p.robot_mm[1]:.4f} z "
+                 f"{p.robot_mm[2]:.4f} mm  (std {p.robot_std_mm[0]:.4f} "
+                 f"{p.robot_std_mm[1]:.4f} mm)",
+                 f"  sheet frame: x {p.sheet_mm[0]:.4f} y {p.sheet_mm[1]:.4f} mm"]
+        if j is not None:
+            lines.append(f"  joint command (compensated, elbow {self.elbow:+d}): q1 "
+                         f"{j.q_deg[0]:.4f} q2 {j.q_deg[1]:.4f} deg, approach "
+                         f"{j.approach[0]:+d} {j.approach[1]:+d}"
+                         if j.status == "ok" else f"  joint command: none ({j.reason})")
+        return lines
+
+    def show(self, quiet: bool = False) -> int:
+        for w in self.warnings:   # --force: the extrapolation (also in the CSV); not located
+            warn(w)
+        if self.error:
+            error(self.error)
+        elif self.point is not None:   # one pixel: the answer itself, even when quiet
+            say(self.lines())
+        elif self.csv_text is not None:
+            sys.stdout.write(self.csv_text)
+        elif not quiet:
+            print(f"located {self.n} pixels -> {self.path}")
+        return self.exit_code
 
 
 def locate_pixels(req: LocateRequest) -> LocateOutcome:

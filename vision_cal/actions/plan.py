@@ -5,8 +5,11 @@ reference trajectory and a robot program, written together or not at all."""
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
+
+from vision_cal.actions.console import error, warn
 
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.dataset.covariance import load_covariance
@@ -69,6 +72,19 @@ class PlanOutcome:
     @property
     def exit_code(self) -> int:
         return 1 if self.error else EXIT_PARTIAL if self.partial else 0
+
+    def show(self, quiet: bool = False) -> int:
+        if self.trust_warning:
+            print(self.trust_warning, file=sys.stderr)
+        if self.program is not None and not quiet:
+            print(f"wrote {self.program}")
+        for w in self.warnings:
+            warn(w)
+        if not quiet:
+            print(self.summary)
+        if self.error:
+            error(self.error)
+        return self.exit_code
 
 
 @dataclass(frozen=True)

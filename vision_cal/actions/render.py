@@ -33,6 +33,10 @@ class RenderOutcome:
 
     folder: Path
 
+    def show(self, quiet: bool = False) -> int:
+        print(self.folder)   # even when quiet: the folder to calibrate next
+        return 0
+
 
 def render(req: RenderRequest) -> RenderOutcome:
     """Render the scene of ``req.scene`` into ``req.out``."""

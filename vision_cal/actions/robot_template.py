@@ -1,5 +1,5 @@
 """The robot file to fill in (``vision-cal robot-template``): the template's text
-(:mod:`vision_cal.templates`), written to a new file or returned for the console."""
+(:mod:`vision_cal.templates`), written to a new file or returned for stdout."""
 
 from __future__ import annotations
 
@@ -28,6 +28,15 @@ class RobotTemplateOutcome:
     text: str
     path: Path | None
     simulated: bool = False
+
+    def show(self, quiet: bool = False) -> int:
+        if self.path is None:   # the text itself is the output
+            print(self.text, end="")
+        elif not quiet:
+            print(f"wrote {self.path}: edit the fields marked EDIT" if not self.simulated
+                  else f"wrote {self.path}: the `hidden` block is what the simulated robot "
+                       "hides")
+        return 0
 
 
 def robot_template(req: RobotTemplateRequest) -> RobotTemplateOutcome:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from vision_cal.actions.console import say
 from vision_cal.dataset.io import written_together
 from vision_cal.dataset.out_folder import refuse_other_sheet, writing_into
 from vision_cal.errors import VisionCalError
@@ -45,6 +46,28 @@ class SheetOutcome:
 
     layout: SheetLayout
     paths: dict
+
+    def lines(self) -> list[str]:
+        """``vision-cal sheet``: the page, the markers, the files, and how to print."""
+        layout = self.layout
+        spec = getattr(layout, "spec", None)    # a ChArUco board (sheet/charuco.py)
+        files = ", ".join(str(p) for p in self.paths.values())
+        if spec is not None:
+            return [f"sheet {layout.sheet_id}: ChArUco {spec.squares[0]}x{spec.squares[1]} "
+                    f"squares of {spec.square_mm:g} mm, {len(layout.markers)} "
+                    f"{layout.dictionary} markers of {spec.marker_mm:g} mm on {layout.page} "
+                    f"{layout.orientation} -> " + files,
+                    f"print at 100 % (actual size) and check that a square measures "
+                    f"{spec.square_mm:g} mm; glue it flat on a rigid plate"]
+        return [f"sheet {layout.sheet_id}: {layout.page} {layout.orientation} "
+                f"{layout.size_mm[0]:g} x {layout.size_mm[1]:g} mm, {len(layout.markers)} "
+                f"{layout.dictionary} markers of {layout.marker_mm:g} mm -> " + files,
+                "print at 100 % (actual size) and check that both bars measure 100.0 mm"]
+
+    def show(self, quiet: bool = False) -> int:
+        if not quiet:
+            say(self.lines())
+        return 0
 
 
 def sheet(req: SheetRequest) -> SheetOutcome:

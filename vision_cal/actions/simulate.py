@@ -1,7 +1,8 @@
 """The robot's part rehearsed (``vision-cal simulate``): a simulated robot draws a plan and
 photographs it (:func:`vision_cal.world.rehearse.simulate_session`), the photos, session.json
-and truth.json renamed into place together. Returns what was drawn;
-:mod:`vision_cal.actions.console` prints it."""
+and truth.json renamed into place together. Returns what was drawn, which prints itself
+(the world's :class:`~vision_cal.world.rehearse.SimulateResult` wrapped: the world knows
+nothing of the console)."""
 
 from __future__ import annotations
 
@@ -30,7 +31,36 @@ class SimulateRequest:
     quiet: bool = False
 
 
-def simulate(req: SimulateRequest) -> SimulateResult:
+@dataclass(frozen=True)
+class SimulateOutcome:
+    """What the simulated robot drew and photographed (the world's result)."""
+
+    result: SimulateResult
+
+    def line(self) -> str:
+        """``vision-cal simulate``: the marks drawn (off the paper, on a printed marker) and
+        the photos taken."""
+        r = self.result
+        if r.blank:
+            return (f"the blank sheet photographed from {len(r.photos)} places -> "
+                    f"{r.out_dir}/ (truth.json: the markers as printed)")
+        extra = []
+        if r.off_paper:
+            extra.append(f"{len(r.off_paper)} off the paper")
+        if r.on_marker:
+            extra.append(f"{len(r.on_marker)} on a printed marker")
+        return (f"the simulated robot drew {r.n_marks} marks"
+                + (f" ({', '.join(extra)})" if extra else "")
+                + f"; {len(r.photos)} photos -> {r.out_dir}/ (truth.json: where they really "
+                  "are)")
+
+    def show(self, quiet: bool = False) -> int:
+        if not quiet:
+            print(self.line())
+        return 0
+
+
+def simulate(req: SimulateRequest) -> SimulateOutcome:
     """Draw and photograph ``req.plan`` with the simulated robot of ``req.truth``."""
     if req.seed is not None and req.seed < 0:
         raise VisionCalError(f"expected a non-negative integer, got {req.seed}", field="--seed")
@@ -42,9 +72,9 @@ def simulate(req: SimulateRequest) -> SimulateResult:
                       reads=[req.plan, req.truth, req.sheet, req.targets, *req.after],
                       writes=("truth.json",) if into_plan else ("truth.json", "session.json"),
                       refuse=_no_other_photos, quiet=req.quiet), written_together():
-        return simulate_session(req.plan, req.truth, req.out, after=list(req.after),
-                                progress=not req.quiet, rng=req.seed, sheet_json=req.sheet,
-                                targets=req.targets, photos=req.photos)
+        return SimulateOutcome(simulate_session(
+            req.plan, req.truth, req.out, after=list(req.after), progress=not req.quiet,
+            rng=req.seed, sheet_json=req.sheet, targets=req.targets, photos=req.photos))
 
 
 def _no_other_photos(out: Path, moving) -> None:

@@ -3,9 +3,11 @@
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from vision_cal.actions.console import say
 from vision_cal.dataset.io import distinct_outputs
 from vision_cal.dataset.out_folder import writing_into
 from vision_cal.measure.survey import SURVEY_FILE, run_survey
@@ -27,6 +29,25 @@ class SurveyOutcome:
 
     survey: dict
     path: Path
+
+    def lines(self) -> list[str]:
+        """``vision-cal survey``: the verdict, the halves' agreement (issue 37) and what
+        limits it (what would resolve it, when it claims no field)."""
+        v = self.survey["verdict"]
+        head = "limited by" if v["status"] in ("good", "limited") else "to resolve"
+        return ([f"{self.path}: {v['status']}: {v['text']}"]
+                + ([f"  replication: {v['replication']}"] if v.get("replication") else [])
+                + [f"  {head}: {line}" for line in v["limits"]])
+
+    def show(self, quiet: bool = False) -> int:
+        """The lines; exit 1 when the survey failed (its solve stopped: no result), said on
+        stderr even when quiet."""
+        failed = self.survey["verdict"]["status"] == "failed"
+        if not quiet:
+            say(self.lines())
+        elif failed:
+            print(self.lines()[0], file=sys.stderr)
+        return 1 if failed else 0
 
 
 def survey(req: SurveyRequest) -> SurveyOutcome:

@@ -2,8 +2,9 @@
 
 Each subcommand module defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and
 ``run(args) -> int``, and is listed in ``main.SUBCOMMANDS``. ``run`` builds the action's
-request (:func:`request`), calls one action of ``vision_cal.actions`` and hands its outcome to
-``actions.console.show``; both imported inside ``run`` so that ``--help`` is instant. A
+request (:func:`request`), calls one action of ``vision_cal.actions`` and returns what its
+outcome's ``show`` returns (the outcome prints itself; the exit code), the action imported
+inside ``run`` so that ``--help`` is instant. A
 command imports nothing but the actions, this package, errors and progress
 (tests/test_architecture.py).
 """

@@ -71,8 +71,6 @@ def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
     from vision_cal.actions.calibrate import CalibrateRequest, calibrate
-    from vision_cal.actions.console import show
-
     req = request(args, CalibrateRequest)
     # each folder's result is printed as soon as it is done (several take minutes each)
-    return show(calibrate(req, tell=lambda o: show(o, quiet=args.quiet)), quiet=args.quiet)
+    return calibrate(req, tell=lambda o: o.show(quiet=args.quiet)).show(quiet=args.quiet)

@@ -84,7 +84,6 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.actions.console import show
     from vision_cal.actions.design import DesignRequest, design
 
-    return show(design(request(args, DesignRequest)), quiet=args.quiet)
+    return design(request(args, DesignRequest)).show(quiet=args.quiet)

@@ -50,7 +50,6 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.actions.console import show
     from vision_cal.actions.export import ExportRequest, export_calibration
 
-    return show(export_calibration(request(args, ExportRequest)), quiet=args.quiet)
+    return export_calibration(request(args, ExportRequest)).show(quiet=args.quiet)

@@ -80,21 +80,19 @@ def run(args) -> int:
     if (args.folder is None) == (args.poses is None):
         raise VisionCalError("give FOLDER (photos of the arm's camera) or --poses PAIRS "
                              "(pose pairs), one of them", field="--poses")
-    from vision_cal.actions.console import show
-
     for name in ("sheet", "camera"):
         if getattr(args, name) is not None:
             raise VisionCalError("applies to --robot-poses only", field=f"--{name}")
     if args.poses is not None:
         from vision_cal.actions.handeye import HandeyeRequest, handeye_pairs
 
-        return show(handeye_pairs(request(args, HandeyeRequest)), quiet=args.quiet)
+        return handeye_pairs(request(args, HandeyeRequest)).show(quiet=args.quiet)
     for name in ("units", "mount", "z_mm"):
         if getattr(args, name) is not None:
             raise VisionCalError("applies to --poses only", field=f"--{name.replace('_', '-')}")
     from vision_cal.actions.arm_camera import ArmCameraRequest, calibrate_arm
 
-    return show(calibrate_arm(request(args, ArmCameraRequest)), quiet=args.quiet)
+    return calibrate_arm(request(args, ArmCameraRequest)).show(quiet=args.quiet)
 
 
 def _photos_and_poses(args, error) -> int:
@@ -114,7 +112,6 @@ def _photos_and_poses(args, error) -> int:
         if getattr(args, name) is not None:
             raise error("applies to --poses only (--robot-poses: a folder in metres, a CSV "
                         "in mm)", field=f"--{name.replace('_', '-')}")
-    from vision_cal.actions.console import show
     from vision_cal.actions.handeye import HandeyePhotosRequest, handeye_photos
 
-    return show(handeye_photos(request(args, HandeyePhotosRequest)), quiet=args.quiet)
+    return handeye_photos(request(args, HandeyePhotosRequest)).show(quiet=args.quiet)

@@ -28,7 +28,6 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.actions.console import show
     from vision_cal.actions.history import HistoryRequest, history
 
-    return show(history(request(args, HistoryRequest)), quiet=args.quiet)
+    return history(request(args, HistoryRequest)).show(quiet=args.quiet)

@@ -31,7 +31,6 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.actions.console import show
     from vision_cal.actions.init import InitSessionRequest, init_session
 
-    return show(init_session(request(args, InitSessionRequest)), quiet=args.quiet)
+    return init_session(request(args, InitSessionRequest)).show(quiet=args.quiet)

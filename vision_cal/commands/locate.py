@@ -92,7 +92,6 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.actions.console import show
     from vision_cal.actions.locate import LocateRequest, locate_pixels
 
-    return show(locate_pixels(request(args, LocateRequest)), quiet=args.quiet)
+    return locate_pixels(request(args, LocateRequest)).show(quiet=args.quiet)

@@ -29,7 +29,6 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.actions.console import show
     from vision_cal.actions.loop import LoopRequest, loop
 
-    return show(loop(request(args, LoopRequest)), quiet=args.quiet)
+    return loop(request(args, LoopRequest)).show(quiet=args.quiet)

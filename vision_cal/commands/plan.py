@@ -66,11 +66,10 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.actions.console import show
     from vision_cal.actions.plan import PlanRequest, plan
 
-    return show(plan(PlanRequest(
+    return plan(PlanRequest(
         args.calibration, args.targets, args.out, model=args.model, elbow=args.elbow,
         approach=tuple(args.approach), trajectory=args.trajectory, program=args.program,
         home=None if args.home is None else tuple(args.home), robot=args.robot,
-        force=args.force, approach4=args.approach4, quiet=args.quiet)), quiet=args.quiet)
+        force=args.force, approach4=args.approach4, quiet=args.quiet)).show(quiet=args.quiet)

@@ -33,7 +33,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.actions.console import show
     from vision_cal.actions.render import RenderRequest, render
 
-    return show(render(request(args, RenderRequest)), quiet=args.quiet)
+    return render(request(args, RenderRequest)).show(quiet=args.quiet)

@@ -26,7 +26,6 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.actions.console import show
     from vision_cal.actions.robot_template import RobotTemplateRequest, robot_template
 
-    return show(robot_template(request(args, RobotTemplateRequest)), quiet=args.quiet)
+    return robot_template(request(args, RobotTemplateRequest)).show(quiet=args.quiet)

@@ -71,7 +71,6 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.actions.console import show
     from vision_cal.actions.sheet import SheetRequest, sheet
 
-    return show(sheet(request(args, SheetRequest)), quiet=args.quiet)
+    return sheet(request(args, SheetRequest)).show(quiet=args.quiet)

@@ -59,7 +59,6 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.actions.console import show
     from vision_cal.actions.simulate import SimulateRequest, simulate
 
-    return show(simulate(request(args, SimulateRequest)), quiet=args.quiet)
+    return simulate(request(args, SimulateRequest)).show(quiet=args.quiet)

@@ -29,7 +29,6 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.actions.console import show
     from vision_cal.actions.survey import SurveyRequest, survey
 
-    return show(survey(request(args, SurveyRequest)), quiet=args.quiet)
+    return survey(request(args, SurveyRequest)).show(quiet=args.quiet)

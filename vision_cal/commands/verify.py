@@ -40,7 +40,6 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     # imported here, not at the top: every command module is imported to build the parser,
     # and the action pulls numpy, scipy and OpenCV, which `vision-cal --help` does not need
-    from vision_cal.actions.console import show
     from vision_cal.actions.verify import VerifyRequest, verify
 
-    return show(verify(request(args, VerifyRequest)), quiet=args.quiet)
+    return verify(request(args, VerifyRequest)).show(quiet=args.quiet)

@@ -9,7 +9,7 @@ residual as joint-angle errors under the base and the final model
 :func:`vision_cal.estimate.candidates.joint_residuals_deg` with the final parameters), and
 the verdict's sentences (``verdict.text``, ``verdict.floor_line``:
 :class:`vision_cal.estimate.verdict.Verdict`, the one owner). loop.json's trajectories are
-the closed loop's (:func:`vision_cal.workflows.loop.loop_trajectories`).
+the closed loop's (:func:`vision_cal.actions.loop.loop_trajectories`).
 """
 
 from __future__ import annotations

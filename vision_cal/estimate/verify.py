@@ -4,7 +4,7 @@
 marks across the workspace (both elbows, both approach sides) with the calibrated model;
 the robot draws them on a sheet (a new one, anywhere within reach), and
 ``vision-cal verify CAL.json check/`` measures the photos
-(:func:`vision_cal.workflows.verify.verify_folder`) and poses the check here
+(:func:`vision_cal.actions.verify.verify_folder`) and poses the check here
 (:func:`compare`): the data are the check's marks, the free parameters a
 :class:`~vision_cal.model.kinematics.ParamMask` of the calibrated model (its effects held),
 fitted by the one solver with the one covariance policy:

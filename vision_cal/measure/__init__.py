@@ -8,7 +8,7 @@ Public API (imports are lazy so that ``import vision_cal.measure`` stays light):
     measure_image(path, session, *, lens=None, config=None) -> ImageResult
 
 A whole folder, photos to marks (which dot is which mark is identify/'s), is
-:func:`vision_cal.workflows.measure_folder.measure_folder`.
+:func:`vision_cal.actions.measure_folder.measure_folder`.
 
 Modules, by stage: ``listing`` (the photos to measure, checked), ``detect`` (stage 1:
 markers and dot candidates, cached, in parallel), ``finish`` (stage 2: the lens, the

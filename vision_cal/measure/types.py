@@ -3,7 +3,7 @@ measured mark are, the whole measurement, and their JSON.
 
 ``ImageDetections`` (stage 1, cached by :mod:`vision_cal.measure.cache`), ``ImageResult``
 (one photo measured), ``MarkMeasurement`` (one pen mark on the sheet) and ``Measurement``
-(everything :func:`vision_cal.workflows.measure_folder.measure_folder` returns).
+(everything :func:`vision_cal.actions.measure_folder.measure_folder` returns).
 ``OUT/measurement.json`` (docs/format.md) is written by ``Measurement.write`` alone and read
 by ``Measurement.read`` alone (the report reads it so: the photos, the refused marks, the
 sheet as printed; ``tests/test_architecture.py`` finds any other reader or writer);

@@ -277,7 +277,7 @@ def loop_paths(loop: dict) -> bytes:
 def loop_joints(loop: dict) -> bytes:
     """Joint reference trajectories of the planned targets before and after (paper
     Fig. 10), from loop.json's ``trajectories`` (planned by the loop from ``home_deg``:
-    :func:`vision_cal.workflows.loop.loop_trajectories`)."""
+    :func:`vision_cal.actions.loop.loop_trajectories`)."""
     plt = _plt()
     fig, axes = plt.subplots(2, 1, figsize=(9, 6), layout="constrained", sharex=True)
     tr = loop.get("trajectories") or {}

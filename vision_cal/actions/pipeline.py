@@ -1,7 +1,11 @@
-"""The calibration pipeline: dataset -> measure -> estimate -> calibration.json.
+"""The calibration pipeline: load -> measure -> identify -> estimate -> write.
 
-:func:`calibrate_dataset` is what ``vision-cal DIR --out OUT`` runs, one stage a
-function: :func:`measure_marks` (the photos measured, the marks collected:
+The front's one shared stage: ``calibrate`` (each folder, and each placement of
+``--joint``), ``loop`` and ``verify`` call it. :func:`calibrate_dataset` is what
+``vision-cal DIR --out OUT`` runs, one stage a function: the session loaded
+(:func:`vision_cal.dataset.session.load_session`) -> :func:`measure_marks` (the photos
+measured and each dot identified as a mark, :mod:`vision_cal.actions.measure_folder`; the
+marks collected:
 :func:`vision_cal.estimate.marks.collect_marks`) -> the estimator's fit
 (:func:`vision_cal.estimate.fit.fit_marks`) -> the still cameras' poses
 (:func:`vision_cal.camera.fixed.cameras_json`) -> the one calibration
@@ -33,7 +37,7 @@ from vision_cal.measure.survey import load_survey
 from vision_cal.measure.types import Measurement
 from vision_cal.model.robot import RobotModel
 from vision_cal.progress import bar
-from vision_cal.workflows.measure_folder import measure_folder
+from vision_cal.actions.measure_folder import measure_folder
 
 log = logging.getLogger(__name__)
 
