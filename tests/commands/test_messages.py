@@ -168,3 +168,53 @@ def test_help_says_what_the_command_writes_and_reads(capsys, argv, words):
     text = " ".join(capsys.readouterr().out.split())
     for w in words:
         assert w in text, w
+
+
+def test_the_next_step_after_sheet_fits_the_sheet():
+    """`vision-cal sheet`: a ruled sheet's next step measures its two 100 mm bars and says
+    where the lengths go (--bars-mm); a marker field (--field) has no bars to measure."""
+    from vision_cal.actions.sheet import SheetOutcome
+    from vision_cal.sheet.field import make_field_layout
+    from vision_cal.sheet.layout import make_layout
+
+    ruled = SheetOutcome(make_layout(size="A4"), {}).lines()[-1]
+    assert "100 mm bars" in ruled and "--bars-mm" in ruled
+    field = SheetOutcome(make_field_layout(size="A4"), {}).lines()[-1]
+    assert "bar" not in field and "flat" in field
+
+
+def test_simulate_says_what_an_arm_camera_took():
+    """`vision-cal simulate` of a camera-on-arm session: the photos and the poses, never
+    "the simulated robot drew 0 marks"; one photo is "1 photo"."""
+    from pathlib import Path
+
+    from vision_cal.actions.simulate import SimulateOutcome
+    from vision_cal.world.rehearse import SimulateResult
+
+    photos = tuple(Path(f"p{i}.png") for i in range(30))
+    arm_line = SimulateOutcome(SimulateResult(Path("arm"), photos, 0, (), (), Path("t"),
+                                              n_poses=24)).line()
+    assert arm_line.startswith("the simulated arm camera took 30 photos at 24 poses -> arm/")
+    pen = SimulateOutcome(SimulateResult(Path("p"), photos[:1], 12, (), (), Path("t"))).line()
+    assert "drew 12 marks" in pen and "; 1 photo ->" in pen
+
+
+def test_a_loop_target_not_found_says_where_the_pen_really_landed():
+    """loop.json: a target whose mark no photo shows takes the world's truth (off the
+    paper, on a printed marker) before the measurement's 'no dot found'."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from vision_cal.actions.loop import _landed, _target_results
+
+    planned = [SimpleNamespace(id=i, status="ok", q_deg=(0.0, 0.0), approach=(1, 1))
+               for i in ("g01", "g02", "g03")]
+    m = SimpleNamespace(marks={}, refused={i: "no dot found for it" for i in
+                                           ("g01", "g02", "g03")})
+    landed = _landed({"off_paper": ["g02"], "on_marker": ["g01"]})
+    res = _target_results(planned, m, {i: np.zeros(2) for i in ("g01", "g02", "g03")},
+                          None, None, landed=landed)
+    assert res["g01"]["reason"] == "landed on a printed marker (truth.json)"
+    assert res["g02"]["reason"] == "landed off the paper (truth.json)"
+    assert res["g03"]["reason"] == "no dot found for it"

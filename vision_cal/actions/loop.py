@@ -224,10 +224,12 @@ def run_loop(scene_path, *, out_dir, jobs: int | None = None, progress: bool = F
     stages["plan (both models)"] = time.perf_counter() - t
     results, controller = {}, {}
     for k, name in enumerate(("before", "after")):
-        controller[name], m = _draw_and_measure(
+        truth, m = _draw_and_measure(
             scene, k, name, plans[name], targets, out, jobs=jobs, render_jobs=render_jobs,
             progress=progress, photographer=photographer, stages=stages)
-        results[name] = _target_results(plans[name], m, targets, sheet, calibrated)
+        controller[name] = truth.get("controller_report")
+        results[name] = _target_results(plans[name], m, targets, sheet, calibrated,
+                                        landed=_landed(truth))
     doc = _loop_document(scene_path, ids, targets, results, stages, controller, run)
     if survey is not None:
         doc["survey"] = survey
@@ -325,8 +327,8 @@ def _draw_and_measure(scene, k: int, name: str, planned, targets: dict, out: Pat
                       render_jobs: int, progress: bool, photographer, stages: dict):
     """Step 5-6 for one plan: the true robot draws ``planned`` on a fresh sheet (seed
     ``scene.seed + 1000 + k``, the arm parked away) photographed into ``out/sheet_<name>``,
-    measured into ``out/measure_<name>``; return (the controller's report, the
-    measurement). Each step's seconds go to ``stages``."""
+    measured into ``out/measure_<name>``; return (the world's truth.json: the controller's
+    report, where the marks landed; the measurement). Each step's seconds go to ``stages``."""
     marks = to_planned_marks(planned)
     sc = scene.with_overrides(seed=scene.seed + 1000 + k, mode="single")
     # the arm is moved away before the finished sheet is photographed
@@ -337,17 +339,28 @@ def _draw_and_measure(scene, k: int, name: str, planned, targets: dict, out: Pat
                                jobs=render_jobs)
     stages[f"simulate + draw + photograph ({name})"] = time.perf_counter() - t
 
-    controller = read_json(sheet_dir / "truth.json").get("controller_report")
+    truth = read_json(sheet_dir / "truth.json")
     t = time.perf_counter()
     m = measure_folder(load_session(sheet_dir), out_dir=out / f"measure_{name}", jobs=jobs,
                        progress=progress)
     stages[f"measure ({name})"] = time.perf_counter() - t
-    return controller, m
+    return truth, m
 
 
-def _target_results(planned, m, targets: dict, sheet, calibrated) -> dict:
+def _landed(truth: dict) -> dict:
+    """Mark id -> where the simulated pen really landed when no photo can show it (the
+    world's truth.json: ``off_paper``, ``on_marker``)."""
+    out = {i: "landed on a printed marker (truth.json)" for i in truth.get("on_marker") or ()}
+    out.update({i: "landed off the paper (truth.json)" for i in truth.get("off_paper") or ()})
+    return out
+
+
+def _target_results(planned, m, targets: dict, sheet, calibrated, *,
+                    landed: dict | None = None) -> dict:
     """Target id -> its result in loop.json: measured and its error against the target,
-    not planned, or not found (with the reason); the joints commanded when planned."""
+    not planned, or not found (with the reason: where the simulated pen really landed,
+    ``landed``, when it is off the paper or on a marker; else the measurement's); the
+    joints commanded when planned."""
     res = {}
     for p in planned:
         if p.status != "ok":
@@ -357,9 +370,10 @@ def _target_results(planned, m, targets: dict, sheet, calibrated) -> dict:
             res[p.id] = {"status": "ok", "measured_mm": np.asarray(m.marks[p.id].xy_mm).tolist(),
                          "error_mm": e.tolist(), "error_norm_mm": float(np.hypot(*e))}
         else:
-            # the measurement's own reason first (it saw the photo), else where the
-            # calibrated model says the pen landed
-            why = m.refused.get(p.id)
+            # where the simulated pen really landed (no photo shows it), the
+            # measurement's own reason (it saw the photo), else where the calibrated model
+            # says the pen landed
+            why = (landed or {}).get(p.id) or m.refused.get(p.id)
             res[p.id] = {"status": "not found",
                          "reason": str(why) if why else landing_note(sheet, calibrated, p)}
         if p.status == "ok":

@@ -59,10 +59,13 @@ class SheetOutcome:
                     f"{layout.orientation} -> " + files,
                     f"print at 100 % (actual size) and check that a square measures "
                     f"{spec.square_mm:g} mm; glue it flat on a rigid plate"]
-        return [f"sheet {layout.sheet_id}: {layout.page} {layout.orientation} "
+        head = (f"sheet {layout.sheet_id}: {layout.page} {layout.orientation} "
                 f"{layout.size_mm[0]:g} x {layout.size_mm[1]:g} mm, {len(layout.markers)} "
-                f"{layout.dictionary} markers of {layout.marker_mm:g} mm -> " + files,
-                "print at 100 % (actual size) and check that both bars measure 100.0 mm"]
+                f"{layout.dictionary} markers of {layout.marker_mm:g} mm -> " + files)
+        if not layout.bars_mm:   # a marker field (sheet --field): no bars
+            return [head, "print at 100 % (actual size) and tape it flat"]
+        return [head, "print at 100 % (actual size); measure both 100 mm bars with a caliper "
+                      "and give them to the calibration (--bars-mm X Y)"]
 
     def show(self, quiet: bool = False) -> int:
         if not quiet:

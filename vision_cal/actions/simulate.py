@@ -41,9 +41,15 @@ class SimulateOutcome:
         """``vision-cal simulate``: the marks drawn (off the paper, on a printed marker) and
         the photos taken."""
         r = self.result
+        n = len(r.photos)
+        photos = f"{n} photo{'s' if n != 1 else ''}"
         if r.blank:
-            return (f"the blank sheet photographed from {len(r.photos)} places -> "
+            return (f"the blank sheet photographed from {n} place{'s' if n != 1 else ''} -> "
                     f"{r.out_dir}/ (truth.json: the markers as printed)")
+        if r.n_poses:   # a camera on the arm: no pen
+            return (f"the simulated arm camera took {photos} at {r.n_poses} "
+                    f"pose{'s' if r.n_poses != 1 else ''} -> {r.out_dir}/ (truth.json: "
+                    "the camera's mount, T_flange_camera)")
         extra = []
         if r.off_paper:
             extra.append(f"{len(r.off_paper)} off the paper")
@@ -51,7 +57,7 @@ class SimulateOutcome:
             extra.append(f"{len(r.on_marker)} on a printed marker")
         return (f"the simulated robot drew {r.n_marks} marks"
                 + (f" ({', '.join(extra)})" if extra else "")
-                + f"; {len(r.photos)} photos -> {r.out_dir}/ (truth.json: where they really "
+                + f"; {photos} -> {r.out_dir}/ (truth.json: where they really "
                   "are)")
 
     def show(self, quiet: bool = False) -> int:

@@ -367,6 +367,7 @@ class SimulateResult:
     on_marker: tuple[str, ...]
     truth_path: Path
     blank: bool = False              # the blank sheet photographed (for a survey)
+    n_poses: int = 0                 # a camera on the arm: the poses it stood at
 
 
 def _simulate_arm(session: dict, session_path: Path, sim, out: Path, rng) -> SimulateResult:
@@ -409,7 +410,8 @@ def _simulate_arm(session: dict, session_path: Path, sim, out: Path, rng) -> Sim
              "camera": {"size_px": list(cam.size_px), "K": K.tolist(), "dist": [0.0] * 5,
                         "T_cam_sheet": {f: T.tolist() for f, T in zip(files, Ts)}}}
     truth_path = atomic_write_json(out / "truth.json", truth)
-    return SimulateResult(out, tuple(out / f for f in files), 0, (), (), truth_path)
+    return SimulateResult(out, tuple(out / f for f in files), 0, (), (), truth_path,
+                          n_poses=len(poses))
 
 
 def _plan_marks(plan_dir: Path, session: dict, robot) -> tuple[list[_Mark], str]:
