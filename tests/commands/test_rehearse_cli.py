@@ -166,7 +166,7 @@ def test_the_blank_sheet_is_photographed_printed_off_its_layout(tmp_path, capsys
         assert main(["simulate", str(tmp_path / "sheet" / "sheet.json"), "--truth",
                      str(tmp_path / "true.yaml"), "--out", str(out), "--photos", str(n),
                      "--seed", str(seed)]) == 0
-        assert f"the blank sheet photographed from {n} places" in capsys.readouterr().out
+        assert f"the blank sheet photographed from {n} place{'s' if n != 1 else ''}" in capsys.readouterr().out
         truth = json.loads((out / "truth.json").read_text())
         assert len(list(out.glob("IMG_*.png"))) == n == len(truth["camera"]["T_cam_sheet"])
         assert truth["print"]["rms_mm"] == pytest.approx(0.15, rel=1e-6)
