@@ -495,12 +495,6 @@ class AsPrintedConfig:
                                       # markers and the edges' bias, which the covariance
                                       # does not hold (issue 37, world2 seeds 101-105: the
                                       # marks' field-shaped error 1.2-2.4x, median 1.95x it)
-    print_correlation: float = 0.2    # an undeclared lens: what the corners' prior pulls (a
-                                      # bias the Jacobian's covariance lacks, asprinted.
-                                      # _prior_pull_cov) is carried for a smooth print of the
-                                      # size the views saw, correlated over half, once and
-                                      # twice this fraction of the markers' extent (the largest
-                                      # kept: the printer's wave length is not known; 0: off)
     release_heights: bool = True      # each released corner's height off the paper's plane
                                       # is solved too: paper that is not flat shows parallax
                                       # between places, which in-plane shifts alone take

@@ -712,8 +712,7 @@ def _map_derivatives(pb: _Problem, x0: np.ndarray, v: int, px: np.ndarray,
     return out
 
 
-def _interior_cov(pb: _Problem, sol, cov_x: np.ndarray, P: np.ndarray,
-                  extra: tuple[np.ndarray, ...] = ()) -> np.ndarray:
+def _interior_cov(pb: _Problem, sol, cov_x: np.ndarray, P: np.ndarray) -> np.ndarray:
     """(2 P, 2 P): the joint covariance of marks at sheet points ``P`` (P, 2) measured
     through every photo (averaged over the photos), in the gauge, from what every photo
     shares: the lens and the printed corners. Each photo's map is fitted to the corners
@@ -724,9 +723,7 @@ def _interior_cov(pb: _Problem, sol, cov_x: np.ndarray, P: np.ndarray,
     through the gauge (the similarity of their deltas moves every mark), their heights less
     their plane. What the solve leaves between the markers, where the print and an
     undeclared lens trade against each other (its radial terms against a print that grows
-    outward, the paper's heights). ``extra``: further covariances of every unknown
-    (``cov_x``'s shape, e.g. :func:`_prior_pull_cov`'s): the largest they make (by trace)
-    is added."""
+    outward, the paper's heights)."""
     x0 = np.asarray(sol.x, float)
     J = pb.jacobian(x0)[:pb.m_obs]
     lens_cols = list(range(pb.n_lens))
@@ -752,56 +749,16 @@ def _interior_cov(pb: _Problem, sol, cov_x: np.ndarray, P: np.ndarray,
         cols = pb.n_lens + pb.nd * np.arange(len(pb.rel_idx))
         G[:, cols] -= sim[:, 0::2]
         G[:, cols + 1] -= sim[:, 1::2]
-    T = np.eye(len(shared))
+    C = cov_x[np.ix_(shared, shared)]
     if pb.nd == 3 and len(pb.rel_idx) >= 3:
         # the heights in their gauge (less their best-fitting plane): a plane of the corners
         # is the paper's, which the marks lie on too
         plane = pb.heights_plane()
+        T = np.eye(len(shared))
         hc = pb.n_lens + pb.nd * np.arange(len(pb.rel_idx)) + 2
         T[np.ix_(hc, hc)] = np.eye(len(hc)) - plane @ np.linalg.pinv(plane)
-    GT = G @ T
-    out = GT @ cov_x[np.ix_(shared, shared)] @ GT.T
-    more = [GT @ np.asarray(c)[np.ix_(shared, shared)] @ GT.T for c in extra]
-    return out + max(more, key=np.trace) if more else out
-
-
-def _prior_pull_cov(pb: _Problem, x: np.ndarray, cfg: AsPrintedConfig) -> list[np.ndarray]:
-    """Covariances of every unknown (one per correlation length: half, once and twice
-    ``cfg.print_correlation`` of the released corners' extent) from what the corners'
-    prior pulls: the prior holds each corner's shift at zero (its weight set for
-    ``noise_px``; corners found to 0.04 px make it a 0.2 mm prior), so where the views
-    barely tell the print from an undeclared lens the solution is the printed layout shrunk
-    toward the declared one, and the lens and every mapping move with it: a bias
-    ``-H^-1 L d`` (``H`` the solve's information, ``L`` the prior's, ``d`` the true
-    deviation), not in the Jacobian's covariance (issue 37, world2: on exact observations
-    of a 0.17 mm print, the marks between the markers 0.058-0.070 mm off; the bias from the
-    true print correlates 0.96-0.99 with the marks' error). The true ``d`` is unknown along
-    the directions the prior decides, so it is taken as a smooth print of the size the
-    views saw (the in-plane deviation in the gauge, RMS per axis; a squared-exponential
-    correlation over the released corners): its covariance ``S`` gives
-    ``H^-1 L S L H^-1``. None (``[]``) with fewer than 3 corners released or
-    ``print_correlation`` 0."""
-    rel = pb.rel_idx
-    if len(rel) < 3 or cfg.print_correlation <= 0:
-        return []
-    _, _, delta = pb.unpack(x)
-    seen, _ = _in_gauge(pb, delta.copy())
-    s2 = float(np.mean(seen[rel] ** 2))
-    p = pb.obs.P0[rel]
-    extent = float(np.max(p.max(axis=0) - p.min(axis=0)))
-    # (J'J)^-1 under the one policy (s2 = 1: the prior's weights are the solve's own)
-    Hinv = covariance(pb.jacobian(x), labels=pb.labels()).matrix
-    inplane = np.flatnonzero((np.arange(pb.n_delta) % pb.nd) < 2)
-    cols = pb.n_fixed + inplane
-    HL = Hinv[:, cols] * pb.w_delta[inplane] ** 2          # H^-1 L over the in-plane shifts
-    d2 = np.sum((p[:, None] - p[None]) ** 2, axis=-1)
-    out = []
-    for frac in (0.5 * cfg.print_correlation, cfg.print_correlation,
-                 2.0 * cfg.print_correlation):
-        S1 = s2 * np.exp(-d2 / (2.0 * (frac * extent) ** 2))
-        S = np.kron(S1, np.eye(2))                          # x and y alike, apart
-        out.append(HL @ S @ HL.T)
-    return out
+        C = T @ C @ T.T
+    return G @ C @ G.T
 
 
 def _corner_std(pb: _Problem, cov: Covariance | None
@@ -897,8 +854,7 @@ def estimate_as_printed(views, K, dist, size_px, *, lens_free: bool,
     std, hstd, full = _corner_std(pb, cov)
     inner_xy = interior_points(pb) if len(pb.rel_idx) >= 3 else None
     inner = None if inner_xy is None or cov is None else _interior_cov(
-        pb, end, cov.matrix, inner_xy,
-        extra=tuple(_prior_pull_cov(pb, end.x, cfg)) if lens_free else ())
+        pb, end, cov.matrix, inner_xy)
     delta, heights = _in_gauge(pb, delta)
     Kf, df = _lens_matrices(lens)
     nd = pb.nd
