@@ -2,7 +2,8 @@
 
 The package reads as the pipeline::
 
-    dataset -> render | measure -> calibrate -> diagnose -> plan -> simulate -> report
+    model -> dataset -> sheet | design -> measure -> identify -> estimate -> plan -> program
+    | camera -> report, with one front on top (commands/ -> actions/); world/ beside it
 
 See ``docs/conventions.md`` for frames, units and signs.
 """

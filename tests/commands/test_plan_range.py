@@ -12,7 +12,7 @@ import numpy as np
 
 from tests.conftest import SM5
 from vision_cal.commands.main import main
-from vision_cal.dataset.calibration import joints_covered_deg
+from vision_cal.dataset.valid_for import build as build_valid_for
 from vision_cal.model.kinematics import forward
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -27,7 +27,7 @@ def test_targets_beyond_the_marks_joints_are_named(tmp_path, capsys):
     cal = tmp_path / "c" / "calibration.json"
     doc = json.loads(cal.read_text())
     # the paper's marks: joint 1 at -20, 0, 20 deg, joint 2 at -60, 0, 60 deg
-    assert joints_covered_deg(doc) == [(-20.0, 20.0), (-60.0, 60.0)]
+    assert doc["valid_for"]["joints_deg"] == [[-20.0, 20.0], [-60.0, 60.0]]
     # the paper's five marks (expected error 1.3 mm, known to 1 / sqrt(10)): joint 2's 120
     # deg span holds it 4.6 deg beyond, joint 1's 40 deg 1.5 deg; joint 2 at 62.5 deg (2.5
     # beyond, std 0.37 mm within the 0.67 mm limit) is planned, 100 deg (40 beyond) is not
@@ -59,7 +59,7 @@ def test_targets_beyond_the_marks_joints_are_named(tmp_path, capsys):
                     "q2edge": ""}, rows
     # a mark left out as unreliable does not widen the range
     doc["marks"]["j1p"]["status"] = "unreliable"
-    assert joints_covered_deg(doc)[0] == (-20.0, 0.0)
+    assert build_valid_for(doc)["joints_deg"][0] == [-20.0, 0.0]
 
 
 def test_how_far_beyond_follows_the_calibrations_own_expected_error():

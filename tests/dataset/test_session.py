@@ -3,8 +3,7 @@ import json
 import numpy as np
 import pytest
 
-from vision_cal.dataset import load_session, resolve_approach
-from vision_cal.dataset.session import Mark
+from vision_cal.dataset.session import Mark, load_session, resolve_approach
 from vision_cal.errors import VisionCalError
 
 

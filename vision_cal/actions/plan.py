@@ -132,8 +132,7 @@ def plan(req: PlanRequest) -> PlanOutcome:
         p = _without(p, items)
     written_program = _write_outputs(req, model, robot, p, said, _flagged_targets(outside),
                                      home_deg, prg, report)
-    return _outcome(req, doc, p, said, warn, written_program, report,
-                    n_outside=0 if req.force else len(items))
+    return _outcome(req, doc, p, said, warn, written_program, report)
 
 
 def _check_outputs(req: PlanRequest) -> tuple[Path | None, Path]:
@@ -269,10 +268,9 @@ def _without(p: _Planned, items: dict) -> _Planned:
 
 
 def _outcome(req: PlanRequest, doc: dict, p: _Planned, said, warn, written_program,
-             report, *, n_outside: int = 0) -> PlanOutcome:
+             report) -> PlanOutcome:
     """What the planning says: the failed targets, the targets on the print, the
-    extrapolations; the error when nothing could be planned; partial when some were not
-    (``n_outside`` of them outside ``valid_for``)."""
+    extrapolations; the error when nothing could be planned; partial when some were not."""
     ok, failed, planned = p.ok, p.failed, p.planned
     warnings = []
     if failed and ok:  # when none is planned, the error below says it once

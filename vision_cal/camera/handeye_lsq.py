@@ -161,7 +161,6 @@ class Refined:
     labels: tuple[str, ...]
     cost: float
     dof: int
-    jac_shared: np.ndarray      # (2N, P) d residual_px / d shared unknowns (px per unit)
 
     @property
     def std(self) -> np.ndarray:
@@ -305,5 +304,4 @@ def refine(problem: Problem, p0: np.ndarray | None = None, *, max_nfev: int = 10
               + tuple(f"lens.{n}" for n, f in zip(LENS_NAMES, problem.free) if f))
     cov_all = covariance(J, labels=labels + tuple(f"D.{i}" for i in range(J.shape[1] - ns)))
     return Refined(X, Y, lens, problem.free.copy(), D, resid, problem.view_of,
-                   cov_all.stated[:ns, :ns], labels, r.cost, n_obs - ns,
-                   J[:n_obs, :ns] * problem.sigma_px)
+                   cov_all.stated[:ns, :ns], labels, r.cost, n_obs - ns)

@@ -11,7 +11,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from vision_cal.dataset.calibration_result import CalibrationResult
-from vision_cal.dataset.valid_for import build as build_valid_for
 from vision_cal.errors import VisionCalError
 from vision_cal.model.robot import RobotModel
 
@@ -67,15 +66,4 @@ def load_calibration_or_camera(path, *, sheet_frame: bool = True
     if cal.method in CAMERA_ONLY_METHODS and cal.params is None:
         return None, cal.to_json()
     return _model_of(cal, "calibrated", sheet_frame), cal.to_json()
-
-
-def joints_covered_deg(doc: dict) -> list[tuple[float, float]] | None:
-    """The commanded range ``[(lo, hi), (lo, hi)]`` (deg) of joints 1 and 2 over the marks a
-    calibration fitted or held out (calibration.json ``marks[].joints_deg``; unreliable marks
-    left out), or None when the document does not say. The model is measured inside it and
-    extrapolated outside: an error once per turn of joint 1 looks like a gear-ratio error
-    over the 135 deg one sheet spans, and a plan beyond the range meets the difference
-    (``bench/tool_joint4.py --alone``: 0.16-0.21 mm where the range itself gave 0.02)."""
-    vf = build_valid_for(doc)   # one owner: calibration.json valid_for.joints_deg
-    return None if vf is None else [tuple(r) for r in vf["joints_deg"]]
 

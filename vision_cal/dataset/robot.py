@@ -63,7 +63,6 @@ from vision_cal.model.motion import (ACCEL_DEG_S2, JOINT3_LIMITS_MM, JOINT4_LIMI
 log = logging.getLogger(__name__)
 
 ROBOT_BLOCK = ("L1_mm", "L2_mm", "joint_zero_deg", "base_mm", "home_deg", "repeatability_mm")
-DEFAULT_LIMITS_DEG = JOINT_LIMITS_DEG  # the defaults live in vision_cal.model.motion
 #: an output bit's number (the pen's, a camera trigger's): what controllers number
 OUTPUT_BITS = (0, 9999)
 
@@ -99,7 +98,7 @@ class RobotFile:
     nominal: NominalRobot
     name: str = "robot"
     tolerance: PlacementTolerance = field(default_factory=PlacementTolerance)
-    joint_limits_deg: tuple[tuple[float, float], tuple[float, float]] = DEFAULT_LIMITS_DEG
+    joint_limits_deg: tuple[tuple[float, float], tuple[float, float]] = JOINT_LIMITS_DEG
     speed_limits_deg_s: tuple[float, float] = SPEED_DEG_S
     accel_limits_deg_s2: tuple[float, float] = ACCEL_DEG_S2
     elbows: tuple[int, ...] = (1, -1)

@@ -96,6 +96,21 @@ def _rows(a: np.ndarray) -> np.ndarray:
     return np.asarray(a, dtype=float).reshape(len(a) * 2, -1)
 
 
+def _on_inliers(fit: Fit, q_deg, approach, t, sigma_mm):
+    """``fit``'s inlier marks: joints ``q``, approach signs, drawing times, weights ``w``
+    (n,), an orthonormal basis ``Qm`` of the model's weighted Jacobian, the weighted residual
+    ``y`` (2n,) and its degrees of freedom (2n less the model's parameters)."""
+    keep = fit.inliers
+    q = np.asarray(q_deg, float)[keep]
+    app = np.asarray(approach, float)[keep]
+    tt = np.asarray(t, float)[keep]
+    w = _weights(len(q), None if sigma_mm is None else np.asarray(sigma_mm)[keep])
+    Jr = _rows(fit.model.jacobian(q, app) * w[:, None, None])
+    Qm, _ = np.linalg.qr(Jr)
+    y = (fit.residuals_mm[keep] * w[:, None]).reshape(-1)
+    return q, app, tt, w, Qm, y, 2 * len(q) - Jr.shape[1]
+
+
 def _weights(n, sigma, repeatability_mm=0.0):
     if sigma is None:
         return np.ones(n)
@@ -132,19 +147,9 @@ def axis_scans(fit: Fit, q_deg, approach, t, *, sigma_mm=None, alpha: float = 0.
 
     ``t`` (N,) drawing time of each mark (0 first, 1 last). Returns ``{"scans": [{name, F,
     dof, p_value, alarm}], "alpha_each", "alarm": bool}`` over the fitted (inlier) marks."""
-    keep = fit.inliers
-    q = np.asarray(q_deg, float)[keep]
-    app = np.asarray(approach, float)[keep]
-    tt = np.asarray(t, float)[keep]
-    n = len(q)
-    w = _weights(n, None if sigma_mm is None else np.asarray(sigma_mm)[keep])
-    model = fit.model
-    Jr = _rows(model.jacobian(q, app) * w[:, None, None])
-    Qm, _ = np.linalg.qr(Jr)
-    rw = (fit.residuals_mm[keep] * w[:, None]).reshape(-1)
+    q, app, tt, w, Qm, rw, dof = _on_inliers(fit, q_deg, approach, t, sigma_mm)
     rss = float(rw @ rw)
-    dof = 2 * n - Jr.shape[1]
-    bases = _scan_bases(model, q, app, tt)
+    bases = _scan_bases(fit.model, q, app, tt)
     alpha_each = alpha / max(len(bases), 1)
     out = []
     for name, B in bases.items():
@@ -272,16 +277,8 @@ def time_beyond_sheet(y: np.ndarray, held: np.ndarray, timed: np.ndarray, sheet:
 def _time_scan_vs_sheet(fit: Fit, q_deg, approach, t, sigma_mm) -> dict | None:
     """The time scan's columns (every base parameter times drawing time) on ``fit``'s
     residual beside a smooth map of the sheet (:func:`time_beyond_sheet`)."""
-    keep = fit.inliers
-    q = np.asarray(q_deg, float)[keep]
-    app = np.asarray(approach, float)[keep]
-    n = len(q)
-    w = _weights(n, None if sigma_mm is None else np.asarray(sigma_mm)[keep])
-    Jr = _rows(fit.model.jacobian(q, app) * w[:, None, None])
-    Qm, _ = np.linalg.qr(Jr)
-    dof0 = 2 * n - Jr.shape[1]
-    y = (fit.residuals_mm[keep] * w[:, None]).reshape(-1)
-    timed = _projected(_scan_bases(fit.model, q, app, np.asarray(t, float)[keep])["time"], w, Qm)
+    q, app, tt, w, Qm, y, dof0 = _on_inliers(fit, q_deg, approach, t, sigma_mm)
+    timed = _projected(_scan_bases(fit.model, q, app, tt)["time"], w, Qm)
     sheet = _projected(_sheet_columns(fit.model.predict(q, app), dof0), w, Qm)
     return time_beyond_sheet(y, np.zeros((len(y), 0)), timed, sheet, dof0)
 
@@ -293,23 +290,15 @@ def discover(fit: Fit, q_deg, approach, t, *, sigma_mm=None, alpha: float = 0.01
     ``max_terms`` None: ``DEFAULT.discovery.max_terms``."""
     if max_terms is None:
         max_terms = DEFAULT.discovery.max_terms
-    keep = fit.inliers
-    q = np.asarray(q_deg, float)[keep]
-    app = np.asarray(approach, float)[keep]
-    tt = np.asarray(t, float)[keep]
+    q, app, tt, w, Qm, y, dof0 = _on_inliers(fit, q_deg, approach, t, sigma_mm)
     n = len(q)
-    w = _weights(n, None if sigma_mm is None else np.asarray(sigma_mm)[keep])
     model = fit.model
-    Jr = _rows(model.jacobian(q, app) * w[:, None, None])
-    Qm, _ = np.linalg.qr(Jr)
     B, names = _columns(model, q, app, tt)
     X = _rows(B * w[:, None, None])
     X = X - Qm @ (Qm.T @ X)
     norms = np.linalg.norm(X, axis=0)
     usable = norms > 1e-8 * norms.max()
     X = X / np.where(usable, norms, 1.0)
-    y = (fit.residuals_mm[keep] * w[:, None]).reshape(-1)
-    dof0 = 2 * n - Jr.shape[1]
     sel: list[int] = []
     steps = []
     rss_cur = float(y @ y)
@@ -364,7 +353,7 @@ def discover(fit: Fit, q_deg, approach, t, *, sigma_mm=None, alpha: float = 0.01
         Jm = _rows(model.jacobian(q, app))
         Qu, _ = np.linalg.qr(Jm)
         Bu = Bu - Qu @ (Qu.T @ Bu)
-        c, *_ = np.linalg.lstsq(Bu, fit.residuals_mm[keep].reshape(-1), rcond=None)
+        c, *_ = np.linalg.lstsq(Bu, fit.residuals_mm[fit.inliers].reshape(-1), rcond=None)
         jb = model.jacobian(q, app)[:, :, :6]
         disp = sum(jb[:, :, BASE_PARAMS.index(names[i][1])] * ci for i, ci in zip(idx, c))
         size = float(np.max(np.linalg.norm(disp, axis=1)))

@@ -31,8 +31,6 @@ class PaperResult:
     params: ScaraParams
     circle_base: Circle
     circle_elbow: Circle
-    base_group: tuple[int, ...]   # indices of the marks on the base circle
-    elbow_group: tuple[int, ...]  # indices of the marks on the elbow circle
 
     def or_raise(self) -> "PaperResult":
         """This result (the twin of :meth:`FailedFit.or_raise`)."""
@@ -78,7 +76,7 @@ def paper_method(q_deg, xy_mm) -> PaperResult | FailedFit:
     z1 = (z1 + np.pi) % (2 * np.pi) - np.pi
     params = ScaraParams(L1, ce.radius_mm, float(np.degrees(z1)), float(np.degrees(z2)),
                          cb.center_mm[0], cb.center_mm[1])
-    return PaperResult(params, cb, ce, tuple(int(i) for i in b), tuple(int(i) for i in e))
+    return PaperResult(params, cb, ce)
 
 
 def pilot_params(q_deg, xy_mm) -> ScaraParams:

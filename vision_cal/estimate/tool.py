@@ -43,7 +43,6 @@ class PaperTool:
     params: ScaraParams
     tool_mm: tuple[float, float]
     circle_joint4: Circle
-    joint4_group: tuple[int, ...]   # indices of the marks on the joint-4 circle
     folded_q4_deg: float            # the joint-4 angle of the base and elbow circles
 
     @property
@@ -95,5 +94,4 @@ def paper_tool(q_deg, q4_deg, xy_mm) -> PaperTool:
     tool = (c4.radius_mm * np.cos(a_mean), c4.radius_mm * np.sin(a_mean))
     params = ScaraParams(base.L1_mm, float(np.hypot(*d)), base.z1_deg, float(np.degrees(z2)),
                          base.base_x_mm, base.base_y_mm)
-    return PaperTool(params, (float(tool[0]), float(tool[1])), c4,
-                     tuple(int(i) for i in g4), q4c)
+    return PaperTool(params, (float(tool[0]), float(tool[1])), c4, q4c)

@@ -3,11 +3,8 @@
 Frames and units: sheet frame S (x right, y up, mm) as in the dataset format; image pixels
 (u, v) = (column, row), integer at pixel centres (OpenCV). Covariances in mm^2.
 
-Public API (imports are lazy so that ``import vision_cal.measure`` stays light)::
-
-    measure_image(path, session, *, lens=None, config=None) -> ImageResult
-
-A whole folder, photos to marks (which dot is which mark is identify/'s), is
+One photo is :func:`vision_cal.measure.finish.measure_image`; a whole folder, photos to
+marks (which dot is which mark is identify/'s), is
 :func:`vision_cal.actions.measure_folder.measure_folder`.
 
 Modules, by stage: ``listing`` (the photos to measure, checked), ``detect`` (stage 1:
@@ -17,22 +14,3 @@ mapping, dots on the sheet), ``print_stage`` (the sheet as printed); below them 
 dots and their centres on the sheet), ``types`` (the measurement's types and their JSON),
 ``cache`` (per-photo cache).
 """
-
-from __future__ import annotations
-
-__all__ = ["measure_image", "Measurement", "MarkMeasurement", "ImageResult",
-           "LensEstimate"]
-
-
-def __getattr__(name):
-    # local imports: ``import vision_cal.measure`` stays light (no OpenCV) until one is used
-    if name == "measure_image":
-        from vision_cal.measure.finish import measure_image
-        return measure_image
-    if name in ("Measurement", "MarkMeasurement", "ImageResult"):
-        from vision_cal.measure import types
-        return getattr(types, name)
-    if name == "LensEstimate":
-        from vision_cal.measure.mapping import LensEstimate
-        return LensEstimate
-    raise AttributeError(name)

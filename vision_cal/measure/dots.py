@@ -285,13 +285,11 @@ def _cut_patch(rgb: np.ndarray, uv, J, det: float, dia: float):
 @dataclass(frozen=True)
 class DotMeasurement:
     """A dot's centre ``xy_mm`` (2,) on the sheet and its covariance ``cov_mm2`` (2, 2)
-    (noise + mapping); ``ink_area_mm2``: the ink-equivalent area measured (1 - S/bg summed)."""
+    (noise + mapping), the noise's part ``cov_noise_mm2``."""
 
     xy_mm: np.ndarray
     cov_mm2: np.ndarray
-    ink_area_mm2: float
     cov_noise_mm2: np.ndarray
-    cov_mapping_mm2: np.ndarray
     bg_residual: float = float("nan")  # background-model residual / noise (about 1 if clean)
     #: what is printed under the dot (labels of :class:`vision_cal.measure.printed.PrintedItem`,
     #: "" for bare paper and grid lines) and how the background was modelled: "separable"
@@ -460,7 +458,7 @@ def _refine_dot(patch_rgb: np.ndarray, origin, mapping: SheetMapping, xy0_mm,
             if gr.background == "separable" else (0.0, 0.0))
     on = "; ".join(it.label for it in under)
     why, suspect = _verdict(gr.background, on, ratio, ring, fit, o)
-    return DotMeasurement(c, cov_noise + cov_map, M_mm2, cov_noise, cov_map,
+    return DotMeasurement(c, cov_noise + cov_map, cov_noise,
                           ratio, on, gr.background, why, suspect)
 
 

@@ -19,9 +19,6 @@ from vision_cal.measure.types import ImageDetections
 log = logging.getLogger(__name__)
 
 
-IMAGE_SUFFIXES = set(photos.PHOTO_SUFFIXES)
-
-
 def skipped(file, why, size=None) -> ImageDetections:
     """A photo left out before its markers are measured, with the reason (``size``: its
     (width, height) px when known)."""

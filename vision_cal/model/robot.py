@@ -1,8 +1,8 @@
 """The full robot model: the base model plus effects the base model lacks.
 
 Every effect of docs/format.md that acts on the robot lives here with
-its own Jacobian, so the same code generates synthetic truth (``render``), fits
-(``calibrate``, ``diagnose``) and compensates (``plan``).
+its own Jacobian, so the same code fits (``estimate``) and compensates (``plan``); the
+synthetic world (``world``) writes its truth with its own code.
 
 Joint effects change the angle the joint really turns to. With ``q`` the commanded
 angle (rad) and ``s`` the approach sign (+1: the joint last moved in the positive

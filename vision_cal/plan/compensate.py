@@ -28,8 +28,6 @@ from vision_cal.model.motion import JOINT_LIMITS_DEG, TRAJECTORY_DT_S
 from vision_cal.plan.calibration_plan import PlannedMark
 from vision_cal.plan.trajectory import plan_trajectory, write_trajectory_csv
 
-DEFAULT_LIMITS_DEG = JOINT_LIMITS_DEG  # the old name, kept for callers
-
 
 @dataclass(frozen=True)
 class PlannedTarget:

@@ -41,7 +41,6 @@ class PlannedPose:
     q4_deg: float
     approach4: int
     theta_deg: float               # the orientation asked for (NaN: none asked)
-    angle_error_deg: float = float("nan")   # the model's orientation of the command - theta
 
     def to_row(self) -> dict:
         return dict(self.target.to_row(), q4_deg=float(self.q4_deg),

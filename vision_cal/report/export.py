@@ -31,8 +31,7 @@ import yaml
 from vision_cal.dataset.io import atomic_write_text
 from vision_cal.dataset.nominal import SIGN_CONVENTION, controller_offsets, offsets_text
 # the defaults live in vision_cal.model.motion; report/ reads them through dataset/ (its rule)
-from vision_cal.dataset.robot import DEFAULT_LIMITS_DEG as JOINT_LIMITS_DEG
-from vision_cal.dataset.robot import JOINT3_LIMITS_MM, JOINT4_LIMITS_DEG
+from vision_cal.dataset.robot import JOINT3_LIMITS_MM, JOINT4_LIMITS_DEG, JOINT_LIMITS_DEG
 
 EFFECTS_HEADER = """\
 # Effects found by vision-cal that URDF cannot express (see docs/conventions.md).

@@ -20,10 +20,6 @@ import vision_cal
 from vision_cal.dataset.nominal import (SIGN_CONVENTION, controller_offsets, offsets_text)
 from vision_cal.report.summary import describe_effect, verdict_block
 
-# the sign convention of zeros and controller offsets: one sentence, one owner
-# (vision_cal.dataset.nominal); the name is kept for readers of this module
-CONTROLLER_SIGN_CONVENTION = SIGN_CONVENTION
-
 
 def headline(doc: dict, loop: dict | None = None) -> dict:
     """What was calibrated, accuracy before/after, effects, verdict (JSON-ready)."""
@@ -122,7 +118,7 @@ def actions(doc: dict, *, calibration_path: str = "OUT/calibration.json") -> dic
     cal = calibration_path
     return {
         "olp_model": olp,
-        "sign_convention": CONTROLLER_SIGN_CONVENTION,
+        "sign_convention": SIGN_CONVENTION,
         "controller_offsets": offsets,
         "nominal_is": "the robot file",
         "starting_model": doc.get("starting_model"),

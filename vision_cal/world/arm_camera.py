@@ -118,7 +118,7 @@ def photograph_poses(folder, robot: TrueRobot, sheet, q, j4, files, X, *, K, siz
     the joints' last motion signs (the robot's backlash), None: +1; ``dist`` the lens's
     distortion (OpenCV coefficients, None: a pinhole), applied to the supersampled ideal
     render, which (our own photographer) is wide enough to fill the photo's corners
-    (``render.camera.ideal_K``: a real lens leaves no black corners, and markers cut by
+    (``world.camera.ideal_K``: a real lens leaves no black corners, and markers cut by
     them are found pixels off). Returns the true ``T_cam_sheet`` (N, 4, 4)."""
     tex = sheet_texture(sheet, marks_xy_mm=np.zeros((0, 2)), px_per_mm=px_per_mm, rng=rng)
     own = photographer is None

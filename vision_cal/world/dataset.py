@@ -183,7 +183,7 @@ def build_textures(sheet, xy_mm, diameters_mm, *, px_per_mm, seed, printed=None,
                    print_field=None):
     """``(finished sheet, mark-free sheet)`` textures from one build (paper, grid and
     markers drawn once; the same bytes as two separate ``sheet_texture`` calls);
-    ``print_field``: the printer's displacement and toner (render.print_deviation)."""
+    ``print_field``: the printer's displacement and toner (world.print_deviation)."""
     rng = np.random.default_rng(seed)
     if printed is not None:
         return printed_textures(printed, marks_xy_mm=xy_mm, mark_diameters_mm=diameters_mm,
@@ -207,8 +207,8 @@ class _PhotoJob:
     dist: np.ndarray | None
     folder: Path
     printed: object = None         # a PrintedSheet photographed instead of the analytic one
-    height_grid: object = None     # the sheet's height map (render.height), if not flat
-    print_field: object = None     # the printer's displacement (render.print_deviation)
+    height_grid: object = None     # the sheet's height map (world.height), if not flat
+    print_field: object = None     # the printer's displacement (world.print_deviation)
     textures: tuple | None = None  # (finished, mark-free) sheet textures, built once
 
 
@@ -596,7 +596,7 @@ def _truth_json(scene: Scene, ss: _SheetSetup, drawn: _Drawn, sh: _Shots, t: _Ta
         truth_json["sheet_height"] = hfield.to_json()
         truth_json["mark_height_mm"] = {mid: float(z) for mid, z in zip(
             world.ids, hfield.height_mm(world.xy_mm))}
-    if pfield is not None:  # added field: the sheet as printed (render.print_deviation)
+    if pfield is not None:  # added field: the sheet as printed (world.print_deviation)
         truth_json["print"] = pfield.to_json([m.id for m in sheet.markers],
                                              [m.corners_mm for m in sheet.markers])
     return truth_json

@@ -568,7 +568,7 @@ def simulate_session(plan_dir, truth_path, out_dir, *, after=(), progress: bool 
         "simulated_robot": str(sim.path), "seed": sim.seed,
         "controller_report": getattr(source, "report", None),
     }
-    if field is not None:   # added field: the sheet as printed (render.print_deviation)
+    if field is not None:   # added field: the sheet as printed (world.print_deviation)
         truth["print"] = field.to_json([m.id for m in sheet.markers],
                                        [m.corners_mm for m in sheet.markers])
     # everything is computed: now write (truth.json last)

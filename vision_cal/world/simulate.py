@@ -43,8 +43,8 @@ class SimResult:
     from; settle_residual_deg (N, 2):
     encoder minus command at pen-down; settle_extra_s (N,): extra wait for settling;
     tracking_rms_deg / tracking_max_deg (2,): encoder minus reference over the whole run;
-    reference: the commanded trajectory (at its own sampling period); t_s (K,), motor_trace_deg
-    (K, 2), link_trace_deg (K, 2): the simulated run every ``trace_every`` steps.
+    reference: the commanded trajectory (at its own sampling period); duration_s and n_steps:
+    the simulated run's length.
     """
 
     motor_deg: np.ndarray
@@ -57,15 +57,12 @@ class SimResult:
     reference: Trajectory
     duration_s: float
     n_steps: int
-    t_s: np.ndarray
-    motor_trace_deg: np.ndarray
-    link_trace_deg: np.ndarray
 
 
 def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), controller="smc",
                   dynamics: ScaraDynamics | None = None, dt_s: float = 0.001,
                   settle_tol_deg: float = 1e-4, rng=None, encoder_noise_deg: float = 0.0,
-                  max_settle_s: float = 5.0, trace_every: int = 16,
+                  max_settle_s: float = 5.0,
                   trajectory: Trajectory | None = None, trajectory_dt_s: float = TRAJECTORY_DT_S,
                   **trajectory_kwargs) -> SimResult:
     """Run ``marks`` (list of :class:`~vision_cal.plan.calibration_plan.PlannedMark`).
@@ -100,7 +97,6 @@ def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), contro
     g1, g2 = q1 - dh1, q2 - dh2           # direction trackers
     sg1 = sg2 = 1.0
     max_hold = int(round(max_settle_s / dt_s))
-    trace_every = max(int(trace_every), 1)
 
     motor = np.zeros((n_marks, 2))
     link = np.zeros((n_marks, 2))
@@ -110,7 +106,6 @@ def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), contro
     err_sq1 = err_sq2 = 0.0
     err_max1 = err_max2 = 0.0
     n_err = 0
-    trace_t, trace_m, trace_l = [], [], []
     steps = 0
     advance = _advancer(ctrl.torque, plant.step, dt_s, math.radians(encoder_noise_deg), rng)
     track = _tracker(hb1, hb2, dh1, dh2)
@@ -130,10 +125,6 @@ def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), contro
         err_max1 = e1 if e1 > err_max1 else err_max1
         err_max2 = e2 if e2 > err_max2 else err_max2
         n_err += 1
-        if k % trace_every == 0:
-            trace_t.append(steps * dt_s)
-            trace_m.append((q1, q2))
-            trace_l.append((l1, l2))
         i = pen_at.get(k)
         if i is None:
             continue
@@ -152,7 +143,7 @@ def simulate_plan(marks, *, home_deg=(0.0, 0.0), backlash_deg=(0.0, 0.0), contro
         extra[i] = hold * dt_s
 
     return _result(motor, link, arrival, resid, extra, (err_sq1, err_sq2),
-                   (err_max1, err_max2), n_err, traj, steps, dt_s, (trace_t, trace_m, trace_l))
+                   (err_max1, err_max2), n_err, traj, steps, dt_s)
 
 
 def _advancer(torque, step, dt_s: float, sigma: float, rng):
@@ -232,15 +223,12 @@ def _reference(traj: Trajectory, dt_s: float, n_marks: int):
 
 
 def _result(motor, link, arrival, resid, extra, err_sq, err_max, n_err: int,
-            traj: Trajectory, steps: int, dt_s: float, trace) -> SimResult:
+            traj: Trajectory, steps: int, dt_s: float) -> SimResult:
     """The run in degrees: per-mark states (radians in), the tracking error's RMS from its
-    sums of squares and its maximum, the trace ``(t, motor, link)``."""
-    trace_t, trace_m, trace_l = trace
+    sums of squares and its maximum."""
     return SimResult(
         motor_deg=np.degrees(motor), link_deg=np.degrees(link), approach=arrival,
         settle_residual_deg=np.degrees(resid), settle_extra_s=extra,
         tracking_rms_deg=np.degrees(np.sqrt(np.array(err_sq) / max(n_err, 1))),
         tracking_max_deg=np.degrees(np.array(err_max)),
-        reference=traj, duration_s=steps * dt_s, n_steps=steps, t_s=np.asarray(trace_t),
-        motor_trace_deg=np.degrees(np.asarray(trace_m)).reshape(-1, 2),
-        link_trace_deg=np.degrees(np.asarray(trace_l)).reshape(-1, 2))
+        reference=traj, duration_s=steps * dt_s, n_steps=steps)
