@@ -96,8 +96,7 @@ class PlacementsFit:
 
     @property
     def rms_mm(self) -> float:
-        r = np.concatenate(self.residuals_mm)
-        return float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+        return rms_2d(np.concatenate(self.residuals_mm))
 
 
 def _vector(shared: ScaraParams, poses, effects) -> np.ndarray:
@@ -176,13 +175,10 @@ def _solve(places: list[Placement], shared, poses, effects,
     if cov.not_fixed:
         raise CalibrationError("the placements cannot tell the shared parameters apart ("
                                f"{cov.reason()})")
-    ssr, dof = sol.ssr, sol.dof
     sh, po, ef = _unpack(sol.x, n_place, effects)
-    fitted = PlacementsFit(sh, ef, po, cov.matrix, (), tuple(p.name for p in places), (), ssr,
-                           dof)
-    res = tuple(p.xy_mm - fitted.model_on(k).predict(p.q_deg, p.approach)
-                for k, p in enumerate(places))
-    return PlacementsFit(sh, ef, po, cov.matrix, labels, fitted.names, res, ssr, dof)
+    res = tuple(p.xy_mm - m.predict(p.q_deg, p.approach) for m, p in zip(models(sol.x), places))
+    return PlacementsFit(sh, ef, po, cov.matrix, labels, tuple(p.name for p in places), res,
+                         sol.ssr, sol.dof)
 
 
 def _start(places: list[Placement], tool: Tool | None) -> tuple[ScaraParams, tuple]:
@@ -282,15 +278,6 @@ def cv_residuals(places: list[Placement], fit: PlacementsFit, effects, k_folds: 
     return out
 
 
-def _cv_rms(places: list[Placement], fit: PlacementsFit, effects, k_folds: int,
-            condition_limit: float,
-            rng_seed: int = 0) -> float:
-    """k-fold cross-validated RMS (mm, 2-D) of the shared model with ``effects``
-    (:func:`cv_residuals`); NaN when a fold cannot be fitted."""
-    res = cv_residuals(places, fit, effects, k_folds, condition_limit, rng_seed)
-    return float("nan") if res is None else rms_2d(np.concatenate(res))
-
-
 class _PlacementsProblem(Problem):
     """Several placements posed to the forward selection
     (:mod:`vision_cal.estimate.forward`): the shared lengths, ``z2`` and effects free with
@@ -323,7 +310,10 @@ class _PlacementsProblem(Problem):
         return fit.dof
 
     def held(self, fit: PlacementsFit) -> float:
-        return _cv_rms(self.places, fit, fit.effects, self.k_folds, self.limit)
+        """The k-fold cross-validated RMS (mm, 2-D, :func:`cv_residuals`); NaN when a fold
+        cannot be fitted."""
+        res = cv_residuals(self.places, fit, fit.effects, self.k_folds, self.limit)
+        return float("nan") if res is None else rms_2d(np.concatenate(res))
 
     def order(self, trials: list) -> list:
         return sorted(trials, key=lambda t: (t.p, -t.F))
@@ -422,8 +412,7 @@ def robot_frame_json(fit: PlacementsFit, names) -> dict:
         placements.append({"folder": str(name), "angle_deg": a, "base_mm": [bx, by],
                            "std": {"angle_deg": float(np.degrees(s[i])),
                                    "base_mm": [float(s[i + 1]), float(s[i + 2])]},
-                           "residual_rms_mm": float(np.sqrt(np.mean(np.sum(
-                               fit.residuals_mm[k]**2, axis=1)))),
+                           "residual_rms_mm": rms_2d(fit.residuals_mm[k]),
                            "n_marks": int(len(fit.residuals_mm[k]))})
     return {"frame": "robot", "params": params, "std": std, "effects": effects,
             "placements": placements, "residual_rms_mm": {"final_model": fit.rms_mm}}
@@ -532,8 +521,7 @@ def calibrate_placed(names, sessions, cals: list[MarkData],
         placement = rf["placements"][k]
         sub = CalibrationResult(
             method="lsq-placements", params=params,
-            effects=tuple(e.to_json(fit.effect_std(i)) for i, e in enumerate(fit.effects)
-                          if not isinstance(e, Tool)),
+            effects=tuple(rf["effects"]),     # the shared robot's, without the unexplained
             covariance=covariance_json(m.param_labels(), placement_cov(fit, k)),
             # the robot file the controller runs (dataset/nominal), not the pilot's model
             **nominal_blocks(session.raw, session.robot.params.to_json()),
