@@ -141,7 +141,7 @@ def plan_poses(model: RobotModel, ids, targets_mm, theta_deg=None, *, elbow: int
             reason = f"the model could not be inverted (residual {res:.2g} mm, {ang:.2g} deg)"
         t = PlannedTarget(p.id, tuple(xy[i]), p.q_deg, p.approach,
                           "failed" if reason else "ok", reason, res)
-        out.append(PlannedPose(t, q4, int(s[i, 2]), float(np.degrees(theta[i])), ang))
+        out.append(PlannedPose(t, q4, int(s[i, 2]), float(np.degrees(theta[i]))))
     return out
 
 
