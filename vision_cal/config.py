@@ -230,6 +230,13 @@ class GridConfig:
                                       # not grid (pen, marker, text)
     min_contrast: float = 6.0         # |Fourier amplitude| / its noise below this: the lines
                                       # are not seen (the phase's std would exceed pitch / 38)
+    print_length_min_mm: float = 60.0  # the printer's displacement between the markers
+    print_length_max_mm: float = 400.0  # (measure/grid_print): its smoothness along x and
+                                      # along y, five lengths from min to max (a feed wave, a
+                                      # bow: 100 mm and more), the likeliest taken
+    print_amplitude_max: float = 6.0  # and its std far from every marker: seven from half to
+                                      # this many times the unmeasured print's
+                                      # (uncertainty.unmeasured_print_mm / sqrt 2 per axis)
 
 
 @dataclass(frozen=True)

@@ -20,6 +20,7 @@ from vision_cal.measure.detect import detect_image
 from vision_cal.measure.dots import blank_regions, ground_scale, radii_mm, refine_dot
 from vision_cal.measure.grid import grid_offset
 from vision_cal.measure.grid_declaration import misdeclared_grid
+from vision_cal.measure.grid_print import GridPrint, against_grid
 from vision_cal.measure.height import camera_centre_mm
 from vision_cal.measure.mapping import LensEstimate, estimate_lens, fit_mapping, undistort_px
 from vision_cal.measure.photo_agreement import disagreeing_photos
@@ -90,6 +91,7 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
     grid = session.sheet.grid_spec
     have_grid = grid is not None and det.grid_patches is not None
     pref = printed_reference(session.sheet)
+    gprint = det.grid_print if det.grid_print is not None else GridPrint.unmeasured(config)
     # the local grid reference leaves out what is printed over or instead of the grid
     grid_blank = blank if pref is None else np.concatenate([blank, pref.ungridded_boxes_mm()])
     for k, (patch, org, x0, uv) in enumerate(zip(c.patches, c.origins, xy0, c.uv_px)):
@@ -110,10 +112,12 @@ def finish_image(det: ImageDetections, session: Session, lens: LensEstimate | No
                              grid_blank, config)
             if go is not None:
                 # the dot against the printed lines around it: the marker mapping's error
-                # (and a raised paper's parallax) cancels, the lines' own noise adds
-                xy, off, ref = r.xy_mm - go.d_mm, go.d_mm, "grid"
-                cov = r.cov_noise_mm2 + go.cov_mm2
-                oc = go.cov_mm2
+                # (and a raised paper's parallax) cancels, the lines' own noise adds; the
+                # lines are where the printer put them: its displacement as the markers
+                # measured it taken off, its uncertainty (the printer's prior when not
+                # measured) added (measure/grid_print, issue 37)
+                xy, cov, off, oc = against_grid(r.xy_mm, r.cov_noise_mm2, go, gprint)
+                ref = "grid"
         xs.append(xy)
         covs.append(cov)
         uvs.append(uv)

@@ -173,6 +173,17 @@ def misdeclared_grid(images, grid, config: GridDeclarationConfig | None = None, 
     # standard error of a circular mean from its scatter, over the independent sites
     spread = np.sqrt(np.maximum(-2.0 * np.log(np.maximum(agree, 1e-12)), 0.0)) * p / (2 * np.pi)
     se = spread / np.sqrt(len(sites))
+    # what the offsets share and no number of dots averages: the printer's displacement the
+    # grid reference carries (measure/grid_print: its prior, or what a survey left between
+    # the markers; issue 37: a survey's 0.077 mm between rim markers named a misdeclared
+    # grid), at most the median dot's offset variance
+    cov = np.concatenate([np.asarray(getattr(im, "dots_grid_offset_cov_mm2", ()), float)
+                          .reshape(-1, 2, 2) for im in images if im.status == "ok"]
+                         or [np.zeros((0, 2, 2))])
+    diag = np.diagonal(cov, axis1=1, axis2=2)
+    diag = diag[np.all(np.isfinite(diag), axis=1)]
+    if len(diag):
+        se = np.sqrt(se**2 + np.median(diag, axis=0))
     off = np.where((agree >= cfg.min_agreement) & (np.abs(mean) > cfg.min_offset_mm)
                    & (np.abs(mean) > cfg.min_offset_sigmas * se), mean, 0.0)
     if not np.any(off):

@@ -13,6 +13,7 @@ from vision_cal.config import EstimatorConfig
 from vision_cal.dataset.session import Session
 from vision_cal.measure.asprinted import AsPrinted, estimate_as_printed, field_basis
 from vision_cal.measure.finish import lens_of
+from vision_cal.measure.grid_print import GridPrint
 from vision_cal.measure.mapping import LensEstimate
 from vision_cal.measure.replicate import (APPLIED, FAILED, NOT_SIGNIFICANT, claim_of,
                                           stated_scale, with_replication)
@@ -70,11 +71,12 @@ def as_printed_stage(session: Session, dets: list[ImageDetections], lens: LensEs
         if session.camera is None and lens is not None and lens.kept:
             lens = replace(lens, K=ap.K, dist=ap.dist)   # the held-out test kept a lens
     out = []
+    gp = GridPrint.from_as_printed(ap, config)   # the grid reference's correction (#37)
     for d in dets:
         if d.status != "ok" or not len(d.marker_ids):
             out.append(d)
             continue
-        d2 = replace(d, corners_mm=ap.corners_for(d.marker_ids, d.corners_mm))
+        d2 = replace(d, corners_mm=ap.corners_for(d.marker_ids, d.corners_mm), grid_print=gp)
         d2.__dict__["_corners_memo"] = d.__dict__.get("_corners_memo", {})
         out.append(d2)
     return ap, lens, out, None

@@ -64,6 +64,10 @@ class ImageDetections:
     # printed lines that are its local reference) and its top-left (col, row)
     grid_patches: tuple | None = None
     grid_origins: np.ndarray | None = None
+    # the print's displacement where the markers were measured as printed (a survey or
+    # several places: :class:`vision_cal.measure.grid_print.GridPrint`; None: not measured),
+    # the grid reference's correction; set by the as-printed stage, never cached
+    grid_print: object | None = None
 
     def corners_for(self, K=None, dist=None) -> np.ndarray:
         """Marker corners (M, 4, 2) in raw px: intersections of the border edges, fitted
