@@ -27,7 +27,7 @@ from vision_cal.estimate.paper import PaperResult, paper_method
 from vision_cal.estimate.replicate import replicate
 from vision_cal.estimate.select import Diagnosis, diagnose
 from vision_cal.estimate.sheet import NOT_FLAT, PRINT_BETWEEN, smooth_residual
-from vision_cal.measure.print_stage import print_field_cov
+from vision_cal.measure.print_stage import print_not_measured, print_shared_cov
 from vision_cal.model.kinematics import forward
 from vision_cal.model.lsq import Fit
 from vision_cal.model.rms import rms_2d
@@ -120,6 +120,8 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
     :mod:`vision_cal.estimate.joint4`); the joints then carry joint 4."""
     diag, traced, cands, not_flat = _diagnosed(session, cal, val, measurement, config,
                                                base_effects)
+    unshared = diag.final_fit
+    diag = _print_shared(diag, cal, measurement, _extent(session), config)
     fb, ff = diag.base_fit, diag.final_fit
     has_val = len(val.ids) >= 3
     vb = rms_2d(val.xy_mm - fb.predict(val.q_model, val.approach_model)) if has_val else diag.heldout_base_mm
@@ -172,7 +174,8 @@ def fit_lsq(session: Session, cal: MarkData, val: MarkData, measurement,
         covariance=covariance_json(ff.labels, ff.cov), outliers=tuple(outliers) or None,
         circles=({"base": pm.circle_base.to_json(), "elbow": pm.circle_elbow.to_json()}
                  if pm else None),
-        extra={"replication": _replication(ff, cal, val, measurement, config)})
+        extra={"replication": _replication(ff, session, cal, val, measurement, config),
+               **_print_in_covariance(diag, unshared, cal, measurement)})
     return Fitted(result, ff.model, residual_all, residual_base, diagnosis=diag)
 
 
@@ -184,7 +187,7 @@ UNTRACED = ("the scans for effects the library lacks (time, polynomial, coupling
 
 def _diagnosed(session: Session, cal: MarkData, val: MarkData, measurement,
                config: EstimatorConfig, base_effects: tuple):
-    """(the diagnosis with the print's shared error, the discovery's trace or None, the
+    """(the diagnosis, the discovery's trace or None, the
     candidates tried (None: every one), whether the sheet is not flat): the selection
     (:func:`vision_cal.estimate.select.diagnose`), then the scans for what the library
     lacks (:func:`vision_cal.estimate.discover.trace`) unless the sheet is not flat."""
@@ -214,7 +217,7 @@ def _diagnosed(session: Session, cal: MarkData, val: MarkData, measurement,
                        alpha=config.selection.alpha, k_folds=config.selection.k_folds,
                        config=config)
         diag = traced.diagnosis
-    return _print_shared(diag, cal, measurement), traced, cands, not_flat
+    return diag, traced, cands, not_flat
 
 
 def _add_smooth_residual(effects: list, session: Session, cal: MarkData, val: MarkData,
@@ -241,7 +244,7 @@ def _smooth_cause(measurement) -> str:
     return PRINT_BETWEEN if pr.get("applied") else NOT_FLAT
 
 
-def _replication(ff: Fit, cal: MarkData, val: MarkData, measurement,
+def _replication(ff: Fit, session: Session, cal: MarkData, val: MarkData, measurement,
                  config: EstimatorConfig) -> dict:
     """calibration.json ``replication``: the final model refitted on two halves of its
     fitted marks and compared (:func:`vision_cal.estimate.replicate.replicate`), at the
@@ -255,19 +258,29 @@ def _replication(ff: Fit, cal: MarkData, val: MarkData, measurement,
         check_q=val.q_model if nv >= 3 else None,
         check_approach=val.approach_model if nv >= 3 else None,
         check_label=f"the {nv} validation marks' commands",
-        shared_cov_mm2=print_field_cov(None if measurement is None
-                                       else measurement.print_summary, cal.xy_mm[keep]),
+        shared_cov_mm2=print_shared_cov(None if measurement is None
+                                        else measurement.print_summary, cal.xy_mm[keep],
+                                        _extent(session), config),
         config=config)
 
 
-def _print_shared(diag: Diagnosis, cal: MarkData, measurement) -> Diagnosis:
+def _extent(session: Session):
+    """The paper's extent [x0, y0, x1, y1] (mm), None without a sheet."""
+    return None if session.sheet is None else session.sheet.extent_mm
+
+
+def _print_shared(diag: Diagnosis, cal: MarkData, measurement, extent_mm,
+                  config: EstimatorConfig) -> Diagnosis:
     """The diagnosis with its fits' parameter covariance grown by the print's correlated
-    part (measurement.json ``print`` ``field``): the as-printed layout's uncertainty moves
-    every mark through its photo's mapping together, which the parameters take up (a
-    0.02 mm shear of the layout turned the base 0.03 mm, 7 std, and the link 4 std, the
-    residual 0.91 times its floor). Unchanged without a field."""
-    C = print_field_cov(None if measurement is None else measurement.print_summary,
-                        cal.xy_mm)
+    part (:func:`vision_cal.measure.print_stage.print_shared_cov`): the as-printed layout's
+    uncertainty (measurement.json ``print`` ``field``) moves every mark through its photo's
+    mapping together, which the parameters take up (a 0.02 mm shear of the layout turned
+    the base 0.03 mm, 7 std, and the link 4 std, the residual 0.91 times its floor); so
+    does the print itself where it is not measured (the printer's prior: a 0.15 mm print
+    seen from one place turned joint 2's zero 0.097 deg, 11 std, issue 37). Unchanged
+    without either."""
+    C = print_shared_cov(None if measurement is None else measurement.print_summary,
+                         cal.xy_mm, extent_mm, config)
     if C is None:
         return diag
     fits = {}
@@ -276,6 +289,22 @@ def _print_shared(diag: Diagnosis, cal: MarkData, measurement) -> Diagnosis:
         if len(f.inliers) == len(cal.ids):
             fits[name] = f.with_shared_error(cal.q_model, cal.approach_model, C, cal.sigma_mm)
     return replace(diag, **fits)
+
+
+def _print_in_covariance(diag: Diagnosis, unshared: Fit, cal: MarkData, measurement) -> dict:
+    """calibration.json ``print_in_covariance`` (the print not measured: its prior carried
+    in the covariance, :func:`_print_shared`): ``at_marks_mm``, the per-axis std it adds to
+    where the fitted marks' commands land, RMS over them (the verdict's ``target_std`` moves
+    it from the print's part to the calibration's, so that it counts once). Empty when the
+    print is measured or the covariance does not hold it."""
+    pr = None if measurement is None else measurement.print_summary
+    ff = diag.final_fit
+    if not print_not_measured(pr) or ff.cov is unshared.cov:
+        return {}
+    J = ff.model.jacobian(cal.q_model, cal.approach_model)          # (N, 2, P)
+    d = np.einsum("nip,pq,niq->n", J, ff.cov - unshared.cov, J) / 2
+    return {"print_in_covariance": {"source": "printer's prior", "at_marks_mm":
+                                    float(np.sqrt(max(float(np.mean(d)), 0.0)))}}
 
 
 def _predict(params, d: MarkData):

@@ -68,6 +68,7 @@ from scipy import stats
 from vision_cal.config import DEFAULT, EstimatorConfig, VerdictConfig
 from vision_cal.dataset.calibration_result import CalibrationResult, ModelRms
 from vision_cal.dataset.valid_for import verdict_reasons as valid_for_reasons
+from vision_cal.measure.print_stage import print_not_measured
 
 #: radius holding 95 % of a circular normal 2-D error per unit of its RMS
 R95_PER_RMS = math.sqrt(-2.0 * math.log(0.05)) / math.sqrt(2.0)
@@ -677,7 +678,8 @@ def _accuracy(cal: CalibrationResult, marks: dict, n_par: int, rep: float,
             f"{n_fit} fitted marks leave {2 * n_fit - n_par} degrees of freedom, too few to "
             "test for backlash, gear-ratio or sheet effects")
     print_mm = _print_part(cal.extra.get("print"), add, full, by_design)
-    parts = _target_parts(cal, marks, n_par, rep, print_mm) if r95 is not None else None
+    parts = (_target_parts(cal, marks, n_par, rep, print_mm, _print_in_covariance(cal))
+             if r95 is not None else None)
     _print_named(cal.extra.get("print"), parts, add, cfg)
     if parts is not None:
         r95 = R95_PER_STD * parts["total_mm"]
@@ -710,9 +712,8 @@ def _print_part(pr: dict | None, add, full: EstimatorConfig, by_design: str | No
     one_place = pr.get("source") == "one place"
     # a layout found but not applied measured the print only when it found it on its
     # layout (``not significant``); failed, unresolved or unreplicated, it tells nothing
-    found_not_held = (not one_place and pr.get("applied") is False   # (no status: before
-                      and pr.get("status") not in (None, "not significant"))   # issue 37)
-    if not one_place and not found_not_held:
+    found_not_held = not one_place and print_not_measured(pr)
+    if not print_not_measured(pr):
         return lim / math.sqrt(2.0)
     found = pr.get("rms_mm") if found_not_held else None
     size = max(lim, float(found) if _finite(found) else 0.0,
@@ -734,8 +735,17 @@ def _print_part(pr: dict | None, add, full: EstimatorConfig, by_design: str | No
     return size / math.sqrt(2.0)
 
 
+def _print_in_covariance(cal: CalibrationResult) -> float:
+    """The per-axis std the print not measured adds, through the covariance, where the
+    fitted marks' commands land (calibration.json ``print_in_covariance.at_marks_mm``,
+    :func:`vision_cal.estimate.fit._print_in_covariance`; 0 without it)."""
+    pc = cal.extra.get("print_in_covariance")
+    x = pc.get("at_marks_mm") if isinstance(pc, dict) else None
+    return float(x) if _finite(x) and x > 0 else 0.0
+
+
 def _target_parts(cal: CalibrationResult, marks: dict, n_par: int, rep: float,
-                  print_mm: float) -> dict | None:
+                  print_mm: float, in_cov: float = 0.0) -> dict | None:
     """A target's error, one std per axis, by part (calibration.json ``verdict.target_std``):
     ``calibration_mm`` (the fit's covariance at a mark: on average ``P / (2N - P)`` of the
     fitted residual's variance), ``repeatability_mm``, ``unexplained_mm`` (the residual's
@@ -743,7 +753,11 @@ def _target_parts(cal: CalibrationResult, marks: dict, n_par: int, rep: float,
     leverage corrected, and the held-out ones - validation marks, else the
     cross-validation figure - pooled by their degrees of freedom; 0 when noise explains
     it), ``print_mm`` and ``total_mm`` (their root sum of squares), ``from`` (the marks it
-    was read on). None unless every fitted mark carries its noise."""
+    was read on). None unless every fitted mark carries its noise. ``in_cov``: the print
+    not measured carried in the covariance (:func:`_print_in_covariance`): counted once,
+    in the calibration's part, and taken off the print's (``print_mm`` what is left of
+    it), so that the total is the same and a planned target's ``std_mm``, whose
+    calibration part is the covariance's at its command, does not count it twice."""
     outl = set(cal.outliers or [])
     fit = [m for k, m in marks.items() if m.get("role", "calibration") == "calibration"
            and m.get("status", "ok") == "ok" and m.get("residual_mm") is not None
@@ -772,6 +786,8 @@ def _target_parts(cal: CalibrationResult, marks: dict, n_par: int, rep: float,
     else:
         u2_held, dof_h, source = 0.0, 0, f"{n} fitted marks"
     u2 = max((dof_f * u2_fit + dof_h * u2_held) / (dof_f + dof_h), 0.0)
+    c2 += in_cov**2
+    print_mm = math.sqrt(max(print_mm**2 - in_cov**2, 0.0))
     total = math.sqrt(c2 + rep**2 + u2 + print_mm**2)
     return {"calibration_mm": math.sqrt(c2), "repeatability_mm": rep,
             "unexplained_mm": math.sqrt(u2), "print_mm": print_mm, "total_mm": total,

@@ -194,6 +194,54 @@ def _beyond_mapping(session: Session, images: list[ImageResult], config: Estimat
             "limit_mm": limit, "sigma_mm": limit / np.sqrt(2.0)}
 
 
+def print_not_measured(summary: dict | None) -> bool:
+    """Whether measurement.json ``print`` says the print is not measured (issue 37): from one
+    place (no survey, photos from fewer than ``as_printed.min_places`` places), or a layout
+    found but not applied for any reason but ``not significant`` (its solve stopped, it is
+    not resolved or does not replicate: it tells nothing). No ``print`` block: False."""
+    if not isinstance(summary, dict):
+        return False
+    if summary.get("source") == "one place":
+        return True
+    return (summary.get("applied") is False
+            and summary.get("status") not in (None, "not significant"))
+
+
+def unmeasured_field_cov(xy_mm, extent_mm, rms_mm: float) -> np.ndarray:
+    """(2N, 2N) the marks' joint covariance of a print not measured, at ``xy_mm`` (N, 2):
+    a smooth field of the kind a photo's mapping takes (:func:`field_basis`, a homography's
+    8 terms, in the paper's centre and half its larger side), its coefficients independent
+    and alike, the best-fitting similarity over the paper removed (the markers define the
+    sheet frame on average; the paper's scale is ``paper_scale``'s), sized so that its
+    expected 2-D RMS over the paper ``extent_mm`` [x0, y0, x1, y1] is ``rms_mm`` (config
+    ``uncertainty.unmeasured_print_mm``). Through one place's mapping the marks share it."""
+    x0, y0, x1, y1 = (float(v) for v in extent_mm)
+    centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
+    scale = max(x1 - x0, y1 - y0) / 2
+    g = np.stack(np.meshgrid(np.linspace(x0, x1, 15), np.linspace(y0, y1, 15)), -1).reshape(-1, 2)
+    Bg = field_basis(g, centre, scale)
+    S = Bg[:, :6] @ np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, -1],
+                              [0, 0, 0, 1], [0, 0, 1, 0]], float)   # shift, scale, turn
+    resid = Bg - S @ np.linalg.lstsq(S, Bg, rcond=None)[0]   # each term less its similarity
+    M = np.linalg.lstsq(Bg, resid, rcond=None)[0]             # (8, 8): c -> c less it
+    k2 = rms_mm**2 * len(g) / max(float(np.sum(resid**2)), 1e-300)
+    B = field_basis(np.asarray(xy_mm, float).reshape(-1, 2), centre, scale)
+    return k2 * (B @ M) @ (B @ M).T
+
+
+def print_shared_cov(summary: dict | None, xy_mm, extent_mm,
+                     config: EstimatorConfig) -> np.ndarray | None:
+    """(2N, 2N) what the print moves the marks at ``xy_mm`` by together: the measured
+    field's (:func:`print_field_cov`), else, the print not measured
+    (:func:`print_not_measured`) on a paper of known ``extent_mm``, the printer's prior
+    (:func:`unmeasured_field_cov`, config ``uncertainty.unmeasured_print_mm``); None
+    otherwise."""
+    C = print_field_cov(summary, xy_mm)
+    if C is not None or extent_mm is None or not print_not_measured(summary):
+        return C
+    return unmeasured_field_cov(xy_mm, extent_mm, config.uncertainty.unmeasured_print_mm)
+
+
 def print_field_cov(summary: dict | None, xy_mm) -> np.ndarray | None:
     """(2N, 2N) the marks' joint covariance the print leaves (measurement.json ``print``
     ``field``, :attr:`vision_cal.measure.asprinted.AsPrinted.field`) at positions ``xy_mm``
