@@ -68,7 +68,7 @@ from scipy import stats
 from vision_cal.config import DEFAULT, EstimatorConfig, VerdictConfig
 from vision_cal.dataset.calibration_result import CalibrationResult, ModelRms
 from vision_cal.dataset.valid_for import verdict_reasons as valid_for_reasons
-from vision_cal.measure.print_stage import print_not_measured
+from vision_cal.measure.print_stage import print_not_measured, unmeasured_print_size
 
 #: radius holding 95 % of a circular normal 2-D error per unit of its RMS
 R95_PER_RMS = math.sqrt(-2.0 * math.log(0.05)) / math.sqrt(2.0)
@@ -715,9 +715,7 @@ def _print_part(pr: dict | None, add, full: EstimatorConfig, by_design: str | No
     found_not_held = not one_place and print_not_measured(pr)
     if not print_not_measured(pr):
         return lim / math.sqrt(2.0)
-    found = pr.get("rms_mm") if found_not_held else None
-    size = max(lim, float(found) if _finite(found) else 0.0,
-               full.uncertainty.unmeasured_print_mm)
+    size = unmeasured_print_size(pr, full)
     if size > full.verdict.print_check_mm:
         seen = pr.get("seen_rms_mm")
         why = (f"the print field found does not hold ({pr.get('status')}: "

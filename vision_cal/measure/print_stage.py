@@ -207,6 +207,18 @@ def print_not_measured(summary: dict | None) -> bool:
             and summary.get("status") not in (None, "not significant"))
 
 
+def unmeasured_print_size(summary: dict | None, config: EstimatorConfig) -> float:
+    """The print's size (2-D RMS, mm) when it is not measured (:func:`print_not_measured`):
+    the printer's prior (config ``uncertainty.unmeasured_print_mm``) at least, or the larger
+    part the markers show beyond the photos' mapping (``limit_mm``), or what a layout found
+    but not held saw (``rms_mm``). The verdict's print part and the covariance's prior."""
+    def num(key):
+        x = (summary or {}).get(key)
+        return float(x) if isinstance(x, (int, float)) and np.isfinite(x) and x > 0 else 0.0
+    found = num("rms_mm") if (summary or {}).get("source") != "one place" else 0.0
+    return max(num("limit_mm"), found, config.uncertainty.unmeasured_print_mm)
+
+
 def unmeasured_field_cov(xy_mm, extent_mm, rms_mm: float) -> np.ndarray:
     """(2N, 2N) the marks' joint covariance of a print not measured, at ``xy_mm`` (N, 2):
     a smooth field of the kind a photo's mapping takes (:func:`field_basis`, a homography's
@@ -234,12 +246,12 @@ def print_shared_cov(summary: dict | None, xy_mm, extent_mm,
     """(2N, 2N) what the print moves the marks at ``xy_mm`` by together: the measured
     field's (:func:`print_field_cov`), else, the print not measured
     (:func:`print_not_measured`) on a paper of known ``extent_mm``, the printer's prior
-    (:func:`unmeasured_field_cov`, config ``uncertainty.unmeasured_print_mm``); None
+    (:func:`unmeasured_field_cov` of :func:`unmeasured_print_size`); None
     otherwise."""
     C = print_field_cov(summary, xy_mm)
     if C is not None or extent_mm is None or not print_not_measured(summary):
         return C
-    return unmeasured_field_cov(xy_mm, extent_mm, config.uncertainty.unmeasured_print_mm)
+    return unmeasured_field_cov(xy_mm, extent_mm, unmeasured_print_size(summary, config))
 
 
 def print_field_cov(summary: dict | None, xy_mm) -> np.ndarray | None:
