@@ -346,17 +346,10 @@ def _apply_similarity(s, p):
     return np.column_stack([tx + a * p[:, 0] - b * p[:, 1], ty + b * p[:, 0] + a * p[:, 1]])
 
 
-def count_places(rvecs, tvecs, *, min_move_mm: float, min_turn_deg: float) -> int:
-    """Distinct camera places among poses (sheet -> camera): greedy clusters of camera
-    centres within ``min_move_mm`` and view directions within ``min_turn_deg``."""
-    labels = place_labels(rvecs, tvecs, min_move_mm=min_move_mm, min_turn_deg=min_turn_deg)
-    return int(labels.max()) + 1 if len(labels) else 0
-
-
 def place_labels(rvecs, tvecs, *, min_move_mm: float, min_turn_deg: float) -> np.ndarray:
     """Each pose's camera place (V,) int, numbered in order of first appearance: the first
     earlier place whose camera centre is within ``min_move_mm`` and whose view direction is
-    within ``min_turn_deg``, else a new one (:func:`count_places`' clusters)."""
+    within ``min_turn_deg``, else a new one."""
     places, labels = [], []
     for r, t in zip(rvecs, tvecs):
         R = cv2.Rodrigues(np.asarray(r, float))[0]
