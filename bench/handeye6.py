@@ -41,6 +41,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import subprocess
+import sys
 import tempfile
 import textwrap
 from dataclasses import replace
@@ -54,7 +55,7 @@ from vision_cal.camera import handeye_locate, handeye_valid
 from vision_cal.camera.board import find_board, load_board
 from vision_cal.camera.handeye import HandeyeFit, estimated_lens_fit, fit_handeye
 from vision_cal.camera.handeye_closed import inv_T
-from vision_cal.camera.handeye_lsq import Problem, View, lens_vector, pose_offset, refine
+from vision_cal.camera.handeye_lsq import Problem, View, lens_vector, refine
 from vision_cal.camera.handeye_stats import predicted_covariance
 from vision_cal.camera.handeye_verdict import judge_handeye, lens_check
 from vision_cal.camera.robot_poses import pair_with_photos, read_robot_poses
@@ -66,6 +67,9 @@ from vision_cal.world.six_axis import make_world, observe, shots
 from vision_cal.sheet.charuco import charuco_spec, make_charuco_layout
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from tests.camera.handeye_helpers import from_fit, pose_offset  # noqa: E402
 REAL = ROOT.parent / "shared" / "real_photos" / "industrial_charuco_even"
 
 
@@ -155,7 +159,7 @@ def _located(f, w, fresh_shots, joints: bool) -> tuple[list, list]:
     (``camera/handeye_locate``), against the board's corners in the controller's frames:
     the share of corners inside their stated 95 % ellipse (x, y), at poses inside and
     outside valid_for."""
-    cam = handeye_locate.from_fit(f)
+    cam = from_fit(f)
     vf = handeye_valid.of_views(f.views, lever_mm=f.noise.lever_mm or 1.0,
                                 length_rad=DEFAULT.handeye_photos.kinematic_length_rad)
     _, Yc = controller_frames(w)

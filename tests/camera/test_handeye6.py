@@ -9,9 +9,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from tests.camera.handeye_helpers import pose_offset
 from vision_cal.camera.handeye import estimated_lens_fit, fit_handeye
 from vision_cal.camera.handeye_closed import inv_T, robot_scale, solve_axzb
-from vision_cal.camera.handeye_lsq import Problem, View, lens_vector, pose_offset
+from vision_cal.camera.handeye_lsq import Problem, View, lens_vector
 from vision_cal.camera.handeye_stats import (_kinematic_low_rank, _low_rank, kinematic_kernel,
                                              noise_components, sandwich)
 from vision_cal.camera.handeye_verdict import judge_handeye, lens_check

@@ -307,12 +307,6 @@ def _similarity_design(p: np.ndarray) -> np.ndarray:
     return A
 
 
-def _similarity(p: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """The small similarity (tx, ty, a, b) best fitting displacements ``d`` at ``p``:
-    d = t + [[a, -b], [b, a]] p."""
-    return np.linalg.lstsq(_similarity_design(p), d.reshape(-1), rcond=None)[0]
-
-
 def _gauge_matrix(p: np.ndarray, marker: np.ndarray, growth_sign: np.ndarray) -> np.ndarray:
     """(4, 2N): the small similarity (tx, ty, a, b) of displacements at corners ``p`` (N, 2),
     each marker's growth aside (``marker`` (N,) its index, ``growth_sign`` (N, 2) the
