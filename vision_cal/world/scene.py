@@ -113,7 +113,7 @@ from vision_cal.dataset.io import read_yaml
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.model.kinematics import ScaraParams
-from vision_cal.model.robot import Effect, RobotModel, effect_from_json
+from vision_cal.model.robot import Effect, effect_from_json
 from vision_cal.world.height import HeightScene, height_scene_from_dict
 from vision_cal.world.print_deviation import PrintScene
 from vision_cal.world.printed import load_printed_sheet
@@ -158,11 +158,6 @@ class RobotScene:
     controller: str = "smc"
     drift: tuple[dict, ...] = ()   # the world's drift effects (truth.json dicts)
     tool_mm: tuple[float, float] | None = None   # the pen off the joint-4 axis (truth)
-
-    @property
-    def truth_model(self) -> RobotModel:
-        """The truth as the estimator's model (for tests that compare the two codes)."""
-        return RobotModel(self.truth, self.effects)
 
     @property
     def true_robot(self):
