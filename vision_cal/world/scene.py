@@ -64,7 +64,7 @@ Sections and fields::
       f_px: 2600.0
       dist: [0, 0, 0, 0, 0]       # true lens, OpenCV k1 k2 p1 p2 k3 (4, 5, 8, 12 or 14
                                   # numbers: + k4 k5 k6, + thin prism s1 s2 s3 s4, + tilt
-                                  # tx ty; world.photo.phone_lens builds p and s terms
+                                  # tx ty; world.camera.phone_lens builds p and s terms
                                   # from their size in pixels)
       declared: true              # write K and dist into session.json (false: unknown lens)
       n_views: 4                  # distinct camera poses
