@@ -41,6 +41,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import subprocess
+import sys
 import tempfile
 import textwrap
 from dataclasses import replace
@@ -52,9 +53,10 @@ from scipy.spatial.transform import Rotation
 
 from vision_cal.camera import handeye_locate, handeye_valid
 from vision_cal.camera.board import find_board, load_board
-from vision_cal.camera.handeye import estimated_lens_fit, fit_handeye, stated_new_px
+from vision_cal.camera.handeye import HandeyeFit, estimated_lens_fit, fit_handeye
 from vision_cal.camera.handeye_closed import inv_T
-from vision_cal.camera.handeye_lsq import Problem, View, lens_vector, pose_offset, refine
+from vision_cal.camera.handeye_lsq import Problem, View, lens_vector, refine
+from vision_cal.camera.handeye_stats import predicted_covariance
 from vision_cal.camera.handeye_verdict import judge_handeye, lens_check
 from vision_cal.camera.robot_poses import pair_with_photos, read_robot_poses
 from vision_cal.config import DEFAULT
@@ -65,7 +67,57 @@ from vision_cal.world.six_axis import make_world, observe, shots
 from vision_cal.sheet.charuco import charuco_spec, make_charuco_layout
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from tests.camera.handeye_helpers import from_fit, pose_offset  # noqa: E402
 REAL = ROOT.parent / "shared" / "real_photos" / "industrial_charuco_even"
+
+
+def stated_new_px(fit: HandeyeFit, view: View, *, credit: bool = True) -> float:
+    """The RMS (px per corner, 2-D) ``fit`` states for the board's points of ``view`` seen
+    from a new pose (its pixels are not used): the unknowns' covariance, the corners' noise
+    and the robot's pose error there, less what the unknowns took of the kinematic error
+    there (``credit`` False: none), raised by ``inflation``."""
+    pr = Problem([view], fit.mount, fit.X, fit.Y, fit.lens, fit.free)
+    Js, Jd = pr.jacobians(pr.start())
+    cross = (None if fit.shared is None or not credit
+             else fit.shared.cross(view.T_robot_flange, view.joints_deg))
+    C = predicted_covariance(Js, Jd, fit.cov, fit.noise, cross, fit.inflation)
+    return float(np.sqrt(np.trace(C) / len(view.px)))
+
+
+def _T(R=None, t=None) -> np.ndarray:
+    T = np.eye(4)
+    if R is not None:
+        T[:3, :3] = R
+    if t is not None:
+        T[:3, 3] = t
+    return T
+
+
+def _rot(rotvec_deg) -> np.ndarray:
+    return Rotation.from_rotvec(np.radians(rotvec_deg)).as_matrix()
+
+
+def controller_frames(w) -> tuple[np.ndarray, np.ndarray]:
+    """(X, Y) in the frames the controller's model defines: the true arm is
+    ``C_base F'(q) C_flange`` with ``F'`` its inner joints' errors only, ``C_base`` the
+    turn and lift of joint 1's zero and offset along its axis (the whole arm turned or
+    lifted) and ``C_flange`` joint 6's errors (the flange moved on the last link). No
+    pose of the arm tells these apart from where the camera and the board are: any
+    hand-eye against the controller's poses finds X and Y with them absorbed, and they
+    are the ones that put a commanded pose where the camera saw it."""
+    n, t = w.nominal, w.true
+    Cb = _T(_rot([0.0, 0.0, t.theta0_deg[0] - n.theta0_deg[0]]),
+            [0.0, 0.0, t.d_mm[0] - n.d_mm[0]])
+    a0, al0 = n.a_mm[5], n.alpha_deg[5]
+    Cf = (_T(_rot([-al0, 0.0, 0.0])) @ _T(t=[-a0, 0.0, 0.0])
+          @ _T(_rot([0.0, 0.0, t.theta0_deg[5] - n.theta0_deg[5]]),
+               [0.0, 0.0, t.d_mm[5] - n.d_mm[5]])
+          @ _T(t=[t.a_mm[5], 0.0, 0.0]) @ _T(_rot([t.alpha_deg[5], 0.0, 0.0])))
+    if w.mount == "fixed":
+        return inv_T(Cb) @ w.X, Cf @ w.Y
+    return Cf @ w.X, inv_T(Cb) @ w.Y
 
 
 def _views(w, sh, rng, joints: bool = True):
@@ -107,10 +159,10 @@ def _located(f, w, fresh_shots, joints: bool) -> tuple[list, list]:
     (``camera/handeye_locate``), against the board's corners in the controller's frames:
     the share of corners inside their stated 95 % ellipse (x, y), at poses inside and
     outside valid_for."""
-    cam = handeye_locate.from_fit(f)
+    cam = from_fit(f)
     vf = handeye_valid.of_views(f.views, lever_mm=f.noise.lever_mm or 1.0,
                                 length_rad=DEFAULT.handeye_photos.kinematic_length_rad)
-    _, Yc = w.controller_frames()
+    _, Yc = controller_frames(w)
     C = w.board.corners()
     inside, outside = [], []
     for s in fresh_shots:
@@ -147,7 +199,7 @@ def synthetic(seeds, mount: str, n: int, dh_mm: float, joint_deg: float, *, join
         views = _views(w, sh, rng, joints)
         f = fit_handeye(views[:n], mount, w.lens.size_px, config=config)
         zw.append(np.r_[pose_offset(w.X, f.X), pose_offset(w.Y, f.Y)] / f.std[:12])
-        Xc, Yc = w.controller_frames()
+        Xc, Yc = controller_frames(w)
         zc.append(np.r_[pose_offset(Xc, f.X), pose_offset(Yc, f.Y)] / f.std[:12])
         truth = lens_vector(w.lens.K, w.lens.dist)
         zlens.append(((f.lens - truth)[f.free] / f.std[12:])[:4])

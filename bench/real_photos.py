@@ -5,7 +5,7 @@ a fixed camera tilted 15 deg, 14 marks, kinematic robot) in three worlds per see
 
 - ``clean``: today's world (no lens, PNG);
 - ``real``: an undeclared lens k1 -0.06 k2 0.018 with tangential and thin-prism terms at
-  the size the real photos show (``render.photo.phone_lens`` defaults) and JPEG at the
+  the size the real photos show (``world/camera.phone_lens`` defaults) and JPEG at the
   real photos' quality (``PHONE_JPEG_QUALITY``, 95);
 - ``real x5``: the same with tangential and prism terms five times larger (towards the
   hand-held phones' 1.5-2.7 px corner residuals of issue 28);
@@ -58,6 +58,8 @@ FIXTURE = ROOT / "fixtures" / "real_charuco_opencv"
 PHOTOS_DIR = Path(os.environ.get("VISION_CAL_REAL_PHOTOS")
                   or ROOT.parent / "shared" / "real_photos" / "real_charuco_opencv")
 PHOTOS = ["img_00.jpg", "img_01.jpg", "img_02.jpg", "img_03.jpg", "chocclusion_original.jpg"]
+#: the JPEG quality of the real photos kept (fixtures/real_charuco_opencv: 95)
+PHONE_JPEG_QUALITY = 95
 
 
 def _jpeg_quality(path: Path) -> int | None:
@@ -132,7 +134,7 @@ def fixture_table() -> int:
 
 def worlds(seed: int):
     from tests.world.test_bumped import scene_dict
-    from vision_cal.world.photo import PHONE_JPEG_QUALITY, phone_lens
+    from vision_cal.world.camera import phone_lens
 
     base = scene_dict(None, seed=seed)
     base["plan"]["n_calibration"] = 14

@@ -38,12 +38,88 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 
+def _lens_matrix(rng, size_px, fov_deg: float, f_spread: float, pp_spread: float):
+    """A camera matrix of ``fov_deg`` across (within ``f_spread`` of it), its principal
+    point within ``pp_spread`` of the image size off the centre: (K, f)."""
+    from vision_cal.world.camera import camera_matrix
+
+    w, h = size_px
+    f = w / 2 / np.tan(np.radians(fov_deg / 2)) * rng.uniform(1 - f_spread, 1 + f_spread)
+    K = camera_matrix(size_px=size_px, f_px=f,
+                      principal_px=((w - 1) / 2 + rng.uniform(-pp_spread, pp_spread) * w,
+                                    (h - 1) / 2 + rng.uniform(-pp_spread, pp_spread) * h))
+    return K, f
+
+
+def phone_camera(seed: int, *, size_px=(1200, 900)):
+    """A phone's main camera (26 mm equivalent: 69 deg across), its principal point off
+    the centre by a few tenths of a percent, barrel k1, and the tangential and thin-prism
+    terms of the size real phone photos show (``world/camera.phone_lens``); JPEG 95."""
+    from vision_cal.world.camera import phone_lens
+    from vision_cal.world.table_world import TableCamera
+
+    rng = np.random.default_rng([int(seed), 3701])
+    K, f = _lens_matrix(rng, size_px, 69.0, 0.03, 0.004)
+    dist = phone_lens(f_px=f, size_px=size_px, k1=rng.uniform(0.04, 0.10),
+                      k2=rng.uniform(-0.15, -0.05), rng=rng)
+    return TableCamera("phone", (int(size_px[0]), int(size_px[1])), K, np.array(dist),
+                       noise=2.0, jpeg_quality=95, blur_px=0.7)
+
+
+def dslr_camera(seed: int, *, size_px=(1350, 900)):
+    """A DSLR with a 35 mm lens on APS-C (about 38 deg across), barrel distortion only,
+    its principal point near the centre, 3:2; PNG (a camera's raw converted)."""
+    from vision_cal.world.table_world import TableCamera
+
+    rng = np.random.default_rng([int(seed), 3702])
+    K, _ = _lens_matrix(rng, size_px, 38.0, 0.02, 0.002)
+    dist = np.array([rng.uniform(-0.12, -0.05), rng.uniform(0.02, 0.10), 0.0, 0.0, 0.0])
+    return TableCamera("dslr", (int(size_px[0]), int(size_px[1])), K, dist, noise=1.0,
+                       jpeg_quality=None, blur_px=0.5)
+
+
+
+def survey_poses(world, cam, n: int, rng, *,
+                 tilt_deg=(10.0, 30.0), fill: float = 0.85, aim_mm: float = 10.0
+                 ) -> list[np.ndarray]:
+    """``n`` places round the sheet, as docs/sheet.md asks of a survey: azimuths spread
+    round it (jittered), tilted ``tilt_deg`` from straight down, aimed within ``aim_mm``
+    of the sheet's centre, the whole paper in frame (its corners inside the central
+    ``fill`` of the image), a small roll."""
+    from vision_cal.world.camera import look_at, project
+
+    rng = np.random.default_rng(rng)
+    x0, y0, x1, y1 = (float(v) for v in world.sheet.extent_mm)
+    paper = np.array([[x0, y0, 0], [x1, y0, 0], [x1, y1, 0], [x0, y1, 0]], float)
+    w, h = cam.size_px
+    a0 = rng.uniform(0, 2 * np.pi)
+    poses = []
+    for k in range(int(n)):
+        az = a0 + 2 * np.pi * k / n + rng.uniform(-0.3, 0.3)
+        tilt = np.radians(rng.uniform(*tilt_deg))
+        roll = np.radians(rng.uniform(-8, 8))
+        target = np.array([(x0 + x1) / 2, (y0 + y1) / 2]) + rng.uniform(-aim_mm, aim_mm, 2)
+        direction = np.array([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az),
+                              np.cos(tilt)])
+        up = np.array([-np.sin(roll), np.cos(roll), 0.0])
+        dist = 200.0
+        for _ in range(200):   # back off until the paper is in frame
+            T = look_at(eye_mm=np.append(target, 0.0) + dist * direction, target_mm=target,
+                        up_hint=up)
+            uv = project(paper, K=cam.K, dist=cam.dist, T_cam_sheet=T)
+            margin = np.array([w, h]) * (1 - fill) / 2
+            if np.all(uv >= margin) and np.all(uv <= np.array([w, h]) - margin):
+                break
+            dist *= 1.03
+        poses.append(T)
+    return poses
+
+
 def render(seed: int, n: int, root: Path, supersample: int) -> Path:
     """The seed's photos (``n`` per camera) and sheet.json under ``root/seed``."""
     import cv2
 
-    from vision_cal.world.table_world import (dslr_camera, phone_camera, survey_poses,
-                                               table_world)
+    from vision_cal.world.table_world import table_world
 
     base = root / str(seed)
     done = base / "done.json"

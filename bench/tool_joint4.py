@@ -43,6 +43,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from tests.tool.oracle import tool_angle_deg
 from vision_cal.estimate.placements import Placement, fit_placements
 from vision_cal.model.tool_fit import fit_tool
 from vision_cal.estimate.verdict import judge
@@ -81,7 +82,7 @@ def tool_case(seed: int, sigma: float):
     qp = np.array([[*plan[i].target.q_deg, plan[i].q4_deg] for i in ok])
     sp = np.ones((len(ok), 3))
     pos = np.hypot(*(truth.pen_mm(qp, sp) - targets[ok]).T)
-    ang = (truth.tool_angle_deg(qp, sp) - theta[ok] + 180) % 360 - 180
+    ang = (tool_angle_deg(truth, qp, sp) - theta[ok] + 180) % 360 - 180
     return float(np.hypot(*(f.tool_mm - tool))), float(z_scale), float(z_band), pos, ang
 
 
@@ -220,7 +221,7 @@ def render_case(seed: int, *, width_px: int = 1600, keep: Path | None = None) ->
     qp = np.array([[*plan_t[i].target.q_deg, plan_t[i].q4_deg] for i in ok])
     sp = np.ones((len(ok), 3))
     pos = np.hypot(*(truth.pen_mm(qp, sp) - targets[ok]).T)
-    angle = (truth.tool_angle_deg(qp, sp) - theta[ok] + 180) % 360 - 180
+    angle = (tool_angle_deg(truth, qp, sp) - theta[ok] + 180) % 360 - 180
     return {"seed": seed, "tool_err_mm": float(np.hypot(*err)), "tool_z": np.abs(err / std),
             "z": z, "missing": [k for k in hidden if k not in z], "extra": extra,
             "pos_mm": pos, "angle_deg": angle, "n_marks": len(plan),

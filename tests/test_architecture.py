@@ -738,10 +738,9 @@ def test_the_file_check_sees_what_it_guards(tmp_path):
 WORLD_MAY_IMPORT = {"world", "dataset", "sheet", "plan", "errors", "progress",
                     "vision_cal.model.motion"}
 #: (module of world/, estimator module) -> the names it may take from it: the format's JSON
-#: blocks read with the estimator's readers (scene files; tests compare the two codes)
+#: blocks read with the estimator's readers (scene files)
 WORLD_READS = {
-    ("vision_cal.world.scene", "vision_cal.model.robot"): {"Effect", "RobotModel",
-                                                           "effect_from_json"},
+    ("vision_cal.world.scene", "vision_cal.model.robot"): {"Effect", "effect_from_json"},
     ("vision_cal.world.scene", "vision_cal.model.kinematics"): {"ScaraParams"},
 }
 

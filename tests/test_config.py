@@ -18,6 +18,7 @@ from tests.measure import synth_measure as sm
 from tests.measure.test_measure_grid import _mapping_shifted
 from tests.measure.test_measure_no_images import _groups
 from tests.tool.test_placements import _kinematic_places
+from tests.measure.synth_measure import measure_image
 from vision_cal.estimate import joint4, placements
 from vision_cal.camera import pose_pairs
 from vision_cal.config import (DEFAULT, AssociationConfig, DiscoveryConfig, DotConfig,
@@ -32,7 +33,6 @@ from vision_cal.errors import CalibrationError
 from vision_cal.identify import associate, infer, plan_match
 from vision_cal.measure import (asprinted, dots, grid, grid_declaration, height,
                                 photo_agreement, replicate, sheetfit, survey)
-from vision_cal.measure.finish import measure_image
 from vision_cal.measure.cache import session_fingerprint
 from vision_cal.estimate.marks import MarkData
 from vision_cal.actions.pipeline import calibrate_dataset

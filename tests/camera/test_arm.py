@@ -104,9 +104,9 @@ def test_planar_motion_leaves_the_height_to_the_sheet_plane():
     X_up[2, 3] += 30.0
     assert np.allclose(relative_motion(params, q, j4, X), relative_motion(params, q, j4, X_up),
                        atol=1e-9)
-    T_a = world.T_cam_sheet(TRUTH, q, j4, X)
-    T_b = world.T_cam_sheet(TRUTH, q, j4, X_up)
-    assert np.abs(np.linalg.inv(T_a)[:, 2, 3] - np.linalg.inv(T_b)[:, 2, 3]).min() > 29.9
+    S_a = world.T_sheet_flange(TRUTH, q, j4) @ X       # camera -> sheet, the world's
+    S_b = world.T_sheet_flange(TRUTH, q, j4) @ X_up
+    assert np.abs(S_a[:, 2, 3] - S_b[:, 2, 3]).min() > 29.9
 
 
 def test_without_joint_4_turns_L2_and_the_camera_offset_are_not_identified():

@@ -9,9 +9,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from tests.camera.handeye_helpers import pose_offset
 from vision_cal.camera.handeye import estimated_lens_fit, fit_handeye
-from vision_cal.camera.handeye_closed import inv_T, robot_scale, solve_axzb
-from vision_cal.camera.handeye_lsq import Problem, View, lens_vector, pose_offset
+from vision_cal.camera.handeye_closed import inv_T, solve_axzb
+from vision_cal.camera.handeye_lsq import Problem, View, lens_vector
 from vision_cal.camera.handeye_stats import (_kinematic_low_rank, _low_rank, kinematic_kernel,
                                              noise_components, sandwich)
 from vision_cal.camera.handeye_verdict import judge_handeye, lens_check
@@ -50,10 +51,10 @@ def test_closed_form_is_exact_on_exact_poses(mount):
     B = [s.T_camera_board for s in sh]
     sol = solve_axzb(A, B)
     assert np.abs(sol.X - w.Y).max() < 1e-6 and np.abs(sol.Z - w.X).max() < 1e-6
-    assert abs(robot_scale(A, B) - 1.0) < 1e-9
+    assert abs(solve_axzb(A, B, free_scale=True).scale - 1.0) < 1e-9
     A_m = np.array(A)
     A_m[:, :3, 3] /= 1000.0                  # the robot's translations in metres
-    assert abs(robot_scale(A_m, B) - 1000.0) < 1e-6
+    assert abs(solve_axzb(A_m, B, free_scale=True).scale - 1000.0) < 1e-6
 
 
 def test_jacobian_is_the_derivative():

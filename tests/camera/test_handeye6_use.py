@@ -17,9 +17,10 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
+from tests.camera.handeye_helpers import from_fit
 from vision_cal.camera.handeye import fit_handeye
 from vision_cal.camera.handeye_document import photos_document
-from vision_cal.camera.handeye_locate import FlangeCamera, from_fit, locate_at
+from vision_cal.camera.handeye_locate import FlangeCamera, locate_at
 from vision_cal.camera.handeye_lsq import View, _small_T, compose, lens_vector
 from vision_cal.camera.handeye_verdict import judge_handeye, limited_by
 from vision_cal.commands.main import main

@@ -14,6 +14,8 @@ import cv2
 import numpy as np
 
 from vision_cal.dataset.session import load_session
+from vision_cal.measure.detect import detect_image
+from vision_cal.measure.finish import finish_image
 from vision_cal.world.camera import camera_matrix, look_at
 from vision_cal.world.sheet import make_sheet, sheet_texture, sheet_to_texture_pixel
 
@@ -221,3 +223,9 @@ def one_mark_session(folder, sheet: dict, photo_file: str):
         "images": [{"file": photo_file, "marks": ["c0"]}]}))
     return load_session(folder)
 
+
+def measure_image(path, session, *, lens=None, config=None):
+    """One photo measured as the folder's run measures each (markers, mapping, dots in
+    sheet mm): ``detect_image`` then ``finish_image``."""
+    return finish_image(detect_image(path, session, config=config), session, lens,
+                        config=config)

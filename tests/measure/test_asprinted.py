@@ -4,8 +4,9 @@ import cv2
 import numpy as np
 import pytest
 
+from tests.measure.similarity import similarity as _similarity
 from vision_cal.config import DEFAULT
-from vision_cal.measure.asprinted import AsPrinted, _similarity, estimate_as_printed
+from vision_cal.measure.asprinted import AsPrinted, estimate_as_printed
 
 SIZE = (2400, 1800)
 K = np.array([[2600.0, 0, 1199.5], [0, 2600.0, 899.5], [0, 0, 1]])

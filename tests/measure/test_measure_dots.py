@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from tests.measure import synth_measure as sm
+from tests.measure.synth_measure import measure_image
 from vision_cal.dataset.session import load_session
-from vision_cal.measure.finish import measure_image
 from vision_cal.measure.grid_print import GridPrint
 
 

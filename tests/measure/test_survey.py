@@ -8,7 +8,7 @@ import pytest
 from tests.measure import synth_measure as sm
 from vision_cal.commands.main import main
 from vision_cal.errors import VisionCalError
-from vision_cal.measure.asprinted import _similarity
+from tests.measure.similarity import similarity as _similarity
 from vision_cal.measure.survey import load_survey
 from vision_cal.world.print_deviation import PrintScene
 

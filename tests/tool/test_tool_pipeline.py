@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tests.tool.oracle import tool_angle_deg
 from vision_cal.dataset.calibration import load_calibration
 from vision_cal.actions.pipeline import calibrate_dataset
 from vision_cal.world.truth_model import TrueRobot
@@ -127,7 +128,7 @@ def test_plan_command_with_theta_writes_q4_and_tlset(tmp_path):
     truth = TrueRobot.from_json({**PARAMS, "tool_mm": TOOL})
     q3 = np.column_stack([qp, q4])
     np.testing.assert_allclose(truth.pen_mm(q3), [[-200, 50], [-150, 0]], atol=0.03)
-    np.testing.assert_allclose((truth.tool_angle_deg(q3) - [30, -120] + 180) % 360 - 180, 0,
+    np.testing.assert_allclose((tool_angle_deg(truth, q3) - [30, -120] + 180) % 360 - 180, 0,
                                atol=0.05)
     prg = (tmp_path / "plan.prg").read_text()
     assert "TLSet 1, XY(" in prg

@@ -3,6 +3,7 @@ hit the targets on the world's true robot within the calibration's predicted err
 
 import numpy as np
 
+from tests.tool.oracle import tool_angle_deg
 from vision_cal.model.tool_fit import fit_tool
 from vision_cal.model.robot import JointBacklash, JointScale, RobotModel, Tool
 from vision_cal.model.kinematics import ScaraParams
@@ -47,7 +48,7 @@ def test_compensated_plan_with_orientation_on_the_true_robot():
     qp = np.array([[*p.target.q_deg, p.q4_deg] for p in plan])
     sp = np.ones((10, 3))
     pos_err = np.hypot(*(truth.pen_mm(qp, sp) - targets).T)
-    ang_err = (truth.tool_angle_deg(qp, sp) - theta + 180) % 360 - 180
+    ang_err = (tool_angle_deg(truth, qp, sp) - theta + 180) % 360 - 180
     # 10 um mark noise over 48 marks: the model is good to a few um and millidegrees
     assert pos_err.max() < 0.03, pos_err
     assert np.abs(ang_err).max() < 0.05, ang_err

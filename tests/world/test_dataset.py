@@ -10,6 +10,7 @@ import pytest
 from vision_cal.dataset.session import load_session
 from vision_cal.errors import VisionCalError
 from vision_cal.estimate.paper import pilot_params
+from vision_cal.model.robot import RobotModel
 from vision_cal.world import dataset as ds
 from vision_cal.world.camera import project
 from vision_cal.world.scene import load_scene
@@ -76,7 +77,8 @@ def test_truth_has_every_mark_and_pose(series):
     np.testing.assert_allclose(K, s.camera.K)
     # truth marks = the true robot at the commanded joints, within the repeatability
     q = s.joints_deg
-    pred = SMALL.robot.truth_model.predict(q, np.array(list(t["approach"].values())))
+    pred = RobotModel(SMALL.robot.truth, SMALL.robot.effects).predict(
+        q, np.array(list(t["approach"].values())))
     xy = np.array([t["marks"][m.id] for m in s.marks])
     assert np.max(np.abs(xy - pred)) < 6 * SMALL.robot.repeatability_mm
     # small.yaml's nominal is close to the truth: every mark on free paper
@@ -290,7 +292,7 @@ def test_simulated_controller_scene(tmp_path):
     assert t["controller"] == "smc"
     assert t["effects"] == [{"name": "joint_backlash", "joint": 2, "deg": 0.1}]
     s = load_session(out)
-    kin = SMALL.robot.truth_model.predict(s.joints_deg, s.approach)
+    kin = RobotModel(SMALL.robot.truth, SMALL.robot.effects).predict(s.joints_deg, s.approach)
     xy = np.array([t["marks"][m.id] for m in s.marks])
     assert np.max(np.linalg.norm(xy - kin, axis=1)) < 0.005
     # the links really lag: the reached joint 2 differs from the command by half the band

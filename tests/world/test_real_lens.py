@@ -1,5 +1,5 @@
 """The synthetic world's lens beyond k1 k2 (issue 28 section 3): scene files take OpenCV's
-8/12/14-term models, ``photo.phone_lens`` builds tangential and thin-prism terms of a
+8/12/14-term models, ``camera.phone_lens`` builds tangential and thin-prism terms of a
 given size in pixels, and the photo's lens puts a point where ``cv2.projectPoints`` with
 those 12 terms puts it (no pyrender: ``distort_image`` on a drawn image)."""
 

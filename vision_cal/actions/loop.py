@@ -28,7 +28,6 @@ that prints itself) comes first, the loop's stages after it.
 from __future__ import annotations
 
 import base64
-import logging
 import os
 import time
 from dataclasses import dataclass, replace
@@ -120,8 +119,6 @@ def loop(req: LoopRequest) -> LoopOutcome:
                   if req.report else None)
     return LoopOutcome(doc, run.document, Path(out), report)
 
-
-log = logging.getLogger(__name__)
 
 #: the fewest survey photos worth a rendering process of their own
 PHOTOS_PER_PROCESS = 8

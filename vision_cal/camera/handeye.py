@@ -36,8 +36,7 @@ from vision_cal.camera.handeye_closed import (AxzbSolution, axis_spread, inv_T,
                                               rotation_spread_deg, solve_axzb)
 from vision_cal.camera.handeye_lsq import (LENS_NAMES, MOUNTS, Problem, Refined, View,
                                            lens_K, lens_vector, refine)
-from vision_cal.camera.handeye_stats import (HeldOut, Noise, Shared, leave_one_out,
-                                             predicted_covariance, statistics)
+from vision_cal.camera.handeye_stats import HeldOut, Noise, Shared, leave_one_out, statistics
 from vision_cal.camera.robot_poses import likely_unit
 from vision_cal.config import DEFAULT, HandeyePhotosConfig
 from vision_cal.errors import CalibrationError, VisionCalError
@@ -456,19 +455,6 @@ def fit_handeye(views, mount: str, size_px, *, lens=None, alternatives=None,
                       inflation, ratio, p, prep.start, prep.scale, prep.pnp_px,
                       tuple(int(s) for s in size_px), lens_models=tuple(models),
                       shared=shared)
-
-
-def stated_new_px(fit: HandeyeFit, view: View, *, credit: bool = True) -> float:
-    """The RMS (px per corner, 2-D) ``fit`` states for the board's points of ``view`` seen
-    from a new pose (its pixels are not used): the unknowns' covariance, the corners' noise
-    and the robot's pose error there, less what the unknowns took of the kinematic error
-    there (``credit`` False: none), raised by ``inflation``."""
-    pr = Problem([view], fit.mount, fit.X, fit.Y, fit.lens, fit.free)
-    Js, Jd = pr.jacobians(pr.start())
-    cross = (None if fit.shared is None or not credit
-             else fit.shared.cross(view.T_robot_flange, view.joints_deg))
-    C = predicted_covariance(Js, Jd, fit.cov, fit.noise, cross, fit.inflation)
-    return float(np.sqrt(np.trace(C) / len(view.px)))
 
 
 def estimated_lens_fit(views, fit: HandeyeFit, *, alternatives=None, source=None,

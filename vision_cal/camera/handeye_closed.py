@@ -13,7 +13,7 @@ stacked system (its smallest right singular vector), split and scaled to determi
 projected onto the rotations (Shah 2013, "Solving the robot-world/hand-eye calibration
 problem using the Kronecker product"). Then the translations, linearly, from ``R_A t_X -
 t_Z = R_Z t_B - t_A``; with the robot's translations scaled by an unknown ``s`` as well
-(:func:`robot_scale`), which is 1 when the poses and the board are in the same unit, 1000
+(``solve_axzb(..., free_scale=True)``), which is 1 when the poses and the board are in the same unit, 1000
 when the poses are in metres read as millimetres, 25.4 for inches, and the board's size
 off by 1/s when its squares are misdeclared. Each is one SVD and one least squares:
 microseconds, no start needed.
@@ -124,12 +124,6 @@ def solve_axzb(A, B, *, free_scale: bool = False) -> AxzbSolution:
     rot = angle_deg(np.swapaxes(L[:, :3, :3], -1, -2) @ Rr[:, :3, :3])
     tr = np.linalg.norm(L[:, :3, 3] - Rr[:, :3, 3], axis=1)
     return AxzbSolution(X, Z, rot, tr, s)
-
-
-def robot_scale(A, B) -> float:
-    """The factor the robot's translations must be multiplied by to agree with the board's
-    as the camera measured them (1 when both are in millimetres)."""
-    return solve_axzb(A, B, free_scale=True).scale
 
 
 def rotation_spread_deg(A) -> float:

@@ -150,18 +150,6 @@ def _shared_of(doc: dict, block, P: int, file) -> Shared | None:
     return Shared(G, F, Q, length, lever)
 
 
-def from_fit(fit) -> FlangeCamera:
-    """The :class:`FlangeCamera` of a :class:`vision_cal.camera.handeye.HandeyeFit` (what
-    calibration.json holds of it)."""
-    if fit.mount != "arm":
-        raise VisionCalError("a camera fixed in the robot's frame needs no flange pose",
-                             field="--mount")
-    return FlangeCamera(fit.X, fit.Y, fit.lens, fit.free, tuple(fit.size_px), fit.cov,
-                        fit.inflation ** 2 * fit.noise.pose_variances(),
-                        "declared" if fit.declared else "estimated",
-                        tuple(v.name for v in fit.views), fit.shared)
-
-
 def _plane_frame(cam: FlangeCamera, plane: str) -> np.ndarray:
     if plane not in PLANES:
         raise VisionCalError(f"expected one of {', '.join(PLANES)}, got {plane!r}",

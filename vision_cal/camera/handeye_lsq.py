@@ -114,12 +114,6 @@ def compose(T0: np.ndarray, d: np.ndarray) -> np.ndarray:
     return T
 
 
-def pose_offset(T0: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """The (6,) ``d`` with ``compose(T0, d) == T``."""
-    w = Rotation.from_matrix(T[:3, :3] @ T0[:3, :3].T).as_rotvec()
-    return np.r_[np.degrees(w), T[:3, 3] - T0[:3, 3]]
-
-
 def _small_T(d: np.ndarray) -> np.ndarray:
     """(n, 4, 4) rigid transforms of rows ``d`` (n, 6): rotation vector deg, translation mm."""
     T = np.tile(np.eye(4), (len(d), 1, 1))

@@ -20,7 +20,6 @@ Everything is computed before anything is written, and each file is written atom
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -49,8 +48,6 @@ from vision_cal.plan.calibration_plan import informative_plan
 from vision_cal.plan.trajectory import plan_trajectory, write_trajectory_csv
 from vision_cal.plan.uncertainty import predicted_std_mm
 from vision_cal.program import check_program, program_path, program_points, write_program
-
-log = logging.getLogger(__name__)
 
 FORMAT = "vision-cal/1"
 #: calibration marks the informative plan draws a second time (``repeat_of``), so the

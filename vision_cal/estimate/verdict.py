@@ -318,7 +318,8 @@ class Verdict:
     #: the status inside calibration.json ``valid_for`` when what it could not identify
     #: holds it back (None: nothing does)
     within_valid_for: str | None = None
-    #: one kind per reason, in the same order (:data:`REASON_CODES`; () in an old block),
+    #: one kind per reason, in the same order (``reason_codes`` in docs/format.md; () in an
+    #: old block),
     #: and the status each reason gives on its own (``ready`` for what a pilot leaves to
     #: the informative plan by design)
     reason_codes: tuple[str, ...] = ()
@@ -887,20 +888,6 @@ def judge_camera_poses(residual_mm, sigma_mm, heldout_mm, *, n_params: float,
                          source, worst)
         v = replace(v, within_valid_for=inner.status)
     return v
-
-
-#: the kinds of a verdict's reasons (``reason_codes``, docs/format.md): the stage that found
-#: each - ``plan`` (what the plan cannot identify at all), ``not_identified`` (an effect
-#: outside what the marks saw: ``valid_for``, what the informative plan identifies),
-#: ``drift``, ``noise_floor`` (the residual or a target error against the noise),
-#: ``structure`` (structure left, scans not run, photos moved, the grid), ``left_out``
-#: (outliers, unreliable marks), ``replication`` (the fit's two halves disagree, or it
-#: could not be halved), ``accuracy`` (the accuracy figure and its degrees of
-#: freedom), ``print_one_place`` (the print not measured: one camera place), ``print`` (the
-#: print measured, a cause of the target error of its own), ``camera``
-#: (a camera calibration's own: parameters the poses do not separate, the lens), ``other``
-REASON_CODES = ("plan", "not_identified", "drift", "noise_floor", "structure", "left_out",
-                "replication", "accuracy", "print_one_place", "print", "camera", "other")
 
 
 def _coded(reasons, code: str) -> list[tuple[str, str, str]]:

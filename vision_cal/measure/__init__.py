@@ -3,7 +3,8 @@
 Frames and units: sheet frame S (x right, y up, mm) as in the dataset format; image pixels
 (u, v) = (column, row), integer at pixel centres (OpenCV). Covariances in mm^2.
 
-One photo is :func:`vision_cal.measure.finish.measure_image`; a whole folder, photos to
+One photo is :func:`vision_cal.measure.detect.detect_image` then
+:func:`vision_cal.measure.finish.finish_image`; a whole folder, photos to
 marks (which dot is which mark is identify/'s), is
 :func:`vision_cal.actions.measure_folder.measure_folder`.
 

@@ -307,12 +307,6 @@ def _similarity_design(p: np.ndarray) -> np.ndarray:
     return A
 
 
-def _similarity(p: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """The small similarity (tx, ty, a, b) best fitting displacements ``d`` at ``p``:
-    d = t + [[a, -b], [b, a]] p."""
-    return np.linalg.lstsq(_similarity_design(p), d.reshape(-1), rcond=None)[0]
-
-
 def _gauge_matrix(p: np.ndarray, marker: np.ndarray, growth_sign: np.ndarray) -> np.ndarray:
     """(4, 2N): the small similarity (tx, ty, a, b) of displacements at corners ``p`` (N, 2),
     each marker's growth aside (``marker`` (N,) its index, ``growth_sign`` (N, 2) the
@@ -346,17 +340,10 @@ def _apply_similarity(s, p):
     return np.column_stack([tx + a * p[:, 0] - b * p[:, 1], ty + b * p[:, 0] + a * p[:, 1]])
 
 
-def count_places(rvecs, tvecs, *, min_move_mm: float, min_turn_deg: float) -> int:
-    """Distinct camera places among poses (sheet -> camera): greedy clusters of camera
-    centres within ``min_move_mm`` and view directions within ``min_turn_deg``."""
-    labels = place_labels(rvecs, tvecs, min_move_mm=min_move_mm, min_turn_deg=min_turn_deg)
-    return int(labels.max()) + 1 if len(labels) else 0
-
-
 def place_labels(rvecs, tvecs, *, min_move_mm: float, min_turn_deg: float) -> np.ndarray:
     """Each pose's camera place (V,) int, numbered in order of first appearance: the first
     earlier place whose camera centre is within ``min_move_mm`` and whose view direction is
-    within ``min_turn_deg``, else a new one (:func:`count_places`' clusters)."""
+    within ``min_turn_deg``, else a new one."""
     places, labels = [], []
     for r, t in zip(rvecs, tvecs):
         R = cv2.Rodrigues(np.asarray(r, float))[0]

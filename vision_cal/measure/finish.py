@@ -154,13 +154,6 @@ def _local_grid(det: ImageDetections, k: int, mapping, xy_mm, grid, dia, blank, 
                        dots=config.dots, config=config.grid)
 
 
-def measure_image(path, session: Session, *, lens: LensEstimate | None = None,
-                  config: EstimatorConfig | None = None) -> ImageResult:
-    """Measure one photo (markers, mapping, dots in sheet mm). Pure; the result pickles."""
-    return finish_image(detect_image(path, session, config=config), session, lens,
-                        config=config)
-
-
 def _check_sheet_fits(session: Session, images: list[ImageResult]) -> None:
     """Stop when most photos say the markers do not fit the declared sheet: then the sheet
     is typed wrong (corner order, marker size, dictionary), not the photos bad."""

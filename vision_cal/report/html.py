@@ -95,18 +95,6 @@ def _photo_entry(im: ImageResult, dataset, out_dir: Path) -> dict:
                          float(uv[1])] for k, uv in enumerate(im.dots_uv_px)]}
 
 
-def _plain(v):
-    if isinstance(v, np.ndarray):
-        return v.tolist()
-    if isinstance(v, dict):
-        return {str(k): _plain(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_plain(x) for x in v]
-    if isinstance(v, np.generic):
-        return v.item()
-    return v
-
-
 def write_report(calibration_path, out_dir=None, *, loop=None) -> Path:
     """Write OUT/report.json, then OUT/report.html from it (``out_dir``: default the folder
     of calibration.json); returns the HTML path. ``loop``: loop.json, path or contents."""

@@ -53,12 +53,6 @@ def T_sheet_flange(robot: TrueRobot, q_deg, j4_deg, approach=None) -> np.ndarray
     return T
 
 
-def T_cam_sheet(robot: TrueRobot, q_deg, j4_deg, T_flange_camera, approach=None) -> np.ndarray:
-    """(N, 4, 4) sheet -> camera (OpenCV axes) of the arm's camera, for rendering."""
-    T_sc = T_sheet_flange(robot, q_deg, j4_deg, approach) @ np.asarray(T_flange_camera, float)
-    return np.linalg.inv(T_sc)
-
-
 def T_flange_camera_true(rng=None, *, height_mm=(150.0, 250.0), offset_mm: float = 40.0,
                          tilt_deg=4.0) -> np.ndarray:
     """A camera mount (4, 4) flange -> camera: looking down (camera z along -z of F) from a

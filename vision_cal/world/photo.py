@@ -33,7 +33,7 @@ Conventions
   sqrt(0.25 + 0.75 I/255)`` grey levels: signal-dependent like shot noise) and an optional
   JPEG round trip, in that order.
 - Lenses: ``dist`` is any of OpenCV's models (4, 5, 8, 12 or 14 coefficients: radial k1 k2
-  k3 [k4 k5 k6], tangential p1 p2, thin prism s1 s2 s3 s4, tilt); :func:`phone_lens` builds
+  k3 [k4 k5 k6], tangential p1 p2, thin prism s1 s2 s3 s4, tilt); ``camera.phone_lens`` builds
   the terms beyond k1 k2 (decentring and thin prism, what a phone's stacked plastic
   elements add) from their size in pixels at the image corner.
 - Real photos (issue 28, ``bench/real_photos.py --fixture``): OpenCV's ChArUco photos
@@ -70,11 +70,7 @@ import pyrender  # noqa: E402
 import trimesh  # noqa: E402
 
 from vision_cal.errors import VisionCalError  # noqa: E402
-from vision_cal.world.camera import (PHONE_PRISM_PX, PHONE_TANGENTIAL_PX,  # noqa: E402,F401
-                                      distort_image, phone_lens)
-
-#: the JPEG quality of the real photos kept (fixtures/real_charuco_opencv: 95)
-PHONE_JPEG_QUALITY = 95
+from vision_cal.world.camera import distort_image  # noqa: E402
 
 BACKGROUND_RGB = (70, 66, 60)        # the table around the sheet
 ARM_RGB = (0.62, 0.64, 0.68)         # link boxes (albedo)

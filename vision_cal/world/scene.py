@@ -64,7 +64,7 @@ Sections and fields::
       f_px: 2600.0
       dist: [0, 0, 0, 0, 0]       # true lens, OpenCV k1 k2 p1 p2 k3 (4, 5, 8, 12 or 14
                                   # numbers: + k4 k5 k6, + thin prism s1 s2 s3 s4, + tilt
-                                  # tx ty; world.photo.phone_lens builds p and s terms
+                                  # tx ty; world.camera.phone_lens builds p and s terms
                                   # from their size in pixels)
       declared: true              # write K and dist into session.json (false: unknown lens)
       n_views: 4                  # distinct camera poses
@@ -113,7 +113,7 @@ from vision_cal.dataset.io import read_yaml
 from vision_cal.dataset.fields import FieldReader
 from vision_cal.errors import VisionCalError
 from vision_cal.model.kinematics import ScaraParams
-from vision_cal.model.robot import Effect, RobotModel, effect_from_json
+from vision_cal.model.robot import Effect, effect_from_json
 from vision_cal.world.height import HeightScene, height_scene_from_dict
 from vision_cal.world.print_deviation import PrintScene
 from vision_cal.world.printed import load_printed_sheet
@@ -158,11 +158,6 @@ class RobotScene:
     controller: str = "smc"
     drift: tuple[dict, ...] = ()   # the world's drift effects (truth.json dicts)
     tool_mm: tuple[float, float] | None = None   # the pen off the joint-4 axis (truth)
-
-    @property
-    def truth_model(self) -> RobotModel:
-        """The truth as the estimator's model (for tests that compare the two codes)."""
-        return RobotModel(self.truth, self.effects)
 
     @property
     def true_robot(self):

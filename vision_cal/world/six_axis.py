@@ -203,26 +203,6 @@ class World:
             return _inv(self.X) @ F @ self.Y
         return _inv(self.X) @ _inv(F) @ self.Y
 
-    def controller_frames(self) -> tuple[np.ndarray, np.ndarray]:
-        """(X, Y) in the frames the controller's model defines: the true arm is
-        ``C_base F'(q) C_flange`` with ``F'`` its inner joints' errors only, ``C_base`` the
-        turn and lift of joint 1's zero and offset along its axis (the whole arm turned or
-        lifted) and ``C_flange`` joint 6's errors (the flange moved on the last link). No
-        pose of the arm tells these apart from where the camera and the board are: any
-        hand-eye against the controller's poses finds X and Y with them absorbed, and they
-        are the ones that put a commanded pose where the camera saw it."""
-        n, t = self.nominal, self.true
-        Cb = _T(_rot([0.0, 0.0, t.theta0_deg[0] - n.theta0_deg[0]]),
-                [0.0, 0.0, t.d_mm[0] - n.d_mm[0]])
-        a0, al0 = n.a_mm[5], n.alpha_deg[5]
-        Cf = (_T(_rot([-al0, 0.0, 0.0])) @ _T(t=[-a0, 0.0, 0.0])
-              @ _T(_rot([0.0, 0.0, t.theta0_deg[5] - n.theta0_deg[5]]),
-                   [0.0, 0.0, t.d_mm[5] - n.d_mm[5]])
-              @ _T(t=[t.a_mm[5], 0.0, 0.0]) @ _T(_rot([t.alpha_deg[5], 0.0, 0.0])))
-        if self.mount == "fixed":
-            return _inv(Cb) @ self.X, Cf @ self.Y
-        return Cf @ self.X, _inv(Cb) @ self.Y
-
     def truth(self) -> dict:
         names = (("T_robot_camera", "T_flange_board") if self.mount == "fixed"
                  else ("T_flange_camera", "T_robot_board"))

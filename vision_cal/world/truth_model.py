@@ -285,13 +285,6 @@ class TrueRobot:
         s4 = np.where(a[:, 2] < 0, -1.0, 1.0) if a is not None and a.shape[-1] == 3 else 1.0
         return q4 - s4 * self.backlash4_deg / 2.0 + self.scale4 * q4
 
-    def tool_angle_deg(self, q_deg, approach=None) -> np.ndarray:
-        """The tool frame's direction (N,) deg in the arm frame: ``phi1 + phi2 + q4_real``
-        for commands ``q_deg`` (N, 3) reached from ``approach`` (N, 3)."""
-        a = self.link_deg(q_deg, approach)
-        return (a[:, 0] + self.zero_deg[0] + a[:, 1] + self.zero_deg[1]
-                + self.joint4_deg(q_deg, approach))
-
     def pen_mm(self, q_deg, approach=None, *, link=False, t=None) -> np.ndarray:
         """Pen positions (N, 2) on the printed sheet: commands ``q_deg`` (N, 2) or
         (N, 3) with joint 4, reached from ``approach`` (or, with ``link=True``, links
