@@ -38,8 +38,10 @@ ROOT = Path.cwd()
 
 def world(name: str):
     """The world's module ``name`` where this version keeps it: ``vision_cal.world`` since
-    issue 39's move, ``vision_cal.render`` (or ``vision_cal.simulate``) before."""
-    for package in ("vision_cal.world", "vision_cal.render", "vision_cal.simulate"):
+    issue 39's move, ``vision_cal.render`` (or ``vision_cal.simulate``) before; the worlds
+    only tests and benches use (``pose_pairs``) in the root's ``worlds/`` since issue 39's
+    third step, in ``vision_cal.world`` (or before) until then."""
+    for package in ("worlds", "vision_cal.world", "vision_cal.render", "vision_cal.simulate"):
         try:
             return importlib.import_module(f"{package}.{name}")
         except ModuleNotFoundError:

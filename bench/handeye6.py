@@ -2,7 +2,7 @@
 six-axis world's truth over seeds, its refusals, and the real session against the plain
 approaches.
 
-``--seeds N`` (synthetic, world/six_axis.py: a UR5e-like arm off its controller's model,
+``--seeds N`` (synthetic, worlds/six_axis.py: a UR5e-like arm off its controller's model,
 joint noise, a lens the estimator is not told; projected corners with 0.15 px of detector
 noise; the poses with the commanded joints unless ``--no-joints``): for each seed and mount,
 12 photos fitted with the lens estimated; printed: the share of the 12 pose parameters
@@ -63,13 +63,13 @@ from vision_cal.config import DEFAULT
 from vision_cal.estimate.verdict import R95_PER_RMS
 from vision_cal.dataset.photos import list_photos, load_photo
 from vision_cal.errors import VisionCalError
-from vision_cal.world.six_axis import make_world, observe, shots
 from vision_cal.sheet.charuco import charuco_spec, make_charuco_layout
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from tests.camera.handeye_helpers import from_fit, pose_offset  # noqa: E402
+from worlds.six_axis import make_world, observe, shots  # noqa: E402
 REAL = ROOT.parent / "shared" / "real_photos" / "industrial_charuco_even"
 
 
@@ -496,7 +496,7 @@ def rendered(seeds, mount: str, n: int) -> None:
     from the world's ROS-style files, the lens estimated."""
     from vision_cal.actions.handeye import HandeyePhotosRequest, handeye_photos
     from vision_cal.actions.sheet import SheetRequest, sheet
-    from vision_cal.world.six_axis import write_session
+    from worlds.six_axis import write_session
 
     z = []
     for seed in seeds:

@@ -1,7 +1,7 @@
 """Hand-eye from pose pairs (issue 32): the solver against the world's truth over seeds, and
 against OpenCV's ``calibrateRobotWorldHandEye`` on the same pairs.
 
-For each seed the world (world/pose_pairs.py: the true SM5, a camera drawn on its flange
+For each seed the world (worlds/pose_pairs.py: the true SM5, a camera drawn on its flange
 or standing over the work area, a board) gives N pose pairs with either 0.1 px of corner
 noise solved by PnP (``px``) or 1 mm / 0.5 deg on the board's pose (``pose``). Printed per
 case: the RMS over seeds of error / reported std for each of X's six parameters (1 when
@@ -47,6 +47,7 @@ from __future__ import annotations
 import argparse
 import json
 import subprocess
+import sys
 import tempfile
 import textwrap
 import time
@@ -59,8 +60,12 @@ from scipy.spatial.transform import Rotation
 from vision_cal.actions.handeye import pairs_document
 from vision_cal.camera.pose_pairs import PosePair, fit_pose_pairs
 from vision_cal.world.arm_camera import T_flange_camera_true
-from vision_cal.world.pose_pairs import simulate_many_pairs, simulate_pairs
 from vision_cal.world.truth_model import TrueRobot
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))   # the test and bench worlds (worlds/, not installed)
+
+from worlds.pose_pairs import simulate_many_pairs, simulate_pairs  # noqa: E402
 
 TRUTH = TrueRobot(344.05, 259.87, (-2.57, -8.13), (-424.26, -230.35))
 NOISE = {"px": {"noise_px": 0.1}, "pose": {"noise_px": None, "noise_mm": 1.0, "noise_deg": 0.5}}

@@ -12,7 +12,7 @@ quote (``tests/test_readme_speed.py`` checks that they agree).
 - **locate**: ``vision-cal locate --csv`` of 100,000 pixels of a still camera (a 4000 x 3000
   phone, with distortion) against plain ``cv2.undistortPoints`` of the same pixels; goal
   under 30 s.
-- **handeye --poses** of 10,000 pose pairs (``render/pose_pairs.simulate_pairs``, 1 mm /
+- **handeye --poses** of 10,000 pose pairs (``worlds/pose_pairs.simulate_pairs``, 1 mm /
   0.5 deg on the board's pose): run in a child process with a memory cap (4 GiB) and a
   time limit (``--handeye-timeout``, 300 s), so a version that builds a dense matrix of the
   pairs prints what happened instead of taking the machine; goal under 30 s, or refused
@@ -202,7 +202,7 @@ print(f"RESULT {how} {time.perf_counter() - t:.2f} {time.process_time() - c:.2f}
 
 
 def write_pairs(path: Path, n: int, seed: int) -> None:
-    from vision_cal.world.pose_pairs import simulate_pairs
+    from worlds.pose_pairs import simulate_pairs
 
     w = simulate_pairs(TrueRobot(*SM5), n, seed=seed, mount="arm", noise_px=None,
                        noise_mm=1.0, noise_deg=0.5)

@@ -3,7 +3,7 @@
 Usage: nice -n 10 .venv/bin/python bench/survey_two_cameras.py [--seeds 201 202 203]
            [--photos 3 6] [--root /tmp/bench-survey-two] [--supersample 2]
 
-For each seed the world of ``world/table_world.py`` (a 272 x 360 mm ArUco grid printed
+For each seed the world of ``worlds/table_world.py`` (a 272 x 360 mm ArUco grid printed
 0.2 mm off its layout with 0.05 mm of toner, lying on a table in waves of about 1 mm, a
 block standing on it) is photographed by a phone (69 deg, tangential and thin-prism lens
 terms, JPEG) and by a DSLR (38 deg, radial only, PNG), each from its own places round the
@@ -56,7 +56,7 @@ def phone_camera(seed: int, *, size_px=(1200, 900)):
     the centre by a few tenths of a percent, barrel k1, and the tangential and thin-prism
     terms of the size real phone photos show (``world/camera.phone_lens``); JPEG 95."""
     from vision_cal.world.camera import phone_lens
-    from vision_cal.world.table_world import TableCamera
+    from worlds.table_world import TableCamera
 
     rng = np.random.default_rng([int(seed), 3701])
     K, f = _lens_matrix(rng, size_px, 69.0, 0.03, 0.004)
@@ -69,7 +69,7 @@ def phone_camera(seed: int, *, size_px=(1200, 900)):
 def dslr_camera(seed: int, *, size_px=(1350, 900)):
     """A DSLR with a 35 mm lens on APS-C (about 38 deg across), barrel distortion only,
     its principal point near the centre, 3:2; PNG (a camera's raw converted)."""
-    from vision_cal.world.table_world import TableCamera
+    from worlds.table_world import TableCamera
 
     rng = np.random.default_rng([int(seed), 3702])
     K, _ = _lens_matrix(rng, size_px, 38.0, 0.02, 0.002)
@@ -119,7 +119,7 @@ def render(seed: int, n: int, root: Path, supersample: int) -> Path:
     """The seed's photos (``n`` per camera) and sheet.json under ``root/seed``."""
     import cv2
 
-    from vision_cal.world.table_world import table_world
+    from worlds.table_world import table_world
 
     base = root / str(seed)
     done = base / "done.json"

@@ -10,7 +10,9 @@ from functools import cache
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-TREES = ("vision_cal", "tests", "bench")
+TREES = ("vision_cal", "worlds", "tests", "bench")
+#: the packages whose imports are read: the installed one and the test and bench worlds
+PACKAGES = ("vision_cal", "worlds")
 
 #: (importer, module, name): private names another module still imports, each to be made
 #: public (none now: a new one is a name to make public, not to list here)
@@ -57,8 +59,9 @@ def _files() -> tuple[Path, ...]:
 
 @cache
 def _imports(files) -> tuple:
-    """(file, line, module, name) of each ``from vision_cal... import name`` in ``files``,
-    at any depth (inside functions too); name None for ``import vision_cal...``."""
+    """(file, line, module, name) of each ``from vision_cal... import name`` (or
+    ``worlds...``) in ``files``, at any depth (inside functions too); name None for
+    ``import vision_cal...``."""
     return tuple(_each_import(files))
 
 
@@ -67,12 +70,12 @@ def _each_import(files):
         rel = p.relative_to(ROOT).as_posix() if p.is_relative_to(ROOT) else str(p)
         for node in ast.walk(ast.parse(p.read_text())):
             if isinstance(node, ast.ImportFrom) and node.level == 0 and \
-                    (node.module or "").split(".")[0] == "vision_cal":
+                    (node.module or "").split(".")[0] in PACKAGES:
                 for a in node.names:
                     yield rel, node.lineno, node.module, a.name
             elif isinstance(node, ast.Import):
                 for a in node.names:
-                    if a.name.split(".")[0] == "vision_cal":
+                    if a.name.split(".")[0] in PACKAGES:
                         yield rel, node.lineno, a.name, None
 
 

@@ -1,6 +1,6 @@
 """The hand-eye of any arm from photos of a board and the robot's poses (issue 40): the
 closed form, the one least squares and its stds, and every refusal, on the six-axis world's
-projected corners (world/six_axis.py, its own arm and lens; no photos rendered here)."""
+projected corners (worlds/six_axis.py, its own arm and lens; no photos rendered here)."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from vision_cal.camera.handeye_stats import (_kinematic_low_rank, _low_rank, kin
 from vision_cal.camera.handeye_verdict import judge_handeye, lens_check
 from vision_cal.config import DEFAULT
 from vision_cal.errors import CalibrationError, VisionCalError
-from vision_cal.world.six_axis import Lens, make_world, observe, shots
+from worlds.six_axis import Lens, make_world, observe, shots
 
 #: a small lens: the corners' pixels are what matter here, not their count
 LENS = Lens(np.array([[900.0, 0.0, 322.0], [0.0, 900.0, 238.0], [0.0, 0.0, 1.0]]),

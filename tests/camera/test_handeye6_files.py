@@ -16,7 +16,7 @@ from vision_cal.camera.board import find_board, load_board
 from vision_cal.camera.robot_poses import pair_with_photos, read_robot_poses
 from vision_cal.commands.main import main
 from vision_cal.errors import VisionCalError
-from vision_cal.world.six_axis import Lens, make_world, photograph, pose_yaml, shots
+from worlds.six_axis import Lens, make_world, photograph, pose_yaml, shots
 from vision_cal.sheet.charuco import charuco_spec
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -1,7 +1,7 @@
 """A camera on any arm's flange used (issue 40): ``vision-cal locate`` at a flange pose (the
 pixel's ray on the board's plane or the robot's, its std from the calibration's covariance
 and the robot's pose error), ``valid_for.flange_poses``, and ``export --opencv --ros``; on
-the six-axis world's projected corners (world/six_axis.py; no photos rendered)."""
+the six-axis world's projected corners (worlds/six_axis.py; no photos rendered)."""
 
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ from vision_cal.camera.handeye_lsq import View, _small_T, compose, lens_vector
 from vision_cal.camera.handeye_verdict import judge_handeye, limited_by
 from vision_cal.commands.main import main
 from vision_cal.config import DEFAULT
-from vision_cal.world.six_axis import Lens, make_world, observe, pose_yaml, shots
+from worlds.six_axis import Lens, make_world, observe, pose_yaml, shots
 
 #: a small lens: the corners' pixels are what matter here, not their count
 LENS = Lens(np.array([[900.0, 0.0, 322.0], [0.0, 900.0, 238.0], [0.0, 0.0, 1.0]]),

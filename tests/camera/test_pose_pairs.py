@@ -1,4 +1,4 @@
-"""Hand-eye from pose pairs (issue 32): the world's pairs (world/pose_pairs.py, its own
+"""Hand-eye from pose pairs (issue 32): the world's pairs (worlds/pose_pairs.py, its own
 robot and camera code) fed to the estimator (camera/pose_pairs.py).
 
 Bounds: "within 2 std" (the issue's done-when) read jointly: the error of X's six
@@ -22,7 +22,7 @@ from vision_cal.camera.pose_pairs import (LABELS, PairsFailed, PosePair, closed_
 from vision_cal.dataset.calibration_result import METHODS_EXTRA, CalibrationResult
 from vision_cal.camera.poses_file import read_poses
 from vision_cal.errors import VisionCalError
-from vision_cal.world.pose_pairs import simulate_pairs
+from worlds.pose_pairs import simulate_pairs
 from vision_cal.world.truth_model import TrueRobot
 from vision_cal.schema import validate
 

@@ -1,7 +1,7 @@
 """``handeye --poses`` probed with pairs whose truth is known (issue 40): every case the issue
 names is refused or flagged with its cause, never "ready" (camera/pairs_checks.py).
 
-The pairs are the world's (world/pose_pairs.py: the true SM5, a camera on its flange over a
+The pairs are the world's (worlds/pose_pairs.py: the true SM5, a camera on its flange over a
 board, 0.1 px of corner noise solved by PnP), made once per module and then broken as a
 user's file would be. Pose pairs are numbers: no photos. The probes over many seeds, and
 the fit's cost up to 10,000 pairs: bench/handeye_pairs.py --probes --speed."""
@@ -21,7 +21,7 @@ from vision_cal.camera.pose_pairs import PairsFailed, PosePair, fit_pose_pairs
 from vision_cal.camera.poses_file import read_poses
 from vision_cal.errors import VisionCalError
 from vision_cal.world.arm_camera import T_flange_camera_true
-from vision_cal.world.pose_pairs import simulate_many_pairs, simulate_pairs
+from worlds.pose_pairs import simulate_many_pairs, simulate_pairs
 from vision_cal.world.truth_model import TrueRobot
 
 TRUTH = TrueRobot(344.05, 259.87, (-2.57, -8.13), (-424.26, -230.35))

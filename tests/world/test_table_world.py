@@ -1,4 +1,4 @@
-"""The world of a sheet on a table, an object on it, two cameras (world/table_world.py,
+"""The world of a sheet on a table, an object on it, two cameras (worlds/table_world.py,
 issue 37): its ray caster puts every printed corner where OpenCV's own projection of the
 raised, printed point puts it, and the block hides what is behind it. Small images."""
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from vision_cal.world.camera import camera_matrix, look_at, phone_lens
-from vision_cal.world.table_world import Box, TableCamera, _rays, table_world
+from worlds.table_world import Box, TableCamera, _rays, table_world
 
 SIZE = (480, 360)
 

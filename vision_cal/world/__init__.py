@@ -7,8 +7,8 @@ photographed, written as a dataset in the format's files (``docs/format.md``).
     sheet.py, printed.py, print_deviation.py, height.py (the sheet as printed and lying) ->
     camera.py, photo.py (pyrender and the lens) -> dataset.py (the folder and truth.json)
 
-beside it the arm's camera (arm_camera.py), pose pairs from a controller and a detector
-(pose_pairs.py), a six-axis arm (six_axis.py), a sheet on a table seen by two cameras
-(table_world.py) and the rehearsal of a robot program (rehearse.py). It imports nothing
-that estimates (``tests/test_architecture.py``): a convention error there would cancel
-between the data and the fit."""
+beside it the arm's camera (arm_camera.py) and the rehearsal of a robot program
+(rehearse.py). The worlds only tests and benches use (pose pairs, a six-axis arm, a sheet
+on a table seen by two cameras) are built on this one in the repository's ``worlds/``,
+not installed. It imports nothing that estimates (``tests/test_architecture.py``): a
+convention error there would cancel between the data and the fit."""
