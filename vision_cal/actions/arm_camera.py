@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.actions.console import say, verdict_lines
+from vision_cal.actions.console import say, verdict_and_written
 from vision_cal.camera.arm import (MIN_POSES, ArmView, check_declared_lens, estimate_lens,
                                    fit_arm_camera, lens_corners, without_misdetected)
 from vision_cal.camera.fixed import UNDETERMINED
@@ -43,7 +43,7 @@ from vision_cal.dataset.session import Session, load_arm_session
 from vision_cal.dataset.valid_for import build as valid_for_block
 from vision_cal.errors import CalibrationError, VisionCalError
 from vision_cal.estimate.plausible import RADIAN_RANGE, radians_given
-from vision_cal.estimate.verdict import Verdict, judge_camera_poses
+from vision_cal.estimate.verdict import judge_camera_poses
 from vision_cal.measure.cache import DetectionCache
 from vision_cal.measure.detect import detect_all
 from vision_cal.measure.listing import photos_to_measure
@@ -82,10 +82,7 @@ class ArmCameraOutcome:
                  flange_camera_line(cam)]
         lines += [f"joint {e['joint']} backlash {e['deg']:.4f} +- {e['std']:.4f} deg"
                   for e in doc["effects"]]
-        v = Verdict.from_json(doc["verdict"])
-        if v.floor_line:
-            lines.append(v.floor_line)
-        return lines + verdict_lines(v) + [f"wrote {self.path}"]
+        return lines + verdict_and_written(doc["verdict"], self.path)
 
     def show(self, quiet: bool = False) -> int:
         if not quiet:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import sys
 from typing import Iterable, Protocol
 
+from vision_cal.estimate.verdict import Verdict
 from vision_cal.report.summary import verdict_lines as _summary_verdict_lines
 
 
@@ -36,6 +37,13 @@ def warn(text: str) -> None:
 def error(text: str) -> None:
     """One error line on stderr (said even when quiet)."""
     print(f"vision-cal: error: {text}", file=sys.stderr)
+
+
+def verdict_and_written(doc_verdict: dict, path) -> list[str]:
+    """A camera calibration's closing lines: its verdict (calibration.json ``verdict``) with
+    the floor line first, then the file written."""
+    v = Verdict.from_json(doc_verdict)
+    return ([v.floor_line] if v.floor_line else []) + verdict_lines(v) + [f"wrote {path}"]
 
 
 def verdict_lines(v) -> list[str]:

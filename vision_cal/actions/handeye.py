@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vision_cal.actions.console import say, verdict_lines
+from vision_cal.actions.console import say, verdict_and_written
 from vision_cal.camera.pose_pairs import LABELS, PairsFit, fit_pose_pairs
 from vision_cal.config import DEFAULT, EstimatorConfig
 from vision_cal.dataset.calibration_result import CalibrationResult
@@ -65,10 +65,7 @@ class HandeyePairsOutcome:
                  f"{xname}: at {t[0]:.3f} {t[1]:.3f} {t[2]:.3f} mm (std "
                  + ", ".join("not identifiable" if v is None else f"{v:.3f}" for v in sd) + ")"]
         lines += [f"left out: {r}" for r in fit.outlier_reasons]
-        v = Verdict.from_json(self.document["verdict"])
-        if v.floor_line:
-            lines.append(v.floor_line)
-        return lines + verdict_lines(v) + [f"wrote {self.path}"]
+        return lines + verdict_and_written(self.document["verdict"], self.path)
 
     def show(self, quiet: bool = False) -> int:
         if not quiet:
