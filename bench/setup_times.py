@@ -66,8 +66,9 @@ def demo_sentence(demo: dict) -> str:
     """The README's sentence on what ``make demo`` costs, from the figures."""
     idle = demo["load_before"] < 1.0 and demo["load_after"] < 2.0
     lo, hi = sorted((demo["load_before"], demo["load_after"]))
+    load = f"{lo:.1f}" if round(lo, 1) == round(hi, 1) else f"{lo:.1f}-{hi:.1f}"
     where = ("on 2 idle cores" if idle else
-             f"on {os.cpu_count()} cores shared at load {lo:.0f}-{hi:.0f} (an upper bound)")
+             f"on {os.cpu_count()} cores shared at load {load} (an upper bound)")
     return (f"It takes {clock(demo['wall_s'])} {where}, creating `.venv` included (pip's "
             f"download cache filled; `docs/speed.json`, `bench/setup_times.py`).")
 
