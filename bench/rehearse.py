@@ -15,9 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import shlex
 import shutil
-import subprocess
 import sys
 from pathlib import Path
 
@@ -27,21 +25,7 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-
-def run(line: str, cwd: Path) -> None:
-    from vision_cal.commands.main import main
-
-    if line.startswith("vision-cal "):
-        old = os.getcwd()
-        os.chdir(cwd)
-        try:
-            rc = main(shlex.split(line)[1:] + ["-q"])
-        finally:
-            os.chdir(old)
-        if rc != 0:
-            raise SystemExit(f"{line}: exit {rc}")
-    else:
-        subprocess.run(line, shell=True, cwd=cwd, check=True)
+from tests.readme import type_line  # noqa: E402  (the README's lines, typed as the tests type them)
 
 
 def main() -> None:
@@ -57,7 +41,7 @@ def main() -> None:
         shutil.rmtree(d, ignore_errors=True)
         d.mkdir(parents=True)
         for line in readme_commands():
-            run(line, d)
+            type_line(line, d)
             if line.endswith("-o true_robot.yaml"):
                 sim = yaml.safe_load((d / "true_robot.yaml").read_text())
                 sim["seed"] = seed
@@ -94,7 +78,7 @@ def main() -> None:
                          f"cal/calibration.json --iso9283 10 --out {tag}/",
                          f"vision-cal simulate {tag}/ --truth {tag}.yaml --out {tag}/",
                          f"vision-cal verify cal/calibration.json {tag}/"):
-                run(line, d)
+                type_line(line, d)
             v = json.loads((d / f"{tag}_verify" / "verify.json").read_text())
             c = v["changes"]["z2_deg"]
             iso = v.get("iso9283") or {}
